@@ -1,0 +1,208 @@
+"""The operator's TOML configuration, read into typed settings.
+
+A wrong key on launch day must fail loudly and name itself, so every table is checked against
+the fields of its dataclass: unknown keys, wrong types and bad values raise ``ConfigError``
+with the dotted key (``capsule[1].port``) in the message.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import re
+import tomllib
+import types
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from drs_link.errors import ConfigError
+
+DEFAULT_CONFIG_PATH = Path("~/.config/drs/drs.toml")
+CAPSULE_NAME_RE = re.compile(r"^[A-Za-z0-9_-]{1,32}$")
+IMEI_RE = re.compile(r"^\d{15}$")
+
+
+@dataclass(frozen=True)
+class OperatorConfig:
+    name: str = ""
+
+
+@dataclass(frozen=True)
+class DataConfig:
+    dir: Path = Path("~/.local/share/drs")
+
+
+@dataclass(frozen=True)
+class RockblockConfig:
+    mt_url: str = "https://rockblock.rock7.com/rockblock/MT"
+    username: str = ""
+    password_env: str = "DRS_ROCKBLOCK_PASSWORD"
+    keyring_service: str = ""
+    timeout_s: float = 20.0
+
+
+@dataclass(frozen=True)
+class MoConfig:
+    """The webhook receiver for Mobile Originated reports (`drs mo serve`)."""
+
+    listen_host: str = "127.0.0.1"
+    listen_port: int = 8088
+    path: str = "/rockblock/mo"
+    jwt_public_key_file: Path | None = None
+    require_jwt: bool = False
+    max_body_bytes: int = 16384
+
+
+@dataclass(frozen=True)
+class CapsuleConfig:
+    name: str
+    host: str
+    port: int = 22
+    user: str = "pi"
+    identity_file: Path | None = None
+    known_hosts: Path = Path("~/.config/drs/known_hosts")
+    jump_host: str | None = None
+    tools_dir: str = "/home/pi/DRS_Python_Tools"
+    python: str = "python"
+    storage_mount: str = "/mnt/raid1"
+    raid_device: str = "/dev/md0"
+    serial_device: str = "/dev/ttyS0"
+    backend: str = "stock"
+    rockblock_serial: int | None = None
+    imei: str | None = None
+    payload: str = "drs"
+    connect_timeout_s: float = 10.0
+    command_timeout_s: float = 60.0
+
+
+@dataclass(frozen=True)
+class Config:
+    operator: OperatorConfig = field(default_factory=OperatorConfig)
+    data: DataConfig = field(default_factory=DataConfig)
+    rockblock: RockblockConfig = field(default_factory=RockblockConfig)
+    mo: MoConfig = field(default_factory=MoConfig)
+    capsules: tuple[CapsuleConfig, ...] = ()
+    source: Path | None = None
+
+    def capsule(self, name: str) -> CapsuleConfig:
+        for capsule in self.capsules:
+            if capsule.name == name:
+                return capsule
+        known = ", ".join(c.name for c in self.capsules) or "none configured"
+        raise ConfigError(f"no capsule named {name!r} in the configuration (known: {known})")
+
+    @property
+    def store_path(self) -> Path:
+        return self.data.dir / "drs.sqlite"
+
+
+def _expand(path: Path) -> Path:
+    return Path(os.path.expandvars(str(path))).expanduser()
+
+
+def _coerce(key: str, annotation: Any, value: Any) -> Any:
+    """Check one TOML value against a field's type; paths are expanded, ints may become floats."""
+    origin = typing.get_origin(annotation)
+    if origin in (typing.Union, types.UnionType):
+        options = [a for a in typing.get_args(annotation) if a is not type(None)]
+        return _coerce(key, options[0], value)
+    if annotation is Path:
+        if not isinstance(value, str) or not value:
+            raise ConfigError(f"{key}: expected a path (a non-empty string), got {value!r}")
+        return _expand(Path(value))
+    if annotation is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{key}: expected true or false, got {value!r}")
+        return value
+    if annotation is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{key}: expected a whole number, got {value!r}")
+        return value
+    if annotation is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ConfigError(f"{key}: expected a number, got {value!r}")
+        return float(value)
+    if annotation is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{key}: expected a string, got {value!r}")
+        return value
+    raise TypeError(f"unsupported config field type {annotation!r}")
+
+
+def _build(cls: type, table: Any, prefix: str) -> Any:
+    if not isinstance(table, dict):
+        raise ConfigError(f"{prefix}: expected a table, got {table!r}")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(table) - set(fields))
+    if unknown:
+        allowed = ", ".join(sorted(fields))
+        raise ConfigError(f"{prefix}.{unknown[0]}: unknown key (allowed in [{prefix}]: {allowed})")
+    kwargs = {}
+    for name, f in fields.items():
+        if name in table:
+            kwargs[name] = _coerce(f"{prefix}.{name}", hints[name], table[name])
+        elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+            raise ConfigError(f"{prefix}.{name}: required key is missing")
+    return cls(**kwargs)
+
+
+def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
+    if not CAPSULE_NAME_RE.match(capsule.name):
+        raise ConfigError(f"{key}.name: {capsule.name!r} must be 1-32 letters, digits, '-' or '_'")
+    if not 1 <= capsule.port <= 65535:
+        raise ConfigError(f"{key}.port: {capsule.port} is not a TCP port (1-65535)")
+    if capsule.backend not in ("stock", "agent"):
+        raise ConfigError(f"{key}.backend: {capsule.backend!r} is not one of 'stock', 'agent'")
+    if capsule.imei is not None and not IMEI_RE.match(capsule.imei):
+        raise ConfigError(f"{key}.imei: {capsule.imei!r} must be the modem's 15-digit IMEI")
+    if capsule.rockblock_serial is not None and not 0 < capsule.rockblock_serial <= 9_999_999:
+        raise ConfigError(f"{key}.rockblock_serial: {capsule.rockblock_serial} must be 1-9999999")
+    for name in ("connect_timeout_s", "command_timeout_s"):
+        if getattr(capsule, name) <= 0:
+            raise ConfigError(f"{key}.{name}: must be positive")
+
+
+def parse_config(document: dict[str, Any], source: Path | None = None) -> Config:
+    """Build a ``Config`` from an already-parsed TOML document."""
+    sections = {"operator": OperatorConfig, "data": DataConfig, "rockblock": RockblockConfig, "mo": MoConfig}
+    unknown = sorted(set(document) - set(sections) - {"capsule"})
+    if unknown:
+        allowed = ", ".join(sorted([*sections, "capsule"]))
+        raise ConfigError(f"{unknown[0]}: unknown section (allowed: {allowed})")
+    kwargs: dict[str, Any] = {
+        name: _build(cls, document[name], name) for name, cls in sections.items() if name in document
+    }
+    raw_capsules = document.get("capsule", [])
+    if not isinstance(raw_capsules, list):
+        raise ConfigError("capsule: write each capsule as a [[capsule]] table")
+    capsules = []
+    for index, table in enumerate(raw_capsules):
+        key = f"capsule[{index}]"
+        capsule = _build(CapsuleConfig, table, key)
+        _check_capsule(capsule, key)
+        capsules.append(capsule)
+    names = [c.name for c in capsules]
+    duplicates = sorted({n for n in names if names.count(n) > 1})
+    if duplicates:
+        raise ConfigError(f"capsule.name: {duplicates[0]!r} is used by more than one capsule")
+    return Config(**kwargs, capsules=tuple(capsules), source=source)
+
+
+def load_config(path: str | Path | None = None) -> Config:
+    """Read the configuration file; a missing default file gives the defaults with no capsules."""
+    explicit = path is not None
+    resolved = _expand(Path(path) if explicit else DEFAULT_CONFIG_PATH)
+    if not resolved.exists():
+        if explicit:
+            raise ConfigError(f"configuration file {resolved} does not exist")
+        return Config()
+    try:
+        document = tomllib.loads(resolved.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{resolved}: not valid TOML: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{resolved}: cannot read: {exc}") from None
+    return parse_config(document, source=resolved)

@@ -1,0 +1,198 @@
+"""The durable store: one SQLite file holding the audit log and every service's state.
+
+Nothing shown to an operator as done may be lost by a crash, so the database runs in WAL
+mode with ``synchronous=FULL`` and every write commits before it returns. Each thread gets
+its own connection (console workers, the webhook server and the CLI share one file). Services
+own their tables: they call ``ensure_schema`` with their DDL instead of editing this module.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from drs_link.errors import StoreError
+
+_AUDIT_DDL = """
+CREATE TABLE IF NOT EXISTS audit (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    time_utc TEXT NOT NULL,
+    operator TEXT NOT NULL,
+    capsule TEXT,
+    action TEXT NOT NULL,
+    result TEXT NOT NULL,
+    detail TEXT
+);
+CREATE INDEX IF NOT EXISTS audit_capsule_time ON audit (capsule, time_utc);
+"""
+
+
+def utc_now() -> datetime:
+    return datetime.now(UTC)
+
+
+def iso_utc(moment: datetime) -> str:
+    """ISO 8601 UTC with a ``Z``, the one time format of the store and every output."""
+    if moment.tzinfo is None:
+        raise ValueError("naive datetime: every time in the store is UTC and must say so")
+    return moment.astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def parse_iso_utc(text: str) -> datetime:
+    return datetime.fromisoformat(text.replace("Z", "+00:00")).astimezone(UTC)
+
+
+@dataclass(frozen=True)
+class AuditRecord:
+    id: int
+    time_utc: datetime
+    operator: str
+    capsule: str | None
+    action: str
+    result: str
+    detail: dict[str, Any] | None
+
+
+class Store:
+    """A SQLite database file shared by threads and processes."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self._local = threading.local()
+        self._schemas: list[str] = []
+        self._schema_lock = threading.Lock()
+
+    @classmethod
+    def open(cls, path: str | Path) -> Store:
+        path = Path(path).expanduser()
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise StoreError(f"cannot create the data directory {path.parent}: {exc}") from None
+        store = cls(path)
+        store.ensure_schema(_AUDIT_DDL)
+        return store
+
+    def _connect(self) -> sqlite3.Connection:
+        try:
+            conn = sqlite3.connect(self.path, timeout=30.0, isolation_level=None, check_same_thread=True)
+            conn.row_factory = sqlite3.Row
+            conn.execute("PRAGMA journal_mode=WAL")
+            conn.execute("PRAGMA synchronous=FULL")
+            conn.execute("PRAGMA foreign_keys=ON")
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot open the store {self.path}: {exc}") from None
+        for ddl in self._schemas:
+            conn.executescript(ddl)
+        return conn
+
+    @property
+    def conn(self) -> sqlite3.Connection:
+        conn = getattr(self._local, "conn", None)
+        if conn is None:
+            conn = self._connect()
+            self._local.conn = conn
+        return conn
+
+    def ensure_schema(self, ddl: str) -> None:
+        """Create a service's tables (idempotent ``CREATE ... IF NOT EXISTS`` statements)."""
+        with self._schema_lock:
+            if ddl in self._schemas:
+                return
+            self._schemas.append(ddl)
+        try:
+            self.conn.executescript(ddl)
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot create tables in {self.path}: {exc}") from None
+
+    @contextmanager
+    def transaction(self) -> Iterator[sqlite3.Connection]:
+        """One atomic, durable write: committed (and fsynced) when the block ends without error."""
+        conn = self.conn
+        try:
+            conn.execute("BEGIN IMMEDIATE")
+        except sqlite3.Error as exc:
+            raise StoreError(f"the store {self.path} cannot be written: {exc}") from None
+        try:
+            yield conn
+        except BaseException:
+            conn.execute("ROLLBACK")
+            raise
+        try:
+            conn.execute("COMMIT")
+        except sqlite3.Error as exc:
+            conn.execute("ROLLBACK")
+            raise StoreError(f"the store {self.path} cannot be written: {exc}") from None
+
+    def write(self, sql: str, params: tuple[Any, ...] | dict[str, Any] = ()) -> int:
+        """Run one statement in its own durable transaction; returns the row id it wrote."""
+        try:
+            with self.transaction() as conn:
+                return int(conn.execute(sql, params).lastrowid or 0)
+        except sqlite3.Error as exc:
+            raise StoreError(f"the store {self.path} cannot be written: {exc}") from None
+
+    def query(self, sql: str, params: tuple[Any, ...] | dict[str, Any] = ()) -> list[sqlite3.Row]:
+        try:
+            return self.conn.execute(sql, params).fetchall()
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot read the store {self.path}: {exc}") from None
+
+    def append_audit(
+        self,
+        operator: str,
+        capsule: str | None,
+        action: str,
+        result: str,
+        detail: dict[str, Any] | None = None,
+        when: datetime | None = None,
+    ) -> AuditRecord:
+        """Record one step durably; only after this returns may anyone be told it happened."""
+        moment = when or utc_now()
+        detail_json = json.dumps(detail, sort_keys=True, default=str) if detail is not None else None
+        row_id = self.write(
+            "INSERT INTO audit (time_utc, operator, capsule, action, result, detail) VALUES (?, ?, ?, ?, ?, ?)",
+            (iso_utc(moment), operator, capsule, action, result, detail_json),
+        )
+        return AuditRecord(row_id, moment, operator, capsule, action, result, detail)
+
+    def audit(
+        self, capsule: str | None = None, text: str | None = None, limit: int | None = None
+    ) -> list[AuditRecord]:
+        """Audit records oldest first, optionally for one capsule and containing ``text``."""
+        clauses, params = [], []
+        if capsule is not None:
+            clauses.append("capsule = ?")
+            params.append(capsule)
+        if text:
+            clauses.append("(action || ' ' || result || ' ' || COALESCE(detail, '') || ' ' || operator) LIKE ?")
+            params.append(f"%{text}%")
+        where = f"WHERE {' AND '.join(clauses)}" if clauses else ""
+        sql = f"SELECT * FROM audit {where} ORDER BY id"
+        if limit is not None:
+            sql = f"SELECT * FROM ({sql.replace('ORDER BY id', 'ORDER BY id DESC')} LIMIT {int(limit)}) ORDER BY id"
+        return [
+            AuditRecord(
+                row["id"],
+                parse_iso_utc(row["time_utc"]),
+                row["operator"],
+                row["capsule"],
+                row["action"],
+                row["result"],
+                json.loads(row["detail"]) if row["detail"] else None,
+            )
+            for row in self.query(sql, tuple(params))
+        ]
+
+    def close(self) -> None:
+        conn = getattr(self._local, "conn", None)
+        if conn is not None:
+            conn.close()
+            self._local.conn = None

@@ -1,0 +1,1 @@
+"""Where a capsule will land and how sure we are: weather, terrain, descent physics, uncertainty."""

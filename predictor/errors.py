@@ -1,0 +1,17 @@
+"""Errors the predictor reports to an operator: each one says what is wrong and what to do."""
+
+
+class PredictorError(Exception):
+    """Base of every predictor error meant for an operator (printed as one line, no traceback)."""
+
+
+class WeatherError(PredictorError):
+    """The weather files cannot answer the question (missing, corrupt, out of range)."""
+
+
+class TerrainError(PredictorError):
+    """A terrain source is unreadable or malformed."""
+
+
+class OutOfCoverageError(WeatherError):
+    """A descent path or release point leaves the region or time span the weather covers."""

@@ -1,0 +1,18 @@
+"""Fixtures shared by every test package: where the real measured data live."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+SHARED_DATA = REPO_ROOT.parent / "shared" / "data"
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """../shared/data beside the checkout (tests only; the product never reads it)."""
+    if not SHARED_DATA.is_dir():
+        pytest.fail(f"the real test data are missing: expected {SHARED_DATA}")
+    return SHARED_DATA
