@@ -17,6 +17,9 @@ from predictor.errors import PredictorError
 
 COMMAND_MODULES: tuple[str, ...] = (
     "predictor.cli",
+    "predictor.calibration.cli",
+    "drs_link.cli",
+    "drs_link.iridium.cli",
 )
 
 OPERATOR_ERRORS = (PredictorError, LinkError)

@@ -8,6 +8,7 @@ with the dotted key (``capsule[1].port``) in the message.
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import re
 import tomllib
@@ -66,6 +67,7 @@ class CapsuleConfig:
     jump_host: str | None = None
     tools_dir: str = "/home/pi/DRS_Python_Tools"
     python: str = "python"
+    agent_python: str = "python3"
     storage_mount: str = "/mnt/raid1"
     raid_device: str = "/dev/md0"
     serial_device: str = "/dev/ttyS0"
@@ -75,6 +77,8 @@ class CapsuleConfig:
     payload: str = "drs"
     connect_timeout_s: float = 10.0
     command_timeout_s: float = 60.0
+    microcontroller_wait_s: float = 25.0
+    authority_lease_s: float = 1800.0
 
 
 @dataclass(frozen=True)
@@ -123,6 +127,8 @@ def _coerce(key: str, annotation: Any, value: Any) -> Any:
     if annotation is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ConfigError(f"{key}: expected a number, got {value!r}")
+        if not math.isfinite(value):
+            raise ConfigError(f"{key}: expected a finite number, got {value!r}")
         return float(value)
     if annotation is str:
         if not isinstance(value, str):
@@ -152,6 +158,16 @@ def _build(cls: type, table: Any, prefix: str) -> Any:
 def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
     if not CAPSULE_NAME_RE.match(capsule.name):
         raise ConfigError(f"{key}.name: {capsule.name!r} must be 1-32 letters, digits, '-' or '_'")
+    if not capsule.host or any(c.isspace() for c in capsule.host):
+        raise ConfigError(f"{key}.host: {capsule.host!r} must be a host name or address without spaces")
+    if not capsule.user or any(c.isspace() for c in capsule.user):
+        raise ConfigError(f"{key}.user: {capsule.user!r} must be a login name without spaces")
+    for name in ("tools_dir", "storage_mount", "raid_device", "serial_device"):
+        if not getattr(capsule, name).startswith("/"):
+            raise ConfigError(f"{key}.{name}: {getattr(capsule, name)!r} must be an absolute path on the Pi")
+    for name in ("python", "agent_python"):
+        if not getattr(capsule, name).strip():
+            raise ConfigError(f"{key}.{name}: must name a Python interpreter on the Pi")
     if not 1 <= capsule.port <= 65535:
         raise ConfigError(f"{key}.port: {capsule.port} is not a TCP port (1-65535)")
     if capsule.backend not in ("stock", "agent"):
@@ -160,7 +176,7 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
         raise ConfigError(f"{key}.imei: {capsule.imei!r} must be the modem's 15-digit IMEI")
     if capsule.rockblock_serial is not None and not 0 < capsule.rockblock_serial <= 9_999_999:
         raise ConfigError(f"{key}.rockblock_serial: {capsule.rockblock_serial} must be 1-9999999")
-    for name in ("connect_timeout_s", "command_timeout_s"):
+    for name in ("connect_timeout_s", "command_timeout_s", "microcontroller_wait_s", "authority_lease_s"):
         if getattr(capsule, name) <= 0:
             raise ConfigError(f"{key}.{name}: must be positive")
 

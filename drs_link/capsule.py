@@ -1,0 +1,389 @@
+"""The two-step release of one capsule as a durable state machine that never skips a step.
+
+Go is the one irreversible command, so its preconditions live here, below any UI: power-on must
+have succeeded in the current session, NMEA must have been seen since (the microcontroller is
+only listening for Go while it echoes NMEA), and the caller must present a fresh confirmation
+token minted by an explicit confirmation that names this capsule. State lives in the store, so a
+CLI ``go`` after a CLI ``power-on`` works and a restarted console resumes; every step is audited
+before it is reported as done.
+"""
+
+from __future__ import annotations
+
+import re
+import secrets
+import socket
+import sqlite3
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from datetime import datetime
+from enum import StrEnum
+
+from drs_link.backends import CapsuleBackend, GoResult
+from drs_link.config import CapsuleConfig
+from drs_link.errors import LinkError, RefusedError
+from drs_link.nmea import GnssStatus, summarise
+from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
+
+TOKEN_TTL_S = 60.0
+SEEN_NMEA_POLL_S = 1.0
+
+_DDL = """
+CREATE TABLE IF NOT EXISTS release_state (
+    capsule TEXT PRIMARY KEY,
+    state TEXT NOT NULL,
+    session TEXT,
+    holder TEXT,
+    log_offset INTEGER NOT NULL DEFAULT 0,
+    powered_at TEXT,
+    nmea_seen_at TEXT,
+    go_at TEXT,
+    released_at TEXT,
+    note TEXT,
+    updated_at TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS release_tokens (
+    token TEXT PRIMARY KEY,
+    capsule TEXT NOT NULL,
+    session TEXT NOT NULL,
+    minted_at TEXT NOT NULL,
+    used_at TEXT
+);
+"""
+
+SILENT_MICROCONTROLLER_CHECKS = (
+    "no NMEA from the microcontroller since power-on; check: "
+    "(1) the two 9 V batteries are fitted and fresh; "
+    "(2) the relay latched (press ON with the Pi powered, or run power-on again); "
+    "(3) it may still be booting (10 s wait plus ~13 s GNSS set-up); "
+    "(4) the unit may be in Gone mode after an earlier drop, where it never talks to the Pi: "
+    "clear it with the four-button reset (hold OPEN_A+CLOSE_A+OPEN_B+CLOSE_B, press RESET, "
+    "hold until the LED is green)"
+)
+
+
+class ReleaseState(StrEnum):
+    IDLE = "idle"
+    POWERED = "powered"
+    GO_SENT = "go-sent-unverified"
+    RELEASED = "released"
+
+
+@dataclass(frozen=True)
+class ReleaseRecord:
+    capsule: str
+    state: ReleaseState
+    session: str | None
+    holder: str | None
+    log_offset: int
+    powered_at: datetime | None
+    nmea_seen_at: datetime | None
+    go_at: datetime | None
+    released_at: datetime | None
+    note: str | None
+
+
+@dataclass(frozen=True)
+class ConfirmationToken:
+    """Proof that an operator named this capsule just now; only the store can vouch for it."""
+
+    value: str
+    capsule: str
+    minted_at: datetime
+
+
+@dataclass(frozen=True)
+class MicrocontrollerReport:
+    """Whether the microcontroller is waiting for Go, and if not, what to check."""
+
+    waiting_for_go: bool
+    seconds_since_power_on: float | None
+    gnss: GnssStatus
+    diagnosis: str
+
+
+def default_holder(operator: str) -> str:
+    """Who holds release authority on the Pi: operator and machine, in the lock file's alphabet."""
+    raw = f"{operator or 'operator'}@{socket.gethostname()}"
+    return re.sub(r"[^A-Za-z0-9@._:+-]", "_", raw)[:96]
+
+
+def _time(text: str | None) -> datetime | None:
+    return parse_iso_utc(text) if text else None
+
+
+class ReleaseStateMachine:
+    def __init__(
+        self,
+        store: Store,
+        capsule: CapsuleConfig,
+        backend: CapsuleBackend,
+        operator: str,
+        clock: Callable[[], datetime] = utc_now,
+        sleep: Callable[[float], None] | None = None,
+        token_ttl_s: float = TOKEN_TTL_S,
+        holder: str | None = None,
+    ) -> None:
+        self.store = store
+        self.capsule = capsule
+        self.backend = backend
+        self.operator = operator or "unknown"
+        self.clock = clock
+        self.sleep = sleep or time.sleep
+        self.token_ttl_s = token_ttl_s
+        self.holder = holder or default_holder(self.operator)
+        store.ensure_schema(_DDL)
+
+    @property
+    def name(self) -> str:
+        return self.capsule.name
+
+    def record(self) -> ReleaseRecord:
+        rows = self.store.query("SELECT * FROM release_state WHERE capsule = ?", (self.name,))
+        if not rows:
+            return ReleaseRecord(self.name, ReleaseState.IDLE, None, None, 0, None, None, None, None, None)
+        row = rows[0]
+        return ReleaseRecord(
+            capsule=self.name,
+            state=ReleaseState(row["state"]),
+            session=row["session"],
+            holder=row["holder"],
+            log_offset=row["log_offset"],
+            powered_at=_time(row["powered_at"]),
+            nmea_seen_at=_time(row["nmea_seen_at"]),
+            go_at=_time(row["go_at"]),
+            released_at=_time(row["released_at"]),
+            note=row["note"],
+        )
+
+    def _save(self, conn: sqlite3.Connection, record: ReleaseRecord) -> None:
+        def iso(moment: datetime | None) -> str | None:
+            return iso_utc(moment) if moment else None
+
+        conn.execute(
+            "INSERT OR REPLACE INTO release_state (capsule, state, session, holder, log_offset, powered_at,"
+            " nmea_seen_at, go_at, released_at, note, updated_at) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
+            (
+                record.capsule,
+                record.state.value,
+                record.session,
+                record.holder,
+                record.log_offset,
+                iso(record.powered_at),
+                iso(record.nmea_seen_at),
+                iso(record.go_at),
+                iso(record.released_at),
+                record.note,
+                iso_utc(self.clock()),
+            ),
+        )
+
+    def _audit(self, action: str, result: str, detail: dict[str, object] | None = None) -> None:
+        self.store.append_audit(self.operator, self.name, action, result, detail, when=self.clock())
+
+    def _refuse(self, action: str, reason: str) -> RefusedError:
+        self._audit(action, "refused", {"reason": reason})
+        return RefusedError(f"{self.name}: {action} refused: {reason}")
+
+    # Power-on ---------------------------------------------------------------------------------
+
+    def power_on(self, confirmed: bool) -> ReleaseRecord:
+        """Pulse the latching relay; software cannot switch it off again, hence the confirmation."""
+        current = self.record()
+        if not confirmed:
+            raise self._refuse("power-on", "not confirmed (the relay cannot be switched off by software)")
+        if current.state in (ReleaseState.RELEASED, ReleaseState.GO_SENT):
+            raise self._refuse(
+                "power-on", f"capsule is {current.state.value}; reset it after recovery before a new release"
+            )
+        self._audit("power-on", "started", {"holder": self.holder})
+        try:
+            result = self.backend.power_on(self.holder, self.capsule.authority_lease_s)
+        except RefusedError as exc:
+            self._audit("power-on", "refused", {"reason": str(exc)})
+            raise
+        except LinkError as exc:
+            self._audit("power-on", "failed", {"error": str(exc)})
+            raise
+        now = self.clock()
+        record = ReleaseRecord(
+            self.name,
+            ReleaseState.POWERED,
+            secrets.token_hex(8),
+            self.holder,
+            result.log_offset,
+            now,
+            None,
+            None,
+            None,
+            None,
+        )
+        with self.store.transaction() as conn:
+            self._save(conn, record)
+        self._audit("power-on", "ok", {"session": record.session, "log_offset": result.log_offset})
+        return record
+
+    # Microcontroller and GNSS -------------------------------------------------------------------
+
+    def check_microcontroller(self) -> MicrocontrollerReport:
+        """Read the serial log once and say whether the microcontroller is waiting for Go."""
+        record = self.record()
+        if record.state is not ReleaseState.POWERED:
+            return MicrocontrollerReport(
+                False,
+                None,
+                summarise([], self.clock()),
+                f"capsule is {record.state.value}: no power-on session",
+            )
+        lines = self.backend.read_serial(record.log_offset)
+        now = self.clock()
+        gnss = summarise(lines, now)
+        elapsed = (now - record.powered_at).total_seconds() if record.powered_at else None
+        if gnss.nmea_seen:
+            if record.nmea_seen_at is None:
+                with self.store.transaction() as conn:
+                    self._save(conn, replace(record, nmea_seen_at=now))
+                self._audit("microcontroller", "waiting for Go", {"gnss": gnss.as_dict()})
+            return MicrocontrollerReport(
+                True, elapsed, gnss, "NMEA arriving: the microcontroller is waiting for Go"
+            )
+        if elapsed is not None and elapsed < self.capsule.microcontroller_wait_s:
+            return MicrocontrollerReport(
+                False,
+                elapsed,
+                gnss,
+                f"no NMEA yet, {elapsed:.0f} s after power-on: still booting (allow ~25 s)",
+            )
+        return MicrocontrollerReport(False, elapsed, gnss, SILENT_MICROCONTROLLER_CHECKS)
+
+    def wait_for_microcontroller(self) -> MicrocontrollerReport:
+        """Poll the log until NMEA arrives or ``microcontroller_wait_s`` after power-on has passed."""
+        while True:
+            report = self.check_microcontroller()
+            if report.waiting_for_go:
+                return report
+            if report.seconds_since_power_on is None or report.diagnosis == SILENT_MICROCONTROLLER_CHECKS:
+                if report.seconds_since_power_on is not None:
+                    self._audit("microcontroller", "silent", {"diagnosis": report.diagnosis})
+                return report
+            self.sleep(SEEN_NMEA_POLL_S)
+
+    # Confirmation and Go ----------------------------------------------------------------------
+
+    def confirm(self, typed_name: str) -> ConfirmationToken:
+        """Mint a Go token; the operator must type this capsule's name, not click through."""
+        record = self.record()
+        if typed_name != self.name:
+            raise self._refuse(
+                "go-confirmation", f"the confirmation {typed_name!r} does not name {self.name!r}"
+            )
+        if record.state is ReleaseState.RELEASED:
+            raise self._refuse("go-confirmation", "the capsule is already released")
+        if record.state not in (ReleaseState.POWERED, ReleaseState.GO_SENT) or record.session is None:
+            raise self._refuse("go-confirmation", "power-on has not succeeded in this session")
+        now = self.clock()
+        token = ConfirmationToken(secrets.token_urlsafe(16), self.name, now)
+        self.store.write(
+            "INSERT INTO release_tokens (token, capsule, session, minted_at) VALUES (?, ?, ?, ?)",
+            (token.value, self.name, record.session, iso_utc(now)),
+        )
+        self._audit("go-confirmation", "minted", {"session": record.session})
+        return token
+
+    def _check_go(self, token: ConfirmationToken) -> ReleaseRecord:
+        record = self.record()
+        if record.state is ReleaseState.RELEASED:
+            raise self._refuse("go", "the capsule is already released")
+        if record.state not in (ReleaseState.POWERED, ReleaseState.GO_SENT) or record.session is None:
+            raise self._refuse("go", "power-on has not succeeded in this session")
+        rows = self.store.query(
+            "SELECT * FROM release_tokens WHERE token = ? AND capsule = ?", (token.value, self.name)
+        )
+        if not rows:
+            raise self._refuse("go", "the confirmation token was not minted for this capsule")
+        row = rows[0]
+        if row["session"] != record.session:
+            raise self._refuse("go", "the confirmation token belongs to an earlier power-on session")
+        if row["used_at"] is not None:
+            raise self._refuse("go", "the confirmation token was already used")
+        age = (self.clock() - parse_iso_utc(row["minted_at"])).total_seconds()
+        if not 0 <= age <= self.token_ttl_s:
+            raise self._refuse("go", f"the confirmation is {age:.0f} s old (limit {self.token_ttl_s:.0f} s)")
+        if record.nmea_seen_at is None:
+            raise self._refuse(
+                "go", "no NMEA seen since power-on, so the microcontroller is not known to be waiting for Go"
+            )
+        return record
+
+    def go(self, token: ConfirmationToken) -> ReleaseRecord:
+        """Send Go once; the link dropping right after ``Shutting down...`` is the expected success."""
+        record = self._check_go(token)
+        now = self.clock()
+        sending = replace(record, state=ReleaseState.GO_SENT, go_at=now, note="Go sent, not yet confirmed")
+        with self.store.transaction() as conn:
+            conn.execute("UPDATE release_tokens SET used_at = ? WHERE token = ?", (iso_utc(now), token.value))
+            self._save(conn, sending)
+        self._audit("go", "sending", {"session": record.session})
+        try:
+            result = self.backend.go(self.holder)
+        except RefusedError as exc:
+            with self.store.transaction() as conn:
+                self._save(conn, record)
+            self._audit("go", "refused", {"reason": str(exc)})
+            raise
+        except LinkError as exc:
+            self._audit("go", "unverified", {"error": str(exc)})
+            raise LinkError(
+                f"{self.name}: Go may or may not have reached the Pi ({exc}); check the capsule, "
+                "a repeated Go is harmless to the firmware"
+            ) from None
+        return self._conclude(sending, result)
+
+    def _conclude(self, sending: ReleaseRecord, result: GoResult) -> ReleaseRecord:
+        detail = {
+            "exit_status": result.exit_status,
+            "link_dropped": result.link_dropped,
+            "firmware_acknowledged": result.acknowledged,
+        }
+        if result.go_written and result.shutting_down:
+            note = "released, Pi shut down" if result.link_dropped else "released, Pi shutting down"
+        elif result.go_written:
+            note = "released, Pi shutdown not seen"
+        else:
+            self._audit("go", "unverified", {**detail, "output_tail": result.output[-400:]})
+            how = "the link dropped" if result.link_dropped else "the Go script ended"
+            raise LinkError(
+                f"{self.name}: {how} before confirming that GoGoGo was written; Go may or may not have "
+                "reached the capsule (check it; a repeated Go is harmless to the firmware)"
+            )
+        released = replace(sending, state=ReleaseState.RELEASED, released_at=self.clock(), note=note)
+        with self.store.transaction() as conn:
+            self._save(conn, released)
+        self._audit("go", note, detail)
+        return released
+
+    def reset(self, typed_name: str) -> ReleaseRecord:
+        """After recovery (Gone flag cleared on the unit), allow a new release of this capsule."""
+        if typed_name != self.name:
+            raise self._refuse("reset", f"the confirmation {typed_name!r} does not name {self.name!r}")
+        record = ReleaseRecord(self.name, ReleaseState.IDLE, None, None, 0, None, None, None, None, "reset")
+        with self.store.transaction() as conn:
+            self._save(conn, record)
+        self._audit("reset", "ok")
+        return record
+
+
+def record_as_dict(record: ReleaseRecord) -> dict[str, object]:
+    def iso(moment: datetime | None) -> str | None:
+        return iso_utc(moment) if moment else None
+
+    return {
+        "capsule": record.capsule,
+        "state": record.state.value,
+        "powered_at": iso(record.powered_at),
+        "nmea_seen_at": iso(record.nmea_seen_at),
+        "go_at": iso(record.go_at),
+        "released_at": iso(record.released_at),
+        "note": record.note,
+    }

@@ -1,0 +1,298 @@
+"""``drs capsule …`` and ``drs sync``: the release steps and the data upload, scriptable for checklists.
+
+Every refusal and failure is a ``LinkError`` that ``console.cli`` prints as one line with a
+non-zero exit; the state machine audits each step before this module reports it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
+
+from drs_link.backends.agent import AgentBackend
+from drs_link.backends.stock import StockBackend
+from drs_link.bench import run_bench
+from drs_link.capsule import ReleaseState, ReleaseStateMachine, record_as_dict
+from drs_link.config import CapsuleConfig, Config, load_config
+from drs_link.errors import ConfigError, LinkError, RefusedError
+from drs_link.ssh import (
+    CapsuleLink,
+    HostKeyError,
+    enrol_host_key,
+    fingerprint,
+    known_hosts_name,
+    scan_host_key,
+)
+from drs_link.storage import read_storage
+from drs_link.store import Store
+from drs_link.sync import Syncer
+
+EXIT_MICROCONTROLLER_SILENT = 3
+EXIT_LINK_DOWN = 4
+
+POWER_ON_WARNING = (
+    "Power-on pulses the latching relay: the capsule's batteries stay connected until someone presses "
+    "the OFF button on the unit. Software cannot switch it off again."
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    capsule = subparsers.add_parser("capsule", help="talk to a capsule's Pi over SSH: status, power-on, go")
+    actions = capsule.add_subparsers(dest="capsule_command", metavar="ACTION", required=True)
+
+    status = actions.add_parser("status", help="release state, microcontroller, GNSS fix and storage")
+    status.add_argument("name")
+    status.add_argument("--json", action="store_true", help="machine-readable output")
+    status.set_defaults(func=cmd_status)
+
+    power = actions.add_parser("power-on", help="run DRS_on.py (latches the battery relay)")
+    power.add_argument("name")
+    power.add_argument("--yes", action="store_true", help="confirm without the interactive prompt")
+    power.set_defaults(func=cmd_power_on)
+
+    go = actions.add_parser("go", help="release: run DRS_GoGoGo.py (refused unless confirmed and powered)")
+    go.add_argument("name")
+    go.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name to confirm")
+    go.set_defaults(func=cmd_go)
+
+    reset = actions.add_parser("reset", help="after recovery: allow a new release of this capsule")
+    reset.add_argument("name")
+    reset.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name")
+    reset.set_defaults(func=cmd_reset)
+
+    enrol = actions.add_parser("enrol", help="show the Pi's host key fingerprint; save it once compared")
+    enrol.add_argument("name")
+    enrol.add_argument("--fingerprint", metavar="SHA256", help="the fingerprint read on the Pi itself")
+    enrol.set_defaults(func=cmd_enrol)
+
+    bench = actions.add_parser("bench", help="measure link overhead and sync speed against a local simulator")
+    bench.add_argument("--mb", type=float, default=32.0, help="size of the synced test file (MiB)")
+    bench.add_argument("--rounds", type=int, default=20, help="heartbeat round trips to time")
+    bench.set_defaults(func=cmd_bench)
+
+    sync = subparsers.add_parser("sync", help="upload a directory to a capsule's storage mount (verified)")
+    sync.add_argument("name")
+    sync.add_argument("source", type=Path, metavar="SOURCE_DIR")
+    sync.add_argument("--status", action="store_true", help="only report what is missing or changed")
+    sync.add_argument("--hash", action="store_true", help="with --status: also compare sha256")
+    sync.add_argument("--json", action="store_true", help="with --status: machine-readable output")
+    sync.set_defaults(func=cmd_sync)
+
+
+def _context(args: argparse.Namespace) -> tuple[Config, CapsuleConfig, Store]:
+    config = load_config(args.config)
+    capsule = config.capsule(args.name)
+    return config, capsule, Store.open(config.store_path)
+
+
+def _machine(args: argparse.Namespace, need_operator: bool) -> tuple[ReleaseStateMachine, CapsuleLink]:
+    config, capsule, store = _context(args)
+    if need_operator and not config.operator.name:
+        raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
+    link = CapsuleLink(capsule)
+    backend = AgentBackend(capsule, link) if capsule.backend == "agent" else StockBackend(capsule, link)
+    return ReleaseStateMachine(store, capsule, backend, config.operator.name), link
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    machine, link = _machine(args, need_operator=False)
+    record = machine.record()
+    report: dict[str, object] = {"release": record_as_dict(record)}
+    exit_code = 0
+    if record.state is ReleaseState.RELEASED:
+        report["link"] = {"up": False, "note": "released: the Pi shut itself down"}
+    else:
+        try:
+            link.connect()
+            report["link"] = {"up": True}
+            storage = read_storage(link, machine.capsule.storage_mount, machine.capsule.raid_device)
+            report["storage"] = storage.as_dict()
+            if record.state is ReleaseState.POWERED:
+                mcu = machine.check_microcontroller()
+                report["microcontroller"] = {"waiting_for_go": mcu.waiting_for_go, "diagnosis": mcu.diagnosis}
+                report["gnss"] = mcu.gnss.as_dict()
+        except HostKeyError:
+            raise
+        except LinkError as exc:
+            report["link"] = {"up": False, "error": str(exc)}
+            exit_code = EXIT_LINK_DOWN
+        finally:
+            link.close()
+    if args.json:
+        print(json.dumps(report, indent=2, sort_keys=True))
+    else:
+        _print_status(machine.name, report)
+    return exit_code
+
+
+def _print_status(name: str, report: dict[str, object]) -> None:
+    release = report["release"]
+    assert isinstance(release, dict)
+    print(f"{name}: {release['state']}" + (f" ({release['note']})" if release.get("note") else ""))
+    link = report.get("link", {})
+    assert isinstance(link, dict)
+    print(
+        f"  link: {'up' if link.get('up') else 'DOWN'}" + (f" - {link['error']}" if link.get("error") else "")
+    )
+    storage = report.get("storage")
+    if isinstance(storage, dict) and isinstance(storage.get("total_bytes"), int) and storage["total_bytes"]:
+        used = int(storage["used_bytes"]) / int(storage["total_bytes"])
+        print(
+            f"  storage: {storage['mount']} {used:.1%} used, {storage['available_bytes']} bytes free; "
+            f"RAID {storage['raid_state']} {storage['raid_members'] or ''}"
+        )
+    mcu = report.get("microcontroller")
+    if isinstance(mcu, dict):
+        print(f"  microcontroller: {mcu['diagnosis']}")
+    gnss = report.get("gnss")
+    if isinstance(gnss, dict) and gnss.get("nmea_seen"):
+        age = f"{gnss['age_s']:.0f} s old" if gnss.get("age_s") is not None else "age unknown"
+        position = (
+            f"{gnss['latitude']:.5f}, {gnss['longitude']:.5f}"
+            if gnss.get("latitude") is not None
+            else "no position"
+        )
+        print(
+            f"  GNSS: {gnss['fix_quality_name']}, {gnss['satellites']} sats, HDOP {gnss['hdop']}, "
+            f"{position}, {age} ({gnss['sentences_malformed']} malformed, "
+            f"{gnss['sentences_bad_checksum']} bad checksum)"
+        )
+
+
+def cmd_power_on(args: argparse.Namespace) -> int:
+    machine, link = _machine(args, need_operator=True)
+    print(POWER_ON_WARNING)
+    confirmed = args.yes
+    if not confirmed:
+        if not sys.stdin.isatty():
+            raise RefusedError(
+                f"{machine.name}: power-on refused: pass --yes, or run it in a terminal to confirm"
+            )
+        confirmed = input(f"Type the capsule name ({machine.name}) to power it on: ").strip() == machine.name
+    try:
+        machine.power_on(confirmed)
+        print(f"{machine.name}: power-on done; waiting for the microcontroller's NMEA (up to ~25 s)")
+        report = machine.wait_for_microcontroller()
+    finally:
+        link.close()
+    print(f"{machine.name}: {report.diagnosis}")
+    if report.waiting_for_go:
+        gnss = report.gnss
+        print(f"{machine.name}: GNSS {gnss.fix_quality_name}, {gnss.satellites} satellites, HDOP {gnss.hdop}")
+        return 0
+    return EXIT_MICROCONTROLLER_SILENT
+
+
+def cmd_go(args: argparse.Namespace) -> int:
+    machine, link = _machine(args, need_operator=True)
+    try:
+        token = machine.confirm(args.confirm)
+        if machine.record().nmea_seen_at is None:
+            machine.check_microcontroller()
+        released = machine.go(token)
+    finally:
+        link.close()
+    print(f"{machine.name}: {released.note}; release A opens about 32 s after Go")
+    return 0
+
+
+def cmd_reset(args: argparse.Namespace) -> int:
+    config, capsule, store = _context(args)
+    link = CapsuleLink(capsule)
+    machine = ReleaseStateMachine(store, capsule, StockBackend(capsule, link), config.operator.name)
+    machine.reset(args.confirm)
+    print(f"{capsule.name}: reset to idle")
+    return 0
+
+
+def cmd_enrol(args: argparse.Namespace) -> int:
+    config, capsule, store = _context(args)
+    if capsule.jump_host:
+        raise LinkError(f"{capsule.name}: enrol through a jump host is not supported; add the key by hand")
+    key = scan_host_key(capsule.host, capsule.port, capsule.connect_timeout_s)
+    offered = fingerprint(key)
+    name = known_hosts_name(capsule.host, capsule.port)
+    print(f"{name} offers {key.get_name()} {offered}")
+    if args.fingerprint is None:
+        print(
+            "Compare it with `ssh-keygen -lf /etc/ssh/ssh_host_ed25519_key.pub` on the Pi, then re-run with "
+            f"--fingerprint {offered}"
+        )
+        return 1
+    if args.fingerprint != offered:
+        raise RefusedError(f"{capsule.name}: enrol refused: the Pi offers {offered}, not {args.fingerprint}")
+    store.append_audit(
+        config.operator.name or "unknown", capsule.name, "enrol", "ok", {"fingerprint": offered}
+    )
+    enrol_host_key(capsule.known_hosts, capsule.host, capsule.port, key)
+    print(f"{capsule.name}: host key saved to {capsule.known_hosts}")
+    return 0
+
+
+def cmd_sync(args: argparse.Namespace) -> int:
+    config, capsule, store = _context(args)
+    link = CapsuleLink(capsule)
+    syncer = Syncer(store, link, capsule.name, capsule.storage_mount, capsule.raid_device)
+    try:
+        if args.status:
+            status = syncer.status(args.source, with_hash=args.hash)
+            if args.json:
+                print(json.dumps(status.as_dict(), indent=2, sort_keys=True))
+            else:
+                print(
+                    f"{capsule.name}: {len(status.up_to_date)} up to date, {len(status.missing)} missing, "
+                    f"{len(status.changed)} changed, {status.bytes_pending} bytes pending"
+                )
+            return 0 if not (status.missing or status.changed) else 1
+        return _run_sync(syncer, args.source, store, config.operator.name or "unknown")
+    finally:
+        link.close()
+
+
+def _run_sync(syncer: Syncer, source: Path, store: Store, operator: str) -> int:
+    def verified(relative: str) -> None:
+        store.append_audit(operator, syncer.capsule, "sync-file", "verified", {"path": relative})
+
+    with Progress(
+        TextColumn("{task.description}"), BarColumn(), DownloadColumn(), TransferSpeedColumn(), transient=True
+    ) as progress:
+        tasks: dict[str, int] = {}
+
+        def on_progress(relative: str, done: int, total: int) -> None:
+            if relative not in tasks:
+                tasks[relative] = progress.add_task(relative, total=total)
+            progress.update(tasks[relative], completed=done)
+
+        try:
+            report = syncer.sync(source, on_progress=on_progress, on_verified=verified)
+        except LinkError as exc:
+            store.append_audit(operator, syncer.capsule, "sync", "failed", {"error": str(exc)})
+            raise
+    store.append_audit(
+        operator, syncer.capsule, "sync", "ok", {"uploaded": len(report.uploaded), "bytes": report.bytes_sent}
+    )
+    print(
+        f"{syncer.capsule}: {len(report.uploaded)} files uploaded and verified by sha256 on the Pi, "
+        f"{len(report.skipped)} already up to date, {report.bytes_sent} bytes sent"
+    )
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    if args.mb <= 0 or args.rounds < 1:
+        raise LinkError("bench: --mb must be positive and --rounds at least 1")
+    result = run_bench(sync_mb=args.mb, rounds=args.rounds)
+    print(f"SSH connect + host-key check (median): {result.connect_ms_median:.1f} ms")
+    print(
+        f"heartbeat round trip: median {result.heartbeat_ms_median:.1f} ms, p95 {result.heartbeat_ms_p95:.1f} ms"
+    )
+    print(f"sync {result.sync_mb:.0f} MiB incl. sha256 on the Pi: {result.sync_mb_per_s:.1f} MiB/s")
+    print(
+        f"power-on -> NMEA -> Go -> Pi shut down: {result.release_sim_s:.1f} s simulated "
+        f"({result.release_wall_s:.2f} s wall at clock x{result.clock_scale:.0f})"
+    )
+    return 0

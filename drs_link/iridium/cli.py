@@ -1,0 +1,307 @@
+"""`drs mt …`, `drs mo …` and `drs recovery …`: the Iridium side from a terminal.
+
+Every check lives in the domain modules; this only collects arguments, prints what they say and
+turns refusals into one-line errors (console/cli.py prints LinkError as ``drs: error: …``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import threading
+from dataclasses import replace
+from pathlib import Path
+
+from drs_link.config import CapsuleConfig, Config, load_config
+from drs_link.errors import ConfigError, LinkError, RefusedError
+from drs_link.iridium import lifecycle as lc
+from drs_link.iridium.bench import run_bench
+from drs_link.iridium.gateway import FLUSH_WARNING, RockblockGateway
+from drs_link.iridium.health import assess
+from drs_link.iridium.importer import import_files
+from drs_link.iridium.mo import parse_hex
+from drs_link.iridium.mt import MtComposer, MtMessage, parse_hhmm
+from drs_link.iridium.parachute import plan_parachute
+from drs_link.iridium.recovery import (
+    detect_landing,
+    parse_position,
+    phone_summary,
+    read_gpsd_position,
+    track_from_reports,
+    write_gpx,
+    write_kml,
+)
+from drs_link.iridium.reports import ReportStore, StoredReport
+from drs_link.iridium.webhook import MoHttpServer, MoReceiver
+from drs_link.store import Store, utc_now
+
+_INTERVAL_RE = re.compile(r"\[INTERVAL=(\d+)\]")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    mt = subparsers.add_parser("mt", help="commands to a capsule over Iridium (RockBLOCK MT)")
+    mt_actions = mt.add_subparsers(dest="mt_action", metavar="ACTION", required=True)
+    send = mt_actions.add_parser("send", help="compose one MT; --dry-run shows it, --confirm NAME queues it")
+    send.add_argument("name", help="capsule name from the configuration")
+    send.add_argument("--interval", type=int, metavar="N", help="reporting interval, 1-1440 minutes")
+    send.add_argument("--sounder", choices=("on", "off"), help="switch the sounder")
+    send.add_argument(
+        "--parachute", metavar="HH:MM|next", help="open release B: a UTC time, or 'next' to compute"
+    )
+    send.add_argument("--rb-destination", type=int, metavar="SERIAL", help="forward reports (0 = off)")
+    send.add_argument("--rb-source", type=int, metavar="SERIAL", help="the unit's own RockBLOCK serial")
+    send.add_argument("--accept-midnight", action="store_true", help="allow a PARACHUTE window across 00:00Z")
+    send.add_argument("--flush", action="store_true", help="empty the gateway's MT queue first (hazardous)")
+    send.add_argument("--dry-run", action="store_true", help="print the exact text and hex; send nothing")
+    send.add_argument("--confirm", metavar="NAME", help="the capsule's name again: required for a real send")
+    send.set_defaults(func=_mt_send)
+    status = mt_actions.add_parser("status", help="the lifecycle of this capsule's commands")
+    status.add_argument("name")
+    status.set_defaults(func=_mt_status)
+
+    mo = subparsers.add_parser("mo", help="capsule reports over Iridium (RockBLOCK MO)")
+    mo_actions = mo.add_subparsers(dest="mo_action", metavar="ACTION", required=True)
+    parse = mo_actions.add_parser("parse", help="decode one report given as the gateway's hex")
+    parse.add_argument("hex")
+    parse.add_argument("--json", action="store_true", help="print JSON")
+    parse.set_defaults(func=_mo_parse)
+    serve = mo_actions.add_parser("serve", help="receive the gateway's webhook deliveries ([mo] config)")
+    serve.add_argument("--host", help="override mo.listen_host")
+    serve.add_argument("--port", type=int, help="override mo.listen_port (0: any free port)")
+    serve.set_defaults(func=_mo_serve)
+    importer = mo_actions.add_parser("import", help="store <imei>-<momsn>.bin email attachments")
+    importer.add_argument("files", nargs="+", type=Path)
+    importer.set_defaults(func=_mo_import)
+    bench = mo_actions.add_parser("bench", help="measure webhook store+answer latency and parser speed")
+    bench.add_argument("--posts", type=int, default=200, help="how many deliveries to POST (default 200)")
+    bench.set_defaults(func=_mo_bench)
+    health = mo_actions.add_parser("health", help="battery, resets, gaps and spacing from the reports")
+    health.add_argument("name")
+    health.set_defaults(func=_mo_health)
+
+    recovery = subparsers.add_parser("recovery", help="landing estimate, distance from you, GPX/KML export")
+    recovery.add_argument("name")
+    recovery.add_argument("--from", dest="origin", metavar="LAT,LON|gpsd", help="your position, or 'gpsd'")
+    recovery.add_argument("--gpx", type=Path, metavar="OUT")
+    recovery.add_argument("--kml", type=Path, metavar="OUT")
+    recovery.add_argument("--predicted", type=Path, metavar="GEOJSON", help="a predicted track (LineString)")
+    recovery.set_defaults(func=_recovery)
+
+
+def _open(args: argparse.Namespace) -> tuple[Config, Store]:
+    config = load_config(args.config)
+    return config, Store.open(config.store_path)
+
+
+def _capsule_reports(config: Config, store: Store, name: str) -> tuple[CapsuleConfig, list[StoredReport]]:
+    capsule = config.capsule(name)
+    if not capsule.imei:
+        raise ConfigError(f"capsule {name}: imei is not configured; reports and commands are keyed by IMEI")
+    return capsule, ReportStore(store).for_imei(capsule.imei)
+
+
+def _commanded_interval(commands: list[lc.Command]) -> int | None:
+    """The INTERVAL the reports confirmed last, if any (else the planner infers it from spacing)."""
+    for command in reversed(commands):
+        match = _INTERVAL_RE.search(command.text)
+        if match and command.state == lc.EFFECT_CONFIRMED:
+            return int(match.group(1))
+    return None
+
+
+def _compose(args: argparse.Namespace, config: Config, store: Store) -> MtMessage:
+    composer = MtComposer()
+    if args.interval is not None:
+        composer.interval(args.interval)
+    if args.rb_source is not None:
+        composer.rb_source(args.rb_source)
+    if args.rb_destination is not None:
+        composer.rb_destination(args.rb_destination)
+    if args.sounder is not None:
+        composer.sounder(args.sounder == "on")
+    if args.parachute is not None:
+        capsule, reports = _capsule_reports(config, store, args.name)
+        life = lc.CommandLifecycle(store, config.operator.name)
+        life.observe(reports, capsule.imei or "")
+        requested = None if args.parachute == "next" else parse_hhmm(args.parachute)
+        plan = plan_parachute(
+            reports,
+            utc_now(),
+            _commanded_interval(life.for_imei(capsule.imei or "")),
+            requested,
+            args.accept_midnight,
+        )
+        print(f"window: {plan.window_text()}")
+        for warning in plan.warnings:
+            print(f"warning: {warning}")
+        composer.parachute(plan.hour, plan.minute)
+    return composer.build()
+
+
+def _mt_send(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    capsule = config.capsule(args.name)
+    message = _compose(args, config, store)
+    print(f"text: {message.text}")
+    print(f"hex:  {message.hex} ({len(message.payload)} bytes)")
+    if args.flush:
+        print(f"warning: {FLUSH_WARNING}")
+    if args.dry_run:
+        print("dry run: nothing sent")
+        return 0
+    if args.confirm is None:
+        raise RefusedError(f"a real send needs --confirm {capsule.name} (or --dry-run to only look)")
+    if not config.operator.name:
+        raise ConfigError("operator.name: set [operator] name; every command is audited with it")
+    gateway = RockblockGateway.from_config(config.rockblock)
+    life = lc.CommandLifecycle(store, config.operator.name)
+    command = life.request(capsule, message, flush=args.flush)
+    command = life.send(command.id, args.confirm, gateway)
+    print(f"MT {command.id}: {command.state}: {command.detail}")
+    return 0 if command.state == lc.QUEUED else 1
+
+
+def _mt_status(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    capsule, reports = _capsule_reports(config, store, args.name)
+    life = lc.CommandLifecycle(store, config.operator.name)
+    life.observe(reports, capsule.imei or "")
+    for command in life.for_imei(capsule.imei or ""):
+        print(
+            f"MT {command.id} {command.requested_utc:%Y-%m-%d %H:%M:%S}Z {command.text} {command.state}: "
+            f"{command.detail}"
+        )
+    return 0
+
+
+def _mo_parse(args: argparse.Namespace) -> int:
+    result = parse_hex(args.hex)
+    if args.json:
+        print(json.dumps(result.as_dict(), indent=2))
+        return 0 if result.accepted else 1
+    if result.report is None:
+        raise LinkError(f"not a DRS report: {result.reason}")
+    report = result.report
+    if report.fix is None:
+        print("fix: none (19700101000000): use the Iridium position and CEP of the delivery")
+    else:
+        fix = report.fix
+        print(
+            f"fix: {fix.time:%Y-%m-%d %H:%M:%S}Z {fix.lat:.6f},{fix.lon:.6f} alt {fix.alt_m} m "
+            f"speed {fix.speed_ms} m/s course {fix.course_deg}° hdop {fix.hdop} sats {fix.sats}"
+        )
+    print(f"battery: {report.vbat:.2f} V  iteration: {report.iteration}")
+    if report.forwarding:
+        print(f"forwarding: to RockBLOCK {report.rb_destination}, from {report.rb_source}")
+    return 0
+
+
+def _mo_serve(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    mo_config = config.mo
+    if args.host is not None or args.port is not None:
+        mo_config = replace(
+            mo_config,
+            listen_host=args.host if args.host is not None else mo_config.listen_host,
+            listen_port=args.port if args.port is not None else mo_config.listen_port,
+        )
+    reports = ReportStore(store)
+    life = lc.CommandLifecycle(store, config.operator.name)
+
+    def after_answer(stored: StoredReport) -> None:
+        life.observe(reports.for_imei(stored.delivery.imei), stored.delivery.imei)
+
+    try:
+        server = MoHttpServer(MoReceiver(reports, mo_config, after_answer)).start()
+    except OSError as exc:
+        raise LinkError(
+            f"cannot listen on {mo_config.listen_host}:{mo_config.listen_port}: {exc.strerror}"
+        ) from None
+    print(f"listening on {server.url} (Ctrl-C to stop)", flush=True)
+    try:
+        threading.Event().wait()
+    except KeyboardInterrupt:
+        print("stopping", flush=True)
+    finally:
+        server.stop()
+    return 0
+
+
+def _mo_import(args: argparse.Namespace) -> int:
+    _, store = _open(args)
+    outcomes = import_files(args.files, ReportStore(store))
+    for outcome in outcomes:
+        print(f"{outcome.path}: {outcome.status}: {outcome.message}")
+    return 1 if any(o.status == "error" for o in outcomes) else 0
+
+
+def _mo_bench(args: argparse.Namespace) -> int:
+    if args.posts < 1:
+        raise LinkError("--posts must be at least 1")
+    for line in run_bench(args.posts).lines():
+        print(line)
+    return 0
+
+
+def _mo_health(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    capsule, reports = _capsule_reports(config, store, args.name)
+    health = assess(reports)
+    last = f"{health.last_report:%Y-%m-%d %H:%M:%S}Z" if health.last_report else "never"
+    vbat = f"{health.last_vbat:.2f} V" if health.last_vbat is not None else "unknown"
+    print(f"{capsule.name}: {health.reports} reports, last {last}, battery {vbat}")
+    for finding in health.findings:
+        print(f"{finding.kind}: {finding.message}")
+    return 0
+
+
+def _read_predicted(path: Path) -> list[tuple[float, float, float]]:
+    """The first LineString of a GeoJSON file as (lat, lon, alt) points."""
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise LinkError(f"--predicted {path}: cannot read GeoJSON ({type(exc).__name__})") from None
+    stack = [document]
+    while stack:
+        node = stack.pop(0)
+        if isinstance(node, dict):
+            if node.get("type") == "LineString" and isinstance(node.get("coordinates"), list):
+                try:
+                    return [
+                        (float(c[1]), float(c[0]), float(c[2]) if len(c) > 2 else 0.0)
+                        for c in node["coordinates"]
+                    ]
+                except (TypeError, ValueError, IndexError):
+                    raise LinkError(f"--predicted {path}: LineString coordinates are not numbers") from None
+            stack.extend(v for v in node.values() if isinstance(v, dict | list))
+        elif isinstance(node, list):
+            stack.extend(v for v in node if isinstance(v, dict | list))
+    raise LinkError(f"--predicted {path}: no LineString in the GeoJSON")
+
+
+def _recovery(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    capsule, reports = _capsule_reports(config, store, args.name)
+    team = None
+    if args.origin == "gpsd":
+        team = read_gpsd_position()
+    elif args.origin is not None:
+        team = parse_position(args.origin)
+    predicted = _read_predicted(args.predicted) if args.predicted else []
+    track = track_from_reports(reports)
+    landing = detect_landing(track)
+    print(phone_summary(capsule.name, landing, track[-1] if track else None, team))
+    if landing is not None:
+        print(
+            f"landed {landing.landed_at:%Y-%m-%d %H:%M:%S}Z at {landing.alt_m:.0f} m; "
+            f"{landing.count} fixes kept, "
+            f"{landing.rejected} rejected; last on site {landing.last_fix_at:%H:%M:%S}Z"
+        )
+    if args.gpx:
+        write_gpx(args.gpx, capsule.name, track, predicted, landing)
+        print(f"wrote {args.gpx}")
+    if args.kml:
+        write_kml(args.kml, capsule.name, track, predicted, landing)
+        print(f"wrote {args.kml}")
+    return 0

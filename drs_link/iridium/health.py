@@ -1,0 +1,146 @@
+"""What the reports say about the capsule's health (drs_protocol.md 6.2 item 6).
+
+The unit reports no status of its own, so health is read from the pattern of reports: battery
+against the firmware's own 6.5 V cut-off, the iteration counter (back to 0 = processor reset; a
+jump = sessions that started but whose report never came), MOMSN continuity (a jump = reports
+the gateway took that this receiver never got) and fix spacing against the commanded INTERVAL.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime
+
+from drs_link.iridium.reports import StoredReport
+
+LOW_BATTERY_V = 6.5
+DEFAULT_INTERVAL_MIN = 2
+SPACING_SLACK_S = 60.0
+
+
+@dataclass(frozen=True)
+class Finding:
+    kind: str
+    report_id: int
+    message: str
+
+
+@dataclass(frozen=True)
+class Health:
+    reports: int
+    last_vbat: float | None
+    last_report: datetime | None
+    findings: tuple[Finding, ...]
+
+    def kinds(self) -> list[str]:
+        return [f.kind for f in self.findings]
+
+
+def _interval_at(moment: datetime, schedule: Sequence[tuple[datetime, int]]) -> int:
+    interval = DEFAULT_INTERVAL_MIN
+    for since, minutes in schedule:
+        if since <= moment:
+            interval = minutes
+    return interval
+
+
+def assess(reports: list[StoredReport], interval_schedule: Sequence[tuple[datetime, int]] = ()) -> Health:
+    """Findings over reports in time order; ``interval_schedule`` is (since, INTERVAL) as commanded."""
+    findings: list[Finding] = []
+    battery_low = False
+    previous: StoredReport | None = None
+    previous_ok: StoredReport | None = None
+    for stored in reports:
+        if previous is not None:
+            gap = (stored.delivery.momsn - previous.delivery.momsn) % 65536
+            if gap == 0:
+                findings.append(
+                    Finding(
+                        "momsn_repeat",
+                        stored.id,
+                        f"MOMSN {stored.delivery.momsn} repeated "
+                        "with different content (wrap or a second modem on this IMEI)",
+                    )
+                )
+            elif gap > 1:
+                findings.append(
+                    Finding(
+                        "momsn_gap",
+                        stored.id,
+                        f"{gap - 1} report(s) missing before MOMSN "
+                        f"{stored.delivery.momsn}: sent by the capsule, never received here",
+                    )
+                )
+        previous = stored
+        report = stored.report
+        if report is None:
+            findings.append(
+                Finding(
+                    "rejected",
+                    stored.id,
+                    f"MOMSN {stored.delivery.momsn} is not a DRS report: {stored.parsed.reason}",
+                )
+            )
+            continue
+        if report.vbat < LOW_BATTERY_V and not battery_low:
+            findings.append(
+                Finding(
+                    "low_battery",
+                    stored.id,
+                    f"battery {report.vbat:.2f} V is below the "
+                    f"firmware's {LOW_BATTERY_V} V cut-off: the unit sleeps without reporting",
+                )
+            )
+        battery_low = report.vbat < LOW_BATTERY_V
+        if previous_ok is not None and previous_ok.report is not None:
+            before = previous_ok.report
+            if report.iteration < before.iteration:
+                findings.append(
+                    Finding(
+                        "reset",
+                        stored.id,
+                        f"iteration went from {before.iteration} to "
+                        f"{report.iteration}: the processor reset (PARACHUTE flag lost, flash "
+                        "settings kept)",
+                    )
+                )
+            elif report.iteration > before.iteration + 1:
+                findings.append(
+                    Finding(
+                        "iteration_gap",
+                        stored.id,
+                        f"{report.iteration - before.iteration - 1} "
+                        "cycle(s) started the modem without a report arriving",
+                    )
+                )
+            if report.fix is not None and before.fix is not None:
+                spacing = (report.fix.time - before.fix.time).total_seconds()
+                interval = _interval_at(report.fix.time, interval_schedule)
+                if spacing < interval * 60 - SPACING_SLACK_S:
+                    findings.append(
+                        Finding(
+                            "spacing",
+                            stored.id,
+                            f"reports {spacing / 60:.1f} min apart, faster "
+                            f"than the commanded INTERVAL of {interval} min",
+                        )
+                    )
+                elif spacing > 1.5 * interval * 60 + SPACING_SLACK_S:
+                    findings.append(
+                        Finding(
+                            "spacing",
+                            stored.id,
+                            f"reports {spacing / 60:.1f} min apart for an "
+                            f"INTERVAL of {interval} min: about {round(spacing / 60 / interval) - 1} "
+                            "cycle(s) missed",
+                        )
+                    )
+        previous_ok = stored
+    last_ok = previous_ok.report if previous_ok is not None else None
+    return Health(
+        reports=len(reports),
+        last_vbat=last_ok.vbat if last_ok is not None else None,
+        last_report=reports[-1].time if reports else None,
+        findings=tuple(findings),
+    )

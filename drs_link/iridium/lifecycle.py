@@ -1,0 +1,325 @@
+"""An MT command's life, told honestly: what is known, and what can never be known.
+
+requested → confirmed → queued (gateway id) → probably delivered (first report after queueing)
+→ effect confirmed / unconfirmable / timed out. Side exits: failed (gateway refused), not sent
+(gateway unreachable), delivery unknown (the request may have been queued: never re-sent
+automatically), flushed (a later ``flush=yes`` deleted it). The firmware acknowledges nothing, so
+"delivered" is only ever *probable* (one MT goes down with each report, oldest first) and only an
+INTERVAL or RBDESTINATION change shows in later reports; PARACHUTE and SOUNDER never do.
+
+A real send needs a confirmation that names the capsule, checked here below any UI.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+from typing import Any
+
+from drs_link.config import CapsuleConfig
+from drs_link.errors import RefusedError
+from drs_link.iridium.gateway import FLUSH_WARNING, RockblockGateway
+from drs_link.iridium.mt import MtMessage
+from drs_link.iridium.reports import StoredReport
+from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
+
+COMMANDS_DDL = """
+CREATE TABLE IF NOT EXISTS mt_command (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    capsule TEXT NOT NULL,
+    imei TEXT NOT NULL,
+    operator TEXT NOT NULL,
+    text TEXT NOT NULL,
+    flush INTEGER NOT NULL,
+    state TEXT NOT NULL,
+    requested_utc TEXT NOT NULL,
+    updated_utc TEXT NOT NULL,
+    queued_utc TEXT,
+    mt_id INTEGER,
+    delivered_report_id INTEGER,
+    effects TEXT NOT NULL,
+    detail TEXT NOT NULL DEFAULT ''
+);
+CREATE INDEX IF NOT EXISTS mt_command_imei ON mt_command (imei, id);
+"""
+
+REQUESTED = "requested"
+CONFIRMED = "confirmed"
+QUEUED = "queued"
+FAILED = "failed"
+NOT_SENT = "not_sent"
+DELIVERY_UNKNOWN = "delivery_unknown"
+FLUSHED = "flushed"
+PROBABLY_DELIVERED = "probably_delivered"
+EFFECT_CONFIRMED = "effect_confirmed"
+UNCONFIRMABLE = "unconfirmable"
+TIMED_OUT = "timed_out"
+
+PENDING, SEEN, NEVER_VISIBLE, NOT_SEEN = "pending", "seen", "never visible", "not seen"
+EFFECT_REPORTS = 5
+"""Reports after delivery within which an INTERVAL/RBDESTINATION change must show, else timed out."""
+QUEUE_TIMEOUT = timedelta(hours=3)
+"""A command still undelivered after this long with no report at all is called timed out."""
+_SEND_OUTCOME = {"queued": QUEUED, "failed": FAILED, "not_sent": NOT_SENT, "unknown": DELIVERY_UNKNOWN}
+_COMMAND_RE = re.compile(r"\[([A-Z_]+)(?:=([0-9:]+))?\]")
+
+
+@dataclass(frozen=True)
+class Command:
+    id: int
+    capsule: str
+    imei: str
+    operator: str
+    text: str
+    flush: bool
+    state: str
+    requested_utc: datetime
+    updated_utc: datetime
+    queued_utc: datetime | None
+    mt_id: int | None
+    delivered_report_id: int | None
+    effects: dict[str, str]
+    detail: str
+
+
+def _row_to_command(row: Any) -> Command:
+    return Command(
+        id=row["id"],
+        capsule=row["capsule"],
+        imei=row["imei"],
+        operator=row["operator"],
+        text=row["text"],
+        flush=bool(row["flush"]),
+        state=row["state"],
+        requested_utc=parse_iso_utc(row["requested_utc"]),
+        updated_utc=parse_iso_utc(row["updated_utc"]),
+        queued_utc=parse_iso_utc(row["queued_utc"]) if row["queued_utc"] else None,
+        mt_id=row["mt_id"],
+        delivered_report_id=row["delivered_report_id"],
+        effects=json.loads(row["effects"]),
+        detail=row["detail"],
+    )
+
+
+def _initial_effects(message: MtMessage) -> dict[str, str]:
+    effects = {}
+    for command in message.commands:
+        name = command[1:].split("=")[0].rstrip("]")
+        effects[command] = PENDING if name in ("INTERVAL", "RBDESTINATION", "RBSOURCE") else NEVER_VISIBLE
+    return effects
+
+
+def _spacing_matches(seconds: float, minutes: int) -> bool:
+    """A fix-to-fix spacing equals INTERVAL allowing for fix acquisition jitter (up to about 1 min)."""
+    return abs(seconds - minutes * 60) <= max(60.0, 0.05 * minutes * 60)
+
+
+class CommandLifecycle:
+    """Commands of every capsule in the durable store; each state change is audited."""
+
+    def __init__(self, store: Store, operator: str, clock: Callable[[], datetime] = utc_now) -> None:
+        self.store = store
+        self.operator = operator or "unknown"
+        self.clock = clock
+        store.ensure_schema(COMMANDS_DDL)
+
+    def get(self, command_id: int) -> Command:
+        rows = self.store.query("SELECT * FROM mt_command WHERE id = ?", (command_id,))
+        if not rows:
+            raise RefusedError(f"no MT command with id {command_id}")
+        return _row_to_command(rows[0])
+
+    def for_imei(self, imei: str) -> list[Command]:
+        return [
+            _row_to_command(r)
+            for r in self.store.query("SELECT * FROM mt_command WHERE imei = ? ORDER BY id", (imei,))
+        ]
+
+    def _set(self, command: Command, state: str, detail: str, **columns: Any) -> Command:
+        now = self.clock()
+        assignments = {"state": state, "detail": detail, "updated_utc": iso_utc(now), **columns}
+        sql = ", ".join(f"{name} = ?" for name in assignments)
+        with self.store.transaction() as conn:
+            conn.execute(f"UPDATE mt_command SET {sql} WHERE id = ?", (*assignments.values(), command.id))
+        self.store.append_audit(
+            self.operator,
+            command.capsule,
+            f"mt.{state}",
+            state,
+            {"command_id": command.id, "text": command.text, "detail": detail},
+            when=now,
+        )
+        return self.get(command.id)
+
+    def request(self, capsule: CapsuleConfig, message: MtMessage, flush: bool = False) -> Command:
+        """Record what the operator asked for; nothing leaves the machine yet."""
+        if not capsule.imei:
+            raise RefusedError(
+                f"capsule {capsule.name} has no imei configured: the gateway needs the modem's IMEI"
+            )
+        now = iso_utc(self.clock())
+        effects = json.dumps(_initial_effects(message))
+        with self.store.transaction() as conn:
+            command_id = conn.execute(
+                "INSERT INTO mt_command (capsule, imei, operator, text, flush, state, requested_utc, "
+                "updated_utc, "
+                "effects) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (
+                    capsule.name,
+                    capsule.imei,
+                    self.operator,
+                    message.text,
+                    int(flush),
+                    REQUESTED,
+                    now,
+                    now,
+                    effects,
+                ),
+            ).lastrowid
+        self.store.append_audit(
+            self.operator,
+            capsule.name,
+            "mt.requested",
+            REQUESTED,
+            {"command_id": command_id, "text": message.text, "flush": flush},
+        )
+        return self.get(int(command_id or 0))
+
+    def send(self, command_id: int, confirmation: str, gateway: RockblockGateway) -> Command:
+        """Queue a requested command at the gateway once; refused unless ``confirmation`` names it."""
+        command = self.get(command_id)
+        if command.state != REQUESTED:
+            raise RefusedError(f"MT {command_id} is {command.state}, not requested: it is never sent twice")
+        if confirmation != command.capsule:
+            self.store.append_audit(
+                self.operator,
+                command.capsule,
+                "mt.send",
+                "refused",
+                {"command_id": command_id, "reason": "confirmation does not name the capsule"},
+            )
+            raise RefusedError(
+                f"refused: to send {command.text} the confirmation must name the capsule {command.capsule!r}"
+            )
+        detail = f"operator {self.operator} confirmed sending to {command.capsule}"
+        if command.flush:
+            detail += f"; WARNING: {FLUSH_WARNING}"
+        command = self._set(command, CONFIRMED, detail)
+        result = gateway.send(command.imei, command.text.encode("ascii"), flush=command.flush)
+        state = _SEND_OUTCOME[result.status]
+        columns: dict[str, Any] = {}
+        if state == QUEUED:
+            columns = {"queued_utc": iso_utc(self.clock()), "mt_id": result.mt_id}
+            if command.flush:
+                self._flush_older(command)
+        return self._set(command, state, result.detail, **columns)
+
+    def _flush_older(self, flushing: Command) -> None:
+        for older in self.for_imei(flushing.imei):
+            if older.id != flushing.id and older.state in (QUEUED, DELIVERY_UNKNOWN):
+                self._set(older, FLUSHED, f"deleted from the gateway queue by the flush of MT {flushing.id}")
+
+    def observe(self, reports: list[StoredReport], imei: str) -> list[Command]:
+        """Advance this modem's commands from its reports (time order); returns the commands that changed."""
+        changed: list[Command] = []
+        commands = self.for_imei(imei)
+        used = {c.delivered_report_id for c in commands if c.delivered_report_id is not None}
+        for command in commands:
+            if command.state == QUEUED and command.queued_utc is not None:
+                delivering = next(
+                    (r for r in reports if r.id not in used and r.session_time > command.queued_utc), None
+                )
+                if delivering is None:
+                    if self.clock() - command.queued_utc > QUEUE_TIMEOUT:
+                        changed.append(
+                            self._set(
+                                command,
+                                TIMED_OUT,
+                                f"no report in {QUEUE_TIMEOUT} since queueing: the capsule may be silent; "
+                                "the MT is "
+                                "probably still queued at the gateway (flush to cancel)",
+                            )
+                        )
+                    continue
+                used.add(delivering.id)
+                command = self._deliver(command, delivering)
+                changed.append(command)
+            if command.state == PROBABLY_DELIVERED:
+                updated = self._check_effects(command, reports)
+                if updated is not None:
+                    changed.append(updated)
+        return changed
+
+    def _deliver(self, command: Command, report: StoredReport) -> Command:
+        visible = [c for c, e in command.effects.items() if e == PENDING]
+        note = (
+            f"probably downloaded in the session of report MOMSN {report.delivery.momsn} "
+            f"at {iso_utc(report.session_time)} (one MT per session, oldest first; nothing is acknowledged)"
+        )
+        if not visible:
+            return self._set(
+                command,
+                UNCONFIRMABLE,
+                note
+                + "; PARACHUTE and SOUNDER leave no trace in the reports: their effect can not be confirmed",
+                delivered_report_id=report.id,
+            )
+        return self._set(command, PROBABLY_DELIVERED, note, delivered_report_id=report.id)
+
+    def _check_effects(self, command: Command, reports: list[StoredReport]) -> Command | None:
+        index = next((i for i, r in enumerate(reports) if r.id == command.delivered_report_id), None)
+        if index is None:
+            return None
+        after = [r for r in reports[index + 1 :] if r.report is not None]
+        effects = dict(command.effects)
+        for text in effects:
+            if effects[text] != PENDING:
+                continue
+            match = _COMMAND_RE.fullmatch(text)
+            if match is None:
+                continue
+            name, value = match.group(1), int(match.group(2))
+            if name == "INTERVAL":
+                effects[text] = self._interval_seen(value, after)
+            elif name == "RBDESTINATION" and after:
+                report = after[0].report
+                assert report is not None
+                effects[text] = SEEN if (report.rb_destination or 0) == value else NOT_SEEN
+            elif name == "RBSOURCE" and after:
+                report = after[0].report
+                assert report is not None
+                if report.rb_source is None:
+                    effects[text] = NEVER_VISIBLE
+                else:
+                    effects[text] = SEEN if report.rb_source == value else NOT_SEEN
+        if effects == command.effects:
+            return None
+        if PENDING in effects.values():
+            return self._set(command, PROBABLY_DELIVERED, command.detail, effects=json.dumps(effects))
+        summary = "; ".join(f"{text}: {state}" for text, state in effects.items())
+        if NOT_SEEN in effects.values():
+            return self._set(
+                command, TIMED_OUT, f"effect not seen in the reports: {summary}", effects=json.dumps(effects)
+            )
+        if SEEN in effects.values():
+            return self._set(
+                command,
+                EFFECT_CONFIRMED,
+                f"effect confirmed by later reports: {summary}",
+                effects=json.dumps(effects),
+            )
+        return self._set(
+            command, UNCONFIRMABLE, f"no effect can be confirmed: {summary}", effects=json.dumps(effects)
+        )
+
+    @staticmethod
+    def _interval_seen(minutes: int, after: list[StoredReport]) -> str:
+        """The new INTERVAL shows between the next two reports: the alarm already armed keeps the old one."""
+        fixes = [r.report.fix.time for r in after if r.report is not None and r.report.fix is not None]
+        for earlier, later in zip(fixes, fixes[1:], strict=False):
+            if _spacing_matches((later - earlier).total_seconds(), minutes):
+                return SEEN
+        return NOT_SEEN if len(after) >= EFFECT_REPORTS else PENDING

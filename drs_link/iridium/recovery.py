@@ -1,0 +1,286 @@
+"""Where the capsule is on the ground, how sure we are, and how far it is from the recovery team.
+
+Landing is the first fix after the peak at which the capsule stops descending and stops moving.
+The landing site is the mean of the fixes that stay there, after rejecting outliers; the first
+fix that leaves for good (the capsule in a car or a boat) ends the set, so a track that goes on
+after recovery still gives the landing site, not the driveway at home (drs_protocol.md 5.3).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import socket
+import statistics
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+import simplekml
+from pyproj import Geod
+
+from drs_link.errors import LinkError
+from drs_link.iridium.reports import StoredReport
+
+GEOD = Geod(ellps="WGS84")
+MIN_DESCENT_M = 500.0
+"""A landing must come after the capsule has fallen at least this far from its peak."""
+STEADY_VERTICAL_MS = 1.5
+"""Under the parachute the capsule falls 3-8 m/s; GNSS altitude noise on the ground is below this."""
+STEADY_SPEED_MS = 3.0
+CLUSTER_RADIUS_M = 300.0
+"""Fixes farther than this from the landing cluster mean the capsule has been moved (or drifts)."""
+OUTLIER_FLOOR_M = 10.0
+RAYLEIGH_MEDIAN = 1.1774
+"""Median of the radial error of a 2-D Gaussian, in sigmas: turns a median distance into a sigma."""
+GPSD_ADDRESS = ("127.0.0.1", 2947)
+
+
+@dataclass(frozen=True)
+class TrackPoint:
+    time: datetime
+    lat: float
+    lon: float
+    alt_m: float
+    speed_ms: float
+
+
+@dataclass(frozen=True)
+class LandingEstimate:
+    lat: float
+    lon: float
+    alt_m: float
+    std_m: float
+    """Scatter of a single kept fix about the mean: 1 sigma per horizontal axis, sqrt(Σd²/(2(n-1)))."""
+    count: int
+    rejected: int
+    landed_at: datetime
+    last_fix_at: datetime
+    moved_at: datetime | None
+    """When the capsule left the landing site (recovered, or drifting), if the track says so."""
+
+
+def track_from_reports(reports: list[StoredReport]) -> list[TrackPoint]:
+    """The GNSS fixes of accepted reports, in time order (no-fix and rejected reports carry none)."""
+    points = [
+        TrackPoint(
+            r.report.fix.time, r.report.fix.lat, r.report.fix.lon, r.report.fix.alt_m, r.report.fix.speed_ms
+        )
+        for r in reports
+        if r.report is not None and r.report.fix is not None
+    ]
+    return sorted(points, key=lambda p: p.time)
+
+
+def _distance_m(a: TrackPoint, lat: float, lon: float) -> float:
+    return float(GEOD.inv(a.lon, a.lat, lon, lat)[2])
+
+
+def _landing_index(track: list[TrackPoint]) -> int | None:
+    """The first fix that is itself still and is followed by no climb, fall or travel.
+
+    Rates are taken between fixes, not from one fix, because a landing between two distant fixes
+    averages a fast fall into a slow one; the fix's own speed rules that out. A lone last fix can
+    not be told from a slow moment of the descent, so landing needs one more fix after it.
+    """
+    peak = max(range(len(track)), key=lambda i: track[i].alt_m)
+    for i in range(peak + 1, len(track) - 1):
+        here, after = track[i], track[i + 1]
+        if track[peak].alt_m - here.alt_m < MIN_DESCENT_M:
+            continue
+        seconds = (after.time - here.time).total_seconds()
+        if seconds <= 0:
+            continue
+        vertical = abs(after.alt_m - here.alt_m) / seconds
+        horizontal = _distance_m(here, after.lat, after.lon) / seconds
+        if (
+            here.speed_ms <= STEADY_SPEED_MS
+            and vertical < STEADY_VERTICAL_MS
+            and horizontal < STEADY_SPEED_MS
+        ):
+            return i
+    return None
+
+
+def _centre(points: list[TrackPoint]) -> tuple[float, float]:
+    return statistics.median(p.lat for p in points), statistics.median(p.lon for p in points)
+
+
+def detect_landing(track: list[TrackPoint]) -> LandingEstimate | None:
+    """The landing estimate, or None while the capsule has not (visibly) landed."""
+    if len(track) < 2:
+        return None
+    start = _landing_index(track)
+    if start is None:
+        return None
+    cluster = [track[start]]
+    outliers = 0
+    moved_at = None
+    j = start + 1
+    while j < len(track):
+        lat, lon = _centre(cluster)
+        if _distance_m(track[j], lat, lon) <= CLUSTER_RADIUS_M:
+            cluster.append(track[j])
+        elif j + 1 < len(track) and _distance_m(track[j + 1], lat, lon) <= CLUSTER_RADIUS_M:
+            outliers += 1
+        else:
+            moved_at = track[j].time
+            break
+        j += 1
+    lat, lon = _centre(cluster)
+    distances = [_distance_m(p, lat, lon) for p in cluster]
+    limit = max(3.0 * statistics.median(distances) / RAYLEIGH_MEDIAN, OUTLIER_FLOOR_M)
+    kept = [p for p, d in zip(cluster, distances, strict=True) if d <= limit]
+    mean_lat = statistics.fmean(p.lat for p in kept)
+    mean_lon = statistics.fmean(p.lon for p in kept)
+    spread = [_distance_m(p, mean_lat, mean_lon) ** 2 for p in kept]
+    std = math.sqrt(sum(spread) / (len(kept) - 1) / 2.0) if len(kept) > 1 else float("nan")
+    return LandingEstimate(
+        lat=mean_lat,
+        lon=mean_lon,
+        alt_m=statistics.fmean(p.alt_m for p in kept),
+        std_m=std,
+        count=len(kept),
+        rejected=outliers + len(cluster) - len(kept),
+        landed_at=track[start].time,
+        last_fix_at=cluster[-1].time,
+        moved_at=moved_at,
+    )
+
+
+def distance_bearing(from_lat: float, from_lon: float, to_lat: float, to_lon: float) -> tuple[float, float]:
+    """Distance (m) and true bearing (0-360°) from the first point to the second, on WGS84."""
+    azimuth, _, distance = GEOD.inv(from_lon, from_lat, to_lon, to_lat)
+    return float(distance), float(azimuth) % 360.0
+
+
+def parse_position(text: str) -> tuple[float, float]:
+    """``LAT,LON`` in decimal degrees, as an operator types it."""
+    parts = text.replace(" ", "").split(",")
+    try:
+        lat, lon = float(parts[0]), float(parts[1])
+    except (ValueError, IndexError):
+        raise LinkError(f"position {text!r} must be LAT,LON in decimal degrees, e.g. 46.52,6.63") from None
+    if len(parts) != 2 or not (-90 <= lat <= 90 and -180 <= lon <= 180) or math.isnan(lat + lon):
+        raise LinkError(f"position {text!r} must be LAT,LON with -90<=LAT<=90 and -180<=LON<=180")
+    return lat, lon
+
+
+def read_gpsd_position(
+    address: tuple[str, int] = GPSD_ADDRESS, timeout_s: float = 5.0
+) -> tuple[float, float]:
+    """The team's own position from a local gpsd (JSON protocol): the first TPV with a 2-D or 3-D fix."""
+    try:
+        sock = socket.create_connection(address, timeout=timeout_s)
+    except OSError as exc:
+        raise LinkError(
+            f"no gpsd at {address[0]}:{address[1]} ({exc.strerror or exc}): "
+            "give the position with --from LAT,LON"
+        ) from None
+    with sock, sock.makefile("rwb") as stream:
+        try:
+            stream.write(b'?WATCH={"enable":true,"json":true};\n')
+            stream.flush()
+            for line in stream:
+                try:
+                    message = json.loads(line)
+                except json.JSONDecodeError:
+                    continue
+                if message.get("class") == "TPV" and message.get("mode", 0) >= 2 and "lat" in message:
+                    return float(message["lat"]), float(message["lon"])
+        except (OSError, ValueError) as exc:
+            raise LinkError(
+                f"gpsd at {address[0]}:{address[1]} gave no fix within {timeout_s:g} s ({type(exc).__name__})"
+            ) from None
+    raise LinkError(f"gpsd at {address[0]}:{address[1]} closed the connection without a fix")
+
+
+def _hemisphere(value: float, positive: str, negative: str) -> str:
+    return f"{abs(value):.5f} {positive if value >= 0 else negative}"
+
+
+def phone_summary(
+    name: str, landing: LandingEstimate | None, last: TrackPoint | None, team: tuple[float, float] | None
+) -> str:
+    """One line for a text message: where it is, how sure, and how far from the team."""
+    if landing is None:
+        if last is None:
+            return f"{name}: no GNSS fix received yet"
+        where = f"{_hemisphere(last.lat, 'N', 'S')} {_hemisphere(last.lon, 'E', 'W')}"
+        text = f"{name} not landed: last fix {where} at {last.alt_m:.0f} m, {last.time:%H:%M}Z"
+        lat, lon = last.lat, last.lon
+    else:
+        where = f"{_hemisphere(landing.lat, 'N', 'S')} {_hemisphere(landing.lon, 'E', 'W')}"
+        sigma = f"±{landing.std_m:.0f} m" if not math.isnan(landing.std_m) else "±? m"
+        text = f"{name} on ground {where} {sigma} (n={landing.count})"
+        lat, lon = landing.lat, landing.lon
+        if landing.moved_at is not None and last is not None and last.time >= landing.moved_at:
+            moved, _ = distance_bearing(lat, lon, last.lat, last.lon)
+            text += (
+                f", MOVED {moved / 1000:.1f} km since {landing.moved_at:%H:%M}Z "
+                f"(last {_hemisphere(last.lat, 'N', 'S')} {_hemisphere(last.lon, 'E', 'W')} "
+                f"{last.time:%H:%M}Z)"
+            )
+    if team is not None:
+        distance, bearing = distance_bearing(team[0], team[1], lat, lon)
+        text += f", {distance / 1000:.1f} km at {round(bearing) % 360:03d}° from you"
+    return text
+
+
+def write_gpx(
+    path: Path,
+    name: str,
+    measured: list[TrackPoint],
+    predicted: list[tuple[float, float, float]],
+    landing: LandingEstimate | None,
+) -> None:
+    ns = "http://www.topografix.com/GPX/1/1"
+    ET.register_namespace("", ns)
+    root = ET.Element(f"{{{ns}}}gpx", {"version": "1.1", "creator": "drs-console"})
+    if landing is not None:
+        wpt = ET.SubElement(root, f"{{{ns}}}wpt", {"lat": f"{landing.lat:.6f}", "lon": f"{landing.lon:.6f}"})
+        ET.SubElement(wpt, f"{{{ns}}}ele").text = f"{landing.alt_m:.0f}"
+        ET.SubElement(
+            wpt, f"{{{ns}}}name"
+        ).text = f"{name} landing (±{landing.std_m:.0f} m, n={landing.count})"
+    for label, points in (
+        ("measured", [(p.lat, p.lon, p.alt_m, p.time) for p in measured]),
+        ("predicted", [(lat, lon, alt, None) for lat, lon, alt in predicted]),
+    ):
+        if not points:
+            continue
+        trk = ET.SubElement(root, f"{{{ns}}}trk")
+        ET.SubElement(trk, f"{{{ns}}}name").text = f"{name} {label}"
+        segment = ET.SubElement(trk, f"{{{ns}}}trkseg")
+        for lat, lon, alt, moment in points:
+            point = ET.SubElement(segment, f"{{{ns}}}trkpt", {"lat": f"{lat:.6f}", "lon": f"{lon:.6f}"})
+            ET.SubElement(point, f"{{{ns}}}ele").text = f"{alt:.0f}"
+            if moment is not None:
+                ET.SubElement(point, f"{{{ns}}}time").text = moment.strftime("%Y-%m-%dT%H:%M:%SZ")
+    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+
+
+def write_kml(
+    path: Path,
+    name: str,
+    measured: list[TrackPoint],
+    predicted: list[tuple[float, float, float]],
+    landing: LandingEstimate | None,
+) -> None:
+    kml = simplekml.Kml(name=name)
+    for label, coords, colour in (
+        ("measured", [(p.lon, p.lat, p.alt_m) for p in measured], simplekml.Color.red),
+        ("predicted", [(lon, lat, alt) for lat, lon, alt in predicted], simplekml.Color.blue),
+    ):
+        if coords:
+            line = kml.newlinestring(name=f"{name} {label}", coords=coords)
+            line.altitudemode = simplekml.AltitudeMode.absolute
+            line.style.linestyle.color = colour
+            line.style.linestyle.width = 3
+    if landing is not None:
+        kml.newpoint(
+            name=f"{name} landing ±{landing.std_m:.0f} m (n={landing.count})",
+            coords=[(landing.lon, landing.lat, landing.alt_m)],
+        )
+    kml.save(str(path))

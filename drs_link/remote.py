@@ -1,0 +1,180 @@
+"""Every shell command the console sends to a capsule's Pi, as fixed templates.
+
+Nothing an operator types reaches the Pi's shell unquoted: each template takes typed values and
+``shlex.quote``s every one. Each command starts with a no-op label (``: drs:power-on 'arg' …;``)
+that the shell ignores; it names the step in sshd logs and lets the capsule simulator recognise
+the command and its arguments without re-implementing a shell.
+"""
+
+from __future__ import annotations
+
+import re
+import shlex
+from dataclasses import dataclass
+
+SERIAL_LOG_NAME = "DRS_serial_log.txt"
+# Relative to tools_dir (every stock-script command runs there): one lock per capsule, owned by pi.
+AUTHORITY_LOCK = ".drs-release.lock"
+AUTHORITY_OWNER = ".drs-release.owner"
+LOG_OFFSET_MARKER = "drs-log-offset"
+MAX_LOG_BYTES = 65536
+HOLDER_RE = re.compile(r"^[A-Za-z0-9@._:+-]{1,96}$")
+
+EXIT_AUTHORITY_HELD = 75
+EXIT_NO_AUTHORITY = 77
+EXIT_NO_TOOLS = 66
+
+
+@dataclass(frozen=True)
+class RemoteCommand:
+    label: str
+    args: tuple[str, ...]
+    script: str
+
+    @property
+    def text(self) -> str:
+        words = [":", f"drs:{self.label}", *(shlex.quote(a) for a in self.args)]
+        return f"{' '.join(words)}; {self.script}"
+
+
+def parse_label(text: str) -> tuple[str, tuple[str, ...]] | None:
+    """The label and arguments of a command built here, or None for anything else.
+
+    The label part ends at the first ``; `` whose prefix is exactly a sequence of quoted words, so
+    a ``;`` inside a quoted argument can never end it early.
+    """
+    start = 0
+    while (end := text.find("; ", start)) >= 0:
+        prefix = text[:end]
+        start = end + 1
+        try:
+            words = shlex.split(prefix)
+        except ValueError:
+            continue
+        if " ".join([*words[:2], *(shlex.quote(w) for w in words[2:])]) != prefix:
+            continue
+        if len(words) < 2 or words[0] != ":" or not words[1].startswith("drs:"):
+            return None
+        return words[1].removeprefix("drs:"), tuple(words[2:])
+    return None
+
+
+def check_holder(holder: str) -> str:
+    if not HOLDER_RE.match(holder):
+        raise ValueError(f"release-authority holder {holder!r} must match {HOLDER_RE.pattern}")
+    return holder
+
+
+def _authority_prelude(holder: str) -> str:
+    """Take the Pi-side lock that makes the power-on → go window exclusive to one console.
+
+    ``flock`` makes the check-and-set of the owner file atomic; the owner file (holder and lease
+    expiry) is what persists between the separate SSH commands of one release.
+    """
+    lock, owner, q_holder = (shlex.quote(x) for x in (AUTHORITY_LOCK, AUTHORITY_OWNER, holder))
+    return (
+        f"exec 9>>{lock} || exit {EXIT_AUTHORITY_HELD}; "
+        f"flock -w 5 9 || {{ echo 'drs: the release-authority lock is busy' >&2; exit {EXIT_AUTHORITY_HELD}; }}; "
+        f"now=$(date +%s); held_by=''; lease_end=0; "
+        f"if [ -s {owner} ]; then read -r held_by lease_end < {owner}; fi; "
+        f'if [ -n "$held_by" ] && [ "$held_by" != {q_holder} ] && [ "${{lease_end:-0}}" -gt "$now" ]; then '
+        f'echo "drs: release authority is held by $held_by" >&2; exit {EXIT_AUTHORITY_HELD}; fi'
+    )
+
+
+def power_on(tools_dir: str, python: str, holder: str, lease_s: float) -> RemoteCommand:
+    check_holder(holder)
+    lease = int(lease_s)
+    q = shlex.quote
+    script = (
+        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
+        f"{_authority_prelude(holder)}; "
+        f"echo {q(holder)} $((now + {lease})) > {q(AUTHORITY_OWNER)}; "
+        f"echo {LOG_OFFSET_MARKER} $(stat -c %s {q(SERIAL_LOG_NAME)} 2>/dev/null || echo 0); "
+        f"{q(python)} DRS_on.py"
+    )
+    return RemoteCommand("power-on", (tools_dir, python, holder, str(lease)), script)
+
+
+def read_serial(tools_dir: str, python: str, offset: int) -> RemoteCommand:
+    """Capture NMEA with the stock logger, then print what the log gained since ``offset``."""
+    q = shlex.quote
+    start = max(int(offset), 0) + 1
+    script = (
+        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
+        f"{q(python)} DRS_log_serial.py > /dev/null || exit $?; "
+        f"tail -c +{start} {q(SERIAL_LOG_NAME)} 2>/dev/null | tail -c {MAX_LOG_BYTES}"
+    )
+    return RemoteCommand("read-serial", (tools_dir, python, str(int(offset))), script)
+
+
+def go(tools_dir: str, python: str, holder: str) -> RemoteCommand:
+    """Run the stock Go script while holding the authority lock (fd 9 stays open until shutdown)."""
+    check_holder(holder)
+    q = shlex.quote
+    script = (
+        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
+        f"{_authority_prelude(holder)}; "
+        f'if [ "$held_by" != {q(holder)} ]; then '
+        f"echo 'drs: this console holds no release authority: run power-on first' >&2; exit {EXIT_NO_AUTHORITY}; fi; "
+        f"{q(python)} DRS_GoGoGo.py"
+    )
+    return RemoteCommand("go", (tools_dir, python, holder), script)
+
+
+AGENT_NAME = "drs_agent.py"
+EXIT_AGENT_NO_ACK = 3
+
+
+def agent_power_on(tools_dir: str, python: str, holder: str, lease_s: float, serial_device: str) -> RemoteCommand:
+    check_holder(holder)
+    lease = int(lease_s)
+    q = shlex.quote
+    script = (
+        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
+        f"{_authority_prelude(holder)}; "
+        f"echo {q(holder)} $((now + {lease})) > {q(AUTHORITY_OWNER)}; "
+        f"{q(python)} {AGENT_NAME} power-on --serial {q(serial_device)}"
+    )
+    return RemoteCommand("agent-power-on", (tools_dir, python, holder, str(lease), serial_device), script)
+
+
+def agent_read(tools_dir: str, python: str, offset: int) -> RemoteCommand:
+    q = shlex.quote
+    script = f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; {q(python)} {AGENT_NAME} read --offset {int(offset)}"
+    return RemoteCommand("agent-read", (tools_dir, python, str(int(offset))), script)
+
+
+def agent_go(tools_dir: str, python: str, holder: str, serial_device: str) -> RemoteCommand:
+    check_holder(holder)
+    q = shlex.quote
+    script = (
+        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
+        f"{_authority_prelude(holder)}; "
+        f'if [ "$held_by" != {q(holder)} ]; then '
+        f"echo 'drs: this console holds no release authority: run power-on first' >&2; exit {EXIT_NO_AUTHORITY}; fi; "
+        f"{q(python)} {AGENT_NAME} go --serial {q(serial_device)}"
+    )
+    return RemoteCommand("agent-go", (tools_dir, python, holder, serial_device), script)
+
+
+def storage_report(mount: str) -> RemoteCommand:
+    q = shlex.quote
+    script = f"df -P -B1 -- {q(mount)}; echo '--mdstat--'; cat /proc/mdstat"
+    return RemoteCommand("storage", (mount,), script)
+
+
+def verify_file(path: str) -> RemoteCommand:
+    """Flush the uploaded file to the card, then hash what is actually stored."""
+    q = shlex.quote
+    script = f"sync -- {q(path)} && sha256sum -- {q(path)}"
+    return RemoteCommand("verify", (path,), script)
+
+
+def hash_file(path: str) -> RemoteCommand:
+    q = shlex.quote
+    return RemoteCommand("hash", (path,), f"sha256sum -- {q(path)}")
+
+
+def heartbeat() -> RemoteCommand:
+    return RemoteCommand("heartbeat", (), "true")

@@ -1,0 +1,377 @@
+"""Measured flight tracks in every format we meet, as one ``Track`` of ``Fix`` es.
+
+Readers only parse: a row that is well formed but physically wrong (a 1970 date, a 0/0 position)
+is kept here and removed by a stated rule in ``cleaning``, so that the removal is reported. A row
+that cannot be parsed at all is an operator error: it raises ``TrackError`` naming the file and
+line, never a bare traceback, because a silently skipped row is a silently changed flight.
+
+Formats:
+- canonical CSV ``time,lat,lon,alt_m[,pressure_pa]`` with ISO 8601 UTC times (what we write);
+- GPX 1.1 (``trkpt`` with ``ele`` and ``time``), read with the standard library;
+- the 2018–2019 SuperBIT RockBLOCK gateway logs (no header; rows with and without ``RB`` serials);
+- the 1 Hz V4 logger CSV (times of day only, so the flight date must be given).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import xml.sax
+import xml.sax.handler
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from datetime import UTC, date, datetime, timedelta
+from pathlib import Path
+from xml.sax.xmlreader import AttributesNSImpl, Locator
+
+from predictor.errors import PredictorError
+
+CANONICAL_HEADER: tuple[str, ...] = ("time", "lat", "lon", "alt_m", "pressure_pa")
+V4_HEADER: tuple[str, ...] = (
+    "record",
+    "time_hhmmss",
+    "lat_deg",
+    "lon_deg",
+    "alt_m",
+    "sats",
+    "gps_quality",
+    "T2_degC",
+    "RH_pct",
+)
+SUPERBIT_DATA_FIELDS = 13
+"""date, time, lat, lon, alt, speed, course, HDOP, sats, pressure, temperature, battery, sequence."""
+
+
+class TrackError(PredictorError):
+    """A track file cannot be read; the message names the file and, where there is one, the line."""
+
+
+@dataclass(frozen=True, slots=True)
+class Fix:
+    """One measured position. Optional fields are None when the format does not carry them."""
+
+    time: datetime
+    """UTC, timezone-aware."""
+    lat: float
+    lon: float
+    alt_m: float
+    """GNSS altitude, metres (above mean sea level for the formats we read)."""
+    pressure_pa: float | None = None
+    """Static pressure measured on board, Pa."""
+    speed_ms: float | None = None
+    """Ground speed reported by the receiver, m/s."""
+    course_deg: float | None = None
+    sats: int | None = None
+    line: int = 0
+    """Line of the source file the fix came from, so every cleaning report can point at it."""
+
+
+@dataclass(frozen=True)
+class Track:
+    """The fixes of one file in file order, exactly as read (cleaning happens elsewhere)."""
+
+    name: str
+    source: str
+    """The file the fixes came from."""
+    format: str
+    fixes: tuple[Fix, ...]
+
+
+def read_track(path: str | Path, *, day: date | None = None) -> Track:
+    """Read any supported format, chosen from the file name and its first line.
+
+    ``day`` is the UTC date of the first fix for formats that store only times of day (V4).
+    """
+    path = Path(path)
+    if path.suffix.lower() == ".gpx":
+        return read_gpx(path)
+    first = _first_line(path)
+    if first.lower().startswith("time,"):
+        return read_canonical_csv(path)
+    if first.lower().startswith("record,time_hhmmss"):
+        if day is None:
+            raise TrackError(
+                f"{path}: this 1 Hz logger file has times of day but no date; "
+                "give the flight date (--date YYYY-MM-DD)"
+            )
+        return read_v4_csv(path, day)
+    if first.startswith("RB") or (first[:2].isdigit() and first[2:3] == "/"):
+        return read_superbit_log(path)
+    raise TrackError(
+        f"{path}:1: unknown track format (expected a canonical CSV with header "
+        f"'time,lat,lon,alt_m[,pressure_pa]', a GPX file, a SuperBIT RockBLOCK log or a V4 logger CSV)"
+    )
+
+
+def read_canonical_csv(path: str | Path) -> Track:
+    path = Path(path)
+    rows = _csv_rows(path)
+    try:
+        line_no, header = next(rows)
+    except StopIteration:
+        raise TrackError(
+            f"{path}: empty file, expected the header 'time,lat,lon,alt_m[,pressure_pa]'"
+        ) from None
+    names = tuple(h.strip() for h in header)
+    if names not in (CANONICAL_HEADER[:4], CANONICAL_HEADER):
+        raise TrackError(
+            f"{path}:{line_no}: header must be 'time,lat,lon,alt_m[,pressure_pa]', got {','.join(names)!r}"
+        )
+    fixes = []
+    for line_no, row in rows:
+        if not any(cell.strip() for cell in row):
+            continue
+        if len(row) != len(names):
+            raise TrackError(f"{path}:{line_no}: expected {len(names)} fields, got {len(row)}")
+        where = f"{path}:{line_no}"
+        pressure = row[4].strip() if len(row) == 5 else ""
+        fixes.append(
+            Fix(
+                time=_iso_utc(row[0], where),
+                lat=_number(row[1], "lat", where),
+                lon=_number(row[2], "lon", where),
+                alt_m=_number(row[3], "alt_m", where),
+                pressure_pa=_number(pressure, "pressure_pa", where) if pressure else None,
+                line=line_no,
+            )
+        )
+    return _track(path, "canonical-csv", fixes)
+
+
+def write_canonical_csv(fixes: Sequence[Fix], path: str | Path) -> None:
+    """Write fixes in the canonical format (pressure column always present, empty when unknown)."""
+    with Path(path).open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle, lineterminator="\n")
+        writer.writerow(CANONICAL_HEADER)
+        for fix in fixes:
+            writer.writerow(
+                (
+                    fix.time.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S") + _fraction(fix.time) + "Z",
+                    f"{fix.lat:.7f}",
+                    f"{fix.lon:.7f}",
+                    f"{fix.alt_m:.2f}",
+                    "" if fix.pressure_pa is None else f"{fix.pressure_pa:.1f}",
+                )
+            )
+
+
+def read_superbit_log(path: str | Path) -> Track:
+    """The RockBLOCK gateway log: each row is decided on its own (RB serials or not, padding or not)."""
+    path = Path(path)
+    fixes = []
+    for line_no, row in _csv_rows(path):
+        if not any(cell.strip() for cell in row):
+            continue
+        where = f"{path}:{line_no}"
+        offset = 1 if row[0].strip().startswith("RB") else 0
+        data = row[offset:]
+        while len(data) > SUPERBIT_DATA_FIELDS and not data[-1].strip():
+            data = data[:-1]
+        if offset and len(data) > SUPERBIT_DATA_FIELDS and data[-1].strip().startswith("RB"):
+            data = data[:-1]
+        if len(data) != SUPERBIT_DATA_FIELDS:
+            raise TrackError(
+                f"{where}: expected {SUPERBIT_DATA_FIELDS} data fields "
+                f"(date,time,lat,lon,alt,speed,course,hdop,sats,pressure,temp,batt,seq), got {len(data)}"
+            )
+        try:
+            when = datetime.strptime(f"{data[0].strip()} {data[1].strip()}", "%d/%m/%Y %H:%M:%S")
+        except ValueError:
+            raise TrackError(
+                f"{where}: date/time {data[0]!r} {data[1]!r} is not 'dd/mm/YYYY,HH:MM:SS'"
+            ) from None
+        pressure = _number(data[9], "pressure", where)
+        fixes.append(
+            Fix(
+                time=when.replace(tzinfo=UTC),
+                lat=_number(data[2], "latitude", where),
+                lon=_number(data[3], "longitude", where),
+                alt_m=_number(data[4], "altitude", where),
+                pressure_pa=pressure if pressure > 0 else None,
+                speed_ms=_number(data[5], "ground speed", where),
+                course_deg=_number(data[6], "course", where),
+                sats=int(_number(data[8], "satellites", where)),
+                line=line_no,
+            )
+        )
+    return _track(path, "superbit-rockblock", fixes)
+
+
+def read_v4_csv(path: str | Path, day: date) -> Track:
+    """The 1 Hz logger CSV. Times are times of day; a step back of more than 12 h is a new UTC day."""
+    path = Path(path)
+    rows = _csv_rows(path)
+    try:
+        line_no, header = next(rows)
+    except StopIteration:
+        raise TrackError(f"{path}: empty file") from None
+    if tuple(h.strip() for h in header) != V4_HEADER:
+        raise TrackError(f"{path}:{line_no}: header must be {','.join(V4_HEADER)!r}")
+    fixes: list[Fix] = []
+    current_day = day
+    for line_no, row in rows:
+        if not any(cell.strip() for cell in row):
+            continue
+        where = f"{path}:{line_no}"
+        if len(row) != len(V4_HEADER):
+            raise TrackError(f"{where}: expected {len(V4_HEADER)} fields, got {len(row)}")
+        try:
+            clock = datetime.strptime(row[1].strip(), "%H:%M:%S").time()
+        except ValueError:
+            raise TrackError(f"{where}: time {row[1]!r} is not HH:MM:SS") from None
+        when = datetime.combine(current_day, clock, tzinfo=UTC)
+        if fixes and when < fixes[-1].time - timedelta(hours=12):
+            current_day += timedelta(days=1)
+            when += timedelta(days=1)
+        fixes.append(
+            Fix(
+                time=when,
+                lat=_number(row[2], "lat_deg", where),
+                lon=_number(row[3], "lon_deg", where),
+                alt_m=_number(row[4], "alt_m", where),
+                sats=int(_number(row[5], "sats", where)),
+                line=line_no,
+            )
+        )
+    return _track(path, "v4-1hz", fixes)
+
+
+def read_gpx(path: str | Path) -> Track:
+    """GPX 1.1 (1.0 is accepted too): every ``trkpt`` of every track segment, in file order."""
+    path = Path(path)
+    handler = _GpxHandler(str(path))
+    parser = xml.sax.make_parser()
+    parser.setFeature(xml.sax.handler.feature_namespaces, True)
+    parser.setFeature(xml.sax.handler.feature_external_ges, False)
+    parser.setFeature(xml.sax.handler.feature_external_pes, False)
+    parser.setContentHandler(handler)
+    try:
+        parser.parse(str(path))
+    except xml.sax.SAXParseException as exc:
+        raise TrackError(f"{path}:{exc.getLineNumber()}: not well-formed XML ({exc.getMessage()})") from None
+    except OSError as exc:
+        raise TrackError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if not handler.saw_gpx:
+        raise TrackError(f"{path}:1: not a GPX file (no <gpx> root element)")
+    return _track(path, "gpx", handler.fixes)
+
+
+class _GpxHandler(xml.sax.handler.ContentHandler):
+    """Collects trkpt elements; namespaces are ignored so that GPX 1.0 and 1.1 both read."""
+
+    def __init__(self, source: str) -> None:
+        super().__init__()
+        self.source = source
+        self.fixes: list[Fix] = []
+        self.saw_gpx = False
+        self._point: dict[str, str] | None = None
+        self._point_line = 0
+        self._text: list[str] = []
+        self._locator: Locator | None = None
+
+    def setDocumentLocator(self, locator: Locator) -> None:  # noqa: N802 (SAX API)
+        self._locator = locator
+
+    def _line(self) -> int:
+        return self._locator.getLineNumber() if self._locator else 0
+
+    def startElementNS(
+        self, name: tuple[str | None, str], qname: str | None, attrs: AttributesNSImpl
+    ) -> None:  # noqa: N802
+        local = name[1]
+        if local == "gpx":
+            self.saw_gpx = True
+        elif local == "trkpt":
+            self._point = {key[1]: value for key, value in attrs.items()}
+            self._point_line = self._line()
+        self._text = []
+
+    def characters(self, content: str) -> None:
+        self._text.append(content)
+
+    def endElementNS(self, name: tuple[str | None, str], qname: str | None) -> None:  # noqa: N802
+        local = name[1]
+        if self._point is None:
+            return
+        if local in ("ele", "time", "sat"):
+            self._point[local] = "".join(self._text).strip()
+        elif local == "trkpt":
+            self.fixes.append(self._fix(self._point))
+            self._point = None
+
+    def _fix(self, point: dict[str, str]) -> Fix:
+        where = f"{self.source}:{self._point_line}"
+        for key in ("lat", "lon", "ele", "time"):
+            if key not in point:
+                raise TrackError(f"{where}: trkpt has no {key}")
+        sats = point.get("sat")
+        return Fix(
+            time=_iso_utc(point["time"], where),
+            lat=_number(point["lat"], "lat", where),
+            lon=_number(point["lon"], "lon", where),
+            alt_m=_number(point["ele"], "ele", where),
+            sats=int(_number(sats, "sat", where)) if sats else None,
+            line=self._point_line,
+        )
+
+
+def _track(path: Path, fmt: str, fixes: list[Fix]) -> Track:
+    if not fixes:
+        raise TrackError(f"{path}: no fixes in the file")
+    return Track(name=path.stem, source=str(path), format=fmt, fixes=tuple(fixes))
+
+
+def _first_line(path: Path) -> str:
+    for _, row in _csv_rows(path):
+        if any(cell.strip() for cell in row):
+            return ",".join(row).strip()
+    raise TrackError(f"{path}: empty file")
+
+
+def _csv_rows(path: Path) -> Iterator[tuple[int, list[str]]]:
+    """(line number, fields) for each line; undecodable bytes become a TrackError naming the line."""
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise TrackError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    for line_no, line in enumerate(raw.splitlines(), start=1):
+        try:
+            text = line.decode("utf-8-sig" if line_no == 1 else "utf-8")
+        except UnicodeDecodeError:
+            raise TrackError(f"{path}:{line_no}: not text (bytes that are not UTF-8)") from None
+        if "\x00" in text:
+            raise TrackError(f"{path}:{line_no}: not text (NUL byte)")
+        try:
+            fields = next(csv.reader(io.StringIO(text)), [])
+        except csv.Error as exc:
+            raise TrackError(f"{path}:{line_no}: not a CSV line ({exc})") from None
+        yield line_no, fields
+
+
+def _number(text: str, what: str, where: str) -> float:
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise TrackError(f"{where}: {what} {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise TrackError(f"{where}: {what} {text!r} is not a finite number")
+    return value
+
+
+def _iso_utc(text: str, where: str) -> datetime:
+    stripped = text.strip()
+    try:
+        when = datetime.fromisoformat(stripped)
+    except ValueError:
+        raise TrackError(f"{where}: time {text!r} is not ISO 8601 (e.g. 2019-03-11T17:50:19Z)") from None
+    if when.tzinfo is None:
+        raise TrackError(f"{where}: time {text!r} has no time zone; write UTC as ...Z")
+    try:
+        return when.astimezone(UTC)
+    except OverflowError:
+        raise TrackError(f"{where}: time {text!r} is out of range") from None
+
+
+def _fraction(when: datetime) -> str:
+    return f".{when.microsecond:06d}".rstrip("0") if when.microsecond else ""

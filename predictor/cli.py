@@ -1,0 +1,332 @@
+"""``drs predict``: a landing prediction from GRIB weather, and ``drs predict bench``, its measured speed.
+
+The human summary is what an operator reads on launch day, so it leads with the demo warning
+when there is one and gives every number with its unit; ``--json`` prints the result document.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from collections.abc import Callable, Sequence
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from predictor.errors import PredictorError
+from predictor.export import to_json, write_geojson, write_kml
+from predictor.payload import PROFILES, payload_profile
+from predictor.prediction import EnsemblePrediction, Prediction, iso_z, predict, predict_ensemble
+from predictor.terrain import Terrain
+from predictor.uncertainty import ERROR_MODELS, GEOD
+
+WEATHER_MARGIN_DEG = 6.0
+"""Half-size of the weather region decoded around the release (a 30 km descent drifts ≲ 300 km)."""
+FLOAT_WIND_MAX_MS = 60.0
+"""Fastest wind assumed at float altitude when sizing the region for a drift before release."""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "predict",
+        help="predict a capsule's landing (or `drs predict bench` to measure speed)",
+        description="Predict where a capsule released from a balloon lands, with its error ellipse.",
+    )
+    parser.add_argument(
+        "action", nargs="?", choices=("bench",), help="bench: measure and print the speed figures"
+    )
+    parser.add_argument(
+        "--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files (forecast steps, cycles)"
+    )
+    parser.add_argument(
+        "--dem", metavar="DIR", help="terrain: directory of SRTM .hgt tiles and/or NetCDF DEMs"
+    )
+    parser.add_argument("--lat", type=float, help="release latitude, degrees north")
+    parser.add_argument("--lon", type=float, help="release longitude, degrees east")
+    parser.add_argument("--alt", type=float, help="release altitude, m above mean sea level")
+    parser.add_argument("--time", help="release (or drift start) time, ISO 8601 UTC, e.g. 2024-05-01T06:30Z")
+    parser.add_argument(
+        "--payload", default="drs", choices=sorted(PROFILES), help="payload profile (default drs)"
+    )
+    parser.add_argument("--mass", type=float, metavar="KG", help="override the profile's mass")
+    parser.add_argument("--cda", type=float, metavar="M2", help="override the profile's Cd·A")
+    parser.add_argument(
+        "--step", type=float, default=100.0, metavar="M", help="altitude step (default 100 m)"
+    )
+    parser.add_argument(
+        "--drift-minutes", type=float, default=0.0, metavar="N", help="float drift before release"
+    )
+    parser.add_argument("--members", type=int, metavar="N", help="run a perturbed ensemble of N members")
+    parser.add_argument("--seed", type=int, default=0, help="ensemble random seed (default 0)")
+    parser.add_argument(
+        "--error-model",
+        default="launch",
+        choices=sorted(ERROR_MODELS),
+        help="ellipse parameters (default launch)",
+    )
+    parser.add_argument(
+        "--probability", type=float, nargs="+", default=[], metavar="P", help="extra contours, e.g. 0.5 0.95"
+    )
+    parser.add_argument("--kml", metavar="OUT", help="write KML (path, release, landing, ellipses)")
+    parser.add_argument("--geojson", metavar="OUT", help="write GeoJSON")
+    parser.add_argument("--json", action="store_true", help="print the JSON result document")
+    parser.add_argument("--track", action="store_true", help="include the path in the JSON")
+    parser.add_argument("--cache-dir", metavar="DIR", help="weather cache (default ~/.cache/drs/weather)")
+    bench = parser.add_argument_group("bench options")
+    bench.add_argument(
+        "--repeats", type=int, default=200, help="bench: single predictions timed (default 200)"
+    )
+    bench.add_argument("--ensemble-repeats", type=int, default=10, help="bench: ensembles timed (default 10)")
+    bench.add_argument("--bench-members", type=int, default=1000, help="bench: ensemble size (default 1000)")
+    bench.add_argument(
+        "--skip-compile", action="store_true", help="bench: do not time a fresh-process compile"
+    )
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.action == "bench":
+        return run_bench(args)
+    missing = [flag for flag, value in (("--weather", args.weather), ("--lat", args.lat), ("--lon", args.lon),
+                                        ("--alt", args.alt), ("--time", args.time)) if value is None]  # fmt: skip
+    if missing:
+        raise PredictorError(f"drs predict needs {', '.join(missing)}")
+    from predictor.weather import load_weather
+
+    when = parse_time(args.time)
+    payload = payload_profile(args.payload).overridden(mass_kg=args.mass, cda_m2=args.cda)
+    terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
+    wx = load_weather(
+        args.weather, bbox=weather_bbox(args.lat, args.lon, args.drift_minutes), cache_dir=args.cache_dir
+    )
+    common: dict[str, Any] = {
+        "payload": payload,
+        "terrain": terrain,
+        "step_m": args.step,
+        "drift_minutes": args.drift_minutes,
+        "error_model": ERROR_MODELS[args.error_model],
+        "probabilities": tuple(args.probability),
+    }
+    result: Prediction | EnsemblePrediction
+    if args.members is not None:
+        result = predict_ensemble(
+            wx, when, args.lat, args.lon, args.alt, members=args.members, seed=args.seed, **common
+        )
+    else:
+        result = predict(wx, when, args.lat, args.lon, args.alt, **common)
+    if args.kml:
+        write_kml(result, args.kml)
+    if args.geojson:
+        write_geojson(result, args.geojson)
+    print(to_json(result, track=args.track) if args.json else summary(result))
+    return 0
+
+
+def parse_time(text: str) -> datetime:
+    try:
+        when = datetime.fromisoformat(text.strip())
+    except ValueError:
+        raise PredictorError(f"--time {text!r} is not an ISO 8601 time such as 2024-05-01T06:30Z") from None
+    if when.tzinfo is None:
+        raise PredictorError(f"--time {text!r} has no time zone; give UTC explicitly, e.g. {text}Z")
+    return when.astimezone(UTC)
+
+
+def weather_bbox(lat: float, lon: float, drift_minutes: float) -> tuple[float, float, float, float]:
+    """The region a descent (and the drift before it) can reach: all that needs decoding."""
+    half = WEATHER_MARGIN_DEG + FLOAT_WIND_MAX_MS * drift_minutes * 60.0 / 111_000.0
+    half_lon = min(half / max(math.cos(math.radians(lat)), 0.05), 179.0)
+    return max(lat - half, -90.0), min(lat + half, 90.0), lon - half_lon, lon + half_lon
+
+
+def summary(result: Prediction | EnsemblePrediction) -> str:
+    pred = result.central if isinstance(result, EnsemblePrediction) else result
+    lines = []
+    if pred.is_demo:
+        lines.append("*** DEMO WEATHER: generated atmosphere, not a forecast. Do not use for operations. ***")
+    r, land, e = pred.release, pred.landing, pred.ellipse
+    if pred.decision is not None:
+        d = pred.decision
+        lines.append(f"decision  {iso_z(d.time)}  {d.lat:.5f}, {d.lon:.5f}  then drift at float")
+    lines += [
+        f"release   {iso_z(r.time)}  {r.lat:.5f}, {r.lon:.5f}  {r.alt_m:.0f} m",
+        f"landing   {iso_z(land.time)}  {land.lat:.5f}, {land.lon:.5f}  {land.alt_m:.0f} m ({pred.terrain_source})",
+        f"descent   {pred.descent_s / 60:.1f} min; drift {pred.drift_km:.2f} km toward {pred.bearing_deg:.0f}°"
+        f" (path {pred.path_km:.2f} km)",
+        f"ellipse   {e.kind}: σ∥ {e.sigma_parallel_km:.2f} km, σ⊥ {e.sigma_perpendicular_km:.2f} km "
+        f"(⟨t_future⟩ {pred.t_future_mean_h:.1f} h)",
+    ]
+    lines += [
+        f"          {c.n_sigma:.2f}σ holds {100 * c.probability:.1f} %: {c.semi_major_km:.2f} × {c.semi_minor_km:.2f} km"
+        for c in e.contours
+    ]
+    if isinstance(result, EnsemblePrediction):
+        m = result.empirical
+        _, _, gap = GEOD.inv(land.lon, land.lat, m.center_lon, m.center_lat)
+        inside = ", ".join(
+            f"{100 * (c.observed_fraction or 0):.1f} % in {c.n_sigma:.0f}σ" for c in m.contours[:3]
+        )
+        lines.append(
+            f"ensemble  {result.members} members: σ∥ {m.sigma_parallel_km:.2f} km, σ⊥ {m.sigma_perpendicular_km:.2f} km,"
+            f" mean {gap / 1000:.2f} km from the central landing; {inside}"
+        )
+    lines.append(f"payload   {pred.payload.name}: {pred.payload.mass_kg} kg, Cd·A {pred.payload.cda_m2} m²")
+    lines.append(f"weather   {pred.weather_source}")
+    lines += [f"warning   {w}" for w in pred.warnings]
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- bench
+
+BENCH_LEVELS_HPA = np.array(
+    [1000, 975, 950, 925, 900, 850, 800, 750, 700, 650, 600, 550, 500, 450, 400, 350, 300, 250, 200, 150,
+     100, 70, 50, 40, 30, 20, 15, 10, 7, 5, 3, 2, 1], dtype=float,
+)  # fmt: skip
+BENCH_CYCLE = datetime(2024, 5, 1, 0, tzinfo=UTC)
+
+
+def _bench_fields(hour: float, lats: np.ndarray, lons: np.ndarray) -> dict[str, np.ndarray]:
+    """A plausible mid-latitude atmosphere (lapse rates of the standard atmosphere, a jet at 11 km).
+
+    Bench input only: its job is to have the shape and size of a real 0.5° subset.
+    """
+    # Heights of the levels from the standard atmosphere's layers (troposphere 6.5 K/km, isothermal to 20 km, +1 K/km).
+    p = BENCH_LEVELS_HPA[:, None, None]
+    z_trop = 44330.8 * (1 - (p / 1013.25) ** 0.190263)
+    z_strat = 11000.0 + 6341.6 * np.log(226.32 / p)
+    z_upper = 20000.0 + 216.65 / 0.001 * ((p / 54.75) ** (-0.001 * 287.05 / 9.80665) - 1)
+    gh = np.where(p > 226.32, z_trop, np.where(p > 54.75, z_strat, z_upper))
+    gh = gh + 80.0 * np.sin(np.radians(lats))[None, :, None] + 0.0 * lons[None, None, :]
+    t = np.where(
+        gh < 11000, 288.15 - 0.0065 * gh, np.where(gh < 20000, 216.65, 216.65 + 0.001 * (gh - 20000))
+    )
+    jet = 10.0 + 30.0 * np.exp(-(((gh - 11000.0) / 4000.0) ** 2))
+    u = (
+        jet * (1.0 + 0.02 * (lats[None, :, None] - 46.0))
+        + 0.5 * np.sin(np.radians(10 * lons))[None, None, :]
+        + 0.2 * hour
+    )
+    v = 5.0 * np.sin(gh / 5000.0) + 0.1 * (lons[None, None, :] - 6.0)
+    return {"u": u, "v": v, "t": t, "gh": gh}
+
+
+def _timed(fn: Callable[[], object], repeats: int) -> list[float]:
+    out = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - start)
+    return out
+
+
+def _figure(times: Sequence[float], unit: float, label: str) -> str:
+    return (
+        f"median {statistics.median(times) * unit:.3g}, min {min(times) * unit:.3g}, "
+        f"max {max(times) * unit:.3g} {label} over {len(times)} runs"
+    )
+
+
+_COMPILE_PROBE = textwrap.dedent(
+    """
+    import time
+    start = time.perf_counter()
+    from datetime import datetime, timezone
+    import numpy as np
+    from predictor import predict, WeatherCube
+    levels = np.array([1000.0, 500.0, 100.0, 10.0])
+    z = np.array([100.0, 5500.0, 16000.0, 31000.0])[None, :, None, None] * np.ones((2, 4, 3, 3))
+    cube = WeatherCube(
+        times=np.array(["2024-05-01T00", "2024-05-01T06"], dtype="datetime64[s]"), lead_h=np.array([0.0, 6.0]),
+        levels_hpa=levels, lats=np.array([45.0, 46.0, 47.0]), lons=np.array([5.0, 6.0, 7.0]), z_m=z,
+        u=np.zeros_like(z), v=np.zeros_like(z), temperature_k=np.full_like(z, 250.0),
+        density=1.2 * np.exp(-z / 7300.0), source="compile probe")
+    predict(cube, datetime(2024, 5, 1, 3, tzinfo=timezone.utc), 46.0, 6.0, 30000.0)
+    print(time.perf_counter() - start)
+    """
+)
+
+
+def _fresh_process_seconds(cache_dir: str) -> float:
+    env = {**os.environ, "NUMBA_CACHE_DIR": cache_dir}
+    done = subprocess.run(
+        [sys.executable, "-c", _COMPILE_PROBE],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=600,
+    )
+    if done.returncode != 0:
+        raise PredictorError(f"the compile probe failed: {done.stderr.strip().splitlines()[-1]}")
+    return float(done.stdout.strip())
+
+
+def run_bench(args: argparse.Namespace) -> int:
+    import numba
+
+    from predictor.gribwrite import gfs_file_name, write_gfs_grib2
+    from predictor.weather import load_weather
+
+    print(
+        f"drs predict bench: {os.cpu_count()} CPUs, numba {numba.__version__} with {numba.get_num_threads()} threads, "
+        f"load average {os.getloadavg()[0]:.2f} at start"
+    )
+    with tempfile.TemporaryDirectory(prefix="drs-bench-") as tmp:
+        root = Path(tmp)
+        lats, lons = np.arange(41.0, 51.01, 0.5), np.arange(1.0, 11.01, 0.5)
+        files = [
+            write_gfs_grib2(root / gfs_file_name(BENCH_CYCLE, h), BENCH_CYCLE, h, BENCH_LEVELS_HPA, lats, lons,
+                            **_bench_fields(h, lats, lons))
+            for h in (0, 3, 6, 9, 12)
+        ]  # fmt: skip
+        size_mb = sum(f.stat().st_size for f in files) / 1e6
+        print(
+            f"weather: 5 GRIB2 files (gribwrite), 0.5°, 10°×10° ({lats.size}×{lons.size}), "
+            f"{BENCH_LEVELS_HPA.size} levels, {size_mb:.1f} MB"
+        )
+        start = time.perf_counter()
+        load_weather(files, cache_dir=root / "cache")
+        cold = time.perf_counter() - start
+        cached_times = _timed(lambda: load_weather(files, cache_dir=root / "cache"), 5)
+        print(f"  load cold (decode all, write cache):  {cold:.3f} s   [floor 2 s]")
+        print(f"  load from cache:                      {_figure(cached_times, 1, 's')}   [floor 0.2 s]")
+        wx = load_weather(files, cache_dir=root / "cache")
+        if not args.skip_compile:
+            compile_s = _fresh_process_seconds(str(root / "numba-cache"))
+            cached_s = _fresh_process_seconds(str(root / "numba-cache"))
+            print(
+                f"compile: first prediction in a fresh process (import + JIT) {compile_s:.2f} s with an empty numba cache,"
+                f" {cached_s:.2f} s with the on-disk cache"
+            )
+    when = BENCH_CYCLE + timedelta(hours=4)
+    payload = PROFILES["drs"]
+    sea = Terrain.sea_level()
+    first = predict(wx, when, 46.0, 6.0, 30000.0, payload=payload, terrain=sea)
+    steps = math.ceil(30500.0 / 100.0)
+    singles = _timed(
+        lambda: predict(wx, when, 46.0, 6.0, 30000.0, payload=payload, terrain=sea), args.repeats
+    )
+    print(
+        f"one prediction, drs payload, 30 km → sea level, Δz 100 m ({steps} steps, drift {first.drift_km:.1f} km, "
+        f"{first.descent_s / 60:.1f} min), whole predict() call: {_figure(singles, 1e3, 'ms')}   [floor 2 ms]"
+    )
+    n = args.bench_members
+    predict_ensemble(wx, when, 46.0, 6.0, 30000.0, payload=payload, terrain=sea, members=n)
+    ensembles = _timed(
+        lambda: predict_ensemble(wx, when, 46.0, 6.0, 30000.0, payload=payload, terrain=sea, members=n),
+        args.ensemble_repeats,
+    )
+    print(
+        f"{n}-member perturbed ensemble, same descent, whole predict_ensemble() call (central run, members, "
+        f"terrain crossing, empirical ellipse): {_figure(ensembles, 1e3, 'ms')}   [floor 100 ms]"
+    )
+    return 0

@@ -1,0 +1,471 @@
+"""The altitude stepper: moves many trajectories down through a weather cube, knowing no physics.
+
+Why altitude steps: the fall speed changes by a factor of ten between 30 km and the ground, so equal
+altitude steps (Δz, default 100 m) give short steps where the air is thin and fast and long ones near
+the ground, at a fixed and predictable cost (300 steps from 30 km). Every quantity of a step is
+evaluated at its MIDPOINT: altitude z − Δz/2, and the time and horizontal position half-way through
+the step, estimated from the previous step's duration and velocity (second-order accurate; the
+first step estimates them from a sample at its start).
+
+What happens in a step is the model's business (``predictor.model``): the stepper samples the
+weather, fills ``env``, calls the timing, vertical and horizontal chains, and moves the point on the
+WGS84 ellipsoid at altitude (radii of curvature M(φ)+h and (N(φ)+h)·cos φ). It does not know the
+ground: it runs every trajectory down to ``z_floor`` (below any ground on Earth) and records the
+path; ``predictor.prediction`` finds where the path meets the terrain afterwards.
+
+Weather sampling: linear in time, bilinear in latitude/longitude, and in each of the 8 grid columns
+linear in geometric altitude for the wind and linear in altitude for log-density (exact for an
+exponential atmosphere). Below a column's lowest level the wind is held at the lowest level's value
+and log-density is extrapolated linearly; above the top level the same holds, but only up to
+``TOP_TOLERANCE_M`` (beyond that the weather says nothing and the step fails).
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from predictor.cube import WeatherCube
+from predictor.model import (
+    ENV_DT,
+    ENV_DZ,
+    ENV_G,
+    ENV_LAT,
+    ENV_RHO,
+    ENV_SIZE,
+    ENV_T_REL,
+    ENV_T_START,
+    ENV_TIME_SHIFT,
+    ENV_U_WIND,
+    ENV_V_WIND,
+    ENV_Z,
+    FAMILY_HORIZONTAL,
+    FAMILY_TIMING,
+    FAMILY_VERTICAL,
+    VEL_DOWN,
+    VEL_EAST,
+    VEL_NORTH,
+    apply_family,
+)
+
+WGS84_A = 6378137.0
+WGS84_E2 = 6.69437999014e-3
+GRAVITY_MEAN_RADIUS_M = 6371009.0
+G0 = 9.80665
+TOP_TOLERANCE_M = 500.0
+"""How far above a column's top level the weather may be extrapolated (wind held, density log-linear)."""
+DEFAULT_TIME_TOLERANCE_S = 5400.0
+"""How far beyond the first/last valid time the weather is held constant (half a 3-hourly GFS step)."""
+
+STATUS_OK = 0
+STATUS_OUTSIDE_REGION = 1
+STATUS_OUTSIDE_TIME = 2
+STATUS_ABOVE_TOP = 3
+STATUS_NOT_DESCENDING = 4
+
+FIELD_Z = 0
+FIELD_U = 1
+FIELD_V = 2
+FIELD_LOG_RHO = 3
+
+
+@dataclass(frozen=True, eq=False)
+class PackedWeather:
+    """A cube rearranged for the kernel: columns contiguous in level, times in epoch seconds."""
+
+    t_s: np.ndarray
+    lats: np.ndarray
+    lons: np.ndarray
+    columns: np.ndarray
+    """Shape (T, Y, X, L, 4): geometric altitude, u, v, log density along each column."""
+    lead_h: np.ndarray
+
+
+_PACKED: weakref.WeakKeyDictionary[WeatherCube, PackedWeather] = weakref.WeakKeyDictionary()
+
+
+def packed(cube: WeatherCube) -> PackedWeather:
+    """The packed form of a cube, built once per cube object."""
+    found = _PACKED.get(cube)
+    if found is None:
+        fields = np.stack(
+            [cube.z_m, cube.u, cube.v, np.log(np.maximum(cube.density, 1e-30))], axis=-1
+        ).astype(np.float64)
+        columns = np.ascontiguousarray(fields.transpose(0, 2, 3, 1, 4))
+        found = PackedWeather(
+            t_s=cube.times.astype("datetime64[s]").astype(np.int64).astype(np.float64),
+            lats=np.asarray(cube.lats, dtype=np.float64),
+            lons=np.asarray(cube.lons, dtype=np.float64),
+            columns=columns,
+            lead_h=np.asarray(cube.lead_h, dtype=np.float64),
+        )
+        _PACKED[cube] = found
+    return found
+
+
+@njit(cache=True)
+def _bracket(axis: np.ndarray, x: float) -> tuple[int, float]:
+    """Index i and fraction f with axis[i] + f·(axis[i+1] − axis[i]) = x; i = −1 when outside.
+
+    Starts from the index an evenly spaced axis would give (exact for GFS grids) and walks from there.
+    """
+    n = axis.shape[0]
+    if n == 1:
+        return (0, 0.0) if x == axis[0] else (-1, 0.0)
+    if x < axis[0] or x > axis[n - 1]:
+        return -1, 0.0
+    i = min(max(int((x - axis[0]) / (axis[n - 1] - axis[0]) * (n - 1)), 0), n - 2)
+    while i > 0 and axis[i] > x:
+        i -= 1
+    while i < n - 2 and axis[i + 1] <= x:
+        i += 1
+    return i, (x - axis[i]) / (axis[i + 1] - axis[i])
+
+
+@njit(cache=True)
+def _column_at(col: np.ndarray, z: float, out: np.ndarray, weight: float, hint: int) -> int:
+    """Add weight × (u, v, log ρ) at altitude z of one column to out.
+
+    Returns the level k with z[k] ≤ z < z[k+1] (found by walking from ``hint``: along a descent the
+    bracket moves by at most one level per step), or −1 if z is too far above the top level.
+    """
+    n = col.shape[0]
+    k = min(max(hint, 0), n - 2)
+    while k > 0 and col[k, FIELD_Z] > z:
+        k -= 1
+    while k < n - 2 and col[k + 1, FIELD_Z] <= z:
+        k += 1
+    dz_level = col[k + 1, FIELD_Z] - col[k, FIELD_Z]
+    f_rho = (z - col[k, FIELD_Z]) / dz_level
+    f_wind = min(max(f_rho, 0.0), 1.0)
+    if z > col[n - 1, FIELD_Z] + TOP_TOLERANCE_M:
+        return -1
+    out[0] += weight * (col[k, FIELD_U] + f_wind * (col[k + 1, FIELD_U] - col[k, FIELD_U]))
+    out[1] += weight * (col[k, FIELD_V] + f_wind * (col[k + 1, FIELD_V] - col[k, FIELD_V]))
+    out[2] += weight * (col[k, FIELD_LOG_RHO] + f_rho * (col[k + 1, FIELD_LOG_RHO] - col[k, FIELD_LOG_RHO]))
+    return k
+
+
+@njit(cache=True)
+def sample_weather(
+    t_s: np.ndarray,
+    lats: np.ndarray,
+    lons: np.ndarray,
+    columns: np.ndarray,
+    time_tolerance_s: float,
+    t: float,
+    lat: float,
+    lon: float,
+    z: float,
+    out: np.ndarray,
+    hint: np.ndarray,
+) -> int:
+    """u, v, ρ at one point into out[0:3]; returns a STATUS_* code (out is valid only for STATUS_OK).
+
+    ``hint[0]`` is the level index found last time for this trajectory; it is updated.
+    """
+    out[0] = 0.0
+    out[1] = 0.0
+    out[2] = 0.0
+    iy, fy = _bracket(lats, lat)
+    lon_c = (lon - lons[0]) % 360.0 + lons[0]
+    ix, fx = _bracket(lons, lon_c)
+    if iy < 0 or ix < 0:
+        return STATUS_OUTSIDE_REGION
+    nt = t_s.shape[0]
+    t_c = min(max(t, t_s[0]), t_s[nt - 1])
+    if abs(t - t_c) > time_tolerance_s:
+        return STATUS_OUTSIDE_TIME
+    it, ft = _bracket(t_s, t_c)
+    ny = lats.shape[0]
+    nx = lons.shape[0]
+    for a in range(2):
+        ti = min(it + a, nt - 1)
+        wt = ft if a == 1 else 1.0 - ft
+        if wt == 0.0:
+            continue
+        for b in range(2):
+            yi = min(iy + b, ny - 1)
+            wy = fy if b == 1 else 1.0 - fy
+            if wy == 0.0:
+                continue
+            for c in range(2):
+                xi = min(ix + c, nx - 1)
+                wx = fx if c == 1 else 1.0 - fx
+                if wx == 0.0:
+                    continue
+                k = _column_at(columns[ti, yi, xi], z, out, wt * wy * wx, hint[0])
+                if k < 0:
+                    return STATUS_ABOVE_TOP
+                hint[0] = k
+    out[2] = math.exp(out[2])
+    return STATUS_OK
+
+
+@njit(cache=True)
+def gravity(z: float) -> float:
+    """g on a spherical Earth of mean radius (the latitude term is below the model's accuracy)."""
+    r = GRAVITY_MEAN_RADIUS_M / (GRAVITY_MEAN_RADIUS_M + z)
+    return G0 * r * r
+
+
+@njit(cache=True)
+def degrees_per_metre(lat: float, h: float) -> tuple[float, float]:
+    """(°lat per metre north, °lon per metre east) on the WGS84 ellipsoid at height h."""
+    s = math.sin(math.radians(lat))
+    w = 1.0 - WGS84_E2 * s * s
+    meridian = WGS84_A * (1.0 - WGS84_E2) / (w * math.sqrt(w))
+    normal = WGS84_A / math.sqrt(w)
+    cos_lat = max(math.cos(math.radians(lat)), 1e-9)
+    return math.degrees(1.0 / (meridian + h)), math.degrees(1.0 / ((normal + h) * cos_lat))
+
+
+@njit(cache=True)
+def drift_at_float(
+    t_s: np.ndarray,
+    lats: np.ndarray,
+    lons: np.ndarray,
+    columns: np.ndarray,
+    time_tolerance_s: float,
+    lat: np.ndarray,
+    lon: np.ndarray,
+    z: np.ndarray,
+    t: np.ndarray,
+    duration_s: float,
+    max_step_s: float,
+    status: np.ndarray,
+) -> None:
+    """The balloon carries the capsule with the wind at constant altitude; updates lat, lon, t in place.
+
+    Midpoint steps of at most max_step_s; the step count is computed, so any duration ends.
+    """
+    sample = np.zeros(3)
+    hint = np.zeros(1, dtype=np.int64)
+    n_steps = int(math.ceil(duration_s / max_step_s)) if duration_s > 0.0 else 0
+    for i in range(lat.shape[0]):
+        for _ in range(n_steps):
+            h = duration_s / n_steps
+            code = sample_weather(
+                t_s, lats, lons, columns, time_tolerance_s, t[i], lat[i], lon[i], z[i], sample, hint
+            )
+            if code != STATUS_OK:
+                status[i] = code
+                break
+            dlat, dlon = degrees_per_metre(lat[i], z[i])
+            lat_m = lat[i] + 0.5 * h * sample[1] * dlat
+            lon_m = lon[i] + 0.5 * h * sample[0] * dlon
+            code = sample_weather(
+                t_s, lats, lons, columns, time_tolerance_s, t[i] + 0.5 * h, lat_m, lon_m, z[i], sample, hint
+            )
+            if code != STATUS_OK:
+                status[i] = code
+                break
+            dlat, dlon = degrees_per_metre(lat_m, z[i])
+            lat[i] += h * sample[1] * dlat
+            lon[i] += h * sample[0] * dlon
+            t[i] += h
+
+
+@njit(cache=True)
+def _descend_range(
+    lo: int,
+    hi: int,
+    t_s: np.ndarray,
+    lats: np.ndarray,
+    lons: np.ndarray,
+    columns: np.ndarray,
+    time_tolerance_s: float,
+    table: np.ndarray,
+    params: np.ndarray,
+    state: np.ndarray,
+    lat0: np.ndarray,
+    lon0: np.ndarray,
+    z0: np.ndarray,
+    t0: np.ndarray,
+    dz: float,
+    z_floor: float,
+    out_lat: np.ndarray,
+    out_lon: np.ndarray,
+    out_z: np.ndarray,
+    out_t: np.ndarray,
+    out_path: np.ndarray,
+    n_rec: np.ndarray,
+    status: np.ndarray,
+    time_held_s: np.ndarray,
+) -> None:
+    """Trajectories lo…hi−1 stepped together: each phase of a step runs for all of them before the next.
+
+    Phases rather than one trajectory at a time, so that each term's kind is dispatched once per
+    step for the whole range instead of once per trajectory and step.
+    """
+    n = lat0.shape[0]
+    nt = t_s.shape[0]
+    env = np.zeros((n, ENV_SIZE))
+    vel = np.zeros((n, 3))
+    sample = np.zeros(3)
+    hint = np.full(n, columns.shape[3] - 2, dtype=np.int64)
+    active = np.zeros(n, dtype=np.bool_)
+    lat = lat0.copy()
+    lon = lon0.copy()
+    z = z0.copy()
+    t = t0.copy()
+    path = np.zeros(n)
+    dt = np.zeros(n)
+    dt_est = np.zeros(n)
+    u_est = np.zeros(n)
+    v_est = np.zeros(n)
+    dlat = np.zeros(n)
+    dlon = np.zeros(n)
+    lat_m = np.zeros(n)
+    for i in range(lo, hi):
+        out_lat[i, 0] = lat[i]
+        out_lon[i, 0] = lon[i]
+        out_z[i, 0] = z[i]
+        out_t[i, 0] = t[i]
+        out_path[i, 0] = 0.0
+        n_rec[i] = 1
+        active[i] = z[i] > z_floor
+        dlat[i], dlon[i] = degrees_per_metre(lat[i], z[i])
+    k = 0
+    n_active = hi - lo
+    while n_active > 0:
+        # The first step has no previous step: a first pass estimates its midpoint from its start
+        # (vertical terms therefore run twice there; none of them keeps state).
+        for pass_index in range(2 if k == 0 else 1):
+            first_pass = k == 0 and pass_index == 0
+            for i in range(lo, hi):
+                if not active[i]:
+                    continue
+                zm = z[i] - 0.5 * dz
+                t_rel = t[i] - t0[i]
+                # The metres→degrees factors of the previous step are close enough for this estimate.
+                lat_m[i] = lat[i] + 0.5 * dt_est[i] * v_est[i] * dlat[i]
+                e = env[i]
+                e[:] = 0.0
+                e[ENV_Z] = zm
+                e[ENV_T_START] = t_rel
+                e[ENV_T_REL] = t_rel + 0.5 * dt_est[i]
+                e[ENV_DZ] = dz
+                e[ENV_LAT] = lat_m[i]
+                e[ENV_G] = gravity(zm)
+                vel[i, 0] = 0.0
+                vel[i, 1] = 0.0
+                vel[i, 2] = 0.0
+            apply_family(table, FAMILY_TIMING, params, env, vel, state, active, lo, hi)
+            for i in range(lo, hi):
+                if not active[i]:
+                    continue
+                e = env[i]
+                t_wx = t[i] + 0.5 * dt_est[i] + e[ENV_TIME_SHIFT]
+                lon_m = lon[i] + 0.5 * dt_est[i] * u_est[i] * dlon[i]
+                code = sample_weather(
+                    t_s,
+                    lats,
+                    lons,
+                    columns,
+                    time_tolerance_s,
+                    t_wx,
+                    lat_m[i],
+                    lon_m,
+                    e[ENV_Z],
+                    sample,
+                    hint[i : i + 1],
+                )
+                if code != STATUS_OK:
+                    status[i] = code
+                    active[i] = False
+                    continue
+                held = max(t_s[0] - t_wx, t_wx - t_s[nt - 1], 0.0)
+                if held > time_held_s[i]:
+                    time_held_s[i] = held
+                e[ENV_U_WIND] = sample[0]
+                e[ENV_V_WIND] = sample[1]
+                e[ENV_RHO] = sample[2]
+            apply_family(table, FAMILY_VERTICAL, params, env, vel, state, active, lo, hi)
+            for i in range(lo, hi):
+                if not active[i]:
+                    continue
+                if not vel[i, VEL_DOWN] > 0.0:
+                    status[i] = STATUS_NOT_DESCENDING
+                    active[i] = False
+                    continue
+                dt[i] = dz / vel[i, VEL_DOWN]
+                env[i, ENV_DT] = dt[i]
+                if first_pass:
+                    dt_est[i] = dt[i]
+                    u_est[i] = env[i, ENV_U_WIND]
+                    v_est[i] = env[i, ENV_V_WIND]
+        apply_family(table, FAMILY_HORIZONTAL, params, env, vel, state, active, lo, hi)
+        n_active = 0
+        for i in range(lo, hi):
+            if not active[i]:
+                continue
+            zm = env[i, ENV_Z]
+            dlat[i], dlon[i] = degrees_per_metre(lat_m[i], zm)
+            east = vel[i, VEL_EAST] * dt[i]
+            north = vel[i, VEL_NORTH] * dt[i]
+            lat[i] += north * dlat[i]
+            lon[i] += east * dlon[i]
+            z[i] -= dz
+            t[i] += dt[i]
+            path[i] += math.sqrt(east * east + north * north) * WGS84_A / (WGS84_A + zm)
+            dt_est[i] = dt[i]
+            u_est[i] = vel[i, VEL_EAST]
+            v_est[i] = vel[i, VEL_NORTH]
+            out_lat[i, k + 1] = lat[i]
+            out_lon[i, k + 1] = lon[i]
+            out_z[i, k + 1] = z[i]
+            out_t[i, k + 1] = t[i]
+            out_path[i, k + 1] = path[i]
+            n_rec[i] = k + 2
+            if z[i] > z_floor:
+                n_active += 1
+            else:
+                active[i] = False
+        k += 1
+
+
+@njit(cache=True, parallel=True)
+def descend(
+    t_s: np.ndarray,
+    lats: np.ndarray,
+    lons: np.ndarray,
+    columns: np.ndarray,
+    time_tolerance_s: float,
+    table: np.ndarray,
+    params: np.ndarray,
+    state: np.ndarray,
+    lat0: np.ndarray,
+    lon0: np.ndarray,
+    z0: np.ndarray,
+    t0: np.ndarray,
+    dz: float,
+    z_floor: float,
+    out_lat: np.ndarray,
+    out_lon: np.ndarray,
+    out_z: np.ndarray,
+    out_t: np.ndarray,
+    out_path: np.ndarray,
+    n_rec: np.ndarray,
+    status: np.ndarray,
+    time_held_s: np.ndarray,
+    chunks: int,
+) -> None:
+    """Step every trajectory from (lat0, lon0, z0, t0) down to z_floor, recording each step.
+
+    ``table``, ``params`` and ``state`` come from ``Model.table``, ``parameter_matrix`` and
+    ``state_matrix``; outputs are (n, steps) arrays, ``n_rec`` the recorded count per trajectory,
+    ``status`` a STATUS_* code per trajectory and ``time_held_s`` how far beyond the weather's time
+    span it was held. Trajectories are split into ``chunks`` contiguous ranges, one per thread.
+    """
+    n = lat0.shape[0]
+    for c in prange(chunks):
+        _descend_range(
+            c * n // chunks, (c + 1) * n // chunks,
+            t_s, lats, lons, columns, time_tolerance_s, table, params, state, lat0, lon0, z0, t0, dz, z_floor,
+            out_lat, out_lon, out_z, out_t, out_path, n_rec, status, time_held_s,
+        )  # fmt: skip

@@ -1,0 +1,208 @@
+"""The `drs capsule` and `drs sync` commands against a simulated capsule: exit codes and one-line errors."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import paramiko
+import pytest
+
+import console.cli
+from drs_link.simulator import CapsuleSimulator
+from drs_link.ssh import fingerprint
+from drs_link.store import Store
+
+from .conftest import capsule_table
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(autouse=True)
+def only_capsule_commands(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The CLI under test is this package's; other packages' commands are theirs to test."""
+    monkeypatch.setattr(console.cli, "COMMAND_MODULES", ("drs_link.cli",))
+
+
+def _toml(value: Any) -> str:
+    if isinstance(value, str):
+        return json.dumps(value)
+    return str(value).lower() if isinstance(value, bool) else str(value)
+
+
+def _write_config(tmp_path: Path, sims: list[CapsuleSimulator], key: Path, operator: str = "EL") -> Path:
+    known_hosts = tmp_path / "known_hosts"
+    known_hosts.write_text("".join(sim.known_hosts_line() for sim in sims))
+    lines = [f"[operator]\nname = {_toml(operator)}", f"[data]\ndir = {_toml(str(tmp_path / 'data'))}"]
+    for sim in sims:
+        table = capsule_table(sim, key, known_hosts=str(known_hosts), python="python3")
+        lines.append("[[capsule]]\n" + "\n".join(f"{k} = {_toml(v)}" for k, v in table.items()))
+    path = tmp_path / "drs.toml"
+    path.write_text("\n".join(lines) + "\n")
+    tomllib.loads(path.read_text())
+    return path
+
+
+@pytest.fixture
+def setup(
+    make_sim: Callable[..., CapsuleSimulator], client_key: tuple[Path, paramiko.PKey], tmp_path: Path
+) -> tuple[CapsuleSimulator, Path]:
+    sim = make_sim()
+    return sim, _write_config(tmp_path, [sim], client_key[0])
+
+
+def drs(config: Path, *args: str) -> int:
+    return console.cli.main(["--config", str(config), *args])
+
+
+def _one_line_error(capsys: pytest.CaptureFixture[str]) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("drs: error: "), err
+    return err[0]
+
+
+def test_status_json_before_power_on(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    _, config = setup
+    assert drs(config, "capsule", "status", "DRS1", "--json") == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["release"]["state"] == "idle" and report["link"]["up"]
+    assert report["storage"]["raid_state"] == "healthy" and report["storage"]["mount"] == "/mnt/raid1"
+
+
+def test_full_release_from_the_command_line(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    sim, config = setup
+    assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
+    out = capsys.readouterr().out
+    assert "Software cannot switch it off again" in out and "waiting for Go" in out
+    assert drs(config, "capsule", "status", "DRS1", "--json") == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["release"]["state"] == "powered" and report["gnss"]["has_fix"]
+    assert report["microcontroller"]["waiting_for_go"]
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    assert "released, Pi shut down" in capsys.readouterr().out
+    assert sim.firmware.go_at is not None
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 2
+    assert "already released" in _one_line_error(capsys)
+    assert drs(config, "capsule", "status", "DRS1") == 0
+    assert "released" in capsys.readouterr().out
+
+
+def test_go_with_a_confirmation_naming_another_capsule_is_refused(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    sim, config = setup
+    assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
+    capsys.readouterr()
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS2") == 2
+    assert "does not name 'DRS1'" in _one_line_error(capsys)
+    assert sim.firmware.go_at is None
+
+
+def test_go_before_power_on_is_refused(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    sim, config = setup
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 2
+    assert "power-on has not succeeded" in _one_line_error(capsys)
+    assert not any("drs:go" in c for c in sim.commands)
+
+
+def test_power_on_without_yes_and_without_a_terminal_is_refused(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    sim, config = setup
+    monkeypatch.setattr("sys.stdin.isatty", lambda: False)
+    assert drs(config, "capsule", "power-on", "DRS1") == 2
+    assert "pass --yes" in _one_line_error(capsys)
+    assert not sim.gpio.relay_latched
+
+
+def test_release_steps_need_an_operator_name(
+    make_sim: Callable[..., CapsuleSimulator],
+    client_key: tuple[Path, paramiko.PKey],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    config = _write_config(tmp_path, [make_sim()], client_key[0], operator="")
+    assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 2
+    assert "operator.name" in _one_line_error(capsys)
+
+
+def test_unknown_capsule_and_missing_config_are_one_line_errors(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    _, config = setup
+    assert drs(config, "capsule", "status", "DRS9") == 2
+    assert "no capsule named 'DRS9'" in _one_line_error(capsys)
+    assert drs(tmp_path / "none.toml", "capsule", "status", "DRS1") == 2
+    assert "does not exist" in _one_line_error(capsys)
+
+
+def test_status_of_an_unreachable_capsule_says_link_down(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    sim, config = setup
+    sim.stop()
+    assert drs(config, "capsule", "status", "DRS1", "--json") == 4
+    report = json.loads(capsys.readouterr().out)
+    assert report["link"]["up"] is False and "cannot reach" in report["link"]["error"]
+
+
+def test_wrong_host_key_is_a_one_line_refusal(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    sim, config = setup
+    from drs_link.simulator.keys import generate_ed25519
+
+    sim.host_key = generate_ed25519()
+    assert drs(config, "capsule", "status", "DRS1") == 2
+    line = _one_line_error(capsys)
+    assert "CHANGED" in line and fingerprint(sim.host_key) in line
+
+
+def test_enrol_shows_the_fingerprint_and_saves_only_a_matching_one(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    sim, config = setup
+    known_hosts = tmp_path / "known_hosts"
+    known_hosts.write_text("")
+    assert drs(config, "capsule", "enrol", "DRS1") == 1
+    assert fingerprint(sim.host_key) in capsys.readouterr().out
+    assert known_hosts.read_text() == ""
+    assert drs(config, "capsule", "enrol", "DRS1", "--fingerprint", "SHA256:wrong") == 2
+    assert "enrol refused" in _one_line_error(capsys)
+    assert drs(config, "capsule", "enrol", "DRS1", "--fingerprint", fingerprint(sim.host_key)) == 0
+    assert drs(config, "capsule", "status", "DRS1") == 0
+
+
+def test_sync_command_uploads_and_audits(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    sim, config = setup
+    source = tmp_path / "payload"
+    source.mkdir()
+    (source / "data.bin").write_bytes(b"x" * 70_000)
+    assert drs(config, "sync", "DRS1", str(source), "--status") == 1
+    assert "1 missing" in capsys.readouterr().out
+    assert drs(config, "sync", "DRS1", str(source)) == 0
+    assert "1 files uploaded and verified" in capsys.readouterr().out
+    assert (sim.storage_dir / "data.bin").read_bytes() == b"x" * 70_000
+    assert drs(config, "sync", "DRS1", str(source), "--status", "--json") == 0
+    assert json.loads(capsys.readouterr().out)["bytes_pending"] == 0
+    audit = Store.open(tmp_path / "data" / "drs.sqlite").audit("DRS1")
+    assert [(a.action, a.result) for a in audit] == [("sync-file", "verified"), ("sync", "ok")]
+
+
+def test_sync_of_a_missing_directory_is_a_one_line_error(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    _, config = setup
+    assert drs(config, "sync", "DRS1", str(tmp_path / "absent")) == 2
+    assert "is not a directory" in _one_line_error(capsys)

@@ -1,0 +1,176 @@
+"""Configuration: a wrong key on launch day fails loudly and names itself."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from drs_link.config import CapsuleConfig, Config, load_config, parse_config
+from drs_link.errors import ConfigError
+
+ISSUE_EXAMPLE = """
+[operator]
+name = "EL"
+[data]
+dir = "~/.local/share/drs"
+[rockblock]
+mt_url = "https://rockblock.rock7.com/rockblock/MT"
+username = "team@example.org"
+password_env = "DRS_ROCKBLOCK_PASSWORD"
+[[capsule]]
+name = "DRS1"
+host = "drs1.local"
+port = 22
+user = "pi"
+identity_file = "~/.ssh/id_ed25519"
+known_hosts = "~/.config/drs/known_hosts"
+rockblock_serial = 11800
+imei = "300434060000010"
+"""
+
+
+def _capsule(**overrides: object) -> dict[str, object]:
+    return {"capsule": [{"name": "DRS1", "host": "drs1.local", **overrides}]}
+
+
+def test_issue_example_parses_with_documented_defaults(tmp_path: Path) -> None:
+    path = tmp_path / "drs.toml"
+    path.write_text(ISSUE_EXAMPLE)
+    config = load_config(path)
+    capsule = config.capsule("DRS1")
+    assert config.operator.name == "EL"
+    assert config.store_path == Path("~/.local/share/drs").expanduser() / "drs.sqlite"
+    assert capsule.identity_file == Path.home() / ".ssh" / "id_ed25519"
+    assert (capsule.tools_dir, capsule.python, capsule.storage_mount, capsule.raid_device) == (
+        "/home/pi/DRS_Python_Tools",
+        "python",
+        "/mnt/raid1",
+        "/dev/md0",
+    )
+    assert (capsule.serial_device, capsule.backend, capsule.rockblock_serial) == (
+        "/dev/ttyS0",
+        "stock",
+        11800,
+    )
+    assert config.source == path
+
+
+def test_docs_example_is_a_valid_configuration() -> None:
+    docs = Path(__file__).resolve().parents[2] / "docs" / "capsule-link.md"
+    text = docs.read_text()
+    start = text.index("```toml\n") + len("```toml\n")
+    example = text[start : text.index("```", start)]
+    config = parse_config(tomllib.loads(example))
+    assert [c.name for c in config.capsules] == ["DRS1", "DRS2"]
+    assert config.capsules[1].jump_host == "flight@192.168.1.1:22"
+
+
+def test_missing_default_file_gives_defaults_but_missing_explicit_file_is_an_error(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="does not exist"):
+        load_config(tmp_path / "absent.toml")
+
+
+def test_invalid_toml_names_the_file(tmp_path: Path) -> None:
+    path = tmp_path / "drs.toml"
+    path.write_text("[operator\nname=")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(path)
+
+
+def test_directory_instead_of_file_is_a_clear_error(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="cannot read"):
+        load_config(tmp_path)
+
+
+@pytest.mark.parametrize(
+    ("document", "key"),
+    [
+        ({"operater": {}}, "operater: unknown section"),
+        ({"operator": {"nmae": "x"}}, "operator.nmae: unknown key"),
+        (_capsule(prot=22), r"capsule\[0\].prot: unknown key"),
+        (_capsule(port="22"), r"capsule\[0\].port: expected a whole number"),
+        (_capsule(port=70000), r"capsule\[0\].port: 70000 is not a TCP port"),
+        (_capsule(port=True), r"capsule\[0\].port: expected a whole number"),
+        (_capsule(name="DRS 1"), r"capsule\[0\].name"),
+        (_capsule(imei="12345"), r"capsule\[0\].imei"),
+        (_capsule(backend="magic"), r"capsule\[0\].backend"),
+        (_capsule(connect_timeout_s=0), r"capsule\[0\].connect_timeout_s: must be positive"),
+        (_capsule(command_timeout_s=float("nan")), r"capsule\[0\].command_timeout_s: expected a finite"),
+        (_capsule(microcontroller_wait_s=float("inf")), r"capsule\[0\].microcontroller_wait_s"),
+        (_capsule(tools_dir="DRS_Python_Tools"), r"capsule\[0\].tools_dir: .* absolute path"),
+        (_capsule(host=""), r"capsule\[0\].host"),
+        (_capsule(user="p i"), r"capsule\[0\].user"),
+        (_capsule(python=" "), r"capsule\[0\].python"),
+        (_capsule(identity_file=""), r"capsule\[0\].identity_file: expected a path"),
+        (_capsule(rockblock_serial=0), r"capsule\[0\].rockblock_serial"),
+        ({"capsule": {"name": "DRS1", "host": "h"}}, r"capsule: write each capsule as a \[\[capsule\]\]"),
+        ({"capsule": [{"name": "DRS1"}]}, r"capsule\[0\].host: required key is missing"),
+        ({"capsule": [{"name": "A", "host": "h"}, {"name": "A", "host": "i"}]}, "'A' is used by more"),
+        ({"mo": {"require_jwt": "yes"}}, "mo.require_jwt: expected true or false"),
+        ({"data": "here"}, "data: expected a table"),
+    ],
+)
+def test_bad_values_raise_an_error_naming_the_key(document: dict[str, object], key: str) -> None:
+    with pytest.raises(ConfigError, match=key):
+        parse_config(document)
+
+
+def test_unknown_capsule_lists_the_known_ones() -> None:
+    config = parse_config({"capsule": [{"name": "DRS1", "host": "h"}, {"name": "DRS2", "host": "i"}]})
+    with pytest.raises(ConfigError, match="no capsule named 'DRS9'.*DRS1, DRS2"):
+        config.capsule("DRS9")
+
+
+def test_integer_timeouts_become_floats() -> None:
+    capsule = parse_config(_capsule(connect_timeout_s=5)).capsules[0]
+    assert isinstance(capsule.connect_timeout_s, float) and capsule.connect_timeout_s == 5.0
+
+
+def test_environment_variables_in_paths_are_expanded(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("DRS_TEST_DIR", str(tmp_path))
+    config = parse_config({"data": {"dir": "$DRS_TEST_DIR/store"}})
+    assert config.store_path == tmp_path / "store" / "drs.sqlite"
+
+
+names = st.from_regex(r"[A-Za-z0-9_-]{1,32}", fullmatch=True)
+toml_scalars = st.one_of(
+    st.integers(-(2**63), 2**63 - 1),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.booleans(),
+    st.text(max_size=20),
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    name=names,
+    port=st.integers(1, 65535),
+    timeout=st.floats(min_value=0.001, max_value=1e6),
+    serial=st.one_of(st.none(), st.integers(1, 9_999_999)),
+)
+def test_every_valid_capsule_round_trips(name: str, port: int, timeout: float, serial: int | None) -> None:
+    table: dict[str, object] = {"name": name, "host": "10.0.0.1", "port": port, "connect_timeout_s": timeout}
+    if serial is not None:
+        table["rockblock_serial"] = serial
+    capsule = parse_config({"capsule": [table]}).capsule(name)
+    assert isinstance(capsule, CapsuleConfig)
+    assert (capsule.port, capsule.connect_timeout_s, capsule.rockblock_serial) == (port, timeout, serial)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    key=st.sampled_from([f.name for f in CapsuleConfig.__dataclass_fields__.values()] + ["bogus"]),
+    value=toml_scalars,
+)
+def test_any_scalar_in_any_capsule_key_parses_or_names_the_key(key: str, value: object) -> None:
+    table: dict[str, object] = {"name": "DRS1", "host": "h", key: value}
+    try:
+        config = parse_config({"capsule": [table]})
+    except ConfigError as exc:
+        assert f"capsule[0].{key}" in str(exc) or (key == "name" and "capsule" in str(exc))
+    else:
+        assert isinstance(config, Config) and len(config.capsules) == 1

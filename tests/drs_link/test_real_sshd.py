@@ -1,0 +1,352 @@
+"""End to end against a real OpenSSH sshd on loopback, with fake stock scripts in a temporary tools_dir.
+
+The fake scripts emulate the Pi's hardware with files: ``gpio.log`` records pin writes, ``relay``
+appears when the interlock pulse latched it, ``ttyS0.tx`` receives what would go to the
+microcontroller, and ``nmea.txt`` is what the microcontroller echoes once powered. Their "sudo
+shutdown now" kills this test's own sshd session processes, so the link drops exactly as when the
+Pi halts. With ``CI`` set, a missing sshd fails these tests rather than skipping them.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import textwrap
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import paramiko
+import pytest
+
+from drs_link import remote
+from drs_link.backends.stock import StockBackend
+from drs_link.capsule import ReleaseState, ReleaseStateMachine
+from drs_link.config import CapsuleConfig, parse_config
+from drs_link.errors import RefusedError
+from drs_link.nmea import format_gga, format_rmc
+from drs_link.simulator.keys import generate_ed25519, write_ed25519
+from drs_link.ssh import CapsuleLink, HostKeyError, fingerprint
+from drs_link.storage import read_storage
+from drs_link.store import Store
+from drs_link.sync import Syncer
+
+pytestmark = pytest.mark.slow
+
+SSHD = Path("/usr/sbin/sshd")
+PYTHON3 = "/usr/bin/python3"
+
+
+def _require_sshd() -> None:
+    if SSHD.is_file() and Path(PYTHON3).is_file() and shutil.which("ssh-keygen"):
+        return
+    reason = f"OpenSSH server ({SSHD}), {PYTHON3} and ssh-keygen are needed for the real-sshd tests"
+    if os.environ.get("CI"):
+        pytest.fail(reason + " and CI is set")
+    pytest.skip(reason)
+
+
+@dataclass(frozen=True)
+class RealSshd:
+    port: int
+    pid: int
+    root: Path
+    client_key: Path
+    host_key: paramiko.PKey
+    known_hosts: Path
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def _wait_for_banner(port: int, proc: subprocess.Popen[bytes], log: Path) -> bool:
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            return False
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=1) as conn:
+                if conn.recv(64).startswith(b"SSH-2.0-"):
+                    return True
+        except OSError:
+            time.sleep(0.05)
+    return False
+
+
+@pytest.fixture(scope="module")
+def sshd(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RealSshd]:
+    _require_sshd()
+    root = tmp_path_factory.mktemp("sshd")
+    root.chmod(0o700)
+    Path("/run/sshd").mkdir(mode=0o755, exist_ok=True)
+    subprocess.run(["ssh-keygen", "-q", "-t", "ed25519", "-N", "", "-f", str(root / "host_key")], check=True)
+    host_key = paramiko.Ed25519Key.from_private_key_file(str(root / "host_key"))
+    client_key = root / "client_key"
+    write_ed25519(client_key)
+    (root / "authorized_keys").write_text((root / "client_key.pub").read_text())
+    (root / "authorized_keys").chmod(0o600)
+    user = os.environ.get("USER") or "root"
+    for attempt in range(5):
+        port = _free_port()
+        config = root / "sshd_config"
+        config.write_text(
+            textwrap.dedent(
+                f"""\
+                Port {port}
+                ListenAddress 127.0.0.1
+                HostKey {root / "host_key"}
+                PidFile {root / "sshd.pid"}
+                AuthorizedKeysFile {root / "authorized_keys"}
+                PubkeyAuthentication yes
+                PasswordAuthentication no
+                KbdInteractiveAuthentication no
+                UsePAM no
+                StrictModes no
+                PermitRootLogin prohibit-password
+                AllowUsers {user}
+                Subsystem sftp internal-sftp
+                LogLevel VERBOSE
+                """
+            )
+        )
+        subprocess.run([str(SSHD), "-t", "-f", str(config)], check=True)
+        log = root / f"sshd-{attempt}.log"
+        proc = subprocess.Popen([str(SSHD), "-D", "-e", "-f", str(config)], stderr=log.open("wb"))
+        if _wait_for_banner(port, proc, log):
+            break
+        proc.kill()
+        proc.wait()
+    else:
+        pytest.fail(f"sshd did not start: {log.read_text()[-2000:]}")
+    known_hosts = root / "known_hosts"
+    known_hosts.write_text(f"[127.0.0.1]:{port} {host_key.get_name()} {host_key.get_base64()}\n")
+    try:
+        yield RealSshd(port, proc.pid, root, client_key, host_key, known_hosts)
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+FAKE_SCRIPTS = {
+    "DRS_on.py": """
+        import time
+        with open("gpio.log", "a") as log:
+            for pin, level in ((9, 1), (10, 1), (2, 0)):
+                log.write(f"{pin}={level}\\n")
+            time.sleep(0.2)
+            for pin, level in ((2, 1), (10, 0)):
+                log.write(f"{pin}={level}\\n")
+            log.write("cleanup\\n14=alt5\\n")
+        open("relay", "w").write("latched\\n")
+    """,
+    "DRS_log_serial.py": """
+        import os, time
+        time.sleep(0.2)
+        if os.path.exists("relay") and not os.path.exists("gone"):
+            with open("DRS_serial_log.txt", "ab") as log, open("nmea.txt", "rb") as nmea:
+                log.write(nmea.read())
+        os.system("tail DRS_serial_log.txt")
+    """,
+    "DRS_GoGoGo.py": """
+        import os, signal, sys, time
+        os.system("tail DRS_serial_log.txt")
+        with open("ttyS0.tx", "ab") as port:
+            port.write(b"GoGoGo\\n")
+        print("Dropping in 30 seconds!", flush=True)
+        time.sleep(0.3)
+        print("Shutting down...", flush=True)
+        time.sleep(0.1)
+        listener = int(open(sys.argv[1] if len(sys.argv) > 1 else "sshd.pid").read())
+        for entry in os.listdir("/proc"):
+            if entry.isdigit():
+                try:
+                    fields = open(f"/proc/{entry}/stat").read().rsplit(")", 1)[1].split()
+                except OSError:
+                    continue
+                if int(fields[1]) == listener:
+                    os.kill(int(entry), signal.SIGKILL)
+        time.sleep(5)
+    """,
+}
+
+
+@pytest.fixture
+def capsule(sshd: RealSshd, tmp_path: Path) -> CapsuleConfig:
+    tools = tmp_path / "DRS_Python_Tools"
+    tools.mkdir()
+    for name, body in FAKE_SCRIPTS.items():
+        (tools / name).write_text(textwrap.dedent(body))
+    (tools / "sshd.pid").write_text((sshd.root / "sshd.pid").read_text())
+    now = datetime.now(UTC)
+    (tools / "nmea.txt").write_text(
+        format_gga(now, 67.8887, 21.0856, 1, 8, 1.1, 30000.0)
+        + "\r\n"
+        + format_rmc(now, 67.8887, 21.0856)
+        + "\r\n"
+    )
+    mount = tmp_path / "raid1"
+    mount.mkdir()
+    table = {
+        "name": "DRS1",
+        "host": "127.0.0.1",
+        "port": sshd.port,
+        "user": os.environ.get("USER") or "root",
+        "identity_file": str(sshd.client_key),
+        "known_hosts": str(sshd.known_hosts),
+        "tools_dir": str(tools),
+        "python": PYTHON3,
+        "storage_mount": str(mount),
+        "microcontroller_wait_s": 3.0,
+        "connect_timeout_s": 5.0,
+        "command_timeout_s": 20.0,
+    }
+    return parse_config({"capsule": [table]}).capsules[0]
+
+
+def _machine(config: CapsuleConfig, tmp_path: Path, holder: str = "EL@console1") -> ReleaseStateMachine:
+    link = CapsuleLink(config)
+    return ReleaseStateMachine(
+        Store.open(tmp_path / "drs.sqlite"), config, StockBackend(config, link), "EL", holder=holder
+    )
+
+
+def test_power_on_runs_the_stock_script_with_the_interlock_sequence(
+    capsule: CapsuleConfig, tmp_path: Path
+) -> None:
+    machine = _machine(capsule, tmp_path)
+    machine.power_on(confirmed=True)
+    tools = Path(capsule.tools_dir)
+    assert (tools / "gpio.log").read_text().split() == [
+        "9=1",
+        "10=1",
+        "2=0",
+        "2=1",
+        "10=0",
+        "cleanup",
+        "14=alt5",
+    ]
+    assert (tools / "relay").exists()
+    assert (tools / ".drs-release.owner").read_text().split()[0] == "EL@console1"
+    report = machine.wait_for_microcontroller()
+    assert report.waiting_for_go and report.gnss.has_fix and report.gnss.satellites == 8
+
+
+def test_status_reads_real_df_of_the_mount(capsule: CapsuleConfig) -> None:
+    with CapsuleLink(capsule) as link:
+        status = read_storage(link, capsule.storage_mount, capsule.raid_device)
+    assert status.usage is not None and status.usage.total_bytes > 0
+    assert status.usage.mount == os.path.realpath(capsule.storage_mount) or status.usage.mount.startswith("/")
+    if not Path("/proc/mdstat").exists():
+        assert status.raid is None and status.as_dict()["raid_state"] == "missing"
+
+
+def test_go_refused_without_power_on_or_with_the_wrong_name_sends_nothing(
+    capsule: CapsuleConfig, tmp_path: Path
+) -> None:
+    machine = _machine(capsule, tmp_path)
+    with pytest.raises(RefusedError):
+        machine.confirm("DRS1")
+    machine.power_on(confirmed=True)
+    machine.wait_for_microcontroller()
+    with pytest.raises(RefusedError, match="does not name"):
+        machine.confirm("DRS2")
+    assert not (Path(capsule.tools_dir) / "ttyS0.tx").exists()
+
+
+def test_confirmed_go_writes_gogogo_and_the_link_drop_is_released_pi_shut_down(
+    capsule: CapsuleConfig, tmp_path: Path
+) -> None:
+    machine = _machine(capsule, tmp_path)
+    machine.power_on(confirmed=True)
+    machine.wait_for_microcontroller()
+    released = machine.go(machine.confirm("DRS1"))
+    assert (Path(capsule.tools_dir) / "ttyS0.tx").read_bytes() == b"GoGoGo\n"
+    assert released.state is ReleaseState.RELEASED and released.note == "released, Pi shut down"
+    with pytest.raises(RefusedError, match="already released"):
+        machine.confirm("DRS1")
+
+
+def test_another_console_is_refused_release_authority_by_the_pi_lock(
+    capsule: CapsuleConfig, tmp_path: Path
+) -> None:
+    _machine(capsule, tmp_path / "a", holder="EL@console1").power_on(confirmed=True)
+    theirs = _machine(capsule, tmp_path / "b", holder="JR@console2")
+    with pytest.raises(RefusedError, match="held by EL@console1"):
+        theirs.power_on(confirmed=True)
+
+
+def test_wrong_host_key_is_refused(capsule: CapsuleConfig, sshd: RealSshd, tmp_path: Path) -> None:
+    impostor = generate_ed25519()
+    known_hosts = tmp_path / "known_hosts"
+    known_hosts.write_text(f"[127.0.0.1]:{sshd.port} {impostor.get_name()} {impostor.get_base64()}\n")
+    config = parse_config(
+        {
+            "capsule": [
+                {
+                    "name": "DRS1",
+                    "host": "127.0.0.1",
+                    "port": sshd.port,
+                    "user": capsule.user,
+                    "identity_file": str(sshd.client_key),
+                    "known_hosts": str(known_hosts),
+                }
+            ]
+        }
+    ).capsules[0]
+    with pytest.raises(HostKeyError, match="CHANGED") as refused:
+        CapsuleLink(config).connect()
+    assert fingerprint(sshd.host_key) in str(refused.value)
+
+
+def test_sync_over_real_sftp_is_verified_by_sha256sum_on_the_server(
+    capsule: CapsuleConfig, tmp_path: Path
+) -> None:
+    source = tmp_path / "payload"
+    (source / "sub").mkdir(parents=True)
+    (source / "sub" / "a.bin").write_bytes(os.urandom(200_000))
+    link = CapsuleLink(capsule)
+    syncer = Syncer(Store.open(tmp_path / "drs.sqlite"), link, capsule.name, capsule.storage_mount)
+    report = syncer.sync(source)
+    link.close()
+    assert report.uploaded == ("sub/a.bin",)
+    assert (Path(capsule.storage_mount) / "sub" / "a.bin").read_bytes() == (
+        source / "sub" / "a.bin"
+    ).read_bytes()
+
+
+def _kill_sessions_of(listener_pid: int) -> None:
+    """SIGKILL this test's own sshd session processes (children of our listener), by pid."""
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                fields = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == listener_pid:
+                os.kill(int(entry), signal.SIGKILL)
+
+
+def test_killing_the_session_mid_command_is_a_link_drop(capsule: CapsuleConfig, sshd: RealSshd) -> None:
+    link = CapsuleLink(capsule)
+    assert link.heartbeat()
+    (Path(capsule.tools_dir) / "DRS_log_serial.py").write_text("import time\ntime.sleep(30)\n")
+    killer = threading.Timer(0.5, _kill_sessions_of, args=(sshd.pid,))
+    killer.start()
+    started = time.monotonic()
+    result = link.run(remote.read_serial(capsule.tools_dir, capsule.python, 0), timeout_s=10)
+    killer.join()
+    assert result.link_dropped and result.exit_status is None and time.monotonic() - started < 5
+    link.close()

@@ -1,0 +1,278 @@
+"""The release state machine's domain rules, with an in-process Pi and a controllable clock."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import pytest
+
+from drs_link.backends import GoResult, PowerOnResult
+from drs_link.capsule import ConfirmationToken, ReleaseState, ReleaseStateMachine, default_holder
+from drs_link.config import CapsuleConfig
+from drs_link.errors import LinkError, RefusedError
+from drs_link.nmea import format_gga
+from drs_link.store import Store
+
+START = datetime(2026, 6, 1, 12, 0, 0, tzinfo=UTC)
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = START
+
+    def __call__(self) -> datetime:
+        return self.now
+
+    def advance(self, seconds: float) -> None:
+        self.now += timedelta(seconds=seconds)
+
+
+@dataclass
+class InProcessPi:
+    """The stock scripts' observable results, without SSH: what the state machine reacts to."""
+
+    clock: Clock
+    nmea_after_s: float | None = 23.0
+    go_outcome: GoResult = field(
+        default_factory=lambda: GoResult(
+            True, True, True, None, "Dropping in 30 seconds!\nShutting down...\n"
+        )
+    )
+    power_on_error: LinkError | None = None
+    calls: list[str] = field(default_factory=list)
+    powered_at: datetime | None = None
+
+    def power_on(self, holder: str, lease_s: float) -> PowerOnResult:
+        self.calls.append("power_on")
+        if self.power_on_error:
+            raise self.power_on_error
+        self.powered_at = self.clock()
+        return PowerOnResult(log_offset=120, output="drs-log-offset 120\n")
+
+    def read_serial(self, offset: int) -> list[str]:
+        self.calls.append(f"read_serial {offset}")
+        if self.powered_at is None or self.nmea_after_s is None:
+            return []
+        if (self.clock() - self.powered_at).total_seconds() < self.nmea_after_s:
+            return []
+        return [format_gga(self.clock(), 1.0, 2.0, 1, 7, 1.1, 30000.0)]
+
+    def go(self, holder: str) -> GoResult:
+        self.calls.append("go")
+        return self.go_outcome
+
+
+@pytest.fixture
+def clock() -> Clock:
+    return Clock()
+
+
+@pytest.fixture
+def pi(clock: Clock) -> InProcessPi:
+    return InProcessPi(clock)
+
+
+@pytest.fixture
+def machine(tmp_path: Path, pi: InProcessPi, clock: Clock) -> ReleaseStateMachine:
+    return _machine(tmp_path, pi, clock)
+
+
+def _machine(tmp_path: Path, pi: InProcessPi, clock: Clock) -> ReleaseStateMachine:
+    capsule = CapsuleConfig(name="DRS1", host="drs1.local")
+    return ReleaseStateMachine(
+        Store.open(tmp_path / "drs.sqlite"), capsule, pi, "EL", clock=clock, sleep=clock.advance
+    )
+
+
+def _ready(machine: ReleaseStateMachine) -> None:
+    machine.power_on(confirmed=True)
+    assert machine.wait_for_microcontroller().waiting_for_go
+
+
+def test_power_on_without_confirmation_is_refused_and_nothing_runs(
+    machine: ReleaseStateMachine, pi: InProcessPi
+) -> None:
+    with pytest.raises(RefusedError, match="not confirmed"):
+        machine.power_on(confirmed=False)
+    assert pi.calls == [] and machine.record().state is ReleaseState.IDLE
+    assert machine.store.audit("DRS1")[-1].result == "refused"
+
+
+def test_go_without_power_on_is_refused(machine: ReleaseStateMachine, pi: InProcessPi) -> None:
+    with pytest.raises(RefusedError, match="power-on has not succeeded"):
+        machine.confirm("DRS1")
+    forged = ConfirmationToken("forged", "DRS1", START)
+    with pytest.raises(RefusedError, match="power-on has not succeeded"):
+        machine.go(forged)
+    assert "go" not in pi.calls
+
+
+def test_confirmation_must_name_this_capsule(machine: ReleaseStateMachine) -> None:
+    _ready(machine)
+    for typed in ("DRS2", "drs1", "DRS1 ", ""):
+        with pytest.raises(RefusedError, match="does not name 'DRS1'"):
+            machine.confirm(typed)
+
+
+def test_token_not_minted_by_the_store_is_refused(machine: ReleaseStateMachine, pi: InProcessPi) -> None:
+    _ready(machine)
+    with pytest.raises(RefusedError, match="not minted for this capsule"):
+        machine.go(ConfirmationToken("made-up", "DRS1", START))
+    assert "go" not in pi.calls
+
+
+def test_token_older_than_sixty_seconds_is_refused(
+    machine: ReleaseStateMachine, pi: InProcessPi, clock: Clock
+) -> None:
+    _ready(machine)
+    token = machine.confirm("DRS1")
+    clock.advance(60.5)
+    with pytest.raises(RefusedError, match="61 s old|60 s old"):
+        machine.go(token)
+    assert "go" not in pi.calls
+
+
+def test_fresh_token_within_sixty_seconds_releases(machine: ReleaseStateMachine, clock: Clock) -> None:
+    _ready(machine)
+    token = machine.confirm("DRS1")
+    clock.advance(59.0)
+    assert machine.go(token).state is ReleaseState.RELEASED
+
+
+def test_token_from_an_earlier_power_on_session_is_refused(machine: ReleaseStateMachine) -> None:
+    _ready(machine)
+    token = machine.confirm("DRS1")
+    machine.power_on(confirmed=True)
+    machine.wait_for_microcontroller()
+    with pytest.raises(RefusedError, match="earlier power-on session"):
+        machine.go(token)
+
+
+def test_token_cannot_be_used_twice(machine: ReleaseStateMachine, pi: InProcessPi) -> None:
+    _ready(machine)
+    pi.go_outcome = GoResult(False, False, True, None, "")
+    token = machine.confirm("DRS1")
+    with pytest.raises(LinkError, match="may or may not"):
+        machine.go(token)
+    with pytest.raises(RefusedError, match="already used"):
+        machine.go(token)
+
+
+def test_token_for_another_capsule_is_refused(tmp_path: Path, clock: Clock) -> None:
+    store = Store.open(tmp_path / "drs.sqlite")
+    one = ReleaseStateMachine(
+        store, CapsuleConfig("DRS1", "a"), InProcessPi(clock), "EL", clock=clock, sleep=clock.advance
+    )
+    two = ReleaseStateMachine(
+        store, CapsuleConfig("DRS2", "b"), InProcessPi(clock), "EL", clock=clock, sleep=clock.advance
+    )
+    _ready(one)
+    _ready(two)
+    token_for_one = one.confirm("DRS1")
+    with pytest.raises(RefusedError, match="not minted for this capsule"):
+        two.go(ConfirmationToken(token_for_one.value, "DRS2", token_for_one.minted_at))
+
+
+def test_go_refused_until_nmea_has_been_seen(
+    machine: ReleaseStateMachine, pi: InProcessPi, clock: Clock
+) -> None:
+    machine.power_on(confirmed=True)
+    token = machine.confirm("DRS1")
+    with pytest.raises(RefusedError, match="no NMEA seen"):
+        machine.go(token)
+    assert "go" not in pi.calls
+
+
+def test_silence_after_25_seconds_gives_the_checks_to_make(
+    machine: ReleaseStateMachine, pi: InProcessPi, clock: Clock
+) -> None:
+    pi.nmea_after_s = None
+    machine.power_on(confirmed=True)
+    early = machine.check_microcontroller()
+    assert not early.waiting_for_go and "still booting" in early.diagnosis
+    report = machine.wait_for_microcontroller()
+    assert not report.waiting_for_go and report.seconds_since_power_on is not None
+    assert report.seconds_since_power_on >= 25
+    for check in ("batteries", "relay latched", "booting", "Gone mode", "four-button reset"):
+        assert check in report.diagnosis
+
+
+def test_link_drop_after_shutting_down_is_recorded_as_released_pi_shut_down(
+    machine: ReleaseStateMachine,
+) -> None:
+    _ready(machine)
+    record = machine.go(machine.confirm("DRS1"))
+    assert record.state is ReleaseState.RELEASED and record.note == "released, Pi shut down"
+    assert machine.store.audit("DRS1")[-1].result == "released, Pi shut down"
+
+
+def test_go_written_but_no_shutdown_seen_is_still_released(
+    machine: ReleaseStateMachine, pi: InProcessPi
+) -> None:
+    _ready(machine)
+    pi.go_outcome = GoResult(True, False, True, None, "Dropping in 30 seconds!\n")
+    assert machine.go(machine.confirm("DRS1")).note == "released, Pi shutdown not seen"
+
+
+def test_second_go_to_a_released_capsule_is_refused(machine: ReleaseStateMachine, pi: InProcessPi) -> None:
+    _ready(machine)
+    token = machine.confirm("DRS1")
+    machine.go(token)
+    with pytest.raises(RefusedError, match="already released"):
+        machine.go(token)
+    with pytest.raises(RefusedError, match="already released"):
+        machine.confirm("DRS1")
+    with pytest.raises(RefusedError, match="reset it after recovery"):
+        machine.power_on(confirmed=True)
+    assert pi.calls.count("go") == 1
+
+
+def test_restarted_process_resumes_the_release(tmp_path: Path, pi: InProcessPi, clock: Clock) -> None:
+    _ready(_machine(tmp_path, pi, clock))
+    restarted = _machine(tmp_path, pi, clock)
+    record = restarted.record()
+    assert (
+        record.state is ReleaseState.POWERED and record.log_offset == 120 and record.nmea_seen_at is not None
+    )
+    assert restarted.go(restarted.confirm("DRS1")).state is ReleaseState.RELEASED
+
+
+def test_serial_log_is_read_from_the_offset_taken_at_power_on(
+    machine: ReleaseStateMachine, pi: InProcessPi
+) -> None:
+    _ready(machine)
+    assert all(call == "read_serial 120" for call in pi.calls if call.startswith("read_serial"))
+
+
+def test_failed_power_on_is_audited_and_leaves_the_capsule_idle(
+    machine: ReleaseStateMachine, pi: InProcessPi
+) -> None:
+    pi.power_on_error = LinkError("DRS1: the link dropped during power-on")
+    with pytest.raises(LinkError):
+        machine.power_on(confirmed=True)
+    assert machine.record().state is ReleaseState.IDLE
+    assert [a.result for a in machine.store.audit("DRS1")] == ["started", "failed"]
+
+
+def test_reset_after_recovery_allows_a_new_release_only_when_named(machine: ReleaseStateMachine) -> None:
+    _ready(machine)
+    machine.go(machine.confirm("DRS1"))
+    with pytest.raises(RefusedError):
+        machine.reset("DRS2")
+    assert machine.reset("DRS1").state is ReleaseState.IDLE
+    machine.power_on(confirmed=True)
+
+
+def test_every_audit_record_names_operator_capsule_and_utc_time(machine: ReleaseStateMachine) -> None:
+    _ready(machine)
+    machine.go(machine.confirm("DRS1"))
+    records = machine.store.audit("DRS1")
+    assert records and all(r.operator == "EL" and r.capsule == "DRS1" for r in records)
+    assert all(r.time_utc.tzinfo is not None for r in records)
+
+
+def test_holder_name_is_safe_for_the_pi_lock_file() -> None:
+    holder = default_holder("Eve Lee; rm -rf /")
+    assert " " not in holder and ";" not in holder and holder.startswith("Eve_Lee__rm_-rf__@")

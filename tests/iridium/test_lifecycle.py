@@ -1,0 +1,153 @@
+"""Command lifecycle against the simulated gateway and capsule, with the real durable store."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from datetime import datetime, timedelta
+from pathlib import Path
+
+import pytest
+
+from drs_link.config import CapsuleConfig
+from drs_link.errors import RefusedError
+from drs_link.iridium import lifecycle as lc
+from drs_link.iridium.gateway import RockblockGateway
+from drs_link.iridium.mt import MtComposer
+from drs_link.iridium.reports import ReportStore
+from drs_link.simulator.rockblock import Scripted, SimulatedCapsule, SimulatedRockblock
+from drs_link.store import Store
+
+from .helpers import IMEI, T0, fly
+
+CAPSULE = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=IMEI, rockblock_serial=11800)
+
+
+class Clock:
+    def __init__(self, now: datetime) -> None:
+        self.now = now
+
+    def __call__(self) -> datetime:
+        return self.now
+
+
+@pytest.fixture
+def rig(tmp_path: Path) -> Iterator[tuple[Store, ReportStore, SimulatedRockblock, RockblockGateway, Clock]]:
+    store = Store.open(tmp_path / "drs.sqlite")
+    with SimulatedRockblock(username="ops", password="pw", imeis=(IMEI,)) as gateway:
+        client = RockblockGateway(gateway.url, "ops", "pw", timeout_s=0.5, retry_delay_s=0.0)
+        yield store, ReportStore(store), gateway, client, Clock(T0)
+    store.close()
+
+
+def test_interval_command_runs_from_request_to_effect_confirmed(rig) -> None:
+    store, reports, gateway, client, clock = rig
+    capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
+    next_alarm = fly(capsule, gateway, reports, T0, 3)
+    life = lc.CommandLifecycle(store, "alice", clock)
+    command = life.request(CAPSULE, MtComposer().interval(5).build())
+    assert command.state == lc.REQUESTED
+    with pytest.raises(RefusedError, match="must name the capsule 'DRS1'"):
+        life.send(command.id, "drs1", client)
+    assert life.get(command.id).state == lc.REQUESTED and gateway.requests == []
+    clock.now = next_alarm - timedelta(seconds=30)
+    command = life.send(command.id, "DRS1", client)
+    assert (command.state, command.mt_id) == (lc.QUEUED, 4114652)
+    with pytest.raises(RefusedError, match="never sent twice"):
+        life.send(command.id, "DRS1", client)
+    assert len(gateway.requests) == 1
+    fly(capsule, gateway, reports, next_alarm, 1)
+    [changed] = life.observe(reports.for_imei(IMEI), IMEI)
+    assert changed.state == lc.PROBABLY_DELIVERED and "MOMSN 3" in changed.detail
+    assert capsule.interval_min == 5
+    fly(capsule, gateway, reports, next_alarm + timedelta(minutes=2), 2)
+    [changed] = life.observe(reports.for_imei(IMEI), IMEI)
+    assert changed.state == lc.EFFECT_CONFIRMED
+    actions = [record.action for record in store.audit(capsule="DRS1")]
+    assert actions == [
+        "mt.requested",
+        "mt.send",
+        "mt.confirmed",
+        "mt.queued",
+        "mt.probably_delivered",
+        "mt.effect_confirmed",
+    ]
+
+
+def test_parachute_and_sounder_are_delivered_but_unconfirmable(rig) -> None:
+    store, reports, gateway, client, clock = rig
+    capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
+    life = lc.CommandLifecycle(store, "alice", clock)
+    command = life.request(CAPSULE, MtComposer().parachute(10, 5).sounder(False).build())
+    life.send(command.id, "DRS1", client)
+    fly(capsule, gateway, reports, T0 + timedelta(minutes=1), 1)
+    [changed] = life.observe(reports.for_imei(IMEI), IMEI)
+    assert changed.state == lc.UNCONFIRMABLE and "can not be confirmed" in changed.detail
+    assert capsule.parachute_open and not capsule.sounder_on
+
+
+def test_one_mt_per_session_so_two_queued_commands_need_two_reports(rig) -> None:
+    store, reports, gateway, client, clock = rig
+    capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
+    life = lc.CommandLifecycle(store, "alice", clock)
+    first = life.send(life.request(CAPSULE, MtComposer().sounder(False).build()).id, "DRS1", client)
+    second = life.send(life.request(CAPSULE, MtComposer().sounder(True).build()).id, "DRS1", client)
+    fly(capsule, gateway, reports, T0 + timedelta(minutes=1), 1)
+    life.observe(reports.for_imei(IMEI), IMEI)
+    assert [life.get(first.id).state, life.get(second.id).state] == [lc.UNCONFIRMABLE, lc.QUEUED]
+    fly(capsule, gateway, reports, T0 + timedelta(minutes=3), 1)
+    life.observe(reports.for_imei(IMEI), IMEI)
+    assert life.get(second.id).state == lc.UNCONFIRMABLE and capsule.sounder_on
+
+
+def test_gateway_outcomes_other_than_ok_are_recorded_and_never_resent(rig) -> None:
+    store, _reports, gateway, client, clock = rig
+    life = lc.CommandLifecycle(store, "alice", clock)
+    gateway.script(Scripted("failed", code=13), Scripted("slow", delay_s=1.0))
+    failed = life.send(life.request(CAPSULE, MtComposer().interval(3).build()).id, "DRS1", client)
+    assert failed.state == lc.FAILED and "insufficient credit" in failed.detail
+    unknown = life.send(life.request(CAPSULE, MtComposer().interval(3).build()).id, "DRS1", client)
+    assert unknown.state == lc.DELIVERY_UNKNOWN and "check the RockBLOCK portal" in unknown.detail
+    with pytest.raises(RefusedError):
+        life.send(unknown.id, "DRS1", client)
+    assert len(gateway.requests) == 2
+
+
+def test_flush_marks_older_queued_commands_flushed(rig) -> None:
+    store, _reports, gateway, client, clock = rig
+    life = lc.CommandLifecycle(store, "alice", clock)
+    older = life.send(life.request(CAPSULE, MtComposer().interval(3).build()).id, "DRS1", client)
+    newer = life.send(life.request(CAPSULE, MtComposer().interval(4).build(), flush=True).id, "DRS1", client)
+    assert life.get(older.id).state == lc.FLUSHED
+    assert newer.state == lc.QUEUED
+    assert list(gateway.queues[IMEI]) == [b"[INTERVAL=4]"]
+    assert any("flush=yes empties" in (r.detail or {}).get("detail", "") for r in store.audit(capsule="DRS1"))
+
+
+def test_queued_command_with_no_report_for_hours_times_out(rig) -> None:
+    store, reports, _gateway, client, clock = rig
+    life = lc.CommandLifecycle(store, "alice", clock)
+    command = life.send(life.request(CAPSULE, MtComposer().interval(3).build()).id, "DRS1", client)
+    assert life.observe(reports.for_imei(IMEI), IMEI) == []
+    clock.now = T0 + lc.QUEUE_TIMEOUT + timedelta(minutes=1)
+    [changed] = life.observe(reports.for_imei(IMEI), IMEI)
+    assert changed.id == command.id and changed.state == lc.TIMED_OUT
+
+
+def test_interval_whose_spacing_never_shows_times_out(rig) -> None:
+    store, reports, gateway, client, clock = rig
+    capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
+    life = lc.CommandLifecycle(store, "alice", clock)
+    command = life.send(life.request(CAPSULE, MtComposer().interval(7).build()).id, "DRS1", client)
+    gateway.queues[IMEI].clear()
+    gateway.queues[IMEI].append(b"[interval=7]")
+    fly(capsule, gateway, reports, T0 + timedelta(minutes=1), 7)
+    life.observe(reports.for_imei(IMEI), IMEI)
+    final = life.get(command.id)
+    assert final.state == lc.TIMED_OUT and "[INTERVAL=7]: not seen" in final.detail
+
+
+def test_request_without_imei_is_refused(rig) -> None:
+    store, *_ = rig
+    life = lc.CommandLifecycle(store, "alice")
+    with pytest.raises(RefusedError, match="no imei configured"):
+        life.request(CapsuleConfig(name="DRS2", host="x"), MtComposer().interval(3).build())

@@ -1,0 +1,183 @@
+"""The MO webhook on 127.0.0.1 with the simulated gateway posting to it, and the email importer."""
+
+from __future__ import annotations
+
+import json
+import threading
+import urllib.request
+from collections.abc import Iterator
+from dataclasses import replace
+from datetime import timedelta
+from pathlib import Path
+
+import pytest
+
+from drs_link.config import MoConfig
+from drs_link.errors import ConfigError
+from drs_link.iridium.firmware import format_mo
+from drs_link.iridium.importer import import_files
+from drs_link.iridium.reports import ReportStore, StoredReport
+from drs_link.iridium.webhook import MoHttpServer, MoReceiver
+from drs_link.simulator.rockblock import MoDelivery, generate_test_keys, post_mo
+from drs_link.store import Store
+
+from .helpers import IMEI, T0, fix_at
+
+
+@pytest.fixture(scope="module")
+def gateway_keys() -> tuple[str, str]:
+    return generate_test_keys()
+
+
+@pytest.fixture
+def store(tmp_path: Path) -> Iterator[Store]:
+    store = Store.open(tmp_path / "drs.sqlite")
+    yield store
+    store.close()
+
+
+def serve(store: Store, config: MoConfig, on_report=None) -> MoHttpServer:
+    return MoHttpServer(MoReceiver(ReportStore(store), config, on_report)).start()
+
+
+def delivery(momsn: int = 7, payload: bytes | None = None) -> MoDelivery:
+    payload = format_mo(fix_at(T0), 8.9, 3) if payload is None else payload
+    return MoDelivery(IMEI, 11800, momsn, payload, T0 + timedelta(seconds=40), 46.51, 6.61, 3.0)
+
+
+LOCAL = MoConfig(listen_host="127.0.0.1", listen_port=0, max_body_bytes=2048)
+
+
+def test_form_and_json_deliveries_are_stored_parsed_and_duplicates_dropped(store: Store) -> None:
+    server = serve(store, LOCAL)
+    try:
+        assert post_mo(server.url, delivery(7)) == 200
+        assert post_mo(server.url, delivery(7), as_json=True) == 200
+        assert post_mo(server.url, delivery(8), as_json=True) == 200
+    finally:
+        server.stop()
+    reports = ReportStore(store).for_imei(IMEI)
+    assert [(r.delivery.momsn, r.delivery.source) for r in reports] == [
+        (7, "webhook-form"),
+        (8, "webhook-json"),
+    ]
+    first = reports[0]
+    assert first.report is not None and first.report.fix is not None and first.report.fix.time == T0
+    assert first.delivery.transmit_utc == T0 + timedelta(seconds=40)
+    assert first.delivery.iridium_cep_km == 3.0
+    assert "momsn=7" in (first.delivery.raw_delivery or "")
+
+
+def test_malformed_payload_is_stored_as_rejected_and_answered_200(store: Store) -> None:
+    server = serve(store, LOCAL)
+    try:
+        assert post_mo(server.url, delivery(9, b"\x01\x02garbage")) == 200
+    finally:
+        server.stop()
+    [report] = ReportStore(store).for_imei(IMEI)
+    assert not report.parsed.accepted and "not printable ASCII" in (report.parsed.reason or "")
+
+
+def _post(url: str, body: bytes, content_type: str) -> int:
+    request = urllib.request.Request(url, data=body, headers={"Content-Type": content_type})
+    try:
+        with urllib.request.urlopen(request, timeout=5) as response:
+            return int(response.status)
+    except urllib.error.HTTPError as exc:
+        return int(exc.code)
+
+
+def test_malformed_deliveries_get_specific_errors_and_are_kept_for_forensics(store: Store) -> None:
+    server = serve(store, LOCAL)
+    try:
+        assert _post(server.url, b"{not json", "application/json") == 400
+        assert _post(server.url, b"imei=123&momsn=1&data=00", "application/x-www-form-urlencoded") == 400
+        assert _post(server.url, b"imei=300234010753370&data=00", "application/x-www-form-urlencoded") == 400
+        assert _post(server.url, b"x", "text/plain") == 415
+        assert _post(server.url, b"x" * 4096, "application/x-www-form-urlencoded") == 413
+        assert _post(server.url.replace("/rockblock/mo", "/elsewhere"), b"x", "application/json") == 404
+    finally:
+        server.stop()
+    reasons = [reason for reason, _ in ReportStore(store).rejected_deliveries()]
+    assert reasons == [
+        "body is not valid JSON",
+        "missing or malformed imei",
+        "missing or malformed momsn",
+        "unsupported content type text/plain",
+        "body of 4096 bytes over the limit",
+    ]
+    assert ReportStore(store).for_imei(IMEI) == []
+
+
+def test_signed_deliveries_are_verified_and_badly_signed_ones_refused(
+    store: Store, tmp_path: Path, gateway_keys: tuple[str, str]
+) -> None:
+    private, public = gateway_keys
+    key_file = tmp_path / "rock7.pem"
+    key_file.write_text(public)
+    forger_private, _ = generate_test_keys()
+    config = replace(LOCAL, jwt_public_key_file=key_file, require_jwt=True)
+    server = serve(store, config)
+    try:
+        assert post_mo(server.url, delivery(1), jwt_private_key=private) == 200
+        assert post_mo(server.url, delivery(2), jwt_private_key=forger_private) == 401
+        assert post_mo(server.url, delivery(3)) == 401
+        tampered = delivery(4)
+        signed_fields = tampered.fields()
+        import jwt
+
+        token = jwt.encode({"iss": "Rock 7", **signed_fields}, private, algorithm="RS256")
+        body = json.dumps({**signed_fields, "data": "00", "JWT": token}).encode()
+        assert _post(server.url, body, "application/json") == 401
+    finally:
+        server.stop()
+    [report] = ReportStore(store).for_imei(IMEI)
+    assert report.delivery.momsn == 1 and report.delivery.jwt_verified
+    reasons = [reason for reason, _ in ReportStore(store).rejected_deliveries()]
+    assert reasons == [
+        "JWT rejected: InvalidSignatureError",
+        "no JWT and mo.require_jwt is set",
+        "JWT claim data does not match the delivered data",
+    ]
+
+
+def test_require_jwt_without_a_key_is_a_config_error(store: Store) -> None:
+    with pytest.raises(ConfigError, match="mo.require_jwt is true but mo.jwt_public_key_file is not set"):
+        MoReceiver(ReportStore(store), replace(LOCAL, require_jwt=True))
+
+
+def test_heavy_work_runs_after_the_answer(store: Store) -> None:
+    release = threading.Event()
+    seen: list[StoredReport] = []
+
+    def slow_processing(stored: StoredReport) -> None:
+        release.wait(10)
+        seen.append(stored)
+
+    server = serve(store, LOCAL, slow_processing)
+    try:
+        assert post_mo(server.url, delivery(5), timeout_s=5) == 200
+        assert seen == []
+        release.set()
+    finally:
+        server.stop()
+    assert [s.delivery.momsn for s in seen] == [5]
+
+
+def test_email_attachments_import_once_and_bad_files_are_reported(store: Store, tmp_path: Path) -> None:
+    good = tmp_path / f"{IMEI}-12.bin"
+    good.write_bytes(format_mo(fix_at(T0), 8.9, 3))
+    garbage = tmp_path / f"{IMEI}-13.bin"
+    garbage.write_bytes(b"\xff\xfe")
+    badly_named = tmp_path / "message.bin"
+    badly_named.write_bytes(b"x")
+    huge = tmp_path / f"{IMEI}-14.bin"
+    huge.write_bytes(b"1" * 400)
+    missing = tmp_path / f"{IMEI}-15.bin"
+    reports = ReportStore(store)
+    outcomes = import_files([good, garbage, badly_named, huge, missing, good], reports)
+    assert [o.status for o in outcomes] == ["new", "rejected", "error", "error", "error", "duplicate"]
+    assert "name is not <15-digit imei>-<momsn>.bin" in outcomes[2].message
+    assert [r.delivery.momsn for r in reports.for_imei(IMEI)] == [13, 12] or [
+        r.delivery.momsn for r in reports.for_imei(IMEI)
+    ] == [12, 13]

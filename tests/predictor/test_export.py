@@ -1,0 +1,81 @@
+"""JSON, KML and GeoJSON outputs, parsed back and checked for what they must contain."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from predictor import Payload, PredictorError, predict, predict_ensemble
+from predictor.export import to_geojson, to_json, write_geojson, write_json, write_kml
+from tests.predictor.predict_helpers import RELEASE, isothermal_cube
+
+KML_NS = {"k": "http://www.opengis.net/kml/2.2"}
+PAYLOAD = Payload(mass_kg=1.029, cda_m2=1.13)
+
+
+@pytest.fixture(scope="module")
+def prediction():  # type: ignore[no-untyped-def]
+    return predict(isothermal_cube(u=8.0, v=3.0), RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD)
+
+
+@pytest.fixture(scope="module")
+def demo_ensemble():  # type: ignore[no-untyped-def]
+    cube = isothermal_cube(u=8.0, is_demo=True)
+    return predict_ensemble(cube, RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD, members=20, seed=0)
+
+
+def test_json_parses_back_to_the_result_document(prediction) -> None:  # type: ignore[no-untyped-def]
+    doc = json.loads(to_json(prediction, track=True))
+    assert doc == json.loads(json.dumps(prediction.to_dict(track=True)))
+    assert len(doc["track"]) == len(prediction.track.lat)
+
+
+def test_kml_has_path_release_landing_and_three_ellipses(prediction, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    root = ET.parse(write_kml(prediction, tmp_path / "p.kml")).getroot()
+    placemarks = root.findall(".//k:Placemark", KML_NS)
+    names = [p.findtext("k:name", namespaces=KML_NS) for p in placemarks]
+    assert names[:3] == ["descent path", "release", "landing"]
+    assert sum("σ" in n for n in names) == 3
+    assert any("39.3 %" in n for n in names) and any("86.5 %" in n for n in names)
+    coords = root.find(".//k:LineString/k:coordinates", KML_NS).text.split()
+    first = [float(x) for x in coords[0].split(",")]
+    assert first == pytest.approx([5.0, 46.0, 30000.0])
+    assert len(coords) == len(prediction.track.lat)
+    ring = root.find(".//k:Polygon//k:coordinates", KML_NS).text.split()
+    assert ring[0] == ring[-1]
+
+
+def test_geojson_features_and_their_geometry(prediction, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    doc = json.loads(write_geojson(prediction, tmp_path / "p.geojson").read_text())
+    assert doc["type"] == "FeatureCollection"
+    kinds = [f["properties"]["kind"] for f in doc["features"]]
+    assert kinds[:3] == ["path", "release", "landing"] and kinds.count("ellipse") == 3
+    landing = doc["features"][2]
+    assert landing["geometry"]["coordinates"] == [prediction.landing.lon, prediction.landing.lat]
+    polygon = doc["features"][3]
+    assert polygon["geometry"]["type"] == "Polygon"
+    assert polygon["geometry"]["coordinates"][0][0] == polygon["geometry"]["coordinates"][0][-1]
+    assert polygon["properties"]["probability"] == pytest.approx(0.393, abs=1e-3)
+    assert doc["properties"]["is_demo"] is False
+
+
+def test_demo_ensemble_outputs_say_demo_and_carry_members(demo_ensemble, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    kml_root = ET.parse(write_kml(demo_ensemble, tmp_path / "e.kml")).getroot()
+    assert "DEMO WEATHER" in kml_root.find(".//k:Document/k:name", KML_NS).text
+    assert "DEMO WEATHER" in kml_root.find(".//k:Document/k:description", KML_NS).text
+    assert kml_root.find(".//k:Folder/k:name", KML_NS).text == "20 ensemble landings"
+    geo = to_geojson(demo_ensemble)
+    assert geo["properties"]["is_demo"] is True and "DEMO" in geo["properties"]["title"]
+    members = [f for f in geo["features"] if f["properties"]["kind"] == "ensemble landings"][0]
+    assert len(members["geometry"]["coordinates"]) == 20
+    assert sum(f["properties"]["kind"] == "ellipse" for f in geo["features"]) == 6
+    doc = json.loads(write_json(demo_ensemble, tmp_path / "e.json").read_text())
+    assert doc["is_demo"] is True and doc["warnings"][0].startswith("DEMO WEATHER")
+
+
+def test_unwritable_output_is_a_clear_error(prediction, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(PredictorError, match="cannot write the KML file .*missing"):
+        write_kml(prediction, tmp_path / "missing" / "p.kml")
