@@ -17,6 +17,7 @@ from predictor.errors import PredictorError
 
 COMMAND_MODULES: tuple[str, ...] = (
     "predictor.cli",
+    "predictor.weather_cli",
     "predictor.calibration.cli",
     "drs_link.cli",
     "drs_link.iridium.cli",

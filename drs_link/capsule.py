@@ -101,6 +101,7 @@ class MicrocontrollerReport:
     seconds_since_power_on: float | None
     gnss: GnssStatus
     diagnosis: str
+    still_booting: bool = False
 
 
 def default_holder(operator: str) -> str:
@@ -254,6 +255,7 @@ class ReleaseStateMachine:
                 elapsed,
                 gnss,
                 f"no NMEA yet, {elapsed:.0f} s after power-on: still booting (allow ~25 s)",
+                still_booting=True,
             )
         return MicrocontrollerReport(False, elapsed, gnss, SILENT_MICROCONTROLLER_CHECKS)
 
@@ -263,7 +265,7 @@ class ReleaseStateMachine:
             report = self.check_microcontroller()
             if report.waiting_for_go:
                 return report
-            if report.seconds_since_power_on is None or report.diagnosis == SILENT_MICROCONTROLLER_CHECKS:
+            if not report.still_booting:
                 if report.seconds_since_power_on is not None:
                     self._audit("microcontroller", "silent", {"diagnosis": report.diagnosis})
                 return report

@@ -288,7 +288,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     result = run_bench(sync_mb=args.mb, rounds=args.rounds)
     print(f"SSH connect + host-key check (median): {result.connect_ms_median:.1f} ms")
     print(
-        f"heartbeat round trip: median {result.heartbeat_ms_median:.1f} ms, p95 {result.heartbeat_ms_p95:.1f} ms"
+        f"heartbeat round trip: median {result.heartbeat_ms_median:.1f} ms, "
+        f"p95 {result.heartbeat_ms_p95:.1f} ms"
     )
     print(f"sync {result.sync_mb:.0f} MiB incl. sha256 on the Pi: {result.sync_mb_per_s:.1f} MiB/s")
     print(

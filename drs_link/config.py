@@ -57,6 +57,17 @@ class MoConfig:
 
 
 @dataclass(frozen=True)
+class ConsoleConfig:
+    """The operator console (`drs console`): release rules and what it shows."""
+
+    arm_window_s: float = 60.0
+    require_second_operator: bool = False
+    exclusion_zones_file: Path | None = None
+    team_position: str = ""
+    prediction_period_s: float = 60.0
+
+
+@dataclass(frozen=True)
 class CapsuleConfig:
     name: str
     host: str
@@ -79,6 +90,7 @@ class CapsuleConfig:
     command_timeout_s: float = 60.0
     microcontroller_wait_s: float = 25.0
     authority_lease_s: float = 1800.0
+    sync_source: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -87,6 +99,7 @@ class Config:
     data: DataConfig = field(default_factory=DataConfig)
     rockblock: RockblockConfig = field(default_factory=RockblockConfig)
     mo: MoConfig = field(default_factory=MoConfig)
+    console: ConsoleConfig = field(default_factory=ConsoleConfig)
     capsules: tuple[CapsuleConfig, ...] = ()
     source: Path | None = None
 
@@ -183,7 +196,13 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
 
 def parse_config(document: dict[str, Any], source: Path | None = None) -> Config:
     """Build a ``Config`` from an already-parsed TOML document."""
-    sections = {"operator": OperatorConfig, "data": DataConfig, "rockblock": RockblockConfig, "mo": MoConfig}
+    sections = {
+        "operator": OperatorConfig,
+        "data": DataConfig,
+        "rockblock": RockblockConfig,
+        "mo": MoConfig,
+        "console": ConsoleConfig,
+    }
     unknown = sorted(set(document) - set(sections) - {"capsule"})
     if unknown:
         allowed = ", ".join(sorted([*sections, "capsule"]))

@@ -23,6 +23,7 @@ HOLDER_RE = re.compile(r"^[A-Za-z0-9@._:+-]{1,96}$")
 EXIT_AUTHORITY_HELD = 75
 EXIT_NO_AUTHORITY = 77
 EXIT_NO_TOOLS = 66
+_NO_AUTHORITY_MESSAGE = "echo 'drs: this console holds no release authority: run power-on first'"
 
 
 @dataclass(frozen=True)
@@ -74,7 +75,8 @@ def _authority_prelude(holder: str) -> str:
     lock, owner, q_holder = (shlex.quote(x) for x in (AUTHORITY_LOCK, AUTHORITY_OWNER, holder))
     return (
         f"exec 9>>{lock} || exit {EXIT_AUTHORITY_HELD}; "
-        f"flock -w 5 9 || {{ echo 'drs: the release-authority lock is busy' >&2; exit {EXIT_AUTHORITY_HELD}; }}; "
+        f"flock -w 5 9 || "
+        f"{{ echo 'drs: the release-authority lock is busy' >&2; exit {EXIT_AUTHORITY_HELD}; }}; "
         f"now=$(date +%s); held_by=''; lease_end=0; "
         f"if [ -s {owner} ]; then read -r held_by lease_end < {owner}; fi; "
         f'if [ -n "$held_by" ] && [ "$held_by" != {q_holder} ] && [ "${{lease_end:-0}}" -gt "$now" ]; then '
@@ -116,7 +118,7 @@ def go(tools_dir: str, python: str, holder: str) -> RemoteCommand:
         f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
         f"{_authority_prelude(holder)}; "
         f'if [ "$held_by" != {q(holder)} ]; then '
-        f"echo 'drs: this console holds no release authority: run power-on first' >&2; exit {EXIT_NO_AUTHORITY}; fi; "
+        f"{_NO_AUTHORITY_MESSAGE} >&2; exit {EXIT_NO_AUTHORITY}; fi; "
         f"{q(python)} DRS_GoGoGo.py"
     )
     return RemoteCommand("go", (tools_dir, python, holder), script)
@@ -126,7 +128,9 @@ AGENT_NAME = "drs_agent.py"
 EXIT_AGENT_NO_ACK = 3
 
 
-def agent_power_on(tools_dir: str, python: str, holder: str, lease_s: float, serial_device: str) -> RemoteCommand:
+def agent_power_on(
+    tools_dir: str, python: str, holder: str, lease_s: float, serial_device: str
+) -> RemoteCommand:
     check_holder(holder)
     lease = int(lease_s)
     q = shlex.quote
@@ -141,7 +145,9 @@ def agent_power_on(tools_dir: str, python: str, holder: str, lease_s: float, ser
 
 def agent_read(tools_dir: str, python: str, offset: int) -> RemoteCommand:
     q = shlex.quote
-    script = f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; {q(python)} {AGENT_NAME} read --offset {int(offset)}"
+    script = (
+        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; {q(python)} {AGENT_NAME} read --offset {int(offset)}"
+    )
     return RemoteCommand("agent-read", (tools_dir, python, str(int(offset))), script)
 
 
@@ -152,7 +158,7 @@ def agent_go(tools_dir: str, python: str, holder: str, serial_device: str) -> Re
         f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
         f"{_authority_prelude(holder)}; "
         f'if [ "$held_by" != {q(holder)} ]; then '
-        f"echo 'drs: this console holds no release authority: run power-on first' >&2; exit {EXIT_NO_AUTHORITY}; fi; "
+        f"{_NO_AUTHORITY_MESSAGE} >&2; exit {EXIT_NO_AUTHORITY}; fi; "
         f"{q(python)} {AGENT_NAME} go --serial {q(serial_device)}"
     )
     return RemoteCommand("agent-go", (tools_dir, python, holder, serial_device), script)

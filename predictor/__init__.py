@@ -6,7 +6,14 @@ from predictor.cube import WeatherCube
 from predictor.errors import OutOfCoverageError, PredictorError, TerrainError, WeatherError
 from predictor.model import EFFECTS, Model, Term
 from predictor.payload import PROFILES, Payload, payload_profile
-from predictor.prediction import EnsemblePrediction, Prediction, predict, predict_ensemble
+from predictor.prediction import (
+    EnsemblePrediction,
+    LandingSet,
+    Prediction,
+    predict,
+    predict_ensemble,
+    predict_landings,
+)
 from predictor.terrain import Terrain
 from predictor.uncertainty import HINDSIGHT, LAUNCH, Ellipse, ErrorModel
 from predictor.weather import load_weather
@@ -17,6 +24,7 @@ __all__ = [
     "LAUNCH",
     "PROFILES",
     "Ellipse",
+    "LandingSet",
     "EnsemblePrediction",
     "ErrorModel",
     "Model",
@@ -33,4 +41,5 @@ __all__ = [
     "payload_profile",
     "predict",
     "predict_ensemble",
+    "predict_landings",
 ]

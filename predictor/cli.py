@@ -96,8 +96,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.action == "bench":
         return run_bench(args)
-    missing = [flag for flag, value in (("--weather", args.weather), ("--lat", args.lat), ("--lon", args.lon),
-                                        ("--alt", args.alt), ("--time", args.time)) if value is None]  # fmt: skip
+    required = {
+        "--weather": args.weather,
+        "--lat": args.lat,
+        "--lon": args.lon,
+        "--alt": args.alt,
+        "--time": args.time,
+    }
+    missing = [flag for flag, value in required.items() if value is None]
     if missing:
         raise PredictorError(f"drs predict needs {', '.join(missing)}")
     from predictor.weather import load_weather
@@ -159,14 +165,16 @@ def summary(result: Prediction | EnsemblePrediction) -> str:
         lines.append(f"decision  {iso_z(d.time)}  {d.lat:.5f}, {d.lon:.5f}  then drift at float")
     lines += [
         f"release   {iso_z(r.time)}  {r.lat:.5f}, {r.lon:.5f}  {r.alt_m:.0f} m",
-        f"landing   {iso_z(land.time)}  {land.lat:.5f}, {land.lon:.5f}  {land.alt_m:.0f} m ({pred.terrain_source})",
-        f"descent   {pred.descent_s / 60:.1f} min; drift {pred.drift_km:.2f} km toward {pred.bearing_deg:.0f}°"
-        f" (path {pred.path_km:.2f} km)",
+        f"landing   {iso_z(land.time)}  {land.lat:.5f}, {land.lon:.5f}  {land.alt_m:.0f} m"
+        f" ({pred.terrain_source})",
+        f"descent   {pred.descent_s / 60:.1f} min; drift {pred.drift_km:.2f} km toward "
+        f"{pred.bearing_deg:.0f}° (path {pred.path_km:.2f} km)",
         f"ellipse   {e.kind}: σ∥ {e.sigma_parallel_km:.2f} km, σ⊥ {e.sigma_perpendicular_km:.2f} km "
         f"(⟨t_future⟩ {pred.t_future_mean_h:.1f} h)",
     ]
     lines += [
-        f"          {c.n_sigma:.2f}σ holds {100 * c.probability:.1f} %: {c.semi_major_km:.2f} × {c.semi_minor_km:.2f} km"
+        f"          {c.n_sigma:.2f}σ holds {100 * c.probability:.1f} %: "
+        f"{c.semi_major_km:.2f} × {c.semi_minor_km:.2f} km"
         for c in e.contours
     ]
     if isinstance(result, EnsemblePrediction):
@@ -176,8 +184,9 @@ def summary(result: Prediction | EnsemblePrediction) -> str:
             f"{100 * (c.observed_fraction or 0):.1f} % in {c.n_sigma:.0f}σ" for c in m.contours[:3]
         )
         lines.append(
-            f"ensemble  {result.members} members: σ∥ {m.sigma_parallel_km:.2f} km, σ⊥ {m.sigma_perpendicular_km:.2f} km,"
-            f" mean {gap / 1000:.2f} km from the central landing; {inside}"
+            f"ensemble  {result.members} members: σ∥ {m.sigma_parallel_km:.2f} km, "
+            f"σ⊥ {m.sigma_perpendicular_km:.2f} km, mean {gap / 1000:.2f} km from the central landing; "
+            f"{inside}"
         )
     lines.append(f"payload   {pred.payload.name}: {pred.payload.mass_kg} kg, Cd·A {pred.payload.cda_m2} m²")
     lines.append(f"weather   {pred.weather_source}")
@@ -199,7 +208,7 @@ def _bench_fields(hour: float, lats: np.ndarray, lons: np.ndarray) -> dict[str, 
 
     Bench input only: its job is to have the shape and size of a real 0.5° subset.
     """
-    # Heights of the levels from the standard atmosphere's layers (troposphere 6.5 K/km, isothermal to 20 km, +1 K/km).
+    # Level heights from the standard atmosphere: 6.5 K/km troposphere, isothermal to 20 km, then +1 K/km.
     p = BENCH_LEVELS_HPA[:, None, None]
     z_trop = 44330.8 * (1 - (p / 1013.25) ** 0.190263)
     z_strat = 11000.0 + 6341.6 * np.log(226.32 / p)
@@ -245,8 +254,9 @@ _COMPILE_PROBE = textwrap.dedent(
     levels = np.array([1000.0, 500.0, 100.0, 10.0])
     z = np.array([100.0, 5500.0, 16000.0, 31000.0])[None, :, None, None] * np.ones((2, 4, 3, 3))
     cube = WeatherCube(
-        times=np.array(["2024-05-01T00", "2024-05-01T06"], dtype="datetime64[s]"), lead_h=np.array([0.0, 6.0]),
-        levels_hpa=levels, lats=np.array([45.0, 46.0, 47.0]), lons=np.array([5.0, 6.0, 7.0]), z_m=z,
+        times=np.array(["2024-05-01T00", "2024-05-01T06"], dtype="datetime64[s]"),
+        lead_h=np.array([0.0, 6.0]), levels_hpa=levels, lats=np.array([45.0, 46.0, 47.0]),
+        lons=np.array([5.0, 6.0, 7.0]), z_m=z,
         u=np.zeros_like(z), v=np.zeros_like(z), temperature_k=np.full_like(z, 250.0),
         density=1.2 * np.exp(-z / 7300.0), source="compile probe")
     predict(cube, datetime(2024, 5, 1, 3, tzinfo=timezone.utc), 46.0, 6.0, 30000.0)
@@ -277,15 +287,17 @@ def run_bench(args: argparse.Namespace) -> int:
     from predictor.weather import load_weather
 
     print(
-        f"drs predict bench: {os.cpu_count()} CPUs, numba {numba.__version__} with {numba.get_num_threads()} threads, "
-        f"load average {os.getloadavg()[0]:.2f} at start"
+        f"drs predict bench: {os.cpu_count()} CPUs, numba {numba.__version__} with "
+        f"{numba.get_num_threads()} threads, load average {os.getloadavg()[0]:.2f} at start"
     )
     with tempfile.TemporaryDirectory(prefix="drs-bench-") as tmp:
         root = Path(tmp)
         lats, lons = np.arange(41.0, 51.01, 0.5), np.arange(1.0, 11.01, 0.5)
         files = [
-            write_gfs_grib2(root / gfs_file_name(BENCH_CYCLE, h), BENCH_CYCLE, h, BENCH_LEVELS_HPA, lats, lons,
-                            **_bench_fields(h, lats, lons))
+            write_gfs_grib2(
+                root / gfs_file_name(BENCH_CYCLE, h), BENCH_CYCLE, h, BENCH_LEVELS_HPA, lats, lons,
+                **_bench_fields(h, lats, lons),
+            )
             for h in (0, 3, 6, 9, 12)
         ]  # fmt: skip
         size_mb = sum(f.stat().st_size for f in files) / 1e6
@@ -304,8 +316,8 @@ def run_bench(args: argparse.Namespace) -> int:
             compile_s = _fresh_process_seconds(str(root / "numba-cache"))
             cached_s = _fresh_process_seconds(str(root / "numba-cache"))
             print(
-                f"compile: first prediction in a fresh process (import + JIT) {compile_s:.2f} s with an empty numba cache,"
-                f" {cached_s:.2f} s with the on-disk cache"
+                f"compile: first prediction in a fresh process (import + JIT) {compile_s:.2f} s with an "
+                f"empty numba cache, {cached_s:.2f} s with the on-disk cache"
             )
     when = BENCH_CYCLE + timedelta(hours=4)
     payload = PROFILES["drs"]
@@ -316,8 +328,9 @@ def run_bench(args: argparse.Namespace) -> int:
         lambda: predict(wx, when, 46.0, 6.0, 30000.0, payload=payload, terrain=sea), args.repeats
     )
     print(
-        f"one prediction, drs payload, 30 km → sea level, Δz 100 m ({steps} steps, drift {first.drift_km:.1f} km, "
-        f"{first.descent_s / 60:.1f} min), whole predict() call: {_figure(singles, 1e3, 'ms')}   [floor 2 ms]"
+        f"one prediction, drs payload, 30 km → sea level, Δz 100 m ({steps} steps, drift "
+        f"{first.drift_km:.1f} km, {first.descent_s / 60:.1f} min), whole predict() call: "
+        f"{_figure(singles, 1e3, 'ms')}   [floor 2 ms]"
     )
     n = args.bench_members
     predict_ensemble(wx, when, 46.0, 6.0, 30000.0, payload=payload, terrain=sea, members=n)

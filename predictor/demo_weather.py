@@ -83,7 +83,16 @@ def demo_weather_files(
             partial = path.with_name(path.name + ".partial")
             u, v, t, gh = demo_atmosphere(lats, lons, cycle + timedelta(hours=step), lat0, lon0)
             write_gfs_grib2(
-                partial, cycle, step, GFS_LEVELS_HPA, lats, lons, u, v, t, gh,
+                partial,
+                cycle,
+                step,
+                GFS_LEVELS_HPA,
+                lats,
+                lons,
+                u,
+                v,
+                t,
+                gh,
                 generating_process=DEMO_GENERATING_PROCESS,
             )
             os.replace(partial, path)  # a half-written file never looks complete
@@ -97,7 +106,9 @@ def isa_height_and_temperature(pressure_hpa: np.ndarray) -> tuple[np.ndarray, np
     height = np.empty_like(p)
     temperature = np.empty_like(p)
     for index, pressure in np.ndenumerate(p):
-        base_h, base_t, lapse, base_p = next(layer for layer in reversed(_ISA_LAYERS) if pressure <= layer[3] or layer[0] == 0.0)
+        base_h, base_t, lapse, base_p = next(
+            layer for layer in reversed(_ISA_LAYERS) if pressure <= layer[3] or layer[0] == 0.0
+        )
         if lapse == 0.0:
             h = base_h - _GAS_CONSTANT * base_t / _G0 * math.log(pressure / base_p)
         else:

@@ -39,7 +39,8 @@ def _description(pred: Prediction) -> str:
     lines = [
         f"Weather: {pred.weather_source}",
         f"Payload: {pred.payload.name} {pred.payload.mass_kg} kg, Cd·A {pred.payload.cda_m2} m²",
-        f"Descent {pred.descent_s / 60:.1f} min, drift {pred.drift_km:.1f} km, ⟨t_future⟩ {pred.t_future_mean_h:.1f} h",
+        f"Descent {pred.descent_s / 60:.1f} min, drift {pred.drift_km:.1f} km, "
+        f"⟨t_future⟩ {pred.t_future_mean_h:.1f} h",
         *pred.warnings,
     ]
     return "\n".join(lines)

@@ -4,6 +4,7 @@ Why: cfgrib skips a corrupt or truncated message with a log line and simply retu
 or levels, so a download cut in the middle would otherwise look like a file that "lacks v". Walking
 the messages with eccodes finds the cut and names the file. The scan reads each message's bytes
 (cheap); ``decode=True`` also unpacks every field, which the downloader does for its small subsets.
+Counts are of fields: a multi-field message (GFS packs u and v together) counts once per field.
 """
 
 from __future__ import annotations
@@ -33,8 +34,10 @@ def scan_grib_file(path: str | Path, *, decode: bool = False) -> GribScan:
     count = 0
     editions: set[int] = set()
     processes: set[int] = set()
+    eccodes.codes_grib_multi_support_on()  # count fields as the reader sees them (GFS packs u and v)
     try:
         with open(file, "rb") as stream:
+            eccodes.codes_grib_multi_support_reset_file(stream)
             while True:
                 try:
                     handle = eccodes.codes_grib_new_from_file(stream, headers_only=not decode)

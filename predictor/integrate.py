@@ -271,6 +271,15 @@ def drift_at_float(
 
 
 @njit(cache=True)
+def _note_failure(failed_at: np.ndarray, i: int, lat: float, lon: float, z: float, t: float, k: int) -> None:
+    failed_at[i, 0] = lat
+    failed_at[i, 1] = lon
+    failed_at[i, 2] = z
+    failed_at[i, 3] = t
+    failed_at[i, 4] = k
+
+
+@njit(cache=True)
 def _descend_range(
     lo: int,
     hi: int,
@@ -288,6 +297,7 @@ def _descend_range(
     t0: np.ndarray,
     dz: float,
     z_floor: float,
+    skip: np.ndarray,
     out_lat: np.ndarray,
     out_lon: np.ndarray,
     out_z: np.ndarray,
@@ -296,6 +306,7 @@ def _descend_range(
     n_rec: np.ndarray,
     status: np.ndarray,
     time_held_s: np.ndarray,
+    failed_at: np.ndarray,
 ) -> None:
     """Trajectories lo…hi−1 stepped together: each phase of a step runs for all of them before the next.
 
@@ -322,12 +333,14 @@ def _descend_range(
     dlon = np.zeros(n)
     lat_m = np.zeros(n)
     for i in range(lo, hi):
-        out_lat[i, 0] = lat[i]
-        out_lon[i, 0] = lon[i]
-        out_z[i, 0] = z[i]
-        out_t[i, 0] = t[i]
-        out_path[i, 0] = 0.0
-        n_rec[i] = 1
+        n_rec[i] = 0
+        if skip[i] == 0:
+            out_lat[i, 0] = lat[i]
+            out_lon[i, 0] = lon[i]
+            out_z[i, 0] = z[i]
+            out_t[i, 0] = t[i]
+            out_path[i, 0] = 0.0
+            n_rec[i] = 1
         active[i] = z[i] > z_floor
         dlat[i], dlon[i] = degrees_per_metre(lat[i], z[i])
     k = 0
@@ -378,6 +391,7 @@ def _descend_range(
                 if code != STATUS_OK:
                     status[i] = code
                     active[i] = False
+                    _note_failure(failed_at, i, lat_m[i], lon_m, e[ENV_Z], t_wx, k)
                     continue
                 held = max(t_s[0] - t_wx, t_wx - t_s[nt - 1], 0.0)
                 if held > time_held_s[i]:
@@ -392,6 +406,7 @@ def _descend_range(
                 if not vel[i, VEL_DOWN] > 0.0:
                     status[i] = STATUS_NOT_DESCENDING
                     active[i] = False
+                    _note_failure(failed_at, i, lat_m[i], lon[i], env[i, ENV_Z], t[i], k)
                     continue
                 dt[i] = dz / vel[i, VEL_DOWN]
                 env[i, ENV_DT] = dt[i]
@@ -416,12 +431,14 @@ def _descend_range(
             dt_est[i] = dt[i]
             u_est[i] = vel[i, VEL_EAST]
             v_est[i] = vel[i, VEL_NORTH]
-            out_lat[i, k + 1] = lat[i]
-            out_lon[i, k + 1] = lon[i]
-            out_z[i, k + 1] = z[i]
-            out_t[i, k + 1] = t[i]
-            out_path[i, k + 1] = path[i]
-            n_rec[i] = k + 2
+            c = k + 1 - skip[i]
+            if c >= 0:
+                out_lat[i, c] = lat[i]
+                out_lon[i, c] = lon[i]
+                out_z[i, c] = z[i]
+                out_t[i, c] = t[i]
+                out_path[i, c] = path[i]
+                n_rec[i] = c + 1
             if z[i] > z_floor:
                 n_active += 1
             else:
@@ -445,6 +462,7 @@ def descend(
     t0: np.ndarray,
     dz: float,
     z_floor: float,
+    skip: np.ndarray,
     out_lat: np.ndarray,
     out_lon: np.ndarray,
     out_z: np.ndarray,
@@ -453,19 +471,22 @@ def descend(
     n_rec: np.ndarray,
     status: np.ndarray,
     time_held_s: np.ndarray,
+    failed_at: np.ndarray,
     chunks: int,
 ) -> None:
     """Step every trajectory from (lat0, lon0, z0, t0) down to z_floor, recording each step.
 
     ``table``, ``params`` and ``state`` come from ``Model.table``, ``parameter_matrix`` and
-    ``state_matrix``; outputs are (n, steps) arrays, ``n_rec`` the recorded count per trajectory,
-    ``status`` a STATUS_* code per trajectory and ``time_held_s`` how far beyond the weather's time
-    span it was held. Trajectories are split into ``chunks`` contiguous ranges, one per thread.
+    ``state_matrix``. Points are recorded into the (n, columns) ``out_*`` arrays from point
+    ``skip[i]`` on (point 0 is the release; skipping the high part saves memory when only the
+    landing matters); ``n_rec`` is the recorded count per trajectory, ``status`` a STATUS_* code,
+    ``time_held_s`` how far beyond the weather's time span it was held, and ``failed_at`` (n, 5)
+    lat, lon, altitude, time and step index where a trajectory failed. Trajectories are split into ``chunks`` contiguous ranges, one per thread.
     """
     n = lat0.shape[0]
     for c in prange(chunks):
         _descend_range(
             c * n // chunks, (c + 1) * n // chunks,
             t_s, lats, lons, columns, time_tolerance_s, table, params, state, lat0, lon0, z0, t0, dz, z_floor,
-            out_lat, out_lon, out_z, out_t, out_path, n_rec, status, time_held_s,
+            skip, out_lat, out_lon, out_z, out_t, out_path, n_rec, status, time_held_s, failed_at,
         )  # fmt: skip

@@ -240,12 +240,14 @@ def _coverage_error(
         )
     if code == STATUS_OUTSIDE_REGION:
         return OutOfCoverageError(
-            f"the {phase} leaves the weather region ({_region(cube)}) at {where}; load weather for a larger region"
+            f"the {phase} leaves the weather region ({_region(cube)}) at {where}; "
+            "load weather for a larger region"
         )
     if code == STATUS_OUTSIDE_TIME:
         return OutOfCoverageError(
-            f"the {phase} needs weather at {iso_z(_from_epoch(t))} but the weather covers {_describe_span(cube)} "
-            f"(held at most {DEFAULT_TIME_TOLERANCE_S / 60:.0f} min beyond); load forecast steps for that time"
+            f"the {phase} needs weather at {iso_z(_from_epoch(t))} but the weather covers "
+            f"{_describe_span(cube)} (held at most {DEFAULT_TIME_TOLERANCE_S / 60:.0f} min beyond); "
+            "load forecast steps for that time"
         )
     if code == STATUS_ABOVE_TOP:
         return OutOfCoverageError(
@@ -266,58 +268,71 @@ def _integrate(
     t0: np.ndarray,
     step_m: float,
     time_tolerance_s: float,
+    whole_track: bool = True,
 ) -> _Paths:
+    """Run the stepper; without ``whole_track`` only the part near and below the highest ground is kept."""
     w = packed(cube)
     n = lat0.size
-    n_max = int(math.ceil((float(z0.max()) - LOWEST_GROUND_M) / step_m)) + 2
-    out = [np.empty((n, n_max)) for _ in range(5)]
+    steps = np.ceil((z0 - LOWEST_GROUND_M) / step_m).astype(np.int64) + 1
+    if whole_track:
+        skip = np.zeros(n, dtype=np.int64)
+    else:
+        skip = np.maximum(np.floor((z0 - HIGHEST_GROUND_M) / step_m).astype(np.int64) - 1, 0)
+    columns = int((steps - skip).max()) + 1
+    out = [np.empty((n, columns)) for _ in range(5)]
     n_rec = np.zeros(n, dtype=np.int64)
     status = np.zeros(n, dtype=np.int64)
     held = np.zeros(n)
+    failed_at = np.zeros((n, 5))
     descend(
         w.t_s, w.lats, w.lons, w.columns, time_tolerance_s,
         model.table(), model.parameter_matrix(n), model.state_matrix(n),
-        lat0, lon0, z0, t0, step_m, LOWEST_GROUND_M,
-        *out, n_rec, status, held, min(n, get_num_threads()),
+        lat0, lon0, z0, t0, step_m, LOWEST_GROUND_M, skip,
+        *out, n_rec, status, held, failed_at, min(n, get_num_threads()),
     )  # fmt: skip
     bad = np.flatnonzero(status != STATUS_OK)
     if bad.size:
-        i = int(bad[0])
-        k = int(n_rec[i]) - 1 if n_rec[i] > 0 else 0
-        lat, lon, z, t = out[0][i, k], out[1][i, k], out[2][i, k], out[3][i, k]
+        lat, lon, z, t, k = failed_at[int(bad[0])]
         phase = "release point" if k == 0 else "descent"
-        raise _coverage_error(cube, int(status[i]), phase, t, lat, lon, z)
+        raise _coverage_error(cube, int(status[bad[0]]), phase, t, lat, lon, z)
     return _Paths(*out, n_rec=n_rec, time_held_s=float(held.max()))
 
 
 def _find_landings(paths: _Paths, terrain: Terrain) -> _Landings:
-    """First crossing of each path with the ground, interpolated linearly inside its step."""
+    """First crossing of each path with the ground, interpolated linearly inside its step.
+
+    Only the part of the paths below the highest ground on Earth is looked at (from the step before
+    the first point under that ceiling), which is most of the cost saved for a 30 km release.
+    """
     n, k_max = paths.z.shape
-    cols = np.arange(k_max)
-    valid = cols[None, :] < paths.n_rec[:, None]
-    low = valid & (paths.z <= HIGHEST_GROUND_M)
+    valid = np.arange(k_max)[None, :] < paths.n_rec[:, None]
+    under_ceiling = valid & (paths.z <= HIGHEST_GROUND_M)
+    if not under_ceiling.any():
+        raise PredictorError(f"no path came below {HIGHEST_GROUND_M:.0f} m; nothing can have landed")
+    start = max(int(under_ceiling.any(axis=0).argmax()) - 1, 0)
+    z, lat, lon = paths.z[:, start:], paths.lat[:, start:], paths.lon[:, start:]
+    low = under_ceiling[:, start:].copy()
     # The point before the first one under the ceiling brackets a crossing too.
     low[:, :-1] |= low[:, 1:]
-    ground = np.full(paths.z.shape, -np.inf)
-    if low.any():
-        ground[low] = terrain.elevation(paths.lat[low], _wrap(paths.lon[low]))
-    below = valid & (paths.z <= ground)
+    ground = np.full(z.shape, -np.inf)
+    ground[low] = terrain.elevation(lat[low], _wrap(lon[low]))
+    below = valid[:, start:] & (z <= ground)
     if below[:, 0].any():
         i = int(np.flatnonzero(below[:, 0])[0])
         raise PredictorError(
-            f"the release altitude {paths.z[i, 0]:.0f} m is at or below the ground "
-            f"({ground[i, 0]:.0f} m) at {paths.lat[i, 0]:.4f}, {float(_wrap(paths.lon[i, 0])):.4f}"
+            f"the release altitude {z[i, 0]:.0f} m is at or below the ground "
+            f"({ground[i, 0]:.0f} m) at {lat[i, 0]:.4f}, {float(_wrap(lon[i, 0])):.4f}"
         )
-    hit = below.any(axis=1)
-    if not hit.all():
+    if not below.any(axis=1).all():
         raise PredictorError(f"a path ended at {LOWEST_GROUND_M:.0f} m without meeting the ground")
     index = below.argmax(axis=1)
     rows = np.arange(n)
-    above = paths.z[rows, index - 1] - ground[rows, index - 1]
-    under = paths.z[rows, index] - ground[rows, index]
+    above = z[rows, index - 1] - ground[rows, index - 1]
+    under = z[rows, index] - ground[rows, index]
     fraction = above / (above - under)
 
     def at(a: np.ndarray) -> np.ndarray:
+        a = a[:, start:]
         return a[rows, index - 1] + fraction * (a[rows, index] - a[rows, index - 1])
 
     return _Landings(
@@ -326,7 +341,7 @@ def _find_landings(paths: _Paths, terrain: Terrain) -> _Landings:
         alt_m=at(paths.z),
         t_s=at(paths.t),
         path_m=at(paths.path),
-        index=index,
+        index=index + start,
     )
 
 
@@ -466,6 +481,73 @@ def _build_prediction(
         step_m=step_m,
         error_model=error_model,
         decision=decision,
+    )
+
+
+@dataclass(frozen=True)
+class LandingSet:
+    """Where many descents land: one entry per trajectory of ``predict_landings``."""
+
+    lat: np.ndarray
+    lon: np.ndarray
+    """Degrees east in [-180, 180)."""
+    alt_m: np.ndarray
+    time: np.ndarray
+    """Landing times, ``datetime64[ms]`` UTC."""
+    descent_s: np.ndarray
+    path_km: np.ndarray
+    drift_km: np.ndarray
+    """Geodesic release→landing distance."""
+    bearing_deg: np.ndarray
+
+
+def predict_landings(
+    wx: WeatherCube,
+    times: Sequence[datetime] | np.ndarray,
+    lat: float | np.ndarray,
+    lon: float | np.ndarray,
+    alt_m: float | np.ndarray,
+    model: Model,
+    terrain: Terrain | None = None,
+    step_m: float = 100.0,
+    time_tolerance_s: float = DEFAULT_TIME_TOLERANCE_S,
+) -> LandingSet:
+    """Many descents in one vectorised call: release sweeps, members, flights fitted together.
+
+    ``times`` (aware datetimes or ``datetime64`` UTC), ``lat``, ``lon`` and ``alt_m`` broadcast to one
+    value per trajectory; the model's parameters may be per-trajectory arrays of the same length. No
+    drift before release and no ellipses: this is the engine under release planning and calibration.
+    """
+    terrain = terrain or Terrain.sea_level()
+    if isinstance(times, np.ndarray) and np.issubdtype(times.dtype, np.datetime64):
+        t_epoch = times.astype("datetime64[ms]").astype(np.int64) / 1000.0
+    else:
+        for when in times:
+            if not isinstance(when, datetime) or when.tzinfo is None:
+                raise PredictorError("release times must be timezone-aware datetimes (UTC)")
+        t_epoch = np.array([_epoch(when) for when in times], dtype=np.float64)
+    t0, la, lo, z0 = (np.ravel(a).astype(np.float64) for a in np.broadcast_arrays(t_epoch, lat, lon, alt_m))
+    if t0.size == 0:
+        raise PredictorError("predict_landings needs at least one trajectory")
+    if not np.all(np.isfinite(la) & (np.abs(la) <= 90.0)):
+        raise PredictorError("every latitude must be between -90 and 90 degrees")
+    if not np.all(np.isfinite(lo)):
+        raise PredictorError("every longitude must be a finite number of degrees")
+    if not np.all(np.isfinite(z0) & (z0 > 0.0)):
+        raise PredictorError("every release altitude must be a positive number of metres")
+    _check_question(_from_epoch(t0[0]), float(la[0]), float(lo[0]), float(z0[0]), step_m, 0.0)
+    paths = _integrate(wx, model, la, lo, z0, t0, step_m, time_tolerance_s, whole_track=False)
+    land = _find_landings(paths, terrain)
+    azimuth, _, distance_m = GEOD.inv(_wrap(lo), la, _wrap(land.lon), land.lat)
+    return LandingSet(
+        lat=land.lat,
+        lon=_wrap(land.lon),
+        alt_m=land.alt_m,
+        time=(land.t_s * 1000.0).round().astype("datetime64[ms]"),
+        descent_s=land.t_s - t0,
+        path_km=land.path_m / 1000.0,
+        drift_km=np.asarray(distance_m) / 1000.0,
+        bearing_deg=np.asarray(azimuth) % 360.0,
     )
 
 

@@ -1,4 +1,4 @@
-"""Ground elevation under a descent: SRTM tiles first, a coarse global DEM where they are silent, sea level last.
+"""Ground elevation under a descent: SRTM tiles, a coarse global DEM where they are silent, then sea level.
 
 Why three layers: SRTM tiles are precise but cover land only and contain voids; a coarse global DEM
 (ETOPO-like NetCDF) answers everywhere but blurs valleys; and with no data at all the capsule must
@@ -86,9 +86,9 @@ class _SrtmTile:
         fr = np.clip(row - r0, 0.0, 1.0)
         fc = np.clip(col - c0, 0.0, 1.0)
         grid = self.heights()
-        corners = np.stack(
-            [grid[r0, c0], grid[r0, c0 + 1], grid[r0 + 1, c0], grid[r0 + 1, c0 + 1]]
-        ).astype(np.float64)
+        corners = np.stack([grid[r0, c0], grid[r0, c0 + 1], grid[r0 + 1, c0], grid[r0 + 1, c0 + 1]]).astype(
+            np.float64
+        )
         weights = np.stack([(1 - fr) * (1 - fc), (1 - fr) * fc, fr * (1 - fc), fr * fc])
         valid = corners != SRTM_VOID
         weights = np.where(valid, weights, 0.0)
@@ -279,7 +279,9 @@ class Terrain:
 
     def elevation(self, lat: float | np.ndarray, lon: float | np.ndarray) -> np.ndarray:
         """Bilinear ground height (m MSL, float64) at each point; shape of the broadcast inputs."""
-        lat_a, lon_a = np.broadcast_arrays(np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64))
+        lat_a, lon_a = np.broadcast_arrays(
+            np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64)
+        )
         shape = lat_a.shape
         lat_f = lat_a.ravel()
         lon_f = _wrap_lon(lon_a.ravel())

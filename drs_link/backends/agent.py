@@ -56,7 +56,9 @@ class AgentBackend:
                 raise LinkError(f"{self.capsule.name}: the agent copied to the Pi does not match its sha256")
             sftp.posix_rename(temporary, self.remote_path)
         except (OSError, EOFError, paramiko.SSHException) as exc:
-            raise LinkError(f"{self.capsule.name}: cannot install the agent in {self.capsule.tools_dir}: {exc}") from None
+            raise LinkError(
+                f"{self.capsule.name}: cannot install the agent in {self.capsule.tools_dir}: {exc}"
+            ) from None
         finally:
             sftp.close()
         return True
@@ -64,7 +66,9 @@ class AgentBackend:
     def power_on(self, holder: str, lease_s: float) -> PowerOnResult:
         c = self.capsule
         self.ensure_installed()
-        result = self.link.run(remote.agent_power_on(c.tools_dir, c.agent_python, holder, lease_s, c.serial_device))
+        result = self.link.run(
+            remote.agent_power_on(c.tools_dir, c.agent_python, holder, lease_s, c.serial_device)
+        )
         if not result.ok:
             raise_for("power-on", result, c.name)
         offset = 0
@@ -82,7 +86,9 @@ class AgentBackend:
 
     def go(self, holder: str) -> GoResult:
         c = self.capsule
-        result = self.link.run(remote.agent_go(c.tools_dir, c.agent_python, holder, c.serial_device), timeout_s=GO_TIMEOUT_S)
+        result = self.link.run(
+            remote.agent_go(c.tools_dir, c.agent_python, holder, c.serial_device), timeout_s=GO_TIMEOUT_S
+        )
         lines = [line.strip() for line in result.stdout.splitlines()]
         if result.exit_status == remote.EXIT_AGENT_NO_ACK:
             raise LinkError(

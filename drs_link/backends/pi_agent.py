@@ -28,7 +28,11 @@ SUPPLY, SET_INPUT, ENABLE_LOW, TXD = 9, 10, 2, 14
 COIL_PULSE_S = 2.0
 ACK = "Dropping in 30 seconds!"
 ACK_WAIT_S = 2.0
-ALT5_COMMANDS = (("pinctrl", "set", "14", "a5"), ("raspi-gpio", "set", "14", "a5"), ("gpio", "-g", "mode", "14", "alt5"))
+ALT5_COMMANDS = (
+    ("pinctrl", "set", "14", "a5"),
+    ("raspi-gpio", "set", "14", "a5"),
+    ("gpio", "-g", "mode", "14", "alt5"),
+)
 
 
 def say(text: str) -> None:

@@ -43,7 +43,9 @@ class BenchResult:
 def run_bench(posts: int = 200) -> BenchResult:
     start = datetime(2026, 7, 1, 10, 0, tzinfo=UTC)
     payloads = [
-        format_mo(GnssFix(start + timedelta(minutes=2 * i), 46.5, 6.6, 30000 - 10 * i, 5.0, 90, 1.0, 9), 8.9, i)
+        format_mo(
+            GnssFix(start + timedelta(minutes=2 * i), 46.5, 6.6, 30000 - 10 * i, 5.0, 90, 1.0, 9), 8.9, i
+        )
         for i in range(posts)
     ]
     with tempfile.TemporaryDirectory(prefix="drs-bench-") as folder:

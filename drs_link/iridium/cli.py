@@ -11,6 +11,7 @@ import json
 import re
 import threading
 from dataclasses import replace
+from datetime import datetime
 from pathlib import Path
 
 from drs_link.config import CapsuleConfig, Config, load_config
@@ -210,7 +211,18 @@ def _mo_serve(args: argparse.Namespace) -> int:
     life = lc.CommandLifecycle(store, config.operator.name)
 
     def after_answer(stored: StoredReport) -> None:
-        life.observe(reports.for_imei(stored.delivery.imei), stored.delivery.imei)
+        report = stored.report
+        if report is None:
+            what = f"rejected: {stored.parsed.reason}"
+        elif report.fix is None:
+            what = f"no fix, battery {report.vbat:.2f} V"
+        else:
+            fix = report.fix
+            what = f"{fix.lat:.5f},{fix.lon:.5f} {fix.alt_m} m at {fix.time:%H:%M:%S}Z"
+            what += f", battery {report.vbat:.2f} V"
+        print(f"MO {stored.delivery.imei} #{stored.delivery.momsn}: {what}", flush=True)
+        for command in life.observe(reports.for_imei(stored.delivery.imei), stored.delivery.imei):
+            print(f"MT {command.id} {command.text}: {command.state}", flush=True)
 
     try:
         server = MoHttpServer(MoReceiver(reports, mo_config, after_answer)).start()
@@ -236,6 +248,18 @@ def _mo_import(args: argparse.Namespace) -> int:
     return 1 if any(o.status == "error" for o in outcomes) else 0
 
 
+def _interval_schedule(commands: list[lc.Command], reports: list[StoredReport]) -> list[tuple[datetime, int]]:
+    """(since, INTERVAL) for each delivered INTERVAL command: it shows from the report after delivery."""
+    position = {report.id: index for index, report in enumerate(reports)}
+    schedule = []
+    for command in commands:
+        match = _INTERVAL_RE.search(command.text)
+        index = position.get(command.delivered_report_id or -1)
+        if match and index is not None and index + 1 < len(reports):
+            schedule.append((reports[index + 1].time, int(match.group(1))))
+    return sorted(schedule)
+
+
 def _mo_bench(args: argparse.Namespace) -> int:
     if args.posts < 1:
         raise LinkError("--posts must be at least 1")
@@ -247,7 +271,9 @@ def _mo_bench(args: argparse.Namespace) -> int:
 def _mo_health(args: argparse.Namespace) -> int:
     config, store = _open(args)
     capsule, reports = _capsule_reports(config, store, args.name)
-    health = assess(reports)
+    life = lc.CommandLifecycle(store, config.operator.name)
+    life.observe(reports, capsule.imei or "")
+    health = assess(reports, _interval_schedule(life.for_imei(capsule.imei or ""), reports))
     last = f"{health.last_report:%Y-%m-%d %H:%M:%S}Z" if health.last_report else "never"
     vbat = f"{health.last_vbat:.2f} V" if health.last_vbat is not None else "unknown"
     print(f"{capsule.name}: {health.reports} reports, last {last}, battery {vbat}")
@@ -291,7 +317,10 @@ def _recovery(args: argparse.Namespace) -> int:
     predicted = _read_predicted(args.predicted) if args.predicted else []
     track = track_from_reports(reports)
     landing = detect_landing(track)
-    print(phone_summary(capsule.name, landing, track[-1] if track else None, team))
+    coarse = None
+    if reports and (position := reports[-1].iridium_position()) is not None:
+        coarse = (*position, reports[-1].session_time)
+    print(phone_summary(capsule.name, landing, track[-1] if track else None, team, coarse))
     if landing is not None:
         print(
             f"landed {landing.landed_at:%Y-%m-%d %H:%M:%S}Z at {landing.alt_m:.0f} m; "

@@ -167,8 +167,8 @@ class RockblockGateway:
                 return SendResult(
                     "unknown",
                     f"the connection failed after the request was written ({reason}): the command may or may "
-                    "not be queued and is NOT re-sent; check the RockBLOCK portal before sending "
-                    "anything again",
+                    "not be queued and is NOT re-sent; check the RockBLOCK portal before sending anything "
+                    "again",
                     attempts=attempt,
                 )
             finally:
@@ -202,7 +202,6 @@ class RockblockGateway:
         return SendResult(
             "unknown",
             f"the gateway answered HTTP {status} with an unrecognised reply {text[:80]!r}: "
-            "the command may or "
-            "may not be queued and is NOT re-sent",
+            "the command may or may not be queued and is NOT re-sent",
             attempts=attempts,
         )

@@ -38,9 +38,10 @@ class Health:
 
 
 def _interval_at(moment: datetime, schedule: Sequence[tuple[datetime, int]]) -> int:
+    """INTERVAL for a spacing ending at ``moment``: an entry applies to spacings ending after ``since``."""
     interval = DEFAULT_INTERVAL_MIN
     for since, minutes in schedule:
-        if since <= moment:
+        if since < moment:
             interval = minutes
     return interval
 

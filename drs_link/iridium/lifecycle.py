@@ -165,8 +165,7 @@ class CommandLifecycle:
         with self.store.transaction() as conn:
             command_id = conn.execute(
                 "INSERT INTO mt_command (capsule, imei, operator, text, flush, state, requested_utc, "
-                "updated_utc, "
-                "effects) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "updated_utc, effects) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     capsule.name,
                     capsule.imei,
@@ -227,7 +226,8 @@ class CommandLifecycle:
         changed: list[Command] = []
         commands = self.for_imei(imei)
         used = {c.delivered_report_id for c in commands if c.delivered_report_id is not None}
-        for command in commands:
+        in_queue_order = sorted(commands, key=lambda c: (c.queued_utc or c.requested_utc, c.id))
+        for command in in_queue_order:
             if command.state == QUEUED and command.queued_utc is not None:
                 delivering = next(
                     (r for r in reports if r.id not in used and r.session_time > command.queued_utc), None
@@ -239,8 +239,7 @@ class CommandLifecycle:
                                 command,
                                 TIMED_OUT,
                                 f"no report in {QUEUE_TIMEOUT} since queueing: the capsule may be silent; "
-                                "the MT is "
-                                "probably still queued at the gateway (flush to cancel)",
+                                "the MT is probably still queued at the gateway (flush to cancel)",
                             )
                         )
                     continue

@@ -138,7 +138,8 @@ def plan_parachute(
     last = reports[-1]
     if last.report is None or last.report.fix is None:
         raise ParachuteRefused(
-            "the last report had no GNSS fix: a no-fix cycle ignores PARACHUTE (and the command is lost); "
+            "the last report had no GNSS fix (or was not a DRS report): a no-fix cycle ignores PARACHUTE "
+            "(and the command is lost); "
             "wait for a report with a fix"
         )
     fix_times = _fixes(reports)[-HISTORY:]
@@ -196,9 +197,8 @@ def plan_parachute(
     near_midnight = any(m < MIDNIGHT_GUARD_MIN or m >= 1440 - MIDNIGHT_GUARD_MIN for m in minutes)
     if near_midnight and not accept_midnight:
         raise ParachuteRefused(
-            "the window is within 15 min of 00:00 UTC, where the firmware's rule is loose "
-            "(23:46 matches 00:14) "
-            "and HH:MM is easily misread; wait until after 00:15Z or confirm the midnight wrap explicitly"
+            "the window is within 15 min of 00:00 UTC, where the firmware's rule is loose (23:46 matches "
+            "00:14) and HH:MM is easily misread; wait until after 00:15Z or confirm the midnight wrap"
         )
     warnings = [
         "a PARACHUTE outside the window is downloaded, ignored and lost; nothing is ever acknowledged"
@@ -210,9 +210,8 @@ def plan_parachute(
         )
     if now - last.time > 3 * step:
         warnings.append(
-            f"the last report is {int((now - last.time).total_seconds() // 60)} min old: "
-            "cycles may have been "
-            "missed; the prediction assumes the capsule is still on its grid"
+            f"the last report is {int((now - last.time).total_seconds() // 60)} min old: cycles may have "
+            "been missed; the prediction assumes the capsule is still on its grid"
         )
     if near_midnight:
         warnings.append("the window crosses midnight UTC (confirmed by the operator)")

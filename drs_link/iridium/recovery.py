@@ -201,16 +201,18 @@ def _hemisphere(value: float, positive: str, negative: str) -> str:
 
 
 def phone_summary(
-    name: str, landing: LandingEstimate | None, last: TrackPoint | None, team: tuple[float, float] | None
+    name: str,
+    landing: LandingEstimate | None,
+    last: TrackPoint | None,
+    team: tuple[float, float] | None,
+    coarse: tuple[float, float, float, datetime] | None = None,
 ) -> str:
-    """One line for a text message: where it is, how sure, and how far from the team."""
-    if landing is None:
-        if last is None:
-            return f"{name}: no GNSS fix received yet"
-        where = f"{_hemisphere(last.lat, 'N', 'S')} {_hemisphere(last.lon, 'E', 'W')}"
-        text = f"{name} not landed: last fix {where} at {last.alt_m:.0f} m, {last.time:%H:%M}Z"
-        lat, lon = last.lat, last.lon
-    else:
+    """One line for a text message: where it is, how sure, and how far from the team.
+
+    ``coarse`` (lat, lon, CEP m, time) is the Iridium network's estimate, used only while no GNSS
+    fix has arrived at all.
+    """
+    if landing is not None:
         where = f"{_hemisphere(landing.lat, 'N', 'S')} {_hemisphere(landing.lon, 'E', 'W')}"
         sigma = f"±{landing.std_m:.0f} m" if not math.isnan(landing.std_m) else "±? m"
         text = f"{name} on ground {where} {sigma} (n={landing.count})"
@@ -222,6 +224,18 @@ def phone_summary(
                 f"(last {_hemisphere(last.lat, 'N', 'S')} {_hemisphere(last.lon, 'E', 'W')} "
                 f"{last.time:%H:%M}Z)"
             )
+    elif last is not None:
+        where = f"{_hemisphere(last.lat, 'N', 'S')} {_hemisphere(last.lon, 'E', 'W')}"
+        text = f"{name} not landed: last fix {where} at {last.alt_m:.0f} m, {last.time:%H:%M}Z"
+        lat, lon = last.lat, last.lon
+    elif coarse is not None:
+        lat, lon, cep_m, moment = coarse
+        where = f"{_hemisphere(lat, 'N', 'S')} {_hemisphere(lon, 'E', 'W')}"
+        text = (
+            f"{name}: no GNSS fix yet; Iridium position {where} ±{cep_m / 1000:.1f} km (CEP), {moment:%H:%M}Z"
+        )
+    else:
+        return f"{name}: no report with a position yet"
     if team is not None:
         distance, bearing = distance_bearing(team[0], team[1], lat, lon)
         text += f", {distance / 1000:.1f} km at {round(bearing) % 360:03d}° from you"

@@ -13,9 +13,6 @@ from datetime import datetime
 from drs_link.iridium.mo import ParseResult, Report, parse_hex
 from drs_link.store import Store, iso_utc, parse_iso_utc
 
-GNSS_UERE_M = 5.0
-"""A typical GNSS user range error: HDOP × this is a rough 1-sigma horizontal error of one fix."""
-
 REPORTS_DDL = """
 CREATE TABLE IF NOT EXISTS mo_report (
     id INTEGER PRIMARY KEY AUTOINCREMENT,
@@ -91,18 +88,24 @@ class StoredReport:
 
     @property
     def session_time(self) -> datetime:
-        """When the SBD session (and so any MT download) happened, as well as it is known."""
-        return self.delivery.transmit_utc or self.delivery.received_utc
+        """When the SBD session (and so any MT download) happened, as well as it is known.
 
-    def position(self) -> tuple[float, float, float, str] | None:
-        """(lat, lon, uncertainty m, source): the GNSS fix, else the Iridium estimate and its CEP."""
+        An email attachment carries no transmit time and may be imported long after; its fix
+        (taken just before the session) is then a far better bound than the import time.
+        """
+        if self.delivery.transmit_utc is not None:
+            return self.delivery.transmit_utc
         report = self.parsed.report
         if report is not None and report.fix is not None:
-            return report.fix.lat, report.fix.lon, report.fix.hdop * GNSS_UERE_M, "gnss"
+            return report.fix.time
+        return self.delivery.received_utc
+
+    def iridium_position(self) -> tuple[float, float, float] | None:
+        """(lat, lon, CEP in m) estimated by the Iridium network: the only position of a no-fix report."""
         d = self.delivery
-        if d.iridium_lat is not None and d.iridium_lon is not None:
-            return d.iridium_lat, d.iridium_lon, (d.iridium_cep_km or 0.0) * 1000.0, "iridium"
-        return None
+        if d.iridium_lat is None or d.iridium_lon is None:
+            return None
+        return d.iridium_lat, d.iridium_lon, (d.iridium_cep_km or 0.0) * 1000.0
 
 
 def _opt_time(text: str | None) -> datetime | None:
@@ -127,8 +130,7 @@ class ReportStore:
             cursor = conn.execute(
                 "INSERT OR IGNORE INTO mo_report (imei, momsn, serial, source, received_utc, transmit_utc, "
                 "sort_utc, iridium_lat, iridium_lon, iridium_cep_km, jwt_verified, raw_hex, raw_delivery, "
-                "status, "
-                "reason, fix_utc, lat, lon, alt_m, vbat, iteration) "
+                "status, reason, fix_utc, lat, lon, alt_m, vbat, iteration) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     delivery.imei,

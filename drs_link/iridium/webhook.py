@@ -163,6 +163,8 @@ class MoReceiver:
 
 class _Handler(BaseHTTPRequestHandler):
     server: MoHttpServer
+    timeout = 10.0
+    """Seconds a stalled client may hold its connection (each has its own thread; this bounds them)."""
 
     def log_message(self, format: str, *args: object) -> None:  # noqa: A002 - the stdlib's signature
         log.info("%s %s", self.address_string(), format % args)

@@ -7,6 +7,8 @@ to the given known_hosts file, so the console connects with full host-key verifi
 from __future__ import annotations
 
 import argparse
+import base64
+import binascii
 import signal
 import sys
 import threading
@@ -28,8 +30,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         key_type, key_data = args.authorized_key.read_text().split()[:2]
-        client_key = paramiko.PKey.from_type_string(key_type, paramiko.util.b64decode(key_data.encode()))
-    except (OSError, ValueError, paramiko.SSHException) as exc:
+        client_key = paramiko.PKey.from_type_string(key_type, base64.b64decode(key_data))
+    except (OSError, ValueError, binascii.Error, paramiko.SSHException) as exc:
         print(f"simulator: error: cannot read {args.authorized_key}: {exc}", file=sys.stderr)
         return 2
     sims = []
@@ -39,9 +41,10 @@ def main(argv: list[str] | None = None) -> int:
         port = sim.start()
         sims.append(sim)
         lines.append(sim.known_hosts_line())
+        identity = str(args.authorized_key).removesuffix(".pub")
         print(
             f'[[capsule]]\nname = "{name}"\nhost = "127.0.0.1"\nport = {port}\n'
-            f'known_hosts = "{args.known_hosts}"\npython = "python3"\n'
+            f'identity_file = "{identity}"\nknown_hosts = "{args.known_hosts}"\npython = "python3"\n'
         )
     args.known_hosts.parent.mkdir(parents=True, exist_ok=True)
     args.known_hosts.write_text("".join(lines))

@@ -10,6 +10,7 @@ the capsule builds byte-exact MO reports and applies downloaded MTs with the fir
 from __future__ import annotations
 
 import json
+import math
 import socket
 import struct
 import threading
@@ -18,7 +19,7 @@ import urllib.error
 import urllib.request
 from collections import deque
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import datetime, timedelta
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from urllib.parse import parse_qs, urlencode
 
@@ -250,6 +251,8 @@ class SimulatedCapsule:
     imei: str
     rb_source: int
     interval_min: int = 2
+    armed_spacing_min: int = 2
+    """Minutes to the next cycle: armed when this cycle's alarm fired, before any MT of its session."""
     rb_destination: int = 0
     sounder_on: bool = True
     vbat: float = 8.9
@@ -266,6 +269,7 @@ class SimulatedCapsule:
         iridium_position: tuple[float, float, float] = (0.0, 0.0, 100.0),
     ) -> MoDelivery:
         """Send this cycle's report and apply the MT downloaded in the same session."""
+        self.armed_spacing_min = self.interval_min
         payload = format_mo(fix, self.vbat, self.iteration, self.rb_destination, self.rb_source)
         delivery = MoDelivery(
             self.imei, self.rb_source, self.momsn, payload, transmit_time, *iridium_position
@@ -286,3 +290,51 @@ class SimulatedCapsule:
                 self.sounder_on = effect.sounder
             self.parachute_open = self.parachute_open or effect.parachute_opens
         return delivery
+
+
+@dataclass(frozen=True)
+class SimulatedDescent:
+    """Where a capsule is, falling under its parachute from release and then lying still, for the demo.
+
+    The fall speed grows with height as 1/sqrt(air density) (scale height 7.2 km, so speed ∝
+    exp(h/14.4 km)); that closed form gives h(t) = -2H ln(exp(-h0/2H) + v0 t / 2H). The wind
+    drifts it at a constant velocity until it lands.
+    """
+
+    release: datetime
+    lat: float
+    lon: float
+    release_alt_m: float = 30000.0
+    ground_alt_m: float = 500.0
+    sea_level_speed_ms: float = 4.0
+    drift_east_ms: float = 8.0
+    drift_north_ms: float = 3.0
+    scale_height_m: float = 7200.0
+
+    def _altitude(self, seconds: float) -> float:
+        two_h = 2 * self.scale_height_m
+        inner = math.exp(-self.release_alt_m / two_h) + self.sea_level_speed_ms * seconds / two_h
+        return max(-two_h * math.log(inner), self.ground_alt_m)
+
+    @property
+    def landing_time(self) -> datetime:
+        two_h = 2 * self.scale_height_m
+        seconds = (
+            (math.exp(-self.ground_alt_m / two_h) - math.exp(-self.release_alt_m / two_h))
+            * two_h
+            / self.sea_level_speed_ms
+        )
+        return self.release + timedelta(seconds=seconds)
+
+    def fix(self, moment: datetime, sats: int = 9, hdop: float = 1.1) -> GnssFix:
+        flying = min(
+            (moment - self.release).total_seconds(), (self.landing_time - self.release).total_seconds()
+        )
+        flying = max(flying, 0.0)
+        metres_per_degree = 111_320.0
+        lat = self.lat + self.drift_north_ms * flying / metres_per_degree
+        lon = self.lon + self.drift_east_ms * flying / (metres_per_degree * math.cos(math.radians(self.lat)))
+        airborne = moment < self.landing_time
+        speed = math.hypot(self.drift_east_ms, self.drift_north_ms) if airborne else 0.0
+        course = math.degrees(math.atan2(self.drift_east_ms, self.drift_north_ms)) % 360 if airborne else 0.0
+        return GnssFix(moment, lat, lon, self._altitude(flying), speed, course, hdop, sats)

@@ -75,6 +75,8 @@ def synthetic_flight(
     seed: int = 0,
     name: str = "synthetic",
 ) -> SyntheticFlight:
+    if launch_time.tzinfo is None:
+        raise PredictorError("synthetic flight launch_time must be timezone-aware (UTC)")
     terrain = terrain or Terrain.sea_level()
     launch_alt = float(terrain.elevation(lat, lon))
     if not cadence_s > 0 or not noise_m >= 0 or not ascent_rate_ms > 0 or ground_fixes < 0:

@@ -258,7 +258,7 @@ def read_gpx(path: str | Path) -> Track:
 
 
 class _GpxHandler(xml.sax.handler.ContentHandler):
-    """Collects trkpt elements; namespaces are ignored so that GPX 1.0 and 1.1 both read."""
+    """Collects trkpt elements (camelCase methods are the SAX API); GPX 1.0 and 1.1 namespaces both read."""
 
     def __init__(self, source: str) -> None:
         super().__init__()
@@ -270,7 +270,7 @@ class _GpxHandler(xml.sax.handler.ContentHandler):
         self._text: list[str] = []
         self._locator: Locator | None = None
 
-    def setDocumentLocator(self, locator: Locator) -> None:  # noqa: N802 (SAX API)
+    def setDocumentLocator(self, locator: Locator) -> None:
         self._locator = locator
 
     def _line(self) -> int:
@@ -278,7 +278,7 @@ class _GpxHandler(xml.sax.handler.ContentHandler):
 
     def startElementNS(
         self, name: tuple[str | None, str], qname: str | None, attrs: AttributesNSImpl
-    ) -> None:  # noqa: N802
+    ) -> None:
         local = name[1]
         if local == "gpx":
             self.saw_gpx = True
@@ -290,7 +290,7 @@ class _GpxHandler(xml.sax.handler.ContentHandler):
     def characters(self, content: str) -> None:
         self._text.append(content)
 
-    def endElementNS(self, name: tuple[str | None, str], qname: str | None) -> None:  # noqa: N802
+    def endElementNS(self, name: tuple[str | None, str], qname: str | None) -> None:
         local = name[1]
         if self._point is None:
             return

@@ -116,6 +116,11 @@ def test_a_flight_across_the_antimeridian_keeps_longitudes_in_range() -> None:
     assert clean(flight.track).usable
 
 
+def test_a_naive_launch_time_is_refused(cube: WeatherCube) -> None:
+    with pytest.raises(PredictorError, match="launch_time must be timezone-aware"):
+        synthetic_flight(cube, launch_time=LAUNCH.replace(tzinfo=None), lat=46.2, lon=6.1, payload=PAYLOAD)
+
+
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Callable
 from pathlib import Path
 
@@ -19,7 +18,9 @@ from drs_link.store import Store
 pytestmark = pytest.mark.slow
 
 
-def _machine(tmp_path: Path, config: CapsuleConfig, sim: CapsuleSimulator) -> tuple[ReleaseStateMachine, AgentBackend]:
+def _machine(
+    tmp_path: Path, config: CapsuleConfig, sim: CapsuleSimulator
+) -> tuple[ReleaseStateMachine, AgentBackend]:
     backend = AgentBackend(config, CapsuleLink(config))
     machine = ReleaseStateMachine(
         Store.open(tmp_path / "drs.sqlite"), config, backend, "EL", clock=sim.clock.now, sleep=sim.clock.sleep
@@ -34,7 +35,7 @@ def test_power_on_installs_the_agent_verified_and_only_once(
     machine, backend = _machine(tmp_path, sim_config(sim, backend="agent"), sim)
     machine.power_on(confirmed=True)
     installed = sim.tools_path / "drs_agent.py"
-    assert hashlib.sha256(installed.read_bytes()).digest() == hashlib.sha256(AGENT_SOURCE.read_bytes()).digest()
+    assert installed.read_bytes() == AGENT_SOURCE.read_bytes()
     assert not backend.ensure_installed()
     installed.write_text("# tampered\n")
     assert backend.ensure_installed() and installed.read_bytes() == AGENT_SOURCE.read_bytes()

@@ -13,6 +13,7 @@ import pytest
 
 import console.cli
 from drs_link.simulator import CapsuleSimulator
+from drs_link.simulator.keys import generate_ed25519
 from drs_link.ssh import fingerprint
 from drs_link.store import Store
 
@@ -159,8 +160,6 @@ def test_wrong_host_key_is_a_one_line_refusal(
     setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str]
 ) -> None:
     sim, config = setup
-    from drs_link.simulator.keys import generate_ed25519
-
     sim.host_key = generate_ed25519()
     assert drs(config, "capsule", "status", "DRS1") == 2
     line = _one_line_error(capsys)
@@ -206,3 +205,18 @@ def test_sync_of_a_missing_directory_is_a_one_line_error(
     _, config = setup
     assert drs(config, "sync", "DRS1", str(tmp_path / "absent")) == 2
     assert "is not a directory" in _one_line_error(capsys)
+
+
+def test_bench_measures_against_a_local_simulator(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    config = tmp_path / "drs.toml"
+    config.write_text("")
+    assert drs(config, "capsule", "bench", "--mb", "1", "--rounds", "3") == 0
+    out = capsys.readouterr().out
+    assert "heartbeat round trip" in out and "MiB/s" in out and "Pi shut down" in out
+
+
+def test_bench_rejects_a_non_positive_size(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    config = tmp_path / "drs.toml"
+    config.write_text("")
+    assert drs(config, "capsule", "bench", "--mb", "0") == 2
+    assert "--mb must be positive" in _one_line_error(capsys)

@@ -9,16 +9,19 @@ Pi halts. With ``CI`` set, a missing sshd fails these tests rather than skipping
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import select
 import shutil
 import signal
 import socket
 import subprocess
+import sys
 import textwrap
 import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -26,11 +29,13 @@ import paramiko
 import pytest
 
 from drs_link import remote
+from drs_link.backends.agent import AGENT_SOURCE, AgentBackend
 from drs_link.backends.stock import StockBackend
 from drs_link.capsule import ReleaseState, ReleaseStateMachine
 from drs_link.config import CapsuleConfig, parse_config
 from drs_link.errors import RefusedError
 from drs_link.nmea import format_gga, format_rmc
+from drs_link.simulator import Firmware, SimClock
 from drs_link.simulator.keys import generate_ed25519, write_ed25519
 from drs_link.ssh import CapsuleLink, HostKeyError, fingerprint
 from drs_link.storage import read_storage
@@ -87,6 +92,7 @@ def sshd(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RealSshd]:
     _require_sshd()
     root = tmp_path_factory.mktemp("sshd")
     root.chmod(0o700)
+    _write_fake_pi_commands(root)
     Path("/run/sshd").mkdir(mode=0o755, exist_ok=True)
     subprocess.run(["ssh-keygen", "-q", "-t", "ed25519", "-N", "", "-f", str(root / "host_key")], check=True)
     host_key = paramiko.Ed25519Key.from_private_key_file(str(root / "host_key"))
@@ -115,6 +121,7 @@ def sshd(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RealSshd]:
                 AllowUsers {user}
                 Subsystem sftp internal-sftp
                 LogLevel VERBOSE
+                SetEnv GPIOZERO_PIN_FACTORY=mock PATH={root / "bin"}:/usr/local/bin:/usr/bin:/bin
                 """
             )
         )
@@ -138,6 +145,32 @@ def sshd(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RealSshd]:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+
+
+KILL_SESSIONS = """
+import os, signal
+listener = int(open({pidfile!r}).read())
+for entry in os.listdir("/proc"):
+    if entry.isdigit():
+        try:
+            fields = open(f"/proc/{{entry}}/stat").read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == listener:
+            os.kill(int(entry), signal.SIGKILL)
+"""
+
+
+def _write_fake_pi_commands(root: Path) -> None:
+    """``pinctrl`` (records the alt5 switch) and ``sudo shutdown now`` (drops the link like a halt)."""
+    bin_dir = root / "bin"
+    bin_dir.mkdir()
+    pinctrl = bin_dir / "pinctrl"
+    pinctrl.write_text('#!/bin/sh\necho "pinctrl $*" >> "$PWD/pinctrl.log"\n')
+    sudo = bin_dir / "sudo"
+    sudo.write_text(f"#!{PYTHON3}\n" + KILL_SESSIONS.format(pidfile=str(root / "sshd.pid")))
+    for tool in (pinctrl, sudo):
+        tool.chmod(0o755)
 
 
 FAKE_SCRIPTS = {
@@ -350,3 +383,82 @@ def test_killing_the_session_mid_command_is_a_link_drop(capsule: CapsuleConfig, 
     killer.join()
     assert result.link_dropped and result.exit_status is None and time.monotonic() - started < 5
     link.close()
+
+
+class PtyMicrocontroller:
+    """The firmware model on the master side of a pseudo-terminal; the agent opens the slave."""
+
+    def __init__(self, clock_scale: float = 40.0) -> None:
+        self.clock = SimClock(clock_scale)
+        self.firmware = Firmware()
+        self.master, slave = os.openpty()
+        self.device = os.ttyname(slave)
+        self._slave = slave
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def start(self) -> None:
+        self.firmware.relay_latched(self.clock.now())
+        self._thread.start()
+
+    def _run(self) -> None:
+        last = self.clock.now()
+        while not self._stop.is_set():
+            readable, _, _ = select.select([self.master], [], [], 0.02)
+            now = self.clock.now()
+            if readable:
+                try:
+                    self.firmware.receive_from_pi(os.read(self.master, 1024), now)
+                except OSError:
+                    return
+            for line in self.firmware.output_between(last, now):
+                os.write(self.master, line.encode() + b"\r\n")
+            last = now
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2)
+        os.close(self.master)
+        os.close(self._slave)
+
+
+@pytest.fixture
+def agent_capsule(capsule: CapsuleConfig) -> Iterator[tuple[CapsuleConfig, PtyMicrocontroller]]:
+    if importlib.util.find_spec("gpiozero") is None or importlib.util.find_spec("serial") is None:
+        pytest.fail("gpiozero and pyserial are dependencies of the project: reinstall it")
+    mcu = PtyMicrocontroller()
+    config = replace(capsule, backend="agent", agent_python=sys.executable, serial_device=mcu.device)
+    try:
+        yield config, mcu
+    finally:
+        pidfile = Path(capsule.tools_dir) / "drs_agent_logger.pid"
+        if pidfile.exists():
+            try:
+                os.kill(int(pidfile.read_text()), signal.SIGTERM)
+            except (OSError, ValueError):
+                pass
+        mcu.stop()
+
+
+def test_agent_script_on_a_real_sshd_pulses_the_pins_logs_nmea_and_reads_the_go_ack(
+    agent_capsule: tuple[CapsuleConfig, PtyMicrocontroller], tmp_path: Path
+) -> None:
+    config, mcu = agent_capsule
+    link = CapsuleLink(config)
+    machine = ReleaseStateMachine(
+        Store.open(tmp_path / "drs.sqlite"), config, AgentBackend(config, link), "EL"
+    )
+    machine.power_on(confirmed=True)
+    mcu.start()
+    tools = Path(config.tools_dir)
+    assert (tools / "drs_agent.py").read_bytes() == AGENT_SOURCE.read_bytes()
+    assert (tools / "pinctrl.log").read_text().split() == ["pinctrl", "set", "14", "a5"]
+    report = machine.wait_for_microcontroller()
+    assert report.waiting_for_go and report.gnss.has_fix
+    stamped = (tools / "drs_agent_nmea.log").read_text().splitlines()[0]
+    assert stamped.split(" ", 1)[0].endswith("Z") and "$GPGGA" in stamped
+    released = machine.go(machine.confirm("DRS1"))
+    assert released.state is ReleaseState.RELEASED and released.note == "released, Pi shut down"
+    assert mcu.firmware.go_at is not None
+    assert machine.store.audit("DRS1")[-1].detail["firmware_acknowledged"] is True  # type: ignore[index]
+    assert "Dropping in 30 seconds!" in (tools / "DRS_serial_log.txt").read_text()

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
 import threading
+import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
@@ -12,7 +16,7 @@ import pytest
 from drs_link import remote
 from drs_link.backends.stock import StockBackend
 from drs_link.capsule import ReleaseState, ReleaseStateMachine
-from drs_link.config import CapsuleConfig
+from drs_link.config import CapsuleConfig, parse_config
 from drs_link.errors import LinkError, RefusedError
 from drs_link.simulator import CapsuleSimulator, GnssSky
 from drs_link.simulator.keys import generate_ed25519
@@ -301,3 +305,43 @@ def test_arguments_reach_the_pi_quoted(
         result = link.run(remote.storage_report("/mnt/raid1; rm -rf /"))
     assert result.exit_status == 1 and "No such file" in result.stderr
     assert "'/mnt/raid1; rm -rf /'" in sim.commands[-1]
+
+
+def test_simulator_entry_point_serves_capsules_until_terminated(
+    client_key: tuple[Path, paramiko.PKey], tmp_path: Path
+) -> None:
+    known_hosts = tmp_path / "demo_known_hosts"
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "drs_link.simulator",
+            "--name",
+            "DRS1",
+            "--name",
+            "DRS2",
+            "--authorized-key",
+            f"{client_key[0]}.pub",
+            "--known-hosts",
+            str(known_hosts),
+            "--scale",
+            "40",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        lines = []
+        for line in proc.stdout:
+            lines.append(line)
+            if line.startswith("simulators running"):
+                break
+        printed = tomllib.loads("".join(lines[:-1]))
+        config = parse_config(printed)
+        assert [c.name for c in config.capsules] == ["DRS1", "DRS2"]
+        with CapsuleLink(config.capsule("DRS2")) as link:
+            assert link.heartbeat()
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=10) == 0

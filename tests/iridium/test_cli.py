@@ -15,10 +15,10 @@ import pytest
 import console.cli as entry
 from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.simulator.rockblock import MoDelivery, SimulatedRockblock, post_mo
+from drs_link.simulator.rockblock import MoDelivery, SimulatedCapsule, SimulatedRockblock, post_mo
 from drs_link.store import Store, utc_now
 
-from .helpers import IMEI, T0, fix_at
+from .helpers import IMEI, T0, fix_at, fly
 
 REPO = Path(__file__).resolve().parents[2]
 ONLY_IRIDIUM = (
@@ -177,6 +177,10 @@ def test_mo_serve_stores_gateway_posts_until_interrupted(tmp_path: Path) -> None
         process.send_signal(signal.SIGINT)
         process.wait(timeout=10)
     assert process.returncode == 0
+    assert process.stdout is not None
+    assert (
+        "MO 300234010753370 #41: 46.50000,6.60000 500 m at 10:00:07Z, battery 8.90 V" in process.stdout.read()
+    )
     [stored] = ReportStore(Store.open(tmp_path / "data" / "drs.sqlite")).for_imei(IMEI)
     assert stored.delivery.momsn == 41 and stored.report is not None
 
@@ -190,3 +194,61 @@ def test_mo_bench_measures_and_rejects_a_zero_count(
     assert "webhook store+answer over 5 POSTs: median" in out and "MO parse:" in out
     assert run(config, "mo", "bench", "--posts", "0") == 2
     assert "--posts must be at least 1" in capsys.readouterr().err
+
+
+def test_health_uses_the_interval_the_capsule_was_sent(
+    tmp_path: Path,
+    gateway: SimulatedRockblock,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setenv("DRS_TEST_RB", "pw-123")
+    config = write_config(tmp_path, gateway.url)
+    reports = ReportStore(Store.open(tmp_path / "data" / "drs.sqlite"))
+    capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
+    start = utc_now().replace(microsecond=0) - timedelta(minutes=30)
+    assert run(config, "mt", "send", "DRS1", "--interval", "5", "--confirm", "DRS1") == 0
+    fly(capsule, gateway, reports, start + timedelta(hours=1), 5)
+    capsys.readouterr()
+    assert run(config, "mo", "health", "DRS1") == 0
+    out = capsys.readouterr().out
+    assert "DRS1: 5 reports" in out and "spacing" not in out
+    assert run(config, "mt", "status", "DRS1") == 0
+    assert "[INTERVAL=5] effect_confirmed" in capsys.readouterr().out
+
+
+def test_recovery_exports_a_predicted_geojson_track_and_refuses_a_bad_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = write_config(tmp_path)
+    reports = ReportStore(Store.open(tmp_path / "data" / "drs.sqlite"))
+    for i in range(3):
+        moment = T0 + timedelta(minutes=2 * i)
+        reports.add(
+            Delivery(IMEI, i, format_mo(fix_at(moment, alt=9000 - 3000 * i), 8.9, i).hex(), "t", moment)
+        )
+    predicted = tmp_path / "prediction.geojson"
+    predicted.write_text(
+        '{"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {"kind": "path"}, '
+        '"geometry": {"type": "LineString", "coordinates": [[6.6, 46.5, 9000.0], [6.7, 46.6, 600.0]]}}]}'
+    )
+    gpx = tmp_path / "out.gpx"
+    assert run(config, "recovery", "DRS1", "--predicted", str(predicted), "--gpx", str(gpx)) == 0
+    assert capsys.readouterr().out.startswith("DRS1 not landed: last fix 46.50000 N 6.60000 E at 3000 m")
+    assert "DRS1 predicted" in gpx.read_text() and 'lat="46.600000" lon="6.700000"' in gpx.read_text()
+    predicted.write_text('{"type": "Point", "coordinates": [6.6, 46.5]}')
+    assert run(config, "recovery", "DRS1", "--predicted", str(predicted)) == 2
+    assert "no LineString in the GeoJSON" in capsys.readouterr().err
+
+
+def test_recovery_before_any_fix_shows_the_iridium_position(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = write_config(tmp_path)
+    reports = ReportStore(Store.open(tmp_path / "data" / "drs.sqlite"))
+    no_fix = format_mo(None, 8.95, 4).hex()
+    reports.add(Delivery(IMEI, 4, no_fix, "t", T0, T0, 11800, 46.51, 6.62, 4.0))
+    assert run(config, "recovery", "DRS1") == 0
+    assert capsys.readouterr().out.strip() == (
+        "DRS1: no GNSS fix yet; Iridium position 46.51000 N 6.62000 E ±4.0 km (CEP), 10:00Z"
+    )

@@ -2,10 +2,19 @@
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 
-from drs_link.iridium.firmware import NO_FIX_MINUTE_OF_DAY, apply_mt, arduino_to_int, parachute_accepted
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock
+from drs_link.iridium.firmware import (
+    NO_FIX_MINUTE_OF_DAY,
+    apply_mt,
+    arduino_to_int,
+    format_mo,
+    parachute_accepted,
+)
+from drs_link.iridium.mo import parse_payload
+from drs_link.iridium.recovery import detect_landing, distance_bearing, track_from_reports
+from drs_link.iridium.reports import Delivery, StoredReport
+from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedDescent, SimulatedRockblock
 
 from .helpers import IMEI, fix_at
 
@@ -58,3 +67,22 @@ def test_simulated_capsule_downloads_one_mt_per_session_and_loses_bad_ones() -> 
         assert capsule.interval_min == 5 and capsule.iteration == 3 and not gateway.queues[IMEI]
     finally:
         gateway.stop()
+
+
+def test_simulated_descent_falls_like_the_real_flights_and_lands_where_recovery_finds_it() -> None:
+    release = datetime(2026, 7, 1, 10, 0, tzinfo=UTC)
+    descent = SimulatedDescent(release, 46.5, 6.6)
+    minutes = (descent.landing_time - release).total_seconds() / 60
+    assert 30 <= minutes <= 70, minutes
+    reports = []
+    for i in range(40):
+        moment = release + timedelta(minutes=2 * i, seconds=25)
+        payload = format_mo(descent.fix(moment), 8.9, i)
+        reports.append(
+            StoredReport(i, Delivery(IMEI, i, payload.hex(), "sim", moment), parse_payload(payload))
+        )
+    landing = detect_landing(track_from_reports(reports))
+    assert landing is not None
+    ground = descent.fix(descent.landing_time + timedelta(hours=1))
+    assert distance_bearing(ground.lat, ground.lon, landing.lat, landing.lon)[0] < 1
+    assert abs((landing.landed_at - descent.landing_time).total_seconds()) <= 120

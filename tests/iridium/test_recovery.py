@@ -8,7 +8,7 @@ import socket
 import threading
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
-from datetime import datetime
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
@@ -169,3 +169,13 @@ def test_gpx_and_kml_hold_measured_and_predicted_tracks_and_the_landing(
     assert wpt is not None and math.isclose(float(wpt.get("lat", "0")), landing.lat, abs_tol=1e-6)
     kml = (tmp_path / "t.kml").read_text()
     assert kml.count("<LineString") == 2 and "DRS1 landing" in kml and "<altitudeMode>absolute" in kml
+
+
+def test_without_any_fix_the_summary_gives_the_iridium_position_and_cep() -> None:
+    moment = datetime(2026, 7, 1, 10, 2, tzinfo=UTC)
+    text = phone_summary("DRS1", None, None, (46.0, 6.0), (46.5, 6.6, 3000.0, moment))
+    assert text.startswith(
+        "DRS1: no GNSS fix yet; Iridium position 46.50000 N 6.60000 E ±3.0 km (CEP), 10:02Z"
+    )
+    assert text.endswith("° from you")
+    assert phone_summary("DRS1", None, None, None) == "DRS1: no report with a position yet"

@@ -1,4 +1,4 @@
-"""`drs predict` end to end: GRIB2 files written by eccodes, read by load_weather, through console.cli.main."""
+"""`drs predict` end to end: GRIB2 written by eccodes, read by load_weather, run through console.cli.main."""
 
 from __future__ import annotations
 
@@ -79,8 +79,8 @@ def test_human_summary_names_landing_ellipse_and_coverages(
 def test_overrides_drift_and_step_reach_the_prediction(
     grib_files: list[Path], cache: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    args = [*base_args(grib_files, cache), "--mass", "2.5", "--cda", "0.9", "--step", "50", "--drift-minutes", "10",
-            "--json"]  # fmt: skip
+    args = [*base_args(grib_files, cache), "--mass", "2.5", "--cda", "0.9", "--step", "50",
+            "--drift-minutes", "10", "--json"]  # fmt: skip
     assert main(args) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["payload"]["mass_kg"] == 2.5 and doc["payload"]["cda_m2"] == 0.9
@@ -126,8 +126,9 @@ def test_terrain_directory_from_the_cli(
                         np.full(shape, 3.0), np.zeros(shape), np.full(shape, T_ISO), gh)
         for s in (0, 3)
     ]  # fmt: skip
-    args = ["predict", "--weather", *map(str, files), "--cache-dir", cache, "--dem", str(dem), "--lat", "47.4",
-            "--lon", "9.3", "--alt", "25000", "--time", "2024-05-01T01:00Z", "--json"]  # fmt: skip
+    args = ["predict", "--weather", *map(str, files), "--cache-dir", cache, "--dem", str(dem),
+            "--lat", "47.4", "--lon", "9.3", "--alt", "25000", "--time", "2024-05-01T01:00Z",
+            "--json"]  # fmt: skip
     assert main(args) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["terrain_source"] == "SRTM3 N47E009"
@@ -171,8 +172,8 @@ def test_bad_input_is_one_line_and_exit_2(
 def test_missing_weather_file_is_one_line(
     cache: str, capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    args = ["predict", "--weather", str(tmp_path / "nope.grib2"), "--cache-dir", cache, "--lat", "1", "--lon", "1",
-            "--alt", "1000", "--time", "2024-05-01T00:00Z"]  # fmt: skip
+    args = ["predict", "--weather", str(tmp_path / "nope.grib2"), "--cache-dir", cache,
+            "--lat", "1", "--lon", "1", "--alt", "1000", "--time", "2024-05-01T00:00Z"]  # fmt: skip
     assert main(args) == 2
     err = capsys.readouterr().err
     assert err.startswith("drs: error: weather file") and err.count("\n") == 1

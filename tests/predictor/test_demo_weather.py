@@ -15,7 +15,9 @@ START = datetime(2026, 11, 22, 7, 40, tzinfo=UTC)
 
 
 def test_standard_atmosphere_matches_icao_tables() -> None:
-    height, temperature = isa_height_and_temperature(np.array([1013.25, 500.0, 226.32, 54.749, 8.6802, 1.109]))
+    height, temperature = isa_height_and_temperature(
+        np.array([1013.25, 500.0, 226.32, 54.749, 8.6802, 1.109])
+    )
     np.testing.assert_allclose(height, [0.0, 5574.0, 11000.0, 20000.0, 32000.0, 47000.0], atol=2.0)
     np.testing.assert_allclose(temperature, [288.15, 251.9, 216.65, 216.65, 228.65, 270.65], atol=0.1)
 
@@ -25,7 +27,9 @@ def geneva_files(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     return demo_weather_files(46.5, 6.6, START, tmp_path_factory.mktemp("demo"))
 
 
-def test_demo_files_cover_the_release_and_twelve_hours_after(geneva_files: list[Path], tmp_path: Path) -> None:
+def test_demo_files_cover_the_release_and_twelve_hours_after(
+    geneva_files: list[Path], tmp_path: Path
+) -> None:
     files = geneva_files
     assert [f.name for f in files] == [f"gfs.t06z.pgrb2.0p50.f{s:03d}" for s in range(0, 16, 3)]
     cube = load_weather(files, cache_dir=tmp_path / "cache")
@@ -44,7 +48,9 @@ def test_demo_atmosphere_has_a_jet_near_250_hpa_and_reaches_above_45_km(
     assert 35.0 <= cube.u.max() <= 45.0
     stratosphere = cube.levels_hpa <= 20.0
     assert np.abs(cube.u[:, stratosphere]).max() < 8.0 and np.abs(cube.v).max() < 8.0
-    assert cube.z_m[:, -1].min() > 45_000.0 and 30_000.0 < cube.z_m[0, cube.levels_hpa == 10.0].mean() < 32_500.0
+    assert (
+        cube.z_m[:, -1].min() > 45_000.0 and 30_000.0 < cube.z_m[0, cube.levels_hpa == 10.0].mean() < 32_500.0
+    )
     # The jet meanders: it is not the same wind everywhere or at every step.
     jet = cube.u[:, cube.levels_hpa == 250.0]
     assert np.ptp(jet) > 10.0 and np.abs(np.diff(jet, axis=0)).max() > 0.5
@@ -61,7 +67,12 @@ def test_second_call_reuses_the_files(geneva_files: list[Path]) -> None:
 @pytest.mark.parametrize(("lat", "lon"), [(-33.9, -70.6), (0.2, 179.9), (69.0, -50.8)])
 def test_demo_weather_anywhere_on_earth(tmp_path: Path, lat: float, lon: float) -> None:
     start = datetime(2026, 1, 1, 23, 0)  # naive means UTC
-    cube = load_weather(demo_weather_files(lat, lon, start, tmp_path, hours=3, half_width_deg=3.0), cache_dir=tmp_path / "cache")
+    cube = load_weather(
+        demo_weather_files(lat, lon, start, tmp_path, hours=3, half_width_deg=3.0),
+        cache_dir=tmp_path / "cache",
+    )
     assert cube.covers(lat, lon) and cube.is_demo
-    assert cube.times[0] == np.datetime64("2026-01-01T18:00") and cube.times[-1] >= np.datetime64("2026-01-02T02:00")
+    assert cube.times[0] == np.datetime64("2026-01-01T18:00") and cube.times[-1] >= np.datetime64(
+        "2026-01-02T02:00"
+    )
     assert np.isfinite(cube.u).all() and (cube.density > 0).all()

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from predictor import Payload, PredictorError, predict, predict_ensemble
+from predictor import EnsemblePrediction, Payload, Prediction, PredictorError, predict, predict_ensemble
 from predictor.export import to_geojson, to_json, write_geojson, write_json, write_kml
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
@@ -17,23 +17,23 @@ PAYLOAD = Payload(mass_kg=1.029, cda_m2=1.13)
 
 
 @pytest.fixture(scope="module")
-def prediction():  # type: ignore[no-untyped-def]
+def prediction() -> Prediction:
     return predict(isothermal_cube(u=8.0, v=3.0), RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD)
 
 
 @pytest.fixture(scope="module")
-def demo_ensemble():  # type: ignore[no-untyped-def]
+def demo_ensemble() -> EnsemblePrediction:
     cube = isothermal_cube(u=8.0, is_demo=True)
     return predict_ensemble(cube, RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD, members=20, seed=0)
 
 
-def test_json_parses_back_to_the_result_document(prediction) -> None:  # type: ignore[no-untyped-def]
+def test_json_parses_back_to_the_result_document(prediction: Prediction) -> None:
     doc = json.loads(to_json(prediction, track=True))
     assert doc == json.loads(json.dumps(prediction.to_dict(track=True)))
     assert len(doc["track"]) == len(prediction.track.lat)
 
 
-def test_kml_has_path_release_landing_and_three_ellipses(prediction, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_kml_has_path_release_landing_and_three_ellipses(prediction: Prediction, tmp_path: Path) -> None:
     root = ET.parse(write_kml(prediction, tmp_path / "p.kml")).getroot()
     placemarks = root.findall(".//k:Placemark", KML_NS)
     names = [p.findtext("k:name", namespaces=KML_NS) for p in placemarks]
@@ -48,7 +48,7 @@ def test_kml_has_path_release_landing_and_three_ellipses(prediction, tmp_path: P
     assert ring[0] == ring[-1]
 
 
-def test_geojson_features_and_their_geometry(prediction, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_geojson_features_and_their_geometry(prediction: Prediction, tmp_path: Path) -> None:
     doc = json.loads(write_geojson(prediction, tmp_path / "p.geojson").read_text())
     assert doc["type"] == "FeatureCollection"
     kinds = [f["properties"]["kind"] for f in doc["features"]]
@@ -62,7 +62,9 @@ def test_geojson_features_and_their_geometry(prediction, tmp_path: Path) -> None
     assert doc["properties"]["is_demo"] is False
 
 
-def test_demo_ensemble_outputs_say_demo_and_carry_members(demo_ensemble, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_demo_ensemble_outputs_say_demo_and_carry_members(
+    demo_ensemble: EnsemblePrediction, tmp_path: Path
+) -> None:
     kml_root = ET.parse(write_kml(demo_ensemble, tmp_path / "e.kml")).getroot()
     assert "DEMO WEATHER" in kml_root.find(".//k:Document/k:name", KML_NS).text
     assert "DEMO WEATHER" in kml_root.find(".//k:Document/k:description", KML_NS).text
@@ -76,6 +78,6 @@ def test_demo_ensemble_outputs_say_demo_and_carry_members(demo_ensemble, tmp_pat
     assert doc["is_demo"] is True and doc["warnings"][0].startswith("DEMO WEATHER")
 
 
-def test_unwritable_output_is_a_clear_error(prediction, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_unwritable_output_is_a_clear_error(prediction: Prediction, tmp_path: Path) -> None:
     with pytest.raises(PredictorError, match="cannot write the KML file .*missing"):
         write_kml(prediction, tmp_path / "missing" / "p.kml")

@@ -16,12 +16,19 @@ LEVELS = np.array([1000.0, 850.0, 500.0, 250.0, 100.0, 10.0, 1.0])
 
 
 def random_fields(rng: np.random.Generator, shape: tuple[int, int, int]) -> list[np.ndarray]:
-    return [rng.normal(0, 15, shape), rng.normal(0, 15, shape), rng.normal(240, 20, shape), rng.normal(9000, 5000, shape)]
+    return [
+        rng.normal(0, 15, shape),
+        rng.normal(0, 15, shape),
+        rng.normal(240, 20, shape),
+        rng.normal(9000, 5000, shape),
+    ]
 
 
 def open_isobaric(path: Path) -> xr.Dataset:
     return xr.open_dataset(
-        path, engine="cfgrib", backend_kwargs={"indexpath": "", "filter_by_keys": {"typeOfLevel": "isobaricInhPa"}}
+        path,
+        engine="cfgrib",
+        backend_kwargs={"indexpath": "", "filter_by_keys": {"typeOfLevel": "isobaricInhPa"}},
     )
 
 
@@ -56,7 +63,9 @@ def test_cfgrib_reads_back_exactly_the_float32_values_written(tmp_path: Path) ->
 def test_one_message_per_variable_and_level_with_gfs_parameter_numbers(tmp_path: Path) -> None:
     shape = (LEVELS.size, 3, 4)
     fields = random_fields(np.random.default_rng(2), shape)
-    path = write_gfs_grib2(tmp_path / "f", datetime(2024, 1, 1, 18), 0, LEVELS, [50, 51, 52], [0, 1, 2, 3], *fields)
+    path = write_gfs_grib2(
+        tmp_path / "f", datetime(2024, 1, 1, 18), 0, LEVELS, [50, 51, 52], [0, 1, 2, 3], *fields
+    )
     rows = message_keys(path, "shortName", "level", "generatingProcessIdentifier", "edition")
     assert len(rows) == 4 * LEVELS.size
     assert {row[0] for row in rows} == {"u", "v", "t", "gh"}
@@ -68,7 +77,9 @@ def test_region_crossing_greenwich_is_written_as_a_wrapping_grid(tmp_path: Path)
     lats = np.arange(45.0, 55.0 + 1e-9, 0.5)
     fields = random_fields(np.random.default_rng(3), (LEVELS.size, lats.size, lons.size))
     path = write_gfs_grib2(tmp_path / "f", datetime(2024, 1, 1), 3, LEVELS, lats, lons, *fields)
-    first, last = message_keys(path, "longitudeOfFirstGridPointInDegrees", "longitudeOfLastGridPointInDegrees")[0]
+    first, last = message_keys(
+        path, "longitudeOfFirstGridPointInDegrees", "longitudeOfLastGridPointInDegrees"
+    )[0]
     assert (first, last) == (350.0, 10.0)
     ds = open_isobaric(path).sortby("latitude")
     np.testing.assert_allclose(ds["longitude"].values, lons - 360.0)  # cfgrib shows the run as -10 … 10
@@ -78,7 +89,13 @@ def test_region_crossing_greenwich_is_written_as_a_wrapping_grid(tmp_path: Path)
 def test_demo_files_carry_their_own_generating_process(tmp_path: Path) -> None:
     fields = random_fields(np.random.default_rng(4), (LEVELS.size, 2, 2))
     path = write_gfs_grib2(
-        tmp_path / "f", datetime(2024, 1, 1), 0, LEVELS, [0, 1], [0, 1], *fields,
+        tmp_path / "f",
+        datetime(2024, 1, 1),
+        0,
+        LEVELS,
+        [0, 1],
+        [0, 1],
+        *fields,
         generating_process=DEMO_GENERATING_PROCESS,
     )
     assert {row[0] for row in message_keys(path, "generatingProcessIdentifier")} == {DEMO_GENERATING_PROCESS}
@@ -100,7 +117,9 @@ def test_malformed_input_is_refused_before_writing(tmp_path: Path, change: dict,
     shape = (len(levels), len(lats), len(lons))
     u = np.zeros(change.get("u_shape", shape))
     with pytest.raises(ValueError, match=message):
-        write_gfs_grib2(tmp_path / "f", datetime(2024, 1, 1), 0, levels, lats, lons, u, *[np.zeros(shape)] * 3)
+        write_gfs_grib2(
+            tmp_path / "f", datetime(2024, 1, 1), 0, levels, lats, lons, u, *[np.zeros(shape)] * 3
+        )
     assert not (tmp_path / "f").exists()
 
 

@@ -2,10 +2,21 @@
 
 from __future__ import annotations
 
+from datetime import timedelta
+
 import numpy as np
 import pytest
 
-from predictor import Payload, PredictorError, predict, predict_ensemble
+from predictor import (
+    Model,
+    OutOfCoverageError,
+    Payload,
+    PredictorError,
+    predict,
+    predict_ensemble,
+    predict_landings,
+)
+from predictor.model import DescentRateScale
 from predictor.uncertainty import GEOD
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
@@ -83,3 +94,39 @@ def test_bad_ensemble_requests_are_refused(kwargs: dict, message: str) -> None:
 def test_two_weather_cubes_are_too_few_for_an_ensemble() -> None:
     with pytest.raises(PredictorError, match="at least 3 of them"):
         predict_ensemble([isothermal_cube(), isothermal_cube()], RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD)
+
+
+def test_vectorised_sweep_gives_the_same_landings_as_single_predictions() -> None:
+    # Three release times × three descent-rate factors in one call, against nine single predictions.
+    cube = isothermal_cube(u=lambda t, z, y, x: 8.0 + 0.5 * t + 0.2 * (x - 5.0), v=3.0)
+    times = [RELEASE + timedelta(minutes=m) for m in (0, 20, 40)] * 3
+    rates = np.repeat([1.0, 1.1, 0.9], 3)
+    model = Model.for_payload(PAYLOAD, DescentRateScale(scale=rates))
+    sweep = predict_landings(cube, times, 46.0, 5.0, 30000.0, model=model)
+    for i, (when, rate) in enumerate(zip(times, rates, strict=True)):
+        single = predict(
+            cube, when, 46.0, 5.0, 30000.0, payload=PAYLOAD, effects=(DescentRateScale(scale=rate),)
+        )
+        assert sweep.lat[i] == pytest.approx(single.landing.lat, abs=1e-12)
+        assert sweep.lon[i] == pytest.approx(single.landing.lon, abs=1e-12)
+        assert sweep.descent_s[i] == pytest.approx(single.descent_s, abs=1e-6)
+        assert sweep.drift_km[i] == pytest.approx(single.drift_km, rel=1e-9)
+        landing = np.datetime64(single.landing.time.replace(tzinfo=None), "us")
+        assert abs(sweep.time[i] - landing) <= np.timedelta64(1, "ms")
+
+
+def test_vectorised_sweep_refuses_bad_inputs() -> None:
+    model = Model.for_payload(PAYLOAD)
+    with pytest.raises(PredictorError, match="every latitude"):
+        predict_landings(isothermal_cube(), [RELEASE], np.array([46.0, 95.0]), 5.0, 30000.0, model=model)
+    with pytest.raises(PredictorError, match="timezone-aware"):
+        predict_landings(isothermal_cube(), [RELEASE.replace(tzinfo=None)], 46.0, 5.0, 30000.0, model=model)
+
+
+def test_members_leaving_the_region_name_where_they_left() -> None:
+    # The calm central descent stays inside; members with 20 m/s wind errors leave the 1° box.
+    cube = isothermal_cube(lats=np.arange(45.0, 47.01, 1.0), lons=np.arange(5.0, 7.01, 1.0))
+    with pytest.raises(
+        OutOfCoverageError, match=r"descent leaves the weather region \(lat 45…47, lon 5…7 °E\) at"
+    ):
+        predict_ensemble(cube, RELEASE, 46.0, 6.0, 30000.0, payload=PAYLOAD, members=50, wind_sigma_ms=20.0)

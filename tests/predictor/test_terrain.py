@@ -96,7 +96,9 @@ def test_srtm1_tile_is_recognised_and_preferred_over_a_duplicate_srtm3(tmp_path:
     assert terrain.source_at(46.5, 6.25) == "SRTM1 N46E006"
 
 
-def test_voids_are_filled_from_measured_neighbours_then_from_the_fallback(tmp_path: Path, etopo20: Path) -> None:
+def test_voids_are_filled_from_measured_neighbours_then_from_the_fallback(
+    tmp_path: Path, etopo20: Path
+) -> None:
     heights = np.full((SRTM3, SRTM3), 500)
     heights[600:700, 600:700] = -32768
     write_tile(tmp_path / "N10E020.hgt", heights)

@@ -1,0 +1,274 @@
+"""The operator console: one Textual app over the fleet state, every blocking call in a worker thread.
+
+The app owns no release rules: it folds telemetry into ``FleetState``, shows it, and turns keys
+into intents for ``drs_link`` (``Operations``, ``ArmingController``, ``ChecklistRun``), which
+accept or refuse them. SSH, SQLite, HTTP and predictions run in thread workers (one group per
+capsule for polls, re-armed only when the previous poll finished; the release in its own group,
+never exclusive, so a refresh can never cancel a FIRE); their results come back as messages.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+from textual import on, work
+from textual.app import App, SystemCommand
+from textual.binding import Binding
+from textual.message import Message
+from textual.screen import Screen
+from textual.worker import Worker, WorkerState
+
+from console.predictions import PredictionService
+from drs_link.checklist import Checklist, ChecklistRun, load_checklists
+from drs_link.errors import LinkError
+from drs_link.fleet import FleetState
+from drs_link.gonogo import GoNoGoReport, evaluate
+from drs_link.operations import Operations
+from drs_link.store import Store, utc_now
+from drs_link.telemetry import TelemetryRecord
+from predictor.errors import PredictorError
+
+CHECKLIST_DIR = Path(__file__).parent / "checklists"
+POLL_PERIOD_S = 5.0
+REPORT_POLL_S = 3.0
+PREDICTION_LEAD_MIN = (0, 10)
+
+
+class TelemetryArrived(Message):
+    """Records from a worker (poll, command, replay); folded into the fleet state on the UI thread."""
+
+    def __init__(self, records: list[TelemetryRecord]) -> None:
+        super().__init__()
+        self.records = records
+
+
+class OperatorNotice(Message):
+    """A one-line result or refusal for the operator (never a traceback)."""
+
+    def __init__(self, text: str, severity: str = "information") -> None:
+        super().__init__()
+        self.text = text
+        self.severity = severity
+
+
+@dataclass
+class ConsoleSetup:
+    """Everything the app runs on; built by ``console_cli`` for live, demo and replay."""
+
+    mode: str
+    capsules: list[str]
+    store: Store
+    clock: Callable[[], datetime] = utc_now
+    operations: Operations | None = None
+    predictions: PredictionService | None = None
+    balloon_feed: Callable[[], TelemetryRecord | None] | None = None
+    team_position: tuple[float, float] | None = None
+    export_dir: Path = Path(".")
+    banner_note: str = ""
+    poll_period_s: float = POLL_PERIOD_S
+    prediction_period_s: float = 60.0
+
+
+class DrsConsole(App[int]):
+    CSS_PATH = ["styles/console.tcss"]
+    TITLE = "DRS console"
+    BINDINGS = [
+        Binding("question_mark,f1", "help", "Help"),
+        Binding("t", "toggle_theme", "Theme"),
+        Binding("q", "quit", "Quit"),
+    ]
+
+    def __init__(self, setup: ConsoleSetup, checklist_dir: Path = CHECKLIST_DIR, live_timers: bool = True) -> None:
+        super().__init__()
+        self.setup = setup
+        self.fleet = FleetState.for_capsules(setup.capsules)
+        self.checklists: list[Checklist] = load_checklists(checklist_dir)
+        self.live_timers = live_timers
+        self.theme = "textual-dark"
+
+    # Shared state for the screens -------------------------------------------------------------
+
+    @property
+    def mode(self) -> str:
+        return self.setup.mode
+
+    @property
+    def commanding(self) -> bool:
+        """Replay can never command: there is no Operations behind it, and the keys are disabled."""
+        return self.setup.operations is not None and self.setup.mode != "replay"
+
+    @property
+    def ops(self) -> Operations | None:
+        return self.setup.operations
+
+    @property
+    def store(self) -> Store:
+        return self.setup.store
+
+    @property
+    def operator(self) -> str:
+        return self.ops.operator if self.ops else "replay"
+
+    def now(self) -> datetime:
+        return self.setup.clock()
+
+    def banner(self) -> str:
+        words = {"demo": "DEMO — simulated capsules, gateway and weather", "replay": "REPLAY — commanding disabled",
+                 "live": "LIVE"}  # fmt: skip
+        text = words.get(self.mode, self.mode.upper())
+        return f"{text} {self.setup.banner_note}".strip()
+
+    def checklist_run(self, capsule: str, checklist: Checklist) -> ChecklistRun:
+        return ChecklistRun(self.store, checklist, capsule, self.now)
+
+    def gonogo(self, capsule: str) -> GoNoGoReport:
+        telemetry = self.fleet.capsules[capsule]
+        zones = self.ops.zones if self.ops else ()
+        waivers = self.ops.ops(capsule).waivers.waivers if self.ops else []
+        return evaluate(capsule, telemetry.gonogo_inputs(self.now(), zones), self.now(), waivers)
+
+    # Lifecycle --------------------------------------------------------------------------------
+
+    def on_mount(self) -> None:
+        from console.screens.fleet import FleetScreen
+
+        self.push_screen(FleetScreen())
+        if not self.live_timers:
+            return
+        if self.ops is not None:
+            self.gateway_check()
+            for name in self.setup.capsules:
+                self.poll_capsule(name)
+            self.set_interval(REPORT_POLL_S, self.poll_reports)
+        if self.setup.predictions is not None:
+            self.set_interval(self.setup.prediction_period_s, self.refresh_predictions)
+            self.set_timer(1.0, self.refresh_predictions)
+        if self.setup.balloon_feed is not None:
+            self.set_interval(2.0, self.read_balloon)
+        self.set_interval(1.0, self.tick)
+
+    def tick(self) -> None:
+        """Once a second: ages grow, ARM windows run out, the screen shows both."""
+        if self.ops is not None:
+            for name in self.setup.capsules:
+                self.ops.ops(name).arming.status()
+        screen = self.screen
+        if hasattr(screen, "refresh_view"):
+            screen.refresh_view()
+
+    # Workers ----------------------------------------------------------------------------------
+
+    @work(thread=True, exit_on_error=False, group="gateway")
+    def gateway_check(self) -> None:
+        assert self.ops is not None
+        self.post_message(TelemetryArrived(self.ops.gateway_check()))
+
+    @work(thread=True, exit_on_error=False, description="poll")
+    def poll_capsule(self, name: str) -> None:
+        """One poll; the next one is scheduled only after this one ends, so polls never pile up."""
+        assert self.ops is not None
+        try:
+            self.post_message(TelemetryArrived(self.ops.poll(name)))
+        except LinkError as exc:
+            self.post_message(OperatorNotice(str(exc), "warning"))
+        finally:
+            try:
+                self.call_from_thread(self.set_timer, self.setup.poll_period_s, lambda: self.poll_capsule(name))
+            except RuntimeError:
+                pass  # the app is closing: no next poll
+
+    @work(thread=True, exit_on_error=False, group="reports")
+    def poll_reports(self) -> None:
+        assert self.ops is not None
+        records = [r for name in self.setup.capsules for r in self.ops.new_reports(name)]
+        if records:
+            self.post_message(TelemetryArrived(records))
+
+    def read_balloon(self) -> None:
+        assert self.setup.balloon_feed is not None
+        record = self.setup.balloon_feed()
+        if record is not None:
+            self.post_message(TelemetryArrived([record]))
+
+    def prediction_origin(self, capsule: str) -> tuple[float, float, float] | None:
+        """Where a release would start: the capsule's own fresh fix, else the balloon feed."""
+        telemetry = self.fleet.capsules[capsule]
+        now = self.now()
+        gnss = telemetry.reading("gnss")
+        if gnss.is_fresh(now) and gnss.value and gnss.value.get("has_fix") and gnss.value.get("lat") is not None:
+            return gnss.value["lat"], gnss.value["lon"], gnss.value.get("alt_m") or 30000.0
+        balloon = self.fleet.balloon
+        if balloon.is_fresh(now) and balloon.value:
+            return balloon.value["lat"], balloon.value["lon"], balloon.value["alt_m"]
+        return None
+
+    def refresh_predictions(self) -> None:
+        for name in self.setup.capsules:
+            state = self.fleet.capsules[name].value("release", "state", self.now(), fresh_only=False)
+            origin = self.prediction_origin(name)
+            if origin is not None and state not in ("released", "go-sent-unverified"):
+                self.run_prediction(name, origin)
+
+    @work(thread=True, exit_on_error=False, group="predictions")
+    def run_prediction(self, name: str, origin: tuple[float, float, float]) -> None:
+        assert self.setup.predictions is not None
+        try:
+            records = self.setup.predictions.predict(name, *origin, release_in=PREDICTION_LEAD_MIN)
+        except PredictorError as exc:
+            self.post_message(OperatorNotice(f"{name}: prediction failed: {exc}", "warning"))
+            return
+        if self.ops is not None and self.ops.recorder is not None:
+            for record in records:
+                self.ops.recorder.append(record)
+        self.post_message(TelemetryArrived(records))
+
+    # Messages ---------------------------------------------------------------------------------
+
+    @on(TelemetryArrived)
+    def fold(self, message: TelemetryArrived) -> None:
+        for record in message.records:
+            self.fleet.apply(record)
+        if self.ops is not None:
+            touched = {r.capsule for r in message.records if r.capsule}
+            for name in touched & set(self.setup.capsules):
+                arming = self.ops.ops(name).arming
+                link_down = any(r.capsule == name and r.kind == "link" and not r.data.get("up") for r in message.records)
+                if link_down:
+                    arming.link_lost()
+                else:
+                    arming.observe(self.gonogo(name))
+        screen = self.screen
+        if hasattr(screen, "refresh_view"):
+            screen.refresh_view()
+
+    @on(OperatorNotice)
+    def show_notice(self, message: OperatorNotice) -> None:
+        self.notify(message.text, severity=message.severity, timeout=8)  # type: ignore[arg-type]
+
+    @on(Worker.StateChanged)
+    def worker_failed(self, event: Worker.StateChanged) -> None:
+        if event.state is WorkerState.ERROR and event.worker.error is not None:
+            self.notify(f"{event.worker.name}: {event.worker.error}", severity="error", timeout=10)
+
+    # Actions ----------------------------------------------------------------------------------
+
+    def action_help(self) -> None:
+        from console.screens.help import HelpScreen
+
+        self.push_screen(HelpScreen())
+
+    def action_toggle_theme(self) -> None:
+        self.theme = "textual-light" if self.theme == "textual-dark" else "textual-dark"
+
+    def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
+        yield from super().get_system_commands(screen)
+        from console.screens import palette_commands
+
+        yield from palette_commands(self)
+
+    def on_unmount(self) -> None:
+        if self.ops is not None:
+            self.ops.close()

@@ -1,0 +1,128 @@
+"""Confirmations: Cancel has the focus, hazardous ones make the operator type the capsule's name.
+
+These only collect what the operator says; whether it is enough is decided by ``drs_link``
+(the arming controller, the state machine, the command lifecycle), which refuse otherwise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import ModalScreen
+from textual.widgets import Button, Input, Label, Static
+
+
+class ConfirmModal(ModalScreen[bool]):
+    """Yes/No with *Cancel* focused: Enter on a reflex never confirms."""
+
+    BINDINGS = [Binding("escape", "cancel", "Cancel")]
+
+    def __init__(self, title: str, body: str, confirm_label: str = "Confirm") -> None:
+        super().__init__()
+        self.title_text = title
+        self.body = body
+        self.confirm_label = confirm_label
+
+    def compose(self) -> ComposeResult:
+        with Vertical(classes="dialog"):
+            yield Label(self.title_text, classes="dialog-title")
+            yield Static(self.body, classes="dialog-body")
+            with Horizontal(classes="dialog-buttons"):
+                yield Button("Cancel", id="cancel", variant="primary")
+                yield Button(self.confirm_label, id="confirm", variant="warning")
+
+    def on_mount(self) -> None:
+        self.query_one("#cancel", Button).focus()
+
+    def on_button_pressed(self, event: Button.Pressed) -> None:
+        self.dismiss(event.button.id == "confirm")
+
+    def action_cancel(self) -> None:
+        self.dismiss(False)
+
+
+class TextPromptModal(ModalScreen[str | None]):
+    """One line of text (a waiver reason, a skip reason, an INTERVAL); Escape cancels."""
+
+    BINDINGS = [Binding("escape", "cancel", "Cancel")]
+
+    def __init__(self, title: str, prompt: str, placeholder: str = "") -> None:
+        super().__init__()
+        self.title_text = title
+        self.prompt = prompt
+        self.placeholder = placeholder
+
+    def compose(self) -> ComposeResult:
+        with Vertical(classes="dialog"):
+            yield Label(self.title_text, classes="dialog-title")
+            yield Static(self.prompt, classes="dialog-body")
+            yield Input(placeholder=self.placeholder, id="answer")
+
+    def on_mount(self) -> None:
+        self.query_one("#answer", Input).focus()
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        self.dismiss(event.value)
+
+    def action_cancel(self) -> None:
+        self.dismiss(None)
+
+
+@dataclass(frozen=True)
+class HazardConfirmation:
+    typed_name: str
+    second_operator: str
+    single_operator_waiver: str
+
+
+class HazardModal(ModalScreen[HazardConfirmation | None]):
+    """FIRE or PARACHUTE: type the capsule's name; a second operator or a single-operator waiver."""
+
+    BINDINGS = [Binding("escape", "cancel", "Cancel")]
+
+    def __init__(self, capsule: str, action: str, consequence: str, second_required: bool) -> None:
+        super().__init__()
+        self.capsule = capsule
+        self.action_name = action
+        self.consequence = consequence
+        self.second_required = second_required
+
+    def compose(self) -> ComposeResult:
+        need = "required" if self.second_required else "optional"
+        with Vertical(classes="dialog hazard"):
+            yield Label(f"{self.action_name} {self.capsule}", classes="dialog-title")
+            yield Static(self.consequence, classes="dialog-body")
+            yield Label(f"Type the capsule's name ({self.capsule}) to confirm:")
+            yield Input(id="typed", placeholder="capsule name")
+            yield Label(f"Second operator ({need}; a different person):")
+            yield Input(id="second", placeholder="name")
+            yield Label("…or single-operator waiver (why you are alone):")
+            yield Input(id="waiver", placeholder="reason (logged)")
+            with Horizontal(classes="dialog-buttons"):
+                yield Button("Cancel", id="cancel", variant="primary")
+                yield Button(self.action_name, id="confirm", variant="error")
+
+    def on_mount(self) -> None:
+        self.query_one("#typed", Input).focus()
+
+    def _answer(self) -> HazardConfirmation:
+        return HazardConfirmation(
+            self.query_one("#typed", Input).value.strip(),
+            self.query_one("#second", Input).value.strip(),
+            self.query_one("#waiver", Input).value.strip(),
+        )
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        if event.input.id == "waiver":
+            self.dismiss(self._answer())
+        else:
+            self.focus_next()
+
+    def on_button_pressed(self, event: Button.Pressed) -> None:
+        self.dismiss(self._answer() if event.button.id == "confirm" else None)
+
+    def action_cancel(self) -> None:
+        self.dismiss(None)

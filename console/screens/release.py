@@ -1,0 +1,285 @@
+"""The release flow of one capsule: its checklists, the go/no-go poll, ARM with a countdown, FIRE.
+
+FIRE is a different key from ARM and is disabled (``check_action``) unless the domain layer says
+the capsule is armed; the footer greys it out. Pressing it only opens the confirmation: the
+arming controller re-checks everything when the worker calls ``fire``.
+"""
+
+from __future__ import annotations
+
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.widgets import DataTable, Label, Static
+
+from console.screens.base import ConsoleScreen
+from console.screens.modals import ConfirmModal, HazardConfirmation, HazardModal, TextPromptModal
+from drs_link.arming import ArmState
+from drs_link.checklist import StepKind, StepState
+from drs_link.errors import LinkError
+from drs_link.gonogo import Verdict
+from drs_link.operations import Operations
+
+POWER_ON_TEXT = (
+    "Power-on runs DRS_on.py: it latches the battery relay and boots the microcontroller and GNSS.\n"
+    "Software CANNOT switch it off again: only the OFF button on the unit can."
+)
+FIRE_TEXT = (
+    "FIRE runs DRS_GoGoGo.py: Go is sent, the Pi shuts down, release A opens 30 s later.\n"
+    "This cannot be undone."
+)
+STATE_GLYPH = {
+    StepState.DONE: "✔ done",
+    StepState.SKIPPED: "↷ skipped",
+    StepState.MET: "✔ met",
+    StepState.NOT_MET: "✘ not met",
+    StepState.NO_DATA: "? no data",
+    StepState.PENDING: "· pending",
+}
+VERDICT_GLYPH = {Verdict.GO: "✔ GO", Verdict.NO_GO: "✘ NO-GO", Verdict.WAIVED: "⚑ WAIVED"}
+
+
+class ReleaseScreen(ConsoleScreen):
+    BINDINGS = [
+        Binding("escape", "app.pop_screen", "Back"),
+        Binding("left_square_bracket", "checklist(-1)", "Prev list", show=False),
+        Binding("right_square_bracket", "checklist(1)", "Next list"),
+        Binding("space", "tick", "Tick"),
+        Binding("x", "skip", "Skip", show=False),
+        Binding("o", "power_on", "Power on"),
+        Binding("s", "sync", "Sync"),
+        Binding("w", "waive", "Waive"),
+        Binding("a", "arm", "ARM"),
+        Binding("d", "disarm", "Disarm", show=False),
+        Binding("f", "fire", "FIRE"),
+    ]
+
+    def __init__(self, capsule: str) -> None:
+        super().__init__()
+        self.capsule = capsule
+        self.checklist_index = 0
+
+    def compose(self) -> ComposeResult:
+        yield from self.compose_banner()
+        with Horizontal(id="release-body"):
+            with Vertical(id="checklist-pane"):
+                yield Label(id="checklist-title", classes="pane-title")
+                yield DataTable(id="checklist", cursor_type="row")
+            with Vertical(id="gonogo-pane"):
+                yield Label(f"Go/no-go: {self.capsule}", classes="pane-title")
+                yield DataTable(id="gonogo", cursor_type="row")
+                yield Static(id="arm-status")
+        yield from self.compose_footer()
+
+    def on_mount(self) -> None:
+        checklist = self.query_one("#checklist", DataTable)
+        checklist.add_columns("Step", "State", "By / when")
+        gonogo = self.query_one("#gonogo", DataTable)
+        gonogo.add_columns("Item", "Verdict", "Detail")
+        ids = [c.id for c in self.console.checklists]
+        self.checklist_index = ids.index("release-day") if "release-day" in ids else 0
+        checklist.focus()
+        self.refresh_view()
+
+    @property
+    def ops(self) -> Operations | None:
+        return self.console.ops
+
+    # Rendering --------------------------------------------------------------------------------
+
+    def refresh_view(self) -> None:
+        super().refresh_view()
+        app = self.console
+        now = app.now()
+        checklist = app.checklists[self.checklist_index]
+        self.query_one("#checklist-title", Label).update(
+            f"{checklist.title} ({self.checklist_index + 1}/{len(app.checklists)}) — {self.capsule}"
+        )
+        table = self.query_one("#checklist", DataTable)
+        row = table.cursor_row
+        table.clear()
+        facts = app.fleet.capsules[self.capsule].facts(now)
+        for status in app.checklist_run(self.capsule, checklist).statuses(facts):
+            who = f"{status.operator} {status.at:%H:%M:%S}Z" if status.operator and status.at else ""
+            kind = {StepKind.MANUAL: "", StepKind.AUTO: "[auto] ", StepKind.COMMAND: "[cmd] "}[status.step.kind]
+            table.add_row(f"{kind}{status.step.text}", STATE_GLYPH[status.state], who, key=status.step.id)
+        if table.row_count:
+            table.move_cursor(row=min(row, table.row_count - 1))
+        report = app.gonogo(self.capsule)
+        gonogo = self.query_one("#gonogo", DataTable)
+        grow = gonogo.cursor_row
+        gonogo.clear()
+        for item in report.items:
+            gonogo.add_row(item.title, VERDICT_GLYPH[item.verdict], item.detail, key=item.key)
+        if gonogo.row_count:
+            gonogo.move_cursor(row=min(grow, gonogo.row_count - 1))
+        self.query_one("#arm-status", Static).update(self.arm_text(report.go))
+        self.refresh_bindings()
+
+    def arm_text(self, go: bool) -> str:
+        if not self.console.commanding:
+            return "REPLAY: commanding disabled"
+        status = self.console.ops.ops(self.capsule).arming.status()
+        poll = "GO" if go else "NO-GO"
+        if status.state is ArmState.ARMED:
+            return f"▶ ARMED — {status.remaining_s:.0f} s left to FIRE (f). Poll: {poll}. d disarms."
+        if status.state is ArmState.FIRING:
+            return "… FIRING: Go is being sent"
+        if status.state is ArmState.FIRED:
+            return "■ FIRED: Go sent; watch for the first Iridium report"
+        reason = f" (last: {status.last_disarm_reason})" if status.last_disarm_reason else ""
+        return f"○ DISARMED{reason}. Poll: {poll}. a = ARM"
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        commanding = ("power_on", "sync", "waive", "arm", "disarm", "fire", "tick", "skip")
+        if action in commanding and not self.console.commanding:
+            return None
+        if action == "fire":
+            return True if self.console.ops.ops(self.capsule).arming.status().armed else None
+        return True
+
+    # Actions ----------------------------------------------------------------------------------
+
+    def action_checklist(self, step: int) -> None:
+        self.checklist_index = (self.checklist_index + step) % len(self.console.checklists)
+        self.query_one("#checklist", DataTable).move_cursor(row=0)
+        self.refresh_view()
+
+    def _selected_step(self) -> str | None:
+        table = self.query_one("#checklist", DataTable)
+        if not table.row_count:
+            return None
+        return str(table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value)
+
+    def _refused(self, exc: Exception) -> None:
+        self.app.notify(str(exc), severity="error", timeout=10)
+
+    def action_tick(self) -> None:
+        step = self._selected_step()
+        if step is None:
+            return
+        run = self.console.checklist_run(self.capsule, self.console.checklists[self.checklist_index])
+        try:
+            run.tick(step, self.console.operator)
+        except LinkError as exc:
+            self._refused(exc)
+        self.refresh_view()
+
+    def action_skip(self) -> None:
+        step = self._selected_step()
+        if step is None:
+            return
+
+        def done(reason: str | None) -> None:
+            if reason is None:
+                return
+            run = self.console.checklist_run(self.capsule, self.console.checklists[self.checklist_index])
+            try:
+                run.skip(step, self.console.operator, reason)
+            except LinkError as exc:
+                self._refused(exc)
+            self.refresh_view()
+
+        self.app.push_screen(TextPromptModal("Skip step", f"Why skip {step}? (logged)"), done)
+
+    def action_power_on(self) -> None:
+        def confirmed(yes: bool | None) -> None:
+            if yes:
+                self.power_on_worker()
+
+        self.app.push_screen(ConfirmModal(f"Power on {self.capsule}?", POWER_ON_TEXT, "Power on"), confirmed)
+
+    def _command_steps_done(self, command: str, result: str) -> None:
+        for checklist in self.console.checklists:
+            for step in checklist.steps:
+                if step.command == command:
+                    self.console.checklist_run(self.capsule, checklist).command_done(
+                        step.id, self.console.operator, result
+                    )
+
+    @work(thread=True, exit_on_error=False, group="release")
+    def power_on_worker(self) -> None:
+        from console.app import OperatorNotice, TelemetryArrived
+
+        assert self.ops is not None
+        try:
+            records = self.ops.power_on(self.capsule)
+        except LinkError as exc:
+            self.app.post_message(OperatorNotice(str(exc), "error"))
+            return
+        self._command_steps_done("power-on", "relay latched")
+        self.app.post_message(TelemetryArrived(records))
+        self.app.post_message(OperatorNotice(f"{self.capsule}: powered on; waiting for NMEA (~25 s)"))
+
+    @work(thread=True, exit_on_error=False, group="release")
+    def action_sync(self) -> None:
+        from console.app import OperatorNotice, TelemetryArrived
+
+        assert self.ops is not None
+        try:
+            self.app.post_message(OperatorNotice(f"{self.capsule}: syncing data…"))
+            self.app.post_message(TelemetryArrived(self.ops.sync(self.capsule)))
+            self.app.post_message(OperatorNotice(f"{self.capsule}: sync finished and verified"))
+        except LinkError as exc:
+            self.app.post_message(OperatorNotice(str(exc), "error"))
+
+    def action_waive(self) -> None:
+        table = self.query_one("#gonogo", DataTable)
+        if not table.row_count:
+            return
+        item = str(table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value)
+
+        def done(reason: str | None) -> None:
+            if reason is None:
+                return
+            try:
+                self.ops.ops(self.capsule).waivers.grant(item, self.console.operator, reason)  # type: ignore[union-attr]
+            except LinkError as exc:
+                self._refused(exc)
+            self.refresh_view()
+
+        self.app.push_screen(
+            TextPromptModal(f"Waive '{item}'", "Reason (logged with your name; only GNSS and sync can be waived):"),
+            done,
+        )
+
+    def action_arm(self) -> None:
+        assert self.ops is not None
+        try:
+            self.ops.ops(self.capsule).arming.arm(self.console.gonogo(self.capsule))
+        except LinkError as exc:
+            self._refused(exc)
+        self.refresh_view()
+
+    def action_disarm(self) -> None:
+        assert self.ops is not None
+        self.ops.ops(self.capsule).arming.disarm("operator disarmed")
+        self.refresh_view()
+
+    def action_fire(self) -> None:
+        second = self.console.setup.operations.config.console.require_second_operator
+
+        def confirmed(answer: HazardConfirmation | None) -> None:
+            if answer is not None:
+                self.fire_worker(answer)
+
+        self.app.push_screen(HazardModal(self.capsule, "FIRE", FIRE_TEXT, second), confirmed)
+
+    @work(thread=True, exit_on_error=False, group="release")
+    def fire_worker(self, answer: HazardConfirmation) -> None:
+        from console.app import OperatorNotice, TelemetryArrived
+
+        assert self.ops is not None
+        report = self.app.call_from_thread(self.console.gonogo, self.capsule)
+        try:
+            records = self.ops.fire(
+                self.capsule, answer.typed_name, report, answer.second_operator or None,
+                answer.single_operator_waiver or None,
+            )  # fmt: skip
+        except LinkError as exc:
+            self.app.post_message(OperatorNotice(str(exc), "error"))
+            return
+        self._command_steps_done("fire", "Go sent, Pi shut down")
+        self.app.post_message(TelemetryArrived(records))
+        self.app.post_message(OperatorNotice(f"{self.capsule}: RELEASED — Go sent, Pi shut down"))

@@ -1,0 +1,274 @@
+"""The console's engine without a screen: polls capsules, runs release steps, reads Iridium reports.
+
+Every method blocks (SSH, SQLite, HTTP) and is meant to be called from a worker thread; results
+come back as telemetry records that the screen folds into its fleet state on its own thread. The
+release rules themselves live in ``arming``/``gonogo``/``capsule``; this module only wires one
+set of them per configured capsule, so the CLI, tests and the Textual app share one path.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+from drs_link.arming import ArmingController
+from drs_link.backends.agent import AgentBackend
+from drs_link.backends.stock import StockBackend
+from drs_link.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
+from drs_link.config import CapsuleConfig, Config
+from drs_link.errors import ConfigError, LinkError
+from drs_link.gonogo import ExclusionZone, GoNoGoReport, WaiverBook
+from drs_link.iridium.gateway import RockblockGateway
+from drs_link.iridium.lifecycle import Command, CommandLifecycle
+from drs_link.iridium.mt import MtMessage
+from drs_link.iridium.reports import ReportStore, StoredReport
+from drs_link.ssh import CapsuleLink, HostKeyError
+from drs_link.storage import read_storage
+from drs_link.store import Store, utc_now
+from drs_link.sync import Syncer
+from drs_link.telemetry import TelemetryRecord, TelemetryRecorder
+
+LANDED_SPEED_MS = 1.0
+LANDED_ALT_CHANGE_M = 20.0
+
+
+def load_exclusion_zones(path: Path | None) -> tuple[ExclusionZone, ...]:
+    """Polygons from a GeoJSON FeatureCollection; each feature's ``name`` property names the zone."""
+    if path is None:
+        return ()
+    try:
+        document = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"console.exclusion_zones_file: cannot read {path}: {exc}") from None
+    zones = []
+    for index, feature in enumerate(document.get("features", []) if isinstance(document, dict) else []):
+        geometry = feature.get("geometry") or {}
+        if geometry.get("type") != "Polygon":
+            raise ConfigError(f"console.exclusion_zones_file: feature {index} is not a Polygon")
+        ring = tuple((float(lon), float(lat)) for lon, lat, *_ in geometry["coordinates"][0])
+        name = str((feature.get("properties") or {}).get("name") or f"zone {index + 1}")
+        zones.append(ExclusionZone(name, ring))
+    return tuple(zones)
+
+
+@dataclass
+class CapsuleOps:
+    config: CapsuleConfig
+    link: CapsuleLink
+    machine: ReleaseStateMachine
+    arming: ArmingController
+    waivers: WaiverBook
+    syncer: Syncer
+    lock: threading.Lock
+
+
+def report_record(capsule: str, stored: StoredReport, interval_min: int) -> TelemetryRecord:
+    """One Iridium report as telemetry (position from the fix, else the Iridium estimate)."""
+    report = stored.report
+    fix = report.fix if report else None
+    position = stored.position()
+    data: dict[str, object] = {
+        "momsn": stored.delivery.momsn,
+        "has_fix": fix is not None,
+        "lat": position[0] if position else None,
+        "lon": position[1] if position else None,
+        "uncertainty_m": position[2] if position else None,
+        "position_source": position[3] if position else None,
+        "alt_m": fix.alt_m if fix else None,
+        "speed_ms": fix.speed_ms if fix else None,
+        "sats": fix.sats if fix else None,
+        "vbat": report.vbat if report else None,
+        "iteration": report.iteration if report else None,
+        "interval_min": interval_min,
+        "landed": bool(fix and fix.speed_ms < LANDED_SPEED_MS and fix.alt_m < 6000),
+    }
+    return TelemetryRecord(stored.time, capsule, "report", data)
+
+
+class Operations:
+    """One console's live connection to its capsules and gateway."""
+
+    def __init__(
+        self,
+        config: Config,
+        store: Store,
+        clock: Callable[[], datetime] = utc_now,
+        recorder: TelemetryRecorder | None = None,
+        environ: dict[str, str] | None = None,
+        sleep: Callable[[float], None] | None = None,
+    ) -> None:
+        self.config = config
+        self.store = store
+        self.clock = clock
+        self.recorder = recorder
+        self.environ = environ
+        self.operator = config.operator.name or "unknown"
+        self.zones = load_exclusion_zones(config.console.exclusion_zones_file)
+        self.reports = ReportStore(store)
+        self.lifecycle = CommandLifecycle(store, self.operator, clock)
+        self._seen_reports: dict[str, int] = {}
+        self.capsules: dict[str, CapsuleOps] = {}
+        for capsule in config.capsules:
+            link = CapsuleLink(capsule)
+            backend = AgentBackend(capsule, link) if capsule.backend == "agent" else StockBackend(capsule, link)
+            kwargs = {"sleep": sleep} if sleep is not None else {}
+            machine = ReleaseStateMachine(store, capsule, backend, self.operator, clock=clock, **kwargs)  # type: ignore[arg-type]
+            arming = ArmingController(
+                store, machine, self.operator, clock, config.console.arm_window_s,
+                config.console.require_second_operator,
+            )  # fmt: skip
+            self.capsules[capsule.name] = CapsuleOps(
+                capsule, link, machine, arming, WaiverBook(store, capsule.name, clock),
+                Syncer(store, link, capsule.name, capsule.storage_mount, capsule.raid_device), threading.Lock(),
+            )  # fmt: skip
+
+    def _emit(self, records: list[TelemetryRecord]) -> list[TelemetryRecord]:
+        if self.recorder is not None:
+            for record in records:
+                self.recorder.append(record)
+        return records
+
+    def ops(self, name: str) -> CapsuleOps:
+        if name not in self.capsules:
+            raise ConfigError(f"no capsule named {name!r} in the configuration")
+        return self.capsules[name]
+
+    def _release_record(self, name: str, record: ReleaseRecord) -> TelemetryRecord:
+        data = {"state": record.state.value, "nmea_seen": record.nmea_seen_at is not None, "note": record.note}
+        return TelemetryRecord(self.clock(), name, "release", data)
+
+    def poll(self, name: str) -> list[TelemetryRecord]:
+        """Link, release state, microcontroller/GNSS, storage and sync of one capsule, as records."""
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.machine.record()
+            out = [self._release_record(name, record)]
+            if record.state in (ReleaseState.RELEASED, ReleaseState.GO_SENT):
+                out.append(TelemetryRecord(self.clock(), name, "link", {"up": False, "note": "released"}))
+                return self._emit(out)
+            try:
+                ops.link.ensure_connected()
+                up = ops.link.heartbeat()
+            except HostKeyError as exc:
+                out.append(TelemetryRecord(self.clock(), name, "link", {"up": False, "note": str(exc)}))
+                return self._emit(out)
+            except LinkError as exc:
+                up = False
+                note = str(exc)
+            else:
+                note = "heartbeat answered" if up else "heartbeat failed"
+            out.append(TelemetryRecord(self.clock(), name, "link", {"up": up, "note": note}))
+            if not up:
+                ops.link.close()
+                return self._emit(out)
+            try:
+                if record.state is ReleaseState.POWERED:
+                    mcu = ops.machine.check_microcontroller()
+                    gnss = mcu.gnss
+                    out.append(self._release_record(name, ops.machine.record()))
+                    out.append(TelemetryRecord(self.clock(), name, "gnss", {
+                        "has_fix": gnss.has_fix, "quality": gnss.fix_quality_name, "sats": gnss.satellites,
+                        "hdop": gnss.hdop, "lat": gnss.latitude, "lon": gnss.longitude, "alt_m": gnss.altitude_m,
+                        "fix_age_s": gnss.age_s, "diagnosis": mcu.diagnosis,
+                    }))  # fmt: skip
+                storage = read_storage(ops.link, ops.config.storage_mount, ops.config.raid_device)
+                usage = storage.usage
+                out.append(TelemetryRecord(self.clock(), name, "storage", {
+                    "used_bytes": usage.used_bytes if usage else None,
+                    "total_bytes": usage.total_bytes if usage else None,
+                    "raid": storage.raid.state if storage.raid else "missing",
+                }))  # fmt: skip
+                if ops.config.sync_source is not None:
+                    status = ops.syncer.status(ops.config.sync_source)
+                    total = status.bytes_pending + sum(
+                        p.stat().st_size for p in ops.config.sync_source.rglob("*")
+                        if p.is_file() and p.relative_to(ops.config.sync_source).as_posix() in status.up_to_date
+                    )  # fmt: skip
+                    fraction = 1.0 if total == 0 else 1.0 - status.bytes_pending / total
+                    out.append(TelemetryRecord(self.clock(), name, "sync", {
+                        "fraction": fraction, "bytes_pending": status.bytes_pending,
+                        "files_pending": len(status.missing) + len(status.changed),
+                    }))  # fmt: skip
+            except LinkError as exc:
+                out.append(TelemetryRecord(self.clock(), name, "link", {"up": False, "note": str(exc)}))
+            return self._emit(out)
+
+    def sync(self, name: str) -> list[TelemetryRecord]:
+        ops = self.ops(name)
+        if ops.config.sync_source is None:
+            raise ConfigError(f"capsule {name}: sync_source is not configured")
+        with ops.lock:
+            ops.syncer.sync(ops.config.sync_source)
+        return self.poll(name)
+
+    def power_on(self, name: str) -> list[TelemetryRecord]:
+        """Confirmed by the operator before this is called (the relay cannot be switched off by software)."""
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.machine.power_on(confirmed=True)
+            ops.arming.disarm("power-on")
+        return self._emit([self._release_record(name, record)])
+
+    def fire(
+        self, name: str, typed_name: str, report: GoNoGoReport, second: str | None, waiver: str | None
+    ) -> list[TelemetryRecord]:
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.arming.fire(typed_name, report, second, waiver)
+            ops.link.close()
+        return self._emit([
+            self._release_record(name, record),
+            TelemetryRecord(self.clock(), name, "link", {"up": False, "note": "released: the Pi shut down"}),
+        ])  # fmt: skip
+
+    def gateway_check(self) -> list[TelemetryRecord]:
+        """Whether commands could be sent: the gateway's address and credentials are configured."""
+        try:
+            RockblockGateway.from_config(self.config.rockblock, self.environ)
+            data = {"credentials_ok": True, "note": f"user {self.config.rockblock.username}"}
+        except ConfigError as exc:
+            data = {"credentials_ok": False, "note": str(exc)}
+        return self._emit([TelemetryRecord(self.clock(), None, "gateway", data)])
+
+    def new_reports(self, name: str) -> list[TelemetryRecord]:
+        """Iridium reports of one capsule stored since the last call (webhook or importer wrote them)."""
+        imei = self.ops(name).config.imei
+        if not imei:
+            return []
+        stored = self.reports.for_imei(imei)
+        seen = self._seen_reports.get(name, 0)
+        fresh = [r for r in stored if r.id > seen]
+        if stored:
+            self._seen_reports[name] = max(r.id for r in stored)
+        interval = 2
+        for command in self.lifecycle.for_imei(imei):
+            if command.text.startswith("[INTERVAL=") and command.state == "effect_confirmed":
+                interval = int(command.text.split("=")[1].split("]")[0])
+        records = [report_record(name, r, interval) for r in fresh]
+        if records:
+            self.lifecycle.observe(stored, imei)
+        return self._emit(records)
+
+    def stored_reports(self, name: str) -> list[StoredReport]:
+        imei = self.ops(name).config.imei
+        return self.reports.for_imei(imei) if imei else []
+
+    def commands(self, name: str) -> list[Command]:
+        imei = self.ops(name).config.imei
+        return self.lifecycle.for_imei(imei) if imei else []
+
+    def send_mt(self, name: str, message: MtMessage, confirmation: str) -> Command:
+        """Request and queue one MT; ``confirmation`` must be the capsule's name (checked by the lifecycle)."""
+        gateway = RockblockGateway.from_config(self.config.rockblock, self.environ)
+        command = self.lifecycle.request(self.ops(name).config, message)
+        return self.lifecycle.send(command.id, confirmation, gateway)
+
+    def close(self) -> None:
+        for ops in self.capsules.values():
+            ops.link.close()
+        if self.recorder is not None:
+            self.recorder.close()

@@ -1,0 +1,193 @@
+"""The effects library as fit-able candidates, and the altitude-binned correction for what it lacks.
+
+A candidate is one of ``predictor.model``'s effect terms with ONE continuous parameter to fit (and,
+for an effect that needs a place, a small set of discrete variants such as the altitude band of
+``wind_band_scale``). Every other parameter is held at a stated value: with 10–30 flights, each
+extra free parameter mostly fits noise, and a parameter the data cannot pin down (the fast-fall
+speed of ``deployment_delay`` trades off exactly against its duration) is better fixed than fitted.
+
+Why a grid first: all grid values of a candidate fly as one batch of the compiled stepper (one run
+per value per flight), which is cheaper than the hundreds of sequential runs an optimiser would ask
+for, and the fit for every held-out fold is then a sum over the other flights' rows. The optimum is
+refined with ``scipy.optimize.minimize_scalar`` (bounded, to the neighbouring grid values) on a
+cubic spline through the grid's objective.
+
+The binned correction is not a candidate: it is fitted in closed form from the residuals (time and
+displacement in each altitude bin, measured against predicted) and answers "how much of the error
+is systematic with altitude at all", whatever its cause.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.optimize import minimize_scalar
+
+from predictor.calibration.residuals import BinBudget
+from predictor.errors import PredictorError
+from predictor.model import EFFECTS, BinnedDescentRate, BinnedWind, Term
+
+BIN_EDGES_M = tuple(float(z) for z in range(0, 39_000, 3000))
+"""Altitude bins of the binned correction: 3 km, coarse enough for 2–5 min fixes (1–4 km apart)."""
+MIN_BIN_SECONDS = 60.0
+"""A bin measured for less than this over all training flights keeps factor 1 and no added wind."""
+BINNED_FACTOR_BOUNDS = (0.5, 2.0)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One effect to try: the term, its fitted parameter (grid and bounds), what is held fixed."""
+
+    name: str
+    family: str
+    parameter: str
+    grid: tuple[float, ...]
+    bounds: tuple[float, float]
+    neutral: float
+    """The value at which the effect does nothing (the baseline)."""
+    fixed: Mapping[str, float] = field(default_factory=dict)
+    variants: tuple[Mapping[str, float], ...] = ({},)
+    """Discrete alternatives tried with every grid value (e.g. altitude bands)."""
+    why: str = ""
+
+    def points(self) -> list[tuple[int, float]]:
+        """(variant index, value) of every grid point, variant-major."""
+        return [(v, x) for v in range(len(self.variants)) for x in self.grid]
+
+    def term(self, variant: np.ndarray | int, value: np.ndarray | float) -> Term:
+        """The model term for one value or for arrays of (variant, value), one per trajectory."""
+        cls = EFFECTS[self.name]
+        variant = np.asarray(variant)
+        kwargs: dict[str, object] = dict(self.fixed)
+        for key in self.variants[0]:
+            column = np.array([self.variants[int(i)][key] for i in variant.ravel()])
+            kwargs[key] = float(column[0]) if variant.ndim == 0 else column
+        kwargs[self.parameter] = float(value) if np.ndim(value) == 0 else np.asarray(value, dtype=float)
+        return cls(**kwargs)
+
+    def parameters(self, variant: int, value: float) -> dict[str, float]:
+        return {**self.fixed, **self.variants[variant], self.parameter: float(value)}
+
+    def fit(self, objective: np.ndarray) -> tuple[int, float, float]:
+        """(variant, value, objective) minimising a grid objective of shape (len(points),)."""
+        table = np.asarray(objective, dtype=float).reshape(len(self.variants), len(self.grid))
+        finite = np.isfinite(table)
+        if not finite.any():
+            return 0, self.neutral, float("inf")
+        table = np.where(finite, table, 10.0 * np.nanmax(np.abs(table[finite])) + 1.0)
+        variant, k = np.unravel_index(int(np.argmin(table)), table.shape)
+        row = table[variant]
+        grid = np.asarray(self.grid)
+        lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+        best_value, best = float(grid[k]), float(row[k])
+        if len(grid) >= 4 and hi > lo:
+            spline = CubicSpline(grid, row)
+            found = minimize_scalar(lambda x: float(spline(x)), bounds=(lo, hi), method="bounded")
+            if found.success and float(found.fun) < best:
+                best_value, best = float(found.x), float(found.fun)
+        return int(variant), best_value, best
+
+
+def _bands() -> tuple[Mapping[str, float], ...]:
+    return tuple({"bottom_m": float(b), "top_m": float(b + 6000)} for b in range(0, 27_000, 3000))
+
+
+LIBRARY: tuple[Candidate, ...] = (
+    Candidate(
+        "descent_rate_scale", "vertical", "scale", tuple(np.linspace(0.6, 1.6, 11)), (0.5, 2.0), 1.0,
+        why="λ, the paper's one number: Cd·A or mass wrong by a constant factor",
+    ),
+    Candidate(
+        "drag_density_exponent", "vertical", "exponent", tuple(np.linspace(-0.4, 0.4, 9)), (-0.5, 0.5), 0.0,
+        fixed={"reference_density": 1.225},
+        why="drag that changes with density (Reynolds number): fast or slow high up, not near the ground",
+    ),
+    Candidate(
+        "deployment_delay", "vertical", "delay_s", tuple(np.linspace(0.0, 180.0, 10)), (0.0, 240.0), 0.0,
+        fixed={"speed_factor": 3.0},
+        why="the canopy opens late: 3× faster fall until then (speed factor held: it trades off with the delay)",
+    ),
+    Candidate(
+        "wind_scale", "horizontal", "scale", tuple(np.linspace(0.5, 1.5, 11)), (0.3, 2.0), 1.0,
+        why="the forecast wind speed wrong by a constant factor",
+    ),
+    Candidate(
+        "wind_rotation", "horizontal", "angle_deg", tuple(np.linspace(-40.0, 40.0, 9)), (-60.0, 60.0), 0.0,
+        why="the forecast wind direction off by a constant angle",
+    ),
+    Candidate(
+        "wind_band_scale", "horizontal", "scale", tuple(np.linspace(0.2, 2.0, 7)), (0.0, 2.5), 1.0,
+        variants=_bands(),
+        why="the wind wrong by a factor only in a 6 km band (bands every 3 km from the ground to 30 km)",
+    ),
+    Candidate(
+        "wind_lag", "horizontal", "time_constant_s", (0.0, 15.0, 30.0, 60.0, 120.0, 240.0, 480.0),
+        (0.0, 600.0), 0.0,
+        why="the payload's horizontal inertia: its velocity relaxes to the air's with a time constant",
+    ),
+    Candidate(
+        "weather_time_offset", "timing", "offset_s", tuple(np.linspace(-10800.0, 10800.0, 9)),
+        (-14400.0, 14400.0), 0.0,
+        why="the weather happens earlier or later than the forecast says (no effect with time-constant weather)",
+    ),
+)
+"""Every library candidate; ``selection`` tries them all unless given a subset."""
+
+
+def library(names: Sequence[str] | None = None) -> tuple[Candidate, ...]:
+    if names is None:
+        return LIBRARY
+    known = {c.name: c for c in LIBRARY}
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise PredictorError(f"unknown effect(s) {', '.join(unknown)}; the library has {', '.join(known)}")
+    return tuple(known[n] for n in names)
+
+
+@dataclass(frozen=True)
+class BinnedCorrection:
+    """Per altitude bin: a factor on the descent rate and an added wind (east, north)."""
+
+    edges_m: tuple[float, ...]
+    rate_factor: tuple[float, ...]
+    east_ms: tuple[float, ...]
+    north_ms: tuple[float, ...]
+    measured_s: tuple[float, ...]
+    """Time the training flights spent in each bin (what each value rests on)."""
+
+    def terms(self) -> tuple[Term, ...]:
+        return (
+            BinnedDescentRate(edges_m=self.edges_m, factors=self.rate_factor),
+            BinnedWind(edges_m=self.edges_m, east_ms=self.east_ms, north_ms=self.north_ms),
+        )
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {
+            "edges_m": list(self.edges_m),
+            "rate_factor": [round(x, 4) for x in self.rate_factor],
+            "east_ms": [round(x, 3) for x in self.east_ms],
+            "north_ms": [round(x, 3) for x in self.north_ms],
+            "measured_s": [round(x, 1) for x in self.measured_s],
+        }
+
+
+def fit_binned(budgets: Sequence[BinBudget], edges_m: Sequence[float] = BIN_EDGES_M) -> BinnedCorrection:
+    """Closed form: the factor that makes predicted bin times equal measured ones over all flights,
+    and the mean horizontal velocity the prediction missed in each bin (time-weighted)."""
+    measured = np.sum([b.measured_s for b in budgets], axis=0)
+    predicted = np.sum([b.predicted_s for b in budgets], axis=0)
+    missed_east = np.sum([b.measured_east_m - b.predicted_east_ms * b.measured_s for b in budgets], axis=0)
+    missed_north = np.sum([b.measured_north_m - b.predicted_north_ms * b.measured_s for b in budgets], axis=0)
+    enough = measured >= MIN_BIN_SECONDS
+    safe = np.where(enough, measured, 1.0)
+    factor = np.where(enough, np.clip(predicted / safe, *BINNED_FACTOR_BOUNDS), 1.0)
+    return BinnedCorrection(
+        edges_m=tuple(float(e) for e in edges_m),
+        rate_factor=tuple(float(x) for x in factor),
+        east_ms=tuple(float(x) for x in np.where(enough, missed_east / safe, 0.0)),
+        north_ms=tuple(float(x) for x in np.where(enough, missed_north / safe, 0.0)),
+        measured_s=tuple(float(x) for x in measured),
+    )

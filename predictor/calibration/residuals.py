@@ -1,0 +1,407 @@
+"""Measured descents against predicted ones: where, when and by how much the model is wrong.
+
+Every calibration question reduces to "run the model on a flight and compare with what was measured",
+thousands of times (every candidate effect, every parameter value, every held-out fold). So this
+module runs many parameter sets of one model on one flight in ONE call of the compiled stepper (the
+parameters of a term may be arrays, one value per trajectory) and scores all of them in one compiled
+pass. Comparison rules, the same for every use:
+
+* The prediction starts at the flight's descent start (time, position, altitude) and ends where it
+  meets the ground: the measured landing altitude (no DEM needed), or the terrain with ``--dem``.
+* Positions are compared at the same time since the descent start, in a local east/north/up frame
+  (km) around the descent start; a predicted path that has already landed stays at its landing.
+  The flight's score is the RMS of the 3-D error over all its descent fixes after the start: one
+  number, in km, that a descent-rate error (the capsule is too high or too low at a given time) and a
+  wind error (too far east) both raise.
+* Landing error: great-circle-like distance between predicted and measured landing points (km, local
+  frame); descent-time error: predicted minus measured, seconds.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from datetime import datetime
+
+import numpy as np
+from numba import get_num_threads, njit
+
+from predictor.calibration.cleaning import Flight
+from predictor.cube import WeatherCube
+from predictor.errors import PredictorError
+from predictor.integrate import DEFAULT_TIME_TOLERANCE_S, STATUS_OK, descend, packed
+from predictor.model import Model, Term
+from predictor.payload import Payload
+from predictor.terrain import Terrain
+
+WGS84_A = 6378137.0
+WGS84_E2 = 6.69437999014e-3
+DEFAULT_STEP_M = 100.0
+LOWEST_GROUND_M = -500.0
+
+
+@dataclass(frozen=True)
+class FlightCase:
+    """One flight ready to be predicted and scored: its measured descent and the weather to fly it in."""
+
+    name: str
+    cube: WeatherCube
+    start_time: datetime
+    start_lat: float
+    start_lon: float
+    start_alt_m: float
+    fix_t: np.ndarray
+    """Seconds since descent start of every descent fix after the start (landing included)."""
+    fix_x: np.ndarray
+    """East of the descent start, km."""
+    fix_y: np.ndarray
+    """North of the descent start, km."""
+    fix_z: np.ndarray
+    """Altitude, km."""
+    landing_alt_m: float
+    descent_time_s: float
+    drift_km: float
+    terrain: Terrain | None = None
+    """Ground from a DEM; None means the ground is the measured landing altitude."""
+
+    @property
+    def east_km_per_deg(self) -> float:
+        return _radii_km(self.start_lat)[1] * math.cos(math.radians(self.start_lat)) * math.pi / 180.0
+
+    @property
+    def north_km_per_deg(self) -> float:
+        return _radii_km(self.start_lat)[0] * math.pi / 180.0
+
+    def local(self, lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(east, north) km from the descent start; longitudes taken the short way round."""
+        d_lon = (np.asarray(lon) - self.start_lon + 180.0) % 360.0 - 180.0
+        return d_lon * self.east_km_per_deg, (np.asarray(lat) - self.start_lat) * self.north_km_per_deg
+
+
+def _radii_km(lat_deg: float) -> tuple[float, float]:
+    """Meridional and prime-vertical radii of curvature of WGS84 at this latitude, km."""
+    s2 = math.sin(math.radians(lat_deg)) ** 2
+    w = math.sqrt(1.0 - WGS84_E2 * s2)
+    return WGS84_A * (1.0 - WGS84_E2) / w**3 / 1000.0, WGS84_A / w / 1000.0
+
+
+def flight_case(flight: Flight, cube: WeatherCube, terrain: Terrain | None = None) -> FlightCase:
+    if not flight.usable or flight.descent_start is None or flight.landing is None:
+        raise PredictorError(f"flight {flight.name} cannot be calibrated on: {'; '.join(flight.exclusions)}")
+    start, land = flight.descent_start, flight.landing
+    fixes = [f for f in flight.descent if f.time > start.time]
+    if not fixes:
+        raise PredictorError(f"flight {flight.name} has no descent fix after its descent start")
+    case = FlightCase(
+        name=flight.name,
+        cube=cube,
+        start_time=start.time,
+        start_lat=start.lat,
+        start_lon=start.lon,
+        start_alt_m=start.alt_m,
+        fix_t=np.array([(f.time - start.time).total_seconds() for f in fixes]),
+        fix_x=np.zeros(0),
+        fix_y=np.zeros(0),
+        fix_z=np.array([f.alt_m for f in fixes]) / 1000.0,
+        landing_alt_m=land.alt_m,
+        descent_time_s=(land.time - start.time).total_seconds(),
+        drift_km=float(flight.drift_km or 0.0),
+        terrain=terrain,
+    )
+    x, y = case.local(np.array([f.lat for f in fixes]), np.array([f.lon for f in fixes]))
+    object.__setattr__(case, "fix_x", x)
+    object.__setattr__(case, "fix_y", y)
+    return case
+
+
+@dataclass(frozen=True)
+class Runs:
+    """n predicted descents of one flight (one per parameter set), recorded step by step."""
+
+    t: np.ndarray
+    """Seconds since descent start, shape (n, steps)."""
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    """km, local frame."""
+    n_rec: np.ndarray
+    ok: np.ndarray
+    """False where the stepper failed (weather coverage, a term that stopped the descent)."""
+
+
+@dataclass(frozen=True)
+class Scores:
+    """Per trajectory: the numbers every comparison uses (NaN where the run failed)."""
+
+    track_rms_km: np.ndarray
+    landing_error_km: np.ndarray
+    descent_time_error_s: np.ndarray
+    landing_x: np.ndarray
+    landing_y: np.ndarray
+    landing_t: np.ndarray
+    landing_z: np.ndarray
+
+
+def run(case: FlightCase, payload: Payload, effects: tuple[Term, ...], n: int, step_m: float) -> Runs:
+    """Fly ``n`` descents of the chain payload + wind + effects (array parameters: one value per run)."""
+    model = Model.for_payload(payload, *effects)
+    w = packed(case.cube)
+    z0 = case.start_alt_m
+    floor = LOWEST_GROUND_M if case.terrain is not None else case.landing_alt_m - 2.0 * step_m
+    n_max = int(math.ceil((z0 - floor) / step_m)) + 2
+    out = [np.full((n, n_max), np.nan) for _ in range(5)]
+    n_rec = np.zeros(n, dtype=np.int64)
+    status = np.zeros(n, dtype=np.int64)
+    held = np.zeros(n)
+    t0 = case.start_time.timestamp()
+    ones = np.ones(n)
+    descend(
+        w.t_s, w.lats, w.lons, w.columns, DEFAULT_TIME_TOLERANCE_S,
+        model.table(), model.parameter_matrix(n), model.state_matrix(n),
+        ones * case.start_lat, ones * case.start_lon, ones * z0, ones * t0, step_m, floor,
+        np.zeros(n, dtype=np.int64), *out, n_rec, status, held, np.zeros((n, 5)), min(n, get_num_threads()),
+    )  # fmt: skip
+    lat, lon, z, t, _ = out
+    x, y = case.local(lat, lon)
+    return Runs(t=t - t0, x=x, y=y, z=z / 1000.0, n_rec=n_rec, ok=status == STATUS_OK)
+
+
+def ground_km(case: FlightCase, runs: Runs) -> np.ndarray:
+    """Ground altitude (km) under every recorded point: the measured landing altitude, or the DEM."""
+    if case.terrain is None:
+        return np.full(runs.z.shape, case.landing_alt_m / 1000.0)
+    ground = np.full(runs.z.shape, -np.inf)
+    low = runs.z <= 8.9
+    lat = case.start_lat + runs.y[low] / case.north_km_per_deg
+    lon = case.start_lon + runs.x[low] / case.east_km_per_deg
+    ground[low] = case.terrain.elevation(lat, (lon + 180.0) % 360.0 - 180.0) / 1000.0
+    return ground
+
+
+def score(case: FlightCase, runs: Runs) -> Scores:
+    n = runs.t.shape[0]
+    out = np.full((n, 5), np.nan)
+    _score_kernel(
+        runs.t, runs.x, runs.y, runs.z, ground_km(case, runs), runs.n_rec, runs.ok,
+        case.fix_t, case.fix_x, case.fix_y, case.fix_z, out,
+    )  # fmt: skip
+    land_x, land_y = case.fix_x[-1], case.fix_y[-1]
+    return Scores(
+        track_rms_km=np.sqrt(out[:, 0]),
+        landing_error_km=np.hypot(out[:, 1] - land_x, out[:, 2] - land_y),
+        descent_time_error_s=out[:, 3] - case.descent_time_s,
+        landing_x=out[:, 1],
+        landing_y=out[:, 2],
+        landing_t=out[:, 3],
+        landing_z=out[:, 4],
+    )
+
+
+@njit(cache=True)
+def _score_kernel(
+    t: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    z: np.ndarray,
+    ground: np.ndarray,
+    n_rec: np.ndarray,
+    ok: np.ndarray,
+    fix_t: np.ndarray,
+    fix_x: np.ndarray,
+    fix_y: np.ndarray,
+    fix_z: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """out[i] = (mean squared 3-D error over the fixes, landing x, y, t, z)."""
+    for i in range(t.shape[0]):
+        if not ok[i]:
+            continue
+        k_land = -1
+        for k in range(1, n_rec[i]):
+            if z[i, k] <= ground[i, k]:
+                k_land = k
+                break
+        if k_land < 0:
+            continue
+        above = z[i, k_land - 1] - ground[i, k_land - 1]
+        under = z[i, k_land] - ground[i, k_land]
+        f = above / (above - under)
+        tl = t[i, k_land - 1] + f * (t[i, k_land] - t[i, k_land - 1])
+        xl = x[i, k_land - 1] + f * (x[i, k_land] - x[i, k_land - 1])
+        yl = y[i, k_land - 1] + f * (y[i, k_land] - y[i, k_land - 1])
+        zl = z[i, k_land - 1] + f * (z[i, k_land] - z[i, k_land - 1])
+        total = 0.0
+        k = 0
+        for j in range(fix_t.shape[0]):
+            tj = fix_t[j]
+            if tj >= tl:
+                px, py, pz = xl, yl, zl
+            else:
+                while t[i, k + 1] < tj:
+                    k += 1
+                g = (tj - t[i, k]) / (t[i, k + 1] - t[i, k])
+                px = x[i, k] + g * (x[i, k + 1] - x[i, k])
+                py = y[i, k] + g * (y[i, k + 1] - y[i, k])
+                pz = z[i, k] + g * (z[i, k + 1] - z[i, k])
+            total += (px - fix_x[j]) ** 2 + (py - fix_y[j]) ** 2 + (pz - fix_z[j]) ** 2
+        out[i, 0] = total / fix_t.shape[0]
+        out[i, 1] = xl
+        out[i, 2] = yl
+        out[i, 3] = tl
+        out[i, 4] = zl
+
+
+# ---------------------------------------------------------------- residuals of one prediction
+
+
+@dataclass(frozen=True)
+class FlightResiduals:
+    """One flight's residuals against one predicted descent, for plots and the binned correction."""
+
+    name: str
+    interval_alt_m: np.ndarray
+    """Mid altitude of each interval between consecutive measured descent fixes."""
+    interval_t_s: np.ndarray
+    """Mid time since release of each interval."""
+    interval_density: np.ndarray
+    interval_wind_ms: np.ndarray
+    speed_ratio: np.ndarray
+    """Measured / predicted mean descent speed over the interval's altitude span."""
+    fix_alt_m: np.ndarray
+    fix_t_s: np.ndarray
+    fix_density: np.ndarray
+    fix_wind_ms: np.ndarray
+    along_km: np.ndarray
+    """Measured minus predicted position at the same time, along the predicted drift direction."""
+    cross_km: np.ndarray
+    """The same, across it (positive to the right of the drift direction)."""
+    landing_error_km: float
+    landing_along_km: float
+    landing_cross_km: float
+    descent_time_error_s: float
+    predicted_drift_km: float
+    predicted_path_km: float
+
+
+def residuals(case: FlightCase, runs: Runs, row: int = 0) -> FlightResiduals:
+    """The residuals of one predicted descent (row ``row`` of ``runs``) at every measured fix."""
+    s = score(case, Runs(*(a[row : row + 1] for a in (runs.t, runs.x, runs.y, runs.z, runs.n_rec, runs.ok))))
+    if not np.isfinite(s.landing_t[0]):
+        raise PredictorError(f"flight {case.name}: the predicted descent did not reach the ground")
+    m = int(runs.n_rec[row])
+    t, x, y, z = runs.t[row, :m], runs.x[row, :m], runs.y[row, :m], runs.z[row, :m]
+    keep = t < s.landing_t[0]
+    t = np.append(t[keep], s.landing_t[0])
+    x = np.append(x[keep], s.landing_x[0])
+    y = np.append(y[keep], s.landing_y[0])
+    z = np.append(z[keep], s.landing_z[0])
+    px = np.interp(case.fix_t, t, x)
+    py = np.interp(case.fix_t, t, y)
+    drift = math.hypot(float(x[-1]), float(y[-1]))
+    ux, uy = (x[-1] / drift, y[-1] / drift) if drift > 0 else (0.0, 1.0)
+    ex, ey = case.fix_x - px, case.fix_y - py
+    along = ex * ux + ey * uy
+    cross = ex * uy - ey * ux
+    fix_alt = case.fix_z * 1000.0
+    all_t = np.concatenate(([0.0], case.fix_t))
+    all_z = np.concatenate(([case.start_alt_m], fix_alt))
+    dz = -np.diff(all_z)
+    measured_rate = dz / np.diff(all_t)
+    t_of_z = np.interp(all_z[::-1] / 1000.0, z[::-1], t[::-1])[::-1]
+    predicted_span = np.diff(t_of_z)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        predicted_rate = np.where(predicted_span > 0, dz / predicted_span, np.nan)
+        ratio = np.where(dz > 0, measured_rate / predicted_rate, np.nan)
+    mid_z = 0.5 * (all_z[1:] + all_z[:-1])
+    lex, ley = s.landing_x[0] - case.fix_x[-1], s.landing_y[0] - case.fix_y[-1]
+    return FlightResiduals(
+        name=case.name,
+        interval_alt_m=mid_z,
+        interval_t_s=0.5 * (all_t[1:] + all_t[:-1]),
+        interval_density=column_density(case, mid_z),
+        interval_wind_ms=column_wind_speed(case, mid_z),
+        speed_ratio=ratio,
+        fix_alt_m=fix_alt,
+        fix_t_s=case.fix_t,
+        fix_density=column_density(case, fix_alt),
+        fix_wind_ms=column_wind_speed(case, fix_alt),
+        along_km=along,
+        cross_km=cross,
+        landing_error_km=float(s.landing_error_km[0]),
+        landing_along_km=-float(lex * ux + ley * uy),
+        landing_cross_km=-float(lex * uy - ley * ux),
+        descent_time_error_s=float(s.descent_time_error_s[0]),
+        predicted_drift_km=drift,
+        predicted_path_km=float(np.sum(np.hypot(np.diff(x), np.diff(y)))),
+    )
+
+
+def _column(case: FlightCase) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The weather column nearest the descent start at the start time: z, log ρ, u, v."""
+    cube = case.cube
+    ti = int(np.argmin(np.abs(cube.times.astype("datetime64[s]").astype(np.int64) - case.start_time.timestamp())))
+    yi = int(np.argmin(np.abs(cube.lats - case.start_lat)))
+    xi = int(np.argmin(np.abs(cube.lons - float(cube.lon_in_cube(case.start_lon)))))
+    return (
+        cube.z_m[ti, :, yi, xi],
+        np.log(cube.density[ti, :, yi, xi]),
+        cube.u[ti, :, yi, xi],
+        cube.v[ti, :, yi, xi],
+    )
+
+
+def column_density(case: FlightCase, alt_m: np.ndarray) -> np.ndarray:
+    z, log_rho, _, _ = _column(case)
+    return np.exp(np.interp(alt_m, z, log_rho))
+
+
+def column_wind_speed(case: FlightCase, alt_m: np.ndarray) -> np.ndarray:
+    z, _, u, v = _column(case)
+    return np.hypot(np.interp(alt_m, z, u), np.interp(alt_m, z, v))
+
+
+# ---------------------------------------------------------------- altitude-bin budgets
+
+
+@dataclass(frozen=True)
+class BinBudget:
+    """Per altitude bin: time spent and displacement, measured and predicted (the binned fit's input)."""
+
+    measured_s: np.ndarray
+    predicted_s: np.ndarray
+    measured_east_m: np.ndarray
+    measured_north_m: np.ndarray
+    predicted_east_ms: np.ndarray
+    predicted_north_ms: np.ndarray
+    """Mean predicted horizontal velocity in the bin (0 where the prediction spent no time)."""
+
+
+def bin_budget(case: FlightCase, runs: Runs, row: int, edges_m: np.ndarray) -> BinBudget:
+    """Crossing times of every bin edge, measured (fixes, linear between them) and predicted."""
+    m = int(runs.n_rec[row])
+    pt, px, py, pz = (a[row, :m] for a in (runs.t, runs.x, runs.y, runs.z))
+    mt = np.concatenate(([0.0], case.fix_t))
+    mx = np.concatenate(([0.0], case.fix_x))
+    my = np.concatenate(([0.0], case.fix_y))
+    mz = np.concatenate(([case.start_alt_m / 1000.0], case.fix_z))
+    top, bottom = mz[0], mz[-1]
+    levels = np.clip(np.asarray(edges_m) / 1000.0, bottom, top)
+
+    def down(a: np.ndarray, zz: np.ndarray) -> np.ndarray:
+        """Change of ``a`` across each bin, top edge to bottom edge, at the first crossings."""
+        z_mono = np.minimum.accumulate(zz)[::-1]  # GNSS noise can make a fix rise: keep it monotonic
+        return -np.diff(np.interp(levels, z_mono, a[::-1]))
+
+    measured_s = down(mt, mz)
+    predicted_s = down(pt, pz)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pe = np.where(predicted_s > 0, down(px, pz) * 1000.0 / predicted_s, 0.0)
+        pn = np.where(predicted_s > 0, down(py, pz) * 1000.0 / predicted_s, 0.0)
+    return BinBudget(
+        measured_s=measured_s,
+        predicted_s=predicted_s,
+        measured_east_m=down(mx, mz) * 1000.0,
+        measured_north_m=down(my, mz) * 1000.0,
+        predicted_east_ms=pe,
+        predicted_north_ms=pn,
+    )

@@ -1,0 +1,161 @@
+"""Many descents that start at different times, places and altitudes, in one compiled call per chunk.
+
+``predict_ensemble`` starts every member at one release; a release-window sweep needs 120 releases
+× 200 members, each from its own time and position. The stepper (``integrate.descend``) already takes
+per-trajectory starts, so this module drives it directly and finds each path's ground crossing the
+same way ``predict`` does (first recorded point at or under the terrain, linear interpolation inside
+that step), so a trajectory here lands exactly where ``predict`` puts the same release.
+
+Unlike ``predict``, a trajectory that leaves the weather does not abort the batch: it comes back with
+its status code, because one candidate outside the forecast must not hide the others.
+Trajectories are run in chunks so that the recorded paths (5 arrays × steps × trajectories) stay
+within ~50 MB whatever the batch size.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import get_num_threads
+
+from predictor.cube import WeatherCube
+from predictor.integrate import DEFAULT_TIME_TOLERANCE_S, STATUS_OK, descend, packed
+from predictor.model import Model
+from predictor.terrain import Terrain
+
+HIGHEST_GROUND_M = 8900.0
+LOWEST_GROUND_M = -500.0
+CHUNK = 4096
+STATUS_RELEASE_UNDERGROUND = 101
+STATUS_NO_GROUND = 102
+
+
+@dataclass(frozen=True)
+class BatchLandings:
+    lat: np.ndarray
+    lon: np.ndarray
+    """Wrapped to [-180, 180)."""
+    alt_m: np.ndarray
+    t_s: np.ndarray
+    """Epoch seconds of touchdown."""
+    path_m: np.ndarray
+    t_future_mean_h: np.ndarray
+    """Time-weighted mean forecast lead along each path (NaN unless asked for)."""
+    status: np.ndarray
+    """0 for a landing; a STATUS_* code of the stepper, or STATUS_RELEASE_UNDERGROUND / STATUS_NO_GROUND."""
+
+
+def wrap_lon(lon: np.ndarray | float) -> np.ndarray:
+    return (np.asarray(lon, dtype=np.float64) + 180.0) % 360.0 - 180.0
+
+
+def descend_batch(
+    cube: WeatherCube,
+    model: Model,
+    lat0: np.ndarray,
+    lon0: np.ndarray,
+    z0: np.ndarray,
+    t0: np.ndarray,
+    terrain: Terrain,
+    step_m: float = 100.0,
+    with_lead: bool = False,
+    time_tolerance_s: float = DEFAULT_TIME_TOLERANCE_S,
+) -> BatchLandings:
+    """Land every trajectory; the model's per-trajectory parameters have one value per row of lat0."""
+    n = lat0.size
+    w = packed(cube)
+    params = model.parameter_matrix(n)
+    state = model.state_matrix(n)
+    table = model.table()
+    out = {name: np.full(n, np.nan) for name in ("lat", "lon", "alt_m", "t_s", "path_m", "lead")}
+    status = np.zeros(n, dtype=np.int64)
+    threads = get_num_threads()
+    for lo in range(0, n, CHUNK):
+        hi = min(lo + CHUNK, n)
+        m = hi - lo
+        finite = np.isfinite(lat0[lo:hi]) & np.isfinite(lon0[lo:hi]) & np.isfinite(z0[lo:hi])
+        # Rows without a start (the balloon left the weather before them) get a harmless start and are
+        # marked afterwards; the kernel needs finite numbers.
+        la = np.where(finite, lat0[lo:hi], 0.0)
+        lo_ = np.where(finite, lon0[lo:hi], 0.0)
+        zz = np.where(finite, z0[lo:hi], LOWEST_GROUND_M - 1.0)
+        steps = np.ceil((np.maximum(zz, LOWEST_GROUND_M) - LOWEST_GROUND_M) / step_m).astype(np.int64) + 1
+        if with_lead:
+            skip = np.zeros(m, dtype=np.int64)
+        else:
+            # Only the part near and below the highest ground is recorded (as predict does for members).
+            skip = np.maximum(np.floor((zz - HIGHEST_GROUND_M) / step_m).astype(np.int64) - 1, 0)
+        rec = [np.empty((m, int((steps - skip).max()) + 1)) for _ in range(5)]
+        n_rec = np.zeros(m, dtype=np.int64)
+        code = np.zeros(m, dtype=np.int64)
+        held = np.zeros(m)
+        failed_at = np.zeros((m, 5))
+        descend(
+            w.t_s, w.lats, w.lons, w.columns, time_tolerance_s,
+            table, np.ascontiguousarray(params[lo:hi]), np.ascontiguousarray(state[lo:hi]),
+            la, lo_, zz, np.ascontiguousarray(t0[lo:hi]), step_m, LOWEST_GROUND_M, skip,
+            *rec, n_rec, code, held, failed_at, min(m, threads),
+        )  # fmt: skip
+        code[~finite] = -1
+        part = _landings(rec, n_rec, code, terrain, w.t_s, w.lead_h, with_lead)
+        for name, values in part.items():
+            out[name][lo:hi] = values
+        status[lo:hi] = code
+    status[np.isnan(lat0) | np.isnan(lon0)] = -1
+    return BatchLandings(
+        lat=out["lat"],
+        lon=wrap_lon(out["lon"]),
+        alt_m=out["alt_m"],
+        t_s=out["t_s"],
+        path_m=out["path_m"],
+        t_future_mean_h=out["lead"],
+        status=status,
+    )
+
+
+def _landings(
+    rec: list[np.ndarray],
+    n_rec: np.ndarray,
+    code: np.ndarray,
+    terrain: Terrain,
+    t_axis: np.ndarray,
+    lead_axis: np.ndarray,
+    with_lead: bool,
+) -> dict[str, np.ndarray]:
+    """First ground crossing per row (rows with a bad code are left NaN; ``code`` is updated in place)."""
+    lat, lon, z, t, path = rec
+    m, k_max = z.shape
+    valid = (np.arange(k_max)[None, :] < n_rec[:, None]) & (code == STATUS_OK)[:, None]
+    low = valid & (z <= HIGHEST_GROUND_M)
+    # The point before the first one under the ceiling brackets a crossing too.
+    low[:, :-1] |= low[:, 1:]
+    low &= valid
+    ground = np.full(z.shape, -np.inf)
+    if low.any():
+        ground[low] = terrain.elevation(lat[low], wrap_lon(lon[low]))
+    below = valid & (z <= ground)
+    index = below.argmax(axis=1)
+    has = below.any(axis=1)
+    # A crossing at the first recorded point is the release itself under the ground (with nothing
+    # skipped), or a path whose skipped part already went under (impossible above 8900 m).
+    underground = has & (index == 0)
+    code[underground] = STATUS_RELEASE_UNDERGROUND
+    code[(code == STATUS_OK) & ~has] = STATUS_NO_GROUND
+    good = np.flatnonzero(code == STATUS_OK)
+    result = {name: np.full(m, np.nan) for name in ("lat", "lon", "alt_m", "t_s", "path_m", "lead")}
+    if good.size == 0:
+        return result
+    k = index[good]
+    above = z[good, k - 1] - ground[good, k - 1]
+    under = z[good, k] - ground[good, k]
+    fraction = above / (above - under)
+    for name, a in (("lat", lat), ("lon", lon), ("alt_m", z), ("t_s", t), ("path_m", path)):
+        result[name][good] = a[good, k - 1] + fraction * (a[good, k] - a[good, k - 1])
+    if with_lead:
+        for row, kk in zip(good, k, strict=True):
+            times = np.append(t[row, :kk], result["t_s"][row])
+            lead = np.interp(times, t_axis, lead_axis)
+            span = times[-1] - times[0]
+            result["lead"][row] = float(np.trapezoid(lead, times) / span) if span > 0 else float(lead[0])
+    return result

@@ -1,0 +1,189 @@
+"""ARM then FIRE, enforced in the domain layer on top of the release state machine's tokens."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import pytest
+
+from drs_link.arming import ArmingController, ArmState, check_second_operator
+from drs_link.backends.stock import StockBackend
+from drs_link.capsule import ReleaseState, ReleaseStateMachine
+from drs_link.config import CapsuleConfig, parse_config
+from drs_link.errors import RefusedError
+from drs_link.gonogo import GoNoGoInputs, GoNoGoReport, PredictionCheck, evaluate
+from drs_link.simulator import CapsuleSimulator
+from drs_link.ssh import CapsuleLink
+from drs_link.staleness import Reading
+from drs_link.store import Store
+
+T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
+
+
+class Clock:
+    def __init__(self, start: datetime = T0) -> None:
+        self.now = start
+
+    def __call__(self) -> datetime:
+        return self.now
+
+    def advance(self, seconds: float) -> None:
+        self.now += timedelta(seconds=seconds)
+
+
+def inputs(now: datetime, **changes: object) -> GoNoGoInputs:
+    ring = ((-64.1, -31.1), (-63.9, -31.1), (-63.9, -30.9), (-64.1, -30.9))
+    base = GoNoGoInputs(
+        link_up=Reading(True, now, 10.0),
+        microcontroller_waiting=Reading(True, now, 10.0),
+        gnss_fix=Reading(True, now, 10.0),
+        sync_fraction=Reading(1.0, now, 60.0),
+        prediction=Reading(PredictionCheck(-31.0, -64.0, ring), now, 120.0),
+        gateway_credentials=Reading(True, now, 600.0),
+        powered=True,
+    )
+    return replace(base, **changes)  # type: ignore[arg-type]
+
+
+def go_report(clock: Clock, **changes: object) -> GoNoGoReport:
+    return evaluate("DRS1", inputs(clock(), **changes), clock())
+
+
+@pytest.fixture
+def store(tmp_path: Path) -> Store:
+    return Store.open(tmp_path / "drs.sqlite")
+
+
+def offline_machine(store: Store, clock: Clock) -> ReleaseStateMachine:
+    """The real state machine for a capsule nobody is connected to (the tests that never reach Go)."""
+    capsule = parse_config({"capsule": [{"name": "DRS1", "host": "127.0.0.1", "port": 9}]}).capsules[0]
+    return ReleaseStateMachine(store, capsule, StockBackend(capsule, CapsuleLink(capsule)), "EL", clock=clock)
+
+
+def controller(store: Store, clock: Clock, **kwargs: object) -> ArmingController:
+    return ArmingController(store, offline_machine(store, clock), "EL", clock=clock, **kwargs)  # type: ignore[arg-type]
+
+
+def test_fire_is_refused_without_arm_and_the_refusal_is_audited(store: Store) -> None:
+    clock = Clock()
+    arming = controller(store, clock)
+    with pytest.raises(RefusedError, match="not armed"):
+        arming.fire("DRS1", go_report(clock))
+    assert [(a.action, a.result) for a in store.audit("DRS1")] == [("fire", "refused")]
+
+
+def test_arm_is_refused_on_no_go_with_the_reasons(store: Store) -> None:
+    clock = Clock()
+    arming = controller(store, clock)
+    with pytest.raises(RefusedError, match="GNSS fix fresh: no fix"):
+        arming.arm(go_report(clock, gnss_fix=Reading(False, T0, 10.0)))
+    assert arming.status().state is ArmState.DISARMED
+
+
+def test_stale_data_blocks_arm(store: Store) -> None:
+    clock = Clock()
+    stale = inputs(T0)
+    clock.advance(30)
+    with pytest.raises(RefusedError, match="STALE"):
+        controller(store, clock).arm(evaluate("DRS1", stale, clock()))
+
+
+def test_arm_opens_a_window_that_counts_down_and_expires(store: Store) -> None:
+    clock = Clock()
+    arming = controller(store, clock, arm_window_s=45.0)
+    status = arming.arm(go_report(clock))
+    assert status.armed and status.remaining_s == 45.0
+    clock.advance(30)
+    assert arming.status().remaining_s == 15.0
+    clock.advance(15)
+    status = arming.status()
+    assert status.state is ArmState.DISARMED and status.last_disarm_reason == "ARM window expired"
+    with pytest.raises(RefusedError, match="not armed"):
+        arming.fire("DRS1", go_report(clock))
+
+
+def test_link_loss_disarms(store: Store) -> None:
+    clock = Clock()
+    arming = controller(store, clock)
+    arming.arm(go_report(clock))
+    assert arming.link_lost().last_disarm_reason == "link lost"
+    assert ("disarm", "link lost") in [(a.action, a.result) for a in store.audit("DRS1")]
+
+
+def test_a_changed_input_or_a_no_go_poll_disarms(store: Store) -> None:
+    clock = Clock()
+    arming = controller(store, clock)
+    arming.arm(go_report(clock))
+    clock.advance(2)
+    assert arming.observe(go_report(clock)).armed
+    moved = PredictionCheck(-31.2, -64.0, ((-64.1, -31.3), (-63.9, -31.3), (-63.9, -31.1), (-64.1, -31.1)))
+    status = arming.observe(go_report(clock, prediction=Reading(moved, clock(), 120.0)))
+    assert status.state is ArmState.DISARMED and status.last_disarm_reason == "inputs changed since ARM"
+    arming.arm(go_report(clock))
+    clock.advance(25)
+    status = arming.observe(evaluate("DRS1", inputs(T0 + timedelta(seconds=2)), clock()))
+    assert status.state is ArmState.DISARMED and "STALE" in (status.last_disarm_reason or "")
+
+
+def test_a_wrong_capsule_name_is_refused_and_nothing_is_sent(store: Store) -> None:
+    clock = Clock()
+    arming = controller(store, clock)
+    arming.arm(go_report(clock))
+    with pytest.raises(RefusedError, match="'DRS2' does not name 'DRS1'"):
+        arming.fire("DRS2", go_report(clock))
+    assert arming.status().armed
+    assert store.audit("DRS1")[-1].detail == {"reason": "wrong capsule name typed", "typed": "DRS2"}
+
+
+def test_the_second_operator_must_be_a_different_person() -> None:
+    with pytest.raises(RefusedError, match="different person"):
+        check_second_operator("EL", " el ", None, required=True)
+    with pytest.raises(RefusedError, match="second operator"):
+        check_second_operator("EL", None, None, required=True)
+    assert check_second_operator("EL", "MS", None, required=True) == {"second_operator": "MS"}
+    assert check_second_operator("EL", None, "alone on the ridge", required=True) == {
+        "single_operator_waiver": "alone on the ridge"
+    }
+    assert check_second_operator("EL", None, None, required=False) == {}
+
+
+def test_fire_with_a_required_second_operator_refuses_the_same_name(store: Store) -> None:
+    clock = Clock()
+    arming = controller(store, clock, require_second_operator=True)
+    arming.arm(go_report(clock))
+    with pytest.raises(RefusedError, match="different person"):
+        arming.fire("DRS1", go_report(clock), second_operator="EL")
+
+
+@pytest.mark.slow
+def test_armed_fire_releases_the_simulated_capsule_through_the_state_machine_tokens(
+    make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig], store: Store
+) -> None:
+    sim = make_sim()
+    config = sim_config(sim)
+    link = CapsuleLink(config)
+    machine = ReleaseStateMachine(
+        store, config, StockBackend(config, link), "EL", clock=sim.clock.now, sleep=sim.clock.sleep
+    )
+    machine.power_on(confirmed=True)
+    assert machine.wait_for_microcontroller().waiting_for_go
+    arming = ArmingController(store, machine, "EL", clock=sim.clock.now, arm_window_s=600.0)
+    report = evaluate("DRS1", inputs(sim.clock.now()), sim.clock.now())
+    arming.arm(report)
+    record = arming.fire("DRS1", report, single_operator_waiver="test drop, one person")
+    assert record.state is ReleaseState.RELEASED and sim.firmware.go_at is not None
+    assert arming.status().state is ArmState.FIRED
+    actions = [(a.action, a.result) for a in store.audit("DRS1")]
+    assert actions[-5:] == [
+        ("arm", "armed"),
+        ("fire", "authorised"),
+        ("go-confirmation", "minted"),
+        ("go", "sending"),
+        ("go", "released, Pi shut down"),
+    ]
+    with pytest.raises(RefusedError, match="fired"):
+        arming.arm(report)
+    link.close()

@@ -1,0 +1,112 @@
+"""Random operator sequences never make the state machine send Go when it should not."""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+from hypothesis import settings
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
+
+from drs_link.backends import GoResult
+from drs_link.capsule import ConfirmationToken, ReleaseState, ReleaseStateMachine
+from drs_link.config import CapsuleConfig
+from drs_link.errors import LinkError, RefusedError
+from drs_link.store import Store
+
+from .test_release_state_machine import Clock, InProcessPi
+
+
+class ReleaseSequences(RuleBasedStateMachine):
+    def __init__(self) -> None:
+        super().__init__()
+        self._tmp = tempfile.TemporaryDirectory()
+        self.clock = Clock()
+        self.pi = InProcessPi(self.clock, nmea_after_s=0.0)
+        self.machine = ReleaseStateMachine(
+            Store.open(Path(self._tmp.name) / "drs.sqlite"),
+            CapsuleConfig(name="DRS1", host="drs1.local"),
+            self.pi,
+            "EL",
+            clock=self.clock,
+            sleep=self.clock.advance,
+        )
+        self.tokens: list[ConfirmationToken] = []
+        self.go_calls_seen = 0
+
+    def teardown(self) -> None:
+        self._tmp.cleanup()
+
+    @rule(confirmed=st.booleans())
+    def power_on(self, confirmed: bool) -> None:
+        try:
+            self.machine.power_on(confirmed)
+        except RefusedError:
+            assert not confirmed or self.machine.record().state in (
+                ReleaseState.RELEASED,
+                ReleaseState.GO_SENT,
+            )
+
+    @rule(seconds=st.sampled_from([0.0, 1.0, 30.0, 59.0, 61.0, 120.0]))
+    def wait(self, seconds: float) -> None:
+        self.clock.advance(seconds)
+
+    @rule()
+    def look_at_the_serial_log(self) -> None:
+        self.machine.check_microcontroller()
+
+    @rule(typed=st.sampled_from(["DRS1", "DRS2", "drs1", ""]))
+    def confirm(self, typed: str) -> None:
+        try:
+            self.tokens.append(self.machine.confirm(typed))
+        except RefusedError:
+            pass
+
+    @rule(nmea_after_s=st.one_of(st.none(), st.floats(min_value=0, max_value=40)))
+    def firmware_behaviour(self, nmea_after_s: float | None) -> None:
+        self.pi.nmea_after_s = nmea_after_s
+
+    @rule(drop_before_write=st.booleans())
+    def link_quality(self, drop_before_write: bool) -> None:
+        self.pi.go_outcome = (
+            GoResult(False, False, True, None, "")
+            if drop_before_write
+            else GoResult(True, True, True, None, "Dropping in 30 seconds!\nShutting down...\n")
+        )
+
+    @precondition(lambda self: self.tokens)
+    @rule(index=st.integers(min_value=0), forge=st.booleans())
+    def go(self, index: int, forge: bool) -> None:
+        token = self.tokens[index % len(self.tokens)]
+        if forge:
+            token = ConfirmationToken(token.value + "x", token.capsule, token.minted_at)
+        before = self.machine.record()
+        calls_before = self.pi.calls.count("go")
+        try:
+            self.machine.go(token)
+        except (RefusedError, LinkError):
+            pass
+        sent = self.pi.calls.count("go") > calls_before
+        if sent:
+            age = (self.clock() - token.minted_at).total_seconds()
+            assert not forge
+            assert before.state in (ReleaseState.POWERED, ReleaseState.GO_SENT)
+            assert before.nmea_seen_at is not None and 0 <= age <= 60
+
+    @invariant()
+    def released_capsules_never_get_another_go(self) -> None:
+        calls = self.pi.calls.count("go")
+        if self.machine.record().state is ReleaseState.RELEASED and self.go_calls_seen:
+            assert calls == self.go_calls_seen
+        if self.machine.record().state is ReleaseState.RELEASED and not self.go_calls_seen:
+            self.go_calls_seen = calls
+
+    @invariant()
+    def go_is_only_sent_after_a_power_on(self) -> None:
+        if self.pi.calls.count("go"):
+            assert "power_on" in self.pi.calls
+
+
+ReleaseSequences.TestCase.settings = settings(max_examples=200, stateful_step_count=25, deadline=None)
+test_random_operator_sequences_are_safe = ReleaseSequences.TestCase
