@@ -65,6 +65,7 @@ class ConsoleSetup:
     operations: Operations | None = None
     predictions: PredictionService | None = None
     balloon_feed: Callable[[], TelemetryRecord | None] | None = None
+    replay_feed: Callable[[], list[TelemetryRecord]] | None = None
     team_position: tuple[float, float] | None = None
     export_dir: Path = Path(".")
     banner_note: str = ""
@@ -148,16 +149,22 @@ class DrsConsole(App[int]):
             self.set_timer(1.0, self.refresh_predictions)
         if self.setup.balloon_feed is not None:
             self.set_interval(2.0, self.read_balloon)
+        if self.setup.replay_feed is not None:
+            self.set_interval(0.2, self.replay_step)
         self.set_interval(1.0, self.tick)
 
     def tick(self) -> None:
         """Once a second: ages grow, ARM windows run out, the screen shows both."""
         if self.ops is not None:
             for name in self.setup.capsules:
-                self.ops.ops(name).arming.status()
-        screen = self.screen
-        if hasattr(screen, "refresh_view"):
-            screen.refresh_view()
+                arming = self.ops.ops(name).arming
+                if arming.status().armed:
+                    arming.observe(self.gonogo(name))
+        self.refresh_screen()
+
+    def refresh_screen(self) -> None:
+        if self.screen_stack and hasattr(self.screen, "refresh_view"):
+            self.screen.refresh_view()
 
     # Workers ----------------------------------------------------------------------------------
 
@@ -192,6 +199,12 @@ class DrsConsole(App[int]):
         record = self.setup.balloon_feed()
         if record is not None:
             self.post_message(TelemetryArrived([record]))
+
+    def replay_step(self) -> None:
+        assert self.setup.replay_feed is not None
+        records = self.setup.replay_feed()
+        if records:
+            self.post_message(TelemetryArrived(records))
 
     def prediction_origin(self, capsule: str) -> tuple[float, float, float] | None:
         """Where a release would start: the capsule's own fresh fix, else the balloon feed."""
@@ -240,9 +253,7 @@ class DrsConsole(App[int]):
                     arming.link_lost()
                 else:
                     arming.observe(self.gonogo(name))
-        screen = self.screen
-        if hasattr(screen, "refresh_view"):
-            screen.refresh_view()
+        self.refresh_screen()
 
     @on(OperatorNotice)
     def show_notice(self, message: OperatorNotice) -> None:

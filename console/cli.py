@@ -19,8 +19,11 @@ COMMAND_MODULES: tuple[str, ...] = (
     "predictor.cli",
     "predictor.weather_cli",
     "predictor.calibration.cli",
+    "predictor.plan_cli",
+    "predictor.calibration.calibrate_cli",
     "drs_link.cli",
     "drs_link.iridium.cli",
+    "console.console_cli",
 )
 
 OPERATOR_ERRORS = (PredictorError, LinkError)

@@ -64,21 +64,6 @@ class GoNoGoInputs:
     powered: bool
     exclusion_zones: tuple[ExclusionZone, ...] = ()
 
-    def fingerprint(self) -> str:
-        """Identity of the values (not their ages): ARM remembers it and any change disarms."""
-        prediction = self.prediction.value
-        values = {
-            "link": self.link_up.value,
-            "mcu": self.microcontroller_waiting.value,
-            "fix": self.gnss_fix.value,
-            "sync": self.sync_fraction.value,
-            "landing": None if prediction is None else (prediction.landing_lat, prediction.landing_lon),
-            "gateway": self.gateway_credentials.value,
-            "powered": self.powered,
-            "zones": [zone.name for zone in self.exclusion_zones],
-        }
-        return hashlib.sha256(json.dumps(values, sort_keys=True, default=str).encode()).hexdigest()[:16]
-
 
 @dataclass(frozen=True)
 class Waiver:
@@ -205,7 +190,17 @@ def evaluate(
             items[index] = GoNoGoItem(
                 item.key, item.title, Verdict.WAIVED, f"{item.detail}; waived by {waiver.operator}: {waiver.reason}"
             )
-    return GoNoGoReport(capsule, tuple(items), inputs.fingerprint(), now)
+    return GoNoGoReport(capsule, tuple(items), _fingerprint(items), now)
+
+
+def _fingerprint(items: Sequence[GoNoGoItem]) -> str:
+    """Identity of the poll's verdicts: ARM remembers it, and any verdict changing disarms.
+
+    Verdicts, not raw values: a landing that moves 200 m as the balloon drifts while its ellipse
+    stays clear is not a change to the decision, but a waiver, a lost fix or a zone hit is.
+    """
+    verdicts = [(item.key, item.verdict.value) for item in items]
+    return hashlib.sha256(json.dumps(verdicts).encode()).hexdigest()[:16]
 
 
 @dataclass

@@ -320,15 +320,15 @@ class CapsuleLink:
             return sftp
 
     def close(self) -> None:
-        with self._lock:
-            for client in (self._client, self._jump):
-                if client is not None:
-                    try:
-                        client.close()
-                    except (OSError, EOFError, paramiko.SSHException):
-                        pass
-            self._client = None
-            self._jump = None
+        """Close the connection. Lock-free on purpose: another thread may call it to abort a command
+        in flight, which then returns with ``link_dropped``."""
+        clients, self._client, self._jump = (self._client, self._jump), None, None
+        for client in clients:
+            if client is not None:
+                try:
+                    client.close()
+                except (OSError, EOFError, paramiko.SSHException):
+                    pass
 
 
 def scan_host_key(host: str, port: int, timeout_s: float = 10.0) -> paramiko.PKey:

@@ -20,8 +20,6 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from predictor.errors import PredictorError
 from predictor.export import to_json, write_geojson, write_kml
 from predictor.payload import PROFILES, payload_profile
@@ -46,6 +44,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files (forecast steps, cycles)"
+    )
+    parser.add_argument(
+        "--demo-weather", action="store_true", help="use the generated DEMO atmosphere instead of --weather"
     )
     parser.add_argument(
         "--dem", metavar="DIR", help="terrain: directory of SRTM .hgt tiles and/or NetCDF DEMs"
@@ -97,22 +98,27 @@ def run(args: argparse.Namespace) -> int:
     if args.action == "bench":
         return run_bench(args)
     required = {
-        "--weather": args.weather,
         "--lat": args.lat,
         "--lon": args.lon,
         "--alt": args.alt,
         "--time": args.time,
     }
     missing = [flag for flag, value in required.items() if value is None]
+    if args.weather is None and not args.demo_weather:
+        missing.insert(0, "--weather (or --demo-weather)")
     if missing:
         raise PredictorError(f"drs predict needs {', '.join(missing)}")
+    if args.weather is not None and args.demo_weather:
+        raise PredictorError("give either --weather or --demo-weather, not both")
+    from predictor.demo_weather import demo_weather_files
     from predictor.weather import load_weather
 
     when = parse_time(args.time)
+    files = demo_weather_files(args.lat, args.lon, when) if args.demo_weather else args.weather
     payload = payload_profile(args.payload).overridden(mass_kg=args.mass, cda_m2=args.cda)
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
     wx = load_weather(
-        args.weather, bbox=weather_bbox(args.lat, args.lon, args.drift_minutes), cache_dir=args.cache_dir
+        files, bbox=weather_bbox(args.lat, args.lon, args.drift_minutes), cache_dir=args.cache_dir
     )
     common: dict[str, Any] = {
         "payload": payload,
@@ -196,36 +202,7 @@ def summary(result: Prediction | EnsemblePrediction) -> str:
 
 # ---------------------------------------------------------------- bench
 
-BENCH_LEVELS_HPA = np.array(
-    [1000, 975, 950, 925, 900, 850, 800, 750, 700, 650, 600, 550, 500, 450, 400, 350, 300, 250, 200, 150,
-     100, 70, 50, 40, 30, 20, 15, 10, 7, 5, 3, 2, 1], dtype=float,
-)  # fmt: skip
 BENCH_CYCLE = datetime(2024, 5, 1, 0, tzinfo=UTC)
-
-
-def _bench_fields(hour: float, lats: np.ndarray, lons: np.ndarray) -> dict[str, np.ndarray]:
-    """A plausible mid-latitude atmosphere (lapse rates of the standard atmosphere, a jet at 11 km).
-
-    Bench input only: its job is to have the shape and size of a real 0.5° subset.
-    """
-    # Level heights from the standard atmosphere: 6.5 K/km troposphere, isothermal to 20 km, then +1 K/km.
-    p = BENCH_LEVELS_HPA[:, None, None]
-    z_trop = 44330.8 * (1 - (p / 1013.25) ** 0.190263)
-    z_strat = 11000.0 + 6341.6 * np.log(226.32 / p)
-    z_upper = 20000.0 + 216.65 / 0.001 * ((p / 54.75) ** (-0.001 * 287.05 / 9.80665) - 1)
-    gh = np.where(p > 226.32, z_trop, np.where(p > 54.75, z_strat, z_upper))
-    gh = gh + 80.0 * np.sin(np.radians(lats))[None, :, None] + 0.0 * lons[None, None, :]
-    t = np.where(
-        gh < 11000, 288.15 - 0.0065 * gh, np.where(gh < 20000, 216.65, 216.65 + 0.001 * (gh - 20000))
-    )
-    jet = 10.0 + 30.0 * np.exp(-(((gh - 11000.0) / 4000.0) ** 2))
-    u = (
-        jet * (1.0 + 0.02 * (lats[None, :, None] - 46.0))
-        + 0.5 * np.sin(np.radians(10 * lons))[None, None, :]
-        + 0.2 * hour
-    )
-    v = 5.0 * np.sin(gh / 5000.0) + 0.1 * (lons[None, None, :] - 6.0)
-    return {"u": u, "v": v, "t": t, "gh": gh}
 
 
 def _timed(fn: Callable[[], object], repeats: int) -> list[float]:
@@ -283,7 +260,8 @@ def _fresh_process_seconds(cache_dir: str) -> float:
 def run_bench(args: argparse.Namespace) -> int:
     import numba
 
-    from predictor.gribwrite import gfs_file_name, write_gfs_grib2
+    from predictor.demo_weather import demo_weather_files
+    from predictor.gribwrite import GFS_LEVELS_HPA
     from predictor.weather import load_weather
 
     print(
@@ -292,18 +270,13 @@ def run_bench(args: argparse.Namespace) -> int:
     )
     with tempfile.TemporaryDirectory(prefix="drs-bench-") as tmp:
         root = Path(tmp)
-        lats, lons = np.arange(41.0, 51.01, 0.5), np.arange(1.0, 11.01, 0.5)
-        files = [
-            write_gfs_grib2(
-                root / gfs_file_name(BENCH_CYCLE, h), BENCH_CYCLE, h, BENCH_LEVELS_HPA, lats, lons,
-                **_bench_fields(h, lats, lons),
-            )
-            for h in (0, 3, 6, 9, 12)
-        ]  # fmt: skip
+        start = time.perf_counter()
+        files = demo_weather_files(46.0, 6.0, BENCH_CYCLE, root / "grib", hours=12, half_width_deg=5.0)
+        written = time.perf_counter() - start
         size_mb = sum(f.stat().st_size for f in files) / 1e6
         print(
-            f"weather: 5 GRIB2 files (gribwrite), 0.5°, 10°×10° ({lats.size}×{lons.size}), "
-            f"{BENCH_LEVELS_HPA.size} levels, {size_mb:.1f} MB"
+            f"weather: {len(files)} GRIB2 files of the demo atmosphere (gribwrite, {written:.2f} s to write), "
+            f"0.5°, 10°×10° (21×21), {len(GFS_LEVELS_HPA)} levels, {size_mb:.1f} MB"
         )
         start = time.perf_counter()
         load_weather(files, cache_dir=root / "cache")

@@ -162,6 +162,15 @@ _GRID_KEYS = (
 )
 
 
+_PLAUSIBLE = {
+    "u": (-250.0, 250.0, "m/s"),
+    "v": (-250.0, 250.0, "m/s"),
+    "t": (100.0, 400.0, "K"),
+    "gh": (-2000.0, 100_000.0, "gpm"),
+}
+"""Bounds no real atmosphere leaves; a value outside means a broken file, not weather."""
+
+
 def _timestamp(date: int, hhmm: int) -> np.datetime64:
     moment = datetime.strptime(f"{int(date):08d}{int(hhmm):04d}", "%Y%m%d%H%M")
     return np.datetime64(moment, "s")
@@ -264,4 +273,13 @@ def _assemble(
         raise WeatherError(f"{file} has fewer than two isobaric levels with all of u, v, t and gh")
     levels = np.array(sorted(common, reverse=True))
     values = {name: np.stack([by_name[name][level] for level in levels]) for name in VARIABLES}
+    for name, (low, high, unit) in _PLAUSIBLE.items():
+        outside = (values[name] < low) | (values[name] > high)
+        if outside.any():
+            level_index = int(np.argwhere(outside)[0][0])
+            example = float(values[name][outside][0])
+            raise WeatherError(
+                f"{file}: {name} = {example:g} {unit} at {levels[level_index]:g} hPa is outside "
+                f"{low:g}…{high:g} {unit}; the file is damaged or holds something other than GFS fields"
+            )
     return GribField(file, cycle, valid, levels, grid.lats, grid.lons, grid.spacing, values, process)

@@ -124,26 +124,24 @@ def write_gfs_grib2(
 
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    template = eccodes.codes_grib_new_from_samples("regular_ll_pl_grib2")
+    # One handle rewritten for every message: cloning per message costs more than encoding the field.
+    message = eccodes.codes_grib_new_from_samples("regular_ll_pl_grib2")
     try:
-        _set_grid_and_time(template, cycle, step_h, lat_axis, lon_axis, abs(dlat), dlon, generating_process)
+        _set_grid_and_time(message, cycle, step_h, lat_axis, lon_axis, abs(dlat), dlon, generating_process)
+        eccodes.codes_set(message, "typeOfLevel", "isobaricInhPa")
         with open(target, "wb") as out:
             for name, values in fields.items():
                 discipline, category, number = _PARAMETERS[name]
+                eccodes.codes_set(message, "discipline", discipline)
+                eccodes.codes_set(message, "parameterCategory", category)
+                eccodes.codes_set(message, "parameterNumber", number)
                 for level_index, level in enumerate(levels):
-                    message = eccodes.codes_clone(template)
-                    try:
-                        eccodes.codes_set(message, "discipline", discipline)
-                        eccodes.codes_set(message, "parameterCategory", category)
-                        eccodes.codes_set(message, "parameterNumber", number)
-                        _set_level(message, float(level))
-                        plane = np.ascontiguousarray(values[level_index], dtype=np.float64)
-                        eccodes.codes_set_values(message, plane.ravel())
-                        eccodes.codes_write(message, out)
-                    finally:
-                        eccodes.codes_release(message)
+                    eccodes.codes_set(message, "level", int(level))
+                    plane = np.ascontiguousarray(values[level_index], dtype=np.float64)
+                    eccodes.codes_set_values(message, plane.ravel())
+                    eccodes.codes_write(message, out)
     finally:
-        eccodes.codes_release(template)
+        eccodes.codes_release(message)
     return target
 
 
@@ -188,8 +186,3 @@ def _set_grid_and_time(
     eccodes.codes_set(message, "jDirectionIncrementInDegrees", dlat)
     eccodes.codes_set(message, "packingType", "grid_ieee")
     eccodes.codes_set(message, "precision", 1)  # 32-bit IEEE
-
-
-def _set_level(message: int, level_hpa: float) -> None:
-    eccodes.codes_set(message, "typeOfLevel", "isobaricInhPa")
-    eccodes.codes_set(message, "level", int(level_hpa))

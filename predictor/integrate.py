@@ -172,7 +172,7 @@ def sample_weather(
     out[1] = 0.0
     out[2] = 0.0
     iy, fy = _bracket(lats, lat)
-    lon_c = (lon - lons[0]) % 360.0 + lons[0]
+    lon_c = lon if lons[0] <= lon <= lons[lons.shape[0] - 1] else (lon - lons[0]) % 360.0 + lons[0]
     ix, fx = _bracket(lons, lon_c)
     if iy < 0 or ix < 0:
         return STATUS_OUTSIDE_REGION
@@ -447,6 +447,43 @@ def _descend_range(
 
 
 @njit(cache=True, parallel=True)
+def _descend_parallel(
+    t_s: np.ndarray,
+    lats: np.ndarray,
+    lons: np.ndarray,
+    columns: np.ndarray,
+    time_tolerance_s: float,
+    table: np.ndarray,
+    params: np.ndarray,
+    state: np.ndarray,
+    lat0: np.ndarray,
+    lon0: np.ndarray,
+    z0: np.ndarray,
+    t0: np.ndarray,
+    dz: float,
+    z_floor: float,
+    skip: np.ndarray,
+    out_lat: np.ndarray,
+    out_lon: np.ndarray,
+    out_z: np.ndarray,
+    out_t: np.ndarray,
+    out_path: np.ndarray,
+    n_rec: np.ndarray,
+    status: np.ndarray,
+    time_held_s: np.ndarray,
+    failed_at: np.ndarray,
+    chunks: int,
+) -> None:
+    """One contiguous range of trajectories per thread."""
+    n = lat0.shape[0]
+    for c in prange(chunks):
+        _descend_range(
+            c * n // chunks, (c + 1) * n // chunks,
+            t_s, lats, lons, columns, time_tolerance_s, table, params, state, lat0, lon0, z0, t0, dz, z_floor,
+            skip, out_lat, out_lon, out_z, out_t, out_path, n_rec, status, time_held_s, failed_at,
+        )  # fmt: skip
+
+
 def descend(
     t_s: np.ndarray,
     lats: np.ndarray,
@@ -481,12 +518,20 @@ def descend(
     ``skip[i]`` on (point 0 is the release; skipping the high part saves memory when only the
     landing matters); ``n_rec`` is the recorded count per trajectory, ``status`` a STATUS_* code,
     ``time_held_s`` how far beyond the weather's time span it was held, and ``failed_at`` (n, 5)
-    lat, lon, altitude, time and step index where a trajectory failed. Trajectories are split into ``chunks`` contiguous ranges, one per thread.
+    lat, lon, altitude, time and step index where a trajectory failed.
+
+    Trajectories are split into ``chunks`` contiguous ranges run in parallel; with one chunk the
+    range runs on the calling thread, because a parallel launch costs milliseconds when the
+    machine's cores are busy and a single descent takes a fraction of that.
     """
-    n = lat0.shape[0]
-    for c in prange(chunks):
+    if chunks <= 1:
         _descend_range(
-            c * n // chunks, (c + 1) * n // chunks,
+            0, lat0.shape[0],
             t_s, lats, lons, columns, time_tolerance_s, table, params, state, lat0, lon0, z0, t0, dz, z_floor,
             skip, out_lat, out_lon, out_z, out_t, out_path, n_rec, status, time_held_s, failed_at,
+        )  # fmt: skip
+    else:
+        _descend_parallel(
+            t_s, lats, lons, columns, time_tolerance_s, table, params, state, lat0, lon0, z0, t0, dz, z_floor,
+            skip, out_lat, out_lon, out_z, out_t, out_path, n_rec, status, time_held_s, failed_at, chunks,
         )  # fmt: skip

@@ -43,6 +43,8 @@ HIGHEST_GROUND_M = 8900.0
 LOWEST_GROUND_M = -500.0
 """The stepper runs every path down to here (Dead Sea shore −430 m) before the crossing is found."""
 DRIFT_STEP_S = 60.0
+CHUNKS_PER_THREAD = 4
+"""Trajectory blocks per numba thread: smaller blocks even out a thread that other work slows down."""
 DEFAULT_RATE_SIGMA = 0.07
 DEFAULT_WIND_SIGMA_MS = 1.5
 
@@ -288,7 +290,7 @@ def _integrate(
         w.t_s, w.lats, w.lons, w.columns, time_tolerance_s,
         model.table(), model.parameter_matrix(n), model.state_matrix(n),
         lat0, lon0, z0, t0, step_m, LOWEST_GROUND_M, skip,
-        *out, n_rec, status, held, failed_at, min(n, get_num_threads()),
+        *out, n_rec, status, held, failed_at, min(n, CHUNKS_PER_THREAD * get_num_threads()),
     )  # fmt: skip
     bad = np.flatnonzero(status != STATUS_OK)
     if bad.size:

@@ -27,6 +27,7 @@ import hashlib
 import json
 import os
 import tempfile
+import zipfile
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
@@ -104,11 +105,11 @@ def _read_cache(cache_file: Path) -> WeatherCube | None:
         with np.load(cache_file, allow_pickle=False) as stored:
             meta = json.loads(str(stored["meta"]))
             arrays = {name: stored[name] for name in _ARRAYS}
-    except (OSError, KeyError, ValueError):
+        return WeatherCube(
+            **arrays, source=meta["source"], is_demo=meta["is_demo"], warnings=tuple(meta["warnings"])
+        )
+    except (OSError, EOFError, KeyError, TypeError, ValueError, zipfile.BadZipFile):
         return None
-    return WeatherCube(
-        **arrays, source=meta["source"], is_demo=meta["is_demo"], warnings=tuple(meta["warnings"])
-    )
 
 
 def _write_cache(cache_file: Path, cube: WeatherCube) -> None:

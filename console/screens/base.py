@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from textual.app import ComposeResult
+from textual.css.query import NoMatches
 from textual.screen import Screen
 from textual.widgets import Footer
 
@@ -12,7 +13,10 @@ from console.widgets.banner import ModeBanner
 
 
 class ConsoleScreen(Screen[None]):
-    """Screens re-render from the fleet state in ``refresh_view`` (each second and on new telemetry)."""
+    """Screens re-render from the fleet state in ``update_view`` (each second and on new telemetry)."""
+
+    ready = False
+    """Set once mounted: the app's one-second tick can reach a screen before its widgets exist."""
 
     @property
     def console(self) -> Any:
@@ -26,4 +30,13 @@ class ConsoleScreen(Screen[None]):
         yield Footer()
 
     def refresh_view(self) -> None:
-        self.query_one(ModeBanner).refresh_banner()
+        if not self.ready:
+            return
+        try:
+            self.query_one(ModeBanner).refresh_banner()
+            self.update_view()
+        except NoMatches:
+            return  # the screen is being torn down (app exiting): nothing left to draw
+
+    def update_view(self) -> None:
+        """What the screen shows beyond the banner."""

@@ -26,22 +26,22 @@ class FleetScreen(ConsoleScreen):
         yield from self.compose_footer()
 
     def on_mount(self) -> None:
+        self.ready = True
         table = self.query_one("#fleet", DataTable)
-        for title, _ in COLUMNS:
-            table.add_column(title, key=title)
+        for title, _, width in COLUMNS:
+            table.add_column(title, key=title, width=width)
         for name in self.console.setup.capsules:
             table.add_row(name, *["—"] * (len(COLUMNS) - 1), key=name)
         table.focus()
         self.refresh_view()
 
-    def refresh_view(self) -> None:
-        super().refresh_view()
+    def update_view(self) -> None:
         app = self.console
         now = app.now()
         table = self.query_one("#fleet", DataTable)
         for name in app.setup.capsules:
             telemetry = app.fleet.capsules[name]
-            for title, render in COLUMNS[1:]:
+            for title, render, _ in COLUMNS[1:]:
                 table.update_cell(name, title, render(telemetry, now))
         balloon = app.fleet.balloon
         text = "Balloon: " + balloon.label(
@@ -52,6 +52,9 @@ class FleetScreen(ConsoleScreen):
     def selected(self) -> str:
         table = self.query_one("#fleet", DataTable)
         return self.console.setup.capsules[max(0, table.cursor_row)]
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        self.action_release()
 
     def action_release(self) -> None:
         from console.screens.release import ReleaseScreen

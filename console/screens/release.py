@@ -7,6 +7,7 @@ arming controller re-checks everything when the worker calls ``fire``.
 
 from __future__ import annotations
 
+from rich.text import Text
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -67,16 +68,17 @@ class ReleaseScreen(ConsoleScreen):
                 yield Label(id="checklist-title", classes="pane-title")
                 yield DataTable(id="checklist", cursor_type="row")
             with Vertical(id="gonogo-pane"):
+                yield Static(id="arm-status")
                 yield Label(f"Go/no-go: {self.capsule}", classes="pane-title")
                 yield DataTable(id="gonogo", cursor_type="row")
-                yield Static(id="arm-status")
         yield from self.compose_footer()
 
     def on_mount(self) -> None:
+        self.ready = True
         checklist = self.query_one("#checklist", DataTable)
-        checklist.add_columns("Step", "State", "By / when")
+        checklist.add_columns("State", "Step", "By / when")
         gonogo = self.query_one("#gonogo", DataTable)
-        gonogo.add_columns("Item", "Verdict", "Detail")
+        gonogo.add_columns("Verdict", "Item", "Detail")
         ids = [c.id for c in self.console.checklists]
         self.checklist_index = ids.index("release-day") if "release-day" in ids else 0
         checklist.focus()
@@ -88,8 +90,7 @@ class ReleaseScreen(ConsoleScreen):
 
     # Rendering --------------------------------------------------------------------------------
 
-    def refresh_view(self) -> None:
-        super().refresh_view()
+    def update_view(self) -> None:
         app = self.console
         now = app.now()
         checklist = app.checklists[self.checklist_index]
@@ -102,8 +103,10 @@ class ReleaseScreen(ConsoleScreen):
         facts = app.fleet.capsules[self.capsule].facts(now)
         for status in app.checklist_run(self.capsule, checklist).statuses(facts):
             who = f"{status.operator} {status.at:%H:%M:%S}Z" if status.operator and status.at else ""
-            kind = {StepKind.MANUAL: "", StepKind.AUTO: "[auto] ", StepKind.COMMAND: "[cmd] "}[status.step.kind]
-            table.add_row(f"{kind}{status.step.text}", STATE_GLYPH[status.state], who, key=status.step.id)
+            kind = {StepKind.MANUAL: "", StepKind.AUTO: "(auto) ", StepKind.COMMAND: "(cmd) "}[status.step.kind]
+            table.add_row(
+                Text(STATE_GLYPH[status.state]), Text(f"{kind}{status.step.text}"), who, key=status.step.id
+            )
         if table.row_count:
             table.move_cursor(row=min(row, table.row_count - 1))
         report = app.gonogo(self.capsule)
@@ -111,7 +114,7 @@ class ReleaseScreen(ConsoleScreen):
         grow = gonogo.cursor_row
         gonogo.clear()
         for item in report.items:
-            gonogo.add_row(item.title, VERDICT_GLYPH[item.verdict], item.detail, key=item.key)
+            gonogo.add_row(Text(VERDICT_GLYPH[item.verdict]), item.title, Text(item.detail), key=item.key)
         if gonogo.row_count:
             gonogo.move_cursor(row=min(grow, gonogo.row_count - 1))
         self.query_one("#arm-status", Static).update(self.arm_text(report.go))

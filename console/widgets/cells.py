@@ -105,12 +105,13 @@ def prediction_cell(t: CapsuleTelemetry, now: datetime) -> Text:
 
 
 COLUMNS = (
-    ("Capsule", None),
-    ("Link", link_cell),
-    ("Release", release_cell),
-    ("GNSS", gnss_cell),
-    ("Storage", storage_cell),
-    ("Sync", sync_cell),
-    ("Battery/last MO", report_cell),
-    ("Prediction (landing, 1σ, dist)", prediction_cell),
+    ("Capsule", None, 8),
+    ("Link", link_cell, 12),
+    ("Release", release_cell, 20),
+    ("GNSS", gnss_cell, 22),
+    ("Storage", storage_cell, 30),
+    ("Sync", sync_cell, 20),
+    ("Battery/last MO", report_cell, 26),
+    ("Prediction (landing, 1σ, dist)", prediction_cell, 50),
 )
+"""Title, cell renderer and width of each fleet column (ages widen a cell, hence the room)."""

@@ -34,10 +34,12 @@ from drs_link.iridium.recovery import (
     write_kml,
 )
 from drs_link.iridium.reports import ReportStore, StoredReport
+from drs_link.iridium.track_export import export_track
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
 from drs_link.store import Store, utc_now
 
 _INTERVAL_RE = re.compile(r"\[INTERVAL=(\d+)\]")
+_IMEI_RE = re.compile(r"\d{15}")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -60,6 +62,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     status = mt_actions.add_parser("status", help="the lifecycle of this capsule's commands")
     status.add_argument("name")
     status.set_defaults(func=_mt_status)
+    resolve = mt_actions.add_parser(
+        "resolve", help="record what the RockBLOCK portal shows for a command whose delivery is unknown"
+    )
+    resolve.add_argument("name", help="capsule name from the configuration")
+    resolve.add_argument(
+        "command_id", type=int, metavar="MT_LOCAL_ID", help="the MT number `drs mt status` shows"
+    )
+    outcome = resolve.add_mutually_exclusive_group(required=True)
+    outcome.add_argument(
+        "--queued", type=int, metavar="GATEWAY_ID", help="the portal shows it queued with this id"
+    )
+    outcome.add_argument(
+        "--not-sent", action="store_true", help="the portal shows it never reached the gateway"
+    )
+    resolve.add_argument("--note", default="", metavar="TEXT", help="what you saw, kept in the audit log")
+    resolve.set_defaults(func=_mt_resolve)
 
     mo = subparsers.add_parser("mo", help="capsule reports over Iridium (RockBLOCK MO)")
     mo_actions = mo.add_subparsers(dest="mo_action", metavar="ACTION", required=True)
@@ -80,6 +98,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     health = mo_actions.add_parser("health", help="battery, resets, gaps and spacing from the reports")
     health.add_argument("name")
     health.set_defaults(func=_mo_health)
+    export = mo_actions.add_parser("export", help="the stored position fixes as a canonical track CSV")
+    export.add_argument("name", nargs="?", help="capsule name from the configuration")
+    export.add_argument("--imei", help="a modem's IMEI instead of a configured capsule's name")
+    export.add_argument("--out", type=Path, required=True, metavar="TRACK.csv")
+    export.add_argument("--force", action="store_true", help="replace an existing --out file")
+    export.set_defaults(func=_mo_export)
 
     recovery = subparsers.add_parser("recovery", help="landing estimate, distance from you, GPX/KML export")
     recovery.add_argument("name")
@@ -176,6 +200,22 @@ def _mt_status(args: argparse.Namespace) -> int:
     return 0
 
 
+def _mt_resolve(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    if not config.operator.name:
+        raise ConfigError("operator.name: set [operator] name; every resolution is audited with it")
+    capsule, reports = _capsule_reports(config, store, args.name)
+    life = lc.CommandLifecycle(store, config.operator.name)
+    if args.not_sent:
+        command = life.resolve_not_sent(args.command_id, capsule.name, args.note)
+    else:
+        command = life.resolve_queued(args.command_id, capsule.name, args.queued, reports, args.note)
+    print(f"MT {command.id} {command.text}: {command.state}: {command.detail}")
+    for changed in life.observe(reports, capsule.imei or ""):
+        print(f"MT {changed.id} {changed.text}: {changed.state}: {changed.detail}")
+    return 0
+
+
 def _mo_parse(args: argparse.Namespace) -> int:
     result = parse_hex(args.hex)
     if args.json:
@@ -246,6 +286,26 @@ def _mo_import(args: argparse.Namespace) -> int:
     for outcome in outcomes:
         print(f"{outcome.path}: {outcome.status}: {outcome.message}")
     return 1 if any(o.status == "error" for o in outcomes) else 0
+
+
+def _mo_export(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    if (args.name is None) == (args.imei is None):
+        raise LinkError("give either a capsule NAME or --imei IMEI, not both or neither")
+    if args.name is not None:
+        _, reports = _capsule_reports(config, store, args.name)
+        who = args.name
+    else:
+        if not _IMEI_RE.fullmatch(args.imei):
+            raise LinkError(f"--imei {args.imei!r}: an IMEI is 15 digits")
+        reports = ReportStore(store).for_imei(args.imei)
+        who = f"IMEI {args.imei}"
+    result = export_track(reports, args.out, who, overwrite=args.force)
+    print(
+        f"wrote {result.path}: {result.fixes} fixes of {who}; skipped {result.without_fix} report(s) "
+        f"without a fix and {result.rejected} rejected"
+    )
+    return 0
 
 
 def _interval_schedule(commands: list[lc.Command], reports: list[StoredReport]) -> list[tuple[datetime, int]]:

@@ -7,6 +7,10 @@ automatically), flushed (a later ``flush=yes`` deleted it). The firmware acknowl
 "delivered" is only ever *probable* (one MT goes down with each report, oldest first) and only an
 INTERVAL or RBDESTINATION change shows in later reports; PARACHUTE and SOUNDER never do.
 
+Only an operator can end "delivery unknown", by recording what the RockBLOCK portal shows: queued
+(with the gateway's MT id; the lifecycle then continues, and later commands' attributions move
+behind it) or never received (closed as not sent, so it may be requested again).
+
 A real send needs a confirmation that names the capsule, checked here below any UI.
 """
 
@@ -15,7 +19,7 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
 from typing import Any
 
@@ -79,10 +83,22 @@ class Command:
     requested_utc: datetime
     updated_utc: datetime
     queued_utc: datetime | None
+    """When the gateway queued it; for delivery unknown, when the request went out (the earliest moment)."""
     mt_id: int | None
     delivered_report_id: int | None
     effects: dict[str, str]
     detail: str
+
+
+@dataclass(frozen=True)
+class _Change:
+    """One state change to write; ``action`` names it in the audit log (default ``mt.<state>``)."""
+
+    command: Command
+    state: str
+    detail: str
+    columns: dict[str, Any]
+    action: str | None = None
 
 
 def _row_to_command(row: Any) -> Command:
@@ -104,12 +120,47 @@ def _row_to_command(row: Any) -> Command:
     )
 
 
-def _initial_effects(message: MtMessage) -> dict[str, str]:
+def _initial_effects(commands: tuple[str, ...] | list[str]) -> dict[str, str]:
     effects = {}
-    for command in message.commands:
+    for command in commands:
         name = command[1:].split("=")[0].rstrip("]")
         effects[command] = PENDING if name in ("INTERVAL", "RBDESTINATION", "RBSOURCE") else NEVER_VISIBLE
     return effects
+
+
+def _queue_order(command: Command) -> tuple[datetime, int]:
+    return (command.queued_utc or command.requested_utc, command.id)
+
+
+def _assign(commands: list[Command], reports: list[StoredReport]) -> dict[int, StoredReport]:
+    """The report each queued command went down with: one MT per session, oldest queued first.
+
+    Reports already taken by a command stay taken, so an attribution once made holds unless a
+    resolution explicitly reopens it.
+    """
+    used = {c.delivered_report_id for c in commands if c.delivered_report_id is not None}
+    assignment: dict[int, StoredReport] = {}
+    for command in sorted(commands, key=_queue_order):
+        if command.state != QUEUED or command.queued_utc is None:
+            continue
+        queued_utc = command.queued_utc
+        delivering = next((r for r in reports if r.id not in used and r.session_time > queued_utc), None)
+        if delivering is not None:
+            used.add(delivering.id)
+            assignment[command.id] = delivering
+    return assignment
+
+
+def _caveat(command: Command, unresolved: list[Command]) -> str:
+    """Why an attribution may be one report early: an older command may be queued without our knowing."""
+    older = [c for c in unresolved if _queue_order(c) < _queue_order(command)]
+    if not older:
+        return ""
+    ids = ", ".join(str(c.id) for c in older)
+    return (
+        f"; uncertain until MT {ids} (delivery unknown, queued before it) is resolved: "
+        "if the gateway did queue it, it went down first and this one later"
+    )
 
 
 def _spacing_matches(seconds: float, minutes: int) -> bool:
@@ -139,20 +190,37 @@ class CommandLifecycle:
         ]
 
     def _set(self, command: Command, state: str, detail: str, **columns: Any) -> Command:
-        now = self.clock()
-        assignments = {"state": state, "detail": detail, "updated_utc": iso_utc(now), **columns}
-        sql = ", ".join(f"{name} = ?" for name in assignments)
-        with self.store.transaction() as conn:
-            conn.execute(f"UPDATE mt_command SET {sql} WHERE id = ?", (*assignments.values(), command.id))
-        self.store.append_audit(
-            self.operator,
-            command.capsule,
-            f"mt.{state}",
-            state,
-            {"command_id": command.id, "text": command.text, "detail": detail},
-            when=now,
-        )
+        self._apply([_Change(command, state, detail, columns)])
         return self.get(command.id)
+
+    def _apply(self, changes: list[_Change]) -> None:
+        """Several state changes in one transaction (a resolution and the re-attributions it forces)."""
+        now = self.clock()
+        with self.store.transaction() as conn:
+            for change in changes:
+                assignments = {
+                    "state": change.state,
+                    "detail": change.detail,
+                    "updated_utc": iso_utc(now),
+                    **change.columns,
+                }
+                sql = ", ".join(f"{name} = ?" for name in assignments)
+                conn.execute(
+                    f"UPDATE mt_command SET {sql} WHERE id = ?", (*assignments.values(), change.command.id)
+                )
+        for change in changes:
+            command = change.command
+            detail: dict[str, Any] = {"command_id": command.id, "text": command.text, "detail": change.detail}
+            if change.columns.get("mt_id") is not None:
+                detail["mt_id"] = change.columns["mt_id"]
+            self.store.append_audit(
+                self.operator,
+                command.capsule,
+                change.action or f"mt.{change.state}",
+                change.state,
+                detail,
+                when=now,
+            )
 
     def request(self, capsule: CapsuleConfig, message: MtMessage, flush: bool = False) -> Command:
         """Record what the operator asked for; nothing leaves the machine yet."""
@@ -161,7 +229,7 @@ class CommandLifecycle:
                 f"capsule {capsule.name} has no imei configured: the gateway needs the modem's IMEI"
             )
         now = iso_utc(self.clock())
-        effects = json.dumps(_initial_effects(message))
+        effects = json.dumps(_initial_effects(message.commands))
         with self.store.transaction() as conn:
             command_id = conn.execute(
                 "INSERT INTO mt_command (capsule, imei, operator, text, flush, state, requested_utc, "
@@ -207,6 +275,7 @@ class CommandLifecycle:
         if command.flush:
             detail += f"; WARNING: {FLUSH_WARNING}"
         command = self._set(command, CONFIRMED, detail)
+        request_written_by = self.clock()
         result = gateway.send(command.imei, command.text.encode("ascii"), flush=command.flush)
         state = _SEND_OUTCOME[result.status]
         columns: dict[str, Any] = {}
@@ -214,7 +283,95 @@ class CommandLifecycle:
             columns = {"queued_utc": iso_utc(self.clock()), "mt_id": result.mt_id}
             if command.flush:
                 self._flush_older(command)
+        elif state == DELIVERY_UNKNOWN:
+            columns = {"queued_utc": iso_utc(request_written_by)}
         return self._set(command, state, result.detail, **columns)
+
+    def _unknown(self, command_id: int, capsule: str) -> Command:
+        """The command an operator may resolve: this capsule's, and still of unknown delivery."""
+        command = self.get(command_id)
+        if command.capsule != capsule:
+            raise RefusedError(f"MT {command_id} was sent to {command.capsule}, not {capsule}")
+        if command.state != DELIVERY_UNKNOWN:
+            raise RefusedError(
+                f"MT {command_id} is {command.state}: only a command in delivery_unknown can be resolved, "
+                "and only once"
+            )
+        return command
+
+    @staticmethod
+    def _note(note: str) -> str:
+        if not note.isprintable():
+            raise RefusedError("the note must be one line of printable text")
+        return f" (note: {note})" if note else ""
+
+    def resolve_not_sent(self, command_id: int, capsule: str, note: str = "") -> Command:
+        """The portal shows the request never reached the gateway: close it so it may be requested again."""
+        command = self._unknown(command_id, capsule)
+        detail = (
+            f"resolved by {self.operator}: the RockBLOCK portal shows it never reached the gateway; closed "
+            f"as not sent, request it again if still wanted{self._note(note)}"
+        )
+        self._apply([_Change(command, NOT_SENT, detail, {"queued_utc": None}, "mt.resolved")])
+        return self.get(command_id)
+
+    def resolve_queued(
+        self, command_id: int, capsule: str, mt_id: int, reports: list[StoredReport], note: str = ""
+    ) -> Command:
+        """The portal shows it queued as ``mt_id``: it rejoins the queue at the time its request went out.
+
+        One MT goes down per session, oldest first, so a later command that was attributed to a
+        report while this one was unknown may really have gone down a report later: every such
+        attribution that changes is undone here (back to queued, effects pending) and ``observe``
+        re-attributes them in queue order.
+        """
+        command = self._unknown(command_id, capsule)
+        suffix = self._note(note)
+        if mt_id < 1:
+            raise RefusedError(f"the gateway's MT id must be a positive number, not {mt_id}")
+        commands = self.for_imei(command.imei)
+        owner = next((c for c in commands if c.mt_id == mt_id), None)
+        if owner is not None:
+            raise RefusedError(f"gateway MT id {mt_id} already belongs to MT {owner.id} ({owner.text})")
+        queued_at = command.queued_utc or command.requested_utc
+        resolved = replace(command, state=QUEUED, queued_utc=queued_at, mt_id=mt_id)
+        later = [
+            c
+            for c in commands
+            if c.delivered_report_id is not None and _queue_order(c) > _queue_order(resolved)
+        ]
+        reopened = [replace(c, state=QUEUED, delivered_report_id=None) for c in later]
+        reconsidered = {command.id} | {c.id for c in later}
+        others = [c for c in commands if c.id not in reconsidered]
+        assignment = _assign([resolved, *reopened, *others], reports)
+        detail = (
+            f"resolved by {self.operator}: the RockBLOCK portal shows it queued at the gateway as MT "
+            f"{mt_id}{suffix}"
+        )
+        changes = [
+            _Change(
+                command, QUEUED, detail, {"queued_utc": iso_utc(queued_at), "mt_id": mt_id}, "mt.resolved"
+            )
+        ]
+        for shifted in later:
+            new_report = assignment.get(shifted.id)
+            if new_report is not None and new_report.id == shifted.delivered_report_id:
+                continue
+            changes.append(
+                _Change(
+                    shifted,
+                    QUEUED,
+                    f"re-attributed: MT {command.id}, queued before it, was resolved as queued, so the report "
+                    f"once taken for this one carried MT {command.id} or an older one",
+                    {
+                        "delivered_report_id": None,
+                        "effects": json.dumps(_initial_effects(list(shifted.effects))),
+                    },
+                    "mt.reattributed",
+                )
+            )
+        self._apply(changes)
+        return self.get(command_id)
 
     def _flush_older(self, flushing: Command) -> None:
         for older in self.for_imei(flushing.imei):
@@ -225,13 +382,11 @@ class CommandLifecycle:
         """Advance this modem's commands from its reports (time order); returns the commands that changed."""
         changed: list[Command] = []
         commands = self.for_imei(imei)
-        used = {c.delivered_report_id for c in commands if c.delivered_report_id is not None}
-        in_queue_order = sorted(commands, key=lambda c: (c.queued_utc or c.requested_utc, c.id))
-        for command in in_queue_order:
+        assignment = _assign(commands, reports)
+        unresolved = [c for c in commands if c.state == DELIVERY_UNKNOWN]
+        for command in sorted(commands, key=_queue_order):
             if command.state == QUEUED and command.queued_utc is not None:
-                delivering = next(
-                    (r for r in reports if r.id not in used and r.session_time > command.queued_utc), None
-                )
+                delivering = assignment.get(command.id)
                 if delivering is None:
                     if self.clock() - command.queued_utc > QUEUE_TIMEOUT:
                         changed.append(
@@ -243,20 +398,20 @@ class CommandLifecycle:
                             )
                         )
                     continue
-                used.add(delivering.id)
-                command = self._deliver(command, delivering)
+                command = self._deliver(command, delivering, _caveat(command, unresolved))
                 changed.append(command)
             if command.state == PROBABLY_DELIVERED:
-                updated = self._check_effects(command, reports)
+                updated = self._check_effects(command, reports, _caveat(command, unresolved))
                 if updated is not None:
                     changed.append(updated)
         return changed
 
-    def _deliver(self, command: Command, report: StoredReport) -> Command:
+    def _deliver(self, command: Command, report: StoredReport, caveat: str) -> Command:
         visible = [c for c, e in command.effects.items() if e == PENDING]
         note = (
             f"probably downloaded in the session of report MOMSN {report.delivery.momsn} "
             f"at {iso_utc(report.session_time)} (one MT per session, oldest first; nothing is acknowledged)"
+            f"{caveat}"
         )
         if not visible:
             return self._set(
@@ -268,7 +423,7 @@ class CommandLifecycle:
             )
         return self._set(command, PROBABLY_DELIVERED, note, delivered_report_id=report.id)
 
-    def _check_effects(self, command: Command, reports: list[StoredReport]) -> Command | None:
+    def _check_effects(self, command: Command, reports: list[StoredReport], caveat: str) -> Command | None:
         index = next((i for i, r in enumerate(reports) if r.id == command.delivered_report_id), None)
         if index is None:
             return None
@@ -298,7 +453,7 @@ class CommandLifecycle:
             return None
         if PENDING in effects.values():
             return self._set(command, PROBABLY_DELIVERED, command.detail, effects=json.dumps(effects))
-        summary = "; ".join(f"{text}: {state}" for text, state in effects.items())
+        summary = "; ".join(f"{text}: {state}" for text, state in effects.items()) + caveat
         if NOT_SEEN in effects.values():
             return self._set(
                 command, TIMED_OUT, f"effect not seen in the reports: {summary}", effects=json.dumps(effects)

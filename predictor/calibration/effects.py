@@ -78,6 +78,9 @@ class Candidate:
         if not finite.any():
             return 0, self.neutral, float("inf")
         table = np.where(finite, table, 10.0 * np.nanmax(np.abs(table[finite])) + 1.0)
+        if np.ptp(table) <= 1e-12 * max(1.0, float(np.min(table))):
+            # The data cannot see this effect (e.g. a time offset in weather constant in time).
+            return 0, self.neutral, float(table.min())
         variant, k = np.unravel_index(int(np.argmin(table)), table.shape)
         row = table[variant]
         grid = np.asarray(self.grid)
@@ -97,40 +100,78 @@ def _bands() -> tuple[Mapping[str, float], ...]:
 
 LIBRARY: tuple[Candidate, ...] = (
     Candidate(
-        "descent_rate_scale", "vertical", "scale", tuple(np.linspace(0.6, 1.6, 11)), (0.5, 2.0), 1.0,
+        "descent_rate_scale",
+        "vertical",
+        "scale",
+        tuple(np.linspace(0.6, 1.6, 11)),
+        (0.5, 2.0),
+        1.0,
         why="λ, the paper's one number: Cd·A or mass wrong by a constant factor",
     ),
     Candidate(
-        "drag_density_exponent", "vertical", "exponent", tuple(np.linspace(-0.4, 0.4, 9)), (-0.5, 0.5), 0.0,
+        "drag_density_exponent",
+        "vertical",
+        "exponent",
+        tuple(np.linspace(-0.4, 0.4, 9)),
+        (-0.5, 0.5),
+        0.0,
         fixed={"reference_density": 1.225},
         why="drag that changes with density (Reynolds number): fast or slow high up, not near the ground",
     ),
     Candidate(
-        "deployment_delay", "vertical", "delay_s", tuple(np.linspace(0.0, 180.0, 10)), (0.0, 240.0), 0.0,
+        "deployment_delay",
+        "vertical",
+        "delay_s",
+        tuple(np.linspace(0.0, 180.0, 10)),
+        (0.0, 240.0),
+        0.0,
         fixed={"speed_factor": 3.0},
         why="the canopy opens late: 3× faster fall until then (speed factor held: it trades off with the delay)",
     ),
     Candidate(
-        "wind_scale", "horizontal", "scale", tuple(np.linspace(0.5, 1.5, 11)), (0.3, 2.0), 1.0,
+        "wind_scale",
+        "horizontal",
+        "scale",
+        tuple(np.linspace(0.5, 1.5, 11)),
+        (0.3, 2.0),
+        1.0,
         why="the forecast wind speed wrong by a constant factor",
     ),
     Candidate(
-        "wind_rotation", "horizontal", "angle_deg", tuple(np.linspace(-40.0, 40.0, 9)), (-60.0, 60.0), 0.0,
+        "wind_rotation",
+        "horizontal",
+        "angle_deg",
+        tuple(np.linspace(-40.0, 40.0, 9)),
+        (-60.0, 60.0),
+        0.0,
         why="the forecast wind direction off by a constant angle",
     ),
     Candidate(
-        "wind_band_scale", "horizontal", "scale", tuple(np.linspace(0.2, 2.0, 7)), (0.0, 2.5), 1.0,
+        "wind_band_scale",
+        "horizontal",
+        "scale",
+        tuple(np.linspace(0.2, 2.0, 7)),
+        (0.0, 2.5),
+        1.0,
         variants=_bands(),
         why="the wind wrong by a factor only in a 6 km band (bands every 3 km from the ground to 30 km)",
     ),
     Candidate(
-        "wind_lag", "horizontal", "time_constant_s", (0.0, 15.0, 30.0, 60.0, 120.0, 240.0, 480.0),
-        (0.0, 600.0), 0.0,
+        "wind_lag",
+        "horizontal",
+        "time_constant_s",
+        (0.0, 15.0, 30.0, 60.0, 120.0, 240.0, 480.0),
+        (0.0, 600.0),
+        0.0,
         why="the payload's horizontal inertia: its velocity relaxes to the air's with a time constant",
     ),
     Candidate(
-        "weather_time_offset", "timing", "offset_s", tuple(np.linspace(-10800.0, 10800.0, 9)),
-        (-14400.0, 14400.0), 0.0,
+        "weather_time_offset",
+        "timing",
+        "offset_s",
+        tuple(np.linspace(-10800.0, 10800.0, 9)),
+        (-14400.0, 14400.0),
+        0.0,
         why="the weather happens earlier or later than the forecast says (no effect with time-constant weather)",
     ),
 )

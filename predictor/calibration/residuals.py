@@ -266,7 +266,8 @@ class FlightResiduals:
     interval_density: np.ndarray
     interval_wind_ms: np.ndarray
     speed_ratio: np.ndarray
-    """Measured / predicted mean descent speed over the interval's altitude span."""
+    """Measured / predicted mean descent speed over the interval's altitude span (NaN for the last
+    interval, which contains the touchdown)."""
     fix_alt_m: np.ndarray
     fix_t_s: np.ndarray
     fix_density: np.ndarray
@@ -312,6 +313,9 @@ def residuals(case: FlightCase, runs: Runs, row: int = 0) -> FlightResiduals:
     with np.errstate(divide="ignore", invalid="ignore"):
         predicted_rate = np.where(predicted_span > 0, dz / predicted_span, np.nan)
         ratio = np.where(dz > 0, measured_rate / predicted_rate, np.nan)
+    # The landing fix is the first one on the ground: touchdown fell somewhere in the last interval,
+    # so its measured rate is too slow by an unknown amount. It says nothing about the descent speed.
+    ratio[-1] = np.nan
     mid_z = 0.5 * (all_z[1:] + all_z[:-1])
     lex, ley = s.landing_x[0] - case.fix_x[-1], s.landing_y[0] - case.fix_y[-1]
     return FlightResiduals(
@@ -339,7 +343,9 @@ def residuals(case: FlightCase, runs: Runs, row: int = 0) -> FlightResiduals:
 def _column(case: FlightCase) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The weather column nearest the descent start at the start time: z, log ρ, u, v."""
     cube = case.cube
-    ti = int(np.argmin(np.abs(cube.times.astype("datetime64[s]").astype(np.int64) - case.start_time.timestamp())))
+    ti = int(
+        np.argmin(np.abs(cube.times.astype("datetime64[s]").astype(np.int64) - case.start_time.timestamp()))
+    )
     yi = int(np.argmin(np.abs(cube.lats - case.start_lat)))
     xi = int(np.argmin(np.abs(cube.lons - float(cube.lon_in_cube(case.start_lon)))))
     return (
@@ -384,7 +390,9 @@ def bin_budget(case: FlightCase, runs: Runs, row: int, edges_m: np.ndarray) -> B
     mx = np.concatenate(([0.0], case.fix_x))
     my = np.concatenate(([0.0], case.fix_y))
     mz = np.concatenate(([case.start_alt_m / 1000.0], case.fix_z))
-    top, bottom = mz[0], mz[-1]
+    # Stop at the last fix still in the air: touchdown fell somewhere in the last interval, so the
+    # time measured below that fix includes time on the ground.
+    top, bottom = mz[0], mz[-2] if len(mz) > 2 else mz[-1]
     levels = np.clip(np.asarray(edges_m) / 1000.0, bottom, top)
 
     def down(a: np.ndarray, zz: np.ndarray) -> np.ndarray:

@@ -12,6 +12,9 @@ bootstrap, ``BOOTSTRAP_SAMPLES`` draws, fixed seed); the effect is selected only
 α/K quantile of the resampled mean is above zero, α = 0.05 one-sided and K the number of candidates
 tried in that round (Bonferroni: trying eight effects and keeping the best is eight chances to be
 lucky). The margin reported is mean(d) minus that lower bound: the improvement an effect must beat.
+An effect must also improve the mean held-out score by at least ``MIN_IMPROVEMENT_KM`` (100 m): with
+synthetic flights the statistics alone would keep effects that shave metres off an already perfect
+model (the difference between two integration steps), and no recovery decision turns on 100 m.
 
 Forward selection: round 1 tries every candidate against the plain model; the best held-out one is
 kept if it clears the margin; round 2 tries the rest with it in the model (its parameters refitted
@@ -29,7 +32,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from predictor.calibration.effects import BIN_EDGES_M, BinnedCorrection, Candidate, fit_binned
-from predictor.calibration.residuals import FlightCase, FlightResiduals, Runs, Scores, bin_budget, residuals, run, score
+from predictor.calibration.residuals import (
+    FlightCase,
+    FlightResiduals,
+    Runs,
+    Scores,
+    bin_budget,
+    residuals,
+    run,
+    score,
+)
 from predictor.errors import PredictorError
 from predictor.model import Term
 from predictor.payload import Payload
@@ -37,6 +49,7 @@ from predictor.payload import Payload
 ALPHA = 0.05
 BOOTSTRAP_SAMPLES = 4000
 DEFAULT_MAX_EFFECTS = 3
+MIN_IMPROVEMENT_KM = 0.1
 
 
 @dataclass(frozen=True)
@@ -79,7 +92,9 @@ class HeldOut:
         return {
             "track_rms_km": _mean_median(self.track_rms_km),
             "landing_error_km": _mean_median(self.landing_error_km),
-            "descent_time_error_s": _mean_median(np.abs(self.descent_time_error_s), signed=self.descent_time_error_s),
+            "descent_time_error_s": _mean_median(
+                np.abs(self.descent_time_error_s), signed=self.descent_time_error_s
+            ),
         }
 
 
@@ -112,8 +127,11 @@ class Test:
         }
 
 
-def paired_test(before: np.ndarray, after: np.ndarray, alpha: float, seed: int) -> Test:
-    """Paired bootstrap of the mean held-out improvement; passed when its lower α quantile is > 0."""
+def paired_test(
+    before: np.ndarray, after: np.ndarray, alpha: float, seed: int, floor_km: float = MIN_IMPROVEMENT_KM
+) -> Test:
+    """Paired bootstrap of the mean held-out improvement; passed when its lower α quantile is > 0
+    and the mean improvement is at least ``floor_km``."""
     d = np.asarray(before) - np.asarray(after)
     if not np.all(np.isfinite(d)):
         return Test(float("nan"), float("nan"), float("nan"), 0, len(d), False)
@@ -121,7 +139,7 @@ def paired_test(before: np.ndarray, after: np.ndarray, alpha: float, seed: int) 
     means = d[rng.integers(0, len(d), (BOOTSTRAP_SAMPLES, len(d)))].mean(axis=1)
     lower = float(np.quantile(means, alpha))
     mean = float(d.mean())
-    return Test(mean, lower, mean - lower, int((d > 0).sum()), len(d), lower > 0.0)
+    return Test(mean, lower, mean - lower, int((d > 0).sum()), len(d), lower > 0.0 and mean >= floor_km)
 
 
 @dataclass(frozen=True)
@@ -200,9 +218,7 @@ def calibrate(
     batch = _Batch(cases, payload, step_m)
     baseline_scores = [batch.scores(i, [[]]) for i in range(n)]
     baseline = HeldOut.of(baseline_scores)
-    baseline_residuals = tuple(
-        residuals(cases[i], batch.runs(i, [[]])) for i in range(n)
-    )
+    baseline_residuals = tuple(residuals(cases[i], batch.runs(i, [[]])) for i in range(n))
     reference = baseline
     selected_folds: list[list[Fit]] = [[] for _ in range(n)]
     selected_full: list[Fit] = []
@@ -210,7 +226,16 @@ def calibrate(
     remaining = list(candidates)
     while remaining and len(selected_full) < max_effects:
         results = tuple(
-            _try(batch, c, selected_folds, selected_full, reference, alpha / len(remaining), seed, len(rounds) + 1)
+            _try(
+                batch,
+                c,
+                selected_folds,
+                selected_full,
+                reference,
+                alpha / len(remaining),
+                seed,
+                len(rounds) + 1,
+            )
             for c in remaining
         )
         rounds.append(results)
@@ -225,9 +250,7 @@ def calibrate(
     after = reference
     binned, binned_heldout = _binned(batch, selected_folds, selected_full)
     binned_test = paired_test(after.track_rms_km, binned_heldout.track_rms_km, alpha, seed)
-    after_residuals = tuple(
-        residuals(cases[i], batch.runs(i, [selected_folds[i]])) for i in range(n)
-    )
+    after_residuals = tuple(residuals(cases[i], batch.runs(i, [selected_folds[i]])) for i in range(n))
     return Calibration(
         names=tuple(c.name for c in cases),
         baseline=baseline,

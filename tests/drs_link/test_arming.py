@@ -14,7 +14,7 @@ from drs_link.backends.stock import StockBackend
 from drs_link.capsule import ReleaseState, ReleaseStateMachine
 from drs_link.config import CapsuleConfig, parse_config
 from drs_link.errors import RefusedError
-from drs_link.gonogo import GoNoGoInputs, GoNoGoReport, PredictionCheck, evaluate
+from drs_link.gonogo import GoNoGoInputs, GoNoGoReport, PredictionCheck, WaiverBook, evaluate
 from drs_link.simulator import CapsuleSimulator
 from drs_link.ssh import CapsuleLink
 from drs_link.staleness import Reading
@@ -113,14 +113,16 @@ def test_link_loss_disarms(store: Store) -> None:
     assert ("disarm", "link lost") in [(a.action, a.result) for a in store.audit("DRS1")]
 
 
-def test_a_changed_input_or_a_no_go_poll_disarms(store: Store) -> None:
+def test_a_changed_verdict_or_a_no_go_poll_disarms(store: Store) -> None:
     clock = Clock()
     arming = controller(store, clock)
-    arming.arm(go_report(clock))
+    partial = {"sync_fraction": Reading(0.9, T0, 60.0)}
+    book = WaiverBook(store, "DRS1", clock)
+    book.grant("sync", "EL", "rest is on the ground copy")
+    arming.arm(evaluate("DRS1", inputs(clock(), **partial), clock(), book.waivers))
     clock.advance(2)
-    assert arming.observe(go_report(clock)).armed
-    moved = PredictionCheck(-31.2, -64.0, ((-64.1, -31.3), (-63.9, -31.3), (-63.9, -31.1), (-64.1, -31.1)))
-    status = arming.observe(go_report(clock, prediction=Reading(moved, clock(), 120.0)))
+    assert arming.observe(evaluate("DRS1", inputs(clock(), **partial), clock(), book.waivers)).armed
+    status = arming.observe(evaluate("DRS1", inputs(clock()), clock(), book.waivers))
     assert status.state is ArmState.DISARMED and status.last_disarm_reason == "inputs changed since ARM"
     arming.arm(go_report(clock))
     clock.advance(25)

@@ -97,9 +97,14 @@ def test_the_link_and_the_prediction_cannot_be_waived(tmp_path: Path) -> None:
         book.grant("gnss", "EL", "  ")
 
 
-def test_the_fingerprint_changes_with_any_value_but_not_with_age() -> None:
-    base = all_go()
-    later = replace(base, link_up=Reading(True, T0 + timedelta(seconds=3), 10.0))
-    assert later.fingerprint() == base.fingerprint()
-    moved = replace(base, prediction=Reading(PredictionCheck(-31.01, -64.0, ()), T0, 120.0))
-    assert moved.fingerprint() != base.fingerprint()
+def test_the_fingerprint_follows_the_verdicts_not_ages_or_small_moves(tmp_path: Path) -> None:
+    base = evaluate("DRS1", all_go(), T0).fingerprint
+    later = replace(all_go(), link_up=Reading(True, T0 + timedelta(seconds=3), 10.0))
+    assert evaluate("DRS1", later, T0 + timedelta(seconds=3)).fingerprint == base
+    moved = PredictionCheck(-31.01, -64.0, square(-64.0, -31.01, 0.05))
+    assert evaluate("DRS1", replace(all_go(), prediction=Reading(moved, T0, 120.0)), T0).fingerprint == base
+    no_fix = replace(all_go(), gnss_fix=Reading(False, T0, 10.0))
+    assert evaluate("DRS1", no_fix, T0).fingerprint != base
+    book = WaiverBook(Store.open(tmp_path / "drs.sqlite"), "DRS1", clock=lambda: T0)
+    book.grant("gnss", "EL", "drop without a fix")
+    assert evaluate("DRS1", no_fix, T0, book.waivers).fingerprint not in (base, evaluate("DRS1", no_fix, T0).fingerprint)

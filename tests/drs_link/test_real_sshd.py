@@ -281,7 +281,9 @@ def test_status_reads_real_df_of_the_mount(capsule: CapsuleConfig) -> None:
     with CapsuleLink(capsule) as link:
         status = read_storage(link, capsule.storage_mount, capsule.raid_device)
     assert status.usage is not None and status.usage.total_bytes > 0
-    assert status.usage.mount == os.path.realpath(capsule.storage_mount) or status.usage.mount.startswith("/")
+    real_mount = os.path.realpath(capsule.storage_mount)
+    assert real_mount == status.usage.mount or real_mount.startswith(status.usage.mount.rstrip("/") + "/")
+    assert status.usage.used_bytes + status.usage.available_bytes <= status.usage.total_bytes
     if not Path("/proc/mdstat").exists():
         assert status.raid is None and status.as_dict()["raid_state"] == "missing"
 

@@ -212,6 +212,20 @@ def test_link_cut_after_n_bytes_mid_command_is_reported_as_a_drop_then_reconnect
     link.close()
 
 
+def test_close_from_another_thread_aborts_a_hung_command(
+    make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig]
+) -> None:
+    sim = make_sim()
+    link = CapsuleLink(sim_config(sim))
+    assert link.heartbeat()
+    sim.faults.response_delay_s = 5.0
+    threading.Timer(0.3, link.close).start()
+    result = link.run(remote.heartbeat(), timeout_s=20)
+    assert result.link_dropped and not result.timed_out
+    sim.faults.response_delay_s = 0.0
+    assert link.heartbeat()
+
+
 def test_dropped_link_reconnects_on_the_next_command(
     make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig]
 ) -> None:

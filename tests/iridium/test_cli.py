@@ -15,7 +15,7 @@ import pytest
 import console.cli as entry
 from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.simulator.rockblock import MoDelivery, SimulatedCapsule, SimulatedRockblock, post_mo
+from drs_link.simulator.rockblock import MoDelivery, Scripted, SimulatedCapsule, SimulatedRockblock, post_mo
 from drs_link.store import Store, utc_now
 
 from .helpers import IMEI, T0, fix_at, fly
@@ -252,3 +252,89 @@ def test_recovery_before_any_fix_shows_the_iridium_position(
     assert capsys.readouterr().out.strip() == (
         "DRS1: no GNSS fix yet; Iridium position 46.51000 N 6.62000 E ±4.0 km (CEP), 10:00Z"
     )
+
+
+def test_mt_resolve_records_the_portal_outcome_once(
+    tmp_path: Path,
+    gateway: SimulatedRockblock,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setenv("DRS_TEST_RB", "pw-123")
+    config = write_config(tmp_path, gateway.url)
+    gateway.script(Scripted("reset"), Scripted("reset"))
+    assert run(config, "mt", "send", "DRS1", "--interval", "5", "--confirm", "DRS1") == 1
+    assert run(config, "mt", "send", "DRS1", "--sounder", "off", "--confirm", "DRS1") == 1
+    assert "delivery_unknown" in capsys.readouterr().out
+    assert run(config, "mt", "resolve", "DRS1", "1", "--not-sent", "--note", "not in the portal") == 0
+    out = capsys.readouterr().out
+    assert out.startswith("MT 1 [INTERVAL=5]: not_sent: resolved by alice") and "not in the portal" in out
+    assert run(config, "mt", "resolve", "DRS1", "1", "--queued", "4114700") == 2
+    err = capsys.readouterr().err
+    assert err == (
+        "drs: error: MT 1 is not_sent: only a command in delivery_unknown can be resolved, and only once\n"
+    )
+    assert run(config, "mt", "resolve", "DRS1", "2", "--queued", "4114700") == 0
+    assert "MT 2 [SOUNDER_OFF]: queued: resolved by alice" in capsys.readouterr().out
+    assert run(config, "mt", "status", "DRS1") == 0
+    out = capsys.readouterr().out
+    assert "[INTERVAL=5] not_sent" in out and "[SOUNDER_OFF] queued" in out
+    assert len(gateway.requests) == 2
+
+
+@pytest.mark.parametrize(
+    "argv", [["DRS1", "1"], ["DRS1", "1", "--queued", "5", "--not-sent"], ["DRS1", "x", "--not-sent"]]
+)
+def test_mt_resolve_needs_one_outcome_and_a_command_number(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str]
+) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        run(write_config(tmp_path), "mt", "resolve", *argv)
+    assert exit_info.value.code == 2 and "drs mt resolve: error:" in capsys.readouterr().err
+
+
+def test_mo_export_writes_the_capsule_fixes_as_a_canonical_track(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = write_config(tmp_path)
+    reports = ReportStore(Store.open(tmp_path / "data" / "drs.sqlite"))
+    for i in range(4):
+        moment = T0 + timedelta(minutes=2 * i)
+        fix = None if i == 2 else fix_at(moment, alt=3000 - 1000 * i)
+        reports.add(Delivery(IMEI, i, format_mo(fix, 8.9, i).hex(), "test", moment))
+    out = tmp_path / "drs1.csv"
+    assert run(config, "mo", "export", "DRS1", "--out", str(out)) == 0
+    assert capsys.readouterr().out == (
+        f"wrote {out}: 3 fixes of DRS1; skipped 1 report(s) without a fix and 0 rejected\n"
+    )
+    assert out.read_text().splitlines() == [
+        "time,lat,lon,alt_m,pressure_pa",
+        "2026-07-01T10:00:07Z,46.5000000,6.6000000,3000.00,",
+        "2026-07-01T10:02:07Z,46.5000000,6.6000000,2000.00,",
+        "2026-07-01T10:06:07Z,46.5000000,6.6000000,0.00,",
+    ]
+    by_imei = tmp_path / "by-imei.csv"
+    assert run(config, "mo", "export", "--imei", IMEI, "--out", str(by_imei)) == 0
+    assert f"3 fixes of IMEI {IMEI}" in capsys.readouterr().out
+    assert by_imei.read_text() == out.read_text()
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--out", "OUT"], "give either a capsule NAME or --imei IMEI, not both or neither"),
+        (["DRS1", "--imei", IMEI, "--out", "OUT"], "give either a capsule NAME or --imei IMEI"),
+        (["--imei", "30023401075337", "--out", "OUT"], "--imei '30023401075337': an IMEI is 15 digits"),
+        (["DRS9", "--out", "OUT"], "DRS9"),
+        (["DRS1", "--out", "OUT"], "no position fix stored for DRS1 (0 report(s)"),
+    ],
+)
+def test_mo_export_bad_requests_are_one_line_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str
+) -> None:
+    config = write_config(tmp_path)
+    out = tmp_path / "t.csv"
+    assert run(config, "mo", "export", *(str(out) if arg == "OUT" else arg for arg in argv)) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("drs: error:") and message in err and err.count("\n") == 1
+    assert not out.exists()

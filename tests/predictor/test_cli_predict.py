@@ -142,6 +142,7 @@ def test_terrain_directory_from_the_cli(
     ("change", "message"),
     [
         ({"--lat": None}, "drs: error: drs predict needs --lat\n"),
+        ({"--weather": None}, "drs: error: drs predict needs --weather (or --demo-weather)\n"),
         ({"--time": "yesterday"}, "drs: error: --time 'yesterday' is not an ISO 8601 time"),
         ({"--time": "2024-05-01T02:00"}, "has no time zone; give UTC explicitly"),
         (
@@ -160,7 +161,8 @@ def test_bad_input_is_one_line_and_exit_2(
     for flag, value in change.items():
         i = args.index(flag)
         if value is None:
-            del args[i : i + 2]
+            end = next(j for j in range(i + 1, len(args)) if args[j].startswith("--"))
+            del args[i:end]
         else:
             args[i + 1] = value
     assert main(args) == 2
@@ -237,3 +239,25 @@ def test_bench_prints_every_measured_figure(capsys: pytest.CaptureFixture[str]) 
         "over 3 runs",
     ):
         assert text in out
+
+
+def test_demo_weather_prediction_says_demo_everywhere(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    args = ["predict", "--demo-weather", "--lat", "46.5", "--lon", "6.6", "--alt", "28000",
+            "--time", "2024-05-01T07:00Z"]  # fmt: skip
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("*** DEMO WEATHER")
+    assert main([*args, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["is_demo"] is True and doc["warnings"][0].startswith("DEMO WEATHER")
+    assert 20.0 < doc["descent_s"] / 60.0 < 80.0
+
+
+def test_weather_and_demo_weather_together_is_refused(
+    grib_files: list[Path], cache: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main([*base_args(grib_files, cache), "--demo-weather"]) == 2
+    assert "give either --weather or --demo-weather, not both" in capsys.readouterr().err

@@ -7,9 +7,11 @@ from datetime import timedelta
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.integrate import quad
 
-from predictor import OutOfCoverageError, Payload, predict
+from predictor import OutOfCoverageError, Payload, WeatherCube, predict
 from predictor.uncertainty import GEOD
 from tests.predictor.predict_helpers import (
     G0,
@@ -173,3 +175,32 @@ def test_release_just_above_the_top_level_is_within_tolerance() -> None:
     assert res.descent_s == pytest.approx(
         closed_form_fall_time(PAYLOAD.mass_kg, PAYLOAD.cda_m2, top + 300.0), rel=1e-4
     )
+
+
+GLOBAL_CUBES: dict[tuple[float, float], WeatherCube] = {}
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    lat=st.floats(-80.0, 80.0),
+    lon=st.floats(-180.0, 179.99),
+    u=st.floats(-30.0, 30.0),
+    v=st.floats(-30.0, 30.0),
+)
+def test_anywhere_on_earth_a_constant_wind_drifts_wind_times_fall_time(
+    lat: float, lon: float, u: float, v: float
+) -> None:
+    # One global 2.5° cube per wind (its 0…360 longitudes carry the wrap column): no place is special.
+    key = (round(u, 1), round(v, 1))
+    if key not in GLOBAL_CUBES:
+        GLOBAL_CUBES.clear()
+        GLOBAL_CUBES[key] = isothermal_cube(
+            lats=np.arange(-90.0, 90.1, 2.5), lons=np.arange(0.0, 360.1, 2.5), u=key[0], v=key[1]
+        )
+    res = predict(GLOBAL_CUBES[key], RELEASE, lat, lon, 30000.0, payload=PAYLOAD)
+    speed = math.hypot(*key)
+    assert -180.0 <= res.landing.lon < 180.0
+    assert res.descent_s == pytest.approx(
+        closed_form_fall_time(PAYLOAD.mass_kg, PAYLOAD.cda_m2, 30000.0), rel=1e-5
+    )
+    assert res.drift_km == pytest.approx(speed * res.descent_s / 1000.0, rel=0.01, abs=0.05)

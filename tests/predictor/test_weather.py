@@ -23,7 +23,7 @@ CYCLE = datetime(2024, 5, 1, 6)
 def marker_u(lat: np.ndarray, lon: np.ndarray, level_index: int, cycle_tag: float = 0.0) -> np.ndarray:
     """A u field whose value tells where it was read: exact in float32 on a 0.5° grid."""
     lon_east = np.mod(lon, 360.0)
-    return level_index * 1000.0 + lat * 4.0 + lon_east / 2.0 + cycle_tag
+    return level_index * 20.0 + lat * 0.5 + lon_east / 8.0 + cycle_tag  # within ±250 m/s
 
 
 def write_marked(
@@ -112,6 +112,26 @@ def test_reader_agrees_with_cfgrib_on_every_variable_of_the_real_file(real_gfs: 
     np.testing.assert_allclose(
         cube.z_m[0], geometric_altitude(reference["gh"].values.astype(np.float64), lats)
     )
+
+
+def test_grib1_files_load_like_grib2(tmp_path: Path, cache: Path) -> None:
+    grib2 = write_marked(tmp_path / "f.grib2", np.arange(45.0, 47.1, 0.5), np.arange(6.0, 8.1, 0.5))
+    grib1 = tmp_path / "f.grib1"
+    with open(grib2, "rb") as stream, open(grib1, "wb") as out:
+        while (handle := eccodes.codes_grib_new_from_file(stream)) is not None:
+            values = eccodes.codes_get_values(handle)
+            eccodes.codes_set(handle, "packingType", "grid_simple")
+            eccodes.codes_set(handle, "edition", 1)
+            eccodes.codes_set(handle, "bitsPerValue", 24)
+            eccodes.codes_set_values(handle, values)
+            assert eccodes.codes_get(handle, "edition") == 1
+            eccodes.codes_write(handle, out)
+            eccodes.codes_release(handle)
+    from_grib1 = load_weather([grib1], cache_dir=cache)
+    from_grib2 = load_weather([grib2], cache_dir=cache)
+    np.testing.assert_array_equal(from_grib1.times, from_grib2.times)
+    np.testing.assert_allclose(from_grib1.u, from_grib2.u, atol=1e-3)
+    np.testing.assert_allclose(from_grib1.z_m, from_grib2.z_m, atol=1e-2)
 
 
 def test_file_named_grb_is_grib2_and_loads(shared_data: Path, cache: Path) -> None:
@@ -250,9 +270,11 @@ def test_an_unreadable_cache_entry_is_rebuilt(tmp_path: Path, cache: Path) -> No
     path = write_marked(tmp_path / "f", np.arange(45.0, 47.1, 0.5), np.arange(6.0, 8.1, 0.5))
     first = load_weather([path], cache_dir=cache)
     (entry,) = cache.glob("*.npz")
-    entry.write_bytes(b"garbage")
-    again = load_weather([path], cache_dir=cache)
-    np.testing.assert_array_equal(again.u, first.u)
+    valid_entry = entry.read_bytes()
+    for damaged in (b"garbage", valid_entry[: len(valid_entry) // 2], b"PK\x03\x04" + b"\x00" * 40):
+        entry.write_bytes(damaged)
+        again = load_weather([path], cache_dir=cache)
+        np.testing.assert_array_equal(again.u, first.u)
 
 
 def test_demo_files_make_a_demo_cube(tmp_path: Path, cache: Path) -> None:
@@ -371,3 +393,13 @@ def test_box_outside_a_regional_file_is_refused(tmp_path: Path, cache: Path) -> 
         load_weather([path], bbox=(10.0, 20.0, 6.5, 7.5), cache_dir=cache)
     with pytest.raises(WeatherError, match="bbox latitudes"):
         load_weather([path], bbox=(46.0, 45.0, 6.5, 7.5), cache_dir=cache)
+
+
+def test_non_physical_values_are_refused_naming_the_file(tmp_path: Path, cache: Path) -> None:
+    shape = (2, 2, 2)
+    zero_kelvin = write_gfs_grib2(
+        tmp_path / "zero_kelvin.grib2", CYCLE, 0, [1000.0, 500.0], [45.0, 46.0], [6.0, 7.0],
+        np.zeros(shape), np.zeros(shape), np.zeros(shape), np.full(shape, 5000.0),
+    )  # fmt: skip
+    with pytest.raises(WeatherError, match=r"zero_kelvin\.grib2: t = 0 K at 1000 hPa is outside 100…400 K"):
+        load_weather([zero_kelvin], cache_dir=cache)

@@ -1,0 +1,164 @@
+"""``drs console [--demo] [--replay FILE]`` and ``drs demo``: build the console's setup and run it.
+
+The console is a full-screen terminal app; started without a terminal (a pipe, CI, cron) it
+would hang or draw garbage, so it refuses with one line instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from datetime import datetime, timedelta
+from pathlib import Path
+
+from console.app import ConsoleSetup, DrsConsole
+from console.predictions import PredictionService
+from drs_link.config import Config, load_config
+from drs_link.errors import ConfigError, LinkError
+from drs_link.iridium.recovery import parse_position
+from drs_link.operations import Operations
+from drs_link.store import Store
+from drs_link.telemetry import TelemetryRecord, TelemetryRecorder, read_recording
+from predictor import Terrain
+
+NOT_A_TERMINAL = (
+    "the console is a full-screen terminal app and stdout is not a terminal; "
+    "run it from an interactive shell (for a scripted check use `drs capsule status`)"
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    console = subparsers.add_parser("console", help="the operator console (full-screen terminal app)")
+    mode = console.add_mutually_exclusive_group()
+    mode.add_argument("--demo", action="store_true", help="simulated capsules, gateway, weather and terrain")
+    mode.add_argument("--replay", type=Path, metavar="FILE", help="replay a telemetry recording (no commanding)")
+    console.add_argument("--speed", type=float, default=None, help="demo time scale / replay speed (default 4 / 1)")
+    console.add_argument("--weather", type=Path, nargs="+", metavar="GRIB", help="GFS GRIB2 files for predictions")
+    console.add_argument("--terrain", type=Path, metavar="DIR", help="SRTM tiles / DEM directory for predictions")
+    console.set_defaults(func=cmd_console)
+    demo = subparsers.add_parser("demo", help="the console with everything simulated (= drs console --demo)")
+    demo.add_argument("--speed", type=float, default=None, help="simulated seconds per real second (default 4)")
+    demo.set_defaults(func=cmd_demo, demo=True, replay=None, weather=None, terrain=None)
+
+
+def _require_terminal() -> None:
+    if not (sys.stdout.isatty() and sys.stdin.isatty()):
+        raise LinkError(NOT_A_TERMINAL)
+
+
+def _team(config: Config) -> tuple[float, float] | None:
+    text = config.console.team_position.strip()
+    if not text:
+        return None
+    try:
+        return parse_position(text)
+    except (LinkError, ValueError) as exc:
+        raise ConfigError(f"console.team_position: {exc}") from None
+
+
+def _recorder(config: Config) -> TelemetryRecorder:
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    return TelemetryRecorder(config.data.dir / "recordings" / f"telemetry-{stamp}.jsonl")
+
+
+class ReplayFeed:
+    """Hands out recorded records as the replay clock passes their times (``speed`` × real time)."""
+
+    def __init__(self, records: list[TelemetryRecord], speed: float) -> None:
+        if speed <= 0:
+            raise ConfigError("--speed must be positive")
+        self.records = records
+        self.speed = speed
+        self.start = records[0].time
+        self._t0 = time.monotonic()
+        self._next = 0
+
+    def clock(self) -> datetime:
+        return self.start + timedelta(seconds=(time.monotonic() - self._t0) * self.speed)
+
+    def due(self) -> list[TelemetryRecord]:
+        now = self.clock()
+        out = []
+        while self._next < len(self.records) and self.records[self._next].time <= now:
+            out.append(self.records[self._next])
+            self._next += 1
+        return out
+
+
+def replay_setup(path: Path, speed: float, config: Config) -> tuple[ConsoleSetup, ReplayFeed]:
+    records = read_recording(path)
+    feed = ReplayFeed(records, speed)
+    names = sorted({r.capsule for r in records if r.capsule}) or [c.name for c in config.capsules]
+    store = Store.open(Path(tempfile.mkdtemp(prefix="drs-replay-")) / "replay.sqlite")
+    setup = ConsoleSetup(
+        mode="replay", capsules=names, store=store, clock=feed.clock, banner_note=f"{path.name} ×{speed:g}",
+        replay_feed=feed.due,
+    )  # fmt: skip
+    return setup, feed
+
+
+def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None) -> ConsoleSetup:
+    if not config.capsules:
+        raise ConfigError("no [[capsule]] in the configuration: add one (see docs/console.md) or try `drs demo`")
+    store = Store.open(config.store_path)
+    operations = Operations(config, store, recorder=_recorder(config))
+    predictions = None
+    if weather:
+        files = list(weather)
+        terrain_factory: Callable[[], Terrain] = (
+            (lambda: Terrain.from_dir(terrain)) if terrain is not None else Terrain.sea_level
+        )
+        predictions = PredictionService(lambda: files, terrain_factory, operations.clock)
+    return ConsoleSetup(
+        mode="live", capsules=[c.name for c in config.capsules], store=store, operations=operations,
+        predictions=predictions, team_position=_team(config), export_dir=config.data.dir / "exports",
+        prediction_period_s=config.console.prediction_period_s,
+    )  # fmt: skip
+
+
+def cmd_console(args: argparse.Namespace) -> int:
+    _require_terminal()
+    if args.demo:
+        return run_demo(args.speed or 4.0)
+    config = load_config(args.config)
+    if args.replay is not None:
+        setup, _ = replay_setup(args.replay, args.speed or 1.0, config)
+    else:
+        setup = live_setup(config, args.weather, args.terrain)
+    return DrsConsole(setup).run() or 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    _require_terminal()
+    return run_demo(args.speed or 4.0)
+
+
+def run_demo(speed: float) -> int:
+    from console.demo import DemoWorld
+
+    root = Path(tempfile.mkdtemp(prefix="drs-demo-"))
+    try:
+        world = DemoWorld(root, speed)
+    except ValueError as exc:
+        raise ConfigError(f"--speed: {exc}") from None
+    print(f"drs demo: starting simulated capsules, gateway and weather in {root} …", flush=True)
+    try:
+        config = world.start()
+        store = Store.open(config.store_path)
+        recorder = _recorder(config)
+        operations = Operations(config, store, clock=world.clock, recorder=recorder, environ=world.environ)
+        predictions = PredictionService(lambda: world.weather_files, world.terrain, world.clock)
+        setup = ConsoleSetup(
+            mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
+            operations=operations, predictions=predictions, balloon_feed=world.balloon_record,
+            team_position=_team(config), export_dir=root / "exports", banner_note=f"×{speed:g} time",
+            poll_period_s=min(3.0, 8.0 / speed), prediction_period_s=config.console.prediction_period_s / speed,
+        )  # fmt: skip
+        result = DrsConsole(setup).run() or 0
+    finally:
+        world.stop()
+    print(f"drs demo: session kept in {root}; replay it with: drs console --replay {recorder.path}")
+    return result

@@ -1,0 +1,40 @@
+"""The help screen: every key, and what the safety rules are, in the operator's words."""
+
+from __future__ import annotations
+
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.screen import ModalScreen
+from textual.widgets import Markdown
+
+HELP = """\
+# DRS console — keys
+
+**Everywhere**: `?`/`F1` help · `Ctrl+P` command palette · `t` dark/light theme · `q` quit · `Esc` back
+
+**Fleet** (one row per capsule; ⌛STALE marks a value older than twice its period):
+`Enter`/`r` release · `p` predictions · `i` Iridium · `v` recovery · `h` history
+
+**Release**: `[` `]` switch checklist · `Space` tick a manual step · `x` skip (reason) ·
+`o` power on (confirm; cannot be undone by software) · `s` sync data · `w` waive the selected
+go/no-go item (GNSS or sync only; logged) · `a` ARM (only on GO; opens a countdown) · `d` disarm ·
+`f` FIRE (only while armed; type the capsule's name; second operator or a logged waiver)
+
+**Predictions**: `+`/`-` release lead time · `e` export KML + GeoJSON
+
+**Iridium**: `n` INTERVAL · `o`/`O` sounder off/on · `c` parachute (helper picks HH:MM) ·
+`R` refresh
+
+**Recovery**: `e` export GPX + KML
+
+**History**: type to search · `e` export JSONL
+
+Any change, lost link or stale critical input disarms. REPLAY sessions cannot command.
+"""
+
+
+class HelpScreen(ModalScreen[None]):
+    BINDINGS = [Binding("escape,q,question_mark", "app.pop_screen", "Close")]
+
+    def compose(self) -> ComposeResult:
+        yield Markdown(HELP, id="help")

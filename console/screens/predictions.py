@@ -1,0 +1,127 @@
+"""Predictions for one capsule: release now and in N minutes, the ellipse in numbers, a map, export."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal
+from textual.widgets import Static
+
+from console.screens.base import ConsoleScreen
+from console.widgets.landing_map import MapLayers, render_map
+from drs_link.errors import LinkError
+from drs_link.staleness import STALE_GLYPH, format_age
+from predictor.errors import PredictorError
+
+
+def describe(prediction: dict[str, Any] | None, age_s: float | None, stale: bool, title: str) -> str:
+    if not prediction:
+        return f"{title}: no prediction yet (needs a fresh position: capsule GNSS or balloon feed)"
+    mark = f"{STALE_GLYPH}STALE " if stale else ""
+    lines = [
+        f"{title} — {mark}computed {format_age(age_s or 0.0)} ago",
+        f"  landing {prediction['landing_lat']:.4f}, {prediction['landing_lon']:.4f}"
+        f"  after {prediction['descent_s'] / 60:.1f} min, {prediction['distance_km']:.1f} km at"
+        f" {prediction['bearing_deg']:.0f}°",
+        f"  σ∥ {prediction['sigma_par_km']:.2f} km  σ⊥ {prediction['sigma_perp_km']:.2f} km"
+        f"  major axis {prediction['major_axis_bearing_deg']:.0f}°",
+    ]
+    for c in prediction["contours"]:
+        lines.append(
+            f"  {c['n_sigma']:.0f}σ: {c['major_km']:.2f} × {c['minor_km']:.2f} km holds {c['probability'] * 100:.1f}%"
+        )
+    lines += [f"  ! {w}" for w in prediction.get("warnings", [])]
+    return "\n".join(lines)
+
+
+class PredictionScreen(ConsoleScreen):
+    BINDINGS = [
+        Binding("escape", "app.pop_screen", "Back"),
+        Binding("plus,equals_sign", "lead(5)", "+5 min"),
+        Binding("minus", "lead(-5)", "-5 min"),
+        Binding("e", "export", "Export"),
+    ]
+
+    def __init__(self, capsule: str) -> None:
+        super().__init__()
+        self.capsule = capsule
+        self.lead_min = 10
+
+    def compose(self) -> ComposeResult:
+        yield from self.compose_banner()
+        with Horizontal(id="prediction-body"):
+            yield Static(id="prediction-numbers")
+            yield Static(id="prediction-map")
+        yield from self.compose_footer()
+
+    def on_mount(self) -> None:
+        self.ready = True
+        self.refresh_view()
+
+    def update_view(self) -> None:
+        app = self.console
+        now = app.now()
+        telemetry = app.fleet.capsules[self.capsule]
+        texts = []
+        for minutes in (0, self.lead_min):
+            reading = telemetry.predictions.get(minutes)
+            title = "Release now" if minutes == 0 else f"Release in {minutes} min"
+            value = reading.value if reading else None
+            texts.append(describe(value, reading.age_s(now) if reading else None,
+                                  bool(reading and not reading.is_fresh(now)), title))  # fmt: skip
+        self.query_one("#prediction-numbers", Static).update(f"{self.capsule}\n\n" + "\n\n".join(texts))
+        now_pred = telemetry.predictions.get(0)
+        value = now_pred.value if now_pred else None
+        zones = [z.ring for z in app.ops.zones] if app.ops else []
+        balloon = app.fleet.balloon.value
+        layers = MapLayers(
+            path=[tuple(p) for p in value["path"]] if value else (),
+            ellipse=[tuple(p) for p in value["outline_2sigma"]] if value else (),
+            zones=zones,
+            landing=(value["landing_lon"], value["landing_lat"]) if value else None,
+            release=(value["release_lon"], value["release_lat"]) if value else None,
+            balloon=(balloon["lon"], balloon["lat"]) if balloon else None,
+            team=(app.setup.team_position[1], app.setup.team_position[0]) if app.setup.team_position else None,
+        )
+        widget = self.query_one("#prediction-map", Static)
+        width = max(20, widget.size.width or 40)
+        height = max(6, widget.size.height or 12)
+        widget.update(render_map(layers, width, height))
+
+    def action_lead(self, step: int) -> None:
+        self.lead_min = max(5, min(120, self.lead_min + step))
+        origin = self.console.prediction_origin(self.capsule)
+        if origin is not None and self.console.setup.predictions is not None:
+            self.predict_lead(origin)
+        self.refresh_view()
+
+    @work(thread=True, exit_on_error=False, group="predictions")
+    def predict_lead(self, origin: tuple[float, float, float]) -> None:
+        from console.app import OperatorNotice, TelemetryArrived
+
+        try:
+            records = self.console.setup.predictions.predict(self.capsule, *origin, release_in=(self.lead_min,))
+        except PredictorError as exc:
+            self.app.post_message(OperatorNotice(f"prediction failed: {exc}", "warning"))
+            return
+        self.app.post_message(TelemetryArrived(records))
+
+    def action_export(self) -> None:
+        service = self.console.setup.predictions
+        if service is None:
+            self.app.notify("no predictor in this session (replay): nothing to export", severity="warning")
+            return
+        directory = self.console.setup.export_dir
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+            paths = service.export(self.capsule, directory)
+        except (OSError, PredictorError, LinkError) as exc:
+            self.app.notify(f"export failed: {exc}", severity="error")
+            return
+        if not paths:
+            self.app.notify("no prediction yet to export", severity="warning")
+        else:
+            self.app.notify("exported " + ", ".join(p.name for p in paths))

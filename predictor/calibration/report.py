@@ -1,0 +1,343 @@
+"""The calibration's results for people (Markdown with PNG plots) and for programs (JSON).
+
+The JSON has exactly the keys the calibration issue names (flights, excluded, baseline, candidates,
+selected, after, uncertainty_model) plus extra ones (every round of the selection, the binned
+correction, the verdict). The Markdown starts with the verdict in plain words, because the reader's
+first question is "did the data show an effect, and how much did it help on flights it never saw".
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from predictor.calibration.ellipse_fit import EllipseFit  # noqa: E402
+from predictor.calibration.selection import Calibration, CandidateResult, HeldOut  # noqa: E402
+
+
+@dataclass(frozen=True)
+class Exclusion:
+    name: str
+    reason: str
+
+
+def _error_block(h: HeldOut) -> dict[str, Any]:
+    s = h.summary()
+    return {
+        "landing_error_km": s["landing_error_km"],
+        "descent_time_error_s": s["descent_time_error_s"],
+        "track_rms_km": s["track_rms_km"],
+    }
+
+
+def verdict(cal: Calibration) -> str:
+    """One paragraph: what was found and how much it helped, held out."""
+    b, a = cal.baseline.summary(), cal.after.summary()
+    parts = []
+    if cal.selected:
+        names = ", ".join(
+            f"`{f.candidate.name}` ({_params(f.describe()['parameters'])})" for f in cal.selected
+        )
+        parts.append(
+            f"The loop selected {names}. On flights held out of every fit, the RMS track error went from "
+            f"{b['track_rms_km']['mean']:.2f} to {a['track_rms_km']['mean']:.2f} km (mean; median "
+            f"{b['track_rms_km']['median']:.2f} → {a['track_rms_km']['median']:.2f} km), the landing error "
+            f"from {b['landing_error_km']['mean']:.2f} to {a['landing_error_km']['mean']:.2f} km (median "
+            f"{b['landing_error_km']['median']:.2f} → {a['landing_error_km']['median']:.2f} km) and the "
+            f"|descent-time error| from {b['descent_time_error_s']['mean']:.0f} to "
+            f"{a['descent_time_error_s']['mean']:.0f} s (mean)."
+        )
+    else:
+        parts.append(
+            "No library effect beat the plain model on held-out flights by more than the noise margin: "
+            f"the RMS track error stays {b['track_rms_km']['mean']:.2f} km (mean)."
+        )
+    bt = cal.binned_test
+    bh = cal.binned_heldout.summary()
+    if cal.unexplained:
+        lead = (
+            "No library effect explains it"
+            if not cal.selected
+            else "The selected effects do not explain all of it"
+        )
+        parts.append(
+            f"{lead}: the altitude-binned correction, fitted without each held-out flight, still lowers the "
+            f"held-out RMS track error to {bh['track_rms_km']['mean']:.2f} km (improvement "
+            f"{bt.mean_improvement_km:.3f} km > margin {bt.margin_km:.3f} km, {bt.wins}/{bt.flights} flights "
+            "better). The residual has a systematic altitude structure the library lacks (see its profile below)."
+        )
+    else:
+        parts.append(
+            f"The altitude-binned correction does not improve further on held-out flights "
+            f"(improvement {bt.mean_improvement_km:.3f} km, margin {bt.margin_km:.3f} km): what is left is "
+            "not a systematic function of altitude that these flights can pin down."
+        )
+    return " ".join(parts)
+
+
+def _params(p: dict[str, Any]) -> str:
+    return ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in p.items())
+
+
+def result_json(
+    cal: Calibration, ellipse: EllipseFit | None, excluded: Sequence[Exclusion], payload: dict[str, Any],
+    weather: str,
+) -> dict[str, Any]:  # fmt: skip
+    first_round: tuple[CandidateResult, ...] = cal.rounds[0] if cal.rounds else ()
+    return {
+        "flights": list(cal.names),
+        "excluded": [{"name": e.name, "reason": e.reason} for e in excluded],
+        "baseline": _error_block(cal.baseline),
+        "candidates": [
+            {**r.full.describe(), "heldout": _error_block(r.heldout), "test": r.test.to_dict()}
+            for r in first_round
+        ],
+        "selected": [f.describe() for f in cal.selected],
+        "after": _error_block(cal.after),
+        "uncertainty_model": ellipse.to_dict() if ellipse is not None else None,
+        "rounds": [
+            [{**r.full.describe(), "heldout": _error_block(r.heldout), "test": r.test.to_dict()} for r in rnd]
+            for rnd in cal.rounds
+        ],
+        "binned_correction": {
+            **cal.binned.to_dict(),
+            "heldout": _error_block(cal.binned_heldout),
+            "test": cal.binned_test.to_dict(),
+        },
+        "library_explains_residual": not cal.unexplained,
+        "verdict": verdict(cal),
+        "score": "per flight: RMS over its descent fixes of the 3-D position error (km) at equal time since descent start",
+        "payload": payload,
+        "weather": weather,
+        "per_flight": [
+            {
+                "name": name,
+                "baseline": _flight(cal.baseline, i),
+                "after": _flight(cal.after, i),
+            }
+            for i, name in enumerate(cal.names)
+        ],
+    }
+
+
+def _flight(h: HeldOut, i: int) -> dict[str, float]:
+    return {
+        "track_rms_km": round(float(h.track_rms_km[i]), 4),
+        "landing_error_km": round(float(h.landing_error_km[i]), 4),
+        "descent_time_error_s": round(float(h.descent_time_error_s[i]), 1),
+    }
+
+
+def write_report(
+    path: Path, cal: Calibration, ellipse: EllipseFit | None, excluded: Sequence[Exclusion], title: str,
+    command: str, data: dict[str, Any],
+) -> list[Path]:  # fmt: skip
+    """The Markdown report and its PNGs (named after the report, next to it). Returns the PNG paths."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    stem = path.with_suffix("")
+    pngs = [
+        _plot_vertical(cal, Path(f"{stem}-speed-ratio.png")),
+        _plot_horizontal(cal, Path(f"{stem}-position-error.png")),
+        _plot_before_after(cal, Path(f"{stem}-before-after.png")),
+    ]
+    b, a = data["baseline"], data["after"]
+    lines = [
+        f"# {title}",
+        "",
+        "## What the data showed",
+        "",
+        verdict(cal),
+        "",
+        f"Flights used: {len(cal.names)}. "
+        + (
+            "Excluded: " + "; ".join(f"{e.name} ({e.reason})" for e in excluded) + "."
+            if excluded
+            else "Excluded: none (every flight passed the cleaning rules of docs/tracks.md)."
+        ),
+        "",
+        f"Weather: {data['weather']}. Payload: {data['payload'].get('name')} "
+        f"(mass {data['payload'].get('mass_kg')} kg, Cd·A {data['payload'].get('cda_m2')} m²).",
+        "",
+        f"Produced by: `{command}`",
+        "",
+        "## Score and margin",
+        "",
+        "Each flight is predicted from its descent start. Its score is the RMS, over all its descent fixes, of the "
+        "3-D distance between the measured and the predicted position at the same time since the descent start (km). "
+        "Every candidate is fitted leave-one-flight-out and scored on the flight it never saw. An effect is "
+        "selected only when the paired bootstrap of the mean held-out improvement (4000 draws over flights) "
+        "has its lower α/K quantile above zero (α = 0.05, K = candidates in that round). "
+        "The margin below is mean improvement minus that lower bound.",
+        "",
+        "## Before and after (held out)",
+        "",
+        "| | RMS track error km (mean / median) | landing error km (mean / median) | |descent-time error| s (mean / median) |",
+        "|---|---|---|---|",
+        _row("baseline (plain model)", b),
+        _row("after (selected effects)", a),
+        _row("binned correction on top", data["binned_correction"]["heldout"]),
+        "",
+        f"![before and after]({Path(pngs[2]).name})",
+        "",
+        "## Candidates",
+        "",
+    ]
+    for k, rnd in enumerate(data["rounds"], start=1):
+        lines += [
+            f"Round {k}:",
+            "",
+            "| effect | family | parameters (all flights) | held-out RMS km (mean) | held-out landing km (mean) "
+            "| improvement km | margin km | flights better | selected |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        chosen = {f["effect"] for f in data["selected"]}
+        for r in rnd:
+            t = r["test"]
+            lines.append(
+                f"| {r['effect']} | {r['family']} | {_params(r['parameters'])} | "
+                f"{r['heldout']['track_rms_km']['mean']:.3f} | {r['heldout']['landing_error_km']['mean']:.3f} | "
+                f"{_num(t['mean_improvement_km'])} | {_num(t['margin_km'])} | {t['flights_improved']}/{t['flights']} | "
+                f"{'yes' if t['passed'] and r['effect'] in chosen else 'no'} |"
+            )
+        lines.append("")
+    bc = data["binned_correction"]
+    lines += [
+        "## Altitude-binned correction (fitted on all flights, on top of the selected effects)",
+        "",
+        "| bin m | descent-rate factor | added wind east m/s | north m/s | measured time s |",
+        "|---|---|---|---|---|",
+    ]
+    for i, f in enumerate(bc["rate_factor"]):
+        if bc["measured_s"][i] > 0:
+            lines.append(
+                f"| {bc['edges_m'][i]:.0f}–{bc['edges_m'][i + 1]:.0f} | {f:.3f} | {bc['east_ms'][i]:.2f} | "
+                f"{bc['north_ms'][i]:.2f} | {bc['measured_s'][i]:.0f} |"
+            )
+    lines += [
+        "",
+        "## Residuals",
+        "",
+        "Measured / predicted descent speed between consecutive fixes, plain model, against altitude, air "
+        "density, wind speed and time since release:",
+        "",
+        f"![speed ratio]({Path(pngs[0]).name})",
+        "",
+        "Along- and cross-track position error (measured − predicted, same time) at every fix:",
+        "",
+        f"![position error]({Path(pngs[1]).name})",
+        "",
+    ]
+    if ellipse is not None:
+        e = ellipse.to_dict()
+        se = e["stderr"]
+        lines += [
+            "## Landing-ellipse model (bivariate-normal maximum likelihood, held-out errors after selection)",
+            "",
+            "| | σ0 km | h | k km²/h² | q | held-out inside 1σ | inside 2σ |",
+            "|---|---|---|---|---|---|---|",
+            f"| this fit (± bootstrap sd) | {e['sigma0_km']:.3f} ± {se['sigma0_km']:.3f} | {e['h']:.3g} ± {se['h']:.2g} | "
+            f"{e['k_km2_per_h2']:.3g}{'' if e['k_identifiable'] else ' (not identifiable: one lead time)'} | "
+            f"{e['q']:.3f} ± {se['q']:.3f} | {e['coverage_1sigma']:.1%} | {e['coverage_2sigma']:.1%} |",
+        ]
+        for name, p in e["paper"].items():
+            lines.append(
+                f"| paper ({name}), same errors | {p['sigma0_km']} | {p['h']} | {p['k_km2_per_h2']} | {p['q']} | "
+                f"{p['coverage_1sigma']:.1%} | {p['coverage_2sigma']:.1%} |"
+            )
+        lines += [
+            f"| expected for a bivariate normal | | | | | {e['expected_1sigma']:.1%} | {e['expected_2sigma']:.1%} |",
+            "",
+        ]
+    lines += ["## Per flight (held out)", "", "| flight | RMS km before → after | landing km before → after "
+              "| descent-time error s before → after |", "|---|---|---|---|"]  # fmt: skip
+    for f in data["per_flight"]:
+        pb, pa = f["baseline"], f["after"]
+        lines.append(
+            f"| {f['name']} | {pb['track_rms_km']:.2f} → {pa['track_rms_km']:.2f} | "
+            f"{pb['landing_error_km']:.2f} → {pa['landing_error_km']:.2f} | "
+            f"{pb['descent_time_error_s']:.0f} → {pa['descent_time_error_s']:.0f} |"
+        )
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return pngs
+
+
+def _num(x: float | None) -> str:
+    return "–" if x is None or not np.isfinite(x) else f"{x:.3f}"
+
+
+def _row(label: str, block: dict[str, Any]) -> str:
+    t, l_, d = block["track_rms_km"], block["landing_error_km"], block["descent_time_error_s"]
+    return (
+        f"| {label} | {t['mean']:.3f} / {t['median']:.3f} | {l_['mean']:.3f} / {l_['median']:.3f} | "
+        f"{d['mean']:.0f} / {d['median']:.0f} |"
+    )
+
+
+def _plot_vertical(cal: Calibration, out: Path) -> Path:
+    fig, axes = plt.subplots(1, 4, figsize=(15, 4), sharey=True)
+    res = cal.baseline_residuals
+    y = np.concatenate([r.speed_ratio for r in res])
+    for ax, attr, label in zip(
+        axes,
+        ("interval_alt_m", "interval_density", "interval_wind_ms", "interval_t_s"),
+        ("altitude (m)", "air density (kg/m³)", "wind speed (m/s)", "time since release (s)"),
+        strict=True,
+    ):
+        x = np.concatenate([getattr(r, attr) for r in res])
+        ax.scatter(x, y, s=8, alpha=0.6)
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.set_xlabel(label)
+    axes[0].set_ylabel("measured / predicted descent speed")
+    axes[0].set_ylim(0.3, 2.0)
+    fig.tight_layout()
+    fig.savefig(out, dpi=80)
+    plt.close(fig)
+    return out
+
+
+def _plot_horizontal(cal: Calibration, out: Path) -> Path:
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4), sharey=True)
+    for res, label in ((cal.baseline_residuals, "plain model"), (cal.after_residuals, "after (held out)")):
+        along = np.concatenate([r.along_km for r in res])
+        cross = np.concatenate([r.cross_km for r in res])
+        alt = np.concatenate([r.fix_alt_m for r in res])
+        wind = np.concatenate([r.fix_wind_ms for r in res])
+        t = np.concatenate([r.fix_t_s for r in res])
+        axes[0].scatter(alt, np.hypot(along, cross), s=6, alpha=0.5, label=label)
+        axes[1].scatter(wind, along, s=6, alpha=0.5, label=label)
+        axes[2].scatter(t, cross, s=6, alpha=0.5, label=label)
+    axes[0].set_xlabel("altitude (m)")
+    axes[0].set_ylabel("position error (km)")
+    axes[1].set_xlabel("wind speed (m/s)  [along-track error]")
+    axes[2].set_xlabel("time since release (s)  [cross-track error]")
+    axes[0].legend()
+    fig.tight_layout()
+    fig.savefig(out, dpi=80)
+    plt.close(fig)
+    return out
+
+
+def _plot_before_after(cal: Calibration, out: Path) -> Path:
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    x = np.arange(len(cal.names))
+    axes[0].bar(x - 0.2, cal.baseline.track_rms_km, 0.4, label="baseline")
+    axes[0].bar(x + 0.2, cal.after.track_rms_km, 0.4, label="after (held out)")
+    axes[0].set_xticks(x, cal.names, rotation=90, fontsize=7)
+    axes[0].set_ylabel("RMS track error (km)")
+    axes[0].legend()
+    axes[1].bar(x - 0.2, cal.baseline.landing_error_km, 0.4, label="baseline")
+    axes[1].bar(x + 0.2, cal.after.landing_error_km, 0.4, label="after (held out)")
+    axes[1].set_xticks(x, cal.names, rotation=90, fontsize=7)
+    axes[1].set_ylabel("landing error (km)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=80)
+    plt.close(fig)
+    return out

@@ -1,0 +1,351 @@
+"""Live re-prediction during a descent: restart from each position report, and learn from the fall so far.
+
+Why: during descent the capsule reports its position every ~2 minutes. Each report is the best
+possible release point for a new prediction (measured position, altitude and time), and the reports
+so far measure two things the forecast got wrong:
+
+* the **descent rate**: for each pair of consecutive reports the model's own fall time across the
+  same altitudes is compared with the measured one; their ratio over the recent reports
+  (``rate_window_m`` of altitude) becomes a factor on the rest of the fall (``DescentRateScale``);
+* the **wind**: the measured mean velocity between two reports minus the forecast's mean velocity
+  over the same altitudes. An error at altitude does not simply continue to the ground (the jet and
+  the stratosphere are different air), so the recent error is applied below the capsule with a weight
+  exp(−Δz / L) that decays with the altitude distance Δz from the capsule (``BinnedWind`` in 250 m
+  bins). L is chosen on real flights, leave-one-flight-out (``predictor.planning.live_evaluation``),
+  and the correction is switched on only in the altitude bands where it helped held-out flights.
+
+The ellipse shrinks with what is left: σ∥ and σ⊥ are the errors the evaluation measured at the
+report's height above the ground (``LiveErrorModel``), from ~5 km high up to ~1.5 km near the ground.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any, Protocol
+
+import numpy as np
+
+from predictor.cube import WeatherCube
+from predictor.errors import PredictorError
+from predictor.model import BinnedWind, DescentRateScale, Term
+from predictor.payload import PROFILES, Payload
+from predictor.prediction import Prediction, iso_z, predict
+from predictor.terrain import Terrain
+from predictor.uncertainty import GEOD, ErrorModel
+
+WIND_BIN_M = 250.0
+RATE_FACTOR_LIMITS = (0.5, 2.0)
+"""A measured rate factor outside this is a bad fix or a failed canopy, not a calibration."""
+MIN_PAIR_DROP_M = 200.0
+"""Report pairs closer in altitude than this say too little about rate or wind (GNSS noise)."""
+
+
+@dataclass(frozen=True)
+class LiveErrorModel:
+    """σ∥ and σ⊥ (km, along and across the report→landing bearing) against height above the ground.
+
+    Measured, not modelled: the RMS along- and cross-track errors of the live re-prediction at each
+    checkpoint of the real-flight evaluation, linear in height between checkpoints and held beyond
+    them. Squared-error fits of σ0 + drift forms were tried and dominated by a few large misses high
+    up, which left 3 km of σ at the ground; a table per height keeps each height honest.
+    """
+
+    heights_km: tuple[float, ...]
+    sigma_parallel_km: tuple[float, ...]
+    sigma_perpendicular_km: tuple[float, ...]
+
+    def at(self, height_km: float) -> ErrorModel:
+        """The ``ErrorModel`` that ``predict`` uses for a report at this height (no drift or lead term)."""
+        order = np.argsort(self.heights_km)
+        heights = np.asarray(self.heights_km)[order]
+        parallel = float(np.interp(height_km, heights, np.asarray(self.sigma_parallel_km)[order]))
+        perpendicular = float(np.interp(height_km, heights, np.asarray(self.sigma_perpendicular_km)[order]))
+        return ErrorModel(
+            sigma0_km=parallel, h=0.0, k_km2_per_h2=0.0, q=parallel / perpendicular, name="live"
+        )
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {
+            "heights_km": list(self.heights_km),
+            "sigma_parallel_km": list(self.sigma_parallel_km),
+            "sigma_perpendicular_km": list(self.sigma_perpendicular_km),
+        }
+
+
+LIVE_ERROR_MODEL = LiveErrorModel(
+    heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
+    sigma_parallel_km=(4.114, 4.787, 4.608, 4.038, 2.259, 1.66),
+    sigma_perpendicular_km=(3.561, 3.767, 3.829, 3.03, 1.525, 0.789),
+)
+"""Measured by ``drs live evaluate`` on the 30 test flights; see docs/planning/live-reprediction.md."""
+
+
+class Report(Protocol):
+    """A position report (a calibration ``Fix``, an Iridium position, a GNSS sample)."""
+
+    time: datetime
+    lat: float
+    lon: float
+    alt_m: float
+
+
+@dataclass(frozen=True)
+class Band:
+    """What to correct while the capsule is between two heights above the ground (m)."""
+
+    lower_m: float
+    upper_m: float
+    use_rate: bool
+    decay_m: float | None
+    """Decay length L of the wind correction (None: no wind correction in this band)."""
+
+
+@dataclass(frozen=True)
+class LiveCorrection:
+    """How the measured descent corrects the rest of it, by the capsule's height above the ground.
+
+    Outside every band nothing is corrected (a plain re-prediction from the report).
+    """
+
+    bands: tuple[Band, ...] = ()
+    rate_window_m: float = 3000.0
+    wind_window_m: float = 2000.0
+
+    @classmethod
+    def everywhere(cls, use_rate: bool, decay_m: float | None) -> LiveCorrection:
+        return cls(bands=(Band(-math.inf, math.inf, use_rate, decay_m),))
+
+    def band_at(self, height_m: float) -> Band | None:
+        for band in self.bands:
+            if band.lower_m <= height_m < band.upper_m:
+                return band
+        return None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "rate_window_m": self.rate_window_m,
+            "wind_window_m": self.wind_window_m,
+            "bands": [
+                {
+                    "from_m": b.lower_m if math.isfinite(b.lower_m) else None,
+                    "to_m": b.upper_m if math.isfinite(b.upper_m) else None,
+                    "use_rate": b.use_rate,
+                    "decay_m": b.decay_m,
+                }
+                for b in self.bands
+            ],
+        }
+
+
+NO_CORRECTION = LiveCorrection()
+DEFAULT_CORRECTION = LiveCorrection(
+    bands=(
+        Band(lower_m=3500.0, upper_m=7500.0, use_rate=True, decay_m=4000.0),
+        Band(lower_m=7500.0, upper_m=12500.0, use_rate=True, decay_m=2000.0),
+    )
+)
+"""What the leave-one-flight-out evaluation kept (``drs live evaluate``; docs/planning/live-reprediction.md):
+rate and decaying wind correction only 3.5–12.5 km above the ground, where held-out flights gained;
+above and below, a plain re-prediction from the report did as well or better."""
+
+
+@dataclass(frozen=True)
+class Leg:
+    """What one pair of consecutive reports measured, against the model over the same altitudes."""
+
+    top_m: float
+    bottom_m: float
+    observed_s: float
+    model_s: float
+    observed_east_ms: float
+    observed_north_ms: float
+    forecast_east_ms: float
+    forecast_north_ms: float
+
+    @property
+    def rate_factor(self) -> float:
+        return self.model_s / self.observed_s
+
+    @property
+    def wind_error(self) -> tuple[float, float]:
+        return self.observed_east_ms - self.forecast_east_ms, self.observed_north_ms - self.forecast_north_ms
+
+
+@dataclass(frozen=True)
+class LivePrediction:
+    prediction: Prediction
+    """The prediction from the latest report, with the correction applied and the live ellipse."""
+    report: Report
+    rate_factor: float
+    wind_error_ms: tuple[float, float]
+    decay_m: float | None
+    legs: tuple[Leg, ...] = field(repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        p = self.prediction
+        return {
+            "report": {
+                "time": iso_z(self.report.time),
+                "lat": self.report.lat,
+                "lon": self.report.lon,
+                "alt_m": self.report.alt_m,
+            },
+            "landing": p.landing.to_dict(),
+            "remaining_drift_km": p.drift_km,
+            "remaining_s": p.descent_s,
+            "ellipse": p.ellipse.to_dict(),
+            "rate_factor": self.rate_factor,
+            "wind_error_ms": {"east": self.wind_error_ms[0], "north": self.wind_error_ms[1]},
+            "wind_decay_m": self.decay_m,
+            "legs_used": len(self.legs),
+            "warnings": list(p.warnings),
+        }
+
+
+def _velocity(a: Report, b: Report, seconds: float) -> tuple[float, float]:
+    azimuth, _, distance = GEOD.inv(a.lon, a.lat, b.lon, b.lat)
+    speed = distance / seconds
+    return speed * math.sin(math.radians(azimuth)), speed * math.cos(math.radians(azimuth))
+
+
+class LivePredictor:
+    """Feeds on position reports of one descent; ``update`` returns the new prediction for each.
+
+    The model's view of each leg (fall time and mean wind between two reports) comes from a prediction
+    started at the leg's first report and read off its track where it crosses the leg's lower altitude,
+    so the comparison uses exactly the physics and weather the prediction will use below.
+    """
+
+    def __init__(
+        self,
+        cube: WeatherCube,
+        payload: Payload | None = None,
+        terrain: Terrain | None = None,
+        correction: LiveCorrection = DEFAULT_CORRECTION,
+        error_model: LiveErrorModel = LIVE_ERROR_MODEL,
+        step_m: float = 100.0,
+        effects: Sequence[Term] = (),
+    ) -> None:
+        self.cube = cube
+        self.payload = payload or PROFILES["drs"]
+        self.terrain = terrain or Terrain.sea_level()
+        self.correction = correction
+        self.error_model = error_model
+        self.step_m = step_m
+        self.effects = tuple(effects)
+        self.reports: list[Report] = []
+        self.legs: list[Leg] = []
+        self._leg_start: Report | None = None
+
+    def _leg(self, a: Report, b: Report) -> Leg | None:
+        seconds = (b.time - a.time).total_seconds()
+        if seconds <= 0.0 or a.alt_m - b.alt_m < MIN_PAIR_DROP_M:
+            return None
+        probe = predict(
+            self.cube, a.time, a.lat, a.lon, a.alt_m, self.payload, self.terrain, self.step_m,
+            effects=self.effects,
+        )  # fmt: skip
+        track = probe.track
+        if track.alt_m[-1] > b.alt_m:
+            return None
+        # The track's altitudes fall, so flip them for np.interp.
+        z, t = track.alt_m[::-1], track.t_s[::-1]
+        model_s = float(np.interp(b.alt_m, z, t))
+        lat_b = float(np.interp(b.alt_m, z, track.lat[::-1]))
+        lon_b = float(np.interp(b.alt_m, z, np.unwrap(track.lon, period=360.0)[::-1]))
+        if model_s <= 0.0:
+            return None
+        end = _Point(b.time, lat_b, lon_b, b.alt_m)
+        f_east, f_north = _velocity(a, end, model_s)
+        o_east, o_north = _velocity(a, b, seconds)
+        return Leg(a.alt_m, b.alt_m, seconds, model_s, o_east, o_north, f_east, f_north)
+
+    def update(self, report: Report) -> LivePrediction:
+        """A new report: measure the leg since the last usable one, then predict from the report."""
+        self.observe(report)
+        return self.predict_from(report)
+
+    def observe(self, report: Report) -> None:
+        """Measure the leg that ends at this report (no prediction)."""
+        if self.reports and report.time <= self.reports[-1].time:
+            raise PredictorError(
+                f"report at {iso_z(report.time)} is not after the previous one ({iso_z(self.reports[-1].time)})"
+            )
+        if self._leg_start is not None:
+            leg = self._leg(self._leg_start, report)
+            if leg is not None:
+                self.legs.append(leg)
+                self._leg_start = report
+            elif report.alt_m > self._leg_start.alt_m:
+                self._leg_start = report
+        else:
+            self._leg_start = report
+        self.reports.append(report)
+
+    def measured(self, alt_m: float) -> tuple[float, tuple[float, float], float]:
+        """(rate factor, wind error east/north, the altitude it was measured at) from recent legs.
+
+        Recent: legs whose lower end is within the window above ``alt_m`` (the last leg always is,
+        it ends at the latest report); without any, the last leg.
+        """
+        c = self.correction
+        rate = 1.0
+        recent = [g for g in self.legs if g.bottom_m - alt_m < c.rate_window_m]
+        if recent:
+            rate = sum(g.model_s for g in recent) / sum(g.observed_s for g in recent)
+            rate = min(max(rate, RATE_FACTOR_LIMITS[0]), RATE_FACTOR_LIMITS[1])
+        wind_legs = [g for g in self.legs if g.bottom_m - alt_m < c.wind_window_m] or self.legs[-1:]
+        if not wind_legs:
+            return rate, (0.0, 0.0), alt_m
+        weights = np.array([g.observed_s for g in wind_legs])
+        errors = np.array([g.wind_error for g in wind_legs])
+        east, north = (weights[:, None] * errors).sum(axis=0) / weights.sum()
+        middle = np.array([0.5 * (g.top_m + g.bottom_m) for g in wind_legs])
+        return rate, (float(east), float(north)), float((weights * middle).sum() / weights.sum())
+
+    def predict_from(self, report: Report, correction: LiveCorrection | None = None) -> LivePrediction:
+        """The prediction from one report with the legs measured so far (``correction`` overrides)."""
+        correction = correction or self.correction
+        rate, (east, north), measured_at = self.measured(report.alt_m)
+        height = report.alt_m - float(self.terrain.elevation(report.lat, report.lon))
+        band = correction.band_at(height)
+        use_rate = band is not None and band.use_rate
+        decay = band.decay_m if band is not None else None
+        terms: list[Term] = list(self.effects)
+        if use_rate and rate != 1.0:
+            terms.append(DescentRateScale(scale=rate))
+        if decay is not None and self.legs and report.alt_m > -500.0 + WIND_BIN_M:
+            edges = np.arange(report.alt_m, -500.0, -WIND_BIN_M)[::-1]
+            edges = np.concatenate(([-500.0], edges)) if edges[0] > -500.0 else edges
+            centers = 0.5 * (edges[:-1] + edges[1:])
+            weight = np.exp(-(max(measured_at, report.alt_m) - centers) / decay)
+            terms.append(
+                BinnedWind(
+                    edges_m=tuple(float(e) for e in edges),
+                    east_ms=tuple(float(east * w) for w in weight),
+                    north_ms=tuple(float(north * w) for w in weight),
+                )
+            )
+        prediction = predict(
+            self.cube, report.time, report.lat, report.lon, report.alt_m, self.payload, self.terrain,
+            self.step_m, effects=tuple(terms), error_model=self.error_model.at(height / 1000.0),
+        )  # fmt: skip
+        return LivePrediction(
+            prediction=prediction,
+            report=report,
+            rate_factor=rate if use_rate else 1.0,
+            wind_error_ms=(east, north) if decay is not None else (0.0, 0.0),
+            decay_m=decay,
+            legs=tuple(self.legs),
+        )
+
+
+@dataclass(frozen=True)
+class _Point:
+    time: datetime
+    lat: float
+    lon: float
+    alt_m: float

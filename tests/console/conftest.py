@@ -1,0 +1,132 @@
+"""Fixtures for the console: the real demo world (SSH simulators, simulated RockBLOCK, MO receiver,
+demo weather and terrain), and a fixed-time console fed from telemetry records for snapshots."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import pytest
+
+from console.app import ConsoleSetup, DrsConsole
+from console.console_cli import _team
+from console.demo import DemoWorld, write_demo_terrain
+from console.predictions import PredictionService
+from drs_link.config import Config, parse_config
+from drs_link.iridium.firmware import GnssFix, format_mo
+from drs_link.iridium.reports import Delivery, ReportStore
+from drs_link.operations import Operations
+from drs_link.store import Store
+from drs_link.telemetry import TelemetryRecord
+from predictor import Terrain
+from predictor.demo_weather import demo_weather_files
+
+T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
+SITE = (67.8887, 21.0856)
+DEMO_SPEED = 8.0
+
+
+@pytest.fixture
+def demo(tmp_path: Path) -> Iterator[tuple[DemoWorld, DrsConsole]]:
+    """The whole demo, as ``drs demo`` wires it, with its world running ``DEMO_SPEED`` times faster."""
+    world = DemoWorld(tmp_path / "demo", DEMO_SPEED)
+    config = world.start()
+    try:
+        store = Store.open(config.store_path)
+        operations = Operations(config, store, clock=world.clock, environ=world.environ)
+        predictions = PredictionService(lambda: world.weather_files, world.terrain, world.clock)
+        setup = ConsoleSetup(
+            mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
+            operations=operations, predictions=predictions, balloon_feed=world.balloon_record,
+            team_position=_team(config), export_dir=tmp_path / "exports", poll_period_s=0.5,
+            prediction_period_s=2.0,
+        )  # fmt: skip
+        yield world, DrsConsole(setup)
+    finally:
+        world.stop()
+
+
+def offline_config(tmp_path: Path) -> Config:
+    """Three capsules nobody listens for (port 9): the console is built but never connects."""
+    capsules = [
+        {"name": name, "host": "127.0.0.1", "port": 9, "imei": f"30043406000{i:04d}", "rockblock_serial": 17000 + i}
+        for i, name in enumerate(("DRS1", "DRS2", "DRS3"), start=1)
+    ]
+    return parse_config({
+        "operator": {"name": "EL"}, "data": {"dir": str(tmp_path / "data")},
+        "console": {"team_position": "67.64,21.99"}, "capsule": capsules,
+    })  # fmt: skip
+
+
+@pytest.fixture(scope="session")
+def canned_prediction(tmp_path_factory: pytest.TempPathFactory) -> list[TelemetryRecord]:
+    """A real prediction from the demo atmosphere at a fixed time (same numbers every run)."""
+    root = tmp_path_factory.mktemp("prediction")
+    terrain = write_demo_terrain(root / "dem.nc")
+    files = demo_weather_files(SITE[0], SITE[1], T0, cache_dir=root / "weather", hours=6)
+    service = PredictionService(lambda: files, lambda: Terrain.from_netcdf(terrain), lambda: T0)
+    return service.predict("DRS1", SITE[0], SITE[1], 31500.0, release_in=(0, 10))
+
+
+def canned_records(prediction: list[TelemetryRecord]) -> list[TelemetryRecord]:
+    """One fleet at T0: DRS1 powered with a fix, DRS2 idle and half synced, DRS3 with a stale link."""
+    def rec(capsule: str | None, kind: str, data: dict[str, object], age_s: float = 0.0) -> TelemetryRecord:
+        return TelemetryRecord(T0 - timedelta(seconds=age_s), capsule, kind, data)
+
+    storage = {"used_bytes": 12_400_000_000, "total_bytes": 128_000_000_000, "raid": "healthy"}
+    records = [
+        rec(None, "gateway", {"credentials_ok": True}),
+        rec(None, "balloon", {"lat": SITE[0], "lon": SITE[1], "alt_m": 31500.0}, 5),
+        rec("DRS1", "link", {"up": True}, 3),
+        rec("DRS1", "release", {"state": "powered", "nmea_seen": True}, 3),
+        rec("DRS1", "gnss", {"has_fix": True, "sats": 9, "hdop": 0.9, "lat": SITE[0], "lon": SITE[1],
+                             "alt_m": 31500.0}, 3),  # fmt: skip
+        rec("DRS1", "storage", storage, 4),
+        rec("DRS1", "sync", {"fraction": 1.0, "bytes_pending": 0}, 4),
+        rec("DRS2", "link", {"up": True}, 2),
+        rec("DRS2", "release", {"state": "idle", "nmea_seen": False}, 2),
+        rec("DRS2", "storage", storage, 2),
+        rec("DRS2", "sync", {"fraction": 0.5, "bytes_pending": 400_000}, 2),
+        rec("DRS3", "link", {"up": True}, 95),
+        rec("DRS3", "release", {"state": "idle", "nmea_seen": False}, 95),
+        rec("DRS3", "storage", {**storage, "raid": "degraded"}, 95),
+    ]
+    return records + [TelemetryRecord(T0 - timedelta(seconds=6), r.capsule, r.kind, r.data) for r in prediction]
+
+
+def seed_reports(store: Store, imei: str, start: datetime, count: int, interval_min: int = 2) -> None:
+    """Reports of a landed capsule, byte-exact as the firmware writes them, stored as the webhook would."""
+    reports = ReportStore(store)
+    for n in range(count):
+        at = start + timedelta(minutes=interval_min * n)
+        descending = n < count - 3
+        alt = 9000.0 - 3000.0 * n if descending else 412.0
+        fix = GnssFix(at, 67.70 + 0.001 * min(n, count - 3), 21.60, max(alt, 412.0), 6.0 if descending else 0.0,
+                      90.0, 0.9, 9)  # fmt: skip
+        payload = format_mo(fix, 8.7, n)
+        reports.add(Delivery(imei, n, payload.hex(), "webhook", at + timedelta(seconds=20),
+                             transmit_utc=at + timedelta(seconds=15)))  # fmt: skip
+
+
+@pytest.fixture
+def canned_app(tmp_path: Path, canned_prediction: list[TelemetryRecord]) -> Callable[..., DrsConsole]:
+    """A console at a fixed time, data from records, no timers: what it shows never changes."""
+
+    def build(mode: str = "live", now: datetime = T0) -> DrsConsole:
+        config = offline_config(tmp_path)
+        store = Store.open(config.store_path)
+        operations = Operations(config, store, clock=lambda: now) if mode == "live" else None
+        store.append_audit("EL", "DRS1", "power-on", "ok", {"session": "s1"}, when=T0 - timedelta(minutes=2))
+        store.append_audit("EL", "DRS1", "waiver", "granted", {"item": "gnss"}, when=T0 - timedelta(minutes=1))
+        seed_reports(store, config.capsules[1].imei or "", T0 - timedelta(minutes=30), 8)
+        setup = ConsoleSetup(
+            mode=mode, capsules=["DRS1", "DRS2", "DRS3"], store=store, clock=lambda: now, operations=operations,
+            team_position=_team(config), export_dir=tmp_path / "exports",
+        )  # fmt: skip
+        app = DrsConsole(setup, live_timers=False)
+        for record in canned_records(canned_prediction):
+            app.fleet.apply(record)
+        return app
+
+    return build

@@ -1,0 +1,118 @@
+"""The release flow driven by keys in the real app against the demo's simulated capsules over SSH."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import pytest
+from textual.pilot import Pilot
+
+from console.app import DrsConsole, TelemetryArrived
+from console.demo import DemoWorld
+from console.screens.modals import ConfirmModal, HazardModal
+from console.screens.release import ReleaseScreen
+from drs_link.arming import ArmState
+from drs_link.capsule import ReleaseState
+from drs_link.errors import RefusedError
+from drs_link.telemetry import TelemetryRecord
+
+pytestmark = pytest.mark.asyncio
+
+
+async def wait_for(pilot: Pilot[int], condition: Callable[[], bool], timeout_s: float = 20.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError("condition not reached in time")
+        await pilot.pause(0.1)
+
+
+async def open_release_go(pilot: Pilot[int], app: DrsConsole) -> ReleaseScreen:
+    """Fleet → release screen of DRS1, sync its data, power it on, wait until the poll is GO."""
+    await wait_for(pilot, lambda: app.fleet.capsules["DRS1"].facts(app.now())["link_up"] is True)
+    await pilot.press("enter")
+    screen = app.screen
+    assert isinstance(screen, ReleaseScreen) and screen.capsule == "DRS1"
+    await pilot.press("s")
+    await wait_for(pilot, lambda: app.fleet.capsules["DRS1"].facts(app.now())["sync_fraction"] == 1.0)
+    await pilot.press("o")
+    assert isinstance(app.screen, ConfirmModal)
+    await pilot.press("tab", "enter")
+    await wait_for(pilot, lambda: app.gonogo("DRS1").go, timeout_s=30.0)
+    return screen
+
+
+async def test_fire_is_disabled_until_armed_and_the_domain_refuses_it_anyway(
+    demo: tuple[DemoWorld, DrsConsole],
+) -> None:
+    world, app = demo
+    async with app.run_test(size=(120, 40)) as pilot:
+        await wait_for(pilot, lambda: app.fleet.capsules["DRS1"].facts(app.now())["link_up"] is True)
+        await pilot.press("enter")
+        screen = app.screen
+        assert screen.check_action("fire", ()) is None
+        await pilot.press("f")
+        assert app.screen is screen
+        assert app.ops is not None
+        with pytest.raises(RefusedError, match="not armed"):
+            app.ops.fire("DRS1", "DRS1", app.gonogo("DRS1"), None, "test")
+        assert world.sims[0].firmware.go_at is None
+
+
+async def test_a_complete_release_by_keys_sends_go_to_the_simulated_capsule(
+    demo: tuple[DemoWorld, DrsConsole],
+) -> None:
+    world, app = demo
+    async with app.run_test(size=(120, 40)) as pilot:
+        screen = await open_release_go(pilot, app)
+        await pilot.press("a")
+        arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
+        assert arming.status().armed and screen.check_action("fire", ()) is True
+        await pilot.press("f")
+        assert isinstance(app.screen, HazardModal)
+        await pilot.press(*"DRS1", "enter", "enter", *"test drop", "enter")
+        await wait_for(pilot, lambda: world.sims[0].firmware.go_at is not None)
+        await wait_for(pilot, lambda: arming.status().state is ArmState.FIRED)
+        assert app.ops.ops("DRS1").machine.record().state is ReleaseState.RELEASED  # type: ignore[union-attr]
+        actions = [(a.action, a.result) for a in app.store.audit("DRS1")]
+        assert ("fire", "authorised") in actions and ("go", "released, Pi shut down") in actions
+
+
+async def test_a_wrong_capsule_name_is_refused_and_nothing_is_sent(demo: tuple[DemoWorld, DrsConsole]) -> None:
+    world, app = demo
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_release_go(pilot, app)
+        await pilot.press("a", "f", *"DRS2", "enter", "enter", *"alone", "enter")
+        await wait_for(pilot, lambda: any(a.action == "fire" for a in app.store.audit("DRS1")))
+        await pilot.pause(0.5)
+        assert world.sims[0].firmware.go_at is None
+        assert app.store.audit("DRS1", text="wrong capsule name")
+
+
+async def test_link_loss_disarms(demo: tuple[DemoWorld, DrsConsole]) -> None:
+    world, app = demo
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_release_go(pilot, app)
+        await pilot.press("a")
+        arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
+        assert arming.status().armed
+        app.post_message(TelemetryArrived([TelemetryRecord(app.now(), "DRS1", "link", {"up": False})]))
+        await wait_for(pilot, lambda: not arming.status().armed)
+        assert arming.status().last_disarm_reason == "link lost"
+        assert app.screen.check_action("fire", ()) is None
+
+
+async def test_stale_data_blocks_arm(canned_app: Callable[..., DrsConsole]) -> None:
+    from datetime import timedelta
+
+    from tests.console.conftest import T0
+
+    app = canned_app(now=T0 + timedelta(seconds=60))
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("enter", "a")
+        assert app.ops is not None
+        status = app.ops.ops("DRS1").arming.status()
+        assert status.state is ArmState.DISARMED
+        refusal = app.store.audit("DRS1")[-1]
+        assert (refusal.action, refusal.result) == ("arm", "refused") and "STALE" in refusal.detail["reason"]
