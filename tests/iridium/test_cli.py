@@ -338,3 +338,12 @@ def test_mo_export_bad_requests_are_one_line_errors(
     err = capsys.readouterr().err
     assert err.startswith("drs: error:") and message in err and err.count("\n") == 1
     assert not out.exists()
+
+
+def test_mt_resolve_without_an_operator_name_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = write_config(tmp_path)
+    config.write_text(config.read_text().replace('name = "alice"', 'name = ""'))
+    assert run(config, "mt", "resolve", "DRS1", "1", "--not-sent") == 2
+    assert "drs: error: operator.name: set [operator] name" in capsys.readouterr().err

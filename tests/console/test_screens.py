@@ -1,0 +1,151 @@
+"""The other screens by keys: Iridium with the parachute helper, replay, history, predictions, help, palette."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from collections.abc import Callable
+from datetime import timedelta
+from pathlib import Path
+
+import pytest
+
+from console.app import DrsConsole
+from console.screens.help import HelpScreen
+from console.screens.history import HistoryScreen
+from console.screens.iridium import IridiumScreen
+from console.screens.modals import TextPromptModal
+from console.screens.predictions import PredictionScreen
+from console.screens.recovery import RecoveryScreen
+from console.screens.release import ReleaseScreen
+from tests.console.conftest import T0
+
+pytestmark = pytest.mark.asyncio
+REPO = Path(__file__).resolve().parents[2]
+
+
+async def test_the_parachute_helper_refuses_an_out_of_window_time(canned_app: Callable[..., DrsConsole]) -> None:
+    app = canned_app(now=T0)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("down", "i")
+        screen = app.screen
+        assert isinstance(screen, IridiumScreen) and screen.capsule == "DRS2"
+        await app.workers.wait_for_complete()
+        await pilot.pause()
+        await pilot.press("C")
+        assert isinstance(app.screen, TextPromptModal)
+        late = T0 + timedelta(hours=3)
+        await pilot.press(*f"{late:%H:%M}", "enter")
+        await pilot.pause()
+        messages = [n.message for n in app._notifications]
+        assert any("PARACHUTE refused" in m and "would be rejected" in m for m in messages)
+        assert app.screen is screen
+        assert app.ops is not None and app.ops.commands("DRS2") == []
+
+
+async def test_the_parachute_helper_offers_a_window_and_needs_a_different_second_operator(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    app = canned_app(now=T0)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("down", "i")
+        await app.workers.wait_for_complete()
+        await pilot.press("c")
+        await pilot.pause()
+        assert type(app.screen).__name__ == "HazardModal"
+        await pilot.press(*"DRS2", "enter", *"EL", "enter", "enter")
+        await pilot.pause()
+        messages = [n.message for n in app._notifications]
+        assert any("different person" in m for m in messages)
+        assert app.ops is not None and app.ops.commands("DRS2") == []
+
+
+async def test_replay_shows_a_banner_and_cannot_command(canned_app: Callable[..., DrsConsole]) -> None:
+    app = canned_app(mode="replay")
+    async with app.run_test(size=(80, 24)) as pilot:
+        assert "REPLAY" in app.banner() and not app.commanding
+        await pilot.press("enter")
+        screen = app.screen
+        assert isinstance(screen, ReleaseScreen)
+        for action in ("power_on", "arm", "fire", "sync", "waive", "tick"):
+            assert screen.check_action(action, ()) is None
+        await pilot.press("o", "a", "f")
+        assert app.screen is screen
+        assert [a.action for a in app.store.audit()] == ["power-on", "waiver"]
+
+
+async def test_a_manual_tick_is_recorded_with_the_operator(canned_app: Callable[..., DrsConsole]) -> None:
+    app = canned_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("enter", "space")
+        ticked = app.store.audit("DRS1")[-1]
+        assert (ticked.operator, ticked.action, ticked.result) == ("EL", "checklist.done", "release-day/apply-24v")
+
+
+async def test_history_searches_the_audit_log_and_exports_it(
+    canned_app: Callable[..., DrsConsole], tmp_path: Path
+) -> None:
+    app = canned_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("h")
+        assert isinstance(app.screen, HistoryScreen)
+        table = app.screen.query_one("#audit")
+        assert table.row_count == 2
+        app.screen.query_one("#search").focus()
+        await pilot.press(*"waiver")
+        assert table.row_count == 1
+        await pilot.press("escape")
+        app.screen.query_one("#audit").focus()
+        await pilot.press("e")
+        exported = list((tmp_path / "exports").glob("audit-*.jsonl"))
+        assert len(exported) == 1 and '"waiver"' in exported[0].read_text()
+
+
+async def test_predictions_show_the_ellipse_with_real_probabilities(canned_app: Callable[..., DrsConsole]) -> None:
+    app = canned_app()
+    async with app.run_test(size=(160, 48)) as pilot:
+        await pilot.press("p")
+        assert isinstance(app.screen, PredictionScreen)
+        text = str(app.screen.query_one("#prediction-numbers").render())
+        assert "σ∥" in text and "holds 39.3%" in text and "holds 86.5%" in text and "holds 98.9%" in text
+        assert "Release in 10 min" in text
+        drawn = str(app.screen.query_one("#prediction-map").render())
+        assert "X" in drawn and "o" in drawn
+
+
+async def test_recovery_reads_the_landing_from_the_reports(canned_app: Callable[..., DrsConsole]) -> None:
+    app = canned_app()
+    async with app.run_test(size=(160, 48)) as pilot:
+        await pilot.press("down", "v")
+        assert isinstance(app.screen, RecoveryScreen)
+        await app.workers.wait_for_complete()
+        await pilot.pause()
+        text = str(app.screen.query_one("#recovery-text").render())
+        assert "Landed" in text and "from the team" in text and "Phone: DRS2 on ground" in text
+
+
+async def test_help_and_theme_keys_work(canned_app: Callable[..., DrsConsole]) -> None:
+    app = canned_app()
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("question_mark")
+        assert isinstance(app.screen, HelpScreen)
+        await pilot.press("escape", "t")
+        assert app.theme == "textual-light"
+
+
+def test_drs_demo_without_a_terminal_says_so_in_one_line_and_fails() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "console.cli", "demo"], cwd=REPO, stdin=subprocess.DEVNULL,
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and "not a terminal" in result.stderr
+    assert result.stdout == ""
+
+
+def test_console_refuses_demo_and_replay_together() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "console.cli", "console", "--demo", "--replay", "x.jsonl"], cwd=REPO,
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert result.returncode == 2 and "not allowed with argument" in result.stderr

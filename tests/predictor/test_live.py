@@ -1,0 +1,148 @@
+"""Live re-prediction on synthetic descents whose truth differs from the forecast in a known way."""
+
+from __future__ import annotations
+
+from datetime import timedelta
+from pathlib import Path
+
+import pytest
+
+from console.cli import main
+from predictor.calibration.cleaning import clean
+from predictor.calibration.synthetic import synthetic_flight
+from predictor.calibration.tracks import Fix
+from predictor.errors import PredictorError
+from predictor.live import (
+    DEFAULT_CORRECTION,
+    LIVE_ERROR_MODEL,
+    NO_CORRECTION,
+    LiveCorrection,
+    LivePredictor,
+)
+from predictor.model import BinnedWind, DescentRateScale, Term
+from predictor.payload import PROFILES
+from predictor.uncertainty import GEOD
+from tests.predictor.predict_helpers import RELEASE, isothermal_cube
+
+PAYLOAD = PROFILES["drs"]
+BAND = (15000.0, 20000.0)
+BAND_ERROR_MS = 8.0
+
+
+def forecast():  # type: ignore[no-untyped-def]
+    return isothermal_cube(u=10.0, v=2.0)
+
+
+def descent_of(effects: list[Term]) -> tuple[list[Fix], Fix]:
+    """The logged descent (cleaned, without its landing fix) and the true landing."""
+    flown = synthetic_flight(
+        forecast(), launch_time=RELEASE - timedelta(hours=2), lat=46.0, lon=6.0, payload=PAYLOAD,
+        effects=effects, cadence_s=60.0, noise_m=0.0, ground_fixes=3, seed=1,
+    )  # fmt: skip
+    flight = clean(flown.track)
+    return list(flight.descent[:-1]), flown.landing
+
+
+def band_truth() -> tuple[list[Fix], Fix]:
+    wrong = BinnedWind(edges_m=BAND, east_ms=(BAND_ERROR_MS,), north_ms=(0.0,))
+    return descent_of([wrong])
+
+
+def miss_km(live: LivePredictor, fix: Fix, truth: Fix, correction: LiveCorrection) -> float:
+    p = live.predict_from(fix, correction).prediction
+    return GEOD.inv(p.landing.lon, p.landing.lat, truth.lon, truth.lat)[2] / 1000.0
+
+
+def fed(fixes: list[Fix], until_alt_m: float) -> tuple[LivePredictor, Fix]:
+    live = LivePredictor(forecast(), PAYLOAD)
+    last = fixes[0]
+    for fix in fixes:
+        if fix.alt_m < until_alt_m:
+            break
+        live.observe(fix)
+        last = fix
+    return live, last
+
+
+def test_the_wind_error_is_measured_in_its_band_and_nowhere_else() -> None:
+    fixes, _ = band_truth()
+    live, _ = fed(fixes, -1e9)
+    inside = [g for g in live.legs if g.bottom_m >= BAND[0] + 50 and g.top_m <= BAND[1] - 50]
+    below = [g for g in live.legs if g.top_m <= BAND[0] - 50]
+    above = [g for g in live.legs if g.bottom_m >= BAND[1] + 50]
+    assert inside and below and above
+    for g in inside:
+        assert g.wind_error[0] == pytest.approx(BAND_ERROR_MS, abs=0.3)
+        assert g.wind_error[1] == pytest.approx(0.0, abs=0.3)
+    for g in below + above:
+        assert abs(g.wind_error[0]) < 0.3 and abs(g.wind_error[1]) < 0.3
+        assert g.rate_factor == pytest.approx(1.0, abs=0.02)
+
+
+def test_below_the_band_a_decaying_correction_beats_carrying_the_error_to_the_ground() -> None:
+    fixes, truth = band_truth()
+    live, report = fed(fixes, BAND[0] - 1500.0)
+    assert BAND[0] - 1500.0 <= report.alt_m < BAND[0]
+    plain = miss_km(live, report, truth, NO_CORRECTION)
+    decaying = miss_km(live, report, truth, LiveCorrection.everywhere(False, 1000.0))
+    constant = miss_km(live, report, truth, LiveCorrection.everywhere(False, 1e12))
+    # The air below the band is as forecast: restarting from the report is nearly exact, carrying the
+    # band's error down to the ground is kilometres wrong, and a short decay stays close.
+    assert plain < 0.1
+    assert constant > 3.0
+    assert decaying < 0.5 * constant
+
+
+def test_inside_the_band_the_correction_moves_the_landing_toward_the_truth() -> None:
+    fixes, truth = band_truth()
+    live, report = fed(fixes, 0.5 * (BAND[0] + BAND[1]))
+    assert BAND[0] + 1000.0 < report.alt_m < BAND[1]
+    plain = miss_km(live, report, truth, NO_CORRECTION)
+    corrected = miss_km(live, report, truth, LiveCorrection.everywhere(False, 2000.0))
+    # The correction assumes a smooth decay, the truth stops sharply at the band's bottom: it recovers
+    # a good part of the miss, not all of it.
+    assert plain > 1.0
+    assert corrected < 0.7 * plain
+
+
+def test_a_faster_descent_is_measured_and_scales_the_rest_of_the_fall() -> None:
+    fixes, truth = descent_of([DescentRateScale(scale=1.3)])
+    live, report = fed(fixes, 12000.0)
+    rate, _, _ = live.measured(report.alt_m)
+    assert rate == pytest.approx(1.3, abs=0.03)
+    plain = live.predict_from(report, NO_CORRECTION)
+    corrected = live.predict_from(report, LiveCorrection.everywhere(True, None))
+    assert corrected.rate_factor == pytest.approx(rate)
+    late_plain = abs((plain.prediction.landing.time - truth.time).total_seconds())
+    late_corrected = abs((corrected.prediction.landing.time - truth.time).total_seconds())
+    assert late_plain > 120.0
+    assert late_corrected < 0.15 * late_plain
+    assert miss_km(live, report, truth, LiveCorrection.everywhere(True, None)) < 0.3 * miss_km(
+        live, report, truth, NO_CORRECTION
+    )
+
+
+def test_the_live_ellipse_shrinks_as_the_capsule_comes_down() -> None:
+    fixes, _ = band_truth()
+    live = LivePredictor(forecast(), PAYLOAD, correction=DEFAULT_CORRECTION)
+    sigmas = [live.update(f).prediction.ellipse.sigma_parallel_km for f in fixes]
+    assert sigmas[0] == pytest.approx(max(LIVE_ERROR_MODEL.sigma_parallel_km[:2]), rel=0.2)
+    assert sigmas[-1] < 0.5 * sigmas[0]
+    assert sigmas[-1] == pytest.approx(LIVE_ERROR_MODEL.sigma_parallel_km[-1])
+
+
+def test_a_report_not_after_the_previous_one_is_refused() -> None:
+    fixes, _ = band_truth()
+    live = LivePredictor(forecast(), PAYLOAD)
+    live.update(fixes[3])
+    with pytest.raises(PredictorError, match="is not after the previous one"):
+        live.update(fixes[2])
+
+
+def test_live_cli_needs_a_track_and_weather(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert main(["live", "--ascent-winds"]) == 2
+    assert capsys.readouterr().err.strip() == "drs: error: drs live needs --track FILE"
+    assert main(["live", "--track", str(tmp_path / "t.csv")]) == 2
+    assert "needs --weather FILE... or --ascent-winds" in capsys.readouterr().err
+    assert main(["live", "evaluate"]) == 2
+    assert "needs track files" in capsys.readouterr().err
