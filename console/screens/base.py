@@ -24,7 +24,7 @@ class ConsoleScreen(Screen[None]):
         return self.app
 
     def compose_banner(self) -> ComposeResult:
-        yield ModeBanner(id="banner")
+        yield ModeBanner(id="banner", markup=False)
 
     def compose_footer(self) -> ComposeResult:
         yield Footer()

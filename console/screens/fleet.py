@@ -22,7 +22,7 @@ class FleetScreen(ConsoleScreen):
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
         yield DataTable(id="fleet", cursor_type="row", zebra_stripes=True)
-        yield Static(id="balloon")
+        yield Static(id="balloon", markup=False)
         yield from self.compose_footer()
 
     def on_mount(self) -> None:

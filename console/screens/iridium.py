@@ -47,10 +47,10 @@ class IridiumScreen(ConsoleScreen):
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
         with Vertical(id="iridium-body"):
-            yield Static(id="health")
-            yield Label("Commands (MT)", classes="pane-title")
+            yield Static(id="health", markup=False)
+            yield Label("Commands (MT)", classes="pane-title", markup=False)
             yield DataTable(id="commands", cursor_type="row")
-            yield Label("Reports (MO), newest first", classes="pane-title")
+            yield Label("Reports (MO), newest first", classes="pane-title", markup=False)
             yield DataTable(id="reports", cursor_type="row")
         yield from self.compose_footer()
 

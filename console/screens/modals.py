@@ -28,8 +28,8 @@ class ConfirmModal(ModalScreen[bool]):
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
-            yield Label(self.title_text, classes="dialog-title")
-            yield Static(self.body, classes="dialog-body")
+            yield Label(self.title_text, classes="dialog-title", markup=False)
+            yield Static(self.body, classes="dialog-body", markup=False)
             with Horizontal(classes="dialog-buttons"):
                 yield Button("Cancel", id="cancel", variant="primary")
                 yield Button(self.confirm_label, id="confirm", variant="warning")
@@ -57,8 +57,8 @@ class TextPromptModal(ModalScreen[str | None]):
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
-            yield Label(self.title_text, classes="dialog-title")
-            yield Static(self.prompt, classes="dialog-body")
+            yield Label(self.title_text, classes="dialog-title", markup=False)
+            yield Static(self.prompt, classes="dialog-body", markup=False)
             yield Input(placeholder=self.placeholder, id="answer")
 
     def on_mount(self) -> None:
@@ -93,13 +93,13 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
     def compose(self) -> ComposeResult:
         need = "required" if self.second_required else "optional"
         with Vertical(classes="dialog hazard"):
-            yield Label(f"{self.action_name} {self.capsule}", classes="dialog-title")
-            yield Static(self.consequence, classes="dialog-body")
-            yield Label(f"Type the capsule's name ({self.capsule}) to confirm:")
+            yield Label(f"{self.action_name} {self.capsule}", classes="dialog-title", markup=False)
+            yield Static(self.consequence, classes="dialog-body", markup=False)
+            yield Label(f"Type the capsule's name ({self.capsule}) to confirm:", markup=False)
             yield Input(id="typed", placeholder="capsule name")
-            yield Label(f"Second operator ({need}; a different person):")
+            yield Label(f"Second operator ({need}; a different person):", markup=False)
             yield Input(id="second", placeholder="name")
-            yield Label("…or single-operator waiver (why you are alone):")
+            yield Label("…or single-operator waiver (why you are alone):", markup=False)
             yield Input(id="waiver", placeholder="reason (logged)")
             with Horizontal(classes="dialog-buttons"):
                 yield Button("Cancel", id="cancel", variant="primary")

@@ -53,8 +53,8 @@ class PredictionScreen(ConsoleScreen):
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
         with Horizontal(id="prediction-body"):
-            yield Static(id="prediction-numbers")
-            yield Static(id="prediction-map")
+            yield Static(id="prediction-numbers", markup=False)
+            yield Static(id="prediction-map", markup=False)
         yield from self.compose_footer()
 
     def on_mount(self) -> None:

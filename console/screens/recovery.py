@@ -45,8 +45,8 @@ class RecoveryScreen(ConsoleScreen):
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
         with Horizontal(id="recovery-body"):
-            yield Static(id="recovery-text")
-            yield Static(id="recovery-map")
+            yield Static(id="recovery-text", markup=False)
+            yield Static(id="recovery-map", markup=False)
         yield from self.compose_footer()
 
     def on_mount(self) -> None:

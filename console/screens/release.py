@@ -65,11 +65,11 @@ class ReleaseScreen(ConsoleScreen):
         yield from self.compose_banner()
         with Horizontal(id="release-body"):
             with Vertical(id="checklist-pane"):
-                yield Label(id="checklist-title", classes="pane-title")
+                yield Label(id="checklist-title", classes="pane-title", markup=False)
                 yield DataTable(id="checklist", cursor_type="row")
             with Vertical(id="gonogo-pane"):
-                yield Static(id="arm-status")
-                yield Label(f"Go/no-go: {self.capsule}", classes="pane-title")
+                yield Static(id="arm-status", markup=False)
+                yield Label(f"Go/no-go: {self.capsule}", classes="pane-title", markup=False)
                 yield DataTable(id="gonogo", cursor_type="row")
         yield from self.compose_footer()
 

@@ -250,9 +250,9 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
     series = ("plain", "rate", "held-out choice")
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for name, style in zip(series, ("o-", "s--", "^-"), strict=True):
-        ax.plot(kms, [np.median(result.held_out[k][name]) for k in kms], style, label=f"{name} (median)")
-    ax.axhline(float(np.median(list(result.start_errors_km.values()))), color="grey", ls=":",
-               label="from descent start, no updates (median)")  # fmt: skip
+        ax.plot(kms, [np.mean(result.held_out[k][name]) for k in kms], style, label=f"{name} (mean)")
+    ax.axhline(float(np.mean(list(result.start_errors_km.values()))), color="grey", ls=":",
+               label="from descent start, no updates (mean)")  # fmt: skip
     ax.set_xlabel("height above the ground at the report, km")
     ax.set_ylabel("landing error, km")
     ax.invert_xaxis()

@@ -1,0 +1,89 @@
+"""Residuals: a prediction compared with a measured descent at every fix, and per altitude bin."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from datetime import UTC, datetime
+
+import numpy as np
+import pytest
+
+from predictor.calibration.cleaning import clean
+from predictor.calibration.effects import BIN_EDGES_M, fit_binned
+from predictor.calibration.residuals import FlightCase, bin_budget, flight_case, residuals, run, score
+from predictor.calibration.tracks import Fix, Track
+from predictor.errors import PredictorError
+from predictor.model import DescentRateScale, WindOffset, WindRotation
+from predictor.payload import PROFILES
+
+PAYLOAD = PROFILES["superbit-test"]
+Cases = Callable[..., list[FlightCase]]
+
+
+def test_the_true_model_reproduces_a_synthetic_descent_to_metres(plain_cases: list[FlightCase]) -> None:
+    for case in plain_cases:
+        s = score(case, run(case, PAYLOAD, (), 1, 100.0))
+        assert s.track_rms_km[0] < 0.03
+        assert s.landing_error_km[0] < 0.03
+        # The landing fix is the first one on the ground: touchdown was up to one interval (180 s) earlier.
+        assert -185.0 < s.descent_time_error_s[0] < 5.0
+
+
+def test_a_slower_true_descent_shows_as_a_speed_ratio_of_the_factor_at_every_altitude(
+    synthetic_cases: Cases,
+) -> None:
+    case = synthetic_cases((DescentRateScale(scale=0.8),), n=1)[0]
+    res = residuals(case, run(case, PAYLOAD, (), 1, 100.0))
+    ratios = res.speed_ratio[np.isfinite(res.speed_ratio)]
+    assert len(ratios) >= 5 and np.all(np.abs(ratios - 0.8) < 0.03)
+    assert np.isnan(res.speed_ratio[-1])  # the interval with the touchdown says nothing about speed
+    assert res.descent_time_error_s < -300.0  # the plain model lands minutes early
+    assert np.all(np.diff(res.interval_density) > 0)  # density rises as the capsule falls
+    assert res.fix_alt_m.shape == res.along_km.shape == res.cross_km.shape == res.fix_wind_ms.shape
+
+
+def test_a_veered_true_wind_leaves_the_capsule_right_of_the_predicted_track(synthetic_cases: Cases) -> None:
+    case = synthetic_cases((WindRotation(angle_deg=20.0),), n=1)[0]
+    res = residuals(case, run(case, PAYLOAD, (), 1, 100.0))
+    assert res.landing_cross_km > 1.0
+    assert res.cross_km[-1] == pytest.approx(res.landing_cross_km, abs=0.05)
+    assert abs(res.landing_along_km) < res.landing_cross_km
+
+
+def test_bin_budgets_recover_a_descent_factor_and_an_added_wind(synthetic_cases: Cases) -> None:
+    edges = np.asarray(BIN_EDGES_M)
+    slow = synthetic_cases((DescentRateScale(scale=0.8),), n=2)
+    budgets = [bin_budget(c, run(c, PAYLOAD, (), 1, 100.0), 0, edges) for c in slow]
+    factors = np.array(fit_binned(budgets).rate_factor)
+    measured = np.sum([b.measured_s for b in budgets], axis=0)
+    assert np.all(np.abs(factors[measured > 300] - 0.8) < 0.03)
+    assert np.all(factors[measured == 0] == 1.0)
+    pushed = synthetic_cases((WindOffset(east_ms=3.0, north_ms=-2.0),), n=2)
+    wind = fit_binned([bin_budget(c, run(c, PAYLOAD, (), 1, 100.0), 0, edges) for c in pushed])
+    seconds = np.array(wind.measured_s)
+    east, north = np.array(wind.east_ms), np.array(wind.north_ms)
+    # Positions between 3-minute fixes are linear in time, which blurs the jet's bins (±0.8 m/s);
+    # over the whole descent the added wind comes back within 0.2 m/s.
+    well_measured = seconds > 600
+    assert np.all(np.abs(east[well_measured] - 3.0) < 0.8) and np.all(np.abs(north[well_measured] + 2.0) < 0.8)
+    assert np.average(east, weights=seconds) == pytest.approx(3.0, abs=0.2)
+    assert np.average(north, weights=seconds) == pytest.approx(-2.0, abs=0.2)
+
+
+def test_many_parameter_sets_fly_in_one_batch_and_a_failed_run_scores_nan(plain_cases: list[FlightCase]) -> None:
+    case = plain_cases[0]
+    runs = run(case, PAYLOAD, (DescentRateScale(scale=np.array([1.0, 0.0, 1.1])),), 3, 200.0)
+    s = score(case, runs)
+    assert list(runs.ok) == [True, False, True]
+    assert np.isfinite(s.track_rms_km[[0, 2]]).all() and np.isnan(s.track_rms_km[1])
+    assert s.landing_t[2] < s.landing_t[0]  # 10 % faster lands sooner
+
+
+def test_a_flight_that_cleaning_excluded_cannot_be_calibrated_on(plain_cases: list[FlightCase]) -> None:
+    t0 = datetime(2024, 5, 1, 8, tzinfo=UTC)
+    fixes = tuple(
+        Fix(time=t0.replace(minute=m), lat=46.0, lon=6.0 + 0.01 * m, alt_m=500.0 + 600.0 * m) for m in range(10)
+    )
+    flight = clean(Track(name="climb-only", source="test", format="synthetic", fixes=fixes))
+    with pytest.raises(PredictorError, match="climb-only cannot be calibrated on"):
+        flight_case(flight, plain_cases[0].cube)

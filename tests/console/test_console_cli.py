@@ -1,0 +1,87 @@
+"""`drs console` / `drs demo` at the command line, and the telemetry recordings that `--replay` reads."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import pytest
+
+from console.console_cli import ReplayFeed, replay_setup
+from drs_link.config import parse_config
+from drs_link.errors import ConfigError
+from drs_link.telemetry import TelemetryFormatError, TelemetryRecord, TelemetryRecorder, read_recording
+
+REPO = Path(__file__).resolve().parents[2]
+T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
+
+
+def test_drs_demo_without_a_terminal_says_so_in_one_line_and_fails() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "console.cli", "demo"], cwd=REPO, stdin=subprocess.DEVNULL,
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and "not a terminal" in result.stderr
+    assert result.stdout == ""
+
+
+def test_console_refuses_demo_and_replay_together() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "console.cli", "console", "--demo", "--replay", "x.jsonl"], cwd=REPO,
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert result.returncode == 2 and "not allowed with argument" in result.stderr
+
+
+def test_a_recording_round_trips_in_time_order(tmp_path: Path) -> None:
+    recorder = TelemetryRecorder(tmp_path / "rec" / "t.jsonl")
+    later = TelemetryRecord(T0 + timedelta(seconds=5), "DRS1", "link", {"up": False})
+    first = TelemetryRecord(T0, "DRS1", "gnss", {"has_fix": True, "sats": 9})
+    recorder.append(later)
+    recorder.append(first)
+    recorder.close()
+    assert read_recording(tmp_path / "rec" / "t.jsonl") == [first, later]
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        ("not json", "t.jsonl:2: not JSON"),
+        ('{"v": 2, "t": "2026-09-01T12:00:00Z", "capsule": "DRS1", "kind": "link", "data": {}}', "version 2"),
+        ('{"v": 1, "t": "2026-09-01T12:00:00Z", "capsule": "DRS1", "kind": "weather", "data": {}}', "kind 'weather'"),
+        ('{"v": 1, "t": "noon", "capsule": "DRS1", "kind": "link", "data": {}}', "t 'noon'"),
+        ('{"v": 1, "t": "2026-09-01T12:00:00Z", "capsule": "DRS1", "kind": "link", "data": []}', "data must be"),
+    ],
+)
+def test_a_bad_line_in_a_recording_is_named_by_file_and_line(tmp_path: Path, line: str, message: str) -> None:
+    path = tmp_path / "t.jsonl"
+    path.write_text(TelemetryRecord(T0, "DRS1", "link", {"up": True}).to_json() + "\n" + line + "\n")
+    with pytest.raises(TelemetryFormatError, match=message):
+        read_recording(path)
+
+
+def test_an_empty_or_missing_recording_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "empty.jsonl").write_text("\n")
+    with pytest.raises(TelemetryFormatError, match="no telemetry records"):
+        read_recording(tmp_path / "empty.jsonl")
+    with pytest.raises(TelemetryFormatError, match="cannot read"):
+        read_recording(tmp_path / "missing.jsonl")
+
+
+def test_replay_hands_out_records_as_its_clock_passes_them(tmp_path: Path) -> None:
+    records = [TelemetryRecord(T0 + timedelta(seconds=s), "DRS1", "link", {"up": True}) for s in (0, 1, 3600)]
+    feed = ReplayFeed(records, speed=100.0)
+    assert feed.due() == records[:1]
+    import time
+
+    time.sleep(0.05)
+    assert feed.due() == records[1:2]
+    with pytest.raises(ConfigError, match="positive"):
+        ReplayFeed(records, 0.0)
+    path = tmp_path / "t.jsonl"
+    path.write_text("".join(r.to_json() + "\n" for r in records))
+    setup, _ = replay_setup(path, 1.0, parse_config({}))
+    assert setup.mode == "replay" and setup.capsules == ["DRS1"] and setup.operations is None

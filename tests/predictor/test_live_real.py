@@ -1,0 +1,78 @@
+"""Live re-prediction on the 30 real SuperBIT flights: the shipped correction is what held-out flights kept."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from console.cli import main
+from predictor.live import DEFAULT_CORRECTION, LIVE_ERROR_MODEL
+from predictor.planning.live_evaluation import (
+    Evaluation,
+    evaluate,
+    fit_live_sigma,
+    helps,
+    shipped_correction,
+    write_report,
+)
+from tests.conftest import REPO_ROOT
+
+REPORT = REPO_ROOT / "docs" / "planning" / "live-reprediction.md"
+COMMAND = "drs live evaluate <30 track files in pyballoon_superbit> --out docs/planning"
+
+
+@pytest.fixture(scope="module")
+def result(shared_data: Path) -> Evaluation:
+    files = sorted((shared_data / "tracks" / "pyballoon_superbit").glob("*-*.csv"))
+    assert len(files) == 30
+    return evaluate(files)
+
+
+def mean_error(result: Evaluation, km: float, name: str) -> float:
+    return float(np.mean([c.errors_km[name] for c in result.cases if c.checkpoint_km == km]))
+
+
+def test_all_thirty_flights_are_evaluated_at_most_checkpoints(result: Evaluation) -> None:
+    assert len(result.flights) == 30 and not result.skipped
+    for km, rows in result.held_out.items():
+        assert len(rows["plain"]) >= 25, km
+
+
+def test_a_wind_error_at_altitude_does_not_continue_to_the_ground(result: Evaluation) -> None:
+    # Carrying the measured error unchanged to the ground is worse than not correcting at all high up,
+    # and worse than a decaying correction everywhere.
+    for km in (20.0, 15.0, 10.0):
+        assert mean_error(result, km, "wind const") > mean_error(result, km, "plain") + 0.3
+        assert mean_error(result, km, "wind const") > mean_error(result, km, "wind 2 km") + 0.3
+
+
+def test_the_correction_is_kept_only_where_held_out_flights_gained(result: Evaluation) -> None:
+    kept = {km for km in result.held_out if helps(result, km)}
+    for km in kept:
+        rows = result.held_out[km]
+        assert np.mean(rows["held-out choice"]) < np.mean(rows["plain"])
+    assert shipped_correction(result) == DEFAULT_CORRECTION
+    for band in DEFAULT_CORRECTION.bands:
+        assert any(band.lower_m < km * 1000.0 < band.upper_m for km in kept)
+
+
+def test_the_shipped_live_ellipse_is_the_measured_one(result: Evaluation) -> None:
+    assert fit_live_sigma(result) == LIVE_ERROR_MODEL
+
+
+def test_the_committed_report_is_what_the_evaluation_writes(result: Evaluation, tmp_path: Path) -> None:
+    written = write_report(result, tmp_path, COMMAND)
+    assert written.read_text(encoding="utf-8") == REPORT.read_text(encoding="utf-8")
+    assert (tmp_path / "live-reprediction.png").stat().st_size > 10_000
+
+
+def test_live_cli_re_predicts_a_real_descent_from_each_fix(
+    shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    track = shared_data / "tracks" / "pyballoon_superbit" / "19-7-28.csv"
+    assert main(["live", "--track", str(track), "--ascent-winds", "--payload", "superbit-test"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[-1].startswith("measured landing 2019-07-28T20:46:00Z")
+    assert len(lines) > 10 and all("→" in line for line in lines[:-1])
