@@ -6,7 +6,7 @@ that cannot be parsed at all is an operator error: it raises ``TrackError`` nami
 line, never a bare traceback, because a silently skipped row is a silently changed flight.
 
 Formats:
-- canonical CSV ``time,lat,lon,alt_m[,pressure_pa]`` with ISO 8601 UTC times (what we write);
+- canonical CSV ``time,lat,lon,alt_m[,pressure_pa[,speed_mps]]`` with ISO 8601 UTC times (what we write);
 - GPX 1.1 (``trkpt`` with ``ele`` and ``time``), read with the standard library;
 - the 2018–2019 SuperBIT RockBLOCK gateway logs (no header; rows with and without ``RB`` serials);
 - the 1 Hz V4 logger CSV (times of day only, so the flight date must be given).
@@ -27,7 +27,9 @@ from xml.sax.xmlreader import AttributesNSImpl, Locator
 
 from predictor.errors import PredictorError
 
-CANONICAL_HEADER: tuple[str, ...] = ("time", "lat", "lon", "alt_m", "pressure_pa")
+CANONICAL_HEADER: tuple[str, ...] = ("time", "lat", "lon", "alt_m", "pressure_pa", "speed_mps")
+"""The optional columns let a track exported from stored reports keep what cleaning needs: the
+measured pressure, and the receiver's ground speed that confirms a landing at the last fix."""
 V4_HEADER: tuple[str, ...] = (
     "record",
     "time_hhmmss",
@@ -100,7 +102,8 @@ def read_track(path: str | Path, *, day: date | None = None) -> Track:
         return read_superbit_log(path)
     raise TrackError(
         f"{path}:1: unknown track format (expected a canonical CSV with header "
-        f"'time,lat,lon,alt_m[,pressure_pa]', a GPX file, a SuperBIT RockBLOCK log or a V4 logger CSV)"
+        f"'time,lat,lon,alt_m[,pressure_pa[,speed_mps]]', a GPX file, a SuperBIT RockBLOCK log "
+        f"or a V4 logger CSV)"
     )
 
 
@@ -111,12 +114,13 @@ def read_canonical_csv(path: str | Path) -> Track:
         line_no, header = next(rows)
     except StopIteration:
         raise TrackError(
-            f"{path}: empty file, expected the header 'time,lat,lon,alt_m[,pressure_pa]'"
+            f"{path}: empty file, expected the header 'time,lat,lon,alt_m[,pressure_pa[,speed_mps]]'"
         ) from None
     names = tuple(h.strip() for h in header)
-    if names not in (CANONICAL_HEADER[:4], CANONICAL_HEADER):
+    if names not in (CANONICAL_HEADER[:4], CANONICAL_HEADER[:5], CANONICAL_HEADER):
         raise TrackError(
-            f"{path}:{line_no}: header must be 'time,lat,lon,alt_m[,pressure_pa]', got {','.join(names)!r}"
+            f"{path}:{line_no}: header must be 'time,lat,lon,alt_m[,pressure_pa[,speed_mps]]', "
+            f"got {','.join(names)!r}"
         )
     fixes = []
     for line_no, row in rows:
@@ -125,7 +129,8 @@ def read_canonical_csv(path: str | Path) -> Track:
         if len(row) != len(names):
             raise TrackError(f"{path}:{line_no}: expected {len(names)} fields, got {len(row)}")
         where = f"{path}:{line_no}"
-        pressure = row[4].strip() if len(row) == 5 else ""
+        pressure = row[4].strip() if len(row) >= 5 else ""
+        speed = row[5].strip() if len(row) == 6 else ""
         fixes.append(
             Fix(
                 time=_iso_utc(row[0], where),
@@ -133,6 +138,7 @@ def read_canonical_csv(path: str | Path) -> Track:
                 lon=_number(row[2], "lon", where),
                 alt_m=_number(row[3], "alt_m", where),
                 pressure_pa=_number(pressure, "pressure_pa", where) if pressure else None,
+                speed_ms=_number(speed, "speed_mps", where) if speed else None,
                 line=line_no,
             )
         )
@@ -140,7 +146,7 @@ def read_canonical_csv(path: str | Path) -> Track:
 
 
 def write_canonical_csv(fixes: Sequence[Fix], path: str | Path) -> None:
-    """Write fixes in the canonical format (pressure column always present, empty when unknown)."""
+    """Write fixes in the canonical format (optional columns always present, empty when unknown)."""
     with Path(path).open("w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle, lineterminator="\n")
         writer.writerow(CANONICAL_HEADER)
@@ -152,6 +158,7 @@ def write_canonical_csv(fixes: Sequence[Fix], path: str | Path) -> None:
                     f"{fix.lon:.7f}",
                     f"{fix.alt_m:.2f}",
                     "" if fix.pressure_pa is None else f"{fix.pressure_pa:.1f}",
+                    "" if fix.speed_ms is None else f"{fix.speed_ms:.2f}",
                 )
             )
 

@@ -108,12 +108,13 @@ def test_canonical_csv_round_trips_a_real_flight(tmp_path: Path, shared_data: Pa
     assert back.format == "canonical-csv"
     assert len(back.fixes) == len(original.fixes)
     for a, b in zip(original.fixes, back.fixes, strict=True):
-        assert (a.time, a.lat, a.lon, a.alt_m, a.pressure_pa) == (
+        assert (a.time, a.lat, a.lon, a.alt_m, a.pressure_pa, a.speed_ms) == (
             b.time,
             b.lat,
             b.lon,
             b.alt_m,
             b.pressure_pa,
+            b.speed_ms,
         )
 
 

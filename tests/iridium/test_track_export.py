@@ -109,7 +109,7 @@ def test_a_missing_directory_is_a_clear_error(reports: ReportStore, tmp_path: Pa
         export_track(reports.for_imei(IMEI), tmp_path / "nowhere" / "track.csv", "DRS1")
 
 
-@pytest.mark.parametrize("flight", ["19-1-1.csv", "18-8-3.csv", "18-8-13.csv"])
+@pytest.mark.parametrize("flight", ["19-1-1.csv", "18-8-3.csv", "18-8-13.csv", "18-6-16.csv", "19-3-11.csv"])
 def test_a_real_flight_received_and_exported_cleans_like_its_gateway_log(
     reports: ReportStore, tmp_path: Path, shared_data: Path, flight: str
 ) -> None:
