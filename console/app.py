@@ -36,6 +36,7 @@ CHECKLIST_DIR = Path(__file__).parent / "checklists"
 POLL_PERIOD_S = 5.0
 REPORT_POLL_S = 3.0
 PREDICTION_LEAD_MIN = (0, 10)
+GATEWAY_CHECK_S = 300.0
 
 
 class TelemetryArrived(Message):
@@ -72,6 +73,8 @@ class ConsoleSetup:
     banner_note: str = ""
     poll_period_s: float = POLL_PERIOD_S
     prediction_period_s: float = 60.0
+    time_scale: float = 1.0
+    """Simulated seconds per real second (the demo): timers are real, telemetry times are not."""
 
 
 class DrsConsole(App[int]):
@@ -86,7 +89,8 @@ class DrsConsole(App[int]):
     def __init__(self, setup: ConsoleSetup, checklist_dir: Path = CHECKLIST_DIR, live_timers: bool = True) -> None:
         super().__init__()
         self.setup = setup
-        self.fleet = FleetState.for_capsules(setup.capsules)
+        poll_period = 2.0 * setup.poll_period_s * setup.time_scale
+        self.fleet = FleetState.for_capsules(setup.capsules, poll_period if setup.operations else 0.0)
         self.checklists: list[Checklist] = load_checklists(checklist_dir)
         self.live_timers = live_timers
         self.theme = "textual-dark"
@@ -142,9 +146,10 @@ class DrsConsole(App[int]):
             return
         if self.ops is not None:
             self.gateway_check()
+            self.set_interval(max(1.0, GATEWAY_CHECK_S / self.setup.time_scale), self.gateway_check)
             for name in self.setup.capsules:
                 self.poll_capsule(name)
-            self.set_interval(REPORT_POLL_S, self.poll_reports)
+            self.set_interval(max(0.5, min(REPORT_POLL_S, 30.0 / self.setup.time_scale)), self.poll_reports)
         if self.setup.predictions is not None:
             self.set_interval(self.setup.prediction_period_s, self.refresh_predictions)
             self.set_timer(1.0, self.refresh_predictions)

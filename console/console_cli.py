@@ -155,7 +155,9 @@ def run_demo(speed: float) -> int:
             mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
             operations=operations, predictions=predictions, balloon_feed=world.balloon_record,
             team_position=_team(config), export_dir=root / "exports", banner_note=f"×{speed:g} time",
-            poll_period_s=min(3.0, 8.0 / speed), prediction_period_s=config.console.prediction_period_s / speed,
+            poll_period_s=min(3.0, max(1.0, 8.0 / speed)),
+            prediction_period_s=config.console.prediction_period_s / speed,
+            time_scale=speed,
         )  # fmt: skip
         result = DrsConsole(setup).run() or 0
     finally:

@@ -27,6 +27,8 @@ PERIOD_S: dict[str, float] = {
     "balloon": 60.0,
 }
 """Expected period of each kind of telemetry; a value is stale after twice its period."""
+POLLED = ("link", "release", "gnss", "storage", "sync")
+"""Kinds that come from polling the capsule: their period is at least the poller's own."""
 
 
 def _empty(kind: str) -> Reading[dict[str, Any]]:
@@ -36,6 +38,8 @@ def _empty(kind: str) -> Reading[dict[str, Any]]:
 @dataclass
 class CapsuleTelemetry:
     name: str
+    poll_period_s: float = 0.0
+    """How often this console polls the capsule (a slower poller makes slower-aging values)."""
     readings: dict[str, Reading[dict[str, Any]]] = field(default_factory=dict)
     reports: list[dict[str, Any]] = field(default_factory=list)
     predictions: dict[int, Reading[dict[str, Any]]] = field(default_factory=dict)
@@ -52,6 +56,8 @@ class CapsuleTelemetry:
 
     def apply(self, record: TelemetryRecord) -> None:
         period = PERIOD_S[record.kind]
+        if record.kind in POLLED:
+            period = max(period, self.poll_period_s)
         if record.kind == "report":
             period = 60.0 * float(record.data.get("interval_min") or 2)
             self.reports.append({**record.data, "time": record.time})
@@ -121,9 +127,11 @@ class FleetState:
     balloon: Reading[dict[str, Any]] = field(default_factory=lambda: _empty("balloon"))
     gateway: Reading[dict[str, Any]] = field(default_factory=lambda: _empty("gateway"))
 
+    poll_period_s: float = 0.0
+
     @classmethod
-    def for_capsules(cls, names: list[str]) -> FleetState:
-        return cls({name: CapsuleTelemetry(name) for name in names})
+    def for_capsules(cls, names: list[str], poll_period_s: float = 0.0) -> FleetState:
+        return cls({name: CapsuleTelemetry(name, poll_period_s) for name in names}, poll_period_s=poll_period_s)
 
     def apply(self, record: TelemetryRecord) -> None:
         if record.kind == "balloon":
@@ -135,5 +143,5 @@ class FleetState:
                 for capsule in self.capsules.values():
                     capsule.apply(record)
             return
-        capsule = self.capsules.setdefault(record.capsule, CapsuleTelemetry(record.capsule))
+        capsule = self.capsules.setdefault(record.capsule, CapsuleTelemetry(record.capsule, self.poll_period_s))
         capsule.apply(record)

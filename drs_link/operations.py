@@ -32,6 +32,8 @@ from drs_link.store import Store, utc_now
 from drs_link.sync import Syncer
 from drs_link.telemetry import TelemetryRecord, TelemetryRecorder
 
+GNSS_UERE_M = 5.0
+"""Metres of position error per unit of HDOP (a typical user range error), for the fix's uncertainty."""
 LANDED_SPEED_MS = 1.0
 LANDED_ALT_CHANGE_M = 20.0
 
@@ -66,11 +68,20 @@ class CapsuleOps:
     lock: threading.Lock
 
 
+def report_position(stored: StoredReport) -> tuple[float, float, float, str] | None:
+    """(lat, lon, uncertainty m, source): the GNSS fix, else the Iridium network's estimate and CEP."""
+    report = stored.report
+    if report is not None and report.fix is not None:
+        return report.fix.lat, report.fix.lon, report.fix.hdop * GNSS_UERE_M, "gnss"
+    coarse = stored.iridium_position()
+    return (*coarse, "iridium") if coarse is not None else None
+
+
 def report_record(capsule: str, stored: StoredReport, interval_min: int) -> TelemetryRecord:
     """One Iridium report as telemetry (position from the fix, else the Iridium estimate)."""
     report = stored.report
     fix = report.fix if report else None
-    position = stored.position()
+    position = report_position(stored)
     data: dict[str, object] = {
         "momsn": stored.delivery.momsn,
         "has_fix": fix is not None,

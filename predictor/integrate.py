@@ -23,11 +23,21 @@ and log-density is extrapolated linearly; above the top level the same holds, bu
 from __future__ import annotations
 
 import math
+import os
 import weakref
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numba import njit, prange
+from numba.core.caching import (
+    CompileResultCacheImpl,
+    FunctionCache,
+    InTreeCacheLocator,
+    UserProvidedCacheLocator,
+    UserWideCacheLocator,
+)
 
 from predictor.cube import WeatherCube
 from predictor.model import (
@@ -107,7 +117,7 @@ def packed(cube: WeatherCube) -> PackedWeather:
     return found
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _bracket(axis: np.ndarray, x: float) -> tuple[int, float]:
     """Index i and fraction f with axis[i] + f·(axis[i+1] − axis[i]) = x; i = −1 when outside.
 
@@ -126,7 +136,7 @@ def _bracket(axis: np.ndarray, x: float) -> tuple[int, float]:
     return i, (x - axis[i]) / (axis[i + 1] - axis[i])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _column_at(col: np.ndarray, z: float, out: np.ndarray, weight: float, hint: int) -> int:
     """Add weight × (u, v, log ρ) at altitude z of one column to out.
 
@@ -206,14 +216,14 @@ def sample_weather(
     return STATUS_OK
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gravity(z: float) -> float:
     """g on a spherical Earth of mean radius (the latitude term is below the model's accuracy)."""
     r = GRAVITY_MEAN_RADIUS_M / (GRAVITY_MEAN_RADIUS_M + z)
     return G0 * r * r
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def degrees_per_metre(lat: float, h: float) -> tuple[float, float]:
     """(°lat per metre north, °lon per metre east) on the WGS84 ellipsoid at height h."""
     s = math.sin(math.radians(lat))
@@ -270,6 +280,46 @@ def drift_at_float(
             t[i] += h
 
 
+_KERNEL_SOURCES = (Path(__file__), Path(__file__).with_name("model.py"))
+
+
+class _StampOfIntegratorAndModel:
+    """Cache stamp of both source files: the stepper compiles the model's terms into itself.
+
+    numba checks only the stamp of the file that defines a cached function, so an edited term in
+    ``predictor/model.py`` would otherwise keep running its old compiled code inside the stepper.
+    """
+
+    def get_source_stamp(self) -> tuple[tuple[float, int], ...]:
+        return tuple((os.stat(f).st_mtime, os.stat(f).st_size) for f in _KERNEL_SOURCES)
+
+
+class _UserProvidedLocator(_StampOfIntegratorAndModel, UserProvidedCacheLocator):
+    pass
+
+
+class _InTreeLocator(_StampOfIntegratorAndModel, InTreeCacheLocator):
+    pass
+
+
+class _UserWideLocator(_StampOfIntegratorAndModel, UserWideCacheLocator):
+    pass
+
+
+class _KernelCacheImpl(CompileResultCacheImpl):
+    _locator_classes = [_UserProvidedLocator, _InTreeLocator, _UserWideLocator]
+
+
+class _KernelCache(FunctionCache):
+    _impl_class = _KernelCacheImpl
+
+
+def _cached_with_model(dispatcher: Any) -> Any:
+    """Give a compiled function the on-disk cache that is invalidated by edits to either file."""
+    dispatcher._cache = _KernelCache(dispatcher.py_func)
+    return dispatcher
+
+
 @njit(cache=True)
 def _note_failure(failed_at: np.ndarray, i: int, lat: float, lon: float, z: float, t: float, k: int) -> None:
     failed_at[i, 0] = lat
@@ -279,6 +329,7 @@ def _note_failure(failed_at: np.ndarray, i: int, lat: float, lon: float, z: floa
     failed_at[i, 4] = k
 
 
+@_cached_with_model
 @njit(cache=True)
 def _descend_range(
     lo: int,
@@ -446,6 +497,7 @@ def _descend_range(
         k += 1
 
 
+@_cached_with_model
 @njit(cache=True, parallel=True)
 def _descend_parallel(
     t_s: np.ndarray,

@@ -67,13 +67,6 @@ class LiveErrorModel:
             sigma0_km=parallel, h=0.0, k_km2_per_h2=0.0, q=parallel / perpendicular, name="live"
         )
 
-    def to_dict(self) -> dict[str, list[float]]:
-        return {
-            "heights_km": list(self.heights_km),
-            "sigma_parallel_km": list(self.sigma_parallel_km),
-            "sigma_perpendicular_km": list(self.sigma_perpendicular_km),
-        }
-
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
@@ -123,21 +116,6 @@ class LiveCorrection:
             if band.lower_m <= height_m < band.upper_m:
                 return band
         return None
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "rate_window_m": self.rate_window_m,
-            "wind_window_m": self.wind_window_m,
-            "bands": [
-                {
-                    "from_m": b.lower_m if math.isfinite(b.lower_m) else None,
-                    "to_m": b.upper_m if math.isfinite(b.upper_m) else None,
-                    "use_rate": b.use_rate,
-                    "decay_m": b.decay_m,
-                }
-                for b in self.bands
-            ],
-        }
 
 
 NO_CORRECTION = LiveCorrection()
@@ -272,7 +250,8 @@ class LivePredictor:
         """Measure the leg that ends at this report (no prediction)."""
         if self.reports and report.time <= self.reports[-1].time:
             raise PredictorError(
-                f"report at {iso_z(report.time)} is not after the previous one ({iso_z(self.reports[-1].time)})"
+                f"report at {iso_z(report.time)} is not after the previous one "
+                f"({iso_z(self.reports[-1].time)})"
             )
         if self._leg_start is not None:
             leg = self._leg(self._leg_start, report)

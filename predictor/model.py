@@ -91,6 +91,7 @@ KIND_WIND_OFFSET = 9
 KIND_BINNED_WIND = 10
 KIND_WIND_LAG = 11
 KIND_WEATHER_TIME_OFFSET = 12
+KIND_SEA_LEVEL_RATE = 13
 STANDARD_SEA_LEVEL_DENSITY = 1.225
 
 
@@ -137,6 +138,13 @@ def _terminal_velocity(
     p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
 ) -> None:
     vel[VEL_DOWN] += math.sqrt(2.0 * p[p_off] * env[ENV_G] / (env[ENV_RHO] * p[p_off + 1]))
+
+
+@njit(cache=True)
+def _sea_level_rate(
+    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+) -> None:
+    vel[VEL_DOWN] += p[p_off] * math.sqrt(p[p_off + 1] / env[ENV_RHO])
 
 
 @njit(cache=True)
@@ -281,6 +289,10 @@ def apply_term(
         for i in range(lo, hi):
             if active[i]:
                 _terminal_velocity(params[i], p_off, s_off, env[i], vel[i], state[i])
+    elif kind == KIND_SEA_LEVEL_RATE:
+        for i in range(lo, hi):
+            if active[i]:
+                _sea_level_rate(params[i], p_off, s_off, env[i], vel[i], state[i])
     elif kind == KIND_WIND:
         for i in range(lo, hi):
             if active[i]:
@@ -370,6 +382,23 @@ class TerminalVelocity(Term):
         return cls(mass_kg=payload.mass_kg, cda_m2=payload.cda_m2)
 
     kind: ClassVar[int] = KIND_TERMINAL_VELOCITY
+
+
+@dataclass(frozen=True)
+class SeaLevelRate(Term):
+    """The descent given by its rate at sea level: v = rate·sqrt(ρ_ref/ρ), as Tawhiri/SondeHub specify it.
+
+    An alternative base term to ``terminal_velocity`` for operators who know a payload's landing
+    speed rather than its mass and Cd·A. The default ρ_ref = 1.1045² is Tawhiri's constant, so its
+    answers can be reproduced.
+    """
+
+    rate_ms: float | np.ndarray
+    reference_density: float | np.ndarray = 1.1045**2
+    name: ClassVar[str] = "sea_level_rate"
+    family: ClassVar[str] = "vertical"
+    stage: ClassVar[int] = 0
+    kind: ClassVar[int] = KIND_SEA_LEVEL_RATE
 
 
 @dataclass(frozen=True)

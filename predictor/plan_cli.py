@@ -204,7 +204,8 @@ def run_bench(args: argparse.Namespace) -> int:
         cpu.append(time.process_time() - c0)
     n_c = len(plan.candidates)
     print(
-        f"sweep {hours:g} h every {every:g} min ({n_c} candidates) × {members} members = {n_c * members} member "
+        f"sweep {hours:g} h every {every:g} min ({n_c} candidates) × {members} members = "
+        f"{n_c * members} member "
         f"descents + {n_c} central (Δz 100 m central, 200 m members), 30 km → sea level, demo weather, "
         f"2 zones + 1 target: median {statistics.median(times):.3f} s, min {min(times):.3f} s, "
         f"max {max(times):.3f} s over {len(times)} runs   [goal < 1 s]"
@@ -296,7 +297,8 @@ def run_live(args: argparse.Namespace) -> int:
         )
     if flight.landing is not None and not args.json:
         print(
-            f"measured landing {iso_z(flight.landing.time)}  {flight.landing.lat:.5f}, {flight.landing.lon:.5f}"
+            f"measured landing {iso_z(flight.landing.time)}  "
+            f"{flight.landing.lat:.5f}, {flight.landing.lon:.5f}"
         )
     return 0
 

@@ -321,7 +321,10 @@ def zone_probabilities(
     for i, (center, cov) in enumerate(zip(centers, covariances, strict=True)):
         for j, zone in enumerate(zones):
             per_zone[i, j] = gaussian_mass(zone, center, cov)
-        any_zone[i] = gaussian_mass(union, center, cov) if len(zones) > 1 else per_zone[i, 0] if zones else 0.0
+        if len(zones) > 1:
+            any_zone[i] = gaussian_mass(union, center, cov)
+        elif zones:
+            any_zone[i] = per_zone[i, 0]
     return ZoneHits(any_zone=any_zone, per_zone=per_zone)
 
 

@@ -7,6 +7,8 @@ HH:MM from the report history; a time the capsule would reject is refused before
 
 from __future__ import annotations
 
+import time
+
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -20,7 +22,9 @@ from drs_link.errors import LinkError
 from drs_link.iridium.health import assess
 from drs_link.iridium.mt import MtComposer, MtMessage, parse_hhmm
 from drs_link.iridium.parachute import ParachutePlan, plan_parachute
+from drs_link.operations import report_position
 
+RELOAD_S = 2.0
 LIFECYCLE_WORDS = {
     "queued": "queued at gateway",
     "probably_delivered": "probably delivered",
@@ -43,6 +47,7 @@ class IridiumScreen(ConsoleScreen):
     def __init__(self, capsule: str) -> None:
         super().__init__()
         self.capsule = capsule
+        self.loaded_at = time.monotonic()
 
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
@@ -74,6 +79,12 @@ class IridiumScreen(ConsoleScreen):
         commands = ops.commands(self.capsule)
         self.app.call_from_thread(self.show, reports, commands)
 
+    def update_view(self) -> None:
+        """Re-read the store every few seconds: reports and command states change underneath."""
+        if time.monotonic() - self.loaded_at >= RELOAD_S:
+            self.loaded_at = time.monotonic()
+            self.action_reload()
+
     def show(self, reports: list, commands: list) -> None:  # type: ignore[type-arg]
         health = assess(reports) if reports else None
         if health is None:
@@ -92,7 +103,7 @@ class IridiumScreen(ConsoleScreen):
         table.clear()
         for r in reversed(reports[-50:]):
             fix = r.report.fix if r.report else None
-            position = r.position()
+            position = report_position(r)
             where = f"{position[0]:.4f},{position[1]:.4f} ({position[3]})" if position else "—"
             table.add_row(
                 str(r.delivery.momsn), f"{fix.time:%H:%M:%S}Z" if fix else "NO FIX", where,

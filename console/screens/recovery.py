@@ -7,6 +7,7 @@ its confirmations; this one only reads (in a worker) and exports.
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 from textual import work
@@ -28,6 +29,8 @@ from drs_link.iridium.recovery import (
     write_kml,
 )
 
+RELOAD_S = 2.0
+
 
 class RecoveryScreen(ConsoleScreen):
     BINDINGS = [
@@ -41,6 +44,7 @@ class RecoveryScreen(ConsoleScreen):
         self.capsule = capsule
         self.track: list[TrackPoint] = []
         self.landing: LandingEstimate | None = None
+        self.loaded_at = time.monotonic()
 
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
@@ -65,6 +69,9 @@ class RecoveryScreen(ConsoleScreen):
         self.refresh_view()
 
     def update_view(self) -> None:
+        if time.monotonic() - self.loaded_at >= RELOAD_S:
+            self.loaded_at = time.monotonic()
+            self.load()
         team = self.console.setup.team_position
         last = self.track[-1] if self.track else None
         lines = [f"{self.capsule} recovery", ""]

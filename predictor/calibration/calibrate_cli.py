@@ -29,6 +29,7 @@ from predictor.payload import Payload, payload_profile
 from predictor.terrain import Terrain
 from predictor.weather import load_weather
 
+METRICS = {"track": "track_rms_km", "landing": "landing_error_km"}
 DEFAULT_STEP_M = 200.0
 """Altitude step of every calibration run: 150 steps from 30 km. The step's truncation error is the
 same for every candidate, so it cannot favour one; halving it doubles the run time."""
@@ -61,6 +62,9 @@ def _inputs(parser: argparse.ArgumentParser, required: bool) -> None:
         "--winds", choices=("ascent",), help="'ascent': each flight's own ascent as its weather"
     )
     parser.add_argument(
+        "--cache-dir", metavar="DIR", help="cache of decoded weather (default ~/.cache/drs/weather)"
+    )
+    parser.add_argument(
         "--dem", metavar="DIR", help="terrain (SRTM .hgt / NetCDF) for the predicted landings"
     )
     parser.add_argument("--payload", metavar="NAME", help="payload profile (e.g. superbit-test, drs)")
@@ -70,6 +74,12 @@ def _inputs(parser: argparse.ArgumentParser, required: bool) -> None:
     parser.add_argument("--max-effects", type=int, default=DEFAULT_MAX_EFFECTS, metavar="N")
     parser.add_argument("--step", type=float, default=DEFAULT_STEP_M, metavar="M", help="altitude step, m")
     parser.add_argument("--seed", type=int, default=0, help="seed of the bootstrap resampling")
+    parser.add_argument(
+        "--score",
+        choices=("track", "landing"),
+        default="track",
+        help="per-flight score: RMS 3-D error over every fix (default) or the landing error alone",
+    )
 
 
 @dataclass(frozen=True)
@@ -101,7 +111,9 @@ def prepare(args: argparse.Namespace) -> Inputs:
     payload = _payload(args)
     library(args.effects)
     terrain = Terrain.from_dir(args.dem) if args.dem else None
-    shared: WeatherCube | None = load_weather(args.weather) if args.weather else None
+    shared: WeatherCube | None = (
+        load_weather(args.weather, cache_dir=args.cache_dir) if args.weather else None
+    )
     cases: list[FlightCase] = []
     excluded: list[Exclusion] = []
     for name in args.tracks:
@@ -120,6 +132,11 @@ def prepare(args: argparse.Namespace) -> Inputs:
             excluded.append(Exclusion(flight.name, "the weather does not cover its predicted descent"))
             continue
         cases.append(case)
+    if len(cases) < 3:
+        left_out = "; ".join(f"{e.name}: {e.reason}" for e in excluded) or "none"
+        raise PredictorError(
+            f"leave-one-flight-out needs at least 3 usable flights, got {len(cases)} (excluded: {left_out})"
+        )
     weather = "each flight's own ascent winds (--winds ascent)" if shared is None else shared.source
     return Inputs(cases, excluded, payload, weather)
 
@@ -127,7 +144,7 @@ def prepare(args: argparse.Namespace) -> Inputs:
 def analyse(inputs: Inputs, args: argparse.Namespace) -> tuple[Calibration, EllipseFit | None]:
     cal = calibrate(
         inputs.cases, inputs.payload, library(args.effects) if args.effects else LIBRARY,
-        step_m=args.step, max_effects=args.max_effects, seed=args.seed,
+        step_m=args.step, max_effects=args.max_effects, seed=args.seed, metric=METRICS[args.score],
     )  # fmt: skip
     ellipse = None
     if len(inputs.cases) >= MIN_FLIGHTS:
@@ -164,6 +181,8 @@ def _command(args: argparse.Namespace) -> str:
             parts += [flag, str(value)]
     if args.effects:
         parts += ["--effects", *args.effects]
+    if args.score != "track":
+        parts += ["--score", args.score]
     if args.report:
         parts += ["--report", str(args.report)]
     if args.json:
@@ -200,7 +219,7 @@ def run_bench(args: argparse.Namespace) -> int:
         t1 = time.perf_counter()
         cal = calibrate(
             inputs.cases, inputs.payload, library(args.effects) if args.effects else LIBRARY,
-            step_m=args.step, max_effects=args.max_effects, seed=args.seed,
+            step_m=args.step, max_effects=args.max_effects, seed=args.seed, metric=METRICS[args.score],
         )  # fmt: skip
         t2 = time.perf_counter()
         if len(inputs.cases) >= MIN_FLIGHTS:

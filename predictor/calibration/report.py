@@ -19,8 +19,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from predictor.calibration.ellipse_fit import EllipseFit  # noqa: E402
+from predictor.calibration.effects import BIN_EDGES_M  # noqa: E402
+from predictor.calibration.ellipse_fit import PAPER_OBJECTIVE, EllipseFit  # noqa: E402
 from predictor.calibration.selection import Calibration, CandidateResult, HeldOut  # noqa: E402
+
+METRIC_LABELS = {"track_rms_km": "RMS track error", "landing_error_km": "landing error"}
 
 
 @dataclass(frozen=True)
@@ -41,6 +44,7 @@ def _error_block(h: HeldOut) -> dict[str, Any]:
 def verdict(cal: Calibration) -> str:
     """One paragraph: what was found and how much it helped, held out."""
     b, a = cal.baseline.summary(), cal.after.summary()
+    label = METRIC_LABELS[cal.metric]
     parts = []
     if cal.selected:
         names = ", ".join(
@@ -58,7 +62,7 @@ def verdict(cal: Calibration) -> str:
     else:
         parts.append(
             "No library effect beat the plain model on held-out flights by more than the noise margin: "
-            f"the RMS track error stays {b['track_rms_km']['mean']:.2f} km (mean)."
+            f"the {label} stays {b[cal.metric]['mean']:.2f} km (mean)."
         )
     bt = cal.binned_test
     bh = cal.binned_heldout.summary()
@@ -70,7 +74,7 @@ def verdict(cal: Calibration) -> str:
         )
         parts.append(
             f"{lead}: the altitude-binned correction, fitted without each held-out flight, still lowers the "
-            f"held-out RMS track error to {bh['track_rms_km']['mean']:.2f} km (improvement "
+            f"held-out {label} to {bh[cal.metric]['mean']:.2f} km (improvement "
             f"{bt.mean_improvement_km:.3f} km > margin {bt.margin_km:.3f} km, {bt.wins}/{bt.flights} flights "
             "better). The residual has a systematic altitude structure the library lacks (see its profile below)."
         )
@@ -81,6 +85,28 @@ def verdict(cal: Calibration) -> str:
             "not a systematic function of altitude that these flights can pin down."
         )
     return " ".join(parts)
+
+
+def speed_finding(cal: Calibration) -> str:
+    """The paper's near-ground check in one sentence: measured/predicted descent speed low and high up."""
+    rows = speed_ratio_by_altitude(cal, BIN_EDGES_M)
+    if not rows:
+        return ""
+    low = rows[0]
+    high = max((r for r in rows if r["intervals"] >= 5), key=lambda r: abs(r["median"] - 1.0))
+
+    def words(r: dict[str, float]) -> str:
+        pct = abs(r["median"] - 1.0) * 100.0
+        how = "slower" if r["median"] < 1.0 else "faster"
+        return (
+            f"{pct:.0f} % {how} than predicted at {r['bottom_m'] / 1000:.0f}–{r['top_m'] / 1000:.0f} km "
+            f"(median of {r['intervals']} intervals, quartiles {r['q1']:.2f}–{r['q3']:.2f})"
+        )
+
+    text = f"With the plain model the measured descent is {words(low)}"
+    if high is not low:
+        text += f", and {words(high)}"
+    return text + "."
 
 
 def _params(p: dict[str, Any]) -> str:
@@ -112,9 +138,11 @@ def result_json(
             "heldout": _error_block(cal.binned_heldout),
             "test": cal.binned_test.to_dict(),
         },
+        "speed_ratio_by_altitude": speed_ratio_by_altitude(cal, BIN_EDGES_M),
+        "speed_finding": speed_finding(cal),
         "library_explains_residual": not cal.unexplained,
         "verdict": verdict(cal),
-        "score": "per flight: RMS over its descent fixes of the 3-D position error (km) at equal time since descent start",
+        "score": cal.metric,
         "payload": payload,
         "weather": weather,
         "per_flight": [
@@ -156,6 +184,8 @@ def write_report(
         "",
         verdict(cal),
         "",
+        speed_finding(cal),
+        "",
         f"Flights used: {len(cal.names)}. "
         + (
             "Excluded: " + "; ".join(f"{e.name} ({e.reason})" for e in excluded) + "."
@@ -170,12 +200,19 @@ def write_report(
         "",
         "## Score and margin",
         "",
-        "Each flight is predicted from its descent start. Its score is the RMS, over all its descent fixes, of the "
-        "3-D distance between the measured and the predicted position at the same time since the descent start (km). "
-        "Every candidate is fitted leave-one-flight-out and scored on the flight it never saw. An effect is "
-        "selected only when the paired bootstrap of the mean held-out improvement (4000 draws over flights) "
-        "has its lower α/K quantile above zero (α = 0.05, K = candidates in that round). "
-        "The margin below is mean improvement minus that lower bound.",
+        "Each flight is predicted from its descent start. "
+        + (
+            "Its score is the RMS, over all its descent fixes, of the 3-D distance between the measured and the "
+            "predicted position at the same time since the descent start (km). "
+            if cal.metric == "track_rms_km"
+            else "Its score is the distance between the measured and the predicted landing (km). "
+        )
+        + (
+            "Every candidate is fitted leave-one-flight-out and scored on the flight it never saw. An effect is "
+            "selected only when the paired bootstrap of the mean held-out improvement (4000 draws over flights) "
+            "has its lower α/K quantile above zero (α = 0.05, K = candidates in that round) and the mean "
+            "improvement is at least 0.1 km. The margin below is mean improvement minus that lower bound."
+        ),
         "",
         "## Before and after (held out)",
         "",
@@ -203,7 +240,7 @@ def write_report(
             t = r["test"]
             lines.append(
                 f"| {r['effect']} | {r['family']} | {_params(r['parameters'])} | "
-                f"{r['heldout']['track_rms_km']['mean']:.3f} | {r['heldout']['landing_error_km']['mean']:.3f} | "
+                f"{_num(r['heldout']['track_rms_km']['mean'])} | {_num(r['heldout']['landing_error_km']['mean'])} | "
                 f"{_num(t['mean_improvement_km'])} | {_num(t['margin_km'])} | {t['flights_improved']}/{t['flights']} | "
                 f"{'yes' if t['passed'] and r['effect'] in chosen else 'no'} |"
             )
@@ -230,6 +267,13 @@ def write_report(
         "",
         f"![speed ratio]({Path(pngs[0]).name})",
         "",
+        "Median measured / predicted descent speed by altitude (plain model; the interval that contains the "
+        "touchdown is left out, its measured speed includes time on the ground):",
+        "",
+        "| altitude m | intervals | median ratio | quartiles |",
+        "|---|---|---|---|",
+        *_speed_ratio_rows(cal),
+        "",
         "Along- and cross-track position error (measured − predicted, same time) at every fix:",
         "",
         f"![position error]({Path(pngs[1]).name})",
@@ -248,8 +292,13 @@ def write_report(
             f"{e['q']:.3f} ± {se['q']:.3f} | {e['coverage_1sigma']:.1%} | {e['coverage_2sigma']:.1%} |",
         ]
         for name, p in e["paper"].items():
+            label = (
+                "paper's criterion refitted here"
+                if name == PAPER_OBJECTIVE
+                else f"paper ({name}), same errors"
+            )
             lines.append(
-                f"| paper ({name}), same errors | {p['sigma0_km']} | {p['h']} | {p['k_km2_per_h2']} | {p['q']} | "
+                f"| {label} | {p['sigma0_km']} | {p['h']} | {p['k_km2_per_h2']} | {p['q']} | "
                 f"{p['coverage_1sigma']:.1%} | {p['coverage_2sigma']:.1%} |"
             )
         lines += [
@@ -269,15 +318,39 @@ def write_report(
     return pngs
 
 
-def _num(x: float | None) -> str:
-    return "–" if x is None or not np.isfinite(x) else f"{x:.3f}"
+def speed_ratio_by_altitude(cal: Calibration, edges_m: Sequence[float]) -> list[dict[str, float]]:
+    """The plain model's measured/predicted descent speed per altitude bin (the paper's near-ground check)."""
+    alt = np.concatenate([r.interval_alt_m for r in cal.baseline_residuals])
+    ratio = np.concatenate([r.speed_ratio for r in cal.baseline_residuals])
+    keep = np.isfinite(ratio)
+    alt, ratio = alt[keep], ratio[keep]
+    rows = []
+    for lo, hi in zip(edges_m[:-1], edges_m[1:], strict=True):
+        inside = ratio[(alt >= lo) & (alt < hi)]
+        if inside.size:
+            q1, med, q3 = np.percentile(inside, [25, 50, 75])
+            rows.append({"bottom_m": lo, "top_m": hi, "intervals": int(inside.size), "median": round(float(med), 4),
+                         "q1": round(float(q1), 4), "q3": round(float(q3), 4)})  # fmt: skip
+    return rows
+
+
+def _speed_ratio_rows(cal: Calibration) -> list[str]:
+    return [
+        f"| {r['bottom_m']:.0f}–{r['top_m']:.0f} | {r['intervals']} | {r['median']:.3f} | {r['q1']:.3f}–{r['q3']:.3f} |"
+        for r in speed_ratio_by_altitude(cal, BIN_EDGES_M)
+    ]
+
+
+def _num(x: float | None, digits: int = 3) -> str:
+    """A number for a table; a dash for a failed run (None) so the table still renders."""
+    return "–" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
 
 
 def _row(label: str, block: dict[str, Any]) -> str:
     t, l_, d = block["track_rms_km"], block["landing_error_km"], block["descent_time_error_s"]
     return (
-        f"| {label} | {t['mean']:.3f} / {t['median']:.3f} | {l_['mean']:.3f} / {l_['median']:.3f} | "
-        f"{d['mean']:.0f} / {d['median']:.0f} |"
+        f"| {label} | {_num(t['mean'])} / {_num(t['median'])} | {_num(l_['mean'])} / {_num(l_['median'])} | "
+        f"{_num(d['mean'], 0)} / {_num(d['median'], 0)} |"
     )
 
 
@@ -315,7 +388,7 @@ def _plot_horizontal(cal: Calibration, out: Path) -> Path:
         axes[1].scatter(wind, along, s=6, alpha=0.5, label=label)
         axes[2].scatter(t, cross, s=6, alpha=0.5, label=label)
     axes[0].set_xlabel("altitude (m)")
-    axes[0].set_ylabel("position error (km)")
+    axes[0].set_ylabel("horizontal position error (km)")
     axes[1].set_xlabel("wind speed (m/s)  [along-track error]")
     axes[2].set_xlabel("time since release (s)  [cross-track error]")
     axes[0].legend()

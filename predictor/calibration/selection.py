@@ -3,7 +3,8 @@
 With a few dozen flights, any effect with a free parameter lowers the error on the flights it was
 fitted to. So every number that decides anything here is HELD OUT: for each flight i, the effect is
 fitted on all the other flights and scored on flight i. The score of a flight is the RMS of its
-3-D position error over all its descent fixes (``residuals``), in km.
+3-D position error over all its descent fixes (``residuals``), in km; ``metric="landing_error_km"``
+scores the landing alone (fewer numbers per flight, so a larger margin, but the one recovery needs).
 
 The margin (when is an improvement more than noise): the per-flight held-out improvements
 d_i = score_before_i − score_with_effect_i are paired (the same flights, the same weather), so the
@@ -49,6 +50,8 @@ from predictor.payload import Payload
 ALPHA = 0.05
 BOOTSTRAP_SAMPLES = 4000
 DEFAULT_MAX_EFFECTS = 3
+SCORES = ("track_rms_km", "landing_error_km")
+"""What a flight is scored by: the RMS 3-D error over all its fixes (default), or the landing error alone."""
 MIN_IMPROVEMENT_KM = 0.1
 
 
@@ -88,7 +91,7 @@ class HeldOut:
             col("landing_x"), col("landing_y"),
         )  # fmt: skip
 
-    def summary(self) -> dict[str, dict[str, float]]:
+    def summary(self) -> dict[str, dict[str, float | None]]:
         return {
             "track_rms_km": _mean_median(self.track_rms_km),
             "landing_error_km": _mean_median(self.landing_error_km),
@@ -98,10 +101,15 @@ class HeldOut:
         }
 
 
-def _mean_median(values: np.ndarray, signed: np.ndarray | None = None) -> dict[str, float]:
-    out = {"mean": round(float(np.mean(values)), 4), "median": round(float(np.median(values)), 4)}
+def _mean_median(values: np.ndarray, signed: np.ndarray | None = None) -> dict[str, float | None]:
+    """Mean and median; None (JSON null) when any flight's run failed, so a failure cannot hide."""
+
+    def number(x: float) -> float | None:
+        return round(float(x), 4) if np.isfinite(x) else None
+
+    out = {"mean": number(np.mean(values)), "median": number(np.median(values))}
     if signed is not None:
-        out["mean_signed"] = round(float(np.mean(signed)), 4)
+        out["mean_signed"] = number(np.mean(signed))
     return out
 
 
@@ -155,6 +163,8 @@ class CandidateResult:
 
 @dataclass(frozen=True)
 class Calibration:
+    metric: str
+    """The per-flight score that selection used (one of ``SCORES``)."""
     names: tuple[str, ...]
     baseline: HeldOut
     rounds: tuple[tuple[CandidateResult, ...], ...]
@@ -211,7 +221,10 @@ def calibrate(
     max_effects: int = DEFAULT_MAX_EFFECTS,
     alpha: float = ALPHA,
     seed: int = 0,
+    metric: str = "track_rms_km",
 ) -> Calibration:
+    if metric not in SCORES:
+        raise PredictorError(f"unknown score {metric!r}; choose one of {', '.join(SCORES)}")
     n = len(cases)
     if n < 3:
         raise PredictorError(f"leave-one-flight-out needs at least 3 usable flights, got {n}")
@@ -235,11 +248,12 @@ def calibrate(
                 alpha / len(remaining),
                 seed,
                 len(rounds) + 1,
+                metric,
             )
             for c in remaining
         )
         rounds.append(results)
-        best = min(results, key=lambda r: float(np.nanmean(r.heldout.track_rms_km)))
+        best = min(results, key=lambda r: float(np.nanmean(getattr(r.heldout, metric))))
         if not best.test.passed:
             break
         selected_full.append(best.full)
@@ -249,9 +263,10 @@ def calibrate(
         remaining = [c for c in remaining if c is not best.full.candidate]
     after = reference
     binned, binned_heldout = _binned(batch, selected_folds, selected_full)
-    binned_test = paired_test(after.track_rms_km, binned_heldout.track_rms_km, alpha, seed)
+    binned_test = paired_test(getattr(after, metric), getattr(binned_heldout, metric), alpha, seed)
     after_residuals = tuple(residuals(cases[i], batch.runs(i, [selected_folds[i]])) for i in range(n))
     return Calibration(
+        metric=metric,
         names=tuple(c.name for c in cases),
         baseline=baseline,
         rounds=tuple(rounds),
@@ -276,35 +291,57 @@ def _try(
     alpha: float,
     seed: int,
     round_no: int,
+    metric: str,
 ) -> CandidateResult:
-    """Fit the candidate per fold and on all flights (other selected effects held), score held out."""
+    """Fit the candidate per fold and on all flights (other selected effects held), score held out.
+
+    Two passes: the candidate's coarse grid, then a fine grid (``Candidate.fine``) around the
+    all-flights optimum, used by every fold whose coarse optimum falls inside it (the folds differ by
+    one flight, so nearly always).
+    """
     n = len(batch.cases)
-    points = candidate.points()
-    g = len(points)
-    grid_fits = [Fit(candidate, v, x) for v, x in points]
+    coarse = _losses(batch, candidate, selected_folds, selected_full, metric)
+    variant, value, _ = candidate.fit(coarse.sum(axis=0)[n])
+    fine_candidate = candidate.fine(variant, value)
+    fine = _losses(batch, fine_candidate, selected_folds, selected_full, metric)
+    folds_fit: list[Fit] = []
+    for i in range(n + 1):
+        v0, x0, _ = candidate.fit(coarse.sum(axis=0)[i])
+        if v0 == variant and fine_candidate.grid[0] <= x0 <= fine_candidate.grid[-1]:
+            _, x0, _ = fine_candidate.fit(fine.sum(axis=0)[i])
+        folds_fit.append(Fit(candidate, v0, x0))
+    full = folds_fit.pop()
+    heldout = HeldOut.of([batch.scores(i, [[*selected_folds[i], folds_fit[i]]]) for i in range(n)])
+    test = paired_test(getattr(reference, metric), getattr(heldout, metric), alpha, seed)
+    return CandidateResult(round_no, full, tuple(folds_fit), heldout, test)
+
+
+def _losses(
+    batch: _Batch,
+    candidate: Candidate,
+    selected_folds: list[list[Fit]],
+    selected_full: list[Fit],
+    metric: str,
+) -> np.ndarray:
+    """loss[j, i, g]: flight j's squared score at grid point g with fold i's selected effects (i = n:
+    the all-flights fit; loss[j, j] = 0, a flight is never in its own fold). Without selected effects
+    every fold sees the same rows, so each flight flies the grid once."""
+    n = len(batch.cases)
+    grid_fits = [Fit(candidate, v, x) for v, x in candidate.points()]
+    g = len(grid_fits)
     loss = np.zeros((n, n + 1, g))
-    """loss[j, i, :]: flight j's mean squared error over the grid, with fold i's selected effects
-    (column n: the all-flights fit). Without selected effects every fold sees the same rows."""
     for j in range(n):
         if not selected_full:
-            sq = batch.scores(j, [[f] for f in grid_fits]).track_rms_km ** 2
-            loss[j, :, :] = sq
+            loss[j, :, :] = getattr(batch.scores(j, [[f] for f in grid_fits]), metric) ** 2
+            loss[j, j, :] = 0.0
         else:
             folds = [i for i in range(n) if i != j]
             rows = [[*selected_folds[i], f] for i in folds for f in grid_fits]
             rows += [[*selected_full, f] for f in grid_fits]
-            sq = (batch.scores(j, rows).track_rms_km ** 2).reshape(len(folds) + 1, g)
+            sq = (getattr(batch.scores(j, rows), metric) ** 2).reshape(len(folds) + 1, g)
             loss[j, folds, :] = sq[:-1]
             loss[j, n, :] = sq[-1]
-    total = loss.sum(axis=0)
-    folds_fit: list[Fit] = []
-    for i in range(n):
-        variant, value, _ = candidate.fit(total[i] - loss[i, i])
-        folds_fit.append(Fit(candidate, variant, value))
-    variant, value, _ = candidate.fit(total[n])
-    heldout = HeldOut.of([batch.scores(i, [[*selected_folds[i], folds_fit[i]]]) for i in range(n)])
-    test = paired_test(reference.track_rms_km, heldout.track_rms_km, alpha, seed)
-    return CandidateResult(round_no, Fit(candidate, variant, value), tuple(folds_fit), heldout, test)
+    return loss
 
 
 def _binned(

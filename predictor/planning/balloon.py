@@ -17,12 +17,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from datetime import UTC, datetime, timedelta
+from datetime import UTC, datetime
 
 import numpy as np
 
 from predictor.cube import WeatherCube
-from predictor.errors import PredictorError
+from predictor.errors import OutOfCoverageError, PredictorError
 from predictor.integrate import DEFAULT_TIME_TOLERANCE_S, STATUS_OK, drift_at_float, packed
 
 FLOAT_STEP_S = 60.0
@@ -89,9 +89,6 @@ class BalloonPath:
     status: np.ndarray
     """STATUS_* of the stepper per candidate (non-zero: the path left the weather before it)."""
 
-    def times(self) -> list[datetime]:
-        return [datetime(1970, 1, 1, tzinfo=UTC) + timedelta(seconds=float(t)) for t in self.t_s]
-
 
 def balloon_path(
     cube: WeatherCube,
@@ -121,6 +118,16 @@ def balloon_path(
     n = int(math.floor(hours * 60.0 / every_minutes + 1e-9)) + 1
     w = packed(cube)
     t0 = start.timestamp()
+    if not cube.covers(lat, lon):
+        raise OutOfCoverageError(
+            f"the balloon position {lat:.4f}, {lon:.4f} is outside the weather region "
+            f"(lat {cube.lats[0]:g}…{cube.lats[-1]:g}, lon {cube.lons[0]:g}…{cube.lons[-1]:g} °E)"
+        )
+    if not w.t_s[0] - time_tolerance_s <= t0 <= w.t_s[-1] + time_tolerance_s:
+        raise OutOfCoverageError(
+            f"the sweep starts at {start.astimezone(UTC).isoformat()} but the weather covers "
+            f"{cube.times[0]}Z to {cube.times[-1]}Z; load forecast steps for that time"
+        )
     leg_s = every_minutes * 60.0
     t_s = t0 + leg_s * np.arange(n)
     lats, lons, alts = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)

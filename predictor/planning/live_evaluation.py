@@ -30,6 +30,7 @@ from predictor.calibration.cleaning import clean
 from predictor.calibration.tracks import Fix, read_track
 from predictor.errors import PredictorError
 from predictor.live import NO_CORRECTION, Band, LiveCorrection, LiveErrorModel, LivePredictor
+from predictor.model import Term
 from predictor.payload import PROFILES
 from predictor.terrain import Terrain
 from predictor.uncertainty import GEOD
@@ -110,7 +111,8 @@ def _errors(pred_lat: float, pred_lon: float, origin: Fix, truth: Fix) -> tuple[
     return d, d * math.cos(angle), d * math.sin(angle)
 
 
-def evaluate(paths: Sequence[str | Path]) -> Evaluation:
+def evaluate(paths: Sequence[str | Path], effects: Sequence[Term] = ()) -> Evaluation:
+    """Every checkpoint of every usable flight under every configuration; ``effects`` extend the model."""
     configs = configurations()
     payload = PROFILES["superbit-test"]
     result = Evaluation(flights=[], skipped=[], cases=[], start_errors_km={})
@@ -126,7 +128,7 @@ def evaluate(paths: Sequence[str | Path]) -> Evaluation:
             continue
         landing = flight.landing
         ground = LevelGround(landing.alt_m)
-        live = LivePredictor(cube, payload, ground, NO_CORRECTION)
+        live = LivePredictor(cube, payload, ground, NO_CORRECTION, effects=effects)
         descent = list(flight.descent)
         checkpoints = {k: _checkpoint_fix(descent, landing.alt_m, k) for k in CHECKPOINTS_KM}
         start = live.predict_from(descent[0]).prediction.landing
@@ -290,7 +292,8 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
         rows = result.held_out[km]
         cells = [f"{np.median(rows[n]):.2f} / {np.mean(rows[n]):.2f}" for n in series]
         lines.append(
-            f"| {km:g} | {len(rows['plain'])} | {' | '.join(cells)} | {'yes' if helps(result, km) else 'no'} | "
+            f"| {km:g} | {len(rows['plain'])} | {' | '.join(cells)} | "
+            f"{'yes' if helps(result, km) else 'no'} | "
             f"{result.all_flights_choice[km]} |"
         )
     shown = ("plain", "rate", "wind 2 km", "wind 8 km", "wind const", "rate + wind 2 km", "rate + wind const")

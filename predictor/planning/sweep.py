@@ -37,7 +37,13 @@ from predictor.integrate import (
 from predictor.model import DescentRateScale, Model, Term, WindOffset
 from predictor.payload import PROFILES, Payload
 from predictor.planning.balloon import DEFAULT_FLOAT_WIND_SIGMA_MS, AltitudePlan, BalloonPath, balloon_path
-from predictor.planning.batch import STATUS_NO_GROUND, STATUS_RELEASE_UNDERGROUND, descend_batch, wrap_lon
+from predictor.planning.batch import (
+    STATUS_NO_GROUND,
+    STATUS_RELEASE_UNDERGROUND,
+    BatchLandings,
+    descend_batch,
+    wrap_lon,
+)
 from predictor.prediction import DEFAULT_RATE_SIGMA, DEFAULT_WIND_SIGMA_MS, iso_z
 from predictor.terrain import Terrain
 from predictor.uncertainty import GEOD, LAUNCH, Ellipse, ErrorModel, parametric_ellipse
@@ -237,6 +243,23 @@ class ReleasePlan:
             "warnings": list(self.warnings),
             "zones": list(self.zone_names),
             "targets": list(self.target_names),
+            "balloon": [
+                {
+                    "time": iso_z(_from_epoch(t)),
+                    "lat": _num(la),
+                    "lon": _num(lo),
+                    "alt_m": _num(z),
+                    "sigma_km": s,
+                }
+                for t, la, lo, z, s in zip(
+                    self.balloon.t_s,
+                    self.balloon.lat,
+                    wrap_lon(self.balloon.lon),
+                    self.balloon.alt_m,
+                    self.balloon.sigma_km.tolist(),
+                    strict=True,
+                )
+            ],
             "candidates": [c.to_dict() for c in self.candidates],
         }
 
@@ -311,8 +334,8 @@ def plan_release(
     zone_xy = [plane.project(z.geometry) for z in zones]
     target_xy = [plane.project(t.geometry) for t in targets]
     candidates = _candidates(
-        balloon, central, base, error_model, plane, zone_xy, [z.name for z in zones], target_xy, thresholds,
-        member_lat, member_lon, member_ok, cube,
+        balloon, central, error_model, plane, zone_xy, [z.name for z in zones], target_xy, thresholds,
+        member_lat, member_lon, member_ok,
     )  # fmt: skip
     score_kind = (
         "expected distance to the nearest target, km" if targets else "probability of landing in a zone"
@@ -392,7 +415,8 @@ def _ensemble(
         WindOffset(east_ms=np.tile(d_east, n_c), north_ms=np.tile(d_north, n_c)),
     )
     land = descend_batch(
-        cube, model, lat0, lon0, np.repeat(balloon.alt_m, members), np.repeat(balloon.t_s, members).astype(float),
+        cube, model, lat0, lon0, np.repeat(balloon.alt_m, members),
+        np.repeat(balloon.t_s, members).astype(float),
         terrain, step_m, False, time_tolerance_s,
     )  # fmt: skip
     shape = (n_c, members)
@@ -405,8 +429,7 @@ def _from_epoch(s: float) -> datetime:
 
 def _candidates(
     balloon: BalloonPath,
-    central: Any,
-    base: Model,
+    central: BatchLandings,
     error_model: ErrorModel,
     plane: LocalPlane,
     zone_xy: list[BaseGeometry],
@@ -416,7 +439,6 @@ def _candidates(
     member_lat: np.ndarray | None,
     member_lon: np.ndarray | None,
     member_ok: np.ndarray | None,
-    cube: WeatherCube,
 ) -> list[Candidate]:
     n_c = balloon.t_s.size
     ok = central.status == 0
@@ -486,11 +508,12 @@ def _candidates(
             continue
         j = int(np.searchsorted(rows, i))
         s = stats[i]
-        worst = int(np.argmax(per_zone[j])) if per_zone.shape[1] else -1
+        worst = int(np.argmax(per_zone[j])) if per_zone.shape[1] and per_zone[j].max() > 0.0 else -1
         reasons = []
         if any_zone[j] > thresholds.max_zone_probability:
             reasons.append(
-                f"P(zone) {any_zone[j]:.3f} > {thresholds.max_zone_probability:g} (mostly {zone_names[worst]})"
+                f"P(zone) {any_zone[j]:.3f} > {thresholds.max_zone_probability:g} "
+                f"(mostly {zone_names[worst]})"
             )
         if (
             thresholds.max_target_km is not None

@@ -8,7 +8,6 @@ is given the same weather the truth was flown in: the hidden effect is the only 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from datetime import UTC, datetime, timedelta
 
@@ -78,6 +77,3 @@ def plain_cases() -> list[FlightCase]:
     """Five flights with no hidden effect, logged every 3 min."""
     return make_cases(())
 
-
-def bearing_deg(east: float, north: float) -> float:
-    return math.degrees(math.atan2(east, north)) % 360.0

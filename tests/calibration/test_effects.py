@@ -12,7 +12,9 @@ from predictor.model import EFFECTS, FAMILIES, WindBandScale
 
 
 @pytest.mark.parametrize("candidate", LIBRARY, ids=[c.name for c in LIBRARY])
-def test_every_candidate_is_a_model_term_with_its_neutral_value_inside_grid_and_bounds(candidate: Candidate) -> None:
+def test_every_candidate_is_a_model_term_with_its_neutral_value_inside_grid_and_bounds(
+    candidate: Candidate,
+) -> None:
     assert candidate.name in EFFECTS and candidate.family in FAMILIES
     assert candidate.family == EFFECTS[candidate.name].family
     lo, hi = candidate.bounds
@@ -48,7 +50,11 @@ def test_a_fit_picks_the_best_variant_and_ignores_failed_runs() -> None:
             objective[k] = (x - 1.5) ** 2
     variant, value, _ = band.fit(objective)
     assert variant == best_variant and value == pytest.approx(1.5, abs=0.01)
-    assert band.parameters(variant, value) == {"bottom_m": 9000.0, "top_m": 15000.0, "scale": pytest.approx(1.5, abs=0.01)}
+    assert band.parameters(variant, value) == {
+        "bottom_m": 9000.0,
+        "top_m": 15000.0,
+        "scale": pytest.approx(1.5, abs=0.01),
+    }
 
 
 def test_an_effect_the_data_cannot_see_is_reported_at_its_neutral_value() -> None:

@@ -65,12 +65,16 @@ def test_bin_budgets_recover_a_descent_factor_and_an_added_wind(synthetic_cases:
     # Positions between 3-minute fixes are linear in time, which blurs the jet's bins (±0.8 m/s);
     # over the whole descent the added wind comes back within 0.2 m/s.
     well_measured = seconds > 600
-    assert np.all(np.abs(east[well_measured] - 3.0) < 0.8) and np.all(np.abs(north[well_measured] + 2.0) < 0.8)
+    assert np.all(np.abs(east[well_measured] - 3.0) < 0.8) and np.all(
+        np.abs(north[well_measured] + 2.0) < 0.8
+    )
     assert np.average(east, weights=seconds) == pytest.approx(3.0, abs=0.2)
     assert np.average(north, weights=seconds) == pytest.approx(-2.0, abs=0.2)
 
 
-def test_many_parameter_sets_fly_in_one_batch_and_a_failed_run_scores_nan(plain_cases: list[FlightCase]) -> None:
+def test_many_parameter_sets_fly_in_one_batch_and_a_failed_run_scores_nan(
+    plain_cases: list[FlightCase],
+) -> None:
     case = plain_cases[0]
     runs = run(case, PAYLOAD, (DescentRateScale(scale=np.array([1.0, 0.0, 1.1])),), 3, 200.0)
     s = score(case, runs)
@@ -82,7 +86,8 @@ def test_many_parameter_sets_fly_in_one_batch_and_a_failed_run_scores_nan(plain_
 def test_a_flight_that_cleaning_excluded_cannot_be_calibrated_on(plain_cases: list[FlightCase]) -> None:
     t0 = datetime(2024, 5, 1, 8, tzinfo=UTC)
     fixes = tuple(
-        Fix(time=t0.replace(minute=m), lat=46.0, lon=6.0 + 0.01 * m, alt_m=500.0 + 600.0 * m) for m in range(10)
+        Fix(time=t0.replace(minute=m), lat=46.0, lon=6.0 + 0.01 * m, alt_m=500.0 + 600.0 * m)
+        for m in range(10)
     )
     flight = clean(Track(name="climb-only", source="test", format="synthetic", fixes=fixes))
     with pytest.raises(PredictorError, match="climb-only cannot be calibrated on"):

@@ -38,11 +38,22 @@ LIBRARY_CASES = [
     (WindScale(scale=1.3), "scale", 1.3, 0.01, ("wind_band_scale", "descent_rate_scale"), 300.0),
     (WindRotation(angle_deg=20.0), "angle_deg", 20.0, 0.5, ("wind_scale", "weather_time_offset"), 180.0),
     (
-        WindBandScale(bottom_m=9000.0, top_m=15000.0, scale=1.8), "scale", 1.8, 0.05,
-        ("wind_scale", "drag_density_exponent"), 180.0,
+        WindBandScale(bottom_m=9000.0, top_m=15000.0, scale=1.8),
+        "scale",
+        1.8,
+        0.05,
+        ("wind_scale", "drag_density_exponent"),
+        180.0,
     ),  # fmt: skip
     (WindLag(time_constant_s=120.0), "time_constant_s", 120.0, 10.0, ("wind_scale", "wind_rotation"), 180.0),
-    (WeatherTimeOffset(offset_s=3600.0), "offset_s", 3600.0, 120.0, ("wind_scale", "descent_rate_scale"), 300.0),
+    (
+        WeatherTimeOffset(offset_s=3600.0),
+        "offset_s",
+        3600.0,
+        120.0,
+        ("wind_scale", "descent_rate_scale"),
+        300.0,
+    ),
 ]
 
 
@@ -71,8 +82,12 @@ def test_the_loop_names_the_hidden_library_effect_and_cuts_the_held_out_error(
 
 def test_a_deployment_delay_is_found_in_a_1_hz_log(synthetic_cases: Cases) -> None:
     """1 Hz: the descent starts a second after burst, so the fast fall before the canopy opens is measured."""
-    cases = synthetic_cases((DeploymentDelay(delay_s=90.0, speed_factor=3.0),), n=4, cadence_s=1.0, noise_m=2.0)
-    cal = calibrate(cases, PAYLOAD, library(["descent_rate_scale", "drag_density_exponent", "deployment_delay"]))
+    cases = synthetic_cases(
+        (DeploymentDelay(delay_s=90.0, speed_factor=3.0),), n=4, cadence_s=1.0, noise_m=2.0
+    )
+    cal = calibrate(
+        cases, PAYLOAD, library(["descent_rate_scale", "drag_density_exponent", "deployment_delay"])
+    )
     assert [f.candidate.name for f in cal.selected] == ["deployment_delay"]
     assert cal.selected[0].value == pytest.approx(90.0, abs=3.0)
     assert cal.after.track_rms_km.mean() < 0.1 * cal.baseline.track_rms_km.mean()
@@ -93,7 +108,9 @@ def test_an_effect_outside_the_library_is_left_to_the_binned_correction_and_repo
     assert cal.selected == ()
     assert cal.unexplained
     assert cal.binned_heldout.track_rms_km.mean() < 0.2 * cal.baseline.track_rms_km.mean()
-    assert all(abs(e - 4.0) < 0.5 for e, s in zip(cal.binned.east_ms, cal.binned.measured_s, strict=True) if s > 600)
+    assert all(
+        abs(e - 4.0) < 0.5 for e, s in zip(cal.binned.east_ms, cal.binned.measured_s, strict=True) if s > 600
+    )
     assert "No library effect explains it" in verdict(cal)
 
 

@@ -40,7 +40,7 @@ def demo(tmp_path: Path) -> Iterator[tuple[DemoWorld, DrsConsole]]:
             mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
             operations=operations, predictions=predictions, balloon_feed=world.balloon_record,
             team_position=_team(config), export_dir=tmp_path / "exports", poll_period_s=0.5,
-            prediction_period_s=2.0,
+            prediction_period_s=2.0, time_scale=DEMO_SPEED,
         )  # fmt: skip
         yield world, DrsConsole(setup)
     finally:

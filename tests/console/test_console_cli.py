@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
@@ -75,8 +76,6 @@ def test_replay_hands_out_records_as_its_clock_passes_them(tmp_path: Path) -> No
     records = [TelemetryRecord(T0 + timedelta(seconds=s), "DRS1", "link", {"up": True}) for s in (0, 1, 3600)]
     feed = ReplayFeed(records, speed=100.0)
     assert feed.due() == records[:1]
-    import time
-
     time.sleep(0.05)
     assert feed.due() == records[1:2]
     with pytest.raises(ConfigError, match="positive"):

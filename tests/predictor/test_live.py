@@ -11,6 +11,7 @@ from console.cli import main
 from predictor.calibration.cleaning import clean
 from predictor.calibration.synthetic import synthetic_flight
 from predictor.calibration.tracks import Fix
+from predictor.cube import WeatherCube
 from predictor.errors import PredictorError
 from predictor.live import (
     DEFAULT_CORRECTION,
@@ -29,7 +30,7 @@ BAND = (15000.0, 20000.0)
 BAND_ERROR_MS = 8.0
 
 
-def forecast():  # type: ignore[no-untyped-def]
+def forecast() -> WeatherCube:
     return isothermal_cube(u=10.0, v=2.0)
 
 

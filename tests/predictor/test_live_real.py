@@ -1,4 +1,4 @@
-"""Live re-prediction on the 30 real SuperBIT flights: the shipped correction is what held-out flights kept."""
+"""Live re-prediction on the 30 real SuperBIT flights: what ships is what held-out flights kept."""
 
 from __future__ import annotations
 

@@ -14,6 +14,7 @@ from predictor.model import (
     DeploymentDelay,
     DescentRateScale,
     DragDensityExponent,
+    SeaLevelRate,
     TerminalVelocity,
     WeatherTimeOffset,
     Wind,
@@ -185,3 +186,11 @@ def test_isothermal_helper_is_self_consistent() -> None:
     k = int(np.argmin(np.abs(cube.z_m[0, :, 0, 0] - H_ISO)))
     z = cube.z_m[0, k, 0, 0]
     assert cube.density[0, k, 0, 0] == pytest.approx(RHO0 * math.exp(-z / H_ISO))
+
+
+def test_sea_level_rate_matches_its_closed_form() -> None:
+    # v = r·sqrt(ρ_ref/ρ) with ρ = ρ0·e^(−z/H): t = 2H·(1 − e^(−Z/2H)) / (r·sqrt(ρ_ref/ρ0)).
+    rate, z_top = 5.0, 30000.0
+    res = predict(CALM, RELEASE, 46.0, 4.0, z_top, model=Model((SeaLevelRate(rate_ms=rate), Wind())))
+    expected = 2 * H_ISO * (1 - math.exp(-z_top / (2 * H_ISO))) / (rate * math.sqrt(1.1045**2 / RHO0))
+    assert res.descent_s == pytest.approx(expected, rel=1e-5)

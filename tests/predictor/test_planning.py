@@ -11,16 +11,17 @@ import numpy as np
 import pytest
 import shapely
 
+from predictor.cube import WeatherCube
 from predictor.errors import PredictorError
 from predictor.planning.balloon import AltitudePlan, balloon_path
 from predictor.planning.strip import to_geojson, to_kml, write_geojson, write_kml
 from predictor.planning.sweep import Thresholds, plan_release
 from predictor.prediction import predict, predict_ensemble
-from predictor.zones import Feature
+from predictor.zones import Feature, load_zones
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
 
-def sheared_cube(is_demo: bool = False, hours: tuple[float, ...] = (-6.0, 18.0)):  # type: ignore[no-untyped-def]
+def sheared_cube(is_demo: bool = False, hours: tuple[float, ...] = (-6.0, 18.0)) -> WeatherCube:
     """Wind that changes with altitude, position and time, so nothing can agree by accident."""
     return isothermal_cube(
         u=lambda t, z, y, x: 8.0 + z / 2000.0 + 0.5 * (x - 6.0) + 0.2 * t,
@@ -170,6 +171,8 @@ def test_altitude_plan_text_is_parsed_and_bad_plans_are_refused() -> None:
         ({"start": RELEASE.replace(tzinfo=None)}, "timezone-aware"),
         ({"alt_m": -3.0}, "positive number of metres"),
         ({"member_step_m": 0.0, "members": 5}, "member altitude step"),
+        ({"lat": 60.0}, "outside the weather region"),
+        ({"start": RELEASE + timedelta(days=2)}, "but the weather covers"),
     ],
 )
 def test_bad_sweep_questions_are_refused_with_a_specific_message(kwargs: dict, message: str) -> None:
@@ -205,3 +208,35 @@ def test_landing_strip_files_carry_every_candidate_and_say_demo(tmp_path: Path) 
     assert "landing strip" in kml.read_text()
     with pytest.raises(PredictorError, match="cannot write the KML"):
         write_kml(plan, tmp_path / "missing-dir" / "x.kml")
+
+
+def test_a_sweep_across_the_antimeridian_sees_a_zone_written_across_it(tmp_path: Path) -> None:
+    cube = isothermal_cube(
+        lats=np.arange(-50.0, -39.0, 1.0), lons=np.arange(170.0, 191.0, 1.0), u=12.0, v=0.0
+    )
+    free = plan_release(cube, RELEASE, -45.0, 179.2, 30000.0, 1.0, 20.0)
+    lons = [c.landing_lon for c in free.candidates]
+    assert lons[1] > 179.8 and -180.0 < lons[2] < -179.8, "landings 1 and 2 straddle 180°"
+    # A strait from 179.85° E to 179.85° W, written as GeoJSON the short way across the antimeridian.
+    ring = [[179.85, -45.2], [-179.85, -45.2], [-179.85, -44.8], [179.85, -44.8], [179.85, -45.2]]
+    path = tmp_path / "strait.geojson"
+    path.write_text(json.dumps({"type": "Polygon", "coordinates": [ring]}))
+    plan = plan_release(cube, RELEASE, -45.0, 179.2, 30000.0, 1.0, 20.0, zones=load_zones(path))
+    p = [c.zone_probability for c in plan.candidates]
+    # Both landings next to 180° are mostly in the strait; the first (8 km west of it) much less.
+    assert p[1] > 0.3 and p[2] > 0.3
+    assert p[0] < 0.5 * min(p[1], p[2])
+    assert not plan.candidates[1].go and not plan.candidates[2].go
+
+
+def test_ensemble_zone_probability_agrees_with_counting_its_members() -> None:
+    cube = sheared_cube()
+    probe = plan_release(cube, RELEASE, 46.0, 6.0, 30000.0, 0.0, 10.0)
+    c = probe.candidates[0]
+    # A zone over the eastern half of the landing ellipse.
+    zone = Feature("half", shapely.box(c.landing_lon, 40.0, 13.0, 53.0))
+    plan = plan_release(cube, RELEASE, 46.0, 6.0, 30000.0, 0.0, 10.0, zones=[zone], members=400, seed=2)
+    member = plan.candidates[0]
+    assert member.members_in_zones is not None
+    assert 0.3 < member.zone_probability < 0.7
+    assert member.zone_probability == pytest.approx(member.members_in_zones, abs=0.06)

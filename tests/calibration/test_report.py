@@ -1,0 +1,63 @@
+"""The report: the JSON with the issue's keys, and a Markdown page with its verdict and real PNG plots."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from predictor.calibration.effects import library
+from predictor.calibration.ellipse_fit import fit_ellipse
+from predictor.calibration.report import Exclusion, result_json, write_report
+from predictor.calibration.residuals import FlightCase
+from predictor.calibration.selection import Calibration, calibrate
+from predictor.payload import PROFILES
+
+PAYLOAD = PROFILES["superbit-test"]
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def calibrated(plain_cases: list[FlightCase]) -> Calibration:
+    return calibrate(plain_cases, PAYLOAD, library(["descent_rate_scale", "wind_rotation"]))
+
+
+def _ellipse(cal: Calibration):  # noqa: ANN202
+    along = np.array([r.landing_along_km for r in cal.after_residuals])
+    cross = np.array([r.landing_cross_km for r in cal.after_residuals])
+    return fit_ellipse(along, cross, cal.predicted_drift_km, cal.t_future_h)
+
+
+def test_the_json_has_the_keys_the_issue_names(calibrated: Calibration) -> None:
+    data = result_json(calibrated, _ellipse(calibrated), [Exclusion("x", "cleaning: no landing observed")],
+                       PAYLOAD.to_dict(), "synthetic")  # fmt: skip
+    for key in ("flights", "excluded", "baseline", "candidates", "selected", "after", "uncertainty_model"):
+        assert key in data
+    assert data["excluded"] == [{"name": "x", "reason": "cleaning: no landing observed"}]
+    assert data["flights"] == [f"synthetic-{k}" for k in range(5)]
+    for block in (data["baseline"], data["after"], *(c["heldout"] for c in data["candidates"])):
+        for metric in ("landing_error_km", "descent_time_error_s"):
+            assert set(block[metric]) >= {"mean", "median"}
+    assert [c["effect"] for c in data["candidates"]] == ["descent_rate_scale", "wind_rotation"]
+    assert {c["family"] for c in data["candidates"]} == {"vertical", "horizontal"}
+    assert all(isinstance(c["parameters"], dict) for c in data["candidates"])
+    model = data["uncertainty_model"]
+    assert set(model) >= {"sigma0_km", "h", "k_km2_per_h2", "q", "coverage_1sigma", "coverage_2sigma"}
+    assert data["selected"] == [] and data["library_explains_residual"] is True
+
+
+def test_the_markdown_report_states_its_verdict_and_links_real_plots(
+    calibrated: Calibration, tmp_path: Path
+) -> None:
+    ellipse = _ellipse(calibrated)
+    data = result_json(calibrated, ellipse, [], PAYLOAD.to_dict(), "synthetic")
+    out = tmp_path / "cal" / "report.md"
+    pngs = write_report(out, calibrated, ellipse, [], "Synthetic", "drs calibrate ...", data)
+    text = out.read_text(encoding="utf-8")
+    assert text.startswith("# Synthetic\n\n## What the data showed\n\nNo library effect beat the plain model")
+    assert "Excluded: none" in text
+    for png in pngs:
+        assert png.parent == out.parent and png.read_bytes()[:8] == PNG_SIGNATURE
+        assert f"]({png.name})" in text
+    assert "| descent_rate_scale | vertical |" in text and "paper (launch), same errors" in text

@@ -1,0 +1,84 @@
+"""The margin: a held-out improvement counts only when it is larger than the flight-to-flight noise."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from predictor.calibration.effects import library
+from predictor.calibration.residuals import FlightCase
+from predictor.calibration.selection import MIN_IMPROVEMENT_KM, calibrate, paired_test
+from predictor.errors import PredictorError
+from predictor.model import WindScale
+from predictor.payload import PROFILES
+
+
+def test_an_improvement_on_every_flight_passes() -> None:
+    before = np.array([3.0, 2.5, 4.0, 1.8, 2.2, 3.3])
+    test = paired_test(before, before - 0.5, alpha=0.05, seed=0)
+    assert test.passed and test.wins == 6 and test.mean_improvement_km == pytest.approx(0.5)
+
+
+def test_a_mean_improvement_carried_by_one_lucky_flight_does_not_pass() -> None:
+    before = np.full(10, 3.0)
+    after = before.copy()
+    after[0] = 0.0  # one flight 3 km better, the other nine unchanged
+    after[1:] += np.linspace(-0.05, 0.05, 9)
+    test = paired_test(before, after, alpha=0.05, seed=0)
+    assert test.mean_improvement_km > MIN_IMPROVEMENT_KM and not test.passed
+    assert test.margin_km > test.mean_improvement_km
+
+
+def test_noise_around_zero_does_not_pass_and_the_margin_is_reported() -> None:
+    rng = np.random.default_rng(4)
+    before = rng.uniform(1.0, 5.0, 30)
+    test = paired_test(before, before + rng.normal(0.0, 0.3, 30), alpha=0.05, seed=1)
+    assert not test.passed and test.margin_km > 0.05
+    assert test.to_dict()["flights"] == 30
+
+
+def test_a_consistent_but_tiny_improvement_is_below_the_practical_floor() -> None:
+    before = np.array([3.0, 2.5, 4.0, 1.8])
+    test = paired_test(before, before - 0.01, alpha=0.05, seed=0)
+    assert test.lower_bound_km > 0.0 and not test.passed
+
+
+def test_a_failed_run_on_any_flight_cannot_pass() -> None:
+    before = np.array([3.0, 2.5, 4.0, 1.8])
+    assert not paired_test(before, np.array([1.0, 1.0, np.nan, 1.0]), alpha=0.05, seed=0).passed
+
+
+def test_leave_one_out_needs_three_flights(plain_cases: list[FlightCase]) -> None:
+    with pytest.raises(PredictorError, match="at least 3 usable flights, got 2"):
+        calibrate(plain_cases[:2], PROFILES["superbit-test"], library(["wind_scale"]))
+
+
+def test_every_fold_is_fitted_without_its_own_flight(
+    synthetic_cases: Callable[..., list[FlightCase]], plain_cases: list[FlightCase]
+) -> None:
+    """Only flight 0 has a 1.5× wind: the fold that holds it out must not see it, every other fold must."""
+    cases = [*synthetic_cases((WindScale(scale=1.5),), n=1), *plain_cases[1:4]]
+    payload = PROFILES["superbit-test"]
+    assert calibrate(cases, payload, library(["wind_scale"]), max_effects=0).rounds == ()
+    result = calibrate(cases, payload, library(["wind_scale"])).rounds[0][0]
+    assert result.folds[0].value == pytest.approx(1.0, abs=0.01)
+    assert all(f.value > 1.02 for f in result.folds[1:])
+    assert 1.02 < result.full.value < 1.5
+
+
+def test_selection_can_score_by_the_landing_alone(synthetic_cases: Callable[..., list[FlightCase]]) -> None:
+    cases = synthetic_cases((WindScale(scale=1.3),), n=4)
+    cal = calibrate(cases, PROFILES["superbit-test"], library(["wind_scale", "descent_rate_scale"]),
+                    metric="landing_error_km")  # fmt: skip
+    assert cal.metric == "landing_error_km"
+    assert [f.candidate.name for f in cal.selected] == ["wind_scale"]
+    assert cal.after.landing_error_km.mean() < 0.1 * cal.baseline.landing_error_km.mean()
+
+
+def test_an_unknown_score_is_refused(plain_cases: list[FlightCase]) -> None:
+    with pytest.raises(
+        PredictorError, match="unknown score 'speed'; choose one of track_rms_km, landing_error_km"
+    ):
+        calibrate(plain_cases, PROFILES["superbit-test"], library(["wind_scale"]), metric="speed")

@@ -1,0 +1,108 @@
+"""`drs demo` in a real terminal (tmux), driven by keys through a release and recovery of one capsule.
+
+Everything is the shipped path: the `drs` entry point, the SSH simulators, the simulated RockBLOCK
+posting webhooks to the console's receiver, predictions on demo weather. Only what a person sees
+(capture-pane) is asserted. The demo runs at 60× so the ~45 min descent takes under a minute.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+REPO = Path(__file__).resolve().parents[2]
+TMUX = shutil.which("tmux") or "/usr/bin/tmux"
+
+
+class Terminal:
+    def __init__(self, session: str) -> None:
+        self.session = session
+
+    def keys(self, *keys: str, pause_s: float = 0.25) -> None:
+        """One key (or literal text) at a time, as a person types: bursts can merge into one read."""
+        for key in keys:
+            subprocess.run([TMUX, "send-keys", "-t", self.session, key], check=True)
+            time.sleep(pause_s)
+
+    def screen(self) -> str:
+        return subprocess.run(
+            [TMUX, "capture-pane", "-p", "-t", self.session], check=True, capture_output=True, text=True
+        ).stdout
+
+    def wait_for(self, text: str, timeout_s: float = 30.0) -> str:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            shown = self.screen()
+            if text in shown:
+                return shown
+            time.sleep(0.2)
+        raise AssertionError(f"{text!r} never appeared; the terminal shows:\n{self.screen()}")
+
+
+@pytest.fixture
+def terminal(tmp_path: Path) -> Iterator[Terminal]:
+    session = f"drs-e2e-{uuid.uuid4().hex[:8]}"
+    log = tmp_path / "after-exit.txt"
+    command = f"cd {REPO} && TMPDIR={tmp_path} .venv/bin/drs demo --speed 60; echo EXITED $? > {log}; sleep 30"
+    subprocess.run([TMUX, "new-session", "-d", "-s", session, "-x", "120", "-y", "40", command], check=True)
+    try:
+        yield Terminal(session)
+    finally:
+        subprocess.run([TMUX, "kill-session", "-t", session], check=False)
+
+
+def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp_path: Path) -> None:
+    shown = terminal.wait_for("DRS3", timeout_s=60)
+    assert "DEMO" in shown
+    terminal.wait_for("UP ")
+    terminal.keys("Enter")
+    terminal.wait_for("Go/no-go: DRS1")
+    terminal.keys("s")
+    terminal.wait_for("✔ GO     Storage sync complete")
+    terminal.keys("o")
+    terminal.wait_for("Software CANNOT switch it off")
+    terminal.keys("Tab", "Enter")
+    terminal.wait_for("NMEA arriving")
+    terminal.wait_for("Poll: GO")
+    terminal.keys("f")
+    assert "Type the capsule's name" not in terminal.screen()
+    terminal.keys("a")
+    terminal.wait_for("ARMED —")
+    terminal.keys("f")
+    terminal.wait_for("Type the capsule's name (DRS1)")
+    terminal.keys("DRS1", "Enter", "Enter", "end-to-end test, one operator", "Enter")
+    terminal.wait_for("FIRED: Go sent")
+    terminal.keys("Escape")
+    terminal.wait_for("RELEASED")
+    terminal.keys("v")
+    terminal.wait_for("DRS1 recovery")
+    shown = terminal.wait_for("Landed ", timeout_s=120)
+    assert "from the team" in shown
+    terminal.keys("i")
+    terminal.wait_for("Reports (MO)")
+    terminal.keys("c")
+    terminal.wait_for("PARACHUTE DRS1")
+    terminal.keys("DRS1", "Enter", "Enter", "alone at the landing site", "Enter", pause_s=0.15)
+    terminal.wait_for("queued at gateway")
+    terminal.wait_for("delivered?", timeout_s=30)
+    terminal.keys("Escape")
+    terminal.wait_for("Phone: DRS1 on ground")
+    terminal.keys("e")
+    terminal.wait_for("DRS1-recovery-")
+    terminal.keys("Escape", "h")
+    shown = terminal.wait_for("go               released, Pi shut down")
+    assert "fire             authorised" in shown
+    terminal.keys("q")
+    deadline = time.monotonic() + 20
+    while not (tmp_path / "after-exit.txt").exists() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert (tmp_path / "after-exit.txt").read_text().strip() == "EXITED 0"
+    exports = list(tmp_path.glob("drs-demo-*/exports/DRS1-recovery-*.gpx"))
+    assert len(exports) == 1 and "<trkpt" in exports[0].read_text()
