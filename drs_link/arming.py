@@ -70,10 +70,10 @@ def check_second_operator(
         if second_name.casefold() == first_name.casefold():
             raise RefusedError(f"the second operator must be a different person than {first_name!r}")
         return {"second_operator": second_name}
-    if not required:
-        return {}
     if single_operator_waiver and single_operator_waiver.strip():
         return {"single_operator_waiver": single_operator_waiver.strip()}
+    if not required:
+        return {}
     raise RefusedError("a second operator (a different name) is required, or a logged single-operator waiver")
 
 

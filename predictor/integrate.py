@@ -68,6 +68,11 @@ GRAVITY_MEAN_RADIUS_M = 6371009.0
 G0 = 9.80665
 TOP_TOLERANCE_M = 500.0
 """How far above a column's top level the weather may be extrapolated (wind held, density log-linear)."""
+MEMO_MAX_COLUMNS = 250_000
+"""Largest cube (times × lats × lons) whose columns the stepper memoises per step (40 bytes each per
+thread block); larger cubes, e.g. whole global files, are interpolated column by column."""
+MEMO_MIN_TRAJECTORIES = 16
+"""Below this many trajectories in a block the memo's allocation costs more than it saves."""
 DEFAULT_TIME_TOLERANCE_S = 5400.0
 """How far beyond the first/last valid time the weather is held constant (half a 3-hourly GFS step)."""
 
@@ -137,11 +142,11 @@ def _bracket(axis: np.ndarray, x: float) -> tuple[int, float]:
 
 
 @njit(cache=True, inline="always")
-def _column_at(col: np.ndarray, z: float, out: np.ndarray, weight: float, hint: int) -> int:
-    """Add weight × (u, v, log ρ) at altitude z of one column to out.
+def _column_at(col: np.ndarray, z: float, dest: np.ndarray, a: int, b: int, c: int, hint: int) -> int:
+    """(u, v, log ρ, level) at altitude z of one column into dest[a, b, c, 0:4]; returns the level.
 
-    Returns the level k with z[k] ≤ z < z[k+1] (found by walking from ``hint``: along a descent the
-    bracket moves by at most one level per step), or −1 if z is too far above the top level.
+    The level k has z[k] ≤ z < z[k+1] (found by walking from ``hint``: along a descent the bracket
+    moves by at most one level per step); −1 means z is too far above the top level.
     """
     n = col.shape[0]
     k = min(max(hint, 0), n - 2)
@@ -149,14 +154,14 @@ def _column_at(col: np.ndarray, z: float, out: np.ndarray, weight: float, hint: 
         k -= 1
     while k < n - 2 and col[k + 1, FIELD_Z] <= z:
         k += 1
-    dz_level = col[k + 1, FIELD_Z] - col[k, FIELD_Z]
-    f_rho = (z - col[k, FIELD_Z]) / dz_level
+    f_rho = (z - col[k, FIELD_Z]) / (col[k + 1, FIELD_Z] - col[k, FIELD_Z])
     f_wind = min(max(f_rho, 0.0), 1.0)
+    dest[a, b, c, 0] = col[k, FIELD_U] + f_wind * (col[k + 1, FIELD_U] - col[k, FIELD_U])
+    dest[a, b, c, 1] = col[k, FIELD_V] + f_wind * (col[k + 1, FIELD_V] - col[k, FIELD_V])
+    dest[a, b, c, 2] = col[k, FIELD_LOG_RHO] + f_rho * (col[k + 1, FIELD_LOG_RHO] - col[k, FIELD_LOG_RHO])
     if z > col[n - 1, FIELD_Z] + TOP_TOLERANCE_M:
-        return -1
-    out[0] += weight * (col[k, FIELD_U] + f_wind * (col[k + 1, FIELD_U] - col[k, FIELD_U]))
-    out[1] += weight * (col[k, FIELD_V] + f_wind * (col[k + 1, FIELD_V] - col[k, FIELD_V]))
-    out[2] += weight * (col[k, FIELD_LOG_RHO] + f_rho * (col[k + 1, FIELD_LOG_RHO] - col[k, FIELD_LOG_RHO]))
+        k = -1
+    dest[a, b, c, 3] = k
     return k
 
 
@@ -173,8 +178,15 @@ def sample_weather(
     z: float,
     out: np.ndarray,
     hint: np.ndarray,
+    memo_z: np.ndarray,
+    memo: np.ndarray,
 ) -> int:
     """u, v, ρ at one point into out[0:3]; returns a STATUS_* code (out is valid only for STATUS_OK).
+
+    ``memo`` (T, Y, X, 4) remembers each column's (u, v, log ρ, level) at the altitude in ``memo_z``
+    (T, Y, X): trajectories that step through the same altitudes (ensemble members, a release sweep)
+    then interpolate each grid column vertically once per step instead of once per trajectory.
+    A zero-sized ``memo_z`` switches it off; ``memo`` then needs shape (1, 1, 1, 4) as scratch.
 
     ``hint[0]`` is the level index found last time for this trajectory; it is updated.
     """
@@ -193,6 +205,7 @@ def sample_weather(
     it, ft = _bracket(t_s, t_c)
     ny = lats.shape[0]
     nx = lons.shape[0]
+    use_memo = memo_z.size > 0
     for a in range(2):
         ti = min(it + a, nt - 1)
         wt = ft if a == 1 else 1.0 - ft
@@ -208,10 +221,22 @@ def sample_weather(
                 wx = fx if c == 1 else 1.0 - fx
                 if wx == 0.0:
                     continue
-                k = _column_at(columns[ti, yi, xi], z, out, wt * wy * wx, hint[0])
+                if use_memo:
+                    a_, b_, c_ = ti, yi, xi
+                    if memo_z[ti, yi, xi] != z:
+                        _column_at(columns[ti, yi, xi], z, memo, ti, yi, xi, hint[0])
+                        memo_z[ti, yi, xi] = z
+                else:
+                    a_, b_, c_ = 0, 0, 0
+                    _column_at(columns[ti, yi, xi], z, memo, 0, 0, 0, hint[0])
+                k = int(memo[a_, b_, c_, 3])
                 if k < 0:
                     return STATUS_ABOVE_TOP
                 hint[0] = k
+                w = wt * wy * wx
+                out[0] += w * memo[a_, b_, c_, 0]
+                out[1] += w * memo[a_, b_, c_, 1]
+                out[2] += w * memo[a_, b_, c_, 2]
     out[2] = math.exp(out[2])
     return STATUS_OK
 
@@ -255,12 +280,26 @@ def drift_at_float(
     """
     sample = np.zeros(3)
     hint = np.zeros(1, dtype=np.int64)
+    no_z = np.empty((0, 0, 0))
+    scratch = np.empty((1, 1, 1, 4))
     n_steps = int(math.ceil(duration_s / max_step_s)) if duration_s > 0.0 else 0
     for i in range(lat.shape[0]):
         for _ in range(n_steps):
             h = duration_s / n_steps
             code = sample_weather(
-                t_s, lats, lons, columns, time_tolerance_s, t[i], lat[i], lon[i], z[i], sample, hint
+                t_s,
+                lats,
+                lons,
+                columns,
+                time_tolerance_s,
+                t[i],
+                lat[i],
+                lon[i],
+                z[i],
+                sample,
+                hint,
+                no_z,
+                scratch,
             )
             if code != STATUS_OK:
                 status[i] = code
@@ -269,7 +308,19 @@ def drift_at_float(
             lat_m = lat[i] + 0.5 * h * sample[1] * dlat
             lon_m = lon[i] + 0.5 * h * sample[0] * dlon
             code = sample_weather(
-                t_s, lats, lons, columns, time_tolerance_s, t[i] + 0.5 * h, lat_m, lon_m, z[i], sample, hint
+                t_s,
+                lats,
+                lons,
+                columns,
+                time_tolerance_s,
+                t[i] + 0.5 * h,
+                lat_m,
+                lon_m,
+                z[i],
+                sample,
+                hint,
+                no_z,
+                scratch,
             )
             if code != STATUS_OK:
                 status[i] = code
@@ -370,6 +421,13 @@ def _descend_range(
     vel = np.zeros((n, 3))
     sample = np.zeros(3)
     hint = np.full(n, columns.shape[3] - 2, dtype=np.int64)
+    grid_columns = columns.shape[0] * columns.shape[1] * columns.shape[2]
+    if grid_columns <= MEMO_MAX_COLUMNS and hi - lo >= MEMO_MIN_TRAJECTORIES:
+        memo_z = np.full(columns.shape[:3], np.nan)
+        memo = np.empty((columns.shape[0], columns.shape[1], columns.shape[2], 4))
+    else:
+        memo_z = np.empty((0, 0, 0))
+        memo = np.empty((1, 1, 1, 4))
     active = np.zeros(n, dtype=np.bool_)
     lat = lat0.copy()
     lon = lon0.copy()
@@ -438,6 +496,8 @@ def _descend_range(
                     e[ENV_Z],
                     sample,
                     hint[i : i + 1],
+                    memo_z,
+                    memo,
                 )
                 if code != STATUS_OK:
                     status[i] = code

@@ -136,7 +136,7 @@ LIBRARY: tuple[Candidate, ...] = (
         (0.0, 240.0),
         0.0,
         fixed={"speed_factor": 3.0},
-        why="the canopy opens late: 3× faster fall until then (speed factor held: it trades off with the delay)",
+        why="the canopy opens late: 3× faster fall until then (the factor trades off with the delay)",
     ),
     Candidate(
         "wind_scale",
@@ -182,7 +182,7 @@ LIBRARY: tuple[Candidate, ...] = (
         tuple(np.linspace(-10800.0, 10800.0, 9)),
         (-14400.0, 14400.0),
         0.0,
-        why="the weather happens earlier or later than the forecast says (no effect with time-constant weather)",
+        why="the weather happens earlier or later than forecast (invisible in time-constant weather)",
     ),
 )
 """Every library candidate; ``selection`` tries them all unless given a subset."""

@@ -9,7 +9,8 @@ towards the typical |error| (≈ 0.8 σ for a normal), so its ellipses are too s
 negative log-likelihood of the normal, Σ[ln σ∥ + ln σ⊥ + ½(Δ∥²/σ∥² + Δ⊥²/σ⊥²)], is minimised
 (SLSQP with the analytic gradient, bounded: σ0 > 0, h ≥ 0, k ≥ 0, q > 0; L-BFGS-B was 10× slower
 here, its inner step dominated by a BLAS call). The paper's criterion is also refitted on the
-same errors, so that its effect (ellipses too small) can be seen. Parameter uncertainties come from a bootstrap over
+same errors, so that its effect (ellipses too small) can be seen. Parameter uncertainties come
+from a bootstrap over
 flights (the errors of different flights are independent; the Hessian at a bound, e.g. h = 0, is
 not meaningful). Coverage is checked on flights held out of the ellipse fit: for a bivariate normal
 39.3 % of landings fall inside the 1σ ellipse and 86.5 % inside the 2σ ellipse.

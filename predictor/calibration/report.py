@@ -76,7 +76,8 @@ def verdict(cal: Calibration) -> str:
             f"{lead}: the altitude-binned correction, fitted without each held-out flight, still lowers the "
             f"held-out {label} to {bh[cal.metric]['mean']:.2f} km (improvement "
             f"{bt.mean_improvement_km:.3f} km > margin {bt.margin_km:.3f} km, {bt.wins}/{bt.flights} flights "
-            "better). The residual has a systematic altitude structure the library lacks (see its profile below)."
+            "better). The residual has a systematic altitude structure the library lacks "
+            "(see its profile below)."
         )
     else:
         parts.append(
@@ -123,7 +124,12 @@ def result_json(
         "excluded": [{"name": e.name, "reason": e.reason} for e in excluded],
         "baseline": _error_block(cal.baseline),
         "candidates": [
-            {**r.full.describe(), "heldout": _error_block(r.heldout), "test": r.test.to_dict()}
+            {
+                **r.full.describe(),
+                "description": r.full.candidate.why,
+                "heldout": _error_block(r.heldout),
+                "test": r.test.to_dict(),
+            }
             for r in first_round
         ],
         "selected": [f.describe() for f in cal.selected],
@@ -202,21 +208,24 @@ def write_report(
         "",
         "Each flight is predicted from its descent start. "
         + (
-            "Its score is the RMS, over all its descent fixes, of the 3-D distance between the measured and the "
+            "Its score is the RMS, over all its descent fixes, of the 3-D distance between the measured "
+            "and the "
             "predicted position at the same time since the descent start (km). "
             if cal.metric == "track_rms_km"
             else "Its score is the distance between the measured and the predicted landing (km). "
         )
         + (
-            "Every candidate is fitted leave-one-flight-out and scored on the flight it never saw. An effect is "
-            "selected only when the paired bootstrap of the mean held-out improvement (4000 draws over flights) "
+            "Every candidate is fitted leave-one-flight-out and scored on the flight it never saw. "
+            "An effect is selected only when the paired bootstrap of the mean held-out improvement "
+            "(4000 draws over flights) "
             "has its lower α/K quantile above zero (α = 0.05, K = candidates in that round) and the mean "
             "improvement is at least 0.1 km. The margin below is mean improvement minus that lower bound."
         ),
         "",
         "## Before and after (held out)",
         "",
-        "| | RMS track error km (mean / median) | landing error km (mean / median) | |descent-time error| s (mean / median) |",
+        "| | RMS track error km (mean / median) | landing error km (mean / median) "
+        "| |descent-time error| s (mean / median) |",
         "|---|---|---|---|",
         _row("baseline (plain model)", b),
         _row("after (selected effects)", a),
@@ -231,7 +240,8 @@ def write_report(
         lines += [
             f"Round {k}:",
             "",
-            "| effect | family | parameters (all flights) | held-out RMS km (mean) | held-out landing km (mean) "
+            "| effect | family | parameters (all flights) | held-out RMS km (mean) "
+            "| held-out landing km (mean) "
             "| improvement km | margin km | flights better | selected |",
             "|---|---|---|---|---|---|---|---|---|",
         ]
@@ -240,8 +250,10 @@ def write_report(
             t = r["test"]
             lines.append(
                 f"| {r['effect']} | {r['family']} | {_params(r['parameters'])} | "
-                f"{_num(r['heldout']['track_rms_km']['mean'])} | {_num(r['heldout']['landing_error_km']['mean'])} | "
-                f"{_num(t['mean_improvement_km'])} | {_num(t['margin_km'])} | {t['flights_improved']}/{t['flights']} | "
+                f"{_num(r['heldout']['track_rms_km']['mean'])} | "
+                f"{_num(r['heldout']['landing_error_km']['mean'])} | "
+                f"{_num(t['mean_improvement_km'])} | {_num(t['margin_km'])} | "
+                f"{t['flights_improved']}/{t['flights']} | "
                 f"{'yes' if t['passed'] and r['effect'] in chosen else 'no'} |"
             )
         lines.append("")
@@ -287,7 +299,8 @@ def write_report(
             "",
             "| | σ0 km | h | k km²/h² | q | held-out inside 1σ | inside 2σ |",
             "|---|---|---|---|---|---|---|",
-            f"| this fit (± bootstrap sd) | {e['sigma0_km']:.3f} ± {se['sigma0_km']:.3f} | {e['h']:.3g} ± {se['h']:.2g} | "
+            f"| this fit (± bootstrap sd) | {e['sigma0_km']:.3f} ± {se['sigma0_km']:.3f} | "
+            f"{e['h']:.3g} ± {se['h']:.2g} | "
             f"{e['k_km2_per_h2']:.3g}{'' if e['k_identifiable'] else ' (not identifiable: one lead time)'} | "
             f"{e['q']:.3f} ± {se['q']:.3f} | {e['coverage_1sigma']:.1%} | {e['coverage_2sigma']:.1%} |",
         ]
@@ -302,7 +315,8 @@ def write_report(
                 f"{p['coverage_1sigma']:.1%} | {p['coverage_2sigma']:.1%} |"
             )
         lines += [
-            f"| expected for a bivariate normal | | | | | {e['expected_1sigma']:.1%} | {e['expected_2sigma']:.1%} |",
+            f"| expected for a bivariate normal | | | | | {e['expected_1sigma']:.1%} | "
+            f"{e['expected_2sigma']:.1%} |",
             "",
         ]
     lines += ["## Per flight (held out)", "", "| flight | RMS km before → after | landing km before → after "
@@ -329,14 +343,17 @@ def speed_ratio_by_altitude(cal: Calibration, edges_m: Sequence[float]) -> list[
         inside = ratio[(alt >= lo) & (alt < hi)]
         if inside.size:
             q1, med, q3 = np.percentile(inside, [25, 50, 75])
-            rows.append({"bottom_m": lo, "top_m": hi, "intervals": int(inside.size), "median": round(float(med), 4),
-                         "q1": round(float(q1), 4), "q3": round(float(q3), 4)})  # fmt: skip
+            rows.append(
+                {"bottom_m": lo, "top_m": hi, "intervals": int(inside.size), "median": round(float(med), 4),
+                 "q1": round(float(q1), 4), "q3": round(float(q3), 4)}
+            )  # fmt: skip
     return rows
 
 
 def _speed_ratio_rows(cal: Calibration) -> list[str]:
     return [
-        f"| {r['bottom_m']:.0f}–{r['top_m']:.0f} | {r['intervals']} | {r['median']:.3f} | {r['q1']:.3f}–{r['q3']:.3f} |"
+        f"| {r['bottom_m']:.0f}–{r['top_m']:.0f} | {r['intervals']} | {r['median']:.3f} | "
+        f"{r['q1']:.3f}–{r['q3']:.3f} |"
         for r in speed_ratio_by_altitude(cal, BIN_EDGES_M)
     ]
 

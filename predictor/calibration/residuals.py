@@ -13,8 +13,8 @@ pass. Comparison rules, the same for every use:
   The flight's score is the RMS of the 3-D error over all its descent fixes after the start: one
   number, in km, that a descent-rate error (the capsule is too high or too low at a given time) and a
   wind error (too far east) both raise.
-* Landing error: great-circle-like distance between predicted and measured landing points (km, local
-  frame); descent-time error: predicted minus measured, seconds.
+* Landing error: distance between predicted and measured landing points (km, local frame);
+  descent-time error: predicted minus measured, seconds.
 """
 
 from __future__ import annotations
@@ -36,8 +36,9 @@ from predictor.terrain import Terrain
 
 WGS84_A = 6378137.0
 WGS84_E2 = 6.69437999014e-3
-DEFAULT_STEP_M = 100.0
 LOWEST_GROUND_M = -500.0
+HIGHEST_GROUND_KM = 8.9
+"""No terrain is higher (Everest 8849 m): the DEM is only read below this."""
 
 
 @dataclass(frozen=True)
@@ -60,22 +61,31 @@ class FlightCase:
     """Altitude, km."""
     landing_alt_m: float
     descent_time_s: float
-    drift_km: float
     terrain: Terrain | None = None
     """Ground from a DEM; None means the ground is the measured landing altitude."""
 
-    @property
-    def east_km_per_deg(self) -> float:
-        return _radii_km(self.start_lat)[1] * math.cos(math.radians(self.start_lat)) * math.pi / 180.0
-
-    @property
-    def north_km_per_deg(self) -> float:
-        return _radii_km(self.start_lat)[0] * math.pi / 180.0
-
     def local(self, lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(east, north) km from the descent start; longitudes taken the short way round."""
-        d_lon = (np.asarray(lon) - self.start_lon + 180.0) % 360.0 - 180.0
-        return d_lon * self.east_km_per_deg, (np.asarray(lat) - self.start_lat) * self.north_km_per_deg
+        return local_km(self.start_lat, self.start_lon, lat, lon)
+
+    def geographic(self, east_km: np.ndarray, north_km: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(lat, lon) of local (east, north) km: the inverse of ``local``."""
+        per_deg_north, per_deg_east = _km_per_degree(self.start_lat)
+        lon = self.start_lon + np.asarray(east_km) / per_deg_east
+        return self.start_lat + np.asarray(north_km) / per_deg_north, (lon + 180.0) % 360.0 - 180.0
+
+
+def local_km(lat0: float, lon0: float, lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Equirectangular (east, north) km around (lat0, lon0) with WGS84 radii of curvature: within
+    0.1 % over the ~100 km of a descent, far below the km-sized errors it measures."""
+    per_deg_north, per_deg_east = _km_per_degree(lat0)
+    d_lon = (np.asarray(lon) - lon0 + 180.0) % 360.0 - 180.0
+    return d_lon * per_deg_east, (np.asarray(lat) - lat0) * per_deg_north
+
+
+def _km_per_degree(lat_deg: float) -> tuple[float, float]:
+    meridional, normal = _radii_km(lat_deg)
+    return meridional * math.pi / 180.0, normal * math.cos(math.radians(lat_deg)) * math.pi / 180.0
 
 
 def _radii_km(lat_deg: float) -> tuple[float, float]:
@@ -92,7 +102,8 @@ def flight_case(flight: Flight, cube: WeatherCube, terrain: Terrain | None = Non
     fixes = [f for f in flight.descent if f.time > start.time]
     if not fixes:
         raise PredictorError(f"flight {flight.name} has no descent fix after its descent start")
-    case = FlightCase(
+    x, y = local_km(start.lat, start.lon, np.array([f.lat for f in fixes]), np.array([f.lon for f in fixes]))
+    return FlightCase(
         name=flight.name,
         cube=cube,
         start_time=start.time,
@@ -100,18 +111,13 @@ def flight_case(flight: Flight, cube: WeatherCube, terrain: Terrain | None = Non
         start_lon=start.lon,
         start_alt_m=start.alt_m,
         fix_t=np.array([(f.time - start.time).total_seconds() for f in fixes]),
-        fix_x=np.zeros(0),
-        fix_y=np.zeros(0),
+        fix_x=x,
+        fix_y=y,
         fix_z=np.array([f.alt_m for f in fixes]) / 1000.0,
         landing_alt_m=land.alt_m,
         descent_time_s=(land.time - start.time).total_seconds(),
-        drift_km=float(flight.drift_km or 0.0),
         terrain=terrain,
     )
-    x, y = case.local(np.array([f.lat for f in fixes]), np.array([f.lon for f in fixes]))
-    object.__setattr__(case, "fix_x", x)
-    object.__setattr__(case, "fix_y", y)
-    return case
 
 
 @dataclass(frozen=True)
@@ -171,10 +177,9 @@ def ground_km(case: FlightCase, runs: Runs) -> np.ndarray:
     if case.terrain is None:
         return np.full(runs.z.shape, case.landing_alt_m / 1000.0)
     ground = np.full(runs.z.shape, -np.inf)
-    low = runs.z <= 8.9
-    lat = case.start_lat + runs.y[low] / case.north_km_per_deg
-    lon = case.start_lon + runs.x[low] / case.east_km_per_deg
-    ground[low] = case.terrain.elevation(lat, (lon + 180.0) % 360.0 - 180.0) / 1000.0
+    low = runs.z <= HIGHEST_GROUND_KM
+    lat, lon = case.geographic(runs.x[low], runs.y[low])
+    ground[low] = case.terrain.elevation(lat, lon) / 1000.0
     return ground
 
 
@@ -256,7 +261,7 @@ def _score_kernel(
 
 @dataclass(frozen=True)
 class FlightResiduals:
-    """One flight's residuals against one predicted descent, for plots and the binned correction."""
+    """One flight's residuals against one predicted descent (the plots; the ellipse fit's landing errors)."""
 
     name: str
     interval_alt_m: np.ndarray
@@ -270,7 +275,6 @@ class FlightResiduals:
     interval, which contains the touchdown)."""
     fix_alt_m: np.ndarray
     fix_t_s: np.ndarray
-    fix_density: np.ndarray
     fix_wind_ms: np.ndarray
     along_km: np.ndarray
     """Measured minus predicted position at the same time, along the predicted drift direction."""
@@ -281,7 +285,6 @@ class FlightResiduals:
     landing_cross_km: float
     descent_time_error_s: float
     predicted_drift_km: float
-    predicted_path_km: float
 
 
 def residuals(case: FlightCase, runs: Runs, row: int = 0) -> FlightResiduals:
@@ -327,7 +330,6 @@ def residuals(case: FlightCase, runs: Runs, row: int = 0) -> FlightResiduals:
         speed_ratio=ratio,
         fix_alt_m=fix_alt,
         fix_t_s=case.fix_t,
-        fix_density=column_density(case, fix_alt),
         fix_wind_ms=column_wind_speed(case, fix_alt),
         along_km=along,
         cross_km=cross,
@@ -336,7 +338,6 @@ def residuals(case: FlightCase, runs: Runs, row: int = 0) -> FlightResiduals:
         landing_cross_km=-float(lex * uy - ley * ux),
         descent_time_error_s=float(s.descent_time_error_s[0]),
         predicted_drift_km=drift,
-        predicted_path_km=float(np.sum(np.hypot(np.diff(x), np.diff(y)))),
     )
 
 

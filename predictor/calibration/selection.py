@@ -20,9 +20,11 @@ model (the difference between two integration steps), and no recovery decision t
 Forward selection: round 1 tries every candidate against the plain model; the best held-out one is
 kept if it clears the margin; round 2 tries the rest with it in the model (its parameters refitted
 per fold, held while the new one is fitted), against the held-out scores of round 1's model; and so
-on, up to ``max_effects``. Finally the altitude-binned correction is fitted (per fold, from the
-training flights' residuals) on top of whatever was selected: if it still clears the margin, the
-residual has a systematic altitude structure the selected effects do not explain.
+on, up to ``max_effects``. When more than one effect was kept, each is then refitted with the others
+in the model (``JOINT_SWEEPS`` sweeps, per fold) and "after" is scored again, still held out.
+Finally the altitude-binned correction is fitted (per fold, from the training flights' residuals)
+on top of whatever was selected: if it still clears the margin, the residual has a systematic
+altitude structure the selected effects do not explain.
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ DEFAULT_MAX_EFFECTS = 3
 SCORES = ("track_rms_km", "landing_error_km")
 """What a flight is scored by: the RMS 3-D error over all its fixes (default), or the landing error alone."""
 MIN_IMPROVEMENT_KM = 0.1
+JOINT_SWEEPS = 2
 
 
 @dataclass(frozen=True)
@@ -184,7 +187,7 @@ class Calibration:
 
     @property
     def unexplained(self) -> bool:
-        """The binned correction beats the selected model on held-out flights: the library misses something."""
+        """The binned correction beats the selected model on held-out flights: the library lacks something."""
         return self.binned_test.passed
 
 
@@ -261,6 +264,9 @@ def calibrate(
             selected_folds[i].append(best.folds[i])
         reference = best.heldout
         remaining = [c for c in remaining if c is not best.full.candidate]
+    if len(selected_full) > 1:
+        _refit_jointly(batch, selected_folds, selected_full, metric)
+        reference = HeldOut.of([batch.scores(i, [selected_folds[i]]) for i in range(n)])
     after = reference
     binned, binned_heldout = _binned(batch, selected_folds, selected_full)
     binned_test = paired_test(getattr(after, metric), getattr(binned_heldout, metric), alpha, seed)
@@ -293,27 +299,56 @@ def _try(
     round_no: int,
     metric: str,
 ) -> CandidateResult:
-    """Fit the candidate per fold and on all flights (other selected effects held), score held out.
+    """Fit the candidate per fold and on all flights (other selected effects held), score held out."""
+    n = len(batch.cases)
+    full, folds_fit = _fit(batch, candidate, selected_folds, selected_full, metric)
+    heldout = HeldOut.of([batch.scores(i, [[*selected_folds[i], folds_fit[i]]]) for i in range(n)])
+    test = paired_test(getattr(reference, metric), getattr(heldout, metric), alpha, seed)
+    return CandidateResult(round_no, full, tuple(folds_fit), heldout, test)
+
+
+def _fit(
+    batch: _Batch,
+    candidate: Candidate,
+    held_folds: list[list[Fit]],
+    held_full: list[Fit],
+    metric: str,
+) -> tuple[Fit, list[Fit]]:
+    """The candidate fitted on all flights and per fold, with the ``held`` effects in the model.
 
     Two passes: the candidate's coarse grid, then a fine grid (``Candidate.fine``) around the
     all-flights optimum, used by every fold whose coarse optimum falls inside it (the folds differ by
     one flight, so nearly always).
     """
     n = len(batch.cases)
-    coarse = _losses(batch, candidate, selected_folds, selected_full, metric)
+    coarse = _losses(batch, candidate, held_folds, held_full, metric)
     variant, value, _ = candidate.fit(coarse.sum(axis=0)[n])
     fine_candidate = candidate.fine(variant, value)
-    fine = _losses(batch, fine_candidate, selected_folds, selected_full, metric)
-    folds_fit: list[Fit] = []
+    fine = _losses(batch, fine_candidate, held_folds, held_full, metric)
+    fits: list[Fit] = []
     for i in range(n + 1):
         v0, x0, _ = candidate.fit(coarse.sum(axis=0)[i])
         if v0 == variant and fine_candidate.grid[0] <= x0 <= fine_candidate.grid[-1]:
             _, x0, _ = fine_candidate.fit(fine.sum(axis=0)[i])
-        folds_fit.append(Fit(candidate, v0, x0))
-    full = folds_fit.pop()
-    heldout = HeldOut.of([batch.scores(i, [[*selected_folds[i], folds_fit[i]]]) for i in range(n)])
-    test = paired_test(getattr(reference, metric), getattr(heldout, metric), alpha, seed)
-    return CandidateResult(round_no, full, tuple(folds_fit), heldout, test)
+        fits.append(Fit(candidate, v0, x0))
+    full = fits.pop()
+    return full, fits
+
+
+def _refit_jointly(
+    batch: _Batch, selected_folds: list[list[Fit]], selected_full: list[Fit], metric: str
+) -> None:
+    """Refit each selected effect with the others held at their latest values, ``JOINT_SWEEPS`` times
+    (in place): an effect selected early was fitted without the later ones and has absorbed part of
+    them. Fold i's fits still never see flight i."""
+    for _ in range(JOINT_SWEEPS):
+        for k in range(len(selected_full)):
+            others_folds = [[f for m, f in enumerate(row) if m != k] for row in selected_folds]
+            others_full = [f for m, f in enumerate(selected_full) if m != k]
+            full, folds = _fit(batch, selected_full[k].candidate, others_folds, others_full, metric)
+            selected_full[k] = full
+            for i, fit in enumerate(folds):
+                selected_folds[i][k] = fit
 
 
 def _losses(

@@ -76,4 +76,3 @@ def synthetic_cases() -> Callable[..., list[FlightCase]]:
 def plain_cases() -> list[FlightCase]:
     """Five flights with no hidden effect, logged every 3 min."""
     return make_cases(())
-

@@ -126,13 +126,15 @@ def test_flights_logged_in_forecast_weather_are_calibrated_from_grib_files(
     for step in (0, 3, 6):
         u = np.full(shape, 9.0 + step) + 0.3 * (gh[:, None, None] / 1000.0)
         v = np.full(shape, 2.0) + 0.2 * (lats[None, :, None] - 46.0)
-        files.append(write_gfs_grib2(tmp_path / gfs_file_name(cycle, step), cycle, step, levels, lats, lons, u, v,
-                                     np.broadcast_to(t[:, None, None], shape), np.broadcast_to(gh[:, None, None], shape)))  # fmt: skip
+        t3d, gh3d = np.broadcast_to(t[:, None, None], shape), np.broadcast_to(gh[:, None, None], shape)
+        path = tmp_path / gfs_file_name(cycle, step)
+        files.append(write_gfs_grib2(path, cycle, step, levels, lats, lons, u, v, t3d, gh3d))
     cube = load_weather(files, cache_dir=tmp_path / "cache")
     tracks = []
     for k in range(4):
         flight = synthetic_flight(
-            cube, launch_time=cycle + timedelta(minutes=40 + 15 * k), lat=45.5 + 0.2 * k, lon=5.0, payload=PAYLOAD,
+            cube, launch_time=cycle + timedelta(minutes=40 + 15 * k), lat=45.5 + 0.2 * k, lon=5.0,
+            payload=PAYLOAD,
             effects=(DescentRateScale(scale=0.8),), burst_alt_m=24_000.0, ascent_rate_ms=8.0, seed=k,
         )  # fmt: skip
         path = tmp_path / f"flight-{k}.csv"
@@ -140,7 +142,8 @@ def test_flights_logged_in_forecast_weather_are_calibrated_from_grib_files(
         tracks.append(str(path))
     out = tmp_path / "cal.json"
     status = main([
-        "calibrate", "--tracks", *tracks, "--weather", *map(str, files), "--cache-dir", str(tmp_path / "cache"),
+        "calibrate", "--tracks", *tracks, "--weather", *map(str, files),
+        "--cache-dir", str(tmp_path / "cache"),
         "--payload", "superbit-test", "--effects", "wind_scale", "descent_rate_scale", "--json", str(out),
     ])  # fmt: skip
     assert status == 0, capsys.readouterr().err

@@ -1,4 +1,4 @@
-"""The effects library: every candidate builds a real model term, and fits find the grid objective's minimum."""
+"""The effects library: every candidate builds a real model term; fits find the grid objective's minimum."""
 
 from __future__ import annotations
 

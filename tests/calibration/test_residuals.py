@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from datetime import UTC, datetime
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +17,7 @@ from predictor.calibration.tracks import Fix, Track
 from predictor.errors import PredictorError
 from predictor.model import DescentRateScale, WindOffset, WindRotation
 from predictor.payload import PROFILES
+from predictor.terrain import Terrain, tile_name
 
 PAYLOAD = PROFILES["superbit-test"]
 Cases = Callable[..., list[FlightCase]]
@@ -92,3 +95,21 @@ def test_a_flight_that_cleaning_excluded_cannot_be_calibrated_on(plain_cases: li
     flight = clean(Track(name="climb-only", source="test", format="synthetic", fixes=fixes))
     with pytest.raises(PredictorError, match="climb-only cannot be calibrated on"):
         flight_case(flight, plain_cases[0].cube)
+
+
+def test_with_a_dem_the_prediction_lands_on_the_terrain(
+    plain_cases: list[FlightCase], tmp_path: Path
+) -> None:
+    """A real SRTM3 tile set (big-endian int16) 300 m high around the landing: the path stops there."""
+    case = plain_cases[1]
+    flat = score(case, run(case, PAYLOAD, (), 1, 100.0))
+    land_lat, land_lon = case.geographic(flat.landing_x, flat.landing_y)
+    south, west = int(np.floor(land_lat[0])), int(np.floor(land_lon[0]))
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            tile = tmp_path / f"{tile_name(south + dy, west + dx)}.hgt"
+            np.full((1201, 1201), 300, dtype=">i2").tofile(tile)
+    hilly = replace(case, terrain=Terrain.from_dir(tmp_path))
+    on_dem = score(hilly, run(hilly, PAYLOAD, (), 1, 100.0))
+    assert on_dem.landing_z[0] == pytest.approx(0.3, abs=1e-3)
+    assert on_dem.landing_t[0] < flat.landing_t[0] - 30.0  # 300 m less to fall at ~4–5 m/s

@@ -1,4 +1,4 @@
-"""The whole loop on synthetic flights with a hidden effect: it must name the effect and cut the held-out error.
+"""The whole loop on synthetic flights with a hidden effect: it names the effect, cuts the held-out error.
 
 Each test flies a few flights with one effect switched on in the truth (the calibration is not told),
 logs them like a tracker, cleans them like a real file, and runs the leave-one-flight-out selection.
@@ -120,3 +120,16 @@ def test_with_no_hidden_effect_nothing_is_selected(plain_cases: list[FlightCase]
     assert not cal.unexplained
     assert cal.baseline.track_rms_km.mean() < 0.05
     assert "No library effect beat the plain model" in verdict(cal)
+
+
+def test_forward_selection_finds_two_hidden_effects_of_different_families(synthetic_cases: Cases) -> None:
+    truth = (DescentRateScale(scale=0.85), WindRotation(angle_deg=15.0))
+    cal = calibrate(
+        synthetic_cases(truth, n=4), PAYLOAD, library(["descent_rate_scale", "wind_rotation", "wind_scale"])
+    )
+    found = {f.candidate.name: f.value for f in cal.selected}
+    assert set(found) == {"descent_rate_scale", "wind_rotation"}
+    assert found["descent_rate_scale"] == pytest.approx(0.85, abs=0.01)
+    assert found["wind_rotation"] == pytest.approx(15.0, abs=0.5)
+    assert len(cal.rounds) == 3  # the third round tries wind_scale and keeps nothing
+    assert cal.after.track_rms_km.mean() < 0.1 * cal.baseline.track_rms_km.mean()

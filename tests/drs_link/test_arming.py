@@ -150,6 +150,7 @@ def test_the_second_operator_must_be_a_different_person() -> None:
         "single_operator_waiver": "alone on the ridge"
     }
     assert check_second_operator("EL", None, None, required=False) == {}
+    assert check_second_operator("EL", None, "alone", required=False) == {"single_operator_waiver": "alone"}
 
 
 def test_fire_with_a_required_second_operator_refuses_the_same_name(store: Store) -> None:
