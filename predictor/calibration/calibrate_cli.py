@@ -44,6 +44,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _inputs(cal, required=False)
     cal.add_argument("--json", type=Path, metavar="OUT", help="write the results as JSON")
     cal.add_argument("--report", type=Path, metavar="OUT.md", help="write a Markdown report with PNG plots")
+    cal.add_argument("--title", default="Calibration report", help="the report's title")
+    cal.add_argument(
+        "--preface",
+        type=Path,
+        metavar="FILE.md",
+        help="Markdown placed under the report's title (a hand-written reading of the results)",
+    )
     cal.set_defaults(func=run_calibrate)
     actions = cal.add_subparsers(dest="calibrate_command", metavar="ACTION")
     bench = actions.add_parser(
@@ -162,9 +169,20 @@ def run_calibrate(args: argparse.Namespace) -> int:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     if args.report:
-        write_report(args.report, cal, ellipse, inputs.excluded, "Calibration report", _command(args), data)
+        write_report(
+            args.report, cal, ellipse, inputs.excluded, args.title, _command(args), data, _preface(args.preface)
+        )
     _print_summary(cal, inputs, data)
     return 0
+
+
+def _preface(path: Path | None) -> str:
+    if path is None:
+        return ""
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise PredictorError(f"cannot read the report preface {path}: {exc}") from None
 
 
 def _command(args: argparse.Namespace) -> str:
@@ -185,6 +203,10 @@ def _command(args: argparse.Namespace) -> str:
         parts += ["--score", args.score]
     if args.report:
         parts += ["--report", str(args.report)]
+        if args.title != "Calibration report":
+            parts += ["--title", args.title]
+        if args.preface is not None:
+            parts += ["--preface", str(args.preface)]
     if args.json:
         parts += ["--json", str(args.json)]
     return shlex.join(parts)

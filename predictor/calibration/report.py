@@ -172,9 +172,13 @@ def _flight(h: HeldOut, i: int) -> dict[str, float]:
 
 def write_report(
     path: Path, cal: Calibration, ellipse: EllipseFit | None, excluded: Sequence[Exclusion], title: str,
-    command: str, data: dict[str, Any],
+    command: str, data: dict[str, Any], preface: str = "",
 ) -> list[Path]:  # fmt: skip
-    """The Markdown report and its PNGs (named after the report, next to it). Returns the PNG paths."""
+    """The Markdown report and its PNGs (named after the report, next to it). Returns the PNG paths.
+
+    ``preface`` is Markdown placed under the title: a team's reading of the results in its own
+    words, kept in its own file so that regenerating the report does not erase it.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     stem = path.with_suffix("")
     pngs = [
@@ -186,6 +190,7 @@ def write_report(
     lines = [
         f"# {title}",
         "",
+        *([preface.strip(), ""] if preface.strip() else []),
         "## What the data showed",
         "",
         verdict(cal),

@@ -61,3 +61,18 @@ def test_the_markdown_report_states_its_verdict_and_links_real_plots(
         assert png.parent == out.parent and png.read_bytes()[:8] == PNG_SIGNATURE
         assert f"]({png.name})" in text
     assert "| descent_rate_scale | vertical |" in text and "paper (launch), same errors" in text
+
+
+def test_a_preface_stands_under_the_title_and_survives_regeneration(
+    calibrated: Calibration, tmp_path: Path
+) -> None:
+    ellipse = _ellipse(calibrated)
+    data = result_json(calibrated, ellipse, [], PAYLOAD.to_dict(), "synthetic")
+    out = tmp_path / "report.md"
+    preface = "## Summary in plain words\n\nThe capsule fell slower near the ground.\n"
+    for _ in range(2):
+        write_report(out, calibrated, ellipse, [], "Synthetic", "drs calibrate ...", data, preface)
+    text = out.read_text(encoding="utf-8")
+    assert text.startswith("# Synthetic\n\n## Summary in plain words\n\nThe capsule fell slower near the ground.\n\n")
+    assert text.count("Summary in plain words") == 1
+    assert text.index("Summary in plain words") < text.index("## What the data showed")
