@@ -82,7 +82,7 @@ class DrsConsole(App[int]):
     TITLE = "DRS console"
     BINDINGS = [
         Binding("question_mark,f1", "help", "Help"),
-        Binding("t", "toggle_theme", "Theme"),
+        Binding("t", "toggle_theme", "Theme", show=False),
         Binding("q", "quit", "Quit"),
     ]
 

@@ -1,7 +1,8 @@
 """``drs console [--demo] [--replay FILE]`` and ``drs demo``: build the console's setup and run it.
 
 The console is a full-screen terminal app; started without a terminal (a pipe, CI, cron) it
-would hang or draw garbage, so it refuses with one line instead.
+would hang or draw garbage, so it refuses with one line instead. Textual, the predictor and the
+SSH stack are imported only when the console starts, so every other ``drs`` command stays quick.
 """
 
 from __future__ import annotations
@@ -13,16 +14,16 @@ import time
 from collections.abc import Callable
 from datetime import datetime, timedelta
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from console.app import ConsoleSetup, DrsConsole
-from console.predictions import PredictionService
 from drs_link.config import Config, load_config
 from drs_link.errors import ConfigError, LinkError
-from drs_link.iridium.recovery import parse_position
-from drs_link.operations import Operations
 from drs_link.store import Store
 from drs_link.telemetry import TelemetryRecord, TelemetryRecorder, read_recording
-from predictor import Terrain
+
+if TYPE_CHECKING:
+    from console.app import ConsoleSetup
+    from predictor import Terrain
 
 NOT_A_TERMINAL = (
     "the console is a full-screen terminal app and stdout is not a terminal; "
@@ -50,6 +51,8 @@ def _require_terminal() -> None:
 
 
 def _team(config: Config) -> tuple[float, float] | None:
+    from drs_link.iridium.recovery import parse_position
+
     text = config.console.team_position.strip()
     if not text:
         return None
@@ -89,6 +92,8 @@ class ReplayFeed:
 
 
 def replay_setup(path: Path, speed: float, config: Config) -> tuple[ConsoleSetup, ReplayFeed]:
+    from console.app import ConsoleSetup
+
     records = read_recording(path)
     feed = ReplayFeed(records, speed)
     names = sorted({r.capsule for r in records if r.capsule}) or [c.name for c in config.capsules]
@@ -101,6 +106,11 @@ def replay_setup(path: Path, speed: float, config: Config) -> tuple[ConsoleSetup
 
 
 def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None) -> ConsoleSetup:
+    from console.app import ConsoleSetup
+    from console.predictions import PredictionService
+    from drs_link.operations import Operations
+    from predictor import Terrain
+
     if not config.capsules:
         raise ConfigError("no [[capsule]] in the configuration: add one (see docs/console.md) or try `drs demo`")
     store = Store.open(config.store_path)
@@ -121,6 +131,8 @@ def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None)
 
 def cmd_console(args: argparse.Namespace) -> int:
     _require_terminal()
+    from console.app import DrsConsole
+
     if args.demo:
         return run_demo(args.speed or 4.0)
     config = load_config(args.config)
@@ -137,7 +149,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def run_demo(speed: float) -> int:
+    from console.app import ConsoleSetup, DrsConsole
     from console.demo import DemoWorld
+    from console.predictions import PredictionService
+    from drs_link.operations import Operations
 
     root = Path(tempfile.mkdtemp(prefix="drs-demo-"))
     try:

@@ -43,17 +43,17 @@ VERDICT_GLYPH = {Verdict.GO: "✔ GO", Verdict.NO_GO: "✘ NO-GO", Verdict.WAIVE
 
 class ReleaseScreen(ConsoleScreen):
     BINDINGS = [
-        Binding("escape", "app.pop_screen", "Back"),
-        Binding("left_square_bracket", "checklist(-1)", "Prev list", show=False),
-        Binding("right_square_bracket", "checklist(1)", "Next list"),
+        Binding("a", "arm", "ARM"),
+        Binding("f", "fire", "FIRE"),
+        Binding("o", "power_on", "Power"),
         Binding("space", "tick", "Tick"),
-        Binding("x", "skip", "Skip", show=False),
-        Binding("o", "power_on", "Power on"),
         Binding("s", "sync", "Sync"),
         Binding("w", "waive", "Waive"),
-        Binding("a", "arm", "ARM"),
+        Binding("escape", "app.pop_screen", "Back"),
+        Binding("left_square_bracket", "checklist(-1)", "Prev list", show=False),
+        Binding("right_square_bracket", "checklist(1)", "Next list", show=False),
+        Binding("x", "skip", "Skip", show=False),
         Binding("d", "disarm", "Disarm", show=False),
-        Binding("f", "fire", "FIRE"),
     ]
 
     def __init__(self, capsule: str) -> None:

@@ -60,13 +60,17 @@ def offline_config(tmp_path: Path) -> Config:
 
 
 @pytest.fixture(scope="session")
-def canned_prediction(tmp_path_factory: pytest.TempPathFactory) -> list[TelemetryRecord]:
-    """A real prediction from the demo atmosphere at a fixed time (same numbers every run)."""
+def prediction_service(tmp_path_factory: pytest.TempPathFactory) -> PredictionService:
+    """Predictions from the demo atmosphere and terrain at a fixed time (same numbers every run)."""
     root = tmp_path_factory.mktemp("prediction")
     terrain = write_demo_terrain(root / "dem.nc")
     files = demo_weather_files(SITE[0], SITE[1], T0, cache_dir=root / "weather", hours=6)
-    service = PredictionService(lambda: files, lambda: Terrain.from_netcdf(terrain), lambda: T0)
-    return service.predict("DRS1", SITE[0], SITE[1], 31500.0, release_in=(0, 10))
+    return PredictionService(lambda: files, lambda: Terrain.from_netcdf(terrain), lambda: T0)
+
+
+@pytest.fixture(scope="session")
+def canned_prediction(prediction_service: PredictionService) -> list[TelemetryRecord]:
+    return prediction_service.predict("DRS1", SITE[0], SITE[1], 31500.0, release_in=(0, 10))
 
 
 def canned_records(prediction: list[TelemetryRecord]) -> list[TelemetryRecord]:
@@ -110,7 +114,9 @@ def seed_reports(store: Store, imei: str, start: datetime, count: int, interval_
 
 
 @pytest.fixture
-def canned_app(tmp_path: Path, canned_prediction: list[TelemetryRecord]) -> Callable[..., DrsConsole]:
+def canned_app(
+    tmp_path: Path, canned_prediction: list[TelemetryRecord], prediction_service: PredictionService
+) -> Callable[..., DrsConsole]:
     """A console at a fixed time, data from records, no timers: what it shows never changes."""
 
     def build(mode: str = "live", now: datetime = T0) -> DrsConsole:
@@ -123,6 +129,7 @@ def canned_app(tmp_path: Path, canned_prediction: list[TelemetryRecord]) -> Call
         setup = ConsoleSetup(
             mode=mode, capsules=["DRS1", "DRS2", "DRS3"], store=store, clock=lambda: now, operations=operations,
             team_position=_team(config), export_dir=tmp_path / "exports",
+            predictions=prediction_service if mode == "live" else None,
         )  # fmt: skip
         app = DrsConsole(setup, live_timers=False)
         for record in canned_records(canned_prediction):

@@ -84,3 +84,23 @@ def test_replay_hands_out_records_as_its_clock_passes_them(tmp_path: Path) -> No
     path.write_text("".join(r.to_json() + "\n" for r in records))
     setup, _ = replay_setup(path, 1.0, parse_config({}))
     assert setup.mode == "replay" and setup.capsules == ["DRS1"] and setup.operations is None
+
+
+def test_a_bad_exclusion_zone_file_is_refused_naming_the_key(tmp_path: Path) -> None:
+    from drs_link.operations import load_exclusion_zones
+
+    path = tmp_path / "zones.geojson"
+    path.write_text('{"type": "FeatureCollection", "features": [{"geometry": {"type": "Point"}}]}')
+    with pytest.raises(ConfigError, match="console.exclusion_zones_file: feature 0 is not a Polygon"):
+        load_exclusion_zones(path)
+    path.write_text("{")
+    with pytest.raises(ConfigError, match="console.exclusion_zones_file: cannot read"):
+        load_exclusion_zones(path)
+
+
+def test_live_console_without_capsules_says_what_to_do(tmp_path: Path) -> None:
+    from console.console_cli import live_setup
+
+    config = parse_config({"data": {"dir": str(tmp_path)}})
+    with pytest.raises(ConfigError, match=r"no \[\[capsule\]\].*drs demo"):
+        live_setup(config, None, None)

@@ -116,3 +116,20 @@ async def test_stale_data_blocks_arm(canned_app: Callable[..., DrsConsole]) -> N
         assert status.state is ArmState.DISARMED
         refusal = app.store.audit("DRS1")[-1]
         assert (refusal.action, refusal.result) == ("arm", "refused") and "STALE" in refusal.detail["reason"]
+
+
+async def test_an_interval_command_is_queued_at_the_simulated_gateway_after_naming_the_capsule(
+    demo: tuple[DemoWorld, DrsConsole],
+) -> None:
+    world, app = demo
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("i", "n", *"5", "enter")
+        await pilot.press(*"DRS2", "enter")
+        await pilot.pause(0.5)
+        assert world.gateway is not None and world.gateway.requests == []
+        await pilot.press("n", *"5", "enter", *"DRS1", "enter")
+        await wait_for(pilot, lambda: len(world.gateway.requests) == 1)
+        assert bytes.fromhex(world.gateway.requests[0].form["data"]) == b"[INTERVAL=5]"
+        assert app.ops is not None
+        await wait_for(pilot, lambda: [c.state for c in app.ops.commands("DRS1")] == ["requested", "queued"])
+        assert app.store.audit("DRS1", text="confirmation does not name the capsule")

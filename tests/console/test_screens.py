@@ -109,6 +109,27 @@ async def test_predictions_show_the_ellipse_with_real_probabilities(canned_app: 
         assert "X" in drawn and "o" in drawn
 
 
+async def test_predictions_export_kml_and_geojson(canned_app: Callable[..., DrsConsole], tmp_path: Path) -> None:
+    app = canned_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("p", "e")
+        kml = list((tmp_path / "exports").glob("DRS1-*.kml"))
+        geojson = list((tmp_path / "exports").glob("DRS1-*.geojson"))
+        assert len(kml) == 1 and "<kml" in kml[0].read_text()
+        assert len(geojson) == 1 and '"FeatureCollection"' in geojson[0].read_text()
+
+
+async def test_the_command_palette_offers_every_screen_of_every_capsule(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    app = canned_app()
+    async with app.run_test(size=(80, 24)):
+        titles = [command.title for command in app.get_system_commands(app.screen)]
+        for name in ("DRS1", "DRS2", "DRS3"):
+            assert {f"Release: {name}", f"Predictions: {name}", f"Iridium: {name}", f"Recovery: {name}"} <= set(titles)
+        assert "History" in titles
+
+
 async def test_recovery_reads_the_landing_from_the_reports(canned_app: Callable[..., DrsConsole]) -> None:
     app = canned_app()
     async with app.run_test(size=(160, 48)) as pilot:
