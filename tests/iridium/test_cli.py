@@ -308,10 +308,10 @@ def test_mo_export_writes_the_capsule_fixes_as_a_canonical_track(
         f"wrote {out}: 3 fixes of DRS1; skipped 1 report(s) without a fix and 0 rejected\n"
     )
     assert out.read_text().splitlines() == [
-        "time,lat,lon,alt_m,pressure_pa",
-        "2026-07-01T10:00:07Z,46.5000000,6.6000000,3000.00,",
-        "2026-07-01T10:02:07Z,46.5000000,6.6000000,2000.00,",
-        "2026-07-01T10:06:07Z,46.5000000,6.6000000,0.00,",
+        "time,lat,lon,alt_m,pressure_pa,speed_mps",
+        "2026-07-01T10:00:07Z,46.5000000,6.6000000,3000.00,,0.00",
+        "2026-07-01T10:02:07Z,46.5000000,6.6000000,2000.00,,0.00",
+        "2026-07-01T10:06:07Z,46.5000000,6.6000000,0.00,,0.00",
     ]
     by_imei = tmp_path / "by-imei.csv"
     assert run(config, "mo", "export", "--imei", IMEI, "--out", str(by_imei)) == 0
