@@ -92,12 +92,13 @@ class ReplayFeed:
 
 
 def replay_setup(path: Path, speed: float, config: Config) -> tuple[ConsoleSetup, ReplayFeed]:
+    """The recording through the same views; History shows this machine's audit log; nothing commands."""
     from console.app import ConsoleSetup
 
     records = read_recording(path)
     feed = ReplayFeed(records, speed)
     names = sorted({r.capsule for r in records if r.capsule}) or [c.name for c in config.capsules]
-    store = Store.open(Path(tempfile.mkdtemp(prefix="drs-replay-")) / "replay.sqlite")
+    store = Store.open(config.store_path)
     setup = ConsoleSetup(
         mode="replay", capsules=names, store=store, clock=feed.clock, banner_note=f"{path.name} ×{speed:g}",
         replay_feed=feed.due,

@@ -162,6 +162,13 @@ class ArmingController:
                 self._disarm("inputs changed since ARM")
             return self.status()
 
+    def after_reset(self) -> ArmStatus:
+        """The capsule was recovered and reset (``ReleaseStateMachine.reset``): a new release may start."""
+        with self._lock:
+            if self._state is ArmState.FIRED:
+                self._disarm("capsule reset after recovery")
+            return self.status()
+
     def link_lost(self) -> ArmStatus:
         return self.disarm("link lost")
 

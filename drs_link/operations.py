@@ -236,6 +236,15 @@ class Operations:
             TelemetryRecord(self.clock(), name, "link", {"up": False, "note": "released: the Pi shut down"}),
         ])  # fmt: skip
 
+    def reset(self, name: str, typed_name: str) -> list[TelemetryRecord]:
+        """After recovery: the state machine checks the typed name; then ARM is possible again."""
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.machine.reset(typed_name)
+            ops.arming.after_reset()
+            ops.waivers.clear()
+        return self._emit([self._release_record(name, record)])
+
     def gateway_check(self) -> list[TelemetryRecord]:
         """Whether commands could be sent: the gateway's address and credentials are configured."""
         try:

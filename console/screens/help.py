@@ -18,7 +18,8 @@ HELP = """\
 **Release**: `[` `]` switch checklist · `Space` tick a manual step · `x` skip (reason) ·
 `o` power on (confirm; cannot be undone by software) · `s` sync data · `w` waive the selected
 go/no-go item (GNSS or sync only; logged) · `a` ARM (only on GO; opens a countdown) · `d` disarm ·
-`f` FIRE (only while armed; type the capsule's name; second operator or a logged waiver)
+`f` FIRE (only while armed; type the capsule's name; second operator or a logged waiver) ·
+`R` reset after recovery (type the name)
 
 **Predictions**: `+`/`-` release lead time · `e` export KML + GeoJSON
 

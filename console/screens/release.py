@@ -54,6 +54,7 @@ class ReleaseScreen(ConsoleScreen):
         Binding("right_square_bracket", "checklist(1)", "Next list", show=False),
         Binding("x", "skip", "Skip", show=False),
         Binding("d", "disarm", "Disarm", show=False),
+        Binding("R", "reset", "Reset", show=False),
     ]
 
     def __init__(self, capsule: str) -> None:
@@ -135,7 +136,7 @@ class ReleaseScreen(ConsoleScreen):
         return f"○ DISARMED{reason}. Poll: {poll}. a = ARM"
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
-        commanding = ("power_on", "sync", "waive", "arm", "disarm", "fire", "tick", "skip")
+        commanding = ("power_on", "sync", "waive", "arm", "disarm", "fire", "tick", "skip", "reset")
         if action in commanding and not self.console.commanding:
             return None
         if action == "fire":
@@ -268,6 +269,34 @@ class ReleaseScreen(ConsoleScreen):
                 self.fire_worker(answer)
 
         self.app.push_screen(HazardModal(self.capsule, "FIRE", FIRE_TEXT, second), confirmed)
+
+    def action_reset(self) -> None:
+        def typed(answer: str | None) -> None:
+            if answer is not None:
+                self.reset_worker(answer.strip())
+
+        self.app.push_screen(
+            TextPromptModal(
+                f"Reset {self.capsule} after recovery",
+                "Only once the Gone flag is cleared on the unit (four-button reset) and the relay is off.\n"
+                f"Type the capsule's name ({self.capsule}) to allow a new release:",
+            ),
+            typed,
+        )
+
+    @work(thread=True, exit_on_error=False, group="release")
+    def reset_worker(self, typed_name: str) -> None:
+        from console.app import OperatorNotice, TelemetryArrived
+
+        assert self.ops is not None
+        try:
+            records = self.ops.reset(self.capsule, typed_name)
+        except LinkError as exc:
+            self.app.post_message(OperatorNotice(str(exc), "error"))
+            return
+        self._command_steps_done("reset", "release state reset")
+        self.app.post_message(TelemetryArrived(records))
+        self.app.post_message(OperatorNotice(f"{self.capsule}: reset; a new release can be prepared"))
 
     @work(thread=True, exit_on_error=False, group="release")
     def fire_worker(self, answer: HazardConfirmation) -> None:

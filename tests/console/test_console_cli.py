@@ -82,7 +82,7 @@ def test_replay_hands_out_records_as_its_clock_passes_them(tmp_path: Path) -> No
         ReplayFeed(records, 0.0)
     path = tmp_path / "t.jsonl"
     path.write_text("".join(r.to_json() + "\n" for r in records))
-    setup, _ = replay_setup(path, 1.0, parse_config({}))
+    setup, _ = replay_setup(path, 1.0, parse_config({"data": {"dir": str(tmp_path / "data")}}))
     assert setup.mode == "replay" and setup.capsules == ["DRS1"] and setup.operations is None
 
 

@@ -148,3 +148,17 @@ async def test_help_and_theme_keys_work(canned_app: Callable[..., DrsConsole]) -
         assert isinstance(app.screen, HelpScreen)
         await pilot.press("escape", "t")
         assert app.theme == "textual-light"
+
+
+async def test_reset_after_recovery_needs_the_capsule_name(canned_app: Callable[..., DrsConsole]) -> None:
+    app = canned_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("enter", "R", *"DRS9", "enter")
+        await app.workers.wait_for_complete()
+        await pilot.pause()
+        assert ("reset", "refused") in [(a.action, a.result) for a in app.store.audit("DRS1")]
+        await pilot.press("R", *"DRS1", "enter")
+        await app.workers.wait_for_complete()
+        await pilot.pause()
+        audit = [(a.action, a.result) for a in app.store.audit("DRS1")]
+        assert ("reset", "ok") in audit and ("checklist.done", "after-drop/reset-state") in audit

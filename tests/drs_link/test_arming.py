@@ -189,4 +189,6 @@ def test_armed_fire_releases_the_simulated_capsule_through_the_state_machine_tok
     ]
     with pytest.raises(RefusedError, match="fired"):
         arming.arm(report)
+    machine.reset("DRS1")
+    assert arming.after_reset().last_disarm_reason == "capsule reset after recovery"
     link.close()
