@@ -228,7 +228,8 @@ class CommandLifecycle:
             raise RefusedError(
                 f"capsule {capsule.name} has no imei configured: the gateway needs the modem's IMEI"
             )
-        now = iso_utc(self.clock())
+        moment = self.clock()
+        now = iso_utc(moment)
         effects = json.dumps(_initial_effects(message.commands))
         with self.store.transaction() as conn:
             command_id = conn.execute(
@@ -252,6 +253,7 @@ class CommandLifecycle:
             "mt.requested",
             REQUESTED,
             {"command_id": command_id, "text": message.text, "flush": flush},
+            when=moment,
         )
         return self.get(int(command_id or 0))
 
@@ -267,6 +269,7 @@ class CommandLifecycle:
                 "mt.send",
                 "refused",
                 {"command_id": command_id, "reason": "confirmation does not name the capsule"},
+                when=self.clock(),
             )
             raise RefusedError(
                 f"refused: to send {command.text} the confirmation must name the capsule {command.capsule!r}"

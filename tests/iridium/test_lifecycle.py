@@ -151,3 +151,15 @@ def test_request_without_imei_is_refused(rig) -> None:
     life = lc.CommandLifecycle(store, "alice")
     with pytest.raises(RefusedError, match="no imei configured"):
         life.request(CapsuleConfig(name="DRS2", host="x"), MtComposer().interval(3).build())
+
+
+def test_every_audit_record_carries_the_lifecycle_clock_not_the_wall_clock(rig) -> None:
+    store, _reports, _gateway, client, clock = rig
+    life = lc.CommandLifecycle(store, "alice", clock)
+    command = life.request(CAPSULE, MtComposer().interval(3).build())
+    with pytest.raises(RefusedError):
+        life.send(command.id, "DRS2", client)
+    life.send(command.id, "DRS1", client)
+    records = store.audit(capsule="DRS1")
+    assert [r.action for r in records][:2] == ["mt.requested", "mt.send"]
+    assert {r.time_utc for r in records} == {clock()}
