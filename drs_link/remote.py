@@ -98,6 +98,18 @@ def power_on(tools_dir: str, python: str, holder: str, lease_s: float) -> Remote
     return RemoteCommand("power-on", (tools_dir, python, holder, str(lease)), script)
 
 
+def log_offset(power_on_output: str) -> int:
+    """Where the serial log ended before power-on (the ``drs-log-offset N`` line), 0 if absent.
+
+    Reading NMEA from that offset on shows only what the microcontroller said since this power-on.
+    """
+    offset = 0
+    for line in power_on_output.splitlines():
+        if line.startswith(LOG_OFFSET_MARKER + " "):
+            offset = int(line.split()[1])
+    return offset
+
+
 def read_serial(tools_dir: str, python: str, offset: int) -> RemoteCommand:
     """Capture NMEA with the stock logger, then print what the log gained since ``offset``."""
     q = shlex.quote

@@ -45,11 +45,7 @@ class StockBackend:
         result = self.link.run(remote.power_on(c.tools_dir, c.python, holder, lease_s))
         if not result.ok:
             raise_for("power-on", result, c.name)
-        offset = 0
-        for line in result.stdout.splitlines():
-            if line.startswith(remote.LOG_OFFSET_MARKER + " "):
-                offset = int(line.split()[1])
-        return PowerOnResult(log_offset=offset, output=result.stdout)
+        return PowerOnResult(log_offset=remote.log_offset(result.stdout), output=result.stdout)
 
     def read_serial(self, offset: int) -> list[str]:
         c = self.capsule
