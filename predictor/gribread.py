@@ -22,10 +22,10 @@ import predictor.native_libs  # noqa: F401  (PROJ before eccodes, see there)
 
 # isort: split
 import eccodes
-import gribapi.errors
 import numpy as np
 
 from predictor.errors import WeatherError
+from predictor.gribcheck import walk_grib_messages
 
 VARIABLES = ("u", "v", "t", "gh")
 
@@ -65,36 +65,16 @@ class _Grid:
 
 def read_grib_fields(file: Path, box: BBox | None) -> list[GribField]:
     """Every valid time in the file as a cropped field set; WeatherError naming the file on any fault."""
-    eccodes.codes_grib_multi_support_on()
     grid: _Grid | None = None
     # (cycle, valid) → variable → level → 2-D cropped array
     planes: dict[tuple[np.datetime64, np.datetime64], dict[str, dict[float, np.ndarray]]] = {}
     processes: set[int] = set()
-    count = 0
-    try:
-        with open(file, "rb") as stream:
-            # eccodes keeps unread fields of a multi-field message across files unless told otherwise.
-            eccodes.codes_grib_multi_support_reset_file(stream)
-            while True:
-                try:
-                    handle = eccodes.codes_grib_new_from_file(stream)
-                except gribapi.errors.GribInternalError as exc:
-                    raise WeatherError(
-                        f"{file}: GRIB message {count + 1} is truncated or corrupt ({exc}); download it again"
-                    ) from exc
-                if handle is None:
-                    break
-                count += 1
-                try:
-                    grid = _take_message(file, handle, box, grid, planes, processes)
-                except gribapi.errors.GribInternalError as exc:
-                    raise WeatherError(f"{file}: GRIB message {count} does not decode ({exc})") from exc
-                finally:
-                    eccodes.codes_release(handle)
-    except OSError as exc:
-        raise WeatherError(f"cannot read weather file {file}: {exc.strerror or exc}") from exc
-    if count == 0:
-        raise WeatherError(f"{file} is not a GRIB file (no GRIB messages in it)")
+
+    def visit(handle: int) -> None:
+        nonlocal grid
+        grid = _take_message(file, handle, box, grid, planes, processes)
+
+    walk_grib_messages(file, visit)
     if grid is None:
         raise WeatherError(
             f"{file} has no u, v, t or gh on isobaric (hPa) levels; a GFS pgrb2 file or a NOMADS "
