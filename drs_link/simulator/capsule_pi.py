@@ -178,6 +178,32 @@ class _Server(paramiko.ServerInterface):
         return True
 
 
+class ActiveSessions:
+    """How many SFTP sessions the simulated Pi is serving.
+
+    After a link drop the server still writes the packets it had received, as a real sshd does:
+    a test that inspects the capsule's files after a drop waits until the session has ended.
+    """
+
+    def __init__(self) -> None:
+        self._count = 0
+        self._changed = threading.Condition()
+
+    def started(self) -> None:
+        with self._changed:
+            self._count += 1
+
+    def ended(self) -> None:
+        with self._changed:
+            self._count -= 1
+            self._changed.notify_all()
+
+    def wait_idle(self, timeout_s: float = 10.0) -> bool:
+        """True once no session is active; False if some still are after ``timeout_s``."""
+        with self._changed:
+            return self._changed.wait_for(lambda: self._count == 0, timeout=timeout_s)
+
+
 class CapsuleSimulator:
     """Start with ``start()`` (returns the port) or as a context manager; ``stop()`` ends everything."""
 
@@ -222,6 +248,7 @@ class CapsuleSimulator:
         self.commands: list[str] = []
         self._listener: socket.socket | None = None
         self._transports: list[paramiko.Transport] = []
+        self.sftp_sessions = ActiveSessions()
         self._lock = threading.Lock()
         self._authority_lock = threading.Lock()
         self.port = 0

@@ -58,6 +58,12 @@ class SimSftpServer(paramiko.SFTPServerInterface):
         super().__init__(server)
         self.sim = sim
 
+    def session_started(self) -> None:
+        self.sim.sftp_sessions.started()
+
+    def session_ended(self) -> None:
+        self.sim.sftp_sessions.ended()
+
     def canonicalize(self, path: str) -> str:
         return posixpath.normpath(posixpath.join("/home/pi", path))
 

@@ -99,6 +99,7 @@ def test_dropped_link_mid_file_keeps_verified_files_and_resumes_the_partial_one(
         syncer.sync(source, on_verified=drop_during_second)
     assert _digest(sim.storage_dir / "1-first.bin") == _digest(source / "1-first.bin")
     assert not (sim.storage_dir / "2-big.bin").exists()
+    assert sim.sftp_sessions.wait_idle(), "the simulated Pi is still serving the dropped session"
     partial = sim.storage_dir / f"2-big.bin{PARTIAL_SUFFIX}"
     already = partial.stat().st_size
     assert 0 < already < 2_000_000
