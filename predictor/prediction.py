@@ -33,13 +33,12 @@ from predictor.integrate import (
     drift_at_float,
     packed,
 )
+from predictor.landing import HIGHEST_GROUND_M, ground_crossings, wrap_lon
 from predictor.model import DescentRateScale, Model, Term, WindOffset
 from predictor.payload import PROFILES, Payload
 from predictor.terrain import Terrain
 from predictor.uncertainty import GEOD, LAUNCH, Ellipse, ErrorModel, empirical_ellipse, parametric_ellipse
 
-HIGHEST_GROUND_M = 8900.0
-"""Above this no terrain can be met (Everest 8849 m), so no ground lookups are made there."""
 LOWEST_GROUND_M = -500.0
 """The stepper runs every path down to here (Dead Sea shore −430 m) before the crossing is found."""
 DRIFT_STEP_S = 60.0
@@ -60,10 +59,6 @@ def _epoch(t: datetime) -> float:
 
 def _from_epoch(s: float) -> datetime:
     return datetime(1970, 1, 1, tzinfo=UTC) + timedelta(seconds=float(s))
-
-
-def _wrap(lon: float | np.ndarray) -> Any:
-    return (np.asarray(lon, dtype=np.float64) + 180.0) % 360.0 - 180.0
 
 
 @dataclass(frozen=True)
@@ -234,7 +229,7 @@ def _region(cube: WeatherCube) -> str:
 def _coverage_error(
     cube: WeatherCube, code: int, phase: str, t: float, lat: float, lon: float, z: float
 ) -> PredictorError:
-    where = f"{lat:.4f}, {float(_wrap(lon)):.4f} at {z:.0f} m, {iso_z(_from_epoch(t))}"
+    where = f"{lat:.4f}, {float(wrap_lon(lon)):.4f} at {z:.0f} m, {iso_z(_from_epoch(t))}"
     if code == STATUS_OUTSIDE_REGION and phase == "release point":
         return OutOfCoverageError(
             f"the release point {where} is outside the weather region ({_region(cube)}); "
@@ -301,49 +296,35 @@ def _integrate(
 
 
 def _find_landings(paths: _Paths, terrain: Terrain) -> _Landings:
-    """First crossing of each path with the ground, interpolated linearly inside its step.
+    """First crossing of each path with the ground; every path must land, or the question is wrong.
 
     Only the part of the paths below the highest ground on Earth is looked at (from the step before
     the first point under that ceiling), which is most of the cost saved for a 30 km release.
     """
-    n, k_max = paths.z.shape
+    k_max = paths.z.shape[1]
     valid = np.arange(k_max)[None, :] < paths.n_rec[:, None]
     under_ceiling = valid & (paths.z <= HIGHEST_GROUND_M)
     if not under_ceiling.any():
         raise PredictorError(f"no path came below {HIGHEST_GROUND_M:.0f} m; nothing can have landed")
     start = max(int(under_ceiling.any(axis=0).argmax()) - 1, 0)
-    z, lat, lon = paths.z[:, start:], paths.lat[:, start:], paths.lon[:, start:]
-    low = under_ceiling[:, start:].copy()
-    # The point before the first one under the ceiling brackets a crossing too.
-    low[:, :-1] |= low[:, 1:]
-    ground = np.full(z.shape, -np.inf)
-    ground[low] = terrain.elevation(lat[low], _wrap(lon[low]))
-    below = valid[:, start:] & (z <= ground)
-    if below[:, 0].any():
-        i = int(np.flatnonzero(below[:, 0])[0])
+    lat, lon, z = paths.lat[:, start:], paths.lon[:, start:], paths.z[:, start:]
+    crossing = ground_crossings(lat, lon, z, valid[:, start:], terrain)
+    underground = np.flatnonzero(crossing.found & (crossing.index == 0))
+    if underground.size:
+        i = int(underground[0])
         raise PredictorError(
             f"the release altitude {z[i, 0]:.0f} m is at or below the ground "
-            f"({ground[i, 0]:.0f} m) at {lat[i, 0]:.4f}, {float(_wrap(lon[i, 0])):.4f}"
+            f"({crossing.ground_m[i]:.0f} m) at {lat[i, 0]:.4f}, {float(wrap_lon(lon[i, 0])):.4f}"
         )
-    if not below.any(axis=1).all():
+    if not crossing.found.all():
         raise PredictorError(f"a path ended at {LOWEST_GROUND_M:.0f} m without meeting the ground")
-    index = below.argmax(axis=1)
-    rows = np.arange(n)
-    above = z[rows, index - 1] - ground[rows, index - 1]
-    under = z[rows, index] - ground[rows, index]
-    fraction = above / (above - under)
-
-    def at(a: np.ndarray) -> np.ndarray:
-        a = a[:, start:]
-        return a[rows, index - 1] + fraction * (a[rows, index] - a[rows, index - 1])
-
     return _Landings(
-        lat=at(paths.lat),
-        lon=at(paths.lon),
-        alt_m=at(paths.z),
-        t_s=at(paths.t),
-        path_m=at(paths.path),
-        index=index + start,
+        lat=crossing.at(lat),
+        lon=crossing.at(lon),
+        alt_m=crossing.at(z),
+        t_s=crossing.at(paths.t[:, start:]),
+        path_m=crossing.at(paths.path[:, start:]),
+        index=crossing.index + start,
     )
 
 
@@ -369,7 +350,7 @@ def _release_state(
     )  # fmt: skip
     if status[0] != STATUS_OK:
         raise _coverage_error(cube, int(status[0]), "drift before release", tt[0], la[0], lo[0], alt_m)
-    decision = Point(time=time.astimezone(UTC), lat=lat, lon=float(_wrap(lon)), alt_m=alt_m)
+    decision = Point(time=time.astimezone(UTC), lat=lat, lon=float(wrap_lon(lon)), alt_m=alt_m)
     return float(la[0]), float(lo[0]), float(tt[0]), decision
 
 
@@ -443,7 +424,7 @@ def _build_prediction(
     k = int(land.index[row])
     t_path = np.append(paths.t[row, :k], land.t_s[row])
     lat_path = np.append(paths.lat[row, :k], land.lat[row])
-    lon_path = _wrap(np.append(paths.lon[row, :k], land.lon[row]))
+    lon_path = wrap_lon(np.append(paths.lon[row, :k], land.lon[row]))
     z_path = np.append(paths.z[row, :k], land.alt_m[row])
     rel_lat, rel_lon = float(lat_path[0]), float(lon_path[0])
     end_lat, end_lon = float(lat_path[-1]), float(lon_path[-1])
@@ -540,10 +521,10 @@ def predict_landings(
     _check_question(_from_epoch(t0[0]), float(la[0]), float(lo[0]), float(z0[0]), step_m, 0.0)
     paths = _integrate(wx, model, la, lo, z0, t0, step_m, time_tolerance_s, whole_track=False)
     land = _find_landings(paths, terrain)
-    azimuth, _, distance_m = GEOD.inv(_wrap(lo), la, _wrap(land.lon), land.lat)
+    azimuth, _, distance_m = GEOD.inv(wrap_lon(lo), la, wrap_lon(land.lon), land.lat)
     return LandingSet(
         lat=land.lat,
-        lon=_wrap(land.lon),
+        lon=wrap_lon(land.lon),
         alt_m=land.alt_m,
         time=(land.t_s * 1000.0).round().astype("datetime64[ms]"),
         descent_s=land.t_s - t0,
@@ -644,11 +625,11 @@ def predict_ensemble(
         arr = np.array(rows)
         landings = (arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3])
         perturbations = {"kind": "one member per weather cube", "sources": [c.source for c in cubes]}
-    empirical = empirical_ellipse(landings[0], _wrap(landings[1]), central.bearing_deg, probabilities)
+    empirical = empirical_ellipse(landings[0], wrap_lon(landings[1]), central.bearing_deg, probabilities)
     return EnsemblePrediction(
         central=central,
         member_lat=np.asarray(landings[0]),
-        member_lon=_wrap(landings[1]),
+        member_lon=wrap_lon(landings[1]),
         member_alt_m=np.asarray(landings[2]),
         member_descent_s=np.asarray(landings[3]),
         empirical=empirical,

@@ -21,10 +21,10 @@ from numba import get_num_threads
 
 from predictor.cube import WeatherCube
 from predictor.integrate import DEFAULT_TIME_TOLERANCE_S, STATUS_OK, descend, packed
+from predictor.landing import HIGHEST_GROUND_M, ground_crossings, wrap_lon
 from predictor.model import Model
 from predictor.terrain import Terrain
 
-HIGHEST_GROUND_M = 8900.0
 LOWEST_GROUND_M = -500.0
 CHUNK = 4096
 STATUS_RELEASE_UNDERGROUND = 101
@@ -44,10 +44,6 @@ class BatchLandings:
     """Time-weighted mean forecast lead along each path (NaN unless asked for)."""
     status: np.ndarray
     """0 for a landing; a STATUS_* code of the stepper, or STATUS_RELEASE_UNDERGROUND / STATUS_NO_GROUND."""
-
-
-def wrap_lon(lon: np.ndarray | float) -> np.ndarray:
-    return (np.asarray(lon, dtype=np.float64) + 180.0) % 360.0 - 180.0
 
 
 def descend_batch(
@@ -127,33 +123,20 @@ def _landings(
     lat, lon, z, t, path = rec
     m, k_max = z.shape
     valid = (np.arange(k_max)[None, :] < n_rec[:, None]) & (code == STATUS_OK)[:, None]
-    low = valid & (z <= HIGHEST_GROUND_M)
-    # The point before the first one under the ceiling brackets a crossing too.
-    low[:, :-1] |= low[:, 1:]
-    low &= valid
-    ground = np.full(z.shape, -np.inf)
-    if low.any():
-        ground[low] = terrain.elevation(lat[low], wrap_lon(lon[low]))
-    below = valid & (z <= ground)
-    index = below.argmax(axis=1)
-    has = below.any(axis=1)
+    crossing = ground_crossings(lat, lon, z, valid, terrain)
     # A crossing at the first recorded point is the release itself under the ground (with nothing
     # skipped), or a path whose skipped part already went under (impossible above 8900 m).
-    underground = has & (index == 0)
-    code[underground] = STATUS_RELEASE_UNDERGROUND
-    code[(code == STATUS_OK) & ~has] = STATUS_NO_GROUND
-    good = np.flatnonzero(code == STATUS_OK)
+    code[crossing.found & (crossing.index == 0)] = STATUS_RELEASE_UNDERGROUND
+    code[(code == STATUS_OK) & ~crossing.found] = STATUS_NO_GROUND
     result = {name: np.full(m, np.nan) for name in ("lat", "lon", "alt_m", "t_s", "path_m", "lead")}
+    good = np.flatnonzero(code == STATUS_OK)
     if good.size == 0:
         return result
-    k = index[good]
-    above = z[good, k - 1] - ground[good, k - 1]
-    under = z[good, k] - ground[good, k]
-    fraction = above / (above - under)
     for name, a in (("lat", lat), ("lon", lon), ("alt_m", z), ("t_s", t), ("path_m", path)):
-        result[name][good] = a[good, k - 1] + fraction * (a[good, k] - a[good, k - 1])
+        result[name][good] = crossing.at(a)[good]
     if with_lead:
-        for row, kk in zip(good, k, strict=True):
+        for row in good:
+            kk = int(crossing.index[row])
             times = np.append(t[row, :kk], result["t_s"][row])
             lead = np.interp(times, t_axis, lead_axis)
             span = times[-1] - times[0]

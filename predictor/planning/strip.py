@@ -16,7 +16,7 @@ from typing import Any
 import simplekml
 
 from predictor.errors import PredictorError
-from predictor.planning.batch import wrap_lon
+from predictor.landing import wrap_lon
 from predictor.planning.sweep import Candidate, ReleasePlan
 from predictor.prediction import iso_z
 

@@ -34,6 +34,7 @@ from predictor.integrate import (
     STATUS_OUTSIDE_TIME,
     degrees_per_metre,
 )
+from predictor.landing import wrap_lon
 from predictor.model import DescentRateScale, Model, Term, WindOffset
 from predictor.payload import PROFILES, Payload
 from predictor.planning.balloon import DEFAULT_FLOAT_WIND_SIGMA_MS, AltitudePlan, BalloonPath, balloon_path
@@ -42,7 +43,6 @@ from predictor.planning.batch import (
     STATUS_RELEASE_UNDERGROUND,
     BatchLandings,
     descend_batch,
-    wrap_lon,
 )
 from predictor.prediction import DEFAULT_RATE_SIGMA, DEFAULT_WIND_SIGMA_MS, iso_z
 from predictor.terrain import Terrain
