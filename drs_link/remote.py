@@ -84,14 +84,22 @@ def _authority_prelude(holder: str) -> str:
     )
 
 
-def power_on(tools_dir: str, python: str, holder: str, lease_s: float) -> RemoteCommand:
+def _claim_authority(tools_dir: str, holder: str, lease_s: int) -> str:
+    """Enter tools_dir and take (or renew) the release authority for ``lease_s`` seconds."""
     check_holder(holder)
+    q = shlex.quote
+    return (
+        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
+        f"{_authority_prelude(holder)}; "
+        f"echo {q(holder)} $((now + {lease_s})) > {q(AUTHORITY_OWNER)}"
+    )
+
+
+def power_on(tools_dir: str, python: str, holder: str, lease_s: float) -> RemoteCommand:
     lease = int(lease_s)
     q = shlex.quote
     script = (
-        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
-        f"{_authority_prelude(holder)}; "
-        f"echo {q(holder)} $((now + {lease})) > {q(AUTHORITY_OWNER)}; "
+        f"{_claim_authority(tools_dir, holder, lease)}; "
         f"echo {LOG_OFFSET_MARKER} $(stat -c %s {q(SERIAL_LOG_NAME)} 2>/dev/null || echo 0); "
         f"{q(python)} DRS_on.py"
     )
@@ -143,13 +151,10 @@ EXIT_AGENT_NO_ACK = 3
 def agent_power_on(
     tools_dir: str, python: str, holder: str, lease_s: float, serial_device: str
 ) -> RemoteCommand:
-    check_holder(holder)
     lease = int(lease_s)
     q = shlex.quote
     script = (
-        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
-        f"{_authority_prelude(holder)}; "
-        f"echo {q(holder)} $((now + {lease})) > {q(AUTHORITY_OWNER)}; "
+        f"{_claim_authority(tools_dir, holder, lease)}; "
         f"{q(python)} {AGENT_NAME} power-on --serial {q(serial_device)}"
     )
     return RemoteCommand("agent-power-on", (tools_dir, python, holder, str(lease), serial_device), script)

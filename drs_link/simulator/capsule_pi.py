@@ -489,18 +489,25 @@ class CapsuleSimulator:
         out.write(data[-remote.MAX_LOG_BYTES :].decode("ascii", "replace"))
         return 0
 
+    def _refuse_without_authority(self, out: _Output, holder: str) -> int | None:
+        """The exit status refusing Go unless ``holder`` holds the release authority (call under the lock)."""
+        try:
+            held_by = self._take_authority(out, holder)
+        except _Exit as exit_:
+            return exit_.status
+        if held_by != holder:
+            out.err("drs: this console holds no release authority: run power-on first\n")
+            return remote.EXIT_NO_AUTHORITY
+        return None
+
     def _cmd_go(self, out: _Output, tools_dir: str, python: str, holder: str) -> int:
         failed = self._check_tools(out, tools_dir, python)
         if failed is not None:
             return failed
         with self._authority_lock:
-            try:
-                held_by = self._take_authority(out, holder)
-            except _Exit as exit_:
-                return exit_.status
-            if held_by != holder:
-                out.err("drs: this console holds no release authority: run power-on first\n")
-                return remote.EXIT_NO_AUTHORITY
+            refused = self._refuse_without_authority(out, holder)
+            if refused is not None:
+                return refused
             self._gogogo(out)
         return 0
 
@@ -604,13 +611,9 @@ class CapsuleSimulator:
         if failed is not None:
             return failed
         with self._authority_lock:
-            try:
-                held_by = self._take_authority(out, holder)
-            except _Exit as exit_:
-                return exit_.status
-            if held_by != holder:
-                out.err("drs: this console holds no release authority: run power-on first\n")
-                return remote.EXIT_NO_AUTHORITY
+            refused = self._refuse_without_authority(out, holder)
+            if refused is not None:
+                return refused
             self._agent_flush_log()
             self.agent_logging_since = None
             self.gpio.set_tx_mode("alt5")
