@@ -1,5 +1,8 @@
 """Landing predictions for the console: "release now" and "release in N minutes" from the balloon's position.
 
+Also the release-window sweep (when to drop, as a go/no-go timeline) and the live re-prediction
+of a descending capsule from its reports (``predictor.planning`` and ``predictor.live``).
+
 Blocking (weather files, numba), so the app calls it from a worker thread. Each answer becomes a
 ``prediction`` telemetry record carrying what the screens and go/no-go need (landing, σ∥/σ⊥,
 bearing, the 1/2/3σ contours with their probabilities, the 2σ outline, a thinned path), so a
@@ -16,8 +19,14 @@ from pathlib import Path
 from drs_link.telemetry import TelemetryRecord
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
 from predictor.export import write_geojson, write_kml
+from predictor.live import LivePredictor, Report
+from predictor.planning.sweep import plan_release
+from predictor.zones import Feature, load_zones
 
 PATH_POINTS = 60
+WINDOW_HOURS = 2.0
+WINDOW_STEP_MIN = 5.0
+"""The console's sweep: parametric only (no ensemble members) so a refresh stays well under a second."""
 
 
 def prediction_data(prediction: Prediction, release_in_min: int) -> dict[str, object]:
@@ -69,6 +78,9 @@ class PredictionService:
         self._terrain: Terrain | None = None
         self._lock = threading.Lock()
         self.latest: dict[str, Prediction] = {}
+        self._live: dict[str, LivePredictor] = {}
+        self._live_latest: dict[str, dict[str, object]] = {}
+        self._live_lock = threading.Lock()
 
     def _inputs(self) -> tuple[WeatherCube, Terrain]:
         with self._lock:
@@ -100,3 +112,63 @@ class PredictionService:
             write_kml(prediction, directory / f"{capsule}-{stamp}.kml"),
             write_geojson(prediction, directory / f"{capsule}-{stamp}.geojson"),
         ]
+
+    def release_window(
+        self, lat: float, lon: float, alt_m: float, zones_file: Path | None,
+        hours: float = WINDOW_HOURS, every_minutes: float = WINDOW_STEP_MIN,
+    ) -> dict[str, object]:
+        """The sweep from now as plain data: one entry per candidate, the verdict, the recommended one."""
+        cube, terrain = self._inputs()
+        zones: tuple[Feature, ...] = load_zones(zones_file) if zones_file is not None else ()
+        now = self.clock()
+        plan = plan_release(cube, now, lat, lon, alt_m, hours, every_minutes, zones=zones, terrain=terrain)
+        recommended = plan.windows[0].recommended if plan.windows else None
+        return {
+            "computed_at": now.isoformat(),
+            "every_minutes": every_minutes,
+            "verdict": plan.verdict,
+            "recommended": recommended,
+            "candidates": [
+                {"time": c.release_time.isoformat(), "go": c.go, "landed": c.status is None,
+                 "reasons": list(c.reasons)}
+                for c in plan.candidates
+            ],  # fmt: skip
+        }
+
+    def live(self, capsule: str, reports: Sequence[Report]) -> dict[str, object] | None:
+        """Feed the reports not seen yet to the capsule's live predictor; the prediction from the latest.
+
+        One predictor per capsule keeps the legs measured so far, so each new report costs one
+        leg and one prediction, not a replay of the whole descent.
+        """
+        if not reports:
+            return None
+        cube, terrain = self._inputs()
+        with self._live_lock:
+            live = self._live.get(capsule)
+            if live is None or (live.reports and reports[0].time < live.reports[0].time):
+                live = self._live[capsule] = LivePredictor(cube, terrain=terrain)
+            fresh = []
+            for report in reports:  # strictly later than the last one fed: a repeated fix is skipped, not refused
+                last = fresh[-1].time if fresh else live.reports[-1].time if live.reports else None
+                if last is None or report.time > last:
+                    fresh.append(report)
+            if not fresh:
+                return self._live_latest.get(capsule)
+            for report in fresh[:-1]:
+                live.observe(report)
+            result = live.update(fresh[-1])
+            data = result.to_dict()
+            data["measured_rate_factor"] = live.measured(fresh[-1].alt_m)[0] if live.legs else None
+            data["correction"] = live_correction_text(result.rate_factor, result.wind_error_ms, result.decay_m)
+            self._live_latest[capsule] = data
+            return data
+
+def live_correction_text(rate_factor: float, wind_error_ms: tuple[float, float], decay_m: float | None) -> str:
+    """Which measured correction the prediction used, in words (the operator must know what changed)."""
+    parts = []
+    if rate_factor != 1.0:
+        parts.append(f"descent rate ×{rate_factor:.2f}")
+    if decay_m is not None and wind_error_ms != (0.0, 0.0):
+        parts.append(f"wind error E {wind_error_ms[0]:+.1f} N {wind_error_ms[1]:+.1f} m/s fading over {decay_m:.0f} m")
+    return ", ".join(parts) if parts else "none (forecast only)"

@@ -21,7 +21,7 @@ go/no-go item (GNSS or sync only; logged) · `a` ARM (only on GO; opens a countd
 `f` FIRE (only while armed; type the capsule's name; second operator or a logged waiver) ·
 `R` reset after recovery (type the name)
 
-**Predictions**: `+`/`-` release lead time · `e` export KML + GeoJSON
+**Predictions**: `+`/`-` release lead time · `←`/`→` release-window cursor · `e` export KML + GeoJSON
 
 **Iridium**: `n` INTERVAL · `o`/`O` sounder off/on · `c` parachute (helper picks HH:MM) ·
 `R` refresh

@@ -1,7 +1,9 @@
-"""Predictions for one capsule: release now and in N minutes, the ellipse in numbers, a map, export."""
+"""Predictions for one capsule: release now and in N minutes, the ellipse in numbers, a map, export,
+and the release-window timeline (when to drop), recomputed in a worker whenever a new prediction lands."""
 
 from __future__ import annotations
 
+from datetime import datetime
 from typing import Any
 
 from textual import work
@@ -12,6 +14,7 @@ from textual.widgets import Static
 
 from console.screens.base import ConsoleScreen
 from console.widgets.landing_map import MapLayers, render_map
+from console.widgets.release_timeline import default_cursor, render_timeline
 from drs_link.errors import LinkError
 from drs_link.staleness import STALE_GLYPH, format_age
 from predictor.errors import PredictorError
@@ -43,18 +46,26 @@ class PredictionScreen(ConsoleScreen):
         Binding("plus,equals_sign", "lead(5)", "+5 min"),
         Binding("minus", "lead(-5)", "-5 min"),
         Binding("e", "export", "Export"),
+        Binding("left", "cursor(-1)", "◀ time", show=False),
+        Binding("right", "cursor(1)", "time ▶", show=False),
     ]
 
     def __init__(self, capsule: str) -> None:
         super().__init__()
         self.capsule = capsule
         self.lead_min = 10
+        self.window: dict[str, Any] | None = None
+        self.window_basis: str | None = None
+        """The "release now" prediction the window was computed after: a new one triggers a new sweep."""
+        self.window_running = False
+        self.cursor: int | None = None
 
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
         with Horizontal(id="prediction-body"):
             yield Static(id="prediction-numbers", markup=False)
             yield Static(id="prediction-map", markup=False)
+        yield Static(id="release-timeline", markup=False)
         yield from self.compose_footer()
 
     def on_mount(self) -> None:
@@ -90,6 +101,44 @@ class PredictionScreen(ConsoleScreen):
         width = max(20, widget.size.width or 40)
         height = max(6, widget.size.height or 12)
         widget.update(render_map(layers, width, height))
+        self.update_timeline(value)
+
+    def update_timeline(self, now_prediction: dict[str, Any] | None) -> None:
+        basis = now_prediction["release_time"] if now_prediction else None
+        if basis is not None and basis != self.window_basis and not self.window_running:
+            origin = self.console.prediction_origin(self.capsule)
+            if origin is not None and self.console.setup.predictions is not None:
+                self.window_basis, self.window_running = basis, True
+                self.sweep(origin)
+        age = "computing" if self.window is None else "computed " + format_age(
+            (self.console.now() - datetime.fromisoformat(self.window["computed_at"])).total_seconds()) + " ago"
+        cursor = self.cursor if self.cursor is not None else default_cursor(self.window) if self.window else 0
+        self.query_one("#release-timeline", Static).update(render_timeline(self.window, cursor, age))
+
+    @work(thread=True, exit_on_error=False, group="release-window")
+    def sweep(self, origin: tuple[float, float, float]) -> None:
+        from console.app import OperatorNotice
+
+        ops = self.console.ops
+        zones_file = ops.config.console.exclusion_zones_file if ops else None
+        window = self.window
+        try:
+            window = self.console.setup.predictions.release_window(*origin, zones_file)
+        except PredictorError as exc:
+            self.app.post_message(OperatorNotice(f"release window failed: {exc}", "warning"))
+        finally:
+            self.app.call_from_thread(self.show_window, window)
+
+    def show_window(self, window: dict[str, Any] | None) -> None:
+        self.window, self.window_running = window, False
+        self.refresh_view()
+
+    def action_cursor(self, step: int) -> None:
+        if self.window is None or not self.window["candidates"]:
+            return
+        start = self.cursor if self.cursor is not None else default_cursor(self.window)
+        self.cursor = max(0, min(len(self.window["candidates"]) - 1, start + step))
+        self.refresh_view()
 
     def action_lead(self, step: int) -> None:
         self.lead_min = max(5, min(120, self.lead_min + step))

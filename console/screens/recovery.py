@@ -1,5 +1,9 @@
 """Recovery of one capsule: where it landed and how sure, how far from the team, the phone line, exports.
 
+While it is still descending (fixes arriving, no landing detected) it also shows the live
+re-prediction from the latest fix (``predictor.live``, computed in the same worker that reads the
+reports), so the team drives towards where it is going now, not where it was predicted at release.
+
 The sounder, the interval and the parachute are Iridium commands: ``i`` opens that screen with
 its confirmations; this one only reads (in a worker) and exports.
 """
@@ -8,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+from datetime import datetime
 from typing import Any
 
 from textual import work
@@ -28,6 +33,8 @@ from drs_link.iridium.recovery import (
     write_gpx,
     write_kml,
 )
+from drs_link.staleness import format_age
+from predictor.errors import PredictorError
 
 RELOAD_S = 2.0
 
@@ -44,6 +51,8 @@ class RecoveryScreen(ConsoleScreen):
         self.capsule = capsule
         self.track: list[TrackPoint] = []
         self.landing: LandingEstimate | None = None
+        self.live: dict[str, Any] | None = None
+        self.live_error: str | None = None
         self.loaded_at = time.monotonic()
 
     def compose(self) -> ComposeResult:
@@ -62,11 +71,47 @@ class RecoveryScreen(ConsoleScreen):
         ops = self.console.ops
         reports = ops.stored_reports(self.capsule) if ops else []
         track = track_from_reports(reports)
-        self.app.call_from_thread(self.show, track, detect_landing(track))
+        landing = detect_landing(track)
+        live, error = None, None
+        service = self.console.setup.predictions
+        if landing is None and track and service is not None:
+            try:
+                live = service.live(self.capsule, track)
+            except PredictorError as exc:
+                error = str(exc)
+        self.app.call_from_thread(self.show, track, landing, live, error)
 
-    def show(self, track: list[TrackPoint], landing: LandingEstimate | None) -> None:
-        self.track, self.landing = track, landing
+    def show(
+        self, track: list[TrackPoint], landing: LandingEstimate | None, live: dict[str, Any] | None, error: str | None
+    ) -> None:
+        self.track, self.landing, self.live, self.live_error = track, landing, live, error
         self.refresh_view()
+
+    def live_lines(self) -> list[str]:
+        if self.landing is not None or not self.track:
+            return []
+        if self.live_error is not None:
+            return [f"Live re-prediction failed: {self.live_error}"]
+        if self.live is None:
+            return ["Live re-prediction: computing"]
+        live, landing, ellipse = self.live, self.live["landing"], self.live["ellipse"]
+        report_time = datetime.fromisoformat(live["report"]["time"])
+        age = format_age((self.console.now() - report_time).total_seconds())
+        rate = live["measured_rate_factor"]
+        measured = "— (needs two fixes)" if rate is None else f"{rate:.2f}"
+        lines = [
+            f"Live re-prediction from the {report_time:%H:%M:%S}Z fix ({age} ago) at {live['report']['alt_m']:.0f} m:",
+            f"  landing {landing['lat']:.4f}, {landing['lon']:.4f} at {landing['time'][11:19]}Z,"
+            f" {live['remaining_drift_km']:.1f} km to go",
+            f"  σ∥ {ellipse['sigma_parallel_km']:.2f} km  σ⊥ {ellipse['sigma_perpendicular_km']:.2f} km",
+            f"  measured rate factor {measured} from {live['legs_used']} legs",
+            f"  correction: {live['correction']}",
+        ]
+        team = self.console.setup.team_position
+        if team is not None:
+            distance, bearing = distance_bearing(team[0], team[1], landing["lat"], landing["lon"])
+            lines.append(f"  from the team: {distance / 1000:.2f} km at {bearing:.0f}°")
+        return lines
 
     def update_view(self) -> None:
         if time.monotonic() - self.loaded_at >= RELOAD_S:
@@ -85,6 +130,7 @@ class RecoveryScreen(ConsoleScreen):
                 lines.append(f"  from the team: {distance / 1000:.2f} km at {bearing:.0f}°")
         elif last is not None:
             lines.append(f"Not landed (visibly): last fix {last.lat:.5f}, {last.lon:.5f} at {last.alt_m:.0f} m")
+            lines += self.live_lines()
         else:
             lines.append("No GNSS fix received yet")
         reading = self.console.fleet.capsules[self.capsule].reading("report")
@@ -102,12 +148,20 @@ class RecoveryScreen(ConsoleScreen):
         layers = MapLayers(
             path=[(p.lon, p.lat) for p in self.track],
             ellipse=[tuple(p) for p in prediction["outline_2sigma"]] if prediction else (),
-            landing=(self.landing.lon, self.landing.lat) if self.landing else None,
+            landing=self.map_landing(),
             team=(team[1], team[0]) if team else None,
             scatter=[(p.lon, p.lat) for p in self.track[-10:]] if self.landing else [],
         )
         widget = self.query_one("#recovery-map", Static)
         widget.update(render_map(layers, max(20, widget.size.width or 40), max(6, widget.size.height or 12)))
+
+    def map_landing(self) -> tuple[float, float] | None:
+        """Where it landed, else where the live re-prediction says it will land."""
+        if self.landing is not None:
+            return self.landing.lon, self.landing.lat
+        if self.live is not None and self.track:
+            return self.live["landing"]["lon"], self.live["landing"]["lat"]
+        return None
 
     def action_iridium(self) -> None:
         from console.screens.iridium import IridiumScreen
