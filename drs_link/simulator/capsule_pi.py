@@ -433,16 +433,26 @@ class CapsuleSimulator:
             return held_by
         return None
 
+    def _claim_authority(self, out: _Output, holder: str, lease: str) -> int | None:
+        """Take or renew the release authority for ``lease`` seconds (call under the lock).
+
+        Returns the exit status refusing the command when another console holds it.
+        """
+        try:
+            self._take_authority(out, holder)
+        except _Exit as exit_:
+            return exit_.status
+        self.authority = (holder, self.clock.now() + timedelta(seconds=int(lease)))
+        return None
+
     def _cmd_power_on(self, out: _Output, tools_dir: str, python: str, holder: str, lease: str) -> int:
         failed = self._check_tools(out, tools_dir, python)
         if failed is not None:
             return failed
         with self._authority_lock:
-            try:
-                self._take_authority(out, holder)
-            except _Exit as exit_:
-                return exit_.status
-            self.authority = (holder, self.clock.now() + timedelta(seconds=int(lease)))
+            refused = self._claim_authority(out, holder, lease)
+            if refused is not None:
+                return refused
             out.write(f"{remote.LOG_OFFSET_MARKER} {self._log_size()}\n")
             self._drs_on()
         return 0
@@ -583,11 +593,9 @@ class CapsuleSimulator:
         if failed is not None:
             return failed
         with self._authority_lock:
-            try:
-                self._take_authority(out, holder)
-            except _Exit as exit_:
-                return exit_.status
-            self.authority = (holder, self.clock.now() + timedelta(seconds=int(lease)))
+            refused = self._claim_authority(out, holder, lease)
+            if refused is not None:
+                return refused
             size = self.agent_log.stat().st_size if self.agent_log.exists() else 0
             out.write(f"{remote.LOG_OFFSET_MARKER} {size}\n")
             self._drs_on()
