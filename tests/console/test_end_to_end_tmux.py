@@ -33,6 +33,16 @@ class Terminal:
             subprocess.run([TMUX, "send-keys", "-t", self.session, key], check=True)
             time.sleep(pause_s)
 
+    def back_to_fleet(self) -> None:
+        """Escape, then wait until the fleet is shown before anything else is typed.
+
+        A key sent while the app is busy can arrive in the same read as the ESC before it, and a
+        terminal reads ESC + key as Alt+key: both would be lost. Only the fleet's footer offers
+        `v Recovery`.
+        """
+        self.keys("Escape")
+        self.wait_for("v Recovery")
+
     def screen(self) -> str:
         return subprocess.run(
             [TMUX, "capture-pane", "-p", "-t", self.session], check=True, capture_output=True, text=True
@@ -81,7 +91,7 @@ def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp
     terminal.wait_for("Type the capsule's name (DRS1)")
     terminal.keys("DRS1", "Enter", "Enter", "end-to-end test, one operator", "Enter")
     terminal.wait_for("FIRED: Go sent")
-    terminal.keys("Escape")
+    terminal.back_to_fleet()
     terminal.wait_for("RELEASED")
     terminal.keys("v")
     terminal.wait_for("DRS1 recovery")
@@ -98,7 +108,8 @@ def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp
     terminal.wait_for("Phone: DRS1 on ground")
     terminal.keys("e")
     terminal.wait_for("DRS1-recovery-")
-    terminal.keys("Escape", "h")
+    terminal.back_to_fleet()
+    terminal.keys("h")
     terminal.wait_for("released, Pi shut")
     terminal.keys("q")
     deadline = time.monotonic() + 20
