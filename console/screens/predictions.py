@@ -13,7 +13,7 @@ from textual.containers import Horizontal
 from textual.widgets import Static
 
 from console.screens.base import ConsoleScreen
-from console.widgets.landing_map import MapLayers, render_map
+from console.widgets.landing_map import LandingMap, MapLayers
 from console.widgets.release_timeline import default_cursor, render_timeline
 from drs_link.errors import LinkError
 from drs_link.staleness import STALE_GLYPH, format_age
@@ -64,7 +64,7 @@ class PredictionScreen(ConsoleScreen):
         yield from self.compose_banner()
         with Horizontal(id="prediction-body"):
             yield Static(id="prediction-numbers", markup=False)
-            yield Static(id="prediction-map", markup=False)
+            yield LandingMap(id="prediction-map")
         yield Static(id="release-timeline", markup=False)
         yield from self.compose_footer()
 
@@ -88,7 +88,7 @@ class PredictionScreen(ConsoleScreen):
         value = now_pred.value if now_pred else None
         zones = [z.ring for z in app.ops.zones] if app.ops else []
         balloon = app.fleet.balloon.value
-        layers = MapLayers(
+        self.query_one("#prediction-map", LandingMap).layers = MapLayers(
             path=[tuple(p) for p in value["path"]] if value else (),
             ellipse=[tuple(p) for p in value["outline_2sigma"]] if value else (),
             zones=zones,
@@ -97,10 +97,6 @@ class PredictionScreen(ConsoleScreen):
             balloon=(balloon["lon"], balloon["lat"]) if balloon else None,
             team=(app.setup.team_position[1], app.setup.team_position[0]) if app.setup.team_position else None,
         )
-        widget = self.query_one("#prediction-map", Static)
-        width = max(20, widget.size.width or 40)
-        height = max(6, widget.size.height or 12)
-        widget.update(render_map(layers, width, height))
         self.update_timeline(value)
 
     def update_timeline(self, now_prediction: dict[str, Any] | None) -> None:

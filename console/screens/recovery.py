@@ -22,7 +22,7 @@ from textual.containers import Horizontal
 from textual.widgets import Static
 
 from console.screens.base import ConsoleScreen
-from console.widgets.landing_map import MapLayers, render_map
+from console.widgets.landing_map import LandingMap, MapLayers
 from drs_link.iridium.recovery import (
     LandingEstimate,
     TrackPoint,
@@ -59,7 +59,7 @@ class RecoveryScreen(ConsoleScreen):
         yield from self.compose_banner()
         with Horizontal(id="recovery-body"):
             yield Static(id="recovery-text", markup=False)
-            yield Static(id="recovery-map", markup=False)
+            yield LandingMap(id="recovery-map")
         yield from self.compose_footer()
 
     def on_mount(self) -> None:
@@ -145,15 +145,13 @@ class RecoveryScreen(ConsoleScreen):
         ]
         self.query_one("#recovery-text", Static).update("\n".join(lines))
         prediction = self.console.fleet.capsules[self.capsule].reading("prediction").value
-        layers = MapLayers(
+        self.query_one("#recovery-map", LandingMap).layers = MapLayers(
             path=[(p.lon, p.lat) for p in self.track],
             ellipse=[tuple(p) for p in prediction["outline_2sigma"]] if prediction else (),
             landing=self.map_landing(),
             team=(team[1], team[0]) if team else None,
             scatter=[(p.lon, p.lat) for p in self.track[-10:]] if self.landing else [],
         )
-        widget = self.query_one("#recovery-map", Static)
-        widget.update(render_map(layers, max(20, widget.size.width or 40), max(6, widget.size.height or 12)))
 
     def map_landing(self) -> tuple[float, float] | None:
         """Where it landed, else where the live re-prediction says it will land."""
