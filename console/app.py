@@ -22,7 +22,7 @@ from textual.notifications import SeverityLevel
 from textual.screen import Screen
 from textual.worker import Worker, WorkerState
 
-from console.predictions import PredictionService
+from console.predictions import PredictionService, ReleaseOrigin
 from drs_link.checklist import Checklist, ChecklistRun, load_checklists
 from drs_link.errors import LinkError
 from drs_link.fleet import FleetState
@@ -86,7 +86,9 @@ class DrsConsole(App[int]):
         Binding("q", "quit", "Quit"),
     ]
 
-    def __init__(self, setup: ConsoleSetup, checklist_dir: Path = CHECKLIST_DIR, live_timers: bool = True) -> None:
+    def __init__(
+        self, setup: ConsoleSetup, checklist_dir: Path = CHECKLIST_DIR, live_timers: bool = True
+    ) -> None:
         super().__init__()
         self.setup = setup
         poll_period = 2.0 * setup.poll_period_s * setup.time_scale
@@ -189,7 +191,9 @@ class DrsConsole(App[int]):
             self.post_message(OperatorNotice(str(exc), "warning"))
         finally:
             try:
-                self.call_from_thread(self.set_timer, self.setup.poll_period_s, lambda: self.poll_capsule(name))
+                self.call_from_thread(
+                    self.set_timer, self.setup.poll_period_s, lambda: self.poll_capsule(name)
+                )
             except RuntimeError:
                 pass  # the app is closing: no next poll
 
@@ -212,16 +216,24 @@ class DrsConsole(App[int]):
         if records:
             self.post_message(TelemetryArrived(records))
 
-    def prediction_origin(self, capsule: str) -> tuple[float, float, float] | None:
+    def prediction_origin(self, capsule: str) -> ReleaseOrigin | None:
         """Where a release would start: the capsule's own fresh fix, else the balloon feed."""
         telemetry = self.fleet.capsules[capsule]
         now = self.now()
         gnss = telemetry.reading("gnss")
-        if gnss.is_fresh(now) and gnss.value and gnss.value.get("has_fix") and gnss.value.get("lat") is not None:
-            return gnss.value["lat"], gnss.value["lon"], gnss.value.get("alt_m") or 30000.0
+        if (
+            gnss.is_fresh(now)
+            and gnss.value
+            and gnss.value.get("has_fix")
+            and gnss.value.get("lat") is not None
+        ):
+            return ReleaseOrigin(
+                gnss.value["lat"], gnss.value["lon"], gnss.value.get("alt_m") or 30000.0, f"{capsule} GNSS"
+            )
         balloon = self.fleet.balloon
         if balloon.is_fresh(now) and balloon.value:
-            return balloon.value["lat"], balloon.value["lon"], balloon.value["alt_m"]
+            source = "balloon feed" + (f" ({balloon.value['source']})" if balloon.value.get("source") else "")
+            return ReleaseOrigin(balloon.value["lat"], balloon.value["lon"], balloon.value["alt_m"], source)
         return None
 
     def refresh_predictions(self) -> None:
@@ -232,10 +244,10 @@ class DrsConsole(App[int]):
                 self.run_prediction(name, origin)
 
     @work(thread=True, exit_on_error=False, group="predictions")
-    def run_prediction(self, name: str, origin: tuple[float, float, float]) -> None:
+    def run_prediction(self, name: str, origin: ReleaseOrigin) -> None:
         assert self.setup.predictions is not None
         try:
-            records = self.setup.predictions.predict(name, *origin, release_in=PREDICTION_LEAD_MIN)
+            records = self.setup.predictions.predict(name, origin, release_in=PREDICTION_LEAD_MIN)
         except PredictorError as exc:
             self.post_message(OperatorNotice(f"{name}: prediction failed: {exc}", "warning"))
             return
@@ -254,7 +266,9 @@ class DrsConsole(App[int]):
             touched = {r.capsule for r in message.records if r.capsule}
             for name in touched & set(self.setup.capsules):
                 arming = self.ops.ops(name).arming
-                link_down = any(r.capsule == name and r.kind == "link" and not r.data.get("up") for r in message.records)
+                link_down = any(
+                    r.capsule == name and r.kind == "link" and not r.data.get("up") for r in message.records
+                )
                 if link_down:
                     arming.link_lost()
                 else:
@@ -287,7 +301,12 @@ class DrsConsole(App[int]):
         yield from palette_commands(self)
 
     def notify(
-        self, message: str, *, title: str = "", severity: SeverityLevel = "information", timeout: float | None = None,
+        self,
+        message: str,
+        *,
+        title: str = "",
+        severity: SeverityLevel = "information",
+        timeout: float | None = None,
         markup: bool = False,
     ) -> None:
         """Operator messages quote commands like ``[PARACHUTE=12:13]``: never read them as markup."""

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
@@ -29,12 +30,23 @@ WINDOW_STEP_MIN = 5.0
 """The console's sweep: parametric only (no ensemble members) so a refresh stays well under a second."""
 
 
-def prediction_data(prediction: Prediction, release_in_min: int) -> dict[str, object]:
+@dataclass(frozen=True)
+class ReleaseOrigin:
+    """Where a release would start, and from what: the operator must see which position a prediction used."""
+
+    lat: float
+    lon: float
+    alt_m: float
+    source: str
+
+
+def prediction_data(prediction: Prediction, release_in_min: int, source: str) -> dict[str, object]:
     ellipse = prediction.ellipse
     two_sigma = next(c for c in ellipse.contours if round(c.n_sigma) == 2)
     step = max(1, len(prediction.track.lat) // PATH_POINTS)
     return {
         "release_in_min": release_in_min,
+        "origin_source": source,
         "release_lat": prediction.release.lat,
         "release_lon": prediction.release.lon,
         "release_time": prediction.release.time.isoformat(),
@@ -48,8 +60,12 @@ def prediction_data(prediction: Prediction, release_in_min: int) -> dict[str, ob
         "sigma_perp_km": ellipse.sigma_perpendicular_km,
         "major_axis_bearing_deg": ellipse.major_axis_bearing_deg,
         "contours": [
-            {"n_sigma": c.n_sigma, "probability": c.probability, "major_km": c.semi_major_km,
-             "minor_km": c.semi_minor_km}
+            {
+                "n_sigma": c.n_sigma,
+                "probability": c.probability,
+                "major_km": c.semi_major_km,
+                "minor_km": c.semi_minor_km,
+            }
             for c in ellipse.contours
         ],  # fmt: skip
         "outline_2sigma": [list(p) for p in ellipse.outline(two_sigma, points=36)],
@@ -91,16 +107,19 @@ class PredictionService:
             return self._cube, self._terrain
 
     def predict(
-        self, capsule: str, lat: float, lon: float, alt_m: float, release_in: Sequence[int] = (0,)
+        self, capsule: str, origin: ReleaseOrigin, release_in: Sequence[int] = (0,)
     ) -> list[TelemetryRecord]:
         cube, terrain = self._inputs()
         now = self.clock()
         records = []
         for minutes in release_in:
-            result = predict(cube, now, lat, lon, alt_m, terrain=terrain, drift_minutes=float(minutes))
+            result = predict(
+                cube, now, origin.lat, origin.lon, origin.alt_m, terrain=terrain, drift_minutes=float(minutes)
+            )
             if minutes == 0:
                 self.latest[capsule] = result
-            records.append(TelemetryRecord(now, capsule, "prediction", prediction_data(result, minutes)))
+            data = prediction_data(result, minutes, origin.source)
+            records.append(TelemetryRecord(now, capsule, "prediction", data))
         return records
 
     def export(self, capsule: str, directory: Path) -> list[Path]:
@@ -114,23 +133,41 @@ class PredictionService:
         ]
 
     def release_window(
-        self, lat: float, lon: float, alt_m: float, zones_file: Path | None,
-        hours: float = WINDOW_HOURS, every_minutes: float = WINDOW_STEP_MIN,
+        self,
+        origin: ReleaseOrigin,
+        zones_file: Path | None,
+        hours: float = WINDOW_HOURS,
+        every_minutes: float = WINDOW_STEP_MIN,
     ) -> dict[str, object]:
         """The sweep from now as plain data: one entry per candidate, the verdict, the recommended one."""
         cube, terrain = self._inputs()
         zones: tuple[Feature, ...] = load_zones(zones_file) if zones_file is not None else ()
         now = self.clock()
-        plan = plan_release(cube, now, lat, lon, alt_m, hours, every_minutes, zones=zones, terrain=terrain)
+        plan = plan_release(
+            cube,
+            now,
+            origin.lat,
+            origin.lon,
+            origin.alt_m,
+            hours,
+            every_minutes,
+            zones=zones,
+            terrain=terrain,
+        )
         recommended = plan.windows[0].recommended if plan.windows else None
         return {
             "computed_at": now.isoformat(),
+            "origin_source": origin.source,
             "every_minutes": every_minutes,
             "verdict": plan.verdict,
             "recommended": recommended,
             "candidates": [
-                {"time": c.release_time.isoformat(), "go": c.go, "landed": c.status is None,
-                 "reasons": list(c.reasons)}
+                {
+                    "time": c.release_time.isoformat(),
+                    "go": c.go,
+                    "landed": c.status is None,
+                    "reasons": list(c.reasons),
+                }
                 for c in plan.candidates
             ],  # fmt: skip
         }
@@ -149,7 +186,9 @@ class PredictionService:
             if live is None or (live.reports and reports[0].time < live.reports[0].time):
                 live = self._live[capsule] = LivePredictor(cube, terrain=terrain)
             fresh = []
-            for report in reports:  # strictly later than the last one fed: a repeated fix is skipped, not refused
+            for (
+                report
+            ) in reports:  # strictly later than the last one fed: a repeated fix is skipped, not refused
                 last = fresh[-1].time if fresh else live.reports[-1].time if live.reports else None
                 if last is None or report.time > last:
                     fresh.append(report)
@@ -160,15 +199,22 @@ class PredictionService:
             result = live.update(fresh[-1])
             data = result.to_dict()
             data["measured_rate_factor"] = live.measured(fresh[-1].alt_m)[0] if live.legs else None
-            data["correction"] = live_correction_text(result.rate_factor, result.wind_error_ms, result.decay_m)
+            data["correction"] = live_correction_text(
+                result.rate_factor, result.wind_error_ms, result.decay_m
+            )
             self._live_latest[capsule] = data
             return data
 
-def live_correction_text(rate_factor: float, wind_error_ms: tuple[float, float], decay_m: float | None) -> str:
+
+def live_correction_text(
+    rate_factor: float, wind_error_ms: tuple[float, float], decay_m: float | None
+) -> str:
     """Which measured correction the prediction used, in words (the operator must know what changed)."""
     parts = []
     if rate_factor != 1.0:
         parts.append(f"descent rate ×{rate_factor:.2f}")
     if decay_m is not None and wind_error_ms != (0.0, 0.0):
-        parts.append(f"wind error E {wind_error_ms[0]:+.1f} N {wind_error_ms[1]:+.1f} m/s fading over {decay_m:.0f} m")
+        parts.append(
+            f"wind error E {wind_error_ms[0]:+.1f} N {wind_error_ms[1]:+.1f} m/s fading over {decay_m:.0f} m"
+        )
     return ", ".join(parts) if parts else "none (forecast only)"

@@ -12,6 +12,7 @@ from textual.binding import Binding
 from textual.containers import Horizontal
 from textual.widgets import Static
 
+from console.predictions import ReleaseOrigin
 from console.screens.base import ConsoleScreen
 from console.widgets.landing_map import LandingMap, MapLayers
 from console.widgets.release_timeline import default_cursor, render_timeline
@@ -26,6 +27,7 @@ def describe(prediction: dict[str, Any] | None, age_s: float | None, stale: bool
     mark = f"{STALE_GLYPH}STALE " if stale else ""
     lines = [
         f"{title} — {mark}computed {format_age(age_s or 0.0)} ago",
+        f"  from {prediction.get('origin_source', 'an unrecorded position')}",
         f"  landing {prediction['landing_lat']:.4f}, {prediction['landing_lon']:.4f}"
         f"  after {prediction['descent_s'] / 60:.1f} min, {prediction['distance_km']:.1f} km at"
         f" {prediction['bearing_deg']:.0f}°",
@@ -95,7 +97,9 @@ class PredictionScreen(ConsoleScreen):
             landing=(value["landing_lon"], value["landing_lat"]) if value else None,
             release=(value["release_lon"], value["release_lat"]) if value else None,
             balloon=(balloon["lon"], balloon["lat"]) if balloon else None,
-            team=(app.setup.team_position[1], app.setup.team_position[0]) if app.setup.team_position else None,
+            team=(app.setup.team_position[1], app.setup.team_position[0])
+            if app.setup.team_position
+            else None,
         )
         self.update_timeline(value)
 
@@ -106,20 +110,27 @@ class PredictionScreen(ConsoleScreen):
             if origin is not None and self.console.setup.predictions is not None:
                 self.window_basis, self.window_running = basis, True
                 self.sweep(origin)
-        age = "computing" if self.window is None else "computed " + format_age(
-            (self.console.now() - datetime.fromisoformat(self.window["computed_at"])).total_seconds()) + " ago"
+        age = (
+            "computing"
+            if self.window is None
+            else "computed "
+            + format_age(
+                (self.console.now() - datetime.fromisoformat(self.window["computed_at"])).total_seconds()
+            )
+            + " ago"
+        )
         cursor = self.cursor if self.cursor is not None else default_cursor(self.window) if self.window else 0
         self.query_one("#release-timeline", Static).update(render_timeline(self.window, cursor, age))
 
     @work(thread=True, exit_on_error=False, group="release-window")
-    def sweep(self, origin: tuple[float, float, float]) -> None:
+    def sweep(self, origin: ReleaseOrigin) -> None:
         from console.app import OperatorNotice
 
         ops = self.console.ops
         zones_file = ops.config.console.exclusion_zones_file if ops else None
         window = self.window
         try:
-            window = self.console.setup.predictions.release_window(*origin, zones_file)
+            window = self.console.setup.predictions.release_window(origin, zones_file)
         except PredictorError as exc:
             self.app.post_message(OperatorNotice(f"release window failed: {exc}", "warning"))
         finally:
@@ -144,11 +155,13 @@ class PredictionScreen(ConsoleScreen):
         self.refresh_view()
 
     @work(thread=True, exit_on_error=False, group="predictions")
-    def predict_lead(self, origin: tuple[float, float, float]) -> None:
+    def predict_lead(self, origin: ReleaseOrigin) -> None:
         from console.app import OperatorNotice, TelemetryArrived
 
         try:
-            records = self.console.setup.predictions.predict(self.capsule, *origin, release_in=(self.lead_min,))
+            records = self.console.setup.predictions.predict(
+                self.capsule, origin, release_in=(self.lead_min,)
+            )
         except PredictorError as exc:
             self.app.post_message(OperatorNotice(f"prediction failed: {exc}", "warning"))
             return

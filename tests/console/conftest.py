@@ -12,7 +12,7 @@ import pytest
 from console.app import ConsoleSetup, DrsConsole
 from console.console_cli import _team
 from console.demo import DemoWorld, write_demo_terrain
-from console.predictions import PredictionService
+from console.predictions import PredictionService, ReleaseOrigin
 from drs_link.config import Config, parse_config
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
@@ -50,7 +50,13 @@ def demo(tmp_path: Path) -> Iterator[tuple[DemoWorld, DrsConsole]]:
 def offline_config(tmp_path: Path) -> Config:
     """Three capsules nobody listens for (port 9): the console is built but never connects."""
     capsules = [
-        {"name": name, "host": "127.0.0.1", "port": 9, "imei": f"30043406000{i:04d}", "rockblock_serial": 17000 + i}
+        {
+            "name": name,
+            "host": "127.0.0.1",
+            "port": 9,
+            "imei": f"30043406000{i:04d}",
+            "rockblock_serial": 17000 + i,
+        }
         for i, name in enumerate(("DRS1", "DRS2", "DRS3"), start=1)
     ]
     return parse_config({
@@ -70,11 +76,14 @@ def prediction_service(tmp_path_factory: pytest.TempPathFactory) -> PredictionSe
 
 @pytest.fixture(scope="session")
 def canned_prediction(prediction_service: PredictionService) -> list[TelemetryRecord]:
-    return prediction_service.predict("DRS1", SITE[0], SITE[1], 31500.0, release_in=(0, 10))
+    return prediction_service.predict(
+        "DRS1", ReleaseOrigin(SITE[0], SITE[1], 31500.0, "DRS1 GNSS"), release_in=(0, 10)
+    )
 
 
 def canned_records(prediction: list[TelemetryRecord]) -> list[TelemetryRecord]:
     """One fleet at T0: DRS1 powered with a fix, DRS2 idle and half synced, DRS3 with a stale link."""
+
     def rec(capsule: str | None, kind: str, data: dict[str, object], age_s: float = 0.0) -> TelemetryRecord:
         return TelemetryRecord(T0 - timedelta(seconds=age_s), capsule, kind, data)
 
@@ -84,8 +93,12 @@ def canned_records(prediction: list[TelemetryRecord]) -> list[TelemetryRecord]:
         rec(None, "balloon", {"lat": SITE[0], "lon": SITE[1], "alt_m": 31500.0}, 5),
         rec("DRS1", "link", {"up": True}, 3),
         rec("DRS1", "release", {"state": "powered", "nmea_seen": True}, 3),
-        rec("DRS1", "gnss", {"has_fix": True, "sats": 9, "hdop": 0.9, "lat": SITE[0], "lon": SITE[1],
-                             "alt_m": 31500.0}, 3),  # fmt: skip
+        rec(
+            "DRS1",
+            "gnss",
+            {"has_fix": True, "sats": 9, "hdop": 0.9, "lat": SITE[0], "lon": SITE[1], "alt_m": 31500.0},
+            3,
+        ),  # fmt: skip
         rec("DRS1", "storage", storage, 4),
         rec("DRS1", "sync", {"fraction": 1.0, "bytes_pending": 0}, 4),
         rec("DRS2", "link", {"up": True}, 2),
@@ -96,7 +109,9 @@ def canned_records(prediction: list[TelemetryRecord]) -> list[TelemetryRecord]:
         rec("DRS3", "release", {"state": "idle", "nmea_seen": False}, 95),
         rec("DRS3", "storage", {**storage, "raid": "degraded"}, 95),
     ]
-    return records + [TelemetryRecord(T0 - timedelta(seconds=6), r.capsule, r.kind, r.data) for r in prediction]
+    return records + [
+        TelemetryRecord(T0 - timedelta(seconds=6), r.capsule, r.kind, r.data) for r in prediction
+    ]
 
 
 def seed_reports(store: Store, imei: str, start: datetime, count: int, interval_min: int = 2) -> None:
@@ -124,7 +139,9 @@ def canned_app(
         store = Store.open(config.store_path)
         operations = Operations(config, store, clock=lambda: now) if mode == "live" else None
         store.append_audit("EL", "DRS1", "power-on", "ok", {"session": "s1"}, when=T0 - timedelta(minutes=2))
-        store.append_audit("EL", "DRS1", "waiver", "granted", {"item": "gnss"}, when=T0 - timedelta(minutes=1))
+        store.append_audit(
+            "EL", "DRS1", "waiver", "granted", {"item": "gnss"}, when=T0 - timedelta(minutes=1)
+        )
         seed_reports(store, config.capsules[1].imei or "", T0 - timedelta(minutes=30), 8)
         setup = ConsoleSetup(
             mode=mode, capsules=["DRS1", "DRS2", "DRS3"], store=store, clock=lambda: now, operations=operations,

@@ -13,7 +13,7 @@ from textual.pilot import Pilot
 
 from console.app import DrsConsole
 from console.demo import SERVO_A_AFTER_GO_S, DemoWorld
-from console.predictions import PredictionService
+from console.predictions import PredictionService, ReleaseOrigin
 from console.screens.predictions import PredictionScreen
 from console.screens.recovery import RecoveryScreen
 from console.widgets.release_timeline import GO, NO_GO, NO_LANDING, default_cursor, render_timeline
@@ -103,7 +103,9 @@ async def test_the_recovery_view_re_predicts_a_descending_capsule_from_its_repor
         await pilot.press("v")
         screen = app.screen
         assert isinstance(screen, RecoveryScreen) and screen.capsule == "DRS1"
-        await wait_for(pilot, lambda: screen.live is not None and screen.live["legs_used"] >= 1, timeout_s=45.0)
+        await wait_for(
+            pilot, lambda: screen.live is not None and screen.live["legs_used"] >= 1, timeout_s=45.0
+        )
         live = screen.live
         assert live is not None and screen.landing is None
         assert live["measured_rate_factor"] is not None and 0.3 < live["measured_rate_factor"] < 3.0
@@ -122,11 +124,11 @@ def test_a_zone_over_every_landing_makes_the_whole_window_no_go_with_its_reason(
     zones = tmp_path / "zones.geojson"
     zones.write_text(json.dumps({"type": "Feature", "properties": {"name": "Everywhere east"},
                                  "geometry": {"type": "Polygon", "coordinates": [ring]}}))  # fmt: skip
-    window = prediction_service.release_window(SITE[0], SITE[1], 31500.0, zones)
+    window = prediction_service.release_window(ReleaseOrigin(SITE[0], SITE[1], 31500.0, "test"), zones)
     assert window["recommended"] is None and not any(c["go"] for c in window["candidates"])
     text = render_timeline(window, default_cursor(window), "computed 0 s ago")
     assert "NO-GO window" in text and "(mostly Everywhere east)" in text
-    open_sky = prediction_service.release_window(SITE[0], SITE[1], 31500.0, None)
+    open_sky = prediction_service.release_window(ReleaseOrigin(SITE[0], SITE[1], 31500.0, "test"), None)
     assert open_sky["recommended"] is not None and all(c["go"] for c in open_sky["candidates"])
 
 
@@ -136,7 +138,7 @@ def test_a_zone_file_that_is_not_geojson_is_refused_with_its_name(
     zones = tmp_path / "zones.geojson"
     zones.write_text("not json")
     with pytest.raises(PredictorError, match="zones.geojson"):
-        prediction_service.release_window(SITE[0], SITE[1], 31500.0, zones)
+        prediction_service.release_window(ReleaseOrigin(SITE[0], SITE[1], 31500.0, "test"), zones)
 
 
 def test_live_re_prediction_feeds_each_fix_once_and_skips_a_repeated_one(
@@ -151,4 +153,7 @@ def test_live_re_prediction_feeds_each_fix_once_and_skips_a_repeated_one(
     assert again is first
     later = prediction_service.live("DRS9", [*fixes, fixes[-1]])
     assert later is not None and later["legs_used"] == 3
-    assert later["report"]["alt_m"] == fixes[-1].alt_m and later["remaining_drift_km"] < first["remaining_drift_km"]
+    assert (
+        later["report"]["alt_m"] == fixes[-1].alt_m
+        and later["remaining_drift_km"] < first["remaining_drift_km"]
+    )

@@ -16,12 +16,15 @@ from console.screens.modals import TextPromptModal
 from console.screens.predictions import PredictionScreen
 from console.screens.recovery import RecoveryScreen
 from console.screens.release import ReleaseScreen
+from drs_link.telemetry import TelemetryRecord
 from tests.console.conftest import T0
 
 pytestmark = pytest.mark.asyncio
 
 
-async def test_the_parachute_helper_refuses_an_out_of_window_time(canned_app: Callable[..., DrsConsole]) -> None:
+async def test_the_parachute_helper_refuses_an_out_of_window_time(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
     app = canned_app(now=T0)
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("down", "i")
@@ -76,7 +79,11 @@ async def test_a_manual_tick_is_recorded_with_the_operator(canned_app: Callable[
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("enter", "space")
         ticked = app.store.audit("DRS1")[-1]
-        assert (ticked.operator, ticked.action, ticked.result) == ("EL", "checklist.done", "release-day/apply-24v")
+        assert (ticked.operator, ticked.action, ticked.result) == (
+            "EL",
+            "checklist.done",
+            "release-day/apply-24v",
+        )
 
 
 async def test_history_searches_the_audit_log_and_exports_it(
@@ -97,19 +104,38 @@ async def test_history_searches_the_audit_log_and_exports_it(
         assert len(exported) == 1 and '"waiver"' in exported[0].read_text()
 
 
-async def test_predictions_show_the_ellipse_with_real_probabilities(canned_app: Callable[..., DrsConsole]) -> None:
+async def test_predictions_show_the_ellipse_with_real_probabilities(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
     app = canned_app()
     async with app.run_test(size=(160, 48)) as pilot:
         await pilot.press("p")
         assert isinstance(app.screen, PredictionScreen)
         text = str(app.screen.query_one("#prediction-numbers").render())
         assert "σ∥" in text and "holds 39.3%" in text and "holds 86.5%" in text and "holds 98.9%" in text
-        assert "Release in 10 min" in text
+        assert "Release in 10 min" in text and "from DRS1 GNSS" in text
         drawn = str(app.screen.query_one("#prediction-map").render())
-        assert "X" in drawn and "o" in drawn
+        assert "X" in drawn and "2σ ring" in drawn and any(0x2800 < ord(c) <= 0x28FF for c in drawn)
 
 
-async def test_predictions_export_kml_and_geojson(canned_app: Callable[..., DrsConsole], tmp_path: Path) -> None:
+async def test_a_release_starts_from_the_capsule_fix_else_from_a_fresh_balloon_position(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    app = canned_app()
+    async with app.run_test(size=(160, 48)):
+        assert app.prediction_origin("DRS1").source == "DRS1 GNSS"
+        balloon = {"lat": 67.9, "lon": 21.1, "alt_m": 31000.0, "source": "udp 0.0.0.0:8942"}
+        app.fleet.apply(TelemetryRecord(T0 - timedelta(seconds=5), None, "balloon", balloon))
+        from_feed = app.prediction_origin("DRS2")
+        assert (from_feed.lat, from_feed.lon, from_feed.alt_m) == (67.9, 21.1, 31000.0)
+        assert from_feed.source == "balloon feed (udp 0.0.0.0:8942)"
+        app.fleet.apply(TelemetryRecord(T0 - timedelta(seconds=200), None, "balloon", balloon))
+        assert app.prediction_origin("DRS2") is None, "a stale balloon position must not start a prediction"
+
+
+async def test_predictions_export_kml_and_geojson(
+    canned_app: Callable[..., DrsConsole], tmp_path: Path
+) -> None:
     app = canned_app()
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("p", "e")
@@ -126,7 +152,12 @@ async def test_the_command_palette_offers_every_screen_of_every_capsule(
     async with app.run_test(size=(80, 24)):
         titles = [command.title for command in app.get_system_commands(app.screen)]
         for name in ("DRS1", "DRS2", "DRS3"):
-            assert {f"Release: {name}", f"Predictions: {name}", f"Iridium: {name}", f"Recovery: {name}"} <= set(titles)
+            assert {
+                f"Release: {name}",
+                f"Predictions: {name}",
+                f"Iridium: {name}",
+                f"Recovery: {name}",
+            } <= set(titles)
         assert "History" in titles
 
 
