@@ -23,6 +23,7 @@ from textual.screen import Screen
 from textual.worker import Worker, WorkerState
 
 from console.predictions import PredictionService, ReleaseOrigin
+from drs_link.balloon_feed import BalloonFeed
 from drs_link.checklist import Checklist, ChecklistRun, load_checklists
 from drs_link.errors import LinkError
 from drs_link.fleet import FleetState
@@ -66,7 +67,8 @@ class ConsoleSetup:
     clock: Callable[[], datetime] = utc_now
     operations: Operations | None = None
     predictions: PredictionService | None = None
-    balloon_feed: Callable[[], TelemetryRecord | None] | None = None
+    balloon_feed: BalloonFeed | None = None
+    """The configured ground-station feed of the balloon's position (started and stopped by the caller)."""
     replay_feed: Callable[[], list[TelemetryRecord]] | None = None
     team_position: tuple[float, float] | None = None
     export_dir: Path = Path(".")
@@ -206,7 +208,7 @@ class DrsConsole(App[int]):
 
     def read_balloon(self) -> None:
         assert self.setup.balloon_feed is not None
-        record = self.setup.balloon_feed()
+        record = self.setup.balloon_feed.latest()
         if record is not None:
             self.post_message(TelemetryArrived([record]))
 

@@ -23,6 +23,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "predictor.calibration.calibrate_cli",
     "drs_link.cli",
     "drs_link.iridium.cli",
+    "drs_link.balloon_cli",
     "console.console_cli",
 )
 

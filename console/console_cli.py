@@ -23,6 +23,7 @@ from drs_link.telemetry import TelemetryRecord, TelemetryRecorder, read_recordin
 
 if TYPE_CHECKING:
     from console.app import ConsoleSetup
+    from drs_link.balloon_feed import BalloonFeed
     from predictor import Terrain
 
 NOT_A_TERMINAL = (
@@ -35,13 +36,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     console = subparsers.add_parser("console", help="the operator console (full-screen terminal app)")
     mode = console.add_mutually_exclusive_group()
     mode.add_argument("--demo", action="store_true", help="simulated capsules, gateway, weather and terrain")
-    mode.add_argument("--replay", type=Path, metavar="FILE", help="replay a telemetry recording (no commanding)")
-    console.add_argument("--speed", type=float, default=None, help="demo time scale / replay speed (default 4 / 1)")
-    console.add_argument("--weather", type=Path, nargs="+", metavar="GRIB", help="GFS GRIB2 files for predictions")
-    console.add_argument("--terrain", type=Path, metavar="DIR", help="SRTM tiles / DEM directory for predictions")
+    mode.add_argument(
+        "--replay", type=Path, metavar="FILE", help="replay a telemetry recording (no commanding)"
+    )
+    console.add_argument(
+        "--speed", type=float, default=None, help="demo time scale / replay speed (default 4 / 1)"
+    )
+    console.add_argument(
+        "--weather", type=Path, nargs="+", metavar="GRIB", help="GFS GRIB2 files for predictions"
+    )
+    console.add_argument(
+        "--terrain", type=Path, metavar="DIR", help="SRTM tiles / DEM directory for predictions"
+    )
     console.set_defaults(func=cmd_console)
     demo = subparsers.add_parser("demo", help="the console with everything simulated (= drs console --demo)")
-    demo.add_argument("--speed", type=float, default=None, help="simulated seconds per real second (default 4)")
+    demo.add_argument(
+        "--speed", type=float, default=None, help="simulated seconds per real second (default 4)"
+    )
     demo.set_defaults(func=cmd_demo, demo=True, replay=None, weather=None, terrain=None)
 
 
@@ -60,6 +71,27 @@ def _team(config: Config) -> tuple[float, float] | None:
         return parse_position(text)
     except (LinkError, ValueError) as exc:
         raise ConfigError(f"console.team_position: {exc}") from None
+
+
+def started_balloon_feed(config: Config, clock: Callable[[], datetime]) -> BalloonFeed | None:
+    """The configured ground-station feed, already listening: a port in use stops the start, not a launch."""
+    from drs_link.balloon_feed import BalloonFeed
+
+    if not config.balloon_feed.kind:
+        return None
+    feed = BalloonFeed(config.balloon_feed, clock)
+    feed.start()
+    return feed
+
+
+def run_console(setup: ConsoleSetup) -> int:
+    from console.app import DrsConsole
+
+    try:
+        return DrsConsole(setup).run() or 0
+    finally:
+        if setup.balloon_feed is not None:
+            setup.balloon_feed.stop()
 
 
 def _recorder(config: Config) -> TelemetryRecorder:
@@ -113,7 +145,9 @@ def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None)
     from predictor import Terrain
 
     if not config.capsules:
-        raise ConfigError("no [[capsule]] in the configuration: add one (see docs/console.md) or try `drs demo`")
+        raise ConfigError(
+            "no [[capsule]] in the configuration: add one (see docs/console.md) or try `drs demo`"
+        )
     store = Store.open(config.store_path)
     operations = Operations(config, store, recorder=_recorder(config))
     predictions = None
@@ -125,15 +159,14 @@ def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None)
         predictions = PredictionService(lambda: files, terrain_factory, operations.clock)
     return ConsoleSetup(
         mode="live", capsules=[c.name for c in config.capsules], store=store, operations=operations,
-        predictions=predictions, team_position=_team(config), export_dir=config.data.dir / "exports",
+        predictions=predictions, balloon_feed=started_balloon_feed(config, operations.clock),
+        team_position=_team(config), export_dir=config.data.dir / "exports",
         prediction_period_s=config.console.prediction_period_s,
     )  # fmt: skip
 
 
 def cmd_console(args: argparse.Namespace) -> int:
     _require_terminal()
-    from console.app import DrsConsole
-
     if args.demo:
         return run_demo(args.speed or 4.0)
     config = load_config(args.config)
@@ -141,7 +174,7 @@ def cmd_console(args: argparse.Namespace) -> int:
         setup, _ = replay_setup(args.replay, args.speed or 1.0, config)
     else:
         setup = live_setup(config, args.weather, args.terrain)
-    return DrsConsole(setup).run() or 0
+    return run_console(setup)
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -150,7 +183,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def run_demo(speed: float) -> int:
-    from console.app import ConsoleSetup, DrsConsole
+    from console.app import ConsoleSetup
     from console.demo import DemoWorld
     from console.predictions import PredictionService
     from drs_link.operations import Operations
@@ -169,13 +202,14 @@ def run_demo(speed: float) -> int:
         predictions = PredictionService(lambda: world.weather_files, world.terrain, world.clock)
         setup = ConsoleSetup(
             mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
-            operations=operations, predictions=predictions, balloon_feed=world.balloon_record,
+            operations=operations, predictions=predictions,
+            balloon_feed=started_balloon_feed(config, world.clock),
             team_position=_team(config), export_dir=root / "exports", banner_note=f"×{speed:g} time",
             poll_period_s=min(3.0, max(1.0, 8.0 / speed)),
             prediction_period_s=config.console.prediction_period_s / speed,
             time_scale=speed,
         )  # fmt: skip
-        result = DrsConsole(setup).run() or 0
+        result = run_console(setup)
     finally:
         world.stop()
     print(f"drs demo: session kept in {root}; replay it with: drs console --replay {recorder.path}")

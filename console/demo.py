@@ -14,6 +14,7 @@ import json
 import math
 import random
 import secrets
+import socket
 import threading
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
@@ -22,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from drs_link.balloon_feed import format_ozimux
 from drs_link.config import Config, MoConfig, parse_config
 from drs_link.iridium.firmware import GnssFix
 from drs_link.iridium.reports import ReportStore
@@ -30,14 +32,17 @@ from drs_link.simulator import CapsuleSimulator, GnssSky
 from drs_link.simulator.keys import write_ed25519
 from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock, post_mo
 from drs_link.store import Store
-from drs_link.telemetry import TelemetryRecord
 from predictor import Terrain, load_weather, predict
 from predictor.demo_weather import demo_weather_files
 
 SITE = (67.8887, 21.0856)
 """Esrange, where the simulated capsules' GNSS starts."""
 FLOAT_ALT_M = 31500.0
-CAPSULES = (("DRS1", "300434060000010", 17001), ("DRS2", "300434060000020", 17002), ("DRS3", "300434060000030", 17003))
+CAPSULES = (
+    ("DRS1", "300434060000010", 17001),
+    ("DRS2", "300434060000020", 17002),
+    ("DRS3", "300434060000030", 17003),
+)
 SERVO_A_AFTER_GO_S = 32.0
 WIND_ERROR_MS = 1.2
 GNSS_NOISE_M = 6.0
@@ -45,6 +50,8 @@ REPORT_FOR_S = 6 * 3600.0
 PAYLOAD_FILES = 3
 PAYLOAD_FILE_BYTES = 256 * 1024
 LOOP_S = 0.2
+BALLOON_REPORT_S = 5
+"""How often (simulated seconds) the demo's ground station sends the balloon's position."""
 
 
 def write_demo_terrain(path: Path) -> Path:
@@ -57,7 +64,10 @@ def write_demo_terrain(path: Path) -> Path:
     heights = np.maximum(fells + rolling, 0.0)
     ds = xr.Dataset(
         {"elevation": (("lat", "lon"), heights)},
-        coords={"lat": ("lat", lats, {"units": "degrees_north"}), "lon": ("lon", lons, {"units": "degrees_east"})},
+        coords={
+            "lat": ("lat", lats, {"units": "degrees_north"}),
+            "lon": ("lon", lons, {"units": "degrees_east"}),
+        },
     )
     path.parent.mkdir(parents=True, exist_ok=True)
     ds.to_netcdf(path, engine="scipy")
@@ -67,7 +77,11 @@ def write_demo_terrain(path: Path) -> Path:
 def write_exclusion_zones(path: Path) -> Path:
     def box(name: str, lat0: float, lat1: float, lon0: float, lon1: float) -> dict[str, object]:
         ring = [[lon0, lat0], [lon1, lat0], [lon1, lat1], [lon0, lat1], [lon0, lat0]]
-        return {"type": "Feature", "properties": {"name": name}, "geometry": {"type": "Polygon", "coordinates": [ring]}}
+        return {
+            "type": "Feature",
+            "properties": {"name": name},
+            "geometry": {"type": "Polygon", "coordinates": [ring]},
+        }
 
     document = {
         "type": "FeatureCollection",
@@ -105,7 +119,9 @@ class Descent:
         east = self.error_ms[0] * flying + self.rng.gauss(0.0, GNSS_NOISE_M)
         lat += north / 111_320.0
         lon += east / (111_320.0 * math.cos(math.radians(lat)))
-        speed = 0.0 if elapsed >= self.t_s[-1] else abs(float(np.interp(flying + 1, self.t_s, self.alt_m)) - alt)
+        speed = (
+            0.0 if elapsed >= self.t_s[-1] else abs(float(np.interp(flying + 1, self.t_s, self.alt_m)) - alt)
+        )
         return lat, lon, alt, speed
 
 
@@ -133,6 +149,9 @@ class DemoWorld:
         self._last_step: datetime | None = None
         self._cube = None
         self._terrain: Terrain | None = None
+        self._ground_station = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.ground_station_port = _free_udp_port()
+        """Where the demo's ground station sends the balloon's position (OziMux), as a real one would."""
 
     def clock(self) -> datetime:
         return self.sims[0].clock.now()
@@ -171,6 +190,7 @@ class DemoWorld:
             "operator": {"name": "demo-operator"},
             "data": {"dir": str(data_dir)},
             "rockblock": {"mt_url": self.gateway.url, "username": "drs-demo"},
+            "balloon_feed": {"kind": "udp", "host": "127.0.0.1", "port": self.ground_station_port},
             "console": {
                 "arm_window_s": max(120.0, 10.0 * self.speed), "exclusion_zones_file": str(zones),
                 "team_position": f"{SITE[0] - 0.25:.4f},{SITE[1] + 0.9:.4f}",
@@ -191,9 +211,10 @@ class DemoWorld:
     def terrain(self) -> Terrain:
         return Terrain.from_netcdf(self.terrain_file)
 
-    def balloon_record(self) -> TelemetryRecord:
+    def send_balloon_position(self, now: datetime) -> None:
         lat, lon, alt = self.balloon
-        return TelemetryRecord(self.clock(), None, "balloon", {"lat": lat, "lon": lon, "alt_m": alt})
+        line = format_ozimux(now, lat, lon, alt)
+        self._ground_station.sendto(line.encode("ascii"), ("127.0.0.1", self.ground_station_port))
 
     # The world's own time step ----------------------------------------------------------------
 
@@ -210,7 +231,12 @@ class DemoWorld:
         for axis in (0, 1):
             self.balloon_velocity[axis] += self.rng.gauss(0.0, 0.02 * math.sqrt(max(dt, 0.0)))
         self.balloon[0] += self.balloon_velocity[1] * dt / 111_320.0
-        self.balloon[1] += self.balloon_velocity[0] * dt / (111_320.0 * math.cos(math.radians(self.balloon[0])))
+        self.balloon[1] += (
+            self.balloon_velocity[0] * dt / (111_320.0 * math.cos(math.radians(self.balloon[0])))
+        )
+        previous = now.timestamp() - dt
+        if dt == 0.0 or now.timestamp() // BALLOON_REPORT_S != previous // BALLOON_REPORT_S:
+            self.send_balloon_position(now)
         for sim, (name, imei, _) in zip(self.sims, CAPSULES, strict=True):
             go_at = sim.firmware.go_at
             if go_at is None:
@@ -238,13 +264,18 @@ class DemoWorld:
 
     def _report(self, descent: Descent, now: datetime) -> None:
         assert self.gateway is not None and self.receiver is not None
-        while descent.next_report <= now and (descent.next_report - descent.start).total_seconds() < REPORT_FOR_S:
+        while (
+            descent.next_report <= now
+            and (descent.next_report - descent.start).total_seconds() < REPORT_FOR_S
+        ):
             at = descent.next_report
             lat, lon, alt, speed = descent.position(at)
             fix = GnssFix(at.replace(microsecond=0), lat, lon, alt, speed, 90.0, 0.9, 9)
             capsule = descent.capsule
             capsule.vbat = max(6.0, capsule.vbat - 0.004)
-            delivery = capsule.session(self.gateway, fix, at + timedelta(seconds=15), (lat + 0.01, lon - 0.02, 4.0))
+            delivery = capsule.session(
+                self.gateway, fix, at + timedelta(seconds=15), (lat + 0.01, lon - 0.02, 4.0)
+            )
             post_mo(self.receiver.url, delivery)
             descent.next_report = at + timedelta(minutes=capsule.interval_min)
 
@@ -260,4 +291,10 @@ class DemoWorld:
             sim.stop()
         if self.store is not None:
             self.store.close()
+        self._ground_station.close()
 
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])

@@ -68,6 +68,20 @@ class ConsoleConfig:
 
 
 @dataclass(frozen=True)
+class BalloonFeedConfig:
+    """Where the balloon's position comes from before any capsule's GNSS is on: a ground station on the LAN.
+
+    ``kind`` "" means no feed. ``host``/``port`` are the address a UDP feed listens on or a TCP feed
+    connects to (8942 is OziMux's port); ``path`` is the log a file feed follows.
+    """
+
+    kind: str = ""
+    host: str = "127.0.0.1"
+    port: int = 8942
+    path: Path | None = None
+
+
+@dataclass(frozen=True)
 class CapsuleConfig:
     name: str
     host: str
@@ -100,6 +114,7 @@ class Config:
     rockblock: RockblockConfig = field(default_factory=RockblockConfig)
     mo: MoConfig = field(default_factory=MoConfig)
     console: ConsoleConfig = field(default_factory=ConsoleConfig)
+    balloon_feed: BalloonFeedConfig = field(default_factory=BalloonFeedConfig)
     capsules: tuple[CapsuleConfig, ...] = ()
     source: Path | None = None
 
@@ -194,6 +209,36 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
             raise ConfigError(f"{key}.{name}: must be positive")
 
 
+BALLOON_FEED_KINDS = ("udp", "tcp", "file")
+
+
+def _check_balloon_feed(feed: BalloonFeedConfig, given: set[str], key: str) -> None:
+    """``given`` (the keys written in the file) catches settings that the chosen kind would silently ignore."""
+    kinds = ", ".join(repr(k) for k in BALLOON_FEED_KINDS)
+    if feed.kind == "":
+        if given - {"kind"}:
+            raise ConfigError(
+                f"{key}.kind: required when [{key}] sets {', '.join(sorted(given))} (one of {kinds})"
+            )
+        return
+    if feed.kind not in BALLOON_FEED_KINDS:
+        raise ConfigError(f'{key}.kind: {feed.kind!r} is not one of {kinds} (or "" for no feed)')
+    if feed.kind == "file":
+        if feed.path is None:
+            raise ConfigError(f"{key}.path: a file feed needs the path of the log to follow")
+        for name in ("host", "port"):
+            if name in given:
+                raise ConfigError(f"{key}.{name}: a file feed reads {feed.path}, not the network")
+        return
+    if "path" in given:
+        raise ConfigError(f"{key}.path: only a file feed reads a path (kind is {feed.kind!r})")
+    if not feed.host or any(c.isspace() for c in feed.host):
+        raise ConfigError(f"{key}.host: {feed.host!r} must be a host name or address without spaces")
+    if not 1 <= feed.port <= 65535:
+        protocol = feed.kind.upper()
+        raise ConfigError(f"{key}.port: {feed.port} is not a {protocol} port (1-65535)")
+
+
 def parse_config(document: dict[str, Any], source: Path | None = None) -> Config:
     """Build a ``Config`` from an already-parsed TOML document."""
     sections = {
@@ -202,6 +247,7 @@ def parse_config(document: dict[str, Any], source: Path | None = None) -> Config
         "rockblock": RockblockConfig,
         "mo": MoConfig,
         "console": ConsoleConfig,
+        "balloon_feed": BalloonFeedConfig,
     }
     unknown = sorted(set(document) - set(sections) - {"capsule"})
     if unknown:
@@ -210,6 +256,8 @@ def parse_config(document: dict[str, Any], source: Path | None = None) -> Config
     kwargs: dict[str, Any] = {
         name: _build(cls, document[name], name) for name, cls in sections.items() if name in document
     }
+    if "balloon_feed" in kwargs:
+        _check_balloon_feed(kwargs["balloon_feed"], set(document["balloon_feed"]), "balloon_feed")
     raw_capsules = document.get("capsule", [])
     if not isinstance(raw_capsules, list):
         raise ConfigError("capsule: write each capsule as a [[capsule]] table")

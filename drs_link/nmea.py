@@ -336,6 +336,18 @@ def _fix_datetime(moment: time | None, day: date | None, now: datetime) -> datet
     return candidate
 
 
+def nearest_datetime(moment: time, now: datetime) -> datetime:
+    """A UTC time of day (GGA and the ground-station formats carry no date) as the instant nearest ``now``.
+
+    A live feed's clock and ours disagree by seconds, so around midnight a fix may fall on either side
+    of the date change: yesterday, today and tomorrow are all candidates.
+    """
+    naive = moment.replace(tzinfo=None)
+    today = datetime.combine(now.astimezone(UTC).date(), naive, tzinfo=UTC)
+    candidates = (today + timedelta(days=days) for days in (-1, 0, 1))
+    return min(candidates, key=lambda candidate: abs(candidate - now))
+
+
 def format_gga(
     moment: datetime,
     latitude: float | None,

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from console.app import ConsoleSetup, DrsConsole
-from console.console_cli import _team
+from console.console_cli import _team, started_balloon_feed
 from console.demo import DemoWorld, write_demo_terrain
 from console.predictions import PredictionService, ReleaseOrigin
 from drs_link.config import Config, parse_config
@@ -32,18 +32,22 @@ def demo(tmp_path: Path) -> Iterator[tuple[DemoWorld, DrsConsole]]:
     """The whole demo, as ``drs demo`` wires it, with its world running ``DEMO_SPEED`` times faster."""
     world = DemoWorld(tmp_path / "demo", DEMO_SPEED)
     config = world.start()
+    feed = None
     try:
+        feed = started_balloon_feed(config, world.clock)
         store = Store.open(config.store_path)
         operations = Operations(config, store, clock=world.clock, environ=world.environ)
         predictions = PredictionService(lambda: world.weather_files, world.terrain, world.clock)
         setup = ConsoleSetup(
             mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
-            operations=operations, predictions=predictions, balloon_feed=world.balloon_record,
+            operations=operations, predictions=predictions, balloon_feed=feed,
             team_position=_team(config), export_dir=tmp_path / "exports", poll_period_s=0.5,
             prediction_period_s=2.0, time_scale=DEMO_SPEED,
         )  # fmt: skip
         yield world, DrsConsole(setup)
     finally:
+        if feed is not None:
+            feed.stop()
         world.stop()
 
 
