@@ -1,4 +1,4 @@
-"""The fleet view: one row per capsule, every value with its age, stale values marked in words."""
+"""The fleet view: a status table that fits the terminal, and every field of the highlighted capsule below it."""
 
 from __future__ import annotations
 
@@ -7,7 +7,9 @@ from textual.binding import Binding
 from textual.widgets import DataTable, Static
 
 from console.screens.base import ConsoleScreen
-from console.widgets.cells import COLUMNS
+from console.widgets.capsule_detail import CapsuleDetail
+from console.widgets.cells import balloon_lines
+from console.widgets.fleet_table import FleetTable
 
 
 class FleetScreen(ConsoleScreen):
@@ -21,37 +23,41 @@ class FleetScreen(ConsoleScreen):
 
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
-        yield DataTable(id="fleet", cursor_type="row", zebra_stripes=True)
+        yield FleetTable(self.console.setup.capsules, id="fleet")
+        yield CapsuleDetail(id="fleet-detail")
         yield Static(id="balloon", markup=False)
         yield from self.compose_footer()
 
     def on_mount(self) -> None:
         self.ready = True
-        table = self.query_one("#fleet", DataTable)
-        for title, _, width in COLUMNS:
-            table.add_column(title, key=title, width=width)
-        for name in self.console.setup.capsules:
-            table.add_row(name, *["—"] * (len(COLUMNS) - 1), key=name)
-        table.focus()
+        self.query_one("#fleet", FleetTable).focus()
+        self.watch(self.app, "theme", self._theme_changed, init=False)
         self.refresh_view()
+
+    def _theme_changed(self) -> None:
+        """Cells carry colours resolved from the stylesheet: redraw them once the new theme applies."""
+        self.call_after_refresh(self.refresh_view)
 
     def update_view(self) -> None:
         app = self.console
         now = app.now()
-        table = self.query_one("#fleet", DataTable)
-        for name in app.setup.capsules:
-            telemetry = app.fleet.capsules[name]
-            for title, render, _ in COLUMNS[1:]:
-                table.update_cell(name, title, render(telemetry, now))
-        balloon = app.fleet.balloon
-        text = "Balloon: " + balloon.label(
-            now, lambda v: f"{v['lat']:.4f}, {v['lon']:.4f} at {v['alt_m'] / 1000:.1f} km"
-        )
-        self.query_one("#balloon", Static).update(text)
+        self.query_one("#fleet", FleetTable).show(app.fleet.capsules, now)
+        self.show_detail()
+        feed = app.setup.balloon_feed
+        lines = balloon_lines(app.fleet.balloon, feed.status() if feed else None, now)
+        self.query_one("#balloon", Static).update("\n".join(lines))
+
+    def show_detail(self) -> None:
+        telemetry = self.console.fleet.capsules[self.selected()]
+        self.query_one("#fleet-detail", CapsuleDetail).show(telemetry, self.console.now())
 
     def selected(self) -> str:
-        table = self.query_one("#fleet", DataTable)
+        table = self.query_one("#fleet", FleetTable)
         return self.console.setup.capsules[max(0, table.cursor_row)]
+
+    def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
+        if self.ready:
+            self.show_detail()
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
         self.action_release()

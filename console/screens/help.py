@@ -12,8 +12,10 @@ HELP = """\
 
 **Everywhere**: `?`/`F1` help · `Ctrl+P` command palette · `t` dark/light theme · `q` quit · `Esc` back
 
-**Fleet** (one row per capsule; ⌛STALE marks a value older than twice its period):
-`Enter`/`r` release · `p` predictions · `i` Iridium · `v` recovery · `h` history
+**Fleet** (a row per capsule with the columns that fit; the highlighted capsule in full words below;
+⌛ marks a value older than twice its period, and the words say STALE; the balloon's position and
+its feed's health at the bottom):
+`↑`/`↓` choose · `Enter`/`r` release · `p` predictions · `i` Iridium · `v` recovery · `h` history
 
 **Release**: `[` `]` switch checklist · `Space` tick a manual step · `x` skip (reason) ·
 `o` power on (confirm; cannot be undone by software) · `s` sync data · `w` waive the selected

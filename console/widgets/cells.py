@@ -1,117 +1,368 @@
-"""How one capsule's telemetry reads in a table cell: value, age, and STALE in words when it is old.
+"""How one capsule's telemetry reads: a short form for a table cell and a long form in full words.
 
-Kept apart from the widgets so that every screen words a value the same way; the cells are Rich
-``Text`` with a style class (ok/warn/bad/stale), but the words alone carry the meaning.
+Both forms of a field live side by side here, so every screen words a value the same way and a
+table cell and the detail pane can never disagree. Every form carries its age; a stale one starts
+with ``STALE_GLYPH`` (the detail also says STALE), because colour alone is lost on colour-blind
+operators and monochrome terminals. A form is plain text plus a level (ok, warn, bad, stale,
+none); the colour of a level is the stylesheet's business (``level--*`` component classes).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from datetime import datetime
-from typing import Any
+from typing import Any, Literal
 
+from rich.cells import cell_len
 from rich.text import Text
+from textual.widget import Widget
 
+from drs_link.balloon_feed import FeedStatus
 from drs_link.fleet import CapsuleTelemetry
-from drs_link.staleness import STALE_GLYPH, Freshness, Reading, format_age
+from drs_link.staleness import MISSING_TEXT, STALE_GLYPH, Freshness, Reading, format_age
 
-STYLE = {"ok": "green", "warn": "yellow", "bad": "bold red", "stale": "magenta", "none": "dim"}
-
-
-def _cell(reading: Reading[dict[str, Any]], now: datetime, text: str, level: str) -> Text:
-    state = reading.freshness(now)
-    if state is Freshness.MISSING:
-        return Text("—", style=STYLE["none"])
-    age = format_age(reading.age_s(now) or 0.0)
-    if state is Freshness.STALE:
-        return Text(f"{STALE_GLYPH}STALE {text} {age}", style=STYLE["stale"])
-    return Text(f"{text} {age}", style=STYLE[level])
+Level = Literal["ok", "warn", "bad", "stale", "none"]
+LEVEL_CLASSES = frozenset({"level--ok", "level--warn", "level--bad", "level--stale", "level--none"})
+"""Component classes a widget declares to colour cells by level (styled in console.tcss)."""
+AGE_WIDTH = 4
+"""Widest short age ("59s", "23h", "999d", "-59m"); field widths budget for it."""
+Value = dict[str, Any]
 
 
-def link_cell(t: CapsuleTelemetry, now: datetime) -> Text:
-    reading = t.reading("link")
-    up = reading.value.get("up") if reading.value else None
-    return _cell(reading, now, "UP" if up else "DOWN", "ok" if up else "bad")
+@dataclass(frozen=True)
+class Cell:
+    """Words that carry the whole meaning, and a level that only decides their colour."""
+
+    text: str
+    level: Level
+
+    def styled(self, widget: Widget) -> Text:
+        """The text coloured by the widget's ``level--*`` rule, so the theme decides the colour."""
+        return Text(self.text, style=widget.get_component_rich_style(f"level--{self.level}", partial=True))
 
 
-def release_cell(t: CapsuleTelemetry, now: datetime) -> Text:
-    reading = t.reading("release")
-    state = reading.value.get("state", "?") if reading.value else "?"
-    level = {"idle": "none", "powered": "warn", "released": "ok"}.get(state, "warn")
-    text = state.upper()
+def short_age(seconds: float) -> str:
+    """The age in its largest whole unit, at most four characters where a cell has little room."""
+    sign = "-" if seconds < 0 else ""
+    whole = int(abs(seconds))
+    for unit, size in (("d", 86400), ("h", 3600), ("m", 60)):
+        if whole >= size:
+            return f"{sign}{whole // size}{unit}"
+    return f"{sign}{whole}s"
+
+
+def long_age(seconds: float) -> str:
+    """The age in words; a negative one means a clock is wrong, which the operator should hear about."""
+    return f"{format_age(seconds)} ago" if seconds >= 0 else "timestamped in the future (clock skew?)"
+
+
+def _compact(x: float) -> str:
+    """At most three characters for 0–999: one decimal below 10 (after rounding), whole above."""
+    return f"{x:.1f}" if round(x, 1) < 10 else f"{x:.0f}"
+
+
+def _gb(n: float) -> str:
+    gb = n / 1e9
+    return f"{_compact(gb)}G" if round(gb) < 1000 else f"{_compact(gb / 1000)}T"
+
+
+def _bytes(n: float) -> str:
+    for unit, size, digits in (("GB", 1e9, 1), ("MB", 1e6, 1), ("kB", 1e3, 0)):
+        if n >= size:
+            return f"{n / size:.{digits}f} {unit}"
+    return f"{n:.0f} B"
+
+
+def _km(metres: float) -> str:
+    return f"{_compact(metres / 1000)}km"
+
+
+# Link -------------------------------------------------------------------------------------------
+
+
+def _link_short(v: Value) -> str:
+    return "UP" if v.get("up") else "DOWN"
+
+
+def _link_long(v: Value) -> str:
+    words = "up" if v.get("up") else "down"
+    return f"{words} ({v['note']})" if v.get("note") else words
+
+
+def _link_level(v: Value) -> Level:
+    return "ok" if v.get("up") else "bad"
+
+
+# Release ----------------------------------------------------------------------------------------
+
+_RELEASE_SHORT = {"idle": "IDLE", "go-sent-unverified": "GO SENT?", "released": "RELEASED"}
+_RELEASE_LONG = {
+    "idle": "idle, not powered",
+    "go-sent-unverified": "Go sent, release not yet confirmed",
+    "released": "released",
+}
+
+
+def _release_short(v: Value) -> str:
+    state = str(v.get("state", "?"))
     if state == "powered":
-        text += " NMEA" if reading.value and reading.value.get("nmea_seen") else " no-NMEA"
-    return _cell(reading, now, text, "ok" if level == "none" else level)
+        return "PWR NMEA" if v.get("nmea_seen") else "PWR noNMEA"
+    return _RELEASE_SHORT.get(state, state.upper()[:10])
 
 
-def gnss_cell(t: CapsuleTelemetry, now: datetime) -> Text:
-    reading = t.reading("gnss")
-    v = reading.value or {}
+def _release_long(v: Value) -> str:
+    state = str(v.get("state", "?"))
+    if state == "powered":
+        if v.get("nmea_seen"):
+            return "powered, NMEA arriving from the microcontroller"
+        return "powered, no NMEA from the microcontroller yet"
+    return v.get("note") or _RELEASE_LONG.get(state, f"state {state!r}")
+
+
+def _release_level(v: Value) -> Level:
+    return "ok" if v.get("state") in ("idle", "released") else "warn"
+
+
+# GNSS -------------------------------------------------------------------------------------------
+
+
+def _hdop_short(hdop: float | None) -> str:
+    return "" if hdop is None else f" H{_compact(min(hdop, 99))}"
+
+
+def _gnss_short(v: Value) -> str:
+    sats = v.get("sats")
+    sv = f"{sats}sv" if sats is not None else "?sv"
     if v.get("has_fix"):
-        hdop = v.get("hdop")
-        text = f"FIX {v.get('sats')}sv H{hdop:.1f}" if hdop is not None else f"FIX {v.get('sats')}sv"
-        return _cell(reading, now, text, "ok")
-    return _cell(reading, now, f"NO FIX {v.get('sats') or 0}sv", "bad")
+        return sv + _hdop_short(v.get("hdop"))
+    return f"NOFIX {sv}"
 
 
-def storage_cell(t: CapsuleTelemetry, now: datetime) -> Text:
-    reading = t.reading("storage")
-    v = reading.value or {}
+def _gnss_long(v: Value) -> str:
+    sats = v.get("sats")
+    words = [v.get("quality") or ("fix" if v.get("has_fix") else "no fix")]
+    words.append(f"{sats} satellites" if sats is not None else "satellites unknown")
+    if v.get("hdop") is not None:
+        words.append(f"HDOP {v['hdop']:.1f}")
+    if v.get("has_fix") and v.get("lat") is not None and v.get("lon") is not None:
+        where = f"{v['lat']:.4f} {v['lon']:.4f}"
+        if v.get("alt_m") is not None:
+            where += f" {v['alt_m'] / 1000:.1f} km"
+        words.append(where)
+    if v.get("fix_age_s") is not None:
+        words.append(f"fix {format_age(v['fix_age_s'])} old")
+    return ", ".join(words)
+
+
+def _gnss_level(v: Value) -> Level:
+    return "ok" if v.get("has_fix") else "bad"
+
+
+# Storage ----------------------------------------------------------------------------------------
+
+
+def _free(v: Value) -> float | None:
     total, used = v.get("total_bytes"), v.get("used_bytes")
-    raid = str(v.get("raid", "?"))
-    if total:
-        free_gb = (total - used) / 1e9
-        text = f"{used / 1e9:.1f}/{total / 1e9:.0f}GB {free_gb:.0f}free {raid}"
-    else:
-        text = f"? {raid}"
-    return _cell(reading, now, text, "ok" if raid == "healthy" else "bad")
+    return None if not total or used is None else total - used
 
 
-def sync_cell(t: CapsuleTelemetry, now: datetime) -> Text:
-    reading = t.reading("sync")
-    v = reading.value or {}
+def _storage_short(v: Value) -> str:
+    free = _free(v)
+    space = _gb(free) if free is not None else "?"
+    raid = v.get("raid")
+    if raid == "healthy":
+        return f"{space} free"
+    return f"RAID{'!' if raid in ('degraded', 'inactive') else '?'} {space}"
+
+
+def _storage_long(v: Value) -> str:
+    free = _free(v)
+    raid = f"RAID {v.get('raid') or 'unknown'}"
+    if free is None:
+        return f"usage unknown, {raid}"
+    return f"{v['used_bytes'] / 1e9:.1f} of {v['total_bytes'] / 1e9:.0f} GB used, {free / 1e9:.0f} GB free, {raid}"
+
+
+def _storage_level(v: Value) -> Level:
+    return "ok" if v.get("raid") == "healthy" else "bad"
+
+
+# Sync -------------------------------------------------------------------------------------------
+
+
+def _percent(fraction: float) -> str:
+    """Whole percent, rounded down: 99.9% synced must not read as 100%."""
+    return f"{int(min(max(fraction, 0.0), 1.0) * 100)}%"
+
+
+def _sync_short(v: Value) -> str:
     fraction = v.get("fraction")
+    return "?%" if fraction is None else _percent(fraction)
+
+
+def _sync_long(v: Value) -> str:
+    fraction = v.get("fraction")
+    pending = v.get("bytes_pending") or 0
     if fraction is None:
-        return _cell(reading, now, "?", "warn")
-    text = f"{fraction * 100:.0f}%"
-    if v.get("bytes_pending"):
-        text += f" {v['bytes_pending'] / 1e6:.1f}MB left"
-    return _cell(reading, now, text, "ok" if fraction >= 1.0 else "warn")
+        return "progress unknown"
+    if fraction >= 1.0 and not pending:
+        return "complete, nothing pending"
+    files = v.get("files_pending")
+    in_files = f" in {files} file{'s' if files != 1 else ''}" if files else ""
+    return f"{_percent(fraction)} synced, {_bytes(pending)}{in_files} pending"
 
 
-def report_cell(t: CapsuleTelemetry, now: datetime) -> Text:
-    reading = t.reading("report")
-    v = reading.value or {}
-    if not v:
-        return Text("—", style=STYLE["none"])
+def _sync_level(v: Value) -> Level:
+    fraction = v.get("fraction")
+    return "ok" if fraction is not None and fraction >= 1.0 else "warn"
+
+
+# Battery and last Iridium report ----------------------------------------------------------------
+
+
+def _report_short(v: Value) -> str:
     vbat = v.get("vbat")
-    alt = v.get("alt_m")
-    text = f"{vbat:.2f}V" if vbat is not None else "?V"
-    text += f" {alt / 1000:.1f}km" if alt is not None else " no-fix"
+    volts = f"{vbat:.1f}V" if vbat is not None else "?V"
     if v.get("landed"):
-        text += " LANDED"
-    return _cell(reading, now, text, "bad" if vbat is not None and vbat < 6.5 else "ok")
+        return f"{volts} landed"
+    alt = v.get("alt_m")
+    return f"{volts} {_km(alt) if alt is not None else 'nofix'}"
 
 
-def prediction_cell(t: CapsuleTelemetry, now: datetime) -> Text:
-    reading = t.reading("prediction")
-    v = reading.value or {}
-    if not v:
-        return Text("—", style=STYLE["none"])
-    text = (
-        f"{v['landing_lat']:.3f},{v['landing_lon']:.3f} "
-        f"σ∥{v['sigma_par_km']:.1f} σ⊥{v['sigma_perp_km']:.1f}km d{v['distance_km']:.0f}km"
-    )
-    return _cell(reading, now, text, "ok")
+def _report_long(v: Value) -> str:
+    vbat = v.get("vbat")
+    words = [f"{vbat:.2f} V" if vbat is not None else "battery unknown"]
+    alt = v.get("alt_m")
+    words.append(f"{alt / 1000:.1f} km" if alt is not None else "no GNSS fix")
+    if v.get("landed"):
+        words.append("landed")
+    if v.get("lat") is not None and v.get("lon") is not None:
+        where = f"at {v['lat']:.4f} {v['lon']:.4f}"
+        if v.get("uncertainty_m") is not None:
+            where += f" ±{v['uncertainty_m']:.0f} m"
+        if v.get("position_source"):
+            where += f" ({v['position_source']})"
+        words.append(where)
+    if v.get("momsn") is not None:
+        words.append(f"MO #{v['momsn']}")
+    if v.get("interval_min"):
+        words.append(f"every {v['interval_min']} min")
+    return ", ".join(words)
 
 
-COLUMNS = (
-    ("Capsule", None, 8),
-    ("Link", link_cell, 12),
-    ("Release", release_cell, 20),
-    ("GNSS", gnss_cell, 22),
-    ("Storage", storage_cell, 30),
-    ("Sync", sync_cell, 20),
-    ("Battery/last MO", report_cell, 26),
-    ("Prediction (landing, 1σ, dist)", prediction_cell, 50),
+def _report_level(v: Value) -> Level:
+    vbat = v.get("vbat")
+    return "bad" if vbat is not None and vbat < 6.5 else "ok"
+
+
+# Prediction -------------------------------------------------------------------------------------
+
+
+def _prediction_short(v: Value) -> str:
+    sigma = max(v["sigma_par_km"], v["sigma_perp_km"])
+    return f"{min(v['distance_km'], 999):.0f}km σ{_compact(min(sigma, 999))}"
+
+
+def _prediction_long(v: Value) -> str:
+    where = f"landing {v['landing_lat']:.3f}, {v['landing_lon']:.3f}, {v['distance_km']:.1f} km"
+    if v.get("bearing_deg") is not None:
+        where += f" at {v['bearing_deg']:.0f}°"
+    origin = f" ({v['origin_source']})" if v.get("origin_source") else ""
+    return f"{where} from release{origin}, σ∥ {v['sigma_par_km']:.2f} σ⊥ {v['sigma_perp_km']:.2f} km"
+
+
+def _always_ok(v: Value) -> Level:
+    """A prediction has no good or bad value of its own: only its age matters here."""
+    return "ok"
+
+
+# The table of fields ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Field:
+    """One kind of telemetry as a column title, a detail label, and its short and long wording."""
+
+    kind: str
+    title: str
+    label: str
+    short_width: int
+    """Widest short text without glyph or age (cells are fixed-width so a growing age never crops)."""
+    short: Callable[[Value], str]
+    long: Callable[[Value], str]
+    level: Callable[[Value], Level]
+
+    @property
+    def width(self) -> int:
+        """Cells a column needs: the widest stale short form, or the title if that is wider."""
+        return max(cell_len(self.title), cell_len(STALE_GLYPH) + self.short_width + 1 + AGE_WIDTH)
+
+    def _described(self, value: Value, form: Callable[[Value], str]) -> tuple[str, str, Level]:
+        """(text, error, level): telemetry of the wrong shape is named, never a crash of the view."""
+        try:
+            return form(value), "", self.level(value)
+        except (TypeError, ValueError, KeyError, AttributeError) as exc:
+            return "", f"unreadable {self.kind} data ({type(exc).__name__}: {exc})", "bad"
+
+    def cell(self, t: CapsuleTelemetry, now: datetime) -> Cell:
+        """The short form for a table cell: value and age, glyph first when stale, "—" when missing."""
+        reading = t.reading(self.kind)
+        state = reading.freshness(now)
+        if state is Freshness.MISSING:
+            return Cell(MISSING_TEXT, "none")
+        text, error, level = self._described(reading.value or {}, self.short)
+        text = f"{text or 'BAD DATA'} {short_age(reading.age_s(now) or 0.0)}"
+        if state is Freshness.STALE:
+            return Cell(f"{STALE_GLYPH}{text}", "bad" if error else "stale")
+        return Cell(text, "bad" if error else level)
+
+    def line(self, t: CapsuleTelemetry, now: datetime) -> Cell:
+        """The long form for the detail pane: every part in words, its age, and STALE in words."""
+        reading = t.reading(self.kind)
+        state = reading.freshness(now)
+        if state is Freshness.MISSING:
+            return Cell(f"{MISSING_TEXT} nothing received yet", "none")
+        text, error, level = self._described(reading.value or {}, self.long)
+        age = long_age(reading.age_s(now) or 0.0)
+        if state is Freshness.STALE:
+            return Cell(f"{error or text} — {STALE_GLYPH}STALE {age}", "bad" if error else "stale")
+        return Cell(f"{error or text} — {age}", "bad" if error else level)
+
+
+FIELDS: tuple[Field, ...] = (
+    Field("link", "Link", "Link", 4, _link_short, _link_long, _link_level),
+    Field("release", "Release", "Release", 10, _release_short, _release_long, _release_level),
+    Field("gnss", "GNSS", "GNSS", 10, _gnss_short, _gnss_long, _gnss_level),
+    Field("storage", "Storage", "Storage", 10, _storage_short, _storage_long, _storage_level),
+    Field("sync", "Sync", "Sync", 4, _sync_short, _sync_long, _sync_level),
+    Field("report", "Battery/last MO", "Battery/MO", 12, _report_short, _report_long, _report_level),
+    Field("prediction", "Prediction", "Prediction", 10, _prediction_short, _prediction_long, _always_ok),
 )
-"""Title, cell renderer and width of each fleet column (ages widen a cell, hence the room)."""
+"""Every field of a capsule, in the fleet table's priority order (the first ones stay at 80 columns)."""
+
+
+def balloon_lines(reading: Reading[Value], feed: FeedStatus | None, now: datetime) -> list[str]:
+    """The balloon's position with its age and source, then the feed's health when one is configured.
+
+    A feed that rejects lines or cannot connect says so here, in words, so nobody trusts a silent gap.
+    """
+
+    def position(v: Value) -> str:
+        via = f" ({v['format']} via {v['source']})" if v.get("source") else ""
+        return f"{v['lat']:.4f}, {v['lon']:.4f} at {v['alt_m'] / 1000:.1f} km{via}"
+
+    lines = ["Balloon: " + reading.label(now, position)]
+    if feed is None:
+        if reading.value is None:
+            lines[0] += " (no [balloon_feed] configured: predictions wait for a capsule's own GNSS)"
+        return lines
+    health = f"Feed {feed.source} {feed.state}: {feed.accepted} fixes"
+    if feed.rejected:
+        health += f", {feed.rejected} rejected (last: {feed.last_rejection})"
+    if feed.out_of_order:
+        health += f", {feed.out_of_order} out of order"
+    if feed.last_error:
+        health += f"; {feed.last_error}"
+    return [*lines, health]
+

@@ -26,6 +26,10 @@ async def test_the_demo_balloon_arrives_over_udp_and_starts_predictions_before_p
         assert feed is not None
         status = feed.status()
         assert status.accepted >= 1 and status.rejected == 0
+        await wait_for(pilot, lambda: "fixes" in str(app.screen.query_one("#balloon").render()))
+        shown = str(app.screen.query_one("#balloon").render())
+        assert f"(ozimux via udp 127.0.0.1:{world.ground_station_port})" in shown
+        assert f"Feed udp 127.0.0.1:{world.ground_station_port} listening:" in shown
         assert app.fleet.capsules["DRS2"].reading("gnss").value is None, (
             "DRS2 is not powered: no GNSS of its own"
         )

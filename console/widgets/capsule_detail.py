@@ -1,0 +1,30 @@
+"""Everything known about one capsule in full words, one field a line: what the narrow table leaves out.
+
+The fleet table shows short forms and only the columns that fit; this pane shows every field of
+the highlighted capsule, each with its age and STALE spelled out, so nothing is hidden at 80×24.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+
+from rich.table import Table
+from textual.widgets import Static
+
+from console.widgets.cells import FIELDS, LEVEL_CLASSES
+from drs_link.fleet import CapsuleTelemetry
+
+
+class CapsuleDetail(Static):
+    COMPONENT_CLASSES = LEVEL_CLASSES | {"capsule-detail--label"}
+
+    def show(self, telemetry: CapsuleTelemetry, now: datetime) -> None:
+        """A label column and a wrapping value column, so a long line wraps under its value."""
+        self.border_title = telemetry.name
+        grid = Table.grid(padding=(0, 1), expand=True)
+        label = self.get_component_rich_style("capsule-detail--label", partial=True)
+        grid.add_column(no_wrap=True, style=label)
+        grid.add_column(ratio=1, overflow="fold")
+        for field in FIELDS:
+            grid.add_row(field.label, field.line(telemetry, now).styled(self))
+        self.update(grid)
