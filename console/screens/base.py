@@ -27,7 +27,7 @@ class ConsoleScreen(Screen[None]):
         yield ModeBanner(id="banner", markup=False)
 
     def compose_footer(self) -> ComposeResult:
-        yield Footer()
+        yield Footer(compact=True)
 
     def refresh_view(self) -> None:
         if not self.ready:

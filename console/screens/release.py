@@ -7,6 +7,8 @@ arming controller re-checks everything when the worker calls ``fire``.
 
 from __future__ import annotations
 
+from typing import Any
+
 from rich.text import Text
 from textual import work
 from textual.app import ComposeResult
@@ -39,9 +41,13 @@ STATE_GLYPH = {
     StepState.PENDING: "· pending",
 }
 VERDICT_GLYPH = {Verdict.GO: "✔ GO", Verdict.NO_GO: "✘ NO-GO", Verdict.WAIVED: "⚑ WAIVED"}
+GONOGO_WIDTHS = (9, 26)
+"""Verdict and item columns; the detail takes the rest of the width and wraps, so no reason is cut."""
 
 
 class ReleaseScreen(ConsoleScreen):
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (120, "-wide")]
+    """Below 120 columns the checklist and the go/no-go stack, so neither loses its words."""
     BINDINGS = [
         Binding("a", "arm", "ARM"),
         Binding("f", "fire", "FIRE"),
@@ -61,6 +67,8 @@ class ReleaseScreen(ConsoleScreen):
         super().__init__()
         self.capsule = capsule
         self.checklist_index = 0
+        self.step_texts: dict[str, str] = {}
+        self.detail_width = 0
 
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
@@ -68,9 +76,10 @@ class ReleaseScreen(ConsoleScreen):
             with Vertical(id="checklist-pane"):
                 yield Label(id="checklist-title", classes="pane-title", markup=False)
                 yield DataTable(id="checklist", cursor_type="row")
+                yield Static(id="step-detail", markup=False)
             with Vertical(id="gonogo-pane"):
                 yield Static(id="arm-status", markup=False)
-                yield Label(f"Go/no-go: {self.capsule}", classes="pane-title", markup=False)
+                yield Label(f"Go/no-go: {self.capsule}", id="gonogo-title", classes="pane-title", markup=False)
                 yield DataTable(id="gonogo", cursor_type="row")
         yield from self.compose_footer()
 
@@ -78,8 +87,6 @@ class ReleaseScreen(ConsoleScreen):
         self.ready = True
         checklist = self.query_one("#checklist", DataTable)
         checklist.add_columns("State", "Step", "By / when")
-        gonogo = self.query_one("#gonogo", DataTable)
-        gonogo.add_columns("Verdict", "Item", "Detail")
         ids = [c.id for c in self.console.checklists]
         self.checklist_index = ids.index("release-day") if "release-day" in ids else 0
         checklist.focus()
@@ -101,6 +108,7 @@ class ReleaseScreen(ConsoleScreen):
         table = self.query_one("#checklist", DataTable)
         row = table.cursor_row
         table.clear()
+        self.step_texts.clear()
         facts = app.fleet.capsules[self.capsule].facts(now)
         for status in app.checklist_run(self.capsule, checklist).statuses(facts):
             who = f"{status.operator} {status.at:%H:%M:%S}Z" if status.operator and status.at else ""
@@ -108,18 +116,42 @@ class ReleaseScreen(ConsoleScreen):
             table.add_row(
                 Text(STATE_GLYPH[status.state]), Text(f"{kind}{status.step.text}"), who, key=status.step.id
             )
+            self.step_texts[status.step.id] = f"▸ {kind}{status.step.text}" + (f" — {who}" if who else "")
         if table.row_count:
             table.move_cursor(row=min(row, table.row_count - 1))
+        self.show_step_detail()
         report = app.gonogo(self.capsule)
         gonogo = self.query_one("#gonogo", DataTable)
         grow = gonogo.cursor_row
+        self.fit_gonogo_columns(gonogo)
         gonogo.clear()
         for item in report.items:
-            gonogo.add_row(Text(VERDICT_GLYPH[item.verdict]), item.title, Text(item.detail), key=item.key)
+            gonogo.add_row(
+                Text(VERDICT_GLYPH[item.verdict]), item.title, Text(item.detail), key=item.key, height=None
+            )
         if gonogo.row_count:
             gonogo.move_cursor(row=min(grow, gonogo.row_count - 1))
         self.query_one("#arm-status", Static).update(self.arm_text(report.go))
         self.refresh_bindings()
+
+    def fit_gonogo_columns(self, gonogo: DataTable[Any]) -> None:
+        """Give the detail column the width that is left, so its words wrap instead of scrolling away."""
+        padding = 2 * gonogo.cell_padding * 3
+        width = max(20, gonogo.scrollable_content_region.width - sum(GONOGO_WIDTHS) - padding)
+        if width == self.detail_width:
+            return
+        self.detail_width = width
+        gonogo.clear(columns=True)
+        for title, column_width in zip(("Verdict", "Item", "Detail"), (*GONOGO_WIDTHS, width), strict=True):
+            gonogo.add_column(title, width=column_width)
+
+    def show_step_detail(self) -> None:
+        step = self._selected_step()
+        self.query_one("#step-detail", Static).update(self.step_texts.get(step, "") if step else "")
+
+    def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
+        if self.ready and event.data_table.id == "checklist":
+            self.show_step_detail()
 
     def arm_text(self, go: bool) -> str:
         if not self.console.commanding:
