@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench venv
+.PHONY: demo test lint bench venv screenshots
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,3 +27,6 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/drs predict bench
+
+screenshots: $(STAMP)
+	$(BIN)/python tools/screenshots.py

@@ -28,7 +28,8 @@ go/no-go item (GNSS or sync only; logged) · `a` ARM (only on GO; opens a countd
 **Iridium**: `n` INTERVAL · `o`/`O` sounder off/on · `c` parachute (helper picks HH:MM) ·
 `R` refresh
 
-**Recovery**: `e` export GPX + KML
+**Recovery**: `e` export GPX + KML · `n` INTERVAL · `o`/`O` sounder off/on · `c`/`C` parachute
+(the same confirmations as on the Iridium screen; sounder and parachute cannot be confirmed by telemetry)
 
 **History**: type to search · `e` export JSONL
 

@@ -4,8 +4,10 @@ While it is still descending (fixes arriving, no landing detected) it also shows
 re-prediction from the latest fix (``predictor.live``, computed in the same worker that reads the
 reports), so the team drives towards where it is going now, not where it was predicted at release.
 
-The sounder, the interval and the parachute are Iridium commands: ``i`` opens that screen with
-its confirmations; this one only reads (in a worker) and exports.
+The team also needs, on this one screen, what the sounder, the report interval and the parachute
+release were commanded to and how far each command got (``drs_link.iridium.commanded``: the unit
+reports none of them, so the screen says what is known and no more), and to command them from
+here with the Iridium screen's own confirmation flow (``console.screens.commanding``).
 """
 
 from __future__ import annotations
@@ -15,14 +17,16 @@ import time
 from datetime import datetime
 from typing import Any
 
+from rich.text import Text
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
 from textual.widgets import Static
 
-from console.screens.base import ConsoleScreen
+from console.screens.commanding import CommandingScreen, command_bindings
 from console.widgets.landing_map import LandingMap, MapLayers
+from drs_link.iridium.commanded import CommandedSettings, commanded_settings
 from drs_link.iridium.recovery import (
     LandingEstimate,
     TrackPoint,
@@ -39,11 +43,12 @@ from predictor.errors import PredictorError
 RELOAD_S = 2.0
 
 
-class RecoveryScreen(ConsoleScreen):
+class RecoveryScreen(CommandingScreen):
     BINDINGS = [
-        Binding("escape", "app.pop_screen", "Back"),
-        Binding("i", "iridium", "Iridium cmds"),
-        Binding("e", "export", "Export GPX/KML"),
+        Binding("escape", "app.pop_screen", "Back", show=False),
+        Binding("i", "iridium", "Iridium"),
+        Binding("e", "export", "Export"),
+        *command_bindings(paired=True),
     ]
 
     def __init__(self, capsule: str) -> None:
@@ -53,6 +58,7 @@ class RecoveryScreen(ConsoleScreen):
         self.landing: LandingEstimate | None = None
         self.live: dict[str, Any] | None = None
         self.live_error: str | None = None
+        self.settings: CommandedSettings | None = None
         self.loaded_at = time.monotonic()
 
     def compose(self) -> ComposeResult:
@@ -70,6 +76,7 @@ class RecoveryScreen(ConsoleScreen):
     def load(self) -> None:
         ops = self.console.ops
         reports = ops.stored_reports(self.capsule) if ops else []
+        settings = commanded_settings(ops.commands(self.capsule), reports) if ops else None
         track = track_from_reports(reports)
         landing = detect_landing(track)
         live, error = None, None
@@ -79,13 +86,34 @@ class RecoveryScreen(ConsoleScreen):
                 live = service.live(self.capsule, track)
             except PredictorError as exc:
                 error = str(exc)
-        self.app.call_from_thread(self.show, track, landing, live, error)
+        self.app.call_from_thread(self.show, track, landing, live, error, settings)
 
     def show(
-        self, track: list[TrackPoint], landing: LandingEstimate | None, live: dict[str, Any] | None, error: str | None
+        self,
+        track: list[TrackPoint],
+        landing: LandingEstimate | None,
+        live: dict[str, Any] | None,
+        error: str | None,
+        settings: CommandedSettings | None,
     ) -> None:
         self.track, self.landing, self.live, self.live_error = track, landing, live, error
+        self.settings = settings
         self.refresh_view()
+
+    def reload_after_send(self) -> None:
+        self.load()
+
+    def settings_lines(self) -> list[Text]:
+        """Setting and value in bold: what a team in the field looks for first (is the sounder ON?)."""
+        if self.settings is None:
+            state = "reading" if self.console.ops else "not known in replay"
+            return [Text(f"Sounder, interval, parachute: {state}")]
+        lines = []
+        for status in self.settings.statuses():
+            line = Text(status.line)
+            line.stylize("bold", 0, len(status.heading))
+            lines.append(line)
+        return lines
 
     def live_lines(self) -> list[str]:
         if self.landing is not None or not self.track:
@@ -119,31 +147,35 @@ class RecoveryScreen(ConsoleScreen):
             self.load()
         team = self.console.setup.team_position
         last = self.track[-1] if self.track else None
-        lines = [f"{self.capsule} recovery", ""]
+        lines: list[str | Text] = [f"{self.capsule} recovery", ""]
         if self.landing is not None:
             landing = self.landing
             std = "?" if math.isnan(landing.std_m) else f"{landing.std_m:.0f}"
             lines.append(f"Landed {landing.landed_at:%H:%M:%S}Z at {landing.lat:.5f}, {landing.lon:.5f}")
-            lines.append(f"  scatter ±{std} m (1σ per axis) from {landing.count} fixes, {landing.rejected} rejected")
+            lines.append(
+                f"  scatter ±{std} m (1σ per axis) from {landing.count} fixes, {landing.rejected} rejected"
+            )
             if team is not None:
                 distance, bearing = distance_bearing(team[0], team[1], landing.lat, landing.lon)
                 lines.append(f"  from the team: {distance / 1000:.2f} km at {bearing:.0f}°")
         elif last is not None:
-            lines.append(f"Not landed (visibly): last fix {last.lat:.5f}, {last.lon:.5f} at {last.alt_m:.0f} m")
+            lines.append(
+                f"Not landed (visibly): last fix {last.lat:.5f}, {last.lon:.5f} at {last.alt_m:.0f} m"
+            )
             lines += self.live_lines()
         else:
             lines.append("No GNSS fix received yet")
         reading = self.console.fleet.capsules[self.capsule].reading("report")
-        value: dict[str, Any] = reading.value or {}
-        now = self.console.now()
         lines += [
             "",
-            "Last report: " + reading.label(now, lambda v: f"VBAT {v.get('vbat')} V, interval {v.get('interval_min')} min"),
-            f"Sounder/interval/parachute: press i ({value.get('interval_min', '?')} min interval assumed)",
+            "Last report: " + reading.label(self.console.now(), lambda v: f"VBAT {v.get('vbat')} V"),
+            *self.settings_lines(),
             "",
             "Phone: " + phone_summary(self.capsule, self.landing, last, team),
         ]
-        self.query_one("#recovery-text", Static).update("\n".join(lines))
+        self.query_one("#recovery-text", Static).update(
+            Text("\n").join(Text(line) if isinstance(line, str) else line for line in lines)
+        )
         prediction = self.console.fleet.capsules[self.capsule].reading("prediction").value
         self.query_one("#recovery-map", LandingMap).layers = MapLayers(
             path=[(p.lon, p.lat) for p in self.track],
