@@ -40,10 +40,21 @@ class ReleaseOrigin:
     source: str
 
 
+def map_geometry(prediction: Prediction) -> dict[str, object]:
+    """The 2σ outline and a thinned path as (lon, lat) lists: what the terminal map draws."""
+    two_sigma = next(c for c in prediction.ellipse.contours if round(c.n_sigma) == 2)
+    step = max(1, len(prediction.track.lat) // PATH_POINTS)
+    return {
+        "outline_2sigma": [list(p) for p in prediction.ellipse.outline(two_sigma, points=36)],
+        "path": [
+            [float(lon), float(lat)]
+            for lat, lon in zip(prediction.track.lat[::step], prediction.track.lon[::step], strict=True)
+        ],
+    }
+
+
 def prediction_data(prediction: Prediction, release_in_min: int, source: str) -> dict[str, object]:
     ellipse = prediction.ellipse
-    two_sigma = next(c for c in ellipse.contours if round(c.n_sigma) == 2)
-    step = max(1, len(prediction.track.lat) // PATH_POINTS)
     return {
         "release_in_min": release_in_min,
         "origin_source": source,
@@ -68,11 +79,7 @@ def prediction_data(prediction: Prediction, release_in_min: int, source: str) ->
             }
             for c in ellipse.contours
         ],  # fmt: skip
-        "outline_2sigma": [list(p) for p in ellipse.outline(two_sigma, points=36)],
-        "path": [
-            [float(lon), float(lat)]
-            for lat, lon in zip(prediction.track.lat[::step], prediction.track.lon[::step], strict=True)
-        ],
+        **map_geometry(prediction),
         "warnings": list(prediction.warnings),
         "is_demo": prediction.is_demo,
     }
@@ -197,7 +204,7 @@ class PredictionService:
             for report in fresh[:-1]:
                 live.observe(report)
             result = live.update(fresh[-1])
-            data = result.to_dict()
+            data = {**result.to_dict(), **map_geometry(result.prediction)}
             data["measured_rate_factor"] = live.measured(fresh[-1].alt_m)[0] if live.legs else None
             data["correction"] = live_correction_text(
                 result.rate_factor, result.wind_error_ms, result.decay_m

@@ -29,11 +29,14 @@ SPEED = 20.0
 OUT = Path(__file__).resolve().parent.parent / "docs" / "screenshots"
 
 
-async def wait_for(pilot: Pilot[int], what: str, condition: Callable[[], bool], timeout_s: float = 120.0) -> None:
+async def wait_for(
+    pilot: Pilot[int], what: str, condition: Callable[[], bool], timeout_s: float = 120.0
+) -> None:
     deadline = time.monotonic() + timeout_s
     while not condition():
         if time.monotonic() > deadline:
-            raise SystemExit(f"screenshots: timed out waiting for {what}")
+            told = "; ".join([n.message for n in pilot.app._notifications][-3:])
+            raise SystemExit(f"screenshots: timed out waiting for {what} (last notices: {told or 'none'})")
         await pilot.pause(0.2)
 
 
@@ -82,7 +85,10 @@ async def drive(app: DrsConsole, world: DemoWorld) -> None:
 
         world.iridium[app.ops.ops("DRS1").config.imei].interval_min = 1  # type: ignore[union-attr]
         await pilot.press("v")
-        await wait_for(pilot, "the live re-prediction", lambda: "Live re-prediction from" in shown(app, "#recovery-text"))
+        await wait_for(
+            pilot, "the live re-prediction", lambda: "Live re-prediction from" in shown(app, "#recovery-text")
+        )
+        await wait_for(pilot, "a measured leg", lambda: "from 1 leg" in shown(app, "#recovery-text"))
         await save(pilot, app, "recovery")
         await pilot.press("i")
         await wait_for(pilot, "the Iridium screen", lambda: type(app.screen).__name__ == "IridiumScreen")

@@ -132,7 +132,7 @@ class RecoveryScreen(CommandingScreen):
             f"  landing {landing['lat']:.4f}, {landing['lon']:.4f} at {landing['time'][11:19]}Z,"
             f" {live['remaining_drift_km']:.1f} km to go",
             f"  σ∥ {ellipse['sigma_parallel_km']:.2f} km  σ⊥ {ellipse['sigma_perpendicular_km']:.2f} km",
-            f"  measured rate factor {measured} from {live['legs_used']} legs",
+            f"  measured rate factor {measured} from {live['legs_used']} leg{'' if live['legs_used'] == 1 else 's'}",
             f"  correction: {live['correction']}",
         ]
         team = self.console.setup.team_position
@@ -177,9 +177,12 @@ class RecoveryScreen(CommandingScreen):
             Text("\n").join(Text(line) if isinstance(line, str) else line for line in lines)
         )
         prediction = self.console.fleet.capsules[self.capsule].reading("prediction").value
+        descending = self.live if self.landing is None and self.track else None
+        outline = descending or prediction
         self.query_one("#recovery-map", LandingMap).layers = MapLayers(
             path=[(p.lon, p.lat) for p in self.track],
-            ellipse=[tuple(p) for p in prediction["outline_2sigma"]] if prediction else (),
+            ahead=[tuple(p) for p in descending["path"]] if descending else (),
+            ellipse=[tuple(p) for p in outline["outline_2sigma"]] if outline else (),
             landing=self.map_landing(),
             team=(team[1], team[0]) if team else None,
             scatter=[(p.lon, p.lat) for p in self.track[-10:]] if self.landing else [],

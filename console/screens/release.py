@@ -46,8 +46,8 @@ GONOGO_WIDTHS = (9, 26)
 
 
 class ReleaseScreen(ConsoleScreen):
-    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (120, "-wide")]
-    """Below 120 columns the checklist and the go/no-go stack, so neither loses its words."""
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (140, "-wide")]
+    """Below 140 columns the checklist and the go/no-go stack, so neither loses its words."""
     BINDINGS = [
         Binding("a", "arm", "ARM"),
         Binding("f", "fire", "FIRE"),
@@ -136,8 +136,8 @@ class ReleaseScreen(ConsoleScreen):
 
     def fit_gonogo_columns(self, gonogo: DataTable[Any]) -> None:
         """Give the detail column the width that is left, so its words wrap instead of scrolling away."""
-        padding = 2 * gonogo.cell_padding * 3
-        width = max(20, gonogo.scrollable_content_region.width - sum(GONOGO_WIDTHS) - padding)
+        padding = 2 * gonogo.cell_padding * 3 + gonogo.styles.scrollbar_size_vertical
+        width = max(20, gonogo.size.width - sum(GONOGO_WIDTHS) - padding)
         if width == self.detail_width:
             return
         self.detail_width = width

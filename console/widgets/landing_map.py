@@ -27,10 +27,11 @@ DOT_BITS = ((0x01, 0x08), (0x02, 0x10), (0x04, 0x20), (0x40, 0x80))
 ZONE_FILL = "░"
 SCALE_STEPS_KM = (0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000)
 
-LINE_LAYERS = ("path", "ellipse", "scatter", "zone")
+LINE_LAYERS = ("path", "ahead", "ellipse", "scatter", "zone")
 """Dot layers, most important first: a cell takes the colour of the first one it shows."""
 STYLES = {
     "path": "bold",
+    "ahead": "dim",
     "ellipse": "dark_orange3",
     "scatter": "magenta",
     "zone": "red",
@@ -42,7 +43,7 @@ STYLES = {
 MARKERS = (("release", "R"), ("balloon", "B"), ("team", "T"), ("landing", "X"))
 """Marker letters, drawn in this order so the landing wins a shared cell."""
 LEGEND = {"landing": "X landing", "release": "R release", "balloon": "B balloon", "team": "T team",
-          "path": "⠿ path", "ellipse": "⠿ 2σ ring", "scatter": "⠿ last fixes", "zones": "░ zone"}  # fmt: skip
+          "path": "⠿ path", "ahead": "⠿ predicted", "ellipse": "⠿ 2σ ring", "scatter": "⠿ last fixes", "zones": "░ zone"}  # fmt: skip
 
 
 @dataclass
@@ -50,6 +51,8 @@ class MapLayers:
     """Everything to draw, as (lon, lat) pairs like GeoJSON."""
 
     path: Sequence[tuple[float, float]] = ()
+    ahead: Sequence[tuple[float, float]] = ()
+    """Where a descending capsule is predicted to go from its latest fix."""
     ellipse: Sequence[tuple[float, float]] = ()
     zones: Sequence[Sequence[tuple[float, float]]] = ()
     landing: tuple[float, float] | None = None
@@ -65,7 +68,7 @@ class MapLayers:
                 yield name, glyph, point
 
     def legend(self, hidden: Set[str] = frozenset()) -> list[str]:
-        """The legend entries of what is on this map, markers first, less those hidden under another."""
+        """The legend entries of what is on this map, markers first, less those hidden or out of view."""
         return [
             LEGEND[name]
             for name in LEGEND
@@ -208,7 +211,13 @@ def legend_lines(entries: list[str], width: int) -> list[str]:
 
 def render_map(layers: MapLayers, width: int, height: int) -> Text:
     """``height`` lines of at most ``width`` cells: the map, a scale bar, and a legend of what is drawn."""
-    points = [*layers.path, *layers.ellipse, *layers.scatter, *(p for _, _, p in layers.markers())]
+    points = [
+        *layers.path,
+        *layers.ahead,
+        *layers.ellipse,
+        *layers.scatter,
+        *(p for _, _, p in layers.markers()),
+    ]
     if not points or width < 10:
         return Text("no position yet: nothing to map")
     legend = legend_lines(layers.legend(), width)
@@ -225,6 +234,8 @@ def render_map(layers: MapLayers, width: int, height: int) -> Text:
         grid.polyline("zone", [projection.dot(p) for p in zone], closed=True)
     if layers.ellipse:
         grid.polyline("ellipse", [projection.dot(p) for p in layers.ellipse], closed=True)
+    if layers.ahead:
+        grid.polyline("ahead", [projection.dot(p) for p in layers.ahead])
     if layers.path:
         grid.polyline("path", [projection.dot(p) for p in layers.path])
     for point in layers.scatter:
@@ -233,6 +244,8 @@ def render_map(layers: MapLayers, width: int, height: int) -> Text:
         grid.letter(projection.dot(point), glyph, STYLES[name])
     shown = {glyph for glyph, _ in grid.letters.values()}
     hidden = {name for name, glyph, _ in layers.markers() if glyph not in shown}
+    if not grid.shaded.any() and not grid.bits["zone"].any():
+        hidden.add("zones")
     scale = Text(scale_bar(projection.km_per_dot * DOTS_X, width) + "  N↑")
     scale.truncate(width)
     legend = legend_lines(layers.legend(hidden), width)

@@ -158,6 +158,12 @@ def test_a_marker_under_another_is_not_in_the_legend() -> None:
     assert lines[-1] == "X landing  B balloon"
 
 
+def test_a_zone_out_of_view_is_not_in_the_legend() -> None:
+    far = [(30.0, 60.0), (30.1, 60.0), (30.1, 60.1)]
+    lines = draw(MapLayers(zones=[far], release=(21.0, LAT), landing=(21.5, LAT)), width=120)
+    assert "░" not in "\n".join(lines)
+
+
 def test_a_map_too_small_to_read_says_so_instead_of_drawing() -> None:
     text = render_map(MapLayers(release=(21.0, LAT), landing=(21.5, LAT)), 40, 4).plain
     assert text == "map: too small here; widen the terminal"

@@ -16,6 +16,7 @@ from console.demo import SERVO_A_AFTER_GO_S, DemoWorld
 from console.predictions import PredictionService, ReleaseOrigin
 from console.screens.predictions import PredictionScreen
 from console.screens.recovery import RecoveryScreen
+from console.widgets.landing_map import LandingMap
 from console.widgets.release_timeline import GO, NO_GO, NO_LANDING, default_cursor, render_timeline
 from drs_link.iridium.recovery import TrackPoint
 from predictor.errors import PredictorError
@@ -115,6 +116,10 @@ async def test_the_recovery_view_re_predicts_a_descending_capsule_from_its_repor
         assert "Live re-prediction from the" in text
         assert f"{live['landing']['lat']:.4f}, {live['landing']['lon']:.4f}" in text
         assert "measured rate factor" in text and "correction:" in text
+        layers = screen.query_one("#recovery-map", LandingMap).layers
+        assert layers.ahead == [tuple(p) for p in live["path"]] and layers.ahead[0] != layers.ahead[-1]
+        assert layers.ellipse == [tuple(p) for p in live["outline_2sigma"]], "the live ring, not the release one"
+        assert "⠿ predicted" in str(screen.query_one("#recovery-map").render())
 
 
 def test_a_zone_over_every_landing_makes_the_whole_window_no_go_with_its_reason(
