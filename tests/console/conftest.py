@@ -3,11 +3,13 @@ demo weather and terrain), and a fixed-time console fed from telemetry records f
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import pytest
+from textual.pilot import Pilot
 
 from console.app import ConsoleSetup, DrsConsole
 from console.console_cli import _team, started_balloon_feed
@@ -25,6 +27,15 @@ from predictor.demo_weather import demo_weather_files
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 SITE = (67.8887, 21.0856)
 DEMO_SPEED = 8.0
+
+
+async def wait_for(pilot: Pilot[int], condition: Callable[[], bool], timeout_s: float = 30.0) -> None:
+    """Let the app run until ``condition`` holds; fail after ``timeout_s`` (never a fixed sleep)."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError("condition not reached in time")
+        await pilot.pause(0.05)
 
 
 @pytest.fixture

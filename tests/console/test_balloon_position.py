@@ -6,7 +6,7 @@ import pytest
 
 from console.app import DrsConsole
 from console.demo import DemoWorld
-from tests.console.test_planning_views import wait_for
+from tests.console.conftest import wait_for
 
 pytestmark = pytest.mark.asyncio
 

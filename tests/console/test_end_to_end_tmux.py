@@ -7,6 +7,7 @@ posting webhooks to the console's receiver, predictions on demo weather. Only wh
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import time
@@ -49,13 +50,17 @@ class Terminal:
         ).stdout
 
     def wait_for(self, text: str, timeout_s: float = 30.0) -> str:
+        return self.wait_for_match(re.escape(text), timeout_s)
+
+    def wait_for_match(self, pattern: str, timeout_s: float = 30.0) -> str:
+        """The screen once ``pattern`` (a regular expression) matches it; column spacing is layout's business."""
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             shown = self.screen()
-            if text in shown:
+            if re.search(pattern, shown):
                 return shown
             time.sleep(0.2)
-        raise AssertionError(f"{text!r} never appeared; the terminal shows:\n{self.screen()}")
+        raise AssertionError(f"{pattern!r} never appeared; the terminal shows:\n{self.screen()}")
 
 
 @pytest.fixture
@@ -75,9 +80,10 @@ def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp
     assert "DEMO" in shown
     terminal.wait_for("UP ")
     terminal.keys("Enter")
-    terminal.wait_for("Go/no-go: DRS1")
+    terminal.wait_for("Release day (2/4) — DRS1")
+    terminal.wait_for("Power-on done")
     terminal.keys("s")
-    terminal.wait_for("✔ GO     Storage sync complete")
+    terminal.wait_for_match(r"✔ GO +Storage sync complete")
     terminal.keys("o")
     terminal.wait_for("Software CANNOT switch it off")
     terminal.keys("Tab", "Enter")

@@ -3,13 +3,10 @@
 from __future__ import annotations
 
 import json
-import time
-from collections.abc import Callable
 from datetime import datetime, timedelta
 from pathlib import Path
 
 import pytest
-from textual.pilot import Pilot
 
 from console.app import DrsConsole
 from console.demo import SERVO_A_AFTER_GO_S, DemoWorld
@@ -20,15 +17,7 @@ from console.widgets.landing_map import LandingMap
 from console.widgets.release_timeline import GO, NO_GO, NO_LANDING, default_cursor, render_timeline
 from drs_link.iridium.recovery import TrackPoint
 from predictor.errors import PredictorError
-from tests.console.conftest import SITE, T0
-
-
-async def wait_for(pilot: Pilot[int], condition: Callable[[], bool], timeout_s: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not reached in time")
-        await pilot.pause(0.1)
+from tests.console.conftest import SITE, T0, wait_for
 
 
 @pytest.mark.asyncio

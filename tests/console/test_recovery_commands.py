@@ -6,7 +6,6 @@ simulated capsule then downloads the MT in its session and applies it with the f
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Iterator
 from dataclasses import replace
 from datetime import datetime, timedelta
@@ -27,7 +26,7 @@ from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.operations import Operations
 from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
-from tests.console.conftest import T0, offline_config, seed_reports
+from tests.console.conftest import T0, offline_config, seed_reports, wait_for
 
 pytestmark = pytest.mark.asyncio
 PASSWORD_ENV = {"DRS_ROCKBLOCK_PASSWORD": "pw"}
@@ -53,13 +52,6 @@ def commanding_app(tmp_path: Path, gateway: SimulatedRockblock) -> DrsConsole:
     )  # fmt: skip
     return DrsConsole(setup, live_timers=False)
 
-
-async def wait_for(pilot: Pilot[int], condition: Callable[[], bool], timeout_s: float = 15.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not reached in time")
-        await pilot.pause(0.05)
 
 
 async def open_recovery(pilot: Pilot[int], app: DrsConsole) -> RecoveryScreen:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
 import pytest
@@ -16,16 +15,10 @@ from drs_link.arming import ArmState
 from drs_link.capsule import ReleaseState
 from drs_link.errors import RefusedError
 from drs_link.telemetry import TelemetryRecord
+from tests.console.conftest import wait_for
 
 pytestmark = pytest.mark.asyncio
 
-
-async def wait_for(pilot: Pilot[int], condition: Callable[[], bool], timeout_s: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not reached in time")
-        await pilot.pause(0.1)
 
 
 async def open_release_go(pilot: Pilot[int], app: DrsConsole) -> ReleaseScreen:

@@ -19,19 +19,10 @@ from drs_link.simulator import CapsuleSimulator
 from drs_link.ssh import CapsuleLink
 from drs_link.staleness import Reading
 from drs_link.store import Store
+from tests.clock import ManualClock
 
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 
-
-class Clock:
-    def __init__(self, start: datetime = T0) -> None:
-        self.now = start
-
-    def __call__(self) -> datetime:
-        return self.now
-
-    def advance(self, seconds: float) -> None:
-        self.now += timedelta(seconds=seconds)
 
 
 def inputs(now: datetime, **changes: object) -> GoNoGoInputs:
@@ -48,7 +39,7 @@ def inputs(now: datetime, **changes: object) -> GoNoGoInputs:
     return replace(base, **changes)  # type: ignore[arg-type]
 
 
-def go_report(clock: Clock, **changes: object) -> GoNoGoReport:
+def go_report(clock: ManualClock, **changes: object) -> GoNoGoReport:
     return evaluate("DRS1", inputs(clock(), **changes), clock())
 
 
@@ -57,18 +48,18 @@ def store(tmp_path: Path) -> Store:
     return Store.open(tmp_path / "drs.sqlite")
 
 
-def offline_machine(store: Store, clock: Clock) -> ReleaseStateMachine:
+def offline_machine(store: Store, clock: ManualClock) -> ReleaseStateMachine:
     """The real state machine for a capsule nobody is connected to (the tests that never reach Go)."""
     capsule = parse_config({"capsule": [{"name": "DRS1", "host": "127.0.0.1", "port": 9}]}).capsules[0]
     return ReleaseStateMachine(store, capsule, StockBackend(capsule, CapsuleLink(capsule)), "EL", clock=clock)
 
 
-def controller(store: Store, clock: Clock, **kwargs: object) -> ArmingController:
+def controller(store: Store, clock: ManualClock, **kwargs: object) -> ArmingController:
     return ArmingController(store, offline_machine(store, clock), "EL", clock=clock, **kwargs)  # type: ignore[arg-type]
 
 
 def test_fire_is_refused_without_arm_and_the_refusal_is_audited(store: Store) -> None:
-    clock = Clock()
+    clock = ManualClock(T0)
     arming = controller(store, clock)
     with pytest.raises(RefusedError, match="not armed"):
         arming.fire("DRS1", go_report(clock))
@@ -76,7 +67,7 @@ def test_fire_is_refused_without_arm_and_the_refusal_is_audited(store: Store) ->
 
 
 def test_arm_is_refused_on_no_go_with_the_reasons(store: Store) -> None:
-    clock = Clock()
+    clock = ManualClock(T0)
     arming = controller(store, clock)
     with pytest.raises(RefusedError, match="GNSS fix fresh: no fix"):
         arming.arm(go_report(clock, gnss_fix=Reading(False, T0, 10.0)))
@@ -84,7 +75,7 @@ def test_arm_is_refused_on_no_go_with_the_reasons(store: Store) -> None:
 
 
 def test_stale_data_blocks_arm(store: Store) -> None:
-    clock = Clock()
+    clock = ManualClock(T0)
     stale = inputs(T0)
     clock.advance(30)
     with pytest.raises(RefusedError, match="STALE"):
@@ -92,7 +83,7 @@ def test_stale_data_blocks_arm(store: Store) -> None:
 
 
 def test_arm_opens_a_window_that_counts_down_and_expires(store: Store) -> None:
-    clock = Clock()
+    clock = ManualClock(T0)
     arming = controller(store, clock, arm_window_s=45.0)
     status = arming.arm(go_report(clock))
     assert status.armed and status.remaining_s == 45.0
@@ -106,7 +97,7 @@ def test_arm_opens_a_window_that_counts_down_and_expires(store: Store) -> None:
 
 
 def test_link_loss_disarms(store: Store) -> None:
-    clock = Clock()
+    clock = ManualClock(T0)
     arming = controller(store, clock)
     arming.arm(go_report(clock))
     assert arming.link_lost().last_disarm_reason == "link lost"
@@ -114,7 +105,7 @@ def test_link_loss_disarms(store: Store) -> None:
 
 
 def test_a_changed_verdict_or_a_no_go_poll_disarms(store: Store) -> None:
-    clock = Clock()
+    clock = ManualClock(T0)
     arming = controller(store, clock)
     partial = {"sync_fraction": Reading(0.9, T0, 60.0)}
     book = WaiverBook(store, "DRS1", clock)
@@ -131,7 +122,7 @@ def test_a_changed_verdict_or_a_no_go_poll_disarms(store: Store) -> None:
 
 
 def test_a_wrong_capsule_name_is_refused_and_nothing_is_sent(store: Store) -> None:
-    clock = Clock()
+    clock = ManualClock(T0)
     arming = controller(store, clock)
     arming.arm(go_report(clock))
     with pytest.raises(RefusedError, match="'DRS2' does not name 'DRS1'"):
@@ -154,7 +145,7 @@ def test_the_second_operator_must_be_a_different_person() -> None:
 
 
 def test_fire_with_a_required_second_operator_refuses_the_same_name(store: Store) -> None:
-    clock = Clock()
+    clock = ManualClock(T0)
     arming = controller(store, clock, require_second_operator=True)
     arming.arm(go_report(clock))
     with pytest.raises(RefusedError, match="different person"):

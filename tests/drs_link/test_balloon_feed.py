@@ -43,6 +43,7 @@ from drs_link.errors import ConfigError, LinkError
 from drs_link.fleet import FleetState
 from drs_link.nmea import format_gga, format_rmc, nmea_checksum
 from drs_link.telemetry import TelemetryRecord
+from tests.clock import ManualClock
 
 NOW = datetime(2026, 6, 20, 12, 0, 0, tzinfo=UTC)
 # A real u-blox sentence (checksum computed by the receiver, not by this code), 2011-05-28 09:27:50.
@@ -86,21 +87,12 @@ def free_udp_port() -> int:
         return probe.getsockname()[1]
 
 
-class Clock:
-    """A clock the test sets (the demo runs a fast one; the feed must only ever ask this)."""
-
-    def __init__(self, now: datetime) -> None:
-        self.now = now
-
-    def __call__(self) -> datetime:
-        return self.now
-
 
 @pytest.fixture
 def feeds() -> Iterator[Callable[..., BalloonFeed]]:
     started: list[BalloonFeed] = []
 
-    def start(config: BalloonFeedConfig, clock: Clock, listener: FeedListener | None = None) -> BalloonFeed:
+    def start(config: BalloonFeedConfig, clock: ManualClock, listener: FeedListener | None = None) -> BalloonFeed:
         feed = BalloonFeed(config, clock, listener)
         feed.start()
         started.append(feed)
@@ -379,7 +371,7 @@ def test_reconnect_backoff_doubles_to_30_s() -> None:
 
 def test_udp_datagrams_with_several_lines_each_line_judged(feeds: Callable[..., BalloonFeed]) -> None:
     port = free_udp_port()
-    clock = Clock(NOW)
+    clock = ManualClock(NOW)
     feed = feeds(BalloonFeedConfig(kind="udp", port=port), clock)
     assert feed.status().state == "listening" and feed.status().source == f"udp 127.0.0.1:{port}"
     first = format_gga(NOW - timedelta(seconds=20), 67.0, 21.0, 1, 8, 1.0, 29_000.0) + "\r\n"
@@ -405,7 +397,7 @@ def test_udp_reordered_and_repeated_fixes_are_dropped_and_midnight_is_not_a_reor
     feeds: Callable[..., BalloonFeed],
 ) -> None:
     port = free_udp_port()
-    clock = Clock(datetime(2026, 1, 1, 23, 59, 59, 500_000, tzinfo=UTC))
+    clock = ManualClock(datetime(2026, 1, 1, 23, 59, 59, 500_000, tzinfo=UTC))
     feed = feeds(BalloonFeedConfig(kind="udp", port=port), clock)
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
 
@@ -453,7 +445,7 @@ def test_a_failing_listener_does_not_stop_the_feed_and_stop_ends_the_thread(
         seen.append(outcome)
         raise RuntimeError("a buggy listener")
 
-    feed = feeds(BalloonFeedConfig(kind="udp", port=port), Clock(NOW), listener=listener)
+    feed = feeds(BalloonFeedConfig(kind="udp", port=port), ManualClock(NOW), listener=listener)
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
         sender.sendto(b"nonsense", ("127.0.0.1", port))
         sender.sendto(ozimux(NOW), ("127.0.0.1", port))
@@ -503,7 +495,7 @@ def test_tcp_client_survives_drops_mid_line_refusal_and_a_restarted_server(
     station = GroundStation()
     port = station.port
     outcomes: list[BalloonFix | Rejection] = []
-    feed = feeds(BalloonFeedConfig(kind="tcp", port=port), Clock(NOW), listener=outcomes.append)
+    feed = feeds(BalloonFeedConfig(kind="tcp", port=port), ManualClock(NOW), listener=outcomes.append)
     try:
         station.accept()
         wait_for(lambda: feed.status().state == "connected", "connected")
@@ -571,7 +563,7 @@ def test_file_feed_follows_appends_truncation_rotation_and_removal(
     base = NOW - timedelta(minutes=10)
     lines = [ozimux(base + timedelta(seconds=s)) for s in range(3)]
     path.write_bytes(b"".join(lines) + ozimux(base + timedelta(seconds=3))[:15])
-    feed = feeds(BalloonFeedConfig(kind="file", path=path), Clock(NOW))
+    feed = feeds(BalloonFeedConfig(kind="file", path=path), ManualClock(NOW))
     wait_for(lambda: feed.status().accepted == 1, "the last complete line at start")
     first = feed.latest()
     assert first is not None and first.time == base + timedelta(seconds=2)
@@ -609,7 +601,7 @@ def test_file_missing_at_start_is_waited_for_then_read_from_its_start(
     tmp_path: Path, feeds: Callable[..., BalloonFeed]
 ) -> None:
     path = tmp_path / "later.log"
-    feed = feeds(BalloonFeedConfig(kind="file", path=path), Clock(NOW))
+    feed = feeds(BalloonFeedConfig(kind="file", path=path), ManualClock(NOW))
     wait_for(lambda: feed.status().state == f"waiting for {path}", "waiting")
     path.write_bytes(ozimux(NOW - timedelta(seconds=2)) + b"\xff\xff\n" + ozimux(NOW - timedelta(seconds=1)))
     wait_for(lambda: feed.status().accepted == 2, "both lines of the new file")
@@ -621,7 +613,7 @@ def test_file_whose_end_is_one_runaway_line_gives_no_position_until_a_new_line(
 ) -> None:
     path = tmp_path / "noise.log"
     path.write_bytes(ozimux(NOW - timedelta(seconds=9)) + b"n" * 20_000)
-    feed = feeds(BalloonFeedConfig(kind="file", path=path), Clock(NOW))
+    feed = feeds(BalloonFeedConfig(kind="file", path=path), ManualClock(NOW))
     wait_for(lambda: feed.status().state == f"following {path}", "following")
     with path.open("ab") as log:
         log.write(b"\n" + ozimux(NOW - timedelta(seconds=1)))

@@ -7,6 +7,7 @@ from datetime import UTC, datetime, timedelta
 from drs_link.nmea import summarise
 from drs_link.simulator.firmware import Firmware, GnssSky
 from drs_link.simulator.gpio import ENABLE_LOW, SET_INPUT, SUPPLY, FakeGpio
+from tests.clock import ManualClock
 
 T0 = datetime(2026, 6, 1, 12, 0, 0, tzinfo=UTC)
 
@@ -15,15 +16,8 @@ def at(seconds: float) -> datetime:
     return T0 + timedelta(seconds=seconds)
 
 
-class Clock:
-    def __init__(self) -> None:
-        self.now = T0
 
-    def __call__(self) -> datetime:
-        return self.now
-
-
-def _pulse(gpio: FakeGpio, clock: Clock, order: list[tuple[int, int]], hold_s: float) -> None:
+def _pulse(gpio: FakeGpio, clock: ManualClock, order: list[tuple[int, int]], hold_s: float) -> None:
     for pin, level in order:
         gpio.output(pin, level)
     clock.now += timedelta(seconds=hold_s)
@@ -33,28 +27,28 @@ def _pulse(gpio: FakeGpio, clock: Clock, order: list[tuple[int, int]], hold_s: f
 
 
 def test_drs_on_sequence_latches_the_relay_and_boots_the_firmware() -> None:
-    clock, firmware = Clock(), Firmware()
+    clock, firmware = ManualClock(T0), Firmware()
     gpio = FakeGpio(firmware, clock)
     _pulse(gpio, clock, [(SUPPLY, 1), (SET_INPUT, 1), (ENABLE_LOW, 0)], 2.0)
     assert gpio.relay_latched and firmware.powered_at == T0 and not gpio.outputs
 
 
 def test_missing_nor_gate_supply_does_not_latch() -> None:
-    clock, firmware = Clock(), Firmware()
+    clock, firmware = ManualClock(T0), Firmware()
     gpio = FakeGpio(firmware, clock)
     _pulse(gpio, clock, [(SET_INPUT, 1), (ENABLE_LOW, 0)], 2.0)
     assert not gpio.relay_latched and firmware.powered_at is None
 
 
 def test_gpio2_left_high_does_not_latch() -> None:
-    clock, firmware = Clock(), Firmware()
+    clock, firmware = ManualClock(T0), Firmware()
     gpio = FakeGpio(firmware, clock)
     _pulse(gpio, clock, [(SUPPLY, 1), (SET_INPUT, 1), (ENABLE_LOW, 1)], 2.0)
     assert not gpio.relay_latched
 
 
 def test_a_glitch_shorter_than_the_coil_pulse_does_not_latch() -> None:
-    clock, firmware = Clock(), Firmware()
+    clock, firmware = ManualClock(T0), Firmware()
     gpio = FakeGpio(firmware, clock)
     _pulse(gpio, clock, [(SUPPLY, 1), (SET_INPUT, 1), (ENABLE_LOW, 0)], 0.1)
     assert not gpio.relay_latched

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from datetime import UTC, datetime, timedelta
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
@@ -14,26 +14,17 @@ from drs_link.config import CapsuleConfig
 from drs_link.errors import LinkError, RefusedError
 from drs_link.nmea import format_gga
 from drs_link.store import Store
+from tests.clock import ManualClock
 
 START = datetime(2026, 6, 1, 12, 0, 0, tzinfo=UTC)
 
-
-class Clock:
-    def __init__(self) -> None:
-        self.now = START
-
-    def __call__(self) -> datetime:
-        return self.now
-
-    def advance(self, seconds: float) -> None:
-        self.now += timedelta(seconds=seconds)
 
 
 @dataclass
 class InProcessPi:
     """The stock scripts' observable results, without SSH: what the state machine reacts to."""
 
-    clock: Clock
+    clock: ManualClock
     nmea_after_s: float | None = 23.0
     go_outcome: GoResult = field(
         default_factory=lambda: GoResult(
@@ -65,21 +56,21 @@ class InProcessPi:
 
 
 @pytest.fixture
-def clock() -> Clock:
-    return Clock()
+def clock() -> ManualClock:
+    return ManualClock(START)
 
 
 @pytest.fixture
-def pi(clock: Clock) -> InProcessPi:
+def pi(clock: ManualClock) -> InProcessPi:
     return InProcessPi(clock)
 
 
 @pytest.fixture
-def machine(tmp_path: Path, pi: InProcessPi, clock: Clock) -> ReleaseStateMachine:
+def machine(tmp_path: Path, pi: InProcessPi, clock: ManualClock) -> ReleaseStateMachine:
     return _machine(tmp_path, pi, clock)
 
 
-def _machine(tmp_path: Path, pi: InProcessPi, clock: Clock) -> ReleaseStateMachine:
+def _machine(tmp_path: Path, pi: InProcessPi, clock: ManualClock) -> ReleaseStateMachine:
     capsule = CapsuleConfig(name="DRS1", host="drs1.local")
     return ReleaseStateMachine(
         Store.open(tmp_path / "drs.sqlite"), capsule, pi, "EL", clock=clock, sleep=clock.advance
@@ -124,7 +115,7 @@ def test_token_not_minted_by_the_store_is_refused(machine: ReleaseStateMachine, 
 
 
 def test_token_older_than_sixty_seconds_is_refused(
-    machine: ReleaseStateMachine, pi: InProcessPi, clock: Clock
+    machine: ReleaseStateMachine, pi: InProcessPi, clock: ManualClock
 ) -> None:
     _ready(machine)
     token = machine.confirm("DRS1")
@@ -134,7 +125,7 @@ def test_token_older_than_sixty_seconds_is_refused(
     assert "go" not in pi.calls
 
 
-def test_fresh_token_within_sixty_seconds_releases(machine: ReleaseStateMachine, clock: Clock) -> None:
+def test_fresh_token_within_sixty_seconds_releases(machine: ReleaseStateMachine, clock: ManualClock) -> None:
     _ready(machine)
     token = machine.confirm("DRS1")
     clock.advance(59.0)
@@ -160,7 +151,7 @@ def test_token_cannot_be_used_twice(machine: ReleaseStateMachine, pi: InProcessP
         machine.go(token)
 
 
-def test_token_for_another_capsule_is_refused(tmp_path: Path, clock: Clock) -> None:
+def test_token_for_another_capsule_is_refused(tmp_path: Path, clock: ManualClock) -> None:
     store = Store.open(tmp_path / "drs.sqlite")
     one = ReleaseStateMachine(
         store, CapsuleConfig("DRS1", "a"), InProcessPi(clock), "EL", clock=clock, sleep=clock.advance
@@ -176,7 +167,7 @@ def test_token_for_another_capsule_is_refused(tmp_path: Path, clock: Clock) -> N
 
 
 def test_go_refused_until_nmea_has_been_seen(
-    machine: ReleaseStateMachine, pi: InProcessPi, clock: Clock
+    machine: ReleaseStateMachine, pi: InProcessPi, clock: ManualClock
 ) -> None:
     machine.power_on(confirmed=True)
     token = machine.confirm("DRS1")
@@ -186,7 +177,7 @@ def test_go_refused_until_nmea_has_been_seen(
 
 
 def test_silence_after_25_seconds_gives_the_checks_to_make(
-    machine: ReleaseStateMachine, pi: InProcessPi, clock: Clock
+    machine: ReleaseStateMachine, pi: InProcessPi, clock: ManualClock
 ) -> None:
     pi.nmea_after_s = None
     machine.power_on(confirmed=True)
@@ -229,7 +220,7 @@ def test_second_go_to_a_released_capsule_is_refused(machine: ReleaseStateMachine
     assert pi.calls.count("go") == 1
 
 
-def test_restarted_process_resumes_the_release(tmp_path: Path, pi: InProcessPi, clock: Clock) -> None:
+def test_restarted_process_resumes_the_release(tmp_path: Path, pi: InProcessPi, clock: ManualClock) -> None:
     _ready(_machine(tmp_path, pi, clock))
     restarted = _machine(tmp_path, pi, clock)
     record = restarted.record()

@@ -23,18 +23,12 @@ from drs_link.iridium.mt import MtComposer, MtMessage
 from drs_link.iridium.reports import ReportStore
 from drs_link.simulator.rockblock import Scripted, SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
+from tests.clock import ManualClock
 
 from .helpers import IMEI, T0, fix_at, fly, to_delivery
 
 CAPSULE = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=IMEI, rockblock_serial=11800)
 
-
-class Clock:
-    def __init__(self, now: datetime) -> None:
-        self.now = now
-
-    def __call__(self) -> datetime:
-        return self.now
 
 
 class Rig:
@@ -45,7 +39,7 @@ class Rig:
         self.gateway = gateway
         self.reports = ReportStore(store)
         self.client = RockblockGateway(gateway.url, "ops", "pw", timeout_s=0.5, retry_delay_s=0.0)
-        self.clock = Clock(T0)
+        self.clock = ManualClock(T0)
         self.life = lc.CommandLifecycle(store, "alice", self.clock)
         self.capsule = SimulatedCapsule(imei=IMEI, rb_source=11800, sounder_on=False)
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
-from datetime import datetime, timedelta
+from datetime import timedelta
 from pathlib import Path
 
 import pytest
@@ -16,26 +16,20 @@ from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
 from drs_link.simulator.rockblock import Scripted, SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
+from tests.clock import ManualClock
 
 from .helpers import IMEI, T0, fly
 
 CAPSULE = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=IMEI, rockblock_serial=11800)
 
 
-class Clock:
-    def __init__(self, now: datetime) -> None:
-        self.now = now
-
-    def __call__(self) -> datetime:
-        return self.now
-
 
 @pytest.fixture
-def rig(tmp_path: Path) -> Iterator[tuple[Store, ReportStore, SimulatedRockblock, RockblockGateway, Clock]]:
+def rig(tmp_path: Path) -> Iterator[tuple[Store, ReportStore, SimulatedRockblock, RockblockGateway, ManualClock]]:
     store = Store.open(tmp_path / "drs.sqlite")
     with SimulatedRockblock(username="ops", password="pw", imeis=(IMEI,)) as gateway:
         client = RockblockGateway(gateway.url, "ops", "pw", timeout_s=0.5, retry_delay_s=0.0)
-        yield store, ReportStore(store), gateway, client, Clock(T0)
+        yield store, ReportStore(store), gateway, client, ManualClock(T0)
     store.close()
 
 
