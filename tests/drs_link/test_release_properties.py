@@ -14,8 +14,9 @@ from drs_link.capsule import ConfirmationToken, ReleaseState, ReleaseStateMachin
 from drs_link.config import CapsuleConfig
 from drs_link.errors import LinkError, RefusedError
 from drs_link.store import Store
+from tests.clock import ManualClock
 
-from .test_release_state_machine import Clock, InProcessPi
+from .test_release_state_machine import START, InProcessPi
 
 
 class ReleaseSequences(RuleBasedStateMachine):
@@ -23,7 +24,7 @@ class ReleaseSequences(RuleBasedStateMachine):
         super().__init__()
         # Thousands of fsyncs per run: keep the store in RAM when the machine has /dev/shm.
         self._tmp = tempfile.TemporaryDirectory(dir="/dev/shm" if Path("/dev/shm").is_dir() else None)
-        self.clock = Clock()
+        self.clock = ManualClock(START)
         self.pi = InProcessPi(self.clock, nmea_after_s=0.0)
         self.machine = ReleaseStateMachine(
             Store.open(Path(self._tmp.name) / "drs.sqlite"),

@@ -17,12 +17,12 @@ from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
 from drs_link.simulator.rockblock import Scripted, SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
+from tests.clock import ManualClock
 
 from .helpers import IMEI, T0, fly
-from .test_lifecycle import Clock
 
 CAPSULE = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=IMEI, rockblock_serial=11800)
-Rig = tuple[Store, ReportStore, SimulatedRockblock, RockblockGateway, Clock]
+Rig = tuple[Store, ReportStore, SimulatedRockblock, RockblockGateway, ManualClock]
 
 
 @pytest.fixture
@@ -30,7 +30,7 @@ def rig(tmp_path: Path) -> Iterator[Rig]:
     store = Store.open(tmp_path / "drs.sqlite")
     with SimulatedRockblock(username="ops", password="pw", imeis=(IMEI,)) as gateway:
         client = RockblockGateway(gateway.url, "ops", "pw", timeout_s=0.3, retry_delay_s=0.0)
-        yield store, ReportStore(store), gateway, client, Clock(T0)
+        yield store, ReportStore(store), gateway, client, ManualClock(T0)
     store.close()
 
 
