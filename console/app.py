@@ -23,6 +23,7 @@ from textual.screen import Screen
 from textual.worker import Worker, WorkerState
 
 from console.predictions import PredictionService, ReleaseOrigin
+from drs_link.arming import ArmState
 from drs_link.balloon_feed import BalloonFeed
 from drs_link.checklist import Checklist, ChecklistRun, load_checklists
 from drs_link.errors import LinkError
@@ -292,6 +293,43 @@ class DrsConsole(App[int]):
         from console.screens.help import HelpScreen
 
         self.push_screen(HelpScreen())
+
+    async def action_quit(self) -> None:
+        """A stray ``q`` must not end an ARM window or the polls: quitting a commanding console asks first.
+
+        Refused while a Go is being sent (the answer is what tells the operator whether it dropped);
+        an ARM window still open is disarmed and audited as closed with the console.
+        """
+        if not self.commanding:
+            self.exit(0)
+            return
+        from console.screens.modals import ConfirmModal
+
+        arming = {name: self.ops.ops(name).arming for name in self.setup.capsules}
+        firing = [name for name, a in arming.items() if a.status().state is ArmState.FIRING]
+        if firing:
+            self.notify(
+                f"not quitting: Go is being sent to {', '.join(firing)}; wait for FIRED", severity="error"
+            )
+            return
+        armed = [name for name, a in arming.items() if a.status().armed]
+        now = self.now()
+        powered = [n for n in self.setup.capsules if self.fleet.capsules[n].value("release", "state", now, False)
+                   == "powered"]  # fmt: skip
+        lines = ["The capsules keep their state and the store keeps every record; polls, predictions and the",
+                 "balloon feed stop until the console is started again."]  # fmt: skip
+        if armed:
+            lines.append(f"ARMED, will be disarmed: {', '.join(armed)}.")
+        if powered:
+            lines.append(f"Powered on and waiting for Go: {', '.join(powered)}.")
+
+        def confirmed(yes: bool | None) -> None:
+            if yes:
+                for name in armed:
+                    arming[name].disarm("console closed")
+                self.exit(0)
+
+        self.push_screen(ConfirmModal("Quit the DRS console?", "\n".join(lines), "Quit"), confirmed)
 
     def action_toggle_theme(self) -> None:
         self.theme = "textual-light" if self.theme == "textual-dark" else "textual-dark"

@@ -10,7 +10,7 @@ from textual.widgets import Markdown
 HELP = """\
 # DRS console — keys
 
-**Everywhere**: `?`/`F1` help · `Ctrl+P` command palette · `t` dark/light theme · `q` quit · `Esc` back
+**Everywhere**: `?`/`F1` help · `Ctrl+P` command palette · `t` dark/light theme · `q` quit (asks first; disarms an open ARM; refused while Go is being sent) · `Esc` back
 
 **Fleet** (a row per capsule with the columns that fit; the highlighted capsule in full words below;
 ⌛ marks a value older than twice its period, and the words say STALE; the balloon's position and

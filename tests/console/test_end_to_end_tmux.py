@@ -118,6 +118,8 @@ def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp
     terminal.keys("h")
     terminal.wait_for("released, Pi shut")
     terminal.keys("q")
+    terminal.wait_for("Quit the DRS console?")
+    terminal.keys("Tab", "Enter")
     deadline = time.monotonic() + 20
     while not (tmp_path / "after-exit.txt").exists() and time.monotonic() < deadline:
         time.sleep(0.2)
