@@ -268,8 +268,8 @@ def _prediction_long(v: Value) -> str:
     where = f"landing {v['landing_lat']:.3f}, {v['landing_lon']:.3f}, {v['distance_km']:.1f} km"
     if v.get("bearing_deg") is not None:
         where += f" at {v['bearing_deg']:.0f}°"
-    origin = f" ({v['origin_source']})" if v.get("origin_source") else ""
-    return f"{where} from release{origin}, σ∥ {v['sigma_par_km']:.2f} σ⊥ {v['sigma_perp_km']:.2f} km"
+    origin = f"; position from {v['origin_source']}" if v.get("origin_source") else ""
+    return f"{where} from release, σ∥ {v['sigma_par_km']:.2f} σ⊥ {v['sigma_perp_km']:.2f} km{origin}"
 
 
 def _always_ok(v: Value) -> Level:
