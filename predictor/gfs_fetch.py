@@ -13,7 +13,8 @@ paths from time to time, so the URL is a template (CLI option or ``DRS_GFS_URL_T
 
 The download resumes a partial file with an HTTP Range request, retries with exponential backoff,
 and accepts a file only when every GRIB message in it decodes and the message count is what was
-asked for; a complete file is kept and never fetched again.
+asked for; a complete file is kept and never fetched again. While it works on a cycle it holds that
+cycle against ``drs weather prune`` (``predictor.gfs_cache.fetching``).
 """
 
 from __future__ import annotations
@@ -26,11 +27,13 @@ import urllib.error
 import urllib.parse
 import urllib.request
 from collections.abc import Callable, Sequence
+from contextlib import ExitStack
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 from predictor.errors import WeatherError
+from predictor.gfs_cache import PART_SUFFIX, cycle_directory, fetching
 from predictor.gribcheck import scan_grib_file
 from predictor.gribwrite import GFS_LEVELS_HPA, gfs_file_name
 
@@ -199,20 +202,28 @@ class Downloader:
             raise WeatherError(f"resolution {self.resolution!r} is not one of {', '.join(RESOLUTIONS)}")
 
     def local_path(self, item: ForecastFile, region: Region) -> Path:
-        cycle_dir = self.directory / f"gfs.{item.cycle:%Y%m%d}" / f"{item.cycle:%H}" / region.tag
-        return cycle_dir / gfs_file_name(item.cycle, item.step_h, self.resolution)
+        region_dir = cycle_directory(self.directory, item.cycle) / region.tag
+        return region_dir / gfs_file_name(item.cycle, item.step_h, self.resolution)
 
     def fetch_all(self, items: Sequence[ForecastFile], region: Region) -> list[Path]:
-        return [self.fetch(item, region) for item in items]
+        """Every file, holding all the plan's cycles throughout, so no prune takes a file fetched first."""
+        with ExitStack() as held:
+            for cycle in sorted({item.cycle for item in items}):
+                held.enter_context(fetching(cycle_directory(self.directory, cycle)))
+            return [self.fetch(item, region) for item in items]
 
     def fetch(self, item: ForecastFile, region: Region) -> Path:
         """The complete local file, downloaded unless a complete copy is already there."""
+        with fetching(cycle_directory(self.directory, item.cycle)):
+            return self._fetch_locked(item, region)
+
+    def _fetch_locked(self, item: ForecastFile, region: Region) -> Path:
         target = self.local_path(item, region)
         expected = 4 * len(GFS_LEVELS_HPA)
         if target.is_file() and self._is_complete(target, expected):
             return target
         url = build_url(self.url_template, item, region, self.resolution)
-        partial = target.with_name(target.name + ".part")
+        partial = target.with_name(target.name + PART_SUFFIX)
         target.parent.mkdir(parents=True, exist_ok=True)
         last_problem = ""
         for attempt in range(self.retries + 1):

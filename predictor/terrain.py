@@ -30,6 +30,10 @@ SEA_LEVEL_SOURCE = "sea level (no terrain data here)"
 _TILE_NAME = re.compile(r"^([NS])(\d{2})([EW])(\d{3})$", re.IGNORECASE)
 _SAMPLES_BY_BYTES = {2 * 1201 * 1201: (1201, "SRTM3"), 2 * 3601 * 3601: (3601, "SRTM1")}
 _NETCDF_SUFFIXES = (".nc", ".cdf", ".nc4", ".netcdf")
+_NETCDF3_SIGNATURES = (b"CDF\x01", b"CDF\x02")
+_CDF5_SIGNATURE = b"CDF\x05"
+_HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+_ENGINE_FORMATS = {"scipy": "netCDF3", "h5netcdf": "netCDF4/HDF5"}
 
 
 def tile_name(lat_south: int, lon_west: int) -> str:
@@ -149,9 +153,61 @@ class _CoarseDem:
         return np.where(inside, np.maximum(value, 0.0), np.nan)
 
 
-def _read_coarse_dem(path: Path) -> _CoarseDem:
+def _netcdf_engine(path: Path) -> str:
+    """The xarray engine for this file, chosen from its signature instead of left to xarray's guess.
+
+    Why: xarray's guess fails with a multi-line message that names neither the file nor the fix, and
+    netCDF4 needs a different reader (HDF5) from the netCDF3 files the scipy engine reads. An HDF5
+    file may start with a user block, which moves its signature to byte 512, 1024, 2048, …
+    """
     try:
-        with xr.open_dataset(path) as ds:
+        with path.open("rb") as stream:
+            first = stream.read(8)
+            if not first:
+                raise TerrainError(f"DEM {path} is empty (0 bytes)")
+            if first[:4] in _NETCDF3_SIGNATURES:
+                return "scipy"
+            if first[:4] == _CDF5_SIGNATURE:
+                raise TerrainError(
+                    f"DEM {path} is 64-bit-data netCDF (CDF-5), which cannot be read; "
+                    "convert it to netCDF4 with `nccopy -k nc4 IN OUT`"
+                )
+            head, offset = first, 0
+            while len(head) == len(_HDF5_SIGNATURE):
+                if head == _HDF5_SIGNATURE:
+                    _require_hdf5_reader(path)
+                    return "h5netcdf"
+                offset = max(512, 2 * offset)
+                stream.seek(offset)
+                head = stream.read(len(_HDF5_SIGNATURE))
+    except OSError as exc:
+        raise TerrainError(f"cannot read DEM {path}: {exc.strerror or exc}") from exc
+    raise TerrainError(
+        f"DEM {path} is neither netCDF3 nor netCDF4/HDF5 (it starts with {first[:4]!r}, not 'CDF' or '\\x89HDF')"
+    )
+
+
+def _require_hdf5_reader(path: Path) -> None:
+    """h5netcdf ≥ 1.8 no longer pulls in h5py by itself: say so instead of failing inside xarray."""
+    try:
+        import h5netcdf  # noqa: F401
+        import h5py  # noqa: F401
+    except ImportError as exc:
+        raise TerrainError(
+            f"DEM {path} is netCDF4/HDF5, which needs the h5netcdf and h5py packages "
+            f"({exc.name or 'one of them'} is missing): pip install 'h5netcdf[h5py]'"
+        ) from exc
+
+
+def _first_line(exc: BaseException) -> str:
+    lines = str(exc).strip().splitlines()
+    return lines[0] if lines else exc.__class__.__name__
+
+
+def _read_coarse_dem(path: Path) -> _CoarseDem:
+    engine = _netcdf_engine(path)
+    try:
+        with xr.open_dataset(path, engine=engine) as ds:
             grid = _pick_elevation_grid(ds, path)
             lat_name, lon_name = grid.dims
             lats = np.asarray(ds[lat_name].values, dtype=np.float64)
@@ -160,7 +216,7 @@ def _read_coarse_dem(path: Path) -> _CoarseDem:
     except TerrainError:
         raise
     except Exception as exc:  # any decoder failure means the file is unusable as a DEM
-        raise TerrainError(f"cannot read DEM {path}: {exc}") from exc
+        raise TerrainError(f"cannot read DEM {path} ({_ENGINE_FORMATS[engine]}): {_first_line(exc)}") from exc
     if len(lats) < 2 or len(lons) < 2:
         raise TerrainError(f"DEM {path} has fewer than 2 points along an axis")
     if lats[0] > lats[-1]:

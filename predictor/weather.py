@@ -7,7 +7,8 @@ several forecast steps and cycles, north-to-south scanning) is answered once her
 Reading (``predictor.gribread``): u/v/t/gh on ``isobaricInhPa`` only, one message at a time, each
 cropped to the requested box at once; nothing is written next to the user's files. The cropped cube
 is cached (``.npz`` keyed by every file's path, size and mtime and the box), so a second load of the
-same files and box costs milliseconds.
+same files and box costs milliseconds. Each entry also records its files and box, so cache upkeep
+(``predictor.gfs_cache``) can tell an entry a load can still hit from one that no load ever will.
 
 Physics of the conversion:
 - geometric altitude from geopotential height with latitude-dependent gravity and effective Earth
@@ -29,6 +30,7 @@ import os
 import tempfile
 import zipfile
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -41,7 +43,7 @@ from predictor.gribwrite import DEMO_GENERATING_PROCESS
 DEMO_SOURCE = "DEMO weather (generated analytic atmosphere, not a forecast)"
 STANDARD_GRAVITY = 9.80665
 DRY_AIR_GAS_CONSTANT = 287.05
-_CACHE_FORMAT = 1
+_CACHE_FORMAT = 2  # 2: entries record their source files and box
 
 
 def default_cache_dir() -> Path:
@@ -72,7 +74,7 @@ def load_weather(
     if cached is not None:
         return cached
     cube = _build_cube(files, box)
-    _write_cache(cache_file, cube)
+    _write_cache(cache_file, cube, files, box)
     return cube
 
 
@@ -112,9 +114,17 @@ def _read_cache(cache_file: Path) -> WeatherCube | None:
         return None
 
 
-def _write_cache(cache_file: Path, cube: WeatherCube) -> None:
+def _write_cache(cache_file: Path, cube: WeatherCube, files: Sequence[Path], box: BBox | None) -> None:
     """Atomic write, so a crash mid-write never leaves a cache entry that loads as a wrong cube."""
-    meta = json.dumps({"source": cube.source, "is_demo": cube.is_demo, "warnings": list(cube.warnings)})
+    meta = json.dumps(
+        {
+            "source": cube.source,
+            "is_demo": cube.is_demo,
+            "warnings": list(cube.warnings),
+            "files": [str(file.resolve()) for file in files],
+            "bbox": box,
+        }
+    )
     try:
         cache_file.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=cache_file.parent, suffix=".tmp")
@@ -124,6 +134,45 @@ def _write_cache(cache_file: Path, cube: WeatherCube) -> None:
     except OSError:
         # A read-only or full cache costs speed on the next load, never the prediction.
         return
+
+
+@dataclass(frozen=True)
+class CubeCacheEntry:
+    """One cached cube, as cache upkeep sees it."""
+
+    path: Path
+    size_bytes: int
+    sources: tuple[Path, ...]
+    """The weather files it was built from; empty when the entry does not say (older format, damaged)."""
+    current: bool
+    """A load of the same files and box would hit it: the files are there, unchanged, and it is this format."""
+
+
+def cube_cache_entries(cache_dir: str | Path) -> list[CubeCacheEntry]:
+    """Every entry in ``cache_dir`` (none when it does not exist), each checked against its files now.
+
+    An entry whose files are gone or were re-downloaded can never be hit again (the key holds their size
+    and mtime), so it is dead weight on the disk; an entry of an older format likewise.
+    """
+    entries = []
+    for path in sorted(Path(cache_dir).glob("*.npz")):
+        try:
+            size = path.stat().st_size
+        except FileNotFoundError:
+            continue  # removed by another process since the listing
+        sources: tuple[Path, ...] = ()
+        current = False
+        try:
+            with np.load(path, allow_pickle=False) as stored:
+                meta = json.loads(str(stored["meta"]))
+            sources = tuple(Path(name) for name in meta["files"])
+            box = tuple(meta["bbox"]) if meta["bbox"] is not None else None
+            if sources and all(source.is_file() for source in sources):
+                current = _cache_key(sources, box) == path.stem
+        except (OSError, EOFError, KeyError, TypeError, ValueError, zipfile.BadZipFile):
+            pass  # unreadable or without a source record: no load can hit it
+        entries.append(CubeCacheEntry(path=path, size_bytes=size, sources=sources, current=current))
+    return entries
 
 
 def _build_cube(files: Sequence[Path], box: BBox | None) -> WeatherCube:

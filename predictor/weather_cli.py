@@ -1,8 +1,9 @@
-"""`drs weather …`: fetch GFS for a flight, look at weather files, and measure how fast they load."""
+"""`drs weather …`: fetch GFS for a flight, prune the caches, look at weather files, time their loading."""
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import statistics
 import sys
@@ -16,6 +17,7 @@ from rich.console import Console
 from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
 
 from predictor.errors import WeatherError
+from predictor.gfs_cache import SIZE_ONLY_KEEP, PruneResult, free_space_warning, prune
 from predictor.gfs_fetch import (
     AVAILABILITY_DELAY,
     DEFAULT_URL_TEMPLATE,
@@ -26,7 +28,7 @@ from predictor.gfs_fetch import (
     plan_forecast_files,
 )
 from predictor.gribwrite import GFS_LEVELS_HPA, gfs_file_name, write_gfs_grib2
-from predictor.weather import load_weather
+from predictor.weather import default_cache_dir, load_weather
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -68,6 +70,41 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     fetch.set_defaults(func=run_fetch)
 
+    size_only_days = SIZE_ONLY_KEEP.total_seconds() / 86400
+    prune_parser = commands.add_parser(
+        "prune",
+        help="free disk: remove old GFS cycles and the cached cubes built from them",
+        description=(
+            "Remove downloaded GFS cycles older than --keep-days, then, with --max-gb, the oldest until the "
+            "download cache and the cube cache together are under the limit. A cycle's age counts from its "
+            "cycle time or its latest download, whichever is later. Cycles inside the keep window "
+            f"(--keep-days, or {size_only_days:g} days with --max-gb alone) and cycles a fetch is working on "
+            "are never removed. Cached cubes that no load can use any more are removed too."
+        ),
+    )
+    prune_parser.add_argument(
+        "--keep-days", type=float, default=None, metavar="N", help="remove cycles older than N days"
+    )
+    prune_parser.add_argument(
+        "--max-gb",
+        type=float,
+        default=None,
+        metavar="X",
+        help="then remove the oldest cycles until both caches hold under X GB (10^9 bytes)",
+    )
+    prune_parser.add_argument("--dry-run", action="store_true", help="only say what would be removed")
+    prune_parser.add_argument(
+        "--dir", type=Path, default=None, help="GFS download directory (default ~/.cache/drs/gfs)"
+    )
+    prune_parser.add_argument(
+        "--cache-dir",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="weather cube cache (default ~/.cache/drs/weather)",
+    )
+    prune_parser.set_defaults(func=run_prune)
+
     info = commands.add_parser("info", help="what a set of GRIB files holds once loaded as one cube")
     info.add_argument("files", nargs="+", type=Path, help="GRIB files")
     info.set_defaults(func=run_info)
@@ -108,6 +145,10 @@ def run_fetch(args: argparse.Namespace) -> int:
     region = Region.around(args.lat, args.lon, args.radius_km, grid)
     plan = plan_forecast_files(start, args.hours, hindsight=args.hindsight)
     template = args.url_template or os.environ.get(URL_TEMPLATE_ENV) or DEFAULT_URL_TEMPLATE
+    directory = args.dir or default_gfs_dir()
+    low_space = free_space_warning(directory)
+    if low_space:
+        print(f"warning: {low_space}", file=sys.stderr)
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
@@ -123,7 +164,7 @@ def run_fetch(args: argparse.Namespace) -> int:
             bar.update(tasks[name], completed=done, total=total)
 
         downloader = Downloader(
-            args.dir or default_gfs_dir(),
+            directory,
             url_template=template,
             resolution=args.resolution,
             retries=args.retries,
@@ -141,6 +182,68 @@ def run_fetch(args: argparse.Namespace) -> int:
     for path in files:
         print(path)
     return 0
+
+
+def run_prune(args: argparse.Namespace) -> int:
+    max_bytes = None
+    if args.max_gb is not None:
+        if not (math.isfinite(args.max_gb) and args.max_gb > 0):
+            raise WeatherError(f"--max-gb must be a positive number of gigabytes, not {args.max_gb:g}")
+        max_bytes = round(args.max_gb * 1e9)
+    result = prune(
+        args.dir or default_gfs_dir(),
+        args.cache_dir or default_cache_dir(),
+        keep_days=args.keep_days,
+        max_bytes=max_bytes,
+        dry_run=args.dry_run,
+    )
+    for line in _prune_report(result, max_bytes):
+        print(line)
+    return 0
+
+
+def _prune_report(result: PruneResult, max_bytes: int | None) -> list[str]:
+    """One line per removed cycle, one for the cube cache, one per cycle that had to stay, then totals."""
+    verb = "would remove" if result.dry_run else "removed"
+    lines = []
+    for cycle in result.removed:
+        written = f"{cycle.last_write:%Y-%m-%d %H:%M}Z" if cycle.last_write else "never"
+        lines.append(
+            f"{verb} {cycle.name} (cycle {cycle.cycle:%Y-%m-%d %H}Z, last written {written}): "
+            f"{_count(cycle.files, 'file')}, {_size_text(cycle.size_bytes)}"
+        )
+    if result.removed_entries:
+        lines.append(
+            f"{verb} {_count(len(result.removed_entries), 'cached cube')} "
+            f"({_size_text(sum(e.size_bytes for e in result.removed_entries))}) that no load can use any more"
+        )
+    for cycle, reason in result.skipped:
+        lines.append(f"kept {cycle.name} although it is older than the keep window: {reason}")
+    for entry, reason in result.failed_entries:
+        lines.append(f"could not remove cached cube {entry.path}: {reason}")
+    freed, left = ("would free", "would be left") if result.dry_run else ("freed", "left")
+    cycles_left = len(result.kept) + len(result.skipped)
+    lines.append(
+        f"{freed} {_size_text(result.freed_bytes)}; {left}: {_count(cycles_left, 'cycle')}, "
+        f"{_size_text(result.bytes_after)} in both caches (keep window from {result.keep_from:%Y-%m-%d %H:%M}Z)"
+    )
+    if max_bytes is not None and result.bytes_after > max_bytes:
+        lines.append(
+            f"note: the caches stay over the {_size_text(max_bytes)} limit: what is left is inside the keep "
+            "window, being fetched, or cubes of weather files still in use"
+        )
+    return lines
+
+
+def _count(number: int, noun: str) -> str:
+    return f"{number} {noun}{'' if number == 1 else 's'}"
+
+
+def _size_text(size_bytes: int) -> str:
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if size_bytes >= scale:
+            return f"{size_bytes / scale:.1f} {unit}"
+    return f"{size_bytes} B"
 
 
 def run_info(args: argparse.Namespace) -> int:
