@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 from datetime import datetime
 from enum import StrEnum
 
-from drs_link.backends import CapsuleBackend, GoResult
+from drs_link.backends import AuthorityStatus, CapsuleBackend, GoResult
 from drs_link.config import CapsuleConfig
 from drs_link.errors import LinkError, RefusedError
 from drs_link.nmea import GnssStatus, summarise
@@ -108,6 +108,13 @@ def default_holder(operator: str) -> str:
     """Who holds release authority on the Pi: operator and machine, in the lock file's alphabet."""
     raw = f"{operator or 'operator'}@{socket.gethostname()}"
     return re.sub(r"[^A-Za-z0-9@._:+-]", "_", raw)[:96]
+
+
+def take_over_outcome(seen: AuthorityStatus, holder: str) -> str:
+    """What taking over from ``seen`` amounts to for ``holder``: from itself it is only a renewal."""
+    if seen.holder == holder:
+        return "renewed"
+    return "claimed" if seen.holder is None else f"taken over from {seen.holder}"
 
 
 def _time(text: str | None) -> datetime | None:
@@ -364,6 +371,84 @@ class ReleaseStateMachine:
             self._save(conn, released)
         self._audit("go", note, detail)
         return released
+
+    # Release authority ------------------------------------------------------------------------
+
+    def authority(self) -> AuthorityStatus:
+        """Who holds the release authority on the Pi now; reading it changes nothing, so it is not audited."""
+        return self.backend.authority()
+
+    def check_take_over(self, reason: str, seen: AuthorityStatus | None = None) -> None:
+        """Refuse (audited) a take-over that can never be right, before the Pi is asked or the name typed."""
+        if self.record().state is ReleaseState.RELEASED:
+            raise self._refuse_take_over("the capsule is already released", reason, seen)
+        if not reason.strip():
+            raise self._refuse_take_over(
+                "a reason is required (it is written to the audit log)", reason, seen
+            )
+
+    def _take_over_detail(self, reason: str, seen: AuthorityStatus | None) -> dict[str, object]:
+        return {
+            "holder": self.holder,
+            "from": seen.holder if seen else None,
+            "from_state": seen.state.value if seen else None,
+            "from_lease_end": iso_utc(seen.lease_end) if seen and seen.lease_end else None,
+            "reason": reason.strip(),
+        }
+
+    def _refuse_take_over(self, refusal: str, reason: str, seen: AuthorityStatus | None) -> RefusedError:
+        self._audit(
+            "authority-take-over", "refused", {**self._take_over_detail(reason, seen), "refusal": refusal}
+        )
+        return RefusedError(f"{self.name}: take-over refused: {refusal}")
+
+    def take_over(self, seen: AuthorityStatus, typed_name: str, reason: str) -> AuthorityStatus:
+        """Become the release-authority holder deliberately: named, with a reason, audited before and after.
+
+        ``seen`` is what the operator was shown; the Pi hands the authority over only if its owner
+        file still says exactly that, so a console that renewed or took over meanwhile is never
+        silently overridden. Taking over from this console's own holder is a plain renewal.
+        """
+        self.check_take_over(reason, seen)
+        if typed_name != self.name:
+            raise self._refuse_take_over(
+                f"the confirmation {typed_name!r} does not name {self.name!r}", reason, seen
+            )
+        detail = self._take_over_detail(reason, seen)
+        self._audit("authority-take-over", "started", detail)
+        try:
+            now = self.backend.take_over_authority(self.holder, seen, self.capsule.authority_lease_s)
+        except RefusedError as exc:
+            self._audit("authority-take-over", "refused", {**detail, "refusal": str(exc)})
+            raise
+        except LinkError as exc:
+            self._audit("authority-take-over", "failed", {**detail, "error": str(exc)})
+            raise
+        result = take_over_outcome(seen, self.holder)
+        lease_end = iso_utc(now.lease_end) if now.lease_end else None
+        self._audit("authority-take-over", result, {**detail, "lease_end": lease_end})
+        return now
+
+    def release_authority(self, reason: str = "") -> AuthorityStatus:
+        """Give up this console's release authority (end of a shift); refused if another console holds it.
+
+        Returns what was given up: this console's lease, or a free authority when it held none.
+        """
+        detail: dict[str, object] = {"holder": self.holder, "reason": reason.strip()}
+        self._audit("authority-release", "started", detail)
+        try:
+            before = self.backend.release_authority(self.holder)
+        except RefusedError as exc:
+            self._audit("authority-release", "refused", {**detail, "refusal": str(exc)})
+            raise
+        except LinkError as exc:
+            self._audit("authority-release", "failed", {**detail, "error": str(exc)})
+            raise
+        if before.lease_end is None:
+            self._audit("authority-release", "was free", detail)
+        else:
+            self._audit("authority-release", "released", {**detail, "lease_end": iso_utc(before.lease_end)})
+        return before
 
     def reset(self, typed_name: str) -> ReleaseRecord:
         """After recovery (Gone flag cleared on the unit), allow a new release of this capsule."""

@@ -16,7 +16,7 @@ from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, Trans
 from drs_link.backends.agent import AgentBackend
 from drs_link.backends.stock import StockBackend
 from drs_link.bench import run_bench
-from drs_link.capsule import ReleaseState, ReleaseStateMachine, record_as_dict
+from drs_link.capsule import ReleaseState, ReleaseStateMachine, record_as_dict, take_over_outcome
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.ssh import (
@@ -37,6 +37,11 @@ EXIT_LINK_DOWN = 4
 POWER_ON_WARNING = (
     "Power-on pulses the latching relay: the capsule's batteries stay connected until someone presses "
     "the OFF button on the unit. Software cannot switch it off again."
+)
+
+TAKE_OVER_WARNING = (
+    "Taking over makes {holder} the only console that can power on and release {name}; "
+    "the console that held it is refused from now on. The audit log records who, from whom and why."
 )
 
 
@@ -63,6 +68,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     reset.add_argument("name")
     reset.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name")
     reset.set_defaults(func=cmd_reset)
+
+    authority = actions.add_parser(
+        "authority", help="who holds the release authority on the Pi; take it over or give it up"
+    )
+    authority.add_argument("name")
+    authority.add_argument(
+        "--take-over", action="store_true", help="make this console the holder (needs --reason and the name)"
+    )
+    authority.add_argument("--release", action="store_true", help="give up this console's own authority")
+    authority.add_argument("--reason", default="", help="why, for the audit log (required with --take-over)")
+    authority.add_argument(
+        "--confirm", metavar="NAME", help="with --take-over: the capsule's name, instead of typing it"
+    )
+    authority.set_defaults(func=cmd_authority)
 
     enrol = actions.add_parser("enrol", help="show the Pi's host key fingerprint; save it once compared")
     enrol.add_argument("name")
@@ -197,6 +216,48 @@ def cmd_go(args: argparse.Namespace) -> int:
     finally:
         link.close()
     print(f"{machine.name}: {released.note}; release A opens about 32 s after Go")
+    return 0
+
+
+def cmd_authority(args: argparse.Namespace) -> int:
+    if args.take_over and args.release:
+        raise LinkError(f"{args.name}: authority: --take-over and --release cannot be combined")
+    if args.confirm is not None and not args.take_over:
+        raise LinkError(f"{args.name}: authority: --confirm only confirms --take-over")
+    machine, link = _machine(args, need_operator=args.take_over or args.release)
+    try:
+        if args.release:
+            given_up = machine.release_authority(args.reason)
+            if given_up.holder is None:
+                print(f"{machine.name}: this console held no release authority: it is free")
+            else:
+                print(f"{machine.name}: release authority given up; it was {given_up.describe()}")
+            return 0
+        if args.take_over:
+            machine.check_take_over(args.reason)
+            if args.confirm is None and not sys.stdin.isatty():
+                raise RefusedError(
+                    f"{machine.name}: take-over refused: pass --confirm {machine.name}, "
+                    "or run it in a terminal to confirm"
+                )
+        seen = machine.authority()
+        mine = " (this console)" if seen.holder == machine.holder else ""
+        print(f"{machine.name}: release authority {seen.describe()}{mine}")
+        if not args.take_over:
+            return 0
+        typed = args.confirm
+        if typed is None:
+            print(TAKE_OVER_WARNING.format(name=machine.name, holder=machine.holder))
+            try:
+                typed = input(
+                    f"Type the capsule name ({machine.name}) to take over its release authority: "
+                ).strip()
+            except EOFError:
+                typed = ""
+        now = machine.take_over(seen, typed, args.reason)
+    finally:
+        link.close()
+    print(f"{machine.name}: release authority {take_over_outcome(seen, machine.holder)}: {now.describe()}")
     return 0
 
 

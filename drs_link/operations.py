@@ -16,6 +16,7 @@ from datetime import datetime
 from pathlib import Path
 
 from drs_link.arming import ArmingController
+from drs_link.backends import AuthorityStatus
 from drs_link.backends.agent import AgentBackend
 from drs_link.backends.stock import StockBackend
 from drs_link.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
@@ -235,6 +236,12 @@ class Operations:
             self._release_record(name, record),
             TelemetryRecord(self.clock(), name, "link", {"up": False, "note": "released: the Pi shut down"}),
         ])  # fmt: skip
+
+    def authority(self, name: str) -> AuthorityStatus:
+        """Who holds the capsule's release authority on its Pi (read-only), for the release screen to show."""
+        ops = self.ops(name)
+        with ops.lock:
+            return ops.machine.authority()
 
     def reset(self, name: str, typed_name: str) -> list[TelemetryRecord]:
         """After recovery: the state machine checks the typed name; then ARM is possible again."""

@@ -19,10 +19,13 @@ AUTHORITY_OWNER = ".drs-release.owner"
 LOG_OFFSET_MARKER = "drs-log-offset"
 MAX_LOG_BYTES = 65536
 HOLDER_RE = re.compile(r"^[A-Za-z0-9@._:+-]{1,96}$")
+_EPOCH_RE = re.compile(r"^[0-9]{1,11}$")
 
 EXIT_AUTHORITY_HELD = 75
+EXIT_AUTHORITY_CHANGED = 76
 EXIT_NO_AUTHORITY = 77
 EXIT_NO_TOOLS = 66
+AUTHORITY_MARKER = "drs-authority"
 _NO_AUTHORITY_MESSAGE = "echo 'drs: this console holds no release authority: run power-on first'"
 
 
@@ -66,20 +69,37 @@ def check_holder(holder: str) -> str:
     return holder
 
 
+def _read_owner(shared: bool = False) -> str:
+    """Lock fd 9 and read the owner file into ``held_by`` and ``lease_end`` (epoch s), ``now`` likewise.
+
+    Every reader and writer of the owner file holds this ``flock``, so none ever sees it half
+    written; readers share it. A lease end that is not a number reads as 0 (expired), so a damaged
+    owner file can never hold the authority forever.
+    """
+    lock, owner = (shlex.quote(x) for x in (AUTHORITY_LOCK, AUTHORITY_OWNER))
+    mode = "-s " if shared else ""
+    return (
+        f"exec 9>>{lock} || exit {EXIT_AUTHORITY_HELD}; "
+        f"flock {mode}-w 5 9 || "
+        f"{{ echo 'drs: the release-authority lock is busy' >&2; exit {EXIT_AUTHORITY_HELD}; }}; "
+        f"now=$(date +%s); held_by=''; lease_end=0; "
+        f"if [ -s {owner} ]; then read -r held_by lease_end < {owner}; fi; "
+        f"case $lease_end in ''|*[!0-9]*) lease_end=0;; esac"
+    )
+
+
+_REPORT_OWNER = f'printf \'%s %s %s %s\\n\' {AUTHORITY_MARKER} "$now" "$lease_end" "$held_by"'
+
+
 def _authority_prelude(holder: str) -> str:
     """Take the Pi-side lock that makes the power-on → go window exclusive to one console.
 
     ``flock`` makes the check-and-set of the owner file atomic; the owner file (holder and lease
     expiry) is what persists between the separate SSH commands of one release.
     """
-    lock, owner, q_holder = (shlex.quote(x) for x in (AUTHORITY_LOCK, AUTHORITY_OWNER, holder))
     return (
-        f"exec 9>>{lock} || exit {EXIT_AUTHORITY_HELD}; "
-        f"flock -w 5 9 || "
-        f"{{ echo 'drs: the release-authority lock is busy' >&2; exit {EXIT_AUTHORITY_HELD}; }}; "
-        f"now=$(date +%s); held_by=''; lease_end=0; "
-        f"if [ -s {owner} ]; then read -r held_by lease_end < {owner}; fi; "
-        f'if [ -n "$held_by" ] && [ "$held_by" != {q_holder} ] && [ "${{lease_end:-0}}" -gt "$now" ]; then '
+        f"{_read_owner()}; "
+        f'if [ -n "$held_by" ] && [ "$held_by" != {shlex.quote(holder)} ] && [ "$lease_end" -gt "$now" ]; then '
         f'echo "drs: release authority is held by $held_by" >&2; exit {EXIT_AUTHORITY_HELD}; fi'
     )
 
@@ -142,6 +162,73 @@ def go(tools_dir: str, python: str, holder: str) -> RemoteCommand:
         f"{q(python)} DRS_GoGoGo.py"
     )
     return RemoteCommand("go", (tools_dir, python, holder), script)
+
+
+def authority(tools_dir: str) -> RemoteCommand:
+    """Print who holds the release authority (one ``drs-authority`` line); changes nothing."""
+    script = (
+        f"cd {shlex.quote(tools_dir)} || exit {EXIT_NO_TOOLS}; {_read_owner(shared=True)}; {_REPORT_OWNER}"
+    )
+    return RemoteCommand("authority", (tools_dir,), script)
+
+
+def authority_take_over(
+    tools_dir: str, holder: str, expected_holder: str, expected_lease_end: int, lease_s: float
+) -> RemoteCommand:
+    """Make ``holder`` the owner for a fresh lease, only if the owner file still says what the operator saw.
+
+    The comparison and the write happen under one exclusive ``flock``, so a console that renewed or
+    took over in between is never overwritten. ``expected_holder`` is "" when the authority was
+    free. On a mismatch the current owner is printed and the command exits ``EXIT_AUTHORITY_CHANGED``.
+    """
+    check_holder(holder)
+    if expected_holder:
+        check_holder(expected_holder)
+    expected_end, lease = int(expected_lease_end), int(lease_s)
+    if expected_end < 0 or lease <= 0:
+        raise ValueError(f"lease end {expected_end} must not be negative, lease {lease} s must be positive")
+    q = shlex.quote
+    script = (
+        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
+        f"{_read_owner()}; "
+        f'if [ "$held_by" != {q(expected_holder)} ] || [ "$lease_end" -ne {expected_end} ]; then '
+        f"{_REPORT_OWNER}; echo 'drs: the release authority changed since it was shown' >&2; "
+        f"exit {EXIT_AUTHORITY_CHANGED}; fi; "
+        f"held_by={q(holder)}; lease_end=$((now + {lease})); "
+        f'echo "$held_by $lease_end" > {q(AUTHORITY_OWNER)} || exit 1; '
+        f"{_REPORT_OWNER}"
+    )
+    return RemoteCommand(
+        "authority-take-over", (tools_dir, holder, expected_holder, str(expected_end), str(lease)), script
+    )
+
+
+def authority_release(tools_dir: str, holder: str) -> RemoteCommand:
+    """Give up ``holder``'s release authority; prints the owner as it was, refuses another console's."""
+    check_holder(holder)
+    q = shlex.quote
+    script = (
+        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
+        f"{_read_owner()}; "
+        f'if [ -n "$held_by" ] && [ "$held_by" != {q(holder)} ]; then '
+        f'echo "drs: the release authority belongs to $held_by, not to this console" >&2; '
+        f"exit {EXIT_AUTHORITY_HELD}; fi; "
+        f"{_REPORT_OWNER}; "
+        f'if [ -n "$held_by" ]; then : > {q(AUTHORITY_OWNER)} || exit 1; fi'
+    )
+    return RemoteCommand("authority-release", (tools_dir, holder), script)
+
+
+def authority_report(output: str) -> tuple[int, int, str] | None:
+    """The Pi's clock, the lease end (both epoch s) and the holder ("" when free), from the marker line.
+
+    None when the output carries no well-formed marker line (not this command's output).
+    """
+    for line in output.splitlines():
+        words = line.split()
+        if words[:1] == [AUTHORITY_MARKER] and len(words) in (3, 4) and all(map(_EPOCH_RE.match, words[1:3])):
+            return int(words[1]), int(words[2]), words[3] if len(words) == 4 else ""
+    return None
 
 
 AGENT_NAME = "drs_agent.py"

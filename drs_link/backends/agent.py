@@ -16,8 +16,9 @@ from pathlib import Path
 import paramiko
 
 from drs_link import remote
-from drs_link.backends import GoResult, PowerOnResult
-from drs_link.backends.stock import GO_TIMEOUT_S, SHUTTING_DOWN_LINE, raise_for
+from drs_link.backends import GoResult, PowerOnResult, raise_for
+from drs_link.backends.authority import PiReleaseAuthority
+from drs_link.backends.stock import GO_TIMEOUT_S, SHUTTING_DOWN_LINE
 from drs_link.config import CapsuleConfig
 from drs_link.errors import LinkError
 from drs_link.ssh import CapsuleLink
@@ -26,7 +27,7 @@ AGENT_SOURCE = Path(__file__).with_name("pi_agent.py")
 ACK_LINE = "ACK Dropping in 30 seconds!"
 
 
-class AgentBackend:
+class AgentBackend(PiReleaseAuthority):
     def __init__(self, capsule: CapsuleConfig, link: CapsuleLink) -> None:
         self.capsule = capsule
         self.link = link

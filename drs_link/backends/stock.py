@@ -9,10 +9,10 @@ read the firmware's acknowledgement, so with this backend that line proves the w
 from __future__ import annotations
 
 from drs_link import remote
-from drs_link.backends import GoResult, PowerOnResult
+from drs_link.backends import GoResult, PowerOnResult, raise_for
+from drs_link.backends.authority import PiReleaseAuthority
 from drs_link.config import CapsuleConfig
-from drs_link.errors import LinkError, RefusedError
-from drs_link.ssh import CapsuleLink, CommandResult
+from drs_link.ssh import CapsuleLink
 
 GO_WRITTEN_LINE = "Dropping in 30 seconds!"
 SHUTTING_DOWN_LINE = "Shutting down..."
@@ -20,22 +20,7 @@ SHUTTING_DOWN_LINE = "Shutting down..."
 GO_TIMEOUT_S = 60.0
 
 
-def raise_for(step: str, result: CommandResult, capsule: str) -> None:
-    if result.link_dropped:
-        raise LinkError(f"{capsule}: the link dropped during {step}")
-    if result.timed_out:
-        raise LinkError(f"{capsule}: {step} did not finish in time")
-    message = result.stderr.strip().splitlines()[-1] if result.stderr.strip() else ""
-    if result.exit_status in (remote.EXIT_AUTHORITY_HELD, remote.EXIT_NO_AUTHORITY):
-        raise RefusedError(f"{capsule}: {message.removeprefix('drs: ') or 'release authority refused'}")
-    if result.exit_status == remote.EXIT_NO_TOOLS:
-        raise LinkError(f"{capsule}: the tools directory is missing on the Pi")
-    raise LinkError(
-        f"{capsule}: {step} failed with exit status {result.exit_status}: {message or 'no message'}"
-    )
-
-
-class StockBackend:
+class StockBackend(PiReleaseAuthority):
     def __init__(self, capsule: CapsuleConfig, link: CapsuleLink) -> None:
         self.capsule = capsule
         self.link = link

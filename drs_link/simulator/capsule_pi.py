@@ -413,25 +413,44 @@ class CapsuleSimulator:
     def _cmd_heartbeat(self, out: _Output) -> int:
         return 0
 
-    def _check_tools(self, out: _Output, tools_dir: str, python: str) -> int | None:
+    def _cd_tools(self, out: _Output, tools_dir: str) -> int | None:
         if tools_dir != self.tools_dir:
             out.err(f"sh: 1: cd: can't cd to {tools_dir}\n")
             return remote.EXIT_NO_TOOLS
+        return None
+
+    def _check_tools(self, out: _Output, tools_dir: str, python: str) -> int | None:
+        if (failed := self._cd_tools(out, tools_dir)) is not None:
+            return failed
         if python not in ("python", "python2", "python3", "/usr/bin/python"):
             out.err(f"sh: 1: {python}: not found\n")
             return 127
         return None
 
+    def _pi_seconds(self) -> int:
+        """``date +%s`` on the Pi: the owner file counts in whole epoch seconds."""
+        return int(self.clock.now().timestamp())
+
+    def _owner(self) -> tuple[str, int]:
+        """The owner file as ``remote._read_owner`` reads it: holder ("" when free) and lease end."""
+        if self.authority is None:
+            return "", 0
+        held_by, until = self.authority
+        return held_by, int(until.timestamp())
+
+    def _report_owner(self, out: _Output) -> None:
+        held_by, lease_end = self._owner()
+        out.write(f"{remote.AUTHORITY_MARKER} {self._pi_seconds()} {lease_end} {held_by}\n")
+
     def _take_authority(self, out: _Output, holder: str) -> str | None:
         """The owner-file check of ``remote._authority_prelude``; returns the current holder or exits."""
-        now = self.clock.now()
-        if self.authority is not None:
-            held_by, until = self.authority
-            if held_by != holder and until > now:
-                out.err(f"drs: release authority is held by {held_by}\n")
-                raise _Exit(remote.EXIT_AUTHORITY_HELD)
-            return held_by
-        return None
+        held_by, lease_end = self._owner()
+        if not held_by:
+            return None
+        if held_by != holder and lease_end > self._pi_seconds():
+            out.err(f"drs: release authority is held by {held_by}\n")
+            raise _Exit(remote.EXIT_AUTHORITY_HELD)
+        return held_by
 
     def _claim_authority(self, out: _Output, holder: str, lease: str) -> int | None:
         """Take or renew the release authority for ``lease`` seconds (call under the lock).
@@ -442,8 +461,45 @@ class CapsuleSimulator:
             self._take_authority(out, holder)
         except _Exit as exit_:
             return exit_.status
-        self.authority = (holder, self.clock.now() + timedelta(seconds=int(lease)))
+        self._write_owner(holder, int(lease))
         return None
+
+    def _write_owner(self, holder: str, lease_s: int) -> None:
+        self.authority = (holder, datetime.fromtimestamp(self._pi_seconds() + lease_s, UTC))
+
+    def _cmd_authority(self, out: _Output, tools_dir: str) -> int:
+        if (failed := self._cd_tools(out, tools_dir)) is not None:
+            return failed
+        with self._authority_lock:
+            self._report_owner(out)
+        return 0
+
+    def _cmd_authority_take_over(
+        self, out: _Output, tools_dir: str, holder: str, expected_holder: str, expected_end: str, lease: str
+    ) -> int:
+        """Compare-and-set of the owner file: only if it still says what the operator was shown."""
+        if (failed := self._cd_tools(out, tools_dir)) is not None:
+            return failed
+        with self._authority_lock:
+            if self._owner() != (expected_holder, int(expected_end)):
+                self._report_owner(out)
+                out.err("drs: the release authority changed since it was shown\n")
+                return remote.EXIT_AUTHORITY_CHANGED
+            self._write_owner(holder, int(lease))
+            self._report_owner(out)
+        return 0
+
+    def _cmd_authority_release(self, out: _Output, tools_dir: str, holder: str) -> int:
+        if (failed := self._cd_tools(out, tools_dir)) is not None:
+            return failed
+        with self._authority_lock:
+            held_by, _ = self._owner()
+            if held_by and held_by != holder:
+                out.err(f"drs: the release authority belongs to {held_by}, not to this console\n")
+                return remote.EXIT_AUTHORITY_HELD
+            self._report_owner(out)
+            self.authority = None
+        return 0
 
     def _cmd_power_on(self, out: _Output, tools_dir: str, python: str, holder: str, lease: str) -> int:
         failed = self._check_tools(out, tools_dir, python)

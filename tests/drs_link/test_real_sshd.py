@@ -9,6 +9,7 @@ Pi halts. With ``CI`` set, a missing sshd fails these tests rather than skipping
 
 from __future__ import annotations
 
+import fcntl
 import importlib.util
 import os
 import select
@@ -21,6 +22,7 @@ import textwrap
 import threading
 import time
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
@@ -29,6 +31,7 @@ import paramiko
 import pytest
 
 from drs_link import remote
+from drs_link.backends import AuthorityState
 from drs_link.backends.agent import AGENT_SOURCE, AgentBackend
 from drs_link.backends.stock import StockBackend
 from drs_link.capsule import ReleaseState, ReleaseStateMachine
@@ -321,6 +324,75 @@ def test_another_console_is_refused_release_authority_by_the_pi_lock(
     theirs = _machine(capsule, tmp_path / "b", holder="JR@console2")
     with pytest.raises(RefusedError, match="held by EL@console1"):
         theirs.power_on(confirmed=True)
+
+
+def _reading_under_the_shared_lock(tools: Path) -> bool:
+    """Whether an authority query's ``flock -s`` is running in ``tools`` (waiting, while we hold the lock)."""
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                argv = Path(f"/proc/{entry}/cmdline").read_bytes().split(b"\0")
+                cwd = os.readlink(f"/proc/{entry}/cwd")
+            except OSError:
+                continue
+            if argv[:2] == [b"flock", b"-s"] and cwd == str(tools.resolve()):
+                return True
+    return False
+
+
+def test_authority_query_waits_for_the_lock_so_it_never_reads_a_half_written_owner_file(
+    capsule: CapsuleConfig, tmp_path: Path
+) -> None:
+    machine = _machine(capsule, tmp_path)
+    assert machine.authority().state is AuthorityState.FREE
+    machine.power_on(confirmed=True)
+    tools = Path(capsule.tools_dir)
+    owner = tools / remote.AUTHORITY_OWNER
+    holder, lease_end = owner.read_text().split()
+    status = machine.authority()
+    assert (status.holder, status.lease_end_s, status.state) == (holder, int(lease_end), AuthorityState.HELD)
+    assert 0 < status.seconds_left <= capsule.authority_lease_s
+    with ThreadPoolExecutor(1) as pool, (tools / remote.AUTHORITY_LOCK).open("a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        owner.write_text("JR@cons")
+        reading = pool.submit(machine.authority)
+        deadline = time.monotonic() + 10
+        while not _reading_under_the_shared_lock(tools):
+            assert time.monotonic() < deadline and not reading.done(), "the query did not wait for the lock"
+            time.sleep(0.02)
+        owner.write_text(f"JR@console2 {int(lease_end) + 60}\n")
+        fcntl.flock(lock, fcntl.LOCK_UN)
+        seen = reading.result(timeout=20)
+    assert (seen.holder, seen.lease_end_s) == ("JR@console2", int(lease_end) + 60)
+    owner.write_text(f"JR@console2 {seen.pi_time_s - 1}\n")
+    assert machine.authority().state is AuthorityState.EXPIRED
+
+
+def test_take_over_on_a_real_shell_is_a_compare_and_set_under_the_lock(
+    capsule: CapsuleConfig, tmp_path: Path
+) -> None:
+    first = _machine(capsule, tmp_path / "a", holder="EL@console1")
+    first.power_on(confirmed=True)
+    slow = _machine(capsule, tmp_path / "b", holder="JR@backup")
+    fast = _machine(capsule, tmp_path / "c", holder="AB@spare")
+    stale = slow.authority()
+    taken = fast.take_over(fast.authority(), "DRS1", "console1 is down")
+    tools = Path(capsule.tools_dir)
+    owner = tools / remote.AUTHORITY_OWNER
+    assert owner.read_text().split() == ["AB@spare", str(taken.lease_end_s)]
+    assert taken.seconds_left == int(capsule.authority_lease_s)
+    with pytest.raises(RefusedError, match="changed since it was shown") as refused:
+        slow.take_over(stale, "DRS1", "console1 is down")
+    assert "held by EL@console1" in str(refused.value) and "now held by AB@spare" in str(refused.value)
+    assert owner.read_text().split() == ["AB@spare", str(taken.lease_end_s)]
+    assert first.wait_for_microcontroller().waiting_for_go
+    with pytest.raises(RefusedError, match="held by AB@spare"):
+        first.go(first.confirm("DRS1"))
+    assert not (tools / "ttyS0.tx").exists()
+    with pytest.raises(RefusedError, match="belongs to AB@spare"):
+        first.release_authority()
+    assert fast.release_authority("done").holder == "AB@spare"
+    assert owner.read_text() == "" and fast.authority().state is AuthorityState.FREE
 
 
 def test_wrong_host_key_is_refused(capsule: CapsuleConfig, sshd: RealSshd, tmp_path: Path) -> None:
