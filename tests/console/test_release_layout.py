@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import pytest
+from textual.pilot import Pilot
 from textual.widgets import DataTable
 
 from console.app import DrsConsole
@@ -13,15 +14,21 @@ from console.screens.release import ReleaseScreen
 pytestmark = pytest.mark.asyncio
 
 
+async def open_release(pilot: Pilot[int]) -> ReleaseScreen:
+    await pilot.press("enter")
+    await pilot.pause()
+    screen = pilot.app.screen
+    assert isinstance(screen, ReleaseScreen)
+    return screen
+
+
 async def test_at_80_columns_every_go_no_go_reason_is_readable_without_scrolling(
     canned_app: Callable[..., DrsConsole],
 ) -> None:
     app = canned_app()
     async with app.run_test(size=(80, 24)) as pilot:
-        await pilot.press("enter")
-        await pilot.pause()
-        screen = app.screen
-        assert isinstance(screen, ReleaseScreen) and screen.has_class("-narrow")
+        screen = await open_release(pilot)
+        assert screen.has_class("-narrow")
         gonogo = screen.query_one("#gonogo", DataTable)
         assert gonogo.virtual_size.width <= gonogo.scrollable_content_region.width
         assert gonogo.virtual_size.height <= gonogo.scrollable_content_region.height, "an item is hidden"
@@ -36,9 +43,7 @@ async def test_the_highlighted_step_is_shown_whole_below_the_checklist(
 ) -> None:
     app = canned_app()
     async with app.run_test(size=(80, 24)) as pilot:
-        await pilot.press("enter")
-        await pilot.pause()
-        screen = app.screen
+        screen = await open_release(pilot)
         checklist = app.checklists[screen.checklist_index]
         detail = screen.query_one("#step-detail")
         for row in range(4):
@@ -54,8 +59,6 @@ async def test_wide_terminals_keep_the_checklist_and_go_no_go_side_by_side(
 ) -> None:
     app = canned_app()
     async with app.run_test(size=(160, 48)) as pilot:
-        await pilot.press("enter")
-        await pilot.pause()
-        screen = app.screen
+        screen = await open_release(pilot)
         assert screen.has_class("-wide")
         assert screen.query_one("#checklist-pane").region.y == screen.query_one("#gonogo-pane").region.y

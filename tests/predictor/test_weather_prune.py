@@ -25,6 +25,7 @@ from predictor.gribwrite import GFS_LEVELS_HPA, write_gfs_grib2
 from predictor.weather import load_weather
 from predictor.weather_cli import default_gfs_dir
 from tests.predictor.grib_server import GribServer
+from tests.predictor.test_weather_cli import serve_cycle
 
 NOW = datetime(2024, 6, 1, 12, tzinfo=UTC)
 REGION = Region(45.0, 46.0, 6.0, 7.0)
@@ -535,23 +536,7 @@ def test_a_cycle_fetched_by_the_command_counts_as_new_until_its_download_ages(
     cycle = datetime(2024, 4, 30, 18, tzinfo=UTC)
     server = GribServer()
     try:
-        levels = np.array(GFS_LEVELS_HPA, dtype=float)
-        shape = (levels.size, 3, 3)
-        gh = np.broadcast_to(np.linspace(100.0, 48000.0, levels.size)[:, None, None], shape)
-        for step in (9, 12):
-            body = write_gfs_grib2(
-                tmp_path / f"src{step}",
-                cycle,
-                step,
-                levels,
-                [46.0, 46.5, 47.0],
-                [6.0, 6.5, 7.0],
-                np.zeros(shape),
-                np.zeros(shape),
-                np.full(shape, 250.0),
-                gh,
-            )
-            server.bodies[f"/20240430/18/gfs.t18z.pgrb2full.0p50.f{step:03d}"] = body.read_bytes()
+        serve_cycle(server, tmp_path, cycle, [9, 12])
         argv = ["weather", "fetch", "--time", "2024-05-01T04:00Z", "--lat", "46.5", "--lon", "6.6"]
         assert main([*argv, "--hours", "2", "--url-template", server.template]) == 0
     finally:
