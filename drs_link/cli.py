@@ -191,7 +191,11 @@ def cmd_power_on(args: argparse.Namespace) -> int:
             raise RefusedError(
                 f"{machine.name}: power-on refused: pass --yes, or run it in a terminal to confirm"
             )
-        confirmed = input(f"Type the capsule name ({machine.name}) to power it on: ").strip() == machine.name
+        try:
+            typed = input(f"Type the capsule name ({machine.name}) to power it on: ")
+        except EOFError:
+            typed = ""
+        confirmed = typed.strip() == machine.name
     try:
         machine.power_on(confirmed)
         print(f"{machine.name}: power-on done; waiting for the microcontroller's NMEA (up to ~25 s)")

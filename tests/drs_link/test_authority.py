@@ -486,3 +486,34 @@ def test_cli_take_over_in_a_terminal_asks_for_the_capsules_name(
         os.close(master)
     assert b"taken over from JR@console2" in done
     assert sim.authority is not None and sim.authority[0] == default_holder("EL")
+
+
+@pytest.mark.slow
+def test_cli_power_on_prompt_takes_end_of_input_as_no_and_says_so_in_one_line(
+    cli: tuple[CapsuleSimulator, Path],
+) -> None:
+    sim, config = cli
+    runner = (
+        "import sys, console.cli as c; c.COMMAND_MODULES = ('drs_link.cli',); sys.exit(c.main(sys.argv[1:]))"
+    )
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(
+        [sys.executable, "-c", runner, "--config", str(config), "capsule", "power-on", "DRS1"],
+        stdin=slave, stdout=slave, stderr=slave, cwd=REPO,
+    )  # fmt: skip
+    os.close(slave)
+    try:
+        deadline = time.monotonic() + 60
+        _read_until(master, b"to power it on: ", deadline)
+        os.write(master, b"\x04")
+        shown = _read_until(master, b"\r\n", deadline)
+        shown += _read_until(master, b"never appears", time.monotonic() + 5)
+        assert proc.wait(timeout=30) == 2
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        os.close(master)
+    assert b"Traceback" not in shown and b"drs: error: DRS1: power-on refused" in shown
+    assert sim.firmware.powered_at is None, "nothing was switched on"
+
