@@ -13,14 +13,12 @@ from dataclasses import dataclass, replace
 
 from predictor.errors import PredictorError
 
-ROCKETMAN_CD = 0.97
-"""Canopy Cd used in pyBalloon's param_file.py (2019-06 → 2019-10), see shared/docs/pyballoon.md §2.2."""
+DRS_EFFECTIVE_CDA_M2 = 0.43
+"""Chosen to reproduce the two 2019 DRS drops (Sirks et al. 2020, JINST 15 P05014: ~37 min from ~30 km).
 
-
-def canopy_area_m2(diameter_ft: float) -> float:
-    """Nominal (flat) area of a round canopy of the given diameter."""
-    radius_m = diameter_ft * 0.3048 / 2.0
-    return math.pi * radius_m**2
+It is 0.38 × (0.97 × nominal 4 ft area); the test payload's fitted 1.358 m² is 0.39 × (0.97 × nominal
+7 ft area), so both Rocketman canopies fly at the same fraction of their nominal drag area.
+"""
 
 
 @dataclass(frozen=True)
@@ -55,11 +53,12 @@ class Payload:
 PROFILES: dict[str, Payload] = {
     "drs": Payload(
         mass_kg=1.029,
-        cda_m2=round(ROCKETMAN_CD * canopy_area_m2(4.0), 4),
+        cda_m2=DRS_EFFECTIVE_CDA_M2,
         name="drs",
         source=(
-            "DRS capsule, 1.029 kg under a 4 ft Rocketman (Sirks et al. 2020); "
-            "Cd·A = 0.97 (pyBalloon param_file.py 2019) × nominal 4 ft area 1.168 m²"
+            "DRS capsule, 1.029 kg under a 4 ft Rocketman (Sirks et al. 2020); effective Cd·A 0.43 m², "
+            "the value that reproduces the paper's measured ~37 min fall from ~30 km in the standard "
+            "atmosphere (0.97 × the nominal 4 ft area would give 1.13 m² and 60 min)"
         ),
     ),
     "superbit-test": Payload(

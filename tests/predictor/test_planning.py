@@ -214,14 +214,14 @@ def test_a_sweep_across_the_antimeridian_sees_a_zone_written_across_it(tmp_path:
     cube = isothermal_cube(
         lats=np.arange(-50.0, -39.0, 1.0), lons=np.arange(170.0, 191.0, 1.0), u=12.0, v=0.0
     )
-    free = plan_release(cube, RELEASE, -45.0, 179.2, 30000.0, 1.0, 20.0)
+    free = plan_release(cube, RELEASE, -45.0, 179.4, 30000.0, 1.0, 20.0)
     lons = [c.landing_lon for c in free.candidates]
     assert lons[1] > 179.8 and -180.0 < lons[2] < -179.8, "landings 1 and 2 straddle 180°"
     # A strait from 179.85° E to 179.85° W, written as GeoJSON the short way across the antimeridian.
     ring = [[179.85, -45.2], [-179.85, -45.2], [-179.85, -44.8], [179.85, -44.8], [179.85, -45.2]]
     path = tmp_path / "strait.geojson"
     path.write_text(json.dumps({"type": "Polygon", "coordinates": [ring]}))
-    plan = plan_release(cube, RELEASE, -45.0, 179.2, 30000.0, 1.0, 20.0, zones=load_zones(path))
+    plan = plan_release(cube, RELEASE, -45.0, 179.4, 30000.0, 1.0, 20.0, zones=load_zones(path))
     p = [c.zone_probability for c in plan.candidates]
     # Both landings next to 180° are mostly in the strait; the first (8 km west of it) much less.
     assert p[1] > 0.3 and p[2] > 0.3
