@@ -79,6 +79,11 @@ class ConsoleSetup:
     time_scale: float = 1.0
     """Simulated seconds per real second (the demo): timers are real, telemetry times are not."""
 
+    def close(self) -> None:
+        """Stop what runs beside the app (the balloon feed's reader); the store closes with Operations."""
+        if self.balloon_feed is not None:
+            self.balloon_feed.stop()
+
 
 class DrsConsole(App[int]):
     CSS_PATH = ["styles/console.tcss"]

@@ -23,6 +23,7 @@ from drs_link.telemetry import TelemetryRecord, TelemetryRecorder, read_recordin
 
 if TYPE_CHECKING:
     from console.app import ConsoleSetup
+    from console.demo import DemoWorld
     from drs_link.balloon_feed import BalloonFeed
     from predictor import Terrain
 
@@ -90,8 +91,7 @@ def run_console(setup: ConsoleSetup) -> int:
     try:
         return DrsConsole(setup).run() or 0
     finally:
-        if setup.balloon_feed is not None:
-            setup.balloon_feed.stop()
+        setup.close()
 
 
 def _recorder(config: Config) -> TelemetryRecorder:
@@ -182,11 +182,33 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return run_demo(args.speed or 4.0)
 
 
-def run_demo(speed: float) -> int:
+def demo_setup(
+    world: DemoWorld, config: Config, export_dir: Path, recorder: TelemetryRecorder | None = None,
+    poll_period_s: float | None = None, prediction_period_s: float | None = None,
+) -> ConsoleSetup:
+    """The console wired to a started demo world as ``drs demo`` runs it; tests and screenshots change the pace."""
     from console.app import ConsoleSetup
-    from console.demo import DemoWorld
     from console.predictions import PredictionService
     from drs_link.operations import Operations
+
+    speed = world.speed
+    store = Store.open(config.store_path)
+    return ConsoleSetup(
+        mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
+        operations=Operations(config, store, clock=world.clock, recorder=recorder, environ=world.environ),
+        predictions=PredictionService(lambda: world.weather_files, world.terrain, world.clock),
+        balloon_feed=started_balloon_feed(config, world.clock), team_position=_team(config),
+        export_dir=export_dir, banner_note=f"×{speed:g} time",
+        poll_period_s=min(3.0, max(1.0, 8.0 / speed)) if poll_period_s is None else poll_period_s,
+        prediction_period_s=(
+            config.console.prediction_period_s / speed if prediction_period_s is None else prediction_period_s
+        ),
+        time_scale=speed,
+    )  # fmt: skip
+
+
+def run_demo(speed: float) -> int:
+    from console.demo import DemoWorld
 
     root = Path(tempfile.mkdtemp(prefix="drs-demo-"))
     try:
@@ -196,20 +218,8 @@ def run_demo(speed: float) -> int:
     print(f"drs demo: starting simulated capsules, gateway and weather in {root} …", flush=True)
     try:
         config = world.start()
-        store = Store.open(config.store_path)
         recorder = _recorder(config)
-        operations = Operations(config, store, clock=world.clock, recorder=recorder, environ=world.environ)
-        predictions = PredictionService(lambda: world.weather_files, world.terrain, world.clock)
-        setup = ConsoleSetup(
-            mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
-            operations=operations, predictions=predictions,
-            balloon_feed=started_balloon_feed(config, world.clock),
-            team_position=_team(config), export_dir=root / "exports", banner_note=f"×{speed:g} time",
-            poll_period_s=min(3.0, max(1.0, 8.0 / speed)),
-            prediction_period_s=config.console.prediction_period_s / speed,
-            time_scale=speed,
-        )  # fmt: skip
-        result = run_console(setup)
+        result = run_console(demo_setup(world, config, root / "exports", recorder))
     finally:
         world.stop()
     print(f"drs demo: session kept in {root}; replay it with: drs console --replay {recorder.path}")

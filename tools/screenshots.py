@@ -16,13 +16,10 @@ from pathlib import Path
 
 from textual.pilot import Pilot
 
-from console.app import ConsoleSetup, DrsConsole
-from console.console_cli import _team, started_balloon_feed
+from console.app import DrsConsole
+from console.console_cli import demo_setup
 from console.demo import DemoWorld
-from console.predictions import PredictionService
 from drs_link.arming import ArmState
-from drs_link.operations import Operations
-from drs_link.store import Store
 
 SIZE = (120, 36)
 SPEED = 20.0
@@ -105,21 +102,13 @@ async def drive(app: DrsConsole, world: DemoWorld) -> None:
 def main() -> int:
     world = DemoWorld(Path(tempfile.mkdtemp(prefix="drs-screenshots-")), SPEED)
     config = world.start()
-    feed = started_balloon_feed(config, world.clock)
+    setup = None
     try:
-        store = Store.open(config.store_path)
-        setup = ConsoleSetup(
-            mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
-            operations=Operations(config, store, clock=world.clock, environ=world.environ),
-            predictions=PredictionService(lambda: world.weather_files, world.terrain, world.clock),
-            balloon_feed=feed, team_position=_team(config), export_dir=world.root / "exports",
-            banner_note=f"×{SPEED:g} time", poll_period_s=1.0,
-            prediction_period_s=config.console.prediction_period_s / SPEED, time_scale=SPEED,
-        )  # fmt: skip
+        setup = demo_setup(world, config, world.root / "exports", poll_period_s=1.0)
         asyncio.run(drive(DrsConsole(setup), world))
     finally:
-        if feed is not None:
-            feed.stop()
+        if setup is not None:
+            setup.close()
         world.stop()
     return 0
 

@@ -12,7 +12,7 @@ import pytest
 from textual.pilot import Pilot
 
 from console.app import ConsoleSetup, DrsConsole
-from console.console_cli import _team, started_balloon_feed
+from console.console_cli import _team, demo_setup
 from console.demo import DemoWorld, write_demo_terrain
 from console.predictions import PredictionService, ReleaseOrigin
 from drs_link.config import Config, parse_config
@@ -43,22 +43,13 @@ def demo(tmp_path: Path) -> Iterator[tuple[DemoWorld, DrsConsole]]:
     """The whole demo, as ``drs demo`` wires it, with its world running ``DEMO_SPEED`` times faster."""
     world = DemoWorld(tmp_path / "demo", DEMO_SPEED)
     config = world.start()
-    feed = None
+    setup = None
     try:
-        feed = started_balloon_feed(config, world.clock)
-        store = Store.open(config.store_path)
-        operations = Operations(config, store, clock=world.clock, environ=world.environ)
-        predictions = PredictionService(lambda: world.weather_files, world.terrain, world.clock)
-        setup = ConsoleSetup(
-            mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
-            operations=operations, predictions=predictions, balloon_feed=feed,
-            team_position=_team(config), export_dir=tmp_path / "exports", poll_period_s=0.5,
-            prediction_period_s=2.0, time_scale=DEMO_SPEED,
-        )  # fmt: skip
+        setup = demo_setup(world, config, tmp_path / "exports", poll_period_s=0.5, prediction_period_s=2.0)
         yield world, DrsConsole(setup)
     finally:
-        if feed is not None:
-            feed.stop()
+        if setup is not None:
+            setup.close()
         world.stop()
 
 
