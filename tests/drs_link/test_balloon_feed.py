@@ -44,6 +44,7 @@ from drs_link.fleet import FleetState
 from drs_link.nmea import format_gga, format_rmc, nmea_checksum
 from drs_link.telemetry import TelemetryRecord
 from tests.clock import ManualClock
+from tests.ports import free_port
 
 NOW = datetime(2026, 6, 20, 12, 0, 0, tzinfo=UTC)
 # A real u-blox sentence (checksum computed by the receiver, not by this code), 2011-05-28 09:27:50.
@@ -80,11 +81,6 @@ def wait_for(condition: Callable[[], bool], what: str, timeout_s: float = 15.0) 
             pytest.fail(f"timed out after {timeout_s} s waiting for {what}")
         time.sleep(0.01)
 
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 
@@ -370,7 +366,7 @@ def test_reconnect_backoff_doubles_to_30_s() -> None:
 
 
 def test_udp_datagrams_with_several_lines_each_line_judged(feeds: Callable[..., BalloonFeed]) -> None:
-    port = free_udp_port()
+    port = free_port(socket.SOCK_DGRAM)
     clock = ManualClock(NOW)
     feed = feeds(BalloonFeedConfig(kind="udp", port=port), clock)
     assert feed.status().state == "listening" and feed.status().source == f"udp 127.0.0.1:{port}"
@@ -396,7 +392,7 @@ def test_udp_datagrams_with_several_lines_each_line_judged(feeds: Callable[..., 
 def test_udp_reordered_and_repeated_fixes_are_dropped_and_midnight_is_not_a_reorder(
     feeds: Callable[..., BalloonFeed],
 ) -> None:
-    port = free_udp_port()
+    port = free_port(socket.SOCK_DGRAM)
     clock = ManualClock(datetime(2026, 1, 1, 23, 59, 59, 500_000, tzinfo=UTC))
     feed = feeds(BalloonFeedConfig(kind="udp", port=port), clock)
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
@@ -438,7 +434,7 @@ def test_udp_address_not_on_this_machine_fails_at_start() -> None:
 def test_a_failing_listener_does_not_stop_the_feed_and_stop_ends_the_thread(
     feeds: Callable[..., BalloonFeed],
 ) -> None:
-    port = free_udp_port()
+    port = free_port(socket.SOCK_DGRAM)
     seen: list[BalloonFix | Rejection] = []
 
     def listener(outcome: BalloonFix | Rejection) -> None:
@@ -683,7 +679,7 @@ def test_docs_example_is_a_valid_balloon_feed() -> None:
 
 @pytest.fixture
 def udp_config(tmp_path: Path) -> tuple[Path, int]:
-    port = free_udp_port()
+    port = free_port(socket.SOCK_DGRAM)
     path = tmp_path / "drs.toml"
     path.write_text(f'[balloon_feed]\nkind = "udp"\nhost = "127.0.0.1"\nport = {port}\n')
     return path, port

@@ -44,6 +44,7 @@ from drs_link.ssh import CapsuleLink, HostKeyError, fingerprint
 from drs_link.storage import read_storage
 from drs_link.store import Store
 from drs_link.sync import Syncer
+from tests.ports import free_port
 
 pytestmark = pytest.mark.slow
 
@@ -69,11 +70,6 @@ class RealSshd:
     host_key: paramiko.PKey
     known_hosts: Path
 
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 def _wait_for_banner(port: int, proc: subprocess.Popen[bytes], log: Path) -> bool:
@@ -105,7 +101,7 @@ def sshd(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RealSshd]:
     (root / "authorized_keys").chmod(0o600)
     user = os.environ.get("USER") or "root"
     for attempt in range(5):
-        port = _free_port()
+        port = free_port()
         config = root / "sshd_config"
         config.write_text(
             textwrap.dedent(

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import socket
 from collections.abc import Iterator
 
 import pytest
@@ -12,6 +11,7 @@ from drs_link.config import RockblockConfig
 from drs_link.errors import ConfigError
 from drs_link.iridium.gateway import FAILURE_MEANINGS, RockblockGateway, resolve_password
 from drs_link.simulator.rockblock import Scripted, SimulatedRockblock
+from tests.ports import free_port
 
 IMEI = "300234010753370"
 SECRET = "s3cret-pass"
@@ -26,11 +26,6 @@ def rockblock() -> Iterator[SimulatedRockblock]:
 def client(url: str, timeout_s: float = 2.0, **kwargs: object) -> RockblockGateway:
     return RockblockGateway(url, "ops", SECRET, timeout_s=timeout_s, retry_delay_s=0.0, **kwargs)  # type: ignore[arg-type]
 
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def test_ok_reply_gives_the_mt_id_and_credentials_travel_only_in_the_body(
