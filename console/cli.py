@@ -1,8 +1,12 @@
 """The `drs` command: one entry point whose subcommands live next to the code they drive.
 
-Each package contributes a module with ``register(subparsers)``; every subcommand sets
-``func(args) -> int``. Errors meant for an operator are raised as the packages' own error
-types and printed here as one line with a non-zero exit, never as a traceback.
+Each command module has ``register(subparsers)``; every subcommand sets ``func(args) -> int``.
+Errors meant for an operator are raised as the packages' own error types and printed here as one
+line with a non-zero exit, never as a traceback.
+
+Only the module of the command being run is imported: ``drs predict`` never loads the SSH stack
+or Textual, and a command module keeps its heavy imports (numba, xarray, eccodes, …) inside the
+functions that need them, so ``drs --help`` and every ``drs X --help`` answer at once.
 """
 
 from __future__ import annotations
@@ -15,22 +19,41 @@ from collections.abc import Sequence
 from drs_link.errors import LinkError
 from predictor.errors import PredictorError
 
-COMMAND_MODULES: tuple[str, ...] = (
-    "predictor.cli",
-    "predictor.weather_cli",
-    "predictor.calibration.cli",
-    "predictor.plan_cli",
-    "predictor.calibration.calibrate_cli",
-    "drs_link.cli",
-    "drs_link.iridium.cli",
-    "drs_link.balloon_cli",
-    "console.console_cli",
-)
+COMMAND_MODULES: dict[str, str] = {
+    "predict": "predictor.cli",
+    "weather": "predictor.weather_cli",
+    "tracks": "predictor.calibration.cli",
+    "plan": "predictor.plan_cli",
+    "live": "predictor.plan_cli",
+    "calibrate": "predictor.calibration.calibrate_cli",
+    "capsule": "drs_link.cli",
+    "sync": "drs_link.cli",
+    "mt": "drs_link.iridium.cli",
+    "mo": "drs_link.iridium.cli",
+    "recovery": "drs_link.iridium.cli",
+    "balloon": "drs_link.balloon_cli",
+    "console": "console.console_cli",
+    "demo": "console.console_cli",
+}
+"""Each `drs` command and the module that registers it (a module may register several)."""
 
 OPERATOR_ERRORS = (PredictorError, LinkError)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _command_in(argv: Sequence[str]) -> str | None:
+    """The command word of ``argv`` (the first word that is not an option or ``--config``'s value)."""
+    words = iter(argv)
+    for word in words:
+        if word == "--config":
+            next(words, None)
+        elif not word.startswith("-"):
+            return word
+    return None
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser with ``command``'s module registered, or every module when no known command is given
+    (``drs --help`` lists them all; a mistyped command gets argparse's list of choices)."""
     parser = argparse.ArgumentParser(
         prog="drs",
         description="SuperBIT DRS operations: predict landings, talk to capsules, track descents.",
@@ -42,13 +65,18 @@ def build_parser() -> argparse.ArgumentParser:
         help="configuration TOML (default: ~/.config/drs/drs.toml)",
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for module_name in COMMAND_MODULES:
+    if command in COMMAND_MODULES:
+        modules = [COMMAND_MODULES[command]]
+    else:
+        modules = list(dict.fromkeys(COMMAND_MODULES.values()))
+    for module_name in modules:
         importlib.import_module(module_name).register(subparsers)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(_command_in(argv))
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)

@@ -1,45 +1,51 @@
-"""Where a capsule will land and how sure we are: weather, terrain, descent physics, uncertainty."""
+"""Where a capsule will land and how sure we are: weather, terrain, descent physics, uncertainty.
+
+The package's door: every name below is importable from ``predictor``. They are loaded on first use
+(PEP 562), because importing them all costs numba, xarray and eccodes, and a command that only prints
+its ``--help`` or reads a zones file should not pay for a descent engine it never runs.
+"""
 
 from __future__ import annotations
 
-from predictor.cube import WeatherCube
-from predictor.errors import OutOfCoverageError, PredictorError, TerrainError, WeatherError
-from predictor.model import EFFECTS, Model, Term
-from predictor.payload import PROFILES, Payload, payload_profile
-from predictor.prediction import (
-    EnsemblePrediction,
-    LandingSet,
-    Prediction,
-    predict,
-    predict_ensemble,
-    predict_landings,
-)
-from predictor.terrain import Terrain
-from predictor.uncertainty import HINDSIGHT, LAUNCH, Ellipse, ErrorModel
-from predictor.weather import load_weather
+import importlib
+from typing import Any
 
-__all__ = [
-    "EFFECTS",
-    "HINDSIGHT",
-    "LAUNCH",
-    "PROFILES",
-    "Ellipse",
-    "LandingSet",
-    "EnsemblePrediction",
-    "ErrorModel",
-    "Model",
-    "OutOfCoverageError",
-    "Payload",
-    "Prediction",
-    "PredictorError",
-    "Term",
-    "Terrain",
-    "TerrainError",
-    "WeatherCube",
-    "WeatherError",
-    "load_weather",
-    "payload_profile",
-    "predict",
-    "predict_ensemble",
-    "predict_landings",
-]
+_EXPORTS: dict[str, str] = {
+    "WeatherCube": "predictor.cube",
+    "OutOfCoverageError": "predictor.errors",
+    "PredictorError": "predictor.errors",
+    "TerrainError": "predictor.errors",
+    "WeatherError": "predictor.errors",
+    "EFFECTS": "predictor.model",
+    "Model": "predictor.model",
+    "Term": "predictor.model",
+    "PROFILES": "predictor.payload",
+    "Payload": "predictor.payload",
+    "payload_profile": "predictor.payload",
+    "EnsemblePrediction": "predictor.prediction",
+    "LandingSet": "predictor.prediction",
+    "Prediction": "predictor.prediction",
+    "predict": "predictor.prediction",
+    "predict_ensemble": "predictor.prediction",
+    "predict_landings": "predictor.prediction",
+    "Terrain": "predictor.terrain",
+    "HINDSIGHT": "predictor.uncertainty",
+    "LAUNCH": "predictor.uncertainty",
+    "Ellipse": "predictor.uncertainty",
+    "ErrorModel": "predictor.uncertainty",
+    "load_weather": "predictor.weather",
+}
+
+__all__ = sorted(_EXPORTS)
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'predictor' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_EXPORTS])

@@ -18,14 +18,14 @@ import time
 from collections.abc import Callable, Sequence
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from predictor.errors import PredictorError
-from predictor.export import to_json, write_geojson, write_kml
 from predictor.payload import PROFILES, payload_profile
-from predictor.prediction import EnsemblePrediction, Prediction, iso_z, predict, predict_ensemble
-from predictor.terrain import Terrain
 from predictor.uncertainty import ERROR_MODELS, GEOD
+
+if TYPE_CHECKING:  # the descent engine (numba) and the exports load only when a prediction runs
+    from predictor.prediction import EnsemblePrediction, Prediction
 
 WEATHER_MARGIN_DEG = 6.0
 """Half-size of the weather region decoded around the release (a 30 km descent drifts ≲ 300 km)."""
@@ -111,6 +111,10 @@ def run(args: argparse.Namespace) -> int:
     if args.weather is not None and args.demo_weather:
         raise PredictorError("give either --weather or --demo-weather, not both")
     from predictor.demo_weather import demo_weather_files
+    from predictor.export import to_json, write_geojson, write_kml
+    from predictor.integrate import COMPILE_NOTICE, kernels_compiled
+    from predictor.prediction import predict, predict_ensemble
+    from predictor.terrain import Terrain
     from predictor.weather import load_weather
 
     when = parse_time(args.time)
@@ -128,6 +132,8 @@ def run(args: argparse.Namespace) -> int:
         "error_model": ERROR_MODELS[args.error_model],
         "probabilities": tuple(args.probability),
     }
+    if not kernels_compiled():
+        print(f"drs: {COMPILE_NOTICE}", file=sys.stderr, flush=True)
     result: Prediction | EnsemblePrediction
     if args.members is not None:
         result = predict_ensemble(
@@ -161,6 +167,8 @@ def weather_bbox(lat: float, lon: float, drift_minutes: float) -> tuple[float, f
 
 
 def summary(result: Prediction | EnsemblePrediction) -> str:
+    from predictor.prediction import EnsemblePrediction, iso_z
+
     pred = result.central if isinstance(result, EnsemblePrediction) else result
     lines = []
     if pred.is_demo:
@@ -269,6 +277,8 @@ def run_bench(args: argparse.Namespace) -> int:
 
     from predictor.demo_weather import demo_weather_files
     from predictor.gribwrite import GFS_LEVELS_HPA
+    from predictor.prediction import predict, predict_ensemble
+    from predictor.terrain import Terrain
     from predictor.weather import load_weather
 
     print(

@@ -29,9 +29,12 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from predictor.errors import WeatherError
-from predictor.weather import CubeCacheEntry, cube_cache_entries
+
+if TYPE_CHECKING:
+    from predictor.weather import CubeCacheEntry
 
 LOCK_NAME = ".fetching.lock"
 PART_SUFFIX = ".part"
@@ -222,6 +225,8 @@ def prune(
     now = now or datetime.now(UTC)
     window = timedelta(days=keep_days) if keep_days is not None else SIZE_ONLY_KEEP
     result = PruneResult(dry_run=dry_run, keep_from=now - window)
+
+    from predictor.weather import cube_cache_entries  # the GRIB reader: loaded by a prune, not by --help
 
     try:
         cycles, other_bytes = scan_gfs_cache(root, now)

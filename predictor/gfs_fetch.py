@@ -34,7 +34,6 @@ from pathlib import Path
 
 from predictor.errors import WeatherError
 from predictor.gfs_cache import PART_SUFFIX, cycle_directory, fetching
-from predictor.gribcheck import scan_grib_file
 from predictor.gribwrite import GFS_LEVELS_HPA, gfs_file_name
 
 AVAILABILITY_DELAY = timedelta(hours=5)
@@ -246,6 +245,8 @@ class Downloader:
 
     @staticmethod
     def _is_complete(path: Path, expected_messages: int) -> bool:
+        from predictor.gribcheck import scan_grib_file  # eccodes: loaded by a download, not by --help
+
         try:
             scan = scan_grib_file(path, decode=True)
         except WeatherError:

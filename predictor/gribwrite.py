@@ -15,10 +15,6 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
-import predictor.native_libs  # noqa: F401  (PROJ before eccodes, see there)
-
-# isort: split
-import eccodes
 import numpy as np
 
 GFS_GENERATING_PROCESS = 96
@@ -101,6 +97,11 @@ def write_gfs_grib2(
     whole globe. ``u``, ``v`` (m/s), ``t`` (K) and ``gh`` (geopotential metres) are arrays shaped
     ``[level, lat, lon]`` in the order of the given axes.
     """
+    import predictor.native_libs  # noqa: F401  (PROJ before eccodes, see there)
+
+    # isort: split
+    import eccodes  # loaded on first write: `drs weather --help` needs no GRIB library
+
     levels = np.asarray(levels_hpa, dtype=np.float64)
     lat_axis = np.asarray(lats, dtype=np.float64)
     lon_axis = np.asarray(lons, dtype=np.float64)
@@ -164,6 +165,8 @@ def _set_grid_and_time(
     dlon: float,
     generating_process: int,
 ) -> None:
+    import eccodes
+
     eccodes.codes_set(message, "centre", "kwbc")
     eccodes.codes_set(message, "subCentre", 0)
     eccodes.codes_set(message, "generatingProcessIdentifier", generating_process)

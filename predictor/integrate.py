@@ -596,6 +596,20 @@ def _descend_parallel(
         )  # fmt: skip
 
 
+COMPILE_NOTICE = "compiling the predictor (once)…"
+"""What a front end shows while the first descent compiles the kernels (tens of seconds, once)."""
+
+
+def kernels_compiled() -> bool:
+    """Whether numba's on-disk cache holds the descent kernel for the current sources.
+
+    Why ask: the first descent after an install or an edit of the physics compiles for 10–40 s, and an
+    operator watching a silent terminal cannot tell that from a hang. The index is read as numba reads it
+    (stamped with both source files), so the answer is False exactly when the next descent compiles.
+    """
+    return bool(_descend_range._cache._cache_file._load_index())
+
+
 def descend(
     t_s: np.ndarray,
     lats: np.ndarray,

@@ -19,8 +19,6 @@ import numpy as np
 
 from predictor.errors import PredictorError
 from predictor.payload import PROFILES, payload_profile
-from predictor.prediction import iso_z
-from predictor.terrain import Terrain
 
 BENCH_START = datetime(2024, 5, 1, 6, 0, tzinfo=UTC)
 
@@ -112,6 +110,7 @@ def run_plan(args: argparse.Namespace) -> int:
     from predictor.planning.balloon import AltitudePlan
     from predictor.planning.strip import write_geojson, write_kml
     from predictor.planning.sweep import Thresholds, plan_release
+    from predictor.terrain import Terrain
     from predictor.weather import load_weather
     from predictor.zones import load_targets, load_zones
 
@@ -140,6 +139,7 @@ def run_plan(args: argparse.Namespace) -> int:
 
 def plan_summary(plan: object) -> str:
     from predictor.planning.sweep import ReleasePlan
+    from predictor.prediction import iso_z
 
     assert isinstance(plan, ReleasePlan)
     lines = []
@@ -239,6 +239,8 @@ def run_live(args: argparse.Namespace) -> int:
     from predictor.calibration.cleaning import clean
     from predictor.calibration.tracks import read_track
     from predictor.live import DEFAULT_CORRECTION, NO_CORRECTION, LivePredictor
+    from predictor.prediction import iso_z
+    from predictor.terrain import Terrain
 
     if args.action == "evaluate":
         return run_evaluate(args)

@@ -18,11 +18,14 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from predictor.errors import TerrainError
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 SRTM_VOID = -32768
 SEA_LEVEL_SOURCE = "sea level (no terrain data here)"
@@ -205,6 +208,8 @@ def _first_line(exc: BaseException) -> str:
 
 
 def _read_coarse_dem(path: Path) -> _CoarseDem:
+    import xarray as xr  # only NetCDF DEMs need it; SRTM tiles and sea level predict without pandas
+
     engine = _netcdf_engine(path)
     try:
         with xr.open_dataset(path, engine=engine) as ds:

@@ -28,7 +28,6 @@ from predictor.gfs_fetch import (
     plan_forecast_files,
 )
 from predictor.gribwrite import GFS_LEVELS_HPA, gfs_file_name, write_gfs_grib2
-from predictor.weather import default_cache_dir, load_weather
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -185,6 +184,8 @@ def run_fetch(args: argparse.Namespace) -> int:
 
 
 def run_prune(args: argparse.Namespace) -> int:
+    from predictor.weather import default_cache_dir
+
     max_bytes = None
     if args.max_gb is not None:
         if not (math.isfinite(args.max_gb) and args.max_gb > 0):
@@ -247,6 +248,8 @@ def _size_text(size_bytes: int) -> str:
 
 
 def run_info(args: argparse.Namespace) -> int:
+    from predictor.weather import load_weather
+
     cube = load_weather(args.files)
     print(f"source: {cube.source}")
     print(f"valid times: {', '.join(np.datetime_as_string(t, unit='m') + 'Z' for t in cube.times)}")
@@ -265,6 +268,8 @@ def run_info(args: argparse.Namespace) -> int:
 
 
 def run_bench(args: argparse.Namespace) -> int:
+    from predictor.weather import load_weather
+
     """Cold = no cube cache (the files themselves are in the OS page cache, just written)."""
     if args.files < 1 or args.repeat < 1 or args.grid <= 0 or args.size_deg < args.grid:
         raise WeatherError("bench needs --files ≥ 1, --repeat ≥ 1 and a region at least one grid cell wide")

@@ -7,17 +7,14 @@ so stale). Expected words are derived from the telemetry records, never copied f
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from datetime import timedelta
 from pathlib import Path
-from typing import Any
 
 import pytest
 from rich.cells import cell_len
 from rich.text import Text
 from textual.geometry import Region
-from textual.pilot import Pilot
 from textual.widget import Widget
 from textual.widgets import Footer
 
@@ -29,7 +26,7 @@ from console.widgets.fleet_table import FleetTable
 from drs_link.staleness import STALE_GLYPH, format_age
 from drs_link.store import Store
 from drs_link.telemetry import TelemetryRecord
-from tests.console.conftest import T0, canned_records
+from tests.console.conftest import T0, canned_records, wait_for
 
 pytestmark = pytest.mark.asyncio
 SIZES = [(80, 24), (160, 48)]
@@ -40,14 +37,6 @@ def painted(widget: Widget) -> str:
     width, height = widget.outer_size
     lines = [strip.text for strip in widget.render_lines(Region(0, 0, width, height))]
     return " ".join(" ".join(lines).split())
-
-
-async def until(pilot: Pilot[Any], condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("the screen never reached the expected state")
-        await pilot.pause()
 
 
 def with_reports(app: DrsConsole) -> DrsConsole:
@@ -89,7 +78,7 @@ async def test_the_table_fits_its_width_and_shows_every_column_that_fits(
     app = with_reports(canned_app())
     async with app.run_test(size=size) as pilot:
         table = table_of(app)
-        await until(pilot, lambda: table.shown is not None)
+        await wait_for(pilot, lambda: table.shown is not None)
         assert_fits(table)
         kinds = shown_kinds(table)
         assert kinds == ["capsule", *(f.kind for f in FIELDS[: len(kinds) - 1])]
@@ -115,7 +104,7 @@ async def test_every_part_of_the_screen_shows_at_80x24_with_eight_capsules(
         app.fleet.apply(record)
     async with app.run_test(size=(80, 24)) as pilot:
         table = table_of(app)
-        await until(pilot, lambda: table.shown is not None)
+        await wait_for(pilot, lambda: table.shown is not None)
         screen = app.screen.region
         for widget in (
             app.screen.query_one("#banner"),
@@ -152,7 +141,7 @@ async def test_the_detail_shows_the_prediction_and_battery_of_the_highlighted_ca
             f"σ∥ {prediction['sigma_par_km']:.2f} σ⊥ {prediction['sigma_perp_km']:.2f} km;"
             f" position from {prediction['origin_source']} — {age} ago"
         )
-        await until(pilot, lambda: landing in painted(detail))
+        await wait_for(pilot, lambda: landing in painted(detail))
         assert sigmas in painted(detail)
         assert "Battery/MO — nothing received yet" in painted(detail)
 
@@ -160,7 +149,7 @@ async def test_the_detail_shows_the_prediction_and_battery_of_the_highlighted_ca
         report = app.fleet.capsules["DRS2"].reading("report").value
         assert report is not None
         battery = f"Battery/MO {report['vbat']:.2f} V, {report['alt_m'] / 1000:.1f} km, landed"
-        await until(pilot, lambda: battery in painted(detail))
+        await wait_for(pilot, lambda: battery in painted(detail))
         assert f"MO #{report['momsn']}" in painted(detail)
 
 
@@ -168,11 +157,11 @@ async def test_moving_the_cursor_changes_the_detail(canned_app: Callable[..., Dr
     app = canned_app()
     async with app.run_test(size=(80, 24)) as pilot:
         detail = detail_of(app)
-        await until(pilot, lambda: detail.border_title == "DRS1")
+        await wait_for(pilot, lambda: detail.border_title == "DRS1")
         before = painted(detail)
         assert "Release powered, NMEA arriving" in before
         await pilot.press("down")
-        await until(pilot, lambda: detail.border_title == "DRS2")
+        await wait_for(pilot, lambda: detail.border_title == "DRS2")
         after = painted(detail)
         sync = app.fleet.capsules["DRS2"].reading("sync").value
         assert sync is not None
@@ -190,7 +179,7 @@ async def test_a_stale_value_shows_the_glyph_in_the_table_and_stale_in_words_bel
     assert not link.is_fresh(now) and app.fleet.capsules["DRS1"].reading("link").is_fresh(now)
     async with app.run_test(size=(80, 24)) as pilot:
         table = table_of(app)
-        await until(pilot, lambda: table.shown is not None)
+        await wait_for(pilot, lambda: table.shown is not None)
         stale = table.get_cell("DRS3", "link")
         fresh = table.get_cell("DRS1", "link")
         assert isinstance(stale, Text) and isinstance(fresh, Text)
@@ -198,7 +187,7 @@ async def test_a_stale_value_shows_the_glyph_in_the_table_and_stale_in_words_bel
         assert stale.style != fresh.style
         await pilot.press("down", "down")
         detail = detail_of(app)
-        await until(pilot, lambda: detail.border_title == "DRS3")
+        await wait_for(pilot, lambda: detail.border_title == "DRS3")
         shown = painted(detail)
         age = format_age(link.age_s(now) or 0.0)
         assert f"Link up — {STALE_GLYPH}STALE {age} ago" in shown
@@ -211,18 +200,18 @@ async def test_a_resize_from_160_to_80_columns_rebuilds_the_columns(
     app = canned_app()
     async with app.run_test(size=(160, 48)) as pilot:
         table = table_of(app)
-        await until(pilot, lambda: table.shown is not None)
+        await wait_for(pilot, lambda: table.shown is not None)
         wide = shown_kinds(table)
         await pilot.press("down")
         await pilot.resize_terminal(80, 24)
-        await until(pilot, lambda: shown_kinds(table) != wide)
+        await wait_for(pilot, lambda: shown_kinds(table) != wide)
         narrow = shown_kinds(table)
         assert len(narrow) < len(wide) and narrow == wide[: len(narrow)]
         assert_fits(table)
         assert isinstance(app.screen, FleetScreen) and app.screen.selected() == "DRS2"
         assert all(table.get_cell(name, "link").plain != "—" for name in ("DRS1", "DRS2", "DRS3"))
         await pilot.resize_terminal(160, 48)
-        await until(pilot, lambda: shown_kinds(table) == wide)
+        await wait_for(pilot, lambda: shown_kinds(table) == wide)
         assert_fits(table)
 
 
@@ -230,7 +219,7 @@ async def test_the_cell_colours_follow_the_theme(canned_app: Callable[..., DrsCo
     app = canned_app()
     async with app.run_test(size=(80, 24)) as pilot:
         table = table_of(app)
-        await until(pilot, lambda: table.shown is not None)
+        await wait_for(pilot, lambda: table.shown is not None)
 
         def colour() -> str:
             cell = table.get_cell("DRS2", "link")
@@ -240,7 +229,7 @@ async def test_the_cell_colours_follow_the_theme(canned_app: Callable[..., DrsCo
 
         assert colour() == app.get_css_variables()["text-success"].upper()
         await pilot.press("t")
-        await until(pilot, lambda: colour() == app.get_css_variables()["text-success"].upper())
+        await wait_for(pilot, lambda: colour() == app.get_css_variables()["text-success"].upper())
         assert app.theme == "textual-light"
 
 
@@ -253,10 +242,10 @@ async def test_an_unreadable_value_is_named_and_the_view_keeps_running(
     )
     async with app.run_test(size=(80, 24)) as pilot:
         table = table_of(app)
-        await until(pilot, lambda: table.shown is not None)
+        await wait_for(pilot, lambda: table.shown is not None)
         assert table.get_cell("DRS2", "gnss").plain == "BAD DATA 1s"
         await pilot.press("down")
         detail = detail_of(app)
-        await until(pilot, lambda: detail.border_title == "DRS2")
+        await wait_for(pilot, lambda: detail.border_title == "DRS2")
         assert "GNSS unreadable gnss data (" in painted(detail)
         assert isinstance(app.screen, FleetScreen) and table.get_cell("DRS1", "gnss").plain.startswith("9sv")

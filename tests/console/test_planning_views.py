@@ -94,7 +94,7 @@ async def test_the_recovery_view_re_predicts_a_descending_capsule_from_its_repor
         screen = app.screen
         assert isinstance(screen, RecoveryScreen) and screen.capsule == "DRS1"
         await wait_for(
-            pilot, lambda: screen.live is not None and screen.live["legs_used"] >= 1, timeout_s=45.0
+            pilot, lambda: screen.live is not None and screen.live["legs_used"] >= 1
         )
         live = screen.live
         assert live is not None and screen.landing is None

@@ -32,7 +32,7 @@ async def open_release_go(pilot: Pilot[int], app: DrsConsole) -> ReleaseScreen:
     await pilot.press("o")
     assert isinstance(app.screen, ConfirmModal)
     await pilot.press("tab", "enter")
-    await wait_for(pilot, lambda: app.gonogo("DRS1").go, timeout_s=30.0)
+    await wait_for(pilot, lambda: app.gonogo("DRS1").go)
     return screen
 
 

@@ -454,7 +454,7 @@ def test_cli_take_over_in_a_terminal_asks_for_the_capsules_name(
     sim, config = cli
     _other_console(tmp_path, config, sim)
     runner = (
-        "import sys, console.cli as c; c.COMMAND_MODULES = ('drs_link.cli',); sys.exit(c.main(sys.argv[1:]))"
+        "import sys, console.cli as c; sys.exit(c.main(sys.argv[1:]))"
     )
     argv = [
         "--config",
@@ -494,7 +494,7 @@ def test_cli_power_on_prompt_takes_end_of_input_as_no_and_says_so_in_one_line(
 ) -> None:
     sim, config = cli
     runner = (
-        "import sys, console.cli as c; c.COMMAND_MODULES = ('drs_link.cli',); sys.exit(c.main(sys.argv[1:]))"
+        "import sys, console.cli as c; sys.exit(c.main(sys.argv[1:]))"
     )
     master, slave = pty.openpty()
     proc = subprocess.Popen(

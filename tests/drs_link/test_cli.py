@@ -22,12 +22,6 @@ from .conftest import capsule_table
 pytestmark = pytest.mark.slow
 
 
-@pytest.fixture(autouse=True)
-def only_capsule_commands(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The CLI under test is this package's; other packages' commands are theirs to test."""
-    monkeypatch.setattr(console.cli, "COMMAND_MODULES", ("drs_link.cli",))
-
-
 def _toml(value: Any) -> str:
     if isinstance(value, str):
         return json.dumps(value)

@@ -21,15 +21,7 @@ from drs_link.store import Store, utc_now
 from .helpers import IMEI, T0, fix_at, fly
 
 REPO = Path(__file__).resolve().parents[2]
-ONLY_IRIDIUM = (
-    "import sys, console.cli as c; c.COMMAND_MODULES = ('drs_link.iridium.cli',); sys.exit(c.main())"
-)
-
-
-@pytest.fixture(autouse=True)
-def only_iridium_commands(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Other areas' command modules may be mid-change in the shared tree; the entry point is the same."""
-    monkeypatch.setattr(entry, "COMMAND_MODULES", ("drs_link.iridium.cli",))
+DRS = "import sys, console.cli as c; sys.exit(c.main())"
 
 
 @pytest.fixture
@@ -156,7 +148,7 @@ def test_mo_import_then_health_and_recovery_with_exports(
 def test_mo_serve_stores_gateway_posts_until_interrupted(tmp_path: Path) -> None:
     config = write_config(tmp_path)
     process = subprocess.Popen(
-        [sys.executable, "-c", ONLY_IRIDIUM, "--config", str(config), "mo", "serve"],
+        [sys.executable, "-c", DRS, "--config", str(config), "mo", "serve"],
         cwd=REPO,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
