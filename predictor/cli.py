@@ -272,6 +272,28 @@ def _fresh_process_seconds(cache_dir: str) -> float:
     return float(done.stdout.strip())
 
 
+def _whole_process_seconds(argv: Sequence[str], repeats: int = 5) -> list[float]:
+    """Wall time of `drs ARGV` in a fresh process, as a person at a terminal waits for it."""
+    command = [sys.executable, "-m", "console.cli", *argv]
+    return _timed(lambda: subprocess.run(command, capture_output=True, check=True, timeout=600), repeats)
+
+
+def _print_whole_process(files: Sequence[Path], cache_dir: Path) -> None:
+    """What a person feels: help, and one prediction from cached weather with the numba cache warm."""
+    release = ["--lat", "46.0", "--lon", "6.0", "--alt", "30000", "--time", "2024-05-01T04:00Z"]
+    predict_argv = ["predict", "--weather", *map(str, files), "--cache-dir", str(cache_dir), *release]
+    _whole_process_seconds(predict_argv, repeats=1)  # the numba cache for this install, once
+    for label, argv in (
+        ("drs --help", ["--help"]),
+        ("drs predict --help", ["predict", "--help"]),
+        ("drs predict (cached weather, warm numba cache)", predict_argv),
+    ):
+        print(f"whole process: {label}: {_figure(_whole_process_seconds(argv), 1, 's')}")
+    baseline = [sys.executable, "-c", "import numpy, scipy.interpolate, scipy.optimize"]
+    reference = _timed(lambda: subprocess.run(baseline, check=True, timeout=600), 5)
+    print(f"whole process, for reference: python importing numpy and scipy: {_figure(reference, 1, 's')}")
+
+
 def run_bench(args: argparse.Namespace) -> int:
     import numba
 
@@ -309,6 +331,7 @@ def run_bench(args: argparse.Namespace) -> int:
                 f"compile: first prediction in a fresh process (import + JIT) {compile_s:.2f} s with an "
                 f"empty numba cache, {cached_s:.2f} s with the on-disk cache"
             )
+        _print_whole_process(files, root / "cache")
     when = BENCH_CYCLE + timedelta(hours=4)
     payload = PROFILES["drs"]
     sea = Terrain.sea_level()
