@@ -1,0 +1,74 @@
+"""`drs` starts fast: help never loads the descent engine, the GRIB library or the data-frame stack."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from console.cli import COMMAND_MODULES, _command_in
+
+REPO = Path(__file__).resolve().parents[2]
+HEAVY = ("numba", "xarray", "pandas", "eccodes", "gribapi", "matplotlib", "textual")
+"""Each costs 0.1–0.5 s to import; together they made `drs --help` take 2.9 s."""
+
+PROBE = """
+import json, sys
+from console.cli import main
+try:
+    main(sys.argv[1:])
+except SystemExit:
+    pass
+print(json.dumps(sorted(m for m in {heavy!r} if m in sys.modules)))
+"""
+
+
+def heavy_modules_loaded_by(*argv: str) -> list[str]:
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE.format(heavy=HEAVY), *argv],
+        cwd=REPO, capture_output=True, text=True, timeout=120, check=True,
+    )  # fmt: skip
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_drs_help_imports_none_of_the_heavy_modules() -> None:
+    assert heavy_modules_loaded_by("--help") == []
+
+
+@pytest.mark.parametrize("command", sorted(COMMAND_MODULES))
+def test_every_command_help_imports_none_of_the_heavy_modules(command: str) -> None:
+    assert heavy_modules_loaded_by(command, "--help") == []
+
+
+def test_a_command_loads_only_its_own_module() -> None:
+    """`drs predict` never imports the SSH stack or the console's modules."""
+    probe = (
+        "import sys; from console.cli import build_parser; build_parser('predict'); "
+        "print(sorted(m for m in ('paramiko', 'drs_link.cli', 'console.console_cli') if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], cwd=REPO, capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize(
+    ("argv", "command"),
+    [
+        (["predict", "--lat", "1"], "predict"),
+        (["--config", "x.toml", "mt", "send"], "mt"),
+        (["--help"], None),
+        (["--config", "predict"], None),
+    ],
+)
+def test_the_command_word_is_found_after_the_global_options(argv: list[str], command: str | None) -> None:
+    assert _command_in(argv) == command
+
+
+def test_a_mistyped_command_lists_the_real_ones() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "console.cli", "predcit"], cwd=REPO, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 2
+    assert "invalid choice: 'predcit'" in done.stderr and "predict" in done.stderr
