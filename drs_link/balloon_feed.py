@@ -29,7 +29,7 @@ from typing import BinaryIO
 
 from drs_link.config import BalloonFeedConfig
 from drs_link.errors import ConfigError, LinkError
-from drs_link.nmea import GgaSentence, nearest_datetime, parse_sentence
+from drs_link.nmea import GgaSentence, find_sentence, nearest_datetime, parse_sentence
 from drs_link.store import iso_utc
 from drs_link.telemetry import TelemetryRecord
 
@@ -126,14 +126,14 @@ def parse_feed_line(line: str, now: datetime) -> BalloonFix | Rejection | None:
     try:
         if not text:
             return None
-        if text.startswith("$"):
-            fix = _from_nmea(text, now)
-        elif text.startswith("TELEMETRY,"):
+        if text.startswith("TELEMETRY,"):
             fix = _from_ozimux(text, now)
         elif text.startswith("WAYPOINT,"):
             return None
         elif text.startswith("{"):
             fix = _from_json(text, now)
+        elif (sentence := find_sentence(text)) is not None:
+            fix = _from_nmea(sentence, now)
         else:
             raise _Reject(UNRECOGNISED, "unrecognised format: not NMEA, OziMux TELEMETRY or a JSON object")
         if fix is not None:

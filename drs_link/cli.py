@@ -180,6 +180,8 @@ def _print_status(name: str, report: dict[str, object]) -> None:
             f"{position}, {age} ({gnss['sentences_malformed']} malformed, "
             f"{gnss['sentences_bad_checksum']} bad checksum)"
         )
+        if gnss.get("date_problem"):
+            print(f"  GNSS warning: {gnss['date_problem']}")
 
 
 def cmd_power_on(args: argparse.Namespace) -> int:

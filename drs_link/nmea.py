@@ -76,6 +76,8 @@ class GnssStatus:
     fix_time_utc: datetime | None
     age_s: float | None
     counts: NmeaCounts
+    date_problem: str | None = None
+    """An RMC date that was left out, and why (a GPS week rollover, or a date far from the clock)."""
 
     @property
     def fix_quality_name(self) -> str:
@@ -101,6 +103,7 @@ class GnssStatus:
             "sentences_parsed": self.counts.parsed,
             "sentences_malformed": self.counts.malformed,
             "sentences_bad_checksum": self.counts.bad_checksum,
+            "date_problem": self.date_problem,
         }
 
 
@@ -158,12 +161,50 @@ def _time(text: str) -> time | None:
     return time(hour, minute, min(second, 59), micro, tzinfo=UTC)
 
 
+def _century(two_digits: int) -> int:
+    """NMEA's two-digit year: 80–99 are 1980–1999 (GPS began in 1980), 00–79 are 2000–2079.
+
+    A receiver hit by the GPS week rollover reports 1024 weeks (19.6 years) in the past, e.g. `220899`
+    for 2019-04-07; read as 2099 that became a fix 80 years in the future. Read as 1999 it is a date
+    ``date_problem`` recognises as a rollover.
+    """
+    return 1900 + two_digits if two_digits >= 80 else 2000 + two_digits
+
+
+GPS_WEEK_ROLLOVER = timedelta(weeks=1024)
+DATE_TOLERANCE = timedelta(days=1, hours=12)
+"""How far an RMC date may stand from the ground clock: a day either side (time zones of a fix taken
+near midnight, a clock a little off), half a day more for the fix's own age."""
+
+
+def date_problem(day: date, now: datetime) -> str | None:
+    """Why an RMC date cannot be the fix's date, judged against the ground clock; None when plausible.
+
+    A date a whole number of 1024-week GPS epochs behind the clock (± 2 days) is the receiver's week
+    rollover, said as such so the team knows to update its firmware; any other date far from the clock
+    is named with its distance. Either way the date is left out and the fix time falls back to the time
+    of day nearest the clock.
+    """
+    noon = datetime.combine(day, time(12), tzinfo=UTC)
+    gap = noon - now.astimezone(UTC)
+    if abs(gap) <= DATE_TOLERANCE:
+        return None
+    epochs = round(-gap / GPS_WEEK_ROLLOVER)
+    if epochs >= 1 and abs(-gap - epochs * GPS_WEEK_ROLLOVER) <= timedelta(days=2):
+        return (
+            f"RMC date {day.isoformat()} is {epochs}×1024 weeks behind the clock: the receiver's GPS week "
+            f"rollover (update its firmware); date ignored"
+        )
+    direction = "ahead of" if gap > timedelta(0) else "behind"
+    return f"RMC date {day.isoformat()} is {abs(gap.days)} days {direction} the clock; date ignored"
+
+
 def _date(text: str) -> date | None:
     if not text:
         return None
     if len(text) != 6 or not text.isdigit():
         raise _Malformed
-    day, month, year = int(text[0:2]), int(text[2:4]), 2000 + int(text[4:6])
+    day, month, year = int(text[0:2]), int(text[2:4]), _century(int(text[4:6]))
     try:
         return date(year, month, day)
     except ValueError:
@@ -262,8 +303,15 @@ def parse_sentence(line: str) -> GgaSentence | RmcSentence | None | str:
         return "malformed"
 
 
-def _looks_like_sentence(line: str) -> bool:
-    return "$" in line
+def find_sentence(line: str) -> str | None:
+    """The NMEA sentence in a noisy line: from its last ``$``, or None when there is none.
+
+    Receivers on a shared serial line (u-blox in mixed UBX/NMEA mode) put binary bytes before the ``$``;
+    the checksum then decides whether what follows is a sentence. Every reader of NMEA here (the capsule's
+    GNSS log and the balloon feed) finds it this way.
+    """
+    start = line.rfind("$")
+    return None if start < 0 else line[start:]
 
 
 def summarise(lines: Iterable[str], now: datetime) -> GnssStatus:
@@ -271,14 +319,16 @@ def summarise(lines: Iterable[str], now: datetime) -> GnssStatus:
     counts = NmeaCounts()
     latest_gga: GgaSentence | None = None
     latest_date: date | None = None
+    rejected_date: str | None = None
     for raw in lines:
         line = raw.strip()
         if not line:
             continue
-        if not _looks_like_sentence(line):
+        sentence = find_sentence(line)
+        if sentence is None:
             counts = replace(counts, malformed=counts.malformed + 1)
             continue
-        result = parse_sentence(line)
+        result = parse_sentence(sentence)
         if result == "malformed":
             counts = replace(counts, malformed=counts.malformed + 1)
         elif result == "bad_checksum":
@@ -290,7 +340,11 @@ def summarise(lines: Iterable[str], now: datetime) -> GnssStatus:
             if isinstance(result, GgaSentence):
                 latest_gga = result
             elif isinstance(result, RmcSentence) and result.date_utc is not None:
-                latest_date = result.date_utc
+                problem = date_problem(result.date_utc, now)
+                if problem is None:
+                    latest_date = result.date_utc
+                else:
+                    rejected_date = problem
     if latest_gga is None:
         return GnssStatus(
             nmea_seen=counts.parsed > 0,
@@ -304,6 +358,7 @@ def summarise(lines: Iterable[str], now: datetime) -> GnssStatus:
             fix_time_utc=None,
             age_s=None,
             counts=counts,
+            date_problem=rejected_date,
         )
     fix_time = _fix_datetime(latest_gga.time_utc, latest_date, now)
     age = (now - fix_time).total_seconds() if fix_time is not None else None
@@ -320,6 +375,7 @@ def summarise(lines: Iterable[str], now: datetime) -> GnssStatus:
         fix_time_utc=fix_time,
         age_s=age,
         counts=counts,
+        date_problem=rejected_date,
     )
 
 

@@ -185,7 +185,7 @@ class Operations:
                     out.append(TelemetryRecord(self.clock(), name, "gnss", {
                         "has_fix": gnss.has_fix, "quality": gnss.fix_quality_name, "sats": gnss.satellites,
                         "hdop": gnss.hdop, "lat": gnss.latitude, "lon": gnss.longitude, "alt_m": gnss.altitude_m,
-                        "fix_age_s": gnss.age_s, "diagnosis": mcu.diagnosis,
+                        "fix_age_s": gnss.age_s, "diagnosis": mcu.diagnosis, "date_problem": gnss.date_problem,
                     }))  # fmt: skip
                 storage = read_storage(ops.link, ops.config.storage_mount, ops.config.raid_device)
                 usage = storage.usage

@@ -759,3 +759,13 @@ def test_watch_refuses_a_count_of_zero(
     with pytest.raises(SystemExit) as exit_info:
         main(["--config", str(udp_config[0]), "balloon", "watch", "--count", "0"])
     assert exit_info.value.code == 2 and "--count: 0 must be at least 1" in capsys.readouterr().err
+
+
+def test_a_gga_line_with_ublox_binary_before_the_dollar_is_read_as_the_capsule_log_reads_it() -> None:
+    """A u-blox receiver in mixed UBX/NMEA mode puts binary bytes before the `$` of a sentence."""
+    line = "\xb5b\x01\x07\x5c\x00" + REAL_GGA
+    fix = parse_feed_line(line, datetime(2011, 5, 28, 9, 28, 0, tzinfo=UTC))
+    assert isinstance(fix, BalloonFix)
+    assert (round(fix.lat, 4), round(fix.lon, 4), fix.alt_m) == (53.3613, -6.5056, 61.7)
+    garbage = parse_feed_line("\xb5b\x01\x07" + REAL_GGA[:-1] + "0", NOW)
+    assert isinstance(garbage, Rejection) and garbage.reason == BAD_CHECKSUM

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from drs_link.nmea import (
     GgaSentence,
     RmcSentence,
+    date_problem,
     format_gga,
     format_rmc,
     nmea_checksum,
@@ -102,6 +103,52 @@ def test_gga_without_rmc_takes_the_date_before_now_across_midnight() -> None:
         [format_gga(late, 1.0, 2.0, 1, 5, 1.0, 10.0)], datetime(2026, 1, 2, 0, 0, 5, tzinfo=UTC)
     )
     assert status.fix_time_utc == late and status.age_s == pytest.approx(15.0)
+
+
+def _rmc_dated(ddmmyy: str, hhmmss: str = "095959") -> str:
+    body = f"GPRMC,{hhmmss}.00,A,5321.6802,N,00630.3372,W,0.02,31.66,{ddmmyy},,,A"
+    return f"${body}*{nmea_checksum(body):02X}"
+
+
+def test_a_gps_week_rollover_date_is_named_and_left_out_of_the_fix_time() -> None:
+    """2019-04-07 was a 1024-week rollover: an unpatched receiver then said 1999-08-22 (`220899`)."""
+    now = datetime(2019, 4, 8, 10, 0, 0, tzinfo=UTC)
+    gga = format_gga(datetime(2019, 4, 8, 9, 59, 59, tzinfo=UTC), 53.36, -6.5, 1, 8, 1.0, 61.7)
+    status = summarise([_rmc_dated("220899"), gga], now)
+    assert status.date_problem is not None and "GPS week rollover" in status.date_problem
+    assert "1999-08-22" in status.date_problem
+    assert status.fix_time_utc == datetime(2019, 4, 8, 9, 59, 59, tzinfo=UTC)
+    assert status.age_s == pytest.approx(1.0)
+    assert status.as_dict()["date_problem"] == status.date_problem
+
+
+def test_a_two_digit_year_in_the_nineties_is_read_as_the_nineteen_nineties_not_2099() -> None:
+    rmc = parse_sentence(_rmc_dated("220899"))
+    assert isinstance(rmc, RmcSentence) and rmc.date_utc is not None and rmc.date_utc.year == 1999
+
+
+def test_a_date_far_from_the_clock_is_left_out_and_never_gives_a_negative_age() -> None:
+    now = datetime(2026, 11, 24, 10, 0, 0, tzinfo=UTC)
+    gga = format_gga(datetime(2026, 11, 24, 9, 59, 50, tzinfo=UTC), 53.36, -6.5, 1, 8, 1.0, 61.7)
+    status = summarise([_rmc_dated("220899"), gga], now)
+    assert status.date_problem is not None and "behind the clock" in status.date_problem
+    assert status.age_s == pytest.approx(10.0)
+    ahead = summarise([_rmc_dated("241236"), gga], now)
+    assert ahead.date_problem is not None and "ahead of the clock" in ahead.date_problem
+    assert ahead.age_s == pytest.approx(10.0)
+
+
+def test_todays_date_and_a_fix_just_after_midnight_are_plausible() -> None:
+    now = datetime(2026, 11, 25, 0, 0, 30, tzinfo=UTC)
+    assert date_problem(datetime(2026, 11, 24).date(), now) is None
+    assert date_problem(datetime(2026, 11, 25).date(), now) is None
+    assert date_problem(datetime(2026, 11, 21).date(), now) is not None
+
+
+def test_binary_bytes_before_the_dollar_do_not_hide_the_sentence() -> None:
+    noisy = "\xb5b\x01\x07\x5c\x00" + REAL_GGA
+    status = summarise([noisy, REAL_RMC], NOW)
+    assert status.has_fix and status.counts.parsed == 2 and status.counts.malformed == 0
 
 
 @settings(max_examples=300, deadline=None)
