@@ -89,7 +89,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     serve.add_argument("--host", help="override mo.listen_host")
     serve.add_argument("--port", type=int, help="override mo.listen_port (0: any free port)")
     serve.set_defaults(func=_mo_serve)
-    importer = mo_actions.add_parser("import", help="store <imei>-<momsn>.bin email attachments")
+    importer = mo_actions.add_parser("import", help="store saved SBD attachments (RockBLOCK or Iridium-direct file names)")
     importer.add_argument("files", nargs="+", type=Path)
     importer.set_defaults(func=_mo_import)
     bench = mo_actions.add_parser("bench", help="measure webhook store+answer latency and parser speed")

@@ -1,8 +1,11 @@
-"""`drs mo import FILES`: the email route, one ``<imei>-<momsn>.bin`` attachment per report.
+"""`drs mo import FILES`: the email route, one attachment per report.
 
 The DRS team received reports by email (drs_protocol.md 4.2); saved attachments carry the IMEI
-and MOMSN only in their file name, so the name is checked as strictly as the content. Importing
-the same file twice is harmless (de-duplicated), and one bad file never stops the others.
+and MOMSN only in their file name, so the name is checked as strictly as the content. Two namings
+are in use: RockBLOCK's ``<imei>-<momsn>.bin`` (or ``.sbd``), and Iridium's direct SBD service,
+``YY-MM-DD_hh-mm-ss_<imei>_<momsn>.sbd`` with the transmit time in UTC; either may zero-pad the
+MOMSN. Importing the same file twice is harmless (de-duplicated), and one bad file never stops the
+others.
 """
 
 from __future__ import annotations
@@ -10,13 +13,17 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import UTC, datetime
 from pathlib import Path
 
 from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
 from drs_link.store import utc_now
 
-ATTACHMENT_NAME = re.compile(r"^(\d{15})-(\d{1,5})\.(?:bin|sbd)$")
+ROCKBLOCK_NAME = re.compile(r"^(?P<imei>\d{15})-0*(?P<momsn>\d{1,5})\.(?:bin|sbd)$", re.ASCII)
+IRIDIUM_DIRECT_NAME = re.compile(
+    r"^(?P<when>\d{2}-\d{2}-\d{2}_\d{2}-\d{2}-\d{2})_(?P<imei>\d{15})_0*(?P<momsn>\d{1,5})\.sbd$", re.ASCII
+)
+NAMES_ACCEPTED = "<imei>-<momsn>.bin or .sbd (RockBLOCK) or YY-MM-DD_hh-mm-ss_<imei>_<momsn>.sbd (Iridium)"
 MAX_ATTACHMENT_BYTES = 340
 
 
@@ -30,12 +37,20 @@ class ImportOutcome:
 
 
 def import_file(path: Path, reports: ReportStore, now: datetime) -> ImportOutcome:
-    match = ATTACHMENT_NAME.match(path.name)
+    match = ROCKBLOCK_NAME.match(path.name) or IRIDIUM_DIRECT_NAME.match(path.name)
     if match is None:
-        return ImportOutcome(path, "error", "name is not <15-digit imei>-<momsn>.bin")
-    imei, momsn = match.group(1), int(match.group(2))
+        return ImportOutcome(path, "error", f"name is not {NAMES_ACCEPTED}")
+    imei, momsn = match.group("imei"), int(match.group("momsn"))
     if momsn > 65535:
         return ImportOutcome(path, "error", f"MOMSN {momsn} is over 65535")
+    transmitted = None
+    if "when" in match.groupdict():
+        try:
+            transmitted = datetime.strptime(match.group("when"), "%y-%m-%d_%H-%M-%S").replace(tzinfo=UTC)
+        except ValueError:
+            return ImportOutcome(path, "error", f"{match.group('when')} in the name is not a date and time")
+    if path.exists() and not path.is_file():
+        return ImportOutcome(path, "error", "not a regular file (a FIFO or a device would block the import)")
     try:
         with path.open("rb") as handle:
             payload = handle.read(MAX_ATTACHMENT_BYTES + 1)
@@ -43,7 +58,7 @@ def import_file(path: Path, reports: ReportStore, now: datetime) -> ImportOutcom
         return ImportOutcome(path, "error", f"cannot read: {exc.strerror or exc}")
     if len(payload) > MAX_ATTACHMENT_BYTES:
         return ImportOutcome(path, "error", f"over {MAX_ATTACHMENT_BYTES} bytes: not an SBD MO attachment")
-    stored, new = reports.add(Delivery(imei, momsn, payload.hex(), "email-file", now))
+    stored, new = reports.add(Delivery(imei, momsn, payload.hex(), "email-file", now, transmit_utc=transmitted))
     if not new:
         return ImportOutcome(path, "duplicate", "already stored", stored)
     if not stored.parsed.accepted:

@@ -109,6 +109,19 @@ def _fix_time(stamp: str) -> datetime | None:
         return None
 
 
+def _short_reason(fields: list[str]) -> str:
+    """Too few fields: a report cut short, or something that never was a DRS report.
+
+    Only a start that reads as a DRS report (every complete field in the firmware's format) was cut
+    short; anything else, a test message typed at the gateway, say, is not a DRS report at all, and
+    calling it truncated sends an operator looking for a radio fault that is not there.
+    """
+    complete = fields[:-1]
+    if complete and all(re.fullmatch(pattern, value) for value, (_, pattern) in zip(complete, _FIELDS, strict=False)):
+        return f"truncated: {len(fields)} fields, a DRS report has {len(_FIELDS)}"
+    return f"not a DRS report: {len(fields)} comma-separated field(s), not the firmware's {len(_FIELDS)}"
+
+
 def parse_payload(raw: bytes) -> ParseResult:
     """Raw MO bytes → an accepted ``Report`` or a rejection naming the first thing that is wrong."""
     if not raw:
@@ -129,7 +142,7 @@ def parse_payload(raw: bytes) -> ParseResult:
         text = text[: suffix.start()]
     fields = text.split(",")
     if len(fields) < len(_FIELDS):
-        return _rejected(raw, f"truncated: {len(fields)} fields, a DRS report has {len(_FIELDS)}")
+        return _rejected(raw, _short_reason(fields))
     if len(fields) > len(_FIELDS):
         return _rejected(raw, f"{len(fields)} fields, a DRS report has {len(_FIELDS)}")
     no_fix = fields[0] == NO_FIX_TIME

@@ -117,7 +117,7 @@ def test_mo_parse_prints_fields_json_and_rejections(
     out = capsys.readouterr().out
     assert "fix: 2026-07-01 10:00:07Z 46.500000,6.600000" in out and "forwarding: to RockBLOCK 16366" in out
     assert run(config, "mo", "parse", "5B49", "--json") == 1
-    assert '"reason": "truncated: 1 fields, a DRS report has 12"' in capsys.readouterr().out
+    assert '"reason": "not a DRS report: 1 comma-separated field(s), not the firmware\'s 12"' in capsys.readouterr().out
     assert run(config, "mo", "parse", "zz") == 2
     assert capsys.readouterr().err == "drs: error: not a DRS report: data is not valid hex\n"
 

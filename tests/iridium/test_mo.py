@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from datetime import UTC, datetime
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -62,6 +63,12 @@ def test_truncated_report_is_rejected_with_the_field_count() -> None:
     result = parse_payload(b"20190922143005,47.492120,-80.561200,28734,12.3")
     assert not result.accepted
     assert result.reason == "truncated: 5 fields, a DRS report has 12"
+
+
+@pytest.mark.parametrize("text", [b"hello from the gateway test page", b"OK,ready", b"[INTERVAL=5]"])
+def test_a_message_that_never_was_a_drs_report_is_not_called_truncated(text: bytes) -> None:
+    result = parse_payload(text)
+    assert not result.accepted and (result.reason or "").startswith("not a DRS report:")
 
 
 def test_over_long_payload_is_rejected() -> None:

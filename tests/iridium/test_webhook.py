@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import json
+import os
 import threading
 import urllib.request
 from collections.abc import Iterator
 from dataclasses import replace
-from datetime import timedelta
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import pytest
@@ -177,7 +178,42 @@ def test_email_attachments_import_once_and_bad_files_are_reported(store: Store, 
     reports = ReportStore(store)
     outcomes = import_files([good, garbage, badly_named, huge, missing, good], reports)
     assert [o.status for o in outcomes] == ["new", "rejected", "error", "error", "error", "duplicate"]
-    assert "name is not <15-digit imei>-<momsn>.bin" in outcomes[2].message
+    assert "name is not <imei>-<momsn>.bin or .sbd (RockBLOCK) or YY-MM-DD_hh-mm-ss_<imei>_<momsn>.sbd" in outcomes[2].message
     assert [r.delivery.momsn for r in reports.for_imei(IMEI)] == [13, 12] or [
         r.delivery.momsn for r in reports.for_imei(IMEI)
     ] == [12, 13]
+
+
+@pytest.mark.parametrize(
+    ("name", "momsn", "transmitted"),
+    [
+        (f"{IMEI}-000123.bin", 123, None),
+        (f"{IMEI}-00000.sbd", 0, None),
+        (f"19-04-07_09-59-59_{IMEI}_000124.sbd", 124, datetime(2019, 4, 7, 9, 59, 59, tzinfo=UTC)),
+    ],
+)
+def test_rockblock_iridium_direct_and_zero_padded_names_are_imported(
+    store: Store, tmp_path: Path, name: str, momsn: int, transmitted: datetime | None
+) -> None:
+    path = tmp_path / name
+    path.write_bytes(format_mo(fix_at(T0), 8.9, 3))
+    [outcome] = import_files([path], ReportStore(store))
+    assert outcome.status == "new" and outcome.stored is not None
+    assert outcome.stored.delivery.momsn == momsn and outcome.stored.delivery.transmit_utc == transmitted
+
+
+@pytest.mark.parametrize("name", [f"{IMEI}-٣.bin", f"{IMEI[:-1]}５-3.bin", f"{IMEI}-65536.bin", "19-13-40_25-00-00_" + IMEI + "_1.sbd"])
+def test_non_ascii_digits_out_of_range_momsns_and_impossible_times_are_refused(
+    store: Store, tmp_path: Path, name: str
+) -> None:
+    path = tmp_path / name
+    path.write_bytes(format_mo(fix_at(T0), 8.9, 3))
+    [outcome] = import_files([path], ReportStore(store))
+    assert outcome.status == "error"
+
+
+def test_a_fifo_is_refused_without_blocking(store: Store, tmp_path: Path) -> None:
+    fifo = tmp_path / f"{IMEI}-7.sbd"
+    os.mkfifo(fifo)
+    [outcome] = import_files([fifo], ReportStore(store))
+    assert outcome.status == "error" and "not a regular file" in outcome.message
