@@ -14,6 +14,7 @@ Works for GRIB1 and GRIB2 alike (variables are matched by shortName and typeOfLe
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
@@ -28,6 +29,8 @@ from predictor.errors import WeatherError
 from predictor.gribcheck import walk_grib_messages
 
 VARIABLES = ("u", "v", "t", "gh")
+STANDARD_GRAVITY = 9.80665
+"""m/s²: geopotential height (gpm) = geopotential (m²/s²) / g0, by definition (WMO)."""
 
 BBox = tuple[float, float, float, float]
 """(lat_min, lat_max, lon_min, lon_max) in degrees; lon_max > lon_min, continuous (may pass 180 or 360)."""
@@ -63,11 +66,29 @@ class _Grid:
     signature: tuple = field(default=())
 
 
-def read_grib_fields(file: Path, box: BBox | None) -> list[GribField]:
-    """Every valid time in the file as a cropped field set; WeatherError naming the file on any fault."""
+Planes = dict[tuple[np.datetime64, np.datetime64], dict[str, dict[float, np.ndarray]]]
+"""(cycle, valid) → variable → level → 2-D cropped array."""
+
+
+@dataclass
+class GribPlanes:
+    """What one file (or a set split one variable per file, merged) holds, before it is assembled."""
+
+    files: tuple[Path, ...]
+    grid: _Grid
+    planes: Planes
+    processes: set[int]
+
+    @property
+    def complete(self) -> bool:
+        """Every valid time has all four variables: the file stands on its own."""
+        return all(set(VARIABLES) <= set(by_name) for by_name in self.planes.values())
+
+
+def read_grib_planes(file: Path, box: BBox | None) -> GribPlanes:
+    """The file's u, v, t and gh planes, cropped; WeatherError naming the file on any fault."""
     grid: _Grid | None = None
-    # (cycle, valid) → variable → level → 2-D cropped array
-    planes: dict[tuple[np.datetime64, np.datetime64], dict[str, dict[float, np.ndarray]]] = {}
+    planes: Planes = {}
     processes: set[int] = set()
 
     def visit(handle: int) -> None:
@@ -77,13 +98,41 @@ def read_grib_fields(file: Path, box: BBox | None) -> list[GribField]:
     walk_grib_messages(file, visit)
     if grid is None:
         raise WeatherError(
-            f"{file} has no u, v, t or gh on isobaric (hPa) levels; a GFS pgrb2 file or a NOMADS "
-            "grib-filter subset with UGRD, VGRD, TMP and HGT on the mb levels is needed"
+            f"{file} has no u, v, t or gh (or ECMWF z) on isobaric (hPa) levels; a GFS pgrb2 file or a "
+            "NOMADS grib-filter subset with UGRD, VGRD, TMP and HGT on the mb levels is needed"
         )
-    process = min(processes) if processes else -1
+    return GribPlanes((file,), grid, planes, processes)
+
+
+def merge_planes(parts: Sequence[GribPlanes]) -> GribPlanes:
+    """Files that each hold some of the variables (ECMWF and MARS retrievals often give one per file)
+    as one set. A plane two files both hold must be the same plane."""
+    merged: Planes = {}
+    for part in parts:
+        if part.grid.signature != parts[0].grid.signature:
+            raise WeatherError(
+                f"{parts[0].files[0]} and {part.files[0]} are on different grids; use files of one product"
+            )
+        for key, by_name in part.planes.items():
+            for name, by_level in by_name.items():
+                into = merged.setdefault(key, {}).setdefault(name, {})
+                for level, plane in by_level.items():
+                    if level in into and not np.array_equal(into[level], plane):
+                        raise WeatherError(
+                            f"two weather files hold different {name} at {level:g} hPa for "
+                            f"{np.datetime_as_string(key[1], unit='h')}Z (one is {part.files[0]}); pass one"
+                        )
+                    into[level] = plane
+    files = tuple(file for part in parts for file in part.files)
+    processes = set().union(*(part.processes for part in parts))
+    return GribPlanes(files, parts[0].grid, merged, processes)
+
+
+def assemble_fields(part: GribPlanes) -> list[GribField]:
+    process = min(part.processes) if part.processes else -1
     return [
-        _assemble(file, cycle, valid, by_name, grid, process)
-        for (cycle, valid), by_name in sorted(planes.items())
+        _assemble(part.files, cycle, valid, by_name, part.grid, process)
+        for (cycle, valid), by_name in sorted(part.planes.items())
     ]
 
 
@@ -92,13 +141,15 @@ def _take_message(
     handle: int,
     box: BBox | None,
     grid: _Grid | None,
-    planes: dict[tuple[np.datetime64, np.datetime64], dict[str, dict[float, np.ndarray]]],
+    planes: Planes,
     processes: set[int],
 ) -> _Grid | None:
     if eccodes.codes_get(handle, "typeOfLevel") != "isobaricInhPa":
         return grid
     name = eccodes.codes_get(handle, "shortName")
-    if name not in VARIABLES:
+    if name == "z":
+        name = "gh"  # ECMWF's geopotential (m²/s²): converted to geopotential height below
+    elif name not in VARIABLES:
         return grid
     if eccodes.codes_get(handle, "gridType") != "regular_ll":
         raise WeatherError(
@@ -127,6 +178,8 @@ def _take_message(
     cropped = values[np.ix_(grid.lat_index, grid.lon_index)]
     if np.isnan(cropped).any():
         raise WeatherError(f"{file}: {name} at {level:g} hPa has missing values inside the requested region")
+    if eccodes.codes_get(handle, "shortName") == "z":
+        cropped = cropped / STANDARD_GRAVITY
     by_level[level] = cropped
     return grid
 
@@ -238,16 +291,20 @@ def _lon_text(lon: float) -> str:
 
 
 def _assemble(
-    file: Path,
+    files: tuple[Path, ...],
     cycle: np.datetime64,
     valid: np.datetime64,
     by_name: dict[str, dict[float, np.ndarray]],
     grid: _Grid,
     process: int,
 ) -> GribField:
+    file = files[0] if len(files) == 1 else Path(f"the set {', '.join(str(f) for f in files)}")
     missing = [name for name in VARIABLES if name not in by_name]
     if missing:
-        raise WeatherError(f"{file} lacks {', '.join(missing)} on isobaric levels (needs u, v, t and gh)")
+        when = np.datetime_as_string(valid, unit="h") + "Z"
+        raise WeatherError(
+            f"{file} lacks {', '.join(missing)} on isobaric levels at {when} (needs u, v, t and gh, or z)"
+        )
     common = set.intersection(*(set(by_name[name]) for name in VARIABLES))
     if len(common) < 2:
         raise WeatherError(f"{file} has fewer than two isobaric levels with all of u, v, t and gh")

@@ -37,13 +37,20 @@ import numpy as np
 
 from predictor.cube import WeatherCube
 from predictor.errors import WeatherError
-from predictor.gribread import VARIABLES, BBox, GribField, read_grib_fields
+from predictor.gribread import (
+    STANDARD_GRAVITY,
+    VARIABLES,
+    BBox,
+    GribField,
+    assemble_fields,
+    merge_planes,
+    read_grib_planes,
+)
 from predictor.gribwrite import DEMO_GENERATING_PROCESS
 
 DEMO_SOURCE = "DEMO weather (generated analytic atmosphere, not a forecast)"
-STANDARD_GRAVITY = 9.80665
 DRY_AIR_GAS_CONSTANT = 287.05
-_CACHE_FORMAT = 2  # 2: entries record their source files and box
+_CACHE_FORMAT = 3  # 2: entries record their source files and box; 3: time gaps checked, z read
 
 
 def default_cache_dir() -> Path:
@@ -176,12 +183,12 @@ def cube_cache_entries(cache_dir: str | Path) -> list[CubeCacheEntry]:
 
 
 def _build_cube(files: Sequence[Path], box: BBox | None) -> WeatherCube:
-    fields: list[GribField] = []
-    demo_files = 0
-    for file in files:
-        read = read_grib_fields(file, box)
-        demo_files += any(item.generating_process == DEMO_GENERATING_PROCESS for item in read)
-        fields.extend(read)
+    parts = [read_grib_planes(file, box) for file in files]
+    demo_files = sum(DEMO_GENERATING_PROCESS in part.processes for part in parts)
+    fields = [item for part in parts if part.complete for item in assemble_fields(part)]
+    partial = [part for part in parts if not part.complete]
+    if partial:
+        fields.extend(assemble_fields(merge_planes(partial)))
     _check_same_grid(fields)
     warnings: list[str] = []
     levels = _common_levels(fields, warnings)
@@ -192,6 +199,7 @@ def _build_cube(files: Sequence[Path], box: BBox | None) -> WeatherCube:
         if kept is None or item.lead_h < kept.lead_h:
             freshest[item.valid] = item
     chosen = [freshest[valid] for valid in sorted(freshest)]
+    _check_time_gaps([item.valid for item in chosen], warnings)
 
     lats = chosen[0].lats
     lons = chosen[0].lons
@@ -233,6 +241,47 @@ def geometric_altitude(geopotential_height_m: np.ndarray, lat_deg: np.ndarray | 
     radius = 6378137.0 / (1.006803 - 0.006706 * sin2)
     h = geopotential_height_m
     return radius * h / (gravity / STANDARD_GRAVITY * radius - h)
+
+
+MAX_TIME_GAP = np.timedelta64(24, "h")
+"""No forecast is interpolated across a day: a set with such a gap is two sets (e.g. cycles months apart)."""
+
+
+def _check_time_gaps(valid_times: Sequence[np.datetime64], warnings: list[str]) -> None:
+    """Valid times further apart than the set's own step: warned about, and refused beyond a day.
+
+    A missing forecast step (one file of a download failed) leaves a gap a descent can still be
+    interpolated across, with a warning that names it; cycles days or months apart loaded together
+    would silently interpolate a release between them across that whole time.
+    """
+    times = np.asarray(valid_times, dtype="datetime64[s]")
+    steps = np.diff(times)
+    if steps.size == 0:
+        return
+    too_long = np.flatnonzero(steps > MAX_TIME_GAP)
+    if too_long.size:
+        _refuse_gap(times, int(too_long[0]))
+    values, counts = np.unique(steps, return_counts=True)
+    step = values[np.argmax(counts)]
+    for index in np.flatnonzero(steps > step):
+        hours = steps[index] / np.timedelta64(1, "h")
+        warnings.append(
+            f"the weather has a {hours:g} h gap from {_hour(times[index])} to {_hour(times[index + 1])} "
+            f"(its step is {step / np.timedelta64(1, 'h'):g} h): a forecast file is missing there"
+        )
+
+
+def _refuse_gap(times: np.ndarray, index: int) -> None:
+    start, end = times[index], times[index + 1]
+    days = (end - start) / np.timedelta64(1, "D")
+    raise WeatherError(
+        f"the weather files leave a {days:.1f}-day gap from {_hour(start)} to {_hour(end)}: they are "
+        "not one forecast (different cycles or seasons?); load the files of one period"
+    )
+
+
+def _hour(moment: np.datetime64) -> str:
+    return np.datetime_as_string(moment, unit="m").replace("T", " ") + "Z"
 
 
 def _describe_source(chosen: Sequence[GribField]) -> str:

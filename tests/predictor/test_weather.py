@@ -335,7 +335,7 @@ def test_missing_variable_is_named_with_its_file(tmp_path: Path, cache: Path) ->
 
 def test_file_with_several_ensemble_members_is_refused(shared_data: Path, cache: Path) -> None:
     era5 = shared_data / "weather/cfgrib_sample_data/era5-levels-members.grib"  # GRIB1, 10 members
-    with pytest.raises(WeatherError, match=r"era5-levels-members\.grib holds several t fields at 500 hPa"):
+    with pytest.raises(WeatherError, match=r"era5-levels-members\.grib holds several (gh|t) fields at 500 hPa"):
         load_weather([era5], cache_dir=cache)
 
 
@@ -354,7 +354,7 @@ def test_file_without_isobaric_levels_is_refused(tmp_path: Path, cache: Path) ->
         eccodes.codes_set(handle, "typeOfLevel", "surface")
         eccodes.codes_write(handle, out)
         eccodes.codes_release(handle)
-    with pytest.raises(WeatherError, match=r"surface\.grib2 has no u, v, t or gh on isobaric \(hPa\) levels"):
+    with pytest.raises(WeatherError, match=r"surface\.grib2 has no u, v, t or gh \(or ECMWF z\) on isobaric \(hPa\) levels"):
         load_weather([surface], cache_dir=cache)
 
 
@@ -403,3 +403,52 @@ def test_non_physical_values_are_refused_naming_the_file(tmp_path: Path, cache: 
     )  # fmt: skip
     with pytest.raises(WeatherError, match=r"zero_kelvin\.grib2: t = 0 K at 1000 hPa is outside 100…400 K"):
         load_weather([zero_kelvin], cache_dir=cache)
+
+
+def as_ecmwf_geopotential(source: Path, target: Path) -> Path:
+    """The file with every gh message rewritten as ECMWF writes height: z, geopotential in m²/s²."""
+    with open(source, "rb") as stream, open(target, "wb") as out:
+        while (handle := eccodes.codes_grib_new_from_file(stream)) is not None:
+            if eccodes.codes_get(handle, "shortName") == "gh":
+                values = eccodes.codes_get_values(handle) * 9.80665
+                eccodes.codes_set(handle, "parameterNumber", 4)  # discipline 0, category 3, number 4: z
+                eccodes.codes_set_values(handle, values)
+                assert eccodes.codes_get(handle, "shortName") == "z"
+            eccodes.codes_write(handle, out)
+            eccodes.codes_release(handle)
+    return target
+
+
+def test_a_set_split_one_variable_per_file_loads_as_the_whole_file_does(tmp_path: Path, cache: Path) -> None:
+    lats, lons = np.arange(45.0, 47.1, 0.5), np.arange(6.0, 8.1, 0.5)
+    full = write_marked(tmp_path / "full.grib2", lats, lons)
+    split = [copy_messages(full, tmp_path / f"{name}.grib2", {name}) for name in ("u", "v", "t", "gh")]
+    whole, merged = load_weather([full], cache_dir=cache), load_weather(split, cache_dir=cache)
+    for name in ("u", "v", "temperature_k", "z_m", "density"):
+        np.testing.assert_array_equal(getattr(merged, name), getattr(whole, name))
+    assert merged.times.tolist() == whole.times.tolist()
+
+
+def test_ecmwf_geopotential_z_is_converted_to_geopotential_height(tmp_path: Path, cache: Path) -> None:
+    lats, lons = np.arange(45.0, 47.1, 0.5), np.arange(6.0, 8.1, 0.5)
+    full = write_marked(tmp_path / "full.grib2", lats, lons)
+    ecmwf = as_ecmwf_geopotential(full, tmp_path / "ecmwf.grib2")
+    whole, converted = load_weather([full], cache_dir=cache), load_weather([ecmwf], cache_dir=cache)
+    np.testing.assert_allclose(converted.z_m, whole.z_m, atol=0.01)  # float32 packing of z vs gh
+
+
+def test_cycles_months_apart_are_refused_with_the_gap_named(tmp_path: Path, cache: Path) -> None:
+    lats, lons = np.arange(45.0, 47.1, 0.5), np.arange(6.0, 8.1, 0.5)
+    summer = write_marked(tmp_path / "summer.grib2", lats, lons)
+    winter = write_marked(tmp_path / "winter.grib2", lats, lons, CYCLE + timedelta(days=268))
+    with pytest.raises(WeatherError, match=r"268\.0-day gap from 2024-05-01 06:00Z to 2025-01-24 06:00Z"):
+        load_weather([summer, winter], cache_dir=cache)
+
+
+def test_a_missing_forecast_step_is_named_in_a_warning(tmp_path: Path, cache: Path) -> None:
+    lats, lons = np.arange(45.0, 47.1, 0.5), np.arange(6.0, 8.1, 0.5)
+    files = [write_marked(tmp_path / f"f{s:03d}", lats, lons, CYCLE, s) for s in (0, 3, 9, 12)]
+    cube = load_weather(files, cache_dir=cache)
+    assert any(
+        "6 h gap from 2024-05-01 09:00Z to 2024-05-01 15:00Z (its step is 3 h)" in w for w in cube.warnings
+    )
