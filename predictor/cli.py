@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 from predictor.errors import PredictorError
 from predictor.payload import PROFILES, payload_profile
+from predictor.plausibility import emit, release_altitude_warning
 from predictor.uncertainty import ERROR_MODELS, GEOD
 
 if TYPE_CHECKING:  # the descent engine (numba) and the exports load only when a prediction runs
@@ -110,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
         raise PredictorError(f"drs predict needs {', '.join(missing)}")
     if args.weather is not None and args.demo_weather:
         raise PredictorError("give either --weather or --demo-weather, not both")
+    emit(release_altitude_warning(args.alt))
     from predictor.demo_weather import demo_weather_files
     from predictor.export import to_json, write_geojson, write_kml
     from predictor.integrate import COMPILE_NOTICE, kernels_compiled

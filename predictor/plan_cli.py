@@ -110,6 +110,7 @@ def run_plan(args: argparse.Namespace) -> int:
     from predictor.planning.balloon import AltitudePlan
     from predictor.planning.strip import write_geojson, write_kml
     from predictor.planning.sweep import Thresholds, plan_release
+    from predictor.plausibility import emit, far_features_warning, release_altitude_warning
     from predictor.terrain import Terrain
     from predictor.weather import load_weather
     from predictor.zones import load_targets, load_zones
@@ -118,6 +119,11 @@ def run_plan(args: argparse.Namespace) -> int:
     thresholds = Thresholds(args.max_zone_probability, args.max_target_km, args.max_sigma_km)
     zones = load_zones(args.zones) if args.zones else ()
     targets = load_targets(args.targets) if args.targets else ()
+    emit(
+        release_altitude_warning(args.alt),
+        far_features_warning("exclusion zone", [z.geometry for z in zones], [(args.lat, args.lon)]),
+        far_features_warning("target", [t.geometry for t in targets], [(args.lat, args.lon)]),
+    )
     altitude_plan = AltitudePlan.parse(args.altitude_plan) if args.altitude_plan else None
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
     hours = args.hours if np.isfinite(args.hours) else 0.0
@@ -153,7 +159,13 @@ def plan_summary(plan: object) -> str:
             f"{iso_z(plan.candidates[w.last].release_time)}, best {iso_z(c.release_time)} "
             f"→ {c.landing_lat:.4f}, {c.landing_lon:.4f}  P(zone) {c.zone_probability:.3f}"
             + (f", E[target] {c.expected_target_km:.1f} km" if c.expected_target_km is not None else "")
+            + f", 1σ {c.sigma_major_km:.1f} km"
         )
+    if plan.windows:
+        first = "the nearest expected target distance (to 0.1 km)" if any(
+            c.expected_target_km is not None for c in plan.candidates
+        ) else "the lowest zone probability (to 0.1 %)"
+        lines.append(f"best = {first}, then the smallest 1σ ellipse, then the window's middle")
     lines.append("timeline (+ go, - no-go, x no landing):")
     marks = "".join("+" if c.go else ("x" if c.status else "-") for c in plan.candidates)
     lines += [f"  {marks[i : i + 60]}" for i in range(0, len(marks), 60)]

@@ -37,6 +37,7 @@ from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.iridium.track_export import export_track
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
 from drs_link.store import Store, utc_now
+from predictor.plausibility import emit, far_team_warning
 
 _INTERVAL_RE = re.compile(r"\[INTERVAL=(\d+)\]")
 _IMEI_RE = re.compile(r"\d{15}")
@@ -380,6 +381,9 @@ def _recovery(args: argparse.Namespace) -> int:
     coarse = None
     if reports and (position := reports[-1].iridium_position()) is not None:
         coarse = (*position, reports[-1].session_time)
+    capsule_at = (landing.lat, landing.lon) if landing else (track[-1].lat, track[-1].lon) if track else None
+    if team is not None and capsule_at is not None:
+        emit(far_team_warning(team, capsule_at))
     print(phone_summary(capsule.name, landing, track[-1] if track else None, team, coarse))
     if landing is not None:
         print(

@@ -46,34 +46,55 @@ def _interval_at(moment: datetime, schedule: Sequence[tuple[datetime, int]]) -> 
     return interval
 
 
+MOMSN_MODULUS = 65536
+
+
+def _momsn_findings(reports: Sequence[StoredReport]) -> list[Finding]:
+    """Missing and repeated MOMSNs, judged in MOMSN order, not arrival order.
+
+    Why MOMSN order: a report without a transmit time (an email attachment imported later) sorts by its
+    import time, and the modem's counter read in that order jumped back by a few and was reported as
+    65,534 missing reports. The counter wraps at 65536, so the sequence starts after the largest
+    circular gap between the MOMSNs present: that gap is the part of the counter not yet used.
+    """
+    if len(reports) < 2:
+        return []
+    ordered = sorted(reports, key=lambda r: (r.delivery.momsn, r.id))
+    momsns = [r.delivery.momsn for r in ordered]
+    steps = [(b - a) % MOMSN_MODULUS for a, b in zip(momsns, momsns[1:] + momsns[:1], strict=True)]
+    start = (max(range(len(steps)), key=steps.__getitem__) + 1) % len(ordered)
+    sequence = ordered[start:] + ordered[:start]
+    findings: list[Finding] = []
+    for previous, stored in zip(sequence, sequence[1:], strict=False):
+        gap = (stored.delivery.momsn - previous.delivery.momsn) % MOMSN_MODULUS
+        if gap == 0:
+            findings.append(
+                Finding(
+                    "momsn_repeat",
+                    stored.id,
+                    f"MOMSN {stored.delivery.momsn} repeated "
+                    "with different content (wrap or a second modem on this IMEI)",
+                )
+            )
+        elif gap > 1:
+            findings.append(
+                Finding(
+                    "momsn_gap",
+                    stored.id,
+                    f"{gap - 1} report(s) missing before MOMSN "
+                    f"{stored.delivery.momsn}: sent by the capsule, never received here",
+                )
+            )
+    return findings
+
+
 def assess(reports: list[StoredReport], interval_schedule: Sequence[tuple[datetime, int]] = ()) -> Health:
     """Findings over reports in time order; ``interval_schedule`` is (since, INTERVAL) as commanded."""
     findings: list[Finding] = []
     battery_low = False
-    previous: StoredReport | None = None
     previous_ok: StoredReport | None = None
+    findings.extend(_momsn_findings(reports))
     for stored in reports:
-        if previous is not None:
-            gap = (stored.delivery.momsn - previous.delivery.momsn) % 65536
-            if gap == 0:
-                findings.append(
-                    Finding(
-                        "momsn_repeat",
-                        stored.id,
-                        f"MOMSN {stored.delivery.momsn} repeated "
-                        "with different content (wrap or a second modem on this IMEI)",
-                    )
-                )
-            elif gap > 1:
-                findings.append(
-                    Finding(
-                        "momsn_gap",
-                        stored.id,
-                        f"{gap - 1} report(s) missing before MOMSN "
-                        f"{stored.delivery.momsn}: sent by the capsule, never received here",
-                    )
-                )
-        previous = stored
         report = stored.report
         if report is None:
             findings.append(
@@ -139,6 +160,8 @@ def assess(reports: list[StoredReport], interval_schedule: Sequence[tuple[dateti
                     )
         previous_ok = stored
     last_ok = previous_ok.report if previous_ok is not None else None
+    position = {stored.id: index for index, stored in enumerate(reports)}
+    findings.sort(key=lambda finding: position[finding.report_id])  # stable: time order, as reported
     return Health(
         reports=len(reports),
         last_vbat=last_ok.vbat if last_ok is not None else None,

@@ -553,19 +553,33 @@ def _candidates(
     return out
 
 
+SCORE_RESOLUTION = {"target": 0.1, "zone": 0.001}
+"""Differences in the score below these (0.1 km of expected target distance, 0.1 % of zone probability)
+are below what the Gaussian integration and the ensemble can resolve; within them the smaller ellipse wins."""
+
+
 def rank_windows(candidates: Sequence[Candidate], by_target: bool) -> list[Window]:
     """Runs of consecutive go candidates, best first.
 
     A candidate's score is its expected target distance (with targets) or its zone probability;
-    lower is better. A window's recommended time is its best-scoring candidate (ties: the one nearest
-    the window's middle, which leaves the most slack either side), and windows rank by that score,
-    then by length (a longer window forgives a late decision).
+    lower is better. A window's recommended time is its best-scoring candidate; among candidates whose
+    scores agree to ``SCORE_RESOLUTION``, the one with the smallest 1σ ellipse (the landing is least
+    uncertain there: without zones every score is 0, and the middle of a window was recommended even
+    where its ellipse was 3× the start's), then the one nearest the window's middle, which leaves the
+    most slack either side. Windows rank by that score, then by length (a longer window forgives a
+    late decision).
     """
+    resolution = SCORE_RESOLUTION["target" if by_target else "zone"]
 
     def score(c: Candidate) -> float:
         if by_target and c.expected_target_km is not None:
             return c.expected_target_km
         return c.zone_probability
+
+    def preference(i: int, middle: float) -> tuple[float, float, float]:
+        c = candidates[i]
+        sigma = c.sigma_major_km if math.isfinite(c.sigma_major_km) else math.inf
+        return (round(score(c) / resolution), round(sigma, 2), abs(i - middle))
 
     runs: list[tuple[int, int]] = []
     start = None
@@ -580,7 +594,7 @@ def rank_windows(candidates: Sequence[Candidate], by_target: bool) -> list[Windo
     found = []
     for first, last in runs:
         middle = 0.5 * (first + last)
-        best = min(range(first, last + 1), key=lambda i: (round(score(candidates[i]), 9), abs(i - middle)))
+        best = min(range(first, last + 1), key=lambda i: preference(i, middle))
         found.append((score(candidates[best]), -(last - first), first, last, best))
     found.sort()
     return [

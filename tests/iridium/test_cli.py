@@ -143,6 +143,11 @@ def test_mo_import_then_health_and_recovery_with_exports(
     out = capsys.readouterr().out
     assert out.startswith("DRS1 on ground 46.50000 N 6.60000 E ±0 m (n=3), 1.1 km at 000° from you")
     assert gpx.exists() and kml.exists()
+    assert capsys.readouterr().err == ""
+    assert run(config, "recovery", "DRS1", "--from", "6.60,46.49") == 0
+    err = capsys.readouterr().err
+    assert err.startswith("drs: warning: your position is ") and err.count("\n") == 1
+    assert "as LON,LAT it would be 1 km away: --from takes LAT,LON" in err
 
 
 def test_mo_serve_stores_gateway_posts_until_interrupted(tmp_path: Path) -> None:

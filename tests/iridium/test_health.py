@@ -50,3 +50,18 @@ def test_rejected_payload_is_a_finding_not_a_crash() -> None:
     bad = StoredReport(9, Delivery(IMEI, 3, "00FF", "test", T0), parse_payload(b"\x00\xff"))
     health = assess([report(1, 0, 2, 1), bad])
     assert health.kinds() == ["rejected"]
+
+
+def test_a_report_imported_late_without_a_transmit_time_is_not_a_65534_report_gap() -> None:
+    """An email attachment sorts by its import time; continuity is judged in MOMSN order."""
+    in_time_order = [report(1, 0, 20, 1), report(2, 2, 22, 3), report(3, 4, 23, 4), report(4, 60, 21, 2)]
+    kinds = assess(in_time_order).kinds()
+    assert "momsn_gap" not in kinds and "momsn_repeat" not in kinds
+
+
+def test_a_real_gap_is_found_across_the_wrap_whatever_the_order() -> None:
+    reports = [report(1, 0, 65534, 1), report(2, 2, 1, 4), report(3, 4, 65535, 2), report(4, 6, 2, 5)]
+    gaps = [f for f in assess(reports).findings if f.kind.startswith("momsn")]
+    assert [f.message for f in gaps] == [
+        "1 report(s) missing before MOMSN 1: sent by the capsule, never received here"
+    ]

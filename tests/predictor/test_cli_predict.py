@@ -237,6 +237,9 @@ def test_bench_prints_every_measured_figure(capsys: pytest.CaptureFixture[str]) 
         "one prediction",
         "20-member perturbed ensemble",
         "over 3 runs",
+        "whole process: drs --help",
+        "whole process: drs predict (cached weather, warm numba cache)",
+        "python importing numpy and scipy",
     ):
         assert text in out
 

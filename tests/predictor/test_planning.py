@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import math
-from datetime import timedelta
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +15,7 @@ from predictor.cube import WeatherCube
 from predictor.errors import PredictorError
 from predictor.planning.balloon import AltitudePlan, balloon_path
 from predictor.planning.strip import to_geojson, to_kml, write_geojson, write_kml
-from predictor.planning.sweep import Thresholds, plan_release
+from predictor.planning.sweep import Candidate, Thresholds, plan_release, rank_windows
 from predictor.prediction import predict, predict_ensemble
 from predictor.zones import Feature, load_zones
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
@@ -240,3 +240,20 @@ def test_ensemble_zone_probability_agrees_with_counting_its_members() -> None:
     assert member.members_in_zones is not None
     assert 0.3 < member.zone_probability < 0.7
     assert member.zone_probability == pytest.approx(member.members_in_zones, abs=0.06)
+
+
+def test_a_windows_recommendation_weighs_the_ellipse_when_zones_do_not_decide() -> None:
+    """No zones: every P(zone) is 0. The middle used to win even where its ellipse was 3× the start's."""
+    start = datetime(2024, 5, 1, 1, tzinfo=UTC)
+    sigmas = [2.0, 3.0, 6.0, 6.0, 6.0, 4.0]
+    candidates = [
+        Candidate(i, start + timedelta(minutes=5 * i), 46.0, 6.0, 28000.0, 0.0, None,
+                  sigma_major_km=sigma, zone_probability=0.0, go=True)
+        for i, sigma in enumerate(sigmas)
+    ]  # fmt: skip
+    [window] = rank_windows(candidates, by_target=False)
+    assert window.recommended == 0
+    candidates[0] = Candidate(0, start, 46.0, 6.0, 28000.0, 0.0, None, sigma_major_km=2.0,
+                              zone_probability=0.02, go=True)  # fmt: skip
+    [window] = rank_windows(candidates, by_target=False)
+    assert window.recommended == 1  # a real zone risk outweighs a smaller ellipse
