@@ -128,3 +128,10 @@ def test_the_drs_entry_point_runs_tracks_summary_and_reports_bad_input_in_one_li
     assert captured.err.count("\n") == 1 and captured.err.startswith(
         f"drs: error: {empty}:1: not well-formed XML"
     )
+
+
+def test_the_command_lines_default_effect_count_is_the_selections() -> None:
+    """The parser states the default without importing the selection (numba, scipy): the two must agree."""
+    from predictor.calibration import calibrate_cli, selection
+
+    assert calibrate_cli.DEFAULT_MAX_EFFECTS == selection.DEFAULT_MAX_EFFECTS
