@@ -19,6 +19,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+STANDARD_GRAVITY = 9.80665
+"""g0, m/s²: the WMO geopotential metre, gpm = geopotential (m²/s²) / g0 (ECMWF's z → GFS's gh), and the
+reference of the latitude-dependent gravity in the altitude conversion."""
+
 
 @dataclass(frozen=True, eq=False)
 class WeatherCube:

@@ -25,12 +25,11 @@ import predictor.native_libs  # noqa: F401  (PROJ before eccodes, see there)
 import eccodes
 import numpy as np
 
+from predictor.cube import STANDARD_GRAVITY
 from predictor.errors import WeatherError
 from predictor.gribcheck import walk_grib_messages
 
 VARIABLES = ("u", "v", "t", "gh")
-STANDARD_GRAVITY = 9.80665
-"""m/s²: geopotential height (gpm) = geopotential (m²/s²) / g0, by definition (WMO)."""
 
 BBox = tuple[float, float, float, float]
 """(lat_min, lat_max, lon_min, lon_max) in degrees; lon_max > lon_min, continuous (may pass 180 or 360)."""

@@ -32,20 +32,15 @@ import zipfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from predictor.cube import WeatherCube
+from predictor.cube import STANDARD_GRAVITY, WeatherCube
 from predictor.errors import WeatherError
-from predictor.gribread import (
-    STANDARD_GRAVITY,
-    VARIABLES,
-    BBox,
-    GribField,
-    assemble_fields,
-    merge_planes,
-    read_grib_planes,
-)
+
+if TYPE_CHECKING:  # the GRIB reader (eccodes) loads when files are decoded: a cached cube needs none of it
+    from predictor.gribread import BBox, GribField
 from predictor.gribwrite import DEMO_GENERATING_PROCESS
 
 DEMO_SOURCE = "DEMO weather (generated analytic atmosphere, not a forecast)"
@@ -183,6 +178,8 @@ def cube_cache_entries(cache_dir: str | Path) -> list[CubeCacheEntry]:
 
 
 def _build_cube(files: Sequence[Path], box: BBox | None) -> WeatherCube:
+    from predictor.gribread import VARIABLES, assemble_fields, merge_planes, read_grib_planes
+
     parts = [read_grib_planes(file, box) for file in files]
     demo_files = sum(DEMO_GENERATING_PROCESS in part.processes for part in parts)
     fields = [item for part in parts if part.complete for item in assemble_fields(part)]
