@@ -33,12 +33,15 @@ from drs_link.operations import Operations
 from drs_link.store import Store, utc_now
 from drs_link.telemetry import TelemetryRecord
 from predictor.errors import PredictorError
+from predictor.integrate import COMPILE_NOTICE, kernels_compiled
 
 CHECKLIST_DIR = Path(__file__).parent / "checklists"
 POLL_PERIOD_S = 5.0
 REPORT_POLL_S = 3.0
 PREDICTION_LEAD_MIN = (0, 10)
 GATEWAY_CHECK_S = 300.0
+NO_WEATHER = "no weather loaded: start with --weather FILES (or drs weather fetch)"
+WAITING_FOR_POSITION = "waiting for a position: the capsule's GNSS fix or the balloon feed"
 
 
 class TelemetryArrived(Message):
@@ -103,6 +106,8 @@ class DrsConsole(App[int]):
         self.fleet = FleetState.for_capsules(setup.capsules, poll_period if setup.operations else 0.0)
         self.checklists: list[Checklist] = load_checklists(checklist_dir)
         self.live_timers = live_timers
+        self.predicting: set[str] = set()
+        """Capsules with a prediction running: one at a time each, so a slow first one never piles up."""
         self.theme = "textual-dark"
 
     # Shared state for the screens -------------------------------------------------------------
@@ -162,7 +167,9 @@ class DrsConsole(App[int]):
             self.set_interval(max(0.5, min(REPORT_POLL_S, 30.0 / self.setup.time_scale)), self.poll_reports)
         if self.setup.predictions is not None:
             self.set_interval(self.setup.prediction_period_s, self.refresh_predictions)
-            self.set_timer(1.0, self.refresh_predictions)
+        elif self.mode != "replay":  # a replay shows the predictions it recorded
+            for name in self.setup.capsules:
+                self.fleet.apply(self.prediction_status(name, "no weather", NO_WEATHER))
         if self.setup.balloon_feed is not None:
             self.set_interval(2.0, self.read_balloon)
         if self.setup.replay_feed is not None:
@@ -170,12 +177,14 @@ class DrsConsole(App[int]):
         self.set_interval(1.0, self.tick)
 
     def tick(self) -> None:
-        """Once a second: ages grow, ARM windows run out, the screen shows both."""
+        """Once a second: ages grow, ARM windows run out, first predictions start, the screen shows all."""
         if self.ops is not None:
             for name in self.setup.capsules:
                 arming = self.ops.ops(name).arming
                 if arming.status().armed:
                     arming.observe(self.gonogo(name))
+        if self.setup.predictions is not None:
+            self.first_predictions()
         self.refresh_screen()
 
     def refresh_screen(self) -> None:
@@ -244,21 +253,44 @@ class DrsConsole(App[int]):
             return ReleaseOrigin(balloon.value["lat"], balloon.value["lon"], balloon.value["alt_m"], source)
         return None
 
-    def refresh_predictions(self) -> None:
-        for name in self.setup.capsules:
+    def refresh_predictions(self, names: Iterable[str] | None = None) -> None:
+        for name in self.setup.capsules if names is None else names:
             state = self.fleet.capsules[name].value("release", "state", self.now(), fresh_only=False)
+            if state in ("released", "go-sent-unverified") or name in self.predicting:
+                continue
             origin = self.prediction_origin(name)
-            if origin is not None and state not in ("released", "go-sent-unverified"):
-                self.run_prediction(name, origin)
+            if origin is None:
+                self.fleet.apply(self.prediction_status(name, "waiting", WAITING_FOR_POSITION))
+                continue
+            self.predicting.add(name)
+            self.run_prediction(name, origin)
+
+    def first_predictions(self) -> None:
+        """Every second until a capsule has its first prediction: its first position may arrive at any
+        moment (the balloon feed's first fix, a GNSS fix after power-on), and the operator should see a
+        landing within seconds of it, not a whole prediction period later."""
+        self.refresh_predictions(
+            [name for name in self.setup.capsules if self.fleet.capsules[name].reading("prediction").value is None]
+        )
+
+    def prediction_status(self, name: str, short: str, text: str) -> TelemetryRecord:
+        """What the console is doing about a capsule's first prediction, shown until it has one."""
+        return TelemetryRecord(self.now(), name, "prediction_status", {"short": short, "text": text})
 
     @work(thread=True, exit_on_error=False, group="predictions")
     def run_prediction(self, name: str, origin: ReleaseOrigin) -> None:
         assert self.setup.predictions is not None
         try:
+            first = "compiling" if not kernels_compiled() else "computing…"
+            text = COMPILE_NOTICE if first == "compiling" else f"computing the landing from {origin.source}…"
+            self.post_message(TelemetryArrived([self.prediction_status(name, first, text)]))
             records = self.setup.predictions.predict(name, origin, release_in=PREDICTION_LEAD_MIN)
         except PredictorError as exc:
+            self.post_message(TelemetryArrived([self.prediction_status(name, "failed", f"failed: {exc}")]))
             self.post_message(OperatorNotice(f"{name}: prediction failed: {exc}", "warning"))
             return
+        finally:
+            self.predicting.discard(name)  # one atomic set operation: safe from this worker thread
         if self.ops is not None and self.ops.recorder is not None:
             for record in records:
                 self.ops.recorder.append(record)

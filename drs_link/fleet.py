@@ -22,6 +22,7 @@ PERIOD_S: dict[str, float] = {
     "storage": 60.0,
     "sync": 60.0,
     "prediction": 120.0,
+    "prediction_status": 120.0,
     "report": 120.0,
     "gateway": 600.0,
     "balloon": 60.0,

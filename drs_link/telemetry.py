@@ -19,7 +19,9 @@ from typing import Any
 from drs_link.errors import LinkError
 from drs_link.store import iso_utc, parse_iso_utc
 
-KINDS = ("link", "release", "gnss", "storage", "sync", "prediction", "report", "balloon", "gateway")
+KINDS = (
+    "link", "release", "gnss", "storage", "sync", "prediction", "prediction_status", "report", "balloon", "gateway",
+)  # fmt: skip
 FORMAT_VERSION = 1
 
 

@@ -292,6 +292,8 @@ class Field:
     short: Callable[[Value], str]
     long: Callable[[Value], str]
     level: Callable[[Value], Level]
+    status_kind: str | None = None
+    """The kind of record that says what the console is doing about a value it has never had."""
 
     @property
     def width(self) -> int:
@@ -305,12 +307,20 @@ class Field:
         except (TypeError, ValueError, KeyError, AttributeError) as exc:
             return "", f"unreadable {self.kind} data ({type(exc).__name__}: {exc})", "bad"
 
+    def pending(self, t: CapsuleTelemetry, form: str = "text") -> str | None:
+        """What the console is doing about a value it has never had, if it said; ``form`` is ``text``
+        (words) or ``short`` (a table cell)."""
+        if self.status_kind is None:
+            return None
+        status = t.reading(self.status_kind).value
+        return str(status[form]) if status and status.get(form) else None
+
     def cell(self, t: CapsuleTelemetry, now: datetime) -> Cell:
         """The short form for a table cell: value and age, glyph first when stale, "—" when missing."""
         reading = t.reading(self.kind)
         state = reading.freshness(now)
         if state is Freshness.MISSING:
-            return Cell(MISSING_TEXT, "none")
+            return Cell(self.pending(t, "short") or MISSING_TEXT, "none")
         text, error, level = self._described(reading.value or {}, self.short)
         text = f"{text or 'BAD DATA'} {short_age(reading.age_s(now) or 0.0)}"
         if state is Freshness.STALE:
@@ -322,7 +332,7 @@ class Field:
         reading = t.reading(self.kind)
         state = reading.freshness(now)
         if state is Freshness.MISSING:
-            return Cell(f"{MISSING_TEXT} nothing received yet", "none")
+            return Cell(f"{MISSING_TEXT} {self.pending(t) or 'nothing received yet'}", "none")
         text, error, level = self._described(reading.value or {}, self.long)
         age = long_age(reading.age_s(now) or 0.0)
         if state is Freshness.STALE:
@@ -337,7 +347,8 @@ FIELDS: tuple[Field, ...] = (
     Field("storage", "Storage", "Storage", 10, _storage_short, _storage_long, _storage_level),
     Field("sync", "Sync", "Sync", 4, _sync_short, _sync_long, _sync_level),
     Field("report", "Battery/last MO", "Battery/MO", 12, _report_short, _report_long, _report_level),
-    Field("prediction", "Prediction", "Prediction", 10, _prediction_short, _prediction_long, _always_ok),
+    Field("prediction", "Prediction", "Prediction", 10, _prediction_short, _prediction_long, _always_ok,
+          status_kind="prediction_status"),  # fmt: skip
 )
 """Every field of a capsule, in the fleet table's priority order (the first ones stay at 80 columns)."""
 
