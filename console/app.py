@@ -40,6 +40,9 @@ POLL_PERIOD_S = 5.0
 REPORT_POLL_S = 3.0
 PREDICTION_LEAD_MIN = (0, 10)
 GATEWAY_CHECK_S = 300.0
+BALLOON_READ_S = 0.5
+"""How often the feed's latest fix is taken (a lock and a copy): often enough that a first fix starts a
+prediction within a second."""
 NO_WEATHER = "no weather loaded: start with --weather FILES (or drs weather fetch)"
 WAITING_FOR_POSITION = "waiting for a position: the capsule's GNSS fix or the balloon feed"
 
@@ -171,7 +174,7 @@ class DrsConsole(App[int]):
             for name in self.setup.capsules:
                 self.fleet.apply(self.prediction_status(name, "no weather", NO_WEATHER))
         if self.setup.balloon_feed is not None:
-            self.set_interval(2.0, self.read_balloon)
+            self.set_interval(BALLOON_READ_S, self.read_balloon)
         if self.setup.replay_feed is not None:
             self.set_interval(0.2, self.replay_step)
         self.set_interval(1.0, self.tick)
@@ -313,6 +316,8 @@ class DrsConsole(App[int]):
                     arming.link_lost()
                 else:
                     arming.observe(self.gonogo(name))
+        if self.setup.predictions is not None and any(r.kind in ("balloon", "gnss") for r in message.records):
+            self.first_predictions()  # a first position: predict now, not at the next tick
         self.refresh_screen()
 
     @on(OperatorNotice)
