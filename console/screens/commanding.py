@@ -14,8 +14,9 @@ from textual.binding import Binding
 
 from console.screens.base import ConsoleScreen
 from console.screens.modals import HazardConfirmation, HazardModal, TextPromptModal
-from drs_link.arming import check_second_operator
 from drs_link.errors import LinkError
+from drs_link.iridium.authorize import authorize_mt
+from drs_link.iridium.landed import landed_evidence
 from drs_link.iridium.mt import MtComposer, MtMessage, parse_hhmm
 from drs_link.iridium.parachute import ParachutePlan, plan_parachute
 
@@ -105,22 +106,20 @@ class CommandingScreen(ConsoleScreen):
 
     def _confirm_parachute(self, plan: ParachutePlan) -> None:
         message = MtComposer().parachute(plan.hour, plan.minute).build()
-        text = plan.window_text() + "\n" + "\n".join(f"! {w}" for w in plan.warnings)
+        evidence = landed_evidence(self.console.ops.stored_reports(self.capsule))
+        verdict = "Landed evidence" if evidence.on_ground else "NO LANDED EVIDENCE"
+        text = "\n".join([f"{verdict}: {evidence.summary}", plan.window_text(), *(f"! {w}" for w in plan.warnings)])
         second = self.console.ops.config.console.require_second_operator
+        override = None if evidence.on_ground else (
+            "Override (drops the parachute in flight if it is still falling): a reason, with a second operator "
+            "or a waiver above"
+        )
 
         def confirmed(answer: HazardConfirmation | None) -> None:
-            if answer is None:
-                return
-            try:
-                people = check_second_operator(
-                    self.console.operator, answer.second_operator, answer.single_operator_waiver, second
-                )
-            except LinkError as exc:
-                self.app.notify(f"PARACHUTE refused: {exc}", severity="error")
-                return
-            self.send_worker(message, answer.typed_name, people)
+            if answer is not None:
+                self.send_worker(message, answer.typed_name, answer)
 
-        self.app.push_screen(HazardModal(self.capsule, "PARACHUTE", text, second), confirmed)
+        self.app.push_screen(HazardModal(self.capsule, "PARACHUTE", text, second, override), confirmed)
 
     def action_parachute(self) -> None:
         plan = self._plan(None)
@@ -145,15 +144,18 @@ class CommandingScreen(ConsoleScreen):
         )
 
     @work(thread=True, exit_on_error=False, group="mt-send")
-    def send_worker(self, message: MtMessage, confirmation: str, people: dict[str, str] | None) -> None:
+    def send_worker(self, message: MtMessage, confirmation: str, hazard: HazardConfirmation | None) -> None:
         from console.app import OperatorNotice
 
         ops = self.console.ops
         try:
-            if people:
-                ops.store.append_audit(
-                    ops.operator, self.capsule, "mt.two-person", "ok", {"text": message.text, **people}
-                )
+            authorize_mt(
+                ops.store, self.capsule, ops.operator, message, ops.stored_reports(self.capsule),
+                second_operator=hazard.second_operator if hazard else None,
+                single_operator_waiver=hazard.single_operator_waiver if hazard else None,
+                require_second_operator=ops.config.console.require_second_operator,
+                override_landed=hazard.override_reason if hazard else None,
+            )  # fmt: skip
             command = ops.send_mt(self.capsule, message, confirmation)
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))

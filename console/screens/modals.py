@@ -76,6 +76,7 @@ class HazardConfirmation:
     typed_name: str
     second_operator: str
     single_operator_waiver: str
+    override_reason: str = ""
 
 
 class HazardModal(ModalScreen[HazardConfirmation | None]):
@@ -83,12 +84,16 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
 
     BINDINGS = [Binding("escape", "cancel", "Cancel")]
 
-    def __init__(self, capsule: str, action: str, consequence: str, second_required: bool) -> None:
+    def __init__(
+        self, capsule: str, action: str, consequence: str, second_required: bool, override_prompt: str | None = None
+    ) -> None:
         super().__init__()
         self.capsule = capsule
         self.action_name = action
         self.consequence = consequence
         self.second_required = second_required
+        self.override_prompt = override_prompt
+        """When a safety check does not hold (PARACHUTE without landed evidence): what the override means."""
 
     def compose(self) -> ComposeResult:
         need = "required" if self.second_required else "optional"
@@ -101,6 +106,9 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
             yield Input(id="second", placeholder="name")
             yield Label("…or single-operator waiver (why you are alone):", markup=False)
             yield Input(id="waiver", placeholder="reason (logged)")
+            if self.override_prompt is not None:
+                yield Label(self.override_prompt, markup=False, classes="dialog-warning")
+                yield Input(id="override", placeholder="override reason (logged with the evidence)")
             with Horizontal(classes="dialog-buttons"):
                 yield Button("Cancel", id="cancel", variant="primary")
                 yield Button(self.action_name, id="confirm", variant="error")
@@ -109,14 +117,16 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
         self.query_one("#typed", Input).focus()
 
     def _answer(self) -> HazardConfirmation:
+        override = self.query("#override")
         return HazardConfirmation(
             self.query_one("#typed", Input).value.strip(),
             self.query_one("#second", Input).value.strip(),
             self.query_one("#waiver", Input).value.strip(),
+            override.first(Input).value.strip() if override else "",
         )
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
-        if event.input.id == "waiver":
+        if event.input.id == ("override" if self.override_prompt is not None else "waiver"):
             self.dismiss(self._answer())
         else:
             self.focus_next()

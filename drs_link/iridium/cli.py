@@ -17,10 +17,12 @@ from pathlib import Path
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.iridium import lifecycle as lc
+from drs_link.iridium.authorize import authorize_mt, carries_parachute
 from drs_link.iridium.bench import run_bench
 from drs_link.iridium.gateway import FLUSH_WARNING, RockblockGateway
 from drs_link.iridium.health import assess
 from drs_link.iridium.importer import import_files
+from drs_link.iridium.landed import landed_evidence
 from drs_link.iridium.mo import parse_hex
 from drs_link.iridium.mt import MtComposer, MtMessage, parse_hhmm
 from drs_link.iridium.parachute import plan_parachute
@@ -59,6 +61,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     send.add_argument("--flush", action="store_true", help="empty the gateway's MT queue first (hazardous)")
     send.add_argument("--dry-run", action="store_true", help="print the exact text and hex; send nothing")
     send.add_argument("--confirm", metavar="NAME", help="the capsule's name again: required for a real send")
+    send.add_argument("--second-operator", metavar="NAME", help="PARACHUTE: a second person, not the operator")
+    send.add_argument(
+        "--single-operator-waiver", metavar="REASON", help="PARACHUTE: why one person sends it alone (logged)"
+    )
+    send.add_argument(
+        "--override-landed",
+        metavar="REASON",
+        help="PARACHUTE without landed evidence in the reports: why (needs a second operator or a waiver)",
+    )
     send.set_defaults(func=_mt_send)
     status = mt_actions.add_parser("status", help="the lifecycle of this capsule's commands")
     status.add_argument("name")
@@ -173,6 +184,10 @@ def _mt_send(args: argparse.Namespace) -> int:
     print(f"hex:  {message.hex} ({len(message.payload)} bytes)")
     if args.flush:
         print(f"warning: {FLUSH_WARNING}")
+    reports: list[StoredReport] = []
+    if carries_parachute(message):
+        reports = _capsule_reports(config, store, args.name)[1]
+        print(f"landed: {landed_evidence(reports).summary}")
     if args.dry_run:
         print("dry run: nothing sent")
         return 0
@@ -180,6 +195,11 @@ def _mt_send(args: argparse.Namespace) -> int:
         raise RefusedError(f"a real send needs --confirm {capsule.name} (or --dry-run to only look)")
     if not config.operator.name:
         raise ConfigError("operator.name: set [operator] name; every command is audited with it")
+    authorize_mt(
+        store, capsule.name, config.operator.name, message, reports,
+        second_operator=args.second_operator, single_operator_waiver=args.single_operator_waiver,
+        require_second_operator=config.console.require_second_operator, override_landed=args.override_landed,
+    )  # fmt: skip
     gateway = RockblockGateway.from_config(config.rockblock)
     life = lc.CommandLifecycle(store, config.operator.name)
     command = life.request(capsule, message, flush=args.flush)

@@ -271,6 +271,7 @@ class CommandLifecycle:
                 {"command_id": command_id, "reason": "confirmation does not name the capsule"},
                 when=self.clock(),
             )
+            self._set(command, NOT_SENT, f"refused: the confirmation {confirmation!r} does not name {command.capsule!r}")
             raise RefusedError(
                 f"refused: to send {command.text} the confirmation must name the capsule {command.capsule!r}"
             )

@@ -124,5 +124,5 @@ async def test_an_interval_command_is_queued_at_the_simulated_gateway_after_nami
         await wait_for(pilot, lambda: len(world.gateway.requests) == 1)
         assert bytes.fromhex(world.gateway.requests[0].form["data"]) == b"[INTERVAL=5]"
         assert app.ops is not None
-        await wait_for(pilot, lambda: [c.state for c in app.ops.commands("DRS1")] == ["requested", "queued"])
+        await wait_for(pilot, lambda: [c.state for c in app.ops.commands("DRS1")] == ["not_sent", "queued"])
         assert app.store.audit("DRS1", text="confirmation does not name the capsule")

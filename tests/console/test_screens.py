@@ -16,8 +16,10 @@ from console.screens.modals import TextPromptModal
 from console.screens.predictions import PredictionScreen
 from console.screens.recovery import RecoveryScreen
 from console.screens.release import ReleaseScreen
+from drs_link.iridium.firmware import GnssFix, format_mo
+from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.telemetry import TelemetryRecord
-from tests.console.conftest import T0
+from tests.console.conftest import T0, wait_for
 
 pytestmark = pytest.mark.asyncio
 
@@ -54,10 +56,34 @@ async def test_the_parachute_helper_offers_a_window_and_needs_a_different_second
         await pilot.pause()
         assert type(app.screen).__name__ == "HazardModal"
         await pilot.press(*"DRS2", "enter", *"EL", "enter", "enter")
-        await pilot.pause()
-        messages = [n.message for n in app._notifications]
-        assert any("different person" in m for m in messages)
+        await wait_for(pilot, lambda: any("different person" in n.message for n in app._notifications))
         assert app.ops is not None and app.ops.commands("DRS2") == []
+
+
+async def test_parachute_in_flight_shows_no_landed_evidence_and_is_refused_with_nothing_sent(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    """The same gate as `drs mt send --parachute` (tests/iridium/test_parachute_gate.py), from the console."""
+    app = canned_app(now=T0)
+    imei = app.ops.config.capsules[2].imei if app.ops else None
+    assert imei is not None
+    reports = ReportStore(app.store)
+    for n in range(5):
+        at = T0 - timedelta(minutes=10 - 2 * n)
+        fix = GnssFix(at, 67.7, 21.6, 27_000.0 - 2_400.0 * n, 19.0, 90.0, 0.9, 9)
+        reports.add(Delivery(imei, n, format_mo(fix, 8.7, n).hex(), "webhook", at + timedelta(seconds=20),
+                             transmit_utc=at + timedelta(seconds=15)))  # fmt: skip
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("down", "down", "i")
+        await app.workers.wait_for_complete()
+        await pilot.press("c")
+        await wait_for(pilot, lambda: type(app.screen).__name__ == "HazardModal")
+        body = " ".join(str(w.render()) for w in app.screen.query(".dialog-body"))
+        assert "NO LANDED EVIDENCE: NOT LANDED: last fix" in body, "the evidence shows before any name is typed"
+        await pilot.press(*"DRS3", "enter", "enter", *"alone", "enter", "enter")
+        await wait_for(pilot, lambda: any("no landed evidence" in n.message for n in app._notifications))
+        assert app.ops is not None and app.ops.commands("DRS3") == []
+        assert [a.result for a in app.store.audit() if a.action == "mt.parachute"] == ["refused"]
 
 
 async def test_replay_shows_a_banner_and_cannot_command(canned_app: Callable[..., DrsConsole]) -> None:

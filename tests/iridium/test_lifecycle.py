@@ -42,9 +42,12 @@ def test_interval_command_runs_from_request_to_effect_confirmed(rig) -> None:
     assert command.state == lc.REQUESTED
     with pytest.raises(RefusedError, match="must name the capsule 'DRS1'"):
         life.send(command.id, "drs1", client)
-    assert life.get(command.id).state == lc.REQUESTED and gateway.requests == []
+    refused = life.get(command.id)
+    assert refused.state == lc.NOT_SENT and "refused" in refused.detail and gateway.requests == []
+    with pytest.raises(RefusedError, match="never sent twice"):
+        life.send(command.id, "DRS1", client)  # a refused command stays refused: the operator asks again
     clock.now = next_alarm - timedelta(seconds=30)
-    command = life.send(command.id, "DRS1", client)
+    command = life.send(life.request(CAPSULE, MtComposer().interval(5).build()).id, "DRS1", client)
     assert (command.state, command.mt_id) == (lc.QUEUED, 4114652)
     with pytest.raises(RefusedError, match="never sent twice"):
         life.send(command.id, "DRS1", client)
@@ -60,6 +63,8 @@ def test_interval_command_runs_from_request_to_effect_confirmed(rig) -> None:
     assert actions == [
         "mt.requested",
         "mt.send",
+        "mt.not_sent",
+        "mt.requested",
         "mt.confirmed",
         "mt.queued",
         "mt.probably_delivered",
@@ -153,7 +158,7 @@ def test_every_audit_record_carries_the_lifecycle_clock_not_the_wall_clock(rig) 
     command = life.request(CAPSULE, MtComposer().interval(3).build())
     with pytest.raises(RefusedError):
         life.send(command.id, "DRS2", client)
-    life.send(command.id, "DRS1", client)
+    life.send(life.request(CAPSULE, MtComposer().interval(3).build()).id, "DRS1", client)
     records = store.audit(capsule="DRS1")
-    assert [r.action for r in records][:2] == ["mt.requested", "mt.send"]
+    assert [r.action for r in records][:3] == ["mt.requested", "mt.send", "mt.not_sent"]
     assert {r.time_utc for r in records} == {clock()}

@@ -1,0 +1,146 @@
+"""PARACHUTE is refused until the reports show the capsule on the ground: from the CLI and the console alike.
+
+The CLI runs through `console.cli.main` against the simulated RockBLOCK on loopback; the gate itself
+(`drs_link.iridium.authorize`) is the one the console calls, pinned there in tests/console.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime, timedelta
+from pathlib import Path
+
+import pytest
+
+from drs_link.iridium.firmware import format_mo
+from drs_link.iridium.landed import landed_evidence
+from drs_link.iridium.lifecycle import NOT_SENT, CommandLifecycle
+from drs_link.iridium.mo import parse_payload
+from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
+from drs_link.simulator.rockblock import SimulatedRockblock
+from drs_link.store import Store, utc_now
+from tests.iridium.helpers import IMEI, T0, fix_at
+from tests.iridium.test_cli import run, write_config
+
+
+def stored(index: int, moment: datetime, alt: float, speed: float, lat: float = 46.5) -> StoredReport:
+    payload = format_mo(fix_at(moment, lat=lat, alt=alt, speed=speed), 8.9, index)
+    return StoredReport(index, Delivery(IMEI, index, payload.hex(), "test", moment), parse_payload(payload))
+
+
+def falling(start: datetime, count: int = 5) -> list[StoredReport]:
+    """The demo's trial: released at 27 km, reports every 2 min falling at ~20 m/s to 17.5 km."""
+    return [stored(i, start + timedelta(minutes=2 * i), 27_000.0 - 2_400.0 * i, 19.0) for i in range(count)]
+
+
+def landed(start: datetime) -> list[StoredReport]:
+    """Falling, then three still reports at 412 m."""
+    reports = [stored(i, start + timedelta(minutes=2 * i), 9_000.0 - 3_000.0 * i, 6.0) for i in range(3)]
+    return reports + [stored(3 + i, start + timedelta(minutes=6 + 2 * i), 412.0, 0.2) for i in range(3)]
+
+
+def test_a_falling_capsule_has_no_landed_evidence_and_the_reason_names_the_last_fix() -> None:
+    evidence = landed_evidence(falling(T0))
+    assert not evidence.on_ground
+    assert evidence.summary.startswith("NOT LANDED: last fix 10:08:07Z at 17,400 m, 19.0 m/s, falling 20.0 m/s")
+    assert evidence.audit()["last_fix"]["alt_m"] == 17_400.0
+
+
+def test_still_reports_after_the_fall_are_landed_evidence() -> None:
+    evidence = landed_evidence(landed(T0))
+    assert evidence.on_ground and evidence.summary.startswith("landed 10:06:07Z at 412 m")
+
+
+def test_a_capsule_that_left_its_landing_site_or_sits_far_above_the_terrain_is_not_landed() -> None:
+    moved = [*landed(T0), stored(9, T0 + timedelta(minutes=14), 412.0, 0.5, lat=46.6)]
+    assert not landed_evidence(moved).on_ground and "left the site" in landed_evidence(moved).summary
+    in_a_tree = landed_evidence(landed(T0), ground_m=100.0)
+    assert not in_a_tree.on_ground and "where the terrain is 100 m" in in_a_tree.summary
+    assert landed_evidence(landed(T0), ground_m=380.0).on_ground
+
+
+def test_no_report_with_a_fix_is_no_evidence() -> None:
+    assert landed_evidence([]).summary == "no position report with a GNSS fix yet"
+
+
+@pytest.fixture
+def gateway() -> SimulatedRockblock:
+    with SimulatedRockblock(username="ops", password="pw") as simulated:
+        yield simulated
+
+
+def seed(tmp_path: Path, reports: list[StoredReport]) -> Store:
+    store = Store.open(tmp_path / "data" / "drs.sqlite")
+    for report in reports:
+        ReportStore(store).add(report.delivery)
+    return store
+
+
+def audit_of(store: Store, action: str) -> list[dict]:
+    return [{"result": r.result, **(r.detail or {})} for r in store.audit() if r.action == action]
+
+
+def recent(minutes_ago: float) -> datetime:
+    return utc_now().replace(microsecond=0) - timedelta(minutes=minutes_ago)
+
+
+def test_cli_refuses_parachute_in_flight_and_nothing_reaches_the_gateway(
+    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("DRS_TEST_RB", "pw")
+    config = write_config(tmp_path, gateway.url)
+    store = seed(tmp_path, falling(recent(9)))
+    argv = ["mt", "send", "DRS1", "--parachute", "next", "--accept-midnight", "--confirm", "DRS1"]
+    assert run(config, *argv, "--single-operator-waiver", "alone at the landing site") == 2
+    err = capsys.readouterr().err
+    assert err.startswith("drs: error: DRS1: PARACHUTE refused: no landed evidence (NOT LANDED: last fix")
+    assert err.count("\n") == 1
+    assert gateway.requests == []
+    [refused] = audit_of(store, "mt.parachute")
+    assert refused["result"] == "refused" and refused["landed"]["last_fix"]["alt_m"] == 17_400.0
+    assert store.query("SELECT COUNT(*) AS n FROM mt_command")[0]["n"] == 0, "a refused PARACHUTE leaves no row"
+
+
+def test_cli_override_needs_a_reason_and_a_second_operator_and_is_audited_with_the_evidence(
+    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("DRS_TEST_RB", "pw")
+    config = write_config(tmp_path, gateway.url)
+    store = seed(tmp_path, falling(recent(9)))
+    argv = ["mt", "send", "DRS1", "--parachute", "next", "--accept-midnight", "--confirm", "DRS1",
+            "--override-landed", "capsule seen on the ground by the chase team; GNSS frozen"]  # fmt: skip
+    assert run(config, *argv) == 2
+    assert "overriding the landed check needs a second operator" in capsys.readouterr().err
+    assert gateway.requests == []
+    assert run(config, *argv, "--second-operator", "alice") == 2, "the operator cannot be their own second"
+    capsys.readouterr()
+    assert run(config, *argv, "--second-operator", "bob") == 0
+    assert len(gateway.requests) == 1
+    authorised = audit_of(store, "mt.parachute")[-1]
+    assert authorised["result"] == "authorised" and authorised["second_operator"] == "bob"
+    assert authorised["override_landed"].startswith("capsule seen on the ground")
+    assert authorised["landed"]["on_ground"] is False and authorised["landed"]["last_fix"]["alt_m"] == 17_400.0
+
+
+def test_cli_queues_parachute_once_the_reports_show_the_landing(
+    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("DRS_TEST_RB", "pw")
+    config = write_config(tmp_path, gateway.url)
+    store = seed(tmp_path, landed(recent(10.5)))
+    argv = ["mt", "send", "DRS1", "--parachute", "next", "--accept-midnight", "--confirm", "DRS1"]
+    assert run(config, *argv, "--single-operator-waiver", "alone at the landing site") == 0
+    out = capsys.readouterr().out
+    assert "landed: landed " in out and len(gateway.requests) == 1
+    assert audit_of(store, "mt.parachute")[-1]["landed"]["on_ground"] is True
+
+
+def test_a_send_refused_for_the_wrong_name_is_recorded_as_not_sent_not_left_requested(
+    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("DRS_TEST_RB", "pw")
+    config = write_config(tmp_path, gateway.url)
+    assert run(config, "mt", "send", "DRS1", "--interval", "5", "--confirm", "drs1") == 2
+    assert "confirmation must name the capsule" in capsys.readouterr().err
+    store = Store.open(tmp_path / "data" / "drs.sqlite")
+    [command] = CommandLifecycle(store, "alice").for_imei(IMEI)
+    assert command.state == NOT_SENT and "refused" in command.detail and gateway.requests == []
