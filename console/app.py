@@ -191,8 +191,11 @@ class DrsConsole(App[int]):
         self.refresh_screen()
 
     def refresh_screen(self) -> None:
-        if self.screen_stack and hasattr(self.screen, "refresh_view"):
-            self.screen.refresh_view()
+        """Every screen on the stack, not only the top one: time must not stand still behind a dialog
+        (an ARM countdown frozen under the FIRE dialog ran out unseen)."""
+        for screen in self.screen_stack:
+            if hasattr(screen, "refresh_view"):
+                screen.refresh_view()
 
     # Workers ----------------------------------------------------------------------------------
 

@@ -115,7 +115,7 @@ class ArmingController:
         with self._lock:
             now = self.clock()
             if self._state is ArmState.ARMED and self._armed_until is not None and now >= self._armed_until:
-                self._disarm("ARM window expired")
+                self._disarm(f"ARM window expired at {self._armed_until:%H:%M:%S}Z")
             remaining = 0.0
             if self._state is ArmState.ARMED and self._armed_until is not None:
                 remaining = max(0.0, (self._armed_until - now).total_seconds())
@@ -183,8 +183,9 @@ class ArmingController:
         with self._lock:
             status = self.status()
             if status.state is not ArmState.ARMED:
-                self._audit("fire", "refused", {"reason": f"not armed ({status.state.value})"})
-                raise RefusedError(f"{self.capsule}: FIRE refused: not armed")
+                why = f"not armed: {status.last_disarm_reason}" if status.last_disarm_reason else "not armed"
+                self._audit("fire", "refused", {"reason": why})
+                raise RefusedError(f"{self.capsule}: FIRE refused: {why}")
             if typed_name != self.capsule:
                 self._audit("fire", "refused", {"reason": "wrong capsule name typed", "typed": typed_name})
                 raise RefusedError(

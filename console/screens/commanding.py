@@ -9,6 +9,8 @@ two-person rule. The refusals themselves are ``drs_link``'s; this only asks and 
 
 from __future__ import annotations
 
+from datetime import datetime
+
 from textual import work
 from textual.binding import Binding
 
@@ -117,9 +119,17 @@ class CommandingScreen(ConsoleScreen):
 
         def confirmed(answer: HazardConfirmation | None) -> None:
             if answer is not None:
-                self.send_worker(message, answer.typed_name, answer)
+                self.send_worker(message, answer.typed_name, answer, plan.queue_by)
 
-        self.app.push_screen(HazardModal(self.capsule, "PARACHUTE", text, second, override), confirmed)
+        def countdown() -> str:
+            left = (plan.queue_by - self.console.now()).total_seconds()
+            if left <= 0:
+                return f"queue-before {plan.queue_by:%H:%M:%S}Z has PASSED: sending will be refused; plan again"
+            return f"queue before {plan.queue_by:%H:%M:%S}Z — {left:.0f} s left"
+
+        self.app.push_screen(
+            HazardModal(self.capsule, "PARACHUTE", text, second, override, countdown), confirmed
+        )
 
     def action_parachute(self) -> None:
         plan = self._plan(None)
@@ -144,7 +154,13 @@ class CommandingScreen(ConsoleScreen):
         )
 
     @work(thread=True, exit_on_error=False, group="mt-send")
-    def send_worker(self, message: MtMessage, confirmation: str, hazard: HazardConfirmation | None) -> None:
+    def send_worker(
+        self,
+        message: MtMessage,
+        confirmation: str,
+        hazard: HazardConfirmation | None,
+        queue_by: datetime | None = None,
+    ) -> None:
         from console.app import OperatorNotice
 
         ops = self.console.ops
@@ -155,6 +171,7 @@ class CommandingScreen(ConsoleScreen):
                 single_operator_waiver=hazard.single_operator_waiver if hazard else None,
                 require_second_operator=ops.config.console.require_second_operator,
                 override_landed=hazard.override_reason if hazard else None,
+                queue_by=queue_by, now=self.console.now(),
             )  # fmt: skip
             command = ops.send_mt(self.capsule, message, confirmation)
         except LinkError as exc:

@@ -6,6 +6,7 @@ These only collect what the operator says; whether it is enough is decided by ``
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from textual.app import ComposeResult
@@ -85,7 +86,13 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
     BINDINGS = [Binding("escape", "cancel", "Cancel")]
 
     def __init__(
-        self, capsule: str, action: str, consequence: str, second_required: bool, override_prompt: str | None = None
+        self,
+        capsule: str,
+        action: str,
+        consequence: str,
+        second_required: bool,
+        override_prompt: str | None = None,
+        countdown: Callable[[], str] | None = None,
     ) -> None:
         super().__init__()
         self.capsule = capsule
@@ -94,11 +101,16 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
         self.second_required = second_required
         self.override_prompt = override_prompt
         """When a safety check does not hold (PARACHUTE without landed evidence): what the override means."""
+        self.countdown = countdown
+        """The deadline this action must meet, as text, read every second (the ARM window, PARACHUTE's
+        queue-before): the dialog covers the screen that shows it, so it shows it itself."""
 
     def compose(self) -> ComposeResult:
         need = "required" if self.second_required else "optional"
         with Vertical(classes="dialog hazard"):
             yield Label(f"{self.action_name} {self.capsule}", classes="dialog-title", markup=False)
+            if self.countdown is not None:
+                yield Label(self.countdown(), id="countdown", classes="dialog-warning", markup=False)
             yield Static(self.consequence, classes="dialog-body", markup=False)
             yield Label(f"Type the capsule's name ({self.capsule}) to confirm:", markup=False)
             yield Input(id="typed", placeholder="capsule name")
@@ -115,6 +127,12 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
 
     def on_mount(self) -> None:
         self.query_one("#typed", Input).focus()
+        if self.countdown is not None:
+            self.set_interval(1.0, self.tick)
+
+    def tick(self) -> None:
+        if self.countdown is not None:
+            self.query_one("#countdown", Label).update(self.countdown())
 
     def _answer(self) -> HazardConfirmation:
         override = self.query("#override")

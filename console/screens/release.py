@@ -300,7 +300,17 @@ class ReleaseScreen(ConsoleScreen):
             if answer is not None:
                 self.fire_worker(answer)
 
-        self.app.push_screen(HazardModal(self.capsule, "FIRE", FIRE_TEXT, second), confirmed)
+        self.app.push_screen(
+            HazardModal(self.capsule, "FIRE", FIRE_TEXT, second, countdown=self.fire_countdown), confirmed
+        )
+
+    def fire_countdown(self) -> str:
+        """The ARM window as the FIRE dialog shows it; FIRE is checked against it again on submit."""
+        status = self.console.ops.ops(self.capsule).arming.status()
+        if status.state is ArmState.ARMED and status.armed_until is not None:
+            return f"ARMED — {status.remaining_s:.0f} s left (window closes {status.armed_until:%H:%M:%S}Z)"
+        reason = status.last_disarm_reason or status.state.value
+        return f"NOT ARMED ({reason}): FIRE will be refused"
 
     def action_reset(self) -> None:
         def typed(answer: str | None) -> None:

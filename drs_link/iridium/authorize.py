@@ -10,6 +10,7 @@ audit log with the evidence and the last fix, so nobody has to reconstruct later
 from __future__ import annotations
 
 from collections.abc import Sequence
+from datetime import datetime
 from typing import Any
 
 from drs_link.arming import check_second_operator
@@ -38,8 +39,14 @@ def authorize_mt(
     require_second_operator: bool = True,
     override_landed: str | None = None,
     ground_m: float | None = None,
+    queue_by: datetime | None = None,
+    now: datetime | None = None,
 ) -> dict[str, Any]:
-    """Refuse ``message`` (RefusedError, audited) unless its rules hold; return what to audit with it."""
+    """Refuse ``message`` (RefusedError, audited) unless its rules hold; return what to audit with it.
+
+    ``queue_by`` is the PARACHUTE plan's deadline: checked here, at submit, against ``now``, because a
+    dialog may have stood open past it (the firmware would reject the time and the command be lost).
+    """
     if not carries_parachute(message):
         return {}
     evidence = landed_evidence(reports, ground_m)
@@ -49,6 +56,11 @@ def authorize_mt(
                            {"text": message.text, "reason": reason, "landed": evidence.audit()})  # fmt: skip
         return RefusedError(f"{capsule}: PARACHUTE refused: {reason}")
 
+    if queue_by is not None and now is not None and now > queue_by:
+        raise refuse(
+            f"the queue-before deadline {queue_by:%H:%M:%S}Z passed ({(now - queue_by).total_seconds():.0f} s ago) "
+            "while the dialog was open; plan the time again"
+        )
     try:
         people = check_second_operator(operator, second_operator, single_operator_waiver, require_second_operator)
     except RefusedError as exc:

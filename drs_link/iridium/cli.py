@@ -147,8 +147,10 @@ def _commanded_interval(commands: list[lc.Command]) -> int | None:
     return None
 
 
-def _compose(args: argparse.Namespace, config: Config, store: Store) -> MtMessage:
+def _compose(args: argparse.Namespace, config: Config, store: Store) -> tuple[MtMessage, datetime | None]:
+    """The message, and the PARACHUTE plan's queue-before deadline when it carries one."""
     composer = MtComposer()
+    queue_by = None
     if args.interval is not None:
         composer.interval(args.interval)
     if args.rb_source is not None:
@@ -173,13 +175,14 @@ def _compose(args: argparse.Namespace, config: Config, store: Store) -> MtMessag
         for warning in plan.warnings:
             print(f"warning: {warning}")
         composer.parachute(plan.hour, plan.minute)
-    return composer.build()
+        queue_by = plan.queue_by
+    return composer.build(), queue_by
 
 
 def _mt_send(args: argparse.Namespace) -> int:
     config, store = _open(args)
     capsule = config.capsule(args.name)
-    message = _compose(args, config, store)
+    message, queue_by = _compose(args, config, store)
     print(f"text: {message.text}")
     print(f"hex:  {message.hex} ({len(message.payload)} bytes)")
     if args.flush:
@@ -199,6 +202,7 @@ def _mt_send(args: argparse.Namespace) -> int:
         store, capsule.name, config.operator.name, message, reports,
         second_operator=args.second_operator, single_operator_waiver=args.single_operator_waiver,
         require_second_operator=config.console.require_second_operator, override_landed=args.override_landed,
+        queue_by=queue_by, now=utc_now(),
     )  # fmt: skip
     gateway = RockblockGateway.from_config(config.rockblock)
     life = lc.CommandLifecycle(store, config.operator.name)

@@ -6,6 +6,7 @@ from collections.abc import Callable
 
 import pytest
 from textual.pilot import Pilot
+from textual.widgets import Label, Static
 
 from console.app import DrsConsole, TelemetryArrived
 from console.demo import DemoWorld
@@ -126,3 +127,30 @@ async def test_an_interval_command_is_queued_at_the_simulated_gateway_after_nami
         assert app.ops is not None
         await wait_for(pilot, lambda: [c.state for c in app.ops.commands("DRS1")] == ["not_sent", "queued"])
         assert app.store.audit("DRS1", text="confirmation does not name the capsule")
+
+
+async def test_time_runs_behind_the_fire_dialog_and_fire_after_the_arm_window_is_refused_naming_it(
+    demo: tuple[DemoWorld, DrsConsole],
+) -> None:
+    """The ARM window (120 demo seconds, 15 s here at ×8) runs out while the FIRE dialog is open."""
+    world, app = demo
+    async with app.run_test(size=(80, 24)) as pilot:
+        screen = await open_release_go(pilot, app)
+        await pilot.press("a")
+        arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
+        assert arming.status().armed
+        await pilot.press("f")
+        modal = app.screen
+        assert isinstance(modal, HazardModal)
+        countdown = modal.query_one("#countdown", Label)
+        assert str(countdown.render()).startswith("ARMED — ")
+        behind = screen.query_one("#arm-status", Static)
+        first = str(behind.render())
+        await wait_for(pilot, lambda: str(behind.render()) != first)  # the screen behind keeps time
+        await wait_for(pilot, lambda: not arming.status().armed)
+        await wait_for(pilot, lambda: "ARM window expired at" in str(behind.render()))
+        await wait_for(pilot, lambda: str(countdown.render()).startswith("NOT ARMED (ARM window expired at"))
+        await pilot.press(*"DRS1", "enter", "enter", *"test drop", "enter")
+        await wait_for(pilot, lambda: any("FIRE refused: not armed: ARM window expired at" in n.message
+                                          for n in app._notifications))  # fmt: skip
+        assert world.sims[0].firmware.go_at is None

@@ -11,10 +11,13 @@ from pathlib import Path
 
 import pytest
 
+from drs_link.errors import RefusedError
+from drs_link.iridium.authorize import authorize_mt
 from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.landed import landed_evidence
 from drs_link.iridium.lifecycle import NOT_SENT, CommandLifecycle
 from drs_link.iridium.mo import parse_payload
+from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
 from drs_link.simulator.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
@@ -144,3 +147,16 @@ def test_a_send_refused_for_the_wrong_name_is_recorded_as_not_sent_not_left_requ
     store = Store.open(tmp_path / "data" / "drs.sqlite")
     [command] = CommandLifecycle(store, "alice").for_imei(IMEI)
     assert command.state == NOT_SENT and "refused" in command.detail and gateway.requests == []
+
+
+def test_a_queue_before_deadline_that_passed_while_a_dialog_was_open_is_refused_at_submit(tmp_path: Path) -> None:
+    store = Store.open(tmp_path / "drs.sqlite")
+    message = MtComposer().parachute(10, 20).build()
+    deadline = T0 + timedelta(minutes=12)
+    with pytest.raises(RefusedError, match=r"queue-before deadline 10:12:07Z passed \(30 s ago\)"):
+        authorize_mt(store, "DRS1", "alice", message, landed(T0), single_operator_waiver="alone",
+                     queue_by=deadline, now=deadline + timedelta(seconds=30))  # fmt: skip
+    details = authorize_mt(store, "DRS1", "alice", message, landed(T0), single_operator_waiver="alone",
+                           queue_by=deadline, now=deadline - timedelta(seconds=1))  # fmt: skip
+    assert details["landed"]["on_ground"] is True
+    assert [a.result for a in store.audit() if a.action == "mt.parachute"] == ["refused", "authorised"]
