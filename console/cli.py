@@ -26,6 +26,7 @@ COMMAND_MODULES: dict[str, str] = {
     "plan": "predictor.plan_cli",
     "live": "predictor.plan_cli",
     "calibrate": "predictor.calibration.calibrate_cli",
+    "model": "predictor.model_cli",
     "capsule": "drs_link.cli",
     "sync": "drs_link.cli",
     "mt": "drs_link.iridium.cli",

@@ -7,6 +7,7 @@ when there is one and gives every number with its unit; ``--json`` prints the re
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import statistics
@@ -57,8 +58,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--alt", type=float, help="release altitude, m above mean sea level")
     parser.add_argument("--time", help="release (or drift start) time, ISO 8601 UTC, e.g. 2024-05-01T06:30Z")
     parser.add_argument(
-        "--payload", default="drs", choices=sorted(PROFILES), help="payload profile (default drs)"
+        "--payload", choices=sorted(PROFILES), help="payload profile (default drs; not with --model)"
     )
+    parser.add_argument(
+        "--model", metavar="PATH", help="a calibrated model from drs calibrate --save-model: its payload, terms "
+        "and ellipse (not with --payload, --mass, --cda)",
+    )  # fmt: skip
     parser.add_argument("--mass", type=float, metavar="KG", help="override the profile's mass")
     parser.add_argument("--cda", type=float, metavar="M2", help="override the profile's Cd·A")
     parser.add_argument(
@@ -71,9 +76,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="ensemble random seed (default 0)")
     parser.add_argument(
         "--error-model",
-        default="launch",
         choices=sorted(ERROR_MODELS),
-        help="ellipse parameters (default launch)",
+        help="ellipse parameters (default: the model's fitted ellipse with --model, else launch)",
     )
     parser.add_argument(
         "--probability", type=float, nargs="+", default=[], metavar="P", help="extra contours, e.g. 0.5 0.95"
@@ -121,7 +125,19 @@ def run(args: argparse.Namespace) -> int:
 
     when = parse_time(args.time)
     files = demo_weather_files(args.lat, args.lon, when) if args.demo_weather else args.weather
-    payload = payload_profile(args.payload).overridden(mass_kg=args.mass, cda_m2=args.cda)
+    calibrated = None
+    if args.model is not None:
+        if args.payload is not None or args.mass is not None or args.cda is not None:
+            raise PredictorError("give --model or --payload/--mass/--cda, not both: the model carries its payload")
+        from predictor.model_file import load_model
+
+        calibrated = load_model(args.model)
+        payload = calibrated.payload
+    else:
+        payload = payload_profile(args.payload or "drs").overridden(mass_kg=args.mass, cda_m2=args.cda)
+    error_model = ERROR_MODELS[args.error_model or "launch"]
+    if calibrated is not None and calibrated.ellipse is not None and args.error_model is None:
+        error_model = calibrated.ellipse
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
     wx = load_weather(
         files, bbox=weather_bbox(args.lat, args.lon, args.drift_minutes), cache_dir=args.cache_dir
@@ -131,7 +147,8 @@ def run(args: argparse.Namespace) -> int:
         "terrain": terrain,
         "step_m": args.step,
         "drift_minutes": args.drift_minutes,
-        "error_model": ERROR_MODELS[args.error_model],
+        "error_model": error_model,
+        "effects": calibrated.terms if calibrated is not None else (),
         "probabilities": tuple(args.probability),
     }
     if not kernels_compiled():
@@ -147,7 +164,16 @@ def run(args: argparse.Namespace) -> int:
         write_kml(result, args.kml)
     if args.geojson:
         write_geojson(result, args.geojson)
-    print(to_json(result, track=args.track) if args.json else summary(result))
+    if args.json:
+        document = json.loads(to_json(result, track=args.track))
+        if calibrated is not None:
+            document["model"] = {"path": str(args.model), "label": calibrated.label(),
+                                 "terms": [{"effect": t.name, "parameters": t.parameters()} for t in calibrated.terms],
+                                 "provenance": calibrated.provenance}  # fmt: skip
+        print(json.dumps(document, indent=2, ensure_ascii=False))
+    else:
+        text = summary(result)
+        print(text if calibrated is None else f"{text}\nmodel     {calibrated.label()}")
     return 0
 
 

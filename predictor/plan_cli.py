@@ -14,6 +14,7 @@ import sys
 import time
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -57,6 +58,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     plan.add_argument(
         "--payload", default="drs", choices=sorted(PROFILES), help="payload profile (default drs)"
     )
+    plan.add_argument(
+        "--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model): its payload, terms and "
+        "ellipse replace --payload",
+    )  # fmt: skip
     plan.add_argument("--json", action="store_true", help="print the plan document")
     plan.add_argument("--kml", metavar="OUT", help="write the landing strip as KML")
     plan.add_argument("--geojson", metavar="OUT", help="write the landing strip as GeoJSON")
@@ -116,6 +121,15 @@ def run_plan(args: argparse.Namespace) -> int:
     from predictor.zones import load_targets, load_zones
 
     start = _parse_time(args.start, "--from")
+    flown: dict[str, Any] = {"payload": payload_profile(args.payload)}
+    if args.model is not None:
+        from predictor.model_file import load_model
+
+        calibrated = load_model(args.model)
+        flown = {"payload": calibrated.payload, "effects": calibrated.terms}
+        if calibrated.ellipse is not None:
+            flown["error_model"] = calibrated.ellipse
+        print(f"model     {calibrated.label()}", file=sys.stderr)
     thresholds = Thresholds(args.max_zone_probability, args.max_target_km, args.max_sigma_km)
     zones = load_zones(args.zones) if args.zones else ()
     targets = load_targets(args.targets) if args.targets else ()
@@ -132,7 +146,7 @@ def run_plan(args: argparse.Namespace) -> int:
     )
     plan = plan_release(
         wx, start, args.lat, args.lon, args.alt, args.hours, args.every_minutes, zones, targets, thresholds,
-        members=args.members, seed=args.seed, payload=payload_profile(args.payload), terrain=terrain,
+        members=args.members, seed=args.seed, terrain=terrain, **flown,
         altitude_plan=altitude_plan, float_wind_sigma_ms=args.float_wind_sigma,
     )  # fmt: skip
     if args.kml:

@@ -37,6 +37,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     cal.add_argument("--report", type=Path, metavar="OUT.md", help="write a Markdown report with PNG plots")
     cal.add_argument("--title", default="Calibration report", help="the report's title")
     cal.add_argument(
+        "--save-model", type=Path, metavar="PATH",
+        help="write the calibrated model (payload, selected terms, ellipse, provenance) for --model",
+    )  # fmt: skip
+    cal.add_argument(
         "--preface",
         type=Path,
         metavar="FILE.md",

@@ -13,7 +13,10 @@ import json
 import shlex
 import time
 from dataclasses import dataclass
+from datetime import UTC, datetime
+from importlib import metadata
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -27,6 +30,7 @@ from predictor.calibration.selection import Calibration, calibrate
 from predictor.calibration.tracks import read_track
 from predictor.cube import WeatherCube
 from predictor.errors import PredictorError, WeatherError
+from predictor.model_file import CalibratedModel, save_model
 from predictor.payload import Payload, payload_profile
 from predictor.terrain import Terrain
 from predictor.weather import load_weather
@@ -118,7 +122,40 @@ def run_calibrate(args: argparse.Namespace) -> int:
             args.report, cal, ellipse, inputs.excluded, args.title, _command(args), data, _preface(args.preface)
         )
     _print_summary(cal, inputs, data)
+    if args.save_model:
+        saved = save_model(calibrated_model(cal, ellipse, inputs, data, _command(args)), args.save_model)
+        print(f"model saved: {saved} (use it with --model on drs predict, drs plan, or a capsule's model key)")
     return 0
+
+
+def calibrated_model(
+    cal: Calibration, ellipse: EllipseFit | None, inputs: Inputs, data: dict[str, Any], command: str
+) -> CalibratedModel:
+    """What this calibration learned, as the model predictions fly: the selected terms, then the binned
+    correction only when it beat them on held-out flights."""
+    terms = tuple(fit.term() for fit in cal.selected)
+    if cal.unexplained:
+        terms += cal.binned.terms()
+    provenance = {
+        "created_utc": datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
+        "project_version": _version(),
+        "command": command,
+        "flights": [case.name for case in inputs.cases],
+        "excluded": [{"flight": e.name, "reason": e.reason} for e in inputs.excluded],
+        "weather": inputs.weather,
+        "metric": cal.metric,
+        "held_out_before": data["baseline"],
+        "held_out_after": data["after"],
+        "binned_correction_used": cal.unexplained,
+    }
+    return CalibratedModel(inputs.payload, terms, ellipse.model() if ellipse else None, provenance)
+
+
+def _version() -> str:
+    try:
+        return metadata.version("drs-console")
+    except metadata.PackageNotFoundError:
+        return "unknown"
 
 
 def _preface(path: Path | None) -> str:

@@ -15,6 +15,7 @@ from predictor.calibration.synthetic import synthetic_flight
 from predictor.calibration.tracks import write_canonical_csv
 from predictor.gribwrite import GFS_LEVELS_HPA, gfs_file_name, write_gfs_grib2
 from predictor.model import DescentRateScale
+from predictor.model_file import load_model
 from predictor.payload import PROFILES
 from predictor.weather import load_weather
 
@@ -37,10 +38,16 @@ def test_calibrating_real_flights_writes_the_json_and_the_report(
     status = main([
         "calibrate", "--tracks", *_tracks(shared_data), str(ascent_only), "--winds", "ascent",
         "--payload", "superbit-test", "--effects", "descent_rate_scale", "wind_scale",
-        "--json", str(out_json), "--report", str(out_md),
+        "--json", str(out_json), "--report", str(out_md), "--save-model", str(tmp_path / "superbit.model.json"),
     ])  # fmt: skip
     assert status == 0
     data = json.loads(out_json.read_text())
+    model = load_model(tmp_path / "superbit.model.json")
+    assert model.payload.cda_m2 == PAYLOAD.cda_m2 and model.provenance["flights"] == list(FLIGHTS)
+    assert [t.name for t in model.terms] == [f["effect"] for f in data["selected"]]
+    assert model.provenance["held_out_before"] == data["baseline"]
+    assert model.ellipse is not None
+    assert model.ellipse.sigma0_km == pytest.approx(data["uncertainty_model"]["sigma0_km"], abs=1e-3)  # rounded there
     assert data["flights"] == list(FLIGHTS)
     assert data["excluded"][0]["name"] == "ascent-only" and data["excluded"][0]["reason"].startswith(
         "cleaning:"

@@ -1,0 +1,129 @@
+"""The calibrated model file: what is saved is what predictions fly, and a bad file is refused by name."""
+
+from __future__ import annotations
+
+import json
+from datetime import UTC, datetime
+from pathlib import Path
+
+import pytest
+
+from console.cli import main
+from predictor.demo_weather import demo_weather_files
+from predictor.model import BinnedDescentRate, DescentRateScale, DragDensityExponent
+from predictor.model_file import SCHEMA_VERSION, CalibratedModel, ModelFileError, load_model, save_model
+from predictor.payload import Payload
+from predictor.prediction import predict
+from predictor.uncertainty import ErrorModel
+from predictor.weather import load_weather
+
+WHEN = datetime(2026, 11, 22, 12, tzinfo=UTC)
+RELEASE = ("--lat", "46.5", "--lon", "6.6", "--alt", "28000", "--time", "2026-11-22T12:00Z")
+
+
+def example() -> CalibratedModel:
+    return CalibratedModel(
+        Payload(6.0, 1.36, name="superbit-test", source="fitted"),
+        (DragDensityExponent(exponent=0.06), DescentRateScale(scale=1.04),
+         BinnedDescentRate(edges_m=(0.0, 5000.0, 40000.0), factors=(1.02, 0.98))),
+        ErrorModel(1.2, 5e-4, 0.0, 1.3, name="calibrated"),
+        {"created_utc": "2026-11-24T23:00:00Z", "flights": ["18-5-19", "18-6-30"], "weather": "ascent winds"},
+    )  # fmt: skip
+
+
+def test_a_saved_model_loads_back_the_same(tmp_path: Path) -> None:
+    path = save_model(example(), tmp_path / "m.json")
+    loaded = load_model(path)
+    assert loaded.payload == example().payload and loaded.terms == example().terms
+    assert loaded.ellipse == example().ellipse and loaded.provenance == example().provenance
+    assert loaded.label() == "m.json (calibrated 2026-11-24 on 2 flights)"
+    assert [p.name for p in tmp_path.iterdir()] == ["m.json"], "no temporary file left behind"
+
+
+def test_drs_predict_with_the_model_equals_the_same_terms_by_hand(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = save_model(example(), tmp_path / "m.json")
+    files = demo_weather_files(46.5, 6.6, WHEN, cache_dir=tmp_path / "wx")
+    argv = ["predict", "--weather", *map(str, files), "--cache-dir", str(tmp_path / "c"), *RELEASE, "--json"]
+    assert main([*argv, "--model", str(path)]) == 0
+    flown = json.loads(capsys.readouterr().out)
+    by_hand = predict(load_weather(files, cache_dir=tmp_path / "c"), WHEN, 46.5, 6.6, 28000.0,
+                      payload=example().payload, effects=example().terms, error_model=example().ellipse)  # fmt: skip
+    assert flown["landing"]["lat"] == pytest.approx(by_hand.landing.lat, abs=1e-9)
+    assert flown["landing"]["lon"] == pytest.approx(by_hand.landing.lon, abs=1e-9)
+    assert flown["descent_s"] == pytest.approx(by_hand.descent_s)
+    assert flown["model"]["label"].startswith("m.json (calibrated 2026-11-24")
+    assert main(argv) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert plain["descent_s"] != pytest.approx(flown["descent_s"]), "the model changes the prediction"
+
+
+def test_model_and_payload_together_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = save_model(example(), tmp_path / "m.json")
+    assert main(["predict", "--demo-weather", *RELEASE, "--model", str(path), "--mass", "2"]) == 2
+    assert "give --model or --payload/--mass/--cda, not both" in capsys.readouterr().err
+
+
+def test_drs_model_show_names_the_payload_terms_ellipse_and_provenance(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = save_model(example(), tmp_path / "m.json")
+    assert main(["model", "show", str(path)]) == 0
+    out = capsys.readouterr().out
+    for text in ("superbit-test: 6 kg, Cd·A 1.36 m²", "term      drag_density_exponent (vertical): exponent 0.06",
+                 "ellipse   σ0 1.2 km", "flights   2: 18-5-19, 18-6-30", "weather   ascent winds"):  # fmt: skip
+        assert text in out
+
+
+def _write(tmp_path: Path, document: object) -> Path:
+    path = tmp_path / "bad.json"
+    path.write_text(document if isinstance(document, str) else json.dumps(document))
+    return path
+
+
+def _good() -> dict:
+    return example().to_dict()
+
+
+def _with(change: dict) -> dict:
+    document = _good()
+    for dotted, value in change.items():
+        target = document
+        *parents, last = dotted.split(".")
+        for key in parents:
+            target = target[int(key)] if isinstance(target, list) else target[key]
+        target[last] = value
+    return document
+
+
+@pytest.mark.parametrize(
+    ("document", "message"),
+    [
+        ("{not json", r"bad\.json: is not valid JSON \(Expecting property name"),
+        ({"kind": "something else"}, r"bad\.json: kind: not a calibrated model"),
+        (_with({"schema": SCHEMA_VERSION + 1}), rf"schema: version {SCHEMA_VERSION + 1} is newer than this drs"),
+        (_with({"schema": "1"}), r"schema: must be a whole number"),
+        (_with({"payload.mass_kg": -1.0}), r"payload\.mass_kg: must be a positive number of kg, got -1"),
+        (_with({"payload.cda_m2": "big"}), r"payload\.cda_m2: must be a finite number, got 'big'"),
+        (_with({"terms.0.effect": "gremlins"}), r"terms\[0\]\.effect: 'gremlins' is not a known effect"),
+        (_with({"terms.1.parameters": {"scale": 1.0, "speed": 2}}), r"terms\[1\]\.parameters\.speed: is not a parameter"),
+        (_with({"terms.1.parameters": {"scale": float("nan")}}), r"terms\[1\]\.parameters\.scale: must be a finite"),
+        (_with({"terms.2.parameters.factors": [1.0]}), r"terms\[2\]: binned_descent_rate: need one value per bin"),
+        (_with({"ellipse.q": 0.0}), r"ellipse: error model 'calibrated': sigma0, h and k must be ≥ 0 and q > 0"),
+        (_with({"terms": {"a": 1}}), r"terms: must be a list"),
+    ],
+    ids=["corrupt", "kind", "future-schema", "schema-type", "negative-mass", "cda-text", "unknown-effect",
+         "unknown-parameter", "nan", "bins", "ellipse", "terms-type"],  # fmt: skip
+)
+def test_a_bad_model_file_is_refused_naming_the_file_and_the_field(
+    tmp_path: Path, document: object, message: str
+) -> None:
+    with pytest.raises(ModelFileError, match=message):
+        load_model(_write(tmp_path, document))
+
+
+def test_a_missing_model_file_is_one_line_from_the_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["predict", "--demo-weather", *RELEASE, "--model", str(tmp_path / "none.json")]) == 2
+    err = capsys.readouterr().err
+    assert err == f"drs: error: model file {tmp_path / 'none.json'} does not exist\n"
