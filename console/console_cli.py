@@ -140,7 +140,7 @@ def replay_setup(path: Path, speed: float, config: Config) -> tuple[ConsoleSetup
 
 def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None) -> ConsoleSetup:
     from console.app import ConsoleSetup
-    from console.predictions import PredictionService
+    from console.predictions import PredictionService, capsule_models
     from drs_link.operations import Operations
     from predictor import Terrain
 
@@ -156,7 +156,8 @@ def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None)
         terrain_factory: Callable[[], Terrain] = (
             (lambda: Terrain.from_dir(terrain)) if terrain is not None else Terrain.sea_level
         )
-        predictions = PredictionService(lambda: files, terrain_factory, operations.clock)
+        models = capsule_models([(c.name, c.model) for c in config.capsules])
+        predictions = PredictionService(lambda: files, terrain_factory, operations.clock, models)
     return ConsoleSetup(
         mode="live", capsules=[c.name for c in config.capsules], store=store, operations=operations,
         predictions=predictions, balloon_feed=started_balloon_feed(config, operations.clock),

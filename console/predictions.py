@@ -12,15 +12,18 @@ replayed session shows the same numbers without recomputing them.
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
+from typing import Any
 
 from drs_link.telemetry import TelemetryRecord
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
+from predictor.errors import PredictorError
 from predictor.export import write_geojson, write_kml
 from predictor.live import LivePredictor, Report
+from predictor.model_file import CalibratedModel, load_model
 from predictor.planning.sweep import plan_release
 from predictor.zones import Feature, load_zones
 
@@ -93,8 +96,11 @@ class PredictionService:
         weather_files: Callable[[], Sequence[Path]],
         terrain: Callable[[], Terrain],
         clock: Callable[[], datetime],
+        models: Mapping[str, CalibratedModel] | None = None,
     ) -> None:
         self._weather_files = weather_files
+        self.models = dict(models or {})
+        """Each capsule's calibrated model (its ``model`` key); the others fly the drs profile."""
         self._terrain_factory = terrain
         self.clock = clock
         self._cube: WeatherCube | None = None
@@ -119,13 +125,21 @@ class PredictionService:
         cube, terrain = self._inputs()
         now = self.clock()
         records = []
+        model = self.models.get(capsule)
+        flown: dict[str, Any] = {}
+        if model is not None:
+            flown = {"payload": model.payload, "effects": model.terms}
+            if model.ellipse is not None:
+                flown["error_model"] = model.ellipse
         for minutes in release_in:
             result = predict(
-                cube, now, origin.lat, origin.lon, origin.alt_m, terrain=terrain, drift_minutes=float(minutes)
-            )
+                cube, now, origin.lat, origin.lon, origin.alt_m, terrain=terrain, drift_minutes=float(minutes),
+                **flown,
+            )  # fmt: skip
             if minutes == 0:
                 self.latest[capsule] = result
             data = prediction_data(result, minutes, origin.source)
+            data["model"] = model.label() if model is not None else "drs profile"
             records.append(TelemetryRecord(now, capsule, "prediction", data))
         return records
 
@@ -191,7 +205,11 @@ class PredictionService:
         with self._live_lock:
             live = self._live.get(capsule)
             if live is None or (live.reports and reports[0].time < live.reports[0].time):
-                live = self._live[capsule] = LivePredictor(cube, terrain=terrain)
+                model = self.models.get(capsule)
+                live = self._live[capsule] = (
+                    LivePredictor(cube, payload=model.payload, terrain=terrain, effects=model.terms)
+                    if model is not None else LivePredictor(cube, terrain=terrain)
+                )  # fmt: skip
             fresh = []
             for (
                 report
@@ -225,3 +243,17 @@ def live_correction_text(
             f"wind error E {wind_error_ms[0]:+.1f} N {wind_error_ms[1]:+.1f} m/s fading over {decay_m:.0f} m"
         )
     return ", ".join(parts) if parts else "none (forecast only)"
+
+
+def capsule_models(capsules: Sequence[tuple[str, Path | None]]) -> dict[str, CalibratedModel]:
+    """Each capsule's ``model`` file, loaded once at start: a bad file stops the console with the key named,
+    rather than every prediction of that capsule failing (or, worse, flying the default profile)."""
+    models = {}
+    for index, (name, path) in enumerate(capsules):
+        if path is None:
+            continue
+        try:
+            models[name] = load_model(path)
+        except PredictorError as exc:
+            raise PredictorError(f"capsule[{index}].model ({name}): {exc}") from None
+    return models

@@ -99,7 +99,9 @@ class CapsuleConfig:
     backend: str = "stock"
     rockblock_serial: int | None = None
     imei: str | None = None
-    payload: str = "drs"
+    model: Path | None = None
+    """A calibrated model (``drs calibrate --save-model``) this capsule's predictions fly; default: the
+    drs payload profile. (Replaces the ``payload`` key, which was read and never used.)"""
     connect_timeout_s: float = 10.0
     command_timeout_s: float = 60.0
     microcontroller_wait_s: float = 25.0

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from predictor.errors import PredictorError
-from predictor.payload import PROFILES, payload_profile
+from predictor.payload import PROFILES
 from predictor.plausibility import emit, release_altitude_warning
 from predictor.uncertainty import ERROR_MODELS, GEOD
 
@@ -119,25 +119,19 @@ def run(args: argparse.Namespace) -> int:
     from predictor.demo_weather import demo_weather_files
     from predictor.export import to_json, write_geojson, write_kml
     from predictor.integrate import COMPILE_NOTICE, kernels_compiled
+    from predictor.model_file import flown_model
     from predictor.prediction import predict, predict_ensemble
     from predictor.terrain import Terrain
     from predictor.weather import load_weather
 
     when = parse_time(args.time)
     files = demo_weather_files(args.lat, args.lon, when) if args.demo_weather else args.weather
-    calibrated = None
-    if args.model is not None:
-        if args.payload is not None or args.mass is not None or args.cda is not None:
-            raise PredictorError("give --model or --payload/--mass/--cda, not both: the model carries its payload")
-        from predictor.model_file import load_model
-
-        calibrated = load_model(args.model)
-        payload = calibrated.payload
-    else:
-        payload = payload_profile(args.payload or "drs").overridden(mass_kg=args.mass, cda_m2=args.cda)
+    flown = flown_model(args.model, args.payload, args.mass, args.cda)
+    payload = flown.payload
     error_model = ERROR_MODELS[args.error_model or "launch"]
-    if calibrated is not None and calibrated.ellipse is not None and args.error_model is None:
-        error_model = calibrated.ellipse
+    if flown.ellipse is not None and args.error_model is None:
+        error_model = flown.ellipse
+    calibrated = flown if args.model is not None else None
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
     wx = load_weather(
         files, bbox=weather_bbox(args.lat, args.lon, args.drift_minutes), cache_dir=args.cache_dir
@@ -148,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
         "step_m": args.step,
         "drift_minutes": args.drift_minutes,
         "error_model": error_model,
-        "effects": calibrated.terms if calibrated is not None else (),
+        "effects": flown.terms,
         "probabilities": tuple(args.probability),
     }
     if not kernels_compiled():

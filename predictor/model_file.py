@@ -24,7 +24,7 @@ from typing import Any
 
 from predictor.errors import PredictorError
 from predictor.model import EFFECTS, Model, Term
-from predictor.payload import Payload
+from predictor.payload import Payload, payload_profile
 from predictor.uncertainty import ErrorModel
 
 SCHEMA_VERSION = 1
@@ -51,6 +51,8 @@ class CalibratedModel:
 
     def label(self) -> str:
         """How a prediction names the model that made it."""
+        if self.source_path is None and not self.terms:
+            return f"{self.payload.name} profile"
         where = self.source_path.name if self.source_path else "calibrated model"
         when = self.provenance.get("created_utc", "")[:10]
         flights = self.provenance.get("flights")
@@ -178,3 +180,16 @@ def _ellipse(raw: Any, refuse: Any) -> ErrorModel | None:
         return ErrorModel(*values, name="calibrated")
     except PredictorError as exc:
         raise refuse("ellipse", str(exc)) from None
+
+
+def flown_model(
+    model_path: str | Path | None, profile: str | None, mass_kg: float | None, cda_m2: float | None
+) -> CalibratedModel:
+    """What a command flies: a calibrated model file, or a payload profile (with --mass/--cda overrides)
+    as a model without calibrated terms. One rule for predict, plan and live: the file carries its payload,
+    so both together are refused rather than one silently winning."""
+    if model_path is not None:
+        if profile is not None or mass_kg is not None or cda_m2 is not None:
+            raise PredictorError("give --model or --payload/--mass/--cda, not both: the model carries its payload")
+        return load_model(model_path)
+    return CalibratedModel(payload_profile(profile or "drs").overridden(mass_kg=mass_kg, cda_m2=cda_m2), (), None)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from predictor.errors import PredictorError
-from predictor.payload import PROFILES, payload_profile
+from predictor.payload import PROFILES
 
 BENCH_START = datetime(2024, 5, 1, 6, 0, tzinfo=UTC)
 
@@ -56,7 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     plan.add_argument("--float-wind-sigma", type=float, default=2.0, metavar="MS",
                       help="σ of the float-altitude wind error, m/s (default 2)")  # fmt: skip
     plan.add_argument(
-        "--payload", default="drs", choices=sorted(PROFILES), help="payload profile (default drs)"
+        "--payload", choices=sorted(PROFILES), help="payload profile (default drs; not with --model)"
     )
     plan.add_argument(
         "--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model): its payload, terms and "
@@ -84,8 +84,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     live.add_argument("--date", help="UTC date of the first fix, for logs with times of day only")
     live.add_argument("--dem", metavar="DIR", help="terrain directory")
     live.add_argument(
-        "--payload", default="drs", choices=sorted(PROFILES), help="payload profile (default drs)"
+        "--payload", choices=sorted(PROFILES), help="payload profile (default drs; evaluate: superbit-test)"
     )
+    live.add_argument("--mass", type=float, metavar="KG", help="override the profile's mass")
+    live.add_argument("--cda", type=float, metavar="M2", help="override the profile's Cd·A")
+    live.add_argument("--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model)")
     live.add_argument("--no-correction", action="store_true", help="plain re-prediction from each report")
     live.add_argument("--json", action="store_true", help="print one JSON document per report")
     live.add_argument("--out", metavar="DIR", default="docs/planning", help="evaluate: report directory")
@@ -112,6 +115,7 @@ def run_plan(args: argparse.Namespace) -> int:
     if missing:
         raise PredictorError(f"drs plan needs {', '.join(missing)}")
     from predictor.cli import weather_bbox
+    from predictor.model_file import flown_model
     from predictor.planning.balloon import AltitudePlan
     from predictor.planning.strip import write_geojson, write_kml
     from predictor.planning.sweep import Thresholds, plan_release
@@ -121,15 +125,12 @@ def run_plan(args: argparse.Namespace) -> int:
     from predictor.zones import load_targets, load_zones
 
     start = _parse_time(args.start, "--from")
-    flown: dict[str, Any] = {"payload": payload_profile(args.payload)}
+    model = flown_model(args.model, args.payload, None, None)
+    flown: dict[str, Any] = {"payload": model.payload, "effects": model.terms}
+    if model.ellipse is not None:
+        flown["error_model"] = model.ellipse
     if args.model is not None:
-        from predictor.model_file import load_model
-
-        calibrated = load_model(args.model)
-        flown = {"payload": calibrated.payload, "effects": calibrated.terms}
-        if calibrated.ellipse is not None:
-            flown["error_model"] = calibrated.ellipse
-        print(f"model     {calibrated.label()}", file=sys.stderr)
+        print(f"model     {model.label()}", file=sys.stderr)
     thresholds = Thresholds(args.max_zone_probability, args.max_target_km, args.max_sigma_km)
     zones = load_zones(args.zones) if args.zones else ()
     targets = load_targets(args.targets) if args.targets else ()
@@ -265,6 +266,7 @@ def run_live(args: argparse.Namespace) -> int:
     from predictor.calibration.cleaning import clean
     from predictor.calibration.tracks import read_track
     from predictor.live import DEFAULT_CORRECTION, NO_CORRECTION, LivePredictor
+    from predictor.model_file import flown_model
     from predictor.prediction import iso_z
     from predictor.terrain import Terrain
 
@@ -295,11 +297,13 @@ def run_live(args: argparse.Namespace) -> int:
             args.weather, bbox=weather_bbox(start.lat, start.lon, 0.0), cache_dir=args.cache_dir
         )
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
+    model = flown_model(args.model, args.payload, args.mass, args.cda)
     live = LivePredictor(
         wx,
-        payload_profile(args.payload),
+        model.payload,
         terrain,
         NO_CORRECTION if args.no_correction else DEFAULT_CORRECTION,
+        effects=model.terms,
     )
     descent = list(flight.descent)
     if flight.landing is not None:
@@ -337,7 +341,11 @@ def run_evaluate(args: argparse.Namespace) -> int:
     if not args.tracks:
         raise PredictorError("drs live evaluate needs track files")
     started = time.perf_counter()
-    result = evaluate(args.tracks)
+    from predictor.model_file import flown_model
+
+    profile = args.payload if args.model is not None or args.payload is not None else "superbit-test"
+    model = flown_model(args.model, profile, args.mass, args.cda)
+    result = evaluate(args.tracks, effects=model.terms, payload=model.payload)
     if not result.flights:
         raise PredictorError("no usable flight among the tracks given")
     names = sorted({Path(t).parent.name for t in args.tracks})

@@ -269,7 +269,8 @@ def _prediction_long(v: Value) -> str:
     if v.get("bearing_deg") is not None:
         where += f" at {v['bearing_deg']:.0f}°"
     origin = f"; position from {v['origin_source']}" if v.get("origin_source") else ""
-    return f"{where} from release, σ∥ {v['sigma_par_km']:.2f} σ⊥ {v['sigma_perp_km']:.2f} km{origin}"
+    model = f"; model {v['model']}" if v.get("model") else ""
+    return f"{where} from release, σ∥ {v['sigma_par_km']:.2f} σ⊥ {v['sigma_perp_km']:.2f} km{origin}{model}"
 
 
 def _always_ok(v: Value) -> Level:

@@ -31,7 +31,7 @@ from predictor.calibration.tracks import Fix, read_track
 from predictor.errors import PredictorError
 from predictor.live import NO_CORRECTION, Band, LiveCorrection, LiveErrorModel, LivePredictor
 from predictor.model import Term
-from predictor.payload import PROFILES
+from predictor.payload import PROFILES, Payload
 from predictor.terrain import Terrain
 from predictor.uncertainty import GEOD
 
@@ -111,10 +111,13 @@ def _errors(pred_lat: float, pred_lon: float, origin: Fix, truth: Fix) -> tuple[
     return d, d * math.cos(angle), d * math.sin(angle)
 
 
-def evaluate(paths: Sequence[str | Path], effects: Sequence[Term] = ()) -> Evaluation:
-    """Every checkpoint of every usable flight under every configuration; ``effects`` extend the model."""
+def evaluate(
+    paths: Sequence[str | Path], effects: Sequence[Term] = (), payload: Payload | None = None
+) -> Evaluation:
+    """Every checkpoint of every usable flight under every configuration; ``effects`` extend the model
+    (a calibrated model's terms), ``payload`` replaces the 2018–2019 test payload the report was made with."""
     configs = configurations()
-    payload = PROFILES["superbit-test"]
+    payload = payload or PROFILES["superbit-test"]
     result = Evaluation(flights=[], skipped=[], cases=[], start_errors_km={})
     for path in paths:
         flight = clean(read_track(path))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +10,9 @@ import pytest
 
 from console.cli import main
 from predictor.live import DEFAULT_CORRECTION, LIVE_ERROR_MODEL
+from predictor.model import DragDensityExponent
+from predictor.model_file import CalibratedModel, save_model
+from predictor.payload import PROFILES
 from predictor.planning.live_evaluation import (
     Evaluation,
     evaluate,
@@ -76,3 +80,25 @@ def test_live_cli_re_predicts_a_real_descent_from_each_fix(
     lines = capsys.readouterr().out.strip().splitlines()
     assert lines[-1].startswith("measured landing 2019-07-28T20:46:00Z")
     assert len(lines) > 10 and all("→" in line for line in lines[:-1])
+
+
+def test_live_cli_flies_a_calibrated_model_or_mass_and_cda_and_refuses_both(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    track = str(shared_data / "tracks" / "pyballoon_superbit" / "19-7-28.csv")
+    base = ["live", "--track", track, "--ascent-winds", "--json"]
+
+    def first_landing(*extra: str) -> dict:
+        assert main([*base, *extra]) == 0
+        return json.loads(capsys.readouterr().out.splitlines()[0])["landing"]
+
+    plain = first_landing("--payload", "superbit-test")
+    heavier = first_landing("--payload", "superbit-test", "--mass", "3.0")
+    model = save_model(
+        CalibratedModel(PROFILES["superbit-test"], (DragDensityExponent(exponent=0.2),), None), tmp_path / "m.json"
+    )
+    calibrated = first_landing("--model", str(model))
+    assert heavier["time"] < plain["time"], "a heavier payload falls faster"
+    assert calibrated["time"] != plain["time"], "the model's density law changes the remaining descent"
+    assert main([*base, "--model", str(model), "--cda", "1.0"]) == 2
+    assert "give --model or --payload/--mass/--cda, not both" in capsys.readouterr().err
