@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -77,9 +78,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser(_command_in(argv))
-    args = parser.parse_args(argv)
     try:
+        args = build_parser(_command_in(argv)).parse_args(argv)
         return int(args.func(args) or 0)
     except OPERATOR_ERRORS as exc:
         print(f"drs: error: {exc}", file=sys.stderr)
@@ -87,7 +87,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("drs: interrupted", file=sys.stderr)
         return 130
-
+    except BrokenPipeError:
+        # `drs … | head` closed the pipe: the reader has what it wanted. Point stdout at /dev/null so the
+        # interpreter's final flush does not raise again, and end quietly as other Unix tools do.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 if __name__ == "__main__":
     sys.exit(main())

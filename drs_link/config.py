@@ -145,7 +145,10 @@ def _coerce(key: str, annotation: Any, value: Any) -> Any:
     if annotation is Path:
         if not isinstance(value, str) or not value:
             raise ConfigError(f"{key}: expected a path (a non-empty string), got {value!r}")
-        return _expand(Path(value))
+        try:
+            return _expand(Path(value))
+        except RuntimeError:  # "~name" for a user this machine does not have
+            raise ConfigError(f"{key}: {value!r} names the home of a user this machine does not have") from None
     if annotation is bool:
         if not isinstance(value, bool):
             raise ConfigError(f"{key}: expected true or false, got {value!r}")
@@ -209,6 +212,52 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
     for name in ("connect_timeout_s", "command_timeout_s", "microcontroller_wait_s", "authority_lease_s"):
         if getattr(capsule, name) <= 0:
             raise ConfigError(f"{key}.{name}: must be positive")
+    _check_range(f"{key}.authority_lease_s", capsule.authority_lease_s, 1.0, MAX_LEASE_S,
+                 "the Pi's shell arithmetic holds the lease's end in seconds")  # fmt: skip
+    for name in ("connect_timeout_s", "command_timeout_s", "microcontroller_wait_s"):
+        _check_range(f"{key}.{name}", getattr(capsule, name), 0.001, 3600.0, "a link that slow is down")
+
+
+MAX_LEASE_S = 86_400.0
+"""A day: a lease of 1e19 s overflowed the Pi's 64-bit shell arithmetic and let a second console take over."""
+VARIABLE_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,127}$")
+
+
+def _check_range(key: str, value: float, low: float, high: float, why: str) -> None:
+    if not low <= value <= high:
+        raise ConfigError(f"{key}: {value:g} is outside {low:.12g}–{high:.12g} ({why})")
+
+
+def _check_sections(sections: dict[str, Any]) -> None:
+    """Values that pass their type but reach arithmetic, a socket, a URL path or a shell."""
+    operator: OperatorConfig | None = sections.get("operator")
+    if operator is not None and (len(operator.name) > 64 or not operator.name.isprintable()):
+        raise ConfigError("operator.name: at most 64 printable characters (it is written to every audit record)")
+    data: DataConfig | None = sections.get("data")
+    if data is not None and not data.dir.is_absolute():
+        raise ConfigError(
+            f"data.dir: {str(data.dir)!r} is relative, so the store would depend on the working directory; "
+            "give an absolute path or one starting with ~"
+        )
+    rockblock: RockblockConfig | None = sections.get("rockblock")
+    if rockblock is not None:
+        _check_range("rockblock.timeout_s", rockblock.timeout_s, 0.5, 600.0, "the gateway answers within seconds")
+        if rockblock.password_env and not VARIABLE_NAME_RE.match(rockblock.password_env):
+            raise ConfigError(
+                "rockblock.password_env: must be the NAME of an environment variable (letters, digits, _); "
+                "the value is not shown here in case it is the password itself"
+            )
+    mo: MoConfig | None = sections.get("mo")
+    if mo is not None:
+        _check_range("mo.listen_port", mo.listen_port, 0, 65535, "a TCP port; 0 picks a free one")
+        _check_range("mo.max_body_bytes", mo.max_body_bytes, 256, 1_048_576,
+                     "a gateway delivery is under 1 kB; below 256 every post would be refused")  # fmt: skip
+        if not mo.path.startswith("/") or any(c.isspace() for c in mo.path):
+            raise ConfigError(f"mo.path: {mo.path!r} must start with / and contain no spaces (every post would get 404)")
+    console: ConsoleConfig | None = sections.get("console")
+    if console is not None:
+        _check_range("console.arm_window_s", console.arm_window_s, 5.0, 3600.0, "seconds to FIRE after ARM")
+        _check_range("console.prediction_period_s", console.prediction_period_s, 1.0, 3600.0, "seconds")
 
 
 BALLOON_FEED_KINDS = ("udp", "tcp", "file")
@@ -258,6 +307,7 @@ def parse_config(document: dict[str, Any], source: Path | None = None) -> Config
     kwargs: dict[str, Any] = {
         name: _build(cls, document[name], name) for name, cls in sections.items() if name in document
     }
+    _check_sections(kwargs)
     if "balloon_feed" in kwargs:
         _check_balloon_feed(kwargs["balloon_feed"], set(document["balloon_feed"]), "balloon_feed")
     raw_capsules = document.get("capsule", [])

@@ -73,9 +73,17 @@ class Store:
     def open(cls, path: str | Path) -> Store:
         path = Path(path).expanduser()
         try:
-            path.parent.mkdir(parents=True, exist_ok=True)
+            path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
         except OSError as exc:
             raise StoreError(f"cannot create the data directory {path.parent}: {exc}") from None
+        try:
+            # The audit log names operators and holds the gateway's echoes: owner only, before SQLite
+            # creates the file (its -wal and -shm take the main file's mode).
+            path.touch(mode=0o600, exist_ok=True)
+            if path.stat().st_mode & 0o077:
+                path.chmod(0o600)
+        except OSError as exc:
+            raise StoreError(f"cannot create the store {path}: {exc}") from None
         store = cls(path)
         store.ensure_schema(_AUDIT_DDL)
         return store

@@ -31,6 +31,9 @@ if TYPE_CHECKING:  # the descent engine (numba) and the exports load only when a
 
 WEATHER_MARGIN_DEG = 6.0
 """Half-size of the weather region decoded around the release (a 30 km descent drifts ≲ 300 km)."""
+MAX_MEMBERS = 100_000
+"""About 2.5 GB of trajectories at the default step: well inside an operations laptop, and 100× the
+1000 members whose ellipse is already stable to a few percent."""
 FLOAT_WIND_MAX_MS = 60.0
 """Fastest wind assumed at float altitude when sizing the region for a drift before release."""
 
@@ -72,7 +75,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--drift-minutes", type=float, default=0.0, metavar="N", help="float drift before release"
     )
-    parser.add_argument("--members", type=int, metavar="N", help="run a perturbed ensemble of N members")
+    parser.add_argument(
+        "--members", type=int, metavar="N",
+        help=f"run a perturbed ensemble of N members (at most {MAX_MEMBERS:,}: memory grows with N)",
+    )  # fmt: skip
     parser.add_argument("--seed", type=int, default=0, help="ensemble random seed (default 0)")
     parser.add_argument(
         "--error-model",
@@ -115,6 +121,8 @@ def run(args: argparse.Namespace) -> int:
         raise PredictorError(f"drs predict needs {', '.join(missing)}")
     if args.weather is not None and args.demo_weather:
         raise PredictorError("give either --weather or --demo-weather, not both")
+    if args.members is not None and not 1 <= args.members <= MAX_MEMBERS:
+        raise PredictorError(f"--members {args.members}: give 1 to {MAX_MEMBERS:,} (10 million needed 24 GB)")
     emit(release_altitude_warning(args.alt))
     from predictor.demo_weather import demo_weather_files
     from predictor.export import to_json, write_geojson, write_kml

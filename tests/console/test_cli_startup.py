@@ -72,3 +72,26 @@ def test_a_mistyped_command_lists_the_real_ones() -> None:
     )
     assert done.returncode == 2
     assert "invalid choice: 'predcit'" in done.stderr and "predict" in done.stderr
+
+
+def test_a_closed_pipe_ends_quietly_without_a_traceback(tmp_path: Path) -> None:
+    """`drs … | head`: the reader leaves early; no BrokenPipeError reaches the operator."""
+    from predictor.model_file import CalibratedModel, save_model
+    from predictor.payload import PROFILES
+
+    model = save_model(CalibratedModel(PROFILES["drs"], (), None), tmp_path / "m.json")
+    for argv, status in ((["model", "show", str(model)], 141), (["predict", "--help"], 0)):
+        probe = (
+            "import os, sys; r, w = os.pipe(); os.close(r); os.dup2(w, 1); "
+            f"from console.cli import main; sys.exit(main({argv!r}))"
+        )
+        done = subprocess.run([sys.executable, "-c", probe], cwd=REPO, capture_output=True, text=True, timeout=120)
+        assert (done.returncode, done.stderr) == (status, ""), argv
+
+
+def test_ensemble_size_is_bounded_and_the_bound_is_in_help(capsys: pytest.CaptureFixture[str]) -> None:
+    from console.cli import main
+
+    assert main(["predict", "--demo-weather", "--lat", "1", "--lon", "1", "--alt", "28000",
+                 "--time", "2026-01-01T00:00Z", "--members", "10000000"]) == 2  # fmt: skip
+    assert "--members 10000000: give 1 to 100,000" in capsys.readouterr().err

@@ -29,7 +29,7 @@ from drs_link.simulator import CapsuleSimulator
 from drs_link.ssh import CapsuleLink
 from drs_link.store import Store, iso_utc
 
-from .test_cli import _one_line_error, _write_config, drs, only_capsule_commands  # noqa: F401 (autouse)
+from .test_cli import _one_line_error, _write_config, drs
 
 TOOLS = "/home/pi/DRS_Python_Tools"
 REPO = Path(__file__).resolve().parents[2]

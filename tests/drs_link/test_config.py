@@ -149,7 +149,7 @@ toml_scalars = st.one_of(
 @given(
     name=names,
     port=st.integers(1, 65535),
-    timeout=st.floats(min_value=0.001, max_value=1e6),
+    timeout=st.floats(min_value=0.001, max_value=3600.0),
     serial=st.one_of(st.none(), st.integers(1, 9_999_999)),
 )
 def test_every_valid_capsule_round_trips(name: str, port: int, timeout: float, serial: int | None) -> None:
@@ -174,3 +174,35 @@ def test_any_scalar_in_any_capsule_key_parses_or_names_the_key(key: str, value: 
         assert f"capsule[0].{key}" in str(exc) or (key == "name" and "capsule" in str(exc))
     else:
         assert isinstance(config, Config) and len(config.capsules) == 1
+
+
+@pytest.mark.parametrize(
+    ("document", "message"),
+    [
+        ({"mo": {"max_body_bytes": -1}}, r"mo\.max_body_bytes: -1 is outside 256–1048576"),
+        ({"mo": {"path": "no-slash"}}, r"mo\.path: 'no-slash' must start with /"),
+        ({"mo": {"listen_port": 70000}}, r"mo\.listen_port: 70000 is outside 0–65535"),
+        ({"rockblock": {"timeout_s": -1}}, r"rockblock\.timeout_s: -1 is outside 0\.5–600"),
+        ({"capsule": [{"name": "DRS1", "host": "h", "authority_lease_s": 1e19}]},
+         r"capsule\[0\]\.authority_lease_s: 1e\+19 is outside 1–86400 \(the Pi's shell arithmetic"),
+        ({"data": {"dir": "relative/dir"}}, r"data\.dir: 'relative/dir' is relative"),
+        ({"operator": {"name": "EL\x1b[2J" + "x" * 70}}, r"operator\.name: at most 64 printable characters"),
+        ({"console": {"arm_window_s": 0.5}}, r"console\.arm_window_s: 0\.5 is outside 5–3600"),
+    ],
+    ids=["body-bytes", "path", "port", "timeout", "lease", "relative-dir", "operator-name", "arm-window"],
+)
+def test_values_that_reach_arithmetic_a_socket_or_a_shell_are_range_checked(document: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        parse_config(document)
+
+
+def test_a_password_typed_where_a_variable_name_belongs_is_refused_without_being_echoed() -> None:
+    with pytest.raises(ConfigError) as refused:
+        parse_config({"rockblock": {"password_env": "hunter2 & s3cret!"}})
+    assert "hunter2" not in str(refused.value) and "s3cret" not in str(refused.value)
+    assert "rockblock.password_env: must be the NAME of an environment variable" in str(refused.value)
+
+
+def test_a_path_in_the_home_of_an_unknown_user_is_named_not_a_traceback() -> None:
+    with pytest.raises(ConfigError, match=r"capsule\[0\]\.identity_file: '~0' names the home of a user"):
+        parse_config({"capsule": [{"name": "DRS1", "host": "h", "identity_file": "~0"}]})

@@ -76,3 +76,18 @@ def test_unwritable_data_directory_is_a_store_error(tmp_path: Path) -> None:
     blocker.write_text("not a directory")
     with pytest.raises(StoreError, match="cannot create the data directory"):
         Store.open(blocker / "sub" / "drs.sqlite")
+
+
+def test_the_store_and_its_journal_are_readable_by_the_owner_only(tmp_path: Path) -> None:
+    store = Store.open(tmp_path / "data" / "drs.sqlite")
+    store.append_audit("EL", "DRS1", "test", "ok", {})
+    for name in ("drs.sqlite", "drs.sqlite-wal"):
+        assert (tmp_path / "data" / name).stat().st_mode & 0o777 == 0o600, name
+    assert (tmp_path / "data").stat().st_mode & 0o777 == 0o700
+
+
+def test_wal_and_full_synchronous_writes_are_in_force(tmp_path: Path) -> None:
+    """Without them an acknowledged record can be lost at power loss; these pin that they are set."""
+    store = Store.open(tmp_path / "drs.sqlite")
+    assert store.query("PRAGMA journal_mode")[0][0] == "wal"
+    assert store.query("PRAGMA synchronous")[0][0] == 2  # FULL
