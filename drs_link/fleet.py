@@ -110,6 +110,11 @@ class CapsuleTelemetry:
                 tuple((float(lon), float(lat)) for lon, lat in prediction.value.get("outline_2sigma", [])),
             )
         state = self.value("release", "state", now, fresh_only=False)
+        released = None
+        if state in ("released", "go-sent-unverified"):
+            at = self.value("release", "released_at", now, fresh_only=False)
+            when = f" {at[11:16]}Z" if isinstance(at, str) and len(at) >= 16 else ""
+            released = f"released{when}, Pi shut down" if state == "released" else "Go sent, not yet verified"
         return GoNoGoInputs(
             link_up=sub("link", "up"),
             microcontroller_waiting=sub("release", "nmea_seen"),
@@ -119,6 +124,7 @@ class CapsuleTelemetry:
             gateway_credentials=sub("gateway", "credentials_ok"),
             powered=state == "powered",
             exclusion_zones=zones,
+            released=released,
         )
 
 

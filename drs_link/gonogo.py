@@ -29,6 +29,10 @@ class Verdict(StrEnum):
     GO = "GO"
     NO_GO = "NO-GO"
     WAIVED = "WAIVED"
+    RELEASED = "RELEASED"
+    """The capsule has dropped: nothing can be armed again until it is recovered and reset."""
+    NOT_APPLICABLE = "n/a"
+    """A pre-release check that no longer applies (the link is down as expected, NMEA is history)."""
 
 
 @dataclass(frozen=True)
@@ -63,6 +67,8 @@ class GoNoGoInputs:
     gateway_credentials: Reading[bool]
     powered: bool
     exclusion_zones: tuple[ExclusionZone, ...] = ()
+    released: str | None = None
+    """After Go: what the release record says ("released 12:03Z, Pi shut down"); None before."""
 
 
 @dataclass(frozen=True)
@@ -82,7 +88,7 @@ class GoNoGoItem:
 
     @property
     def blocking(self) -> bool:
-        return self.verdict is Verdict.NO_GO
+        return self.verdict in (Verdict.NO_GO, Verdict.RELEASED)
 
 
 @dataclass(frozen=True)
@@ -160,6 +166,8 @@ def evaluate(
     capsule: str, inputs: GoNoGoInputs, now: datetime, waivers: Sequence[Waiver] = ()
 ) -> GoNoGoReport:
     """The poll; a waived item is shown as WAIVED with who and why, never silently GO."""
+    if inputs.released is not None:
+        return _after_release(capsule, inputs.released, now)
     items = [
         _fresh_true("link", "SSH link up", inputs.link_up, now, "up", "link down"),
         GoNoGoItem(
@@ -190,6 +198,22 @@ def evaluate(
             items[index] = GoNoGoItem(
                 item.key, item.title, Verdict.WAIVED, f"{item.detail}; waived by {waiver.operator}: {waiver.reason}"
             )
+    return GoNoGoReport(capsule, tuple(items), _fingerprint(items), now)
+
+
+PRE_RELEASE_CHECKS = (
+    ("link", "SSH link up"), ("power", "Power-on done"), ("microcontroller", "Microcontroller talking"),
+    ("gnss", "GNSS fix fresh"), ("sync", "Storage sync complete"), ("prediction", "Prediction fresh"),
+    ("gateway", "Gateway credentials valid"),
+)  # fmt: skip
+
+
+def _after_release(capsule: str, released: str, now: datetime) -> GoNoGoReport:
+    """After Go the link is down as expected and the last NMEA is history: one line says so, and every
+    pre-release check reads n/a instead of contradicting it ("Microcontroller talking ✔" with the Pi off)."""
+    items = [GoNoGoItem("release", "Released", Verdict.RELEASED, released)]
+    items += [GoNoGoItem(key, title, Verdict.NOT_APPLICABLE, "no longer applies after release")
+              for key, title in PRE_RELEASE_CHECKS]  # fmt: skip
     return GoNoGoReport(capsule, tuple(items), _fingerprint(items), now)
 
 

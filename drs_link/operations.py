@@ -150,7 +150,8 @@ class Operations:
         return self.capsules[name]
 
     def _release_record(self, name: str, record: ReleaseRecord) -> TelemetryRecord:
-        data = {"state": record.state.value, "nmea_seen": record.nmea_seen_at is not None, "note": record.note}
+        data = {"state": record.state.value, "nmea_seen": record.nmea_seen_at is not None, "note": record.note,
+                "released_at": record.released_at.isoformat() if record.released_at else None}  # fmt: skip
         return TelemetryRecord(self.clock(), name, "release", data)
 
     def poll(self, name: str) -> list[TelemetryRecord]:

@@ -40,9 +40,15 @@ STATE_GLYPH = {
     StepState.NO_DATA: "? no data",
     StepState.PENDING: "· pending",
 }
-VERDICT_GLYPH = {Verdict.GO: "✔ GO", Verdict.NO_GO: "✘ NO-GO", Verdict.WAIVED: "⚑ WAIVED"}
+VERDICT_GLYPH = {Verdict.GO: "✔ GO", Verdict.NO_GO: "✘ NO-GO", Verdict.WAIVED: "⚑ WAIVED",
+                 Verdict.RELEASED: "■ RELEASED", Verdict.NOT_APPLICABLE: "· n/a"}  # fmt: skip
 GONOGO_WIDTHS = (9, 26)
 """Verdict and item columns; the detail takes the rest of the width and wraps, so no reason is cut."""
+
+
+RELEASED_STATES = ("released", "go-sent-unverified")
+BEFORE_RELEASE_ONLY = ("power_on", "sync", "arm", "fire", "waive")
+"""Keys that only mean something before the drop; after Go they are hidden (``reset`` stays, for recovery)."""
 
 
 class ReleaseScreen(ConsoleScreen):
@@ -126,9 +132,11 @@ class ReleaseScreen(ConsoleScreen):
         self.fit_gonogo_columns(gonogo)
         gonogo.clear()
         for item in report.items:
+            style = "dim" if item.verdict is Verdict.NOT_APPLICABLE else ""  # greyed: no longer applies
             gonogo.add_row(
-                Text(VERDICT_GLYPH[item.verdict]), item.title, Text(item.detail), key=item.key, height=None
-            )
+                Text(VERDICT_GLYPH[item.verdict], style=style), Text(item.title, style=style),
+                Text(item.detail, style=style), key=item.key, height=None,
+            )  # fmt: skip
         if gonogo.row_count:
             gonogo.move_cursor(row=min(grow, gonogo.row_count - 1))
         self.query_one("#arm-status", Static).update(self.arm_text(report.go))
@@ -171,9 +179,16 @@ class ReleaseScreen(ConsoleScreen):
         commanding = ("power_on", "sync", "waive", "arm", "disarm", "fire", "tick", "skip", "reset")
         if action in commanding and not self.console.commanding:
             return None
+        if action in BEFORE_RELEASE_ONLY and self.released():
+            return None  # the Pi is shut down: these keys leave the footer instead of failing after a dialog
         if action == "fire":
             return True if self.console.ops.ops(self.capsule).arming.status().armed else None
         return True
+
+    def released(self) -> bool:
+        state = self.console.fleet.capsules[self.capsule].value("release", "state", self.console.now(), fresh_only=False)
+        armed = self.console.ops.ops(self.capsule).arming.status().state if self.console.commanding else None
+        return state in RELEASED_STATES or armed in (ArmState.FIRING, ArmState.FIRED)
 
     # Actions ----------------------------------------------------------------------------------
 

@@ -20,6 +20,7 @@ from urllib.parse import urlencode, urlsplit
 
 from drs_link.config import RockblockConfig
 from drs_link.errors import ConfigError
+from drs_link.redaction import redact, secret_forms
 
 log = logging.getLogger(__name__)
 
@@ -113,6 +114,7 @@ class RockblockGateway:
         self._url = urlsplit(url)
         self._username = username
         self._password = password
+        self._secret_forms = secret_forms(password, username)
         self._timeout_s = timeout_s
         self._connect_attempts = max(1, connect_attempts)
         self._retry_delay_s = retry_delay_s
@@ -125,7 +127,7 @@ class RockblockGateway:
         return cls(config.mt_url, config.username, resolve_password(config, environ), config.timeout_s)
 
     def _redact(self, text: str) -> str:
-        return text.replace(self._password, "***") if self._password else text
+        return redact(text, self._secret_forms)
 
     def _connection(self) -> http.client.HTTPConnection:
         host, port = self._url.hostname or "", self._url.port

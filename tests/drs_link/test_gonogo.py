@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from drs_link.errors import RefusedError
+from drs_link.fleet import FleetState
 from drs_link.gonogo import (
     ExclusionZone,
     GoNoGoInputs,
@@ -19,6 +20,7 @@ from drs_link.gonogo import (
 )
 from drs_link.staleness import Reading
 from drs_link.store import Store
+from drs_link.telemetry import TelemetryRecord
 
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 
@@ -108,3 +110,16 @@ def test_the_fingerprint_follows_the_verdicts_not_ages_or_small_moves(tmp_path: 
     book = WaiverBook(Store.open(tmp_path / "drs.sqlite"), "DRS1", clock=lambda: T0)
     book.grant("gnss", "EL", "drop without a fix")
     assert evaluate("DRS1", no_fix, T0, book.waivers).fingerprint not in (base, evaluate("DRS1", no_fix, T0).fingerprint)
+
+
+def test_after_release_the_poll_says_released_and_greys_every_pre_release_check() -> None:
+    """With the Pi shut down, "Microcontroller talking ✔ GO, NMEA 0 s old" contradicted the release."""
+    now = datetime(2026, 9, 1, 12, 5, tzinfo=UTC)
+    fleet = FleetState.for_capsules(["DRS1"], 10.0)
+    fleet.apply(TelemetryRecord(now, "DRS1", "release", {"state": "released", "nmea_seen": True,
+                                                          "released_at": "2026-09-01T12:03:41+00:00"}))  # fmt: skip
+    fleet.apply(TelemetryRecord(now, "DRS1", "gnss", {"has_fix": True}))
+    report = evaluate("DRS1", fleet.capsules["DRS1"].gonogo_inputs(now, ()), now)
+    assert not report.go and report.summary() == "NO-GO: Released: released 12:03Z, Pi shut down"
+    assert [i.verdict for i in report.items][1:] == [Verdict.NOT_APPLICABLE] * (len(report.items) - 1)
+    assert all(i.detail == "no longer applies after release" for i in report.items[1:])
