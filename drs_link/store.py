@@ -130,14 +130,28 @@ class Store:
             raise StoreError(f"the store {self.path} cannot be written: {exc}") from None
         try:
             yield conn
+        except sqlite3.Error as exc:
+            self._rollback(conn)
+            raise StoreError(f"the store {self.path} cannot be written: {exc}") from None
         except BaseException:
-            conn.execute("ROLLBACK")
+            self._rollback(conn)
             raise
         try:
             conn.execute("COMMIT")
         except sqlite3.Error as exc:
-            conn.execute("ROLLBACK")
+            self._rollback(conn)
             raise StoreError(f"the store {self.path} cannot be written: {exc}") from None
+
+    @staticmethod
+    def _rollback(conn: sqlite3.Connection) -> None:
+        """Roll back what is still open. On a full disk or an I/O error SQLite has already rolled the
+        transaction back itself, and a second ROLLBACK would replace the real error ("database or disk
+        is full") with "cannot rollback - no transaction is active"."""
+        if conn.in_transaction:
+            try:
+                conn.execute("ROLLBACK")
+            except sqlite3.Error:
+                pass  # the original error is the one the operator needs
 
     def write(self, sql: str, params: tuple[Any, ...] | dict[str, Any] = ()) -> int:
         """Run one statement in its own durable transaction; returns the row id it wrote."""

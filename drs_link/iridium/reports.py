@@ -50,6 +50,9 @@ CREATE TABLE IF NOT EXISTS mo_delivery_rejected (
 """
 
 
+REJECTED_KEPT = 1000
+REJECTED_BODY_CHARS = 4096
+
 @dataclass(frozen=True)
 class Delivery:
     """One MO as it arrived, before parsing."""
@@ -168,11 +171,17 @@ class ReportStore:
         return StoredReport(int(row_id or 0), delivery, parsed), new
 
     def reject_delivery(self, received_utc: datetime, remote: str, reason: str, body: str) -> None:
-        """Keep a delivery that could not be accepted at all (bad signature, missing fields) for forensics."""
-        self.store.write(
-            "INSERT INTO mo_delivery_rejected (received_utc, remote, reason, body) VALUES (?, ?, ?, ?)",
-            (iso_utc(received_utc), remote, reason, body),
-        )
+        """Keep a delivery that could not be accepted at all (bad signature, missing fields) for forensics.
+
+        Bounded: the newest ``REJECTED_KEPT`` deliveries, each body cut at ``REJECTED_BODY_CHARS``; 1,000
+        garbage posts once wrote 19 MB in 1.9 s, and an attacker could fill the disk the reports need.
+        """
+        with self.store.transaction() as conn:
+            newest = conn.execute(
+                "INSERT INTO mo_delivery_rejected (received_utc, remote, reason, body) VALUES (?, ?, ?, ?)",
+                (iso_utc(received_utc), remote, reason, body[:REJECTED_BODY_CHARS]),
+            ).lastrowid
+            conn.execute("DELETE FROM mo_delivery_rejected WHERE id <= ?", ((newest or 0) - REJECTED_KEPT,))
 
     def rejected_deliveries(self) -> list[tuple[str, str]]:
         return [

@@ -22,7 +22,7 @@ from urllib.parse import parse_qs
 import jwt
 
 from drs_link.config import MoConfig
-from drs_link.errors import ConfigError
+from drs_link.errors import ConfigError, StoreError
 from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
 from drs_link.store import utc_now
 
@@ -64,12 +64,20 @@ def _fields(content_type: str, body: bytes) -> dict[str, str]:
             document = json.loads(text)
         except json.JSONDecodeError:
             raise DeliveryRejected(400, "body is not valid JSON") from None
+        except RecursionError:
+            raise DeliveryRejected(400, "JSON nested too deeply") from None
         if not isinstance(document, dict):
             raise DeliveryRejected(400, "JSON body is not an object")
         return {str(k): str(v) for k, v in document.items() if isinstance(v, str | int | float)}
     if kind == "application/x-www-form-urlencoded":
         return {key: values[0] for key, values in parse_qs(text, keep_blank_values=True).items()}
     raise DeliveryRejected(415, f"unsupported content type {kind or '(none)'}")
+
+
+def _ascii_digits(text: str) -> bool:
+    """Digits 0-9 only: str.isdigit() also takes '²', full-width '５' and Arabic-Indic '٣', which int()
+    then reads or refuses, so a forged IMEI or MOMSN passed the check, or crashed the handler."""
+    return bool(text) and text.isascii() and text.isdigit()
 
 
 def _float(fields: dict[str, str], name: str) -> float | None:
@@ -130,9 +138,9 @@ class MoReceiver:
             fields = _fields(content_type, body)
             verified = self._verify(fields)
             imei, momsn_text = fields.get("imei", ""), fields.get("momsn", "")
-            if not (len(imei) == 15 and imei.isdigit()):
+            if not (len(imei) == 15 and _ascii_digits(imei)):
                 raise DeliveryRejected(400, "missing or malformed imei")
-            if not momsn_text.isdigit() or int(momsn_text) > 65535:
+            if not _ascii_digits(momsn_text) or int(momsn_text) > 65535:
                 raise DeliveryRejected(400, "missing or malformed momsn")
             if "data" not in fields:
                 raise DeliveryRejected(400, "missing data")
@@ -148,14 +156,18 @@ class MoReceiver:
             source="webhook-json" if content_type.lower().startswith("application/json") else "webhook-form",
             received_utc=now,
             transmit_utc=_transmit_time(fields.get("transmit_time")),
-            serial=int(serial) if serial.isdigit() else None,
+            serial=int(serial) if _ascii_digits(serial) else None,
             iridium_lat=_float(fields, "iridium_latitude"),
             iridium_lon=_float(fields, "iridium_longitude"),
             iridium_cep_km=_float(fields, "iridium_cep"),
             jwt_verified=verified,
             raw_delivery=body.decode("utf-8", "replace"),
         )
-        stored, new = self.reports.add(delivery)
+        try:
+            stored, new = self.reports.add(delivery)
+        except StoreError as exc:
+            log.error("MO delivery %s/%s not stored: %s", imei, momsn_text, exc)
+            return 503, "store unavailable; retry later", None  # the gateway retries a 5xx
         if not new:
             return 200, "OK (duplicate)", None
         return 200, "OK", stored
@@ -186,7 +198,7 @@ class _Handler(BaseHTTPRequestHandler):
             self._answer(404, "unknown path")
             return
         length_text = self.headers.get("Content-Length")
-        if length_text is None or not length_text.isdigit():
+        if length_text is None or not _ascii_digits(length_text):
             self.close_connection = True
             self._answer(411, "Content-Length required")
             return
@@ -199,6 +211,10 @@ class _Handler(BaseHTTPRequestHandler):
             self._answer(413, f"body over {receiver.config.max_body_bytes} bytes")
             return
         body = self.rfile.read(length)
+        if len(body) < length:
+            self.close_connection = True
+            self._answer(400, f"body of {len(body)} bytes is shorter than its Content-Length {length}")
+            return
         status, text, stored = receiver.handle(
             self.headers.get("Content-Type", ""), body, self.client_address[0]
         )
@@ -209,6 +225,8 @@ class _Handler(BaseHTTPRequestHandler):
 
 class MoHttpServer(ThreadingHTTPServer):
     daemon_threads = True
+    request_queue_size = 128
+    """The listen backlog: the stdlib's 5 reset connections when 20 clients posted at once."""
 
     def __init__(self, receiver: MoReceiver) -> None:
         super().__init__((receiver.config.listen_host, receiver.config.listen_port), _Handler)

@@ -91,3 +91,16 @@ def test_wal_and_full_synchronous_writes_are_in_force(tmp_path: Path) -> None:
     store = Store.open(tmp_path / "drs.sqlite")
     assert store.query("PRAGMA journal_mode")[0][0] == "wal"
     assert store.query("PRAGMA synchronous")[0][0] == 2  # FULL
+
+
+def test_a_full_disk_inside_a_transaction_reports_the_disk_not_a_failed_rollback(tmp_path: Path) -> None:
+    """SQLite rolls back by itself on SQLITE_FULL; a second ROLLBACK used to hide the real error."""
+    store = Store.open(tmp_path / "drs.sqlite")
+    store.conn.execute("CREATE TABLE blob (data TEXT)")
+    page_count = store.conn.execute("PRAGMA page_count").fetchone()[0]
+    store.conn.execute(f"PRAGMA max_page_count = {page_count + 1}")
+    with pytest.raises(StoreError, match="database or disk is full") as failed:
+        with store.transaction() as conn:
+            conn.execute("INSERT INTO blob VALUES (?)", ("x" * 100_000,))
+    assert "no transaction is active" not in str(failed.value)
+    assert not store.conn.in_transaction

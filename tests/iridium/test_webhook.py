@@ -217,3 +217,75 @@ def test_a_fifo_is_refused_without_blocking(store: Store, tmp_path: Path) -> Non
     os.mkfifo(fifo)
     [outcome] = import_files([fifo], ReportStore(store))
     assert outcome.status == "error" and "not a regular file" in outcome.message
+
+
+def _raw_post(url: str, head_length: int, body: bytes) -> bytes:
+    """A POST whose Content-Length says ``head_length`` but whose body is ``body`` (then the client stops)."""
+    import socket
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(url)
+    with socket.create_connection((parts.hostname, parts.port), timeout=5) as conn:
+        conn.sendall(
+            f"POST {parts.path} HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-www-form-urlencoded\r\n"
+            f"Content-Length: {head_length}\r\n\r\n".encode() + body
+        )
+        conn.shutdown(socket.SHUT_WR)
+        return conn.recv(4096)
+
+
+def test_a_body_shorter_than_its_content_length_is_refused_not_stored_cut(store: Store) -> None:
+    """The cut body once stored iteration 1234 as 12, and the gateway's redelivery became a second report."""
+    body = f"imei={IMEI}&momsn=7&data={format_mo(fix_at(T0), 8.9, 1234).hex()}".encode()
+    server = serve(store, LOCAL)
+    try:
+        reply = _raw_post(server.url, len(body), body[:-6])
+    finally:
+        server.stop()
+    assert reply.startswith(b"HTTP/1.0 400") and b"shorter than its Content-Length" in reply
+    assert ReportStore(store).for_imei(IMEI) == []
+
+
+@pytest.mark.parametrize(
+    "body",
+    [b"imei=300234010753370&momsn=%C2%B2&data=00", "imei=30023401075337５&momsn=1&data=00".encode(),
+     "imei=300234010753370&momsn=٣&data=00".encode()],  # fmt: skip
+    ids=["superscript-momsn", "fullwidth-imei", "arabic-indic-momsn"],
+)
+def test_digits_other_than_ascii_are_refused_with_400(store: Store, body: bytes) -> None:
+    server = serve(store, LOCAL)
+    try:
+        assert _post(server.url, body, "application/x-www-form-urlencoded") == 400
+    finally:
+        server.stop()
+    assert ReportStore(store).for_imei(IMEI) == []
+
+
+def test_json_nested_thousands_deep_gets_a_400_not_an_empty_reply(store: Store) -> None:
+    server = serve(store, replace(LOCAL, max_body_bytes=1_000_000))
+    try:
+        assert _post(server.url, b"[" * 100_000 + b"]" * 100_000, "application/json") == 400
+    finally:
+        server.stop()
+    assert ReportStore(store).rejected_deliveries()[-1][0] == "JSON nested too deeply"
+
+
+def test_a_store_that_cannot_be_written_answers_503_so_the_gateway_retries(store: Store) -> None:
+    """A full disk or any store failure: the gateway must hear "retry", not a closed connection."""
+    receiver = MoReceiver(ReportStore(store), LOCAL)
+    store.conn.execute("PRAGMA query_only = ON")  # every write now fails inside SQLite
+    body = f"imei={IMEI}&momsn=7&data={format_mo(fix_at(T0), 8.9, 3).hex()}".encode()
+    status, text, stored = receiver.handle("application/x-www-form-urlencoded", body, "127.0.0.1")
+    assert (status, stored) == (503, None) and "retry" in text
+
+
+def test_the_oldest_rejected_deliveries_make_room_for_new_ones(store: Store, monkeypatch: pytest.MonkeyPatch) -> None:
+    import drs_link.iridium.reports as reports
+
+    monkeypatch.setattr(reports, "REJECTED_KEPT", 5)
+    book = ReportStore(store)
+    for n in range(12):
+        book.reject_delivery(T0, "127.0.0.1", f"garbage {n}", "x" * 10_000)
+    kept = book.rejected_deliveries()
+    assert [reason for reason, _ in kept] == [f"garbage {n}" for n in range(7, 12)]
+    assert all(len(body) == reports.REJECTED_BODY_CHARS for _, body in kept)
