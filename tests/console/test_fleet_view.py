@@ -120,7 +120,7 @@ async def test_every_part_of_the_screen_shows_at_80x24_with_eight_capsules(
         prediction = app.fleet.capsules["DRS1"].reading("prediction").value
         assert prediction is not None
         assert all(field.label in shown for field in FIELDS)
-        assert f"position from {prediction['origin_source']} —" in shown, "the last line of the detail is cut"
+        assert f"model {prediction['model']} —" in shown, "the last line of the detail is cut"
         assert_fits(table)
 
 
@@ -139,7 +139,7 @@ async def test_the_detail_shows_the_prediction_and_battery_of_the_highlighted_ca
         age = format_age(app.fleet.capsules["DRS1"].reading("prediction").age_s(app.now()) or 0.0)
         sigmas = (
             f"σ∥ {prediction['sigma_par_km']:.2f} σ⊥ {prediction['sigma_perp_km']:.2f} km;"
-            f" position from {prediction['origin_source']} — {age} ago"
+            f" position from {prediction['origin_source']}; model {prediction['model']} — {age} ago"
         )
         await wait_for(pilot, lambda: landing in painted(detail))
         assert sigmas in painted(detail)

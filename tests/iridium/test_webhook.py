@@ -220,7 +220,10 @@ def test_a_fifo_is_refused_without_blocking(store: Store, tmp_path: Path) -> Non
 
 
 def _raw_post(url: str, head_length: int, body: bytes) -> bytes:
-    """A POST whose Content-Length says ``head_length`` but whose body is ``body`` (then the client stops)."""
+    """A POST whose Content-Length says ``head_length`` but whose body is ``body`` (then the client stops).
+
+    The whole reply is read until the server closes: headers and body arrive as separate writes.
+    """
     import socket
     from urllib.parse import urlsplit
 
@@ -231,7 +234,10 @@ def _raw_post(url: str, head_length: int, body: bytes) -> bytes:
             f"Content-Length: {head_length}\r\n\r\n".encode() + body
         )
         conn.shutdown(socket.SHUT_WR)
-        return conn.recv(4096)
+        reply = b""
+        while chunk := conn.recv(4096):
+            reply += chunk
+        return reply
 
 
 def test_a_body_shorter_than_its_content_length_is_refused_not_stored_cut(store: Store) -> None:
