@@ -277,7 +277,7 @@ class DemoWorld:
                 self.gateway, fix, at + timedelta(seconds=15), (lat + 0.01, lon - 0.02, 4.0)
             )
             post_mo(self.receiver.url, delivery)
-            descent.next_report = at + timedelta(minutes=capsule.interval_min)
+            descent.next_report = capsule.next_cycle(at)
 
     def stop(self) -> None:
         self._stop.set()

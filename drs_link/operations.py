@@ -24,6 +24,7 @@ from drs_link.config import CapsuleConfig, Config
 from drs_link.errors import ConfigError, LinkError
 from drs_link.gonogo import ExclusionZone, GoNoGoReport, WaiverBook
 from drs_link.iridium.gateway import RockblockGateway
+from drs_link.iridium.interval import interval_track
 from drs_link.iridium.lifecycle import Command, CommandLifecycle
 from drs_link.iridium.mt import MtMessage
 from drs_link.iridium.reports import ReportStore, StoredReport
@@ -79,7 +80,11 @@ def report_position(stored: StoredReport) -> tuple[float, float, float, str] | N
 
 
 def report_record(capsule: str, stored: StoredReport, interval_min: int) -> TelemetryRecord:
-    """One Iridium report as telemetry (position from the fix, else the Iridium estimate)."""
+    """One Iridium report as telemetry (position from the fix, else the Iridium estimate).
+
+    ``interval_min`` is the longest time the next report may take (``IntervalTrack.overdue_after``):
+    the report's staleness period, so a report is not called stale before the next one is due.
+    """
     report = stored.report
     fix = report.fix if report else None
     position = report_position(stored)
@@ -126,7 +131,9 @@ class Operations:
         self.capsules: dict[str, CapsuleOps] = {}
         for capsule in config.capsules:
             link = CapsuleLink(capsule)
-            backend = AgentBackend(capsule, link) if capsule.backend == "agent" else StockBackend(capsule, link)
+            backend = (
+                AgentBackend(capsule, link) if capsule.backend == "agent" else StockBackend(capsule, link)
+            )
             kwargs = {"sleep": sleep} if sleep is not None else {}
             machine = ReleaseStateMachine(store, capsule, backend, self.operator, clock=clock, **kwargs)  # type: ignore[arg-type]
             arming = ArmingController(
@@ -272,14 +279,11 @@ class Operations:
         fresh = [r for r in stored if r.id > seen]
         if stored:
             self._seen_reports[name] = max(r.id for r in stored)
-        interval = 2
-        for command in self.lifecycle.for_imei(imei):
-            if command.text.startswith("[INTERVAL=") and command.state == "effect_confirmed":
-                interval = int(command.text.split("=")[1].split("]")[0])
-        records = [report_record(name, r, interval) for r in fresh]
-        if records:
-            self.lifecycle.observe(stored, imei)
-        return self._emit(records)
+        if not fresh:
+            return []
+        self.lifecycle.observe(stored, imei)
+        track = interval_track(stored, self.lifecycle.for_imei(imei))
+        return self._emit([report_record(name, r, track.overdue_after(r)) for r in fresh])
 
     def stored_reports(self, name: str) -> list[StoredReport]:
         imei = self.ops(name).config.imei

@@ -90,7 +90,10 @@ class CommandingScreen(ConsoleScreen):
             except LinkError as exc:
                 self.app.notify(str(exc), severity="error")
                 return
-            self._send_after_name(message, "Changes the report interval from the next cycle on.")
+            self._send_after_name(
+                message,
+                "The next report keeps the old spacing; the new interval spaces the reports after it.",
+            )
 
         self.app.push_screen(TextPromptModal("INTERVAL", "Minutes between reports (1-1440):", "2"), chosen)
 
@@ -101,7 +104,9 @@ class CommandingScreen(ConsoleScreen):
     def _plan(self, requested: tuple[int, int] | None) -> ParachutePlan | None:
         ops = self.console.ops
         try:
-            return plan_parachute(ops.stored_reports(self.capsule), self.console.now(), requested=requested)
+            return plan_parachute(
+                ops.stored_reports(self.capsule), self.console.now(), ops.commands(self.capsule), requested
+            )
         except LinkError as exc:
             self.app.notify(f"PARACHUTE refused: {exc}", severity="error", timeout=12)
             return None
@@ -110,11 +115,17 @@ class CommandingScreen(ConsoleScreen):
         message = MtComposer().parachute(plan.hour, plan.minute).build()
         evidence = landed_evidence(self.console.ops.stored_reports(self.capsule))
         verdict = "Landed evidence" if evidence.on_ground else "NO LANDED EVIDENCE"
-        text = "\n".join([f"{verdict}: {evidence.summary}", plan.window_text(), *(f"! {w}" for w in plan.warnings)])
+        text = "\n".join(
+            [f"{verdict}: {evidence.summary}", plan.window_text(), *(f"! {w}" for w in plan.warnings)]
+        )
         second = self.console.ops.config.console.require_second_operator
-        override = None if evidence.on_ground else (
-            "Override (drops the parachute in flight if it is still falling): a reason, with a second operator "
-            "or a waiver above"
+        override = (
+            None
+            if evidence.on_ground
+            else (
+                "Override (drops the parachute in flight if it is still falling): a reason, with a second operator "
+                "or a waiver above"
+            )
         )
 
         def confirmed(answer: HazardConfirmation | None) -> None:
@@ -124,7 +135,9 @@ class CommandingScreen(ConsoleScreen):
         def countdown() -> str:
             left = (plan.queue_by - self.console.now()).total_seconds()
             if left <= 0:
-                return f"queue-before {plan.queue_by:%H:%M:%S}Z has PASSED: sending will be refused; plan again"
+                return (
+                    f"queue-before {plan.queue_by:%H:%M:%S}Z has PASSED: sending will be refused; plan again"
+                )
             return f"queue before {plan.queue_by:%H:%M:%S}Z — {left:.0f} s left"
 
         self.app.push_screen(

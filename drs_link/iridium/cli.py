@@ -41,7 +41,6 @@ from drs_link.iridium.webhook import MoHttpServer, MoReceiver
 from drs_link.store import Store, utc_now
 from predictor.plausibility import emit, far_team_warning
 
-_INTERVAL_RE = re.compile(r"\[INTERVAL=(\d+)\]")
 _IMEI_RE = re.compile(r"\d{15}")
 
 
@@ -61,7 +60,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     send.add_argument("--flush", action="store_true", help="empty the gateway's MT queue first (hazardous)")
     send.add_argument("--dry-run", action="store_true", help="print the exact text and hex; send nothing")
     send.add_argument("--confirm", metavar="NAME", help="the capsule's name again: required for a real send")
-    send.add_argument("--second-operator", metavar="NAME", help="PARACHUTE: a second person, not the operator")
+    send.add_argument(
+        "--second-operator", metavar="NAME", help="PARACHUTE: a second person, not the operator"
+    )
     send.add_argument(
         "--single-operator-waiver", metavar="REASON", help="PARACHUTE: why one person sends it alone (logged)"
     )
@@ -101,7 +102,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     serve.add_argument("--host", help="override mo.listen_host")
     serve.add_argument("--port", type=int, help="override mo.listen_port (0: any free port)")
     serve.set_defaults(func=_mo_serve)
-    importer = mo_actions.add_parser("import", help="store saved SBD attachments (RockBLOCK or Iridium-direct file names)")
+    importer = mo_actions.add_parser(
+        "import", help="store saved SBD attachments (RockBLOCK or Iridium-direct file names)"
+    )
     importer.add_argument("files", nargs="+", type=Path)
     importer.set_defaults(func=_mo_import)
     bench = mo_actions.add_parser("bench", help="measure webhook store+answer latency and parser speed")
@@ -138,15 +141,6 @@ def _capsule_reports(config: Config, store: Store, name: str) -> tuple[CapsuleCo
     return capsule, ReportStore(store).for_imei(capsule.imei)
 
 
-def _commanded_interval(commands: list[lc.Command]) -> int | None:
-    """The INTERVAL the reports confirmed last, if any (else the planner infers it from spacing)."""
-    for command in reversed(commands):
-        match = _INTERVAL_RE.search(command.text)
-        if match and command.state == lc.EFFECT_CONFIRMED:
-            return int(match.group(1))
-    return None
-
-
 def _compose(args: argparse.Namespace, config: Config, store: Store) -> tuple[MtMessage, datetime | None]:
     """The message, and the PARACHUTE plan's queue-before deadline when it carries one."""
     composer = MtComposer()
@@ -165,11 +159,7 @@ def _compose(args: argparse.Namespace, config: Config, store: Store) -> tuple[Mt
         life.observe(reports, capsule.imei or "")
         requested = None if args.parachute == "next" else parse_hhmm(args.parachute)
         plan = plan_parachute(
-            reports,
-            utc_now(),
-            _commanded_interval(life.for_imei(capsule.imei or "")),
-            requested,
-            args.accept_midnight,
+            reports, utc_now(), life.for_imei(capsule.imei or ""), requested, args.accept_midnight
         )
         print(f"window: {plan.window_text()}")
         for warning in plan.warnings:
@@ -333,18 +323,6 @@ def _mo_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def _interval_schedule(commands: list[lc.Command], reports: list[StoredReport]) -> list[tuple[datetime, int]]:
-    """(since, INTERVAL) for each delivered INTERVAL command: it shows from the report after delivery."""
-    position = {report.id: index for index, report in enumerate(reports)}
-    schedule = []
-    for command in commands:
-        match = _INTERVAL_RE.search(command.text)
-        index = position.get(command.delivered_report_id or -1)
-        if match and index is not None and index + 1 < len(reports):
-            schedule.append((reports[index + 1].time, int(match.group(1))))
-    return sorted(schedule)
-
-
 def _mo_bench(args: argparse.Namespace) -> int:
     if args.posts < 1:
         raise LinkError("--posts must be at least 1")
@@ -358,7 +336,7 @@ def _mo_health(args: argparse.Namespace) -> int:
     capsule, reports = _capsule_reports(config, store, args.name)
     life = lc.CommandLifecycle(store, config.operator.name)
     life.observe(reports, capsule.imei or "")
-    health = assess(reports, _interval_schedule(life.for_imei(capsule.imei or ""), reports))
+    health = assess(reports, life.for_imei(capsule.imei or ""))
     last = f"{health.last_report:%Y-%m-%d %H:%M:%S}Z" if health.last_report else "never"
     vbat = f"{health.last_vbat:.2f} V" if health.last_vbat is not None else "unknown"
     print(f"{capsule.name}: {health.reports} reports, last {last}, battery {vbat}")

@@ -3,7 +3,9 @@
 The unit reports no status of its own, so health is read from the pattern of reports: battery
 against the firmware's own 6.5 V cut-off, the iteration counter (back to 0 = processor reset; a
 jump = sessions that started but whose report never came), MOMSN continuity (a jump = reports
-the gateway took that this receiver never got) and fix spacing against the commanded INTERVAL.
+the gateway took that this receiver never got) and fix spacing against the INTERVAL the unit runs at
+that cycle (``drs_link.iridium.interval``: commanded, confirmed, and switched over as the firmware
+does, so a new INTERVAL is not called a missed cycle).
 """
 
 from __future__ import annotations
@@ -12,10 +14,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
 
+from drs_link.iridium import lifecycle as lc
+from drs_link.iridium.interval import interval_track, minutes_text
 from drs_link.iridium.reports import StoredReport
 
 LOW_BATTERY_V = 6.5
-DEFAULT_INTERVAL_MIN = 2
 SPACING_SLACK_S = 60.0
 
 
@@ -35,15 +38,6 @@ class Health:
 
     def kinds(self) -> list[str]:
         return [f.kind for f in self.findings]
-
-
-def _interval_at(moment: datetime, schedule: Sequence[tuple[datetime, int]]) -> int:
-    """INTERVAL for a spacing ending at ``moment``: an entry applies to spacings ending after ``since``."""
-    interval = DEFAULT_INTERVAL_MIN
-    for since, minutes in schedule:
-        if since < moment:
-            interval = minutes
-    return interval
 
 
 MOMSN_MODULUS = 65536
@@ -88,8 +82,9 @@ def _momsn_findings(reports: Sequence[StoredReport]) -> list[Finding]:
     return findings
 
 
-def assess(reports: list[StoredReport], interval_schedule: Sequence[tuple[datetime, int]] = ()) -> Health:
-    """Findings over reports in time order; ``interval_schedule`` is (since, INTERVAL) as commanded."""
+def assess(reports: list[StoredReport], commands: Sequence[lc.Command] = ()) -> Health:
+    """Findings over reports in time order; ``commands`` are the capsule's MTs, for the INTERVAL it runs."""
+    track = interval_track(reports, commands)
     findings: list[Finding] = []
     battery_low = False
     previous_ok: StoredReport | None = None
@@ -138,23 +133,23 @@ def assess(reports: list[StoredReport], interval_schedule: Sequence[tuple[dateti
                 )
             if report.fix is not None and before.fix is not None:
                 spacing = (report.fix.time - before.fix.time).total_seconds()
-                interval = _interval_at(report.fix.time, interval_schedule)
-                if spacing < interval * 60 - SPACING_SLACK_S:
+                allowed = track.after(previous_ok)
+                interval = minutes_text(allowed)
+                if spacing < min(allowed) * 60 - SPACING_SLACK_S:
                     findings.append(
                         Finding(
                             "spacing",
                             stored.id,
-                            f"reports {spacing / 60:.1f} min apart, faster "
-                            f"than the commanded INTERVAL of {interval} min",
+                            f"reports {spacing / 60:.1f} min apart, faster than the INTERVAL of {interval}",
                         )
                     )
-                elif spacing > 1.5 * interval * 60 + SPACING_SLACK_S:
+                elif spacing > 1.5 * max(allowed) * 60 + SPACING_SLACK_S:
                     findings.append(
                         Finding(
                             "spacing",
                             stored.id,
                             f"reports {spacing / 60:.1f} min apart for an "
-                            f"INTERVAL of {interval} min: about {round(spacing / 60 / interval) - 1} "
+                            f"INTERVAL of {interval}: about {round(spacing / 60 / max(allowed)) - 1} "
                             "cycle(s) missed",
                         )
                     )

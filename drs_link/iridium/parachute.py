@@ -3,8 +3,8 @@
 The firmware compares ``[PARACHUTE=HH:MM]`` with the GNSS fix minute of the cycle whose SBD
 session downloads the MT (±14 min, drs_protocol.md 3.8) — not with the time the operator sends
 it — and a rejected command is consumed and lost. So the capsule's next cycles are predicted from
-its report history (the alarm grid of INTERVAL minutes, the fix-time jitter seen so far, the
-session delay), and the HH:MM is chosen, by checking every candidate against the firmware's own
+its report history (the alarm grid of INTERVAL minutes as ``drs_link.iridium.interval`` says the
+unit runs it, switch-over included, the fix-time jitter seen so far, the session delay), and the HH:MM is chosen, by checking every candidate against the firmware's own
 test, to be accepted at every fix minute those cycles can have, for as many cycles as possible in
 case a session fails and the MT comes down one cycle later.
 """
@@ -12,12 +12,14 @@ case a session fails and the MT comes down one cycle later.
 from __future__ import annotations
 
 import functools
-import statistics
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 
 from drs_link.errors import RefusedError
+from drs_link.iridium import lifecycle as lc
 from drs_link.iridium.firmware import parachute_accepted
+from drs_link.iridium.interval import IntervalTrack, interval_track, minutes_text
 from drs_link.iridium.reports import StoredReport
 
 EARLY_MARGIN = timedelta(seconds=30)
@@ -60,13 +62,18 @@ class CycleForecast:
 class ParachutePlan:
     hour: int
     minute: int
-    interval_min: int
+    intervals: frozenset[int]
+    """The INTERVAL(s) the capsule may run from the next cycle on (two while a change is unconfirmed)."""
     queue_by: datetime
     cycles: tuple[CycleForecast, ...]
     """The consecutive cycles, from the first that can download the MT, at which it is accepted."""
     accepted_window: str
     """The HH:MM range the first of those cycles accepts at every fix minute it can have."""
     warnings: tuple[str, ...]
+
+    @property
+    def interval_min(self) -> int:
+        return max(self.intervals)
 
     @property
     def hhmm(self) -> str:
@@ -78,28 +85,25 @@ class ParachutePlan:
             f"[PARACHUTE={self.hhmm}] queue before {self.queue_by:%H:%M:%S}Z; the next cycle's fix falls "
             f"{first.fix_earliest:%H:%M:%S}-{first.fix_latest:%H:%M:%S}Z and accepts {self.accepted_window}; "
             "still accepted if downloaded up to the cycle with its fix by "
-            f"{last.fix_latest:%H:%M:%S}Z ({len(self.cycles)} cycle(s) of {self.interval_min} min)"
+            f"{last.fix_latest:%H:%M:%S}Z ({len(self.cycles)} cycle(s) of {minutes_text(self.intervals)})"
         )
 
 
-def _fixes(reports: list[StoredReport]) -> list[datetime]:
-    return [r.report.fix.time for r in reports if r.report is not None and r.report.fix is not None]
-
-
-def infer_interval_min(fix_times: list[datetime]) -> int | None:
-    """The reporting interval in whole minutes, from recent fix spacing.
-
-    The median spacing is a first guess (missed slots are rarer than kept ones); dividing the whole
-    span by the number of grid slots it holds then averages the fix-acquisition jitter away.
-    """
-    spacings = [(b - a).total_seconds() / 60 for a, b in zip(fix_times, fix_times[1:], strict=False)]
-    spacings = [s for s in spacings if s > 0.5]
-    if not spacings:
-        return None
-    guess = max(1, round(statistics.median(spacings)))
-    span = (fix_times[-1] - fix_times[0]).total_seconds() / 60
-    slots = max(1, round(span / guess))
-    return max(1, round(span / slots))
+def _residuals(reports: list[StoredReport], track: IntervalTrack) -> list[timedelta]:
+    """How far each recent fix fell from the alarm grid through the last one, walking back while the
+    spacing is known (a pending INTERVAL leaves it open); missed cycles keep the INTERVAL."""
+    fixed = [r for r in reports if r.report is not None and r.report.fix is not None][-HISTORY:]
+    anchor = fixed[-1].report.fix.time  # type: ignore[union-attr]
+    residuals, grid = [timedelta(0)], timedelta(0)
+    for earlier, later in zip(reversed(fixed[:-1]), reversed(fixed[1:]), strict=True):
+        spacing = track.after(earlier)
+        if len(spacing) != 1:
+            break
+        step = timedelta(minutes=next(iter(spacing)))
+        gap = later.report.fix.time - earlier.report.fix.time  # type: ignore[union-attr]
+        grid -= max(1, round(gap / step)) * step
+        residuals.append(earlier.report.fix.time - anchor - grid)  # type: ignore[union-attr]
+    return residuals
 
 
 @functools.cache
@@ -128,11 +132,15 @@ def _slack(p_minute: int, cycle: CycleForecast) -> int:
 def plan_parachute(
     reports: list[StoredReport],
     now: datetime,
-    interval_min: int | None = None,
+    commands: Sequence[lc.Command],
     requested: tuple[int, int] | None = None,
     accept_midnight: bool = False,
 ) -> ParachutePlan:
-    """Choose (or check the operator's ``requested``) HH:MM for the next cycles; refuses when it cannot."""
+    """Choose (or check the operator's ``requested``) HH:MM for the next cycles; refuses when it cannot.
+
+    ``commands`` are the capsule's MTs: the INTERVAL it runs comes from them and the reports, by the one
+    rule of ``drs_link.iridium.interval``, whether the CLI or the console asks.
+    """
     if not reports:
         raise ParachuteRefused("no reports from this capsule: its cycle times cannot be predicted")
     last = reports[-1]
@@ -142,18 +150,23 @@ def plan_parachute(
             "(and the command is lost); "
             "wait for a report with a fix"
         )
-    fix_times = _fixes(reports)[-HISTORY:]
-    interval = interval_min or infer_interval_min(fix_times)
-    if interval is None:
-        raise ParachuteRefused("only one fix so far: give the capsule's INTERVAL to predict its next cycle")
-    step = timedelta(minutes=interval)
-    anchor = fix_times[-1]
-    residuals = []
-    for moment in fix_times:
-        offset = (moment - anchor) / step
-        residuals.append((moment - anchor) - round(offset) * step)
+    track = interval_track(reports, commands)
+    if track.basis == "default":
+        raise ParachuteRefused(
+            "only one fix so far and no INTERVAL sent from this console: the next cycle cannot be predicted; "
+            "wait for a second report"
+        )
+    first, then = track.next_spacing, track.flash_now
+    anchor = last.report.fix.time
+    residuals = _residuals(reports, track)
     early = min(min(residuals), timedelta(0)) - EARLY_MARGIN
     late = max(max(residuals), timedelta(0)) + LATE_MARGIN
+
+    def alarm(k: int, latest: bool = False) -> datetime:
+        """The k-th next alarm, earliest (or latest) over the INTERVALs the unit may run."""
+        pick = max if latest else min
+        return anchor + timedelta(minutes=pick(first) + (k - 1) * pick(then))
+
     delays = [
         r.delivery.transmit_utc - r.report.fix.time
         for r in reports[-HISTORY:]
@@ -161,11 +174,11 @@ def plan_parachute(
     ]
     session_delay = max(min(delays), timedelta(0)) if delays else DEFAULT_SESSION_DELAY
     first_offset = 1
-    while anchor + first_offset * step + early + session_delay - QUEUE_MARGIN <= now:
+    while alarm(first_offset) + early + session_delay - QUEUE_MARGIN <= now:
         first_offset += 1
-    horizon = max(1, (29 + interval - 1) // interval + 1)
+    horizon = max(1, (29 + min(then) - 1) // min(then) + 1)
     cycles = [
-        CycleForecast(k, anchor + k * step + early, anchor + k * step + late)
+        CycleForecast(k, alarm(k) + early, alarm(k, latest=True) + late)
         for k in range(first_offset, first_offset + horizon)
     ]
     if len(cycles[0].minutes_of_day()) > 28:
@@ -203,12 +216,12 @@ def plan_parachute(
     warnings = [
         "a PARACHUTE outside the window is downloaded, ignored and lost; nothing is ever acknowledged"
     ]
-    if interval > LONG_INTERVAL_MIN or covered == 1:
+    if max(then) > LONG_INTERVAL_MIN or covered == 1:
         warnings.append(
-            f"INTERVAL is {interval} min: only {covered} cycle(s) accept {_hhmm(best)}; if that "
+            f"INTERVAL is {minutes_text(then)}: only {covered} cycle(s) accept {_hhmm(best)}; if that "
             "session fails the MT comes down later and is lost. Send [INTERVAL=2] first, or time the send"
         )
-    if now - last.time > 3 * step:
+    if now - last.time > 3 * timedelta(minutes=max(first)):
         warnings.append(
             f"the last report is {int((now - last.time).total_seconds() // 60)} min old: cycles may have "
             "been missed; the prediction assumes the capsule is still on its grid"
@@ -218,7 +231,7 @@ def plan_parachute(
     return ParachutePlan(
         hour=best // 60,
         minute=best % 60,
-        interval_min=interval,
+        intervals=then,
         queue_by=queue_by,
         cycles=tuple(chosen),
         accepted_window=_range_text(accepted),

@@ -251,6 +251,7 @@ class SimulatedCapsule:
     imei: str
     rb_source: int
     interval_min: int = 2
+    """INTERVAL in flash: what the alarm is re-armed with when it next fires."""
     armed_spacing_min: int = 2
     """Minutes to the next cycle: armed when this cycle's alarm fired, before any MT of its session."""
     rb_destination: int = 0
@@ -260,6 +261,14 @@ class SimulatedCapsule:
     momsn: int = 0
     parachute_open: bool = False
     effects: list[MtEffect] = field(default_factory=list)
+
+    def next_cycle(self, alarm: datetime) -> datetime:
+        """When the cycle after the one whose alarm fired at ``alarm`` starts (after its ``session``).
+
+        The firmware re-arms the alarm as it fires, before the session downloads an MT
+        (drs_protocol.md 3.5, 3.8): a new INTERVAL spaces the cycle after next, never the next one.
+        """
+        return alarm + timedelta(minutes=self.armed_spacing_min)
 
     def session(
         self,

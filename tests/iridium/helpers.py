@@ -47,7 +47,7 @@ def fly(
         fix_time = alarm.replace(microsecond=0)
         mo = capsule.session(gateway, fix_at(fix_time), fix_time + timedelta(seconds=session_delay_s))
         reports.add(to_delivery(mo))
-        alarm = alarm + timedelta(minutes=capsule.armed_spacing_min)
+        alarm = capsule.next_cycle(alarm)
     return alarm
 
 

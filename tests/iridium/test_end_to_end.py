@@ -48,13 +48,13 @@ def test_descent_landing_and_parachute_release_through_every_part(tmp_path: Path
             fix = fix_at(fix_time, lat=lat, lon=site[1], alt=alt, speed=9.0 if falling else 0.1)
             delivery = capsule.session(gateway, fix, fix_time + timedelta(seconds=35), (lat, site[1], 4.0))
             assert post_mo(server.url, delivery, jwt_private_key=private) == 200
-            alarm += timedelta(minutes=capsule.armed_spacing_min)
+            alarm = capsule.next_cycle(alarm)
         stored = reports.for_imei(IMEI)
         landing = detect_landing(track_from_reports(stored))
         assert landing is not None and distance_bearing(site[0], site[1], landing.lat, landing.lon)[0] < 5
 
         clock_now[0] = stored[-1].time + timedelta(seconds=40)
-        plan = plan_parachute(stored, clock_now[0])
+        plan = plan_parachute(stored, clock_now[0], life.for_imei(IMEI))
         message = MtComposer().parachute(plan.hour, plan.minute).sounder(False).build()
         capsule_config = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=IMEI)
         command = life.send(life.request(capsule_config, message).id, "DRS1", client)

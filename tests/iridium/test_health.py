@@ -39,11 +39,15 @@ def test_low_battery_reset_gaps_and_spacing_are_each_flagged() -> None:
     assert "about 3 cycle(s) missed" in health.findings[4].message
 
 
-def test_spacing_follows_the_commanded_interval_and_momsn_wraps() -> None:
-    reports = [report(1, 0, 65534, 1), report(2, 2, 65535, 2), report(3, 4, 0, 3), report(4, 9, 1, 4)]
-    assert assess(reports, [(T0 + timedelta(minutes=5), 5)]).findings == ()
-    fast = assess(reports, [(T0, 5)])
-    assert fast.kinds() == ["spacing", "spacing"] and "faster than" in fast.findings[0].message
+def test_momsn_wraps_without_a_finding_and_spacing_faster_than_the_interval_seen_is_flagged() -> None:
+    """Without a command from this console the INTERVAL is the spacing seen (test_interval.py: commanded)."""
+    reports = [report(1, 0, 65534, 1), report(2, 2, 65535, 2), report(3, 4, 0, 3), report(4, 6, 1, 4)]
+    assert assess(reports).findings == ()
+    fast = assess([*reports, report(5, 6.5, 2, 5)])
+    assert (
+        fast.kinds() == ["spacing"]
+        and "0.5 min apart, faster than the INTERVAL of 2 min" in fast.findings[0].message
+    )
 
 
 def test_rejected_payload_is_a_finding_not_a_crash() -> None:

@@ -54,7 +54,7 @@ def downloaded_at(plan_text: str, fix_time: datetime) -> bool:
 def test_two_minute_grid_gives_a_time_accepted_over_many_cycles(tmp_path: Path) -> None:
     last = datetime(2026, 7, 1, 14, 2, 40, tzinfo=UTC)
     reports = history(tmp_path, last, 2, [30, 45, 38, 52, 40])
-    plan = plan_parachute(reports, now=last + timedelta(seconds=50))
+    plan = plan_parachute(reports, now=last + timedelta(seconds=50), commands=())
     assert plan.interval_min == 2
     assert len(plan.cycles) >= 10
     text = MtComposer().parachute(plan.hour, plan.minute).build().text
@@ -67,7 +67,7 @@ def test_two_minute_grid_gives_a_time_accepted_over_many_cycles(tmp_path: Path) 
 def test_send_too_late_for_the_next_session_targets_the_cycle_after(tmp_path: Path) -> None:
     last = datetime(2026, 7, 1, 14, 0, 40, tzinfo=UTC)
     reports = history(tmp_path, last, 30, [40, 40, 40])
-    plan = plan_parachute(reports, now=last + timedelta(minutes=29, seconds=50))
+    plan = plan_parachute(reports, now=last + timedelta(minutes=29, seconds=50), commands=())
     assert plan.cycles[0].offset == 2
     assert any("INTERVAL is 30 min" in w for w in plan.warnings)
 
@@ -79,7 +79,7 @@ def test_every_interval_gives_an_hhmm_the_firmware_accepts_at_the_downloading_fi
         last = datetime(2026, 7, 1, tzinfo=UTC) + timedelta(minutes=rng.randrange(1440), seconds=jitter[-1])
         reports = in_memory_history(last, interval, jitter)
         now = last + timedelta(minutes=rng.uniform(0, interval))
-        plan = plan_parachute(reports, now=now, accept_midnight=True)
+        plan = plan_parachute(reports, now=now, commands=(), accept_midnight=True)
         assert plan.interval_min == interval
         alarm = last - timedelta(seconds=jitter[-1]) + plan.cycles[0].offset * timedelta(minutes=interval)
         actual_fix = (alarm + timedelta(seconds=rng.uniform(min(jitter), max(jitter)))).replace(microsecond=0)
@@ -94,8 +94,8 @@ def test_window_near_midnight_is_refused_unless_confirmed_and_then_works_across_
     last = datetime(2026, 7, 1, 23, 56, 30, tzinfo=UTC)
     reports = history(tmp_path, last, 2, [30, 25, 30])
     with pytest.raises(ParachuteRefused, match="within 15 min of 00:00 UTC"):
-        plan_parachute(reports, now=last + timedelta(seconds=40))
-    plan = plan_parachute(reports, now=last + timedelta(seconds=40), accept_midnight=True)
+        plan_parachute(reports, now=last + timedelta(seconds=40), commands=())
+    plan = plan_parachute(reports, now=last + timedelta(seconds=40), commands=(), accept_midnight=True)
     text = MtComposer().parachute(plan.hour, plan.minute).build().text
     assert downloaded_at(text, datetime(2026, 7, 2, 0, 0, 30, tzinfo=UTC))
     assert any("crosses midnight" in w for w in plan.warnings)
@@ -105,23 +105,22 @@ def test_last_report_without_fix_is_refused(tmp_path: Path) -> None:
     last = datetime(2026, 7, 1, 14, 2, 40, tzinfo=UTC)
     reports = history(tmp_path, last, 2, [30, 30, 30], no_fix_last=True)
     with pytest.raises(ParachuteRefused, match="no GNSS fix"):
-        plan_parachute(reports, now=last)
+        plan_parachute(reports, now=last, commands=())
 
 
 def test_operator_time_outside_the_window_is_refused_and_inside_accepted(tmp_path: Path) -> None:
     last = datetime(2026, 7, 1, 14, 2, 40, tzinfo=UTC)
     reports = history(tmp_path, last, 2, [30, 40, 40])
     with pytest.raises(ParachuteRefused, match=r"13:30 would be rejected .* accepts \d\d:\d\d-\d\d:\d\d"):
-        plan_parachute(reports, now=last + timedelta(seconds=30), requested=(13, 30))
-    plan = plan_parachute(reports, now=last + timedelta(seconds=30), requested=(14, 10))
+        plan_parachute(reports, now=last + timedelta(seconds=30), commands=(), requested=(13, 30))
+    plan = plan_parachute(reports, now=last + timedelta(seconds=30), commands=(), requested=(14, 10))
     assert plan.hhmm == "14:10"
 
 
 def test_no_history_and_single_fix_without_interval_are_refused(tmp_path: Path) -> None:
     with pytest.raises(ParachuteRefused, match="no reports"):
-        plan_parachute([], now=datetime(2026, 7, 1, tzinfo=UTC))
+        plan_parachute([], now=datetime(2026, 7, 1, tzinfo=UTC), commands=())
     last = datetime(2026, 7, 1, 14, 2, 40, tzinfo=UTC)
     reports = history(tmp_path, last, 2, [30])
-    with pytest.raises(ParachuteRefused, match="give the capsule's INTERVAL"):
-        plan_parachute(reports, now=last)
-    assert plan_parachute(reports, now=last, interval_min=2).interval_min == 2
+    with pytest.raises(ParachuteRefused, match="only one fix so far and no INTERVAL sent from this console"):
+        plan_parachute(reports, now=last, commands=())
