@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from textual.actions import SkipAction
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
@@ -83,7 +84,14 @@ class HazardConfirmation:
 class HazardModal(ModalScreen[HazardConfirmation | None]):
     """FIRE or PARACHUTE: type the capsule's name; a second operator or a single-operator waiver."""
 
-    BINDINGS = [Binding("escape", "cancel", "Cancel")]
+    BINDINGS = [
+        Binding("escape", "cancel", "Cancel"),
+        Binding("enter", "next_field", show=False, priority=True),
+    ]
+    """Enter moves to the next field as a priority binding: the app runs it in the order the keys
+    arrived, before it routes the next key. Moved on a field's own Submitted message instead, keys
+    that reached the console in one burst (a slow SSH link, a busy console) were routed to the old
+    field first, and a waiver reason was once recorded as the second operator's name."""
 
     def __init__(
         self,
@@ -143,11 +151,20 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
             override.first(Input).value.strip() if override else "",
         )
 
+    def _last_field(self) -> str:
+        return "override" if self.override_prompt is not None else "waiver"
+
+    def action_next_field(self) -> None:
+        """On the last field (or a button) Enter goes on to the widget: the last field's Submitted
+        comes after the characters queued before it, so the answer is read whole."""
+        focused = self.focused
+        if not isinstance(focused, Input) or focused.id == self._last_field():
+            raise SkipAction()
+        self.focus_next()
+
     def on_input_submitted(self, event: Input.Submitted) -> None:
-        if event.input.id == ("override" if self.override_prompt is not None else "waiver"):
+        if event.input.id == self._last_field():
             self.dismiss(self._answer())
-        else:
-            self.focus_next()
 
     def on_button_pressed(self, event: Button.Pressed) -> None:
         self.dismiss(self._answer() if event.button.id == "confirm" else None)
