@@ -212,12 +212,23 @@ def cmd_power_on(args: argparse.Namespace) -> int:
     return EXIT_MICROCONTROLLER_SILENT
 
 
+def _step(line: str) -> None:
+    """A progress line, flushed at once: Go takes about 12 s and used to print nothing until the end."""
+    print(line, flush=True)
+
+
 def cmd_go(args: argparse.Namespace) -> int:
     machine, link = _machine(args, need_operator=True)
     try:
         token = machine.confirm(args.confirm)
+        _step(f"{machine.name}: confirmation accepted (capsule {machine.record().state.value})")
         if machine.record().nmea_seen_at is None:
-            machine.check_microcontroller()
+            _step(f"{machine.name}: reading the serial log: is the microcontroller waiting for Go?")
+            _step(f"{machine.name}: {machine.check_microcontroller().diagnosis}")
+        _step(
+            f"{machine.name}: sending Go over SSH (the Go script writes GoGoGo, then shuts the Pi down; "
+            "about 10 s)…"
+        )
         released = machine.go(token)
     finally:
         link.close()

@@ -12,6 +12,7 @@ import paramiko
 import pytest
 
 import console.cli
+from drs_link.capsule import ConfirmationToken, ReleaseRecord, ReleaseStateMachine
 from drs_link.simulator import CapsuleSimulator
 from drs_link.simulator.keys import generate_ed25519
 from drs_link.ssh import fingerprint
@@ -87,6 +88,28 @@ def test_full_release_from_the_command_line(
     assert "already released" in _one_line_error(capsys)
     assert drs(config, "capsule", "status", "DRS1") == 0
     assert "released" in capsys.readouterr().out
+
+
+def test_go_says_each_step_as_it_starts(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Go takes about 12 s; the trial saw nothing until it ended. What was printed before Go left counts."""
+    _, config = setup
+    assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
+    capsys.readouterr()
+    printed_before_go: list[str] = []
+    go = ReleaseStateMachine.go
+
+    def watched_go(machine: ReleaseStateMachine, token: ConfirmationToken) -> ReleaseRecord:
+        printed_before_go.append(capsys.readouterr().out)
+        return go(machine, token)
+
+    monkeypatch.setattr(ReleaseStateMachine, "go", watched_go)
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    assert len(printed_before_go) == 1
+    assert "DRS1: confirmation accepted" in printed_before_go[0]
+    assert "DRS1: sending Go over SSH" in printed_before_go[0]
+    assert "released, Pi shut down" in capsys.readouterr().out
 
 
 def test_go_with_a_confirmation_naming_another_capsule_is_refused(
