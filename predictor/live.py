@@ -1,12 +1,18 @@
 """Live re-prediction during a descent: restart from each position report, and learn from the fall so far.
 
-Why: during descent the capsule reports its position every ~2 minutes. Each report is the best
-possible release point for a new prediction (measured position, altitude and time), and the reports
-so far measure two things the forecast got wrong:
+Why: during descent the capsule reports its position (every ~2 minutes over Iridium, every second from
+a logger). Each report is the best possible release point for a new prediction (measured position,
+altitude and time), and the reports so far measure two things the forecast got wrong:
 
-* the **descent rate**: for each pair of consecutive reports the model's own fall time across the
-  same altitudes is compared with the measured one; their ratio over the recent reports
-  (``rate_window_m`` of altitude) becomes a factor on the rest of the fall (``DescentRateScale``);
+* the **descent rate**: one factor λ on the flown model's descent law (its drag law with the density
+  exponent and binned factors a calibrated model carries) is fitted to the whole altitude–time record
+  of the descent so far, and then multiplies that same law below the capsule (``DescentRateScale``).
+  Fitting the rate with the law that will carry it to the ground is the point: a rate measured at
+  20 km and carried down with the textbook ρ^-½ is wrong by the law's error at every height below,
+  and a law changed without refitting the rate is wrong by the rate. The fit is robust (Huber) on
+  every fix, with a free time offset, so the swinging of a 1 Hz record, a late canopy and a single
+  bad fix do not set the factor. A band's ``rate_window_m`` can restrict it to the recent descent
+  (where the held-out flights said the law's shape is not good enough to carry the whole record);
 * the **wind**: the measured mean velocity between two reports minus the forecast's mean velocity
   over the same altitudes. An error at altitude does not simply continue to the ground (the jet and
   the stratosphere are different air), so the recent error is applied below the capsule with a weight
@@ -15,7 +21,7 @@ so far measure two things the forecast got wrong:
   and the correction is switched on only in the altitude bands where it helped held-out flights.
 
 The ellipse shrinks with what is left: σ∥ and σ⊥ are the errors the evaluation measured at the
-report's height above the ground (``LiveErrorModel``), from ~5 km high up to ~1.5 km near the ground.
+report's height above the ground (``LiveErrorModel``).
 """
 
 from __future__ import annotations
@@ -41,6 +47,9 @@ RATE_FACTOR_LIMITS = (0.5, 2.0)
 """A measured rate factor outside this is a bad fix or a failed canopy, not a calibration."""
 MIN_PAIR_DROP_M = 200.0
 """Report pairs closer in altitude than this say too little about rate or wind (GNSS noise)."""
+HUBER_K = 1.345
+"""Huber's constant: 95 % efficiency on Gaussian residuals, bounded influence of a swing or a bad fix."""
+FIT_ITERATIONS = 8
 
 
 @dataclass(frozen=True)
@@ -70,8 +79,8 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.114, 4.787, 4.608, 4.038, 2.259, 1.66),
-    sigma_perpendicular_km=(3.561, 3.767, 3.829, 3.03, 1.525, 0.789),
+    sigma_parallel_km=(4.071, 3.965, 3.602, 3.466, 2.107, 1.601),
+    sigma_perpendicular_km=(3.582, 3.804, 3.858, 3.322, 1.529, 0.789),
 )
 """Measured by ``drs live evaluate`` on the 30 test flights; see docs/planning/live-reprediction.md."""
 
@@ -94,6 +103,8 @@ class Band:
     use_rate: bool
     decay_m: float | None
     """Decay length L of the wind correction (None: no wind correction in this band)."""
+    rate_window_m: float = math.inf
+    """The rate factor is fitted on fixes at most this far above the report (∞: the whole descent)."""
 
 
 @dataclass(frozen=True)
@@ -104,12 +115,11 @@ class LiveCorrection:
     """
 
     bands: tuple[Band, ...] = ()
-    rate_window_m: float = 3000.0
     wind_window_m: float = 2000.0
 
     @classmethod
-    def everywhere(cls, use_rate: bool, decay_m: float | None) -> LiveCorrection:
-        return cls(bands=(Band(-math.inf, math.inf, use_rate, decay_m),))
+    def everywhere(cls, use_rate: bool, decay_m: float | None, rate_window_m: float = math.inf) -> LiveCorrection:
+        return cls(bands=(Band(-math.inf, math.inf, use_rate, decay_m, rate_window_m),))
 
     def band_at(self, height_m: float) -> Band | None:
         for band in self.bands:
@@ -121,13 +131,17 @@ class LiveCorrection:
 NO_CORRECTION = LiveCorrection()
 DEFAULT_CORRECTION = LiveCorrection(
     bands=(
-        Band(lower_m=3500.0, upper_m=7500.0, use_rate=True, decay_m=4000.0),
-        Band(lower_m=7500.0, upper_m=12500.0, use_rate=True, decay_m=2000.0),
+        Band(lower_m=-math.inf, upper_m=3500.0, use_rate=True, decay_m=None, rate_window_m=3000.0),
+        Band(lower_m=3500.0, upper_m=7500.0, use_rate=True, decay_m=4000.0, rate_window_m=3000.0),
+        Band(lower_m=7500.0, upper_m=12500.0, use_rate=True, decay_m=None, rate_window_m=3000.0),
+        Band(lower_m=12500.0, upper_m=17500.0, use_rate=True, decay_m=None),
+        Band(lower_m=17500.0, upper_m=22500.0, use_rate=True, decay_m=None),
     )
 )
-"""What the leave-one-flight-out evaluation kept (``drs live evaluate``; docs/planning/live-reprediction.md):
-rate and decaying wind correction only 3.5–12.5 km above the ground, where held-out flights gained;
-above and below, a plain re-prediction from the report did as well or better."""
+"""What the leave-one-flight-out evaluation kept with the calibrated model of the 30 SuperBIT flights
+(``drs live evaluate``; docs/planning/live-reprediction.md): the rate fitted on the whole descent 12.5–22.5 km
+above the ground, on the last 3 km below (where the law's shape no longer carries the whole record as
+well), and the decaying wind correction only 3.5–7.5 km; above 22.5 km a plain re-prediction did as well."""
 
 
 @dataclass(frozen=True)
@@ -153,11 +167,58 @@ class Leg:
 
 
 @dataclass(frozen=True)
+class RateFit:
+    """The descent so far against the flown law: seconds since the record's top = model seconds / λ + offset.
+
+    The offset absorbs what happened once near the top (a canopy that opened late, a first fix taken
+    mid-swing), so that only the steady rate sets λ.
+    """
+
+    factor: float
+    """λ, the factor on the law's descent rate (> 1: falling faster than the model)."""
+    offset_s: float
+    fixes: int
+    """How many fixes the fit used."""
+    scale_s: float
+    """Robust spread of the time residuals (1.4826 × MAD), s."""
+
+
+def fit_rate(observed_s: np.ndarray, model_s: np.ndarray) -> RateFit | None:
+    """Huber fit of observed = model / λ + offset by iteratively reweighted least squares.
+
+    Why Huber and not least squares: a 1 Hz record swings under its canopy and a tracker logs the odd
+    wild fix; squared errors let a few of those set λ, a bounded weight does not. Every fix is used,
+    vectorised (a 10,000-fix record costs well under a millisecond per iteration). None when the
+    record is too short in model time to say anything (less than two fixes or a degenerate span).
+    """
+    if observed_s.size < 2 or float(np.ptp(model_s)) <= 0.0:
+        return None
+    design = np.column_stack((model_s, np.ones_like(model_s)))
+    weights = np.ones_like(model_s)
+    coef = np.zeros(2)
+    scale = 1.0
+    for _ in range(FIT_ITERATIONS):
+        root = np.sqrt(weights)
+        coef, *_ = np.linalg.lstsq(design * root[:, None], observed_s * root, rcond=None)
+        residual = observed_s - design @ coef
+        # A floor of 1 s, the resolution of a fix's time stamp: a near-perfect fit must not make
+        # every fix an outlier.
+        scale = max(1.4826 * float(np.median(np.abs(residual - np.median(residual)))), 1.0)
+        u = np.abs(residual) / (HUBER_K * scale)
+        weights = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-12))
+    if coef[0] <= 0.0:
+        return None
+    return RateFit(factor=float(1.0 / coef[0]), offset_s=float(coef[1]), fixes=int(observed_s.size), scale_s=scale)
+
+
+@dataclass(frozen=True)
 class LivePrediction:
     prediction: Prediction
     """The prediction from the latest report, with the correction applied and the live ellipse."""
     report: Report
     rate_factor: float
+    rate_fixes: int
+    """How many fixes the rate factor was fitted on (0: no rate correction)."""
     wind_error_ms: tuple[float, float]
     decay_m: float | None
     legs: tuple[Leg, ...] = field(repr=False)
@@ -176,6 +237,7 @@ class LivePrediction:
             "remaining_s": p.descent_s,
             "ellipse": p.ellipse.to_dict(),
             "rate_factor": self.rate_factor,
+            "rate_fixes_used": self.rate_fixes,
             "wind_error_ms": {"east": self.wind_error_ms[0], "north": self.wind_error_ms[1]},
             "wind_decay_m": self.decay_m,
             "legs_used": len(self.legs),
@@ -194,7 +256,9 @@ class LivePredictor:
 
     The model's view of each leg (fall time and mean wind between two reports) comes from a prediction
     started at the leg's first report and read off its track where it crosses the leg's lower altitude,
-    so the comparison uses exactly the physics and weather the prediction will use below.
+    so the comparison uses exactly the physics and weather the prediction will use below. The law the
+    rate factor is fitted against is one such prediction from the top of the record (the highest
+    report): the model's seconds from there to every altitude.
     """
 
     def __init__(
@@ -217,16 +281,24 @@ class LivePredictor:
         self.reports: list[Report] = []
         self.legs: list[Leg] = []
         self._leg_start: Report | None = None
+        self._top: Report | None = None
+        self._record_t: list[float] = []
+        """Seconds since the top report, one per report from the top down."""
+        self._record_z: list[float] = []
+        self._law: tuple[np.ndarray, np.ndarray] | None = None
+        """(altitudes rising, the model's seconds from the top to each): the flown law, once per record."""
+
+    def _predict(self, report: Report, terms: Sequence[Term], **kwargs: Any) -> Prediction:
+        return predict(
+            self.cube, report.time, report.lat, report.lon, report.alt_m, self.payload, self.terrain,
+            self.step_m, effects=tuple(terms), **kwargs,
+        )  # fmt: skip
 
     def _leg(self, a: Report, b: Report) -> Leg | None:
         seconds = (b.time - a.time).total_seconds()
         if seconds <= 0.0 or a.alt_m - b.alt_m < MIN_PAIR_DROP_M:
             return None
-        probe = predict(
-            self.cube, a.time, a.lat, a.lon, a.alt_m, self.payload, self.terrain, self.step_m,
-            effects=self.effects,
-        )  # fmt: skip
-        track = probe.track
+        track = self._predict(a, self.effects).track
         if track.alt_m[-1] > b.alt_m:
             return None
         # The track's altitudes fall, so flip them for np.interp.
@@ -247,7 +319,7 @@ class LivePredictor:
         return self.predict_from(report)
 
     def observe(self, report: Report) -> None:
-        """Measure the leg that ends at this report (no prediction)."""
+        """Record the report and measure the leg that ends at it (no prediction)."""
         if self.reports and report.time <= self.reports[-1].time:
             raise PredictorError(
                 f"report at {iso_z(report.time)} is not after the previous one "
@@ -262,39 +334,58 @@ class LivePredictor:
                 self._leg_start = report
         else:
             self._leg_start = report
+        if self._top is None or report.alt_m > self._top.alt_m:
+            # Still climbing (or the first report): the descent record starts again here.
+            self._top, self._law = report, None
+            self._record_t, self._record_z = [], []
+        self._record_t.append((report.time - self._top.time).total_seconds())
+        self._record_z.append(report.alt_m)
         self.reports.append(report)
 
-    def measured(self, alt_m: float) -> tuple[float, tuple[float, float], float]:
-        """(rate factor, wind error east/north, the altitude it was measured at) from recent legs.
+    def rate_fit(self, alt_m: float, window_m: float = math.inf) -> RateFit | None:
+        """λ on the flown law from the record's fixes at most ``window_m`` above ``alt_m`` (None: too little)."""
+        if self._top is None or self._top.alt_m - alt_m < MIN_PAIR_DROP_M:
+            return None
+        if self._law is None:
+            track = self._predict(self._top, self.effects).track
+            self._law = track.alt_m[::-1].copy(), track.t_s[::-1] - track.t_s[0]
+        z_up, model_up = self._law
+        z = np.asarray(self._record_z)
+        keep = (z - alt_m < window_m) & (z >= z_up[0])
+        if not keep.any() or float(np.ptp(z[keep])) < MIN_PAIR_DROP_M:
+            return None
+        return fit_rate(np.asarray(self._record_t)[keep], np.interp(z[keep], z_up, model_up))
 
-        Recent: legs whose lower end is within the window above ``alt_m`` (the last leg always is,
-        it ends at the latest report); without any, the last leg.
-        """
-        c = self.correction
-        rate = 1.0
-        recent = [g for g in self.legs if g.bottom_m - alt_m < c.rate_window_m]
-        if recent:
-            rate = sum(g.model_s for g in recent) / sum(g.observed_s for g in recent)
-            rate = min(max(rate, RATE_FACTOR_LIMITS[0]), RATE_FACTOR_LIMITS[1])
+    def measured(
+        self, alt_m: float, rate_window_m: float = math.inf
+    ) -> tuple[float, tuple[float, float], float]:
+        """(rate factor, wind error east/north, the altitude the wind was measured at)."""
+        wind, measured_at = self._wind_error(alt_m, self.correction)
+        return _clamped(self.rate_fit(alt_m, rate_window_m)), wind, measured_at
+
+    def _wind_error(self, alt_m: float, c: LiveCorrection) -> tuple[tuple[float, float], float]:
+        """The wind error of recent legs: those whose lower end is within the window above ``alt_m``
+        (the last leg always is, it ends at the latest report), weighted by their duration."""
         wind_legs = [g for g in self.legs if g.bottom_m - alt_m < c.wind_window_m] or self.legs[-1:]
         if not wind_legs:
-            return rate, (0.0, 0.0), alt_m
+            return (0.0, 0.0), alt_m
         weights = np.array([g.observed_s for g in wind_legs])
         errors = np.array([g.wind_error for g in wind_legs])
         east, north = (weights[:, None] * errors).sum(axis=0) / weights.sum()
         middle = np.array([0.5 * (g.top_m + g.bottom_m) for g in wind_legs])
-        return rate, (float(east), float(north)), float((weights * middle).sum() / weights.sum())
+        return (float(east), float(north)), float((weights * middle).sum() / weights.sum())
 
     def predict_from(self, report: Report, correction: LiveCorrection | None = None) -> LivePrediction:
-        """The prediction from one report with the legs measured so far (``correction`` overrides)."""
+        """The prediction from one report with the descent measured so far (``correction`` overrides)."""
         correction = correction or self.correction
-        rate, (east, north), measured_at = self.measured(report.alt_m)
         height = report.alt_m - float(self.terrain.elevation(report.lat, report.lon))
         band = correction.band_at(height)
-        use_rate = band is not None and band.use_rate
         decay = band.decay_m if band is not None else None
+        fit = self.rate_fit(report.alt_m, band.rate_window_m) if band is not None and band.use_rate else None
+        rate = _clamped(fit)
+        (east, north), measured_at = self._wind_error(report.alt_m, correction)
         terms: list[Term] = list(self.effects)
-        if use_rate and rate != 1.0:
+        if rate != 1.0:
             terms.append(DescentRateScale(scale=rate))
         if decay is not None and self.legs and report.alt_m > -500.0 + WIND_BIN_M:
             edges = np.arange(report.alt_m, -500.0, -WIND_BIN_M)[::-1]
@@ -308,18 +399,23 @@ class LivePredictor:
                     north_ms=tuple(float(north * w) for w in weight),
                 )
             )
-        prediction = predict(
-            self.cube, report.time, report.lat, report.lon, report.alt_m, self.payload, self.terrain,
-            self.step_m, effects=tuple(terms), error_model=self.error_model.at(height / 1000.0),
-        )  # fmt: skip
+        prediction = self._predict(report, terms, error_model=self.error_model.at(height / 1000.0))
         return LivePrediction(
             prediction=prediction,
             report=report,
-            rate_factor=rate if use_rate else 1.0,
+            rate_factor=rate,
+            rate_fixes=fit.fixes if fit is not None else 0,
             wind_error_ms=(east, north) if decay is not None else (0.0, 0.0),
             decay_m=decay,
             legs=tuple(self.legs),
         )
+
+
+def _clamped(fit: RateFit | None) -> float:
+    """The rate factor to fly: 1 without a fit, else λ held within ``RATE_FACTOR_LIMITS``."""
+    if fit is None:
+        return 1.0
+    return min(max(fit.factor, RATE_FACTOR_LIMITS[0]), RATE_FACTOR_LIMITS[1])
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ import os
 import statistics
 import sys
 import time
-from datetime import UTC, datetime
+from datetime import UTC, date, datetime
 from pathlib import Path
 from typing import Any
 
@@ -75,13 +75,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Live re-prediction: each report restarts the prediction and corrects it by what "
         "the descent so far measured.",
     )
-    live.add_argument("action", nargs="?", choices=("evaluate",),
-                      help="evaluate: the leave-one-flight-out report on real tracks")  # fmt: skip
-    live.add_argument("tracks", nargs="*", metavar="TRACK", help="evaluate: track files")
+    live.add_argument("action", nargs="?", choices=("evaluate", "bench"),
+                      help="evaluate: the leave-one-flight-out report on real tracks; bench: time evaluate "
+                      "on the tracks re-sampled to 1 Hz")  # fmt: skip
+    live.add_argument("tracks", nargs="*", metavar="TRACK", help="evaluate/bench: track files")
     live.add_argument("--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files")
     live.add_argument("--ascent-winds", action="store_true", help="use the track's own ascent as the weather")
     live.add_argument("--track", metavar="FILE", help="the descent's track (any format `drs tracks` reads)")
-    live.add_argument("--date", help="UTC date of the first fix, for logs with times of day only")
+    live.add_argument("--date", help="UTC date of the first fix, for logs with times of day only (V4)")
     live.add_argument("--dem", metavar="DIR", help="terrain directory")
     live.add_argument(
         "--payload", choices=sorted(PROFILES), help="payload profile (default drs; evaluate: superbit-test)"
@@ -91,7 +92,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     live.add_argument("--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model)")
     live.add_argument("--no-correction", action="store_true", help="plain re-prediction from each report")
     live.add_argument("--json", action="store_true", help="print one JSON document per report")
-    live.add_argument("--out", metavar="DIR", default="docs/planning", help="evaluate: report directory")
+    live.add_argument("--out", metavar="DIR", default="docs/planning", help="evaluate/bench: report directory")
     live.add_argument("--cache-dir", metavar="DIR", help="weather cache (default ~/.cache/drs/weather)")
     live.set_defaults(func=run_live)
 
@@ -261,6 +262,15 @@ def run_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _day(text: str | None) -> date | None:
+    if text is None:
+        return None
+    try:
+        return datetime.strptime(text, "%Y-%m-%d").date()
+    except ValueError:
+        raise PredictorError(f"--date {text!r} is not a date such as 2019-07-28") from None
+
+
 def run_live(args: argparse.Namespace) -> int:
     from predictor.calibration.ascent_winds import ascent_weather_cube
     from predictor.calibration.cleaning import clean
@@ -272,17 +282,13 @@ def run_live(args: argparse.Namespace) -> int:
 
     if args.action == "evaluate":
         return run_evaluate(args)
+    if args.action == "bench":
+        return run_live_bench(args)
     if not args.track:
         raise PredictorError("drs live needs --track FILE")
     if not args.weather and not args.ascent_winds:
         raise PredictorError("drs live needs --weather FILE... or --ascent-winds")
-    day = None
-    if args.date:
-        try:
-            day = datetime.strptime(args.date, "%Y-%m-%d").date()
-        except ValueError:
-            raise PredictorError(f"--date {args.date!r} is not a date such as 2019-07-28") from None
-    flight = clean(read_track(args.track, day=day))
+    flight = clean(read_track(args.track, day=_day(args.date)))
     if flight.descent_start is None or not flight.descent:
         reason = "; ".join(flight.exclusions) or "no descent found"
         raise PredictorError(f"{args.track}: no descent to re-predict ({reason})")
@@ -316,9 +322,10 @@ def run_live(args: argparse.Namespace) -> int:
             print(json.dumps(result.to_dict(), ensure_ascii=False))
             continue
         p = result.prediction
+        minutes, seconds = divmod(round(p.descent_s), 60)
         print(
             f"{iso_z(fix.time)}  {fix.alt_m:7.0f} m  → {p.landing.lat:.5f}, {p.landing.lon:.5f} at "
-            f"{iso_z(p.landing.time)[11:19]}  1σ {p.ellipse.sigma_parallel_km:.2f}×"
+            f"{iso_z(p.landing.time)[11:19]} (in {minutes}m{seconds:02d}s)  1σ {p.ellipse.sigma_parallel_km:.2f}×"
             f"{p.ellipse.sigma_perpendicular_km:.2f} km  rate×{result.rate_factor:.2f}"
             + (
                 f"  wind Δ {result.wind_error_ms[0]:+.1f},{result.wind_error_ms[1]:+.1f} m/s "
@@ -336,21 +343,39 @@ def run_live(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
+    from predictor.model_file import flown_model
     from predictor.planning.live_evaluation import evaluate, write_report
 
     if not args.tracks:
         raise PredictorError("drs live evaluate needs track files")
     started = time.perf_counter()
-    from predictor.model_file import flown_model
-
+    # Two laws are compared: the model's, and the textbook law of the same payload (its profile
+    # without calibrated terms), so the difference is the law and not the mass or Cd·A.
     profile = args.payload if args.model is not None or args.payload is not None else "superbit-test"
     model = flown_model(args.model, profile, args.mass, args.cda)
-    result = evaluate(args.tracks, effects=model.terms, payload=model.payload)
+    result = evaluate(
+        args.tracks, model=model if args.model is not None else None, profile=model.payload, day=_day(args.date)
+    )
     if not result.flights:
         raise PredictorError("no usable flight among the tracks given")
     names = sorted({Path(t).parent.name for t in args.tracks})
-    command = f"drs live evaluate <{len(args.tracks)} track files in {', '.join(names)}> --out {args.out}"
+    flown = f" --model {args.model}" if args.model is not None else ""
+    command = f"drs live evaluate <{len(args.tracks)} track files in {', '.join(names)}>{flown} --out {args.out}"
     md = write_report(result, args.out, command)
-    print(f"{md}: {len(result.flights)} flights, {time.perf_counter() - started:.1f} s", file=sys.stderr)
+    print(
+        f"{md}: {len(result.flights)} flights, {result.fixes_used} descent fixes (all used), "
+        f"{time.perf_counter() - started:.1f} s",
+        file=sys.stderr,
+    )
     print(md.read_text(encoding="utf-8"))
+    return 0
+
+
+def run_live_bench(args: argparse.Namespace) -> int:
+    from predictor.model_file import load_model
+    from predictor.planning.live_bench import bench
+
+    if not args.tracks:
+        raise PredictorError("drs live bench needs track files")
+    print(bench(args.tracks, load_model(args.model) if args.model is not None else None, args.out))
     return 0

@@ -4,16 +4,27 @@ For each flight the weather is its own ascent's winds (``ascent_weather_cube``),
 forecast is to a descent: right in general, wrong in detail (an hour or two and tens of km away). The
 ground is a level plane at the flight's measured landing altitude (a DEM stands in for it in
 operations). At each checkpoint (the first report at or below 25, 20, 15, 10, 5 and 2 km above the
-ground) the landing is predicted from that report:
+ground) the landing and the remaining descent time are predicted from that report, with two laws:
+
+* ``profile``: the payload profile's drag law (the textbook v ∝ ρ^-½);
+* ``model``: the calibrated model (``--model``: its payload and terms, e.g. a density exponent),
+
+and with these live corrections on top of each law:
 
 * ``plain``: restarted from the report, nothing learned;
-* ``rate``: plus the measured descent-rate factor;
+* ``rate``: plus the descent-rate factor fitted on the whole descent so far with the same law (on the
+  profile this is the ρ^-½ extrapolation of the measured rate); ``recent rate``: fitted on the last
+  3 km only (the previous estimator, a baseline);
 * ``wind L`` / ``rate + wind L``: plus the measured wind error, decaying below the capsule with L.
 
-Everything fitted is chosen leave-one-flight-out: for each held-out flight and checkpoint the
-configuration with the lowest mean error on the OTHER flights is applied to it. A correction is then
-kept (in ``predictor.live.DEFAULT_CORRECTION``) only in the bands where the held-out error beat plain.
-The same held-out errors fit the live ellipse (σ∥² = σ0² + h·d², σ⊥ = σ∥/q, d = remaining drift).
+Each correction is chosen leave-one-flight-out on the metric it acts on: the rate (a vertical effect)
+on the remaining-time error, the wind (horizontal) on the landing error, each held-out flight getting
+what the OTHER flights preferred. A correction ships (``predictor.live.DEFAULT_CORRECTION``) only in
+the bands where it helped held-out flights. The same held-out errors fit the live ellipse.
+
+Every fix of the track is used: each one enters the rate fit and the wind legs (a 1 Hz track of
+10,000 fixes is a few hundred leg probes and six checkpoints), and predictions are made only at the
+checkpoints.
 """
 
 from __future__ import annotations
@@ -21,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from datetime import date
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +42,7 @@ from predictor.calibration.cleaning import clean
 from predictor.calibration.tracks import Fix, read_track
 from predictor.errors import PredictorError
 from predictor.live import NO_CORRECTION, Band, LiveCorrection, LiveErrorModel, LivePredictor
-from predictor.model import Term
+from predictor.model_file import CalibratedModel
 from predictor.payload import PROFILES, Payload
 from predictor.terrain import Terrain
 from predictor.uncertainty import GEOD
@@ -39,16 +51,57 @@ CHECKPOINTS_KM = (25.0, 20.0, 15.0, 10.0, 5.0, 2.0)
 LOWEST_SHARE = 0.6
 """A checkpoint's report must be at least this share of its height (a data gap skips the checkpoint)."""
 DECAYS_M = (1000.0, 2000.0, 4000.0, 8000.0, 16000.0, math.inf)
+RECENT_RATE_WINDOW_M = 3000.0
+LAWS = ("profile", "model")
+PLAIN = "model · plain"
+RATE = "model · rate"
 
 
-def configurations() -> dict[str, LiveCorrection]:
-    configs = {"plain": NO_CORRECTION, "rate": LiveCorrection.everywhere(True, None)}
+def _wind_label(decay: float) -> str:
+    return "const" if math.isinf(decay) else f"{decay / 1000:g} km"
+
+
+RATE_WINDOWS_M = {"rate": math.inf, "recent rate": RECENT_RATE_WINDOW_M}
+"""The two rate estimators: fitted on the whole descent so far, or on its last 3 km."""
+
+
+def corrections() -> dict[str, LiveCorrection]:
+    """Every live correction tried on the calibrated model, by name."""
+    configs = {"plain": NO_CORRECTION}
+    configs.update({n: LiveCorrection.everywhere(True, None, w) for n, w in RATE_WINDOWS_M.items()})
     for decay in DECAYS_M:
-        label = "const" if math.isinf(decay) else f"{decay / 1000:g} km"
         stored = 1e12 if math.isinf(decay) else decay
-        configs[f"wind {label}"] = LiveCorrection.everywhere(False, stored)
-        configs[f"rate + wind {label}"] = LiveCorrection.everywhere(True, stored)
+        configs[f"wind {_wind_label(decay)}"] = LiveCorrection.everywhere(False, stored)
+        for rate, window in RATE_WINDOWS_M.items():
+            configs[f"{rate} + wind {_wind_label(decay)}"] = LiveCorrection.everywhere(True, stored, window)
     return configs
+
+
+PROFILE_CORRECTIONS = {
+    "plain": NO_CORRECTION,
+    "rate": LiveCorrection.everywhere(True, None),
+    "recent rate": LiveCorrection.everywhere(True, None, rate_window_m=RECENT_RATE_WINDOW_M),
+}
+"""On the profile's law only the baselines: nothing learned, and the measured rate carried down with ρ^-½."""
+
+
+def configurations() -> dict[str, tuple[str, LiveCorrection]]:
+    """'law · correction' → (law, correction): the profile baselines, then every model correction."""
+    configs = {f"profile · {n}": ("profile", c) for n, c in PROFILE_CORRECTIONS.items()}
+    configs.update({f"model · {n}": ("model", c) for n, c in corrections().items()})
+    return configs
+
+
+def _combined(rate: str | None, wind: str | None) -> str:
+    """The model configuration named by a rate choice ('rate', 'recent rate' or None) and a wind
+    choice ('wind 2 km' or None)."""
+    if wind is None:
+        return f"model · {rate}" if rate else PLAIN
+    return f"model · {f'{rate} + ' if rate else ''}{wind}"
+
+
+RATE_CHOICES: tuple[str | None, ...] = (None, *RATE_WINDOWS_M)
+WIND_CHOICES: tuple[str | None, ...] = (None, *(f"wind {_wind_label(d)}" for d in DECAYS_M))
 
 
 class LevelGround(Terrain):
@@ -68,7 +121,7 @@ class LevelGround(Terrain):
 
 @dataclass
 class Case:
-    """One checkpoint of one flight: the error of every configuration there."""
+    """One checkpoint of one flight: the errors of every configuration there."""
 
     flight: str
     checkpoint_km: float
@@ -77,6 +130,8 @@ class Case:
     along_km: dict[str, float]
     across_km: dict[str, float]
     remaining_drift_km: dict[str, float]
+    time_error_s: dict[str, float] = field(default_factory=dict)
+    """Predicted minus measured remaining descent time, s."""
 
 
 @dataclass
@@ -85,12 +140,58 @@ class Evaluation:
     skipped: list[str]
     cases: list[Case]
     start_errors_km: dict[str, float]
-    """Error of the plain prediction from the descent start (no live updates), per flight."""
-    held_out: dict[float, dict[str, list[float]]] = field(default_factory=dict)
-    """Per checkpoint: errors of plain, rate, and the held-out (LOO-chosen) configuration."""
-    chosen: dict[float, dict[str, str]] = field(default_factory=dict)
-    """Per checkpoint: which configuration each held-out flight got."""
-    all_flights_choice: dict[float, str] = field(default_factory=dict)
+    """Error of the model's prediction from the descent start (no live updates), per flight."""
+    model_label: str = ""
+    profile_label: str = ""
+    fixes_used: int = 0
+    """Fixes of the descents fed to the live predictors (every one of them)."""
+    rate_choice: dict[float, dict[str, str | None]] = field(default_factory=dict)
+    """Per checkpoint and held-out flight: the rate estimator the other flights' remaining time gained most from."""
+    wind_choice: dict[float, dict[str, str | None]] = field(default_factory=dict)
+    """Per checkpoint and held-out flight: the wind correction the other flights' landings gained most from."""
+    all_flights_choice: dict[float, tuple[str | None, str | None]] = field(default_factory=dict)
+
+    def held_out_name(self, case: Case) -> str:
+        """The configuration this case gets from its held-out choices, rate and wind alike."""
+        km = case.checkpoint_km
+        return _combined(self.rate_choice[km][case.flight], self.wind_choice[km][case.flight])
+
+    def shipped_name(self, case: Case) -> str:
+        """What ships for this case: each held-out choice only where it helped held-out flights."""
+        km = case.checkpoint_km
+        if km not in self.rate_choice:
+            return PLAIN
+        rate = self.rate_choice[km][case.flight] if rate_helps(self, km) else None
+        wind = self.wind_choice[km][case.flight] if wind_helps(self, km) else None
+        return _combined(rate, wind)
+
+
+def _describe(model: CalibratedModel) -> str:
+    """The model as the report names it: where it came from and the terms it flies."""
+    terms = ", ".join(
+        f"`{t.name}` ({', '.join(f'{k} {v:.4g}' for k, v in t.parameters().items() if isinstance(v, float))})"
+        for t in model.terms
+    )
+    return f"{model.label()}: payload `{model.payload.name}`" + (f", {terms}" if terms else ", no calibrated terms")
+
+
+def _touchdown_s(descent: Sequence[Fix], ground_m: float) -> float:
+    """Measured seconds from the descent's first fix to touchdown.
+
+    The landing fix is the first one on the ground, up to one interval after touchdown (3 min for the
+    SuperBIT trackers: 90 s of bias on average, more than the errors being measured), so the last
+    airborne fix is carried down to the ground at the rate of its own interval, never past the landing fix.
+    """
+    landing = descent[-1]
+    end = (landing.time - descent[0].time).total_seconds()
+    if len(descent) < 3:
+        return end
+    a, b = descent[-3], descent[-2]
+    seconds = (b.time - a.time).total_seconds()
+    rate = (a.alt_m - b.alt_m) / seconds if seconds > 0.0 else 0.0
+    if rate <= 0.0:
+        return end
+    return min(end, (b.time - descent[0].time).total_seconds() + max(b.alt_m - ground_m, 0.0) / rate)
 
 
 def _checkpoint_fix(descent: Sequence[Fix], ground_m: float, checkpoint_km: float) -> Fix | None:
@@ -112,15 +213,25 @@ def _errors(pred_lat: float, pred_lon: float, origin: Fix, truth: Fix) -> tuple[
 
 
 def evaluate(
-    paths: Sequence[str | Path], effects: Sequence[Term] = (), payload: Payload | None = None
+    paths: Sequence[str | Path],
+    model: CalibratedModel | None = None,
+    profile: Payload | None = None,
+    day: date | None = None,
 ) -> Evaluation:
-    """Every checkpoint of every usable flight under every configuration; ``effects`` extend the model
-    (a calibrated model's terms), ``payload`` replaces the 2018–2019 test payload the report was made with."""
+    """Every checkpoint of every usable flight under every configuration.
+
+    ``profile`` is the payload of the textbook law (default: the 2018–2019 test payload the SuperBIT
+    flights were predicted with); ``model`` the calibrated model (default: that profile, uncalibrated);
+    ``day`` the UTC date of logs that store times of day only.
+    """
+    profile = profile or PROFILES["superbit-test"]
+    model = model or CalibratedModel(profile, (), None)
     configs = configurations()
-    payload = payload or PROFILES["superbit-test"]
-    result = Evaluation(flights=[], skipped=[], cases=[], start_errors_km={})
+    result = Evaluation(
+        flights=[], skipped=[], cases=[], start_errors_km={}, model_label=_describe(model), profile_label=profile.name
+    )
     for path in paths:
-        flight = clean(read_track(path))
+        flight = clean(read_track(path, day=day))
         if not flight.usable or flight.landing is None or flight.descent_start is None:
             result.skipped.append(f"{flight.name}: {'; '.join(flight.exclusions) or 'no landing'}")
             continue
@@ -131,61 +242,100 @@ def evaluate(
             continue
         landing = flight.landing
         ground = LevelGround(landing.alt_m)
-        live = LivePredictor(cube, payload, ground, NO_CORRECTION, effects=effects)
+        live = {
+            "profile": LivePredictor(cube, profile, ground, NO_CORRECTION),
+            "model": LivePredictor(cube, model.payload, ground, NO_CORRECTION, effects=model.terms),
+        }
         descent = list(flight.descent)
+        touchdown_s = _touchdown_s(descent, landing.alt_m)
         checkpoints = {k: _checkpoint_fix(descent, landing.alt_m, k) for k in CHECKPOINTS_KM}
-        start = live.predict_from(descent[0]).prediction.landing
+        start = live["model"].predict_from(descent[0]).prediction.landing
         result.start_errors_km[flight.name] = _errors(start.lat, start.lon, descent[0], landing)[0]
         result.flights.append(flight.name)
+        result.fixes_used += len(descent) - 1
         for fix in descent[:-1]:
-            live.observe(fix)
+            for predictor in live.values():
+                predictor.observe(fix)
             for km, at in checkpoints.items():
                 if at is not fix:
                     continue
+                remaining_s = touchdown_s - (fix.time - descent[0].time).total_seconds()
                 case = Case(flight.name, km, fix.alt_m - landing.alt_m, {}, {}, {}, {})
-                for name, config in configs.items():
-                    p = live.predict_from(fix, config).prediction
+                for name, (law, correction) in configs.items():
+                    p = live[law].predict_from(fix, correction).prediction
                     d, along, across = _errors(p.landing.lat, p.landing.lon, fix, landing)
                     case.errors_km[name] = d
                     case.along_km[name] = along
                     case.across_km[name] = across
                     case.remaining_drift_km[name] = p.drift_km
+                    case.time_error_s[name] = p.descent_s - remaining_s
                 result.cases.append(case)
-    _leave_one_out(result, list(configs))
+    _leave_one_out(result)
     return result
 
 
-def _leave_one_out(result: Evaluation, names: list[str]) -> None:
+def _choose(cases: Sequence[Case]) -> tuple[str | None, str | None]:
+    """The rate by the mean |remaining-time error|, then the wind by the mean landing error given that rate."""
+    timing = [np.mean([abs(c.time_error_s[_combined(r, None)]) for c in cases]) for r in RATE_CHOICES]
+    rate = RATE_CHOICES[int(np.argmin(timing))]
+    landing = [np.mean([c.errors_km[_combined(rate, w)] for c in cases]) for w in WIND_CHOICES]
+    return rate, WIND_CHOICES[int(np.argmin(landing))]
+
+
+def _leave_one_out(result: Evaluation) -> None:
     for km in CHECKPOINTS_KM:
         cases = [c for c in result.cases if c.checkpoint_km == km]
         if len(cases) < 3:
             continue
-        table = np.array([[c.errors_km[n] for n in names] for c in cases])
-        held: list[float] = []
-        chosen: dict[str, str] = {}
+        rates: dict[str, str | None] = {}
+        winds: dict[str, str | None] = {}
         for i, case in enumerate(cases):
-            others = np.delete(table, i, axis=0)
-            best = int(np.argmin(others.mean(axis=0)))
-            held.append(float(table[i, best]))
-            chosen[case.flight] = names[best]
-        result.held_out[km] = {
-            "plain": [c.errors_km["plain"] for c in cases],
-            "rate": [c.errors_km["rate"] for c in cases],
-            "held-out choice": held,
-        }
-        result.chosen[km] = chosen
-        result.all_flights_choice[km] = names[int(np.argmin(table.mean(axis=0)))]
+            rates[case.flight], winds[case.flight] = _choose(cases[:i] + cases[i + 1 :])
+        result.rate_choice[km] = rates
+        result.wind_choice[km] = winds
+        result.all_flights_choice[km] = _choose(cases)
 
 
-def helps(result: Evaluation, km: float) -> bool:
-    rows = result.held_out.get(km)
-    return bool(rows) and float(np.mean(rows["held-out choice"])) < float(np.mean(rows["plain"]))
+def _cases(result: Evaluation, km: float) -> list[Case]:
+    return [c for c in result.cases if c.checkpoint_km == km]
 
 
-def _shipped_name(result: Evaluation, case: Case) -> str:
-    """The configuration this case gets from what ships: its held-out choice where that helps, else plain."""
-    km = case.checkpoint_km
-    return result.chosen.get(km, {}).get(case.flight, "plain") if helps(result, km) else "plain"
+def held_out(result: Evaluation, km: float) -> dict[str, tuple[list[float], list[float]]]:
+    """Per checkpoint, (landing errors km, remaining-time errors s) of: the profile's plain and rate
+    (ρ^-½) predictions, the model's plain and rate predictions, and the model with its held-out
+    live corrections."""
+    cases = _cases(result, km)
+    rows = {
+        name: ([c.errors_km[name] for c in cases], [c.time_error_s[name] for c in cases])
+        for name in ("profile · plain", "profile · rate", "profile · recent rate", PLAIN, RATE, "model · recent rate")
+    }
+    names = [result.held_out_name(c) for c in cases]
+    rows["model + held-out live"] = (
+        [c.errors_km[n] for c, n in zip(cases, names, strict=True)],
+        [c.time_error_s[n] for c, n in zip(cases, names, strict=True)],
+    )
+    return rows
+
+
+def rate_helps(result: Evaluation, km: float) -> bool:
+    """The held-out rate choice cut the mean |remaining-time error|: the metric of a vertical correction,
+    which the wind does not touch (the landing error it causes is reported beside it)."""
+    if km not in result.rate_choice:
+        return False
+    cases = _cases(result, km)
+    chosen = [_combined(result.rate_choice[km][c.flight], None) for c in cases]
+    held = np.mean([abs(c.time_error_s[n]) for c, n in zip(cases, chosen, strict=True)])
+    return bool(held < np.mean([abs(c.time_error_s[PLAIN]) for c in cases]))
+
+
+def wind_helps(result: Evaluation, km: float) -> bool:
+    """The held-out wind choice cut the mean landing error below the rate choice alone."""
+    if km not in result.wind_choice:
+        return False
+    cases = _cases(result, km)
+    with_wind = np.mean([c.errors_km[result.held_out_name(c)] for c in cases])
+    without = np.mean([c.errors_km[_combined(result.rate_choice[km][c.flight], None)] for c in cases])
+    return bool(with_wind < without)
 
 
 def fit_live_sigma(result: Evaluation, leave_out: str | None = None) -> LiveErrorModel:
@@ -195,8 +345,8 @@ def fit_live_sigma(result: Evaluation, leave_out: str | None = None) -> LiveErro
         cases = [c for c in result.cases if c.checkpoint_km == km and c.flight != leave_out]
         if len(cases) < 3:
             continue
-        along = np.array([c.along_km[_shipped_name(result, c)] for c in cases])
-        across = np.array([c.across_km[_shipped_name(result, c)] for c in cases])
+        along = np.array([c.along_km[result.shipped_name(c)] for c in cases])
+        across = np.array([c.across_km[result.shipped_name(c)] for c in cases])
         heights.append(km)
         parallel.append(round(float(np.sqrt(np.mean(along**2))), 3))
         perpendicular.append(round(float(np.sqrt(np.mean(across**2))), 3))
@@ -217,7 +367,7 @@ def held_out_coverage(result: Evaluation) -> dict[float, tuple[float, float, int
         for c in cases:
             model = fit_live_sigma(result, leave_out=c.flight).at(km)
             s_par, s_perp = model.sigmas_km(0.0, 0.0)
-            name = _shipped_name(result, c)
+            name = result.shipped_name(c)
             m2.append((c.along_km[name] / s_par) ** 2 + (c.across_km[name] / s_perp) ** 2)
         m2a = np.array(m2)
         out[km] = (float(np.mean(m2a <= 1.0)), float(np.mean(m2a <= 4.0)), len(cases))
@@ -225,52 +375,100 @@ def held_out_coverage(result: Evaluation) -> dict[float, tuple[float, float, int
 
 
 def shipped_correction(result: Evaluation) -> LiveCorrection:
-    """The all-flights choice in each checkpoint's band where the held-out error beat plain.
+    """The all-flights choice in each checkpoint's band, each part only where it helped held-out flights.
 
     A checkpoint's band reaches half-way to its neighbours (10 km: 7.5–12.5 km above the ground).
     """
     kms = sorted(CHECKPOINTS_KM)
     bands = []
-    configs = configurations()
+    configs = corrections()
     for i, km in enumerate(kms):
-        if not helps(result, km):
+        if km not in result.all_flights_choice:
+            continue
+        rate, wind = result.all_flights_choice[km]
+        use_rate = rate is not None and rate_helps(result, km)
+        decay = configs[wind].bands[0].decay_m if wind is not None and wind_helps(result, km) else None
+        if not use_rate and decay is None:
             continue
         lower = -math.inf if i == 0 else 500.0 * (kms[i - 1] + km)
         upper = math.inf if i == len(kms) - 1 else 500.0 * (km + kms[i + 1])
-        band = configs[result.all_flights_choice[km]].bands[0]
-        bands.append(Band(lower, upper, band.use_rate, band.decay_m))
+        window = RATE_WINDOWS_M[rate] if use_rate and rate is not None else math.inf
+        bands.append(Band(lower, upper, use_rate, decay, window))
     return LiveCorrection(bands=tuple(bands))
 
 
-def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
-    """docs/planning/live-reprediction.md and its PNG plot."""
+SERIES = (
+    ("profile · plain", "profile, plain"),
+    ("profile · rate", "profile + rate (ρ^-½)"),
+    ("profile · recent rate", "profile + last-3-km rate (ρ^-½)"),
+    (PLAIN, "model, plain"),
+    (RATE, "model + rate"),
+    ("model · recent rate", "model + last-3-km rate"),
+    ("model + held-out live", "model + held-out live"),
+)
+"""The rows of the report: label in ``held_out`` → what the report calls it."""
+
+
+def remaining_time_ratio(result: Evaluation, km: float) -> tuple[float, float]:
+    """Mean |remaining-time error| (s) at a checkpoint: the model with its fitted rate, and the ρ^-½
+    extrapolation (the profile with its fitted rate)."""
+    rows = held_out(result, km)
+    return float(np.mean(np.abs(rows[RATE][1]))), float(np.mean(np.abs(rows["profile · rate"][1])))
+
+
+def _plot(result: Evaluation, kms: list[float], png: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    kms = [km for km in CHECKPOINTS_KM if km in result.held_out]
-    series = ("plain", "rate", "held-out choice")
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    for name, style in zip(series, ("o-", "s--", "^-"), strict=True):
-        ax.plot(kms, [np.mean(result.held_out[k][name]) for k in kms], style, label=f"{name} (mean)")
-    ax.axhline(float(np.mean(list(result.start_errors_km.values()))), color="grey", ls=":",
-               label="from descent start, no updates (mean)")  # fmt: skip
-    ax.set_xlabel("height above the ground at the report, km")
-    ax.set_ylabel("landing error, km")
-    ax.invert_xaxis()
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    ax.set_title(f"Live re-prediction on {len(result.flights)} SuperBIT test flights (ascent winds)")
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4.2))
+    styles = ("o:", "s--", "x:", "o-", "s-", "x-", "^-")
+    for (name, label), style in zip(SERIES, styles, strict=True):
+        left.plot(kms, [np.mean(held_out(result, k)[name][0]) for k in kms], style, label=label)
+        right.plot(kms, [np.mean(np.abs(held_out(result, k)[name][1])) for k in kms], style, label=label)
+    left.axhline(float(np.mean(list(result.start_errors_km.values()))), color="grey", ls=":",
+                 label="model from descent start, no updates")  # fmt: skip
+    left.set_ylabel("landing error, km (mean)")
+    right.set_ylabel("|remaining-time error|, s (mean)")
+    for ax in (left, right):
+        ax.set_xlabel("height above the ground at the report, km")
+        ax.invert_xaxis()
+        ax.grid(alpha=0.3)
+    left.legend(fontsize=7)
+    fig.suptitle(f"Live re-prediction on {len(result.flights)} SuperBIT test flights (ascent winds)")
     fig.tight_layout()
-    png = out / "live-reprediction.png"
     fig.savefig(png, dpi=110)
     plt.close(fig)
+
+
+def _band_text(band: Band) -> str:
+    lower = "ground" if not math.isfinite(band.lower_m) else f"{band.lower_m / 1000:g} km"
+    upper = "top" if not math.isfinite(band.upper_m) else f"{band.upper_m / 1000:g} km"
+    if not band.use_rate:
+        rate = "rate off"
+    elif math.isinf(band.rate_window_m):
+        rate = "rate on the whole descent"
+    else:
+        rate = f"rate on the last {band.rate_window_m / 1000:g} km"
+    wind = "off" if band.decay_m is None else f"L = {band.decay_m / 1000:g} km"
+    return f"{lower}–{upper}: {rate}, wind {wind}"
+
+
+def _bands_text(shipped: LiveCorrection) -> str:
+    return "; ".join(_band_text(b) for b in shipped.bands) or "nothing (plain re-prediction everywhere)"
+
+
+def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
+    """docs/planning/live-reprediction.md and its PNG plot."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    kms = [km for km in CHECKPOINTS_KM if km in result.rate_choice]
+    _plot(result, kms, out / "live-reprediction.png")
     sigma = fit_live_sigma(result)
     coverage = held_out_coverage(result)
-    shipped = shipped_correction(result)
+    header = "| height km | flights | " + " | ".join(label for _, label in SERIES) + " |"
+    rule = "|---|---|" + "---|" * len(SERIES)
     lines = [
         "# Live re-prediction on the real test flights",
         "",
@@ -278,49 +476,103 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
         "",
         f"Flights: {len(result.flights)} used"
         + (f", skipped: {'; '.join(result.skipped)}" if result.skipped else "")
-        + ". Weather: each flight's own ascent winds (`ascent_weather_cube`); payload `superbit-test`; "
-        "ground: level at the measured landing altitude. Error = distance from the predicted to the "
-        "measured landing. Checkpoint = the first report at or below that height above the ground "
-        f"(skipped for a flight whose next report is below {LOWEST_SHARE:.0%} of it, a data gap).",
+        + f"; {result.fixes_used} descent fixes, every one fed to the live predictors (rate fit and wind "
+        "legs); predictions only at the checkpoints. Weather: each flight's own ascent winds "
+        "(`ascent_weather_cube`); ground: level at the measured landing altitude. Checkpoint = the first "
+        "report at or below that height above the ground (skipped for a flight whose next report is "
+        f"below {LOWEST_SHARE:.0%} of it, a data gap).",
         "",
-        "The held-out choice: for each flight, the configuration (plain, rate, wind L, rate + wind L with "
-        f"L in {', '.join('∞' if math.isinf(d) else f'{d / 1000:g} km' for d in DECAYS_M)}) with the "
-        "lowest mean error on the other flights at that checkpoint, applied to this flight.",
+        f"Two laws: **profile** = payload `{result.profile_label}` and its drag law (v ∝ ρ^-½); **model** = "
+        f"{result.model_label}. Live corrections: **rate** = one factor on the law's descent rate, "
+        "fitted (Huber, with a free time offset) on every fix of the descent so far with the same law "
+        "that carries it to the ground, so *profile + rate* is the ρ^-½ extrapolation of the measured "
+        f"rate; *last-3-km rate* fits only the fixes within {RECENT_RATE_WINDOW_M / 1000:g} km above the "
+        "report (the previous estimator); **wind L** = the measured wind error, decaying below the capsule "
+        f"with L in {', '.join('∞' if math.isinf(d) else f'{d / 1000:g} km' for d in DECAYS_M)}. "
+        "**model + held-out live**: for each flight the rate (off, whole descent or last 3 km, by the "
+        "mean |remaining-time error| of the OTHER flights) and then the wind (by their mean landing error) that the other "
+        "flights preferred at that checkpoint.",
         "",
-        "| height km | flights | plain median / mean km | rate median / mean km | held-out choice median / "
-        "mean km | helps? | choice on all flights |",
-        "|---|---|---|---|---|---|---|",
+        "Landing error = distance from the predicted to the measured landing. Remaining-time error = "
+        "predicted minus measured time from the report to touchdown; the measured touchdown is the last "
+        "airborne fix carried to the ground at the rate of its own interval (the first fix on the ground "
+        "is up to one interval late: 3 min on these trackers).",
+        "",
+        "## Landing error, km (mean / median)",
+        "",
+        header,
+        rule,
     ]
     for km in kms:
-        rows = result.held_out[km]
-        cells = [f"{np.median(rows[n]):.2f} / {np.mean(rows[n]):.2f}" for n in series]
-        lines.append(
-            f"| {km:g} | {len(rows['plain'])} | {' | '.join(cells)} | "
-            f"{'yes' if helps(result, km) else 'no'} | "
-            f"{result.all_flights_choice[km]} |"
-        )
-    shown = ("plain", "rate", "wind 2 km", "wind 8 km", "wind const", "rate + wind 2 km", "rate + wind const")
+        rows = held_out(result, km)
+        cells = [f"{np.mean(rows[n][0]):.2f} / {np.median(rows[n][0]):.2f}" for n, _ in SERIES]
+        lines.append(f"| {km:g} | {len(rows[PLAIN][0])} | {' | '.join(cells)} |")
     lines += [
         "",
-        "Mean error (km) of fixed configurations on all flights (not held out; shows the shape):",
+        "## Remaining-time error, s (mean |error| / mean signed error)",
+        "",
+        header,
+        rule,
+    ]
+    for km in kms:
+        rows = held_out(result, km)
+        cells = [f"{np.mean(np.abs(rows[n][1])):.0f} / {np.mean(rows[n][1]):+.0f}" for n, _ in SERIES]
+        lines.append(f"| {km:g} | {len(rows[PLAIN][0])} | {' | '.join(cells)} |")
+    lines.append("")
+    if 20.0 in kms:
+        model_s, textbook_s = remaining_time_ratio(result, 20.0)
+        lines += [
+            f"From 20 km the remaining-time error with the model and its fitted rate is {model_s:.0f} s "
+            f"(mean |error|) against {textbook_s:.0f} s for the ρ^-½ extrapolation of the measured rate: "
+            f"{100 * model_s / textbook_s:.0f} %.",
+            "",
+        ]
+    lines += [
+        "![landing and remaining-time error against height](live-reprediction.png)",
+        "",
+        "## What ships",
+        "",
+        "A correction ships in a checkpoint's band only where its held-out choice beat the model's plain "
+        "re-prediction on its own metric: the rate on the mean |remaining-time error|, the wind on the "
+        "mean landing error (beyond the rate choice).",
+        "",
+        "| height km | rate: held-out / plain mean |Δt| s | ships | wind: held-out / rate-only mean km | ships "
+        "| choice on all flights |",
+        "|---|---|---|---|---|---|",
+    ]
+    for km in kms:
+        cases = _cases(result, km)
+        rate_names = [_combined(result.rate_choice[km][c.flight], None) for c in cases]
+        rate_held = np.mean([abs(c.time_error_s[n]) for c, n in zip(cases, rate_names, strict=True)])
+        plain = np.mean([abs(c.time_error_s[PLAIN]) for c in cases])
+        wind_held = np.mean([c.errors_km[result.held_out_name(c)] for c in cases])
+        rate_only = np.mean([c.errors_km[n] for c, n in zip(cases, rate_names, strict=True)])
+        rate, wind = result.all_flights_choice[km]
+        lines.append(
+            f"| {km:g} | {rate_held:.0f} / {plain:.0f} | {'yes' if rate_helps(result, km) else 'no'} | "
+            f"{wind_held:.2f} / {rate_only:.2f} | {'yes' if wind_helps(result, km) else 'no'} | "
+            f"{rate or 'no rate'}, {wind or 'no wind'} |"
+        )
+    shown = ("plain", "rate", "recent rate", "wind 2 km", "wind 8 km", "wind const", "rate + wind 2 km")
+    lines += [
+        "",
+        "Mean landing error (km) of fixed model configurations on all flights (not held out; shows the shape):",
         "",
         "| height km | " + " | ".join(shown) + " |",
         "|---|" + "---|" * len(shown),
     ]
     for km in kms:
-        cases = [c for c in result.cases if c.checkpoint_km == km]
+        cases = _cases(result, km)
         lines.append(
             f"| {km:g} | "
-            + " | ".join(f"{np.mean([c.errors_km[n] for c in cases]):.2f}" for n in shown)
+            + " | ".join(f"{np.mean([c.errors_km[f'model · {n}'] for c in cases]):.2f}" for n in shown)
             + " |"
         )
     starts = list(result.start_errors_km.values())
     lines += [
         "",
-        f"From the descent start with no live update: median {np.median(starts):.2f} km, "
+        f"The model from the descent start with no live update: median {np.median(starts):.2f} km, "
         f"mean {np.mean(starts):.2f} km over {len(starts)} flights.",
-        "",
-        "![landing error against height](live-reprediction.png)",
         "",
         "Live ellipse (`predictor.live.LIVE_ERROR_MODEL`): RMS along/across-track error of what ships, "
         "per height, and the held-out coverage (each flight against σ fitted without it; a 2-D Gaussian "
@@ -337,16 +589,7 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
         ],
         "",
         "What ships (`predictor.live.DEFAULT_CORRECTION`, bands of height above the ground): "
-        + (
-            "; ".join(
-                f"{'ground' if not math.isfinite(b.lower_m) else f'{b.lower_m / 1000:g} km'}–"
-                f"{'top' if not math.isfinite(b.upper_m) else f'{b.upper_m / 1000:g} km'}: "
-                f"rate {'on' if b.use_rate else 'off'}, wind "
-                + ("off" if b.decay_m is None else f"L = {b.decay_m / 1000:g} km")
-                for b in shipped.bands
-            )
-            or "nothing (plain re-prediction everywhere)"
-        )
+        + _bands_text(shipped_correction(result))
         + "; elsewhere a plain re-prediction from the report.",
         "",
         "Choices per flight (held-out):",
@@ -354,7 +597,8 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
     ]
     for km in kms:
         counts: dict[str, int] = {}
-        for name in result.chosen[km].values():
+        for flight in result.rate_choice[km]:
+            name = _combined(result.rate_choice[km][flight], result.wind_choice[km][flight])
             counts[name] = counts.get(name, 0) + 1
         lines.append(f"* {km:g} km: " + ", ".join(f"{n} ×{c}" for n, c in sorted(counts.items())))
     md = out / "live-reprediction.md"
