@@ -25,7 +25,7 @@ from textual.worker import Worker, WorkerState
 from console.predictions import PredictionService, ReleaseOrigin
 from drs_link.arming import ArmState
 from drs_link.balloon_feed import BalloonFeed
-from drs_link.checklist import Checklist, ChecklistRun, load_checklists
+from drs_link.checklist import PROCEDURE_DIR, Checklist, ChecklistRun, load_checklists
 from drs_link.errors import LinkError
 from drs_link.fleet import FleetState
 from drs_link.gonogo import GoNoGoReport, evaluate
@@ -35,7 +35,6 @@ from drs_link.telemetry import TelemetryRecord
 from predictor.errors import PredictorError
 from predictor.integrate import COMPILE_NOTICE, kernels_compiled
 
-CHECKLIST_DIR = Path(__file__).parent / "checklists"
 POLL_PERIOD_S = 5.0
 REPORT_POLL_S = 3.0
 PREDICTION_LEAD_MIN = (0, 10)
@@ -101,7 +100,7 @@ class DrsConsole(App[int]):
     ]
 
     def __init__(
-        self, setup: ConsoleSetup, checklist_dir: Path = CHECKLIST_DIR, live_timers: bool = True
+        self, setup: ConsoleSetup, checklist_dir: Path = PROCEDURE_DIR, live_timers: bool = True
     ) -> None:
         super().__init__()
         self.setup = setup
@@ -276,7 +275,11 @@ class DrsConsole(App[int]):
         moment (the balloon feed's first fix, a GNSS fix after power-on), and the operator should see a
         landing within seconds of it, not a whole prediction period later."""
         self.refresh_predictions(
-            [name for name in self.setup.capsules if self.fleet.capsules[name].reading("prediction").value is None]
+            [
+                name
+                for name in self.setup.capsules
+                if self.fleet.capsules[name].reading("prediction").value is None
+            ]
         )
 
     def prediction_status(self, name: str, short: str, text: str) -> TelemetryRecord:

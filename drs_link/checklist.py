@@ -6,13 +6,19 @@ checklist is a file of steps of three kinds: *manual* (ticked by a named operato
 hand) and *command* (completed only by running the command through its normal confirmation, so
 a checklist can never become a way around it). Progress lives in the store, so a restarted console
 shows what was done and by whom.
+
+Which step a command completes is decided here (``complete_command``), not by a front end, so the
+CLI and the console tick the same step: the first one in procedure order that names the command,
+is not yet done, and whose own ``when`` holds. A command step's ``when`` says when running the
+command counts for it: "Sounder off once the capsule is in hand" is not completed by a SOUNDER_OFF
+sent during the descent.
 """
 
 from __future__ import annotations
 
 import operator as op
 import tomllib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from enum import StrEnum
@@ -50,7 +56,9 @@ OPERATORS: dict[str, Callable[[Any, Any], bool]] = {
     "<": op.lt,
 }
 COMMANDS = ("power-on", "fire", "mt-interval", "mt-sounder-off", "mt-parachute", "reset")
-"""Console commands a command step may name (each has its own confirmation in the console)."""
+"""Commands a command step may name (each has its own confirmation, in the CLI and the console)."""
+PROCEDURE_DIR = Path(__file__).parent / "checklists"
+"""The flown procedure (drs_protocol.md 5) as checklists, in file-name order."""
 
 _DDL = """
 CREATE TABLE IF NOT EXISTS checklist_step (
@@ -103,6 +111,7 @@ class Step:
     kind: StepKind
     text: str
     predicate: Predicate | None = None
+    """Auto step: when it is met. Command step: when running the command counts for it."""
     command: str | None = None
 
 
@@ -122,7 +131,7 @@ class Checklist:
 
 def _predicate(where: str, table: Any) -> Predicate:
     if not isinstance(table, dict) or set(table) != {"fact", "op", "value"}:
-        raise ConfigError(f"{where}.when: write it as {{ fact = \"...\", op = \"==\", value = ... }}")
+        raise ConfigError(f'{where}.when: write it as {{ fact = "...", op = "==", value = ... }}')
     fact, operator, value = table["fact"], table["op"], table["value"]
     if fact not in FACTS:
         raise ConfigError(f"{where}.when.fact: unknown fact {fact!r} (known: {', '.join(sorted(FACTS))})")
@@ -152,12 +161,12 @@ def _step(where: str, table: Any) -> Step:
     except ValueError:
         raise ConfigError(f"{where}.kind: {table['kind']!r} is not manual, auto or command") from None
     predicate = command = None
-    if kind is StepKind.AUTO:
-        if "when" not in table:
-            raise ConfigError(f"{where}.when: an auto step needs a predicate")
+    if kind is StepKind.AUTO and "when" not in table:
+        raise ConfigError(f"{where}.when: an auto step needs a predicate")
+    if "when" in table:
+        if kind is StepKind.MANUAL:
+            raise ConfigError(f"{where}.when: only auto and command steps have a predicate")
         predicate = _predicate(where, table["when"])
-    elif "when" in table:
-        raise ConfigError(f"{where}.when: only auto steps have a predicate")
     if kind is StepKind.COMMAND:
         command = table.get("command")
         if command not in COMMANDS:
@@ -246,7 +255,9 @@ class ChecklistRun:
         if step.kind is StepKind.AUTO:
             raise RefusedError(f"{step.id}: an automatic step follows the telemetry; it cannot be ticked")
         if step.kind is StepKind.COMMAND:
-            raise RefusedError(f"{step.id}: a command step is done by running {step.command!r}, not by a tick")
+            raise RefusedError(
+                f"{step.id}: a command step is done by running {step.command!r}, not by a tick"
+            )
         self._record(step, StepState.DONE, operator, None)
 
     def skip(self, step_id: str, operator: str, reason: str) -> None:
@@ -276,7 +287,8 @@ class ChecklistRun:
 
     def statuses(self, facts: Mapping[str, object]) -> list[StepStatus]:
         rows = self.store.query(
-            "SELECT * FROM checklist_step WHERE capsule = ? AND checklist = ?", (self.capsule, self.checklist.id)
+            "SELECT * FROM checklist_step WHERE capsule = ? AND checklist = ?",
+            (self.capsule, self.checklist.id),
         )
         recorded = {row["step"]: row for row in rows}
         out = []
@@ -284,13 +296,45 @@ class ChecklistRun:
             row = recorded.get(step.id)
             if row is not None:
                 out.append(
-                    StepStatus(step, StepState(row["state"]), row["operator"], parse_iso_utc(row["at"]), row["note"])
+                    StepStatus(
+                        step, StepState(row["state"]), row["operator"], parse_iso_utc(row["at"]), row["note"]
+                    )
                 )
-            elif step.predicate is not None:
+            elif step.kind is StepKind.AUTO and step.predicate is not None:
                 out.append(StepStatus(step, step.predicate.evaluate(facts), None, None, None))
             else:
                 out.append(StepStatus(step, StepState.PENDING, None, None, None))
         return out
 
     def complete(self, facts: Mapping[str, object]) -> bool:
-        return all(s.state in (StepState.DONE, StepState.SKIPPED, StepState.MET) for s in self.statuses(facts))
+        return all(
+            s.state in (StepState.DONE, StepState.SKIPPED, StepState.MET) for s in self.statuses(facts)
+        )
+
+
+def complete_command(
+    store: Store,
+    checklists: Sequence[Checklist],
+    capsule: str,
+    command: str,
+    operator: str,
+    result: str,
+    facts: Mapping[str, object],
+    clock: Callable[[], datetime] = utc_now,
+) -> tuple[Checklist, Step] | None:
+    """Mark done the one step a command that ran (and succeeded) completes; ``None`` when none applies.
+
+    The step is the first, in procedure order, that names ``command``, is not already done or skipped,
+    and whose ``when`` holds on ``facts`` (no data is not "holds": a step is never completed on a guess).
+    """
+    for checklist in checklists:
+        run = ChecklistRun(store, checklist, capsule, clock)
+        for status in run.statuses(facts):
+            step = status.step
+            if step.command != command or status.state in (StepState.DONE, StepState.SKIPPED):
+                continue
+            if step.predicate is not None and step.predicate.evaluate(facts) is not StepState.MET:
+                continue
+            run.command_done(step.id, operator, result)
+            return checklist, step
+    return None

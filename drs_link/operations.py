@@ -20,13 +20,16 @@ from drs_link.backends import AuthorityStatus
 from drs_link.backends.agent import AgentBackend
 from drs_link.backends.stock import StockBackend
 from drs_link.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
+from drs_link.checklist import PROCEDURE_DIR, load_checklists
 from drs_link.config import CapsuleConfig, Config
 from drs_link.errors import ConfigError, LinkError
 from drs_link.gonogo import ExclusionZone, GoNoGoReport, WaiverBook
 from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.interval import interval_track
+from drs_link.iridium.landed import landed_evidence
 from drs_link.iridium.lifecycle import Command, CommandLifecycle
 from drs_link.iridium.mt import MtMessage
+from drs_link.iridium.procedure import complete_mt_steps
 from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.ssh import CapsuleLink, HostKeyError
 from drs_link.storage import read_storage
@@ -36,8 +39,6 @@ from drs_link.telemetry import TelemetryRecord, TelemetryRecorder
 
 GNSS_UERE_M = 5.0
 """Metres of position error per unit of HDOP (a typical user range error), for the fix's uncertainty."""
-LANDED_SPEED_MS = 1.0
-LANDED_ALT_CHANGE_M = 20.0
 
 
 def load_exclusion_zones(path: Path | None) -> tuple[ExclusionZone, ...]:
@@ -79,11 +80,13 @@ def report_position(stored: StoredReport) -> tuple[float, float, float, str] | N
     return (*coarse, "iridium") if coarse is not None else None
 
 
-def report_record(capsule: str, stored: StoredReport, interval_min: int) -> TelemetryRecord:
+def report_record(capsule: str, stored: StoredReport, interval_min: int, landed: bool) -> TelemetryRecord:
     """One Iridium report as telemetry (position from the fix, else the Iridium estimate).
 
     ``interval_min`` is the longest time the next report may take (``IntervalTrack.overdue_after``):
     the report's staleness period, so a report is not called stale before the next one is due.
+    ``landed`` is ``drs_link.iridium.landed``'s verdict on the reports up to this one: the rule the
+    PARACHUTE gate and the checklist's steps use, so the fleet never says landed when they do not.
     """
     report = stored.report
     fix = report.fix if report else None
@@ -101,7 +104,7 @@ def report_record(capsule: str, stored: StoredReport, interval_min: int) -> Tele
         "vbat": report.vbat if report else None,
         "iteration": report.iteration if report else None,
         "interval_min": interval_min,
-        "landed": bool(fix and fix.speed_ms < LANDED_SPEED_MS and fix.alt_m < 6000),
+        "landed": landed,
     }
     return TelemetryRecord(stored.time, capsule, "report", data)
 
@@ -125,6 +128,7 @@ class Operations:
         self.environ = environ
         self.operator = config.operator.name or "unknown"
         self.zones = load_exclusion_zones(config.console.exclusion_zones_file)
+        self.checklists = load_checklists(PROCEDURE_DIR)
         self.reports = ReportStore(store)
         self.lifecycle = CommandLifecycle(store, self.operator, clock)
         self._seen_reports: dict[str, int] = {}
@@ -283,7 +287,10 @@ class Operations:
             return []
         self.lifecycle.observe(stored, imei)
         track = interval_track(stored, self.lifecycle.for_imei(imei))
-        return self._emit([report_record(name, r, track.overdue_after(r)) for r in fresh])
+        return self._emit([
+            report_record(name, r, track.overdue_after(r), landed_evidence(stored[: i + 1]).on_ground)
+            for i, r in enumerate(stored) if r.id > seen
+        ])  # fmt: skip
 
     def stored_reports(self, name: str) -> list[StoredReport]:
         imei = self.ops(name).config.imei
@@ -294,10 +301,17 @@ class Operations:
         return self.lifecycle.for_imei(imei) if imei else []
 
     def send_mt(self, name: str, message: MtMessage, confirmation: str) -> Command:
-        """Request and queue one MT; ``confirmation`` must be the capsule's name (checked by the lifecycle)."""
+        """Request and queue one MT; ``confirmation`` must be the capsule's name (checked by the lifecycle).
+
+        A queued MT completes its checklist steps here, by the rule ``drs mt send`` uses too.
+        """
         gateway = RockblockGateway.from_config(self.config.rockblock, self.environ)
         command = self.lifecycle.request(self.ops(name).config, message)
-        return self.lifecycle.send(command.id, confirmation, gateway)
+        command = self.lifecycle.send(command.id, confirmation, gateway)
+        complete_mt_steps(
+            self.store, self.checklists, self.operator, command, self.stored_reports(name), self.clock
+        )
+        return command
 
     def close(self) -> None:
         for ops in self.capsules.values():

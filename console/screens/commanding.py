@@ -23,8 +23,6 @@ from drs_link.iridium.mt import MtComposer, MtMessage, parse_hhmm
 from drs_link.iridium.parachute import ParachutePlan, plan_parachute
 
 COMMAND_ACTIONS = ("interval", "sounder", "parachute", "parachute_at")
-CHECKLIST_STEPS = {"[INTERVAL": "mt-interval", "[PARACHUTE": "mt-parachute", "[SOUNDER_OFF": "mt-sounder-off"}
-"""Checklist steps a queued MT completes, by how its text starts."""
 
 
 def command_bindings(paired: bool) -> list[Binding]:
@@ -193,16 +191,4 @@ class CommandingScreen(ConsoleScreen):
         self.app.post_message(
             OperatorNotice(f"{self.capsule}: {message.text} {command.state}: {command.detail}")
         )
-        if command.state == "queued":
-            for prefix, step in CHECKLIST_STEPS.items():
-                if message.text.startswith(prefix):
-                    self.app.call_from_thread(self._command_done, step, f"{message.text} queued")
         self.app.call_from_thread(self.reload_after_send)
-
-    def _command_done(self, command: str, result: str) -> None:
-        for checklist in self.console.checklists:
-            for step in checklist.steps:
-                if step.command == command:
-                    self.console.checklist_run(self.capsule, checklist).command_done(
-                        step.id, self.console.operator, result
-                    )

@@ -14,6 +14,7 @@ from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 
+from drs_link.checklist import PROCEDURE_DIR, load_checklists
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.iridium import lifecycle as lc
@@ -26,6 +27,7 @@ from drs_link.iridium.landed import landed_evidence
 from drs_link.iridium.mo import parse_hex
 from drs_link.iridium.mt import MtComposer, MtMessage, parse_hhmm
 from drs_link.iridium.parachute import plan_parachute
+from drs_link.iridium.procedure import complete_mt_steps
 from drs_link.iridium.recovery import (
     detect_landing,
     parse_position,
@@ -199,6 +201,11 @@ def _mt_send(args: argparse.Namespace) -> int:
     command = life.request(capsule, message, flush=args.flush)
     command = life.send(command.id, args.confirm, gateway)
     print(f"MT {command.id}: {command.state}: {command.detail}")
+    checklists = load_checklists(PROCEDURE_DIR)
+    for step in complete_mt_steps(
+        store, checklists, config.operator.name, command, _capsule_reports(config, store, args.name)[1]
+    ):
+        print(f"checklist: done: {step.text}")
     return 0 if command.state == lc.QUEUED else 1
 
 

@@ -7,12 +7,19 @@ from pathlib import Path
 
 import pytest
 
-from drs_link.checklist import ChecklistRun, StepState, load_checklist, load_checklists, parse_checklist
+from drs_link.checklist import (
+    PROCEDURE_DIR,
+    ChecklistRun,
+    StepState,
+    load_checklist,
+    load_checklists,
+    parse_checklist,
+)
 from drs_link.errors import ConfigError, RefusedError
 from drs_link.store import Store
 
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
-DEFAULTS = Path(__file__).resolve().parents[2] / "console" / "checklists"
+DEFAULTS = PROCEDURE_DIR
 
 DOC = {
     "id": "release-day",
@@ -108,6 +115,10 @@ def test_progress_survives_a_restart_and_completion_needs_every_step(tmp_path: P
         ({"id": "x", "kind": "command", "text": "t", "command": "self-destruct"}, "command: 'self-destruct'"),
         ({"id": "x", "kind": "sometimes", "text": "t"}, "kind: 'sometimes'"),
         ({"id": "x", "kind": "manual", "text": "t", "colour": "red"}, r"step\[0\].colour: unknown key"),
+        (
+            {"id": "x", "kind": "manual", "text": "t", "when": {"fact": "landed", "op": "==", "value": True}},
+            "only auto and command steps have a predicate",
+        ),
     ],
 )
 def test_a_bad_step_is_refused_with_the_file_and_key(step: dict[str, object], message: str) -> None:
