@@ -275,15 +275,24 @@ def storage_report(mount: str) -> RemoteCommand:
 
 
 def verify_file(path: str) -> RemoteCommand:
-    """Flush the uploaded file to the card, then hash what is actually stored."""
+    """Flush the uploaded file to the card, then hash what is actually stored.
+
+    The file is hashed from standard input, so the line is always ``<digest>  -``: given the name,
+    GNU sha256sum escapes one that holds a backslash or a newline and starts the line with ``\\``,
+    and such a file never verified.
+    """
     q = shlex.quote
-    script = f"sync -- {q(path)} && sha256sum -- {q(path)}"
+    script = f"sync -- {q(path)} && sha256sum < {q(path)}"
     return RemoteCommand("verify", (path,), script)
 
 
 def hash_file(path: str) -> RemoteCommand:
     q = shlex.quote
-    return RemoteCommand("hash", (path,), f"sha256sum -- {q(path)}")
+    return RemoteCommand("hash", (path,), f"sha256sum < {q(path)}")
+
+
+SHA256_LINE_RE = re.compile(r"([0-9a-f]{64})  -\n?")
+"""What ``verify_file`` and ``hash_file`` print on success."""
 
 
 def heartbeat() -> RemoteCommand:

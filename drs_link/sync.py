@@ -21,7 +21,7 @@ import paramiko
 
 from drs_link import remote
 from drs_link.errors import LinkError
-from drs_link.ssh import CapsuleLink
+from drs_link.ssh import CapsuleLink, CommandResult
 from drs_link.storage import read_storage
 from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
 
@@ -290,17 +290,18 @@ class Syncer:
     def _pi_sha256(self, relative: str) -> str:
         """The hash of what the Pi actually stores, for ``status --hash``."""
         path = self._remote_path(relative)
-        result = self.link.run(remote.hash_file(path))
-        if not result.ok or not result.stdout.strip():
-            raise LinkError(
-                f"{self.capsule}: cannot hash {path} on the Pi: {result.stderr.strip() or 'no output'}"
-            )
-        return result.stdout.split()[0]
+        return self._digest(self.link.run(remote.hash_file(path)), f"cannot hash {path} on the Pi")
 
     def _remote_sha256(self, path: str) -> str:
         result = self.link.run(remote.verify_file(path))
         if result.link_dropped:
             raise LinkError(f"{self.capsule}: the link dropped while verifying {path}")
-        if not result.ok or not result.stdout.strip():
-            raise LinkError(f"{self.capsule}: cannot verify {path} on the Pi: {result.stderr.strip()}")
-        return result.stdout.split()[0]
+        return self._digest(result, f"cannot verify {path} on the Pi")
+
+    def _digest(self, result: CommandResult, failure: str) -> str:
+        """The digest of a ``<digest>  -`` line, or a refusal that says what the Pi said instead."""
+        match = remote.SHA256_LINE_RE.fullmatch(result.stdout) if result.ok else None
+        if match is None:
+            said = result.stderr.strip() or result.stdout.strip()[:200] or "no output"
+            raise LinkError(f"{self.capsule}: {failure}: {said}")
+        return match.group(1)

@@ -59,6 +59,9 @@ class Faults:
     drop_on_command: str | None = None
     response_delay_s: float = 0.0
     raid_degraded: bool = False
+    corrupt_writes: int = 0
+    """The next N uploads are stored with their first byte inverted: a card that keeps other bytes
+    than it was given, which only the sha256 on the Pi can catch."""
     _sent: int = field(default=0, repr=False)
 
     def arm_drop(self, after_bytes: int) -> None:
@@ -612,7 +615,7 @@ class CapsuleSimulator:
             out.err(f"sha256sum: {path}: No such file or directory\n")
             return 1
         digest = hashlib.sha256(real.read_bytes()).hexdigest()
-        out.write(f"{digest}  {path}\n")
+        out.write(f"{digest}  -\n")  # GNU sha256sum reading standard input (drs_link.remote.verify_file)
         return 0
 
     # The agent backend (drs_link/backends/pi_agent.py as it behaves on a Pi) --------------------

@@ -30,6 +30,9 @@ class _Handle(paramiko.SFTPHandle):
         growth = max(0, offset + len(data) - current)
         if growth and self.sim.storage_used() + growth > self.sim.capacity_bytes:
             return SFTP_FAILURE
+        if offset == 0 and data and self.sim.faults.corrupt_writes > 0:
+            self.sim.faults.corrupt_writes -= 1
+            data = bytes([data[0] ^ 0xFF]) + data[1:]
         return super().write(offset, data)
 
     def stat(self) -> paramiko.SFTPAttributes | int:

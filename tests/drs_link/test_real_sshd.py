@@ -430,6 +430,27 @@ def test_sync_over_real_sftp_is_verified_by_sha256sum_on_the_server(
     ).read_bytes()
 
 
+def test_sync_verifies_files_whose_names_gnu_sha256sum_would_escape(
+    capsule: CapsuleConfig, tmp_path: Path
+) -> None:
+    """Given a name with a backslash or a newline, GNU sha256sum starts its line with ``\\``: such a
+    file never verified, the sync gave up after sending it twice, and every later file stayed unsent."""
+    names = ["back\\slash.bin", "new\nline.bin", "z-after.bin"]
+    source = tmp_path / "payload"
+    source.mkdir()
+    for name in names:
+        (source / name).write_bytes(os.urandom(50_000))
+    link = CapsuleLink(capsule)
+    syncer = Syncer(Store.open(tmp_path / "drs.sqlite"), link, capsule.name, capsule.storage_mount)
+    report = syncer.sync(source)
+    after = syncer.status(source, with_hash=True)
+    link.close()
+    assert sorted(report.uploaded) == sorted(names) and report.bytes_sent == 150_000
+    for name in names:
+        assert (Path(capsule.storage_mount) / name).read_bytes() == (source / name).read_bytes()
+    assert after.missing == () and after.changed == ()
+
+
 def _kill_sessions_of(listener_pid: int) -> None:
     """SIGKILL this test's own sshd session processes (children of our listener), by pid."""
     for entry in os.listdir("/proc"):

@@ -135,6 +135,34 @@ def test_disk_filling_up_mid_sync_is_reported_and_verified_files_survive(
     assert not (sim.storage_dir / "2.bin").exists()
 
 
+def test_a_file_the_card_stores_wrong_is_sent_again_and_then_verified(
+    make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig], tmp_path: Path
+) -> None:
+    sim = make_sim()
+    sim.faults.corrupt_writes = 1
+    source = _source(tmp_path, {"a.bin": 100_000})
+    syncer, link = _syncer(tmp_path, sim_config(sim))
+    report = syncer.sync(source)
+    link.close()
+    assert report.uploaded == ("a.bin",) and report.bytes_sent == 200_000
+    assert _digest(sim.storage_dir / "a.bin") == _digest(source / "a.bin")
+
+
+def test_a_file_stored_wrong_twice_is_refused_and_never_counted_as_synced(
+    make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig], tmp_path: Path
+) -> None:
+    """Without the sha256 comparison on the Pi this corrupt copy would be renamed into place as synced."""
+    sim = make_sim()
+    sim.faults.corrupt_writes = 2
+    source = _source(tmp_path, {"a.bin": 100_000})
+    syncer, link = _syncer(tmp_path, sim_config(sim))
+    with pytest.raises(LinkError, match="a.bin: the Pi's sha256 does not match after re-sending"):
+        syncer.sync(source)
+    assert not (sim.storage_dir / "a.bin").exists()
+    assert syncer.status(source).missing == ("a.bin",)
+    link.close()
+
+
 def test_storage_status_reports_usage_and_a_degraded_mirror(
     make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig]
 ) -> None:
