@@ -92,7 +92,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     live.add_argument("--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model)")
     live.add_argument("--no-correction", action="store_true", help="plain re-prediction from each report")
     live.add_argument("--json", action="store_true", help="print one JSON document per report")
-    live.add_argument("--out", metavar="DIR", default="docs/planning", help="evaluate/bench: report directory")
+    live.add_argument("--out", metavar="DIR", default="docs/planning", help="evaluate: report directory")
     live.add_argument("--cache-dir", metavar="DIR", help="weather cache (default ~/.cache/drs/weather)")
     live.set_defaults(func=run_live)
 
@@ -377,5 +377,5 @@ def run_live_bench(args: argparse.Namespace) -> int:
 
     if not args.tracks:
         raise PredictorError("drs live bench needs track files")
-    print(bench(args.tracks, load_model(args.model) if args.model is not None else None, args.out))
+    print(bench(args.tracks, load_model(args.model) if args.model is not None else None))
     return 0

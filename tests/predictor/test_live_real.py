@@ -137,11 +137,11 @@ def test_live_cli_flies_a_calibrated_model_or_mass_and_cda_and_refuses_both(
 
 
 def test_live_bench_re_samples_real_flights_to_1_hz_and_feeds_every_fix(
-    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    shared_data: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     folder = shared_data / "tracks" / "pyballoon_superbit"
     tracks = [str(folder / name) for name in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")]
-    assert main(["live", "bench", *tracks, "--out", str(tmp_path)]) == 0
+    assert main(["live", "bench", *tracks]) == 0
     line = capsys.readouterr().out
     # Three flights of about three hours: some 10,000 fixes each, every descent fix fed.
     fixes = int(line.split(" fixes in the files")[0].rsplit(" ", 1)[1])
