@@ -92,6 +92,7 @@ KIND_BINNED_WIND = 10
 KIND_WIND_LAG = 11
 KIND_WEATHER_TIME_OFFSET = 12
 KIND_SEA_LEVEL_RATE = 13
+KIND_MEASURED_DESCENT_RATE = 14
 STANDARD_SEA_LEVEL_DENSITY = 1.225
 
 
@@ -145,6 +146,17 @@ def _sea_level_rate(
     p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
 ) -> None:
     vel[VEL_DOWN] += p[p_off] * math.sqrt(p[p_off + 1] / env[ENV_RHO])
+
+
+@njit(cache=True)
+def _measured_descent_rate(
+    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+) -> None:
+    n_bins = int(p[p_off])
+    b = _bin_of(p, p_off + 1, n_bins, env[ENV_Z])
+    if b < 0:
+        b = 0 if env[ENV_Z] < p[p_off + 1] else n_bins - 1
+    vel[VEL_DOWN] += p[p_off + n_bins + 2 + b]
 
 
 @njit(cache=True)
@@ -293,6 +305,10 @@ def apply_term(
         for i in range(lo, hi):
             if active[i]:
                 _sea_level_rate(params[i], p_off, s_off, env[i], vel[i], state[i])
+    elif kind == KIND_MEASURED_DESCENT_RATE:
+        for i in range(lo, hi):
+            if active[i]:
+                _measured_descent_rate(params[i], p_off, s_off, env[i], vel[i], state[i])
     elif kind == KIND_WIND:
         for i in range(lo, hi):
             if active[i]:
@@ -399,6 +415,32 @@ class SeaLevelRate(Term):
     family: ClassVar[str] = "vertical"
     stage: ClassVar[int] = 0
     kind: ClassVar[int] = KIND_SEA_LEVEL_RATE
+
+
+@dataclass(frozen=True)
+class MeasuredDescentRate(Term):
+    """The descent rate a flight was measured to have, per altitude bin (the nearest bin outside them).
+
+    A base term instead of ``terminal_velocity``: calibration replays a flight's measured
+    altitude–time profile with it, so that a horizontal effect is fitted to where the wind carried the
+    capsule while it really was at each altitude, and a descent-rate error cannot masquerade as wind.
+    """
+
+    edges_m: tuple[float, ...] = (0.0, 40000.0)
+    rates_ms: tuple[float, ...] = (5.0,)
+    name: ClassVar[str] = "measured_descent_rate"
+    family: ClassVar[str] = "vertical"
+    stage: ClassVar[int] = 0
+
+    def __post_init__(self) -> None:
+        _check_bins(self.edges_m, (self.rates_ms,), self.name)
+        if not all(r > 0 for r in self.rates_ms):
+            raise PredictorError(f"{self.name}: every rate must be positive")
+
+    def columns(self) -> list[float | np.ndarray]:
+        return [float(len(self.rates_ms)), *map(float, self.edges_m), *map(float, self.rates_ms)]
+
+    kind: ClassVar[int] = KIND_MEASURED_DESCENT_RATE
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ DEFAULT_STEP_M = 200.0
 """Altitude step of every calibration run: 150 steps from 30 km. The step's truncation error is the
 same for every candidate, so it cannot favour one; halving it doubles the run time."""
 DEFAULT_MAX_EFFECTS = 3
-"""Forward selection stops after this many effects (``selection.calibrate`` has the same default)."""
+"""Forward selection keeps at most this many effects per family (``selection.calibrate`` has the same default)."""
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
@@ -73,14 +73,12 @@ def _inputs(parser: argparse.ArgumentParser, required: bool) -> None:
     parser.add_argument("--mass", type=float, metavar="KG")
     parser.add_argument("--cda", type=float, metavar="M2", help="drag coefficient × canopy area")
     parser.add_argument("--effects", nargs="+", metavar="NAME", help="library subset to try (default: all)")
-    parser.add_argument("--max-effects", type=int, default=DEFAULT_MAX_EFFECTS, metavar="N")
+    parser.add_argument(
+        "--max-effects",
+        type=int,
+        default=DEFAULT_MAX_EFFECTS,
+        metavar="N",
+        help="effects kept per family at most",
+    )
     parser.add_argument("--step", type=float, default=DEFAULT_STEP_M, metavar="M", help="altitude step, m")
     parser.add_argument("--seed", type=int, default=0, help="seed of the bootstrap resampling")
-    parser.add_argument(
-        "--score",
-        choices=("track", "landing"),
-        default="track",
-        help="per-flight score: RMS 3-D error over every fix (default) or the landing error alone",
-    )
-
-

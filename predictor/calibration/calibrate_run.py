@@ -35,8 +35,6 @@ from predictor.payload import Payload, payload_profile
 from predictor.terrain import Terrain
 from predictor.weather import load_weather
 
-METRICS = {"track": "track_rms_km", "landing": "landing_error_km"}
-
 
 @dataclass(frozen=True)
 class Inputs:
@@ -100,7 +98,7 @@ def prepare(args: argparse.Namespace) -> Inputs:
 def analyse(inputs: Inputs, args: argparse.Namespace) -> tuple[Calibration, EllipseFit | None]:
     cal = calibrate(
         inputs.cases, inputs.payload, library(args.effects) if args.effects else LIBRARY,
-        step_m=args.step, max_effects=args.max_effects, seed=args.seed, metric=METRICS[args.score],
+        step_m=args.step, max_effects=args.max_effects, seed=args.seed,
     )  # fmt: skip
     ellipse = None
     if len(inputs.cases) >= MIN_FLIGHTS:
@@ -119,12 +117,21 @@ def run_calibrate(args: argparse.Namespace) -> int:
         args.json.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     if args.report:
         write_report(
-            args.report, cal, ellipse, inputs.excluded, args.title, _command(args), data, _preface(args.preface)
+            args.report,
+            cal,
+            ellipse,
+            inputs.excluded,
+            args.title,
+            _command(args),
+            data,
+            _preface(args.preface),
         )
     _print_summary(cal, inputs, data)
     if args.save_model:
         saved = save_model(calibrated_model(cal, ellipse, inputs, data, _command(args)), args.save_model)
-        print(f"model saved: {saved} (use it with --model on drs predict, drs plan, or a capsule's model key)")
+        print(
+            f"model saved: {saved} (use it with --model on drs predict, drs plan, or a capsule's model key)"
+        )
     return 0
 
 
@@ -132,10 +139,8 @@ def calibrated_model(
     cal: Calibration, ellipse: EllipseFit | None, inputs: Inputs, data: dict[str, Any], command: str
 ) -> CalibratedModel:
     """What this calibration learned, as the model predictions fly: the selected terms, then the binned
-    correction only when it beat them on held-out flights."""
-    terms = tuple(fit.term() for fit in cal.selected)
-    if cal.unexplained:
-        terms += cal.binned.terms()
+    correction's parts (rate factors, added wind) that beat them on held-out flights."""
+    terms = tuple(fit.term() for fit in cal.selected) + cal.binned_terms()
     provenance = {
         "created_utc": datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
         "project_version": _version(),
@@ -143,7 +148,7 @@ def calibrated_model(
         "flights": [case.name for case in inputs.cases],
         "excluded": [{"flight": e.name, "reason": e.reason} for e in inputs.excluded],
         "weather": inputs.weather,
-        "metric": cal.metric,
+        "metric": "per family: vertical altitude_rms_km, horizontal horizontal_rms_km (replayed), timing both",
         "held_out_before": data["baseline"],
         "held_out_after": data["after"],
         "binned_correction_used": cal.unexplained,
@@ -181,8 +186,6 @@ def _command(args: argparse.Namespace) -> str:
             parts += [flag, str(value)]
     if args.effects:
         parts += ["--effects", *args.effects]
-    if args.score != "track":
-        parts += ["--score", args.score]
     if args.report:
         parts += ["--report", str(args.report)]
         if args.title != "Calibration report":
@@ -199,15 +202,14 @@ def _print_summary(cal: Calibration, inputs: Inputs, data: dict) -> None:  # typ
     for e in inputs.excluded:
         print(f"  excluded {e.name}: {e.reason}")
     b, a = data["baseline"], data["after"]
-    print(
-        f"baseline (held out): RMS track {b['track_rms_km']['mean']:.3f} km, landing "
-        f"{b['landing_error_km']['mean']:.3f} km mean / {b['landing_error_km']['median']:.3f} km median"
-    )
-    print(
-        f"after    (held out): RMS track {a['track_rms_km']['mean']:.3f} km, landing "
-        f"{a['landing_error_km']['mean']:.3f} km mean / {a['landing_error_km']['median']:.3f} km median"
-    )
-    print("selected: " + (", ".join(f["effect"] for f in data["selected"]) or "none"))
+    for label, block in (("baseline", b), ("after   ", a)):
+        print(
+            f"{label} (held out): altitude RMS {block['altitude_rms_km']['mean']:.3f} km, |descent-time error| "
+            f"{block['descent_time_error_s']['mean']:.0f} s, horizontal RMS (replayed) "
+            f"{block['horizontal_rms_km']['mean']:.3f} km, landing {block['landing_error_km']['mean']:.3f} km mean / "
+            f"{block['landing_error_km']['median']:.3f} km median"
+        )
+    print("selected: " + (", ".join(f"{f['effect']} ({f['family']})" for f in data["selected"]) or "none"))
     print(verdict(cal))
 
 
@@ -223,7 +225,7 @@ def run_bench(args: argparse.Namespace) -> int:
         t1 = time.perf_counter()
         cal = calibrate(
             inputs.cases, inputs.payload, library(args.effects) if args.effects else LIBRARY,
-            step_m=args.step, max_effects=args.max_effects, seed=args.seed, metric=METRICS[args.score],
+            step_m=args.step, max_effects=args.max_effects, seed=args.seed,
         )  # fmt: skip
         t2 = time.perf_counter()
         if len(inputs.cases) >= MIN_FLIGHTS:

@@ -21,9 +21,14 @@ import numpy as np  # noqa: E402
 
 from predictor.calibration.effects import BIN_EDGES_M  # noqa: E402
 from predictor.calibration.ellipse_fit import PAPER_OBJECTIVE, EllipseFit  # noqa: E402
-from predictor.calibration.selection import Calibration, CandidateResult, HeldOut  # noqa: E402
+from predictor.calibration.selection import Calibration, CandidateResult, FamilyResult, HeldOut  # noqa: E402
 
-METRIC_LABELS = {"track_rms_km": "RMS track error", "landing_error_km": "landing error"}
+RECORD_LABELS = {
+    "vertical": "time-at-altitude RMS error (the vertical record)",
+    "horizontal": "horizontal RMS error with the measured descent replayed (the horizontal record)",
+}
+RECORD_METRICS = {"vertical": "time_rms_s", "horizontal": "horizontal_rms_km"}
+RECORD_UNITS = {"vertical": "s", "horizontal": "km"}
 
 
 @dataclass(frozen=True)
@@ -33,57 +38,76 @@ class Exclusion:
 
 
 def _error_block(h: HeldOut) -> dict[str, Any]:
-    s = h.summary()
-    return {
-        "landing_error_km": s["landing_error_km"],
-        "descent_time_error_s": s["descent_time_error_s"],
-        "track_rms_km": s["track_rms_km"],
-    }
+    return h.summary()
+
+
+def _family_sentence(family: FamilyResult) -> str:
+    """What one family's record showed and what its selection did, held out."""
+    b, a = family.before.summary(), family.after.summary()
+    own = "; ".join(
+        f"{RECORD_LABELS[r.name]} {b[r.metric]['mean']:.3g} → {a[r.metric]['mean']:.3g} {r.unit}"
+        for r in family.records
+    )
+    landing = f"landing error {b['landing_error_km']['mean']:.2f} → {a['landing_error_km']['mean']:.2f} km"
+    timing = (
+        f", |descent-time error| {b['descent_time_error_s']['mean']:.0f} → "
+        f"{a['descent_time_error_s']['mean']:.0f} s"
+        if family.family == "vertical"
+        else ""
+    )
+    if family.selected:
+        names = ", ".join(
+            f"`{f.candidate.name}` ({_params(f.describe()['parameters'])})" for f in family.selected
+        )
+        return f"{family.family.capitalize()}: selected {names}; held out, {own}{timing}, {landing} (means)."
+    return (
+        f"{family.family.capitalize()}: nothing beat the model by more than the margin on "
+        f"{' and '.join(r.name for r in family.records)} record{'s' if len(family.records) > 1 else ''} "
+        f"({own})."
+    )
 
 
 def verdict(cal: Calibration) -> str:
-    """One paragraph: what was found and how much it helped, held out."""
+    """One paragraph: what each family's record showed, what was kept, and how much it helped, held out."""
     b, a = cal.baseline.summary(), cal.after.summary()
-    label = METRIC_LABELS[cal.metric]
-    parts = []
+    parts = [_family_sentence(f) for f in cal.families]
     if cal.selected:
-        names = ", ".join(
-            f"`{f.candidate.name}` ({_params(f.describe()['parameters'])})" for f in cal.selected
-        )
         parts.append(
-            f"The loop selected {names}. On flights held out of every fit, the RMS track error went from "
-            f"{b['track_rms_km']['mean']:.2f} to {a['track_rms_km']['mean']:.2f} km (mean; median "
-            f"{b['track_rms_km']['median']:.2f} → {a['track_rms_km']['median']:.2f} km), the landing error "
-            f"from {b['landing_error_km']['mean']:.2f} to {a['landing_error_km']['mean']:.2f} km (median "
-            f"{b['landing_error_km']['median']:.2f} → {a['landing_error_km']['median']:.2f} km) and the "
-            f"|descent-time error| from {b['descent_time_error_s']['mean']:.0f} to "
-            f"{a['descent_time_error_s']['mean']:.0f} s (mean)."
+            f"With every selected effect, on flights held out of every fit, the landing error went from "
+            f"{b['landing_error_km']['mean']:.2f} to {a['landing_error_km']['mean']:.2f} km (mean; median "
+            f"{b['landing_error_km']['median']:.2f} → {a['landing_error_km']['median']:.2f} km) and the RMS "
+            f"3-D track error from {b['track_rms_km']['mean']:.2f} to {a['track_rms_km']['mean']:.2f} km."
         )
     else:
         parts.append(
-            "No library effect beat the plain model on held-out flights by more than the noise margin: "
-            f"the {label} stays {b[cal.metric]['mean']:.2f} km (mean)."
+            "No library effect beat the plain model on held-out flights by more than the noise margin."
         )
-    bt = cal.binned_test
-    bh = cal.binned_heldout.summary()
-    if cal.unexplained:
+    passed = [t for t in cal.binned_tests if t.passed]
+    if passed:
         lead = (
             "No library effect explains it"
             if not cal.selected
             else "The selected effects do not explain all of it"
         )
+        what = "; ".join(
+            f"on the {t.record} record its {'descent-rate factors' if t.record == 'vertical' else 'added wind'} "
+            f"improve the held-out {RECORD_METRICS[t.record]} by {t.mean_improvement:.3f} {t.unit} "
+            f"(margin {t.margin:.3f} {t.unit}, {t.wins}/{t.flights} flights better)"
+            for t in passed
+        )
         parts.append(
-            f"{lead}: the altitude-binned correction, fitted without each held-out flight, still lowers the "
-            f"held-out {label} to {bh[cal.metric]['mean']:.2f} km (improvement "
-            f"{bt.mean_improvement_km:.3f} km > margin {bt.margin_km:.3f} km, {bt.wins}/{bt.flights} flights "
-            "better). The residual has a systematic altitude structure the library lacks "
+            f"{lead}: the altitude-binned correction, fitted without each held-out flight, still helps "
+            f"({what}). The residual has a systematic altitude structure the library lacks "
             "(see its profile below)."
         )
     else:
         parts.append(
-            f"The altitude-binned correction does not improve further on held-out flights "
-            f"(improvement {bt.mean_improvement_km:.3f} km, margin {bt.margin_km:.3f} km): what is left is "
-            "not a systematic function of altitude that these flights can pin down."
+            "The altitude-binned correction does not improve further on held-out flights ("
+            + "; ".join(
+                f"{t.record} {t.mean_improvement:.3f} {t.unit}, margin {t.margin:.3f} {t.unit}"
+                for t in cal.binned_tests
+            )
+            + "): what is left is not a systematic function of altitude that these flights can pin down."
         )
     return " ".join(parts)
 
@@ -118,37 +142,54 @@ def result_json(
     cal: Calibration, ellipse: EllipseFit | None, excluded: Sequence[Exclusion], payload: dict[str, Any],
     weather: str,
 ) -> dict[str, Any]:  # fmt: skip
-    first_round: tuple[CandidateResult, ...] = cal.rounds[0] if cal.rounds else ()
+    def candidate(r: CandidateResult) -> dict[str, Any]:
+        return {
+            **r.full.describe(),
+            "description": r.full.candidate.why,
+            "round": r.round,
+            "heldout": _error_block(r.heldout),
+            "tests": [t.to_dict() for t in r.tests],
+            "passed": r.passed,
+        }
+
     return {
         "flights": list(cal.names),
         "excluded": [{"name": e.name, "reason": e.reason} for e in excluded],
         "baseline": _error_block(cal.baseline),
-        "candidates": [
-            {
-                **r.full.describe(),
-                "description": r.full.candidate.why,
-                "heldout": _error_block(r.heldout),
-                "test": r.test.to_dict(),
-            }
-            for r in first_round
-        ],
+        "candidates": [candidate(r) for r in (cal.rounds[0] if cal.rounds else ())],
         "selected": [f.describe() for f in cal.selected],
         "after": _error_block(cal.after),
         "uncertainty_model": ellipse.to_dict() if ellipse is not None else None,
-        "rounds": [
-            [{**r.full.describe(), "heldout": _error_block(r.heldout), "test": r.test.to_dict()} for r in rnd]
-            for rnd in cal.rounds
+        "rounds": [[candidate(r) for r in rnd] for rnd in cal.rounds],
+        "families": [
+            {
+                "family": f.family,
+                "records": [
+                    {
+                        "record": r.name,
+                        "metric": r.metric,
+                        "replayed": r.replay,
+                        "floor": r.floor,
+                        "unit": r.unit,
+                    }
+                    for r in f.records
+                ],
+                "before": _error_block(f.before),
+                "after": _error_block(f.after),
+                "selected": [fit.describe() for fit in f.selected],
+                "rounds": [[candidate(r) for r in rnd] for rnd in f.rounds],
+            }
+            for f in cal.families
         ],
         "binned_correction": {
             **cal.binned.to_dict(),
             "heldout": _error_block(cal.binned_heldout),
-            "test": cal.binned_test.to_dict(),
+            "tests": [t.to_dict() for t in cal.binned_tests],
         },
         "speed_ratio_by_altitude": speed_ratio_by_altitude(cal, BIN_EDGES_M),
         "speed_finding": speed_finding(cal),
         "library_explains_residual": not cal.unexplained,
         "verdict": verdict(cal),
-        "score": cal.metric,
         "payload": payload,
         "weather": weather,
         "per_flight": [
@@ -165,6 +206,9 @@ def result_json(
 def _flight(h: HeldOut, i: int) -> dict[str, float]:
     return {
         "track_rms_km": round(float(h.track_rms_km[i]), 4),
+        "altitude_rms_km": round(float(h.altitude_rms_km[i]), 4),
+        "time_rms_s": round(float(h.time_rms_s[i]), 1),
+        "horizontal_rms_km": round(float(h.horizontal_rms_km[i]), 4),
         "landing_error_km": round(float(h.landing_error_km[i]), 4),
         "descent_time_error_s": round(float(h.descent_time_error_s[i]), 1),
     }
@@ -209,62 +253,50 @@ def write_report(
         "",
         f"Produced by: `{command}`",
         "",
-        "## Score and margin",
+        "## Records, score and margin",
         "",
-        "Each flight is predicted from its descent start. "
-        + (
-            "Its score is the RMS, over all its descent fixes, of the 3-D distance between the measured "
-            "and the "
-            "predicted position at the same time since the descent start (km). "
-            if cal.metric == "track_rms_km"
-            else "Its score is the distance between the measured and the predicted landing (km). "
-        )
-        + (
-            "Every candidate is fitted leave-one-flight-out and scored on the flight it never saw. "
-            "An effect is selected only when the paired bootstrap of the mean held-out improvement "
-            "(4000 draws over flights) "
-            "has its lower α/K quantile above zero (α = 0.05, K = candidates in that round) and the mean "
-            "improvement is at least 0.1 km. The margin below is mean improvement minus that lower bound."
-        ),
+        "Each flight is predicted from its descent start. Every effect is fitted and scored on the record "
+        "that shows its family. A **vertical** effect: the vertical record, the RMS over the descent fixes of "
+        "predicted − measured time since descent start at the fix's altitude (s; the landing fix's term is "
+        "the descent-time error), which the wind does not touch; the altitude-at-time RMS is shown beside "
+        "it. A **horizontal** effect: the horizontal record, the RMS horizontal error (km) of a run that "
+        "replays the flight's measured altitude–time profile, so that a descent-rate error cannot "
+        "masquerade as wind. A **timing** effect: both, and it must pass on both. Every candidate is "
+        "fitted leave-one-flight-out and scored on the flight it never saw; it passes a record when the "
+        "paired bootstrap of the mean held-out improvement (4000 draws over flights) has its lower α/K "
+        "quantile above zero (α = 0.05, K = candidates in that round) and the mean improvement is at "
+        "least the record's floor (vertical 10 s, horizontal 0.1 km). The margin is mean improvement "
+        "minus that lower bound. Families are selected in turn: vertical, horizontal, timing.",
         "",
         "## Before and after (held out)",
         "",
-        "| | RMS track error km (mean / median) | landing error km (mean / median) "
-        "| |descent-time error| s (mean / median) |",
-        "|---|---|---|---|",
+        "| | time-at-altitude RMS s | altitude-at-time RMS km | abs(descent-time error) s "
+        "| horizontal RMS, replayed, km | landing error km | RMS 3-D track km |",
+        "|---|---|---|---|---|---|---|",
         _row("baseline (plain model)", b),
-        _row("after (selected effects)", a),
+        *(_row(f"after the {f['family']} family", f["after"]) for f in data["families"]),
+        _row("after (all selected, refitted jointly)", a),
         _row("binned correction on top", data["binned_correction"]["heldout"]),
+        "",
+        "(means over flights; medians are in the JSON)",
         "",
         f"![before and after]({Path(pngs[2]).name})",
         "",
-        "## Candidates",
-        "",
     ]
-    for k, rnd in enumerate(data["rounds"], start=1):
-        lines += [
-            f"Round {k}:",
-            "",
-            "| effect | family | parameters (all flights) | held-out RMS km (mean) "
-            "| held-out landing km (mean) "
-            "| improvement km | margin km | flights better | selected |",
-            "|---|---|---|---|---|---|---|---|---|",
-        ]
-        chosen = {f["effect"] for f in data["selected"]}
-        for r in rnd:
-            t = r["test"]
-            lines.append(
-                f"| {r['effect']} | {r['family']} | {_params(r['parameters'])} | "
-                f"{_num(r['heldout']['track_rms_km']['mean'])} | "
-                f"{_num(r['heldout']['landing_error_km']['mean'])} | "
-                f"{_num(t['mean_improvement_km'])} | {_num(t['margin_km'])} | "
-                f"{t['flights_improved']}/{t['flights']} | "
-                f"{'yes' if t['passed'] and r['effect'] in chosen else 'no'} |"
-            )
-        lines.append("")
+    for f in data["families"]:
+        lines += _family_section(f, pngs)
     bc = data["binned_correction"]
     lines += [
         "## Altitude-binned correction (fitted on all flights, on top of the selected effects)",
+        "",
+        "Held out against the selected model: "
+        + "; ".join(
+            f"{t['record']} record ({'descent-rate factors' if t['record'] == 'vertical' else 'added wind'}): "
+            f"improvement {_num(t['mean_improvement'])} {t['unit']}, margin {_num(t['margin'])} {t['unit']}, "
+            f"{'passed' if t['passed'] else 'not passed'}"
+            for t in bc["tests"]
+        )
+        + ".",
         "",
         "| bin m | descent-rate factor | added wind east m/s | north m/s | measured time s |",
         "|---|---|---|---|---|",
@@ -277,23 +309,12 @@ def write_report(
             )
     lines += [
         "",
-        "## Residuals",
-        "",
-        "Measured / predicted descent speed between consecutive fixes, plain model, against altitude, air "
-        "density, wind speed and time since release:",
-        "",
-        f"![speed ratio]({Path(pngs[0]).name})",
-        "",
         "Median measured / predicted descent speed by altitude (plain model; the interval that contains the "
         "touchdown is left out, its measured speed includes time on the ground):",
         "",
         "| altitude m | intervals | median ratio | quartiles |",
         "|---|---|---|---|",
         *_speed_ratio_rows(cal),
-        "",
-        "Along- and cross-track position error (measured − predicted, same time) at every fix:",
-        "",
-        f"![position error]({Path(pngs[1]).name})",
         "",
     ]
     if ellipse is not None:
@@ -324,12 +345,15 @@ def write_report(
             f"{e['expected_2sigma']:.1%} |",
             "",
         ]
-    lines += ["## Per flight (held out)", "", "| flight | RMS km before → after | landing km before → after "
-              "| descent-time error s before → after |", "|---|---|---|---|"]  # fmt: skip
+    lines += ["## Per flight (held out)", "", "| flight | altitude RMS km before → after "
+              "| time RMS s | horizontal RMS (replayed) km | landing km | descent-time error s |",
+              "|---|---|---|---|---|---|"]  # fmt: skip
     for f in data["per_flight"]:
         pb, pa = f["baseline"], f["after"]
         lines.append(
-            f"| {f['name']} | {pb['track_rms_km']:.2f} → {pa['track_rms_km']:.2f} | "
+            f"| {f['name']} | {pb['altitude_rms_km']:.3f} → {pa['altitude_rms_km']:.3f} | "
+            f"{pb['time_rms_s']:.0f} → {pa['time_rms_s']:.0f} | "
+            f"{pb['horizontal_rms_km']:.2f} → {pa['horizontal_rms_km']:.2f} | "
             f"{pb['landing_error_km']:.2f} → {pa['landing_error_km']:.2f} | "
             f"{pb['descent_time_error_s']:.0f} → {pa['descent_time_error_s']:.0f} |"
         )
@@ -369,11 +393,71 @@ def _num(x: float | None, digits: int = 3) -> str:
 
 
 def _row(label: str, block: dict[str, Any]) -> str:
-    t, l_, d = block["track_rms_km"], block["landing_error_km"], block["descent_time_error_s"]
     return (
-        f"| {label} | {_num(t['mean'])} / {_num(t['median'])} | {_num(l_['mean'])} / {_num(l_['median'])} | "
-        f"{_num(d['mean'], 0)} / {_num(d['median'], 0)} |"
+        f"| {label} | {_num(block['time_rms_s']['mean'], 0)} | {_num(block['altitude_rms_km']['mean'])} | "
+        f"{_num(block['descent_time_error_s']['mean'], 0)} | "
+        f"{_num(block['horizontal_rms_km']['mean'])} | {_num(block['landing_error_km']['mean'])} | "
+        f"{_num(block['track_rms_km']['mean'])} |"
     )
+
+
+FAMILY_RESIDUALS = {
+    "vertical": (
+        0,
+        "Measured / predicted descent speed between consecutive fixes (plain model) against altitude, "
+        "air density, wind speed and time since release; the table after the binned correction gives "
+        "its median by altitude:",
+    ),
+    "horizontal": (
+        1,
+        "Along- and cross-track error (measured − predicted at the same time) with the measured "
+        "descent replayed, before and after selection:",
+    ),
+}
+
+
+def _family_section(family: dict[str, Any], pngs: Sequence[Path]) -> list[str]:
+    """One family: the residual its record shows (plot), every candidate round, the effect chosen,
+    and before/after on its own metric and on the landing error."""
+    name = family["family"]
+    records = [r["record"] for r in family["records"]]
+    lines = [f"## {name.capitalize()} family (scored on the {' and '.join(records)} record)", ""]
+    if name in FAMILY_RESIDUALS:
+        k, text = FAMILY_RESIDUALS[name]
+        lines += [text, "", f"![{name} residual]({Path(pngs[k]).name})", ""]
+    chosen = ", ".join(f"`{f['effect']}` ({_params(f['parameters'])})" for f in family["selected"]) or "none"
+    b, a = family["before"], family["after"]
+    own = "; ".join(
+        f"{RECORD_METRICS[r]} {_num(b[RECORD_METRICS[r]]['mean'])} → {_num(a[RECORD_METRICS[r]]['mean'])} "
+        f"{RECORD_UNITS[r]}"
+        for r in records
+    )
+    lines += [
+        f"Effect chosen: {chosen}. Held out (mean): {own}; landing error "
+        f"{_num(b['landing_error_km']['mean'])} → {_num(a['landing_error_km']['mean'])} km; "
+        f"abs(descent-time error) {_num(b['descent_time_error_s']['mean'], 0)} → "
+        f"{_num(a['descent_time_error_s']['mean'], 0)} s.",
+        "",
+    ]
+    for k, rnd in enumerate(family["rounds"], start=1):
+        lines += [
+            f"Round {k}:",
+            "",
+            "| effect | parameters (all flights) | record | held-out score km (mean) | held-out landing km "
+            "| improvement km | margin km | flights better | passed |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in rnd:
+            for t in r["tests"]:
+                metric = RECORD_METRICS[t["record"]]
+                lines.append(
+                    f"| {r['effect']} | {_params(r['parameters'])} | {t['record']} | "
+                    f"{_num(r['heldout'][metric]['mean'])} | {_num(r['heldout']['landing_error_km']['mean'])} | "
+                    f"{_num(t['mean_improvement'])} {t['unit']} | {_num(t['margin'])} {t['unit']} | "
+                    f"{t['flights_improved']}/{t['flights']} | {'yes' if t['passed'] else 'no'} |"
+                )
+        lines.append("")
+    return lines
 
 
 def _plot_vertical(cal: Calibration, out: Path) -> Path:
@@ -400,7 +484,7 @@ def _plot_vertical(cal: Calibration, out: Path) -> Path:
 
 def _plot_horizontal(cal: Calibration, out: Path) -> Path:
     fig, axes = plt.subplots(1, 3, figsize=(13, 4), sharey=True)
-    for res, label in ((cal.baseline_residuals, "plain model"), (cal.after_residuals, "after (held out)")):
+    for res, label in ((cal.baseline_replayed, "plain model"), (cal.after_replayed, "after (held out)")):
         along = np.concatenate([r.along_km for r in res])
         cross = np.concatenate([r.cross_km for r in res])
         alt = np.concatenate([r.fix_alt_m for r in res])
@@ -410,7 +494,7 @@ def _plot_horizontal(cal: Calibration, out: Path) -> Path:
         axes[1].scatter(wind, along, s=6, alpha=0.5, label=label)
         axes[2].scatter(t, cross, s=6, alpha=0.5, label=label)
     axes[0].set_xlabel("altitude (m)")
-    axes[0].set_ylabel("horizontal position error (km)")
+    axes[0].set_ylabel("horizontal error, measured descent replayed (km)")
     axes[1].set_xlabel("wind speed (m/s)  [along-track error]")
     axes[2].set_xlabel("time since release (s)  [cross-track error]")
     axes[0].legend()
@@ -421,17 +505,20 @@ def _plot_horizontal(cal: Calibration, out: Path) -> Path:
 
 
 def _plot_before_after(cal: Calibration, out: Path) -> Path:
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    """Per flight, held out: each record's score and the landing error, plain model against after."""
+    panels = (
+        ("time_rms_s", "time-at-altitude RMS (s), vertical record"),
+        ("horizontal_rms_km", "horizontal RMS, replayed (km)"),
+        ("landing_error_km", "landing error (km)"),
+    )
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4))
     x = np.arange(len(cal.names))
-    axes[0].bar(x - 0.2, cal.baseline.track_rms_km, 0.4, label="baseline")
-    axes[0].bar(x + 0.2, cal.after.track_rms_km, 0.4, label="after (held out)")
-    axes[0].set_xticks(x, cal.names, rotation=90, fontsize=7)
-    axes[0].set_ylabel("RMS track error (km)")
+    for ax, (attr, label) in zip(axes, panels, strict=True):
+        ax.bar(x - 0.2, getattr(cal.baseline, attr), 0.4, label="baseline")
+        ax.bar(x + 0.2, getattr(cal.after, attr), 0.4, label="after (held out)")
+        ax.set_xticks(x, cal.names, rotation=90, fontsize=7)
+        ax.set_ylabel(label)
     axes[0].legend()
-    axes[1].bar(x - 0.2, cal.baseline.landing_error_km, 0.4, label="baseline")
-    axes[1].bar(x + 0.2, cal.after.landing_error_km, 0.4, label="after (held out)")
-    axes[1].set_xticks(x, cal.names, rotation=90, fontsize=7)
-    axes[1].set_ylabel("landing error (km)")
     fig.tight_layout()
     fig.savefig(out, dpi=80)
     plt.close(fig)

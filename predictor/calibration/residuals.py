@@ -10,9 +10,14 @@ pass. Comparison rules, the same for every use:
   meets the ground: the measured landing altitude (no DEM needed), or the terrain with ``--dem``.
 * Positions are compared at the same time since the descent start, in a local east/north/up frame
   (km) around the descent start; a predicted path that has already landed stays at its landing.
-  The flight's score is the RMS of the 3-D error over all its descent fixes after the start: one
-  number, in km, that a descent-rate error (the capsule is too high or too low at a given time) and a
-  wind error (too far east) both raise.
+  RMS scores over all the flight's descent fixes after the start: the 3-D error, the altitude error
+  alone and the horizontal error alone (km), and the time error at each fix's altitude (s). The
+  last two of the vertical record (altitude against time since descent start) are untouched by the
+  wind.
+* A replayed run (``replay=True``) flies the flight's own measured altitude–time profile instead of
+  the drag law (``MeasuredDescentRate``), and drops every vertical effect: its horizontal error is
+  the wind's alone, so a horizontal effect is fitted to it and a descent-rate error (which moves the
+  capsule through the wind layers at the wrong times) cannot masquerade as wind.
 * Landing error: distance between predicted and measured landing points (km, local frame);
   descent-time error: predicted minus measured, seconds.
 """
@@ -20,6 +25,7 @@ pass. Comparison rules, the same for every use:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
 
@@ -27,10 +33,11 @@ import numpy as np
 from numba import get_num_threads, njit
 
 from predictor.calibration.cleaning import Flight
+from predictor.calibration.tracks import Fix
 from predictor.cube import WeatherCube
 from predictor.errors import PredictorError
 from predictor.integrate import DEFAULT_TIME_TOLERANCE_S, STATUS_OK, descend, packed
-from predictor.model import Model, Term
+from predictor.model import MeasuredDescentRate, Model, Term, Wind
 from predictor.payload import Payload
 from predictor.terrain import Terrain
 
@@ -39,6 +46,10 @@ WGS84_E2 = 6.69437999014e-3
 LOWEST_GROUND_M = -500.0
 HIGHEST_GROUND_KM = 8.9
 """No terrain is higher (Everest 8849 m): the DEM is only read below this."""
+REPLAY_LEVEL_M = 100.0
+"""Altitude bins of a replayed profile: finer than any calibration step, and a 1 Hz log of 10,000
+fixes still becomes ~300 numbers per trajectory rather than 20,000."""
+MIN_REPLAY_RATE_MS = 0.1
 
 
 @dataclass(frozen=True)
@@ -61,6 +72,7 @@ class FlightCase:
     """Altitude, km."""
     landing_alt_m: float
     descent_time_s: float
+    """Descent start to the estimated touchdown (``touchdown_s``), not to the landing fix."""
     terrain: Terrain | None = None
     """Ground from a DEM; None means the ground is the measured landing altitude."""
 
@@ -115,9 +127,26 @@ def flight_case(flight: Flight, cube: WeatherCube, terrain: Terrain | None = Non
         fix_y=y,
         fix_z=np.array([f.alt_m for f in fixes]) / 1000.0,
         landing_alt_m=land.alt_m,
-        descent_time_s=(land.time - start.time).total_seconds(),
+        descent_time_s=touchdown_s(start, fixes),
         terrain=terrain,
     )
+
+
+def touchdown_s(start: Fix, fixes: Sequence[Fix]) -> float:
+    """Seconds from the descent start to the touchdown, estimated: the landing fix is the first one on
+    the ground, up to one fix interval after the touchdown (1–5 min late with 2–5 min telemetry, a bias
+    every prediction would carry), so the last airborne fix is carried down to the landing altitude at
+    the rate of the interval before it. The landing fix's own time when that cannot be done."""
+    land = fixes[-1]
+    late = (land.time - start.time).total_seconds()
+    if len(fixes) < 3:
+        return late
+    a, b = fixes[-3], fixes[-2]
+    rate = (a.alt_m - b.alt_m) / (b.time - a.time).total_seconds()
+    height = b.alt_m - land.alt_m
+    if rate <= 0.0 or height <= 0.0:
+        return late
+    return min(late, (b.time - start.time).total_seconds() + height / rate)
 
 
 @dataclass(frozen=True)
@@ -140,6 +169,15 @@ class Scores:
     """Per trajectory: the numbers every comparison uses (NaN where the run failed)."""
 
     track_rms_km: np.ndarray
+    altitude_rms_km: np.ndarray
+    """RMS of predicted − measured altitude at the fixes' times."""
+    time_rms_s: np.ndarray
+    """RMS of predicted − measured time since descent start at the fixes' altitudes: the vertical record
+    read the other way, weighted by where the time is spent (the slow fall near the ground, which sets
+    the landing time), where the altitude error is weighted by where the capsule falls fast. The
+    landing fix's term is the descent-time error."""
+    horizontal_rms_km: np.ndarray
+    """RMS horizontal distance at the fixes' times (the wind's error when the run was replayed)."""
     landing_error_km: np.ndarray
     descent_time_error_s: np.ndarray
     landing_x: np.ndarray
@@ -148,9 +186,35 @@ class Scores:
     landing_z: np.ndarray
 
 
-def run(case: FlightCase, payload: Payload, effects: tuple[Term, ...], n: int, step_m: float) -> Runs:
-    """Fly ``n`` descents of the chain payload + wind + effects (array parameters: one value per run)."""
-    model = Model.for_payload(payload, *effects)
+def replay_term(case: FlightCase) -> MeasuredDescentRate:
+    """The flight's measured descent rate in ``REPLAY_LEVEL_M`` bins from its landing to its start.
+
+    Crossing times of each level are read off the fixes (linear between them; the altitude is made
+    monotonic first, as GNSS noise can make a fix rise; the ground is reached at the estimated
+    touchdown), so the replayed capsule is at each level when the real one was.
+    """
+    top, bottom = case.start_alt_m, min(case.landing_alt_m, case.start_alt_m - REPLAY_LEVEL_M)
+    n_bins = max(1, int(math.ceil((top - bottom) / REPLAY_LEVEL_M)))
+    edges = np.linspace(bottom, top, n_bins + 1)
+    t = np.concatenate(([0.0], case.fix_t[:-1], [case.descent_time_s]))
+    z = np.minimum.accumulate(np.concatenate(([case.start_alt_m], case.fix_z * 1000.0)))
+    crossing = np.interp(edges, z[::-1], t[::-1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rates = np.diff(edges) / np.maximum(-np.diff(crossing), 1e-3)
+    rates = np.clip(np.nan_to_num(rates, nan=MIN_REPLAY_RATE_MS), MIN_REPLAY_RATE_MS, None)
+    return MeasuredDescentRate(edges_m=tuple(map(float, edges)), rates_ms=tuple(map(float, rates)))
+
+
+def run(
+    case: FlightCase, payload: Payload, effects: tuple[Term, ...], n: int, step_m: float, replay: bool = False
+) -> Runs:
+    """Fly ``n`` descents of the chain payload + wind + effects (array parameters: one value per run);
+    with ``replay`` the flight's measured descent profile replaces the payload and the vertical effects."""
+    if replay:
+        kept = tuple(e for e in effects if e.family != "vertical")
+        model = Model((replay_term(case), Wind(), *kept))
+    else:
+        model = Model.for_payload(payload, *effects)
     w = packed(case.cube)
     z0 = case.start_alt_m
     floor = LOWEST_GROUND_M if case.terrain is not None else case.landing_alt_m - 2.0 * step_m
@@ -185,14 +249,17 @@ def ground_km(case: FlightCase, runs: Runs) -> np.ndarray:
 
 def score(case: FlightCase, runs: Runs) -> Scores:
     n = runs.t.shape[0]
-    out = np.full((n, 5), np.nan)
+    out = np.full((n, 8), np.nan)
     _score_kernel(
         runs.t, runs.x, runs.y, runs.z, ground_km(case, runs), runs.n_rec, runs.ok,
-        case.fix_t, case.fix_x, case.fix_y, case.fix_z, out,
+        case.fix_t, case.fix_x, case.fix_y, case.fix_z, case.descent_time_s, out,
     )  # fmt: skip
     land_x, land_y = case.fix_x[-1], case.fix_y[-1]
     return Scores(
         track_rms_km=np.sqrt(out[:, 0]),
+        altitude_rms_km=np.sqrt(out[:, 5]),
+        horizontal_rms_km=np.sqrt(out[:, 6]),
+        time_rms_s=np.sqrt(out[:, 7]),
         landing_error_km=np.hypot(out[:, 1] - land_x, out[:, 2] - land_y),
         descent_time_error_s=out[:, 3] - case.descent_time_s,
         landing_x=out[:, 1],
@@ -215,9 +282,11 @@ def _score_kernel(
     fix_x: np.ndarray,
     fix_y: np.ndarray,
     fix_z: np.ndarray,
+    touchdown: float,
     out: np.ndarray,
 ) -> None:
-    """out[i] = (mean squared 3-D error over the fixes, landing x, y, t, z)."""
+    """out[i] = (mean squared 3-D error over the fixes, landing x, y, t, z, mean squared altitude
+    error, mean squared horizontal error, mean squared time error at the fixes' altitudes)."""
     for i in range(t.shape[0]):
         if not ok[i]:
             continue
@@ -235,7 +304,8 @@ def _score_kernel(
         xl = x[i, k_land - 1] + f * (x[i, k_land] - x[i, k_land - 1])
         yl = y[i, k_land - 1] + f * (y[i, k_land] - y[i, k_land - 1])
         zl = z[i, k_land - 1] + f * (z[i, k_land] - z[i, k_land - 1])
-        total = 0.0
+        total_h = 0.0
+        total_z = 0.0
         k = 0
         for j in range(fix_t.shape[0]):
             tj = fix_t[j]
@@ -248,12 +318,32 @@ def _score_kernel(
                 px = x[i, k] + g * (x[i, k + 1] - x[i, k])
                 py = y[i, k] + g * (y[i, k + 1] - y[i, k])
                 pz = z[i, k] + g * (z[i, k + 1] - z[i, k])
-            total += (px - fix_x[j]) ** 2 + (py - fix_y[j]) ** 2 + (pz - fix_z[j]) ** 2
-        out[i, 0] = total / fix_t.shape[0]
+            total_h += (px - fix_x[j]) ** 2 + (py - fix_y[j]) ** 2
+            total_z += (pz - fix_z[j]) ** 2
+        out[i, 0] = (total_h + total_z) / fix_t.shape[0]
         out[i, 1] = xl
         out[i, 2] = yl
         out[i, 3] = tl
         out[i, 4] = zl
+        out[i, 5] = total_z / fix_t.shape[0]
+        out[i, 6] = total_h / fix_t.shape[0]
+        total_t = 0.0
+        k = 0
+        for j in range(fix_t.shape[0]):
+            zj = fix_z[j]
+            if zj <= zl:
+                tj = tl
+            elif zj >= z[i, 0]:
+                tj = 0.0
+            else:
+                while k > 0 and z[i, k] < zj:
+                    k -= 1
+                while z[i, k + 1] >= zj:
+                    k += 1
+                tj = t[i, k] + (zj - z[i, k]) / (z[i, k + 1] - z[i, k]) * (t[i, k + 1] - t[i, k])
+            measured = touchdown if j == fix_t.shape[0] - 1 else fix_t[j]
+            total_t += (tj - measured) ** 2
+        out[i, 7] = total_t / fix_t.shape[0]
 
 
 # ---------------------------------------------------------------- residuals of one prediction

@@ -1,30 +1,44 @@
-"""Leave-one-flight-out selection of effects: an effect is kept only if it helps flights it never saw.
+"""Leave-one-flight-out selection of effects, each family scored on the record that shows it.
 
 With a few dozen flights, any effect with a free parameter lowers the error on the flights it was
 fitted to. So every number that decides anything here is HELD OUT: for each flight i, the effect is
-fitted on all the other flights and scored on flight i. The score of a flight is the RMS of its
-3-D position error over all its descent fixes (``residuals``), in km; ``metric="landing_error_km"``
-scores the landing alone (fewer numbers per flight, so a larger margin, but the one recovery needs).
+fitted on all the other flights and scored on flight i.
+
+Which error: a single 3-D track score is dominated on real flights by the wind error, so a vertical
+effect the altitude–time record shows plainly could not pass, and a descent law got fitted to
+horizontal error. Each family is therefore fitted and scored on its own record (``RECORDS``):
+
+* vertical effects on the vertical record, which the wind does not touch: the RMS over the fixes of
+  predicted − measured time since descent start at each fix's altitude (s; the landing fix's term is
+  the descent-time error). The altitude-at-time RMS (km) is reported beside it but does not decide:
+  it weights the fast fall high up, where a small rate error makes kilometres, and on the 30 SuperBIT
+  flights a law fitted to it made the descent-time error worse (298 → 361 s) while the time RMS
+  weights where the time is spent;
+* horizontal effects on the horizontal record: the RMS horizontal error (km, along and across the
+  drift) of a run that replays the flight's measured altitude–time profile (``residuals.run(...,
+  replay=True)``), so a descent-rate error cannot masquerade as wind;
+* timing effects on both: fitted to the sum of both squared scores, each in units of its record's
+  floor, and kept only when BOTH records show the improvement (a weather time offset that only moves the horizontal track is a wind story).
 
 The margin (when is an improvement more than noise): the per-flight held-out improvements
 d_i = score_before_i − score_with_effect_i are paired (the same flights, the same weather), so the
 flight-to-flight spread of the weather error cancels. Their mean is resampled over flights (paired
-bootstrap, ``BOOTSTRAP_SAMPLES`` draws, fixed seed); the effect is selected only when the lower
+bootstrap, ``BOOTSTRAP_SAMPLES`` draws, fixed seed); the effect passes a record only when the lower
 α/K quantile of the resampled mean is above zero, α = 0.05 one-sided and K the number of candidates
-tried in that round (Bonferroni: trying eight effects and keeping the best is eight chances to be
-lucky). The margin reported is mean(d) minus that lower bound: the improvement an effect must beat.
-An effect must also improve the mean held-out score by at least ``MIN_IMPROVEMENT_KM`` (100 m): with
-synthetic flights the statistics alone would keep effects that shave metres off an already perfect
-model (the difference between two integration steps), and no recovery decision turns on 100 m.
+tried in that round (Bonferroni), and the mean improvement is at least that record's floor
+(``Record.floor``): with synthetic flights the statistics alone would keep effects that shave
+metres off an already perfect model (the difference between two integration steps).
 
-Forward selection: round 1 tries every candidate against the plain model; the best held-out one is
-kept if it clears the margin; round 2 tries the rest with it in the model (its parameters refitted
-per fold, held while the new one is fitted), against the held-out scores of round 1's model; and so
-on, up to ``max_effects``. When more than one effect was kept, each is then refitted with the others
-in the model (``JOINT_SWEEPS`` sweeps, per fold) and "after" is scored again, still held out.
-Finally the altitude-binned correction is fitted (per fold, from the training flights' residuals)
-on top of whatever was selected: if it still clears the margin, the residual has a systematic
-altitude structure the selected effects do not explain.
+Forward selection: round 1 tries every candidate against the plain model, each on its family's
+records; among those that pass, the one with the largest mean held-out improvement (summed over its
+records, each in units of the record's floor, so a timing effect that both records show outranks a
+vertical or a horizontal effect that explains only one of them) is kept. Round 2 tries the rest with
+it in the model (its parameters refitted per fold, held while the new one is fitted), and so on, up to
+``max_effects``. When more than one effect was kept, each is then refitted with the others in the
+model (``JOINT_SWEEPS`` sweeps, per fold, on its own records). Last, the altitude-binned correction is
+fitted per fold from the training flights' residuals on top of whatever was selected: its
+descent-rate factors are scored on the vertical record, its added wind on the replayed horizontal
+record; a part that still clears the margin means the library lacks something.
 """
 
 from __future__ import annotations
@@ -52,10 +66,34 @@ from predictor.payload import Payload
 ALPHA = 0.05
 BOOTSTRAP_SAMPLES = 4000
 DEFAULT_MAX_EFFECTS = 3
-SCORES = ("track_rms_km", "landing_error_km")
-"""What a flight is scored by: the RMS 3-D error over all its fixes (default), or the landing error alone."""
-MIN_IMPROVEMENT_KM = 0.1
 JOINT_SWEEPS = 2
+FAMILY_ORDER = ("vertical", "horizontal", "timing")
+"""The order families are reported in."""
+
+
+@dataclass(frozen=True)
+class Record:
+    """What a family is fitted and scored on."""
+
+    name: str
+    metric: str
+    """The per-flight score (a field of ``Scores`` and ``HeldOut``)."""
+    unit: str
+    replay: bool
+    """Score runs that replay the measured altitude–time profile."""
+    floor: float
+    """The least mean held-out improvement that counts, in ``unit``."""
+
+
+VERTICAL = Record("vertical", "time_rms_s", "s", replay=False, floor=10.0)
+"""10 s: 50 m of altitude at the 5 m/s of a parachute near the ground, 100 m of drift in a 10 m/s wind."""
+HORIZONTAL = Record("horizontal", "horizontal_rms_km", "km", replay=True, floor=0.1)
+"""100 m: no recovery decision turns on less."""
+RECORDS: dict[str, tuple[Record, ...]] = {
+    "vertical": (VERTICAL,),
+    "horizontal": (HORIZONTAL,),
+    "timing": (VERTICAL, HORIZONTAL),
+}
 
 
 @dataclass(frozen=True)
@@ -79,24 +117,33 @@ class HeldOut:
     """Per flight held-out numbers of one model (NaN where its run failed)."""
 
     track_rms_km: np.ndarray
+    time_rms_s: np.ndarray
+    altitude_rms_km: np.ndarray
+    horizontal_rms_km: np.ndarray
+    """Of the replayed run (the wind's error alone)."""
     landing_error_km: np.ndarray
     descent_time_error_s: np.ndarray
     landing_x: np.ndarray
     landing_y: np.ndarray
 
     @classmethod
-    def of(cls, scores: Sequence[Scores]) -> HeldOut:
-        def col(name: str) -> np.ndarray:
-            return np.array([float(getattr(s, name)[0]) for s in scores])
+    def of(cls, scores: Sequence[Scores], replayed: Sequence[Scores]) -> HeldOut:
+        def col(source: Sequence[Scores], name: str) -> np.ndarray:
+            return np.array([float(getattr(s, name)[0]) for s in source])
 
         return cls(
-            col("track_rms_km"), col("landing_error_km"), col("descent_time_error_s"),
-            col("landing_x"), col("landing_y"),
+            col(scores, "track_rms_km"), col(scores, "time_rms_s"), col(scores, "altitude_rms_km"),
+            col(replayed, "horizontal_rms_km"),
+            col(scores, "landing_error_km"), col(scores, "descent_time_error_s"),
+            col(scores, "landing_x"), col(scores, "landing_y"),
         )  # fmt: skip
 
     def summary(self) -> dict[str, dict[str, float | None]]:
         return {
             "track_rms_km": _mean_median(self.track_rms_km),
+            "time_rms_s": _mean_median(self.time_rms_s),
+            "altitude_rms_km": _mean_median(self.altitude_rms_km),
+            "horizontal_rms_km": _mean_median(self.horizontal_rms_km),
             "landing_error_km": _mean_median(self.landing_error_km),
             "descent_time_error_s": _mean_median(
                 np.abs(self.descent_time_error_s), signed=self.descent_time_error_s
@@ -118,20 +165,24 @@ def _mean_median(values: np.ndarray, signed: np.ndarray | None = None) -> dict[s
 
 @dataclass(frozen=True)
 class Test:
-    """The paired held-out comparison of a model against the reference model of its round."""
+    """The paired held-out comparison of a model against the reference model of its round, on one record."""
 
-    mean_improvement_km: float
-    lower_bound_km: float
-    margin_km: float
+    record: str
+    unit: str
+    mean_improvement: float
+    lower_bound: float
+    margin: float
     wins: int
     flights: int
     passed: bool
 
     def to_dict(self) -> dict[str, object]:
         return {
-            "mean_improvement_km": round(self.mean_improvement_km, 4),
-            "margin_km": round(self.margin_km, 4),
-            "lower_bound_km": round(self.lower_bound_km, 4),
+            "record": self.record,
+            "unit": self.unit,
+            "mean_improvement": round(self.mean_improvement, 4),
+            "margin": round(self.margin, 4),
+            "lower_bound": round(self.lower_bound, 4),
             "flights_improved": self.wins,
             "flights": self.flights,
             "passed": self.passed,
@@ -139,18 +190,30 @@ class Test:
 
 
 def paired_test(
-    before: np.ndarray, after: np.ndarray, alpha: float, seed: int, floor_km: float = MIN_IMPROVEMENT_KM
+    before: np.ndarray, after: np.ndarray, alpha: float, seed: int, floor: float, record: Record | None = None
 ) -> Test:
     """Paired bootstrap of the mean held-out improvement; passed when its lower α quantile is > 0
-    and the mean improvement is at least ``floor_km``."""
+    and the mean improvement is at least ``floor``."""
+    name, unit = (record.name, record.unit) if record else ("", "")
     d = np.asarray(before) - np.asarray(after)
     if not np.all(np.isfinite(d)):
-        return Test(float("nan"), float("nan"), float("nan"), 0, len(d), False)
+        return Test(name, unit, float("nan"), float("nan"), float("nan"), 0, len(d), False)
     rng = np.random.default_rng(seed)
     means = d[rng.integers(0, len(d), (BOOTSTRAP_SAMPLES, len(d)))].mean(axis=1)
     lower = float(np.quantile(means, alpha))
     mean = float(d.mean())
-    return Test(mean, lower, mean - lower, int((d > 0).sum()), len(d), lower > 0.0 and mean >= floor_km)
+    return Test(
+        name, unit, mean, lower, mean - lower, int((d > 0).sum()), len(d), lower > 0.0 and mean >= floor
+    )
+
+
+def _tests(
+    records: Sequence[Record], reference: HeldOut, heldout: HeldOut, alpha: float, seed: int
+) -> tuple[Test, ...]:
+    return tuple(
+        paired_test(getattr(reference, r.metric), getattr(heldout, r.metric), alpha, seed, r.floor, r)
+        for r in records
+    )
 
 
 @dataclass(frozen=True)
@@ -161,34 +224,75 @@ class CandidateResult:
     folds: tuple[Fit, ...]
     """Fitted without flight i, for each i."""
     heldout: HeldOut
-    test: Test
+    tests: tuple[Test, ...]
+    """One per record of the candidate's family (timing: vertical and horizontal)."""
+
+    @property
+    def passed(self) -> bool:
+        return all(t.passed for t in self.tests)
+
+    @property
+    def improvement(self) -> float:
+        """What ranks candidates of one family within a round: the mean held-out improvement, summed
+        over the family's records in units of each record's floor."""
+        floors = {r.name: r.floor for r in (VERTICAL, HORIZONTAL)}
+        total = sum(t.mean_improvement / floors[t.record] for t in self.tests)
+        return total if np.isfinite(total) else -np.inf
+
+
+@dataclass(frozen=True)
+class FamilyResult:
+    """One family's selection: what its record showed before, what was kept, and after."""
+
+    family: str
+    records: tuple[Record, ...]
+    before: HeldOut
+    """Held out, the plain model."""
+    rounds: tuple[tuple[CandidateResult, ...], ...]
+    selected: tuple[Fit, ...]
+    after: HeldOut
+    """Held out, the plain model with this family's selected effects only (as refitted jointly)."""
 
 
 @dataclass(frozen=True)
 class Calibration:
-    metric: str
-    """The per-flight score that selection used (one of ``SCORES``)."""
     names: tuple[str, ...]
     baseline: HeldOut
     rounds: tuple[tuple[CandidateResult, ...], ...]
+    families: tuple[FamilyResult, ...]
+    """Only the families that had candidates, in ``FAMILY_ORDER``."""
     selected: tuple[Fit, ...]
     """Refitted on all flights, in the order they were selected."""
     after: HeldOut
     binned: BinnedCorrection
-    """Fitted on all flights on top of the selected effects."""
+    """Fitted on all flights on top of the selected effects: rate factors from the vertical record,
+    added winds from the replayed horizontal record."""
     binned_heldout: HeldOut
-    binned_test: Test
+    binned_tests: tuple[Test, ...]
+    """The rate factors on the vertical record, the added wind on the horizontal one."""
     baseline_residuals: tuple[FlightResiduals, ...]
+    """Of the plain model: the vertical record's residual (speed ratios)."""
+    baseline_replayed: tuple[FlightResiduals, ...]
+    """Of the plain model with the measured profile replayed: the horizontal record's residual."""
     after_residuals: tuple[FlightResiduals, ...]
     """Residuals of the held-out predictions with the selected effects (each flight's own fold)."""
+    after_replayed: tuple[FlightResiduals, ...]
+    """The same with the measured profile replayed (the horizontal record after selection)."""
     predicted_drift_km: np.ndarray
     """Release→landing distance of each held-out prediction after selection (the ellipse's d)."""
     t_future_h: np.ndarray
 
     @property
     def unexplained(self) -> bool:
-        """The binned correction beats the selected model on held-out flights: the library lacks something."""
-        return self.binned_test.passed
+        """A part of the binned correction beats the selected model on held-out flights: the library
+        lacks something."""
+        return any(t.passed for t in self.binned_tests)
+
+    def binned_terms(self) -> tuple[Term, ...]:
+        """The parts of the binned correction that passed their record's test (what a model file keeps)."""
+        rate, wind = self.binned.terms()
+        passed = {t.record for t in self.binned_tests if t.passed}
+        return tuple(term for term, record in ((rate, "vertical"), (wind, "horizontal")) if record in passed)
 
 
 class _Batch:
@@ -208,11 +312,22 @@ class _Batch:
             terms.append(fit.candidate.term(variants, values))
         return tuple(terms)
 
-    def runs(self, j: int, rows: Sequence[Sequence[Fit]], extra: tuple[Term, ...] = ()) -> Runs:
-        return run(self.cases[j], self.payload, self.terms(rows) + extra, len(rows), self.step_m)
+    def runs(
+        self, j: int, rows: Sequence[Sequence[Fit]], extra: tuple[Term, ...] = (), replay: bool = False
+    ) -> Runs:
+        return run(self.cases[j], self.payload, self.terms(rows) + extra, len(rows), self.step_m, replay)
 
-    def scores(self, j: int, rows: Sequence[Sequence[Fit]], extra: tuple[Term, ...] = ()) -> Scores:
-        return score(self.cases[j], self.runs(j, rows, extra))
+    def scores(
+        self, j: int, rows: Sequence[Sequence[Fit]], extra: tuple[Term, ...] = (), replay: bool = False
+    ) -> Scores:
+        return score(self.cases[j], self.runs(j, rows, extra, replay))
+
+    def heldout(self, per_flight: Sequence[Sequence[Fit]], extra: Sequence[tuple[Term, ...]] = ()) -> HeldOut:
+        """Flight i flown with ``per_flight[i]`` (its own fold's fits), plain and replayed."""
+        more = list(extra) or [()] * len(self.cases)
+        plain = [self.scores(i, [list(fits)], more[i]) for i, fits in enumerate(per_flight)]
+        replayed = [self.scores(i, [list(fits)], more[i], replay=True) for i, fits in enumerate(per_flight)]
+        return HeldOut.of(plain, replayed)
 
 
 def calibrate(
@@ -224,17 +339,19 @@ def calibrate(
     max_effects: int = DEFAULT_MAX_EFFECTS,
     alpha: float = ALPHA,
     seed: int = 0,
-    metric: str = "track_rms_km",
 ) -> Calibration:
-    if metric not in SCORES:
-        raise PredictorError(f"unknown score {metric!r}; choose one of {', '.join(SCORES)}")
+    """Forward selection over every candidate (each on its family's records, at most ``max_effects``),
+    then the binned correction."""
     n = len(cases)
     if n < 3:
         raise PredictorError(f"leave-one-flight-out needs at least 3 usable flights, got {n}")
+    unknown = {c.family for c in candidates} - set(FAMILY_ORDER)
+    if unknown:
+        raise PredictorError(f"unknown effect family {', '.join(sorted(unknown))}")
     batch = _Batch(cases, payload, step_m)
-    baseline_scores = [batch.scores(i, [[]]) for i in range(n)]
-    baseline = HeldOut.of(baseline_scores)
+    baseline = batch.heldout([[]] * n)
     baseline_residuals = tuple(residuals(cases[i], batch.runs(i, [[]])) for i in range(n))
+    baseline_replayed = tuple(residuals(cases[i], batch.runs(i, [[]], replay=True)) for i in range(n))
     reference = baseline
     selected_folds: list[list[Fit]] = [[] for _ in range(n)]
     selected_full: list[Fit] = []
@@ -251,40 +368,80 @@ def calibrate(
                 alpha / len(remaining),
                 seed,
                 len(rounds) + 1,
-                metric,
             )
             for c in remaining
         )
         rounds.append(results)
-        best = min(results, key=lambda r: float(np.nanmean(getattr(r.heldout, metric))))
-        if not best.test.passed:
+        passing = [r for r in results if r.passed]
+        if not passing:
             break
+        best = max(passing, key=lambda r: r.improvement)
         selected_full.append(best.full)
         for i in range(n):
             selected_folds[i].append(best.folds[i])
         reference = best.heldout
         remaining = [c for c in remaining if c is not best.full.candidate]
     if len(selected_full) > 1:
-        _refit_jointly(batch, selected_folds, selected_full, metric)
-        reference = HeldOut.of([batch.scores(i, [selected_folds[i]]) for i in range(n)])
+        _refit_jointly(batch, selected_folds, selected_full)
+        reference = batch.heldout(selected_folds)
+    families = tuple(
+        _family(batch, family, baseline, rounds, selected_folds, selected_full, reference)
+        for family in FAMILY_ORDER
+        if any(c.family == family for c in candidates)
+    )
     after = reference
     binned, binned_heldout = _binned(batch, selected_folds, selected_full)
-    binned_test = paired_test(getattr(after, metric), getattr(binned_heldout, metric), alpha, seed)
+    binned_tests = _tests((VERTICAL, HORIZONTAL), after, binned_heldout, alpha, seed)
     after_residuals = tuple(residuals(cases[i], batch.runs(i, [selected_folds[i]])) for i in range(n))
+    after_replayed = tuple(
+        residuals(cases[i], batch.runs(i, [selected_folds[i]], replay=True)) for i in range(n)
+    )
     return Calibration(
-        metric=metric,
         names=tuple(c.name for c in cases),
         baseline=baseline,
         rounds=tuple(rounds),
+        families=families,
         selected=tuple(selected_full),
         after=after,
         binned=binned,
         binned_heldout=binned_heldout,
-        binned_test=binned_test,
+        binned_tests=binned_tests,
         baseline_residuals=baseline_residuals,
+        baseline_replayed=baseline_replayed,
         after_residuals=after_residuals,
+        after_replayed=after_replayed,
         predicted_drift_km=np.array([r.predicted_drift_km for r in after_residuals]),
         t_future_h=np.array([_t_future(c) for c in cases]),
+    )
+
+
+def _family(
+    batch: _Batch,
+    family: str,
+    baseline: HeldOut,
+    rounds: Sequence[tuple[CandidateResult, ...]],
+    selected_folds: list[list[Fit]],
+    selected_full: list[Fit],
+    after_all: HeldOut,
+) -> FamilyResult:
+    """One family's share of the selection: its candidates in every round, its effects, and the
+    held-out scores of the plain model with only its effects (so "after" is what that family did)."""
+    own = [k for k, fit in enumerate(selected_full) if fit.candidate.family == family]
+    if len(own) == len(selected_full):
+        after = after_all
+    elif own:
+        after = batch.heldout([[row[k] for k in own] for row in selected_folds])
+    else:
+        after = baseline
+    return FamilyResult(
+        family=family,
+        records=RECORDS[family],
+        before=baseline,
+        rounds=tuple(
+            kept for rnd in rounds if (kept := tuple(r for r in rnd if r.full.candidate.family == family))
+        ),
+        selected=tuple(selected_full[k] for k in own),
+        after=after,
     )
 
 
@@ -297,22 +454,17 @@ def _try(
     alpha: float,
     seed: int,
     round_no: int,
-    metric: str,
 ) -> CandidateResult:
     """Fit the candidate per fold and on all flights (other selected effects held), score held out."""
     n = len(batch.cases)
-    full, folds_fit = _fit(batch, candidate, selected_folds, selected_full, metric)
-    heldout = HeldOut.of([batch.scores(i, [[*selected_folds[i], folds_fit[i]]]) for i in range(n)])
-    test = paired_test(getattr(reference, metric), getattr(heldout, metric), alpha, seed)
-    return CandidateResult(round_no, full, tuple(folds_fit), heldout, test)
+    full, folds_fit = _fit(batch, candidate, selected_folds, selected_full)
+    heldout = batch.heldout([[*selected_folds[i], folds_fit[i]] for i in range(n)])
+    tests = _tests(RECORDS[candidate.family], reference, heldout, alpha, seed)
+    return CandidateResult(round_no, full, tuple(folds_fit), heldout, tests)
 
 
 def _fit(
-    batch: _Batch,
-    candidate: Candidate,
-    held_folds: list[list[Fit]],
-    held_full: list[Fit],
-    metric: str,
+    batch: _Batch, candidate: Candidate, held_folds: list[list[Fit]], held_full: list[Fit]
 ) -> tuple[Fit, list[Fit]]:
     """The candidate fitted on all flights and per fold, with the ``held`` effects in the model.
 
@@ -321,10 +473,10 @@ def _fit(
     one flight, so nearly always).
     """
     n = len(batch.cases)
-    coarse = _losses(batch, candidate, held_folds, held_full, metric)
+    coarse = _losses(batch, candidate, held_folds, held_full)
     variant, value, _ = candidate.fit(coarse.sum(axis=0)[n])
     fine_candidate = candidate.fine(variant, value)
-    fine = _losses(batch, fine_candidate, held_folds, held_full, metric)
+    fine = _losses(batch, fine_candidate, held_folds, held_full)
     fits: list[Fit] = []
     for i in range(n + 1):
         v0, x0, _ = candidate.fit(coarse.sum(axis=0)[i])
@@ -335,67 +487,77 @@ def _fit(
     return full, fits
 
 
-def _refit_jointly(
-    batch: _Batch, selected_folds: list[list[Fit]], selected_full: list[Fit], metric: str
-) -> None:
-    """Refit each selected effect with the others held at their latest values, ``JOINT_SWEEPS`` times
-    (in place): an effect selected early was fitted without the later ones and has absorbed part of
-    them. Fold i's fits still never see flight i."""
+def _refit_jointly(batch: _Batch, selected_folds: list[list[Fit]], selected_full: list[Fit]) -> None:
+    """Refit each selected effect on its own record with the others held at their latest values,
+    ``JOINT_SWEEPS`` times (in place): an effect selected early was fitted without the later ones and
+    has absorbed part of them. Fold i's fits still never see flight i."""
     for _ in range(JOINT_SWEEPS):
         for k in range(len(selected_full)):
             others_folds = [[f for m, f in enumerate(row) if m != k] for row in selected_folds]
             others_full = [f for m, f in enumerate(selected_full) if m != k]
-            full, folds = _fit(batch, selected_full[k].candidate, others_folds, others_full, metric)
+            full, folds = _fit(batch, selected_full[k].candidate, others_folds, others_full)
             selected_full[k] = full
             for i, fit in enumerate(folds):
                 selected_folds[i][k] = fit
 
 
 def _losses(
-    batch: _Batch,
-    candidate: Candidate,
-    selected_folds: list[list[Fit]],
-    selected_full: list[Fit],
-    metric: str,
+    batch: _Batch, candidate: Candidate, selected_folds: list[list[Fit]], selected_full: list[Fit]
 ) -> np.ndarray:
-    """loss[j, i, g]: flight j's squared score at grid point g with fold i's selected effects (i = n:
-    the all-flights fit; loss[j, j] = 0, a flight is never in its own fold). Without selected effects
-    every fold sees the same rows, so each flight flies the grid once."""
+    """loss[j, i, g]: flight j's squared score (summed over the family's records, each in units of its
+    floor) at grid point g with
+    fold i's selected effects (i = n: the all-flights fit; loss[j, j] = 0, a flight is never in its
+    own fold). Without selected effects every fold sees the same rows, so each flight flies the grid
+    once."""
     n = len(batch.cases)
     grid_fits = [Fit(candidate, v, x) for v, x in candidate.points()]
     g = len(grid_fits)
     loss = np.zeros((n, n + 1, g))
-    for j in range(n):
-        if not selected_full:
-            loss[j, :, :] = getattr(batch.scores(j, [[f] for f in grid_fits]), metric) ** 2
-            loss[j, j, :] = 0.0
-        else:
-            folds = [i for i in range(n) if i != j]
-            rows = [[*selected_folds[i], f] for i in folds for f in grid_fits]
-            rows += [[*selected_full, f] for f in grid_fits]
-            sq = (getattr(batch.scores(j, rows), metric) ** 2).reshape(len(folds) + 1, g)
-            loss[j, folds, :] = sq[:-1]
-            loss[j, n, :] = sq[-1]
+    for record in RECORDS[candidate.family]:
+        for j in range(n):
+            if not selected_full:
+                scores = batch.scores(j, [[f] for f in grid_fits], replay=record.replay)
+                sq = (getattr(scores, record.metric) / record.floor) ** 2
+                loss[j, :, :] += sq
+                loss[j, j, :] = 0.0
+            else:
+                folds = [i for i in range(n) if i != j]
+                rows = [[*selected_folds[i], f] for i in folds for f in grid_fits]
+                rows += [[*selected_full, f] for f in grid_fits]
+                scores = batch.scores(j, rows, replay=record.replay)
+                sq = ((getattr(scores, record.metric) / record.floor) ** 2).reshape(len(folds) + 1, g)
+                loss[j, folds, :] += sq[:-1]
+                loss[j, n, :] += sq[-1]
     return loss
 
 
 def _binned(
     batch: _Batch, selected_folds: list[list[Fit]], selected_full: list[Fit]
 ) -> tuple[BinnedCorrection, HeldOut]:
-    """The binned correction per fold from the training flights' residuals, scored on the held-out one."""
+    """The binned correction per fold from the training flights' residuals, scored on the held-out one:
+    rate factors from the plain runs (the vertical record), added winds from the replayed runs, whose
+    horizontal error is the wind's alone."""
     n = len(batch.cases)
     edges = np.asarray(BIN_EDGES_M)
-    budgets = []
+    plain, replayed = [], []
     for j in range(n):
-        rows = [*selected_folds, selected_full]
-        runs = batch.runs(j, rows) if selected_full else batch.runs(j, [[]] * (n + 1))
-        budgets.append([bin_budget(batch.cases[j], runs, i, edges) for i in range(n + 1)])
-    scores = []
-    for i in range(n):
-        correction = fit_binned([budgets[j][i] for j in range(n) if j != i])
-        scores.append(batch.scores(i, [selected_folds[i]], correction.terms()))
-    full = fit_binned([budgets[j][n] for j in range(n)])
-    return full, HeldOut.of(scores)
+        rows = [*selected_folds, selected_full] if selected_full else [[]] * (n + 1)
+        runs = batch.runs(j, rows)
+        runs_replayed = batch.runs(j, rows, replay=True)
+        plain.append([bin_budget(batch.cases[j], runs, i, edges) for i in range(n + 1)])
+        replayed.append([bin_budget(batch.cases[j], runs_replayed, i, edges) for i in range(n + 1)])
+
+    def fold(i: int) -> BinnedCorrection:
+        others = [j for j in range(n) if j != i] if i < n else list(range(n))
+        rate = fit_binned([plain[j][i] for j in others])
+        wind = fit_binned([replayed[j][i] for j in others])
+        return BinnedCorrection(
+            edges_m=rate.edges_m, rate_factor=rate.rate_factor, east_ms=wind.east_ms, north_ms=wind.north_ms,
+            measured_s=rate.measured_s,
+        )  # fmt: skip
+
+    corrections = [fold(i).terms() for i in range(n)]
+    return fold(n), batch.heldout(selected_folds, corrections)
 
 
 def _t_future(case: FlightCase) -> float:

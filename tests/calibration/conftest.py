@@ -19,7 +19,7 @@ from predictor.calibration.residuals import FlightCase, flight_case
 from predictor.calibration.standard_atmosphere import R_DRY_AIR, pressure_temperature
 from predictor.calibration.synthetic import synthetic_flight
 from predictor.cube import WeatherCube
-from predictor.model import Term
+from predictor.model import Term, WindOffset
 from predictor.payload import PROFILES
 
 LAUNCH = datetime(2024, 5, 1, 8, 0, 0, tzinfo=UTC)
@@ -27,9 +27,11 @@ PAYLOAD = PROFILES["superbit-test"]
 DIRECTIONS_DEG = (20.0, 95.0, 160.0, 230.0, 300.0, 55.0)
 
 
-def jet_cube(toward_deg: float) -> WeatherCube:
+def jet_cube(toward_deg: float, density_change: float = 0.0) -> WeatherCube:
     """Wind toward ``toward_deg``: 8 m/s plus a 25 m/s jet at 11 km, veering 30° over 20 km, and 40 %
-    stronger 6 h after launch than 6 h before (so a time offset changes what a descent meets)."""
+    stronger 6 h after launch than 6 h before (so a time offset changes what a descent meets). The
+    air is ``density_change`` denser 6 h after launch than 6 h before (relative; 0: constant in time),
+    so that a time offset can also change the descent rate."""
     z = np.arange(-500.0, 40_001.0, 500.0)
     p, t = pressure_temperature(z)
     start = LAUNCH.replace(tzinfo=None)
@@ -45,21 +47,26 @@ def jet_cube(toward_deg: float) -> WeatherCube:
     return WeatherCube(
         times=times, lead_h=np.array([0.0, 12.0]), levels_hpa=p / 100.0, lats=np.array([42.0, 50.0]),
         lons=np.array([0.0, 12.0]), z_m=spread(z), u=spread(speed * np.sin(heading), 0.2),
-        v=spread(speed * np.cos(heading), 0.2), temperature_k=spread(t), density=spread(p / (R_DRY_AIR * t)),
+        v=spread(speed * np.cos(heading), 0.2), temperature_k=spread(t),
+        density=spread(p / (R_DRY_AIR * t), 0.5 * density_change),
         source=f"synthetic jet toward {toward_deg:g}°",
     )  # fmt: skip
 
 
 def make_cases(
     effects: Sequence[Term], n: int = 5, cadence_s: float = 180.0, noise_m: float = 3.0, seed: int = 0,
-    burst_alt_m: float = 28_000.0,
+    burst_alt_m: float = 28_000.0, wind_error_ms: float = 0.0, density_change: float = 0.0,
 ) -> list[FlightCase]:  # fmt: skip
+    """``wind_error_ms``: each flight's truth also carries its own constant wind error, east and north
+    each drawn from N(0, wind_error_ms) (the weather's error, which no effect of the set shares)."""
     cases = []
+    errors = np.random.default_rng(seed + 1000).normal(0.0, wind_error_ms, (n, 2))
     for k in range(n):
-        cube = jet_cube(DIRECTIONS_DEG[k % len(DIRECTIONS_DEG)])
+        cube = jet_cube(DIRECTIONS_DEG[k % len(DIRECTIONS_DEG)], density_change)
+        own = (WindOffset(east_ms=float(errors[k, 0]), north_ms=float(errors[k, 1])),) if wind_error_ms else ()
         flight = synthetic_flight(
             cube, launch_time=LAUNCH + timedelta(minutes=17 * k), lat=46.0, lon=6.0, payload=PAYLOAD,
-            effects=tuple(effects), burst_alt_m=burst_alt_m - 500.0 * k, ascent_rate_ms=8.0,
+            effects=(*effects, *own), burst_alt_m=burst_alt_m - 500.0 * k, ascent_rate_ms=8.0,
             cadence_s=cadence_s, noise_m=noise_m, seed=seed + k, name=f"synthetic-{k}",
         )  # fmt: skip
         cases.append(flight_case(clean(flight.track), cube))

@@ -44,7 +44,10 @@ def test_calibrating_real_flights_writes_the_json_and_the_report(
     data = json.loads(out_json.read_text())
     model = load_model(tmp_path / "superbit.model.json")
     assert model.payload.cda_m2 == PAYLOAD.cda_m2 and model.provenance["flights"] == list(FLIGHTS)
-    assert [t.name for t in model.terms] == [f["effect"] for f in data["selected"]]
+    passed = [t["record"] for t in data["binned_correction"]["tests"] if t["passed"]]
+    binned = [name for name, record in (("binned_descent_rate", "vertical"), ("binned_wind", "horizontal"))
+              if record in passed]  # fmt: skip
+    assert [t.name for t in model.terms] == [f["effect"] for f in data["selected"]] + binned
     assert model.provenance["held_out_before"] == data["baseline"]
     assert model.ellipse is not None
     assert model.ellipse.sigma0_km == pytest.approx(data["uncertainty_model"]["sigma0_km"], abs=1e-3)  # rounded there

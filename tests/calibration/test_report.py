@@ -45,6 +45,8 @@ def test_the_json_has_the_keys_the_issue_names(calibrated: Calibration) -> None:
     model = data["uncertainty_model"]
     assert set(model) >= {"sigma0_km", "h", "k_km2_per_h2", "q", "coverage_1sigma", "coverage_2sigma"}
     assert data["selected"] == [] and data["library_explains_residual"] is True
+    assert [f["family"] for f in data["families"]] == ["vertical", "horizontal"]
+    assert [t["record"] for t in data["binned_correction"]["tests"]] == ["vertical", "horizontal"]
 
 
 def test_the_markdown_report_states_its_verdict_and_links_real_plots(
@@ -55,12 +57,15 @@ def test_the_markdown_report_states_its_verdict_and_links_real_plots(
     out = tmp_path / "cal" / "report.md"
     pngs = write_report(out, calibrated, ellipse, [], "Synthetic", "drs calibrate ...", data)
     text = out.read_text(encoding="utf-8")
-    assert text.startswith("# Synthetic\n\n## What the data showed\n\nNo library effect beat the plain model")
+    assert text.startswith("# Synthetic\n\n## What the data showed\n\nVertical: nothing beat the model")
+    assert "No library effect beat the plain model" in text
     assert "Excluded: none" in text
     for png in pngs:
         assert png.parent == out.parent and png.read_bytes()[:8] == PNG_SIGNATURE
         assert f"]({png.name})" in text
-    assert "| descent_rate_scale | vertical |" in text and "paper (launch), same errors" in text
+    assert "## Vertical family (scored on the vertical record)" in text
+    assert "## Horizontal family (scored on the horizontal record)" in text
+    assert "| descent_rate_scale | scale = " in text and "paper (launch), same errors" in text
 
 
 def test_a_preface_stands_under_the_title_and_survives_regeneration(

@@ -7,9 +7,9 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from predictor.calibration.effects import library
+from predictor.calibration.effects import Candidate, library
 from predictor.calibration.residuals import FlightCase
-from predictor.calibration.selection import MIN_IMPROVEMENT_KM, calibrate, paired_test
+from predictor.calibration.selection import HORIZONTAL, VERTICAL, calibrate, paired_test
 from predictor.errors import PredictorError
 from predictor.model import WindScale
 from predictor.payload import PROFILES
@@ -17,8 +17,8 @@ from predictor.payload import PROFILES
 
 def test_an_improvement_on_every_flight_passes() -> None:
     before = np.array([3.0, 2.5, 4.0, 1.8, 2.2, 3.3])
-    test = paired_test(before, before - 0.5, alpha=0.05, seed=0)
-    assert test.passed and test.wins == 6 and test.mean_improvement_km == pytest.approx(0.5)
+    test = paired_test(before, before - 0.5, alpha=0.05, seed=0, floor=HORIZONTAL.floor)
+    assert test.passed and test.wins == 6 and test.mean_improvement == pytest.approx(0.5)
 
 
 def test_a_mean_improvement_carried_by_one_lucky_flight_does_not_pass() -> None:
@@ -26,28 +26,30 @@ def test_a_mean_improvement_carried_by_one_lucky_flight_does_not_pass() -> None:
     after = before.copy()
     after[0] = 0.0  # one flight 3 km better, the other nine unchanged
     after[1:] += np.linspace(-0.05, 0.05, 9)
-    test = paired_test(before, after, alpha=0.05, seed=0)
-    assert test.mean_improvement_km > MIN_IMPROVEMENT_KM and not test.passed
-    assert test.margin_km > test.mean_improvement_km
+    test = paired_test(before, after, alpha=0.05, seed=0, floor=HORIZONTAL.floor)
+    assert test.mean_improvement > HORIZONTAL.floor and not test.passed
+    assert test.margin > test.mean_improvement
 
 
 def test_noise_around_zero_does_not_pass_and_the_margin_is_reported() -> None:
     rng = np.random.default_rng(4)
     before = rng.uniform(1.0, 5.0, 30)
-    test = paired_test(before, before + rng.normal(0.0, 0.3, 30), alpha=0.05, seed=1)
-    assert not test.passed and test.margin_km > 0.05
+    test = paired_test(before, before + rng.normal(0.0, 0.3, 30), alpha=0.05, seed=1, floor=HORIZONTAL.floor)
+    assert not test.passed and test.margin > 0.05
     assert test.to_dict()["flights"] == 30
 
 
 def test_a_consistent_but_tiny_improvement_is_below_the_practical_floor() -> None:
     before = np.array([3.0, 2.5, 4.0, 1.8])
-    test = paired_test(before, before - 0.01, alpha=0.05, seed=0)
-    assert test.lower_bound_km > 0.0 and not test.passed
+    test = paired_test(before, before - 0.01, alpha=0.05, seed=0, floor=HORIZONTAL.floor)
+    assert test.lower_bound > 0.0 and not test.passed
 
 
 def test_a_failed_run_on_any_flight_cannot_pass() -> None:
     before = np.array([3.0, 2.5, 4.0, 1.8])
-    assert not paired_test(before, np.array([1.0, 1.0, np.nan, 1.0]), alpha=0.05, seed=0).passed
+    assert not paired_test(
+        before, np.array([1.0, 1.0, np.nan, 1.0]), alpha=0.05, seed=0, floor=HORIZONTAL.floor
+    ).passed
 
 
 def test_leave_one_out_needs_three_flights(plain_cases: list[FlightCase]) -> None:
@@ -68,17 +70,18 @@ def test_every_fold_is_fitted_without_its_own_flight(
     assert 1.02 < result.full.value < 1.5
 
 
-def test_selection_can_score_by_the_landing_alone(synthetic_cases: Callable[..., list[FlightCase]]) -> None:
-    cases = synthetic_cases((WindScale(scale=1.3),), n=4)
-    cal = calibrate(cases, PROFILES["superbit-test"], library(["wind_scale", "descent_rate_scale"]),
-                    metric="landing_error_km")  # fmt: skip
-    assert cal.metric == "landing_error_km"
-    assert [f.candidate.name for f in cal.selected] == ["wind_scale"]
-    assert cal.after.landing_error_km.mean() < 0.1 * cal.baseline.landing_error_km.mean()
+def test_each_family_has_its_record_and_floor() -> None:
+    """Vertical effects on the time-at-altitude record, horizontal ones on the replayed horizontal one."""
+    assert (VERTICAL.metric, VERTICAL.unit, VERTICAL.replay) == ("time_rms_s", "s", False)
+    assert (HORIZONTAL.metric, HORIZONTAL.unit, HORIZONTAL.replay) == ("horizontal_rms_km", "km", True)
+    before = np.array([130.0, 95.0, 240.0, 180.0])
+    assert paired_test(
+        before, before - 12.0, alpha=0.05, seed=0, floor=VERTICAL.floor, record=VERTICAL
+    ).passed
+    assert not paired_test(before, before - 8.0, alpha=0.05, seed=0, floor=VERTICAL.floor).passed
 
 
-def test_an_unknown_score_is_refused(plain_cases: list[FlightCase]) -> None:
-    with pytest.raises(
-        PredictorError, match="unknown score 'speed'; choose one of track_rms_km, landing_error_km"
-    ):
-        calibrate(plain_cases, PROFILES["superbit-test"], library(["wind_scale"]), metric="speed")
+def test_an_unknown_family_is_refused(plain_cases: list[FlightCase]) -> None:
+    odd = Candidate("wind_scale", "sideways", "scale", (0.9, 1.0, 1.1), (0.5, 1.5), 1.0)
+    with pytest.raises(PredictorError, match="unknown effect family sideways"):
+        calibrate(plain_cases, PROFILES["superbit-test"], (odd,))

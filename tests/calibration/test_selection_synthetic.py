@@ -19,7 +19,6 @@ from predictor.model import (
     DescentRateScale,
     DragDensityExponent,
     Term,
-    WeatherTimeOffset,
     WindBandScale,
     WindLag,
     WindOffset,
@@ -46,14 +45,6 @@ LIBRARY_CASES = [
         180.0,
     ),  # fmt: skip
     (WindLag(time_constant_s=120.0), "time_constant_s", 120.0, 10.0, ("wind_scale", "wind_rotation"), 180.0),
-    (
-        WeatherTimeOffset(offset_s=3600.0),
-        "offset_s",
-        3600.0,
-        120.0,
-        ("wind_scale", "descent_rate_scale"),
-        300.0,
-    ),
 ]
 
 
