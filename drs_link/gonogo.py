@@ -41,9 +41,11 @@ class ExclusionZone:
 
     name: str
     ring: tuple[tuple[float, float], ...]
+    holes: tuple[tuple[tuple[float, float], ...], ...] = ()
+    """Islands inside the ring that are not excluded (a GeoJSON polygon's inner rings)."""
 
     def polygon(self) -> Polygon:
-        return Polygon(self.ring)
+        return Polygon(self.ring, self.holes)
 
 
 @dataclass(frozen=True)

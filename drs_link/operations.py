@@ -8,12 +8,13 @@ set of them per configured capsule, so the CLI, tests and the Textual app share 
 
 from __future__ import annotations
 
-import json
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
+
+from shapely import Polygon
 
 from drs_link.arming import ArmingController
 from drs_link.backends import AuthorityStatus
@@ -36,27 +37,31 @@ from drs_link.storage import read_storage
 from drs_link.store import Store, utc_now
 from drs_link.sync import Syncer
 from drs_link.telemetry import TelemetryRecord, TelemetryRecorder
+from predictor.zones import ZoneFileError, load_zones
 
 GNSS_UERE_M = 5.0
 """Metres of position error per unit of HDOP (a typical user range error), for the fix's uncertainty."""
 
 
 def load_exclusion_zones(path: Path | None) -> tuple[ExclusionZone, ...]:
-    """Polygons from a GeoJSON FeatureCollection; each feature's ``name`` property names the zone."""
+    """The zones go/no-go checks, read by the planner's own loader (``predictor.zones.load_zones``).
+
+    One reader, so go/no-go and the release-window sweep accept and refuse the same files and see the
+    same polygons (MultiPolygon parts, holes, rings across the antimeridian); each part keeps its
+    feature's name.
+    """
     if path is None:
         return ()
     try:
-        document = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"console.exclusion_zones_file: cannot read {path}: {exc}") from None
+        features = load_zones(path)
+    except ZoneFileError as exc:
+        raise ConfigError(f"console.exclusion_zones_file: {exc}") from None
     zones = []
-    for index, feature in enumerate(document.get("features", []) if isinstance(document, dict) else []):
-        geometry = feature.get("geometry") or {}
-        if geometry.get("type") != "Polygon":
-            raise ConfigError(f"console.exclusion_zones_file: feature {index} is not a Polygon")
-        ring = tuple((float(lon), float(lat)) for lon, lat, *_ in geometry["coordinates"][0])
-        name = str((feature.get("properties") or {}).get("name") or f"zone {index + 1}")
-        zones.append(ExclusionZone(name, ring))
+    for feature in features:
+        for part in getattr(feature.geometry, "geoms", (feature.geometry,)):
+            if isinstance(part, Polygon):
+                holes = tuple(tuple(ring.coords) for ring in part.interiors)
+                zones.append(ExclusionZone(feature.name, tuple(part.exterior.coords), holes))
     return tuple(zones)
 
 

@@ -91,10 +91,10 @@ def test_a_bad_exclusion_zone_file_is_refused_naming_the_key(tmp_path: Path) -> 
 
     path = tmp_path / "zones.geojson"
     path.write_text('{"type": "FeatureCollection", "features": [{"geometry": {"type": "Point"}}]}')
-    with pytest.raises(ConfigError, match="console.exclusion_zones_file: feature 0 is not a Polygon"):
+    with pytest.raises(ConfigError, match=r"console.exclusion_zones_file: .* feature 0 \(#0\): geometry type 'Point'"):
         load_exclusion_zones(path)
     path.write_text("{")
-    with pytest.raises(ConfigError, match="console.exclusion_zones_file: cannot read"):
+    with pytest.raises(ConfigError, match="console.exclusion_zones_file: zone file .*: not JSON"):
         load_exclusion_zones(path)
 
 

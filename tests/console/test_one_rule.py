@@ -7,6 +7,7 @@ store, and compares what each did or said.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from datetime import datetime, timedelta
 from pathlib import Path
@@ -15,10 +16,12 @@ import pytest
 
 import console.cli as entry
 from console.app import ConsoleSetup, DrsConsole
+from console.console_cli import live_setup
 from console.screens.iridium import IridiumScreen
 from console.screens.modals import HazardModal, TextPromptModal
 from drs_link.checklist import PROCEDURE_DIR, ChecklistRun, StepState, load_checklists
 from drs_link.config import CapsuleConfig, load_config
+from drs_link.errors import ConfigError
 from drs_link.iridium import lifecycle as lc
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.gateway import RockblockGateway
@@ -175,3 +178,48 @@ async def test_the_parachute_window_is_the_same_from_the_cli_and_the_console(
         await wait_for(pilot, lambda: isinstance(app.screen, HazardModal))
         assert from_cli in app.screen.consequence  # type: ignore[attr-defined]
     store.close()
+
+
+UNCLOSED = [[21.0, 67.8], [21.2, 67.8], [21.2, 67.9], [21.0, 67.9]]
+SWAPPED = [[67.8, 97.8], [67.8, 97.9], [67.9, 97.9], [67.8, 97.8]]
+"""A zone near 97.8° E written [lat, lon]."""
+
+
+@pytest.mark.parametrize(
+    ("ring", "reason"),
+    [(UNCLOSED, "must end where it starts"), (SWAPPED, "latitude 97.8 is beyond ±90°")],
+    ids=["unclosed", "lon-lat-swapped"],
+)
+def test_a_zone_file_is_refused_for_the_same_reason_by_drs_plan_and_the_console(
+    tmp_path: Path,
+    gateway: SimulatedRockblock,
+    capsys: pytest.CaptureFixture[str],
+    ring: list[list[float]],
+    reason: str,
+) -> None:
+    """One loader (predictor.zones): the console's go/no-go once accepted files the planner refused."""
+    zones = tmp_path / "zones.geojson"
+    feature = {
+        "type": "Feature",
+        "properties": {"name": "Kiruna"},
+        "geometry": {"type": "Polygon", "coordinates": [ring]},
+    }
+    zones.write_text(json.dumps({"type": "FeatureCollection", "features": [feature]}))
+    config = write_config(tmp_path, gateway, f'exclusion_zones_file = "{zones}"\n')
+    plan = [
+        "plan",
+        "--weather",
+        str(tmp_path / "none.grib2"),
+        "--lat",
+        "67.9",
+        "--lon",
+        "21.1",
+        "--alt",
+        "31500",
+    ]
+    assert cli(config, *plan, "--from", "2026-09-01T12:00Z", "--zones", str(zones)) == 2
+    from_cli = capsys.readouterr().err.strip().removeprefix("drs: error: ")
+    with pytest.raises(ConfigError) as refused:
+        live_setup(load_config(config), None, None)
+    from_console = str(refused.value).removeprefix("console.exclusion_zones_file: ")
+    assert from_cli == from_console and reason in from_cli and "feature 0 (Kiruna)" in from_cli
