@@ -71,7 +71,7 @@ def prepare(args: argparse.Namespace) -> Inputs:
     cases: list[FlightCase] = []
     excluded: list[Exclusion] = []
     for name in args.tracks:
-        flight = clean(read_track(name))
+        flight = clean(read_track(name), terrain)
         if not flight.usable:
             excluded.append(Exclusion(flight.name, "cleaning: " + "; ".join(flight.exclusions)))
             continue

@@ -33,8 +33,14 @@ cannot be used says why instead of silently disappearing. Rules, in the order th
    (>= 5 fixes in that 60 s) the landing moves on to the first fix within 15 m of the window's
    median altitude, the ground. Every row after the landing is dropped: the payload on the
    ground, then often driven home.
+   With terrain (``--dem``), a track that ends during the descent with its last fix within
+   ``TERRAIN_LANDING_TOLERANCE_M`` of the ground height under it has landed there (a logger that
+   stops at touchdown, a log cut at the landing): the last fix is the landing, flagged
+   ``landing-at-terrain``. A last fix where no DEM answers (the terrain would be a guessed sea level)
+   is not taken as a landing. Without terrain, the rules above stand.
 
-Flags (kept, but the calibration should know): ``floater``, ``landing-at-last-fix``, ``data-gap``
+Flags (kept, but the calibration should know): ``floater``, ``landing-at-last-fix``,
+``landing-at-terrain``, ``data-gap``
 (no fix for more than 15 min between the peak and the landing), ``descent-only``, ``starts-in-air``.
 Exclusions (the flight cannot be used for calibration): no flight found, no descent recorded, no
 landing observed, fewer than 3 descent fixes.
@@ -51,6 +57,7 @@ from pyproj import Geod
 
 from predictor.calibration.standard_atmosphere import pressure_temperature
 from predictor.calibration.tracks import Fix, Track
+from predictor.terrain import SEA_LEVEL_SOURCE, Terrain
 
 WGS84 = Geod(ellps="WGS84")
 
@@ -75,6 +82,10 @@ HIGH_RATE_WINDOW_FIXES = 5
 TOUCHDOWN_BAND_M = 15.0
 STOPPED_SPEED_MS = 0.5
 GAP_S = 15 * 60.0
+TERRAIN_LANDING_TOLERANCE_M = 50.0
+"""Last fix to DEM ground height: SRTM's vertical error (~16 m, 90 % of points) plus GNSS altitude
+error (~15 m) plus the last few seconds of a 5 m/s fall; a track cut off in the air at 2–5 min
+telemetry ends hundreds of metres up."""
 MIN_DESCENT_FIXES = 3
 
 
@@ -150,7 +161,8 @@ def distance_m(a: Fix, b: Fix) -> float:
     return float(WGS84.inv(a.lon, a.lat, b.lon, b.lat)[2])
 
 
-def clean(track: Track) -> Flight:
+def clean(track: Track, terrain: Terrain | None = None) -> Flight:
+    """The flight in ``track`` by the module's rules; ``terrain`` adds the landing-at-terrain rule."""
     removals: list[Removal] = []
     notes: list[str] = []
     fixes = _drop_invalid(list(track.fixes), removals)
@@ -233,6 +245,18 @@ def clean(track: Track) -> Flight:
         )
     landing = _landing_index(times, alts, start)
     last = session[-1]
+    if landing is None and terrain is not None and start < len(session) - 1:
+        ground = _ground_under(terrain, last)
+        if ground is not None and abs(last.alt_m - ground) <= TERRAIN_LANDING_TOLERANCE_M:
+            landing = len(session) - 1
+            flags.append(
+                Flag(
+                    "landing-at-terrain",
+                    f"the track ends at {last.alt_m:.0f} m ({_hm(last)}), {last.alt_m - ground:+.0f} m from the "
+                    f"terrain height {ground:.0f} m (tolerance {TERRAIN_LANDING_TOLERANCE_M:.0f} m): "
+                    "taken as the landing",
+                )
+            )
     if (
         landing is None
         and last.speed_ms is not None
@@ -469,6 +493,13 @@ def _touchdown(alts: np.ndarray, k: int, j: int) -> int:
         return k
     ground = float(np.median(alts[k : j + 1]))
     return k + int(np.argmax(alts[k : j + 1] <= ground + TOUCHDOWN_BAND_M))
+
+
+def _ground_under(terrain: Terrain, fix: Fix) -> float | None:
+    """The DEM's ground height under the fix; None where no DEM covers it (sea level is a guess there)."""
+    if terrain.source_at(fix.lat, fix.lon) == SEA_LEVEL_SOURCE:
+        return None
+    return float(terrain.elevation(fix.lat, fix.lon))
 
 
 def _gaps(session: list[Fix], peak: int, end: int) -> list[Flag]:

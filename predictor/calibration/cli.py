@@ -13,6 +13,7 @@ from typing import Any
 from predictor.calibration.ascent_winds import MIN_ASCENT_FIXES, ascent_weather_cube
 from predictor.calibration.cleaning import Flight, clean
 from predictor.calibration.tracks import Fix, TrackError, read_track
+from predictor.terrain import Terrain
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -33,6 +34,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="YYYY-MM-DD",
         help="UTC date of the first fix, for logs that record only times of day (the V4 logger)",
     )
+    summary.add_argument(
+        "--dem", metavar="DIR", help="terrain: a track ending at the ground height has landed (docs/tracks.md)"
+    )
     summary.set_defaults(func=run_summary)
     bench = actions.add_parser(
         "bench", help="time reading, cleaning and ascent-wind cubes for the given files (best of N runs)"
@@ -48,9 +52,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run_summary(args: argparse.Namespace) -> int:
     flights: list[Flight] = []
     failed = False
+    terrain = Terrain.from_dir(args.dem) if args.dem else None
     for name in args.files:
         try:
-            flights.append(clean(read_track(name, day=args.date)))
+            flights.append(clean(read_track(name, day=args.date), terrain))
         except TrackError as exc:
             print(f"drs: error: {exc}", file=sys.stderr)
             failed = True

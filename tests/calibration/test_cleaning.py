@@ -6,12 +6,14 @@ import re
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from predictor.calibration.cleaning import Flight, clean, distance_m
+from predictor.calibration.cleaning import TERRAIN_LANDING_TOLERANCE_M, Flight, clean, distance_m
 from predictor.calibration.tracks import Fix, Track, read_track
+from predictor.terrain import Terrain, tile_name
 
 FLIGHT_FILE = re.compile(r"^\d+-\d+-\d+(_\d)?\.csv$")
 T0 = datetime(2024, 5, 1, 8, 0, 0, tzinfo=UTC)
@@ -186,6 +188,47 @@ def test_a_track_ending_mid_descent_is_excluded_unless_the_receiver_says_it_stop
     stopped = clean(track(fixes))
     assert stopped.landing is not None and stopped.landing.alt_m == last.alt_m
     assert stopped.has_flag("landing-at-last-fix")
+
+
+def _flat_dem(directory: Path, height_m: int) -> Terrain:
+    """One SRTM3 tile (big-endian int16) at ``height_m`` over 46–47° N, 6–7° E, where simple_flight flies."""
+    np.full((1201, 1201), height_m, dtype=">i2").tofile(directory / f"{tile_name(46, 6)}.hgt")
+    return Terrain.from_dir(directory)
+
+
+def _cut_at_touchdown() -> list[Fix]:
+    """simple_flight as a logger that stops at touchdown writes it: up to the first fix on the ground."""
+    fixes = simple_flight()
+    peak = max(range(len(fixes)), key=lambda i: fixes[i].alt_m)
+    first_ground = next(i for i in range(peak, len(fixes)) if fixes[i].alt_m <= 310.0)
+    return fixes[: first_ground + 1]
+
+
+def test_with_a_dem_a_track_ending_at_the_terrain_height_ends_in_a_flagged_landing(tmp_path: Path) -> None:
+    fixes = _cut_at_touchdown()
+    without = clean(track(fixes))
+    assert without.exclusions[0].startswith("no landing observed")
+    flight = clean(track(fixes), _flat_dem(tmp_path, 300 - 40))  # 40 m under the last fix: within 50 m
+    assert flight.usable and flight.landing is not None
+    assert flight.landing.time == fixes[-1].time and flight.landing.alt_m == fixes[-1].alt_m
+    assert flight.has_flag("landing-at-terrain") and not flight.has_flag("landing-at-last-fix")
+    flag = next(f for f in flight.flags if f.code == "landing-at-terrain")
+    assert "+40 m from the terrain height 260 m (tolerance 50 m)" in flag.message
+
+
+def test_with_a_dem_a_track_cut_off_above_the_tolerance_is_still_no_landing(tmp_path: Path) -> None:
+    fixes = _cut_at_touchdown()
+    terrain = _flat_dem(tmp_path, 300 - TERRAIN_LANDING_TOLERANCE_M - 10)
+    assert clean(track(fixes), terrain).exclusions[0].startswith("no landing observed")
+    in_the_air = [f for f in fixes if f.alt_m > 2000 or f.time < T0 + timedelta(hours=1)]
+    assert clean(track(in_the_air), terrain).exclusions[0].startswith("no landing observed")
+
+
+def test_where_no_dem_covers_the_last_fix_sea_level_is_not_taken_for_the_ground(tmp_path: Path) -> None:
+    """A DEM of another place answers 0 m (sea level) here: a track ending at 0 m is still no landing."""
+    fixes = [Fix(**{**_fields(f), "alt_m": f.alt_m - 300.0}) for f in _cut_at_touchdown()]
+    np.full((1201, 1201), 0, dtype=">i2").tofile(tmp_path / f"{tile_name(10, 10)}.hgt")
+    assert clean(track(fixes), Terrain.from_dir(tmp_path)).exclusions[0].startswith("no landing observed")
 
 
 @settings(max_examples=120, deadline=None)
