@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import json
+from datetime import date
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from console.cli import main
-from predictor.live import DEFAULT_CORRECTION, LIVE_ERROR_MODEL
+from predictor.calibration.ascent_winds import ascent_weather_cube
+from predictor.calibration.cleaning import clean
+from predictor.calibration.tracks import read_track
+from predictor.live import DEFAULT_CORRECTION, LIVE_ERROR_MODEL, NO_CORRECTION, LivePredictor
 from predictor.model import DragDensityExponent
 from predictor.model_file import CalibratedModel, load_model, save_model
 from predictor.payload import PROFILES
@@ -148,3 +152,27 @@ def test_live_bench_re_samples_real_flights_to_1_hz_and_feeds_every_fix(
     fed = int(line.split(" descent fixes fed")[0].rsplit(" ", 1)[1])
     assert fixes > 3 * 8000 and 0.2 * fixes < fed < fixes
     assert "3 flights used" in line and "(every one)" in line
+
+
+def test_on_a_real_1_hz_descent_the_rate_fit_does_not_swing_with_the_payload(shared_data: Path) -> None:
+    # The Spanish V4 logger, 1 Hz: second to second the measured descent rate swings by a factor of
+    # several (the payload under its canopy); the rate factor, fitted on every fix so far, must not.
+    path = shared_data / "tracks" / "astra_meridiaz_V4_spain" / "V4_flight_1hz_DERIVED.csv"
+    flight = clean(read_track(path, day=date(2021, 6, 1)))
+    descent = list(flight.descent)
+    z = np.array([f.alt_m for f in descent])
+    t = np.array([(f.time - descent[0].time).total_seconds() for f in descent])
+    p5, p95 = np.percentile(-np.diff(z) / np.diff(t), (5, 95))
+    assert len(descent) > 3000 and p95 > 2.0 * p5 > 0.0
+    live = LivePredictor(ascent_weather_cube(flight), PROFILES["superbit-test"], correction=NO_CORRECTION)
+    jumps = []
+    previous = None
+    for i, fix in enumerate(descent):
+        live.observe(fix)
+        if i % 20 in (0, 1):
+            fit = live.rate_fit(fix.alt_m)
+            if i % 20 == 1 and fit is not None and previous is not None:
+                assert fit.fixes == i + 1, "every fix of the descent so far is fitted"
+                jumps.append(abs(fit.factor / previous.factor - 1.0))
+            previous = fit
+    assert len(jumps) > 100 and max(jumps) < 0.01
