@@ -22,7 +22,7 @@ from textual.notifications import SeverityLevel
 from textual.screen import Screen
 from textual.worker import Worker, WorkerState
 
-from console.predictions import PredictionService, ReleaseOrigin
+from console.predictions import PredictionService
 from drs_link.arming import ArmState
 from drs_link.balloon_feed import BalloonFeed
 from drs_link.checklist import PROCEDURE_DIR, Checklist, ChecklistRun, load_checklists
@@ -30,6 +30,7 @@ from drs_link.errors import LinkError
 from drs_link.fleet import FleetState
 from drs_link.gonogo import GoNoGoReport, evaluate
 from drs_link.operations import Operations
+from drs_link.origin import ReleaseOrigin, release_origin
 from drs_link.store import Store, utc_now
 from drs_link.telemetry import TelemetryRecord
 from predictor.errors import PredictorError
@@ -239,24 +240,8 @@ class DrsConsole(App[int]):
             self.post_message(TelemetryArrived(records))
 
     def prediction_origin(self, capsule: str) -> ReleaseOrigin | None:
-        """Where a release would start: the capsule's own fresh fix, else the balloon feed."""
-        telemetry = self.fleet.capsules[capsule]
-        now = self.now()
-        gnss = telemetry.reading("gnss")
-        if (
-            gnss.is_fresh(now)
-            and gnss.value
-            and gnss.value.get("has_fix")
-            and gnss.value.get("lat") is not None
-        ):
-            return ReleaseOrigin(
-                gnss.value["lat"], gnss.value["lon"], gnss.value.get("alt_m") or 30000.0, f"{capsule} GNSS"
-            )
-        balloon = self.fleet.balloon
-        if balloon.is_fresh(now) and balloon.value:
-            source = "balloon feed" + (f" ({balloon.value['source']})" if balloon.value.get("source") else "")
-            return ReleaseOrigin(balloon.value["lat"], balloon.value["lon"], balloon.value["alt_m"], source)
-        return None
+        """Where a release would start (the rule is ``drs_link.origin.release_origin``)."""
+        return release_origin(self.fleet, capsule, self.now())
 
     def refresh_predictions(self, names: Iterable[str] | None = None) -> None:
         for name in self.setup.capsules if names is None else names:

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from drs_link.origin import ReleaseOrigin
 from drs_link.telemetry import TelemetryRecord
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
 from predictor.errors import PredictorError
@@ -31,16 +31,6 @@ PATH_POINTS = 60
 WINDOW_HOURS = 2.0
 WINDOW_STEP_MIN = 5.0
 """The console's sweep: parametric only (no ensemble members) so a refresh stays well under a second."""
-
-
-@dataclass(frozen=True)
-class ReleaseOrigin:
-    """Where a release would start, and from what: the operator must see which position a prediction used."""
-
-    lat: float
-    lon: float
-    alt_m: float
-    source: str
 
 
 def map_geometry(prediction: Prediction) -> dict[str, object]:
