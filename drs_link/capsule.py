@@ -22,7 +22,7 @@ from enum import StrEnum
 
 from drs_link.backends import AuthorityStatus, CapsuleBackend, GoResult
 from drs_link.config import CapsuleConfig
-from drs_link.errors import LinkError, RefusedError
+from drs_link.errors import LinkError, RefusedError, StoreError
 from drs_link.nmea import GnssStatus, summarise
 from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
 
@@ -117,6 +117,23 @@ def take_over_outcome(seen: AuthorityStatus, holder: str) -> str:
     return "claimed" if seen.holder is None else f"taken over from {seen.holder}"
 
 
+class _TokenUsed(Exception):
+    """Another Go used this confirmation between the check and the send."""
+
+
+class _StateChanged(Exception):
+    """The stored record moved on between reading it and writing a step (``_swap``)."""
+
+    def __init__(self, current: ReleaseRecord) -> None:
+        super().__init__(current.state.value)
+        self.current = current
+
+
+def _identity(record: ReleaseRecord) -> tuple[str, str | None, str | None]:
+    """What a compare-and-set compares, as stored (times to the store's precision, not the clock's)."""
+    return record.state.value, record.session, iso_utc(record.go_at) if record.go_at else None
+
+
 def _time(text: str | None) -> datetime | None:
     return parse_iso_utc(text) if text else None
 
@@ -148,7 +165,9 @@ class ReleaseStateMachine:
         return self.capsule.name
 
     def record(self) -> ReleaseRecord:
-        rows = self.store.query("SELECT * FROM release_state WHERE capsule = ?", (self.name,))
+        return self._read(self.store.query("SELECT * FROM release_state WHERE capsule = ?", (self.name,)))
+
+    def _read(self, rows: list[sqlite3.Row]) -> ReleaseRecord:
         if not rows:
             return ReleaseRecord(self.name, ReleaseState.IDLE, None, None, 0, None, None, None, None, None)
         row = rows[0]
@@ -186,6 +205,26 @@ class ReleaseStateMachine:
                 iso_utc(self.clock()),
             ),
         )
+
+    def _swap(self, seen: ReleaseRecord, new: ReleaseRecord) -> ReleaseRecord:
+        """Write ``new`` only if the store still holds ``seen``: a compare-and-set under SQLite's write lock.
+
+        Two consoles, or two threads of one, acting on the same capsule each read the record and then
+        act on the Pi; without this, the slower one wrote its stale copy back over the other's step
+        (a refused Go once turned ``released`` into ``powered``).
+        """
+        with self.store.transaction() as conn:
+            self._swap_in(conn, seen, new)
+        return new
+
+    def _swap_in(self, conn: sqlite3.Connection, seen: ReleaseRecord, new: ReleaseRecord) -> None:
+        """``_swap`` inside a transaction the caller holds (Go also marks its token used in it)."""
+        current = self._read(
+            conn.execute("SELECT * FROM release_state WHERE capsule = ?", (self.name,)).fetchall()
+        )
+        if _identity(current) != _identity(seen):
+            raise _StateChanged(current)
+        self._save(conn, new)
 
     def _audit(self, action: str, result: str, detail: dict[str, object] | None = None) -> None:
         self.store.append_audit(self.operator, self.name, action, result, detail, when=self.clock())
@@ -227,8 +266,18 @@ class ReleaseStateMachine:
             None,
             None,
         )
-        with self.store.transaction() as conn:
-            self._save(conn, record)
+        try:
+            self._swap(current, record)
+        except _StateChanged as changed:
+            raise self._refuse(
+                "power-on",
+                f"the relay is latched, but the capsule became {changed.current.state.value} "
+                "meanwhile (another console?); that state is kept",
+            ) from None
+        except StoreError as exc:
+            raise StoreError(
+                f"{self.name}: power-on ran on the Pi (the relay is latched) but was not recorded: {exc}"
+            ) from None
         self._audit("power-on", "ok", {"session": record.session, "log_offset": result.log_offset})
         return record
 
@@ -250,9 +299,11 @@ class ReleaseStateMachine:
         elapsed = (now - record.powered_at).total_seconds() if record.powered_at else None
         if gnss.nmea_seen:
             if record.nmea_seen_at is None:
-                with self.store.transaction() as conn:
-                    self._save(conn, replace(record, nmea_seen_at=now))
-                self._audit("microcontroller", "waiting for Go", {"gnss": gnss.as_dict()})
+                try:
+                    self._swap(record, replace(record, nmea_seen_at=now))
+                    self._audit("microcontroller", "waiting for Go", {"gnss": gnss.as_dict()})
+                except _StateChanged:
+                    pass  # another step moved the capsule on; the NMEA seen is reported all the same
             return MicrocontrollerReport(
                 True, elapsed, gnss, "NMEA arriving: the microcontroller is waiting for Go"
             )
@@ -326,19 +377,40 @@ class ReleaseStateMachine:
         return record
 
     def go(self, token: ConfirmationToken) -> ReleaseRecord:
-        """Send Go once; the link dropping right after ``Shutting down...`` is the expected success."""
+        """Send Go once; the link dropping right after ``Shutting down...`` is the expected success.
+
+        A retry after an unverified Go keeps the first Go's time: that is when the capsule may have
+        left, and recovery counts the descent from it.
+        """
         record = self._check_go(token)
         now = self.clock()
-        sending = replace(record, state=ReleaseState.GO_SENT, go_at=now, note="Go sent, not yet confirmed")
-        with self.store.transaction() as conn:
-            conn.execute("UPDATE release_tokens SET used_at = ? WHERE token = ?", (iso_utc(now), token.value))
-            self._save(conn, sending)
-        self._audit("go", "sending", {"session": record.session})
+        sending = replace(
+            record, state=ReleaseState.GO_SENT, go_at=record.go_at or now, note="Go sent, not yet confirmed"
+        )
+        try:
+            with self.store.transaction() as conn:
+                used = conn.execute(
+                    "UPDATE release_tokens SET used_at = ? WHERE token = ? AND used_at IS NULL",
+                    (iso_utc(now), token.value),
+                ).rowcount
+                if used != 1:
+                    raise _TokenUsed()
+                self._swap_in(conn, record, sending)
+        except _TokenUsed:
+            raise self._refuse("go", "the confirmation token was already used") from None
+        except _StateChanged as changed:
+            raise self._refuse(
+                "go", f"the capsule became {changed.current.state.value} meanwhile (another console?)"
+            ) from None
+        retry = {"retry_of_go_at": iso_utc(record.go_at)} if record.go_at else {}
+        self._audit("go", "sending", {"session": record.session, **retry})
         try:
             result = self.backend.go(self.holder)
         except RefusedError as exc:
-            with self.store.transaction() as conn:
-                self._save(conn, record)
+            try:
+                self._swap(sending, record)
+            except _StateChanged:
+                pass  # another step moved the capsule on meanwhile: its state stands, not our stale copy
             self._audit("go", "refused", {"reason": str(exc)})
             raise
         except LinkError as exc:
@@ -367,8 +439,13 @@ class ReleaseStateMachine:
                 "reached the capsule (check it; a repeated Go is harmless to the firmware)"
             )
         released = replace(sending, state=ReleaseState.RELEASED, released_at=self.clock(), note=note)
-        with self.store.transaction() as conn:
-            self._save(conn, released)
+        try:
+            self._swap(sending, released)
+        except _StateChanged as changed:
+            if changed.current.state is not ReleaseState.RELEASED:
+                raise
+            self._audit("go", f"{note} (already recorded released)", detail)
+            return changed.current
         self._audit("go", note, detail)
         return released
 
@@ -451,13 +528,32 @@ class ReleaseStateMachine:
         return before
 
     def reset(self, typed_name: str) -> ReleaseRecord:
-        """After recovery (Gone flag cleared on the unit), allow a new release of this capsule."""
+        """After recovery (Gone flag cleared on the unit), allow a new release of this capsule.
+
+        Not while a Go is unverified: the capsule may be falling, and a reset would let the next
+        power-on and Go be treated as the first. Not without a named operator: it ends a release.
+        """
         if typed_name != self.name:
             raise self._refuse("reset", f"the confirmation {typed_name!r} does not name {self.name!r}")
+        if self.operator == "unknown":
+            raise self._refuse(
+                "reset", "no operator name: set [operator] name; a reset ends a release on the record"
+            )
+        seen = self.record()
+        if seen.state is ReleaseState.GO_SENT:
+            raise self._refuse(
+                "reset",
+                "Go was sent and not verified: the capsule may have been released; find out first "
+                "(drs capsule status, its Iridium reports) and send Go again if it is still on the balloon",
+            )
         record = ReleaseRecord(self.name, ReleaseState.IDLE, None, None, 0, None, None, None, None, "reset")
-        with self.store.transaction() as conn:
-            self._save(conn, record)
-        self._audit("reset", "ok")
+        try:
+            self._swap(seen, record)
+        except _StateChanged as changed:
+            raise self._refuse(
+                "reset", f"the capsule became {changed.current.state.value} meanwhile"
+            ) from None
+        self._audit("reset", "ok", {"from": seen.state.value})
         return record
 
 

@@ -11,7 +11,7 @@ import pytest
 from drs_link.backends import GoResult, PowerOnResult
 from drs_link.capsule import ConfirmationToken, ReleaseState, ReleaseStateMachine, default_holder
 from drs_link.config import CapsuleConfig
-from drs_link.errors import LinkError, RefusedError
+from drs_link.errors import LinkError, RefusedError, StoreError
 from drs_link.nmea import format_gga
 from drs_link.store import Store
 from tests.clock import ManualClock
@@ -254,6 +254,74 @@ def test_reset_after_recovery_allows_a_new_release_only_when_named(machine: Rele
         machine.reset("DRS2")
     assert machine.reset("DRS1").state is ReleaseState.IDLE
     machine.power_on(confirmed=True)
+
+
+def test_a_go_refused_while_another_console_released_the_capsule_leaves_it_released(
+    tmp_path: Path, pi: InProcessPi, clock: ManualClock
+) -> None:
+    """Each step is a compare-and-set: the refused Go once wrote its stale ``powered`` over ``released``."""
+    first, second = _machine(tmp_path, InProcessPi(clock), clock), _machine(tmp_path, pi, clock)
+    _ready(first)
+    token = second.confirm("DRS1")
+
+    def the_other_console_releases_first(holder: str) -> GoResult:
+        first.go(first.confirm("DRS1"))
+        raise RefusedError("DRS1: another console holds the release authority")
+
+    pi.go = the_other_console_releases_first  # type: ignore[method-assign]
+    with pytest.raises(RefusedError, match="another console holds"):
+        second.go(token)
+    assert first.record().state is ReleaseState.RELEASED and second.record().state is ReleaseState.RELEASED
+
+
+def test_a_go_retry_keeps_the_first_go_time(
+    machine: ReleaseStateMachine, pi: InProcessPi, clock: ManualClock
+) -> None:
+    """The capsule may have left at the first Go: recovery counts the descent from it."""
+    _ready(machine)
+    pi.go_outcome = GoResult(False, True, False, None, "")
+    with pytest.raises(LinkError, match="may or may not"):
+        machine.go(machine.confirm("DRS1"))
+    first_go = machine.record().go_at
+    assert machine.record().state is ReleaseState.GO_SENT and first_go is not None
+    clock.advance(40)
+    pi.go_outcome = GoResult(True, True, True, None, "Dropping in 30 seconds!\nShutting down...\n")
+    record = machine.go(machine.confirm("DRS1"))
+    assert record.state is ReleaseState.RELEASED and record.go_at == first_go
+
+
+def test_a_store_failure_after_the_pi_powered_on_says_the_relay_is_latched(
+    machine: ReleaseStateMachine, pi: InProcessPi
+) -> None:
+    """A full disk here once crashed with a raw traceback after the Pi had run its power-on script
+    (a full disk itself is pinned in ``test_store_durability``; here the store just stops writing)."""
+    powered_on = pi.power_on
+
+    def the_store_stops_writing_while_the_pi_powers_on(holder: str, lease_s: float) -> PowerOnResult:
+        machine.store.conn.execute("PRAGMA query_only = ON")
+        return powered_on(holder, lease_s)
+
+    pi.power_on = the_store_stops_writing_while_the_pi_powers_on  # type: ignore[method-assign]
+    with pytest.raises(StoreError, match=r"power-on ran on the Pi \(the relay is latched\) but was not recorded"):
+        machine.power_on(confirmed=True)
+    assert pi.calls == ["power_on"]
+
+
+def test_reset_is_refused_while_a_go_is_unverified(machine: ReleaseStateMachine, pi: InProcessPi) -> None:
+    _ready(machine)
+    pi.go_outcome = GoResult(False, True, False, None, "")
+    with pytest.raises(LinkError):
+        machine.go(machine.confirm("DRS1"))
+    with pytest.raises(RefusedError, match="Go was sent and not verified"):
+        machine.reset("DRS1")
+    assert machine.record().state is ReleaseState.GO_SENT
+
+
+def test_reset_needs_an_operator_name(tmp_path: Path, pi: InProcessPi, clock: ManualClock) -> None:
+    capsule = CapsuleConfig(name="DRS1", host="drs1.local")
+    anonymous = ReleaseStateMachine(Store.open(tmp_path / "drs.sqlite"), capsule, pi, "", clock=clock)
+    with pytest.raises(RefusedError, match="no operator name"):
+        anonymous.reset("DRS1")
 
 
 def test_every_audit_record_names_operator_capsule_and_utc_time(machine: ReleaseStateMachine) -> None:
