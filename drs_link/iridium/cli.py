@@ -190,6 +190,7 @@ def _mt_send(args: argparse.Namespace) -> int:
         raise RefusedError(f"a real send needs --confirm {capsule.name} (or --dry-run to only look)")
     if not config.operator.name:
         raise ConfigError("operator.name: set [operator] name; every command is audited with it")
+    checklists = load_checklists(PROCEDURE_DIR)  # a broken procedure file refuses before anything is sent
     authorize_mt(
         store, capsule.name, config.operator.name, message, reports,
         second_operator=args.second_operator, single_operator_waiver=args.single_operator_waiver,
@@ -201,7 +202,6 @@ def _mt_send(args: argparse.Namespace) -> int:
     command = life.request(capsule, message, flush=args.flush)
     command = life.send(command.id, args.confirm, gateway)
     print(f"MT {command.id}: {command.state}: {command.detail}")
-    checklists = load_checklists(PROCEDURE_DIR)
     for step in complete_mt_steps(
         store, checklists, config.operator.name, command, _capsule_reports(config, store, args.name)[1]
     ):
