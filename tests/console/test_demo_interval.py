@@ -15,7 +15,7 @@ from console.demo import DemoWorld, Descent
 from drs_link.config import MoConfig
 from drs_link.iridium.reports import ReportStore
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock
+from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock, generate_test_keys
 from drs_link.store import Store
 from tests.console.conftest import T0
 
@@ -27,7 +27,11 @@ def test_the_demo_capsule_switches_interval_on_the_cycle_after_the_download(tmp_
     store = Store.open(tmp_path / "drs.sqlite")
     reports = ReportStore(store)
     world.gateway = SimulatedRockblock("drs-demo", "pw", (IMEI,)).start()
-    world.receiver = MoHttpServer(MoReceiver(reports, MoConfig(listen_port=0))).start()
+    world.jwt_private_key, public = generate_test_keys()  # as DemoWorld.start() signs its deliveries
+    key_file = tmp_path / "rockblock-jwt-public.pem"
+    key_file.write_text(public)
+    mo_config = MoConfig(listen_port=0, jwt_public_key_file=key_file, require_jwt=False)
+    world.receiver = MoHttpServer(MoReceiver(reports, mo_config)).start()
     try:
         capsule = SimulatedCapsule(IMEI, 17001)
         path = np.array([0.0, 3600.0])
