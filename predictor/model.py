@@ -153,10 +153,8 @@ def _measured_descent_rate(
     p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
 ) -> None:
     n_bins = int(p[p_off])
-    b = _bin_of(p, p_off + 1, n_bins, env[ENV_Z])
-    if b < 0:
-        b = 0 if env[ENV_Z] < p[p_off + 1] else n_bins - 1
-    vel[VEL_DOWN] += p[p_off + n_bins + 2 + b]
+    b = int(math.floor((env[ENV_Z] - p[p_off + 1]) / p[p_off + 2]))
+    vel[VEL_DOWN] += p[p_off + 3 + min(max(b, 0), n_bins - 1)]
 
 
 @njit(cache=True)
@@ -426,19 +424,27 @@ class MeasuredDescentRate(Term):
     capsule while it really was at each altitude, and a descent-rate error cannot masquerade as wind.
     """
 
-    edges_m: tuple[float, ...] = (0.0, 40000.0)
+    bottom_m: float = 0.0
+    bin_m: float = 100.0
+    """Equal bins from ``bottom_m`` up: a 1 Hz log becomes hundreds of bins, found in one division."""
     rates_ms: tuple[float, ...] = (5.0,)
     name: ClassVar[str] = "measured_descent_rate"
     family: ClassVar[str] = "vertical"
     stage: ClassVar[int] = 0
 
     def __post_init__(self) -> None:
-        _check_bins(self.edges_m, (self.rates_ms,), self.name)
+        if not self.rates_ms or not self.bin_m > 0:
+            raise PredictorError(f"{self.name}: needs at least one bin of positive height")
         if not all(r > 0 for r in self.rates_ms):
             raise PredictorError(f"{self.name}: every rate must be positive")
 
     def columns(self) -> list[float | np.ndarray]:
-        return [float(len(self.rates_ms)), *map(float, self.edges_m), *map(float, self.rates_ms)]
+        return [
+            float(len(self.rates_ms)),
+            float(self.bottom_m),
+            float(self.bin_m),
+            *map(float, self.rates_ms),
+        ]
 
     kind: ClassVar[int] = KIND_MEASURED_DESCENT_RATE
 

@@ -46,9 +46,6 @@ WGS84_E2 = 6.69437999014e-3
 LOWEST_GROUND_M = -500.0
 HIGHEST_GROUND_KM = 8.9
 """No terrain is higher (Everest 8849 m): the DEM is only read below this."""
-REPLAY_LEVEL_M = 100.0
-"""Altitude bins of a replayed profile: finer than any calibration step, and a 1 Hz log of 10,000
-fixes still becomes ~300 numbers per trajectory rather than 20,000."""
 MIN_REPLAY_RATE_MS = 0.1
 
 
@@ -186,23 +183,28 @@ class Scores:
     landing_z: np.ndarray
 
 
-def replay_term(case: FlightCase) -> MeasuredDescentRate:
-    """The flight's measured descent rate in ``REPLAY_LEVEL_M`` bins from its landing to its start.
+def replay_term(case: FlightCase, bin_m: float) -> MeasuredDescentRate:
+    """The flight's measured descent rate in bins of ``bin_m`` down from its start to its landing.
 
-    Crossing times of each level are read off the fixes (linear between them; the altitude is made
-    monotonic first, as GNSS noise can make a fix rise; the ground is reached at the estimated
-    touchdown), so the replayed capsule is at each level when the real one was.
+    With the run's altitude step as ``bin_m`` every step of the stepper spans exactly one bin, so
+    it takes the measured time to cross it (and a 1 Hz log of 10,000 fixes becomes ~150 numbers per
+    trajectory). Crossing times of each level are read off the fixes (linear between them; the
+    altitude is made monotonic first, as GNSS noise can make a fix rise; the ground is reached at the
+    estimated touchdown), so the replayed capsule is at each level when the real one was.
     """
-    top, bottom = case.start_alt_m, min(case.landing_alt_m, case.start_alt_m - REPLAY_LEVEL_M)
-    n_bins = max(1, int(math.ceil((top - bottom) / REPLAY_LEVEL_M)))
-    edges = np.linspace(bottom, top, n_bins + 1)
+    top = case.start_alt_m
+    n_bins = max(1, int(math.ceil((top - case.landing_alt_m) / bin_m)))
+    edges = top - bin_m * np.arange(n_bins, -1, -1)
     t = np.concatenate(([0.0], case.fix_t[:-1], [case.descent_time_s]))
     z = np.minimum.accumulate(np.concatenate(([case.start_alt_m], case.fix_z * 1000.0)))
     crossing = np.interp(edges, z[::-1], t[::-1])
     with np.errstate(divide="ignore", invalid="ignore"):
-        rates = np.diff(edges) / np.maximum(-np.diff(crossing), 1e-3)
+        # The lowest bin reaches below the landing altitude: only its part above it was measured.
+        rates = np.diff(np.maximum(edges, z[-1])) / np.maximum(-np.diff(crossing), 1e-3)
     rates = np.clip(np.nan_to_num(rates, nan=MIN_REPLAY_RATE_MS), MIN_REPLAY_RATE_MS, None)
-    return MeasuredDescentRate(edges_m=tuple(map(float, edges)), rates_ms=tuple(map(float, rates)))
+    return MeasuredDescentRate(
+        bottom_m=float(edges[0]), bin_m=float(bin_m), rates_ms=tuple(map(float, rates))
+    )
 
 
 def run(
@@ -212,7 +214,7 @@ def run(
     with ``replay`` the flight's measured descent profile replaces the payload and the vertical effects."""
     if replay:
         kept = tuple(e for e in effects if e.family != "vertical")
-        model = Model((replay_term(case), Wind(), *kept))
+        model = Model((replay_term(case, step_m), Wind(), *kept))
     else:
         model = Model.for_payload(payload, *effects)
     w = packed(case.cube)

@@ -505,25 +505,31 @@ def _losses(
     batch: _Batch, candidate: Candidate, selected_folds: list[list[Fit]], selected_full: list[Fit]
 ) -> np.ndarray:
     """loss[j, i, g]: flight j's squared score (summed over the family's records, each in units of its
-    floor) at grid point g with
-    fold i's selected effects (i = n: the all-flights fit; loss[j, j] = 0, a flight is never in its
-    own fold). Without selected effects every fold sees the same rows, so each flight flies the grid
-    once."""
+    floor) at grid point g with fold i's selected effects (i = n: the all-flights fit; loss[j, j] = 0,
+    a flight is never in its own fold). Without selected effects every fold sees the same rows, so
+    each flight flies the grid once."""
     n = len(batch.cases)
     grid_fits = [Fit(candidate, v, x) for v, x in candidate.points()]
     g = len(grid_fits)
     loss = np.zeros((n, n + 1, g))
     for record in RECORDS[candidate.family]:
+        # A record does not see the other family's effects (the replay drops the vertical ones; the
+        # vertical record has no wind in it, up to the air and the terrain under a path moved by a
+        # few km): leaving them out of the fit lets every fold share one grid run. Held-out scores
+        # fly the whole model.
+        unseen = "vertical" if record.replay else "horizontal"
+        held_full = [f for f in selected_full if f.candidate.family != unseen]
+        held_folds = [[f for f in row if f.candidate.family != unseen] for row in selected_folds]
         for j in range(n):
-            if not selected_full:
+            if not held_full:
                 scores = batch.scores(j, [[f] for f in grid_fits], replay=record.replay)
                 sq = (getattr(scores, record.metric) / record.floor) ** 2
                 loss[j, :, :] += sq
                 loss[j, j, :] = 0.0
             else:
                 folds = [i for i in range(n) if i != j]
-                rows = [[*selected_folds[i], f] for i in folds for f in grid_fits]
-                rows += [[*selected_full, f] for f in grid_fits]
+                rows = [[*held_folds[i], f] for i in folds for f in grid_fits]
+                rows += [[*held_full, f] for f in grid_fits]
                 scores = batch.scores(j, rows, replay=record.replay)
                 sq = ((getattr(scores, record.metric) / record.floor) ** 2).reshape(len(folds) + 1, g)
                 loss[j, folds, :] += sq[:-1]

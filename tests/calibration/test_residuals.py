@@ -124,3 +124,18 @@ def test_with_a_dem_the_prediction_lands_on_the_terrain(
     on_dem = score(hilly, run(hilly, PAYLOAD, (), 1, 100.0))
     assert on_dem.landing_z[0] == pytest.approx(0.3, abs=1e-3)
     assert on_dem.landing_t[0] < flat.landing_t[0] - 30.0  # 300 m less to fall at ~4–5 m/s
+
+
+@pytest.mark.parametrize("cadence_s", [180.0, 1.0], ids=["3min", "1Hz"])
+def test_a_replayed_run_follows_the_measured_descent_so_a_rate_error_leaves_no_wind_error(
+    synthetic_cases: Cases, cadence_s: float
+) -> None:
+    """The truth falls 20 % slower: the drag-law run is kilometres off in both altitude and position
+    (it crosses the jet at the wrong times); the replayed run is on the measured profile and in the
+    right place, since the wind it flies is the truth's."""
+    case = synthetic_cases((DescentRateScale(scale=0.8),), n=1, cadence_s=cadence_s, noise_m=2.0)[0]
+    plain = score(case, run(case, PAYLOAD, (), 1, 200.0))
+    replayed = score(case, run(case, PAYLOAD, (DescentRateScale(scale=1.3),), 1, 200.0, replay=True))
+    assert plain.altitude_rms_km[0] > 1.0 and plain.horizontal_rms_km[0] > 1.0
+    assert replayed.altitude_rms_km[0] < 0.05 and replayed.horizontal_rms_km[0] < 0.1
+    assert abs(replayed.descent_time_error_s[0]) < 5.0  # the vertical effect given to it is dropped
