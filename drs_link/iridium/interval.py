@@ -54,9 +54,9 @@ def infer_interval_min(fix_times: Sequence[datetime]) -> int | None:
 class IntervalTrack:
     """For each report (time order), the INTERVAL(s) that may space it from the next cycle."""
 
-    reports: tuple[StoredReport, ...]
-    spacing_after: tuple[frozenset[int], ...]
-    """Minutes from report i's cycle to the next: what the flash held when i's alarm fired."""
+    spacing_after: dict[int, frozenset[int]]
+    """By report id, minutes from its cycle to the next: what the flash held when its alarm fired."""
+    last_report_id: int | None
     flash_now: frozenset[int]
     """What the flash may hold now, after the MT of the last report: the spacing from the next cycle on."""
     basis: str
@@ -65,13 +65,12 @@ class IntervalTrack:
 
     def after(self, stored: StoredReport) -> frozenset[int]:
         """The INTERVAL(s) that may space ``stored`` from the cycle after it."""
-        index = next(i for i, r in enumerate(self.reports) if r.id == stored.id)
-        return self.spacing_after[index]
+        return self.spacing_after[stored.id]
 
     @property
     def next_spacing(self) -> frozenset[int]:
         """Minutes from the last report's cycle to the next one (the old value if it just downloaded one)."""
-        return self.spacing_after[-1] if self.reports else self.flash_now
+        return self.flash_now if self.last_report_id is None else self.spacing_after[self.last_report_id]
 
     def overdue_after(self, stored: StoredReport) -> int:
         """The longest spacing the report after ``stored`` may come at: staleness must not fire before it."""
@@ -108,9 +107,9 @@ def interval_track(reports: Sequence[StoredReport], commands: Sequence[lc.Comman
     first_change = min(changes, default=len(reports) - 1)
     base = _base(reports, first_change)
     flash = frozenset({base or DEFAULT_INTERVAL_MIN})
-    spacing_after = []
-    for i in range(len(reports)):
-        spacing_after.append(flash)
+    spacing_after = {}
+    for i, stored in enumerate(reports):
+        spacing_after[stored.id] = flash
         for command, text, minutes in changes.get(i, []):
             effect = command.effects.get(text)
             if effect == lc.SEEN:
@@ -118,7 +117,7 @@ def interval_track(reports: Sequence[StoredReport], commands: Sequence[lc.Comman
             elif effect == lc.PENDING:
                 flash = flash | {minutes}
     basis = "commanded" if changes else "spacing" if base is not None else "default"
-    return IntervalTrack(tuple(reports), tuple(spacing_after), flash, basis)
+    return IntervalTrack(spacing_after, reports[-1].id if reports else None, flash, basis)
 
 
 def minutes_text(minutes: frozenset[int]) -> str:
