@@ -11,9 +11,16 @@ from textual.widgets import Footer
 
 from console.widgets.banner import ModeBanner
 
+FOOTER_ROOM = 100
+"""Below this many columns the footer drops its "^p palette" hint (console.tcss): at 80 the hint,
+docked right, covered the screen's last keys ("q Quit" on release and Iridium, more on recovery).
+Ctrl+P still opens the palette, and the help says so."""
+
 
 class ConsoleScreen(Screen[None]):
     """Screens re-render from the fleet state in ``update_view`` (each second and on new telemetry)."""
+
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (FOOTER_ROOM, "-wide")]
 
     ready = False
     """Set once mounted: the app's one-second tick can reach a screen before its widgets exist."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from textual.app import ComposeResult
 from textual.binding import Binding
+from textual.containers import VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Markdown
 
@@ -18,8 +19,9 @@ its feed's health at the bottom):
 `↑`/`↓` choose · `Enter`/`r` release · `p` predictions · `i` Iridium · `v` recovery · `h` history
 
 **Release**: `[` `]` switch checklist · `Space` tick a manual step · `x` skip (reason) ·
-`o` power on (confirm; cannot be undone by software) · `s` sync data · `w` waive the selected
-go/no-go item (GNSS or sync only; logged) · `a` ARM (only on GO; opens a countdown) · `d` disarm ·
+`o` power on (confirm; cannot be undone by software) · `s` sync data · `w` waive a go/no-go item
+(GNSS fix or sync only; logged): the first `w` moves onto one, `↑`/`↓` another, `w` again asks
+why · `a` ARM (only on GO; opens a countdown) · `d` disarm ·
 `f` FIRE (only while armed; type the capsule's name; second operator or a logged waiver) ·
 `R` reset after recovery (type the name)
 
@@ -31,14 +33,23 @@ go/no-go item (GNSS or sync only; logged) · `a` ARM (only on GO; opens a countd
 **Recovery**: `e` export GPX + KML · `n` INTERVAL · `o`/`O` sounder off/on · `c`/`C` parachute
 (the same confirmations as on the Iridium screen; sounder and parachute cannot be confirmed by telemetry)
 
-**History**: type to search · `e` export JSONL
+**History**: type to search (the search box has the focus) · `↓`/`Enter` the entries, the highlighted
+one's detail (reasons) below · `e` export JSONL (from the entries)
 
 Any change, lost link or stale critical input disarms. REPLAY sessions cannot command.
 """
 
 
 class HelpScreen(ModalScreen[None]):
+    """The keys in a scrolling pane, focused on opening: at 80×24 they run to twice the screen's height."""
+
     BINDINGS = [Binding("escape,q,question_mark", "app.pop_screen", "Close")]
 
     def compose(self) -> ComposeResult:
-        yield Markdown(HELP, id="help")
+        with VerticalScroll(id="help") as pane:
+            pane.border_title = "Help"
+            pane.border_subtitle = "↑/↓ PgUp/PgDn Home/End scroll · Esc closes"
+            yield Markdown(HELP)
+
+    def on_mount(self) -> None:
+        self.query_one("#help", VerticalScroll).focus()

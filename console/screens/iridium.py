@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 
+from rich.text import Text
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -18,9 +19,11 @@ from textual.widgets import DataTable, Label, Static
 
 from console.screens.commanding import CommandingScreen, command_bindings
 from drs_link.iridium.health import assess
+from drs_link.iridium.lifecycle import Command
 from drs_link.operations import report_position
 
 RELOAD_S = 2.0
+COMMAND_COLUMNS = ("#", "Text", "State", "Updated", "Detail")
 LIFECYCLE_WORDS = {
     "queued": "queued at gateway",
     "probably_delivered": "probably delivered",
@@ -53,7 +56,6 @@ class IridiumScreen(CommandingScreen):
 
     def on_mount(self) -> None:
         self.ready = True
-        self.query_one("#commands", DataTable).add_columns("#", "Text", "State", "Updated", "Detail")
         self.query_one("#reports", DataTable).add_columns(
             "MOMSN", "Fix time", "Position", "Alt", "VBAT", "Iter"
         )
@@ -83,11 +85,7 @@ class IridiumScreen(CommandingScreen):
             vbat = f"{health.last_vbat:.2f} V" if health.last_vbat is not None else "?"
             text = f"{self.capsule}: {health.reports} reports, battery {vbat}. {flags}"
         self.query_one("#health", Static).update(text)
-        table = self.query_one("#commands", DataTable)
-        table.clear()
-        for c in reversed(commands):
-            table.add_row(str(c.id), c.text, LIFECYCLE_WORDS.get(c.state, c.state.replace("_", " ")),
-                          f"{c.updated_utc:%H:%M:%S}Z", c.detail[:60])  # fmt: skip
+        self.show_commands(commands)
         table = self.query_one("#reports", DataTable)
         table.clear()
         for r in reversed(reports[-50:]):
@@ -99,6 +97,26 @@ class IridiumScreen(CommandingScreen):
                 f"{fix.alt_m} m" if fix else "—", f"{r.report.vbat:.2f}" if r.report else "?",
                 str(r.report.iteration) if r.report else "?",
             )  # fmt: skip
+
+    def show_commands(self, commands: list[Command]) -> None:
+        """Newest first; the detail (a refusal's reason, the gateway's answer) wraps in the width left.
+
+        It used to be cut at 60 characters, and the table ran off the right edge even at 120×40.
+        """
+        table = self.query_one("#commands", DataTable)
+        rows = [
+            (str(c.id), c.text, LIFECYCLE_WORDS.get(c.state, c.state.replace("_", " ")), f"{c.updated_utc:%H:%M:%S}Z",
+             c.detail)
+            for c in reversed(commands)
+        ]  # fmt: skip
+        widths = [max([len(title), *(len(row[i]) for row in rows)]) for i, title in enumerate(COMMAND_COLUMNS[:-1])]
+        padding = 2 * table.cell_padding * len(COMMAND_COLUMNS) + table.styles.scrollbar_size_vertical
+        widths.append(max(20, table.size.width - sum(widths) - padding))
+        table.clear(columns=True)
+        for title, width in zip(COMMAND_COLUMNS, widths, strict=True):
+            table.add_column(title, width=width)
+        for row in rows:
+            table.add_row(*row[:-1], Text(row[-1]), height=None)
 
     def reload_after_send(self) -> None:
         self.action_reload()

@@ -16,12 +16,12 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label, Static
 
-from console.screens.base import ConsoleScreen
+from console.screens.base import FOOTER_ROOM, ConsoleScreen
 from console.screens.modals import ConfirmModal, HazardConfirmation, HazardModal, TextPromptModal
 from drs_link.arming import ArmState
 from drs_link.checklist import StepKind, StepState
 from drs_link.errors import LinkError
-from drs_link.gonogo import Verdict
+from drs_link.gonogo import WAIVABLE, GoNoGoReport, Verdict
 from drs_link.operations import Operations
 
 POWER_ON_TEXT = (
@@ -44,6 +44,8 @@ VERDICT_GLYPH = {Verdict.GO: "✔ GO", Verdict.NO_GO: "✘ NO-GO", Verdict.WAIVE
                  Verdict.RELEASED: "■ RELEASED", Verdict.NOT_APPLICABLE: "· n/a"}  # fmt: skip
 GONOGO_WIDTHS = (9, 26)
 """Verdict and item columns; the detail takes the rest of the width and wraps, so no reason is cut."""
+CHECKLIST_STATE_WIDTH = 9
+BY_TITLE = "By / when"
 
 
 RELEASED_STATES = ("released", "go-sent-unverified")
@@ -52,8 +54,9 @@ BEFORE_RELEASE_ONLY = ("power_on", "sync", "arm", "fire", "waive")
 
 
 class ReleaseScreen(ConsoleScreen):
-    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (140, "-wide")]
-    """Below 140 columns the checklist and the go/no-go stack, so neither loses its words."""
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (FOOTER_ROOM, "-stacked"), (140, "-wide")]
+    """Below 140 columns the checklist and the go/no-go stack, so neither loses its words; below
+    ``FOOTER_ROOM`` the footer also drops its palette hint, as on every screen."""
     BINDINGS = [
         Binding("a", "arm", "ARM"),
         Binding("f", "fire", "FIRE"),
@@ -75,6 +78,8 @@ class ReleaseScreen(ConsoleScreen):
         self.checklist_index = 0
         self.step_texts: dict[str, str] = {}
         self.detail_width = 0
+        self.checklist_widths = (0, 0)
+        self.gonogo_titles: dict[str, str] = {}
 
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
@@ -86,13 +91,13 @@ class ReleaseScreen(ConsoleScreen):
             with Vertical(id="gonogo-pane"):
                 yield Static(id="arm-status", markup=False)
                 yield Label(f"Go/no-go: {self.capsule}", id="gonogo-title", classes="pane-title", markup=False)
+                yield Static(id="gonogo-hint", markup=False)
                 yield DataTable(id="gonogo", cursor_type="row")
         yield from self.compose_footer()
 
     def on_mount(self) -> None:
         self.ready = True
         checklist = self.query_one("#checklist", DataTable)
-        checklist.add_columns("State", "Step", "By / when")
         ids = [c.id for c in self.console.checklists]
         self.checklist_index = ids.index("release-day") if "release-day" in ids else 0
         checklist.focus()
@@ -113,15 +118,17 @@ class ReleaseScreen(ConsoleScreen):
         )
         table = self.query_one("#checklist", DataTable)
         row = table.cursor_row
+        facts = app.fleet.capsules[self.capsule].facts(now)
+        statuses = app.checklist_run(self.capsule, checklist).statuses(facts)
+        whos = [f"{s.operator} {s.at:%H:%M:%S}Z" if s.operator and s.at else "" for s in statuses]
+        self.fit_checklist_columns(table, max((len(who) for who in whos), default=0))
         table.clear()
         self.step_texts.clear()
-        facts = app.fleet.capsules[self.capsule].facts(now)
-        for status in app.checklist_run(self.capsule, checklist).statuses(facts):
-            who = f"{status.operator} {status.at:%H:%M:%S}Z" if status.operator and status.at else ""
+        for status, who in zip(statuses, whos, strict=True):
             kind = {StepKind.MANUAL: "", StepKind.AUTO: "(auto) ", StepKind.COMMAND: "(cmd) "}[status.step.kind]
-            table.add_row(
-                Text(STATE_GLYPH[status.state]), Text(f"{kind}{status.step.text}"), who, key=status.step.id
-            )
+            step = Text(f"{kind}{status.step.text}", no_wrap=True, overflow="ellipsis")
+            by = Text(who, no_wrap=True, overflow="ellipsis")
+            table.add_row(Text(STATE_GLYPH[status.state]), step, by, key=status.step.id)
             self.step_texts[status.step.id] = f"▸ {kind}{status.step.text}" + (f" — {who}" if who else "")
         if table.row_count:
             table.move_cursor(row=min(row, table.row_count - 1))
@@ -131,6 +138,7 @@ class ReleaseScreen(ConsoleScreen):
         grow = gonogo.cursor_row
         self.fit_gonogo_columns(gonogo)
         gonogo.clear()
+        self.gonogo_titles = {item.key: item.title for item in report.items}
         for item in report.items:
             style = "dim" if item.verdict is Verdict.NOT_APPLICABLE else ""  # greyed: no longer applies
             gonogo.add_row(
@@ -140,7 +148,23 @@ class ReleaseScreen(ConsoleScreen):
         if gonogo.row_count:
             gonogo.move_cursor(row=min(grow, gonogo.row_count - 1))
         self.query_one("#arm-status", Static).update(self.arm_text(report.go))
+        self.show_waive_hint()
         self.refresh_bindings()
+
+    def fit_checklist_columns(self, table: DataTable[Any], by_width: int) -> None:
+        """State and "by / when" keep their width, the step takes the rest (in full below the table).
+
+        Left to size itself, the step column pushed "by / when" off the right edge at every width.
+        """
+        padding = 2 * table.cell_padding * 3 + table.styles.scrollbar_size_vertical
+        by = min(max(by_width, len(BY_TITLE)), max(len(BY_TITLE), table.size.width // 3))
+        widths = (max(20, table.size.width - CHECKLIST_STATE_WIDTH - by - padding), by)
+        if widths == self.checklist_widths:
+            return
+        self.checklist_widths = widths
+        table.clear(columns=True)
+        for title, width in zip(("State", "Step", BY_TITLE), (CHECKLIST_STATE_WIDTH, *widths), strict=True):
+            table.add_column(title, width=width)
 
     def fit_gonogo_columns(self, gonogo: DataTable[Any]) -> None:
         """Give the detail column the width that is left, so its words wrap instead of scrolling away."""
@@ -160,6 +184,27 @@ class ReleaseScreen(ConsoleScreen):
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         if self.ready and event.data_table.id == "checklist":
             self.show_step_detail()
+        elif self.ready:
+            self.show_waive_hint()
+
+    def on_descendant_focus(self) -> None:
+        if self.ready:
+            self.show_waive_hint()
+
+    def show_waive_hint(self) -> None:
+        """Say on screen how ``w`` picks its item: the trial found it only by tabbing into the table."""
+        hint = self.query_one("#gonogo-hint", Static)
+        hint.display = self.console.commanding and not self.released()
+        hint.update(self.waive_hint())
+
+    def waive_hint(self) -> str:
+        item = self._highlighted_item()
+        if not self.query_one("#gonogo", DataTable).has_focus or item is None:
+            return "w picks a go/no-go item to waive (only the GNSS fix and sync can be)"
+        title = self.gonogo_titles.get(item, item)
+        if item in WAIVABLE:
+            return f"w waives {title} · ↑/↓ another item · Tab: checklist"
+        return f"{title} cannot be waived: ↑/↓ to the GNSS fix or sync"
 
     def arm_text(self, go: bool) -> str:
         if not self.console.commanding:
@@ -275,11 +320,35 @@ class ReleaseScreen(ConsoleScreen):
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
 
-    def action_waive(self) -> None:
+    def _highlighted_item(self) -> str | None:
         table = self.query_one("#gonogo", DataTable)
         if not table.row_count:
+            return None
+        return str(table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value)
+
+    def choose_waivable(self, report: GoNoGoReport) -> None:
+        """Move into go/no-go onto the first waivable item, one that is NO-GO if there is one."""
+        table = self.query_one("#gonogo", DataTable)
+        keys = [item.key for item in report.items]
+        no_go = [item.key for item in report.items if item.key in WAIVABLE and item.verdict is Verdict.NO_GO]
+        candidates = no_go or [key for key in keys if key in WAIVABLE]
+        if candidates:
+            table.move_cursor(row=keys.index(candidates[0]))
+        table.focus()
+        self.show_waive_hint()
+
+    def action_waive(self) -> None:
+        """Waive the highlighted go/no-go item; from anywhere else, first take the operator to one."""
+        table = self.query_one("#gonogo", DataTable)
+        item = self._highlighted_item()
+        if item is None:
             return
-        item = str(table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value)
+        if not table.has_focus:
+            self.choose_waivable(self.console.gonogo(self.capsule))
+            return
+        if item not in WAIVABLE:
+            self.app.notify(self.waive_hint(), severity="warning")
+            return
 
         def done(reason: str | None) -> None:
             if reason is None:

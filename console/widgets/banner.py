@@ -2,9 +2,40 @@
 
 from __future__ import annotations
 
+from datetime import datetime
 from typing import Any
 
+from rich.cells import cell_len
+from rich.text import Text
 from textual.widgets import Static
+
+
+def cut(text: str, width: int) -> str:
+    """``text`` in at most ``width`` cells, an ellipsis marking where it was cut."""
+    rich = Text(text)
+    rich.truncate(max(width, 0), overflow="ellipsis")
+    return rich.plain
+
+
+def banner_line(mode: str, note: str, now: datetime, operator: str, width: int) -> str:
+    """The banner cut to ``width`` by giving up the least needed words first.
+
+    At 80 columns the demo's line ran to 89 and the terminal cut the operator's name. The mode's
+    first word (DEMO, REPLAY, LIVE), its note (the time scale, the replayed file) and the operator
+    are what a glance needs, so the mode's description goes first, then the date (the time
+    stays); only a line still too long is cut at its end.
+    """
+    first, _, description = mode.partition(" ")
+    head, suffix = f" {first}", f" {note}" if note else ""
+    words = f" {description}" if description else ""
+    for clock in (f"{now:%Y-%m-%d %H:%M:%S}Z", f"{now:%H:%M:%S}Z"):
+        tail = f"{suffix} │ {clock} │ operator {operator}"
+        room = width - cell_len(head) - cell_len(tail)
+        if width <= 0 or room >= cell_len(words):
+            return f"{head}{words}{tail}"
+        if room >= 0:
+            return f"{head}{cut(words, room) if room > 2 else ''}{tail}"
+    return cut(f"{head}{suffix} │ {now:%H:%M:%S}Z │ operator {operator}", width)
 
 
 class ModeBanner(Static):
@@ -14,7 +45,12 @@ class ModeBanner(Static):
         app: Any = self.app
         self.set_class(app.mode == "demo", "demo")
         self.set_class(app.mode == "replay", "replay")
-        self.update(f" {app.banner()} │ {app.now():%Y-%m-%d %H:%M:%S}Z │ operator {app.operator}")
+        mode, note = app.banner(), app.setup.banner_note
+        mode = mode.removesuffix(note).rstrip() if note else mode
+        self.update(banner_line(mode, note, app.now(), app.operator, self.size.width))
 
     def on_mount(self) -> None:
+        self.refresh_banner()
+
+    def on_resize(self) -> None:
         self.refresh_banner()

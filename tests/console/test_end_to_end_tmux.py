@@ -117,7 +117,7 @@ def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp
     terminal.back_to_fleet()
     terminal.keys("h")
     terminal.wait_for("released, Pi shut")
-    terminal.keys("q")
+    terminal.keys("Down", "q")  # the search box has the focus: ↓ moves to the entries, where q quits
     terminal.wait_for("Quit the DRS console?")
     terminal.keys("Tab", "Enter")
     deadline = time.monotonic() + 20

@@ -7,6 +7,7 @@ from datetime import timedelta
 from pathlib import Path
 
 import pytest
+from textual.widgets import DataTable, Input, Markdown, Static
 
 from console.app import DrsConsole
 from console.screens.help import HelpScreen
@@ -219,3 +220,102 @@ async def test_reset_after_recovery_needs_the_capsule_name(canned_app: Callable[
         await pilot.pause()
         audit = [(a.action, a.result) for a in app.store.audit("DRS1")]
         assert ("reset", "ok") in audit and ("checklist.done", "after-drop/reset-state") in audit
+
+
+async def test_help_scrolls_to_its_last_line_at_80x24(canned_app: Callable[..., DrsConsole]) -> None:
+    """The keys run to twice an 80×24 screen: the end must be reachable from the keyboard."""
+    app = canned_app()
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("question_mark")
+        screen = app.screen
+        assert isinstance(screen, HelpScreen)
+        pane = screen.query_one("#help")
+        last = list(screen.query_one(Markdown).children)[-1]
+        assert "REPLAY sessions cannot command" in str(last.render())
+        assert not pane.region.contains_region(last.region), "the help fits: this test no longer tests scrolling"
+        await pilot.press("end")
+        await wait_for(pilot, lambda: pane.region.contains_region(last.region), timeout_s=15)
+
+
+async def test_typing_on_entering_history_searches_and_fires_no_key(
+    canned_app: Callable[..., DrsConsole], tmp_path: Path
+) -> None:
+    """The trial typed "alone" on entry: its `e` wrote an export. Typing must search, nothing else."""
+    app = canned_app()
+    app.store.append_audit("EL", "DRS1", "waiver", "granted", {"item": "sync", "reason": "alone on the ridge"})
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("h")
+        screen = app.screen
+        assert isinstance(screen, HistoryScreen)
+        await pilot.press(*"alone")
+        assert screen.query_one("#search", Input).value == "alone"
+        await wait_for(pilot, lambda: screen.query_one("#audit", DataTable).row_count == 1)
+        assert not list((tmp_path / "exports").glob("audit-*.jsonl")), "a letter typed in the search exported"
+        await pilot.press("down", "e")
+        exported = list((tmp_path / "exports").glob("audit-*.jsonl"))
+        assert len(exported) == 1 and "alone on the ridge" in exported[0].read_text()
+
+
+async def test_history_shows_the_highlighted_entrys_reason(canned_app: Callable[..., DrsConsole]) -> None:
+    """Waiver and refusal reasons live in an entry's detail: the screen shows it for the highlighted one."""
+    app = canned_app()
+    reason = "no fix over the lake; dropping blind as the flown procedure allows it, decided with the PI"
+    app.store.append_audit("EL", "DRS1", "waiver", "granted", {"item": "gnss", "reason": reason})
+    app.store.append_audit("EL", "DRS1", "fire", "refused", {"reason": "not armed: ARM window expired at 11:59:00Z"})
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("h", "enter")
+        screen = app.screen
+        assert isinstance(screen, HistoryScreen)
+        detail = screen.query_one("#audit-detail", Static)
+
+        def shown() -> str:
+            return " ".join(str(detail.render()).split())
+
+        await wait_for(pilot, lambda: "fire refused" in shown())
+        assert "reason: not armed: ARM window expired at 11:59:00Z" in shown()
+        await pilot.press("down")
+        await wait_for(pilot, lambda: "waiver granted" in shown())
+        assert f"item: gnss · reason: {reason}" in shown()
+
+
+@pytest.mark.parametrize("size", [(80, 24), (120, 40)], ids=["80x24", "120x40"])
+async def test_the_checklist_shows_who_ticked_a_step_without_scrolling(
+    canned_app: Callable[..., DrsConsole], size: tuple[int, int]
+) -> None:
+    """The step column used to push "By / when" off the right edge; the whole step is below the table."""
+    app = canned_app()
+    async with app.run_test(size=size) as pilot:
+        await pilot.press("enter", "space")
+        screen = app.screen
+        assert isinstance(screen, ReleaseScreen)
+        table = screen.query_one("#checklist", DataTable)
+        await wait_for(pilot, lambda: str(table.get_row_at(0)[2]) == f"EL {T0:%H:%M:%S}Z")
+        assert table.virtual_size.width <= table.scrollable_content_region.width, "a column is off screen"
+        by = list(table.columns.values())[-1]
+        assert str(by.label) == "By / when" and by.width >= len(f"EL {T0:%H:%M:%S}Z")
+
+
+async def test_w_takes_the_operator_to_a_waivable_go_no_go_item_and_says_so(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    """Which item `w` waives was chosen by tabbing into go/no-go, which nothing said."""
+    app = canned_app()
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("enter")
+        screen = app.screen
+        assert isinstance(screen, ReleaseScreen)
+        hint = screen.query_one("#gonogo-hint", Static)
+        gonogo = screen.query_one("#gonogo", DataTable)
+        assert "w picks a go/no-go item to waive" in str(hint.render())
+        await pilot.press("w")
+        assert app.screen is screen and gonogo.has_focus, "w from the checklist must not waive blindly"
+        assert "w waives GNSS fix fresh" in str(hint.render())
+        await pilot.press("up")
+        assert "Microcontroller talking cannot be waived" in str(hint.render())
+        await pilot.press("w")
+        assert app.screen is screen
+        await pilot.press("down", "w")
+        assert isinstance(app.screen, TextPromptModal)
+        await pilot.press(*"no fix over the lake", "enter")
+        waiver = {"item": "gnss", "reason": "no fix over the lake"}
+        await wait_for(pilot, lambda: any(a.detail == waiver for a in app.store.audit("DRS1")))
