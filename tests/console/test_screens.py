@@ -234,7 +234,7 @@ async def test_help_scrolls_to_its_last_line_at_80x24(canned_app: Callable[..., 
         assert "REPLAY sessions cannot command" in str(last.render())
         assert not pane.region.contains_region(last.region), "the help fits: this test no longer tests scrolling"
         await pilot.press("end")
-        await wait_for(pilot, lambda: pane.region.contains_region(last.region), timeout_s=15)
+        await wait_for(pilot, lambda: pane.region.contains_region(last.region))
 
 
 async def test_typing_on_entering_history_searches_and_fires_no_key(

@@ -41,7 +41,7 @@ async def test_the_demo_banner_shows_the_operator_at_80_columns(canned_app: Call
     app = canned_app(mode="demo")
     async with app.run_test(size=(80, 24)) as pilot:
         banner = app.screen.query_one(ModeBanner)
-        await wait_for(pilot, lambda: str(banner.render()).endswith(f"│ operator {app.operator}"), timeout_s=5)
+        await wait_for(pilot, lambda: str(banner.render()).endswith(f"│ operator {app.operator}"))
         shown = str(banner.render())
         assert shown.startswith(" DEMO") and len(shown) <= 80
 
