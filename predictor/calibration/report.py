@@ -266,7 +266,8 @@ def write_report(
         "paired bootstrap of the mean held-out improvement (4000 draws over flights) has its lower α/K "
         "quantile above zero (α = 0.05, K = candidates in that round) and the mean improvement is at "
         "least the record's floor (vertical 10 s, horizontal 0.1 km). The margin is mean improvement "
-        "minus that lower bound. Families are selected in turn: vertical, horizontal, timing.",
+        "minus that lower bound. Forward selection: each round keeps, among the candidates that pass, the "
+        "one with the largest improvement (in units of its records' floors).",
         "",
         "## Before and after (held out)",
         "",
@@ -274,7 +275,7 @@ def write_report(
         "| horizontal RMS, replayed, km | landing error km | RMS 3-D track km |",
         "|---|---|---|---|---|---|---|",
         _row("baseline (plain model)", b),
-        *(_row(f"after the {f['family']} family", f["after"]) for f in data["families"]),
+        *(_row(f"plain + the {f['family']} family's effects", f["after"]) for f in data["families"]),
         _row("after (all selected, refitted jointly)", a),
         _row("binned correction on top", data["binned_correction"]["heldout"]),
         "",
@@ -443,8 +444,8 @@ def _family_section(family: dict[str, Any], pngs: Sequence[Path]) -> list[str]:
         lines += [
             f"Round {k}:",
             "",
-            "| effect | parameters (all flights) | record | held-out score km (mean) | held-out landing km "
-            "| improvement km | margin km | flights better | passed |",
+            "| effect | parameters (all flights) | record | held-out score (mean) | held-out landing km "
+            "| improvement | margin | flights better | passed |",
             "|---|---|---|---|---|---|---|---|---|",
         ]
         for r in rnd:
@@ -452,7 +453,8 @@ def _family_section(family: dict[str, Any], pngs: Sequence[Path]) -> list[str]:
                 metric = RECORD_METRICS[t["record"]]
                 lines.append(
                     f"| {r['effect']} | {_params(r['parameters'])} | {t['record']} | "
-                    f"{_num(r['heldout'][metric]['mean'])} | {_num(r['heldout']['landing_error_km']['mean'])} | "
+                    f"{_num(r['heldout'][metric]['mean'])} {t['unit']} | "
+                    f"{_num(r['heldout']['landing_error_km']['mean'])} | "
                     f"{_num(t['mean_improvement'])} {t['unit']} | {_num(t['margin'])} {t['unit']} | "
                     f"{t['flights_improved']}/{t['flights']} | {'yes' if t['passed'] else 'no'} |"
                 )
