@@ -35,7 +35,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="UTC date of the first fix, for logs that record only times of day (the V4 logger)",
     )
     summary.add_argument(
-        "--dem", metavar="DIR", help="terrain: a track ending at the ground height has landed (docs/tracks.md)"
+        "--dem",
+        metavar="DIR",
+        help="terrain: a track ending at the ground height has landed (docs/tracks.md)",
     )
     summary.set_defaults(func=run_summary)
     bench = actions.add_parser(

@@ -63,7 +63,9 @@ def make_cases(
     errors = np.random.default_rng(seed + 1000).normal(0.0, wind_error_ms, (n, 2))
     for k in range(n):
         cube = jet_cube(DIRECTIONS_DEG[k % len(DIRECTIONS_DEG)], density_change)
-        own = (WindOffset(east_ms=float(errors[k, 0]), north_ms=float(errors[k, 1])),) if wind_error_ms else ()
+        own = (
+            (WindOffset(east_ms=float(errors[k, 0]), north_ms=float(errors[k, 1])),) if wind_error_ms else ()
+        )
         flight = synthetic_flight(
             cube, launch_time=LAUNCH + timedelta(minutes=17 * k), lat=46.0, lon=6.0, payload=PAYLOAD,
             effects=(*effects, *own), burst_alt_m=burst_alt_m - 500.0 * k, ascent_rate_ms=8.0,
