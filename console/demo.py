@@ -30,7 +30,7 @@ from drs_link.iridium.reports import ReportStore
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
 from drs_link.simulator import CapsuleSimulator, GnssSky
 from drs_link.simulator.keys import write_ed25519
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock, post_mo
+from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock, generate_test_keys, post_mo
 from drs_link.store import Store
 from predictor import Terrain, load_weather, predict
 from predictor.demo_weather import demo_weather_files
@@ -182,7 +182,12 @@ class DemoWorld:
         self.gateway = SimulatedRockblock("drs-demo", secrets.token_urlsafe(12), tuple(self.iridium)).start()
         data_dir = self.root / "data"
         self.store = Store.open(data_dir / "drs.sqlite")
-        self.receiver = MoHttpServer(MoReceiver(ReportStore(self.store), MoConfig(listen_port=0))).start()
+        # The demo gateway signs every delivery as Ground Control does, with a key of its own.
+        self.jwt_private_key, public = generate_test_keys()
+        self.jwt_public_key_file = self.root / "rockblock-jwt-public.pem"
+        self.jwt_public_key_file.write_text(public)
+        mo_config = MoConfig(listen_port=0, jwt_public_key_file=self.jwt_public_key_file)
+        self.receiver = MoHttpServer(MoReceiver(ReportStore(self.store), mo_config)).start()
         write_demo_terrain(self.terrain_file)
         zones = write_exclusion_zones(self.root / "exclusion-zones.geojson")
         self.weather_files = demo_weather_files(SITE[0], SITE[1], self.clock(), hours=18)
@@ -276,7 +281,7 @@ class DemoWorld:
             delivery = capsule.session(
                 self.gateway, fix, at + timedelta(seconds=15), (lat + 0.01, lon - 0.02, 4.0)
             )
-            post_mo(self.receiver.url, delivery)
+            post_mo(self.receiver.url, delivery, jwt_private_key=self.jwt_private_key)
             descent.next_report = capsule.next_cycle(at)
 
     def stop(self) -> None:

@@ -52,7 +52,8 @@ class MoConfig:
     listen_port: int = 8088
     path: str = "/rockblock/mo"
     jwt_public_key_file: Path | None = None
-    require_jwt: bool = False
+    require_jwt: bool = True
+    """Unsigned deliveries are refused unless the operator opts out (a forged landing fix misleads recovery)."""
     max_body_bytes: int = 16384
 
 

@@ -110,7 +110,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     importer.add_argument("files", nargs="+", type=Path)
     importer.set_defaults(func=_mo_import)
     bench = mo_actions.add_parser("bench", help="measure webhook store+answer latency and parser speed")
-    bench.add_argument("--posts", type=int, default=200, help="how many deliveries to POST (default 200)")
+    bench.add_argument("--posts", type=int, default=200, help="deliveries POSTed one at a time (default 200)")
+    bench.add_argument("--clients", type=int, default=20, help="clients POSTing at once in the burst (default 20)")
+    bench.add_argument("--per-client", type=int, default=50, help="deliveries each burst client POSTs (default 50)")
     bench.set_defaults(func=_mo_bench)
     health = mo_actions.add_parser("health", help="battery, resets, gaps and spacing from the reports")
     health.add_argument("name")
@@ -331,9 +333,11 @@ def _mo_export(args: argparse.Namespace) -> int:
 
 
 def _mo_bench(args: argparse.Namespace) -> int:
-    if args.posts < 1:
-        raise LinkError("--posts must be at least 1")
-    for line in run_bench(args.posts).lines():
+    for option, value, most in (("--posts", args.posts, 10_000), ("--clients", args.clients, 200),
+                                ("--per-client", args.per_client, 10_000)):  # fmt: skip
+        if not 1 <= value <= most:
+            raise LinkError(f"{option} must be from 1 to {most}")
+    for line in run_bench(args.posts, args.clients, args.per_client).lines():
         print(line)
     return 0
 

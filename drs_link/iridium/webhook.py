@@ -29,7 +29,8 @@ from drs_link.store import utc_now
 log = logging.getLogger(__name__)
 
 JWT_ALGORITHMS = ["RS256"]
-_SIGNED_FIELDS = ("imei", "momsn", "data")
+_MUST_BE_SIGNED = ("imei", "momsn", "data")
+"""A JWT that does not sign these could be replayed on another message."""
 
 
 class DeliveryRejected(Exception):
@@ -96,6 +97,17 @@ def _transmit_time(text: str | None) -> datetime | None:
         return None
 
 
+def _same_value(claim: object, delivered: str) -> bool:
+    """Equal as text, or as numbers: the gateway's claims format is not documented (drs_protocol.md
+    4.2), and ``46.5`` signed for a delivered ``46.5000`` must not refuse a real report forever."""
+    if str(claim) == delivered:
+        return True
+    try:
+        return isinstance(claim, int | float | str) and float(claim) == float(delivered)
+    except ValueError:
+        return False
+
+
 class MoReceiver:
     """What one delivery means, independent of the HTTP server (checked, stored, then handed on)."""
 
@@ -110,33 +122,54 @@ class MoReceiver:
         self.config = config
         self.public_key = load_public_key(config.jwt_public_key_file)
         if config.require_jwt and self.public_key is None:
-            raise ConfigError("mo.require_jwt is true but mo.jwt_public_key_file is not set")
+            raise ConfigError(
+                "mo.jwt_public_key_file is not set and mo.require_jwt is on (the default): give Ground "
+                "Control's RS256 public key, or set mo.require_jwt = false to accept unsigned deliveries"
+            )
+        if not config.require_jwt:
+            log.warning(
+                "mo.require_jwt = false: deliveries without a valid Ground Control JWT are stored as "
+                "unverified; anyone who can reach %s can forge a position report",
+                config.path,
+            )
         self.on_report = on_report
         self.clock = clock
 
-    def _verify(self, fields: dict[str, str]) -> bool:
+    def _verify(self, fields: dict[str, str]) -> tuple[dict[str, str], bool]:
+        """The fields to store, and whether the gateway signed them.
+
+        Every delivered field must equal its claim, not only imei, momsn and data: a signed post with
+        an altered ``transmit_time`` or ``iridium_*`` was once stored as verified. A field the JWT does
+        not sign is not stored from a signed delivery.
+        """
         token = fields.get("JWT")
         if not token:
             if self.config.require_jwt:
                 raise DeliveryRejected(401, "no JWT and mo.require_jwt is set")
-            return False
+            return fields, False
         if self.public_key is None:
-            return False
+            return fields, False
         try:
             claims: dict[str, Any] = jwt.decode(token, self.public_key, algorithms=JWT_ALGORITHMS)
         except jwt.PyJWTError as exc:
             raise DeliveryRejected(401, f"JWT rejected: {type(exc).__name__}") from None
-        for name in _SIGNED_FIELDS:
-            if name in claims and str(claims[name]) != fields.get(name):
+        missing = [name for name in _MUST_BE_SIGNED if name not in claims]
+        if missing:
+            raise DeliveryRejected(401, f"the JWT does not sign {', '.join(missing)}")
+        delivered = {name: value for name, value in fields.items() if name != "JWT"}
+        for name, value in delivered.items():
+            if name in claims and not _same_value(claims[name], value):
                 raise DeliveryRejected(401, f"JWT claim {name} does not match the delivered {name}")
-        return True
+        unsigned = sorted(set(delivered) - set(claims))
+        if unsigned:
+            log.warning("MO delivery: fields the JWT does not sign were not stored: %s", ", ".join(unsigned))
+        return {name: value for name, value in delivered.items() if name in claims}, True
 
     def handle(self, content_type: str, body: bytes, remote: str) -> tuple[int, str, StoredReport | None]:
         """Check and store one delivery; returns (HTTP status, reply text, the stored report if new)."""
         now = self.clock()
         try:
-            fields = _fields(content_type, body)
-            verified = self._verify(fields)
+            fields, verified = self._verify(_fields(content_type, body))
             imei, momsn_text = fields.get("imei", ""), fields.get("momsn", "")
             if not (len(imei) == 15 and _ascii_digits(imei)):
                 raise DeliveryRejected(400, "missing or malformed imei")

@@ -35,7 +35,7 @@ def write_config(tmp_path: Path, mt_url: str = "http://127.0.0.1:9/rockblock/MT"
     config.write_text(
         f'[operator]\nname = "alice"\n[data]\ndir = "{tmp_path / "data"}"\n'
         f'[rockblock]\nmt_url = "{mt_url}"\nusername = "ops"\npassword_env = "DRS_TEST_RB"\ntimeout_s = 2.0\n'
-        f'[mo]\nlisten_host = "127.0.0.1"\nlisten_port = 0\n'
+        f'[mo]\nlisten_host = "127.0.0.1"\nlisten_port = 0\nrequire_jwt = false\n'  # posts unsigned
         f'[[capsule]]\nname = "DRS1"\nhost = "127.0.0.1"\nimei = "{IMEI}"\nrockblock_serial = 11800\n'
     )
     return config
@@ -182,15 +182,17 @@ def test_mo_serve_stores_gateway_posts_until_interrupted(tmp_path: Path) -> None
     assert stored.delivery.momsn == 41 and stored.report is not None
 
 
-def test_mo_bench_measures_and_rejects_a_zero_count(
+def test_mo_bench_measures_a_burst_and_counts_what_went_wrong(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     config = write_config(tmp_path)
-    assert run(config, "mo", "bench", "--posts", "5") == 0
+    assert run(config, "mo", "bench", "--posts", "5", "--clients", "3", "--per-client", "4") == 0
     out = capsys.readouterr().out
-    assert "webhook store+answer over 5 POSTs: median" in out and "MO parse:" in out
-    assert run(config, "mo", "bench", "--posts", "0") == 2
-    assert "--posts must be at least 1" in capsys.readouterr().err
+    assert "one POST at a time over 5: median" in out and "MO parse:" in out
+    assert "3 clients at once, 12 POSTs:" in out and "0 failed, 0 lost, 0 stored twice" in out
+    for option in ("--posts", "--clients", "--per-client"):
+        assert run(config, "mo", "bench", option, "0") == 2
+        assert f"{option} must be from 1 to" in capsys.readouterr().err
 
 
 def test_health_uses_the_interval_the_capsule_was_sent(
