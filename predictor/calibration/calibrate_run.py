@@ -204,7 +204,7 @@ def _print_summary(cal: Calibration, inputs: Inputs, data: dict) -> None:  # typ
     b, a = data["baseline"], data["after"]
     for label, block in (("baseline", b), ("after   ", a)):
         print(
-            f"{label} (held out): altitude RMS {block['altitude_rms_km']['mean']:.3f} km, |descent-time error| "
+            f"{label} (held out): time-at-altitude RMS {block['time_rms_s']['mean']:.0f} s, |descent-time error| "
             f"{block['descent_time_error_s']['mean']:.0f} s, horizontal RMS (replayed) "
             f"{block['horizontal_rms_km']['mean']:.3f} km, landing {block['landing_error_km']['mean']:.3f} km mean / "
             f"{block['landing_error_km']['median']:.3f} km median"

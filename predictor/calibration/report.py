@@ -426,6 +426,8 @@ def _family_section(family: dict[str, Any], pngs: Sequence[Path]) -> list[str]:
     if name in FAMILY_RESIDUALS:
         k, text = FAMILY_RESIDUALS[name]
         lines += [text, "", f"![{name} residual]({Path(pngs[k]).name})", ""]
+    else:
+        lines += ["Its residuals are those of both records, in the two sections above.", ""]
     chosen = ", ".join(f"`{f['effect']}` ({_params(f['parameters'])})" for f in family["selected"]) or "none"
     b, a = family["before"], family["after"]
     own = "; ".join(
