@@ -70,6 +70,9 @@ class FlightCase:
     landing_alt_m: float
     descent_time_s: float
     """Descent start to the estimated touchdown (``touchdown_s``), not to the landing fix."""
+    fix_pressure_z: np.ndarray
+    """Altitude (km) at which the weather column at the descent start has each fix's logged pressure;
+    NaN where none was logged. The vertical record read against pressure instead of GNSS altitude."""
     terrain: Terrain | None = None
     """Ground from a DEM; None means the ground is the measured landing altitude."""
 
@@ -125,8 +128,24 @@ def flight_case(flight: Flight, cube: WeatherCube, terrain: Terrain | None = Non
         fix_z=np.array([f.alt_m for f in fixes]) / 1000.0,
         landing_alt_m=land.alt_m,
         descent_time_s=touchdown_s(start, fixes),
+        fix_pressure_z=_pressure_altitude_km(cube, start, fixes),
         terrain=terrain,
     )
+
+
+def _pressure_altitude_km(cube: WeatherCube, start: Fix, fixes: Sequence[Fix]) -> np.ndarray:
+    """Each logged pressure as an altitude in the weather's column nearest the descent start (the
+    column ``column_density`` uses): what the predicted path, which lives in altitude, is compared at."""
+    pressure = np.array([np.nan if f.pressure_pa is None else f.pressure_pa for f in fixes])
+    if np.isnan(pressure).all():
+        return pressure
+    ti = int(np.argmin(np.abs(cube.times.astype("datetime64[s]").astype(np.int64) - start.time.timestamp())))
+    yi = int(np.argmin(np.abs(cube.lats - start.lat)))
+    xi = int(np.argmin(np.abs(cube.lons - float(cube.lon_in_cube(start.lon)))))
+    log_p = np.log(np.asarray(cube.levels_hpa, dtype=float) * 100.0)
+    z = cube.z_m[ti, :, yi, xi]
+    order = np.argsort(log_p)
+    return np.interp(np.log(pressure), log_p[order], z[order], left=np.nan, right=np.nan) / 1000.0
 
 
 def touchdown_s(start: Fix, fixes: Sequence[Fix]) -> float:
@@ -168,6 +187,9 @@ class Scores:
     track_rms_km: np.ndarray
     altitude_rms_km: np.ndarray
     """RMS of predicted − measured altitude at the fixes' times."""
+    pressure_time_rms_s: np.ndarray
+    """The same over the fixes that logged a pressure, each at its pressure's altitude (NaN without
+    pressure): reported, not used for selection."""
     time_rms_s: np.ndarray
     """RMS of predicted − measured time since descent start at the fixes' altitudes: the vertical record
     read the other way, weighted by where the time is spent (the slow fall near the ground, which sets
@@ -251,10 +273,10 @@ def ground_km(case: FlightCase, runs: Runs) -> np.ndarray:
 
 def score(case: FlightCase, runs: Runs) -> Scores:
     n = runs.t.shape[0]
-    out = np.full((n, 8), np.nan)
+    out = np.full((n, 9), np.nan)
     _score_kernel(
         runs.t, runs.x, runs.y, runs.z, ground_km(case, runs), runs.n_rec, runs.ok,
-        case.fix_t, case.fix_x, case.fix_y, case.fix_z, case.descent_time_s, out,
+        case.fix_t, case.fix_x, case.fix_y, case.fix_z, case.fix_pressure_z, case.descent_time_s, out,
     )  # fmt: skip
     land_x, land_y = case.fix_x[-1], case.fix_y[-1]
     return Scores(
@@ -262,6 +284,7 @@ def score(case: FlightCase, runs: Runs) -> Scores:
         altitude_rms_km=np.sqrt(out[:, 5]),
         horizontal_rms_km=np.sqrt(out[:, 6]),
         time_rms_s=np.sqrt(out[:, 7]),
+        pressure_time_rms_s=np.sqrt(out[:, 8]),
         landing_error_km=np.hypot(out[:, 1] - land_x, out[:, 2] - land_y),
         descent_time_error_s=out[:, 3] - case.descent_time_s,
         landing_x=out[:, 1],
@@ -284,11 +307,13 @@ def _score_kernel(
     fix_x: np.ndarray,
     fix_y: np.ndarray,
     fix_z: np.ndarray,
+    fix_pressure_z: np.ndarray,
     touchdown: float,
     out: np.ndarray,
 ) -> None:
     """out[i] = (mean squared 3-D error over the fixes, landing x, y, t, z, mean squared altitude
-    error, mean squared horizontal error, mean squared time error at the fixes' altitudes)."""
+    error, mean squared horizontal error, mean squared time error at the fixes' altitudes, the same at
+    their pressures' altitudes)."""
     for i in range(t.shape[0]):
         if not ok[i]:
             continue
@@ -329,23 +354,44 @@ def _score_kernel(
         out[i, 4] = zl
         out[i, 5] = total_z / fix_t.shape[0]
         out[i, 6] = total_h / fix_t.shape[0]
-        total_t = 0.0
-        k = 0
-        for j in range(fix_t.shape[0]):
-            zj = fix_z[j]
-            if zj <= zl:
-                tj = tl
-            elif zj >= z[i, 0]:
-                tj = 0.0
-            else:
-                while k > 0 and z[i, k] < zj:
-                    k -= 1
-                while z[i, k + 1] >= zj:
-                    k += 1
-                tj = t[i, k] + (zj - z[i, k]) / (z[i, k + 1] - z[i, k]) * (t[i, k + 1] - t[i, k])
-            measured = touchdown if j == fix_t.shape[0] - 1 else fix_t[j]
-            total_t += (tj - measured) ** 2
-        out[i, 7] = total_t / fix_t.shape[0]
+        out[i, 7] = _mean_squared_time_error(t[i], z[i], tl, zl, fix_z, fix_t, touchdown)
+        out[i, 8] = _mean_squared_time_error(t[i], z[i], tl, zl, fix_pressure_z, fix_t, touchdown)
+
+
+@njit(cache=True)
+def _mean_squared_time_error(
+    t: np.ndarray,
+    z: np.ndarray,
+    tl: float,
+    zl: float,
+    fix_z: np.ndarray,
+    fix_t: np.ndarray,
+    touchdown: float,
+) -> float:
+    """Mean of (predicted − measured time at each fix's altitude)² over the fixes with an altitude
+    (NaN: none); the landing fix is measured at the estimated touchdown."""
+    total = 0.0
+    count = 0
+    k = 0
+    last = fix_t.shape[0] - 1
+    for j in range(fix_t.shape[0]):
+        zj = fix_z[j]
+        if not np.isfinite(zj):
+            continue
+        if zj <= zl:
+            tj = tl
+        elif zj >= z[0]:
+            tj = 0.0
+        else:
+            while k > 0 and z[k] < zj:
+                k -= 1
+            while z[k + 1] >= zj:
+                k += 1
+            tj = t[k] + (zj - z[k]) / (z[k + 1] - z[k]) * (t[k + 1] - t[k])
+        measured = touchdown if j == last else fix_t[j]
+        total += (tj - measured) ** 2
+        count += 1
+    return total / count if count else np.nan
 
 
 # ---------------------------------------------------------------- residuals of one prediction

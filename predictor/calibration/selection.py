@@ -118,6 +118,8 @@ class HeldOut:
 
     track_rms_km: np.ndarray
     time_rms_s: np.ndarray
+    pressure_time_rms_s: np.ndarray
+    """NaN for a flight that logged no pressure."""
     altitude_rms_km: np.ndarray
     horizontal_rms_km: np.ndarray
     """Of the replayed run (the wind's error alone)."""
@@ -132,7 +134,8 @@ class HeldOut:
             return np.array([float(getattr(s, name)[0]) for s in source])
 
         return cls(
-            col(scores, "track_rms_km"), col(scores, "time_rms_s"), col(scores, "altitude_rms_km"),
+            col(scores, "track_rms_km"), col(scores, "time_rms_s"), col(scores, "pressure_time_rms_s"),
+            col(scores, "altitude_rms_km"),
             col(replayed, "horizontal_rms_km"),
             col(scores, "landing_error_km"), col(scores, "descent_time_error_s"),
             col(scores, "landing_x"), col(scores, "landing_y"),
@@ -142,6 +145,7 @@ class HeldOut:
         return {
             "track_rms_km": _mean_median(self.track_rms_km),
             "time_rms_s": _mean_median(self.time_rms_s),
+            "pressure_time_rms_s": _with_pressure(self.pressure_time_rms_s),
             "altitude_rms_km": _mean_median(self.altitude_rms_km),
             "horizontal_rms_km": _mean_median(self.horizontal_rms_km),
             "landing_error_km": _mean_median(self.landing_error_km),
@@ -161,6 +165,15 @@ def _mean_median(values: np.ndarray, signed: np.ndarray | None = None) -> dict[s
     if signed is not None:
         out["mean_signed"] = number(np.mean(signed))
     return out
+
+
+def _with_pressure(values: np.ndarray) -> dict[str, float | None]:
+    """Mean and median over the flights that logged a pressure, and how many did."""
+    logged = values[np.isfinite(values)]
+    out: dict[str, float | None] = {"mean": None, "median": None}
+    if logged.size:
+        out = _mean_median(logged)
+    return {**out, "flights": int(logged.size)}
 
 
 @dataclass(frozen=True)

@@ -139,3 +139,24 @@ def test_a_replayed_run_follows_the_measured_descent_so_a_rate_error_leaves_no_w
     assert plain.altitude_rms_km[0] > 1.0 and plain.horizontal_rms_km[0] > 1.0
     assert replayed.altitude_rms_km[0] < 0.05 and replayed.horizontal_rms_km[0] < 0.1
     assert abs(replayed.descent_time_error_s[0]) < 5.0  # the vertical effect given to it is dropped
+
+
+def test_the_vertical_record_read_against_pressure_is_blind_to_a_gnss_altitude_bias(
+    plain_cases: list[FlightCase],
+) -> None:
+    """The synthetic loggers record the weather's pressure: read against it, the true model's time
+    error stays as small as against the true altitude; a receiver that reads 300 m high moves the
+    altitude-read record by about a minute, not the pressure-read one."""
+    case = plain_cases[0]
+    assert np.isfinite(case.fix_pressure_z).all()
+    assert np.abs(case.fix_pressure_z - case.fix_z).max() < 0.02
+    high = replace(case, fix_z=case.fix_z + 0.3)
+    true, biased = (score(c, run(c, PAYLOAD, (), 1, 100.0)) for c in (case, high))
+    assert true.time_rms_s[0] < 20.0 and true.pressure_time_rms_s[0] < 20.0
+    assert biased.time_rms_s[0] > 40.0
+    assert biased.pressure_time_rms_s[0] == pytest.approx(true.pressure_time_rms_s[0])
+
+
+def test_without_a_logged_pressure_the_pressure_record_is_empty(plain_cases: list[FlightCase]) -> None:
+    case = replace(plain_cases[0], fix_pressure_z=np.full(plain_cases[0].fix_z.shape, np.nan))
+    assert np.isnan(score(case, run(case, PAYLOAD, (), 1, 100.0)).pressure_time_rms_s[0])
