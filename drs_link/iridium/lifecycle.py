@@ -65,6 +65,10 @@ TIMED_OUT = "timed_out"
 PENDING, SEEN, NEVER_VISIBLE, NOT_SEEN = "pending", "seen", "never visible", "not seen"
 EFFECT_REPORTS = 5
 """Reports after delivery within which an INTERVAL/RBDESTINATION change must show, else timed out."""
+INTERRUPTED_AFTER = timedelta(minutes=15)
+"""A command still ``confirmed`` this long after it was confirmed was being sent by a process that
+stopped (kill -9, a crash, a lost laptop) before the gateway answered: longer than any send can take
+(``rockblock.timeout_s`` is at most 600 s)."""
 QUEUE_TIMEOUT = timedelta(hours=3)
 """A command still undelivered after this long with no report at all is called timed out."""
 _SEND_OUTCOME = {"queued": QUEUED, "failed": FAILED, "not_sent": NOT_SENT, "unknown": DELIVERY_UNKNOWN}
@@ -99,6 +103,8 @@ class _Change:
     detail: str
     columns: dict[str, Any]
     action: str | None = None
+    expected: str | None = None
+    """The state the command must still be in, or nothing is written (a compare-and-set)."""
 
 
 def _row_to_command(row: Any) -> Command:
@@ -176,6 +182,25 @@ class CommandLifecycle:
         self.operator = operator or "unknown"
         self.clock = clock
         store.ensure_schema(COMMANDS_DDL)
+        self._recover_interrupted()
+
+    def _recover_interrupted(self) -> None:
+        """A send cut off after ``confirmed`` may or may not have reached the gateway: say so, so that
+        ``drs mt resolve`` can settle it and attribution never guesses across it."""
+        cutoff = iso_utc(self.clock() - INTERRUPTED_AFTER)
+        rows = self.store.query(
+            "SELECT * FROM mt_command WHERE state = ? AND updated_utc < ? ORDER BY id", (CONFIRMED, cutoff)
+        )
+        for command in map(_row_to_command, rows):
+            try:
+                self._set(
+                    command, DELIVERY_UNKNOWN,
+                    "the process sending it stopped before the gateway answered: it may or may not be "
+                    "queued; settle it with drs mt resolve", expected=CONFIRMED,
+                    queued_utc=iso_utc(command.updated_utc),
+                )  # fmt: skip
+            except RefusedError:
+                pass  # another process settled it meanwhile
 
     def get(self, command_id: int) -> Command:
         rows = self.store.query("SELECT * FROM mt_command WHERE id = ?", (command_id,))
@@ -189,8 +214,10 @@ class CommandLifecycle:
             for r in self.store.query("SELECT * FROM mt_command WHERE imei = ? ORDER BY id", (imei,))
         ]
 
-    def _set(self, command: Command, state: str, detail: str, **columns: Any) -> Command:
-        self._apply([_Change(command, state, detail, columns)])
+    def _set(
+        self, command: Command, state: str, detail: str, expected: str | None = None, **columns: Any
+    ) -> Command:
+        self._apply([_Change(command, state, detail, columns, expected=expected)])
         return self.get(command.id)
 
     def _apply(self, changes: list[_Change]) -> None:
@@ -205,9 +232,13 @@ class CommandLifecycle:
                     **change.columns,
                 }
                 sql = ", ".join(f"{name} = ?" for name in assignments)
-                conn.execute(
-                    f"UPDATE mt_command SET {sql} WHERE id = ?", (*assignments.values(), change.command.id)
-                )
+                where, key = ("id = ? AND state = ?", (change.command.id, change.expected)) if change.expected \
+                    else ("id = ?", (change.command.id,))  # fmt: skip
+                if conn.execute(f"UPDATE mt_command SET {sql} WHERE {where}", (*assignments.values(), *key)).rowcount != 1:
+                    raise RefusedError(
+                        f"MT {change.command.id} is no longer {change.expected}: another console or process "
+                        "acted on it first, and it is never sent twice"
+                    )
         for change in changes:
             command = change.command
             detail: dict[str, Any] = {"command_id": command.id, "text": command.text, "detail": change.detail}
@@ -278,9 +309,17 @@ class CommandLifecycle:
         detail = f"operator {self.operator} confirmed sending to {command.capsule}"
         if command.flush:
             detail += f"; WARNING: {FLUSH_WARNING}"
-        command = self._set(command, CONFIRMED, detail)
+        command = self._set(command, CONFIRMED, detail, expected=REQUESTED)
         request_written_by = self.clock()
-        result = gateway.send(command.imei, command.text.encode("ascii"), flush=command.flush)
+        try:
+            result = gateway.send(command.imei, command.text.encode("ascii"), flush=command.flush)
+        except BaseException as exc:
+            self._set(
+                command, DELIVERY_UNKNOWN, f"the send stopped before the gateway answered ({exc!r}): it may "
+                "or may not be queued; settle it with drs mt resolve", expected=CONFIRMED,
+                queued_utc=iso_utc(request_written_by),
+            )  # fmt: skip
+            raise
         state = _SEND_OUTCOME[result.status]
         columns: dict[str, Any] = {}
         if state == QUEUED:
@@ -289,7 +328,7 @@ class CommandLifecycle:
                 self._flush_older(command)
         elif state == DELIVERY_UNKNOWN:
             columns = {"queued_utc": iso_utc(request_written_by)}
-        return self._set(command, state, result.detail, **columns)
+        return self._set(command, state, result.detail, expected=CONFIRMED, **columns)
 
     def _unknown(self, command_id: int, capsule: str) -> Command:
         """The command an operator may resolve: this capsule's, and still of unknown delivery."""

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
+import threading
+import time
 from collections.abc import Iterator
 from datetime import timedelta
 from pathlib import Path
@@ -15,7 +20,7 @@ from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
 from drs_link.simulator.rockblock import Scripted, SimulatedCapsule, SimulatedRockblock
-from drs_link.store import Store
+from drs_link.store import Store, utc_now
 from tests.clock import ManualClock
 
 from .helpers import IMEI, T0, fly
@@ -162,3 +167,86 @@ def test_every_audit_record_carries_the_lifecycle_clock_not_the_wall_clock(rig) 
     records = store.audit(capsule="DRS1")
     assert [r.action for r in records][:3] == ["mt.requested", "mt.send", "mt.not_sent"]
     assert {r.time_utc for r in records} == {clock()}
+
+
+def _race(store: Store, command_id: int, client: RockblockGateway, clock: ManualClock, senders: int) -> list[str]:
+    """``senders`` threads, each with its own connection to the store, send one command at once."""
+    start = threading.Barrier(senders)
+    outcomes: list[str] = []
+
+    def send_it() -> None:
+        mine = lc.CommandLifecycle(Store.open(store.path), "alice", clock)
+        start.wait()
+        try:
+            outcomes.append(mine.send(command_id, "DRS1", client).state)
+        except RefusedError:
+            outcomes.append("refused")
+
+    threads = [threading.Thread(target=send_it) for _ in range(senders)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    return outcomes
+
+
+def test_the_same_command_sent_from_eight_threads_at_once_reaches_the_gateway_once(rig) -> None:
+    """The step from requested to confirmed is a compare-and-set: read-then-write let 30 of 30 such
+    races send twice. With it exactly one send gets through, so this cannot fail by chance."""
+    store, _, gateway, client, clock = rig
+    life = lc.CommandLifecycle(store, "alice", clock)
+    for trial in range(5):
+        command = life.request(CAPSULE, MtComposer().interval(5 + trial).build())
+        assert sorted(_race(store, command.id, client, clock, 8)) == ["queued"] + ["refused"] * 7
+    assert len(gateway.requests) == 5
+
+
+SEND_IN_A_CHILD = """
+import sys
+from drs_link.config import CapsuleConfig
+from drs_link.iridium import lifecycle as lc
+from drs_link.iridium.gateway import RockblockGateway
+from drs_link.store import Store
+life = lc.CommandLifecycle(Store.open(sys.argv[1]), "alice")
+life.send(int(sys.argv[2]), "DRS1", RockblockGateway(sys.argv[3], "ops", "pw", timeout_s=60, retry_delay_s=0.0))
+"""
+
+
+def test_a_send_killed_after_the_gateway_took_it_becomes_delivery_unknown_and_can_be_resolved(rig) -> None:
+    """kill -9 once left the command 'confirmed' forever, which ``drs mt resolve`` refused to settle."""
+    store, _, gateway, _, _ = rig
+    life = lc.CommandLifecycle(store, "alice")
+    command = life.request(CAPSULE, MtComposer().interval(30).build())
+    gateway.script(Scripted("slow", delay_s=30.0))
+    child = subprocess.Popen([sys.executable, "-c", SEND_IN_A_CHILD, str(store.path), str(command.id), gateway.url])
+    try:
+        deadline = time.monotonic() + 60
+        while not gateway.requests and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert gateway.requests and life.get(command.id).state == lc.CONFIRMED
+    finally:
+        child.send_signal(signal.SIGKILL)
+        child.wait()
+    right_after = lc.CommandLifecycle(store, "bob")
+    assert right_after.get(command.id).state == lc.CONFIRMED  # it might still be in flight elsewhere
+    with pytest.raises(RefusedError, match="only a command in delivery_unknown"):
+        right_after.resolve_not_sent(command.id, "DRS1")
+    later = ManualClock(utc_now() + lc.INTERRUPTED_AFTER + timedelta(seconds=1))
+    recovered = lc.CommandLifecycle(store, "bob", later).get(command.id)
+    assert recovered.state == lc.DELIVERY_UNKNOWN and "stopped before the gateway answered" in recovered.detail
+    resolved = lc.CommandLifecycle(store, "bob", later).resolve_not_sent(command.id, "DRS1", "gateway shows nothing")
+    assert resolved.state == lc.NOT_SENT
+
+
+def test_a_send_that_raises_is_recorded_as_delivery_unknown_not_left_confirmed(rig) -> None:
+    store, _, _, _, clock = rig
+    life = lc.CommandLifecycle(store, "alice", clock)
+    command = life.request(CAPSULE, MtComposer().sounder(False).build())
+
+    class BreaksMidSend:
+        def send(self, imei: str, data: bytes, flush: bool = False) -> object:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        life.send(command.id, "DRS1", BreaksMidSend())  # type: ignore[arg-type]
+    assert life.get(command.id).state == lc.DELIVERY_UNKNOWN
