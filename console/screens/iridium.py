@@ -77,7 +77,7 @@ class IridiumScreen(CommandingScreen):
             self.action_reload()
 
     def show(self, reports: list, commands: list) -> None:  # type: ignore[type-arg]
-        health = assess(reports) if reports else None
+        health = assess(reports, commands) if reports else None
         if health is None:
             text = f"{self.capsule}: no Iridium reports yet"
         else:
