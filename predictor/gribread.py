@@ -48,6 +48,9 @@ class GribField:
     spacing: tuple[float, float]
     values: dict[str, np.ndarray]
     generating_process: int
+    dropped_levels: tuple[str, ...] = ()
+    """Levels some of u, v, t, gh lacked, left out (``"500 hPa (no gh)"``): the profile is
+    interpolated across them, which the cube says in a warning rather than silently."""
 
     @property
     def lead_h(self) -> float:
@@ -308,6 +311,10 @@ def _assemble(
     if len(common) < 2:
         raise WeatherError(f"{file} has fewer than two isobaric levels with all of u, v, t and gh")
     levels = np.array(sorted(common, reverse=True))
+    dropped = tuple(
+        f"{level:g} hPa (no {', '.join(name for name in VARIABLES if level not in by_name[name])})"
+        for level in sorted(set.union(*(set(by_name[name]) for name in VARIABLES)) - common, reverse=True)
+    )
     values = {name: np.stack([by_name[name][level] for level in levels]) for name in VARIABLES}
     for name, (low, high, unit) in _PLAUSIBLE.items():
         outside = (values[name] < low) | (values[name] > high)
@@ -318,4 +325,11 @@ def _assemble(
                 f"{file}: {name} = {example:g} {unit} at {levels[level_index]:g} hPa is outside "
                 f"{low:g}…{high:g} {unit}; the file is damaged or holds something other than GFS fields"
             )
-    return GribField(file, cycle, valid, levels, grid.lats, grid.lons, grid.spacing, values, process)
+    falling = np.diff(values["gh"], axis=0) <= 0
+    if falling.any():
+        k, j, i = (int(x) for x in np.argwhere(falling)[0])
+        raise WeatherError(
+            f"{file}: gh does not rise from {levels[k]:g} to {levels[k + 1]:g} hPa at "
+            f"{grid.lats[j]:g}, {grid.lons[i]:g}; heights must grow as pressure falls (a damaged file)"
+        )
+    return GribField(file, cycle, valid, levels, grid.lats, grid.lons, grid.spacing, values, process, dropped)

@@ -197,6 +197,12 @@ def _build_cube(files: Sequence[Path], box: BBox | None) -> WeatherCube:
             freshest[item.valid] = item
     chosen = [freshest[valid] for valid in sorted(freshest)]
     _check_time_gaps([item.valid for item in chosen], warnings)
+    for item in chosen:
+        if item.dropped_levels:
+            warnings.append(
+                f"{item.file} at {_hour(item.valid)}: left out {', '.join(item.dropped_levels)}; "
+                "the profile is interpolated across them"
+            )
 
     lats = chosen[0].lats
     lons = chosen[0].lons

@@ -306,7 +306,7 @@ def test_levels_missing_from_one_file_are_dropped_with_a_warning(tmp_path: Path,
         np.zeros(shape),
         np.zeros(shape),
         np.full(shape, 250.0),
-        np.full(shape, 5000.0),
+        np.broadcast_to(np.array([110, 1500, 5600, 10400, 16200, 20600.0])[:, None, None], shape),
     )
     cube = load_weather([full, short], cache_dir=cache)
     assert cube.levels_hpa.tolist() == fewer_levels.tolist()
@@ -452,3 +452,33 @@ def test_a_missing_forecast_step_is_named_in_a_warning(tmp_path: Path, cache: Pa
     assert any(
         "6 h gap from 2024-05-01 09:00Z to 2024-05-01 15:00Z (its step is 3 h)" in w for w in cube.warnings
     )
+
+
+def test_a_level_one_variable_lacks_is_left_out_with_a_warning_not_interpolated_silently(
+    tmp_path: Path, cache: Path
+) -> None:
+    full = write_marked(tmp_path / "full.grib2", np.arange(44.0, 48.5, 0.5), np.arange(4.0, 8.5, 0.5))
+    no_gh_at_500 = tmp_path / "no_gh_500.grib2"
+    with open(full, "rb") as stream, open(no_gh_at_500, "wb") as out:
+        while (handle := eccodes.codes_grib_new_from_file(stream)) is not None:
+            if (eccodes.codes_get(handle, "shortName"), eccodes.codes_get(handle, "level")) != ("gh", 500):
+                eccodes.codes_write(handle, out)
+            eccodes.codes_release(handle)
+    cube = load_weather([no_gh_at_500], cache_dir=cache)
+    assert 500.0 not in cube.levels_hpa.tolist() and 850.0 in cube.levels_hpa.tolist()
+    [warning] = cube.warnings
+    assert "left out 500 hPa (no gh)" in warning and "interpolated across them" in warning
+
+
+def test_heights_that_do_not_rise_with_falling_pressure_are_refused_naming_the_levels(
+    tmp_path: Path, cache: Path
+) -> None:
+    lats, lons = np.arange(44.0, 46.5, 0.5), np.arange(4.0, 6.5, 0.5)
+    shape = (LEVELS.size, lats.size, lons.size)
+    gh = np.broadcast_to(np.array([110, 1500, 5600, 10400, 16200, 15600, 31000.0])[:, None, None], shape)
+    t = np.broadcast_to(np.linspace(288.0, 230.0, LEVELS.size)[:, None, None], shape)
+    path = write_gfs_grib2(
+        tmp_path / "swapped.grib2", CYCLE, 0, LEVELS, lats, lons, np.ones(shape), np.ones(shape), t, gh
+    )
+    with pytest.raises(WeatherError, match="gh does not rise from 100 to 50 hPa at 44, 4"):
+        load_weather([path], cache_dir=cache)
