@@ -91,8 +91,13 @@ def _load_known_hosts(path: Path) -> paramiko.HostKeys:
         raise HostKeyError(f"known_hosts file {path} does not exist: enrol the capsule's host key first")
     try:
         return paramiko.HostKeys(str(path))
-    except (OSError, paramiko.SSHException) as exc:
+    except OSError as exc:
         raise HostKeyError(f"known_hosts file {path} cannot be read: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 - paramiko's parser raises InvalidHostKey, ValueError, UnicodeDecodeError…
+        raise HostKeyError(
+            f"known_hosts file {path} is damaged ({type(exc).__name__}: {exc}); fix that line or enrol the "
+            "capsule again (drs capsule enrol)"
+        ) from None
 
 
 class CapsuleLink:

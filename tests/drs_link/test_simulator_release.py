@@ -273,6 +273,21 @@ def test_missing_known_hosts_file_is_refused(
         CapsuleLink(config).connect()
 
 
+@pytest.mark.parametrize(
+    "damage",
+    [b"drs1 ssh-ed25519 AAAA!!notbase64\n", b"drs1 ssh-rsa AAAAB3NzaC1yc2EAAAADAQABAAAB\n", b"\x00\xff\xfe\n"],
+    ids=["bad-base64", "truncated-rsa-key", "not-text"],
+)
+def test_a_damaged_known_hosts_file_is_refused_in_one_line(
+    make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig], damage: bytes
+) -> None:
+    sim = make_sim()
+    config = sim_config(sim)
+    config.known_hosts.write_bytes(sim.known_hosts_line().encode() + damage)
+    with pytest.raises(HostKeyError, match="is damaged .*drs capsule enrol"):
+        CapsuleLink(config).connect()
+
+
 def test_wrong_client_key_is_an_authentication_error(
     make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig]
 ) -> None:
