@@ -79,8 +79,8 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.071, 3.965, 3.602, 3.466, 2.107, 1.601),
-    sigma_perpendicular_km=(3.582, 3.804, 3.858, 3.322, 1.529, 0.789),
+    sigma_parallel_km=(4.077, 3.937, 3.579, 3.468, 2.108, 1.601),
+    sigma_perpendicular_km=(3.583, 3.805, 3.858, 3.322, 1.529, 0.789),
 )
 """Measured by ``drs live evaluate`` on the 30 test flights; see docs/planning/live-reprediction.md."""
 
