@@ -30,7 +30,7 @@ checkpoints.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import date
 from pathlib import Path
@@ -172,7 +172,9 @@ def _describe(model: CalibratedModel) -> str:
         f"`{t.name}` ({', '.join(f'{k} {v:.4g}' for k, v in t.parameters().items() if isinstance(v, float))})"
         for t in model.terms
     )
-    return f"{model.label()}: payload `{model.payload.name}`" + (f", {terms}" if terms else ", no calibrated terms")
+    return f"{model.label()}: payload `{model.payload.name}`" + (
+        f", {terms}" if terms else ", no calibrated terms"
+    )
 
 
 def _touchdown_s(descent: Sequence[Fix], ground_m: float) -> float:
@@ -228,7 +230,12 @@ def evaluate(
     model = model or CalibratedModel(profile, (), None)
     configs = configurations()
     result = Evaluation(
-        flights=[], skipped=[], cases=[], start_errors_km={}, model_label=_describe(model), profile_label=profile.name
+        flights=[],
+        skipped=[],
+        cases=[],
+        start_errors_km={},
+        model_label=_describe(model),
+        profile_label=profile.name,
     )
     for path in paths:
         flight = clean(read_track(path, day=day))
@@ -307,7 +314,14 @@ def held_out(result: Evaluation, km: float) -> dict[str, tuple[list[float], list
     cases = _cases(result, km)
     rows = {
         name: ([c.errors_km[name] for c in cases], [c.time_error_s[name] for c in cases])
-        for name in ("profile · plain", "profile · rate", "profile · recent rate", PLAIN, RATE, "model · recent rate")
+        for name in (
+            "profile · plain",
+            "profile · rate",
+            "profile · recent rate",
+            PLAIN,
+            RATE,
+            "model · recent rate",
+        )
     }
     names = [result.held_out_name(c) for c in cases]
     rows["model + held-out live"] = (
@@ -516,27 +530,25 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
         "airborne fix carried to the ground at the rate of its own interval (the first fix on the ground "
         "is up to one interval late: 3 min on these trackers).",
         "",
-        "## Landing error, km (mean / median)",
-        "",
-        header,
-        rule,
     ]
-    for km in kms:
-        rows = held_out(result, km)
-        cells = [f"{np.mean(rows[n][0]):.2f} / {np.median(rows[n][0]):.2f}" for n, _ in SERIES]
-        lines.append(f"| {km:g} | {len(rows[PLAIN][0])} | {' | '.join(cells)} |")
-    lines += [
-        "",
-        "## Remaining-time error, s (mean |error| / mean signed error)",
-        "",
-        header,
-        rule,
-    ]
-    for km in kms:
-        rows = held_out(result, km)
-        cells = [f"{np.mean(np.abs(rows[n][1])):.0f} / {np.mean(rows[n][1]):+.0f}" for n, _ in SERIES]
-        lines.append(f"| {km:g} | {len(rows[PLAIN][0])} | {' | '.join(cells)} |")
-    lines.append("")
+
+    def table(title: str, cell: Callable[[np.ndarray, np.ndarray], str]) -> None:
+        """One row per checkpoint, one ``cell(landing errors, time errors)`` per configuration."""
+        lines.extend([f"## {title}", "", header, rule])
+        for km in kms:
+            rows = held_out(result, km)
+            cells = [cell(*rows[n]) for n, _ in SERIES]
+            lines.append(f"| {km:g} | {len(rows[PLAIN][0])} | {' | '.join(cells)} |")
+        lines.append("")
+
+    table(
+        "Landing error, km (mean / median)",
+        lambda landing, seconds: f"{np.mean(landing):.2f} / {np.median(landing):.2f}",
+    )
+    table(
+        "Remaining-time error, s (mean |error| / mean signed error)",
+        lambda landing, seconds: f"{np.mean(np.abs(seconds)):.0f} / {np.mean(seconds):+.0f}",
+    )
     if 20.0 in kms:
         model_s, textbook_s = remaining_time_ratio(result, 20.0)
         low, high = remaining_time_ratio_interval(result, 20.0)
