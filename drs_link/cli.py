@@ -17,6 +17,7 @@ from drs_link.backends.agent import AgentBackend
 from drs_link.backends.stock import StockBackend
 from drs_link.bench import run_bench
 from drs_link.capsule import ReleaseState, ReleaseStateMachine, record_as_dict, take_over_outcome
+from drs_link.checklist import PROCEDURE_DIR, Checklist, complete_command, load_checklists
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.ssh import (
@@ -184,8 +185,14 @@ def _print_status(name: str, report: dict[str, object]) -> None:
             print(f"  GNSS warning: {gnss['date_problem']}")
 
 
+def _command_done(machine: ReleaseStateMachine, checklists: list[Checklist], command: str, result: str) -> None:
+    """The checklist step a release command completes: the console's rule (``Operations``), here too."""
+    complete_command(machine.store, checklists, machine.name, command, machine.operator, result, {})
+
+
 def cmd_power_on(args: argparse.Namespace) -> int:
     machine, link = _machine(args, need_operator=True)
+    checklists = load_checklists(PROCEDURE_DIR)  # a broken procedure file refuses before the relay latches
     print(POWER_ON_WARNING)
     confirmed = args.yes
     if not confirmed:
@@ -200,6 +207,7 @@ def cmd_power_on(args: argparse.Namespace) -> int:
         confirmed = typed.strip() == machine.name
     try:
         machine.power_on(confirmed)
+        _command_done(machine, checklists, "power-on", "relay latched")
         print(f"{machine.name}: power-on done; waiting for the microcontroller's NMEA (up to ~25 s)")
         report = machine.wait_for_microcontroller()
     finally:
@@ -219,6 +227,7 @@ def _step(line: str) -> None:
 
 def cmd_go(args: argparse.Namespace) -> int:
     machine, link = _machine(args, need_operator=True)
+    checklists = load_checklists(PROCEDURE_DIR)
     try:
         token = machine.confirm(args.confirm)
         _step(f"{machine.name}: confirmation accepted (capsule {machine.record().state.value})")
@@ -230,6 +239,7 @@ def cmd_go(args: argparse.Namespace) -> int:
             "about 10 s)…"
         )
         released = machine.go(token)
+        _command_done(machine, checklists, "fire", released.note or "Go sent")
     finally:
         link.close()
     print(f"{machine.name}: {released.note}; release A opens about 32 s after Go")
@@ -282,7 +292,9 @@ def cmd_reset(args: argparse.Namespace) -> int:
     config, capsule, store = _context(args)
     link = CapsuleLink(capsule)
     machine = ReleaseStateMachine(store, capsule, StockBackend(capsule, link), config.operator.name)
+    checklists = load_checklists(PROCEDURE_DIR)
     machine.reset(args.confirm)
+    _command_done(machine, checklists, "reset", "release state reset")
     print(f"{capsule.name}: reset to idle")
     return 0
 

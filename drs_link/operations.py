@@ -21,7 +21,7 @@ from drs_link.backends import AuthorityStatus
 from drs_link.backends.agent import AgentBackend
 from drs_link.backends.stock import StockBackend
 from drs_link.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
-from drs_link.checklist import PROCEDURE_DIR, load_checklists
+from drs_link.checklist import PROCEDURE_DIR, complete_command, load_checklists
 from drs_link.config import CapsuleConfig, Config
 from drs_link.errors import ConfigError, LinkError
 from drs_link.gonogo import ExclusionZone, GoNoGoReport, WaiverBook
@@ -240,7 +240,12 @@ class Operations:
         with ops.lock:
             record = ops.machine.power_on(confirmed=True)
             ops.arming.disarm("power-on")
+            self._command_done(name, "power-on", "relay latched")
         return self._emit([self._release_record(name, record)])
+
+    def _command_done(self, name: str, command: str, result: str) -> None:
+        """The checklist step a release command completes, by the rule ``drs capsule`` uses too."""
+        complete_command(self.store, self.checklists, name, command, self.operator, result, {}, self.clock)
 
     def fire(
         self, name: str, typed_name: str, report: GoNoGoReport, second: str | None, waiver: str | None
@@ -249,6 +254,7 @@ class Operations:
         with ops.lock:
             record = ops.arming.fire(typed_name, report, second, waiver)
             ops.link.close()
+            self._command_done(name, "fire", record.note or "Go sent")
         return self._emit([
             self._release_record(name, record),
             TelemetryRecord(self.clock(), name, "link", {"up": False, "note": "released: the Pi shut down"}),
@@ -267,6 +273,7 @@ class Operations:
             record = ops.machine.reset(typed_name)
             ops.arming.after_reset()
             ops.waivers.clear()
+            self._command_done(name, "reset", "release state reset")
         return self._emit([self._release_record(name, record)])
 
     def gateway_check(self) -> list[TelemetryRecord]:

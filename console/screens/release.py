@@ -286,14 +286,6 @@ class ReleaseScreen(ConsoleScreen):
 
         self.app.push_screen(ConfirmModal(f"Power on {self.capsule}?", POWER_ON_TEXT, "Power on"), confirmed)
 
-    def _command_steps_done(self, command: str, result: str) -> None:
-        for checklist in self.console.checklists:
-            for step in checklist.steps:
-                if step.command == command:
-                    self.console.checklist_run(self.capsule, checklist).command_done(
-                        step.id, self.console.operator, result
-                    )
-
     @work(thread=True, exit_on_error=False, group="release")
     def power_on_worker(self) -> None:
         from console.app import OperatorNotice, TelemetryArrived
@@ -304,7 +296,6 @@ class ReleaseScreen(ConsoleScreen):
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return
-        self._command_steps_done("power-on", "relay latched")
         self.app.post_message(TelemetryArrived(records))
         self.app.post_message(OperatorNotice(f"{self.capsule}: powered on; waiting for NMEA (~25 s)"))
 
@@ -420,7 +411,6 @@ class ReleaseScreen(ConsoleScreen):
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return
-        self._command_steps_done("reset", "release state reset")
         self.app.post_message(TelemetryArrived(records))
         self.app.post_message(OperatorNotice(f"{self.capsule}: reset; a new release can be prepared"))
 
@@ -438,6 +428,5 @@ class ReleaseScreen(ConsoleScreen):
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return
-        self._command_steps_done("fire", "Go sent, Pi shut down")
         self.app.post_message(TelemetryArrived(records))
         self.app.post_message(OperatorNotice(f"{self.capsule}: RELEASED — Go sent, Pi shut down"))

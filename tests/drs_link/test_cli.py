@@ -13,6 +13,9 @@ import pytest
 
 import console.cli
 from drs_link.capsule import ConfirmationToken, ReleaseRecord, ReleaseStateMachine
+from drs_link.checklist import PROCEDURE_DIR, ChecklistRun, StepState, load_checklists
+from drs_link.config import load_config
+from drs_link.operations import Operations
 from drs_link.simulator import CapsuleSimulator
 from drs_link.simulator.keys import generate_ed25519
 from drs_link.ssh import fingerprint
@@ -237,3 +240,41 @@ def test_bench_rejects_a_non_positive_size(capsys: pytest.CaptureFixture[str], t
     config.write_text("")
     assert drs(config, "capsule", "bench", "--mb", "0") == 2
     assert "--mb must be positive" in _one_line_error(capsys)
+
+
+def _done_steps(store: Store) -> dict[str, str | None]:
+    """Every checklist step of DRS1 marked done, with the result it was marked with."""
+    return {
+        status.step.id: status.note
+        for checklist in load_checklists(PROCEDURE_DIR)
+        for status in ChecklistRun(store, checklist, "DRS1").statuses({})
+        if status.state is StepState.DONE
+    }
+
+
+def test_power_on_go_and_reset_tick_their_steps_from_the_cli_as_from_the_console(
+    make_sim: Callable[..., CapsuleSimulator], client_key: tuple[Path, paramiko.PKey], tmp_path: Path
+) -> None:
+    """One rule (drs_link.checklist.complete_command): the CLI used to tick nothing."""
+    for side in ("cli", "console"):
+        (tmp_path / side).mkdir()
+    cli_config = _write_config(tmp_path / "cli", [make_sim()], client_key[0])
+    assert drs(cli_config, "capsule", "power-on", "DRS1", "--yes") == 0
+    assert drs(cli_config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    cli_store = Store.open(tmp_path / "cli" / "data" / "drs.sqlite")
+    assert _done_steps(cli_store) == {"power-on": "relay latched", "fire": "released, Pi shut down"}
+    assert drs(cli_config, "capsule", "reset", "DRS1", "--confirm", "DRS1") == 0
+    assert _done_steps(cli_store)["reset-state"] == "release state reset"
+
+    console_config = _write_config(tmp_path / "console", [make_sim()], client_key[0])
+    console_store = Store.open(tmp_path / "console" / "data" / "drs.sqlite")
+    operations = Operations(load_config(console_config), console_store)
+    try:
+        operations.power_on("DRS1")
+        operations.reset("DRS1", "DRS1")
+    finally:
+        operations.close()
+    console_steps = _done_steps(console_store)
+    assert {k: console_steps[k] for k in ("power-on", "reset-state")} == {
+        "power-on": "relay latched", "reset-state": "release state reset"
+    }
