@@ -68,6 +68,10 @@ class Store:
         self._local = threading.local()
         self._schemas: list[str] = []
         self._schema_lock = threading.Lock()
+        self._writer = threading.RLock()
+        """Writers of this process take turns here before SQLite's lock. Left to SQLite, a thread that
+        finds the database locked sleeps in its busy handler (1, 2, 5 … 100 ms a try), and with 20
+        receiver threads at once the unlucky ones waited 0.4–1 s; this lock hands over at once."""
 
     @classmethod
     def open(cls, path: str | Path) -> Store:
@@ -123,6 +127,10 @@ class Store:
     @contextmanager
     def transaction(self) -> Iterator[sqlite3.Connection]:
         """One atomic, durable write: committed (and fsynced) when the block ends without error."""
+        with self._writer:
+            yield from self._transaction()
+
+    def _transaction(self) -> Iterator[sqlite3.Connection]:
         conn = self.conn
         try:
             conn.execute("BEGIN IMMEDIATE")
