@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
+import time
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -15,6 +19,7 @@ import console.cli
 from drs_link.capsule import ConfirmationToken, ReleaseRecord, ReleaseStateMachine
 from drs_link.checklist import PROCEDURE_DIR, ChecklistRun, StepState, load_checklists
 from drs_link.config import load_config
+from drs_link.errors import StoreError
 from drs_link.operations import Operations
 from drs_link.simulator import CapsuleSimulator
 from drs_link.simulator.keys import generate_ed25519
@@ -278,3 +283,60 @@ def test_power_on_go_and_reset_tick_their_steps_from_the_cli_as_from_the_console
     assert {k: console_steps[k] for k in ("power-on", "reset-state")} == {
         "power-on": "relay latched", "reset-state": "release state reset"
     }
+
+
+DRS_IN_A_CHILD = "import sys, console.cli; sys.exit(console.cli.main(sys.argv[1:]))"
+
+
+def _kill_when(config: Path, argv: list[str], store: Store, state: str) -> None:
+    """Run ``drs argv`` in a child process and kill -9 it once the store says ``state``."""
+    child = subprocess.Popen([sys.executable, "-c", DRS_IN_A_CHILD, "--config", str(config), *argv])
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and child.poll() is None:
+            try:
+                rows = store.query("SELECT state FROM release_state WHERE capsule = 'DRS1'")
+            except StoreError:
+                rows = []  # the child has not created its tables yet
+            if rows and rows[0]["state"] == state:
+                break
+            time.sleep(0.05)
+        assert child.poll() is None, f"drs {' '.join(argv)} ended before it could be killed at {state}"
+    finally:
+        child.send_signal(signal.SIGKILL)
+        child.wait()
+
+
+def test_go_killed_while_the_pi_runs_it_stays_unverified_and_reset_is_refused(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    sim, config = setup
+    assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
+    sim.faults.response_delay_s = 20.0
+    store = Store.open(tmp_path / "data" / "drs.sqlite")
+    _kill_when(config, ["capsule", "go", "DRS1", "--confirm", "DRS1"], store, "go-sent-unverified")
+    sim.faults.response_delay_s = 0.0
+    capsys.readouterr()
+    assert drs(config, "capsule", "status", "DRS1", "--json") == 0
+    assert json.loads(capsys.readouterr().out)["release"]["state"] == "go-sent-unverified"
+    assert drs(config, "capsule", "reset", "DRS1", "--confirm", "DRS1") == 2
+    assert "Go was sent and not verified" in _one_line_error(capsys)
+
+
+def test_power_on_killed_while_waiting_for_the_microcontroller_is_kept_and_go_proceeds(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    sim, config = setup
+    store = Store.open(tmp_path / "data" / "drs.sqlite")
+    _kill_when(config, ["capsule", "power-on", "DRS1", "--yes"], store, "powered")
+    deadline = time.monotonic() + 60
+    while True:  # as an operator would: the status reads the serial log until the microcontroller talks
+        capsys.readouterr()
+        assert drs(config, "capsule", "status", "DRS1", "--json") == 0
+        report = json.loads(capsys.readouterr().out)
+        assert report["release"]["state"] == "powered"
+        if report["microcontroller"]["waiting_for_go"] or time.monotonic() > deadline:
+            break
+        time.sleep(0.5)
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    assert "released, Pi shut down" in capsys.readouterr().out and sim.firmware.go_at is not None
