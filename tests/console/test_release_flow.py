@@ -55,13 +55,13 @@ async def test_fire_is_disabled_until_armed_and_the_domain_refuses_it_anyway(
 
 
 async def test_a_complete_release_by_keys_sends_go_to_the_simulated_capsule(
-    demo: tuple[DemoWorld, DrsConsole],
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await open_release_go(pilot, app)
+        arming = polls_never_disarm(app, monkeypatch)
         await pilot.press("a")
-        arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
         assert arming.status().armed and screen.check_action("fire", ()) is True
         await pilot.press("f")
         assert isinstance(app.screen, HazardModal)
@@ -81,8 +81,9 @@ def polls_never_disarm(app: DrsConsole, monkeypatch: pytest.MonkeyPatch) -> Armi
     """DRS1's arming, closed only by time and by FIRE: the go/no-go poll no longer disarms it.
 
     On a loaded machine the demo's poll (×8 pace) can see the SSH link 20 demo seconds stale, a
-    2.5 s stall, and disarm with its own reason before the refusal a test is about. That poll's
-    disarming is pinned in ``tests/drs_link/test_arming.py``.
+    2.5 s stall, and disarm (or refuse FIRE, which reads the poll again) with its own reason before
+    what a test is about. That poll's disarming is pinned in ``tests/drs_link/test_arming.py`` and
+    by ``test_link_loss_disarms`` and ``test_stale_data_blocks_arm`` here.
     """
     arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
     monkeypatch.setattr(arming, "observe", lambda report: arming.status())
