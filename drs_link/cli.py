@@ -230,8 +230,9 @@ def cmd_go(args: argparse.Namespace) -> int:
     checklists = load_checklists(PROCEDURE_DIR)
     try:
         token = machine.confirm(args.confirm)
-        _step(f"{machine.name}: confirmation accepted (capsule {machine.record().state.value})")
-        if machine.record().nmea_seen_at is None:
+        record = machine.record()
+        _step(f"{machine.name}: confirmation accepted (capsule {record.state.value})")
+        if record.nmea_seen_at is None:
             _step(f"{machine.name}: reading the serial log: is the microcontroller waiting for Go?")
             _step(f"{machine.name}: {machine.check_microcontroller().diagnosis}")
         _step(

@@ -291,8 +291,13 @@ def hash_file(path: str) -> RemoteCommand:
     return RemoteCommand("hash", (path,), f"sha256sum < {q(path)}")
 
 
-SHA256_LINE_RE = re.compile(r"([0-9a-f]{64})  -\n?")
-"""What ``verify_file`` and ``hash_file`` print on success."""
+_SHA256_LINE_RE = re.compile(r"([0-9a-f]{64})  -\n?")
+
+
+def sha256_of(output: str) -> str | None:
+    """The digest ``verify_file`` or ``hash_file`` printed, or None when the output is anything else."""
+    match = _SHA256_LINE_RE.fullmatch(output)
+    return match.group(1) if match else None
 
 
 def heartbeat() -> RemoteCommand:

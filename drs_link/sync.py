@@ -300,8 +300,8 @@ class Syncer:
 
     def _digest(self, result: CommandResult, failure: str) -> str:
         """The digest of a ``<digest>  -`` line, or a refusal that says what the Pi said instead."""
-        match = remote.SHA256_LINE_RE.fullmatch(result.stdout) if result.ok else None
-        if match is None:
+        digest = remote.sha256_of(result.stdout) if result.ok else None
+        if digest is None:
             said = result.stderr.strip() or result.stdout.strip()[:200] or "no output"
             raise LinkError(f"{self.capsule}: {failure}: {said}")
-        return match.group(1)
+        return digest

@@ -307,13 +307,14 @@ def _assemble(
         raise WeatherError(
             f"{file} lacks {', '.join(missing)} on isobaric levels at {when} (needs u, v, t and gh, or z)"
         )
-    common = set.intersection(*(set(by_name[name]) for name in VARIABLES))
+    level_sets = [set(by_name[name]) for name in VARIABLES]
+    common = set.intersection(*level_sets)
     if len(common) < 2:
         raise WeatherError(f"{file} has fewer than two isobaric levels with all of u, v, t and gh")
     levels = np.array(sorted(common, reverse=True))
     dropped = tuple(
         f"{level:g} hPa (no {', '.join(name for name in VARIABLES if level not in by_name[name])})"
-        for level in sorted(set.union(*(set(by_name[name]) for name in VARIABLES)) - common, reverse=True)
+        for level in sorted(set.union(*level_sets) - common, reverse=True)
     )
     values = {name: np.stack([by_name[name][level] for level in levels]) for name in VARIABLES}
     for name, (low, high, unit) in _PLAUSIBLE.items():

@@ -40,7 +40,7 @@ class AgentBackend(PiReleaseAuthority):
 
     def _installed_digest(self) -> str | None:
         result = self.link.run(remote.hash_file(self.remote_path))
-        return result.stdout.split()[0] if result.ok and result.stdout.strip() else None
+        return remote.sha256_of(result.stdout) if result.ok else None
 
     def ensure_installed(self) -> bool:
         """Install or update the agent; True when a new copy was written."""
@@ -53,7 +53,7 @@ class AgentBackend(PiReleaseAuthority):
                 handle.write(self.source)
             sftp.chmod(temporary, 0o755)
             verify = self.link.run(remote.verify_file(temporary))
-            if not verify.ok or verify.stdout.split()[:1] != [self.digest]:
+            if not verify.ok or remote.sha256_of(verify.stdout) != self.digest:
                 raise LinkError(f"{self.capsule.name}: the agent copied to the Pi does not match its sha256")
             sftp.posix_rename(temporary, self.remote_path)
         except (OSError, EOFError, paramiko.SSHException) as exc:

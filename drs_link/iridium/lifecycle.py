@@ -232,9 +232,16 @@ class CommandLifecycle:
                     **change.columns,
                 }
                 sql = ", ".join(f"{name} = ?" for name in assignments)
-                where, key = ("id = ? AND state = ?", (change.command.id, change.expected)) if change.expected \
-                    else ("id = ?", (change.command.id,))  # fmt: skip
-                if conn.execute(f"UPDATE mt_command SET {sql} WHERE {where}", (*assignments.values(), *key)).rowcount != 1:
+                if change.expected is None:
+                    conn.execute(
+                        f"UPDATE mt_command SET {sql} WHERE id = ?", (*assignments.values(), change.command.id)
+                    )
+                    continue
+                updated = conn.execute(
+                    f"UPDATE mt_command SET {sql} WHERE id = ? AND state = ?",
+                    (*assignments.values(), change.command.id, change.expected),
+                ).rowcount
+                if updated != 1:
                     raise RefusedError(
                         f"MT {change.command.id} is no longer {change.expected}: another console or process "
                         "acted on it first, and it is never sent twice"
