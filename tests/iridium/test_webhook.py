@@ -112,14 +112,11 @@ def test_malformed_deliveries_get_specific_errors_and_are_kept_for_forensics(sto
 
 
 def test_signed_deliveries_are_verified_and_badly_signed_ones_refused(
-    store: Store, tmp_path: Path, gateway_keys: tuple[str, str]
+    store: Store, require_signed: MoConfig, gateway_keys: tuple[str, str]
 ) -> None:
-    private, public = gateway_keys
-    key_file = tmp_path / "rock7.pem"
-    key_file.write_text(public)
+    private, _ = gateway_keys
     forger_private, _ = generate_test_keys()
-    config = replace(LOCAL, jwt_public_key_file=key_file, require_jwt=True)
-    server = serve(store, config)
+    server = serve(store, require_signed)
     try:
         assert post_mo(server.url, delivery(1), jwt_private_key=private) == 200
         assert post_mo(server.url, delivery(2), jwt_private_key=forger_private) == 401
@@ -159,23 +156,33 @@ def _signed(private: str, fields: dict[str, object]) -> str:
     return jwt.encode({"iss": "Rock 7", **fields}, private, algorithm="RS256")
 
 
+@pytest.fixture
+def require_signed(tmp_path: Path, gateway_keys: tuple[str, str]) -> MoConfig:
+    """The receiver as deployed: a JWT required, verified with the (test) gateway's public key."""
+    key_file = tmp_path / "rock7.pem"
+    key_file.write_text(gateway_keys[1])
+    return replace(LOCAL, jwt_public_key_file=key_file, require_jwt=True)
+
+
+def _post_json_once(store: Store, config: MoConfig, body: bytes) -> int:
+    """One JSON delivery to a receiver started for it; the HTTP status."""
+    server = serve(store, config)
+    try:
+        return _post(server.url, body, "application/json")
+    finally:
+        server.stop()
+
+
 @pytest.mark.parametrize(
     ("field", "altered"),
     [("transmit_time", "26-09-01 11:00:00"), ("iridium_latitude", "12.3400"), ("serial", "11801")],
 )
 def test_a_signed_delivery_with_any_field_altered_is_refused(
-    store: Store, tmp_path: Path, gateway_keys: tuple[str, str], field: str, altered: str
+    store: Store, require_signed: MoConfig, gateway_keys: tuple[str, str], field: str, altered: str
 ) -> None:
-    private, public = gateway_keys
-    key_file = tmp_path / "rock7.pem"
-    key_file.write_text(public)
     fields = delivery(5).fields()
-    body = json.dumps({**fields, field: altered, "JWT": _signed(private, fields)}).encode()
-    server = serve(store, replace(LOCAL, jwt_public_key_file=key_file, require_jwt=True))
-    try:
-        assert _post(server.url, body, "application/json") == 401
-    finally:
-        server.stop()
+    body = json.dumps({**fields, field: altered, "JWT": _signed(gateway_keys[0], fields)}).encode()
+    assert _post_json_once(store, require_signed, body) == 401
     assert ReportStore(store).for_imei(IMEI) == []
     assert [reason for reason, _ in ReportStore(store).rejected_deliveries()] == [
         f"JWT claim {field} does not match the delivered {field}"
@@ -183,38 +190,24 @@ def test_a_signed_delivery_with_any_field_altered_is_refused(
 
 
 def test_a_jwt_that_does_not_sign_the_data_is_refused(
-    store: Store, tmp_path: Path, gateway_keys: tuple[str, str]
+    store: Store, require_signed: MoConfig, gateway_keys: tuple[str, str]
 ) -> None:
     """Such a token, lifted from any real delivery, would vouch for whatever data came with it."""
-    private, public = gateway_keys
-    key_file = tmp_path / "rock7.pem"
-    key_file.write_text(public)
     fields = delivery(6).fields()
-    token = _signed(private, {k: v for k, v in fields.items() if k != "data"})
-    server = serve(store, replace(LOCAL, jwt_public_key_file=key_file, require_jwt=True))
-    try:
-        assert _post(server.url, json.dumps({**fields, "JWT": token}).encode(), "application/json") == 401
-    finally:
-        server.stop()
+    token = _signed(gateway_keys[0], {k: v for k, v in fields.items() if k != "data"})
+    assert _post_json_once(store, require_signed, json.dumps({**fields, "JWT": token}).encode()) == 401
     assert [reason for reason, _ in ReportStore(store).rejected_deliveries()] == ["the JWT does not sign data"]
 
 
 def test_signed_numbers_match_by_value_and_unsigned_fields_are_not_stored(
-    store: Store, tmp_path: Path, gateway_keys: tuple[str, str]
+    store: Store, require_signed: MoConfig, gateway_keys: tuple[str, str]
 ) -> None:
     """The gateway's claim formats are not documented: 46.51 signed as a number matches "46.5100"."""
-    private, public = gateway_keys
-    key_file = tmp_path / "rock7.pem"
-    key_file.write_text(public)
     fields = delivery(9).fields()
     claims: dict[str, object] = {**fields, "iridium_latitude": 46.51, "momsn": 9}
     del claims["iridium_cep"]
-    body = json.dumps({**fields, "iridium_latitude": "46.5100", "JWT": _signed(private, claims)}).encode()
-    server = serve(store, replace(LOCAL, jwt_public_key_file=key_file, require_jwt=True))
-    try:
-        assert _post(server.url, body, "application/json") == 200
-    finally:
-        server.stop()
+    body = json.dumps({**fields, "iridium_latitude": "46.5100", "JWT": _signed(gateway_keys[0], claims)}).encode()
+    assert _post_json_once(store, require_signed, body) == 200
     [report] = ReportStore(store).for_imei(IMEI)
     assert report.delivery.jwt_verified and report.delivery.iridium_lat == pytest.approx(46.51)
     assert report.delivery.iridium_cep_km is None
