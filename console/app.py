@@ -100,14 +100,15 @@ class DrsConsole(App[int]):
         Binding("q", "quit", "Quit"),
     ]
 
-    def __init__(
-        self, setup: ConsoleSetup, checklist_dir: Path = PROCEDURE_DIR, live_timers: bool = True
-    ) -> None:
+    def __init__(self, setup: ConsoleSetup, live_timers: bool = True) -> None:
         super().__init__()
         self.setup = setup
         poll_period = 2.0 * setup.poll_period_s * setup.time_scale
         self.fleet = FleetState.for_capsules(setup.capsules, poll_period if setup.operations else 0.0)
-        self.checklists: list[Checklist] = load_checklists(checklist_dir)
+        self.checklists: list[Checklist] = (
+            setup.operations.checklists if setup.operations else load_checklists(PROCEDURE_DIR)
+        )
+        """The procedure the operations layer ticks, so the screen shows the steps it completes."""
         self.live_timers = live_timers
         self.predicting: set[str] = set()
         """Capsules with a prediction running: one at a time each, so a slow first one never piles up."""
