@@ -12,7 +12,10 @@ altitude and time), and the reports so far measure two things the forecast got w
   and a law changed without refitting the rate is wrong by the rate. The fit is robust (Huber) on
   every fix, with a free time offset, so the swinging of a 1 Hz record, a late canopy and a single
   bad fix do not set the factor. A band's ``rate_window_m`` can restrict it to the recent descent
-  (where the held-out flights said the law's shape is not good enough to carry the whole record);
+  (where the held-out flights said the law's shape is not good enough to carry the whole record), and
+  its ``typical_rate`` divides the factor by the one the calibration flights typically showed at that
+  height (``TypicalRate``), so a departure from the law that most flights share is not mistaken for
+  this flight's own;
 * the **wind**: the measured mean velocity between two reports minus the forecast's mean velocity
   over the same altitudes. An error at altitude does not simply continue to the ground (the jet and
   the stratosphere are different air), so the recent error is applied below the capsule with a weight
@@ -27,7 +30,7 @@ report's height above the ground (``LiveErrorModel``).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any, Protocol
@@ -38,7 +41,7 @@ from predictor.cube import WeatherCube
 from predictor.errors import PredictorError
 from predictor.model import BinnedWind, DescentRateScale, Term
 from predictor.payload import PROFILES, Payload
-from predictor.prediction import Prediction, iso_z, predict
+from predictor.prediction import Prediction, Track, iso_z, predict
 from predictor.terrain import Terrain
 from predictor.uncertainty import GEOD, ErrorModel
 
@@ -79,8 +82,8 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.077, 3.937, 3.579, 3.468, 2.108, 1.601),
-    sigma_perpendicular_km=(3.583, 3.805, 3.858, 3.322, 1.529, 0.789),
+    sigma_parallel_km=(4.077, 3.606, 3.3, 3.468, 2.108, 1.601),
+    sigma_perpendicular_km=(3.583, 3.804, 3.858, 3.322, 1.529, 0.789),
 )
 """Measured by ``drs live evaluate`` on the 30 test flights; see docs/planning/live-reprediction.md."""
 
@@ -95,6 +98,26 @@ class Report(Protocol):
 
 
 @dataclass(frozen=True)
+class TypicalRate:
+    """The rate factor the calibration flights' own whole-descent fits gave, by height above the ground.
+
+    Why: a calibrated law is fitted to whole descents, and real descents depart from it in much the
+    same way on most flights (on the SuperBIT flights, faster than the law high up). A factor fitted
+    on the top of one record carries that shared departure as well as the flight's own, and carried
+    to the ground it makes the fall too short on average. Divided by the typical factor at the same
+    height, only what is particular to this flight is carried down.
+    """
+
+    heights_km: tuple[float, ...]
+    factors: tuple[float, ...]
+
+    def at(self, height_km: float) -> float:
+        """Linear in height between the measured heights, held beyond them."""
+        order = np.argsort(self.heights_km)
+        return float(np.interp(height_km, np.asarray(self.heights_km)[order], np.asarray(self.factors)[order]))
+
+
+@dataclass(frozen=True)
 class Band:
     """What to correct while the capsule is between two heights above the ground (m)."""
 
@@ -105,6 +128,8 @@ class Band:
     """Decay length L of the wind correction (None: no wind correction in this band)."""
     rate_window_m: float = math.inf
     """The rate factor is fitted on fixes at most this far above the report (∞: the whole descent)."""
+    typical_rate: TypicalRate | None = None
+    """When set, the fitted factor is divided by the calibration flights' typical one at this height."""
 
 
 @dataclass(frozen=True)
@@ -118,8 +143,14 @@ class LiveCorrection:
     wind_window_m: float = 2000.0
 
     @classmethod
-    def everywhere(cls, use_rate: bool, decay_m: float | None, rate_window_m: float = math.inf) -> LiveCorrection:
-        return cls(bands=(Band(-math.inf, math.inf, use_rate, decay_m, rate_window_m),))
+    def everywhere(
+        cls,
+        use_rate: bool,
+        decay_m: float | None,
+        rate_window_m: float = math.inf,
+        typical_rate: TypicalRate | None = None,
+    ) -> LiveCorrection:
+        return cls(bands=(Band(-math.inf, math.inf, use_rate, decay_m, rate_window_m, typical_rate),))
 
     def band_at(self, height_m: float) -> Band | None:
         for band in self.bands:
@@ -129,19 +160,24 @@ class LiveCorrection:
 
 
 NO_CORRECTION = LiveCorrection()
+TYPICAL_RATE = TypicalRate(
+    heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0), factors=(0.995, 1.0384, 1.0329, 1.0215, 1.0049, 1.005)
+)
+"""The 30 SuperBIT flights' typical whole-descent factor on the calibrated model's law (``drs live evaluate``)."""
 DEFAULT_CORRECTION = LiveCorrection(
     bands=(
         Band(lower_m=-math.inf, upper_m=3500.0, use_rate=True, decay_m=None, rate_window_m=3000.0),
         Band(lower_m=3500.0, upper_m=7500.0, use_rate=True, decay_m=4000.0, rate_window_m=3000.0),
         Band(lower_m=7500.0, upper_m=12500.0, use_rate=True, decay_m=None, rate_window_m=3000.0),
-        Band(lower_m=12500.0, upper_m=17500.0, use_rate=True, decay_m=None),
-        Band(lower_m=17500.0, upper_m=22500.0, use_rate=True, decay_m=None),
+        Band(lower_m=12500.0, upper_m=17500.0, use_rate=True, decay_m=None, typical_rate=TYPICAL_RATE),
+        Band(lower_m=17500.0, upper_m=22500.0, use_rate=True, decay_m=None, typical_rate=TYPICAL_RATE),
     )
 )
 """What the leave-one-flight-out evaluation kept with the calibrated model of the 30 SuperBIT flights
-(``drs live evaluate``; docs/planning/live-reprediction.md): the rate fitted on the whole descent 12.5–22.5 km
-above the ground, on the last 3 km below (where the law's shape no longer carries the whole record as
-well), and the decaying wind correction only 3.5–7.5 km; above 22.5 km a plain re-prediction did as well."""
+(``drs live evaluate``; docs/planning/live-reprediction.md): the rate fitted on the whole descent and
+taken relative to the typical factor 12.5–22.5 km above the ground, on the last 3 km below (where the
+law's shape no longer carries the whole record as well), and the decaying wind correction only
+3.5–7.5 km; above 22.5 km a plain re-prediction did as well."""
 
 
 @dataclass(frozen=True)
@@ -209,6 +245,44 @@ def fit_rate(observed_s: np.ndarray, model_s: np.ndarray) -> RateFit | None:
     if coef[0] <= 0.0:
         return None
     return RateFit(factor=float(1.0 / coef[0]), offset_s=float(coef[1]), fixes=int(observed_s.size), scale_s=scale)
+
+
+class DescentRecord:
+    """The descent so far as seconds since its top against altitude, and the rate factor on a law.
+
+    ``law`` gives the track the flown model predicts from a report; it is asked once per record, from
+    the record's top (the highest report), for the model's seconds from there to every altitude.
+    """
+
+    def __init__(self, law: Callable[[Report], Track]) -> None:
+        self.law = law
+        self.top: Report | None = None
+        self._t: list[float] = []
+        self._z: list[float] = []
+        self._model: tuple[np.ndarray, np.ndarray] | None = None
+        """(altitudes rising, the model's seconds from the top to each), once per record."""
+
+    def add(self, report: Report) -> None:
+        if self.top is None or report.alt_m > self.top.alt_m:
+            # Still climbing (or the first report): the descent record starts again here.
+            self.top, self._model = report, None
+            self._t, self._z = [], []
+        self._t.append((report.time - self.top.time).total_seconds())
+        self._z.append(report.alt_m)
+
+    def rate_fit(self, alt_m: float, window_m: float = math.inf) -> RateFit | None:
+        """λ on the law from the record's fixes at most ``window_m`` above ``alt_m`` (None: too little)."""
+        if self.top is None or self.top.alt_m - alt_m < MIN_PAIR_DROP_M:
+            return None
+        if self._model is None:
+            track = self.law(self.top)
+            self._model = track.alt_m[::-1].copy(), track.t_s[::-1] - track.t_s[0]
+        z_up, model_up = self._model
+        z = np.asarray(self._z)
+        keep = (z - alt_m < window_m) & (z >= z_up[0])
+        if not keep.any() or float(np.ptp(z[keep])) < MIN_PAIR_DROP_M:
+            return None
+        return fit_rate(np.asarray(self._t)[keep], np.interp(z[keep], z_up, model_up))
 
 
 @dataclass(frozen=True)
@@ -281,18 +355,17 @@ class LivePredictor:
         self.reports: list[Report] = []
         self.legs: list[Leg] = []
         self._leg_start: Report | None = None
-        self._top: Report | None = None
-        self._record_t: list[float] = []
-        """Seconds since the top report, one per report from the top down."""
-        self._record_z: list[float] = []
-        self._law: tuple[np.ndarray, np.ndarray] | None = None
-        """(altitudes rising, the model's seconds from the top to each): the flown law, once per record."""
+        self.record = DescentRecord(self.law)
 
     def _predict(self, report: Report, terms: Sequence[Term], **kwargs: Any) -> Prediction:
         return predict(
             self.cube, report.time, report.lat, report.lon, report.alt_m, self.payload, self.terrain,
             self.step_m, effects=tuple(terms), **kwargs,
         )  # fmt: skip
+
+    def law(self, report: Report) -> Track:
+        """The flown model's track from ``report``, with no live correction: the law a rate is fitted on."""
+        return self._predict(report, self.effects).track
 
     def _leg(self, a: Report, b: Report) -> Leg | None:
         seconds = (b.time - a.time).total_seconds()
@@ -334,27 +407,12 @@ class LivePredictor:
                 self._leg_start = report
         else:
             self._leg_start = report
-        if self._top is None or report.alt_m > self._top.alt_m:
-            # Still climbing (or the first report): the descent record starts again here.
-            self._top, self._law = report, None
-            self._record_t, self._record_z = [], []
-        self._record_t.append((report.time - self._top.time).total_seconds())
-        self._record_z.append(report.alt_m)
+        self.record.add(report)
         self.reports.append(report)
 
     def rate_fit(self, alt_m: float, window_m: float = math.inf) -> RateFit | None:
         """λ on the flown law from the record's fixes at most ``window_m`` above ``alt_m`` (None: too little)."""
-        if self._top is None or self._top.alt_m - alt_m < MIN_PAIR_DROP_M:
-            return None
-        if self._law is None:
-            track = self._predict(self._top, self.effects).track
-            self._law = track.alt_m[::-1].copy(), track.t_s[::-1] - track.t_s[0]
-        z_up, model_up = self._law
-        z = np.asarray(self._record_z)
-        keep = (z - alt_m < window_m) & (z >= z_up[0])
-        if not keep.any() or float(np.ptp(z[keep])) < MIN_PAIR_DROP_M:
-            return None
-        return fit_rate(np.asarray(self._record_t)[keep], np.interp(z[keep], z_up, model_up))
+        return self.record.rate_fit(alt_m, window_m)
 
     def measured(
         self, alt_m: float, rate_window_m: float = math.inf
@@ -382,7 +440,8 @@ class LivePredictor:
         band = correction.band_at(height)
         decay = band.decay_m if band is not None else None
         fit = self.rate_fit(report.alt_m, band.rate_window_m) if band is not None and band.use_rate else None
-        rate = _clamped(fit)
+        typical = band.typical_rate.at(height / 1000.0) if band is not None and band.typical_rate else 1.0
+        rate = _clamped(fit, typical)
         (east, north), measured_at = self._wind_error(report.alt_m, correction)
         terms: list[Term] = list(self.effects)
         if rate != 1.0:
@@ -411,11 +470,11 @@ class LivePredictor:
         )
 
 
-def _clamped(fit: RateFit | None) -> float:
-    """The rate factor to fly: 1 without a fit, else λ held within ``RATE_FACTOR_LIMITS``."""
+def _clamped(fit: RateFit | None, typical: float = 1.0) -> float:
+    """The rate factor to fly: 1 without a fit, else λ / ``typical`` held within ``RATE_FACTOR_LIMITS``."""
     if fit is None:
         return 1.0
-    return min(max(fit.factor, RATE_FACTOR_LIMITS[0]), RATE_FACTOR_LIMITS[1])
+    return min(max(fit.factor / typical, RATE_FACTOR_LIMITS[0]), RATE_FACTOR_LIMITS[1])
 
 
 @dataclass(frozen=True)

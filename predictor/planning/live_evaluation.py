@@ -40,8 +40,17 @@ import numpy as np
 from predictor.calibration.ascent_winds import ascent_weather_cube
 from predictor.calibration.cleaning import clean
 from predictor.calibration.tracks import Fix, read_track
+from predictor.cube import WeatherCube
 from predictor.errors import PredictorError
-from predictor.live import NO_CORRECTION, Band, LiveCorrection, LiveErrorModel, LivePredictor
+from predictor.live import (
+    NO_CORRECTION,
+    Band,
+    DescentRecord,
+    LiveCorrection,
+    LiveErrorModel,
+    LivePredictor,
+    TypicalRate,
+)
 from predictor.model_file import CalibratedModel
 from predictor.payload import PROFILES, Payload
 from predictor.terrain import Terrain
@@ -55,6 +64,8 @@ RECENT_RATE_WINDOW_M = 3000.0
 LAWS = ("profile", "model")
 PLAIN = "model · plain"
 RATE = "model · rate"
+RELATIVE = "model · relative rate"
+HELD_OUT_LIVE = "model + held-out live"
 
 
 def _wind_label(decay: float) -> str:
@@ -63,17 +74,28 @@ def _wind_label(decay: float) -> str:
 
 RATE_WINDOWS_M = {"rate": math.inf, "recent rate": RECENT_RATE_WINDOW_M}
 """The two rate estimators: fitted on the whole descent so far, or on its last 3 km."""
+RELATIVE_RATE = "relative rate"
+"""The third: the whole-descent factor divided by the typical one of the other flights at that height."""
 
 
-def corrections() -> dict[str, LiveCorrection]:
-    """Every live correction tried on the calibrated model, by name."""
+def _rate_estimators(typical: TypicalRate | None) -> dict[str, tuple[float, TypicalRate | None]]:
+    """Rate estimator name → (fit window, typical factor it is divided by)."""
+    estimators: dict[str, tuple[float, TypicalRate | None]] = {n: (w, None) for n, w in RATE_WINDOWS_M.items()}
+    if typical is not None:
+        estimators[RELATIVE_RATE] = (math.inf, typical)
+    return estimators
+
+
+def corrections(typical: TypicalRate | None = None) -> dict[str, LiveCorrection]:
+    """Every live correction tried on the calibrated model, by name (the relative rate with ``typical``)."""
+    estimators = _rate_estimators(typical)
     configs = {"plain": NO_CORRECTION}
-    configs.update({n: LiveCorrection.everywhere(True, None, w) for n, w in RATE_WINDOWS_M.items()})
+    configs.update({n: LiveCorrection.everywhere(True, None, w, t) for n, (w, t) in estimators.items()})
     for decay in DECAYS_M:
         stored = 1e12 if math.isinf(decay) else decay
         configs[f"wind {_wind_label(decay)}"] = LiveCorrection.everywhere(False, stored)
-        for rate, window in RATE_WINDOWS_M.items():
-            configs[f"{rate} + wind {_wind_label(decay)}"] = LiveCorrection.everywhere(True, stored, window)
+        for rate, (window, factor) in estimators.items():
+            configs[f"{rate} + wind {_wind_label(decay)}"] = LiveCorrection.everywhere(True, stored, window, factor)
     return configs
 
 
@@ -85,10 +107,10 @@ PROFILE_CORRECTIONS = {
 """On the profile's law only the baselines: nothing learned, and the measured rate carried down with ρ^-½."""
 
 
-def configurations() -> dict[str, tuple[str, LiveCorrection]]:
+def configurations(typical: TypicalRate) -> dict[str, tuple[str, LiveCorrection]]:
     """'law · correction' → (law, correction): the profile baselines, then every model correction."""
     configs = {f"profile · {n}": ("profile", c) for n, c in PROFILE_CORRECTIONS.items()}
-    configs.update({f"model · {n}": ("model", c) for n, c in corrections().items()})
+    configs.update({f"model · {n}": ("model", c) for n, c in corrections(typical).items()})
     return configs
 
 
@@ -100,7 +122,7 @@ def _combined(rate: str | None, wind: str | None) -> str:
     return f"model · {f'{rate} + ' if rate else ''}{wind}"
 
 
-RATE_CHOICES: tuple[str | None, ...] = (None, *RATE_WINDOWS_M)
+RATE_CHOICES: tuple[str | None, ...] = (None, *RATE_WINDOWS_M, RELATIVE_RATE)
 WIND_CHOICES: tuple[str | None, ...] = (None, *(f"wind {_wind_label(d)}" for d in DECAYS_M))
 
 
@@ -150,6 +172,8 @@ class Evaluation:
     wind_choice: dict[float, dict[str, str | None]] = field(default_factory=dict)
     """Per checkpoint and held-out flight: the wind correction the other flights' landings gained most from."""
     all_flights_choice: dict[float, tuple[str | None, str | None]] = field(default_factory=dict)
+    typical_rate: TypicalRate = TypicalRate((), ())
+    """The typical whole-descent rate factor of all the flights by checkpoint (what ships)."""
 
     def held_out_name(self, case: Case) -> str:
         """The configuration this case gets from its held-out choices, rate and wind alike."""
@@ -214,6 +238,63 @@ def _errors(pred_lat: float, pred_lon: float, origin: Fix, truth: Fix) -> tuple[
     return d, d * math.cos(angle), d * math.sin(angle)
 
 
+@dataclass(frozen=True)
+class _Flight:
+    """A usable test flight, ready to be replayed: its descent, weather, ground and checkpoints."""
+
+    name: str
+    descent: list[Fix]
+    landing: Fix
+    cube: WeatherCube
+    ground: LevelGround
+    checkpoints: dict[float, Fix | None]
+
+
+def _usable(paths: Sequence[str | Path], day: date | None, skipped: list[str]) -> list[_Flight]:
+    flights = []
+    for path in paths:
+        flight = clean(read_track(path, day=day))
+        if not flight.usable or flight.landing is None or flight.descent_start is None:
+            skipped.append(f"{flight.name}: {'; '.join(flight.exclusions) or 'no landing'}")
+            continue
+        try:
+            cube = ascent_weather_cube(flight)
+        except PredictorError as exc:
+            skipped.append(f"{flight.name}: {exc}")
+            continue
+        descent = list(flight.descent)
+        checkpoints = {k: _checkpoint_fix(descent, flight.landing.alt_m, k) for k in CHECKPOINTS_KM}
+        flights.append(
+            _Flight(flight.name, descent, flight.landing, cube, LevelGround(flight.landing.alt_m), checkpoints)
+        )
+    return flights
+
+
+def _rate_survey(flights: Sequence[_Flight], model: CalibratedModel) -> dict[tuple[str, float], float]:
+    """(flight, checkpoint km) → the whole-descent rate factor on the model's law at that checkpoint."""
+    survey = {}
+    for flight in flights:
+        record = DescentRecord(LivePredictor(flight.cube, model.payload, flight.ground, effects=model.terms).law)
+        for fix in flight.descent[:-1]:
+            record.add(fix)
+            for km, at in flight.checkpoints.items():
+                fit = record.rate_fit(fix.alt_m) if at is fix else None
+                if fit is not None:
+                    survey[(flight.name, km)] = fit.factor
+    return survey
+
+
+def _typical(survey: dict[tuple[str, float], float], leave_out: str | None = None) -> TypicalRate:
+    """The geometric mean factor per checkpoint over the surveyed flights (without ``leave_out``)."""
+    heights, factors = [], []
+    for km in CHECKPOINTS_KM:
+        values = [f for (name, k), f in survey.items() if k == km and name != leave_out]
+        if values:
+            heights.append(km)
+            factors.append(round(float(np.exp(np.mean(np.log(values)))), 4))
+    return TypicalRate(tuple(heights), tuple(factors))
+
+
 def evaluate(
     paths: Sequence[str | Path],
     model: CalibratedModel | None = None,
@@ -224,11 +305,11 @@ def evaluate(
 
     ``profile`` is the payload of the textbook law (default: the 2018–2019 test payload the SuperBIT
     flights were predicted with); ``model`` the calibrated model (default: that profile, uncalibrated);
-    ``day`` the UTC date of logs that store times of day only.
+    ``day`` the UTC date of logs that store times of day only. The relative rate of each flight is
+    divided by the typical factor of the OTHER flights, so that it too is held out.
     """
     profile = profile or PROFILES["superbit-test"]
     model = model or CalibratedModel(profile, (), None)
-    configs = configurations()
     result = Evaluation(
         flights=[],
         skipped=[],
@@ -237,25 +318,17 @@ def evaluate(
         model_label=_describe(model),
         profile_label=profile.name,
     )
-    for path in paths:
-        flight = clean(read_track(path, day=day))
-        if not flight.usable or flight.landing is None or flight.descent_start is None:
-            result.skipped.append(f"{flight.name}: {'; '.join(flight.exclusions) or 'no landing'}")
-            continue
-        try:
-            cube = ascent_weather_cube(flight)
-        except PredictorError as exc:
-            result.skipped.append(f"{flight.name}: {exc}")
-            continue
-        landing = flight.landing
-        ground = LevelGround(landing.alt_m)
+    flights = _usable(paths, day, result.skipped)
+    survey = _rate_survey(flights, model)
+    result.typical_rate = _typical(survey)
+    for flight in flights:
+        configs = configurations(_typical(survey, leave_out=flight.name))
+        landing, descent = flight.landing, flight.descent
         live = {
-            "profile": LivePredictor(cube, profile, ground, NO_CORRECTION),
-            "model": LivePredictor(cube, model.payload, ground, NO_CORRECTION, effects=model.terms),
+            "profile": LivePredictor(flight.cube, profile, flight.ground, NO_CORRECTION),
+            "model": LivePredictor(flight.cube, model.payload, flight.ground, NO_CORRECTION, effects=model.terms),
         }
-        descent = list(flight.descent)
         touchdown_s = _touchdown_s(descent, landing.alt_m)
-        checkpoints = {k: _checkpoint_fix(descent, landing.alt_m, k) for k in CHECKPOINTS_KM}
         start = live["model"].predict_from(descent[0]).prediction.landing
         result.start_errors_km[flight.name] = _errors(start.lat, start.lon, descent[0], landing)[0]
         result.flights.append(flight.name)
@@ -263,7 +336,7 @@ def evaluate(
         for fix in descent[:-1]:
             for predictor in live.values():
                 predictor.observe(fix)
-            for km, at in checkpoints.items():
+            for km, at in flight.checkpoints.items():
                 if at is not fix:
                     continue
                 remaining_s = touchdown_s - (fix.time - descent[0].time).total_seconds()
@@ -321,10 +394,11 @@ def held_out(result: Evaluation, km: float) -> dict[str, tuple[list[float], list
             PLAIN,
             RATE,
             "model · recent rate",
+            RELATIVE,
         )
     }
     names = [result.held_out_name(c) for c in cases]
-    rows["model + held-out live"] = (
+    rows[HELD_OUT_LIVE] = (
         [c.errors_km[n] for c, n in zip(cases, names, strict=True)],
         [c.time_error_s[n] for c, n in zip(cases, names, strict=True)],
     )
@@ -395,7 +469,8 @@ def shipped_correction(result: Evaluation) -> LiveCorrection:
     """
     kms = sorted(CHECKPOINTS_KM)
     bands = []
-    configs = corrections()
+    configs = corrections(result.typical_rate)
+    estimators = _rate_estimators(result.typical_rate)
     for i, km in enumerate(kms):
         if km not in result.all_flights_choice:
             continue
@@ -406,8 +481,8 @@ def shipped_correction(result: Evaluation) -> LiveCorrection:
             continue
         lower = -math.inf if i == 0 else 500.0 * (kms[i - 1] + km)
         upper = math.inf if i == len(kms) - 1 else 500.0 * (km + kms[i + 1])
-        window = RATE_WINDOWS_M[rate] if use_rate and rate is not None else math.inf
-        bands.append(Band(lower, upper, use_rate, decay, window))
+        window, typical = estimators[rate] if use_rate and rate is not None else (math.inf, None)
+        bands.append(Band(lower, upper, use_rate, decay, window, typical))
     return LiveCorrection(bands=tuple(bands))
 
 
@@ -418,16 +493,17 @@ SERIES = (
     (PLAIN, "model, plain"),
     (RATE, "model + rate"),
     ("model · recent rate", "model + last-3-km rate"),
-    ("model + held-out live", "model + held-out live"),
+    (RELATIVE, "model + relative rate"),
+    (HELD_OUT_LIVE, "model + held-out live"),
 )
 """The rows of the report: label in ``held_out`` → what the report calls it."""
 
 
 def remaining_time_ratio(result: Evaluation, km: float) -> tuple[float, float]:
-    """Mean |remaining-time error| (s) at a checkpoint: the model with its fitted rate, and the ρ^-½
-    extrapolation (the profile with its fitted rate)."""
+    """Mean |remaining-time error| (s) at a checkpoint: the model with its held-out live corrections,
+    and the ρ^-½ extrapolation (the profile with its fitted rate)."""
     rows = held_out(result, km)
-    return float(np.mean(np.abs(rows[RATE][1]))), float(np.mean(np.abs(rows["profile · rate"][1])))
+    return float(np.mean(np.abs(rows[HELD_OUT_LIVE][1]))), float(np.mean(np.abs(rows["profile · rate"][1])))
 
 
 BOOTSTRAP_RESAMPLES = 2000
@@ -440,7 +516,7 @@ def remaining_time_ratio_interval(result: Evaluation, km: float, seed: int = 0) 
     of the ratio is the flights that happened to be flown.
     """
     rows = held_out(result, km)
-    model = np.abs(np.asarray(rows[RATE][1]))
+    model = np.abs(np.asarray(rows[HELD_OUT_LIVE][1]))
     textbook = np.abs(np.asarray(rows["profile · rate"][1]))
     picks = np.random.default_rng(seed).integers(0, model.size, size=(BOOTSTRAP_RESAMPLES, model.size))
     ratios = model[picks].mean(axis=1) / textbook[picks].mean(axis=1)
@@ -455,7 +531,7 @@ def _plot(result: Evaluation, kms: list[float], png: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4.2))
-    styles = ("o:", "s--", "x:", "o-", "s-", "x-", "^-")
+    styles = ("o:", "s--", "x:", "o-", "s-", "x-", "d-", "^-")
     for (name, label), style in zip(SERIES, styles, strict=True):
         left.plot(kms, [np.mean(held_out(result, k)[name][0]) for k in kms], style, label=label)
         right.plot(kms, [np.mean(np.abs(held_out(result, k)[name][1])) for k in kms], style, label=label)
@@ -479,6 +555,8 @@ def _band_text(band: Band) -> str:
     upper = "top" if not math.isfinite(band.upper_m) else f"{band.upper_m / 1000:g} km"
     if not band.use_rate:
         rate = "rate off"
+    elif band.typical_rate is not None:
+        rate = "rate on the whole descent relative to the typical factor"
     elif math.isinf(band.rate_window_m):
         rate = "rate on the whole descent"
     else:
@@ -519,9 +597,12 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
         "fitted (Huber, with a free time offset) on every fix of the descent so far with the same law "
         "that carries it to the ground, so *profile + rate* is the ρ^-½ extrapolation of the measured "
         f"rate; *last-3-km rate* fits only the fixes within {RECENT_RATE_WINDOW_M / 1000:g} km above the "
-        "report (the previous estimator); **wind L** = the measured wind error, decaying below the capsule "
+        "report (the previous estimator); *relative rate* divides the whole-descent factor by the typical "
+        "factor (geometric mean) the OTHER flights' own fits gave at that checkpoint, so that the law's "
+        "departure shared by most flights (faster than the law high up) is not carried to the ground as "
+        "if it were this flight's; **wind L** = the measured wind error, decaying below the capsule "
         f"with L in {', '.join('∞' if math.isinf(d) else f'{d / 1000:g} km' for d in DECAYS_M)}. "
-        "**model + held-out live**: for each flight the rate (off, whole descent or last 3 km, by the "
+        "**model + held-out live**: for each flight the rate (off, whole descent, last 3 km or relative, by the "
         "mean |remaining-time error| of the OTHER flights) and then the wind (by their mean landing error) that the other "
         "flights preferred at that checkpoint.",
         "",
@@ -553,11 +634,18 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
         model_s, textbook_s = remaining_time_ratio(result, 20.0)
         low, high = remaining_time_ratio_interval(result, 20.0)
         lines += [
-            f"From 20 km the remaining-time error with the model and its fitted rate is {model_s:.0f} s "
-            f"(mean |error|) against {textbook_s:.0f} s for the ρ^-½ extrapolation of the measured rate: "
-            f"{100 * model_s / textbook_s:.0f} % (95 % interval {100 * low:.0f}–{100 * high:.0f} % with the "
-            f"flights resampled, {BOOTSTRAP_RESAMPLES} paired bootstrap draws). The model's law was "
-            "calibrated on these same flights (its parameters are not held out); the live choices are.",
+            f"From 20 km the remaining-time error with the model and its held-out live corrections is "
+            f"{model_s:.0f} s (mean |error|) against {textbook_s:.0f} s for the ρ^-½ extrapolation of the "
+            f"measured rate: {100 * model_s / textbook_s:.0f} % (95 % interval {100 * low:.0f}–{100 * high:.0f} % "
+            f"with the flights resampled, {BOOTSTRAP_RESAMPLES} paired bootstrap draws). The model's law was "
+            "calibrated on these same flights (its parameters are not held out); the live choices and the "
+            "typical factors are. Typical whole-descent rate factor of all the flights by checkpoint (what "
+            "ships, `predictor.live.TYPICAL_RATE`): "
+            + ", ".join(
+                f"{h:g} km {f:.4f}"
+                for h, f in zip(result.typical_rate.heights_km, result.typical_rate.factors, strict=True)
+            )
+            + ".",
             "",
         ]
     lines += [

@@ -19,7 +19,7 @@ import pytest
 from predictor.calibration.cleaning import clean
 from predictor.calibration.synthetic import synthetic_flight
 from predictor.calibration.tracks import Fix
-from predictor.live import LiveCorrection, LivePredictor, fit_rate
+from predictor.live import LiveCorrection, LivePredictor, TypicalRate, fit_rate
 from predictor.model import DescentRateScale, DragDensityExponent
 from predictor.payload import PROFILES
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
@@ -113,3 +113,24 @@ def test_a_record_too_short_gives_no_rate() -> None:
     live.observe(fixes[0])
     assert live.rate_fit(fixes[0].alt_m) is None
     assert live.measured(fixes[0].alt_m)[0] == 1.0
+
+
+def test_a_factor_every_flight_shares_is_taken_out_and_only_the_flights_own_is_carried_down() -> None:
+    # The synthetic flight falls 20 % faster than the law. If the typical flight at that height also
+    # fell 20 % faster, nothing of it is particular to this flight: the relative rate flies the law as
+    # it is (factor 1), and with a typical factor of 1 the whole-descent rate is flown unchanged.
+    fixes, _ = descent(120.0, 3.0)
+    live = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,))
+    report = fed_to(live, fixes)
+    shared = TypicalRate(heights_km=(5.0, 25.0), factors=(1.0, TRUE_RATE))
+    at_report = shared.at(report.alt_m / 1000.0)
+    assert 1.0 < at_report < TRUE_RATE, "linear in height between the typical factors"
+    relative = live.predict_from(report, LiveCorrection.everywhere(True, None, typical_rate=shared))
+    whole = live.predict_from(report, WHOLE_DESCENT_RATE)
+    fit = live.rate_fit(report.alt_m)
+    assert fit is not None
+    assert whole.rate_factor == pytest.approx(fit.factor)
+    assert relative.rate_factor == pytest.approx(fit.factor / at_report)
+    plain = live.predict_from(report, LiveCorrection()).prediction.descent_s
+    assert whole.prediction.descent_s < relative.prediction.descent_s < plain
+    assert TypicalRate(heights_km=(5.0, 25.0), factors=(0.9, 1.1)).at(40.0) == pytest.approx(1.1), "held beyond"

@@ -13,7 +13,7 @@ from console.cli import main
 from predictor.calibration.ascent_winds import ascent_weather_cube
 from predictor.calibration.cleaning import clean
 from predictor.calibration.tracks import read_track
-from predictor.live import DEFAULT_CORRECTION, LIVE_ERROR_MODEL, NO_CORRECTION, LivePredictor
+from predictor.live import DEFAULT_CORRECTION, LIVE_ERROR_MODEL, NO_CORRECTION, TYPICAL_RATE, LivePredictor
 from predictor.model import DragDensityExponent
 from predictor.model_file import CalibratedModel, load_model, save_model
 from predictor.payload import PROFILES
@@ -84,6 +84,28 @@ def test_the_calibrated_law_carries_the_measured_rate_down_better_than_rho_to_th
     for km in (20.0, 15.0):
         with_law, textbook = remaining_time_ratio(result, km)
         assert with_law < textbook, km
+
+
+def test_from_20_km_the_held_out_live_remaining_time_is_within_60_percent_of_rho_to_the_minus_half(
+    result: Evaluation,
+) -> None:
+    # Issue 11's floor. Measured 179 s against 338 s (53 %); deterministic (no draw), so it fails only
+    # if the estimator or the data change.
+    with_live, textbook = remaining_time_ratio(result, 20.0)
+    assert with_live <= 0.60 * textbook
+
+
+def test_the_rate_relative_to_the_typical_flight_removes_the_shared_bias(result: Evaluation) -> None:
+    # Most flights fall faster than the calibrated law high up: the whole-descent factor carries that
+    # down and the rest of the fall comes out too short on average (−90 s from 20 km). Divided by the
+    # other flights' typical factor the mean signed error is near zero and the mean |error| smaller.
+    for km in (20.0, 15.0):
+        rows = held_out(result, km)
+        whole, relative = np.asarray(rows["model · rate"][1]), np.asarray(rows["model · relative rate"][1])
+        assert whole.mean() < -60.0, km
+        assert abs(relative.mean()) < 0.3 * abs(whole.mean()), km
+        assert np.abs(relative).mean() < np.abs(whole).mean(), km
+    assert result.typical_rate == TYPICAL_RATE
 
 
 def test_the_shipped_live_ellipse_is_the_measured_one(result: Evaluation) -> None:
