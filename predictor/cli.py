@@ -24,9 +24,10 @@ from typing import TYPE_CHECKING, Any
 from predictor.errors import PredictorError
 from predictor.payload import PROFILES
 from predictor.plausibility import emit, release_altitude_warning
-from predictor.uncertainty import ERROR_MODELS, GEOD
+from predictor.uncertainty import ERROR_MODELS, GEOD, ErrorModel
 
 if TYPE_CHECKING:  # the descent engine (numba) and the exports load only when a prediction runs
+    from predictor.model_file import CalibratedModel
     from predictor.prediction import EnsemblePrediction, Prediction
 
 WEATHER_MARGIN_DEG = 6.0
@@ -136,9 +137,7 @@ def run(args: argparse.Namespace) -> int:
     files = demo_weather_files(args.lat, args.lon, when) if args.demo_weather else args.weather
     flown = flown_model(args.model, args.payload, args.mass, args.cda)
     payload = flown.payload
-    error_model = ERROR_MODELS[args.error_model or "launch"]
-    if flown.ellipse is not None and args.error_model is None:
-        error_model = flown.ellipse
+    error_model = chosen_error_model(flown, args.error_model)
     calibrated = flown if args.model is not None else None
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
     wx = load_weather(
@@ -169,14 +168,30 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         document = json.loads(to_json(result, track=args.track))
         if calibrated is not None:
-            document["model"] = {"path": str(args.model), "label": calibrated.label(),
-                                 "terms": [{"effect": t.name, "parameters": t.parameters()} for t in calibrated.terms],
-                                 "provenance": calibrated.provenance}  # fmt: skip
+            document["model"] = model_document(args.model, calibrated)
         print(json.dumps(document, indent=2, ensure_ascii=False))
     else:
         text = summary(result)
         print(text if calibrated is None else f"{text}\nmodel     {calibrated.label()}")
     return 0
+
+
+def chosen_error_model(flown: CalibratedModel, name: str | None) -> ErrorModel:
+    """The ellipse a prediction carries: ``--error-model`` when given, else the model file's fitted ellipse
+    (what its own held-out errors measured), else the launch parameters of the paper."""
+    if name is not None:
+        return ERROR_MODELS[name]
+    return flown.ellipse if flown.ellipse is not None else ERROR_MODELS["launch"]
+
+
+def model_document(path: str | Path, calibrated: CalibratedModel) -> dict[str, Any]:
+    """The calibrated model a prediction flew, as the JSON outputs name it (a reader can fly it again)."""
+    return {
+        "path": str(path),
+        "label": calibrated.label(),
+        "terms": [{"effect": t.name, "parameters": t.parameters()} for t in calibrated.terms],
+        "provenance": calibrated.provenance,
+    }
 
 
 def parse_time(text: str) -> datetime:

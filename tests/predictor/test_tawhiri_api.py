@@ -1,0 +1,196 @@
+"""`drs serve predictor` asked over real HTTP on loopback, the way chasemapper asks Tawhiri.
+
+chasemapper (chasemapper/tawhiri.py) sends launch_longitude in 0…360 and launch_datetime as
+``isoformat()``, then reads ``request.dataset`` and every stage's trajectory, folding longitudes above
+180 back by 360. These tests do the same with urllib against the server the command line builds, and
+hold the landing to what ``drs predict`` says for a release at the server's burst point.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import threading
+import urllib.error
+import urllib.parse
+import urllib.request
+import xml.etree.ElementTree as ET
+from collections.abc import Iterator
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from console.cli import build_parser, main
+from predictor.demo_weather import demo_weather_files
+from predictor.serve_cli import build_server
+from predictor.tawhiri_api import ApiServer
+
+LAUNCH = datetime(2024, 5, 1, 6, 0, tzinfo=UTC)
+LAUNCH_LAT, LAUNCH_LON = 52.2, -0.4
+
+
+@pytest.fixture(scope="module")
+def weather(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    return demo_weather_files(LAUNCH_LAT, LAUNCH_LON, LAUNCH, cache_dir=tmp_path_factory.mktemp("wx"))
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory: pytest.TempPathFactory) -> str:
+    return str(tmp_path_factory.mktemp("cache"))
+
+
+@pytest.fixture(scope="module")
+def server(weather: list[Path], cache: str) -> Iterator[ApiServer]:
+    argv = ["serve", "predictor", "--port", "0", "--weather", *map(str, weather), "--cache-dir", cache]
+    api = build_server(build_parser("serve").parse_args(argv))
+    thread = threading.Thread(target=api.serve_forever, daemon=True)
+    thread.start()
+    yield api
+    api.shutdown()
+    api.server_close()
+    thread.join(timeout=5)
+
+
+def chasemapper_query(**changes: Any) -> dict[str, Any]:
+    """The parameters of chasemapper's get_tawhiri_prediction for a flight from the ground."""
+    longitude = LAUNCH_LON + 360 if LAUNCH_LON < 0 else LAUNCH_LON
+    params = {
+        "launch_latitude": LAUNCH_LAT,
+        "launch_longitude": longitude,
+        "launch_altitude": 0,
+        "launch_datetime": LAUNCH.isoformat(),
+        "ascent_rate": 5.0,
+        "descent_rate": 5.0,
+        "burst_altitude": 30000.0,
+        "profile": "standard_profile",
+    }
+    params.update(changes)
+    return {k: v for k, v in params.items() if v is not None}
+
+
+def get(api: ApiServer, params: dict[str, Any]) -> tuple[int, str, bytes]:
+    url = f"{api.url}?{urllib.parse.urlencode(params)}"
+    try:
+        with urllib.request.urlopen(url, timeout=60) as response:
+            return response.status, response.headers["Content-Type"], response.read()
+    except urllib.error.HTTPError as exc:
+        return exc.code, exc.headers["Content-Type"], exc.read()
+
+
+def chasemapper_path(document: dict[str, Any]) -> list[tuple[float, float, float, float]]:
+    """What chasemapper's parse_tawhiri_data makes of a response: (epoch s, lat, lon −180…180, alt)."""
+    datetime.fromisoformat(document["request"]["dataset"])
+    path = []
+    for stage in document["prediction"]:
+        for point in stage["trajectory"]:
+            lon = point["longitude"] - 360 if point["longitude"] > 180 else point["longitude"]
+            when = datetime.fromisoformat(point["datetime"]).timestamp()
+            path.append((when, point["latitude"], lon, point["altitude"]))
+    return path
+
+
+def test_a_chasemapper_request_gets_tawhiris_shape_with_our_descent_landing_where_drs_predict_does(
+    server: ApiServer, weather: list[Path], cache: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    status, kind, body = get(server, chasemapper_query())
+    assert status == 200 and kind == "application/json"
+    document = json.loads(body)
+    assert set(document) >= {"request", "prediction", "metadata"}
+    assert [s["stage"] for s in document["prediction"]] == ["ascent", "descent"]
+    ascent, descent = (s["trajectory"] for s in document["prediction"])
+    assert ascent[0]["altitude"] == 0.0 and ascent[-1]["altitude"] == 30000.0
+    assert ascent[-1] == descent[0], "the descent starts at the burst"
+    burst_time = datetime.fromisoformat(ascent[-1]["datetime"])
+    assert burst_time == LAUNCH + timedelta(seconds=30000 / 5.0), "a constant 5 m/s ascent"
+    path = chasemapper_path(document)
+    assert all(-180 <= lon <= 180 for _, _, lon, _ in path)
+    assert [t for t, *_ in path] == sorted(t for t, *_ in path)
+    assert document["request"]["launch_longitude"] == pytest.approx(LAUNCH_LON + 360)
+    assert document["request"]["dataset"] == "2024-05-01T06:00:00Z"
+
+    burst = ascent[-1]
+    burst_lon = burst["longitude"] - 360 if burst["longitude"] > 180 else burst["longitude"]
+    assert main([
+        "predict", "--weather", *map(str, weather), "--cache-dir", cache, "--json",
+        "--lat", repr(burst["latitude"]), "--lon", repr(burst_lon), "--alt", "30000", "--time", burst["datetime"],
+    ]) == 0  # fmt: skip
+    predicted = json.loads(capsys.readouterr().out)["landing"]
+    landing = descent[-1]
+    assert landing["latitude"] == pytest.approx(predicted["lat"], abs=1e-9)
+    assert path[-1][2] == pytest.approx(predicted["lon"], abs=1e-9)
+    assert landing["altitude"] == pytest.approx(predicted["alt_m"], abs=1e-6)
+    ours = document["drs"]
+    assert ours["landing"]["lat"] == landing["latitude"]
+    assert ours["ellipse"]["sigma_parallel_km"] > 0 and len(ours["ellipse"]["contours"]) == 3
+    assert ours["model"]["label"] and ours["descent_rate_used"] is False
+    assert ours["is_demo"] is True and "drs_demo_weather" in document["warnings"], "demo files must say DEMO"
+
+
+def test_a_descending_payload_is_predicted_from_where_it_is(server: ApiServer) -> None:
+    """chasemapper's descent request: launch at the current altitude, burst one metre above it."""
+    status, _, body = get(server, chasemapper_query(launch_altitude=12000, burst_altitude=12001))
+    assert status == 200
+    descent = json.loads(body)["prediction"][1]["trajectory"]
+    assert descent[0]["altitude"] == 12001 and descent[-1]["altitude"] == 0.0
+
+
+def test_csv_and_kml_carry_the_same_trajectory(server: ApiServer) -> None:
+    _, _, body = get(server, chasemapper_query())
+    document = json.loads(body)
+    _, kind, text = get(server, chasemapper_query(format="csv"))
+    assert kind.startswith("text/csv")
+    lines = text.decode().splitlines()
+    assert lines[0].startswith("# DEMO")
+    rows = list(csv.DictReader(io.StringIO("\n".join(lines[1:]))))
+    assert len(rows) == sum(len(s["trajectory"]) for s in document["prediction"])
+    assert float(rows[-1]["latitude"]) == document["prediction"][1]["trajectory"][-1]["latitude"]
+    status, _, kml = get(server, chasemapper_query(format="kml"))
+    assert status == 200 and ET.fromstring(kml).tag.endswith("kml")
+
+
+@pytest.mark.parametrize(
+    ("changes", "status", "kind", "says"),
+    [
+        (
+            {"launch_datetime": None},
+            400,
+            "RequestException",
+            "Parameter 'launch_datetime' not provided in request.",
+        ),
+        ({"ascent_rate": "fast"}, 400, "RequestException", "Unable to parse parameter 'ascent_rate'"),
+        ({"burst_altitude": 0}, 400, "RequestException", "Invalid value for parameter 'burst_altitude'"),
+        ({"launch_datetime": "2024-05-01T06:00:00"}, 400, "RequestException", "no time zone"),
+        ({"profile": "float_profile"}, 501, "NotYetImplementedException", "standard_profile"),
+        ({"dataset": "2020-01-01T00:00:00Z"}, 404, "InvalidDatasetException", "2024-05-01T06:00:00Z"),
+        ({"launch_datetime": "2024-06-01T06:00:00Z"}, 500, "PredictionException", "weather covers"),
+    ],
+)
+def test_bad_requests_get_tawhiris_error_shape(
+    server: ApiServer, changes: dict[str, Any], status: int, kind: str, says: str
+) -> None:
+    code, content, body = get(server, chasemapper_query(**changes))
+    document = json.loads(body)
+    assert (code, content) == (status, "application/json")
+    assert set(document) == {"error", "metadata"}
+    assert document["error"]["type"] == kind
+    assert says in document["error"]["description"]
+
+
+def test_another_path_is_refused_in_the_same_shape(server: ApiServer) -> None:
+    try:
+        urllib.request.urlopen(server.url.replace("/api/v1/", "/tawhiri"), timeout=10)
+    except urllib.error.HTTPError as exc:
+        assert exc.code == 404
+        assert json.loads(exc.read())["error"]["description"].endswith("GET /api/v1/.")
+    else:
+        pytest.fail("an unknown path was answered")
+
+
+def test_the_command_refuses_a_weather_dir_that_is_not_there(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["serve", "predictor", "--port", "0", "--weather-dir", str(tmp_path / "none")]) != 0
+    assert "--weather-dir" in capsys.readouterr().err
