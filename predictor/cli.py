@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from predictor.errors import PredictorError
+from predictor.geofiles.output import piped
 from predictor.payload import PROFILES
 from predictor.plausibility import emit, release_altitude_warning
 from predictor.uncertainty import ERROR_MODELS, GEOD, ErrorModel
@@ -89,8 +90,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--probability", type=float, nargs="+", default=[], metavar="P", help="extra contours, e.g. 0.5 0.95"
     )
-    parser.add_argument("--kml", metavar="OUT", help="write KML (path, release, landing, ellipses)")
-    parser.add_argument("--geojson", metavar="OUT", help="write GeoJSON")
+    parser.add_argument(
+        "--kml", metavar="OUT", help="write KML (path, release, landing, ellipses); - for stdout"
+    )
+    parser.add_argument("--geojson", metavar="OUT", help="write GeoJSON; - for stdout")
+    parser.add_argument(
+        "--gpx",
+        metavar="OUT",
+        help="write GPX for a handheld (predicted landing, release, path); - for stdout",
+    )
     parser.add_argument("--json", action="store_true", help="print the JSON result document")
     parser.add_argument("--track", action="store_true", help="include the path in the JSON")
     parser.add_argument("--cache-dir", metavar="DIR", help="weather cache (default ~/.cache/drs/weather)")
@@ -125,8 +133,11 @@ def run(args: argparse.Namespace) -> int:
     if args.members is not None and not 1 <= args.members <= MAX_MEMBERS:
         raise PredictorError(f"--members {args.members}: give 1 to {MAX_MEMBERS:,} (10 million needed 24 GB)")
     emit(release_altitude_warning(args.alt))
+    summary_to = (
+        sys.stderr if piped(kml=args.kml, geojson=args.geojson, gpx=args.gpx, json=args.json) else sys.stdout
+    )
     from predictor.demo_weather import demo_weather_files
-    from predictor.export import to_json, write_geojson, write_kml
+    from predictor.export import to_json, write_geojson, write_gpx, write_kml
     from predictor.integrate import COMPILE_NOTICE, kernels_compiled
     from predictor.model_file import flown_model
     from predictor.prediction import predict, predict_ensemble
@@ -165,6 +176,8 @@ def run(args: argparse.Namespace) -> int:
         write_kml(result, args.kml)
     if args.geojson:
         write_geojson(result, args.geojson)
+    if args.gpx:
+        write_gpx(result, args.gpx)
     if args.json:
         document = json.loads(to_json(result, track=args.track))
         if calibrated is not None:
@@ -172,7 +185,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(document, indent=2, ensure_ascii=False))
     else:
         text = summary(result)
-        print(text if calibrated is None else f"{text}\nmodel     {calibrated.label()}")
+        print(text if calibrated is None else f"{text}\nmodel     {calibrated.label()}", file=summary_to)
     return 0
 
 

@@ -1,7 +1,9 @@
-"""A prediction as files other tools open: JSON (the result document), KML (Google Earth), GeoJSON.
+"""A prediction as files other tools open: JSON (the result document), KML (Google Earth), GeoJSON,
+and GPX (a handheld loaded before the drop).
 
 Every output built on demo weather says so where a person will see it: the KML document name and
-description, the GeoJSON's top-level properties, and the JSON's ``is_demo`` and first warning.
+description, every GeoJSON feature's properties, the GPX waypoint names, and the JSON's
+``is_demo`` and first warning.
 """
 
 from __future__ import annotations
@@ -10,16 +12,16 @@ import json
 from pathlib import Path
 from typing import Any
 
-import simplekml
-
-from predictor.errors import PredictorError
+from predictor.geofiles import DEMO_LABEL, geojson, gpx, kml
+from predictor.geofiles.geometry import line_parts, polygon_parts, position
+from predictor.geofiles.output import write_text
 from predictor.prediction import EnsemblePrediction, Prediction
 from predictor.uncertainty import Ellipse
 
-DEMO_LABEL = "DEMO WEATHER, NOT A FORECAST"
 # KML colours are aabbggrr.
 _ELLIPSE_COLOURS = ("ff00ffff", "ff00a5ff", "ff0000ff")
 _EMPIRICAL_COLOUR = "ffff00ff"
+_PATH_COLOUR = "ffffffff"
 
 
 def _central(result: Prediction | EnsemblePrediction) -> Prediction:
@@ -51,119 +53,103 @@ def _contour_label(ellipse: Ellipse, index: int) -> str:
     return f"{ellipse.kind} {c.n_sigma:.2f}σ ({100 * c.probability:.1f} %)"
 
 
+def _ellipses(result: Prediction | EnsemblePrediction) -> list[tuple[Ellipse, tuple[str, ...]]]:
+    ellipses = [(_central(result).ellipse, _ELLIPSE_COLOURS)]
+    if isinstance(result, EnsemblePrediction):
+        ellipses.append((result.empirical, (_EMPIRICAL_COLOUR,)))
+    return ellipses
+
+
+def _path(pred: Prediction) -> list[tuple[float, float, float]]:
+    track = pred.track
+    return [
+        (float(lo), float(la), float(z)) for lo, la, z in zip(track.lon, track.lat, track.alt_m, strict=True)
+    ]
+
+
 def to_kml(result: Prediction | EnsemblePrediction) -> str:
     pred = _central(result)
-    kml = simplekml.Kml(name=_title(pred))
-    kml.document.description = _description(pred)
-    path = kml.newlinestring(
-        name="descent path",
-        coords=[
-            (float(lo), float(la), float(z))
-            for lo, la, z in zip(pred.track.lon, pred.track.lat, pred.track.alt_m, strict=True)
-        ],
-    )
-    path.altitudemode = simplekml.AltitudeMode.absolute
-    path.style.linestyle.width = 3
-    release = kml.newpoint(name="release", coords=[(pred.release.lon, pred.release.lat, pred.release.alt_m)])
-    release.altitudemode = simplekml.AltitudeMode.absolute
-    release.description = pred.release.to_dict()["time"]
-    landing = kml.newpoint(name="landing", coords=[(pred.landing.lon, pred.landing.lat, pred.landing.alt_m)])
-    landing.description = f"{pred.landing.to_dict()['time']}, {pred.landing.alt_m:.0f} m"
-    ellipses = [(pred.ellipse, _ELLIPSE_COLOURS)]
+    styles = [kml.style("path", _PATH_COLOUR, width=3)]
+    contents: list[kml.Feature] = [
+        kml.line("descent path", line_parts(_path(pred)), "path", absolute=True),
+        kml.point("release", position((pred.release.lon, pred.release.lat, pred.release.alt_m)),
+                  description=pred.release.to_dict()["time"], absolute=True),
+        kml.point("landing", position((pred.landing.lon, pred.landing.lat)),
+                  description=f"{pred.landing.to_dict()['time']}, {pred.landing.alt_m:.0f} m"),
+    ]  # fmt: skip
     if isinstance(result, EnsemblePrediction):
-        ellipses.append((result.empirical, (_EMPIRICAL_COLOUR,) * 3))
-        folder = kml.newfolder(name=f"{result.members} ensemble landings")
-        for lat, lon in zip(result.member_lat, result.member_lon, strict=True):
-            folder.newpoint(coords=[(float(lon), float(lat))])
-    for ellipse, colours in ellipses:
+        points = zip(result.member_lon, result.member_lat, strict=True)
+        contents.append(
+            kml.folder(f"{result.members} ensemble landings", [kml.point(None, position(p)) for p in points])
+        )
+    for j, (ellipse, colours) in enumerate(_ellipses(result)):
         for i, contour in enumerate(ellipse.contours):
-            polygon = kml.newpolygon(
-                name=_contour_label(ellipse, i), outerboundaryis=ellipse.outline(contour)
+            style_id = f"ellipse{j}-contour{i}"
+            styles.append(kml.style(style_id, colours[min(i, len(colours) - 1)], width=2))
+            contents.append(
+                kml.polygon(_contour_label(ellipse, i), polygon_parts(ellipse.outline(contour)), style_id)
             )
-            polygon.style.linestyle.color = colours[min(i, len(colours) - 1)]
-            polygon.style.linestyle.width = 2
-            polygon.style.polystyle.fill = 0
-    return kml.kml()
+    return kml.document(_title(pred), _description(pred), styles, contents)
+
+
+def _provenance(pred: Prediction) -> geojson.Provenance:
+    return geojson.Provenance(_title(pred), pred.weather_source, pred.is_demo)
 
 
 def to_geojson(result: Prediction | EnsemblePrediction) -> dict[str, Any]:
     pred = _central(result)
-    features: list[dict[str, Any]] = [
-        {
-            "type": "Feature",
-            "geometry": {
-                "type": "LineString",
-                "coordinates": [
-                    [float(lo), float(la), float(z)]
-                    for lo, la, z in zip(pred.track.lon, pred.track.lat, pred.track.alt_m, strict=True)
-                ],
-            },
-            "properties": {"kind": "path"},
-        },
-        _point("release", pred.release.lon, pred.release.lat, pred.release.to_dict()),
-        _point("landing", pred.landing.lon, pred.landing.lat, pred.landing.to_dict()),
+    about = _provenance(pred)
+    release, landing = pred.release, pred.landing
+    features = [
+        geojson.feature(geojson.line(_path(pred)), "path", about),
+        geojson.feature(geojson.point((release.lon, release.lat)), "release", about, **release.to_dict()),
+        geojson.feature(geojson.point((landing.lon, landing.lat)), "landing", about, **landing.to_dict()),
     ]
-    ellipses = [pred.ellipse]
     if isinstance(result, EnsemblePrediction):
-        ellipses.append(result.empirical)
-        features.append(
-            {
-                "type": "Feature",
-                "geometry": {
-                    "type": "MultiPoint",
-                    "coordinates": [
-                        [float(lo), float(la)]
-                        for la, lo in zip(result.member_lat, result.member_lon, strict=True)
-                    ],
-                },
-                "properties": {"kind": "ensemble landings", "members": result.members},
-            }
-        )
-    for ellipse in ellipses:
+        members = geojson.multipoint(list(zip(result.member_lon, result.member_lat, strict=True)))
+        features.append(geojson.feature(members, "ensemble landings", about, members=result.members))
+    for ellipse, _ in _ellipses(result):
         for contour in ellipse.contours:
+            ring = geojson.polygon(ellipse.outline(contour))
             features.append(
-                {
-                    "type": "Feature",
-                    "geometry": {
-                        "type": "Polygon",
-                        "coordinates": [[list(p) for p in ellipse.outline(contour)]],
-                    },
-                    "properties": {"kind": "ellipse", "ellipse": ellipse.kind, **contour.to_dict()},
-                }
+                geojson.feature(ring, "ellipse", about, ellipse=ellipse.kind, **contour.to_dict())
             )
-    properties = {
-        "title": _title(pred),
-        "is_demo": pred.is_demo,
-        "weather_source": pred.weather_source,
-        "warnings": list(pred.warnings),
-    }
-    return {"type": "FeatureCollection", "properties": properties, "features": features}
+    return geojson.collection(features, about, warnings=list(pred.warnings))
 
 
-def _point(kind: str, lon: float, lat: float, properties: dict[str, Any]) -> dict[str, Any]:
-    return {
-        "type": "Feature",
-        "geometry": {"type": "Point", "coordinates": [lon, lat]},
-        "properties": {"kind": kind, **properties},
-    }
+def to_gpx(result: Prediction | EnsemblePrediction) -> str:
+    """The predicted landing and the release as waypoints, and the descent path as a track.
 
-
-def _write(path: str | Path, text: str, what: str) -> Path:
-    out = Path(path)
-    try:
-        out.write_text(text, encoding="utf-8")
-    except OSError as exc:
-        raise PredictorError(f"cannot write the {what} file {out}: {exc.strerror or exc}") from exc
-    return out
+    The landing waypoint is what a recovery team loads into a handheld before the drop; its name
+    says DEMO when the weather was, since the name is all a handheld shows.
+    """
+    pred = _central(result)
+    release, landing = pred.release, pred.landing
+    prefix = "DEMO" if pred.is_demo else "DRS"
+    e = pred.ellipse.contours[0]
+    waypoints = [
+        gpx.Waypoint(landing.lat, landing.lon, landing.alt_m, gpx.short_name(prefix, "PRED LAND"),
+                     gpx.PREDICTED_LANDING_SYMBOL,
+                     f"{_title(pred)}: predicted landing; {100 * e.probability:.0f} % ellipse "
+                     f"{e.semi_major_km:.1f} x {e.semi_minor_km:.1f} km", landing.time),
+        gpx.Waypoint(release.lat, release.lon, release.alt_m, gpx.short_name(prefix, "RELEASE"),
+                     gpx.RELEASE_SYMBOL, f"{_title(pred)}: release", release.time),
+    ]  # fmt: skip
+    path = [gpx.TrackPoint(la, lo, z) for lo, la, z in _path(pred)]
+    return gpx.to_gpx(_title(pred), waypoints, [(f"{prefix} predicted descent", path)])
 
 
 def write_kml(result: Prediction | EnsemblePrediction, path: str | Path) -> Path:
-    return _write(path, to_kml(result), "KML")
+    return write_text(path, to_kml(result), "KML")
 
 
 def write_geojson(result: Prediction | EnsemblePrediction, path: str | Path) -> Path:
-    return _write(path, json.dumps(to_geojson(result), indent=1), "GeoJSON")
+    return write_text(path, geojson.dumps(to_geojson(result)), "GeoJSON")
+
+
+def write_gpx(result: Prediction | EnsemblePrediction, path: str | Path) -> Path:
+    return write_text(path, to_gpx(result), "GPX")
 
 
 def write_json(result: Prediction | EnsemblePrediction, path: str | Path, track: bool = False) -> Path:
-    return _write(path, to_json(result, track=track), "JSON")
+    return write_text(path, to_json(result, track=track), "JSON")

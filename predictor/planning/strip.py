@@ -3,26 +3,25 @@
 The strip is the line of central landings in candidate order ("roughly underneath the future path
 of the balloon", as the DRS paper puts it), with each candidate's landing as a point coloured by
 go/no-go, the balloon's future path, and the recommended candidate's ellipses. Demo weather is
-named in the document title and properties, as every other output does.
+named in the document title and in every feature's properties, as every other output does.
 """
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
-import simplekml
-
-from predictor.errors import PredictorError
-from predictor.landing import wrap_lon
+from predictor.geofiles import DEMO_LABEL, geojson, kml
+from predictor.geofiles.geometry import line_parts, polygon_parts, position
+from predictor.geofiles.output import write_text
 from predictor.planning.sweep import Candidate, ReleasePlan
 from predictor.prediction import iso_z
 
-DEMO_LABEL = "DEMO WEATHER, NOT A FORECAST"
 GO_COLOUR = "ff00c000"
 NO_GO_COLOUR = "ff0000ff"
+STRIP_COLOUR = "ff00ffff"
+BALLOON_COLOUR = "ffffffff"
 
 
 def _recommended(plan: ReleasePlan) -> Candidate | None:
@@ -33,120 +32,74 @@ def _landed(plan: ReleasePlan) -> list[Candidate]:
     return [c for c in plan.candidates if c.status is None]
 
 
-def _balloon_coords(plan: ReleasePlan) -> list[tuple[float, float]]:
+def _balloon_path(plan: ReleasePlan) -> list[tuple[float, float]]:
     b = plan.balloon
-    return [
-        (float(wrap_lon(lo)), float(la)) for la, lo in zip(b.lat, b.lon, strict=True) if math.isfinite(la)
-    ]
+    return [(float(lo), float(la)) for la, lo in zip(b.lat, b.lon, strict=True) if math.isfinite(la)]
+
+
+def _strip(landed: list[Candidate]) -> list[tuple[float, float]]:
+    return [(c.landing_lon, c.landing_lat) for c in landed]
+
+
+def _title(plan: ReleasePlan) -> str:
+    return "DRS release window" + (f" ({DEMO_LABEL})" if plan.is_demo else "")
 
 
 def to_geojson(plan: ReleasePlan) -> dict[str, Any]:
-    features: list[dict[str, Any]] = [
-        {
-            "type": "Feature",
-            "geometry": {"type": "LineString", "coordinates": [list(p) for p in _balloon_coords(plan)]},
-            "properties": {"kind": "balloon path"},
-        }
-    ]
+    about = geojson.Provenance(_title(plan), plan.weather_source, plan.is_demo)
+    features = [geojson.feature(geojson.line(_balloon_path(plan)), "balloon path", about)]
     landed = _landed(plan)
     if len(landed) >= 2:
-        features.append(
-            {
-                "type": "Feature",
-                "geometry": {
-                    "type": "LineString",
-                    "coordinates": [[c.landing_lon, c.landing_lat] for c in landed],
-                },
-                "properties": {"kind": "landing strip"},
-            }
-        )
+        features.append(geojson.feature(geojson.line(_strip(landed)), "landing strip", about))
     for c in landed:
         features.append(
-            {
-                "type": "Feature",
-                "geometry": {"type": "Point", "coordinates": [c.landing_lon, c.landing_lat]},
-                "properties": {
-                    "kind": "candidate landing",
-                    "release_time": iso_z(c.release_time),
-                    "go": c.go,
-                    "reasons": list(c.reasons),
-                    "zone_probability": c.zone_probability,
-                    "expected_target_km": c.expected_target_km,
-                    "sigma_major_km": c.sigma_major_km,
-                },
-            }
-        )
+            geojson.feature(
+                geojson.point((c.landing_lon, c.landing_lat)), "candidate landing", about,
+                release_time=iso_z(c.release_time), go=c.go, reasons=list(c.reasons),
+                zone_probability=c.zone_probability, expected_target_km=c.expected_target_km,
+                sigma_major_km=c.sigma_major_km,
+            )
+        )  # fmt: skip
     best = _recommended(plan)
     if best is not None and best.ellipse is not None:
         for contour in best.ellipse.contours:
+            ring = geojson.polygon(best.ellipse.outline(contour))
             features.append(
-                {
-                    "type": "Feature",
-                    "geometry": {
-                        "type": "Polygon",
-                        "coordinates": [[list(p) for p in best.ellipse.outline(contour)]],
-                    },
-                    "properties": {
-                        "kind": "recommended ellipse",
-                        "release_time": iso_z(best.release_time),
-                        "probability": contour.probability,
-                        "n_sigma": contour.n_sigma,
-                    },
-                }
-            )
-    return {
-        "type": "FeatureCollection",
-        "properties": {
-            "title": ("DRS release window" + (f" ({DEMO_LABEL})" if plan.is_demo else "")),
-            "verdict": plan.verdict,
-            "weather": plan.weather_source,
-            "is_demo": plan.is_demo,
-        },
-        "features": features,
-    }
+                geojson.feature(ring, "recommended ellipse", about, release_time=iso_z(best.release_time),
+                                probability=contour.probability, n_sigma=contour.n_sigma)
+            )  # fmt: skip
+    return geojson.collection(features, about, verdict=plan.verdict, warnings=list(plan.warnings))
 
 
 def to_kml(plan: ReleasePlan) -> str:
-    kml = simplekml.Kml(name="DRS release window" + (f" ({DEMO_LABEL})" if plan.is_demo else ""))
-    kml.document.description = "\n".join([plan.verdict, f"Weather: {plan.weather_source}", *plan.warnings])
-    balloon = kml.newlinestring(name="balloon path", coords=_balloon_coords(plan))
-    balloon.style.linestyle.color = "ffffffff"
+    styles = [
+        kml.style("balloon", BALLOON_COLOUR, width=1),
+        kml.style("strip", STRIP_COLOUR, width=3),
+        kml.style("go", GO_COLOUR, width=1, icon_scale=0.6),
+        kml.style("no-go", NO_GO_COLOUR, icon_scale=0.6),
+    ]
+    contents: list[kml.Feature] = [kml.line("balloon path", line_parts(_balloon_path(plan)), "balloon")]
     landed = _landed(plan)
     if len(landed) >= 2:
-        strip = kml.newlinestring(
-            name="landing strip", coords=[(c.landing_lon, c.landing_lat) for c in landed]
-        )
-        strip.style.linestyle.width = 3
-        strip.style.linestyle.color = "ff00ffff"
-    folder = kml.newfolder(name="candidates")
-    for c in landed:
-        point = folder.newpoint(name=iso_z(c.release_time)[11:16], coords=[(c.landing_lon, c.landing_lat)])
-        point.style.iconstyle.color = GO_COLOUR if c.go else NO_GO_COLOUR
-        point.style.iconstyle.scale = 0.6
-        point.description = "GO" if c.go else "NO-GO: " + "; ".join(c.reasons)
+        contents.append(kml.line("landing strip", line_parts(_strip(landed)), "strip"))
+    candidates = [
+        kml.point(iso_z(c.release_time)[11:16], position((c.landing_lon, c.landing_lat)),
+                  "go" if c.go else "no-go", "GO" if c.go else "NO-GO: " + "; ".join(c.reasons))
+        for c in landed
+    ]  # fmt: skip
+    contents.append(kml.folder("candidates", candidates))
     best = _recommended(plan)
     if best is not None and best.ellipse is not None:
         for contour in best.ellipse.contours:
-            ring = kml.newlinestring(
-                name=f"recommended {iso_z(best.release_time)}: {100 * contour.probability:.1f} % ellipse",
-                coords=best.ellipse.outline(contour),
-            )
-            ring.style.linestyle.color = GO_COLOUR
-    return str(kml.kml())
-
-
-def _write(path: str | Path, text: str, what: str) -> Path:
-    out = Path(path)
-    try:
-        out.write_text(text, encoding="utf-8")
-    except OSError as exc:
-        raise PredictorError(f"cannot write the {what} to {out}: {exc.strerror or exc}") from None
-    return out
+            name = f"recommended {iso_z(best.release_time)}: {100 * contour.probability:.1f} % ellipse"
+            contents.append(kml.polygon(name, polygon_parts(best.ellipse.outline(contour)), "go"))
+    description = "\n".join([plan.verdict, f"Weather: {plan.weather_source}", *plan.warnings])
+    return kml.document(_title(plan), description, styles, contents)
 
 
 def write_geojson(plan: ReleasePlan, path: str | Path) -> Path:
-    return _write(path, json.dumps(to_geojson(plan), indent=1, ensure_ascii=False), "GeoJSON")
+    return write_text(path, geojson.dumps(to_geojson(plan)), "GeoJSON")
 
 
 def write_kml(plan: ReleasePlan, path: str | Path) -> Path:
-    return _write(path, to_kml(plan), "KML")
+    return write_text(path, to_kml(plan), "KML")

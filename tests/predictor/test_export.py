@@ -1,4 +1,8 @@
-"""JSON, KML and GeoJSON outputs, parsed back and checked for what they must contain."""
+"""JSON, KML, GeoJSON and GPX outputs of a prediction, parsed back and checked for what they must contain.
+
+tests/exports reads every product's files with the schema and the readers users have; these pin
+what a prediction's files say.
+"""
 
 from __future__ import annotations
 
@@ -6,10 +10,11 @@ import json
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import gpxpy
 import pytest
 
 from predictor import EnsemblePrediction, Payload, Prediction, PredictorError, predict, predict_ensemble
-from predictor.export import to_geojson, to_json, write_geojson, write_json, write_kml
+from predictor.export import to_geojson, to_json, write_geojson, write_gpx, write_json, write_kml
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
 KML_NS = {"k": "http://www.opengis.net/kml/2.2"}
@@ -54,12 +59,15 @@ def test_geojson_features_and_their_geometry(prediction: Prediction, tmp_path: P
     kinds = [f["properties"]["kind"] for f in doc["features"]]
     assert kinds[:3] == ["path", "release", "landing"] and kinds.count("ellipse") == 3
     landing = doc["features"][2]
-    assert landing["geometry"]["coordinates"] == [prediction.landing.lon, prediction.landing.lat]
+    assert landing["geometry"]["coordinates"] == pytest.approx(
+        [prediction.landing.lon, prediction.landing.lat], abs=5e-7
+    )
     polygon = doc["features"][3]
     assert polygon["geometry"]["type"] == "Polygon"
     assert polygon["geometry"]["coordinates"][0][0] == polygon["geometry"]["coordinates"][0][-1]
     assert polygon["properties"]["probability"] == pytest.approx(0.393, abs=1e-3)
     assert doc["properties"]["is_demo"] is False
+    assert all(f["properties"]["source"] == prediction.weather_source for f in doc["features"])
 
 
 def test_demo_ensemble_outputs_say_demo_and_carry_members(
@@ -81,3 +89,32 @@ def test_demo_ensemble_outputs_say_demo_and_carry_members(
 def test_unwritable_output_is_a_clear_error(prediction: Prediction, tmp_path: Path) -> None:
     with pytest.raises(PredictorError, match="cannot write the KML file .*missing"):
         write_kml(prediction, tmp_path / "missing" / "p.kml")
+
+
+def test_gpx_leads_with_the_predicted_landing_for_a_handheld(prediction: Prediction, tmp_path: Path) -> None:
+    gpx = gpxpy.parse(write_gpx(prediction, tmp_path / "p.gpx").read_text(encoding="utf-8"))
+    landing, release = gpx.waypoints
+    assert (landing.name, landing.symbol) == ("DRS PRED LAND", "Flag, Blue")
+    assert landing.latitude == pytest.approx(prediction.landing.lat, abs=5e-7)
+    assert landing.longitude == pytest.approx(prediction.landing.lon, abs=5e-7)
+    assert abs((landing.time - prediction.landing.time).total_seconds()) < 1.0
+    assert "39 % ellipse" in landing.description
+    assert release.name == "DRS RELEASE" and release.elevation == pytest.approx(30000.0)
+    [path] = gpx.tracks
+    assert len(path.segments[0].points) == len(prediction.track.lat)
+
+
+def test_gpx_of_demo_weather_names_every_waypoint_demo(demo_ensemble: EnsemblePrediction) -> None:
+    from predictor.export import to_gpx
+
+    gpx = gpxpy.parse(to_gpx(demo_ensemble))
+    assert [w.name for w in gpx.waypoints] == ["DEMO PRED LAND", "DEMO RELEASE"]
+    assert all("DEMO WEATHER" in w.description for w in gpx.waypoints)
+
+
+def test_dash_writes_the_file_to_standard_output(
+    prediction: Prediction, capsys: pytest.CaptureFixture[str]
+) -> None:
+    write_geojson(prediction, "-")
+    assert json.loads(capsys.readouterr().out)["type"] == "FeatureCollection"
+    assert not Path("-").exists()

@@ -195,12 +195,12 @@ def test_landing_strip_files_carry_every_candidate_and_say_demo(tmp_path: Path) 
     kinds = [f["properties"]["kind"] for f in doc["features"]]
     assert kinds.count("candidate landing") == len(plan.candidates) == 5
     strip = next(f for f in doc["features"] if f["properties"]["kind"] == "landing strip")
-    assert strip["geometry"]["coordinates"][0] == [
-        plan.candidates[0].landing_lon,
-        plan.candidates[0].landing_lat,
-    ]
+    assert strip["geometry"]["coordinates"][0] == pytest.approx(
+        [plan.candidates[0].landing_lon, plan.candidates[0].landing_lat], abs=5e-7
+    )
     assert kinds.count("recommended ellipse") == 3
     assert doc["properties"]["is_demo"] and "DEMO" in doc["properties"]["title"]
+    assert all(f["properties"]["is_demo"] and "DEMO" in f["properties"]["title"] for f in doc["features"])
     assert "DEMO WEATHER" in to_kml(plan)
     gj = write_geojson(plan, tmp_path / "strip.geojson")
     assert json.loads(gj.read_text())["type"] == "FeatureCollection"
