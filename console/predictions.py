@@ -197,7 +197,7 @@ class PredictionService:
             if live is None or (live.reports and reports[0].time < live.reports[0].time):
                 model = self.models.get(capsule)
                 live = self._live[capsule] = (
-                    LivePredictor(cube, payload=model.payload, terrain=terrain, effects=model.terms)
+                    model.live_predictor(cube, terrain)
                     if model is not None else LivePredictor(cube, terrain=terrain)
                 )  # fmt: skip
             fresh = []

@@ -131,6 +131,20 @@ class Band:
     typical_rate: TypicalRate | None = None
     """When set, the fitted factor is divided by the calibration flights' typical one at this height."""
 
+    def describe(self) -> str:
+        """The band for a person: heights, the rate estimator, the wind correction."""
+        lower = "ground" if not math.isfinite(self.lower_m) else f"{self.lower_m / 1000:g} km"
+        upper = "top" if not math.isfinite(self.upper_m) else f"{self.upper_m / 1000:g} km"
+        window = "the whole descent" if math.isinf(self.rate_window_m) else f"the last {self.rate_window_m / 1000:g} km"
+        if not self.use_rate:
+            rate = "rate off"
+        elif self.typical_rate is not None:
+            rate = f"rate on {window} relative to the typical factor"
+        else:
+            rate = f"rate on {window}"
+        wind = "off" if self.decay_m is None else f"L = {self.decay_m / 1000:g} km"
+        return f"{lower}–{upper}: {rate}, wind {wind}"
+
 
 @dataclass(frozen=True)
 class LiveCorrection:
@@ -178,6 +192,23 @@ DEFAULT_CORRECTION = LiveCorrection(
 taken relative to the typical factor 12.5–22.5 km above the ground, on the last 3 km below (where the
 law's shape no longer carries the whole record as well), and the decaying wind correction only
 3.5–7.5 km; above 22.5 km a plain re-prediction did as well."""
+
+
+@dataclass(frozen=True)
+class LiveSettings:
+    """How live re-prediction corrects one model's law, and how sure it then is: what the evaluation kept.
+
+    Both belong to the law they were measured with: the bands and typical factors measured with one
+    calibrated model are the wrong ones for another, so a model file carries its own (``drs live
+    evaluate --model M --save-model``), and ``DEFAULT_LIVE`` is only for a flight without one.
+    """
+
+    correction: LiveCorrection
+    error_model: LiveErrorModel
+
+
+DEFAULT_LIVE = LiveSettings(DEFAULT_CORRECTION, LIVE_ERROR_MODEL)
+"""What the evaluation of the committed SuperBIT model kept (its model file carries the same; a test pins it)."""
 
 
 @dataclass(frozen=True)

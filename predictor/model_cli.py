@@ -38,6 +38,18 @@ def run_show(args: argparse.Namespace) -> int:
         lines.append(f"ellipse   σ0 {e.sigma0_km:.3g} km, h {e.h:.3g}, k {e.k_km2_per_h2:.3g} km²/h², q {e.q:.3g}")
     else:
         lines.append("ellipse   none (too few flights): predictions use the paper's launch model")
+    if model.live is not None:
+        sigma = model.live.error_model
+        lines.append("live      " + ("; ".join(b.describe() for b in model.live.correction.bands) or "plain re-prediction"))
+        lines.append(
+            "live 1σ   "
+            + ", ".join(
+                f"{h:g} km {a:.2f}×{c:.2f} km"
+                for h, a, c in zip(sigma.heights_km, sigma.sigma_parallel_km, sigma.sigma_perpendicular_km, strict=True)
+            )
+        )
+    else:
+        lines.append("live      not evaluated with this law: drs live flies the defaults (drs live evaluate --save-model)")
     flights = prov.get("flights") or []
     lines.append(f"flights   {len(flights)}: {', '.join(flights[:8])}{' …' if len(flights) > 8 else ''}")
     lines.append(f"weather   {prov.get('weather', 'unknown')}")

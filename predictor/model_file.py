@@ -22,12 +22,26 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from predictor.cube import WeatherCube
 from predictor.errors import PredictorError
+from predictor.live import (
+    DEFAULT_LIVE,
+    NO_CORRECTION,
+    Band,
+    LiveCorrection,
+    LiveErrorModel,
+    LivePredictor,
+    LiveSettings,
+    TypicalRate,
+)
 from predictor.model import EFFECTS, Model, Term
 from predictor.payload import Payload, payload_profile
+from predictor.terrain import Terrain
 from predictor.uncertainty import ErrorModel
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+"""2 added the optional ``live`` section: a drs that reads only 1 refuses such a file rather than fly
+the model without the live settings measured for it."""
 FILE_KIND = "drs-calibrated-model"
 
 
@@ -45,6 +59,15 @@ class CalibratedModel:
     provenance: dict[str, Any] = field(default_factory=dict)
     """Flights, weather, held-out before/after per metric, date, command and project version."""
     source_path: Path | None = None
+    live: LiveSettings | None = None
+    """The live corrections and live ellipse measured with this model's law (``drs live evaluate
+    --save-model``); None: not evaluated live, and live re-prediction flies ``DEFAULT_LIVE``."""
+
+    def live_predictor(self, cube: WeatherCube, terrain: Terrain | None = None, corrected: bool = True) -> LivePredictor:
+        """A live predictor flying this model's law with its own live settings (``corrected``: its bands)."""
+        settings = self.live or DEFAULT_LIVE
+        correction = settings.correction if corrected else NO_CORRECTION
+        return LivePredictor(cube, self.payload, terrain, correction, settings.error_model, effects=self.terms)
 
     def model(self) -> Model:
         return Model.for_payload(self.payload, *self.terms)
@@ -69,8 +92,39 @@ class CalibratedModel:
             "payload": self.payload.to_dict(),
             "terms": [{"effect": t.name, "parameters": t.parameters()} for t in self.terms],
             "ellipse": ellipse,
+            **({"live": _live_to_dict(self.live)} if self.live is not None else {}),
             "provenance": self.provenance,
         }
+
+
+def _bound(value: float) -> float | None:
+    """JSON has no infinity: an open end of a band or an unlimited window is null."""
+    return value if math.isfinite(value) else None
+
+
+def _live_to_dict(live: LiveSettings) -> dict[str, Any]:
+    def band(b: Band) -> dict[str, Any]:
+        typical = b.typical_rate
+        return {
+            "lower_m": _bound(b.lower_m),
+            "upper_m": _bound(b.upper_m),
+            "use_rate": b.use_rate,
+            "rate_window_m": _bound(b.rate_window_m),
+            "typical_rate": {"heights_km": list(typical.heights_km), "factors": list(typical.factors)}
+            if typical is not None else None,
+            "wind_decay_m": b.decay_m,
+        }  # fmt: skip
+
+    e = live.error_model
+    return {
+        "bands": [band(b) for b in live.correction.bands],
+        "wind_window_m": live.correction.wind_window_m,
+        "error_model": {
+            "heights_km": list(e.heights_km),
+            "sigma_parallel_km": list(e.sigma_parallel_km),
+            "sigma_perpendicular_km": list(e.sigma_perpendicular_km),
+        },
+    }
 
 
 def save_model(model: CalibratedModel, path: str | Path) -> Path:
@@ -115,10 +169,11 @@ def load_model(path: str | Path) -> CalibratedModel:
     payload = _payload(raw.get("payload"), refuse)
     terms = _terms(raw.get("terms"), refuse)
     ellipse = _ellipse(raw.get("ellipse"), refuse)
+    live = _live(raw["live"], refuse) if "live" in raw else None
     provenance = raw.get("provenance", {})
     if not isinstance(provenance, dict):
         raise refuse("provenance", "must be an object")
-    return CalibratedModel(payload, terms, ellipse, provenance, source)
+    return CalibratedModel(payload, terms, ellipse, provenance, source, live)
 
 
 def _number(value: Any, where: str, refuse: Any) -> float:
@@ -180,6 +235,61 @@ def _ellipse(raw: Any, refuse: Any) -> ErrorModel | None:
         return ErrorModel(*values, name="calibrated")
     except PredictorError as exc:
         raise refuse("ellipse", str(exc)) from None
+
+
+def _numbers(raw: Any, where: str, refuse: Any, positive: bool = False) -> tuple[float, ...]:
+    if not isinstance(raw, list) or not raw:
+        raise refuse(where, "must be a non-empty list of numbers")
+    values = tuple(_number(v, f"{where}[{i}]", refuse) for i, v in enumerate(raw))
+    if positive and min(values) <= 0.0:
+        raise refuse(where, f"must all be positive, got {min(values):g}")
+    return values
+
+
+def _optional(raw: Any, where: str, refuse: Any, unbounded: float) -> float:
+    return unbounded if raw is None else _number(raw, where, refuse)
+
+
+def _live(raw: Any, refuse: Any) -> LiveSettings:
+    if not isinstance(raw, dict):
+        raise refuse("live", "must be an object with bands, wind_window_m and error_model")
+    if not isinstance(raw.get("bands"), list):
+        raise refuse("live.bands", "must be a list (empty: a plain re-prediction at every height)")
+    bands = []
+    for i, item in enumerate(raw["bands"]):
+        where = f"live.bands[{i}]"
+        if not isinstance(item, dict) or not isinstance(item.get("use_rate"), bool):
+            raise refuse(where, "must be an object with lower_m, upper_m, use_rate (true/false) and the rest")
+        lower = _optional(item.get("lower_m"), f"{where}.lower_m", refuse, -math.inf)
+        upper = _optional(item.get("upper_m"), f"{where}.upper_m", refuse, math.inf)
+        if lower >= upper:
+            raise refuse(where, f"lower_m {lower:g} must be below upper_m {upper:g}")
+        window = _optional(item.get("rate_window_m"), f"{where}.rate_window_m", refuse, math.inf)
+        decay = item.get("wind_decay_m")
+        decay_m = None if decay is None else _number(decay, f"{where}.wind_decay_m", refuse)
+        if window <= 0.0 or (decay_m is not None and decay_m <= 0.0):
+            raise refuse(where, "rate_window_m and wind_decay_m must be positive lengths (or null)")
+        typical = item.get("typical_rate")
+        if typical is not None:
+            if not isinstance(typical, dict):
+                raise refuse(f"{where}.typical_rate", "must be an object with heights_km and factors, or null")
+            heights = _numbers(typical.get("heights_km"), f"{where}.typical_rate.heights_km", refuse)
+            factors = _numbers(typical.get("factors"), f"{where}.typical_rate.factors", refuse, positive=True)
+            if len(heights) != len(factors):
+                raise refuse(f"{where}.typical_rate", "heights_km and factors must be as long as each other")
+            typical = TypicalRate(heights, factors)
+        bands.append(Band(lower, upper, item["use_rate"], decay_m, window, typical))
+    wind_window = _number(raw.get("wind_window_m"), "live.wind_window_m", refuse)
+    error = raw.get("error_model")
+    if not isinstance(error, dict):
+        raise refuse("live.error_model", "must be an object with heights_km and the two sigma lists")
+    columns = [
+        _numbers(error.get(key), f"live.error_model.{key}", refuse, positive=key != "heights_km")
+        for key in ("heights_km", "sigma_parallel_km", "sigma_perpendicular_km")
+    ]
+    if len({len(c) for c in columns}) != 1:
+        raise refuse("live.error_model", "heights_km and the two sigma lists must be as long as each other")
+    return LiveSettings(LiveCorrection(tuple(bands), wind_window), LiveErrorModel(*columns))
 
 
 def flown_model(

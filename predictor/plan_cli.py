@@ -63,8 +63,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "ellipse replace --payload",
     )  # fmt: skip
     plan.add_argument("--json", action="store_true", help="print the plan document")
-    plan.add_argument("--kml", metavar="OUT", help="write the landing strip as KML; - for stdout")
-    plan.add_argument("--geojson", metavar="OUT", help="write the landing strip as GeoJSON; - for stdout")
+    plan.add_argument("--kml", metavar="OUT", help="write the landing strip as KML")
+    plan.add_argument("--geojson", metavar="OUT", help="write the landing strip as GeoJSON")
     plan.add_argument("--cache-dir", metavar="DIR", help="weather cache (default ~/.cache/drs/weather)")
     plan.add_argument("--repeats", type=int, default=5, help="bench: sweeps timed (default 5)")
     plan.set_defaults(func=run_plan)
@@ -93,6 +93,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     live.add_argument("--no-correction", action="store_true", help="plain re-prediction from each report")
     live.add_argument("--json", action="store_true", help="print one JSON document per report")
     live.add_argument("--out", metavar="DIR", default="docs/planning", help="evaluate: report directory")
+    live.add_argument(
+        "--save-model", metavar="PATH",
+        help="evaluate: write the --model file with the live settings measured for its law (correction "
+        "bands, typical rate factors, live ellipse), which drs live and the console then fly",
+    )  # fmt: skip
     live.add_argument("--cache-dir", metavar="DIR", help="weather cache (default ~/.cache/drs/weather)")
     live.set_defaults(func=run_live)
 
@@ -116,7 +121,6 @@ def run_plan(args: argparse.Namespace) -> int:
     if missing:
         raise PredictorError(f"drs plan needs {', '.join(missing)}")
     from predictor.cli import weather_bbox
-    from predictor.geofiles.output import piped
     from predictor.model_file import flown_model
     from predictor.planning.balloon import AltitudePlan
     from predictor.planning.strip import write_geojson, write_kml
@@ -126,7 +130,6 @@ def run_plan(args: argparse.Namespace) -> int:
     from predictor.weather import load_weather
     from predictor.zones import load_targets, load_zones
 
-    summary_to = sys.stderr if piped(kml=args.kml, geojson=args.geojson, json=args.json) else sys.stdout
     start = _parse_time(args.start, "--from")
     model = flown_model(args.model, args.payload, None, None)
     flown: dict[str, Any] = {"payload": model.payload, "effects": model.terms}
@@ -157,10 +160,7 @@ def run_plan(args: argparse.Namespace) -> int:
         write_kml(plan, args.kml)
     if args.geojson:
         write_geojson(plan, args.geojson)
-    if args.json:
-        print(json.dumps(plan.to_dict(), indent=1, ensure_ascii=False))
-    else:
-        print(plan_summary(plan), file=summary_to)
+    print(json.dumps(plan.to_dict(), indent=1, ensure_ascii=False) if args.json else plan_summary(plan))
     return 0
 
 
@@ -280,7 +280,6 @@ def run_live(args: argparse.Namespace) -> int:
     from predictor.calibration.ascent_winds import ascent_weather_cube
     from predictor.calibration.cleaning import clean
     from predictor.calibration.tracks import read_track
-    from predictor.live import DEFAULT_CORRECTION, NO_CORRECTION, LivePredictor
     from predictor.model_file import flown_model
     from predictor.prediction import iso_z
     from predictor.terrain import Terrain
@@ -309,13 +308,7 @@ def run_live(args: argparse.Namespace) -> int:
         )
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
     model = flown_model(args.model, args.payload, args.mass, args.cda)
-    live = LivePredictor(
-        wx,
-        model.payload,
-        terrain,
-        NO_CORRECTION if args.no_correction else DEFAULT_CORRECTION,
-        effects=model.terms,
-    )
+    live = model.live_predictor(wx, terrain, corrected=not args.no_correction)
     descent = list(flight.descent)
     if flight.landing is not None:
         descent = descent[:-1]
@@ -348,11 +341,13 @@ def run_live(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from predictor.model_file import flown_model
-    from predictor.planning.live_evaluation import evaluate, write_report
+    from predictor.model_file import flown_model, save_model
+    from predictor.planning.live_evaluation import evaluate, live_settings, write_report
 
     if not args.tracks:
         raise PredictorError("drs live evaluate needs track files")
+    if args.save_model and args.model is None:
+        raise PredictorError("drs live evaluate --save-model needs --model: live settings belong to a model's law")
     started = time.perf_counter()
     # Two laws are compared: the model's, and the textbook law of the same payload (its profile
     # without calibrated terms), so the difference is the law and not the mass or Cd·A.
@@ -367,6 +362,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
     flown = f" --model {args.model}" if args.model is not None else ""
     command = f"drs live evaluate <{len(args.tracks)} track files in {', '.join(names)}>{flown} --out {args.out}"
     md = write_report(result, args.out, command)
+    if args.save_model:
+        saved = save_model(live_settings(model, result, command), args.save_model)
+        print(f"{saved}: the model with its live settings", file=sys.stderr)
     print(
         f"{md}: {len(result.flights)} flights, {result.fixes_used} descent fixes (all used), "
         f"{time.perf_counter() - started:.1f} s",

@@ -29,10 +29,11 @@ checkpoints.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from datetime import date
+from datetime import UTC, date, datetime
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +50,7 @@ from predictor.live import (
     LiveCorrection,
     LiveErrorModel,
     LivePredictor,
+    LiveSettings,
     TypicalRate,
 )
 from predictor.model_file import CalibratedModel
@@ -499,6 +501,23 @@ SERIES = (
 """The rows of the report: label in ``held_out`` → what the report calls it."""
 
 
+def live_settings(model: CalibratedModel, result: Evaluation, command: str) -> CalibratedModel:
+    """The model with what its evaluation kept: the shipped correction bands and the live ellipse."""
+    model_s, textbook_s = remaining_time_ratio(result, 20.0) if 20.0 in result.rate_choice else (math.nan, math.nan)
+    provenance = {
+        **model.provenance,
+        "live": {
+            "flights": list(result.flights),
+            "command": command,
+            "evaluated_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "remaining_time_error_20km_s": None if math.isnan(model_s) else round(model_s, 1),
+            "rho_half_remaining_time_error_20km_s": None if math.isnan(textbook_s) else round(textbook_s, 1),
+        },
+    }
+    settings = LiveSettings(shipped_correction(result), fit_live_sigma(result))
+    return dataclasses.replace(model, live=settings, provenance=provenance)
+
+
 def remaining_time_ratio(result: Evaluation, km: float) -> tuple[float, float]:
     """Mean |remaining-time error| (s) at a checkpoint: the model with its held-out live corrections,
     and the ρ^-½ extrapolation (the profile with its fitted rate)."""
@@ -550,23 +569,8 @@ def _plot(result: Evaluation, kms: list[float], png: Path) -> None:
     plt.close(fig)
 
 
-def _band_text(band: Band) -> str:
-    lower = "ground" if not math.isfinite(band.lower_m) else f"{band.lower_m / 1000:g} km"
-    upper = "top" if not math.isfinite(band.upper_m) else f"{band.upper_m / 1000:g} km"
-    if not band.use_rate:
-        rate = "rate off"
-    elif band.typical_rate is not None:
-        rate = "rate on the whole descent relative to the typical factor"
-    elif math.isinf(band.rate_window_m):
-        rate = "rate on the whole descent"
-    else:
-        rate = f"rate on the last {band.rate_window_m / 1000:g} km"
-    wind = "off" if band.decay_m is None else f"L = {band.decay_m / 1000:g} km"
-    return f"{lower}–{upper}: {rate}, wind {wind}"
-
-
 def _bands_text(shipped: LiveCorrection) -> str:
-    return "; ".join(_band_text(b) for b in shipped.bands) or "nothing (plain re-prediction everywhere)"
+    return "; ".join(b.describe() for b in shipped.bands) or "nothing (plain re-prediction everywhere)"
 
 
 def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:

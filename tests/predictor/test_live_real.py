@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from datetime import date
 from pathlib import Path
@@ -13,7 +14,15 @@ from console.cli import main
 from predictor.calibration.ascent_winds import ascent_weather_cube
 from predictor.calibration.cleaning import clean
 from predictor.calibration.tracks import read_track
-from predictor.live import DEFAULT_CORRECTION, LIVE_ERROR_MODEL, NO_CORRECTION, TYPICAL_RATE, LivePredictor
+from predictor.live import (
+    DEFAULT_CORRECTION,
+    DEFAULT_LIVE,
+    LIVE_ERROR_MODEL,
+    NO_CORRECTION,
+    TYPICAL_RATE,
+    LivePredictor,
+    LiveSettings,
+)
 from predictor.model import DragDensityExponent
 from predictor.model_file import CalibratedModel, load_model, save_model
 from predictor.payload import PROFILES
@@ -22,6 +31,7 @@ from predictor.planning.live_evaluation import (
     evaluate,
     fit_live_sigma,
     held_out,
+    live_settings,
     rate_helps,
     remaining_time_ratio,
     shipped_correction,
@@ -110,6 +120,37 @@ def test_the_rate_relative_to_the_typical_flight_removes_the_shared_bias(result:
 
 def test_the_shipped_live_ellipse_is_the_measured_one(result: Evaluation) -> None:
     assert fit_live_sigma(result) == LIVE_ERROR_MODEL
+
+
+def test_the_committed_model_carries_the_live_settings_its_evaluation_kept(result: Evaluation, tmp_path: Path) -> None:
+    # `drs live evaluate --model M --save-model M` wrote them; drs live and the console fly them.
+    committed = load_model(MODEL)
+    assert committed.live == live_settings(committed, result, COMMAND).live == DEFAULT_LIVE
+    assert committed.provenance["live"]["flights"] == result.flights
+
+
+def test_drs_live_flies_the_live_settings_of_its_model(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    track = str(shared_data / "tracks" / "pyballoon_superbit" / "19-7-28.csv")
+    committed = load_model(MODEL)
+    plain = save_model(dataclasses.replace(committed, live=LiveSettings(NO_CORRECTION, LIVE_ERROR_MODEL)), tmp_path / "p.json")
+
+    def documents(model: Path) -> list[dict]:
+        assert main(["live", "--track", track, "--ascent-winds", "--model", str(model), "--json"]) == 0
+        return [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+
+    assert any(d["rate_fixes_used"] > 0 for d in documents(MODEL)), "the committed bands fit the rate"
+    assert all(d["rate_fixes_used"] == 0 and d["wind_decay_m"] is None for d in documents(plain))
+
+
+def test_live_settings_are_saved_only_into_a_model(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    track = str(shared_data / "tracks" / "pyballoon_superbit" / "19-7-28.csv")
+    assert main(["live", "evaluate", track, "--save-model", str(tmp_path / "m.json")]) != 0
+    assert "--save-model needs --model: live settings belong to a model's law" in capsys.readouterr().err
+    assert not (tmp_path / "m.json").exists()
 
 
 def test_the_committed_report_is_what_the_evaluation_writes(result: Evaluation, tmp_path: Path) -> None:

@@ -10,6 +10,7 @@ import pytest
 
 from console.cli import main
 from predictor.demo_weather import demo_weather_files
+from predictor.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, TypicalRate
 from predictor.model import BinnedDescentRate, DescentRateScale, DragDensityExponent
 from predictor.model_file import SCHEMA_VERSION, CalibratedModel, ModelFileError, load_model, save_model
 from predictor.payload import Payload
@@ -28,6 +29,11 @@ def example() -> CalibratedModel:
          BinnedDescentRate(edges_m=(0.0, 5000.0, 40000.0), factors=(1.02, 0.98))),
         ErrorModel(1.2, 5e-4, 0.0, 1.3, name="calibrated"),
         {"created_utc": "2026-11-24T23:00:00Z", "flights": ["18-5-19", "18-6-30"], "weather": "ascent winds"},
+        live=LiveSettings(
+            LiveCorrection((Band(0.0, 5000.0, True, None, 3000.0),
+                            Band(5000.0, float("inf"), True, 2000.0, typical_rate=TypicalRate((5.0, 20.0), (1.0, 1.04))))),
+            LiveErrorModel((20.0, 2.0), (3.9, 1.6), (3.8, 0.8)),
+        ),
     )  # fmt: skip
 
 
@@ -36,6 +42,7 @@ def test_a_saved_model_loads_back_the_same(tmp_path: Path) -> None:
     loaded = load_model(path)
     assert loaded.payload == example().payload and loaded.terms == example().terms
     assert loaded.ellipse == example().ellipse and loaded.provenance == example().provenance
+    assert loaded.live == example().live, "bands (open ends included), typical factors and live sigma"
     assert loaded.label() == "m.json (calibrated 2026-11-24 on 2 flights)"
     assert [p.name for p in tmp_path.iterdir()] == ["m.json"], "no temporary file left behind"
 
@@ -72,7 +79,9 @@ def test_drs_model_show_names_the_payload_terms_ellipse_and_provenance(
     assert main(["model", "show", str(path)]) == 0
     out = capsys.readouterr().out
     for text in ("superbit-test: 6 kg, Cd·A 1.36 m²", "term      drag_density_exponent (vertical): exponent 0.06",
-                 "ellipse   σ0 1.2 km", "flights   2: 18-5-19, 18-6-30", "weather   ascent winds"):  # fmt: skip
+                 "ellipse   σ0 1.2 km", "flights   2: 18-5-19, 18-6-30", "weather   ascent winds",
+                 "live      0 km–5 km: rate on the last 3 km, wind off; 5 km–top: rate on the whole descent "
+                 "relative to the typical factor, wind L = 2 km", "live 1σ   20 km 3.90×3.80 km"):  # fmt: skip
         assert text in out
 
 
@@ -112,9 +121,17 @@ def _with(change: dict) -> dict:
         (_with({"terms.2.parameters.factors": [1.0]}), r"terms\[2\]: binned_descent_rate: need one value per bin"),
         (_with({"ellipse.q": 0.0}), r"ellipse: error model 'calibrated': sigma0, h and k must be ≥ 0 and q > 0"),
         (_with({"terms": {"a": 1}}), r"terms: must be a list"),
+        (_with({"live": []}), r"live: must be an object with bands"),
+        (_with({"live.bands.0.use_rate": "yes"}), r"live\.bands\[0\]: must be an object with .* use_rate \(true/false\)"),
+        (_with({"live.bands.0.upper_m": -1.0}), r"live\.bands\[0\]: lower_m 0 must be below upper_m -1"),
+        (_with({"live.bands.1.wind_decay_m": 0.0}), r"live\.bands\[1\]: rate_window_m and wind_decay_m must be positive"),
+        (_with({"live.bands.1.typical_rate.factors": [1.0, -1.0]}),
+         r"live\.bands\[1\]\.typical_rate\.factors: must all be positive, got -1"),
+        (_with({"live.error_model.sigma_parallel_km": [3.9]}), r"live\.error_model: heights_km and the two sigma"),
     ],
     ids=["corrupt", "kind", "future-schema", "schema-type", "negative-mass", "cda-text", "unknown-effect",
-         "unknown-parameter", "nan", "bins", "ellipse", "terms-type"],  # fmt: skip
+         "unknown-parameter", "nan", "bins", "ellipse", "terms-type", "live-type", "live-use-rate", "live-band-order",
+         "live-decay", "live-typical", "live-sigma"],  # fmt: skip
 )
 def test_a_bad_model_file_is_refused_naming_the_file_and_the_field(
     tmp_path: Path, document: object, message: str
