@@ -2,7 +2,9 @@
 
 Each command module has ``register(subparsers)``; every subcommand sets ``func(args) -> int``.
 Errors meant for an operator are raised as the packages' own error types and printed here as one
-line with a non-zero exit, never as a traceback.
+line, never as a traceback. The exit status says which kind of failure it was, so scripts and
+systemd can tell a typo from a refusal: 0 done, 1 the command ran and failed or refused
+(``EXIT_FAILED``), 2 the command line itself is wrong (``EXIT_USAGE``, argparse's own status).
 
 Only the module of the command being run is imported: ``drs predict`` never loads the SSH stack
 or Textual, and a command module keeps its heavy imports (numba, xarray, eccodes, …) inside the
@@ -13,12 +15,17 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.metadata
+import logging
 import os
 import sys
 from collections.abc import Sequence
 
+from console.argparser import DrsArgumentParser
+from console.logs import LEVELS, configure_logging, level_from
+from drs_link.config import config_help
 from drs_link.errors import LinkError
-from predictor.errors import PredictorError
+from predictor.errors import PredictorError, UsageError
 
 COMMAND_MODULES: dict[str, str] = {
     "predict": "predictor.cli",
@@ -41,13 +48,16 @@ COMMAND_MODULES: dict[str, str] = {
 """Each `drs` command and the module that registers it (a module may register several)."""
 
 OPERATOR_ERRORS = (PredictorError, LinkError)
+EXIT_FAILED = 1
+EXIT_USAGE = 2
+_OPTIONS_WITH_VALUES = ("--config", "--log-level")
 
 
 def _command_in(argv: Sequence[str]) -> str | None:
-    """The command word of ``argv`` (the first word that is not an option or ``--config``'s value)."""
+    """The command word of ``argv`` (the first word that is not an option or a global option's value)."""
     words = iter(argv)
     for word in words:
-        if word == "--config":
+        if word in _OPTIONS_WITH_VALUES:
             next(words, None)
         elif not word.startswith("-"):
             return word
@@ -57,16 +67,21 @@ def _command_in(argv: Sequence[str]) -> str | None:
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The parser with ``command``'s module registered, or every module when no known command is given
     (``drs --help`` lists them all; a mistyped command gets argparse's list of choices)."""
-    parser = argparse.ArgumentParser(
+    parser = DrsArgumentParser(
         prog="drs",
         description="SuperBIT DRS operations: predict landings, talk to capsules, track descents.",
+        epilog="exit status: 0 done, 1 the command failed or refused, 2 the command line is wrong",
+    )
+    parser.add_argument("--version", action="version", version=f"drs {importlib.metadata.version('drs-console')}")
+    parser.add_argument("--config", metavar="FILE", default=None, help=config_help())
+    parser.add_argument(
+        "-v", "--verbose", action="count", default=0, help="log more: -v for info, -vv for debug (to stderr)"
     )
     parser.add_argument(
-        "--config",
-        metavar="FILE",
-        default=None,
-        help="configuration TOML (default: ~/.config/drs/drs.toml)",
-    )
+        "--log-level", choices=LEVELS, type=str.lower, default=None,
+        help="log records from this level up (default warning; info for servers)",
+    )  # fmt: skip
+    parser.set_defaults(log_default=logging.WARNING)
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     if command in COMMAND_MODULES:
         modules = [COMMAND_MODULES[command]]
@@ -81,10 +96,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         args = build_parser(_command_in(argv)).parse_args(argv)
+        configure_logging(level_from(args.log_level, args.verbose, args.log_default))
         return int(args.func(args) or 0)
+    except UsageError as exc:
+        print(f"drs: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
     except OPERATOR_ERRORS as exc:
         print(f"drs: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_FAILED
     except KeyboardInterrupt:
         print("drs: interrupted", file=sys.stderr)
         return 130

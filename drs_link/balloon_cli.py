@@ -2,15 +2,18 @@
 
 It prints every accepted fix and every rejected line with its reason, so a team sees at once a
 wrong port, a wrong format or a sender without a fix, and exits non-zero with a one-line summary
-if no position arrives in time.
+if no position arrives in time. With ``--json`` each of those is one JSON object per line, flushed
+as it happens, so a script can follow the feed (``| jq``) while it runs.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import queue
 import time
 from datetime import UTC, datetime
+from typing import Any
 
 from drs_link.balloon_feed import BalloonFeed, BalloonFix, FeedStatus, Rejection
 from drs_link.config import load_config
@@ -29,6 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=30.0,
         help="fail if no fix arrives for this many seconds (30)",
     )
+    watch.add_argument("--json", action="store_true", help="one JSON object per line: fixes, rejections, the source")
     watch.set_defaults(func=cmd_watch)
 
 
@@ -37,7 +41,8 @@ def cmd_watch(args: argparse.Namespace) -> int:
     outcomes: queue.Queue[BalloonFix | Rejection] = queue.Queue()
     feed = BalloonFeed(config.balloon_feed, clock=lambda: datetime.now(UTC), listener=outcomes.put)
     feed.start()
-    print(f"watching the balloon feed from {feed.source}", flush=True)
+    say = _json_line if args.json else _text_line
+    say({"event": "watching", "source": feed.source})
     try:
         accepted = 0
         deadline = time.monotonic() + args.timeout
@@ -49,19 +54,36 @@ def cmd_watch(args: argparse.Namespace) -> int:
             if isinstance(outcome, BalloonFix):
                 accepted += 1
                 deadline = time.monotonic() + args.timeout
-                print(
-                    f"{iso_utc(outcome.time)}  {outcome.lat:9.5f} {outcome.lon:10.5f}  "
-                    f"{outcome.alt_m:7.0f} m  {outcome.format}",
-                    flush=True,
-                )
+                say({"event": "fix", "time_utc": iso_utc(outcome.time), "lat": outcome.lat, "lon": outcome.lon,
+                     "alt_m": outcome.alt_m, "format": outcome.format, "callsign": outcome.callsign})  # fmt: skip
             else:
-                print(f"rejected: {outcome.detail}  [{outcome.line}]", flush=True)
+                say({"event": "rejected", "reason": outcome.reason, "detail": outcome.detail, "line": outcome.line})
     finally:
         feed.stop()
     status = feed.status()
     if status.out_of_order:
-        print(f"({status.out_of_order} out-of-order fixes dropped)")
+        say({"event": "out_of_order", "dropped": status.out_of_order})
     return 0
+
+
+def _json_line(event: dict[str, Any]) -> None:
+    print(json.dumps(event, ensure_ascii=False), flush=True)
+
+
+def _text_line(event: dict[str, Any]) -> None:
+    """The same events as ``--json``, as a person reads them."""
+    kind = event["event"]
+    if kind == "watching":
+        text = f"watching the balloon feed from {event['source']}"
+    elif kind == "fix":
+        text = (
+            f"{event['time_utc']}  {event['lat']:9.5f} {event['lon']:10.5f}  {event['alt_m']:7.0f} m  {event['format']}"
+        )
+    elif kind == "rejected":
+        text = f"rejected: {event['detail']}  [{event['line']}]"
+    else:
+        text = f"({event['dropped']} out-of-order fixes dropped)"
+    print(text, flush=True)
 
 
 def quiet_message(status: FeedStatus, timeout_s: float, accepted: int, wanted: int) -> str:

@@ -31,6 +31,7 @@ from drs_link.ssh import (
 from drs_link.storage import read_storage
 from drs_link.store import Store
 from drs_link.sync import Syncer
+from predictor.errors import UsageError
 
 EXIT_MICROCONTROLLER_SILENT = 3
 EXIT_LINK_DOWN = 4
@@ -375,7 +376,7 @@ def _run_sync(syncer: Syncer, source: Path, store: Store, operator: str) -> int:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     if args.mb <= 0 or args.rounds < 1:
-        raise LinkError("bench: --mb must be positive and --rounds at least 1")
+        raise UsageError("bench: --mb must be positive and --rounds at least 1")
     result = run_bench(sync_mb=args.mb, rounds=args.rounds)
     print(f"SSH connect + host-key check (median): {result.connect_ms_median:.1f} ms")
     print(

@@ -3,11 +3,18 @@
 A wrong key on launch day must fail loudly and name itself, so every table is checked against
 the fields of its dataclass: unknown keys, wrong types and bad values raise ``ConfigError``
 with the dotted key (``capsule[1].port``) in the message.
+
+Where the file is: ``--config FILE``, else ``$DRS_CONFIG``, else ``drs.toml`` in the platform's
+config directory (platformdirs: ``$XDG_CONFIG_HOME/drs``, by default ``~/.config/drs``, on Linux).
+The store and the console's known_hosts default to the data and config directories the same way.
+Before XDG these were fixed at ``~/.config/drs`` and ``~/.local/share/drs``; a file found only
+there is still used, with a warning that says where it belongs now, so no launch-day setup breaks.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import os
 import re
@@ -18,9 +25,44 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import platformdirs
+
 from drs_link.errors import ConfigError
 
-DEFAULT_CONFIG_PATH = Path("~/.config/drs/drs.toml")
+log = logging.getLogger(__name__)
+
+CONFIG_ENV = "DRS_CONFIG"
+CONFIG_NAME = "drs.toml"
+LEGACY_CONFIG_DIR = Path("~/.config/drs")
+LEGACY_DATA_DIR = Path("~/.local/share/drs")
+
+
+def _current_or_legacy(directory: Path, legacy: Path, name: str) -> Path:
+    """``directory/name``, unless only the pre-XDG ``legacy/name`` exists: then that, with a warning."""
+    current, old = directory / name, legacy.expanduser() / name
+    if current != old and not current.exists() and old.exists():
+        log.warning("using %s from its old place; the default is now %s (move it, or keep it there)", old, current)
+        return old
+    return current
+
+
+def default_config_path() -> Path:
+    return _current_or_legacy(platformdirs.user_config_path("drs"), LEGACY_CONFIG_DIR, CONFIG_NAME)
+
+
+def default_data_dir() -> Path:
+    """The store's directory: the XDG data directory, or the old one when only it holds a store."""
+    return _current_or_legacy(platformdirs.user_data_path("drs"), LEGACY_DATA_DIR, "drs.sqlite").parent
+
+
+def default_known_hosts() -> Path:
+    return _current_or_legacy(platformdirs.user_config_path("drs"), LEGACY_CONFIG_DIR, "known_hosts")
+
+
+def config_help() -> str:
+    """``--config``'s help, naming the real default on this machine."""
+    return f"configuration TOML (default: ${CONFIG_ENV}, else {platformdirs.user_config_path('drs') / CONFIG_NAME})"
+
 CAPSULE_NAME_RE = re.compile(r"^[A-Za-z0-9_-]{1,32}$")
 IMEI_RE = re.compile(r"^\d{15}$")
 
@@ -32,7 +74,7 @@ class OperatorConfig:
 
 @dataclass(frozen=True)
 class DataConfig:
-    dir: Path = Path("~/.local/share/drs")
+    dir: Path = field(default_factory=default_data_dir)
 
 
 @dataclass(frozen=True)
@@ -89,7 +131,7 @@ class CapsuleConfig:
     port: int = 22
     user: str = "pi"
     identity_file: Path | None = None
-    known_hosts: Path = Path("~/.config/drs/known_hosts")
+    known_hosts: Path = field(default_factory=default_known_hosts)
     jump_host: str | None = None
     tools_dir: str = "/home/pi/DRS_Python_Tools"
     python: str = "python"
@@ -328,12 +370,21 @@ def parse_config(document: dict[str, Any], source: Path | None = None) -> Config
 
 
 def load_config(path: str | Path | None = None) -> Config:
-    """Read the configuration file; a missing default file gives the defaults with no capsules."""
-    explicit = path is not None
-    resolved = _expand(Path(path) if explicit else DEFAULT_CONFIG_PATH)
+    """Read the configuration file; a missing default file gives the defaults with no capsules.
+
+    A file named by ``--config`` or ``$DRS_CONFIG`` must exist: a typo there would otherwise run
+    with no capsules and the default store, and look like lost data.
+    """
+    from_env = os.environ.get(CONFIG_ENV, "")
+    if path is not None:
+        resolved, named_by = _expand(Path(path)), "configuration file"
+    elif from_env:
+        resolved, named_by = _expand(Path(from_env)), f"{CONFIG_ENV}: configuration file"
+    else:
+        resolved, named_by = default_config_path(), ""
     if not resolved.exists():
-        if explicit:
-            raise ConfigError(f"configuration file {resolved} does not exist")
+        if named_by:
+            raise ConfigError(f"{named_by} {resolved} does not exist")
         return Config()
     try:
         document = tomllib.loads(resolved.read_text(encoding="utf-8"))

@@ -15,3 +15,8 @@ class TerrainError(PredictorError):
 
 class OutOfCoverageError(WeatherError):
     """A descent path or release point leaves the region or time span the weather covers."""
+
+
+class UsageError(PredictorError):
+    """A command line argparse accepted but that cannot mean anything (options that exclude each other,
+    a count out of range): exit status 2 like argparse's own, so a script can tell a typo from a failure."""

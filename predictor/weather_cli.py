@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import statistics
@@ -106,6 +107,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     info = commands.add_parser("info", help="what a set of GRIB files holds once loaded as one cube")
     info.add_argument("files", nargs="+", type=Path, help="GRIB files")
+    info.add_argument("--json", action="store_true", help="print JSON")
     info.set_defaults(func=run_info)
 
     bench = commands.add_parser(
@@ -251,6 +253,20 @@ def run_info(args: argparse.Namespace) -> int:
     from predictor.weather import load_weather
 
     cube = load_weather(args.files)
+    if args.json:
+        document = {
+            "source": cube.source,
+            "valid_times_utc": [np.datetime_as_string(t, unit="s") + "Z" for t in cube.times],
+            "lead_h": [float(h) for h in cube.lead_h],
+            "levels_hpa": [float(p) for p in cube.levels_hpa],
+            "top_altitude_m": float(cube.z_m[:, -1].min()),
+            "region": {"lat_min": float(cube.lats[0]), "lat_max": float(cube.lats[-1]),
+                       "lon_min": float(cube.lons[0]), "lon_max": float(cube.lons[-1])},
+            "global": bool(cube.is_global),
+            "warnings": list(cube.warnings),
+        }  # fmt: skip
+        print(json.dumps(document, indent=2, ensure_ascii=False))
+        return 0
     print(f"source: {cube.source}")
     print(f"valid times: {', '.join(np.datetime_as_string(t, unit='m') + 'Z' for t in cube.times)}")
     print(f"lead times (h): {', '.join(f'{h:g}' for h in cube.lead_h)}")

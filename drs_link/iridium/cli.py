@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
+import sys
 import threading
 from dataclasses import replace
 from datetime import datetime
@@ -29,7 +31,10 @@ from drs_link.iridium.mt import MtComposer, MtMessage, parse_hhmm
 from drs_link.iridium.parachute import plan_parachute
 from drs_link.iridium.procedure import complete_mt_steps
 from drs_link.iridium.recovery import (
+    LandingEstimate,
+    TrackPoint,
     detect_landing,
+    distance_bearing,
     parse_position,
     phone_summary,
     read_gpsd_position,
@@ -40,7 +45,8 @@ from drs_link.iridium.recovery import (
 from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.iridium.track_export import export_track
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
-from drs_link.store import Store, utc_now
+from drs_link.store import Store, iso_utc, utc_now
+from predictor.errors import UsageError
 from predictor.plausibility import emit, far_team_warning
 
 _IMEI_RE = re.compile(r"\d{15}")
@@ -76,6 +82,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     send.set_defaults(func=_mt_send)
     status = mt_actions.add_parser("status", help="the lifecycle of this capsule's commands")
     status.add_argument("name")
+    status.add_argument("--json", action="store_true", help="print JSON")
     status.set_defaults(func=_mt_status)
     resolve = mt_actions.add_parser(
         "resolve", help="record what the RockBLOCK portal shows for a command whose delivery is unknown"
@@ -116,6 +123,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     bench.set_defaults(func=_mo_bench)
     health = mo_actions.add_parser("health", help="battery, resets, gaps and spacing from the reports")
     health.add_argument("name")
+    health.add_argument("--json", action="store_true", help="print JSON")
     health.set_defaults(func=_mo_health)
     export = mo_actions.add_parser("export", help="the stored position fixes as a canonical track CSV")
     export.add_argument("name", nargs="?", help="capsule name from the configuration")
@@ -130,6 +138,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     recovery.add_argument("--gpx", type=Path, metavar="OUT")
     recovery.add_argument("--kml", type=Path, metavar="OUT")
     recovery.add_argument("--predicted", type=Path, metavar="GEOJSON", help="a predicted track (LineString)")
+    recovery.add_argument("--json", action="store_true", help="print JSON (the summary line is one of its fields)")
     recovery.set_defaults(func=_recovery)
 
 
@@ -216,12 +225,27 @@ def _mt_status(args: argparse.Namespace) -> int:
     capsule, reports = _capsule_reports(config, store, args.name)
     life = lc.CommandLifecycle(store, config.operator.name)
     life.observe(reports, capsule.imei or "")
-    for command in life.for_imei(capsule.imei or ""):
+    commands = life.for_imei(capsule.imei or "")
+    if args.json:
+        listed = [_command_json(command) for command in commands]
+        print(json.dumps({"capsule": capsule.name, "imei": capsule.imei, "commands": listed}, indent=2))
+        return 0
+    for command in commands:
         print(
             f"MT {command.id} {command.requested_utc:%Y-%m-%d %H:%M:%S}Z {command.text} {command.state}: "
             f"{command.detail}"
         )
     return 0
+
+
+def _command_json(command: lc.Command) -> dict[str, object]:
+    return {
+        "id": command.id, "text": command.text, "state": command.state, "detail": command.detail,
+        "operator": command.operator, "flush": command.flush, "requested_utc": iso_utc(command.requested_utc),
+        "updated_utc": iso_utc(command.updated_utc),
+        "queued_utc": iso_utc(command.queued_utc) if command.queued_utc else None,
+        "gateway_id": command.mt_id, "delivered_report_id": command.delivered_report_id, "effects": command.effects,
+    }  # fmt: skip
 
 
 def _mt_resolve(args: argparse.Namespace) -> int:
@@ -315,13 +339,13 @@ def _mo_import(args: argparse.Namespace) -> int:
 def _mo_export(args: argparse.Namespace) -> int:
     config, store = _open(args)
     if (args.name is None) == (args.imei is None):
-        raise LinkError("give either a capsule NAME or --imei IMEI, not both or neither")
+        raise UsageError("give either a capsule NAME or --imei IMEI, not both or neither")
     if args.name is not None:
         _, reports = _capsule_reports(config, store, args.name)
         who = args.name
     else:
         if not _IMEI_RE.fullmatch(args.imei):
-            raise LinkError(f"--imei {args.imei!r}: an IMEI is 15 digits")
+            raise UsageError(f"--imei {args.imei!r}: an IMEI is 15 digits")
         reports = ReportStore(store).for_imei(args.imei)
         who = f"IMEI {args.imei}"
     result = export_track(reports, args.out, who, overwrite=args.force)
@@ -336,7 +360,7 @@ def _mo_bench(args: argparse.Namespace) -> int:
     for option, value, most in (("--posts", args.posts, 10_000), ("--clients", args.clients, 200),
                                 ("--per-client", args.per_client, 10_000)):  # fmt: skip
         if not 1 <= value <= most:
-            raise LinkError(f"{option} must be from 1 to {most}")
+            raise UsageError(f"{option} must be from 1 to {most}")
     for line in run_bench(args.posts, args.clients, args.per_client).lines():
         print(line)
     return 0
@@ -348,6 +372,15 @@ def _mo_health(args: argparse.Namespace) -> int:
     life = lc.CommandLifecycle(store, config.operator.name)
     life.observe(reports, capsule.imei or "")
     health = assess(reports, life.for_imei(capsule.imei or ""))
+    if args.json:
+        document = {
+            "capsule": capsule.name, "imei": capsule.imei, "reports": health.reports,
+            "last_report_utc": iso_utc(health.last_report) if health.last_report else None,
+            "last_vbat": health.last_vbat,
+            "findings": [{"kind": f.kind, "report_id": f.report_id, "message": f.message} for f in health.findings],
+        }  # fmt: skip
+        print(json.dumps(document, indent=2))
+        return 0
     last = f"{health.last_report:%Y-%m-%d %H:%M:%S}Z" if health.last_report else "never"
     vbat = f"{health.last_vbat:.2f} V" if health.last_vbat is not None else "unknown"
     print(f"{capsule.name}: {health.reports} reports, last {last}, battery {vbat}")
@@ -397,17 +430,58 @@ def _recovery(args: argparse.Namespace) -> int:
     capsule_at = (landing.lat, landing.lon) if landing else (track[-1].lat, track[-1].lon) if track else None
     if team is not None and capsule_at is not None:
         emit(far_team_warning(team, capsule_at))
-    print(phone_summary(capsule.name, landing, track[-1] if track else None, team, coarse))
-    if landing is not None:
-        print(
-            f"landed {landing.landed_at:%Y-%m-%d %H:%M:%S}Z at {landing.alt_m:.0f} m; "
-            f"{landing.count} fixes kept, "
-            f"{landing.rejected} rejected; last on site {landing.last_fix_at:%H:%M:%S}Z"
-        )
+    summary = phone_summary(capsule.name, landing, track[-1] if track else None, team, coarse)
+    if not args.json:
+        print(summary)
+        if landing is not None:
+            print(
+                f"landed {landing.landed_at:%Y-%m-%d %H:%M:%S}Z at {landing.alt_m:.0f} m; "
+                f"{landing.count} fixes kept, {landing.rejected} rejected; last on site {landing.last_fix_at:%H:%M:%S}Z"
+            )
+    said = sys.stderr if args.json else sys.stdout  # with --json, stdout is the one JSON document
     if args.gpx:
         write_gpx(args.gpx, capsule.name, track, predicted, landing)
-        print(f"wrote {args.gpx}")
+        print(f"wrote {args.gpx}", file=said)
     if args.kml:
         write_kml(args.kml, capsule.name, track, predicted, landing)
-        print(f"wrote {args.kml}")
+        print(f"wrote {args.kml}", file=said)
+    if args.json:
+        print(json.dumps(_recovery_json(capsule.name, summary, landing, track, team, coarse), indent=2))
     return 0
+
+
+def _recovery_json(
+    name: str,
+    summary: str,
+    landing: LandingEstimate | None,
+    track: list[TrackPoint],
+    team: tuple[float, float] | None,
+    coarse: tuple[float, float, float, datetime] | None,
+) -> dict[str, object]:
+    """What the summary line says, as numbers: the distance and bearing are from the team to the best
+    position there is (the landing, else the last fix, else Iridium's coarse one)."""
+    last = track[-1] if track else None
+    document: dict[str, object] = {
+        "capsule": name,
+        "summary": summary,
+        "landing": None if landing is None else {
+            "lat": landing.lat, "lon": landing.lon, "alt_m": landing.alt_m,
+            "std_m": None if math.isnan(landing.std_m) else landing.std_m, "fixes": landing.count,
+            "rejected": landing.rejected, "landed_utc": iso_utc(landing.landed_at),
+            "last_fix_utc": iso_utc(landing.last_fix_at),
+            "moved_utc": iso_utc(landing.moved_at) if landing.moved_at else None,
+        },
+        "last_fix": None if last is None else {
+            "time_utc": iso_utc(last.time), "lat": last.lat, "lon": last.lon, "alt_m": last.alt_m,
+            "speed_ms": last.speed_ms,
+        },
+        "iridium_position": None if coarse is None else {
+            "lat": coarse[0], "lon": coarse[1], "cep_m": coarse[2], "time_utc": iso_utc(coarse[3]),
+        },
+        "from": None if team is None else {"lat": team[0], "lon": team[1]},
+    }  # fmt: skip
+    best = (landing.lat, landing.lon) if landing else (last.lat, last.lon) if last else coarse[:2] if coarse else None
+    if team is not None and best is not None:
+        distance, bearing = distance_bearing(team[0], team[1], best[0], best[1])
+        document["distance_m"], document["bearing_deg"] = distance, bearing
+    return document

@@ -65,7 +65,7 @@ def run_summary(args: argparse.Namespace) -> int:
         print(json.dumps([flight_summary(f) for f in flights], indent=2))
     elif flights:
         print("\n\n".join(_text(f) for f in flights))
-    return 2 if failed else 0
+    return 1 if failed else 0
 
 
 def run_bench(args: argparse.Namespace) -> int:

@@ -1,4 +1,4 @@
-"""``drs calibrate`` on real flights, and every input error as one line with exit status 2."""
+"""``drs calibrate`` on real flights, and every input error as one line with exit status 1."""
 
 from __future__ import annotations
 
@@ -92,12 +92,12 @@ def test_the_bench_times_the_whole_calibration(shared_data: Path, capsys: pytest
         ),
     ],
 )
-def test_bad_input_is_one_line_with_status_2(
+def test_bad_input_is_one_line_with_status_1(
     shared_data: Path, capsys: pytest.CaptureFixture[str], extra: list[str], message: str
 ) -> None:
     status = main(["calibrate", "--tracks", *_tracks(shared_data)[:1], *extra])
     err = capsys.readouterr().err
-    assert status == 2 and err.startswith("drs: error: ") and message in err and err.count("\n") == 1
+    assert status == 1 and err.startswith("drs: error: ") and message in err and err.count("\n") == 1
 
 
 def test_an_unreadable_track_names_its_file_and_line(
@@ -107,7 +107,7 @@ def test_an_unreadable_track_names_its_file_and_line(
     bad.write_text("time,lat,lon,alt_m\n2024-05-01T08:00:00Z,46.0,six,500\n")
     status = main(["calibrate", "--tracks", str(bad), "--winds", "ascent", "--payload", "drs"])
     err = capsys.readouterr().err
-    assert status == 2 and err.startswith(f"drs: error: {bad}:2") and err.count("\n") == 1
+    assert status == 1 and err.startswith(f"drs: error: {bad}:2") and err.count("\n") == 1
 
 
 def test_no_usable_flight_is_an_error_not_an_empty_report(tmp_path: Path, capsys: pytest.CaptureFixture[str],
@@ -117,7 +117,7 @@ def test_no_usable_flight_is_an_error_not_an_empty_report(tmp_path: Path, capsys
     short.write_text("\n".join(lines[:30]) + "\n")
     status = main(["calibrate", "--tracks", str(short), "--winds", "ascent", "--payload", "superbit-test"])
     err = capsys.readouterr().err
-    assert status == 2 and "needs at least 3 usable flights, got 0 (excluded: short: cleaning:" in err
+    assert status == 1 and "needs at least 3 usable flights, got 0 (excluded: short: cleaning:" in err
 
 
 def test_flights_logged_in_forecast_weather_are_calibrated_from_grib_files(

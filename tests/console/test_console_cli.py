@@ -24,7 +24,7 @@ def test_drs_demo_without_a_terminal_says_so_in_one_line_and_fails() -> None:
         [sys.executable, "-m", "console.cli", "demo"], cwd=REPO, stdin=subprocess.DEVNULL,
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip
-    assert result.returncode == 2
+    assert result.returncode == 1
     assert result.stderr.count("\n") == 1 and "not a terminal" in result.stderr
     assert result.stdout == ""
 

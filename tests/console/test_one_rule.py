@@ -217,7 +217,7 @@ def test_a_zone_file_is_refused_for_the_same_reason_by_drs_plan_and_the_console(
         "--alt",
         "31500",
     ]
-    assert cli(config, *plan, "--from", "2026-09-01T12:00Z", "--zones", str(zones)) == 2
+    assert cli(config, *plan, "--from", "2026-09-01T12:00Z", "--zones", str(zones)) == 1
     from_cli = capsys.readouterr().err.strip().removeprefix("drs: error: ")
     with pytest.raises(ConfigError) as refused:
         live_setup(load_config(config), None, None)

@@ -395,11 +395,11 @@ def test_cli_refusals_and_usage_errors_are_one_line(
         (("--release",), "the release authority belongs to JR@console2, not to this console"),
     ]
     for args, message in cases:
-        assert drs(config, "capsule", "authority", "DRS1", *args) == 2, args
+        assert drs(config, "capsule", "authority", "DRS1", *args) == 1, args
         assert message in _one_line_error(capsys), args
-    assert drs(config, "capsule", "authority", "DRS9") == 2
+    assert drs(config, "capsule", "authority", "DRS9") == 1
     assert "no capsule named 'DRS9'" in _one_line_error(capsys)
-    assert drs(tmp_path / "none.toml", "capsule", "authority", "DRS1") == 2
+    assert drs(tmp_path / "none.toml", "capsule", "authority", "DRS1") == 1
     assert "does not exist" in _one_line_error(capsys)
     assert sim.authority is not None and sim.authority[0] == "JR@console2"
     assert _sent(sim, "authority-take-over") == 0 and _sent(sim, "authority-release") == 1
@@ -416,9 +416,9 @@ def test_cli_take_over_needs_an_operator_name_and_an_unreleased_capsule(
     (tmp_path / "nameless").mkdir()
     nameless = _write_config(tmp_path / "nameless", [sim], client_key[0], operator="")
     take_over = ("capsule", "authority", "DRS1", "--take-over", "--reason", "x", "--confirm", "DRS1")
-    assert drs(nameless, *take_over) == 2
+    assert drs(nameless, *take_over) == 1
     assert "operator.name" in _one_line_error(capsys)
-    assert drs(nameless, "capsule", "authority", "DRS1", "--release") == 2
+    assert drs(nameless, "capsule", "authority", "DRS1", "--release") == 1
     assert "operator.name" in _one_line_error(capsys)
     assert drs(nameless, "capsule", "authority", "DRS1") == 0
     assert capsys.readouterr().out == "DRS1: release authority free\n"
@@ -426,7 +426,7 @@ def test_cli_take_over_needs_an_operator_name_and_an_unreleased_capsule(
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
     assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
     capsys.readouterr()
-    assert drs(config, *take_over) == 2
+    assert drs(config, *take_over) == 1
     assert "take-over refused: the capsule is already released" in _one_line_error(capsys)
 
 
@@ -508,7 +508,7 @@ def test_cli_power_on_prompt_takes_end_of_input_as_no_and_says_so_in_one_line(
         os.write(master, b"\x04")
         shown = _read_until(master, b"\r\n", deadline)
         shown += _read_until(master, b"never appears", time.monotonic() + 5)
-        assert proc.wait(timeout=30) == 2
+        assert proc.wait(timeout=30) == 1
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -727,6 +727,33 @@ def test_watch_prints_fixes_and_rejections_and_exits_0_after_count(
     assert any(line.startswith("rejected: bad checksum") and "[$GPGGA,bad*00]" in line for line in out)
 
 
+def test_watch_json_is_one_object_per_line_as_it_happens(
+    udp_config: tuple[Path, int], capsys: pytest.CaptureFixture[str]
+) -> None:
+    path, port = udp_config
+    start = datetime.now(UTC).replace(microsecond=0) - timedelta(hours=1)
+
+    def lines(n: int) -> bytes:
+        if n % 2:
+            return b"$GPGGA,bad*00"
+        return format_ozimux(start + timedelta(seconds=n), 67.5, 21.25, 30_000.0).encode()
+
+    thread, stop = _sender(port, lines)
+    try:
+        code = main(["--config", str(path), "balloon", "watch", "--count", "2", "--json"])
+    finally:
+        stop.set()
+        thread.join()
+    events = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert code == 0 and events[0] == {"event": "watching", "source": f"udp 127.0.0.1:{port}"}
+    fixes = [e for e in events if e["event"] == "fix"]
+    assert len(fixes) == 2 and all((f["lat"], f["lon"], f["alt_m"], f["format"]) == (67.5, 21.25, 30000.0, "ozimux")
+                                   for f in fixes)  # fmt: skip
+    assert datetime.fromisoformat(fixes[0]["time_utc"].replace("Z", "+00:00")) >= start
+    rejected = [e for e in events if e["event"] == "rejected"]
+    assert rejected and rejected[0]["line"] == "$GPGGA,bad*00" and "checksum" in rejected[0]["detail"]
+
+
 def test_watch_times_out_saying_what_was_rejected(
     udp_config: tuple[Path, int], capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -738,7 +765,7 @@ def test_watch_times_out_saying_what_was_rejected(
         stop.set()
         thread.join()
     captured = capsys.readouterr()
-    assert code == 2
+    assert code == 1
     assert captured.err.startswith(f"drs: error: no balloon position from udp 127.0.0.1:{port} in 1.5 s (")
     assert captured.err.rstrip().endswith("rejected: bad checksum)")
     assert "rejected: bad checksum" in captured.out
@@ -749,7 +776,7 @@ def test_watch_without_a_feed_configured_is_a_clear_error(
 ) -> None:
     path = tmp_path / "drs.toml"
     path.write_text('[operator]\nname = "EL"\n')
-    assert main(["--config", str(path), "balloon", "watch"]) == 2
+    assert main(["--config", str(path), "balloon", "watch"]) == 1
     assert "no balloon feed configured" in capsys.readouterr().err
 
 

@@ -92,7 +92,7 @@ def test_full_release_from_the_command_line(
     assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
     assert "released, Pi shut down" in capsys.readouterr().out
     assert sim.firmware.go_at is not None
-    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 2
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 1
     assert "already released" in _one_line_error(capsys)
     assert drs(config, "capsule", "status", "DRS1") == 0
     assert "released" in capsys.readouterr().out
@@ -126,7 +126,7 @@ def test_go_with_a_confirmation_naming_another_capsule_is_refused(
     sim, config = setup
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
     capsys.readouterr()
-    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS2") == 2
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS2") == 1
     assert "does not name 'DRS1'" in _one_line_error(capsys)
     assert sim.firmware.go_at is None
 
@@ -135,7 +135,7 @@ def test_go_before_power_on_is_refused(
     setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str]
 ) -> None:
     sim, config = setup
-    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 2
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 1
     assert "power-on has not succeeded" in _one_line_error(capsys)
     assert not any("drs:go" in c for c in sim.commands)
 
@@ -145,7 +145,7 @@ def test_power_on_without_yes_and_without_a_terminal_is_refused(
 ) -> None:
     sim, config = setup
     monkeypatch.setattr("sys.stdin.isatty", lambda: False)
-    assert drs(config, "capsule", "power-on", "DRS1") == 2
+    assert drs(config, "capsule", "power-on", "DRS1") == 1
     assert "pass --yes" in _one_line_error(capsys)
     assert not sim.gpio.relay_latched
 
@@ -157,7 +157,7 @@ def test_release_steps_need_an_operator_name(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     config = _write_config(tmp_path, [make_sim()], client_key[0], operator="")
-    assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 2
+    assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 1
     assert "operator.name" in _one_line_error(capsys)
 
 
@@ -165,9 +165,9 @@ def test_unknown_capsule_and_missing_config_are_one_line_errors(
     setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
     _, config = setup
-    assert drs(config, "capsule", "status", "DRS9") == 2
+    assert drs(config, "capsule", "status", "DRS9") == 1
     assert "no capsule named 'DRS9'" in _one_line_error(capsys)
-    assert drs(tmp_path / "none.toml", "capsule", "status", "DRS1") == 2
+    assert drs(tmp_path / "none.toml", "capsule", "status", "DRS1") == 1
     assert "does not exist" in _one_line_error(capsys)
 
 
@@ -186,7 +186,7 @@ def test_wrong_host_key_is_a_one_line_refusal(
 ) -> None:
     sim, config = setup
     sim.host_key = generate_ed25519()
-    assert drs(config, "capsule", "status", "DRS1") == 2
+    assert drs(config, "capsule", "status", "DRS1") == 1
     line = _one_line_error(capsys)
     assert "CHANGED" in line and fingerprint(sim.host_key) in line
 
@@ -200,7 +200,7 @@ def test_enrol_shows_the_fingerprint_and_saves_only_a_matching_one(
     assert drs(config, "capsule", "enrol", "DRS1") == 1
     assert fingerprint(sim.host_key) in capsys.readouterr().out
     assert known_hosts.read_text() == ""
-    assert drs(config, "capsule", "enrol", "DRS1", "--fingerprint", "SHA256:wrong") == 2
+    assert drs(config, "capsule", "enrol", "DRS1", "--fingerprint", "SHA256:wrong") == 1
     assert "enrol refused" in _one_line_error(capsys)
     assert drs(config, "capsule", "enrol", "DRS1", "--fingerprint", fingerprint(sim.host_key)) == 0
     assert drs(config, "capsule", "status", "DRS1") == 0
@@ -228,7 +228,7 @@ def test_sync_of_a_missing_directory_is_a_one_line_error(
     setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
     _, config = setup
-    assert drs(config, "sync", "DRS1", str(tmp_path / "absent")) == 2
+    assert drs(config, "sync", "DRS1", str(tmp_path / "absent")) == 1
     assert "is not a directory" in _one_line_error(capsys)
 
 
@@ -319,7 +319,7 @@ def test_go_killed_while_the_pi_runs_it_stays_unverified_and_reset_is_refused(
     capsys.readouterr()
     assert drs(config, "capsule", "status", "DRS1", "--json") == 0
     assert json.loads(capsys.readouterr().out)["release"]["state"] == "go-sent-unverified"
-    assert drs(config, "capsule", "reset", "DRS1", "--confirm", "DRS1") == 2
+    assert drs(config, "capsule", "reset", "DRS1", "--confirm", "DRS1") == 1
     assert "Go was sent and not verified" in _one_line_error(capsys)
 
 

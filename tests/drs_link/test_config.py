@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from console.cli import main
 from drs_link.config import CapsuleConfig, Config, load_config, parse_config
 from drs_link.errors import ConfigError
 
@@ -72,6 +73,59 @@ def test_docs_example_is_a_valid_configuration() -> None:
 def test_missing_default_file_gives_defaults_but_missing_explicit_file_is_an_error(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="does not exist"):
         load_config(tmp_path / "absent.toml")
+
+
+IMEI_CAPSULE = '[[capsule]]\nname = "DRS1"\nhost = "h"\nimei = "300234010753370"\n'
+
+
+@pytest.fixture
+def xdg(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A home of its own, with the XDG directories somewhere else, as a user who sets them has."""
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "xdg-config"))
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg-data"))
+    monkeypatch.delenv("DRS_CONFIG", raising=False)
+    return tmp_path
+
+
+def test_the_config_and_the_store_follow_xdg(xdg: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (xdg / "xdg-config" / "drs").mkdir(parents=True)
+    (xdg / "xdg-config" / "drs" / "drs.toml").write_text(IMEI_CAPSULE)
+    assert main(["mo", "health", "DRS1"]) == 0
+    assert capsys.readouterr().out.startswith("DRS1: 0 reports")
+    assert (xdg / "xdg-data" / "drs" / "drs.sqlite").is_file() and not (xdg / "home").exists()
+    assert load_config().capsules[0].known_hosts == xdg / "xdg-config" / "drs" / "known_hosts"
+
+
+def test_drs_config_names_the_file_and_config_wins_over_it(
+    xdg: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    named = xdg / "elsewhere.toml"
+    named.write_text(IMEI_CAPSULE.replace("DRS1", "DRS7"))
+    monkeypatch.setenv("DRS_CONFIG", str(named))
+    assert main(["mo", "health", "DRS7"]) == 0
+    plain = xdg / "plain.toml"
+    plain.write_text("")
+    assert main(["--config", str(plain), "mo", "health", "DRS7"]) == 1
+    assert "no capsule named 'DRS7'" in capsys.readouterr().err
+    monkeypatch.setenv("DRS_CONFIG", str(xdg / "typo.toml"))
+    assert main(["mo", "health", "DRS7"]) == 1
+    assert capsys.readouterr().err == f"drs: error: DRS_CONFIG: configuration file {xdg / 'typo.toml'} does not exist\n"
+
+
+def test_files_in_the_pre_xdg_places_keep_working(xdg: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """Before XDG, ~/.config/drs and ~/.local/share/drs were fixed: a setup made then must not lose its store."""
+    old_config, old_data = xdg / "home" / ".config" / "drs", xdg / "home" / ".local" / "share" / "drs"
+    old_config.mkdir(parents=True)
+    old_data.mkdir(parents=True)
+    (old_config / "drs.toml").write_text('[operator]\nname = "EL"\n')
+    (old_data / "drs.sqlite").write_bytes(b"")
+    config = load_config()
+    assert (config.source, config.operator.name, config.store_path) == (
+        old_config / "drs.toml", "EL", old_data / "drs.sqlite"
+    )
+    moved = [r.getMessage() for r in caplog.records if "from its old place" in r.getMessage()]
+    assert len(moved) == 2 and str(xdg / "xdg-data" / "drs" / "drs.sqlite") in moved[1]
 
 
 def test_invalid_toml_names_the_file(tmp_path: Path) -> None:

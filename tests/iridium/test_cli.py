@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -65,9 +66,9 @@ def test_real_send_needs_the_capsule_name_and_then_queues_once(
 ) -> None:
     monkeypatch.setenv("DRS_TEST_RB", "pw-123")
     config = write_config(tmp_path, gateway.url)
-    assert run(config, "mt", "send", "DRS1", "--interval", "5") == 2
+    assert run(config, "mt", "send", "DRS1", "--interval", "5") == 1
     assert "drs: error: a real send needs --confirm DRS1" in capsys.readouterr().err
-    assert run(config, "mt", "send", "DRS1", "--interval", "5", "--confirm", "DRS2") == 2
+    assert run(config, "mt", "send", "DRS1", "--interval", "5", "--confirm", "DRS2") == 1
     assert "confirmation must name the capsule 'DRS1'" in capsys.readouterr().err
     assert run(config, "mt", "send", "DRS1", "--interval", "5", "--confirm", "DRS1") == 0
     out = capsys.readouterr().out
@@ -90,7 +91,7 @@ def test_bad_commands_are_one_line_errors(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str
 ) -> None:
     config = write_config(tmp_path)
-    assert run(config, "mt", "send", "DRS1", *argv, "--dry-run") == 2
+    assert run(config, "mt", "send", "DRS1", *argv, "--dry-run") == 1
     err = capsys.readouterr().err
     assert err.startswith("drs: error:") and message in err and err.count("\n") == 1
 
@@ -118,7 +119,7 @@ def test_mo_parse_prints_fields_json_and_rejections(
     assert "fix: 2026-07-01 10:00:07Z 46.500000,6.600000" in out and "forwarding: to RockBLOCK 16366" in out
     assert run(config, "mo", "parse", "5B49", "--json") == 1
     assert '"reason": "not a DRS report: 1 comma-separated field(s), not the firmware\'s 12"' in capsys.readouterr().out
-    assert run(config, "mo", "parse", "zz") == 2
+    assert run(config, "mo", "parse", "zz") == 1
     assert capsys.readouterr().err == "drs: error: not a DRS report: data is not valid hex\n"
 
 
@@ -148,6 +149,41 @@ def test_mo_import_then_health_and_recovery_with_exports(
     err = capsys.readouterr().err
     assert err.startswith("drs: warning: your position is ") and err.count("\n") == 1
     assert "as LON,LAT it would be 1 km away: --from takes LAT,LON" in err
+
+
+def test_health_status_and_recovery_report_as_json_with_the_numbers_the_text_shows(
+    tmp_path: Path,
+    gateway: SimulatedRockblock,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setenv("DRS_TEST_RB", "pw-123")
+    config = write_config(tmp_path, gateway.url)
+    reports = ReportStore(Store.open(tmp_path / "data" / "drs.sqlite"))
+    assert run(config, "mt", "send", "DRS1", "--interval", "5", "--confirm", "DRS1") == 0
+    start = utc_now().replace(microsecond=0) - timedelta(minutes=30)
+    fly(SimulatedCapsule(imei=IMEI, rb_source=11800), gateway, reports, start + timedelta(hours=1), 5)
+    capsys.readouterr()
+
+    assert run(config, "mo", "health", "DRS1", "--json") == 0
+    health = json.loads(capsys.readouterr().out)
+    assert (health["capsule"], health["imei"], health["reports"], health["last_vbat"]) == ("DRS1", IMEI, 5, 8.9)
+    assert health["last_report_utc"].endswith("Z") and health["findings"] == []
+
+    assert run(config, "mt", "status", "DRS1", "--json") == 0
+    [command] = json.loads(capsys.readouterr().out)["commands"]
+    assert (command["text"], command["state"], command["operator"]) == ("[INTERVAL=5]", "effect_confirmed", "alice")
+    assert command["gateway_id"] is not None and command["delivered_report_id"] is not None
+
+    gpx = tmp_path / "out.gpx"
+    assert run(config, "recovery", "DRS1", "--from", "46.49,6.60", "--gpx", str(gpx), "--json") == 0
+    captured = capsys.readouterr()
+    document = json.loads(captured.out)  # the whole of stdout is one document: "wrote" went to stderr
+    assert captured.err == f"wrote {gpx}\n" and gpx.exists()
+    assert document["summary"].startswith("DRS1 not landed: last fix 46.50000 N 6.60000 E at 500 m")
+    assert document["landing"] is None and document["from"] == {"lat": 46.49, "lon": 6.60}
+    assert (document["last_fix"]["lat"], document["last_fix"]["alt_m"]) == (46.5, 500.0)
+    assert round(document["distance_m"] / 100) == 11 and round(document["bearing_deg"]) in (0, 360)
 
 
 def test_mo_serve_stores_gateway_posts_until_interrupted(tmp_path: Path) -> None:
@@ -236,7 +272,7 @@ def test_recovery_exports_a_predicted_geojson_track_and_refuses_a_bad_one(
     assert capsys.readouterr().out.startswith("DRS1 not landed: last fix 46.50000 N 6.60000 E at 3000 m")
     assert "DRS1 predicted" in gpx.read_text() and 'lat="46.600000" lon="6.700000"' in gpx.read_text()
     predicted.write_text('{"type": "Point", "coordinates": [6.6, 46.5]}')
-    assert run(config, "recovery", "DRS1", "--predicted", str(predicted)) == 2
+    assert run(config, "recovery", "DRS1", "--predicted", str(predicted)) == 1
     assert "no LineString in the GeoJSON" in capsys.readouterr().err
 
 
@@ -268,7 +304,7 @@ def test_mt_resolve_records_the_portal_outcome_once(
     assert run(config, "mt", "resolve", "DRS1", "1", "--not-sent", "--note", "not in the portal") == 0
     out = capsys.readouterr().out
     assert out.startswith("MT 1 [INTERVAL=5]: not_sent: resolved by alice") and "not in the portal" in out
-    assert run(config, "mt", "resolve", "DRS1", "1", "--queued", "4114700") == 2
+    assert run(config, "mt", "resolve", "DRS1", "1", "--queued", "4114700") == 1
     err = capsys.readouterr().err
     assert err == (
         "drs: error: MT 1 is not_sent: only a command in delivery_unknown can be resolved, and only once\n"
@@ -319,21 +355,22 @@ def test_mo_export_writes_the_capsule_fixes_as_a_canonical_track(
 
 
 @pytest.mark.parametrize(
-    ("argv", "message"),
+    ("argv", "message", "status"),
     [
-        (["--out", "OUT"], "give either a capsule NAME or --imei IMEI, not both or neither"),
-        (["DRS1", "--imei", IMEI, "--out", "OUT"], "give either a capsule NAME or --imei IMEI"),
-        (["--imei", "30023401075337", "--out", "OUT"], "--imei '30023401075337': an IMEI is 15 digits"),
-        (["DRS9", "--out", "OUT"], "DRS9"),
-        (["DRS1", "--out", "OUT"], "no position fix stored for DRS1 (0 report(s)"),
+        (["--out", "OUT"], "give either a capsule NAME or --imei IMEI, not both or neither", 2),
+        (["DRS1", "--imei", IMEI, "--out", "OUT"], "give either a capsule NAME or --imei IMEI", 2),
+        (["--imei", "30023401075337", "--out", "OUT"], "--imei '30023401075337': an IMEI is 15 digits", 2),
+        (["DRS9", "--out", "OUT"], "DRS9", 1),
+        (["DRS1", "--out", "OUT"], "no position fix stored for DRS1 (0 report(s)", 1),
     ],
 )
 def test_mo_export_bad_requests_are_one_line_errors(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str, status: int
 ) -> None:
+    """A request that cannot mean anything is a usage error (2); one the store cannot answer failed (1)."""
     config = write_config(tmp_path)
     out = tmp_path / "t.csv"
-    assert run(config, "mo", "export", *(str(out) if arg == "OUT" else arg for arg in argv)) == 2
+    assert run(config, "mo", "export", *(str(out) if arg == "OUT" else arg for arg in argv)) == status
     err = capsys.readouterr().err
     assert err.startswith("drs: error:") and message in err and err.count("\n") == 1
     assert not out.exists()
@@ -344,5 +381,5 @@ def test_mt_resolve_without_an_operator_name_is_refused(
 ) -> None:
     config = write_config(tmp_path)
     config.write_text(config.read_text().replace('name = "alice"', 'name = ""'))
-    assert run(config, "mt", "resolve", "DRS1", "1", "--not-sent") == 2
+    assert run(config, "mt", "resolve", "DRS1", "1", "--not-sent") == 1
     assert "drs: error: operator.name: set [operator] name" in capsys.readouterr().err

@@ -93,7 +93,7 @@ def test_cli_refuses_parachute_in_flight_and_nothing_reaches_the_gateway(
     config = write_config(tmp_path, gateway.url)
     store = seed(tmp_path, falling(recent(9)))
     argv = ["mt", "send", "DRS1", "--parachute", "next", "--accept-midnight", "--confirm", "DRS1"]
-    assert run(config, *argv, "--single-operator-waiver", "alone at the landing site") == 2
+    assert run(config, *argv, "--single-operator-waiver", "alone at the landing site") == 1
     err = capsys.readouterr().err
     assert err.startswith("drs: error: DRS1: PARACHUTE refused: no landed evidence (NOT LANDED: last fix")
     assert err.count("\n") == 1
@@ -111,10 +111,10 @@ def test_cli_override_needs_a_reason_and_a_second_operator_and_is_audited_with_t
     store = seed(tmp_path, falling(recent(9)))
     argv = ["mt", "send", "DRS1", "--parachute", "next", "--accept-midnight", "--confirm", "DRS1",
             "--override-landed", "capsule seen on the ground by the chase team; GNSS frozen"]  # fmt: skip
-    assert run(config, *argv) == 2
+    assert run(config, *argv) == 1
     assert "overriding the landed check needs a second operator" in capsys.readouterr().err
     assert gateway.requests == []
-    assert run(config, *argv, "--second-operator", "alice") == 2, "the operator cannot be their own second"
+    assert run(config, *argv, "--second-operator", "alice") == 1, "the operator cannot be their own second"
     capsys.readouterr()
     assert run(config, *argv, "--second-operator", "bob") == 0
     assert len(gateway.requests) == 1
@@ -142,7 +142,7 @@ def test_a_send_refused_for_the_wrong_name_is_recorded_as_not_sent_not_left_requ
 ) -> None:
     monkeypatch.setenv("DRS_TEST_RB", "pw")
     config = write_config(tmp_path, gateway.url)
-    assert run(config, "mt", "send", "DRS1", "--interval", "5", "--confirm", "drs1") == 2
+    assert run(config, "mt", "send", "DRS1", "--interval", "5", "--confirm", "drs1") == 1
     assert "confirmation must name the capsule" in capsys.readouterr().err
     store = Store.open(tmp_path / "data" / "drs.sqlite")
     [command] = CommandLifecycle(store, "alice").for_imei(IMEI)

@@ -154,7 +154,7 @@ def test_terrain_directory_from_the_cli(
         ({"--alt": "90000"}, "above the weather's top level"),
     ],
 )
-def test_bad_input_is_one_line_and_exit_2(
+def test_bad_input_is_one_line_and_exit_1(
     grib_files: list[Path], cache: str, capsys: pytest.CaptureFixture[str], change: dict, message: str
 ) -> None:
     args = base_args(grib_files, cache)
@@ -165,7 +165,7 @@ def test_bad_input_is_one_line_and_exit_2(
             del args[i:end]
         else:
             args[i + 1] = value
-    assert main(args) == 2
+    assert main(args) == 1
     err = capsys.readouterr().err
     assert message in err
     assert err.count("\n") == 1 and "Traceback" not in err
@@ -176,7 +176,7 @@ def test_missing_weather_file_is_one_line(
 ) -> None:
     args = ["predict", "--weather", str(tmp_path / "nope.grib2"), "--cache-dir", cache,
             "--lat", "1", "--lon", "1", "--alt", "1000", "--time", "2024-05-01T00:00Z"]  # fmt: skip
-    assert main(args) == 2
+    assert main(args) == 1
     err = capsys.readouterr().err
     assert err.startswith("drs: error: weather file") and err.count("\n") == 1
 
@@ -184,7 +184,7 @@ def test_missing_weather_file_is_one_line(
 def test_unwritable_kml_is_one_line(
     grib_files: list[Path], cache: str, capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    assert main([*base_args(grib_files, cache), "--kml", str(tmp_path / "no" / "x.kml")]) == 2
+    assert main([*base_args(grib_files, cache), "--kml", str(tmp_path / "no" / "x.kml")]) == 1
     assert "drs: error: cannot write the KML file" in capsys.readouterr().err
 
 
@@ -262,5 +262,5 @@ def test_demo_weather_prediction_says_demo_everywhere(
 def test_weather_and_demo_weather_together_is_refused(
     grib_files: list[Path], cache: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert main([*base_args(grib_files, cache), "--demo-weather"]) == 2
+    assert main([*base_args(grib_files, cache), "--demo-weather"]) == 1
     assert "give either --weather or --demo-weather, not both" in capsys.readouterr().err

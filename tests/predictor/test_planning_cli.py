@@ -89,17 +89,17 @@ def test_plan_summary_reports_no_go_for_an_empty_window(
     assert all("NO-GO P(zone) 1.000 > 0.05 (mostly sea)" in line for line in out[3:8])
 
 
-def test_plan_bad_input_is_one_line_and_exit_2(
+def test_plan_bad_input_is_one_line_and_exit_1(
     grib_files: list[Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     bad = tmp_path / "bad.geojson"
     bad.write_text("{")
-    assert main(args(grib_files, tmp_path, "--zones", str(bad))) == 2
+    assert main(args(grib_files, tmp_path, "--zones", str(bad))) == 1
     err = capsys.readouterr().err.strip()
     assert err.startswith("drs: error: zone file") and "not JSON" in err and "\n" not in err
-    assert main(["plan", "--lat", "1"]) == 2
+    assert main(["plan", "--lat", "1"]) == 1
     assert capsys.readouterr().err.strip() == "drs: error: drs plan needs --weather, --lon, --alt, --from"
-    assert main(args(grib_files, tmp_path, "--max-target-km", "5")) == 2
+    assert main(args(grib_files, tmp_path, "--max-target-km", "5")) == 1
     assert "needs a targets file" in capsys.readouterr().err
-    assert main([*args(grib_files, tmp_path)[:-4], "--hours", "1", "--every-minutes", "0"]) == 2
+    assert main([*args(grib_files, tmp_path)[:-4], "--hours", "1", "--every-minutes", "0"]) == 1
     assert "sweep step" in capsys.readouterr().err

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from datetime import UTC, datetime
 from pathlib import Path
@@ -63,6 +64,12 @@ def test_fetch_downloads_the_available_cycle_and_prints_the_paths(
     assert "cycles 2024-04-30 18Z, 3 files" in err
     assert main(["weather", "info", *map(str, paths)]) == 0
     assert "lead times (h): 9, 12, 15" in capsys.readouterr().out
+    assert main(["weather", "info", "--json", *map(str, paths)]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["lead_h"] == [9.0, 12.0, 15.0] and info["levels_hpa"] == sorted(info["levels_hpa"], reverse=True)
+    assert info["valid_times_utc"] == ["2024-05-01T03:00:00Z", "2024-05-01T06:00:00Z", "2024-05-01T09:00:00Z"]
+    assert info["region"] == {"lat_min": 46.0, "lat_max": 47.0, "lon_min": 6.0, "lon_max": 7.0}
+    assert info["global"] is False and info["top_altitude_m"] > 40_000
 
 
 def test_fetch_in_hindsight_mixes_cycles_and_reads_the_template_from_the_environment(
@@ -84,7 +91,7 @@ def test_fetch_of_an_unpublished_cycle_is_a_one_line_error_without_secrets(
 ) -> None:
     argv = ["weather", "fetch", "--time", "2024-05-01T04:00Z", "--lat", "46.5", "--lon", "6.6"]
     argv += ["--dir", str(tmp_path), "--url-template", server.template]
-    assert main(argv) == 2
+    assert main(argv) == 1
     err = capsys.readouterr().err
     error_lines = [line for line in err.splitlines() if line.startswith("drs: error:")]
     assert len(error_lines) == 1 and "HTTP 404" in error_lines[0] and "token=REDACTED" in error_lines[0]
@@ -102,7 +109,7 @@ def test_fetch_with_a_bad_time_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], time_text: str, message: str
 ) -> None:
     argv = ["weather", "fetch", "--time", time_text, "--lat", "46.5", "--lon", "6.6", "--dir", str(tmp_path)]
-    assert main(argv) == 2
+    assert main(argv) == 1
     err = capsys.readouterr().err
     assert err.startswith("drs: error: --time") and message in err and err.count("\n") == 1
 
@@ -115,7 +122,7 @@ def test_info_on_a_truncated_file_names_it(tmp_path: Path, capsys: pytest.Captur
         tmp_path / "full", datetime(2024, 1, 1), 0, levels, [0, 1], [0, 1], *[np.ones(shape)] * 4
     ).read_bytes()
     cut.write_bytes(full[: len(full) - 100])
-    assert main(["weather", "info", str(cut)]) == 2
+    assert main(["weather", "info", str(cut)]) == 1
     err = capsys.readouterr().err
     assert "f000: GRIB message" in err and "truncated or corrupt" in err and err.count("\n") == 1
 
