@@ -68,7 +68,7 @@ def test_drs_predict_with_the_model_equals_the_same_terms_by_hand(
 
 def test_model_and_payload_together_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = save_model(example(), tmp_path / "m.json")
-    assert main(["predict", "--demo-weather", *RELEASE, "--model", str(path), "--mass", "2"]) == 2
+    assert main(["predict", "--demo-weather", *RELEASE, "--model", str(path), "--mass", "2"]) == 1
     assert "give --model or --payload/--mass/--cda, not both" in capsys.readouterr().err
 
 
@@ -141,6 +141,6 @@ def test_a_bad_model_file_is_refused_naming_the_file_and_the_field(
 
 
 def test_a_missing_model_file_is_one_line_from_the_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["predict", "--demo-weather", *RELEASE, "--model", str(tmp_path / "none.json")]) == 2
+    assert main(["predict", "--demo-weather", *RELEASE, "--model", str(tmp_path / "none.json")]) == 1
     err = capsys.readouterr().err
     assert err == f"drs: error: model file {tmp_path / 'none.json'} does not exist\n"
