@@ -212,7 +212,7 @@ class RecoveryScreen(CommandingScreen):
         try:
             write_gpx(gpx, self.capsule, self.track, predicted, self.landing)
             write_kml(kml, self.capsule, self.track, predicted, self.landing)
-        except OSError as exc:
+        except (OSError, PredictorError) as exc:
             self.app.notify(f"export failed: {exc}", severity="error")
             return
         self.app.notify(f"exported {gpx.name} and {kml.name}")

@@ -47,6 +47,7 @@ from drs_link.iridium.track_export import export_track
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
 from drs_link.store import Store, iso_utc, utc_now
 from predictor.errors import UsageError
+from predictor.geofiles.output import piped
 from predictor.plausibility import emit, far_team_warning
 
 _IMEI_RE = re.compile(r"\d{15}")
@@ -135,8 +136,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     recovery = subparsers.add_parser("recovery", help="landing estimate, distance from you, GPX/KML export")
     recovery.add_argument("name")
     recovery.add_argument("--from", dest="origin", metavar="LAT,LON|gpsd", help="your position, or 'gpsd'")
-    recovery.add_argument("--gpx", type=Path, metavar="OUT")
-    recovery.add_argument("--kml", type=Path, metavar="OUT")
+    recovery.add_argument(
+        "--gpx", type=Path, metavar="OUT", help="write GPX for a handheld (landings, tracks); - for stdout"
+    )
+    recovery.add_argument(
+        "--kml", type=Path, metavar="OUT", help="write KML of the landings and tracks; - for stdout"
+    )
     recovery.add_argument("--predicted", type=Path, metavar="GEOJSON", help="a predicted track (LineString)")
     recovery.add_argument("--json", action="store_true", help="print JSON (the summary line is one of its fields)")
     recovery.set_defaults(func=_recovery)
@@ -390,7 +395,8 @@ def _mo_health(args: argparse.Namespace) -> int:
 
 
 def _read_predicted(path: Path) -> list[tuple[float, float, float]]:
-    """The first LineString of a GeoJSON file as (lat, lon, alt) points."""
+    """The first path of a GeoJSON file as (lat, lon, alt) points: a LineString, or a MultiLineString
+    (a path cut at ±180°, as drs predict --geojson writes one) with its parts joined."""
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
@@ -399,11 +405,14 @@ def _read_predicted(path: Path) -> list[tuple[float, float, float]]:
     while stack:
         node = stack.pop(0)
         if isinstance(node, dict):
-            if node.get("type") == "LineString" and isinstance(node.get("coordinates"), list):
+            kind = node.get("type")
+            if kind in {"LineString", "MultiLineString"} and isinstance(node.get("coordinates"), list):
+                lines = node["coordinates"] if kind == "MultiLineString" else [node["coordinates"]]
                 try:
                     return [
                         (float(c[1]), float(c[0]), float(c[2]) if len(c) > 2 else 0.0)
-                        for c in node["coordinates"]
+                        for line in lines
+                        for c in line
                     ]
                 except (TypeError, ValueError, IndexError):
                     raise LinkError(f"--predicted {path}: LineString coordinates are not numbers") from None
@@ -414,6 +423,8 @@ def _read_predicted(path: Path) -> list[tuple[float, float, float]]:
 
 
 def _recovery(args: argparse.Namespace) -> int:
+    # With --json or a '-' output, stdout carries that one document and the lines for people go to stderr.
+    said = sys.stderr if piped(gpx=args.gpx, kml=args.kml, json=args.json) or args.json else sys.stdout
     config, store = _open(args)
     capsule, reports = _capsule_reports(config, store, args.name)
     team = None
@@ -432,13 +443,14 @@ def _recovery(args: argparse.Namespace) -> int:
         emit(far_team_warning(team, capsule_at))
     summary = phone_summary(capsule.name, landing, track[-1] if track else None, team, coarse)
     if not args.json:
-        print(summary)
+        print(summary, file=said)
         if landing is not None:
             print(
                 f"landed {landing.landed_at:%Y-%m-%d %H:%M:%S}Z at {landing.alt_m:.0f} m; "
-                f"{landing.count} fixes kept, {landing.rejected} rejected; last on site {landing.last_fix_at:%H:%M:%S}Z"
+                f"{landing.count} fixes kept, {landing.rejected} rejected; "
+                f"last on site {landing.last_fix_at:%H:%M:%S}Z",
+                file=said,
             )
-    said = sys.stderr if args.json else sys.stdout  # with --json, stdout is the one JSON document
     if args.gpx:
         write_gpx(args.gpx, capsule.name, track, predicted, landing)
         print(f"wrote {args.gpx}", file=said)

@@ -12,16 +12,17 @@ import json
 import math
 import socket
 import statistics
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
-import simplekml
 from pyproj import Geod
 
 from drs_link.errors import LinkError
 from drs_link.iridium.reports import StoredReport
+from predictor.geofiles import gpx, kml
+from predictor.geofiles.geometry import line_parts, position
+from predictor.geofiles.output import write_text
 
 GEOD = Geod(ellps="WGS84")
 MIN_DESCENT_M = 500.0
@@ -242,59 +243,75 @@ def phone_summary(
     return text
 
 
+def _landing_note(landing: LandingEstimate) -> str:
+    """How sure the landing site is, in ASCII (handhelds), without a NaN for a single fix."""
+    when = f"landed {landing.landed_at:%Y-%m-%d %H:%M}Z"
+    if landing.count < 2 or not math.isfinite(landing.std_m):
+        return f"{when}; 1 fix kept, too few to estimate the scatter"
+    return f"{when}; {landing.count} fixes kept, scatter +/-{landing.std_m:.0f} m (1 sigma)"
+
+
 def write_gpx(
-    path: Path,
+    path: str | Path,
     name: str,
     measured: list[TrackPoint],
     predicted: list[tuple[float, float, float]],
     landing: LandingEstimate | None,
-) -> None:
-    ns = "http://www.topografix.com/GPX/1/1"
-    ET.register_namespace("", ns)
-    root = ET.Element(f"{{{ns}}}gpx", {"version": "1.1", "creator": "drs-console"})
+) -> Path:
+    """The landing (or, before one, the last fix) and the predicted landing as waypoints, and both tracks.
+
+    ``predicted`` is (lat, lon, alt) from release to landing, so its last point is the predicted landing.
+    """
+    waypoints = []
     if landing is not None:
-        wpt = ET.SubElement(root, f"{{{ns}}}wpt", {"lat": f"{landing.lat:.6f}", "lon": f"{landing.lon:.6f}"})
-        ET.SubElement(wpt, f"{{{ns}}}ele").text = f"{landing.alt_m:.0f}"
-        ET.SubElement(
-            wpt, f"{{{ns}}}name"
-        ).text = f"{name} landing (±{landing.std_m:.0f} m, n={landing.count})"
-    for label, points in (
-        ("measured", [(p.lat, p.lon, p.alt_m, p.time) for p in measured]),
-        ("predicted", [(lat, lon, alt, None) for lat, lon, alt in predicted]),
-    ):
-        if not points:
-            continue
-        trk = ET.SubElement(root, f"{{{ns}}}trk")
-        ET.SubElement(trk, f"{{{ns}}}name").text = f"{name} {label}"
-        segment = ET.SubElement(trk, f"{{{ns}}}trkseg")
-        for lat, lon, alt, moment in points:
-            point = ET.SubElement(segment, f"{{{ns}}}trkpt", {"lat": f"{lat:.6f}", "lon": f"{lon:.6f}"})
-            ET.SubElement(point, f"{{{ns}}}ele").text = f"{alt:.0f}"
-            if moment is not None:
-                ET.SubElement(point, f"{{{ns}}}time").text = moment.strftime("%Y-%m-%dT%H:%M:%SZ")
-    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+        waypoints.append(
+            gpx.Waypoint(landing.lat, landing.lon, landing.alt_m, gpx.short_name(name, "LAND"),
+                         gpx.LANDING_SYMBOL, f"{name} landing: {_landing_note(landing)}", landing.landed_at)
+        )  # fmt: skip
+    elif measured:
+        last = measured[-1]
+        waypoints.append(
+            gpx.Waypoint(last.lat, last.lon, last.alt_m, gpx.short_name(name, "LAST FIX"),
+                         gpx.LANDING_SYMBOL, f"{name} last fix, not landed", last.time)
+        )  # fmt: skip
+    if predicted:
+        lat, lon, alt = predicted[-1]
+        waypoints.append(
+            gpx.Waypoint(lat, lon, alt, gpx.short_name(name, "PRED LAND"), gpx.PREDICTED_LANDING_SYMBOL,
+                         f"{name} predicted landing")
+        )  # fmt: skip
+    tracks = [
+        (f"{name} measured", [gpx.TrackPoint(p.lat, p.lon, p.alt_m, p.time) for p in measured]),
+        (f"{name} predicted", [gpx.TrackPoint(lat, lon, alt) for lat, lon, alt in predicted]),
+    ]
+    return write_text(path, gpx.to_gpx(f"{name} recovery", waypoints, tracks), "GPX")
 
 
 def write_kml(
-    path: Path,
+    path: str | Path,
     name: str,
     measured: list[TrackPoint],
     predicted: list[tuple[float, float, float]],
     landing: LandingEstimate | None,
-) -> None:
-    kml = simplekml.Kml(name=name)
-    for label, coords, colour in (
-        ("measured", [(p.lon, p.lat, p.alt_m) for p in measured], simplekml.Color.red),
-        ("predicted", [(lon, lat, alt) for lat, lon, alt in predicted], simplekml.Color.blue),
-    ):
-        if coords:
-            line = kml.newlinestring(name=f"{name} {label}", coords=coords)
-            line.altitudemode = simplekml.AltitudeMode.absolute
-            line.style.linestyle.color = colour
-            line.style.linestyle.width = 3
-    if landing is not None:
-        kml.newpoint(
-            name=f"{name} landing ±{landing.std_m:.0f} m (n={landing.count})",
-            coords=[(landing.lon, landing.lat, landing.alt_m)],
+) -> Path:
+    """The measured and predicted tracks at their altitudes, the landing and the predicted landing."""
+    styles = [kml.style("measured", "ff0000ff", width=3), kml.style("predicted", "ffff0000", width=3)]
+    contents: list[kml.Feature] = [
+        kml.line(f"{name} {label}", line_parts(points), label, absolute=True)
+        for label, points in (
+            ("measured", [(p.lon, p.lat, p.alt_m) for p in measured]),
+            ("predicted", [(lon, lat, alt) for lat, lon, alt in predicted]),
         )
-    kml.save(str(path))
+        if points
+    ]
+    if landing is not None:
+        contents.append(
+            kml.point(
+                f"{name} landing", position((landing.lon, landing.lat)), description=_landing_note(landing)
+            )
+        )
+    if predicted:
+        lat, lon, _ = predicted[-1]
+        contents.append(kml.point(f"{name} predicted landing", position((lon, lat)), "predicted"))
+    document = kml.document(f"{name} recovery", f"{name}: measured and predicted tracks", styles, contents)
+    return write_text(path, document, "KML")
