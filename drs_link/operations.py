@@ -27,7 +27,7 @@ from drs_link.errors import ConfigError, LinkError
 from drs_link.gonogo import ExclusionZone, GoNoGoReport, WaiverBook
 from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.interval import interval_track
-from drs_link.iridium.landed import landed_evidence
+from drs_link.iridium.landed import landed_after_each
 from drs_link.iridium.lifecycle import Command, CommandLifecycle
 from drs_link.iridium.mt import MtMessage
 from drs_link.iridium.procedure import complete_mt_steps
@@ -290,18 +290,17 @@ class Operations:
         imei = self.ops(name).config.imei
         if not imei:
             return []
-        stored = self.reports.for_imei(imei)
         seen = self._seen_reports.get(name, 0)
-        fresh = [r for r in stored if r.id > seen]
-        if stored:
-            self._seen_reports[name] = max(r.id for r in stored)
-        if not fresh:
+        newest = self.reports.newest_id(imei)
+        if newest is None or newest <= seen:
             return []
+        stored = self.reports.for_imei(imei)
+        self._seen_reports[name] = max(r.id for r in stored)
         self.lifecycle.observe(stored, imei)
         track = interval_track(stored, self.lifecycle.for_imei(imei))
         return self._emit([
-            report_record(name, r, track.overdue_after(r), landed_evidence(stored[: i + 1]).on_ground)
-            for i, r in enumerate(stored) if r.id > seen
+            report_record(name, r, track.overdue_after(r), landed)
+            for r, landed in zip(stored, landed_after_each(stored), strict=True) if r.id > seen
         ])  # fmt: skip
 
     def stored_reports(self, name: str) -> list[StoredReport]:

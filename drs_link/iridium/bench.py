@@ -4,7 +4,8 @@ The gateway gives a receiver 3 s to answer; this measures how long the real rece
 durable SQLite write with fsync included) takes on this machine, on loopback, with a temporary store:
 once one POST at a time, and once as a burst from many clients at once, counting what a gateway
 would see go wrong (a reset connection, a non-200 answer) and what the store kept (nothing lost,
-nothing twice).
+nothing twice). The work ``drs mo serve`` does after each answer (advancing the commands) runs too:
+it shares the interpreter with the threads that answer.
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ from pathlib import Path
 
 from drs_link.config import MoConfig
 from drs_link.iridium.firmware import GnssFix, format_mo
+from drs_link.iridium.lifecycle import CommandLifecycle
 from drs_link.iridium.mo import parse_hex
-from drs_link.iridium.reports import ReportStore
+from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
 from drs_link.simulator.rockblock import MoDelivery, generate_test_keys, mo_body, post_body
 from drs_link.store import Store
@@ -111,7 +113,12 @@ def run_bench(posts: int = 200, clients: int = 20, burst_per_client: int = 50) -
         key_file.write_text(public_key)
         store = Store.open(Path(folder) / "bench.sqlite")
         config = MoConfig(listen_host="127.0.0.1", listen_port=0, jwt_public_key_file=key_file)
-        server = MoHttpServer(MoReceiver(ReportStore(store), config)).start()
+        reports, life = ReportStore(store), CommandLifecycle(store, "bench")
+
+        def after_answer(stored: StoredReport) -> None:
+            life.observe_store(reports, stored.delivery.imei)
+
+        server = MoHttpServer(MoReceiver(reports, config, after_answer)).start()
         try:
             bodies = [mo_body(_delivery(0, momsn), jwt_private_key=private_key) for momsn in range(posts)]
             sequential = [_timed_post(server.url, body) for body in bodies]
@@ -121,7 +128,6 @@ def run_bench(posts: int = 200, clients: int = 20, burst_per_client: int = 50) -
                 burst = gateway.submit(_burst, server.url, private_key, clients, burst_per_client).result()
         finally:
             server.stop()
-        reports = ReportStore(store)
         kept = [r for client in range(1, clients + 1) for r in reports.for_imei(_imei(client))]
         store.close()
     keys = [(r.delivery.imei, r.delivery.momsn) for r in kept]

@@ -20,7 +20,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from drs_link.iridium.recovery import TrackPoint, detect_landing, track_from_reports
+from drs_link.iridium.recovery import (
+    LandingWatch,
+    TrackPoint,
+    detect_landing,
+    track_from_reports,
+    track_point,
+)
 from drs_link.iridium.reports import StoredReport
 
 GROUND_TOLERANCE_M = 150.0
@@ -89,3 +95,20 @@ def landed_evidence(reports: Sequence[StoredReport], ground_m: float | None = No
         f"fix(es) within 300 m, last {_describe(last)}",
         last,
     )
+
+
+def landed_after_each(reports: Sequence[StoredReport]) -> list[bool]:
+    """``landed_evidence(reports[: i + 1]).on_ground`` for each i (no DEM), in one pass.
+
+    Why: the console marks each report with the verdict on the reports up to it, and asking
+    ``landed_evidence`` of every prefix re-ran the landing rule on the whole track each time, which
+    is quadratic (0.24 s for 400 reports at start-up). ``reports`` are in time order, as
+    ``ReportStore.for_imei`` gives them.
+    """
+    watch = LandingWatch()
+    verdicts = []
+    for stored in reports:
+        if (point := track_point(stored)) is not None:
+            watch.add(point)
+        verdicts.append(watch.on_site)
+    return verdicts

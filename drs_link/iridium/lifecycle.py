@@ -27,7 +27,7 @@ from drs_link.config import CapsuleConfig
 from drs_link.errors import RefusedError
 from drs_link.iridium.gateway import FLUSH_WARNING, RockblockGateway
 from drs_link.iridium.mt import MtMessage
-from drs_link.iridium.reports import StoredReport
+from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
 
 COMMANDS_DDL = """
@@ -455,6 +455,25 @@ class CommandLifecycle:
                 if updated is not None:
                     changed.append(updated)
         return changed
+
+    def observe_store(self, reports: ReportStore, imei: str) -> list[Command]:
+        """``observe`` given only the reports it can still use: what ``drs mo serve`` runs after each post.
+
+        Why not every report: re-reading and re-parsing the whole flight after each post made the work
+        per post grow with the flight. A queued command can only take a report from a session after it
+        was queued, and a probably delivered one reads only its own report and the ones after; no other
+        report changes anything, so the outcome is ``observe(reports.for_imei(imei), imei)``'s.
+        """
+        commands = self.for_imei(imei)
+        queued = [c.queued_utc for c in commands if c.state == QUEUED and c.queued_utc is not None]
+        delivered = [
+            c.delivered_report_id
+            for c in commands
+            if c.state == PROBABLY_DELIVERED and c.delivered_report_id is not None
+        ]
+        if not queued and not delivered:
+            return []
+        return self.observe(reports.tail(imei, min(queued, default=None), delivered), imei)
 
     def _deliver(self, command: Command, report: StoredReport, caveat: str) -> Command:
         visible = [c for c, e in command.effects.items() if e == PENDING]

@@ -62,15 +62,18 @@ class LandingEstimate:
     """When the capsule left the landing site (recovered, or drifting), if the track says so."""
 
 
+def track_point(stored: StoredReport) -> TrackPoint | None:
+    """The report's GNSS fix as a track point (no-fix and rejected reports carry none)."""
+    report = stored.report
+    if report is None or report.fix is None:
+        return None
+    fix = report.fix
+    return TrackPoint(fix.time, fix.lat, fix.lon, fix.alt_m, fix.speed_ms)
+
+
 def track_from_reports(reports: list[StoredReport]) -> list[TrackPoint]:
-    """The GNSS fixes of accepted reports, in time order (no-fix and rejected reports carry none)."""
-    points = [
-        TrackPoint(
-            r.report.fix.time, r.report.fix.lat, r.report.fix.lon, r.report.fix.alt_m, r.report.fix.speed_ms
-        )
-        for r in reports
-        if r.report is not None and r.report.fix is not None
-    ]
+    """The GNSS fixes of accepted reports, in time order."""
+    points = [point for r in reports if (point := track_point(r)) is not None]
     return sorted(points, key=lambda p: p.time)
 
 
@@ -78,76 +81,119 @@ def _distance_m(a: TrackPoint, lat: float, lon: float) -> float:
     return float(GEOD.inv(a.lon, a.lat, lon, lat)[2])
 
 
-def _landing_index(track: list[TrackPoint]) -> int | None:
-    """The first fix that is itself still and is followed by no climb, fall or travel.
+def _still(here: TrackPoint, after: TrackPoint) -> bool:
+    """The fix is itself still and is followed by no climb, fall or travel.
 
     Rates are taken between fixes, not from one fix, because a landing between two distant fixes
     averages a fast fall into a slow one; the fix's own speed rules that out. A lone last fix can
     not be told from a slow moment of the descent, so landing needs one more fix after it.
     """
-    peak = max(range(len(track)), key=lambda i: track[i].alt_m)
-    for i in range(peak + 1, len(track) - 1):
-        here, after = track[i], track[i + 1]
-        if track[peak].alt_m - here.alt_m < MIN_DESCENT_M:
-            continue
-        seconds = (after.time - here.time).total_seconds()
-        if seconds <= 0:
-            continue
-        vertical = abs(after.alt_m - here.alt_m) / seconds
-        horizontal = _distance_m(here, after.lat, after.lon) / seconds
-        if (
-            here.speed_ms <= STEADY_SPEED_MS
-            and vertical < STEADY_VERTICAL_MS
-            and horizontal < STEADY_SPEED_MS
-        ):
-            return i
-    return None
+    seconds = (after.time - here.time).total_seconds()
+    if seconds <= 0:
+        return False
+    vertical = abs(after.alt_m - here.alt_m) / seconds
+    horizontal = _distance_m(here, after.lat, after.lon) / seconds
+    return here.speed_ms <= STEADY_SPEED_MS and vertical < STEADY_VERTICAL_MS and horizontal < STEADY_SPEED_MS
 
 
 def _centre(points: list[TrackPoint]) -> tuple[float, float]:
     return statistics.median(p.lat for p in points), statistics.median(p.lon for p in points)
 
 
+class LandingWatch:
+    """The landing rule, fed one fix at a time: what ``detect_landing`` says of the fixes so far.
+
+    Why fed: the console gives every report the verdict on the reports up to it, and re-running the
+    rule on each prefix was quadratic (0.24 s for 400 reports at start-up, growing with the square).
+    Each fix settles only what it can: a new peak restarts the search; otherwise the fix pair it
+    completes is the one new landing candidate, and the site's walk places every fix it can already
+    decide (a fix away from the site is an outlier only if the fix after it comes back).
+    """
+
+    def __init__(self) -> None:
+        self.track: list[TrackPoint] = []
+        self._peak = 0
+        self._start: int | None = None
+        """The landing: the first fix after the peak (fallen ``MIN_DESCENT_M``) that is still."""
+        self._cluster: list[TrackPoint] = []
+        self._outliers = 0
+        self._next = 0
+        """The first fix after the landing that the walk has not placed yet."""
+        self._moved_at: datetime | None = None
+
+    def add(self, point: TrackPoint) -> None:
+        track = self.track
+        track.append(point)
+        if point.alt_m > track[self._peak].alt_m:
+            self._peak, self._start = len(track) - 1, None
+            return
+        if self._start is None:
+            candidate = len(track) - 2
+            if (
+                candidate > self._peak
+                and track[self._peak].alt_m - track[candidate].alt_m >= MIN_DESCENT_M
+                and _still(track[candidate], point)
+            ):
+                self._start, self._next = candidate, candidate + 1
+                self._cluster, self._outliers, self._moved_at = [track[candidate]], 0, None
+        if self._start is not None:
+            self._walk()
+
+    def _walk(self) -> None:
+        track, cluster = self.track, self._cluster
+        while self._moved_at is None and self._next < len(track):
+            j = self._next
+            lat, lon = _centre(cluster)
+            if _distance_m(track[j], lat, lon) <= CLUSTER_RADIUS_M:
+                cluster.append(track[j])
+            elif j + 1 == len(track):
+                return  # away: moved, unless the next fix comes back to the site
+            elif _distance_m(track[j + 1], lat, lon) <= CLUSTER_RADIUS_M:
+                self._outliers += 1
+            else:
+                self._moved_at = track[j].time
+            self._next += 1
+
+    @property
+    def on_site(self) -> bool:
+        """Landed, and no fix since has left the site: ``estimate()`` is not None and has not moved."""
+        return self._start is not None and self._moved_at is None and self._next == len(self.track)
+
+    def estimate(self) -> LandingEstimate | None:
+        """The landing estimate, or None while the capsule has not (visibly) landed."""
+        if self._start is None:
+            return None
+        moved_at = self._moved_at
+        if moved_at is None and self._next < len(self.track):
+            moved_at = self.track[self._next].time  # the last fix is away from the site
+        cluster = self._cluster
+        lat, lon = _centre(cluster)
+        distances = [_distance_m(p, lat, lon) for p in cluster]
+        limit = max(3.0 * statistics.median(distances) / RAYLEIGH_MEDIAN, OUTLIER_FLOOR_M)
+        kept = [p for p, d in zip(cluster, distances, strict=True) if d <= limit]
+        mean_lat = statistics.fmean(p.lat for p in kept)
+        mean_lon = statistics.fmean(p.lon for p in kept)
+        spread = [_distance_m(p, mean_lat, mean_lon) ** 2 for p in kept]
+        std = math.sqrt(sum(spread) / (len(kept) - 1) / 2.0) if len(kept) > 1 else float("nan")
+        return LandingEstimate(
+            lat=mean_lat,
+            lon=mean_lon,
+            alt_m=statistics.fmean(p.alt_m for p in kept),
+            std_m=std,
+            count=len(kept),
+            rejected=self._outliers + len(cluster) - len(kept),
+            landed_at=self.track[self._start].time,
+            last_fix_at=cluster[-1].time,
+            moved_at=moved_at,
+        )
+
+
 def detect_landing(track: list[TrackPoint]) -> LandingEstimate | None:
     """The landing estimate, or None while the capsule has not (visibly) landed."""
-    if len(track) < 2:
-        return None
-    start = _landing_index(track)
-    if start is None:
-        return None
-    cluster = [track[start]]
-    outliers = 0
-    moved_at = None
-    j = start + 1
-    while j < len(track):
-        lat, lon = _centre(cluster)
-        if _distance_m(track[j], lat, lon) <= CLUSTER_RADIUS_M:
-            cluster.append(track[j])
-        elif j + 1 < len(track) and _distance_m(track[j + 1], lat, lon) <= CLUSTER_RADIUS_M:
-            outliers += 1
-        else:
-            moved_at = track[j].time
-            break
-        j += 1
-    lat, lon = _centre(cluster)
-    distances = [_distance_m(p, lat, lon) for p in cluster]
-    limit = max(3.0 * statistics.median(distances) / RAYLEIGH_MEDIAN, OUTLIER_FLOOR_M)
-    kept = [p for p, d in zip(cluster, distances, strict=True) if d <= limit]
-    mean_lat = statistics.fmean(p.lat for p in kept)
-    mean_lon = statistics.fmean(p.lon for p in kept)
-    spread = [_distance_m(p, mean_lat, mean_lon) ** 2 for p in kept]
-    std = math.sqrt(sum(spread) / (len(kept) - 1) / 2.0) if len(kept) > 1 else float("nan")
-    return LandingEstimate(
-        lat=mean_lat,
-        lon=mean_lon,
-        alt_m=statistics.fmean(p.alt_m for p in kept),
-        std_m=std,
-        count=len(kept),
-        rejected=outliers + len(cluster) - len(kept),
-        landed_at=track[start].time,
-        last_fix_at=cluster[-1].time,
-        moved_at=moved_at,
-    )
+    watch = LandingWatch()
+    for point in track:
+        watch.add(point)
+    return watch.estimate()
 
 
 def distance_bearing(from_lat: float, from_lon: float, to_lat: float, to_lon: float) -> tuple[float, float]:

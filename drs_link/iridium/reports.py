@@ -7,6 +7,7 @@ may deliver one report twice, while MOMSN alone wraps at 65536 and can legitimat
 
 from __future__ import annotations
 
+import sqlite3
 from dataclasses import dataclass
 from datetime import datetime
 
@@ -40,6 +41,7 @@ CREATE TABLE IF NOT EXISTS mo_report (
     UNIQUE (imei, momsn, raw_hex)
 );
 CREATE INDEX IF NOT EXISTS mo_report_imei_sort ON mo_report (imei, sort_utc);
+CREATE INDEX IF NOT EXISTS mo_report_imei_session ON mo_report (imei, COALESCE(transmit_utc, fix_utc, received_utc));
 CREATE TABLE IF NOT EXISTS mo_delivery_rejected (
     id INTEGER PRIMARY KEY AUTOINCREMENT,
     received_utc TEXT NOT NULL,
@@ -192,24 +194,59 @@ class ReportStore:
     def for_imei(self, imei: str) -> list[StoredReport]:
         """All reports of one modem in time order (arrival order breaks ties)."""
         rows = self.store.query("SELECT * FROM mo_report WHERE imei = ? ORDER BY sort_utc, id", (imei,))
-        return [
-            StoredReport(
-                row["id"],
-                Delivery(
-                    imei=row["imei"],
-                    momsn=row["momsn"],
-                    data_hex=row["raw_hex"],
-                    source=row["source"],
-                    received_utc=parse_iso_utc(row["received_utc"]),
-                    transmit_utc=_opt_time(row["transmit_utc"]),
-                    serial=row["serial"],
-                    iridium_lat=row["iridium_lat"],
-                    iridium_lon=row["iridium_lon"],
-                    iridium_cep_km=row["iridium_cep_km"],
-                    jwt_verified=bool(row["jwt_verified"]),
-                    raw_delivery=row["raw_delivery"],
-                ),
-                parse_hex(row["raw_hex"]),
+        return [_row_to_report(row) for row in rows]
+
+    def newest_id(self, imei: str) -> int | None:
+        """The id of the modem's last stored report: whether anything arrived, without reading any."""
+        return self.store.query("SELECT MAX(id) AS id FROM mo_report WHERE imei = ?", (imei,))[0]["id"]
+
+    def tail(self, imei: str, session_after: datetime | None, report_ids: list[int]) -> list[StoredReport]:
+        """The end of ``for_imei`` from the first report that came in a session after ``session_after``
+        or is one of ``report_ids`` (nothing if neither exists).
+
+        Why: a command's lifecycle only ever looks at reports from those on, and reading them alone keeps
+        the work after each post to the few reports still open instead of the whole flight. The session
+        time is the one ``StoredReport.session_time`` gives, from the columns the parser filled at insert.
+        """
+        keys = []
+        if session_after is not None:
+            keys += self.store.query(
+                "SELECT sort_utc, id FROM mo_report WHERE imei = ? "
+                "AND COALESCE(transmit_utc, fix_utc, received_utc) > ? ORDER BY sort_utc, id LIMIT 1",
+                (imei, iso_utc(session_after)),
             )
-            for row in rows
-        ]
+        if report_ids:
+            marks = ", ".join("?" * len(report_ids))
+            keys += self.store.query(
+                f"SELECT sort_utc, id FROM mo_report WHERE imei = ? AND id IN ({marks})", (imei, *report_ids)
+            )
+        if not keys:
+            return []
+        first = min((row["sort_utc"], row["id"]) for row in keys)
+        rows = self.store.query(
+            "SELECT * FROM mo_report WHERE imei = ? AND (sort_utc, id) >= (?, ?) ORDER BY sort_utc, id",
+            (imei, *first),
+        )
+        return [_row_to_report(row) for row in rows]
+
+
+def _row_to_report(row: sqlite3.Row) -> StoredReport:
+    """A stored row as the report it was, parsed again from its raw hex (module docstring)."""
+    return StoredReport(
+        row["id"],
+        Delivery(
+            imei=row["imei"],
+            momsn=row["momsn"],
+            data_hex=row["raw_hex"],
+            source=row["source"],
+            received_utc=parse_iso_utc(row["received_utc"]),
+            transmit_utc=_opt_time(row["transmit_utc"]),
+            serial=row["serial"],
+            iridium_lat=row["iridium_lat"],
+            iridium_lon=row["iridium_lon"],
+            iridium_cep_km=row["iridium_cep_km"],
+            jwt_verified=bool(row["jwt_verified"]),
+            raw_delivery=row["raw_delivery"],
+        ),
+        parse_hex(row["raw_hex"]),
+    )

@@ -16,6 +16,7 @@ import pytest
 from drs_link.config import CapsuleConfig
 from drs_link.errors import RefusedError
 from drs_link.iridium import lifecycle as lc
+from drs_link.iridium import reports as report_module
 from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
@@ -250,3 +251,34 @@ def test_a_send_that_raises_is_recorded_as_delivery_unknown_not_left_confirmed(r
     with pytest.raises(KeyboardInterrupt):
         life.send(command.id, "DRS1", BreaksMidSend())  # type: ignore[arg-type]
     assert life.get(command.id).state == lc.DELIVERY_UNKNOWN
+
+
+@pytest.mark.parametrize("history", [3, 150])
+def test_the_work_after_each_post_is_the_open_commands_reports_not_the_flight(
+    rig, monkeypatch: pytest.MonkeyPatch, history: int
+) -> None:
+    """``drs mo serve`` advances the commands after every post; it re-read and re-parsed every stored
+    report to do so, work that grew with the flight. Counted here (reports parsed per post), not timed:
+    the same whether 3 or 150 reports came before, and the outcome is the whole history's."""
+    store, reports, gateway, client, clock = rig
+    capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
+    next_alarm = fly(capsule, gateway, reports, T0, history)
+    life = lc.CommandLifecycle(store, "alice", clock)
+    parse_hex = report_module.parse_hex
+    parsed: list[str] = []
+    monkeypatch.setattr(report_module, "parse_hex", lambda text: parsed.append(text) or parse_hex(text))
+
+    def post_then_observe(at) -> list[str]:  # type: ignore[no-untyped-def]
+        fly(capsule, gateway, reports, at, 1)
+        parsed.clear()
+        states = [c.state for c in life.observe_store(reports, IMEI)]
+        return [*states, len(parsed)]  # type: ignore[list-item]
+
+    assert post_then_observe(next_alarm) == [0], "no open command: nothing to read"
+    clock.now = next_alarm + timedelta(minutes=1, seconds=30)
+    command = life.send(life.request(CAPSULE, MtComposer().interval(5).build()).id, "DRS1", client)
+    outcomes = [post_then_observe(next_alarm + timedelta(minutes=2 * (i + 1))) for i in range(2)]
+    outcomes.append(post_then_observe(next_alarm + timedelta(minutes=9)))
+    outcomes.append(post_then_observe(next_alarm + timedelta(minutes=14)))
+    assert outcomes == [[lc.PROBABLY_DELIVERED, 1], [2], [lc.EFFECT_CONFIRMED, 3], [0]]
+    assert life.get(command.id).state == lc.EFFECT_CONFIRMED

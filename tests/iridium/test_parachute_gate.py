@@ -11,16 +11,21 @@ from pathlib import Path
 
 import pytest
 
+from drs_link.config import parse_config
 from drs_link.errors import RefusedError
+from drs_link.iridium import recovery
+from drs_link.iridium import reports as report_module
 from drs_link.iridium.authorize import authorize_mt
 from drs_link.iridium.firmware import format_mo
-from drs_link.iridium.landed import landed_evidence
+from drs_link.iridium.landed import landed_after_each, landed_evidence
 from drs_link.iridium.lifecycle import NOT_SENT, CommandLifecycle
 from drs_link.iridium.mo import parse_payload
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
+from drs_link.operations import Operations
 from drs_link.simulator.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
+from tests.iridium.flight_logs import flight_reports
 from tests.iridium.helpers import IMEI, T0, fix_at
 from tests.iridium.test_cli import run, write_config
 
@@ -63,6 +68,56 @@ def test_a_capsule_that_left_its_landing_site_or_sits_far_above_the_terrain_is_n
 
 def test_no_report_with_a_fix_is_no_evidence() -> None:
     assert landed_evidence([]).summary == "no position report with a GNSS fix yet"
+
+
+def real_flights(shared_data: Path) -> list[list[StoredReport]]:
+    """The 30 real flight logs, each in time order as the store gives a capsule's reports."""
+    folder = shared_data / "tracks" / "pyballoon_superbit"
+    return [sorted(flight_reports(path), key=lambda r: r.time) for path in sorted(folder.glob("[0-9]*.csv"))]
+
+
+def test_the_verdict_after_each_report_is_landed_evidence_on_the_reports_up_to_it(shared_data: Path) -> None:
+    """One pass says what ``landed_evidence`` says of every prefix: on the 30 real flights, and on a capsule
+    that lands, is carried off (one fix away is an outlier until the next fix stays away) and comes back."""
+    away = stored(6, T0 + timedelta(minutes=12), 412.0, 0.5, lat=46.6)
+    back = [stored(7 + i, T0 + timedelta(minutes=14 + 2 * i), 412.0, 0.2) for i in range(2)]
+    carried = [*landed(T0), away, back[0], away, stored(9, T0 + timedelta(minutes=20), 412.0, 0.5, lat=46.7)]
+    verdicts = []
+    for reports in [*real_flights(shared_data), [*landed(T0), away, *back], carried]:
+        verdicts += landed_after_each(reports)
+        assert landed_after_each(reports) == [landed_evidence(reports[: i + 1]).on_ground for i in range(len(reports))]
+    assert 0 < sum(verdicts) < len(verdicts)
+
+
+def test_the_console_runs_the_landing_rule_once_per_fix_at_start_up_and_reads_nothing_when_nothing_is_new(
+    tmp_path: Path, shared_data: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The console marks each report with the landed verdict on the reports up to it. It asked
+    ``landed_evidence`` of every prefix (0.24 s for 400 reports at start-up, growing with the square) and
+    re-read every report at each poll; work is counted here, not timed."""
+    flight = max(real_flights(shared_data), key=len)
+    config = parse_config({"operator": {"name": "alice"}, "data": {"dir": str(tmp_path / "data")},
+                           "capsule": [{"name": "DRS1", "host": "127.0.0.1", "port": 9, "imei": IMEI}]})  # fmt: skip
+    store = seed(tmp_path, flight)
+    work = {"fixes": 0, "parsed": 0}
+    add, parse_hex = recovery.LandingWatch.add, report_module.parse_hex
+
+    def counted_add(watch: recovery.LandingWatch, point: recovery.TrackPoint) -> None:
+        work["fixes"] += 1
+        add(watch, point)
+
+    def counted_parse(text: str):  # type: ignore[no-untyped-def]
+        work["parsed"] += 1
+        return parse_hex(text)
+
+    monkeypatch.setattr(recovery.LandingWatch, "add", counted_add)
+    monkeypatch.setattr(report_module, "parse_hex", counted_parse)
+    ops = Operations(config, store)
+    assert len(ops.new_reports("DRS1")) == len(flight)
+    assert work == {"fixes": sum(r.report is not None and r.report.fix is not None for r in flight),
+                    "parsed": len(flight)}  # fmt: skip
+    work.update(fixes=0, parsed=0)
+    assert ops.new_reports("DRS1") == [] and work == {"fixes": 0, "parsed": 0}
 
 
 @pytest.fixture
