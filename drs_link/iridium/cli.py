@@ -7,20 +7,15 @@ turns refusals into one-line errors (console/cli.py prints LinkError as ``drs: e
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
-import logging
 import math
 import re
-import signal
 import sys
 import threading
-from collections.abc import Iterator
 from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 
-from drs_link.approval import ApprovalBook, current_login
 from drs_link.checklist import PROCEDURE_DIR, load_checklists
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
@@ -56,7 +51,6 @@ from predictor.geofiles.output import piped
 from predictor.plausibility import emit, far_team_warning
 
 _IMEI_RE = re.compile(r"\d{15}")
-log = logging.getLogger(__name__)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -81,10 +75,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     send.add_argument(
         "--single-operator-waiver", metavar="REASON", help="PARACHUTE: why one person sends it alone (logged)"
     )
-    send.add_argument(
-        "--await-approval", action="store_true",
-        help="PARACHUTE: wait for another login to approve it (drs approve ID) instead of naming a second operator",
-    )  # fmt: skip
     send.add_argument(
         "--override-landed",
         metavar="REASON",
@@ -121,7 +111,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     serve = mo_actions.add_parser("serve", help="receive the gateway's webhook deliveries ([mo] config)")
     serve.add_argument("--host", help="override mo.listen_host")
     serve.add_argument("--port", type=int, help="override mo.listen_port (0: any free port)")
-    serve.set_defaults(func=_mo_serve, log_default=logging.INFO)  # a service: its access log is its record
+    serve.set_defaults(func=_mo_serve)
     importer = mo_actions.add_parser(
         "import", help="store saved SBD attachments (RockBLOCK or Iridium-direct file names)"
     )
@@ -217,16 +207,11 @@ def _mt_send(args: argparse.Namespace) -> int:
     if not config.operator.name:
         raise ConfigError("operator.name: set [operator] name; every command is audited with it")
     checklists = load_checklists(PROCEDURE_DIR)  # a broken procedure file refuses before anything is sent
-    approval = None
-    if args.await_approval:
-        if not carries_parachute(message):
-            raise UsageError("--await-approval is for PARACHUTE, the command the two-person rule covers")
-        approval = _await_approval(store, capsule.name, config.operator.name, message, reports)
     authorize_mt(
         store, capsule.name, config.operator.name, message, reports,
         second_operator=args.second_operator, single_operator_waiver=args.single_operator_waiver,
         require_second_operator=config.console.require_second_operator, override_landed=args.override_landed,
-        queue_by=queue_by, now=utc_now(), approval=approval,
+        queue_by=queue_by, now=utc_now(),
     )  # fmt: skip
     gateway = RockblockGateway.from_config(config.rockblock)
     life = lc.CommandLifecycle(store, config.operator.name)
@@ -238,24 +223,6 @@ def _mt_send(args: argparse.Namespace) -> int:
     ):
         print(f"checklist: done: {step.text}")
     return 0 if command.state == lc.QUEUED else 1
-
-
-def _await_approval(
-    store: Store, capsule: str, operator: str, message: MtMessage, reports: list[StoredReport]
-) -> int:
-    """Ask another login to approve, and wait; the send goes on only once it has (and its deadline,
-    checked again at submit, still holds)."""
-    book = ApprovalBook(store)
-    summary = f"{message.text}; landed: {landed_evidence(reports).summary}"
-    request = book.request(capsule, "parachute", summary, operator, current_login())
-    print(f"approval #{request.id}: waiting for another login to run `drs approve {request.id}` "
-          f"(expires {request.expires_utc:%H:%M:%S}Z)", flush=True)  # fmt: skip
-    decided = book.wait(request.id)
-    if decided.state != "approved":
-        why = f" ({decided.reason})" if decided.reason else ""
-        raise RefusedError(f"approval #{request.id} {decided.status(utc_now())}{why}: nothing sent")
-    print(f"approval #{request.id}: approved by {decided.decided_by} ({decided.decider})", flush=True)
-    return request.id
 
 
 def _mt_status(args: argparse.Namespace) -> int:
@@ -350,44 +317,20 @@ def _mo_serve(args: argparse.Namespace) -> int:
         for command in life.observe_store(reports, stored.delivery.imei):
             print(f"MT {command.id} {command.text}: {command.state}", flush=True)
 
-    with _stop_signals() as stop:
-        try:
-            server = MoHttpServer(MoReceiver(reports, mo_config, after_answer)).start()
-        except OSError as exc:
-            raise LinkError(
-                f"cannot listen on {mo_config.listen_host}:{mo_config.listen_port}: {exc.strerror}"
-            ) from None
-        print(f"listening on {server.url} (Ctrl-C or SIGTERM stops it, after answering what has arrived)", flush=True)
-        log.info("listening", extra={"url": server.url, "trusted_proxy": mo_config.trusted_proxy or "none"})
-        stop.wait()
-        log.info("stopping", extra={"signal": stop.name})
-        unanswered = server.stop()
-    log.info("stopped", extra={"unanswered": unanswered})
-    return 0
-
-
-class _StopSignal(threading.Event):
-    name = ""
-
-
-@contextlib.contextmanager
-def _stop_signals() -> Iterator[_StopSignal]:
-    """SIGTERM (systemd's stop) and SIGINT (Ctrl-C) set the event, so the server drains and the command exits 0.
-
-    Python's default for SIGTERM ends the process at once, with whatever was in flight unanswered.
-    """
-    stop = _StopSignal()
-
-    def handle(signum: int, _frame: object) -> None:
-        stop.name = signal.Signals(signum).name
-        stop.set()
-
-    previous = {sig: signal.signal(sig, handle) for sig in (signal.SIGTERM, signal.SIGINT)}
     try:
-        yield stop
+        server = MoHttpServer(MoReceiver(reports, mo_config, after_answer)).start()
+    except OSError as exc:
+        raise LinkError(
+            f"cannot listen on {mo_config.listen_host}:{mo_config.listen_port}: {exc.strerror}"
+        ) from None
+    print(f"listening on {server.url} (Ctrl-C to stop)", flush=True)
+    try:
+        threading.Event().wait()
+    except KeyboardInterrupt:
+        print("stopping", flush=True)
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        server.stop()
+    return 0
 
 
 def _mo_import(args: argparse.Namespace) -> int:
