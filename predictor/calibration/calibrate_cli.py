@@ -33,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the error before and after",
     )
     _inputs(cal, required=False)
-    cal.add_argument("--json", type=Path, metavar="OUT", help="write the results as JSON")
+    cal.add_argument("--json", type=Path, metavar="OUT", help="write the results as JSON; - for stdout")
     cal.add_argument("--report", type=Path, metavar="OUT.md", help="write a Markdown report with PNG plots")
     cal.add_argument("--title", default="Calibration report", help="the report's title")
     cal.add_argument(

@@ -11,12 +11,13 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
+import sys
 import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -30,6 +31,7 @@ from predictor.calibration.selection import Calibration, calibrate
 from predictor.calibration.tracks import read_track
 from predictor.cube import WeatherCube
 from predictor.errors import PredictorError, WeatherError
+from predictor.geofiles.output import is_stdout, write_text
 from predictor.model_file import CalibratedModel, save_model
 from predictor.payload import Payload, payload_profile
 from predictor.terrain import Terrain
@@ -112,9 +114,11 @@ def run_calibrate(args: argparse.Namespace) -> int:
     inputs = prepare(args)
     cal, ellipse = analyse(inputs, args)
     data = result_json(cal, ellipse, inputs.excluded, inputs.payload.to_dict(), inputs.weather)
+    said = sys.stderr if is_stdout(args.json) else sys.stdout  # with --json -, stdout is the JSON alone
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+        if not is_stdout(args.json):
+            args.json.parent.mkdir(parents=True, exist_ok=True)
+        write_text(args.json, json.dumps(data, indent=2) + "\n", "JSON")
     if args.report:
         write_report(
             args.report,
@@ -126,11 +130,12 @@ def run_calibrate(args: argparse.Namespace) -> int:
             data,
             _preface(args.preface),
         )
-    _print_summary(cal, inputs, data)
+    _print_summary(cal, inputs, data, said)
     if args.save_model:
         saved = save_model(calibrated_model(cal, ellipse, inputs, data, _command(args)), args.save_model)
         print(
-            f"model saved: {saved} (use it with --model on drs predict, drs plan, or a capsule's model key)"
+            f"model saved: {saved} (use it with --model on drs predict, drs plan, or a capsule's model key)",
+            file=said,
         )
     return 0
 
@@ -197,20 +202,22 @@ def _command(args: argparse.Namespace) -> str:
     return shlex.join(parts)
 
 
-def _print_summary(cal: Calibration, inputs: Inputs, data: dict) -> None:  # type: ignore[type-arg]
-    print(f"{len(inputs.cases)} flights used, {len(inputs.excluded)} excluded")
+def _print_summary(cal: Calibration, inputs: Inputs, data: dict[str, Any], out: TextIO) -> None:
+    print(f"{len(inputs.cases)} flights used, {len(inputs.excluded)} excluded", file=out)
     for e in inputs.excluded:
-        print(f"  excluded {e.name}: {e.reason}")
+        print(f"  excluded {e.name}: {e.reason}", file=out)
     b, a = data["baseline"], data["after"]
     for label, block in (("baseline", b), ("after   ", a)):
         print(
             f"{label} (held out): time-at-altitude RMS {block['time_rms_s']['mean']:.0f} s, |descent-time error| "
             f"{block['descent_time_error_s']['mean']:.0f} s, horizontal RMS (replayed) "
             f"{block['horizontal_rms_km']['mean']:.3f} km, landing {block['landing_error_km']['mean']:.3f} km mean / "
-            f"{block['landing_error_km']['median']:.3f} km median"
+            f"{block['landing_error_km']['median']:.3f} km median",
+            file=out,
         )
-    print("selected: " + (", ".join(f"{f['effect']} ({f['family']})" for f in data["selected"]) or "none"))
-    print(verdict(cal))
+    selected = ", ".join(f"{f['effect']} ({f['family']})" for f in data["selected"])
+    print(f"selected: {selected or 'none'}", file=out)
+    print(verdict(cal), file=out)
 
 
 def run_bench(args: argparse.Namespace) -> int:

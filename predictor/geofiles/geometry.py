@@ -19,7 +19,7 @@ from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 
 DEGREE_DECIMALS = 6
-"""0.11 m at the equator: finer than any GNSS fix, and no float noise for readers to carry (RFC 7946 §11.2)."""
+"""0.11 m at the equator: finer than any GNSS fix, without float noise for readers (RFC 7946 §11.2)."""
 ALTITUDE_DECIMALS = 1
 
 Coordinate = tuple[float, ...]

@@ -80,7 +80,7 @@ def _time(parent: ET.Element, moment: datetime | None) -> None:
 def to_gpx(
     description: str, waypoints: Sequence[Waypoint], tracks: Sequence[tuple[str, Sequence[TrackPoint]]]
 ) -> str:
-    """Waypoints, then one track per (name, points) that has points; positions without a number are left out."""
+    """Waypoints, then a track per (name, points) with points; a position that is not a number is left out."""
     ET.register_namespace("", NS)
     root = ET.Element(f"{{{NS}}}gpx", {"version": "1.1", "creator": "drs-console"})
     metadata = ET.SubElement(root, f"{{{NS}}}metadata")

@@ -75,3 +75,16 @@ def test_recovery_gpx_dash_prints_the_gpx_with_the_predicted_landing_of_a_path_c
     [landing] = [w for w in gpx.waypoints if w.name == "DRS1 PRED LAND"]
     assert (landing.latitude, landing.longitude) == (-44.6, -179.9)
     assert err.startswith("DRS1 not landed: last fix 44.70000 S 179.90000 E")
+
+
+def test_calibrate_json_dash_prints_only_the_results_document(
+    shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = shared_data / "tracks" / "pyballoon_superbit"
+    tracks = [str(folder / f"{name}.csv") for name in ("18-5-19", "18-6-30", "19-2-2")]
+    argv = ["calibrate", "--tracks", *tracks, "--winds", "ascent", "--payload", "superbit-test",
+            "--effects", "descent_rate_scale", "--json", "-"]  # fmt: skip
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["flights"] == ["18-5-19", "18-6-30", "19-2-2"]
+    assert err.startswith("3 flights used, 0 excluded")
