@@ -173,9 +173,16 @@ def cmd_console(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     if args.replay is not None:
         setup, _ = replay_setup(args.replay, args.speed or 1.0, config)
-    else:
-        setup = live_setup(config, args.weather, args.terrain)
-    return run_console(setup)
+        return run_console(setup)
+    from console.chase import started_chase_feed
+
+    setup = live_setup(config, args.weather, args.terrain)
+    chase = started_chase_feed(config, setup)
+    try:
+        return run_console(setup)
+    finally:
+        if chase is not None:
+            chase.stop()
 
 
 def cmd_demo(args: argparse.Namespace) -> int:

@@ -99,6 +99,8 @@ class PredictionService:
         self.latest: dict[str, Prediction] = {}
         self._live: dict[str, LivePredictor] = {}
         self._live_latest: dict[str, dict[str, object]] = {}
+        self.live_latest: dict[str, Prediction] = {}
+        """Each descending capsule's latest live re-prediction (the chase feed keeps it for chasemapper)."""
         self._live_lock = threading.Lock()
 
     def _inputs(self) -> tuple[WeatherCube, Terrain]:
@@ -212,6 +214,7 @@ class PredictionService:
             for report in fresh[:-1]:
                 live.observe(report)
             result = live.update(fresh[-1])
+            self.live_latest[capsule] = result.prediction
             data = {**result.to_dict(), **map_geometry(result.prediction)}
             data["measured_rate_factor"] = live.measured(fresh[-1].alt_m)[0] if live.legs else None
             data["correction"] = live_correction_text(

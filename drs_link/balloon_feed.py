@@ -3,7 +3,7 @@
 A capsule's own GNSS exists only minutes before a drop, but "release now" needs the balloon's
 position all flight. Flight teams get it from the launch provider's or their own ground station,
 which forwards it as NMEA GGA, OziMux ``TELEMETRY`` text (horus-gui, radiosonde_auto_rx) or Horus
-``PAYLOAD_SUMMARY`` JSON, over UDP, a TCP server, or a log file. Every line is judged on its own:
+``PAYLOAD_SUMMARY`` / ``PAYLOAD_TELEMETRY`` JSON, over UDP, a TCP server, or a log file. Every line is judged on its own:
 a bad one is counted and shown with its reason, never fatal, and never taken as a position. UDP
 reorders datagrams, so a fix not newer than the newest accepted one is dropped. Time comes from
 the injected clock only (the demo runs a fast one).
@@ -47,6 +47,10 @@ TAIL_BYTES = 2 * (MAX_LINE_BYTES + 1)
 SHOWN_LINE_CHARS = 60
 
 FORMATS = ("nmea-gga", "ozimux", "horus", "json")
+HORUS_POSITION_TYPES = ("PAYLOAD_SUMMARY", "PAYLOAD_TELEMETRY")
+"""Horus UDP packets that carry a position (chasemapper reads both; the second names its time ``time_string``)."""
+OWN_COMMENT = "drs-console"
+"""How our chase feed's packets begin their comment (``drs_link.chase``): capsules, never the balloon."""
 
 BAD_CHECKSUM = "bad checksum"
 MALFORMED = "malformed"
@@ -202,8 +206,10 @@ def _from_json(text: str, now: datetime) -> BalloonFix | None:
     if not isinstance(document, dict):
         raise _Reject(MALFORMED, "malformed JSON: not an object")
     if "type" in document:
-        if document["type"] != "PAYLOAD_SUMMARY":
+        if document["type"] not in HORUS_POSITION_TYPES:
             return None
+        if str(document.get("comment", "")).startswith(OWN_COMMENT):
+            return None  # a capsule our chase feed sent to the same port, not the balloon
         return _from_horus(document, now)
     if "lat" in document or "lon" in document:
         return _from_plain_json(document)
@@ -211,13 +217,15 @@ def _from_json(text: str, now: datetime) -> BalloonFix | None:
 
 
 def _from_horus(document: dict[str, object], now: datetime) -> BalloonFix:
+    kind = document["type"]
     lat, lon = _json_number(document, "latitude"), _json_number(document, "longitude")
     if document.get("altitude") is None:
-        raise _Reject(MISSING_ALTITUDE, "missing altitude: PAYLOAD_SUMMARY without an altitude")
+        raise _Reject(MISSING_ALTITUDE, f"missing altitude: {kind} without an altitude")
     alt = _json_number(document, "altitude")
-    clock = document.get("time")
+    clock = document.get("time_string") if kind == "PAYLOAD_TELEMETRY" else None
+    clock = document.get("time") if clock is None else clock
     if clock is None:
-        raise _Reject(MISSING_TIME, "missing time: PAYLOAD_SUMMARY without a time (an older sender?)")
+        raise _Reject(MISSING_TIME, f"missing time: {kind} without a time (an older sender?)")
     if not isinstance(clock, str):
         raise _Reject(MALFORMED, f"malformed time {shorten(repr(clock), 30)}: expected HH:MM:SS")
     callsign = document.get("callsign")
@@ -474,8 +482,9 @@ class BalloonFeed:
                 f"cannot listen for the balloon feed on udp {host}:{port}: {_reason(exc)}"
             ) from None
         try:
-            # horus-gui and auto_rx broadcast to 8942 so that several programs (chasemapper, OziPlotter)
-            # can listen on one machine; they all set SO_REUSEADDR, so must we.
+            # Ground stations broadcast so that several programs (chasemapper, OziPlotter) can listen on one
+            # machine: horus-gui PAYLOAD_SUMMARY to 55672 and OziMux lines to 55683, auto_rx PAYLOAD_SUMMARY
+            # to 55673 and OziMux lines to 8942 (OziPlotter's port). They all set SO_REUSEADDR, so must we.
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             sock.bind(address)
         except OSError as exc:

@@ -125,6 +125,17 @@ class BalloonFeedConfig:
 
 
 @dataclass(frozen=True)
+class ChaseConfig:
+    """Where the capsules' positions go to the chase team's chasemapper, as Horus UDP (``drs chase`` and the console).
+
+    ``udp`` is ``HOST:PORT``, "" for none: chasemapper's horus_udp profiles listen on 55672 (horus-gui's
+    port) or 55673 (auto_rx's); a broadcast address such as 255.255.255.255 reaches every car on the LAN.
+    """
+
+    udp: str = ""
+
+
+@dataclass(frozen=True)
 class CapsuleConfig:
     name: str
     host: str
@@ -160,6 +171,7 @@ class Config:
     mo: MoConfig = field(default_factory=MoConfig)
     console: ConsoleConfig = field(default_factory=ConsoleConfig)
     balloon_feed: BalloonFeedConfig = field(default_factory=BalloonFeedConfig)
+    chase: ChaseConfig = field(default_factory=ChaseConfig)
     capsules: tuple[CapsuleConfig, ...] = ()
     source: Path | None = None
 
@@ -301,6 +313,20 @@ def _check_sections(sections: dict[str, Any]) -> None:
     if console is not None:
         _check_range("console.arm_window_s", console.arm_window_s, 5.0, 3600.0, "seconds to FIRE after ARM")
         _check_range("console.prediction_period_s", console.prediction_period_s, 1.0, 3600.0, "seconds")
+    chase: ChaseConfig | None = sections.get("chase")
+    if chase is not None and chase.udp:
+        host_port(chase.udp, "chase.udp")
+
+
+def host_port(text: str, key: str) -> tuple[str, int]:
+    """``HOST:PORT`` (``[v6]:PORT`` too) split and checked; the error names ``key`` and says what is wrong."""
+    host, colon, port_text = text.strip().rpartition(":")
+    host = host.removeprefix("[").removesuffix("]")
+    if not colon or not host or any(c.isspace() for c in host):
+        raise ConfigError(f"{key}: {text!r} must be HOST:PORT, e.g. 255.255.255.255:55672")
+    if not port_text.isdigit() or not 1 <= int(port_text) <= 65535:
+        raise ConfigError(f"{key}: {port_text!r} in {text!r} is not a UDP port (1-65535)")
+    return host, int(port_text)
 
 
 BALLOON_FEED_KINDS = ("udp", "tcp", "file")
@@ -342,6 +368,7 @@ def parse_config(document: dict[str, Any], source: Path | None = None) -> Config
         "mo": MoConfig,
         "console": ConsoleConfig,
         "balloon_feed": BalloonFeedConfig,
+        "chase": ChaseConfig,
     }
     unknown = sorted(set(document) - set(sections) - {"capsule"})
     if unknown:

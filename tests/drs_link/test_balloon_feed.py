@@ -138,6 +138,21 @@ def test_horus_payload_summary_keeps_the_callsign() -> None:
 
 
 @pytest.mark.parametrize(
+    ("times", "expected"),
+    [
+        ({"time_string": "11:59:45", "time": 1781956785}, datetime(2026, 6, 20, 11, 59, 45, tzinfo=UTC)),
+        ({"time": "11:59:50"}, datetime(2026, 6, 20, 11, 59, 50, tzinfo=UTC)),
+    ],
+)
+def test_horus_payload_telemetry_is_a_fix_timed_by_its_time_string_as_chasemapper_reads_it(
+    times: dict[str, object], expected: datetime
+) -> None:
+    packet = {k: v for k, v in AUTO_RX_SUMMARY.items() if k != "time"} | {"type": "PAYLOAD_TELEMETRY", **times}
+    fix = parse_feed_line(json.dumps(packet), NOW)
+    assert fix == BalloonFix(expected, 55.6, 12.3, 24117.0, "horus", "R3330018")
+
+
+@pytest.mark.parametrize(
     ("stamp", "expected"),
     [
         ("2026-06-20T11:59:30Z", datetime(2026, 6, 20, 11, 59, 30, tzinfo=UTC)),

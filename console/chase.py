@@ -1,0 +1,78 @@
+"""The console's chase feed: its capsules and their latest predictions on the chase team's chasemapper.
+
+The feed itself (packets, socket, the shared landing table) is ``drs_link.chase``; what only the
+console has is its predictions. Before each round the feed keeps every capsule's latest one: the live
+re-prediction of a descending capsule (from its Iridium fixes), else the "release now" prediction
+from the balloon. Keeping it writes the capsule's KML at its fixed path for chasemapper's
+``[kml_overlays]`` and its landing in the store, where ``drs chase`` on another machine finds it too.
+A prediction is kept once (the KML is not rewritten every round) and is timed by the position it
+started from, so a capsule whose predictions stopped drops out of the feed.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING
+
+from drs_link.chase import ChaseFeed, ChaseSender, ChaseStore, chase_kml_path, chase_points
+from drs_link.config import Config
+from drs_link.iridium.recovery import detect_landing, track_from_reports
+from predictor.errors import PredictorError
+
+if TYPE_CHECKING:
+    from console.app import ConsoleSetup
+    from drs_link.chase import ChasePoint
+    from predictor import Prediction
+
+log = logging.getLogger(__name__)
+
+LIVE = "live re-prediction"
+RELEASE_NOW = "release now"
+
+
+class LandingKeeper:
+    """Keeps each capsule's newest prediction for the chase feed (once per prediction)."""
+
+    def __init__(self, config: Config, setup: ConsoleSetup) -> None:
+        self.config = config
+        self.setup = setup
+        self.store = ChaseStore(setup.store)
+        self._kept: dict[str, Prediction] = {}
+
+    def current(self, capsule: str) -> tuple[Prediction, str] | None:
+        """The live re-prediction while the capsule descends, else the release-now one (None: neither)."""
+        service, ops = self.setup.predictions, self.setup.operations
+        if service is None:
+            return None
+        track = track_from_reports(ops.stored_reports(capsule)) if ops is not None else []
+        if track and detect_landing(track) is None:
+            try:
+                service.live(capsule, track)
+            except PredictorError as exc:
+                log.warning("chase feed: no live prediction for %s: %s", capsule, exc)
+            if capsule in service.live_latest:
+                return service.live_latest[capsule], LIVE
+        if capsule in service.latest:
+            return service.latest[capsule], RELEASE_NOW
+        return None
+
+    def keep_all(self) -> None:
+        for capsule in self.setup.capsules:
+            found = self.current(capsule)
+            if found is None or found[0] is self._kept.get(capsule):
+                continue
+            prediction, kind = found
+            kml = chase_kml_path(self.config.data.dir, capsule)
+            self.store.keep(capsule, prediction, kind, prediction.release.time, kml)
+            self._kept[capsule] = prediction
+
+    def points(self) -> list[ChasePoint]:
+        self.keep_all()
+        return chase_points(self.config, self.setup.store, self.setup.clock())
+
+
+def started_chase_feed(config: Config, setup: ConsoleSetup) -> ChaseFeed | None:
+    """The feed to ``[chase] udp``, sending; None when the configuration sets no chase feed."""
+    if not config.chase.udp:
+        return None
+    return ChaseFeed(ChaseSender(config.chase.udp, "chase.udp"), LandingKeeper(config, setup).points).start()
