@@ -41,7 +41,7 @@ COMMAND_MODULES: dict[str, str] = {
     "mo": "drs_link.iridium.cli",
     "recovery": "drs_link.iridium.cli",
     "balloon": "drs_link.balloon_cli",
-    "chase": "drs_link.chase_cli",
+    "approve": "drs_link.approval_cli",
     "serve": "predictor.serve_cli",
     "console": "console.console_cli",
     "demo": "console.console_cli",

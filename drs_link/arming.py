@@ -18,6 +18,7 @@ from datetime import datetime, timedelta
 from enum import StrEnum
 from typing import Protocol
 
+from drs_link.approval import ApprovalBook, Login, current_login
 from drs_link.capsule import ConfirmationToken, ReleaseRecord
 from drs_link.errors import RefusedError
 from drs_link.gonogo import GoNoGoReport
@@ -178,8 +179,14 @@ class ArmingController:
         report: GoNoGoReport,
         second_operator: str | None = None,
         single_operator_waiver: str | None = None,
+        approval: int | None = None,
+        login: Login | None = None,
     ) -> ReleaseRecord:
-        """Release; blocking (SSH), so call it from a worker thread. Refused unless every rule holds."""
+        """Release; blocking (SSH), so call it from a worker thread. Refused unless every rule holds.
+
+        ``approval``: a Go request another login approved (``drs_link.approval``), spent here once in
+        place of a typed second operator.
+        """
         with self._lock:
             status = self.status()
             if status.state is not ArmState.ARMED:
@@ -195,9 +202,14 @@ class ArmingController:
             if self._state is not ArmState.ARMED:
                 raise RefusedError(f"{self.capsule}: FIRE refused and disarmed: {self._last_reason}")
             try:
-                people = check_second_operator(
-                    self.operator, second_operator, single_operator_waiver, self.require_second_operator
-                )
+                if approval is not None:
+                    people = ApprovalBook(self.store, self.clock).use(
+                        approval, self.capsule, "go", login or current_login()
+                    )
+                else:
+                    people = check_second_operator(
+                        self.operator, second_operator, single_operator_waiver, self.require_second_operator
+                    )
             except RefusedError as exc:
                 self._audit("fire", "refused", {"reason": str(exc)})
                 raise RefusedError(f"{self.capsule}: FIRE refused: {exc}") from None

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from datetime import datetime
 from typing import Any
 
+from drs_link.approval import ApprovalBook, Login, current_login
 from drs_link.arming import check_second_operator
 from drs_link.errors import RefusedError
 from drs_link.iridium.landed import landed_evidence
@@ -41,11 +42,15 @@ def authorize_mt(
     ground_m: float | None = None,
     queue_by: datetime | None = None,
     now: datetime | None = None,
+    approval: int | None = None,
+    login: Login | None = None,
 ) -> dict[str, Any]:
     """Refuse ``message`` (RefusedError, audited) unless its rules hold; return what to audit with it.
 
     ``queue_by`` is the PARACHUTE plan's deadline: checked here, at submit, against ``now``, because a
     dialog may have stood open past it (the firmware would reject the time and the command be lost).
+    ``approval`` is a request another login approved (``drs_link.approval``): it stands for the second
+    operator, and is spent here, once, by the login that requested it.
     """
     if not carries_parachute(message):
         return {}
@@ -62,7 +67,10 @@ def authorize_mt(
             "while the dialog was open; plan the time again"
         )
     try:
-        people = check_second_operator(operator, second_operator, single_operator_waiver, require_second_operator)
+        if approval is not None:
+            people = ApprovalBook(store).use(approval, capsule, "parachute", login or current_login())
+        else:
+            people = check_second_operator(operator, second_operator, single_operator_waiver, require_second_operator)
     except RefusedError as exc:
         raise refuse(str(exc)) from None
     details: dict[str, Any] = {"text": message.text, "landed": evidence.audit(), **people}

@@ -16,6 +16,7 @@ from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 
+from drs_link.approval import ApprovalBook, current_login
 from drs_link.checklist import PROCEDURE_DIR, load_checklists
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
@@ -75,6 +76,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     send.add_argument(
         "--single-operator-waiver", metavar="REASON", help="PARACHUTE: why one person sends it alone (logged)"
     )
+    send.add_argument(
+        "--await-approval", action="store_true",
+        help="PARACHUTE: wait for another login to approve it (drs approve ID) instead of naming a second operator",
+    )  # fmt: skip
     send.add_argument(
         "--override-landed",
         metavar="REASON",
@@ -207,11 +212,16 @@ def _mt_send(args: argparse.Namespace) -> int:
     if not config.operator.name:
         raise ConfigError("operator.name: set [operator] name; every command is audited with it")
     checklists = load_checklists(PROCEDURE_DIR)  # a broken procedure file refuses before anything is sent
+    approval = None
+    if args.await_approval:
+        if not carries_parachute(message):
+            raise UsageError("--await-approval is for PARACHUTE, the command the two-person rule covers")
+        approval = _await_approval(store, capsule.name, config.operator.name, message, reports)
     authorize_mt(
         store, capsule.name, config.operator.name, message, reports,
         second_operator=args.second_operator, single_operator_waiver=args.single_operator_waiver,
         require_second_operator=config.console.require_second_operator, override_landed=args.override_landed,
-        queue_by=queue_by, now=utc_now(),
+        queue_by=queue_by, now=utc_now(), approval=approval,
     )  # fmt: skip
     gateway = RockblockGateway.from_config(config.rockblock)
     life = lc.CommandLifecycle(store, config.operator.name)
@@ -223,6 +233,24 @@ def _mt_send(args: argparse.Namespace) -> int:
     ):
         print(f"checklist: done: {step.text}")
     return 0 if command.state == lc.QUEUED else 1
+
+
+def _await_approval(
+    store: Store, capsule: str, operator: str, message: MtMessage, reports: list[StoredReport]
+) -> int:
+    """Ask another login to approve, and wait; the send goes on only once it has (and its deadline,
+    checked again at submit, still holds)."""
+    book = ApprovalBook(store)
+    summary = f"{message.text}; landed: {landed_evidence(reports).summary}"
+    request = book.request(capsule, "parachute", summary, operator, current_login())
+    print(f"approval #{request.id}: waiting for another login to run `drs approve {request.id}` "
+          f"(expires {request.expires_utc:%H:%M:%S}Z)", flush=True)  # fmt: skip
+    decided = book.wait(request.id)
+    if decided.state != "approved":
+        why = f" ({decided.reason})" if decided.reason else ""
+        raise RefusedError(f"approval #{request.id} {decided.status(utc_now())}{why}: nothing sent")
+    print(f"approval #{request.id}: approved by {decided.decided_by} ({decided.decider})", flush=True)
+    return request.id
 
 
 def _mt_status(args: argparse.Namespace) -> int:

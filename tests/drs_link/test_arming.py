@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from drs_link.approval import ApprovalBook, Login
 from drs_link.arming import ArmingController, ArmState, check_second_operator
 from drs_link.backends.stock import StockBackend
 from drs_link.capsule import ReleaseState, ReleaseStateMachine
@@ -153,9 +154,24 @@ def test_fire_with_a_required_second_operator_refuses_the_same_name(store: Store
         arming.fire("DRS1", go_report(clock), second_operator="EL")
 
 
+def test_fire_spends_only_an_approval_another_login_gave_for_go(store: Store) -> None:
+    clock = ManualClock(T0)
+    arming = controller(store, clock, require_second_operator=True)
+    book = ApprovalBook(store, clock)
+    request = book.request("DRS1", "go", "release DRS1", "EL", Login("el"))
+    arming.arm(go_report(clock))
+    with pytest.raises(RefusedError, match=r"FIRE refused: approval #1 is pending, not approved"):
+        arming.fire("DRS1", go_report(clock), approval=request.id, login=Login("el"))
+    book.decide(request.id, "JM", Login("jm"), approve=True)
+    with pytest.raises(RefusedError, match=r"FIRE refused: approval #1 was requested by el, not by jm"):
+        arming.fire("DRS1", go_report(clock), approval=request.id, login=Login("jm"))
+    assert [a.result for a in store.audit("DRS1") if a.action == "fire"] == ["refused", "refused"]
+
+
 @pytest.mark.slow
+@pytest.mark.parametrize("second", ["waiver", "approval"])
 def test_armed_fire_releases_the_simulated_capsule_through_the_state_machine_tokens(
-    make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig], store: Store
+    make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig], store: Store, second: str
 ) -> None:
     sim = make_sim()
     config = sim_config(sim)
@@ -166,9 +182,15 @@ def test_armed_fire_releases_the_simulated_capsule_through_the_state_machine_tok
     machine.power_on(confirmed=True)
     assert machine.wait_for_microcontroller().waiting_for_go
     arming = ArmingController(store, machine, "EL", clock=sim.clock.now, arm_window_s=600.0)
+    people: dict[str, object] = {"single_operator_waiver": "test drop, one person"}
+    if second == "approval":  # the second operator approved from their own login
+        book = ApprovalBook(store, sim.clock.now)
+        request = book.request("DRS1", "go", "release DRS1", "EL", Login("el"))
+        book.decide(request.id, "JM", Login("jm"), approve=True)
+        people = {"approval": request.id, "login": Login("el")}
     report = evaluate("DRS1", inputs(sim.clock.now()), sim.clock.now())
     arming.arm(report)
-    record = arming.fire("DRS1", report, single_operator_waiver="test drop, one person")
+    record = arming.fire("DRS1", report, **people)  # type: ignore[arg-type]
     assert record.state is ReleaseState.RELEASED and sim.firmware.go_at is not None
     assert arming.status().state is ArmState.FIRED
     actions = [(a.action, a.result) for a in store.audit("DRS1")]

@@ -1,0 +1,263 @@
+"""Second-operator approval from another session: the two-person rule as mission control keeps it.
+
+Why: a second name typed into the same dialog lets one person at one keyboard satisfy the two-person
+rule. COSMOS and Yamcs take a critical command's approval from another operator's own session. Here a
+hazardous command (Go with the rule on, PARACHUTE, a take-over of release authority) can wait as
+*pending approval* in the shared store until a different login approves or rejects it, from a second
+console or with `drs approve`. The login is the OS account and, over SSH, the fingerprint of the key
+the session authenticated with (OpenSSH's ``ExposeAuthInfo``), never a typed name. A request expires
+(``APPROVAL_TTL_S``), an approval is used once, and both identities are audited. The typed-name waiver
+stays as the logged single-operator path.
+
+Every change of a request is one compare-and-set in SQLite, so two approvers, or an approval racing
+its expiry, can never both win.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import hashlib
+import os
+import pwd
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+from pathlib import Path
+
+from drs_link.errors import RefusedError
+from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
+
+APPROVAL_TTL_S = 300.0
+"""How long a request may wait for its approval, and an approval for its use: long enough to reach
+the second operator on the radio, short enough that an old approval never sends a command today."""
+ACTIONS = {"go": "Go (release)", "parachute": "PARACHUTE", "authority": "release-authority take-over"}
+
+_DDL = """
+CREATE TABLE IF NOT EXISTS approval (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    capsule TEXT NOT NULL,
+    action TEXT NOT NULL,
+    summary TEXT NOT NULL,
+    requested_by TEXT NOT NULL,
+    requester_user TEXT NOT NULL,
+    requester_key TEXT,
+    requested_utc TEXT NOT NULL,
+    expires_utc TEXT NOT NULL,
+    state TEXT NOT NULL,
+    decided_by TEXT,
+    decider_user TEXT,
+    decider_key TEXT,
+    decided_utc TEXT,
+    reason TEXT
+);
+CREATE INDEX IF NOT EXISTS approval_state ON approval (state, expires_utc);
+"""
+
+
+@dataclass(frozen=True)
+class Login:
+    """Who is at a keyboard, as the system knows it: the OS account and the SSH key, if any."""
+
+    user: str
+    key_fingerprint: str | None = None
+
+    def same_person(self, other: Login) -> bool:
+        """Two sessions of one account are one person unless both came in with different keys (a
+        shared field account with a key per person); different accounts are different people."""
+        if self.user != other.user:
+            return False
+        if self.key_fingerprint and other.key_fingerprint:
+            return self.key_fingerprint == other.key_fingerprint
+        return True
+
+    def __str__(self) -> str:
+        return f"{self.user} (key {self.key_fingerprint})" if self.key_fingerprint else self.user
+
+
+def key_fingerprint(auth_info: str) -> str | None:
+    """The SHA256 fingerprint of the first public key in OpenSSH's ``SSH_USER_AUTH`` file, as
+    ``ssh-keygen -l`` prints it (None when the session did not authenticate with a key)."""
+    for line in auth_info.splitlines():
+        fields = line.split()
+        if len(fields) >= 3 and fields[0] == "publickey":
+            try:
+                blob = base64.b64decode(fields[2], validate=True)
+            except (binascii.Error, ValueError):
+                return None
+            digest = base64.b64encode(hashlib.sha256(blob).digest()).decode().rstrip("=")
+            return f"SHA256:{digest}"
+    return None
+
+
+def current_login(environ: Mapping[str, str] = os.environ) -> Login:
+    """This process's login: the effective OS account (not $USER, which anyone can set) and, when
+    sshd exposes it, the key the SSH session authenticated with."""
+    user = pwd.getpwuid(os.geteuid()).pw_name
+    auth_file = environ.get("SSH_USER_AUTH")
+    fingerprint = None
+    if auth_file:
+        try:
+            fingerprint = key_fingerprint(Path(auth_file).read_text(encoding="utf-8", errors="replace"))
+        except OSError:
+            fingerprint = None
+    return Login(user, fingerprint)
+
+
+@dataclass(frozen=True)
+class Approval:
+    id: int
+    capsule: str
+    action: str
+    summary: str
+    requested_by: str
+    requester: Login
+    requested_utc: datetime
+    expires_utc: datetime
+    state: str
+    """pending, approved, rejected or used (an expired request keeps its state and is refused by time)."""
+    decided_by: str | None
+    decider: Login | None
+    reason: str | None
+
+    def expired(self, now: datetime) -> bool:
+        return now >= self.expires_utc
+
+    def status(self, now: datetime) -> str:
+        if self.state in ("pending", "approved") and self.expired(now):
+            return f"{self.state}, expired {self.expires_utc:%H:%M:%S}Z"
+        return self.state
+
+    def describe(self, now: datetime) -> str:
+        left = (self.expires_utc - now).total_seconds()
+        when = f"{left:.0f} s left" if left > 0 else "expired"
+        who = f" by {self.decided_by} ({self.decider})" if self.decided_by else ""
+        return (
+            f"#{self.id} {self.capsule} {ACTIONS.get(self.action, self.action)}: {self.summary} — requested by "
+            f"{self.requested_by} ({self.requester}) — {self.status(now)}{who}{', ' + when if self.state in ('pending', 'approved') else ''}"
+        )
+
+
+class ApprovalBook:
+    """The approval requests in the shared store."""
+
+    def __init__(self, store: Store, clock: Callable[[], datetime] = utc_now) -> None:
+        self.store = store
+        self.clock = clock
+        store.ensure_schema(_DDL)
+
+    def request(
+        self, capsule: str, action: str, summary: str, operator: str, login: Login, ttl_s: float = APPROVAL_TTL_S
+    ) -> Approval:
+        """A pending request another login must approve before ``expires``; audited."""
+        if action not in ACTIONS:
+            raise ValueError(f"unknown hazardous action {action!r}")
+        now = self.clock()
+        expires = now + timedelta(seconds=ttl_s)
+        with self.store.transaction() as conn:
+            row_id = conn.execute(
+                "INSERT INTO approval (capsule, action, summary, requested_by, requester_user, requester_key, "
+                "requested_utc, expires_utc, state) VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'pending')",
+                (capsule, action, summary, operator, login.user, login.key_fingerprint, iso_utc(now), iso_utc(expires)),
+            ).lastrowid
+        self.store.append_audit(operator, capsule, "approval.requested", "pending",
+                                {"approval": row_id, "action": action, "summary": summary, "login": str(login),
+                                 "expires_utc": iso_utc(expires)})  # fmt: skip
+        return self.get(int(row_id or 0))
+
+    def get(self, approval_id: int) -> Approval:
+        rows = self.store.query("SELECT * FROM approval WHERE id = ?", (approval_id,))
+        if not rows:
+            raise RefusedError(f"approval #{approval_id} does not exist")
+        return _approval(rows[0])
+
+    def open_requests(self, capsule: str | None = None) -> list[Approval]:
+        """Pending requests that have not expired, oldest first: what an approver is asked about."""
+        now = iso_utc(self.clock())
+        sql = "SELECT * FROM approval WHERE state = 'pending' AND expires_utc > ?"
+        params: tuple[str, ...] = (now,)
+        if capsule is not None:
+            sql, params = sql + " AND capsule = ?", (now, capsule)
+        return [_approval(row) for row in self.store.query(sql + " ORDER BY id", params)]
+
+    def decide(self, approval_id: int, operator: str, login: Login, approve: bool, reason: str = "") -> Approval:
+        """Approve or reject a pending request from a login that is not the requester's."""
+        request = self.get(approval_id)
+        now = self.clock()
+        verdict = "approved" if approve else "rejected"
+
+        def refuse(why: str) -> RefusedError:
+            self.store.append_audit(operator, request.capsule, f"approval.{verdict}", "refused",
+                                    {"approval": approval_id, "reason": why, "login": str(login)})  # fmt: skip
+            return RefusedError(f"approval #{approval_id} refused: {why}")
+
+        if request.requester.same_person(login):
+            raise refuse(
+                f"the same login ({login}) that requested it cannot approve it: run drs approve from another "
+                "person's login (a different account, or over SSH a different key)"
+            )
+        with self.store.transaction() as conn:
+            changed = conn.execute(
+                "UPDATE approval SET state = ?, decided_by = ?, decider_user = ?, decider_key = ?, decided_utc = ?, "
+                "reason = ? WHERE id = ? AND state = 'pending' AND expires_utc > ?",
+                (verdict, operator, login.user, login.key_fingerprint, iso_utc(now), reason.strip() or None,
+                 approval_id, iso_utc(now)),
+            ).rowcount  # fmt: skip
+        if not changed:
+            raise refuse(f"it is {self.get(approval_id).status(now)}, not pending")
+        self.store.append_audit(operator, request.capsule, f"approval.{verdict}", verdict,
+                                {"approval": approval_id, "action": request.action, "requested_by": request.requested_by,
+                                 "requester_login": str(request.requester), "login": str(login),
+                                 "reason": reason.strip()})  # fmt: skip
+        return self.get(approval_id)
+
+    def wait(self, approval_id: int, poll_s: float = 0.25) -> Approval:
+        """Block until the request is decided or expires (its state then says which)."""
+        while True:
+            request = self.get(approval_id)
+            if request.state != "pending" or request.expired(self.clock()):
+                return request
+            time.sleep(poll_s)
+
+    def use(self, approval_id: int, capsule: str, action: str, login: Login) -> dict[str, str]:
+        """Spend an approval on the command it was given for, once; what to audit with the command."""
+        request = self.get(approval_id)
+        now = self.clock()
+        if request.capsule != capsule or request.action != action:
+            raise RefusedError(
+                f"approval #{approval_id} was given for {request.capsule} {ACTIONS.get(request.action)}, "
+                f"not {capsule} {ACTIONS.get(action)}"
+            )
+        if not request.requester.same_person(login):
+            raise RefusedError(f"approval #{approval_id} was requested by {request.requester}, not by {login}")
+        with self.store.transaction() as conn:
+            changed = conn.execute(
+                "UPDATE approval SET state = 'used' WHERE id = ? AND state = 'approved' AND expires_utc > ?",
+                (approval_id, iso_utc(now)),
+            ).rowcount
+        if not changed:
+            raise RefusedError(f"approval #{approval_id} is {self.get(approval_id).status(now)}, not approved")
+        return {"approved_by": f"{request.decided_by} ({request.decider})", "approval": str(approval_id)}
+
+
+def _approval(row: Mapping[str, object]) -> Approval:
+    decider = Login(str(row["decider_user"]), _text(row["decider_key"])) if row["decider_user"] else None
+    return Approval(
+        id=int(str(row["id"])),
+        capsule=str(row["capsule"]),
+        action=str(row["action"]),
+        summary=str(row["summary"]),
+        requested_by=str(row["requested_by"]),
+        requester=Login(str(row["requester_user"]), _text(row["requester_key"])),
+        requested_utc=parse_iso_utc(str(row["requested_utc"])),
+        expires_utc=parse_iso_utc(str(row["expires_utc"])),
+        state=str(row["state"]),
+        decided_by=_text(row["decided_by"]),
+        decider=decider,
+        reason=_text(row["reason"]),
+    )
+
+
+def _text(value: object) -> str | None:
+    return None if value is None else str(value)

@@ -1,0 +1,206 @@
+"""Second-operator approval from another login: the request waits, a different login decides, once.
+
+Logins are real: the OS account of this process and SSH public keys made by ssh-keygen, exposed the
+way sshd's ExposeAuthInfo does (a file named by SSH_USER_AUTH). The PARACHUTE send runs as a real
+`drs` process against the simulated RockBLOCK on loopback while `drs approve` runs from another login.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+from drs_link.approval import ApprovalBook, Login, current_login, key_fingerprint
+from drs_link.errors import RefusedError
+from drs_link.iridium.authorize import authorize_mt
+from drs_link.iridium.mt import MtComposer
+from drs_link.iridium.reports import ReportStore
+from drs_link.simulator.rockblock import SimulatedRockblock
+from drs_link.store import Store, utc_now
+from tests.clock import ManualClock
+from tests.iridium.helpers import IMEI
+from tests.iridium.test_cli import run, write_config
+from tests.iridium.test_parachute_gate import audit_of, landed, recent, seed
+
+ALICE_A = Login("ops", "SHA256:keyA")
+ALICE_B = Login("ops", "SHA256:keyB")
+
+
+def ssh_key(tmp_path: Path, name: str) -> Path:
+    """An ed25519 key pair, and the SSH_USER_AUTH file sshd would write for a session made with it."""
+    key = tmp_path / name
+    subprocess.run(["ssh-keygen", "-q", "-t", "ed25519", "-N", "", "-f", str(key)], check=True)
+    auth = tmp_path / f"{name}.auth"
+    auth.write_text("publickey " + (tmp_path / f"{name}.pub").read_text())
+    return auth
+
+
+def test_the_fingerprint_is_the_one_ssh_keygen_prints(tmp_path: Path) -> None:
+    auth = ssh_key(tmp_path, "k")
+    printed = subprocess.run(["ssh-keygen", "-l", "-E", "sha256", "-f", str(tmp_path / "k.pub")],
+                             check=True, capture_output=True, text=True).stdout.split()[1]  # fmt: skip
+    assert key_fingerprint(auth.read_text()) == printed
+    assert current_login({"SSH_USER_AUTH": str(auth)}) == Login(current_login({}).user, printed)
+    assert key_fingerprint("password\n") is None, "a password session has no key"
+
+
+def test_one_account_is_one_person_unless_different_keys_say_otherwise() -> None:
+    assert not Login("alice").same_person(Login("bob"))
+    assert Login("ops").same_person(Login("ops"))
+    assert Login("ops").same_person(ALICE_A), "a key on one side only cannot tell them apart"
+    assert not ALICE_A.same_person(ALICE_B)
+
+
+@pytest.fixture
+def book(tmp_path: Path) -> ApprovalBook:
+    return ApprovalBook(Store.open(tmp_path / "drs.sqlite"), ManualClock(utc_now()))
+
+
+def test_the_requesting_login_cannot_approve_its_own_request(book: ApprovalBook) -> None:
+    request = book.request("DRS1", "parachute", "[PARACHUTE=01:19]", "alice", ALICE_A)
+    with pytest.raises(RefusedError, match="the same login .* that requested it cannot approve it"):
+        book.decide(request.id, "alice", ALICE_A, approve=True)
+    with pytest.raises(RefusedError, match="cannot approve it"):
+        book.decide(request.id, "bob", Login("ops"), approve=True)  # a typed name is not another login
+    assert book.get(request.id).state == "pending"
+    refusals = [r for r in book.store.audit("DRS1") if r.result == "refused"]
+    assert len(refusals) == 2 and refusals[0].detail["login"] == str(ALICE_A)
+
+
+def test_an_approval_is_spent_once_by_its_requester_on_its_command(book: ApprovalBook) -> None:
+    request = book.request("DRS1", "go", "release DRS1", "alice", ALICE_A)
+    approved = book.decide(request.id, "bob", ALICE_B, approve=True, reason="checked the go/no-go")
+    assert approved.state == "approved" and approved.decider == ALICE_B
+    with pytest.raises(RefusedError, match="was given for DRS1 Go"):
+        book.use(request.id, "DRS1", "parachute", ALICE_A)
+    with pytest.raises(RefusedError, match="was requested by"):
+        book.use(request.id, "DRS1", "go", Login("mallory"))
+    people = book.use(request.id, "DRS1", "go", ALICE_A)
+    assert people == {"approved_by": f"bob ({ALICE_B})", "approval": str(request.id)}
+    with pytest.raises(RefusedError, match="is used, not approved"):
+        book.use(request.id, "DRS1", "go", ALICE_A)
+    decided = [r.detail for r in book.store.audit("DRS1") if r.action == "approval.approved"]
+    assert decided[0]["login"] == str(ALICE_B) and decided[0]["requester_login"] == str(ALICE_A)
+
+
+def test_a_request_and_an_approval_expire(book: ApprovalBook) -> None:
+    clock = book.clock
+    assert isinstance(clock, ManualClock)
+    late = book.request("DRS1", "parachute", "[PARACHUTE=01:19]", "alice", ALICE_A, ttl_s=60.0)
+    clock.advance(60.0)
+    assert book.open_requests() == []
+    with pytest.raises(RefusedError, match=r"it is pending, expired .*, not pending"):
+        book.decide(late.id, "bob", ALICE_B, approve=True)
+    unused = book.request("DRS1", "parachute", "[PARACHUTE=01:21]", "alice", ALICE_A, ttl_s=60.0)
+    book.decide(unused.id, "bob", ALICE_B, approve=True)
+    clock.advance(61.0)
+    with pytest.raises(RefusedError, match=r"is approved, expired"):
+        book.use(unused.id, "DRS1", "parachute", ALICE_A)
+
+
+def test_two_approvers_at_once_decide_it_once(book: ApprovalBook) -> None:
+    request = book.request("DRS1", "go", "release DRS1", "alice", ALICE_A)
+    outcomes: list[str] = []
+    approvers = [Login("bob"), Login("carol"), Login("dave"), Login("erin")]
+
+    def decide(login: Login, approve: bool) -> None:
+        try:
+            outcomes.append(book.decide(request.id, login.user, login, approve).state)
+        except RefusedError:
+            outcomes.append("refused")
+
+    threads = [threading.Thread(target=decide, args=(login, i % 2 == 0)) for i, login in enumerate(approvers)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert outcomes.count("refused") == 3
+    [winner] = [o for o in outcomes if o != "refused"]
+    assert book.get(request.id).state == winner
+
+
+def test_parachute_with_an_approval_from_another_login_is_audited_with_both(tmp_path: Path) -> None:
+    store = seed(tmp_path, landed(recent(10.5)))
+    reports = ReportStore(store).for_imei(IMEI)
+    book = ApprovalBook(store)
+    message = MtComposer().parachute(1, 19).build()
+    request = book.request("DRS1", "parachute", message.text, "alice", ALICE_A)
+    with pytest.raises(RefusedError, match="not approved"):
+        authorize_mt(store, "DRS1", "alice", message, reports, approval=request.id, login=ALICE_A)
+    book.decide(request.id, "bob", ALICE_B, approve=True)
+    people = authorize_mt(store, "DRS1", "alice", message, reports, approval=request.id, login=ALICE_A)
+    assert people["approved_by"] == f"bob ({ALICE_B})"
+    authorised = audit_of(store, "mt.parachute")[-1]
+    assert authorised["result"] == "authorised" and authorised["approval"] == str(request.id)
+
+
+CHILD = "import sys; from console.cli import main; sys.exit(main(sys.argv[1:]))"
+
+
+def test_drs_mt_send_waits_for_drs_approve_from_another_key(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
+    with SimulatedRockblock(username="ops", password="pw") as gateway:
+        config = write_config(tmp_path, gateway.url)
+        store = seed(tmp_path, landed(recent(10.5)))
+        env = {**os.environ, "DRS_TEST_RB": "pw", "SSH_USER_AUTH": str(alice)}
+        argv = ["--config", str(config), "mt", "send", "DRS1", "--parachute", "next", "--accept-midnight",
+                "--confirm", "DRS1", "--await-approval"]  # fmt: skip
+        sender = subprocess.Popen([sys.executable, "-c", CHILD, *argv], env=env, stdout=subprocess.PIPE, text=True)
+        try:
+            assert sender.stdout is not None
+            waiting = next(line for line in sender.stdout if line.startswith("approval #"))
+            assert "waiting for another login to run `drs approve 1`" in waiting
+            assert gateway.requests == [], "nothing is sent while it waits"
+            monkeypatch.setenv("SSH_USER_AUTH", str(alice))
+            assert run(config, "approve", "1") == 1, "the sender's own key cannot approve"
+            assert "cannot approve it" in capsys.readouterr().err
+            monkeypatch.setenv("SSH_USER_AUTH", str(bob))
+            assert run(config, "approve") == 0
+            assert "#1 DRS1 PARACHUTE: [PARACHUTE=" in capsys.readouterr().out
+            assert run(config, "approve", "1") == 0
+            rest = sender.stdout.read()
+            assert sender.wait(timeout=60) == 0, rest
+        finally:
+            sender.kill()
+        assert "approved by alice" in rest and len(gateway.requests) == 1
+    authorised = audit_of(store, "mt.parachute")[-1]
+    assert authorised["approved_by"].startswith("alice (") and authorised["approval"] == "1"
+    assert [r.result for r in store.audit("DRS1") if r.action.startswith("approval.")] == [
+        "pending", "refused", "approved"
+    ]
+
+
+def test_a_rejected_request_sends_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
+    with SimulatedRockblock(username="ops", password="pw") as gateway:
+        config = write_config(tmp_path, gateway.url)
+        seed(tmp_path, landed(recent(10.5)))
+        env = {**os.environ, "DRS_TEST_RB": "pw", "SSH_USER_AUTH": str(alice)}
+        argv = ["--config", str(config), "mt", "send", "DRS1", "--parachute", "next", "--accept-midnight",
+                "--confirm", "DRS1", "--await-approval"]  # fmt: skip
+        sender = subprocess.Popen([sys.executable, "-c", CHILD, *argv], env=env, stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True)  # fmt: skip
+        try:
+            assert sender.stdout is not None
+            next(line for line in sender.stdout if line.startswith("approval #"))
+            monkeypatch.setenv("SSH_USER_AUTH", str(bob))
+            assert run(config, "approve", "1", "--reject") == 2, "a rejection says why"
+            assert run(config, "approve", "1", "--reject", "--reason", "still swinging in the tree") == 0
+            _, err = sender.communicate(timeout=60)
+        finally:
+            sender.kill()
+        assert sender.returncode == 1 and "approval #1 rejected (still swinging in the tree): nothing sent" in err
+        assert gateway.requests == []
+
+
+def test_an_approval_request_is_refused_for_a_command_the_rule_does_not_cover(tmp_path: Path) -> None:
+    book = ApprovalBook(Store.open(tmp_path / "drs.sqlite"))
+    with pytest.raises(ValueError, match="unknown hazardous action"):
+        book.request("DRS1", "interval", "[INTERVAL=5]", "alice", ALICE_A)
