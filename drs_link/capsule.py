@@ -63,8 +63,16 @@ SILENT_MICROCONTROLLER_CHECKS = (
 )
 
 
+POWER_ON_UNKNOWN_NOTE = (
+    "power-on outcome unknown: check the relay; then run power-on again (a second SET pulse leaves a "
+    "latched relay latched) or, if it is off and should stay off, reset"
+)
+
+
 class ReleaseState(StrEnum):
     IDLE = "idle"
+    POWER_ON_UNKNOWN = "power-on-unknown"
+    """Power-on was started and its outcome never recorded: the Pi may have latched the relay."""
     POWERED = "powered"
     GO_SENT = "go-sent-unverified"
     RELEASED = "released"
@@ -236,7 +244,14 @@ class ReleaseStateMachine:
     # Power-on ---------------------------------------------------------------------------------
 
     def power_on(self, confirmed: bool) -> ReleaseRecord:
-        """Pulse the latching relay; software cannot switch it off again, hence the confirmation."""
+        """Pulse the latching relay; software cannot switch it off again, hence the confirmation.
+
+        The attempt is recorded (compare-and-set) before the Pi is asked, as ``power-on-unknown``: a
+        console killed while the Pi runs the script, or before it records the answer, once left ``idle``
+        over a latched relay. Only the Pi's own refusal (its release-authority lock, checked before the
+        relay is touched) puts the previous state back; a link that fails meanwhile leaves the outcome
+        unknown, which power-on again or reset settles.
+        """
         current = self.record()
         if not confirmed:
             raise self._refuse("power-on", "not confirmed (the relay cannot be switched off by software)")
@@ -244,30 +259,34 @@ class ReleaseStateMachine:
             raise self._refuse(
                 "power-on", f"capsule is {current.state.value}; reset it after recovery before a new release"
             )
-        self._audit("power-on", "started", {"holder": self.holder})
+        attempt = ReleaseRecord(
+            self.name, ReleaseState.POWER_ON_UNKNOWN, secrets.token_hex(8), self.holder, current.log_offset,
+            None, None, None, None, POWER_ON_UNKNOWN_NOTE,
+        )  # fmt: skip
+        try:
+            self._swap(current, attempt)
+        except _StateChanged as changed:
+            raise self._refuse(
+                "power-on", f"the capsule became {changed.current.state.value} meanwhile (another console?)"
+            ) from None
+        self._audit("power-on", "started", {"holder": self.holder, "session": attempt.session})
         try:
             result = self.backend.power_on(self.holder, self.capsule.authority_lease_s)
         except RefusedError as exc:
+            try:
+                self._swap(attempt, current)
+            except _StateChanged:
+                pass  # another step moved the capsule on meanwhile: its state stands
             self._audit("power-on", "refused", {"reason": str(exc)})
             raise
         except LinkError as exc:
-            self._audit("power-on", "failed", {"error": str(exc)})
-            raise
-        now = self.clock()
-        record = ReleaseRecord(
-            self.name,
-            ReleaseState.POWERED,
-            secrets.token_hex(8),
-            self.holder,
-            result.log_offset,
-            now,
-            None,
-            None,
-            None,
-            None,
+            self._audit("power-on", "outcome unknown", {"error": str(exc)})
+            raise LinkError(f"{exc}; {POWER_ON_UNKNOWN_NOTE}") from None
+        record = replace(
+            attempt, state=ReleaseState.POWERED, log_offset=result.log_offset, powered_at=self.clock(), note=None
         )
         try:
-            self._swap(current, record)
+            self._swap(attempt, record)
         except _StateChanged as changed:
             raise self._refuse(
                 "power-on",
@@ -276,7 +295,8 @@ class ReleaseStateMachine:
             ) from None
         except StoreError as exc:
             raise StoreError(
-                f"{self.name}: power-on ran on the Pi (the relay is latched) but was not recorded: {exc}"
+                f"{self.name}: power-on ran on the Pi (the relay is latched) but was not recorded: {exc}; "
+                "the store says power-on-unknown"
             ) from None
         self._audit("power-on", "ok", {"session": record.session, "log_offset": result.log_offset})
         return record

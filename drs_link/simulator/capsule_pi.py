@@ -58,6 +58,8 @@ class Faults:
     drop_after_bytes: int | None = None
     drop_on_command: str | None = None
     response_delay_s: float = 0.0
+    answer_delay_s: float = 0.0
+    """Seconds a command's exit status is held back after it ran: the Pi has acted, the console not heard."""
     raid_degraded: bool = False
     corrupt_writes: int = 0
     """The next N uploads are stored with their first byte inverted: a card that keeps other bytes
@@ -406,6 +408,7 @@ class CapsuleSimulator:
         except (OSError, EOFError, paramiko.SSHException):
             return
         if status is not None:
+            time.sleep(self.faults.answer_delay_s)
             try:
                 channel.send_exit_status(status)
                 channel.shutdown_write()

@@ -288,8 +288,10 @@ def test_power_on_go_and_reset_tick_their_steps_from_the_cli_as_from_the_console
 DRS_IN_A_CHILD = "import sys, console.cli; sys.exit(console.cli.main(sys.argv[1:]))"
 
 
-def _kill_when(config: Path, argv: list[str], store: Store, state: str) -> None:
-    """Run ``drs argv`` in a child process and kill -9 it once the store says ``state``."""
+def _kill_when(
+    config: Path, argv: list[str], store: Store, state: str, also: Callable[[], bool] = lambda: True
+) -> None:
+    """Run ``drs argv`` in a child process and kill -9 it once the store says ``state`` (and ``also()``)."""
     child = subprocess.Popen([sys.executable, "-c", DRS_IN_A_CHILD, "--config", str(config), *argv])
     try:
         deadline = time.monotonic() + 60
@@ -298,7 +300,7 @@ def _kill_when(config: Path, argv: list[str], store: Store, state: str) -> None:
                 rows = store.query("SELECT state FROM release_state WHERE capsule = 'DRS1'")
             except StoreError:
                 rows = []  # the child has not created its tables yet
-            if rows and rows[0]["state"] == state:
+            if rows and rows[0]["state"] == state and also():
                 break
             time.sleep(0.05)
         assert child.poll() is None, f"drs {' '.join(argv)} ended before it could be killed at {state}"
@@ -321,6 +323,50 @@ def test_go_killed_while_the_pi_runs_it_stays_unverified_and_reset_is_refused(
     assert json.loads(capsys.readouterr().out)["release"]["state"] == "go-sent-unverified"
     assert drs(config, "capsule", "reset", "DRS1", "--confirm", "DRS1") == 1
     assert "Go was sent and not verified" in _one_line_error(capsys)
+
+
+def _status(config: Path, capsys: pytest.CaptureFixture[str]) -> dict[str, Any]:
+    capsys.readouterr()
+    assert drs(config, "capsule", "status", "DRS1", "--json") == 0
+    return json.loads(capsys.readouterr().out)  # type: ignore[no-any-return]
+
+
+def test_power_on_killed_before_the_pi_ran_it_is_outcome_unknown_and_reset_settles_it(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """Killed after the attempt was recorded and before the Pi ran the script: the console cannot know
+    which, so it says so; Go is refused until the operator, having found the relay off, resets."""
+    sim, config = setup
+    sim.faults.response_delay_s = 20.0
+    store = Store.open(tmp_path / "data" / "drs.sqlite")
+    _kill_when(config, ["capsule", "power-on", "DRS1", "--yes"], store, "power-on-unknown")
+    sim.faults.response_delay_s = 0.0
+    release = _status(config, capsys)["release"]
+    assert release["state"] == "power-on-unknown" and "power-on outcome unknown: check the relay" in release["note"]
+    assert not sim.gpio.relay_latched
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 1
+    assert "power-on has not succeeded" in _one_line_error(capsys)
+    assert drs(config, "capsule", "reset", "DRS1", "--confirm", "DRS1") == 0
+    assert _status(config, capsys)["release"]["state"] == "idle"
+
+
+def test_power_on_killed_after_the_pi_latched_the_relay_is_outcome_unknown_and_power_on_again_settles_it(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """The Pi ran the script (the relay is latched) and the console died before it heard: this once left
+    'idle' over a latched relay. Power-on again (a second SET pulse changes nothing) gives the session Go needs."""
+    sim, config = setup
+    sim.faults.answer_delay_s = 20.0
+    store = Store.open(tmp_path / "data" / "drs.sqlite")
+    _kill_when(
+        config, ["capsule", "power-on", "DRS1", "--yes"], store, "power-on-unknown", lambda: sim.gpio.relay_latched
+    )
+    sim.faults.answer_delay_s = 0.0
+    assert _status(config, capsys)["release"]["state"] == "power-on-unknown"
+    assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
+    assert _status(config, capsys)["release"]["state"] == "powered"
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    assert "released, Pi shut down" in capsys.readouterr().out and sim.firmware.go_at is not None
 
 
 def test_power_on_killed_while_waiting_for_the_microcontroller_is_kept_and_go_proceeds(

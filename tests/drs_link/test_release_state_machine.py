@@ -237,14 +237,38 @@ def test_serial_log_is_read_from_the_offset_taken_at_power_on(
     assert all(call == "read_serial 120" for call in pi.calls if call.startswith("read_serial"))
 
 
-def test_failed_power_on_is_audited_and_leaves_the_capsule_idle(
+def test_a_power_on_whose_link_fails_is_outcome_unknown_until_reset_or_power_on_again(
     machine: ReleaseStateMachine, pi: InProcessPi
 ) -> None:
+    """The link may fail after the Pi latched the relay, so 'idle' would be a guess (and once was the
+    record over a latched relay): the outcome is recorded unknown, Go is refused, and the operator
+    settles it by resetting (relay found off) or by powering on again."""
     pi.power_on_error = LinkError("DRS1: the link dropped during power-on")
+    with pytest.raises(LinkError, match="the link dropped during power-on; power-on outcome unknown: check the relay"):
+        machine.power_on(confirmed=True)
+    record = machine.record()
+    assert record.state is ReleaseState.POWER_ON_UNKNOWN and record.note is not None and "check the relay" in record.note
+    assert [a.result for a in machine.store.audit("DRS1")] == ["started", "outcome unknown"]
+    with pytest.raises(RefusedError, match="power-on has not succeeded"):
+        machine.confirm("DRS1")
+    assert machine.reset("DRS1").state is ReleaseState.IDLE
     with pytest.raises(LinkError):
         machine.power_on(confirmed=True)
-    assert machine.record().state is ReleaseState.IDLE
-    assert [a.result for a in machine.store.audit("DRS1")] == ["started", "failed"]
+    pi.power_on_error = None
+    assert machine.power_on(confirmed=True).state is ReleaseState.POWERED
+
+
+def test_a_power_on_the_pi_refuses_puts_the_previous_state_back(
+    machine: ReleaseStateMachine, pi: InProcessPi
+) -> None:
+    """The Pi's release-authority lock refuses before the relay is touched: nothing happened."""
+    _ready(machine)
+    session = machine.record().session
+    pi.power_on_error = RefusedError("DRS1: release authority is held by JM@laptop2")
+    with pytest.raises(RefusedError, match="held by JM@laptop2"):
+        machine.power_on(confirmed=True)
+    assert (machine.record().state, machine.record().session) == (ReleaseState.POWERED, session)
+    assert [a.result for a in machine.store.audit("DRS1")][-2:] == ["started", "refused"]
 
 
 def test_reset_after_recovery_allows_a_new_release_only_when_named(machine: ReleaseStateMachine) -> None:
