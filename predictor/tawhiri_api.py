@@ -50,6 +50,12 @@ API_VERSION = 1
 STANDARD_PROFILE = "standard_profile"
 FLOAT_PROFILE = "float_profile"
 FORMATS = ("json", "csv", "kml")
+WEATHER_HOURS = 12
+"""Demo weather generated for at least this long from the launch: long enough that a whole flight and a
+descent from where the payload is now use the same files (and the same cube)."""
+REGION_MINUTES = 240.0
+"""The weather region is sized for this long a drift (or the ascent's, if longer) around the launch: the
+same region for a whole flight and for a descent from where the payload is, so both reuse one cube."""
 WEATHER_HOURS_AFTER_BURST = 6
 """Demo weather generated past the burst: a descent from 40 km under a small canopy lasts ~1.5 h."""
 
@@ -210,9 +216,9 @@ class PredictorService:
 
     def _cube_for(self, request: ApiRequest, ascent_s: float) -> WeatherCube:
         lat0, lon0 = round(request.launch_latitude), round(request.launch_longitude)
-        hours = math.ceil(ascent_s / 3600.0) + WEATHER_HOURS_AFTER_BURST
+        hours = max(WEATHER_HOURS, math.ceil(ascent_s / 3600.0) + WEATHER_HOURS_AFTER_BURST)
         files = self.weather.files_for(lat0, lon0, request.launch_datetime, hours)
-        box = weather_bbox(lat0, lon0, ascent_s / 60.0 + 60.0)
+        box = weather_bbox(lat0, lon0, max(REGION_MINUTES, ascent_s / 60.0 + 60.0))
         key = (tuple((str(f), f.stat().st_mtime_ns) for f in files), box)
         if key != self._cube_key:
             self._cube = load_weather(files, bbox=box, cache_dir=self.cache_dir)
