@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from predictor.errors import PredictorError
+from predictor.errors import PredictorError, UsageError
 
 STDOUT = "-"
 
@@ -28,8 +28,8 @@ def piped(**outputs: str | Path | bool | None) -> bool:
     claims = [name for name, value in outputs.items() if value is True or is_stdout(value)]
     if len(claims) > 1:
         options = " and ".join(f"--{name}" for name in claims)
-        raise PredictorError(f"{options} all ask for standard output: only one output can be '-'")
-    return any(value is not True and is_stdout(value) for value in outputs.values())
+        raise UsageError(f"{options} all ask for standard output: only one output can be '-'")
+    return any(is_stdout(value) for value in outputs.values())
 
 
 def write_text(path: str | Path, text: str, what: str) -> Path:
