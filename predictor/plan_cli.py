@@ -63,8 +63,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "ellipse replace --payload",
     )  # fmt: skip
     plan.add_argument("--json", action="store_true", help="print the plan document")
-    plan.add_argument("--kml", metavar="OUT", help="write the landing strip as KML")
-    plan.add_argument("--geojson", metavar="OUT", help="write the landing strip as GeoJSON")
+    plan.add_argument("--kml", metavar="OUT", help="write the landing strip as KML; - for stdout")
+    plan.add_argument("--geojson", metavar="OUT", help="write the landing strip as GeoJSON; - for stdout")
     plan.add_argument("--cache-dir", metavar="DIR", help="weather cache (default ~/.cache/drs/weather)")
     plan.add_argument("--repeats", type=int, default=5, help="bench: sweeps timed (default 5)")
     plan.set_defaults(func=run_plan)
@@ -121,6 +121,7 @@ def run_plan(args: argparse.Namespace) -> int:
     if missing:
         raise PredictorError(f"drs plan needs {', '.join(missing)}")
     from predictor.cli import weather_bbox
+    from predictor.geofiles.output import piped
     from predictor.model_file import flown_model
     from predictor.planning.balloon import AltitudePlan
     from predictor.planning.strip import write_geojson, write_kml
@@ -130,6 +131,7 @@ def run_plan(args: argparse.Namespace) -> int:
     from predictor.weather import load_weather
     from predictor.zones import load_targets, load_zones
 
+    summary_to = sys.stderr if piped(kml=args.kml, geojson=args.geojson, json=args.json) else sys.stdout
     start = _parse_time(args.start, "--from")
     model = flown_model(args.model, args.payload, None, None)
     flown: dict[str, Any] = {"payload": model.payload, "effects": model.terms}
@@ -160,7 +162,10 @@ def run_plan(args: argparse.Namespace) -> int:
         write_kml(plan, args.kml)
     if args.geojson:
         write_geojson(plan, args.geojson)
-    print(json.dumps(plan.to_dict(), indent=1, ensure_ascii=False) if args.json else plan_summary(plan))
+    if args.json:
+        print(json.dumps(plan.to_dict(), indent=1, ensure_ascii=False))
+    else:
+        print(plan_summary(plan), file=summary_to)
     return 0
 
 
