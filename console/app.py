@@ -32,7 +32,14 @@ from drs_link.gonogo import GoNoGoReport, evaluate
 from drs_link.operations import Operations
 from drs_link.origin import ReleaseOrigin, release_origin
 from drs_link.store import Store, utc_now
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import (
+    BalloonSample,
+    GnssSample,
+    LinkSample,
+    PredictionSample,
+    PredictionStatus,
+    TelemetryRecord,
+)
 from predictor.errors import PredictorError
 from predictor.integrate import COMPILE_NOTICE, kernels_compiled
 
@@ -246,8 +253,7 @@ class DrsConsole(App[int]):
 
     def refresh_predictions(self, names: Iterable[str] | None = None) -> None:
         for name in self.setup.capsules if names is None else names:
-            state = self.fleet.capsules[name].value("release", "state", self.now(), fresh_only=False)
-            if state in ("released", "go-sent-unverified") or name in self.predicting:
+            if self.fleet.capsules[name].released or name in self.predicting:
                 continue
             origin = self.prediction_origin(name)
             if origin is None:
@@ -264,13 +270,13 @@ class DrsConsole(App[int]):
             [
                 name
                 for name in self.setup.capsules
-                if self.fleet.capsules[name].reading("prediction").value is None
+                if self.fleet.capsules[name].reading(PredictionSample).value is None
             ]
         )
 
     def prediction_status(self, name: str, short: str, text: str) -> TelemetryRecord:
         """What the console is doing about a capsule's first prediction, shown until it has one."""
-        return TelemetryRecord(self.now(), name, "prediction_status", {"short": short, "text": text})
+        return TelemetryRecord(self.now(), name, PredictionStatus(short, text))
 
     @work(thread=True, exit_on_error=False, group="predictions")
     def run_prediction(self, name: str, origin: ReleaseOrigin) -> None:
@@ -302,13 +308,13 @@ class DrsConsole(App[int]):
             for name in touched & set(self.setup.capsules):
                 arming = self.ops.ops(name).arming
                 link_down = any(
-                    r.capsule == name and r.kind == "link" and not r.data.get("up") for r in message.records
+                    r.capsule == name and isinstance(r.data, LinkSample) and not r.data.up for r in message.records
                 )
                 if link_down:
                     arming.link_lost()
                 else:
                     arming.observe(self.gonogo(name))
-        if self.setup.predictions is not None and any(r.kind in ("balloon", "gnss") for r in message.records):
+        if self.setup.predictions is not None and any(isinstance(r.data, BalloonSample | GnssSample) for r in message.records):
             self.first_predictions()  # a first position: predict now, not at the next tick
         self.refresh_screen()
 
@@ -347,9 +353,7 @@ class DrsConsole(App[int]):
             )
             return
         armed = [name for name, a in arming.items() if a.status().armed]
-        now = self.now()
-        powered = [n for n in self.setup.capsules if self.fleet.capsules[n].value("release", "state", now, False)
-                   == "powered"]  # fmt: skip
+        powered = [n for n in self.setup.capsules if self.fleet.capsules[n].powered]
         lines = ["The capsules keep their state and the store keeps every record; polls, predictions and the",
                  "balloon feed stop until the console is started again."]  # fmt: skip
         if armed:

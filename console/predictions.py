@@ -4,7 +4,7 @@ Also the release-window sweep (when to drop, as a go/no-go timeline) and the liv
 of a descending capsule from its reports (``predictor.planning`` and ``predictor.live``).
 
 Blocking (weather files, numba), so the app calls it from a worker thread. Each answer becomes a
-``prediction`` telemetry record carrying what the screens and go/no-go need (landing, σ∥/σ⊥,
+``PredictionSample`` telemetry record carrying what the screens and go/no-go need (landing, σ∥/σ⊥,
 bearing, the 1/2/3σ contours with their probabilities, the 2σ outline, a thinned path), so a
 replayed session shows the same numbers without recomputing them.
 """
@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from drs_link.origin import ReleaseOrigin
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import Contour, PredictionSample, TelemetryRecord
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
 from predictor.errors import PredictorError
 from predictor.export import write_geojson, write_kml
@@ -33,49 +33,48 @@ WINDOW_STEP_MIN = 5.0
 """The console's sweep: parametric only (no ensemble members) so a refresh stays well under a second."""
 
 
-def map_geometry(prediction: Prediction) -> dict[str, object]:
-    """The 2σ outline and a thinned path as (lon, lat) lists: what the terminal map draws."""
+Points = tuple[tuple[float, float], ...]
+
+
+def map_geometry(prediction: Prediction) -> tuple[Points, Points]:
+    """The 2σ outline and a thinned path as (lon, lat): what the terminal map draws."""
     two_sigma = next(c for c in prediction.ellipse.contours if round(c.n_sigma) == 2)
     step = max(1, len(prediction.track.lat) // PATH_POINTS)
-    return {
-        "outline_2sigma": [list(p) for p in prediction.ellipse.outline(two_sigma, points=36)],
-        "path": [
-            [float(lon), float(lat)]
-            for lat, lon in zip(prediction.track.lat[::step], prediction.track.lon[::step], strict=True)
-        ],
-    }
+    outline = tuple((float(lon), float(lat)) for lon, lat in prediction.ellipse.outline(two_sigma, points=36))
+    path = tuple(
+        (float(lon), float(lat))
+        for lat, lon in zip(prediction.track.lat[::step], prediction.track.lon[::step], strict=True)
+    )
+    return outline, path
 
 
-def prediction_data(prediction: Prediction, release_in_min: int, source: str) -> dict[str, object]:
+def prediction_sample(prediction: Prediction, release_in_min: int, source: str, model: str) -> PredictionSample:
     ellipse = prediction.ellipse
-    return {
-        "release_in_min": release_in_min,
-        "origin_source": source,
-        "release_lat": prediction.release.lat,
-        "release_lon": prediction.release.lon,
-        "release_time": prediction.release.time.isoformat(),
-        "landing_lat": prediction.landing.lat,
-        "landing_lon": prediction.landing.lon,
-        "landing_time": prediction.landing.time.isoformat(),
-        "descent_s": prediction.descent_s,
-        "distance_km": prediction.drift_km,
-        "bearing_deg": prediction.bearing_deg,
-        "sigma_par_km": ellipse.sigma_parallel_km,
-        "sigma_perp_km": ellipse.sigma_perpendicular_km,
-        "major_axis_bearing_deg": ellipse.major_axis_bearing_deg,
-        "contours": [
-            {
-                "n_sigma": c.n_sigma,
-                "probability": c.probability,
-                "major_km": c.semi_major_km,
-                "minor_km": c.semi_minor_km,
-            }
-            for c in ellipse.contours
-        ],  # fmt: skip
-        **map_geometry(prediction),
-        "warnings": list(prediction.warnings),
-        "is_demo": prediction.is_demo,
-    }
+    outline, path = map_geometry(prediction)
+    return PredictionSample(
+        release_in_min=release_in_min,
+        origin_source=source,
+        release_lat=prediction.release.lat,
+        release_lon=prediction.release.lon,
+        release_time=prediction.release.time,
+        landing_lat=prediction.landing.lat,
+        landing_lon=prediction.landing.lon,
+        landing_time=prediction.landing.time,
+        descent_s=prediction.descent_s,
+        distance_km=prediction.drift_km,
+        bearing_deg=prediction.bearing_deg,
+        sigma_par_km=ellipse.sigma_parallel_km,
+        sigma_perp_km=ellipse.sigma_perpendicular_km,
+        major_axis_bearing_deg=ellipse.major_axis_bearing_deg,
+        contours=tuple(
+            Contour(c.n_sigma, c.probability, c.semi_major_km, c.semi_minor_km) for c in ellipse.contours
+        ),
+        outline_2sigma=outline,
+        path=path,
+        warnings=tuple(prediction.warnings),
+        is_demo=prediction.is_demo,
+        model=model,
+    )
 
 
 class PredictionService:
@@ -130,9 +129,8 @@ class PredictionService:
             )  # fmt: skip
             if minutes == 0:
                 self.latest[capsule] = result
-            data = prediction_data(result, minutes, origin.source)
-            data["model"] = model.label() if model is not None else "drs profile"
-            records.append(TelemetryRecord(now, capsule, "prediction", data))
+            label = model.label() if model is not None else "drs profile"
+            records.append(TelemetryRecord(now, capsule, prediction_sample(result, minutes, origin.source, label)))
         return records
 
     def export(self, capsule: str, directory: Path) -> list[Path]:
@@ -215,7 +213,8 @@ class PredictionService:
                 live.observe(report)
             result = live.update(fresh[-1])
             self.live_latest[capsule] = result.prediction
-            data = {**result.to_dict(), **map_geometry(result.prediction)}
+            outline, path = map_geometry(result.prediction)
+            data = {**result.to_dict(), "outline_2sigma": outline, "path": path}
             data["measured_rate_factor"] = live.measured(fresh[-1].alt_m)[0] if live.legs else None
             data["correction"] = live_correction_text(
                 result.rate_factor, result.wind_error_ms, result.decay_m

@@ -31,7 +31,7 @@ from drs_link.config import BalloonFeedConfig
 from drs_link.errors import ConfigError, LinkError
 from drs_link.nmea import GgaSentence, find_sentence, nearest_datetime, parse_sentence
 from drs_link.store import iso_utc
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import BalloonSample, TelemetryRecord
 
 log = logging.getLogger(__name__)
 
@@ -80,17 +80,8 @@ class BalloonFix:
 
     def record(self, source: str, received_at: datetime) -> TelemetryRecord:
         """The console's balloon record: timed by the fix, so a late line ages as it should."""
-        data: dict[str, object] = {
-            "lat": self.lat,
-            "lon": self.lon,
-            "alt_m": self.alt_m,
-            "format": self.format,
-            "source": source,
-            "received_at": iso_utc(received_at),
-        }
-        if self.callsign is not None:
-            data["callsign"] = self.callsign
-        return TelemetryRecord(self.time, None, "balloon", data)
+        sample = BalloonSample(self.lat, self.lon, self.alt_m, self.format, source, received_at, self.callsign)
+        return TelemetryRecord(self.time, None, sample)
 
 
 @dataclass(frozen=True)

@@ -9,11 +9,23 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any
+from typing import TypeVar, cast
 
 from drs_link.gonogo import ExclusionZone, GoNoGoInputs, PredictionCheck
 from drs_link.staleness import Reading
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import (
+    BalloonSample,
+    GatewaySample,
+    GnssSample,
+    LinkSample,
+    PredictionSample,
+    ReleaseSample,
+    ReportSample,
+    Sample,
+    StorageSample,
+    SyncSample,
+    TelemetryRecord,
+)
 
 PERIOD_S: dict[str, float] = {
     "link": 10.0,
@@ -28,12 +40,10 @@ PERIOD_S: dict[str, float] = {
     "balloon": 60.0,
 }
 """Expected period of each kind of telemetry; a value is stale after twice its period."""
-POLLED = ("link", "release", "gnss", "storage", "sync")
+POLLED = (LinkSample, ReleaseSample, GnssSample, StorageSample, SyncSample)
 """Kinds that come from polling the capsule: their period is at least the poller's own."""
 
-
-def _empty(kind: str) -> Reading[dict[str, Any]]:
-    return Reading.missing(PERIOD_S[kind])
+S = TypeVar("S", bound=Sample)
 
 
 @dataclass
@@ -41,98 +51,97 @@ class CapsuleTelemetry:
     name: str
     poll_period_s: float = 0.0
     """How often this console polls the capsule (a slower poller makes slower-aging values)."""
-    readings: dict[str, Reading[dict[str, Any]]] = field(default_factory=dict)
-    reports: list[dict[str, Any]] = field(default_factory=list)
-    predictions: dict[int, Reading[dict[str, Any]]] = field(default_factory=dict)
+    readings: dict[str, Reading[Sample]] = field(default_factory=dict)
+    reports: list[ReportSample] = field(default_factory=list)
+    predictions: dict[int, Reading[PredictionSample]] = field(default_factory=dict)
     """Landing predictions by minutes until release (0 = release now)."""
 
-    def reading(self, kind: str) -> Reading[dict[str, Any]]:
-        return self.readings.get(kind) or _empty(kind)
+    def reading(self, kind: type[S]) -> Reading[S]:
+        reading = self.readings.get(kind.KIND)
+        return cast(Reading[S], reading) if reading is not None else Reading.missing(PERIOD_S[kind.KIND])
 
-    def value(self, kind: str, key: str, now: datetime, fresh_only: bool = True) -> Any:
+    def fresh(self, kind: type[S], now: datetime) -> S | None:
+        """The latest value of a kind, or ``None`` when it is missing or stale (never judge on old data)."""
         reading = self.reading(kind)
-        if reading.value is None or (fresh_only and not reading.is_fresh(now)):
-            return None
-        return reading.value.get(key)
+        return reading.value if reading.is_fresh(now) else None
+
+    def release(self) -> ReleaseSample | None:
+        """The latest release record at any age: a release does not stop being one when polls stop."""
+        return self.reading(ReleaseSample).value
+
+    @property
+    def released(self) -> bool:
+        """Go was sent, by ``ReleaseSample.released``: the link is down as expected, NMEA is history."""
+        release = self.release()
+        return release is not None and release.released
+
+    @property
+    def powered(self) -> bool:
+        release = self.release()
+        return release is not None and release.powered
 
     def apply(self, record: TelemetryRecord) -> None:
         period = PERIOD_S[record.kind]
-        if record.kind in POLLED:
+        sample = record.data
+        if isinstance(sample, POLLED):
             period = max(period, self.poll_period_s)
-        if record.kind == "report":
-            period = 60.0 * float(record.data.get("interval_min") or 2)
-            self.reports.append({**record.data, "time": record.time})
-        reading = Reading(record.data, record.time, period)
-        if record.kind == "prediction":
-            self.predictions[int(record.data.get("release_in_min", 0))] = reading
-            if int(record.data.get("release_in_min", 0)) != 0:
+        if isinstance(sample, ReportSample):
+            period = 60.0 * float(sample.interval_min or 2)
+            self.reports.append(sample)
+        if isinstance(sample, PredictionSample):
+            self.predictions[sample.release_in_min] = Reading(sample, record.time, period)
+            if sample.release_in_min != 0:
                 return
-        self.readings[record.kind] = reading
+        self.readings[record.kind] = Reading(sample, record.time, period)
 
     def facts(self, now: datetime) -> dict[str, object]:
         """The checklist facts (drs_link.checklist.FACTS); stale or unknown values are None."""
-        storage = self.reading("storage")
+        link, gnss = self.fresh(LinkSample, now), self.fresh(GnssSample, now)
+        storage, sync = self.fresh(StorageSample, now), self.fresh(SyncSample, now)
+        polled, release = self.fresh(ReleaseSample, now), self.release()
         free = None
-        if storage.is_fresh(now) and storage.value and storage.value.get("total_bytes"):
-            free = 1.0 - storage.value["used_bytes"] / storage.value["total_bytes"]
-        state = self.value("release", "state", now, fresh_only=False)
-        last_report = self.reports[-1] if self.reports else {}
+        if storage is not None and storage.total_bytes and storage.used_bytes is not None:
+            free = 1.0 - storage.used_bytes / storage.total_bytes
+        last_report = self.reports[-1] if self.reports else None
         return {
-            "link_up": self.value("link", "up", now),
-            "powered": None if state is None else state == "powered",
-            "nmea_seen": self.value("release", "nmea_seen", now),
-            "gnss_fix": self.value("gnss", "has_fix", now),
-            "gnss_sats": self.value("gnss", "sats", now),
-            "gnss_hdop": self.value("gnss", "hdop", now),
-            "sync_fraction": self.value("sync", "fraction", now),
-            "raid_healthy": None if self.value("storage", "raid", now) is None
-            else self.value("storage", "raid", now) == "healthy",
+            "link_up": link.up if link else None,
+            "powered": None if release is None else release.powered,
+            "nmea_seen": polled.nmea_seen if polled else None,
+            "gnss_fix": gnss.has_fix if gnss else None,
+            "gnss_sats": gnss.sats if gnss else None,
+            "gnss_hdop": gnss.hdop if gnss else None,
+            "sync_fraction": sync.fraction if sync else None,
+            "raid_healthy": None if storage is None or storage.raid is None else storage.raid == "healthy",
             "storage_free_fraction": free,
-            "released": None if state is None else state in ("released", "go-sent-unverified"),
+            "released": None if release is None else release.released,
             "reports_received": len(self.reports),
-            "landed": bool(last_report.get("landed")) if last_report else None,
-            "vbat": last_report.get("vbat"),
-            "interval_min": last_report.get("interval_min"),
-        }  # fmt: skip
+            "landed": last_report.landed if last_report else None,
+            "vbat": last_report.vbat if last_report else None,
+            "interval_min": last_report.interval_min if last_report else None,
+        }
 
     def gonogo_inputs(self, now: datetime, zones: tuple[ExclusionZone, ...]) -> GoNoGoInputs:
-        def sub(kind: str, key: str) -> Reading[Any]:
-            reading = self.reading(kind)
-            value = None if reading.value is None else reading.value.get(key)
-            return Reading(value, reading.received_at, reading.expected_period_s, reading.tolerance)
-
-        prediction = self.reading("prediction")
-        check = None
-        if prediction.value is not None:
-            check = PredictionCheck(
-                prediction.value["landing_lat"],
-                prediction.value["landing_lon"],
-                tuple((float(lon), float(lat)) for lon, lat in prediction.value.get("outline_2sigma", [])),
-            )
-        state = self.value("release", "state", now, fresh_only=False)
-        released = None
-        if state in ("released", "go-sent-unverified"):
-            at = self.value("release", "released_at", now, fresh_only=False)
-            when = f" {at[11:16]}Z" if isinstance(at, str) and len(at) >= 16 else ""
-            released = f"released{when}, Pi shut down" if state == "released" else "Go sent, not yet verified"
+        release = self.release()
         return GoNoGoInputs(
-            link_up=sub("link", "up"),
-            microcontroller_waiting=sub("release", "nmea_seen"),
-            gnss_fix=sub("gnss", "has_fix"),
-            sync_fraction=sub("sync", "fraction"),
-            prediction=Reading(check, prediction.received_at, prediction.expected_period_s),
-            gateway_credentials=sub("gateway", "credentials_ok"),
-            powered=state == "powered",
+            link_up=self.reading(LinkSample).map(lambda s: s.up),
+            microcontroller_waiting=self.reading(ReleaseSample).map(lambda s: s.nmea_seen),
+            gnss_fix=self.reading(GnssSample).map(lambda s: s.has_fix),
+            sync_fraction=self.reading(SyncSample).map(lambda s: s.fraction),
+            prediction=self.reading(PredictionSample).map(
+                lambda p: PredictionCheck(p.landing_lat, p.landing_lon, p.outline_2sigma)
+            ),
+            gateway_credentials=self.reading(GatewaySample).map(lambda s: s.credentials_ok),
+            powered=self.powered,
             exclusion_zones=zones,
-            released=released,
+            released=release.after_release() if release else None,
         )
 
 
 @dataclass
 class FleetState:
     capsules: dict[str, CapsuleTelemetry] = field(default_factory=dict)
-    balloon: Reading[dict[str, Any]] = field(default_factory=lambda: _empty("balloon"))
-    gateway: Reading[dict[str, Any]] = field(default_factory=lambda: _empty("gateway"))
+    balloon: Reading[BalloonSample] = field(default_factory=lambda: Reading.missing(PERIOD_S["balloon"]))
+    gateway: Reading[GatewaySample] = field(default_factory=lambda: Reading.missing(PERIOD_S["gateway"]))
 
     poll_period_s: float = 0.0
 
@@ -141,12 +150,13 @@ class FleetState:
         return cls({name: CapsuleTelemetry(name, poll_period_s) for name in names}, poll_period_s=poll_period_s)
 
     def apply(self, record: TelemetryRecord) -> None:
-        if record.kind == "balloon":
-            self.balloon = Reading(record.data, record.time, PERIOD_S["balloon"])
+        sample = record.data
+        if isinstance(sample, BalloonSample):
+            self.balloon = Reading(sample, record.time, PERIOD_S["balloon"])
             return
         if record.capsule is None:
-            if record.kind == "gateway":
-                self.gateway = Reading(record.data, record.time, PERIOD_S["gateway"])
+            if isinstance(sample, GatewaySample):
+                self.gateway = Reading(sample, record.time, PERIOD_S["gateway"])
                 for capsule in self.capsules.values():
                     capsule.apply(record)
             return

@@ -36,7 +36,17 @@ from drs_link.ssh import CapsuleLink, HostKeyError
 from drs_link.storage import read_storage
 from drs_link.store import Store, utc_now
 from drs_link.sync import Syncer
-from drs_link.telemetry import TelemetryRecord, TelemetryRecorder
+from drs_link.telemetry import (
+    GatewaySample,
+    GnssSample,
+    LinkSample,
+    ReleaseSample,
+    ReportSample,
+    StorageSample,
+    SyncSample,
+    TelemetryRecord,
+    TelemetryRecorder,
+)
 from predictor.zones import ZoneFileError, load_zones
 
 GNSS_UERE_M = 5.0
@@ -96,22 +106,22 @@ def report_record(capsule: str, stored: StoredReport, interval_min: int, landed:
     report = stored.report
     fix = report.fix if report else None
     position = report_position(stored)
-    data: dict[str, object] = {
-        "momsn": stored.delivery.momsn,
-        "has_fix": fix is not None,
-        "lat": position[0] if position else None,
-        "lon": position[1] if position else None,
-        "uncertainty_m": position[2] if position else None,
-        "position_source": position[3] if position else None,
-        "alt_m": fix.alt_m if fix else None,
-        "speed_ms": fix.speed_ms if fix else None,
-        "sats": fix.sats if fix else None,
-        "vbat": report.vbat if report else None,
-        "iteration": report.iteration if report else None,
-        "interval_min": interval_min,
-        "landed": landed,
-    }
-    return TelemetryRecord(stored.time, capsule, "report", data)
+    sample = ReportSample(
+        momsn=stored.delivery.momsn,
+        has_fix=fix is not None,
+        lat=position[0] if position else None,
+        lon=position[1] if position else None,
+        uncertainty_m=position[2] if position else None,
+        position_source=position[3] if position else None,
+        alt_m=fix.alt_m if fix else None,
+        speed_ms=fix.speed_ms if fix else None,
+        sats=fix.sats if fix else None,
+        vbat=report.vbat if report else None,
+        iteration=report.iteration if report else None,
+        interval_min=interval_min,
+        landed=landed,
+    )
+    return TelemetryRecord(stored.time, capsule, sample)
 
 
 class Operations:
@@ -166,9 +176,8 @@ class Operations:
         return self.capsules[name]
 
     def _release_record(self, name: str, record: ReleaseRecord) -> TelemetryRecord:
-        data = {"state": record.state.value, "nmea_seen": record.nmea_seen_at is not None, "note": record.note,
-                "released_at": record.released_at.isoformat() if record.released_at else None}  # fmt: skip
-        return TelemetryRecord(self.clock(), name, "release", data)
+        sample = ReleaseSample(record.state.value, record.nmea_seen_at is not None, record.note, record.released_at)
+        return TelemetryRecord(self.clock(), name, sample)
 
     def poll(self, name: str) -> list[TelemetryRecord]:
         """Link, release state, microcontroller/GNSS, storage and sync of one capsule, as records."""
@@ -177,20 +186,20 @@ class Operations:
             record = ops.machine.record()
             out = [self._release_record(name, record)]
             if record.state in (ReleaseState.RELEASED, ReleaseState.GO_SENT):
-                out.append(TelemetryRecord(self.clock(), name, "link", {"up": False, "note": "released"}))
+                out.append(TelemetryRecord(self.clock(), name, LinkSample(False, "released")))
                 return self._emit(out)
             try:
                 ops.link.ensure_connected()
                 up = ops.link.heartbeat()
             except HostKeyError as exc:
-                out.append(TelemetryRecord(self.clock(), name, "link", {"up": False, "note": str(exc)}))
+                out.append(TelemetryRecord(self.clock(), name, LinkSample(False, str(exc))))
                 return self._emit(out)
             except LinkError as exc:
                 up = False
                 note = str(exc)
             else:
                 note = "heartbeat answered" if up else "heartbeat failed"
-            out.append(TelemetryRecord(self.clock(), name, "link", {"up": up, "note": note}))
+            out.append(TelemetryRecord(self.clock(), name, LinkSample(up, note)))
             if not up:
                 ops.link.close()
                 return self._emit(out)
@@ -199,18 +208,18 @@ class Operations:
                     mcu = ops.machine.check_microcontroller()
                     gnss = mcu.gnss
                     out.append(self._release_record(name, ops.machine.record()))
-                    out.append(TelemetryRecord(self.clock(), name, "gnss", {
-                        "has_fix": gnss.has_fix, "quality": gnss.fix_quality_name, "sats": gnss.satellites,
-                        "hdop": gnss.hdop, "lat": gnss.latitude, "lon": gnss.longitude, "alt_m": gnss.altitude_m,
-                        "fix_age_s": gnss.age_s, "diagnosis": mcu.diagnosis, "date_problem": gnss.date_problem,
-                    }))  # fmt: skip
+                    out.append(TelemetryRecord(self.clock(), name, GnssSample(
+                        has_fix=gnss.has_fix, quality=gnss.fix_quality_name, sats=gnss.satellites,
+                        hdop=gnss.hdop, lat=gnss.latitude, lon=gnss.longitude, alt_m=gnss.altitude_m,
+                        fix_age_s=gnss.age_s, diagnosis=mcu.diagnosis, date_problem=gnss.date_problem,
+                    )))  # fmt: skip
                 storage = read_storage(ops.link, ops.config.storage_mount, ops.config.raid_device)
                 usage = storage.usage
-                out.append(TelemetryRecord(self.clock(), name, "storage", {
-                    "used_bytes": usage.used_bytes if usage else None,
-                    "total_bytes": usage.total_bytes if usage else None,
-                    "raid": storage.raid.state if storage.raid else "missing",
-                }))  # fmt: skip
+                out.append(TelemetryRecord(self.clock(), name, StorageSample(
+                    used_bytes=usage.used_bytes if usage else None,
+                    total_bytes=usage.total_bytes if usage else None,
+                    raid=storage.raid.state if storage.raid else "missing",
+                )))  # fmt: skip
                 if ops.config.sync_source is not None:
                     status = ops.syncer.status(ops.config.sync_source)
                     total = status.bytes_pending + sum(
@@ -218,12 +227,12 @@ class Operations:
                         if p.is_file() and p.relative_to(ops.config.sync_source).as_posix() in status.up_to_date
                     )  # fmt: skip
                     fraction = 1.0 if total == 0 else 1.0 - status.bytes_pending / total
-                    out.append(TelemetryRecord(self.clock(), name, "sync", {
-                        "fraction": fraction, "bytes_pending": status.bytes_pending,
-                        "files_pending": len(status.missing) + len(status.changed),
-                    }))  # fmt: skip
+                    out.append(TelemetryRecord(self.clock(), name, SyncSample(
+                        fraction=fraction, bytes_pending=status.bytes_pending,
+                        files_pending=len(status.missing) + len(status.changed),
+                    )))  # fmt: skip
             except LinkError as exc:
-                out.append(TelemetryRecord(self.clock(), name, "link", {"up": False, "note": str(exc)}))
+                out.append(TelemetryRecord(self.clock(), name, LinkSample(False, str(exc))))
             return self._emit(out)
 
     def sync(self, name: str) -> list[TelemetryRecord]:
@@ -257,7 +266,7 @@ class Operations:
             self._command_done(name, "fire", record.note or "Go sent")
         return self._emit([
             self._release_record(name, record),
-            TelemetryRecord(self.clock(), name, "link", {"up": False, "note": "released: the Pi shut down"}),
+            TelemetryRecord(self.clock(), name, LinkSample(False, "released: the Pi shut down")),
         ])  # fmt: skip
 
     def authority(self, name: str) -> AuthorityStatus:
@@ -280,10 +289,10 @@ class Operations:
         """Whether commands could be sent: the gateway's address and credentials are configured."""
         try:
             RockblockGateway.from_config(self.config.rockblock, self.environ)
-            data = {"credentials_ok": True, "note": f"user {self.config.rockblock.username}"}
+            sample = GatewaySample(True, f"user {self.config.rockblock.username}")
         except ConfigError as exc:
-            data = {"credentials_ok": False, "note": str(exc)}
-        return self._emit([TelemetryRecord(self.clock(), None, "gateway", data)])
+            sample = GatewaySample(False, str(exc))
+        return self._emit([TelemetryRecord(self.clock(), None, sample)])
 
     def new_reports(self, name: str) -> list[TelemetryRecord]:
         """Iridium reports of one capsule stored since the last call (webhook or importer wrote them)."""

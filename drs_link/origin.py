@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from datetime import datetime
 
 from drs_link.fleet import FleetState
+from drs_link.telemetry import GnssSample
 
 GNSS_ALT_UNKNOWN_M = 30000.0
 """Release height when the capsule's fix carries no altitude: a float altitude of the flights flown."""
@@ -29,14 +30,11 @@ class ReleaseOrigin:
 
 def release_origin(fleet: FleetState, capsule: str, now: datetime) -> ReleaseOrigin | None:
     """The capsule's own fresh fix, else the balloon feed's fresh position, else ``None`` (wait)."""
-    gnss = fleet.capsules[capsule].reading("gnss")
-    fix = gnss.value
-    if gnss.is_fresh(now) and fix and fix.get("has_fix") and fix.get("lat") is not None:
-        return ReleaseOrigin(
-            fix["lat"], fix["lon"], fix.get("alt_m") or GNSS_ALT_UNKNOWN_M, f"{capsule} GNSS"
-        )
-    balloon = fleet.balloon
-    if balloon.is_fresh(now) and balloon.value:
-        source = "balloon feed" + (f" ({balloon.value['source']})" if balloon.value.get("source") else "")
-        return ReleaseOrigin(balloon.value["lat"], balloon.value["lon"], balloon.value["alt_m"], source)
+    fix = fleet.capsules[capsule].fresh(GnssSample, now)
+    if fix is not None and fix.has_fix and fix.lat is not None and fix.lon is not None:
+        return ReleaseOrigin(fix.lat, fix.lon, fix.alt_m or GNSS_ALT_UNKNOWN_M, f"{capsule} GNSS")
+    balloon = fleet.balloon.value if fleet.balloon.is_fresh(now) else None
+    if balloon is not None:
+        source = "balloon feed" + (f" ({balloon.source})" if balloon.source else "")
+        return ReleaseOrigin(balloon.lat, balloon.lon, balloon.alt_m, source)
     return None

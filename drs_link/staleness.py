@@ -15,6 +15,7 @@ from enum import StrEnum
 from typing import Generic, TypeVar
 
 T = TypeVar("T")
+U = TypeVar("U")
 
 DEFAULT_TOLERANCE = 2.0
 STALE_GLYPH = "⌛"
@@ -59,6 +60,11 @@ class Reading(Generic[T]):
     @classmethod
     def missing(cls, expected_period_s: float, tolerance: float = DEFAULT_TOLERANCE) -> Reading[T]:
         return cls(None, None, expected_period_s, tolerance)
+
+    def map(self, part: Callable[[T], U]) -> Reading[U]:
+        """One part of the value, as old as the whole: go/no-go judges each part with its own age."""
+        value = None if self.value is None else part(self.value)
+        return Reading(value, self.received_at, self.expected_period_s, self.tolerance)
 
     @property
     def limit_s(self) -> float:

@@ -18,27 +18,28 @@ from console.widgets.landing_map import LandingMap, MapLayers
 from console.widgets.release_timeline import default_cursor, render_timeline
 from drs_link.errors import LinkError
 from drs_link.staleness import STALE_GLYPH, format_age
+from drs_link.telemetry import PredictionSample
 from predictor.errors import PredictorError
 
 
-def describe(prediction: dict[str, Any] | None, age_s: float | None, stale: bool, title: str) -> str:
-    if not prediction:
+def describe(prediction: PredictionSample | None, age_s: float | None, stale: bool, title: str) -> str:
+    if prediction is None:
         return f"{title}: no prediction yet (needs a fresh position: capsule GNSS or balloon feed)"
     mark = f"{STALE_GLYPH}STALE " if stale else ""
     lines = [
         f"{title} — {mark}computed {format_age(age_s or 0.0)} ago",
-        f"  from {prediction.get('origin_source', 'an unrecorded position')}",
-        f"  landing {prediction['landing_lat']:.4f}, {prediction['landing_lon']:.4f}"
-        f"  after {prediction['descent_s'] / 60:.1f} min, {prediction['distance_km']:.1f} km at"
-        f" {prediction['bearing_deg']:.0f}°",
-        f"  σ∥ {prediction['sigma_par_km']:.2f} km  σ⊥ {prediction['sigma_perp_km']:.2f} km"
-        f"  major axis {prediction['major_axis_bearing_deg']:.0f}°",
+        f"  from {prediction.origin_source or 'an unrecorded position'}",
+        f"  landing {prediction.landing_lat:.4f}, {prediction.landing_lon:.4f}"
+        f"  after {prediction.descent_s / 60:.1f} min, {prediction.distance_km:.1f} km at"
+        f" {prediction.bearing_deg:.0f}°",
+        f"  σ∥ {prediction.sigma_par_km:.2f} km  σ⊥ {prediction.sigma_perp_km:.2f} km"
+        f"  major axis {prediction.major_axis_bearing_deg:.0f}°",
     ]
-    for c in prediction["contours"]:
+    for c in prediction.contours:
         lines.append(
-            f"  {c['n_sigma']:.0f}σ: {c['major_km']:.2f} × {c['minor_km']:.2f} km holds {c['probability'] * 100:.1f}%"
+            f"  {c.n_sigma:.0f}σ: {c.major_km:.2f} × {c.minor_km:.2f} km holds {c.probability * 100:.1f}%"
         )
-    lines += [f"  ! {w}" for w in prediction.get("warnings", [])]
+    lines += [f"  ! {w}" for w in prediction.warnings]
     return "\n".join(lines)
 
 
@@ -57,7 +58,7 @@ class PredictionScreen(ConsoleScreen):
         self.capsule = capsule
         self.lead_min = 10
         self.window: dict[str, Any] | None = None
-        self.window_basis: str | None = None
+        self.window_basis: datetime | None = None
         """The "release now" prediction the window was computed after: a new one triggers a new sweep."""
         self.window_running = False
         self.cursor: int | None = None
@@ -91,20 +92,20 @@ class PredictionScreen(ConsoleScreen):
         zones = [z.ring for z in app.ops.zones] if app.ops else []
         balloon = app.fleet.balloon.value
         self.query_one("#prediction-map", LandingMap).layers = MapLayers(
-            path=[tuple(p) for p in value["path"]] if value else (),
-            ellipse=[tuple(p) for p in value["outline_2sigma"]] if value else (),
+            path=list(value.path) if value else (),
+            ellipse=list(value.outline_2sigma) if value else (),
             zones=zones,
-            landing=(value["landing_lon"], value["landing_lat"]) if value else None,
-            release=(value["release_lon"], value["release_lat"]) if value else None,
-            balloon=(balloon["lon"], balloon["lat"]) if balloon else None,
+            landing=(value.landing_lon, value.landing_lat) if value else None,
+            release=(value.release_lon, value.release_lat) if value else None,
+            balloon=(balloon.lon, balloon.lat) if balloon else None,
             team=(app.setup.team_position[1], app.setup.team_position[0])
             if app.setup.team_position
             else None,
         )
         self.update_timeline(value)
 
-    def update_timeline(self, now_prediction: dict[str, Any] | None) -> None:
-        basis = now_prediction["release_time"] if now_prediction else None
+    def update_timeline(self, now_prediction: PredictionSample | None) -> None:
+        basis = now_prediction.release_time if now_prediction else None
         if basis is not None and basis != self.window_basis and not self.window_running:
             origin = self.console.prediction_origin(self.capsule)
             if origin is not None and self.console.setup.predictions is not None:

@@ -38,6 +38,7 @@ from drs_link.iridium.recovery import (
     write_kml,
 )
 from drs_link.staleness import format_age
+from drs_link.telemetry import PredictionSample, ReportSample
 from predictor.errors import PredictorError
 
 RELOAD_S = 2.0
@@ -165,10 +166,10 @@ class RecoveryScreen(CommandingScreen):
             lines += self.live_lines()
         else:
             lines.append("No GNSS fix received yet")
-        reading = self.console.fleet.capsules[self.capsule].reading("report")
+        reading = self.console.fleet.capsules[self.capsule].reading(ReportSample)
         lines += [
             "",
-            "Last report: " + reading.label(self.console.now(), lambda v: f"VBAT {v.get('vbat')} V"),
+            "Last report: " + reading.label(self.console.now(), lambda v: f"VBAT {v.vbat} V"),
             *self.settings_lines(),
             "",
             "Phone: " + phone_summary(self.capsule, self.landing, last, team),
@@ -176,13 +177,13 @@ class RecoveryScreen(CommandingScreen):
         self.query_one("#recovery-text", Static).update(
             Text("\n").join(Text(line) if isinstance(line, str) else line for line in lines)
         )
-        prediction = self.console.fleet.capsules[self.capsule].reading("prediction").value
+        prediction = self.console.fleet.capsules[self.capsule].reading(PredictionSample).value
         descending = self.live if self.landing is None and self.track else None
-        outline = descending or prediction
+        outline = descending["outline_2sigma"] if descending else prediction.outline_2sigma if prediction else ()
         self.query_one("#recovery-map", LandingMap).layers = MapLayers(
             path=[(p.lon, p.lat) for p in self.track],
             ahead=[tuple(p) for p in descending["path"]] if descending else (),
-            ellipse=[tuple(p) for p in outline["outline_2sigma"]] if outline else (),
+            ellipse=[tuple(p) for p in outline],
             landing=self.map_landing(),
             team=(team[1], team[0]) if team else None,
             scatter=[(p.lon, p.lat) for p in self.track[-10:]] if self.landing else [],
@@ -205,8 +206,8 @@ class RecoveryScreen(CommandingScreen):
         directory = self.console.setup.export_dir
         directory.mkdir(parents=True, exist_ok=True)
         stamp = f"{self.console.now():%Y%m%dT%H%M%SZ}"
-        prediction = self.console.fleet.capsules[self.capsule].reading("prediction").value
-        predicted = [(lat, lon, 0.0) for lon, lat in prediction["path"]] if prediction else []
+        prediction = self.console.fleet.capsules[self.capsule].reading(PredictionSample).value
+        predicted = [(lat, lon, 0.0) for lon, lat in prediction.path] if prediction else []
         gpx = directory / f"{self.capsule}-recovery-{stamp}.gpx"
         kml = directory / f"{self.capsule}-recovery-{stamp}.kml"
         try:

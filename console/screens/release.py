@@ -48,7 +48,6 @@ CHECKLIST_STATE_WIDTH = 9
 BY_TITLE = "By / when"
 
 
-RELEASED_STATES = ("released", "go-sent-unverified")
 BEFORE_RELEASE_ONLY = ("power_on", "sync", "arm", "fire", "waive")
 """Keys that only mean something before the drop; after Go they are hidden (``reset`` stays, for recovery)."""
 
@@ -231,9 +230,8 @@ class ReleaseScreen(ConsoleScreen):
         return True
 
     def released(self) -> bool:
-        state = self.console.fleet.capsules[self.capsule].value("release", "state", self.console.now(), fresh_only=False)
         armed = self.console.ops.ops(self.capsule).arming.status().state if self.console.commanding else None
-        return state in RELEASED_STATES or armed in (ArmState.FIRING, ArmState.FIRED)
+        return self.console.fleet.capsules[self.capsule].released or armed in (ArmState.FIRING, ArmState.FIRED)
 
     # Actions ----------------------------------------------------------------------------------
 

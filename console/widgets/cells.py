@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Any, Literal
+from typing import Any, Generic, Literal, TypeVar
 
 from rich.cells import cell_len
 from rich.text import Text
@@ -21,13 +21,25 @@ from textual.widget import Widget
 from drs_link.balloon_feed import FeedStatus
 from drs_link.fleet import CapsuleTelemetry
 from drs_link.staleness import MISSING_TEXT, STALE_GLYPH, Freshness, Reading, format_age
+from drs_link.telemetry import (
+    BalloonSample,
+    GnssSample,
+    LinkSample,
+    PredictionSample,
+    PredictionStatus,
+    ReleaseSample,
+    ReportSample,
+    Sample,
+    StorageSample,
+    SyncSample,
+)
 
 Level = Literal["ok", "warn", "bad", "stale", "none"]
 LEVEL_CLASSES = frozenset({"level--ok", "level--warn", "level--bad", "level--stale", "level--none"})
 """Component classes a widget declares to colour cells by level (styled in console.tcss)."""
 AGE_WIDTH = 4
 """Widest short age ("59s", "23h", "999d", "-59m"); field widths budget for it."""
-Value = dict[str, Any]
+S = TypeVar("S", bound=Sample)
 
 
 @dataclass(frozen=True)
@@ -81,17 +93,17 @@ def _km(metres: float) -> str:
 # Link -------------------------------------------------------------------------------------------
 
 
-def _link_short(v: Value) -> str:
-    return "UP" if v.get("up") else "DOWN"
+def _link_short(v: LinkSample) -> str:
+    return "UP" if v.up else "DOWN"
 
 
-def _link_long(v: Value) -> str:
-    words = "up" if v.get("up") else "down"
-    return f"{words} ({v['note']})" if v.get("note") else words
+def _link_long(v: LinkSample) -> str:
+    words = "up" if v.up else "down"
+    return f"{words} ({v.note})" if v.note else words
 
 
-def _link_level(v: Value) -> Level:
-    return "ok" if v.get("up") else "bad"
+def _link_level(v: LinkSample) -> Level:
+    return "ok" if v.up else "bad"
 
 
 # Release ----------------------------------------------------------------------------------------
@@ -104,24 +116,22 @@ _RELEASE_LONG = {
 }
 
 
-def _release_short(v: Value) -> str:
-    state = str(v.get("state", "?"))
-    if state == "powered":
-        return "PWR NMEA" if v.get("nmea_seen") else "PWR noNMEA"
-    return _RELEASE_SHORT.get(state, state.upper()[:10])
+def _release_short(v: ReleaseSample) -> str:
+    if v.powered:
+        return "PWR NMEA" if v.nmea_seen else "PWR noNMEA"
+    return _RELEASE_SHORT.get(v.state, v.state.upper()[:10])
 
 
-def _release_long(v: Value) -> str:
-    state = str(v.get("state", "?"))
-    if state == "powered":
-        if v.get("nmea_seen"):
+def _release_long(v: ReleaseSample) -> str:
+    if v.powered:
+        if v.nmea_seen:
             return "powered, NMEA arriving from the microcontroller"
         return "powered, no NMEA from the microcontroller yet"
-    return v.get("note") or _RELEASE_LONG.get(state, f"state {state!r}")
+    return v.note or _RELEASE_LONG.get(v.state, f"state {v.state!r}")
 
 
-def _release_level(v: Value) -> Level:
-    return "ok" if v.get("state") in ("idle", "released") else "warn"
+def _release_level(v: ReleaseSample) -> Level:
+    return "ok" if v.state in ("idle", "released") else "warn"
 
 
 # GNSS -------------------------------------------------------------------------------------------
@@ -131,61 +141,53 @@ def _hdop_short(hdop: float | None) -> str:
     return "" if hdop is None else f" H{_compact(min(hdop, 99))}"
 
 
-def _gnss_short(v: Value) -> str:
-    sats = v.get("sats")
-    sv = f"{sats}sv" if sats is not None else "?sv"
-    if v.get("has_fix"):
-        return sv + _hdop_short(v.get("hdop"))
+def _gnss_short(v: GnssSample) -> str:
+    sv = f"{v.sats}sv" if v.sats is not None else "?sv"
+    if v.has_fix:
+        return sv + _hdop_short(v.hdop)
     return f"NOFIX {sv}"
 
 
-def _gnss_long(v: Value) -> str:
-    sats = v.get("sats")
-    words = [v.get("quality") or ("fix" if v.get("has_fix") else "no fix")]
-    words.append(f"{sats} satellites" if sats is not None else "satellites unknown")
-    if v.get("hdop") is not None:
-        words.append(f"HDOP {v['hdop']:.1f}")
-    if v.get("has_fix") and v.get("lat") is not None and v.get("lon") is not None:
-        where = f"{v['lat']:.4f} {v['lon']:.4f}"
-        if v.get("alt_m") is not None:
-            where += f" {v['alt_m'] / 1000:.1f} km"
+def _gnss_long(v: GnssSample) -> str:
+    words = [v.quality or ("fix" if v.has_fix else "no fix")]
+    words.append(f"{v.sats} satellites" if v.sats is not None else "satellites unknown")
+    if v.hdop is not None:
+        words.append(f"HDOP {v.hdop:.1f}")
+    if v.has_fix and v.lat is not None and v.lon is not None:
+        where = f"{v.lat:.4f} {v.lon:.4f}"
+        if v.alt_m is not None:
+            where += f" {v.alt_m / 1000:.1f} km"
         words.append(where)
-    if v.get("fix_age_s") is not None:
-        words.append(f"fix {format_age(v['fix_age_s'])} old")
+    if v.fix_age_s is not None:
+        words.append(f"fix {format_age(v.fix_age_s)} old")
     return ", ".join(words)
 
 
-def _gnss_level(v: Value) -> Level:
-    return "ok" if v.get("has_fix") else "bad"
+def _gnss_level(v: GnssSample) -> Level:
+    return "ok" if v.has_fix else "bad"
 
 
 # Storage ----------------------------------------------------------------------------------------
 
 
-def _free(v: Value) -> float | None:
-    total, used = v.get("total_bytes"), v.get("used_bytes")
-    return None if not total or used is None else total - used
-
-
-def _storage_short(v: Value) -> str:
-    free = _free(v)
+def _storage_short(v: StorageSample) -> str:
+    free = v.free_bytes
     space = _gb(free) if free is not None else "?"
-    raid = v.get("raid")
-    if raid == "healthy":
+    if v.raid == "healthy":
         return f"{space} free"
-    return f"RAID{'!' if raid in ('degraded', 'inactive') else '?'} {space}"
+    return f"RAID{'!' if v.raid in ('degraded', 'inactive') else '?'} {space}"
 
 
-def _storage_long(v: Value) -> str:
-    free = _free(v)
-    raid = f"RAID {v.get('raid') or 'unknown'}"
-    if free is None:
+def _storage_long(v: StorageSample) -> str:
+    free = v.free_bytes
+    raid = f"RAID {v.raid or 'unknown'}"
+    if free is None or v.used_bytes is None or v.total_bytes is None:
         return f"usage unknown, {raid}"
-    return f"{v['used_bytes'] / 1e9:.1f} of {v['total_bytes'] / 1e9:.0f} GB used, {free / 1e9:.0f} GB free, {raid}"
+    return f"{v.used_bytes / 1e9:.1f} of {v.total_bytes / 1e9:.0f} GB used, {free / 1e9:.0f} GB free, {raid}"
 
 
-def _storage_level(v: Value) -> Level:
-    return "ok" if v.get("raid") == "healthy" else "bad"
+def _storage_level(v: StorageSample) -> Level:
+    return "ok" if v.raid == "healthy" else "bad"
 
 
 # Sync -------------------------------------------------------------------------------------------
@@ -196,84 +198,73 @@ def _percent(fraction: float) -> str:
     return f"{int(min(max(fraction, 0.0), 1.0) * 100)}%"
 
 
-def _sync_short(v: Value) -> str:
-    fraction = v.get("fraction")
-    return "?%" if fraction is None else _percent(fraction)
+def _sync_short(v: SyncSample) -> str:
+    return "?%" if v.fraction is None else _percent(v.fraction)
 
 
-def _sync_long(v: Value) -> str:
-    fraction = v.get("fraction")
-    pending = v.get("bytes_pending") or 0
-    if fraction is None:
+def _sync_long(v: SyncSample) -> str:
+    if v.fraction is None:
         return "progress unknown"
-    if fraction >= 1.0 and not pending:
+    if v.fraction >= 1.0 and not v.bytes_pending:
         return "complete, nothing pending"
-    files = v.get("files_pending")
+    files = v.files_pending
     in_files = f" in {files} file{'s' if files != 1 else ''}" if files else ""
-    return f"{_percent(fraction)} synced, {_bytes(pending)}{in_files} pending"
+    return f"{_percent(v.fraction)} synced, {_bytes(v.bytes_pending)}{in_files} pending"
 
 
-def _sync_level(v: Value) -> Level:
-    fraction = v.get("fraction")
-    return "ok" if fraction is not None and fraction >= 1.0 else "warn"
+def _sync_level(v: SyncSample) -> Level:
+    return "ok" if v.fraction is not None and v.fraction >= 1.0 else "warn"
 
 
 # Battery and last Iridium report ----------------------------------------------------------------
 
 
-def _report_short(v: Value) -> str:
-    vbat = v.get("vbat")
-    volts = f"{vbat:.1f}V" if vbat is not None else "?V"
-    if v.get("landed"):
+def _report_short(v: ReportSample) -> str:
+    volts = f"{v.vbat:.1f}V" if v.vbat is not None else "?V"
+    if v.landed:
         return f"{volts} landed"
-    alt = v.get("alt_m")
-    return f"{volts} {_km(alt) if alt is not None else 'nofix'}"
+    return f"{volts} {_km(v.alt_m) if v.alt_m is not None else 'nofix'}"
 
 
-def _report_long(v: Value) -> str:
-    vbat = v.get("vbat")
-    words = [f"{vbat:.2f} V" if vbat is not None else "battery unknown"]
-    alt = v.get("alt_m")
-    words.append(f"{alt / 1000:.1f} km" if alt is not None else "no GNSS fix")
-    if v.get("landed"):
+def _report_long(v: ReportSample) -> str:
+    words = [f"{v.vbat:.2f} V" if v.vbat is not None else "battery unknown"]
+    words.append(f"{v.alt_m / 1000:.1f} km" if v.alt_m is not None else "no GNSS fix")
+    if v.landed:
         words.append("landed")
-    if v.get("lat") is not None and v.get("lon") is not None:
-        where = f"at {v['lat']:.4f} {v['lon']:.4f}"
-        if v.get("uncertainty_m") is not None:
-            where += f" ±{v['uncertainty_m']:.0f} m"
-        if v.get("position_source"):
-            where += f" ({v['position_source']})"
+    if v.lat is not None and v.lon is not None:
+        where = f"at {v.lat:.4f} {v.lon:.4f}"
+        if v.uncertainty_m is not None:
+            where += f" ±{v.uncertainty_m:.0f} m"
+        if v.position_source:
+            where += f" ({v.position_source})"
         words.append(where)
-    if v.get("momsn") is not None:
-        words.append(f"MO #{v['momsn']}")
-    if v.get("interval_min"):
-        words.append(f"every {v['interval_min']} min")
+    if v.momsn is not None:
+        words.append(f"MO #{v.momsn}")
+    if v.interval_min:
+        words.append(f"every {v.interval_min} min")
     return ", ".join(words)
 
 
-def _report_level(v: Value) -> Level:
-    vbat = v.get("vbat")
-    return "bad" if vbat is not None and vbat < 6.5 else "ok"
+def _report_level(v: ReportSample) -> Level:
+    return "bad" if v.vbat is not None and v.vbat < 6.5 else "ok"
 
 
 # Prediction -------------------------------------------------------------------------------------
 
 
-def _prediction_short(v: Value) -> str:
-    sigma = max(v["sigma_par_km"], v["sigma_perp_km"])
-    return f"{min(v['distance_km'], 999):.0f}km σ{_compact(min(sigma, 999))}"
+def _prediction_short(v: PredictionSample) -> str:
+    sigma = max(v.sigma_par_km, v.sigma_perp_km)
+    return f"{min(v.distance_km, 999):.0f}km σ{_compact(min(sigma, 999))}"
 
 
-def _prediction_long(v: Value) -> str:
-    where = f"landing {v['landing_lat']:.3f}, {v['landing_lon']:.3f}, {v['distance_km']:.1f} km"
-    if v.get("bearing_deg") is not None:
-        where += f" at {v['bearing_deg']:.0f}°"
-    origin = f"; position from {v['origin_source']}" if v.get("origin_source") else ""
-    model = f"; model {v['model']}" if v.get("model") else ""
-    return f"{where} from release, σ∥ {v['sigma_par_km']:.2f} σ⊥ {v['sigma_perp_km']:.2f} km{origin}{model}"
+def _prediction_long(v: PredictionSample) -> str:
+    where = f"landing {v.landing_lat:.3f}, {v.landing_lon:.3f}, {v.distance_km:.1f} km at {v.bearing_deg:.0f}°"
+    origin = f"; position from {v.origin_source}" if v.origin_source else ""
+    model = f"; model {v.model}" if v.model else ""
+    return f"{where} from release, σ∥ {v.sigma_par_km:.2f} σ⊥ {v.sigma_perp_km:.2f} km{origin}{model}"
 
 
-def _always_ok(v: Value) -> Level:
+def _always_ok(v: PredictionSample) -> Level:
     """A prediction has no good or bad value of its own: only its age matters here."""
     return "ok"
 
@@ -282,47 +273,52 @@ def _always_ok(v: Value) -> Level:
 
 
 @dataclass(frozen=True)
-class Field:
+class Field(Generic[S]):
     """One kind of telemetry as a column title, a detail label, and its short and long wording."""
 
-    kind: str
+    sample: type[S]
     title: str
     label: str
     short_width: int
     """Widest short text without glyph or age (cells are fixed-width so a growing age never crops)."""
-    short: Callable[[Value], str]
-    long: Callable[[Value], str]
-    level: Callable[[Value], Level]
-    status_kind: str | None = None
-    """The kind of record that says what the console is doing about a value it has never had."""
+    short: Callable[[S], str]
+    long: Callable[[S], str]
+    level: Callable[[S], Level]
+    pending_status: bool = False
+    """Whether a ``PredictionStatus`` says what the console is doing about a value it has never had."""
+
+    @property
+    def kind(self) -> str:
+        """The kind's name in recordings, also the column's key."""
+        return self.sample.KIND
 
     @property
     def width(self) -> int:
         """Cells a column needs: the widest stale short form, or the title if that is wider."""
         return max(cell_len(self.title), cell_len(STALE_GLYPH) + self.short_width + 1 + AGE_WIDTH)
 
-    def _described(self, value: Value, form: Callable[[Value], str]) -> tuple[str, str, Level]:
+    def _described(self, value: S, form: Callable[[S], str]) -> tuple[str, str, Level]:
         """(text, error, level): telemetry of the wrong shape is named, never a crash of the view."""
         try:
             return form(value), "", self.level(value)
         except (TypeError, ValueError, KeyError, AttributeError) as exc:
             return "", f"unreadable {self.kind} data ({type(exc).__name__}: {exc})", "bad"
 
-    def pending(self, t: CapsuleTelemetry, form: str = "text") -> str | None:
+    def pending(self, t: CapsuleTelemetry, form: Literal["text", "short"] = "text") -> str | None:
         """What the console is doing about a value it has never had, if it said; ``form`` is ``text``
         (words) or ``short`` (a table cell)."""
-        if self.status_kind is None:
+        status = t.reading(PredictionStatus).value if self.pending_status else None
+        if status is None:
             return None
-        status = t.reading(self.status_kind).value
-        return str(status[form]) if status and status.get(form) else None
+        return (status.short if form == "short" else status.text) or None
 
     def cell(self, t: CapsuleTelemetry, now: datetime) -> Cell:
         """The short form for a table cell: value and age, glyph first when stale, "—" when missing."""
-        reading = t.reading(self.kind)
+        reading = t.reading(self.sample)
         state = reading.freshness(now)
-        if state is Freshness.MISSING:
+        if state is Freshness.MISSING or reading.value is None:
             return Cell(self.pending(t, "short") or MISSING_TEXT, "none")
-        text, error, level = self._described(reading.value or {}, self.short)
+        text, error, level = self._described(reading.value, self.short)
         text = f"{text or 'BAD DATA'} {short_age(reading.age_s(now) or 0.0)}"
         if state is Freshness.STALE:
             return Cell(f"{STALE_GLYPH}{text}", "bad" if error else "stale")
@@ -330,39 +326,39 @@ class Field:
 
     def line(self, t: CapsuleTelemetry, now: datetime) -> Cell:
         """The long form for the detail pane: every part in words, its age, and STALE in words."""
-        reading = t.reading(self.kind)
+        reading = t.reading(self.sample)
         state = reading.freshness(now)
-        if state is Freshness.MISSING:
+        if state is Freshness.MISSING or reading.value is None:
             return Cell(f"{MISSING_TEXT} {self.pending(t) or 'nothing received yet'}", "none")
-        text, error, level = self._described(reading.value or {}, self.long)
+        text, error, level = self._described(reading.value, self.long)
         age = long_age(reading.age_s(now) or 0.0)
         if state is Freshness.STALE:
             return Cell(f"{error or text} — {STALE_GLYPH}STALE {age}", "bad" if error else "stale")
         return Cell(f"{error or text} — {age}", "bad" if error else level)
 
 
-FIELDS: tuple[Field, ...] = (
-    Field("link", "Link", "Link", 4, _link_short, _link_long, _link_level),
-    Field("release", "Release", "Release", 10, _release_short, _release_long, _release_level),
-    Field("gnss", "GNSS", "GNSS", 10, _gnss_short, _gnss_long, _gnss_level),
-    Field("storage", "Storage", "Storage", 10, _storage_short, _storage_long, _storage_level),
-    Field("sync", "Sync", "Sync", 4, _sync_short, _sync_long, _sync_level),
-    Field("report", "Battery/last MO", "Battery/MO", 12, _report_short, _report_long, _report_level),
-    Field("prediction", "Prediction", "Prediction", 10, _prediction_short, _prediction_long, _always_ok,
-          status_kind="prediction_status"),  # fmt: skip
+FIELDS: tuple[Field[Any], ...] = (
+    Field(LinkSample, "Link", "Link", 4, _link_short, _link_long, _link_level),
+    Field(ReleaseSample, "Release", "Release", 10, _release_short, _release_long, _release_level),
+    Field(GnssSample, "GNSS", "GNSS", 10, _gnss_short, _gnss_long, _gnss_level),
+    Field(StorageSample, "Storage", "Storage", 10, _storage_short, _storage_long, _storage_level),
+    Field(SyncSample, "Sync", "Sync", 4, _sync_short, _sync_long, _sync_level),
+    Field(ReportSample, "Battery/last MO", "Battery/MO", 12, _report_short, _report_long, _report_level),
+    Field(PredictionSample, "Prediction", "Prediction", 10, _prediction_short, _prediction_long, _always_ok,
+          pending_status=True),  # fmt: skip
 )
 """Every field of a capsule, in the fleet table's priority order (the first ones stay at 80 columns)."""
 
 
-def balloon_lines(reading: Reading[Value], feed: FeedStatus | None, now: datetime) -> list[str]:
+def balloon_lines(reading: Reading[BalloonSample], feed: FeedStatus | None, now: datetime) -> list[str]:
     """The balloon's position with its age and source, then the feed's health when one is configured.
 
     A feed that rejects lines or cannot connect says so here, in words, so nobody trusts a silent gap.
     """
 
-    def position(v: Value) -> str:
-        via = f" ({v['format']} via {v['source']})" if v.get("source") else ""
-        return f"{v['lat']:.4f}, {v['lon']:.4f} at {v['alt_m'] / 1000:.1f} km{via}"
+    def position(v: BalloonSample) -> str:
+        via = f" ({v.format} via {v.source})" if v.source else ""
+        return f"{v.lat:.4f}, {v.lon:.4f} at {v.alt_m / 1000:.1f} km{via}"
 
     lines = ["Balloon: " + reading.label(now, position)]
     if feed is None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -21,7 +22,17 @@ from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.operations import Operations
 from drs_link.store import Store
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import (
+    BalloonSample,
+    GatewaySample,
+    GnssSample,
+    LinkSample,
+    ReleaseSample,
+    Sample,
+    StorageSample,
+    SyncSample,
+    TelemetryRecord,
+)
 from predictor import Terrain
 from predictor.demo_weather import demo_weather_files
 
@@ -101,34 +112,31 @@ def canned_prediction(prediction_service: PredictionService) -> list[TelemetryRe
 def canned_records(prediction: list[TelemetryRecord]) -> list[TelemetryRecord]:
     """One fleet at T0: DRS1 powered with a fix, DRS2 idle and half synced, DRS3 with a stale link."""
 
-    def rec(capsule: str | None, kind: str, data: dict[str, object], age_s: float = 0.0) -> TelemetryRecord:
-        return TelemetryRecord(T0 - timedelta(seconds=age_s), capsule, kind, data)
+    def rec(capsule: str | None, sample: Sample, age_s: float = 0.0) -> TelemetryRecord:
+        return TelemetryRecord(T0 - timedelta(seconds=age_s), capsule, sample)
 
-    storage = {"used_bytes": 12_400_000_000, "total_bytes": 128_000_000_000, "raid": "healthy"}
+    storage = StorageSample(used_bytes=12_400_000_000, total_bytes=128_000_000_000, raid="healthy")
     records = [
-        rec(None, "gateway", {"credentials_ok": True}),
-        rec(None, "balloon", {"lat": SITE[0], "lon": SITE[1], "alt_m": 31500.0}, 5),
-        rec("DRS1", "link", {"up": True}, 3),
-        rec("DRS1", "release", {"state": "powered", "nmea_seen": True}, 3),
+        rec(None, GatewaySample(credentials_ok=True)),
+        rec(None, BalloonSample(lat=SITE[0], lon=SITE[1], alt_m=31500.0), 5),
+        rec("DRS1", LinkSample(up=True), 3),
+        rec("DRS1", ReleaseSample(state="powered", nmea_seen=True), 3),
         rec(
             "DRS1",
-            "gnss",
-            {"has_fix": True, "sats": 9, "hdop": 0.9, "lat": SITE[0], "lon": SITE[1], "alt_m": 31500.0},
+            GnssSample(has_fix=True, sats=9, hdop=0.9, lat=SITE[0], lon=SITE[1], alt_m=31500.0),
             3,
         ),  # fmt: skip
-        rec("DRS1", "storage", storage, 4),
-        rec("DRS1", "sync", {"fraction": 1.0, "bytes_pending": 0}, 4),
-        rec("DRS2", "link", {"up": True}, 2),
-        rec("DRS2", "release", {"state": "idle", "nmea_seen": False}, 2),
-        rec("DRS2", "storage", storage, 2),
-        rec("DRS2", "sync", {"fraction": 0.5, "bytes_pending": 400_000}, 2),
-        rec("DRS3", "link", {"up": True}, 95),
-        rec("DRS3", "release", {"state": "idle", "nmea_seen": False}, 95),
-        rec("DRS3", "storage", {**storage, "raid": "degraded"}, 95),
+        rec("DRS1", storage, 4),
+        rec("DRS1", SyncSample(fraction=1.0, bytes_pending=0), 4),
+        rec("DRS2", LinkSample(up=True), 2),
+        rec("DRS2", ReleaseSample(state="idle", nmea_seen=False), 2),
+        rec("DRS2", storage, 2),
+        rec("DRS2", SyncSample(fraction=0.5, bytes_pending=400_000), 2),
+        rec("DRS3", LinkSample(up=True), 95),
+        rec("DRS3", ReleaseSample(state="idle", nmea_seen=False), 95),
+        rec("DRS3", replace(storage, raid="degraded"), 95),
     ]
-    return records + [
-        TelemetryRecord(T0 - timedelta(seconds=6), r.capsule, r.kind, r.data) for r in prediction
-    ]
+    return records + [TelemetryRecord(T0 - timedelta(seconds=6), r.capsule, r.data) for r in prediction]
 
 
 def seed_reports(store: Store, imei: str, start: datetime, count: int, interval_min: int = 2) -> None:

@@ -12,6 +12,7 @@ from console.app import ConsoleSetup, DrsConsole
 from console.demo import DemoWorld
 from console.widgets.cells import FIELDS
 from drs_link.store import Store
+from drs_link.telemetry import GnssSample, PredictionSample
 from tests.console.conftest import offline_config, wait_for
 from tests.console.test_fleet_view import detail_of, painted
 
@@ -26,9 +27,9 @@ async def test_the_demo_balloon_arrives_over_udp_and_starts_predictions_before_p
         await wait_for(pilot, lambda: app.fleet.balloon.value is not None)
         value = app.fleet.balloon.value
         assert value is not None
-        assert value["format"] == "ozimux"
-        assert value["source"] == f"udp 127.0.0.1:{world.ground_station_port}"
-        assert abs(value["lat"] - world.balloon[0]) < 0.05 and abs(value["lon"] - world.balloon[1]) < 0.1
+        assert value.format == "ozimux"
+        assert value.source == f"udp 127.0.0.1:{world.ground_station_port}"
+        assert abs(value.lat - world.balloon[0]) < 0.05 and abs(value.lon - world.balloon[1]) < 0.1
         feed = app.setup.balloon_feed
         assert feed is not None
         status = feed.status()
@@ -37,7 +38,7 @@ async def test_the_demo_balloon_arrives_over_udp_and_starts_predictions_before_p
         shown = str(app.screen.query_one("#balloon").render())
         assert f"(ozimux via udp 127.0.0.1:{world.ground_station_port})" in shown
         assert f"Feed udp 127.0.0.1:{world.ground_station_port} listening:" in shown
-        assert app.fleet.capsules["DRS2"].reading("gnss").value is None, (
+        assert app.fleet.capsules["DRS2"].reading(GnssSample).value is None, (
             "DRS2 is not powered: no GNSS of its own"
         )
         origin = app.prediction_origin("DRS2")
@@ -47,7 +48,7 @@ async def test_the_demo_balloon_arrives_over_udp_and_starts_predictions_before_p
         )
         await wait_for(pilot, lambda: app.fleet.capsules["DRS2"].predictions.get(0) is not None)
         prediction = app.fleet.capsules["DRS2"].predictions[0].value
-        assert prediction is not None and prediction["origin_source"] == origin.source
+        assert prediction is not None and prediction.origin_source == origin.source
 
 
 async def test_the_fleet_says_computing_until_the_first_prediction_then_shows_it(
@@ -72,7 +73,7 @@ async def test_the_fleet_says_computing_until_the_first_prediction_then_shows_it
             assert prediction_field.cell(app.fleet.capsules["DRS1"], app.now()).text == "computing…"
         finally:
             release.set()
-        await wait_for(pilot, lambda: app.fleet.capsules["DRS1"].reading("prediction").value is not None)
+        await wait_for(pilot, lambda: app.fleet.capsules["DRS1"].reading(PredictionSample).value is not None)
         await wait_for(pilot, lambda: "landing " in painted(detail_of(app)))
         assert "computing" not in painted(detail_of(app))
 

@@ -33,9 +33,9 @@ def test_a_capsule_with_a_model_key_predicts_with_it_and_names_it(tmp_path: Path
     origin = ReleaseOrigin(SITE[0], SITE[1], 31500.0, "test")
     [calibrated] = service.predict("DRS1", origin)
     [plain] = service.predict("DRS2", origin)
-    assert calibrated.data["model"] == "drs1.model.json (calibrated 2026-11-24 on 3 flights)"
-    assert plain.data["model"] == "drs profile"
-    assert calibrated.data["descent_s"] != pytest.approx(plain.data["descent_s"], rel=0.01)
+    assert calibrated.data.model == "drs1.model.json (calibrated 2026-11-24 on 3 flights)"
+    assert plain.data.model == "drs profile"
+    assert calibrated.data.descent_s != pytest.approx(plain.data.descent_s, rel=0.01)
 
 
 def test_a_bad_model_file_names_the_capsule_key(tmp_path: Path) -> None:

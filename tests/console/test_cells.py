@@ -12,15 +12,16 @@ from console.widgets.cells import FIELDS, Field, balloon_lines, short_age
 from drs_link.balloon_feed import FeedStatus
 from drs_link.fleet import PERIOD_S, CapsuleTelemetry, FleetState
 from drs_link.staleness import MISSING_TEXT, STALE_GLYPH, Reading
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import SAMPLES, BalloonSample, TelemetryRecord
 from tests.console.conftest import T0
+from tests.samples import REQUIRED
 
 BY_KIND = {field.kind: field for field in FIELDS}
 
 
 def telemetry(kind: str, data: dict[str, Any], age_s: float) -> CapsuleTelemetry:
     capsule = CapsuleTelemetry("DRS1")
-    capsule.apply(TelemetryRecord(T0 - timedelta(seconds=age_s), "DRS1", kind, data))
+    capsule.apply(TelemetryRecord(T0 - timedelta(seconds=age_s), "DRS1", SAMPLES[kind](**data)))
     return capsule
 
 
@@ -32,8 +33,8 @@ def long(kind: str, data: dict[str, Any], age_s: float = 3.0) -> str:
     return BY_KIND[kind].line(telemetry(kind, data, age_s), T0).text
 
 
-PREDICTION = {"landing_lat": 67.9501, "landing_lon": 22.2289, "distance_km": 47.4, "bearing_deg": 81.2,
-              "sigma_par_km": 1.97, "sigma_perp_km": 1.73}  # fmt: skip
+PREDICTION = REQUIRED["prediction"]
+"""Landing 67.9501, 22.2289, 47.4 km at 81.2°, σ∥ 1.97 σ⊥ 1.73 km."""
 STORAGE = {"used_bytes": 12_400_000_000, "total_bytes": 128_000_000_000, "raid": "healthy"}
 
 
@@ -79,7 +80,7 @@ def test_a_missing_value_is_a_dash() -> None:
 
 def test_staleness_follows_each_kinds_period() -> None:
     for field in FIELDS:
-        data = {"up": True} if field.kind == "link" else PREDICTION if field.kind == "prediction" else {}
+        data = REQUIRED.get(field.kind, {})
         limit = 2 * PERIOD_S[field.kind]
         assert not short(field.kind, data, age_s=limit).startswith(STALE_GLYPH), field.kind
         assert short(field.kind, data, age_s=limit + 1).startswith(STALE_GLYPH), field.kind
@@ -126,9 +127,9 @@ def test_telemetry_of_the_wrong_shape_is_named_not_raised() -> None:
 BALLOON = {"lat": 67.9, "lon": 21.1, "alt_m": 31_200.0, "format": "ozimux", "source": "udp 0.0.0.0:8942"}
 
 
-def balloon_reading(age_s: float) -> Reading[dict[str, Any]]:
+def balloon_reading(age_s: float) -> Reading[BalloonSample]:
     fleet = FleetState()
-    fleet.apply(TelemetryRecord(T0 - timedelta(seconds=age_s), None, "balloon", BALLOON))
+    fleet.apply(TelemetryRecord(T0 - timedelta(seconds=age_s), None, BalloonSample(**BALLOON)))
     return fleet.balloon
 
 

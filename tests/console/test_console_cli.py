@@ -13,7 +13,14 @@ import pytest
 from console.console_cli import ReplayFeed, replay_setup
 from drs_link.config import parse_config
 from drs_link.errors import ConfigError
-from drs_link.telemetry import TelemetryFormatError, TelemetryRecord, TelemetryRecorder, read_recording
+from drs_link.telemetry import (
+    GnssSample,
+    LinkSample,
+    TelemetryFormatError,
+    TelemetryRecord,
+    TelemetryRecorder,
+    read_recording,
+)
 
 REPO = Path(__file__).resolve().parents[2]
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
@@ -39,12 +46,22 @@ def test_console_refuses_demo_and_replay_together() -> None:
 
 def test_a_recording_round_trips_in_time_order(tmp_path: Path) -> None:
     recorder = TelemetryRecorder(tmp_path / "rec" / "t.jsonl")
-    later = TelemetryRecord(T0 + timedelta(seconds=5), "DRS1", "link", {"up": False})
-    first = TelemetryRecord(T0, "DRS1", "gnss", {"has_fix": True, "sats": 9})
+    later = TelemetryRecord(T0 + timedelta(seconds=5), "DRS1", LinkSample(up=False))
+    first = TelemetryRecord(T0, "DRS1", GnssSample(has_fix=True, sats=9))
     recorder.append(later)
     recorder.append(first)
     recorder.close()
     assert read_recording(tmp_path / "rec" / "t.jsonl") == [first, later]
+
+
+def test_a_computed_prediction_round_trips_through_a_recording(
+    tmp_path: Path, canned_prediction: list[TelemetryRecord]
+) -> None:
+    recorder = TelemetryRecorder(tmp_path / "t.jsonl")
+    for record in canned_prediction:
+        recorder.append(record)
+    recorder.close()
+    assert read_recording(tmp_path / "t.jsonl") == canned_prediction
 
 
 @pytest.mark.parametrize(
@@ -59,7 +76,7 @@ def test_a_recording_round_trips_in_time_order(tmp_path: Path) -> None:
 )
 def test_a_bad_line_in_a_recording_is_named_by_file_and_line(tmp_path: Path, line: str, message: str) -> None:
     path = tmp_path / "t.jsonl"
-    path.write_text(TelemetryRecord(T0, "DRS1", "link", {"up": True}).to_json() + "\n" + line + "\n")
+    path.write_text(TelemetryRecord(T0, "DRS1", LinkSample(up=True)).to_json() + "\n" + line + "\n")
     with pytest.raises(TelemetryFormatError, match=message):
         read_recording(path)
 
@@ -73,7 +90,7 @@ def test_an_empty_or_missing_recording_is_refused(tmp_path: Path) -> None:
 
 
 def test_replay_hands_out_records_as_its_clock_passes_them(tmp_path: Path) -> None:
-    records = [TelemetryRecord(T0 + timedelta(seconds=s), "DRS1", "link", {"up": True}) for s in (0, 1, 3600)]
+    records = [TelemetryRecord(T0 + timedelta(seconds=s), "DRS1", LinkSample(up=True)) for s in (0, 1, 3600)]
     feed = ReplayFeed(records, speed=100.0)
     assert feed.due() == records[:1]
     time.sleep(0.05)

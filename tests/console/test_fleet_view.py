@@ -25,7 +25,14 @@ from console.widgets.cells import FIELDS
 from console.widgets.fleet_table import FleetTable
 from drs_link.staleness import STALE_GLYPH, format_age
 from drs_link.store import Store
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import (
+    GnssSample,
+    LinkSample,
+    PredictionSample,
+    ReportSample,
+    SyncSample,
+    TelemetryRecord,
+)
 from tests.console.conftest import T0, canned_records, wait_for
 
 pytestmark = pytest.mark.asyncio
@@ -117,10 +124,10 @@ async def test_every_part_of_the_screen_shows_at_80x24_with_eight_capsules(
         assert footer.region.height > 0 and screen.contains_region(footer.region)
         assert table.region.height - table.header_height >= 6
         shown = painted(detail_of(app))
-        prediction = app.fleet.capsules["DRS1"].reading("prediction").value
+        prediction = app.fleet.capsules["DRS1"].reading(PredictionSample).value
         assert prediction is not None
         assert all(field.label in shown for field in FIELDS)
-        assert f"model {prediction['model']} —" in shown, "the last line of the detail is cut"
+        assert f"model {prediction.model} —" in shown, "the last line of the detail is cut"
         assert_fits(table)
 
 
@@ -130,27 +137,27 @@ async def test_the_detail_shows_the_prediction_and_battery_of_the_highlighted_ca
     app = with_reports(canned_app())
     async with app.run_test(size=(80, 24)) as pilot:
         detail = detail_of(app)
-        prediction = app.fleet.capsules["DRS1"].reading("prediction").value
+        prediction = app.fleet.capsules["DRS1"].reading(PredictionSample).value
         assert prediction is not None
         landing = (
-            f"Prediction landing {prediction['landing_lat']:.3f}, {prediction['landing_lon']:.3f}, "
-            f"{prediction['distance_km']:.1f} km at {prediction['bearing_deg']:.0f}° from release"
+            f"Prediction landing {prediction.landing_lat:.3f}, {prediction.landing_lon:.3f}, "
+            f"{prediction.distance_km:.1f} km at {prediction.bearing_deg:.0f}° from release"
         )
-        age = format_age(app.fleet.capsules["DRS1"].reading("prediction").age_s(app.now()) or 0.0)
+        age = format_age(app.fleet.capsules["DRS1"].reading(PredictionSample).age_s(app.now()) or 0.0)
         sigmas = (
-            f"σ∥ {prediction['sigma_par_km']:.2f} σ⊥ {prediction['sigma_perp_km']:.2f} km;"
-            f" position from {prediction['origin_source']}; model {prediction['model']} — {age} ago"
+            f"σ∥ {prediction.sigma_par_km:.2f} σ⊥ {prediction.sigma_perp_km:.2f} km;"
+            f" position from {prediction.origin_source}; model {prediction.model} — {age} ago"
         )
         await wait_for(pilot, lambda: landing in painted(detail))
         assert sigmas in painted(detail)
         assert "Battery/MO — nothing received yet" in painted(detail)
 
         await pilot.press("down")
-        report = app.fleet.capsules["DRS2"].reading("report").value
+        report = app.fleet.capsules["DRS2"].reading(ReportSample).value
         assert report is not None
-        battery = f"Battery/MO {report['vbat']:.2f} V, {report['alt_m'] / 1000:.1f} km, landed"
+        battery = f"Battery/MO {report.vbat:.2f} V, {report.alt_m / 1000:.1f} km, landed"
         await wait_for(pilot, lambda: battery in painted(detail))
-        assert f"MO #{report['momsn']}" in painted(detail)
+        assert f"MO #{report.momsn}" in painted(detail)
 
 
 async def test_moving_the_cursor_changes_the_detail(canned_app: Callable[..., DrsConsole]) -> None:
@@ -163,9 +170,9 @@ async def test_moving_the_cursor_changes_the_detail(canned_app: Callable[..., Dr
         await pilot.press("down")
         await wait_for(pilot, lambda: detail.border_title == "DRS2")
         after = painted(detail)
-        sync = app.fleet.capsules["DRS2"].reading("sync").value
+        sync = app.fleet.capsules["DRS2"].reading(SyncSample).value
         assert sync is not None
-        assert f"Sync {sync['fraction']:.0%} synced" in after and "Release idle, not powered" in after
+        assert f"Sync {sync.fraction:.0%} synced" in after and "Release idle, not powered" in after
         assert after != before
         assert isinstance(app.screen, FleetScreen) and app.screen.selected() == "DRS2"
 
@@ -175,8 +182,8 @@ async def test_a_stale_value_shows_the_glyph_in_the_table_and_stale_in_words_bel
 ) -> None:
     app = canned_app()
     now = app.now()
-    link = app.fleet.capsules["DRS3"].reading("link")
-    assert not link.is_fresh(now) and app.fleet.capsules["DRS1"].reading("link").is_fresh(now)
+    link = app.fleet.capsules["DRS3"].reading(LinkSample)
+    assert not link.is_fresh(now) and app.fleet.capsules["DRS1"].reading(LinkSample).is_fresh(now)
     async with app.run_test(size=(80, 24)) as pilot:
         table = table_of(app)
         await wait_for(pilot, lambda: table.shown is not None)
@@ -238,7 +245,7 @@ async def test_an_unreadable_value_is_named_and_the_view_keeps_running(
 ) -> None:
     app = canned_app()
     app.fleet.apply(
-        TelemetryRecord(T0 - timedelta(seconds=1), "DRS2", "gnss", {"has_fix": True, "hdop": "0.9"})
+        TelemetryRecord(T0 - timedelta(seconds=1), "DRS2", GnssSample(has_fix=True, hdop="0.9"))  # type: ignore[arg-type]
     )
     async with app.run_test(size=(80, 24)) as pilot:
         table = table_of(app)

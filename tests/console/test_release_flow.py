@@ -15,7 +15,7 @@ from console.screens.release import ReleaseScreen
 from drs_link.arming import ArmingController, ArmState
 from drs_link.capsule import ReleaseState
 from drs_link.errors import RefusedError
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import LinkSample, TelemetryRecord
 from tests.console.conftest import wait_for
 
 pytestmark = pytest.mark.asyncio
@@ -111,7 +111,7 @@ async def test_link_loss_disarms(demo: tuple[DemoWorld, DrsConsole]) -> None:
         await pilot.press("a")
         arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
         assert arming.status().armed
-        app.post_message(TelemetryArrived([TelemetryRecord(app.now(), "DRS1", "link", {"up": False})]))
+        app.post_message(TelemetryArrived([TelemetryRecord(app.now(), "DRS1", LinkSample(up=False))]))
         await wait_for(pilot, lambda: not arming.status().armed)
         assert arming.status().last_disarm_reason == "link lost"
         assert app.screen.check_action("fire", ()) is None

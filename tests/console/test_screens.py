@@ -19,7 +19,7 @@ from console.screens.recovery import RecoveryScreen
 from console.screens.release import ReleaseScreen
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import BalloonSample, TelemetryRecord
 from tests.console.conftest import T0, wait_for
 
 pytestmark = pytest.mark.asyncio
@@ -151,12 +151,12 @@ async def test_a_release_starts_from_the_capsule_fix_else_from_a_fresh_balloon_p
     app = canned_app()
     async with app.run_test(size=(160, 48)):
         assert app.prediction_origin("DRS1").source == "DRS1 GNSS"
-        balloon = {"lat": 67.9, "lon": 21.1, "alt_m": 31000.0, "source": "udp 0.0.0.0:8942"}
-        app.fleet.apply(TelemetryRecord(T0 - timedelta(seconds=5), None, "balloon", balloon))
+        balloon = BalloonSample(lat=67.9, lon=21.1, alt_m=31000.0, source="udp 0.0.0.0:8942")
+        app.fleet.apply(TelemetryRecord(T0 - timedelta(seconds=5), None, balloon))
         from_feed = app.prediction_origin("DRS2")
         assert (from_feed.lat, from_feed.lon, from_feed.alt_m) == (67.9, 21.1, 31000.0)
         assert from_feed.source == "balloon feed (udp 0.0.0.0:8942)"
-        app.fleet.apply(TelemetryRecord(T0 - timedelta(seconds=200), None, "balloon", balloon))
+        app.fleet.apply(TelemetryRecord(T0 - timedelta(seconds=200), None, balloon))
         assert app.prediction_origin("DRS2") is None, "a stale balloon position must not start a prediction"
 
 

@@ -42,7 +42,7 @@ from drs_link.config import BalloonFeedConfig, Config, parse_config
 from drs_link.errors import ConfigError, LinkError
 from drs_link.fleet import FleetState
 from drs_link.nmea import format_gga, format_rmc, nmea_checksum
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import BalloonSample, TelemetryRecord
 from tests.clock import ManualClock
 from tests.ports import free_port
 
@@ -295,15 +295,15 @@ def test_record_is_a_balloon_record_the_console_folds_and_the_recorder_round_tri
     assert isinstance(fix, BalloonFix)
     record = fix.record("udp 0.0.0.0:8942", NOW)
     assert (record.kind, record.capsule, record.time) == ("balloon", None, fix.time)
-    assert record.data == {
-        "lat": 55.6,
-        "lon": 12.3,
-        "alt_m": 24117.0,
-        "format": "horus",
-        "source": "udp 0.0.0.0:8942",
-        "received_at": "2026-06-20T12:00:00.000Z",
-        "callsign": "R3330018",
-    }
+    assert record.data == BalloonSample(
+        lat=55.6,
+        lon=12.3,
+        alt_m=24117.0,
+        format="horus",
+        source="udp 0.0.0.0:8942",
+        received_at=datetime(2026, 6, 20, 12, 0, tzinfo=UTC),
+        callsign="R3330018",
+    )
     assert TelemetryRecord.from_json(record.to_json(), "test") == record
     fleet = FleetState.for_capsules(["DRS1"])
     fleet.apply(record)
@@ -399,8 +399,8 @@ def test_udp_datagrams_with_several_lines_each_line_judged(feeds: Callable[..., 
     assert status.last_rejection is not None and status.last_rejection.startswith("unrecognised format")
     assert status.last_rejected_line is not None and "garbage" in status.last_rejected_line
     record = feed.latest()
-    assert record is not None and record.data["lat"] == 67.2 and record.time == NOW - timedelta(seconds=5)
-    assert record.data["source"] == f"udp 127.0.0.1:{port}" and record.data["format"] == "ozimux"
+    assert record is not None and record.data.lat == 67.2 and record.time == NOW - timedelta(seconds=5)
+    assert record.data.source == f"udp 127.0.0.1:{port}" and record.data.format == "ozimux"
     assert feed.latest() is None
 
 
@@ -426,7 +426,7 @@ def test_udp_reordered_and_repeated_fixes_are_dropped_and_midnight_is_not_a_reor
     assert (status.accepted, status.out_of_order, status.rejected) == (2, 3, 0)
     record = feed.latest()
     assert record is not None and record.time == datetime(2026, 1, 2, 0, 0, 1, tzinfo=UTC)
-    assert record.data["received_at"] == "2026-01-02T00:00:01.500Z"
+    assert record.data.received_at == datetime(2026, 1, 2, 0, 0, 1, 500_000, tzinfo=UTC)
 
 
 def test_udp_port_in_use_fails_at_start_with_the_address_and_reason() -> None:
@@ -542,7 +542,7 @@ def test_tcp_client_survives_drops_mid_line_refusal_and_a_restarted_server(
         station.close()
     record = feed.latest()
     assert (
-        record is not None and record.data["lat"] == 68.0 and record.data["source"] == f"tcp 127.0.0.1:{port}"
+        record is not None and record.data.lat == 68.0 and record.data.source == f"tcp 127.0.0.1:{port}"
     )
     assert [o.reason if isinstance(o, Rejection) else o.format for o in outcomes] == [
         "ozimux",
@@ -604,7 +604,7 @@ def test_file_feed_follows_appends_truncation_rotation_and_removal(
     path.write_bytes(ozimux(base + timedelta(seconds=9), lat=66.0))
     wait_for(lambda: feed.status().accepted == 7, "a line from the recreated log")
     record = feed.latest()
-    assert record is not None and record.data["lat"] == 66.0 and record.time == base + timedelta(seconds=9)
+    assert record is not None and record.data.lat == 66.0 and record.time == base + timedelta(seconds=9)
     assert (feed.status().rejected, feed.status().out_of_order) == (2, 0)
 
 

@@ -20,7 +20,7 @@ from drs_link.gonogo import (
 )
 from drs_link.staleness import Reading
 from drs_link.store import Store
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import GnssSample, ReleaseSample, TelemetryRecord
 
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 
@@ -116,9 +116,9 @@ def test_after_release_the_poll_says_released_and_greys_every_pre_release_check(
     """With the Pi shut down, "Microcontroller talking ✔ GO, NMEA 0 s old" contradicted the release."""
     now = datetime(2026, 9, 1, 12, 5, tzinfo=UTC)
     fleet = FleetState.for_capsules(["DRS1"], 10.0)
-    fleet.apply(TelemetryRecord(now, "DRS1", "release", {"state": "released", "nmea_seen": True,
-                                                          "released_at": "2026-09-01T12:03:41+00:00"}))  # fmt: skip
-    fleet.apply(TelemetryRecord(now, "DRS1", "gnss", {"has_fix": True}))
+    released_at = datetime(2026, 9, 1, 12, 3, 41, tzinfo=UTC)
+    fleet.apply(TelemetryRecord(now, "DRS1", ReleaseSample("released", nmea_seen=True, released_at=released_at)))
+    fleet.apply(TelemetryRecord(now, "DRS1", GnssSample(has_fix=True)))
     report = evaluate("DRS1", fleet.capsules["DRS1"].gonogo_inputs(now, ()), now)
     assert not report.go and report.summary() == "NO-GO: Released: released 12:03Z, Pi shut down"
     assert [i.verdict for i in report.items][1:] == [Verdict.NOT_APPLICABLE] * (len(report.items) - 1)

@@ -2,23 +2,24 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from datetime import UTC, datetime, timedelta
 
 from drs_link.fleet import FleetState
 from drs_link.origin import release_origin
-from drs_link.telemetry import TelemetryRecord
+from drs_link.telemetry import BalloonSample, GnssSample, TelemetryRecord
 
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
-FIX = {"has_fix": True, "lat": 67.9, "lon": 21.1, "alt_m": 31400.0}
-BALLOON = {"lat": 67.8, "lon": 21.3, "alt_m": 31500.0, "source": "ozimux via udp"}
+FIX = GnssSample(has_fix=True, lat=67.9, lon=21.1, alt_m=31400.0)
+BALLOON = BalloonSample(lat=67.8, lon=21.3, alt_m=31500.0, source="ozimux via udp")
 
 
-def fleet(gnss_age_s: float | None, balloon_age_s: float | None, fix: dict[str, object] = FIX) -> FleetState:
+def fleet(gnss_age_s: float | None, balloon_age_s: float | None, fix: GnssSample = FIX) -> FleetState:
     state = FleetState.for_capsules(["DRS1"])
     if gnss_age_s is not None:
-        state.apply(TelemetryRecord(T0 - timedelta(seconds=gnss_age_s), "DRS1", "gnss", fix))
+        state.apply(TelemetryRecord(T0 - timedelta(seconds=gnss_age_s), "DRS1", fix))
     if balloon_age_s is not None:
-        state.apply(TelemetryRecord(T0 - timedelta(seconds=balloon_age_s), None, "balloon", BALLOON))
+        state.apply(TelemetryRecord(T0 - timedelta(seconds=balloon_age_s), None, BALLOON))
     return state
 
 
@@ -28,7 +29,7 @@ def test_a_fresh_capsule_fix_wins_over_the_balloon_feed() -> None:
 
 
 def test_the_balloon_feed_when_the_capsule_fix_is_stale_or_has_no_fix() -> None:
-    for state in (fleet(60, 1), fleet(5, 1, {**FIX, "has_fix": False}), fleet(None, 1)):
+    for state in (fleet(60, 1), fleet(5, 1, replace(FIX, has_fix=False)), fleet(None, 1)):
         origin = release_origin(state, "DRS1", T0)
         assert origin is not None and origin.source == "balloon feed (ozimux via udp)" and origin.lat == 67.8
 

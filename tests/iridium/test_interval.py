@@ -25,6 +25,7 @@ from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.operations import Operations
 from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
+from drs_link.telemetry import ReportSample
 from tests.clock import ManualClock
 
 from .helpers import IMEI, T0, fly
@@ -118,8 +119,8 @@ def test_a_report_is_not_stale_before_the_next_one_is_due_on_the_new_interval(ri
     telemetry = CapsuleTelemetry("DRS1")
     for record in rig.records:
         telemetry.apply(record)
-    assert [r.data["interval_min"] for r in rig.records] == [2, 2, 2, 2, 5, 5, 5]
-    last = telemetry.reading("report")
+    assert [r.data.interval_min for r in rig.records] == [2, 2, 2, 2, 5, 5, 5]
+    last = telemetry.reading(ReportSample)
     assert last.is_fresh(last.received_at + timedelta(minutes=4, seconds=48))  # type: ignore[operator]
     assert last.is_fresh(last.received_at + timedelta(minutes=9, seconds=59))  # type: ignore[operator]
     assert not last.is_fresh(last.received_at + timedelta(minutes=10, seconds=1))  # type: ignore[operator]
