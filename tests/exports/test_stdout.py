@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import json
-from datetime import timedelta
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import gpxpy
 import pytest
+from lxml import etree
 
 from console.cli import main
 from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.store import Store
+from predictor.demo_weather import demo_weather_files
 from predictor.errors import UsageError
 from predictor.geofiles import geojson
 from predictor.geofiles.output import piped
@@ -88,3 +90,19 @@ def test_calibrate_json_dash_prints_only_the_results_document(
     out, err = capsys.readouterr()
     assert json.loads(out)["flights"] == ["18-5-19", "18-6-30", "19-2-2"]
     assert err.startswith("3 flights used, 0 excluded")
+
+
+def test_plan_kml_dash_prints_the_kml_and_moves_the_summary_to_stderr(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.chdir(tmp_path)  # were '-' taken as a file name, it would land here
+    start = datetime(2026, 1, 10, 3, tzinfo=UTC)
+    files = demo_weather_files(-44.7, 179.64, start, tmp_path / "grib", hours=6, half_width_deg=4.0)
+    argv = ["plan", "--weather", *map(str, files), "--cache-dir", str(tmp_path / "cache"), "--lat", "-44.7",
+            "--lon", "179.64", "--alt", "28000", "--from", "2026-01-10T03:00Z", "--hours", "0.5",
+            "--every-minutes", "15", "--kml", "-"]  # fmt: skip
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert etree.fromstring(out.encode("utf-8")).tag == "{http://www.opengis.net/kml/2.2}kml"
+    assert "DEMO WEATHER" in out and "*** DEMO WEATHER" in err
+    assert not (tmp_path / "-").exists()
