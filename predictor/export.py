@@ -130,7 +130,7 @@ def to_gpx(result: Prediction | EnsemblePrediction) -> str:
     waypoints = [
         gpx.Waypoint(landing.lat, landing.lon, landing.alt_m, gpx.short_name(prefix, "PRED LAND"),
                      gpx.PREDICTED_LANDING_SYMBOL,
-                     f"{_title(pred)}: predicted landing; {100 * e.probability:.0f} % ellipse "
+                     f"{_title(pred)}: predicted landing; {100 * e.probability:.0f} % ellipse, semi-axes "
                      f"{e.semi_major_km:.1f} x {e.semi_minor_km:.1f} km", landing.time),
         gpx.Waypoint(release.lat, release.lon, release.alt_m, gpx.short_name(prefix, "RELEASE"),
                      gpx.RELEASE_SYMBOL, f"{_title(pred)}: release", release.time),
