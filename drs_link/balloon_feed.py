@@ -3,10 +3,10 @@
 A capsule's own GNSS exists only minutes before a drop, but "release now" needs the balloon's
 position all flight. Flight teams get it from the launch provider's or their own ground station,
 which forwards it as NMEA GGA, OziMux ``TELEMETRY`` text (horus-gui, radiosonde_auto_rx) or Horus
-``PAYLOAD_SUMMARY`` / ``PAYLOAD_TELEMETRY`` JSON, over UDP, a TCP server, or a log file. Every line is judged on its own:
-a bad one is counted and shown with its reason, never fatal, and never taken as a position. UDP
-reorders datagrams, so a fix not newer than the newest accepted one is dropped. Time comes from
-the injected clock only (the demo runs a fast one).
+``PAYLOAD_SUMMARY`` / ``PAYLOAD_TELEMETRY`` JSON, over UDP, a TCP server, or a log file. Every line
+is judged on its own: a bad one is counted and shown with its reason, never fatal, and never taken
+as a position. UDP reorders datagrams, so a fix not newer than the newest accepted one is dropped.
+Time comes from the injected clock only (the demo runs a fast one).
 """
 
 from __future__ import annotations

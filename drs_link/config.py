@@ -115,7 +115,8 @@ class BalloonFeedConfig:
     """Where the balloon's position comes from before any capsule's GNSS is on: a ground station on the LAN.
 
     ``kind`` "" means no feed. ``host``/``port`` are the address a UDP feed listens on or a TCP feed
-    connects to (8942 is OziMux's port); ``path`` is the log a file feed follows.
+    connects to (8942: auto_rx's OziMux lines; horus-gui's are on 55683, Horus UDP on 55672/55673);
+    ``path`` is the log a file feed follows.
     """
 
     kind: str = ""
