@@ -21,7 +21,7 @@ from drs_link.origin import ReleaseOrigin
 from drs_link.telemetry import Contour, PredictionSample, TelemetryRecord
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
 from predictor.errors import PredictorError
-from predictor.export import write_geojson, write_kml
+from predictor.export import write_geojson, write_gpx, write_kml
 from predictor.live import LivePredictor, Report
 from predictor.model_file import CalibratedModel, load_model
 from predictor.planning.sweep import plan_release
@@ -141,6 +141,7 @@ class PredictionService:
         return [
             write_kml(prediction, directory / f"{capsule}-{stamp}.kml"),
             write_geojson(prediction, directory / f"{capsule}-{stamp}.geojson"),
+            write_gpx(prediction, directory / f"{capsule}-{stamp}.gpx"),
         ]
 
     def release_window(

@@ -25,7 +25,7 @@ why · `a` ARM (only on GO; opens a countdown) · `d` disarm ·
 `f` FIRE (only while armed; type the capsule's name; second operator or a logged waiver) ·
 `R` reset after recovery (type the name)
 
-**Predictions**: `+`/`-` release lead time · `←`/`→` release-window cursor · `e` export KML + GeoJSON
+**Predictions**: `+`/`-` release lead time · `←`/`→` release-window cursor · `e` export KML + GeoJSON + GPX
 
 **Iridium**: `n` INTERVAL · `o`/`O` sounder off/on · `c` parachute (helper picks HH:MM) ·
 `R` refresh

@@ -6,6 +6,7 @@ from collections.abc import Callable
 from datetime import timedelta
 from pathlib import Path
 
+import gpxpy
 import pytest
 from textual.widgets import DataTable, Input, Markdown, Static
 
@@ -160,7 +161,7 @@ async def test_a_release_starts_from_the_capsule_fix_else_from_a_fresh_balloon_p
         assert app.prediction_origin("DRS2") is None, "a stale balloon position must not start a prediction"
 
 
-async def test_predictions_export_kml_and_geojson(
+async def test_predictions_export_kml_geojson_and_gpx(
     canned_app: Callable[..., DrsConsole], tmp_path: Path
 ) -> None:
     app = canned_app()
@@ -170,6 +171,8 @@ async def test_predictions_export_kml_and_geojson(
         geojson = list((tmp_path / "exports").glob("DRS1-*.geojson"))
         assert len(kml) == 1 and "<kml" in kml[0].read_text()
         assert len(geojson) == 1 and '"FeatureCollection"' in geojson[0].read_text()
+        [gpx] = (tmp_path / "exports").glob("DRS1-*.gpx")
+        assert [w.name for w in gpxpy.parse(gpx.read_text()).waypoints][0].endswith("PRED LAND")
 
 
 async def test_the_command_palette_offers_every_screen_of_every_capsule(
