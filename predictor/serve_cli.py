@@ -9,6 +9,7 @@ network beyond the car. The server, its request checks and its response shape li
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -52,7 +53,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; 0: any free)"
     )
     parser.add_argument("--cache-dir", metavar="DIR", help="weather cache (default ~/.cache/drs/weather)")
-    parser.set_defaults(func=run)
+    parser.set_defaults(func=run, log_default=logging.INFO)  # a service: its access log is its record
 
 
 def run(args: argparse.Namespace) -> int:
