@@ -469,6 +469,37 @@ class ReleaseStateMachine:
         self._audit("go", note, detail)
         return released
 
+    def record_released(self, typed_name: str, evidence: str) -> ReleaseRecord:
+        """Settle an unverified Go as released, on the operator's evidence.
+
+        A console killed after the Pi wrote GoGoGo, and before it recorded the answer, leaves
+        ``go-sent-unverified``; the Pi then halts, so no Go retry can confirm it, and reset is refused
+        there (the capsule may be falling). Only an operator who knows (the Iridium reports show the
+        fall, the balloon team saw it go) can end it: named, with the evidence in the audit log.
+        The release time is the first Go's, when the capsule may have left.
+        """
+        if typed_name != self.name:
+            raise self._refuse("released", f"the confirmation {typed_name!r} does not name {self.name!r}")
+        if self.operator == "unknown":
+            raise self._refuse("released", "no operator name: set [operator] name; this ends a release on the record")
+        if not evidence.strip() or not evidence.isprintable():
+            raise self._refuse("released", "give the evidence as one line of text (what shows it was released)")
+        seen = self.record()
+        if seen.state is not ReleaseState.GO_SENT:
+            raise self._refuse(
+                "released", f"the capsule is {seen.state.value}: only an unverified Go can be settled as released"
+            )
+        released = replace(
+            seen, state=ReleaseState.RELEASED, released_at=seen.go_at,
+            note=f"released (recorded by {self.operator}: {evidence.strip()})",
+        )  # fmt: skip
+        try:
+            self._swap(seen, released)
+        except _StateChanged as changed:
+            raise self._refuse("released", f"the capsule became {changed.current.state.value} meanwhile") from None
+        self._audit("go", "released (recorded by the operator)", {"evidence": evidence.strip()})
+        return released
+
     # Release authority ------------------------------------------------------------------------
 
     def authority(self) -> AuthorityStatus:
@@ -564,7 +595,8 @@ class ReleaseStateMachine:
             raise self._refuse(
                 "reset",
                 "Go was sent and not verified: the capsule may have been released; find out first "
-                "(drs capsule status, its Iridium reports) and send Go again if it is still on the balloon",
+                "(drs capsule status, its Iridium reports): send Go again if it is still on the balloon, "
+                "or record it released with the evidence (drs capsule released)",
             )
         record = ReleaseRecord(self.name, ReleaseState.IDLE, None, None, 0, None, None, None, None, "reset")
         try:

@@ -71,6 +71,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     reset.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name")
     reset.set_defaults(func=cmd_reset)
 
+    released = actions.add_parser(
+        "released", help="settle an unverified Go as released, on evidence (the Pi is down, the reports show the fall)"
+    )
+    released.add_argument("name")
+    released.add_argument("--evidence", metavar="TEXT", required=True, help="what shows it left (audit log)")
+    released.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name")
+    released.set_defaults(func=cmd_released)
+
     authority = actions.add_parser(
         "authority", help="who holds the release authority on the Pi; take it over or give it up"
     )
@@ -287,6 +295,16 @@ def cmd_authority(args: argparse.Namespace) -> int:
     finally:
         link.close()
     print(f"{machine.name}: release authority {take_over_outcome(seen, machine.holder)}: {now.describe()}")
+    return 0
+
+
+def cmd_released(args: argparse.Namespace) -> int:
+    config, capsule, store = _context(args)
+    machine = ReleaseStateMachine(store, capsule, StockBackend(capsule, CapsuleLink(capsule)), config.operator.name)
+    checklists = load_checklists(PROCEDURE_DIR)
+    record = machine.record_released(args.confirm, args.evidence)
+    _command_done(machine, checklists, "fire", record.note or "released")
+    print(f"{capsule.name}: {record.note}")
     return 0
 
 

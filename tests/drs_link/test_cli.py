@@ -325,6 +325,53 @@ def test_go_killed_while_the_pi_runs_it_stays_unverified_and_reset_is_refused(
     assert "Go was sent and not verified" in _one_line_error(capsys)
 
 
+def _go_killed_after_gogogo(sim: CapsuleSimulator, config: Path, store: Store) -> str:
+    """Power on, then kill ``drs capsule go`` once the Pi has written GoGoGo; returns the recorded Go time.
+
+    The Pi's script dies on its next write to the dead session (as the stock script does on a broken
+    pipe), so the Pi stays up and the microcontroller has its Go."""
+    assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
+    argv = ["capsule", "go", "DRS1", "--confirm", "DRS1"]
+    _kill_when(config, argv, store, "go-sent-unverified", lambda: sim.firmware.go_at is not None)
+    [row] = store.query("SELECT state, go_at FROM release_state WHERE capsule = 'DRS1'")
+    assert row["state"] == "go-sent-unverified"
+    return str(row["go_at"])
+
+
+def test_go_killed_after_the_pi_wrote_gogogo_is_finished_by_a_retry_that_keeps_the_first_go_time(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    sim, config = setup
+    store = Store.open(tmp_path / "data" / "drs.sqlite")
+    go_at = _go_killed_after_gogogo(sim, config, store)
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    assert "released, Pi shut down" in capsys.readouterr().out
+    [row] = store.query("SELECT state, go_at FROM release_state WHERE capsule = 'DRS1'")
+    assert (row["state"], row["go_at"]) == ("released", go_at)
+
+
+def test_go_killed_with_a_pi_that_then_halted_is_settled_released_by_the_operator_with_evidence(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """With the Pi halted no Go retry can confirm the release and reset is refused: that left no way out.
+    The operator records it released with the evidence (the release time is the Go's); then reset works."""
+    sim, config = setup
+    store = Store.open(tmp_path / "data" / "drs.sqlite")
+    go_at = _go_killed_after_gogogo(sim, config, store)
+    sim.stop()  # the Pi halted
+    capsys.readouterr()
+    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 1
+    assert "DRS1" in _one_line_error(capsys)
+    assert drs(config, "capsule", "reset", "DRS1", "--confirm", "DRS1") == 1
+    assert "record it released with the evidence (drs capsule released)" in _one_line_error(capsys)
+    evidence = "Iridium reports falling from 27 km"
+    assert drs(config, "capsule", "released", "DRS1", "--evidence", evidence, "--confirm", "DRS1") == 0
+    assert evidence in capsys.readouterr().out
+    [row] = store.query("SELECT state, released_at FROM release_state WHERE capsule = 'DRS1'")
+    assert (row["state"], row["released_at"]) == ("released", go_at)
+    assert drs(config, "capsule", "reset", "DRS1", "--confirm", "DRS1") == 0
+
+
 def _status(config: Path, capsys: pytest.CaptureFixture[str]) -> dict[str, Any]:
     capsys.readouterr()
     assert drs(config, "capsule", "status", "DRS1", "--json") == 0

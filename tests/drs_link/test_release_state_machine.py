@@ -341,6 +341,30 @@ def test_reset_is_refused_while_a_go_is_unverified(machine: ReleaseStateMachine,
     assert machine.record().state is ReleaseState.GO_SENT
 
 
+def test_an_unverified_go_is_settled_as_released_only_by_a_named_operator_with_evidence(
+    machine: ReleaseStateMachine, pi: InProcessPi, clock: ManualClock
+) -> None:
+    """After a Go whose answer was lost the Pi halts, so no retry can confirm it and reset is refused:
+    the operator records the release with what shows it, and the release time is the Go's."""
+    with pytest.raises(RefusedError, match="only an unverified Go"):
+        machine.record_released("DRS1", "reports show the fall")
+    _ready(machine)
+    pi.go_outcome = GoResult(False, True, False, None, "")
+    with pytest.raises(LinkError):
+        machine.go(machine.confirm("DRS1"))
+    go_at = machine.record().go_at
+    clock.advance(3600)
+    for typed, evidence, refusal in (("DRS2", "reports show the fall", "does not name"),
+                                     ("DRS1", "  ", "evidence"), ("DRS1", "fell\nok", "evidence")):  # fmt: skip
+        with pytest.raises(RefusedError, match=refusal):
+            machine.record_released(typed, evidence)
+        assert machine.record().state is ReleaseState.GO_SENT
+    record = machine.record_released("DRS1", "Iridium reports from 27 km down to 400 m")
+    assert record.state is ReleaseState.RELEASED and record.released_at == go_at == machine.record().released_at
+    assert machine.store.audit("DRS1")[-1].detail == {"evidence": "Iridium reports from 27 km down to 400 m"}
+    assert machine.reset("DRS1").state is ReleaseState.IDLE
+
+
 def test_reset_needs_an_operator_name(tmp_path: Path, pi: InProcessPi, clock: ManualClock) -> None:
     capsule = CapsuleConfig(name="DRS1", host="drs1.local")
     anonymous = ReleaseStateMachine(Store.open(tmp_path / "drs.sqlite"), capsule, pi, "", clock=clock)
