@@ -6,7 +6,8 @@ re-prediction of a descending capsule (from its Iridium fixes), else the "releas
 from the balloon. Keeping it writes the capsule's KML at its fixed path for chasemapper's
 ``[kml_overlays]`` and its landing in the store, where ``drs chase`` on another machine finds it too.
 A prediction is kept once (the KML is not rewritten every round) and is timed by the position it
-started from, so a capsule whose predictions stopped drops out of the feed.
+started from, so a capsule whose predictions stopped drops out of the feed; a landed capsule gets
+no more predicted landings (its fixes say where it is).
 """
 
 from __future__ import annotations
@@ -40,21 +41,21 @@ class LandingKeeper:
         self._kept: dict[str, Prediction] = {}
 
     def current(self, capsule: str) -> tuple[Prediction, str] | None:
-        """The live re-prediction while the capsule descends, else the release-now one (None: neither)."""
+        """The live re-prediction while the capsule descends; before its first fix, the release-now one;
+        nothing once it has landed (its fixes then say where it is)."""
         service, ops = self.setup.predictions, self.setup.operations
         if service is None:
             return None
         track = track_from_reports(ops.stored_reports(capsule)) if ops is not None else []
-        if track and detect_landing(track) is None:
-            try:
-                service.live(capsule, track)
-            except PredictorError as exc:
-                log.warning("chase feed: no live prediction for %s: %s", capsule, exc)
-            if capsule in service.live_latest:
-                return service.live_latest[capsule], LIVE
-        if capsule in service.latest:
-            return service.latest[capsule], RELEASE_NOW
-        return None
+        if not track:
+            return (service.latest[capsule], RELEASE_NOW) if capsule in service.latest else None
+        if detect_landing(track) is not None:
+            return None
+        try:
+            service.live(capsule, track)
+        except PredictorError as exc:
+            log.warning("chase feed: no live prediction for %s: %s", capsule, exc)
+        return (service.live_latest[capsule], LIVE) if capsule in service.live_latest else None
 
     def keep_all(self) -> None:
         for capsule in self.setup.capsules:

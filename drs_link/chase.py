@@ -154,7 +154,8 @@ def chase_points(config: Config, store: Store, now: datetime) -> list[ChasePoint
     landings = ChaseStore(store).landings()
     points = []
     for capsule in config.capsules:
-        fixes = [r.report.fix for r in reports.for_imei(capsule.imei)] if capsule.imei else []
+        stored = reports.for_imei(capsule.imei) if capsule.imei else []
+        fixes = [r.report.fix for r in stored if r.report is not None]
         fix = next((f for f in reversed(fixes) if f is not None), None)
         if fix is not None:
             points.append(ChasePoint(
@@ -207,8 +208,6 @@ class ChaseFeed:
         self.sender = sender
         self._points = points
         self.period_s = period_s
-        self.last_error: str | None = None
-        self.rounds = 0
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"chase feed {sender.target}", daemon=True)
 
@@ -225,9 +224,6 @@ class ChaseFeed:
         while not self._stop.is_set():
             try:
                 self.sender.send(self._points())
-                self.rounds += 1
-                self.last_error = None
-            except Exception as exc:  # the console's other work goes on: the team sees it in the log
+            except Exception:  # the console's other work goes on: the team sees it in the log
                 log.exception("chase feed to %s: a round failed", self.sender.target)
-                self.last_error = f"{type(exc).__name__}: {exc}"
             self._stop.wait(self.period_s)

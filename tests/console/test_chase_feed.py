@@ -26,6 +26,7 @@ from predictor.demo_weather import demo_weather_files
 from tests.console.conftest import SITE, T0
 
 IMEI = "300434060000001"
+LANDED_IMEI = "300434060000003"
 NOW = T0 + timedelta(minutes=10)
 
 
@@ -38,36 +39,47 @@ def listener() -> Iterator[socket.socket]:
     sock.close()
 
 
-def test_the_console_sends_its_capsules_and_their_live_and_release_now_landings(
+def test_the_console_sends_its_capsules_and_their_live_and_release_now_landings_but_none_once_landed(
     tmp_path: Path, listener: socket.socket
 ) -> None:
     config = parse_config({
         "data": {"dir": str(tmp_path / "data")},
         "chase": {"udp": f"127.0.0.1:{listener.getsockname()[1]}"},
         "capsule": [{"name": "DRS1", "host": "127.0.0.1", "port": 9, "imei": IMEI},
-                    {"name": "DRS2", "host": "127.0.0.1", "port": 9}],
+                    {"name": "DRS2", "host": "127.0.0.1", "port": 9},
+                    {"name": "DRS3", "host": "127.0.0.1", "port": 9, "imei": LANDED_IMEI}],
     })  # fmt: skip
     store = Store.open(config.store_path)
     for minutes, alt in ((4, 25_000.0), (6, 20_000.0), (8, 15_000.0)):
         moment = T0 + timedelta(minutes=minutes)
         fix = GnssFix(moment, SITE[0] + 0.01 * minutes, SITE[1] + 0.02 * minutes, alt, 15.0, 80.0, 1.0, 9)
         ReportStore(store).add(Delivery(IMEI, minutes, format_mo(fix, 8.9, minutes).hex(), "test", moment))
+    for step, alt in enumerate((3000.0, 1500.0, 300.0, 300.0, 300.0, 300.0)):
+        moment = T0 + timedelta(minutes=step - 2)
+        fix = GnssFix(moment, SITE[0] - 0.3, SITE[1], alt, 0.0 if step >= 2 else 10.0, 0.0, 1.0, 9)
+        ReportStore(store).add(
+            Delivery(LANDED_IMEI, 100 + step, format_mo(fix, 8.9, step).hex(), "test", moment)
+        )
     files = demo_weather_files(SITE[0], SITE[1], T0, cache_dir=tmp_path / "wx", hours=6)
     service = PredictionService(lambda: files, Terrain.sea_level, lambda: NOW)
-    service.predict("DRS2", ReleaseOrigin(SITE[0], SITE[1], 31_500.0, "balloon feed"))
+    for name in ("DRS2", "DRS3"):
+        service.predict(name, ReleaseOrigin(SITE[0], SITE[1], 31_500.0, "balloon feed"))
     setup = ConsoleSetup(
-        mode="live", capsules=["DRS1", "DRS2"], store=store, clock=lambda: NOW,
+        mode="live", capsules=["DRS1", "DRS2", "DRS3"], store=store, clock=lambda: NOW,
         operations=Operations(config, store, clock=lambda: NOW), predictions=service,
     )  # fmt: skip
     feed = started_chase_feed(config, setup)
     assert feed is not None
     try:
-        packets = [json.loads(listener.recv(32768)) for _ in range(3)]
+        packets = [json.loads(listener.recv(32768)) for _ in range(4)]
+        listener.settimeout(2.0)  # the rest of the round, well before the next one 10 s later
+        with pytest.raises(TimeoutError):
+            packets.append(json.loads(listener.recv(32768)))
     finally:
         feed.stop()
         store.close()
     by_name = {p["callsign"]: p for p in packets}
-    assert set(by_name) == {"DRS1", "DRS1_LAND", "DRS2_LAND"}, "DRS2 has no fix of its own yet"
+    assert set(by_name) == {"DRS1", "DRS1_LAND", "DRS2_LAND", "DRS3"}, "DRS2 has no fix yet, DRS3 has landed"
     assert (
         by_name["DRS1"]["altitude"] == 15_000.0
         and by_name["DRS1"]["time"] == f"{T0 + timedelta(minutes=8):%H:%M:%S}"

@@ -79,6 +79,7 @@ def test_drs_chase_once_sends_each_capsule_with_a_fix_and_its_live_landing(
     store = Store.open(config.store_path)
     add_fix(store, NOW - timedelta(minutes=4), 51.40, -0.60, 9000, 20.0, 80)
     add_fix(store, NOW - timedelta(minutes=2), 51.41, -0.55, 8000, 12.5, 95)
+    ReportStore(store).add(Delivery(IMEI, 7, b"not a DRS report".hex(), "test", NOW - timedelta(minutes=1)))
     ChaseStore(store).record(KeptLanding(
         "DRS1", NOW - timedelta(minutes=1), NOW + timedelta(minutes=20), 51.45, -0.30, 35.0, "live re-prediction", True
     ))  # fmt: skip
