@@ -66,9 +66,9 @@ PENDING, SEEN, NEVER_VISIBLE, NOT_SEEN = "pending", "seen", "never visible", "no
 EFFECT_REPORTS = 5
 """Reports after delivery within which an INTERVAL/RBDESTINATION change must show, else timed out."""
 INTERRUPTED_AFTER = timedelta(minutes=15)
-"""A command still ``confirmed`` this long after it was confirmed was being sent by a process that
+"""A command still ``requested`` or ``confirmed`` this long after was being sent by a process that
 stopped (kill -9, a crash, a lost laptop) before the gateway answered: longer than any send can take
-(``rockblock.timeout_s`` is at most 600 s)."""
+(``rockblock.timeout_s`` is at most 600 s; a request is sent at once)."""
 QUEUE_TIMEOUT = timedelta(hours=3)
 """A command still undelivered after this long with no report at all is called timed out."""
 _SEND_OUTCOME = {"queued": QUEUED, "failed": FAILED, "not_sent": NOT_SENT, "unknown": DELIVERY_UNKNOWN}
@@ -185,14 +185,23 @@ class CommandLifecycle:
         self._recover_interrupted()
 
     def _recover_interrupted(self) -> None:
-        """A send cut off after ``confirmed`` may or may not have reached the gateway: say so, so that
-        ``drs mt resolve`` can settle it and attribution never guesses across it."""
+        """Settle what a stopped process left half done. A send cut off after ``confirmed`` may or may not
+        have reached the gateway: say so, so that ``drs mt resolve`` can settle it and attribution never
+        guesses across it. One cut off while still ``requested`` never left this machine (``confirmed``
+        is written before the gateway is called): close it as not sent, so it shows as what it is."""
         cutoff = iso_utc(self.clock() - INTERRUPTED_AFTER)
         rows = self.store.query(
-            "SELECT * FROM mt_command WHERE state = ? AND updated_utc < ? ORDER BY id", (CONFIRMED, cutoff)
+            "SELECT * FROM mt_command WHERE state IN (?, ?) AND updated_utc < ? ORDER BY id",
+            (REQUESTED, CONFIRMED, cutoff),
         )
         for command in map(_row_to_command, rows):
             try:
+                if command.state == REQUESTED:
+                    self._set(
+                        command, NOT_SENT, "the process that requested it stopped before sending it: it never "
+                        "reached the gateway; request it again if still wanted", expected=REQUESTED,
+                    )  # fmt: skip
+                    continue
                 self._set(
                     command, DELIVERY_UNKNOWN,
                     "the process sending it stopped before the gateway answered: it may or may not be "

@@ -239,6 +239,43 @@ def test_a_send_killed_after_the_gateway_took_it_becomes_delivery_unknown_and_ca
     assert resolved.state == lc.NOT_SENT
 
 
+REQUEST_IN_A_CHILD = """
+import sys, threading
+from drs_link.config import CapsuleConfig
+from drs_link.iridium import lifecycle as lc
+from drs_link.iridium.mt import MtComposer
+from drs_link.store import Store
+capsule = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=sys.argv[2], rockblock_serial=11800)
+lc.CommandLifecycle(Store.open(sys.argv[1]), "alice").request(capsule, MtComposer().interval(30).build())
+threading.Event().wait()  # stopped between the request and the send
+"""
+
+
+def test_a_process_killed_between_request_and_send_leaves_a_command_closed_as_never_sent(rig) -> None:
+    """The step before the send: nothing left the machine, so after the interrupted-send time it is closed
+    as not sent (it once stayed 'requested' for good) and the same command can be requested again."""
+    store, _, gateway, client, _ = rig
+    lc.CommandLifecycle(store, "bob")  # the table exists before the child writes its row
+    child = subprocess.Popen([sys.executable, "-c", REQUEST_IN_A_CHILD, str(store.path), IMEI])
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not store.query("SELECT id FROM mt_command"):
+            time.sleep(0.05)
+    finally:
+        child.send_signal(signal.SIGKILL)
+        child.wait()
+    [command] = lc.CommandLifecycle(store, "bob").for_imei(IMEI)
+    assert command.state == lc.REQUESTED  # it might still be about to send elsewhere
+    later = ManualClock(utc_now() + lc.INTERRUPTED_AFTER + timedelta(seconds=1))
+    life = lc.CommandLifecycle(store, "bob", later)
+    closed = life.get(command.id)
+    assert closed.state == lc.NOT_SENT and "never reached the gateway" in closed.detail
+    with pytest.raises(RefusedError, match="never sent twice"):
+        life.send(command.id, "DRS1", client)
+    again = life.send(life.request(CAPSULE, MtComposer().interval(30).build()).id, "DRS1", client)
+    assert again.state == lc.QUEUED and len(gateway.requests) == 1
+
+
 def test_a_send_that_raises_is_recorded_as_delivery_unknown_not_left_confirmed(rig) -> None:
     store, _, _, _, clock = rig
     life = lc.CommandLifecycle(store, "alice", clock)
