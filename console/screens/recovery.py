@@ -211,8 +211,9 @@ class RecoveryScreen(CommandingScreen):
         gpx = directory / f"{self.capsule}-recovery-{stamp}.gpx"
         kml = directory / f"{self.capsule}-recovery-{stamp}.kml"
         try:
-            write_gpx(gpx, self.capsule, self.track, predicted, self.landing)
-            write_kml(kml, self.capsule, self.track, predicted, self.landing)
+            demo = prediction is not None and prediction.is_demo
+            write_gpx(gpx, self.capsule, self.track, predicted, self.landing, predicted_is_demo=demo)
+            write_kml(kml, self.capsule, self.track, predicted, self.landing, predicted_is_demo=demo)
         except (OSError, PredictorError) as exc:
             self.app.notify(f"export failed: {exc}", severity="error")
             return

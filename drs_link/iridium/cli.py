@@ -422,9 +422,17 @@ def _mo_health(args: argparse.Namespace) -> int:
     return 0
 
 
-def _read_predicted(path: Path) -> list[tuple[float, float, float]]:
+def _says_demo(node: object) -> bool:
+    """Whether any member of a GeoJSON document says ``is_demo`` (drs predict marks every feature)."""
+    if isinstance(node, dict):
+        return node.get("is_demo") is True or any(_says_demo(v) for v in node.values())
+    return isinstance(node, list) and any(_says_demo(v) for v in node)
+
+
+def _read_predicted(path: Path) -> tuple[list[tuple[float, float, float]], bool]:
     """The first path of a GeoJSON file as (lat, lon, alt) points: a LineString, or a MultiLineString
-    (a path cut at ±180°, as drs predict --geojson writes one) with its parts joined."""
+    (a path cut at ±180°, as drs predict --geojson writes one) with its parts joined; and whether the
+    file says it was predicted on demo weather, which the recovery files must then say too."""
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
@@ -437,13 +445,14 @@ def _read_predicted(path: Path) -> list[tuple[float, float, float]]:
             if kind in {"LineString", "MultiLineString"} and isinstance(node.get("coordinates"), list):
                 lines = node["coordinates"] if kind == "MultiLineString" else [node["coordinates"]]
                 try:
-                    return [
+                    points = [
                         (float(c[1]), float(c[0]), float(c[2]) if len(c) > 2 else 0.0)
                         for line in lines
                         for c in line
                     ]
                 except (TypeError, ValueError, IndexError):
                     raise LinkError(f"--predicted {path}: LineString coordinates are not numbers") from None
+                return points, _says_demo(document)
             stack.extend(v for v in node.values() if isinstance(v, dict | list))
         elif isinstance(node, list):
             stack.extend(v for v in node if isinstance(v, dict | list))
@@ -460,7 +469,7 @@ def _recovery(args: argparse.Namespace) -> int:
         team = read_gpsd_position()
     elif args.origin is not None:
         team = parse_position(args.origin)
-    predicted = _read_predicted(args.predicted) if args.predicted else []
+    predicted, predicted_is_demo = _read_predicted(args.predicted) if args.predicted else ([], False)
     track = track_from_reports(reports)
     landing = detect_landing(track)
     coarse = None
@@ -480,10 +489,10 @@ def _recovery(args: argparse.Namespace) -> int:
                 file=said,
             )
     if args.gpx:
-        write_gpx(args.gpx, capsule.name, track, predicted, landing)
+        write_gpx(args.gpx, capsule.name, track, predicted, landing, predicted_is_demo=predicted_is_demo)
         print(f"wrote {args.gpx}", file=said)
     if args.kml:
-        write_kml(args.kml, capsule.name, track, predicted, landing)
+        write_kml(args.kml, capsule.name, track, predicted, landing, predicted_is_demo=predicted_is_demo)
         print(f"wrote {args.kml}", file=said)
     if args.json:
         print(json.dumps(_recovery_json(capsule.name, summary, landing, track, team, coarse), indent=2))

@@ -20,7 +20,7 @@ from pyproj import Geod
 
 from drs_link.errors import LinkError
 from drs_link.iridium.reports import StoredReport
-from predictor.geofiles import gpx, kml
+from predictor.geofiles import DEMO_LABEL, gpx, kml
 from predictor.geofiles.geometry import line_parts, position
 from predictor.geofiles.output import write_text
 
@@ -297,12 +297,19 @@ def _landing_note(landing: LandingEstimate) -> str:
     return f"{when}; {landing.count} fixes kept, scatter +/-{landing.std_m:.0f} m (1 sigma)"
 
 
+def _predicted(name: str, predicted_is_demo: bool) -> str:
+    """What the predicted track is called: a prediction on demo weather says so, like every demo output."""
+    return f"{name} predicted ({DEMO_LABEL})" if predicted_is_demo else f"{name} predicted"
+
+
 def write_gpx(
     path: str | Path,
     name: str,
     measured: list[TrackPoint],
     predicted: list[tuple[float, float, float]],
     landing: LandingEstimate | None,
+    *,
+    predicted_is_demo: bool = False,
 ) -> Path:
     """The landing (or, before one, the last fix) and the predicted landing as waypoints, and both tracks.
 
@@ -322,13 +329,14 @@ def write_gpx(
         )  # fmt: skip
     if predicted:
         lat, lon, alt = predicted[-1]
+        label = "DEMO PRED LAND" if predicted_is_demo else "PRED LAND"
         waypoints.append(
-            gpx.Waypoint(lat, lon, alt, gpx.short_name(name, "PRED LAND"), gpx.PREDICTED_LANDING_SYMBOL,
-                         f"{name} predicted landing")
+            gpx.Waypoint(lat, lon, alt, gpx.short_name(name, label), gpx.PREDICTED_LANDING_SYMBOL,
+                         f"{_predicted(name, predicted_is_demo)} landing")
         )  # fmt: skip
     tracks = [
         (f"{name} measured", [gpx.TrackPoint(p.lat, p.lon, p.alt_m, p.time) for p in measured]),
-        (f"{name} predicted", [gpx.TrackPoint(lat, lon, alt) for lat, lon, alt in predicted]),
+        (_predicted(name, predicted_is_demo), [gpx.TrackPoint(lat, lon, alt) for lat, lon, alt in predicted]),
     ]
     return write_text(path, gpx.to_gpx(f"{name} recovery", waypoints, tracks), "GPX")
 
@@ -339,16 +347,17 @@ def write_kml(
     measured: list[TrackPoint],
     predicted: list[tuple[float, float, float]],
     landing: LandingEstimate | None,
+    *,
+    predicted_is_demo: bool = False,
 ) -> Path:
     """The measured and predicted tracks at their altitudes, the landing and the predicted landing."""
     styles = [kml.style("measured", "ff0000ff", width=3), kml.style("predicted", "ffff0000", width=3)]
+    tracks = (
+        (f"{name} measured", "measured", [(p.lon, p.lat, p.alt_m) for p in measured]),
+        (_predicted(name, predicted_is_demo), "predicted", [(lon, lat, alt) for lat, lon, alt in predicted]),
+    )
     contents: list[kml.Feature] = [
-        kml.line(f"{name} {label}", line_parts(points), label, absolute=True)
-        for label, points in (
-            ("measured", [(p.lon, p.lat, p.alt_m) for p in measured]),
-            ("predicted", [(lon, lat, alt) for lat, lon, alt in predicted]),
-        )
-        if points
+        kml.line(label, line_parts(points), style, absolute=True) for label, style, points in tracks if points
     ]
     if landing is not None:
         contents.append(
@@ -358,6 +367,8 @@ def write_kml(
         )
     if predicted:
         lat, lon, _ = predicted[-1]
-        contents.append(kml.point(f"{name} predicted landing", position((lon, lat)), "predicted"))
-    document = kml.document(f"{name} recovery", f"{name}: measured and predicted tracks", styles, contents)
+        where = position((lon, lat))
+        contents.append(kml.point(f"{_predicted(name, predicted_is_demo)} landing", where, "predicted"))
+    title = f"{name} recovery" + (f" (prediction on {DEMO_LABEL})" if predicted_is_demo else "")
+    document = kml.document(title, f"{name}: measured and predicted tracks", styles, contents)
     return write_text(path, document, "KML")

@@ -52,7 +52,7 @@ def test_predict_refuses_two_dashes_before_computing_anything(capsys: pytest.Cap
     assert "only one output can be '-'" in capsys.readouterr().err
 
 
-def test_recovery_gpx_dash_prints_the_gpx_with_the_predicted_landing_of_a_path_cut_at_180(
+def test_recovery_gpx_dash_prints_the_gpx_with_the_demo_predicted_landing_of_a_path_cut_at_180(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     config = tmp_path / "drs.toml"
@@ -68,14 +68,15 @@ def test_recovery_gpx_dash_prints_the_gpx_with_the_predicted_landing_of_a_path_c
     predicted = tmp_path / "prediction.geojson"
     path = geojson.line([(179.9, -44.7, 9000.0), (-179.9, -44.6, 600.0)])
     assert path["type"] == "MultiLineString"
-    predicted.write_text(json.dumps({"type": "FeatureCollection", "features": [
-        {"type": "Feature", "properties": {"kind": "path"}, "geometry": path}]}))  # fmt: skip
+    about = geojson.Provenance("DRS landing prediction (DEMO WEATHER, NOT A FORECAST)", "demo", is_demo=True)
+    predicted.write_text(geojson.dumps(geojson.collection([geojson.feature(path, "path", about)], about)))
     argv = ["--config", str(config), "recovery", "DRS1", "--predicted", str(predicted), "--gpx", "-"]
     assert main(argv) == 0
     out, err = capsys.readouterr()
     gpx = gpxpy.parse(out)
-    [landing] = [w for w in gpx.waypoints if w.name == "DRS1 PRED LAND"]
+    [landing] = [w for w in gpx.waypoints if w.name == "DEMO PRED LAND"]  # the prediction was demo
     assert (landing.latitude, landing.longitude) == (-44.6, -179.9)
+    assert "DEMO WEATHER" in landing.description and "DEMO WEATHER" in gpx.tracks[-1].name
     assert err.startswith("DRS1 not landed: last fix 44.70000 S 179.90000 E")
 
 

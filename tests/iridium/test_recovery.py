@@ -179,3 +179,23 @@ def test_without_any_fix_the_summary_gives_the_iridium_position_and_cep() -> Non
     )
     assert text.endswith("° from you")
     assert phone_summary("DRS1", None, None, None) == "DRS1: no report with a position yet"
+
+
+def test_a_prediction_on_demo_weather_is_named_demo_in_both_recovery_files(
+    shared_data: Path, tmp_path: Path
+) -> None:
+    track = track_from_reports(flight_reports(shared_data / "tracks" / "pyballoon_superbit" / "18-5-6.csv"))
+    predicted = [(46.63, 7.05, 25000.0), (46.57, 6.79, 700.0)]
+    write_gpx(tmp_path / "t.gpx", "DRS1", track, predicted, detect_landing(track), predicted_is_demo=True)
+    write_kml(tmp_path / "t.kml", "DRS1", track, predicted, detect_landing(track), predicted_is_demo=True)
+    ns = {"g": "http://www.topografix.com/GPX/1/1", "k": "http://www.opengis.net/kml/2.2"}
+    gpx = ET.parse(tmp_path / "t.gpx").getroot()
+    names = [w.findtext("g:name", namespaces=ns) for w in gpx.findall("g:wpt", ns)]
+    assert names == ["DRS1 LAND", "DEMO PRED LAND"]
+    kml = ET.parse(tmp_path / "t.kml").getroot()
+    assert "DEMO WEATHER" in kml.findtext("k:Document/k:name", namespaces=ns)
+    names = [p.findtext("k:name", namespaces=ns) for p in kml.iter(f"{{{ns['k']}}}Placemark")]
+    assert [n for n in names if "DEMO" in n] == [
+        "DRS1 predicted (DEMO WEATHER, NOT A FORECAST)",
+        "DRS1 predicted (DEMO WEATHER, NOT A FORECAST) landing",
+    ]
