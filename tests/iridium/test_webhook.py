@@ -333,6 +333,18 @@ def test_digits_other_than_ascii_are_refused_with_400(store: Store, body: bytes)
     assert ReportStore(store).for_imei(IMEI) == []
 
 
+def test_a_serial_in_other_digits_keeps_the_report_without_the_serial(store: Store) -> None:
+    """``serial=²`` on an otherwise valid report once lost the report: the serial is optional, the report is not."""
+    body = f"imei={IMEI}&momsn=7&serial=%C2%B2&data={format_mo(fix_at(T0), 8.9, 3).hex()}".encode()
+    server = serve(store, LOCAL)
+    try:
+        assert _post(server.url, body, "application/x-www-form-urlencoded") == 200
+    finally:
+        server.stop()
+    [stored] = ReportStore(store).for_imei(IMEI)
+    assert stored.report is not None and stored.report.iteration == 3 and stored.delivery.serial is None
+
+
 def test_json_nested_thousands_deep_gets_a_400_not_an_empty_reply(store: Store) -> None:
     server = serve(store, replace(LOCAL, max_body_bytes=1_000_000))
     try:
