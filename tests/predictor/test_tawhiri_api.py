@@ -25,8 +25,12 @@ import pytest
 
 from console.cli import build_parser, main
 from predictor.demo_weather import demo_weather_files
+from predictor.model import DescentRateScale
+from predictor.model_file import CalibratedModel, save_model
+from predictor.payload import Payload
 from predictor.serve_cli import build_server
 from predictor.tawhiri_api import ApiServer
+from predictor.uncertainty import ErrorModel
 
 LAUNCH = datetime(2024, 5, 1, 6, 0, tzinfo=UTC)
 LAUNCH_LAT, LAUNCH_LON = 52.2, -0.4
@@ -137,6 +141,14 @@ def test_a_descending_payload_is_predicted_from_where_it_is(server: ApiServer) -
     assert descent[0]["altitude"] == 12001 and descent[-1]["altitude"] == 0.0
 
 
+def test_without_a_launch_altitude_the_flight_starts_on_the_ground(server: ApiServer) -> None:
+    """Tawhiri looks the launch altitude up in its elevation data; ours is the served terrain (sea level here)."""
+    status, _, body = get(server, chasemapper_query(launch_altitude=None))
+    document = json.loads(body)
+    assert status == 200 and document["request"]["launch_altitude"] == 0.0
+    assert document["prediction"][0]["trajectory"][0]["altitude"] == 0.0
+
+
 def test_csv_and_kml_carry_the_same_trajectory(server: ApiServer) -> None:
     _, _, body = get(server, chasemapper_query())
     document = json.loads(body)
@@ -194,3 +206,39 @@ def test_the_command_refuses_a_weather_dir_that_is_not_there(
 ) -> None:
     assert main(["serve", "predictor", "--port", "0", "--weather-dir", str(tmp_path / "none")]) != 0
     assert "--weather-dir" in capsys.readouterr().err
+
+
+def test_the_descent_flies_the_selected_model_as_drs_predict_does(
+    server: ApiServer, weather: list[Path], cache: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    model = CalibratedModel(
+        Payload(6.0, 1.36, name="fitted-test", source="fitted"), (DescentRateScale(scale=1.3),),
+        ErrorModel(1.2, 5e-4, 0.0, 1.3, name="calibrated"), {"flights": ["test"]},
+    )  # fmt: skip
+    path = save_model(model, tmp_path / "model.json")
+    argv = ["serve", "predictor", "--port", "0", "--weather", *map(str, weather), "--cache-dir", cache,
+            "--model", str(path)]  # fmt: skip
+    flown = build_server(build_parser("serve").parse_args(argv))
+    thread = threading.Thread(target=flown.serve_forever, daemon=True)
+    thread.start()
+    try:
+        document = json.loads(get(flown, chasemapper_query())[2])
+    finally:
+        flown.shutdown()
+        flown.server_close()
+    default = json.loads(get(server, chasemapper_query())[2])
+    assert document["prediction"][0] == default["prediction"][0], "the ascent does not depend on the model"
+    ours = document["drs"]
+    assert ours["model"]["path"] == str(path) and ours["model"]["payload"]["name"] == "fitted-test"
+    assert ours["ellipse"]["error_model"]["name"] == "calibrated"
+    burst, landing = document["prediction"][1]["trajectory"][0], document["prediction"][1]["trajectory"][-1]
+    assert landing != default["prediction"][1]["trajectory"][-1]
+    assert main([
+        "predict", "--weather", *map(str, weather), "--cache-dir", cache, "--json", "--model", str(path),
+        "--lat", repr(burst["latitude"]), "--lon", repr(burst["longitude"] - 360 if burst["longitude"] > 180 else burst["longitude"]),
+        "--alt", "30000", "--time", burst["datetime"],
+    ]) == 0  # fmt: skip
+    predicted = json.loads(capsys.readouterr().out)["landing"]
+    assert (landing["latitude"], landing["longitude"] % 360) == pytest.approx(
+        (predicted["lat"], predicted["lon"] % 360), abs=1e-9
+    )
