@@ -42,6 +42,7 @@ COMMAND_MODULES: dict[str, str] = {
     "recovery": "drs_link.iridium.cli",
     "balloon": "drs_link.balloon_cli",
     "approve": "drs_link.approval_cli",
+    "chase": "drs_link.chase_cli",
     "serve": "predictor.serve_cli",
     "console": "console.console_cli",
     "demo": "console.console_cli",
