@@ -9,6 +9,9 @@ own their tables: they call ``ensure_schema`` with their DDL instead of editing 
 from __future__ import annotations
 
 import json
+import os
+import pwd
+import socket
 import sqlite3
 import threading
 from collections.abc import Iterator
@@ -28,10 +31,20 @@ CREATE TABLE IF NOT EXISTS audit (
     capsule TEXT,
     action TEXT NOT NULL,
     result TEXT NOT NULL,
-    detail TEXT
+    detail TEXT,
+    session TEXT
 );
 CREATE INDEX IF NOT EXISTS audit_capsule_time ON audit (capsule, time_utc);
 """
+_AUDIT_SESSION_COLUMN = "ALTER TABLE audit ADD COLUMN session TEXT"
+"""Stores made before the session column get it on first open (SQLite adds it in place, NULL for old rows)."""
+
+
+def session_name() -> str:
+    """Which process wrote a row: the OS account, the host and the process id. Several consoles share
+    one store (two operators, each in their own SSH session); each must see what the other did, and
+    who did it."""
+    return f"{pwd.getpwuid(os.geteuid()).pw_name}@{socket.gethostname()} pid {os.getpid()}"
 
 
 def utc_now() -> datetime:
@@ -58,6 +71,8 @@ class AuditRecord:
     action: str
     result: str
     detail: dict[str, Any] | None
+    session: str | None = None
+    """The process that wrote it (``session_name``); None for rows older than the column."""
 
 
 class Store:
@@ -68,6 +83,7 @@ class Store:
         self._local = threading.local()
         self._schemas: list[str] = []
         self._schema_lock = threading.Lock()
+        self.session = session_name()
         self._writer = threading.RLock()
         """Writers of this process take turns here before SQLite's lock. Left to SQLite, a thread that
         finds the database locked sleeps in its busy handler (1, 2, 5 … 100 ms a try), and with 20
@@ -90,7 +106,23 @@ class Store:
             raise StoreError(f"cannot create the store {path}: {exc}") from None
         store = cls(path)
         store.ensure_schema(_AUDIT_DDL)
+        store._add_session_column()
         return store
+
+    def _add_session_column(self) -> None:
+        columns = {row["name"] for row in self.query("PRAGMA table_info(audit)")}
+        if "session" in columns:
+            return
+        try:
+            self.conn.execute(_AUDIT_SESSION_COLUMN)
+        except sqlite3.OperationalError as exc:
+            if "duplicate column" not in str(exc):  # another process added it first
+                raise StoreError(f"cannot update the store {self.path}: {exc}") from None
+
+    def data_version(self) -> int:
+        """SQLite's count of commits by OTHER connections, as this thread's connection sees it: one
+        cheap PRAGMA, no table read, so a console can ask it every half second."""
+        return int(self.query("PRAGMA data_version")[0][0])
 
     def _connect(self) -> sqlite3.Connection:
         try:
@@ -188,10 +220,11 @@ class Store:
         moment = when or utc_now()
         detail_json = json.dumps(detail, sort_keys=True, default=str) if detail is not None else None
         row_id = self.write(
-            "INSERT INTO audit (time_utc, operator, capsule, action, result, detail) VALUES (?, ?, ?, ?, ?, ?)",
-            (iso_utc(moment), operator, capsule, action, result, detail_json),
+            "INSERT INTO audit (time_utc, operator, capsule, action, result, detail, session) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?)",
+            (iso_utc(moment), operator, capsule, action, result, detail_json, self.session),
         )
-        return AuditRecord(row_id, moment, operator, capsule, action, result, detail)
+        return AuditRecord(row_id, moment, operator, capsule, action, result, detail, self.session)
 
     def audit(
         self, capsule: str | None = None, text: str | None = None, limit: int | None = None
@@ -217,6 +250,7 @@ class Store:
                 row["action"],
                 row["result"],
                 json.loads(row["detail"]) if row["detail"] else None,
+                row["session"],
             )
             for row in self.query(sql, tuple(params))
         ]
