@@ -17,6 +17,7 @@ from pathlib import Path
 from drs_link.errors import LinkError
 from drs_link.iridium.reports import StoredReport
 from predictor.calibration.tracks import Fix, write_canonical_csv
+from predictor.geofiles.output import EXPORT_MODE
 
 
 @dataclass(frozen=True)
@@ -76,6 +77,8 @@ def export_track(reports: list[StoredReport], path: Path, who: str, overwrite: b
         raise LinkError(f"--out {path}: the directory {path.parent} does not exist")
     temporary = path.with_name(f".{path.name}.part")
     try:
+        temporary.unlink(missing_ok=True)
+        os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, EXPORT_MODE))  # before any fix is in it
         write_canonical_csv(fixes, temporary)
         os.replace(temporary, path)
     except OSError as exc:

@@ -7,12 +7,16 @@ so that the piped document stays parseable.
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
 from predictor.errors import PredictorError, UsageError
 
 STDOUT = "-"
+EXPORT_MODE = 0o640
+"""Exports are created for the owner and its group, never for everyone: a track or a landing says where
+a capsule lies. The umask may take more away, never add."""
 
 
 def is_stdout(path: str | Path | bool | None) -> bool:
@@ -33,14 +37,15 @@ def piped(**outputs: str | Path | bool | None) -> bool:
 
 
 def write_text(path: str | Path, text: str, what: str) -> Path:
-    """Write ``text`` to ``path``, or to standard output when ``path`` is ``-``."""
+    """Write ``text`` to ``path`` (created ``EXPORT_MODE``), or to standard output when ``path`` is ``-``."""
     out = Path(path)
     if is_stdout(path):
         sys.stdout.write(text if text.endswith("\n") else text + "\n")
         sys.stdout.flush()
         return out
     try:
-        out.write_text(text, encoding="utf-8")
+        with os.fdopen(os.open(out, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, EXPORT_MODE), "w", encoding="utf-8") as f:
+            f.write(text)
     except OSError as exc:
         raise PredictorError(f"cannot write the {what} file {out}: {exc.strerror or exc}") from None
     return out
