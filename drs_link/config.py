@@ -14,6 +14,7 @@ there is still used, with a warning that says where it belongs now, so no launch
 from __future__ import annotations
 
 import dataclasses
+import ipaddress
 import logging
 import math
 import os
@@ -97,6 +98,9 @@ class MoConfig:
     require_jwt: bool = True
     """Unsigned deliveries are refused unless the operator opts out (a forged landing fix misleads recovery)."""
     max_body_bytes: int = 16384
+    trusted_proxy: str = ""
+    """The reverse proxy's address as the receiver sees it (``127.0.0.1``): only its X-Forwarded-For names the
+    client in the audit; "" trusts none (a header anyone can write would let them forge the sender)."""
 
 
 @dataclass(frozen=True)
@@ -308,6 +312,14 @@ def _check_sections(sections: dict[str, Any]) -> None:
         _check_range("mo.listen_port", mo.listen_port, 0, 65535, "a TCP port; 0 picks a free one")
         _check_range("mo.max_body_bytes", mo.max_body_bytes, 256, 1_048_576,
                      "a gateway delivery is under 1 kB; below 256 every post would be refused")  # fmt: skip
+        if mo.trusted_proxy:
+            try:
+                ipaddress.ip_address(mo.trusted_proxy)
+            except ValueError:
+                raise ConfigError(
+                    f"mo.trusted_proxy: {mo.trusted_proxy!r} must be the proxy's IP address as the receiver "
+                    "sees it (e.g. 127.0.0.1), not a name"
+                ) from None
         if not mo.path.startswith("/") or any(c.isspace() for c in mo.path):
             raise ConfigError(f"mo.path: {mo.path!r} must start with / and contain no spaces (every post would get 404)")
     console: ConsoleConfig | None = sections.get("console")

@@ -7,11 +7,14 @@ turns refusals into one-line errors (console/cli.py prints LinkError as ``drs: e
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import logging
 import math
 import re
+import signal
 import sys
-import threading
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
@@ -52,6 +55,7 @@ from predictor.geofiles.output import piped
 from predictor.plausibility import emit, far_team_warning
 
 _IMEI_RE = re.compile(r"\d{15}")
+log = logging.getLogger(__name__)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -116,7 +120,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     serve = mo_actions.add_parser("serve", help="receive the gateway's webhook deliveries ([mo] config)")
     serve.add_argument("--host", help="override mo.listen_host")
     serve.add_argument("--port", type=int, help="override mo.listen_port (0: any free port)")
-    serve.set_defaults(func=_mo_serve)
+    serve.set_defaults(func=_mo_serve, log_default=logging.INFO)  # a service: its access log is its record
     importer = mo_actions.add_parser(
         "import", help="store saved SBD attachments (RockBLOCK or Iridium-direct file names)"
     )
@@ -345,20 +349,38 @@ def _mo_serve(args: argparse.Namespace) -> int:
         for command in life.observe_store(reports, stored.delivery.imei):
             print(f"MT {command.id} {command.text}: {command.state}", flush=True)
 
-    try:
-        server = MoHttpServer(MoReceiver(reports, mo_config, after_answer)).start()
-    except OSError as exc:
-        raise LinkError(
-            f"cannot listen on {mo_config.listen_host}:{mo_config.listen_port}: {exc.strerror}"
-        ) from None
-    print(f"listening on {server.url} (Ctrl-C to stop)", flush=True)
-    try:
-        threading.Event().wait()
-    except KeyboardInterrupt:
-        print("stopping", flush=True)
-    finally:
-        server.stop()
+    with _stop_signals() as wait_for_stop:
+        try:
+            server = MoHttpServer(MoReceiver(reports, mo_config, after_answer)).start()
+        except OSError as exc:
+            raise LinkError(
+                f"cannot listen on {mo_config.listen_host}:{mo_config.listen_port}: {exc.strerror}"
+            ) from None
+        print(f"listening on {server.url} (Ctrl-C or SIGTERM stops it, after answering what has arrived)", flush=True)
+        log.info("listening", extra={"url": server.url, "trusted_proxy": mo_config.trusted_proxy or "none"})
+        log.info("stopping", extra={"signal": wait_for_stop()})
+        unanswered = server.stop()
+    log.info("stopped", extra={"unanswered": unanswered})
     return 0
+
+
+_STOP_SIGNALS = {signal.SIGTERM, signal.SIGINT}
+
+
+@contextlib.contextmanager
+def _stop_signals() -> Iterator[Callable[[], str]]:
+    """A wait for SIGTERM (systemd's stop) or SIGINT (Ctrl-C) that returns its name, so the server drains.
+
+    Python's default for SIGTERM ends the process at once, with whatever was in flight unanswered. The
+    signals are blocked before any server thread starts (threads inherit the mask) and taken with
+    ``sigwait``: no handler runs at an arbitrary moment, where setting an Event could deadlock on a lock
+    the interrupted code holds.
+    """
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    try:
+        yield lambda: signal.Signals(signal.sigwait(_STOP_SIGNALS)).name
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _mo_import(args: argparse.Namespace) -> int:

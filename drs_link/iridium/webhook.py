@@ -4,14 +4,24 @@ The gateway wants HTTP 200 within 3 s, so a request is only checked (size, signa
 fields), stored durably, and answered; anything heavier (command lifecycle, health) runs on a
 worker thread after the answer has gone out. A report stored but never answered would be
 delivered again, which the (imei, momsn, payload) de-duplication absorbs.
+
+The server is the standard library's, kept small on purpose: it listens on loopback behind a TLS
+reverse proxy (Caddy or nginx, docs/iridium.md) that faces the internet, so TLS, certificates and
+slow or hostile clients are the proxy's job. Every request gets one access-log record; the
+client's address is the peer's, or, only when the peer is ``mo.trusted_proxy``, the last address
+of its X-Forwarded-For (anyone else could write any address there and forge the audit trail).
+``stop`` drains: no new connection is taken, the requests in progress are answered, then the
+after-answer work ends, so SIGTERM from systemd never cuts a report between its store and its 200.
 """
 
 from __future__ import annotations
 
+import ipaddress
 import json
 import logging
 import queue
 import threading
+import time
 from collections.abc import Callable
 from datetime import UTC, datetime
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -27,6 +37,11 @@ from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
 from drs_link.store import utc_now
 
 log = logging.getLogger(__name__)
+access_log = logging.getLogger(f"{__name__}.access")
+
+DRAIN_S = 10.0
+"""How long ``stop`` waits for requests in progress: a handler's socket timeout, so only a client that
+trickles its body slower than that is cut off (it got no 200, so the gateway delivers again)."""
 
 JWT_ALGORITHMS = ["RS256"]
 _MUST_BE_SIGNED = ("imei", "momsn", "data")
@@ -206,13 +221,53 @@ class MoReceiver:
         return 200, "OK", stored
 
 
+def _address(text: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
+    """The address, with an IPv4-mapped IPv6 one (``::ffff:127.0.0.1``) as the IPv4 it is."""
+    try:
+        address = ipaddress.ip_address(text.strip())
+    except ValueError:
+        return None
+    mapped = address.ipv4_mapped if isinstance(address, ipaddress.IPv6Address) else None
+    return mapped or address
+
+
 class _Handler(BaseHTTPRequestHandler):
     server: MoHttpServer
-    timeout = 10.0
+    timeout = DRAIN_S
     """Seconds a stalled client may hold its connection (each has its own thread; this bounds them)."""
 
+    def setup(self) -> None:
+        super().setup()
+        self._started = time.monotonic()
+
+    def client(self) -> tuple[str, dict[str, str]]:
+        """Who sent the request as the audit records it, and the access log's fields saying how that was decided."""
+        peer = self.client_address[0]
+        forwarded = self.headers.get("X-Forwarded-For") if getattr(self, "headers", None) else None
+        if not forwarded:
+            return peer, {"client": peer}
+        if self.server.trusted_proxy is None or _address(peer) != self.server.trusted_proxy:
+            return peer, {"client": peer, "forwarded_ignored": forwarded}
+        client = _address(forwarded.split(",")[-1])  # the one the proxy appended: earlier ones are the client's say
+        if client is None:
+            return peer, {"client": peer, "forwarded_unreadable": forwarded}
+        return f"{client} via {peer}", {"client": str(client), "proxy": peer}
+
+    def log_request(self, code: int | str = "-", size: int | str = "-") -> None:
+        """The access log: one record a request, with the query string left out (it is never ours to keep)."""
+        path = getattr(self, "path", "").split("?")[0]
+        fields = {
+            **self.client()[1],
+            "method": getattr(self, "command", None) or "-",
+            "path": path or "-",
+            "status": int(code) if str(code).isdigit() else code,
+            "request_bytes": self.headers.get("Content-Length", "-") if getattr(self, "headers", None) else "-",
+            "ms": round(1000 * (time.monotonic() - self._started), 1),
+        }
+        access_log.info("%s %s %s", fields["method"], fields["path"], fields["status"], extra=fields)
+
     def log_message(self, format: str, *args: object) -> None:  # noqa: A002 - the stdlib's signature
-        log.info("%s %s", self.address_string(), format % args)
+        log.warning(format % args, extra=self.client()[1])
 
     def _answer(self, status: int, text: str) -> None:
         encoded = (text + "\n").encode("utf-8")
@@ -227,6 +282,7 @@ class _Handler(BaseHTTPRequestHandler):
 
     def do_POST(self) -> None:  # noqa: N802 - the stdlib's name
         receiver = self.server.receiver
+        remote = self.client()[0]
         if self.path.split("?")[0] != receiver.config.path:
             self._answer(404, "unknown path")
             return
@@ -238,9 +294,7 @@ class _Handler(BaseHTTPRequestHandler):
         length = int(length_text)
         if length > receiver.config.max_body_bytes:
             self.close_connection = True
-            receiver.reports.reject_delivery(
-                receiver.clock(), self.client_address[0], f"body of {length} bytes over the limit", ""
-            )
+            receiver.reports.reject_delivery(receiver.clock(), remote, f"body of {length} bytes over the limit", "")
             self._answer(413, f"body over {receiver.config.max_body_bytes} bytes")
             return
         body = self.rfile.read(length)
@@ -248,9 +302,7 @@ class _Handler(BaseHTTPRequestHandler):
             self.close_connection = True
             self._answer(400, f"body of {len(body)} bytes is shorter than its Content-Length {length}")
             return
-        status, text, stored = receiver.handle(
-            self.headers.get("Content-Type", ""), body, self.client_address[0]
-        )
+        status, text, stored = receiver.handle(self.headers.get("Content-Type", ""), body, remote)
         self._answer(status, text)
         if stored is not None:
             self.server.after_answer.put(stored)
@@ -258,14 +310,42 @@ class _Handler(BaseHTTPRequestHandler):
 
 class MoHttpServer(ThreadingHTTPServer):
     daemon_threads = True
+    block_on_close = False
+    """``stop`` drains, with a deadline; the stdlib's close would wait for every thread without one."""
     request_queue_size = 128
     """The listen backlog: the stdlib's 5 reset connections when 20 clients posted at once."""
 
     def __init__(self, receiver: MoReceiver) -> None:
         super().__init__((receiver.config.listen_host, receiver.config.listen_port), _Handler)
         self.receiver = receiver
+        self.trusted_proxy = _address(receiver.config.trusted_proxy) if receiver.config.trusted_proxy else None
         self.after_answer: queue.Queue[StoredReport | None] = queue.Queue()
         self._service_threads: list[threading.Thread] = []
+        self._in_flight = 0
+        self._idle = threading.Condition()
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        with self._idle:
+            self._in_flight += 1
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self._finished()
+            raise
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._finished()
+
+    def _finished(self) -> None:
+        with self._idle:
+            self._in_flight -= 1
+            self._idle.notify_all()
+
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        log.exception("request from %s failed", client_address[0])
 
     @property
     def url(self) -> str:
@@ -293,9 +373,21 @@ class MoHttpServer(ThreadingHTTPServer):
             thread.start()
         return self
 
-    def stop(self) -> None:
+    def stop(self, drain_s: float = DRAIN_S) -> int:
+        """Take no more connections, answer the requests in progress, finish the after-answer work.
+
+        Returns how many requests were still unanswered at the deadline (their clients got no 200).
+        """
         self.shutdown()
+        self.server_close()  # connections still in the backlog are refused now, not left to time out
+        with self._idle:
+            if self._in_flight:
+                log.info("draining", extra={"in_flight": self._in_flight})
+            self._idle.wait_for(lambda: self._in_flight == 0, timeout=drain_s)
+            cut_off = self._in_flight
+        if cut_off:
+            log.warning("stopped with requests unanswered; their senders retry", extra={"unanswered": cut_off})
         self.after_answer.put(None)
-        self.server_close()
         for thread in self._service_threads:
             thread.join(timeout=5)
+        return cut_off
