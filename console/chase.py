@@ -64,7 +64,11 @@ class LandingKeeper:
                 continue
             prediction, kind = found
             kml = chase_kml_path(self.config.data.dir, capsule)
-            self.store.keep(capsule, prediction, kind, prediction.release.time, kml)
+            try:
+                self.store.keep(capsule, prediction, kind, prediction.release.time, kml)
+            except (PredictorError, OSError) as exc:  # the positions still go out; the next round retries
+                log.warning("chase feed: cannot keep %s's prediction at %s: %s", capsule, kml, exc)
+                continue
             self._kept[capsule] = prediction
 
     def points(self) -> list[ChasePoint]:

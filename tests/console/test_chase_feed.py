@@ -9,6 +9,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from datetime import timedelta
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -16,7 +17,7 @@ from console.app import ConsoleSetup
 from console.chase import started_chase_feed
 from console.predictions import PredictionService, ReleaseOrigin
 from drs_link.chase import chase_kml_path
-from drs_link.config import parse_config
+from drs_link.config import Config, parse_config
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.operations import Operations
@@ -39,12 +40,11 @@ def listener() -> Iterator[socket.socket]:
     sock.close()
 
 
-def test_the_console_sends_its_capsules_and_their_live_and_release_now_landings_but_none_once_landed(
-    tmp_path: Path, listener: socket.socket
-) -> None:
+def console_with_three_capsules(tmp_path: Path, port: int) -> tuple[Config, ConsoleSetup, PredictionService]:
+    """DRS1 descending (three Iridium fixes), DRS2 on the balloon (release-now only), DRS3 landed."""
     config = parse_config({
         "data": {"dir": str(tmp_path / "data")},
-        "chase": {"udp": f"127.0.0.1:{listener.getsockname()[1]}"},
+        "chase": {"udp": f"127.0.0.1:{port}"},
         "capsule": [{"name": "DRS1", "host": "127.0.0.1", "port": 9, "imei": IMEI},
                     {"name": "DRS2", "host": "127.0.0.1", "port": 9},
                     {"name": "DRS3", "host": "127.0.0.1", "port": 9, "imei": LANDED_IMEI}],
@@ -68,16 +68,31 @@ def test_the_console_sends_its_capsules_and_their_live_and_release_now_landings_
         mode="live", capsules=["DRS1", "DRS2", "DRS3"], store=store, clock=lambda: NOW,
         operations=Operations(config, store, clock=lambda: NOW), predictions=service,
     )  # fmt: skip
+    return config, setup, service
+
+
+def one_round(
+    listener: socket.socket, config: Config, setup: ConsoleSetup, count: int
+) -> list[dict[str, Any]]:
+    """The ``count`` packets of the feed's first round, and proof there are no more before the next."""
     feed = started_chase_feed(config, setup)
     assert feed is not None
     try:
-        packets = [json.loads(listener.recv(32768)) for _ in range(4)]
+        packets = [json.loads(listener.recv(32768)) for _ in range(count)]
         listener.settimeout(2.0)  # the rest of the round, well before the next one 10 s later
         with pytest.raises(TimeoutError):
             packets.append(json.loads(listener.recv(32768)))
     finally:
         feed.stop()
-        store.close()
+        setup.store.close()
+    return packets
+
+
+def test_the_console_sends_its_capsules_and_their_live_and_release_now_landings_but_none_once_landed(
+    tmp_path: Path, listener: socket.socket
+) -> None:
+    config, setup, service = console_with_three_capsules(tmp_path, listener.getsockname()[1])
+    packets = one_round(listener, config, setup, 4)
     by_name = {p["callsign"]: p for p in packets}
     assert set(by_name) == {"DRS1", "DRS1_LAND", "DRS2_LAND", "DRS3"}, "DRS2 has no fix yet, DRS3 has landed"
     assert (
@@ -103,3 +118,12 @@ def test_no_chase_feed_without_its_configuration(tmp_path: Path) -> None:
     )
     setup = ConsoleSetup(mode="live", capsules=["DRS1"], store=Store.open(config.store_path))
     assert started_chase_feed(config, setup) is None
+
+
+def test_a_kml_that_cannot_be_written_does_not_stop_the_positions(
+    tmp_path: Path, listener: socket.socket
+) -> None:
+    config, setup, _ = console_with_three_capsules(tmp_path, listener.getsockname()[1])
+    chase_kml_path(config.data.dir, "DRS1").parent.write_text("a file where the directory should be")
+    packets = one_round(listener, config, setup, 2)
+    assert [p["callsign"] for p in packets] == ["DRS1", "DRS3"], "no landing is sent that was not kept"
