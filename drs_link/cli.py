@@ -258,9 +258,9 @@ def cmd_go(args: argparse.Namespace) -> int:
 
 def cmd_authority(args: argparse.Namespace) -> int:
     if args.take_over and args.release:
-        raise LinkError(f"{args.name}: authority: --take-over and --release cannot be combined")
+        raise UsageError(f"{args.name}: authority: --take-over and --release cannot be combined")
     if args.confirm is not None and not args.take_over:
-        raise LinkError(f"{args.name}: authority: --confirm only confirms --take-over")
+        raise UsageError(f"{args.name}: authority: --confirm only confirms --take-over")
     machine, link = _machine(args, need_operator=args.take_over or args.release)
     try:
         if args.release:

@@ -21,7 +21,7 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from predictor.errors import PredictorError
+from predictor.errors import PredictorError, UsageError
 from predictor.geofiles.output import piped
 from predictor.payload import PROFILES
 from predictor.plausibility import emit, release_altitude_warning
@@ -127,11 +127,11 @@ def run(args: argparse.Namespace) -> int:
     if args.weather is None and not args.demo_weather:
         missing.insert(0, "--weather (or --demo-weather)")
     if missing:
-        raise PredictorError(f"drs predict needs {', '.join(missing)}")
+        raise UsageError(f"drs predict needs {', '.join(missing)}")
     if args.weather is not None and args.demo_weather:
-        raise PredictorError("give either --weather or --demo-weather, not both")
+        raise UsageError("give either --weather or --demo-weather, not both")
     if args.members is not None and not 1 <= args.members <= MAX_MEMBERS:
-        raise PredictorError(f"--members {args.members}: give 1 to {MAX_MEMBERS:,} (10 million needed 24 GB)")
+        raise UsageError(f"--members {args.members}: give 1 to {MAX_MEMBERS:,} (10 million needed 24 GB)")
     emit(release_altitude_warning(args.alt))
     summary_to = (
         sys.stderr if piped(kml=args.kml, geojson=args.geojson, gpx=args.gpx, json=args.json) else sys.stdout
@@ -211,9 +211,9 @@ def parse_time(text: str) -> datetime:
     try:
         when = datetime.fromisoformat(text.strip())
     except ValueError:
-        raise PredictorError(f"--time {text!r} is not an ISO 8601 time such as 2024-05-01T06:30Z") from None
+        raise UsageError(f"--time {text!r} is not an ISO 8601 time such as 2024-05-01T06:30Z") from None
     if when.tzinfo is None:
-        raise PredictorError(f"--time {text!r} has no time zone; give UTC explicitly, e.g. {text}Z")
+        raise UsageError(f"--time {text!r} has no time zone; give UTC explicitly, e.g. {text}Z")
     return when.astimezone(UTC)
 
 

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from predictor.cube import WeatherCube
-from predictor.errors import PredictorError
+from predictor.errors import PredictorError, UsageError
 from predictor.live import (
     DEFAULT_LIVE,
     NO_CORRECTION,
@@ -300,6 +300,6 @@ def flown_model(
     so both together are refused rather than one silently winning."""
     if model_path is not None:
         if profile is not None or mass_kg is not None or cda_m2 is not None:
-            raise PredictorError("give --model or --payload/--mass/--cda, not both: the model carries its payload")
+            raise UsageError("give --model or --payload/--mass/--cda, not both: the model carries its payload")
         return load_model(model_path)
     return CalibratedModel(payload_profile(profile or "drs").overridden(mass_kg=mass_kg, cda_m2=cda_m2), (), None)

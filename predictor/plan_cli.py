@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from predictor.errors import PredictorError
+from predictor.errors import PredictorError, UsageError
 from predictor.payload import PROFILES
 
 BENCH_START = datetime(2024, 5, 1, 6, 0, tzinfo=UTC)
@@ -106,9 +106,9 @@ def _parse_time(text: str, flag: str) -> datetime:
     try:
         when = datetime.fromisoformat(text.strip().replace("Z", "+00:00"))
     except ValueError:
-        raise PredictorError(f"{flag} {text!r} is not an ISO 8601 time such as 2024-05-01T06:30Z") from None
+        raise UsageError(f"{flag} {text!r} is not an ISO 8601 time such as 2024-05-01T06:30Z") from None
     if when.tzinfo is None:
-        raise PredictorError(f"{flag} {text!r} has no time zone; give UTC explicitly, e.g. {text}Z")
+        raise UsageError(f"{flag} {text!r} has no time zone; give UTC explicitly, e.g. {text}Z")
     return when.astimezone(UTC)
 
 
@@ -119,7 +119,7 @@ def run_plan(args: argparse.Namespace) -> int:
                 "--from": args.start}  # fmt: skip
     missing = [flag for flag, value in required.items() if value is None]
     if missing:
-        raise PredictorError(f"drs plan needs {', '.join(missing)}")
+        raise UsageError(f"drs plan needs {', '.join(missing)}")
     from predictor.cli import weather_bbox
     from predictor.geofiles.output import piped
     from predictor.model_file import flown_model
@@ -278,7 +278,7 @@ def _day(text: str | None) -> date | None:
     try:
         return datetime.strptime(text, "%Y-%m-%d").date()
     except ValueError:
-        raise PredictorError(f"--date {text!r} is not a date such as 2019-07-28") from None
+        raise UsageError(f"--date {text!r} is not a date such as 2019-07-28") from None
 
 
 def run_live(args: argparse.Namespace) -> int:
@@ -294,9 +294,9 @@ def run_live(args: argparse.Namespace) -> int:
     if args.action == "bench":
         return run_live_bench(args)
     if not args.track:
-        raise PredictorError("drs live needs --track FILE")
+        raise UsageError("drs live needs --track FILE")
     if not args.weather and not args.ascent_winds:
-        raise PredictorError("drs live needs --weather FILE... or --ascent-winds")
+        raise UsageError("drs live needs --weather FILE... or --ascent-winds")
     flight = clean(read_track(args.track, day=_day(args.date)))
     if flight.descent_start is None or not flight.descent:
         reason = "; ".join(flight.exclusions) or "no descent found"
@@ -350,9 +350,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
     from predictor.planning.live_evaluation import evaluate, live_settings, write_report
 
     if not args.tracks:
-        raise PredictorError("drs live evaluate needs track files")
+        raise UsageError("drs live evaluate needs track files")
     if args.save_model and args.model is None:
-        raise PredictorError("drs live evaluate --save-model needs --model: live settings belong to a model's law")
+        raise UsageError("drs live evaluate --save-model needs --model: live settings belong to a model's law")
     started = time.perf_counter()
     # Two laws are compared: the model's, and the textbook law of the same payload (its profile
     # without calibrated terms), so the difference is the law and not the mass or Cd·A.
@@ -384,6 +384,6 @@ def run_live_bench(args: argparse.Namespace) -> int:
     from predictor.planning.live_bench import bench
 
     if not args.tracks:
-        raise PredictorError("drs live bench needs track files")
+        raise UsageError("drs live bench needs track files")
     print(bench(args.tracks, load_model(args.model) if args.model is not None else None))
     return 0

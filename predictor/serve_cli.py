@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from predictor.errors import PredictorError
+from predictor.errors import PredictorError, UsageError
 
 if TYPE_CHECKING:  # the server loads the descent engine (numba): only when it is started
     from predictor.tawhiri_api import ApiServer
@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
 def build_server(args: argparse.Namespace) -> ApiServer:
     """The server the command line asks for, listening but not yet serving."""
     if not 0 <= args.port <= 65535:
-        raise PredictorError(f"--port {args.port} is not a TCP port (0-65535)")
+        raise UsageError(f"--port {args.port} is not a TCP port (0-65535)")
     if args.weather_dir is not None and not args.weather_dir.is_dir():
         raise PredictorError(f"--weather-dir {args.weather_dir} is not a directory")
     from predictor.model_file import flown_model

@@ -17,7 +17,7 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
 
-from predictor.errors import WeatherError
+from predictor.errors import UsageError
 from predictor.gfs_cache import SIZE_ONLY_KEEP, PruneResult, free_space_warning, prune
 from predictor.gfs_fetch import (
     AVAILABILITY_DELAY,
@@ -127,9 +127,9 @@ def parse_time(text: str) -> datetime:
     try:
         moment = datetime.fromisoformat(text.strip())
     except ValueError as exc:
-        raise WeatherError(f"--time {text!r} is not an ISO 8601 time such as 2024-05-01T06:30Z") from exc
+        raise UsageError(f"--time {text!r} is not an ISO 8601 time such as 2024-05-01T06:30Z") from exc
     if moment.tzinfo is None:
-        raise WeatherError(f"--time {text!r} has no time zone; add Z for UTC (e.g. {text}Z)")
+        raise UsageError(f"--time {text!r} has no time zone; add Z for UTC (e.g. {text}Z)")
     return moment.astimezone(UTC)
 
 
@@ -140,7 +140,7 @@ def default_gfs_dir() -> Path:
 
 def run_fetch(args: argparse.Namespace) -> int:
     if not -90.0 <= args.lat <= 90.0:
-        raise WeatherError(f"--lat {args.lat:g} is not a latitude")
+        raise UsageError(f"--lat {args.lat:g} is not a latitude")
     start = parse_time(args.time)
     grid = 0.5 if args.resolution == "0p50" else 0.25
     region = Region.around(args.lat, args.lon, args.radius_km, grid)
@@ -191,7 +191,7 @@ def run_prune(args: argparse.Namespace) -> int:
     max_bytes = None
     if args.max_gb is not None:
         if not (math.isfinite(args.max_gb) and args.max_gb > 0):
-            raise WeatherError(f"--max-gb must be a positive number of gigabytes, not {args.max_gb:g}")
+            raise UsageError(f"--max-gb must be a positive number of gigabytes, not {args.max_gb:g}")
         max_bytes = round(args.max_gb * 1e9)
     result = prune(
         args.dir or default_gfs_dir(),
@@ -288,7 +288,7 @@ def run_bench(args: argparse.Namespace) -> int:
 
     """Cold = no cube cache (the files themselves are in the OS page cache, just written)."""
     if args.files < 1 or args.repeat < 1 or args.grid <= 0 or args.size_deg < args.grid:
-        raise WeatherError("bench needs --files ≥ 1, --repeat ≥ 1 and a region at least one grid cell wide")
+        raise UsageError("bench needs --files ≥ 1, --repeat ≥ 1 and a region at least one grid cell wide")
     load_average = os.getloadavg()[0]  # the machine may be shared: say how busy it was
     levels = np.array(GFS_LEVELS_HPA, dtype=float)
     lats = np.arange(40.0, 40.0 + args.size_deg + 1e-9, args.grid)

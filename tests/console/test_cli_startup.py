@@ -93,5 +93,5 @@ def test_ensemble_size_is_bounded_and_the_bound_is_in_help(capsys: pytest.Captur
     from console.cli import main
 
     assert main(["predict", "--demo-weather", "--lat", "1", "--lon", "1", "--alt", "28000",
-                 "--time", "2026-01-01T00:00Z", "--members", "10000000"]) == 1  # fmt: skip
+                 "--time", "2026-01-01T00:00Z", "--members", "10000000"]) == 2  # fmt: skip
     assert "--members 10000000: give 1 to 100,000" in capsys.readouterr().err

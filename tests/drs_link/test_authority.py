@@ -384,18 +384,19 @@ def test_cli_refusals_and_usage_errors_are_one_line(
     _other_console(tmp_path, config, sim)
     monkeypatch.setattr("sys.stdin.isatty", lambda: False)
     cases = [
-        (("--take-over", "--confirm", "DRS1"), "take-over refused: a reason is required"),
+        (("--take-over", "--confirm", "DRS1"), "take-over refused: a reason is required", 1),
         (
             ("--take-over", "--reason", "x", "--confirm", "DRS2"),
             "the confirmation 'DRS2' does not name 'DRS1'",
+            1,
         ),
-        (("--take-over", "--reason", "x"), "pass --confirm DRS1, or run it in a terminal"),
-        (("--take-over", "--release", "--reason", "x"), "--take-over and --release cannot be combined"),
-        (("--confirm", "DRS1"), "--confirm only confirms --take-over"),
-        (("--release",), "the release authority belongs to JR@console2, not to this console"),
+        (("--take-over", "--reason", "x"), "pass --confirm DRS1, or run it in a terminal", 1),
+        (("--take-over", "--release", "--reason", "x"), "--take-over and --release cannot be combined", 2),
+        (("--confirm", "DRS1"), "--confirm only confirms --take-over", 2),
+        (("--release",), "the release authority belongs to JR@console2, not to this console", 1),
     ]
-    for args, message in cases:
-        assert drs(config, "capsule", "authority", "DRS1", *args) == 1, args
+    for args, message, status in cases:
+        assert drs(config, "capsule", "authority", "DRS1", *args) == status, args
         assert message in _one_line_error(capsys), args
     assert drs(config, "capsule", "authority", "DRS9") == 1
     assert "no capsule named 'DRS9'" in _one_line_error(capsys)

@@ -139,24 +139,26 @@ def test_terrain_directory_from_the_cli(
 
 
 @pytest.mark.parametrize(
-    ("change", "message"),
+    ("change", "message", "status"),
     [
-        ({"--lat": None}, "drs: error: drs predict needs --lat\n"),
-        ({"--weather": None}, "drs: error: drs predict needs --weather (or --demo-weather)\n"),
-        ({"--time": "yesterday"}, "drs: error: --time 'yesterday' is not an ISO 8601 time"),
-        ({"--time": "2024-05-01T02:00"}, "has no time zone; give UTC explicitly"),
+        ({"--lat": None}, "drs: error: drs predict needs --lat\n", 2),
+        ({"--weather": None}, "drs: error: drs predict needs --weather (or --demo-weather)\n", 2),
+        ({"--time": "yesterday"}, "drs: error: --time 'yesterday' is not an ISO 8601 time", 2),
+        ({"--time": "2024-05-01T02:00"}, "has no time zone; give UTC explicitly", 2),
         (
             {"--time": "2024-05-03T02:00Z"},
             "drs: error: the release point needs weather at 2024-05-03T02:00:00Z",
+            1,
         ),
-        ({"--lat": "44.0"}, "is outside the weather region"),
-        ({"--alt": "-3"}, "drs: error: release altitude must be a positive number"),
-        ({"--alt": "90000"}, "above the weather's top level"),
+        ({"--lat": "44.0"}, "is outside the weather region", 1),
+        ({"--alt": "-3"}, "drs: error: release altitude must be a positive number", 1),
+        ({"--alt": "90000"}, "above the weather's top level", 1),
     ],
 )
-def test_bad_input_is_one_line_and_exit_1(
-    grib_files: list[Path], cache: str, capsys: pytest.CaptureFixture[str], change: dict, message: str
+def test_bad_input_is_one_line_with_its_exit_status(
+    grib_files: list[Path], cache: str, capsys: pytest.CaptureFixture[str], change: dict, message: str, status: int
 ) -> None:
+    """A command line that cannot mean anything exits 2; one the weather cannot answer failed, 1."""
     args = base_args(grib_files, cache)
     for flag, value in change.items():
         i = args.index(flag)
@@ -165,7 +167,7 @@ def test_bad_input_is_one_line_and_exit_1(
             del args[i:end]
         else:
             args[i + 1] = value
-    assert main(args) == 1
+    assert main(args) == status
     err = capsys.readouterr().err
     assert message in err
     assert err.count("\n") == 1 and "Traceback" not in err
@@ -262,5 +264,5 @@ def test_demo_weather_prediction_says_demo_everywhere(
 def test_weather_and_demo_weather_together_is_refused(
     grib_files: list[Path], cache: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert main([*base_args(grib_files, cache), "--demo-weather"]) == 1
+    assert main([*base_args(grib_files, cache), "--demo-weather"]) == 2
     assert "give either --weather or --demo-weather, not both" in capsys.readouterr().err

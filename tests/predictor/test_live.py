@@ -144,9 +144,9 @@ def test_a_report_not_after_the_previous_one_is_refused() -> None:
 
 
 def test_live_cli_needs_a_track_and_weather(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    assert main(["live", "--ascent-winds"]) == 1
+    assert main(["live", "--ascent-winds"]) == 2
     assert capsys.readouterr().err.strip() == "drs: error: drs live needs --track FILE"
-    assert main(["live", "--track", str(tmp_path / "t.csv")]) == 1
+    assert main(["live", "--track", str(tmp_path / "t.csv")]) == 2
     assert "needs --weather FILE... or --ascent-winds" in capsys.readouterr().err
-    assert main(["live", "evaluate"]) == 1
+    assert main(["live", "evaluate"]) == 2
     assert "needs track files" in capsys.readouterr().err

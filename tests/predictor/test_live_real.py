@@ -199,7 +199,7 @@ def test_live_cli_flies_a_calibrated_model_or_mass_and_cda_and_refuses_both(
     calibrated = first_landing("--model", str(model))
     assert heavier["time"] < plain["time"], "a heavier payload falls faster"
     assert calibrated["time"] != plain["time"], "the model's density law changes the remaining descent"
-    assert main([*base, "--model", str(model), "--cda", "1.0"]) == 1
+    assert main([*base, "--model", str(model), "--cda", "1.0"]) == 2
     assert "give --model or --payload/--mass/--cda, not both" in capsys.readouterr().err
 
 

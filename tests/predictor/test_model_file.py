@@ -68,7 +68,7 @@ def test_drs_predict_with_the_model_equals_the_same_terms_by_hand(
 
 def test_model_and_payload_together_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = save_model(example(), tmp_path / "m.json")
-    assert main(["predict", "--demo-weather", *RELEASE, "--model", str(path), "--mass", "2"]) == 1
+    assert main(["predict", "--demo-weather", *RELEASE, "--model", str(path), "--mass", "2"]) == 2
     assert "give --model or --payload/--mass/--cda, not both" in capsys.readouterr().err
 
 

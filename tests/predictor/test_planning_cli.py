@@ -89,7 +89,7 @@ def test_plan_summary_reports_no_go_for_an_empty_window(
     assert all("NO-GO P(zone) 1.000 > 0.05 (mostly sea)" in line for line in out[3:8])
 
 
-def test_plan_bad_input_is_one_line_and_exit_1(
+def test_plan_bad_input_is_one_line_with_its_exit_status(
     grib_files: list[Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     bad = tmp_path / "bad.geojson"
@@ -97,7 +97,7 @@ def test_plan_bad_input_is_one_line_and_exit_1(
     assert main(args(grib_files, tmp_path, "--zones", str(bad))) == 1
     err = capsys.readouterr().err.strip()
     assert err.startswith("drs: error: zone file") and "not JSON" in err and "\n" not in err
-    assert main(["plan", "--lat", "1"]) == 1
+    assert main(["plan", "--lat", "1"]) == 2
     assert capsys.readouterr().err.strip() == "drs: error: drs plan needs --weather, --lon, --alt, --from"
     assert main(args(grib_files, tmp_path, "--max-target-km", "5")) == 1
     assert "needs a targets file" in capsys.readouterr().err

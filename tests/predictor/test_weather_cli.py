@@ -109,7 +109,7 @@ def test_fetch_with_a_bad_time_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], time_text: str, message: str
 ) -> None:
     argv = ["weather", "fetch", "--time", time_text, "--lat", "46.5", "--lon", "6.6", "--dir", str(tmp_path)]
-    assert main(argv) == 1
+    assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.startswith("drs: error: --time") and message in err and err.count("\n") == 1
 

@@ -504,20 +504,21 @@ def test_command_says_when_the_size_limit_cannot_be_met(
 
 
 @pytest.mark.parametrize(
-    ("argv", "message"),
+    ("argv", "message", "status"),
     [
-        (["--max-gb", "0"], "--max-gb must be a positive number of gigabytes, not 0"),
-        (["--max-gb", "nan"], "--max-gb must be a positive number of gigabytes, not nan"),
-        (["--max-gb", "-5"], "--max-gb must be a positive number of gigabytes, not -5"),
-        (["--keep-days", "-2"], "--keep-days must be between 0 and 36500 days, not -2"),
-        ([], "say what to prune: --keep-days N, --max-gb X, or both"),
+        (["--max-gb", "0"], "--max-gb must be a positive number of gigabytes, not 0", 2),
+        (["--max-gb", "nan"], "--max-gb must be a positive number of gigabytes, not nan", 2),
+        (["--max-gb", "-5"], "--max-gb must be a positive number of gigabytes, not -5", 2),
+        (["--keep-days", "-2"], "--keep-days must be between 0 and 36500 days, not -2", 1),
+        ([], "say what to prune: --keep-days N, --max-gb X, or both", 1),
     ],
 )
 def test_command_errors_are_one_line(
-    xdg_cache: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str
+    xdg_cache: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str, status: int
 ) -> None:
+    """2 where the command line is judged, 1 where the pruning itself refuses (gfs_cache.prune's checks)."""
     default_gfs_dir().mkdir(parents=True)
-    assert main(["weather", "prune", *argv]) == 1
+    assert main(["weather", "prune", *argv]) == status
     assert capsys.readouterr().err == f"drs: error: {message}\n"
 
 
