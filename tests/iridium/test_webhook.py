@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import threading
 import urllib.request
 from collections.abc import Iterator
@@ -290,7 +291,6 @@ def _raw_post(url: str, head_length: int, body: bytes) -> bytes:
 
     The whole reply is read until the server closes: headers and body arrive as separate writes.
     """
-    import socket
     from urllib.parse import urlsplit
 
     parts = urlsplit(url)
@@ -331,6 +331,30 @@ def test_digits_other_than_ascii_are_refused_with_400(store: Store, body: bytes)
     finally:
         server.stop()
     assert ReportStore(store).for_imei(IMEI) == []
+
+
+def test_a_burst_of_connections_waits_in_the_listen_backlog_while_every_thread_is_busy(store: Store) -> None:
+    """The stdlib's backlog of 5 reset connections when 20 gateway clients posted at once. Here nothing
+    accepts until 40 connections have arrived: each must complete its handshake in the kernel's queue (a
+    connection beyond a full queue never does while nobody accepts, so this cannot pass by chance), and
+    each is then answered."""
+    server = MoHttpServer(MoReceiver(ReportStore(store), LOCAL))
+    waiting: list[socket.socket] = []
+    serving = False
+    try:
+        for _ in range(40):
+            waiting.append(socket.create_connection(server.server_address[:2], timeout=2.0))
+        serving = server.start() is server
+        for conn in waiting:
+            conn.sendall(b"GET / HTTP/1.0\r\n\r\n")
+            assert conn.recv(64).startswith(b"HTTP/1.0 405")
+    finally:
+        for conn in waiting:
+            conn.close()
+        if serving:
+            server.stop()
+        else:
+            server.server_close()  # never served: stop() would wait for a loop that never ran
 
 
 def test_a_serial_in_other_digits_keeps_the_report_without_the_serial(store: Store) -> None:
