@@ -25,6 +25,7 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
+import platformdirs
 
 from predictor.gribwrite import DEMO_GENERATING_PROCESS, GFS_LEVELS_HPA, gfs_file_name, write_gfs_grib2
 
@@ -45,8 +46,7 @@ _VERSION = 1  # bump when the atmosphere changes, so cached demo files are regen
 
 
 def default_demo_dir() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "drs" / "demo-weather"
+    return platformdirs.user_cache_path("drs") / "demo-weather"
 
 
 def demo_weather_files(

@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+import platformdirs
 
 from predictor.cube import STANDARD_GRAVITY, WeatherCube
 from predictor.errors import WeatherError
@@ -49,8 +50,8 @@ _CACHE_FORMAT = 3  # 2: entries record their source files and box; 3: time gaps 
 
 
 def default_cache_dir() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "drs" / "weather"
+    """The platform's cache directory (``$XDG_CACHE_HOME/drs`` on Linux): decoded cubes are rebuilt if lost."""
+    return platformdirs.user_cache_path("drs") / "weather"
 
 
 def load_weather(

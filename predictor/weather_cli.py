@@ -14,6 +14,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
+import platformdirs
 from rich.console import Console
 from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
 
@@ -134,8 +135,7 @@ def parse_time(text: str) -> datetime:
 
 
 def default_gfs_dir() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "drs" / "gfs"
+    return platformdirs.user_cache_path("drs") / "gfs"
 
 
 def run_fetch(args: argparse.Namespace) -> int:
