@@ -7,12 +7,16 @@ may deliver one report twice, while MOMSN alone wraps at 65536 and can legitimat
 
 from __future__ import annotations
 
+import logging
 import sqlite3
 from dataclasses import dataclass
 from datetime import datetime
 
+from drs_link.errors import StoreError
 from drs_link.iridium.mo import ParseResult, Report, parse_hex
 from drs_link.store import Store, iso_utc, parse_iso_utc
+
+log = logging.getLogger(__name__)
 
 REPORTS_DDL = """
 CREATE TABLE IF NOT EXISTS mo_report (
@@ -177,13 +181,18 @@ class ReportStore:
 
         Bounded: the newest ``REJECTED_KEPT`` deliveries, each body cut at ``REJECTED_BODY_CHARS``; 1,000
         garbage posts once wrote 19 MB in 1.9 s, and an attacker could fill the disk the reports need.
+        Best effort: the delivery is refused either way, and a store that cannot be written (a full disk)
+        once left the gateway with no answer at all; it is logged instead.
         """
-        with self.store.transaction() as conn:
-            newest = conn.execute(
-                "INSERT INTO mo_delivery_rejected (received_utc, remote, reason, body) VALUES (?, ?, ?, ?)",
-                (iso_utc(received_utc), remote, reason, body[:REJECTED_BODY_CHARS]),
-            ).lastrowid
-            conn.execute("DELETE FROM mo_delivery_rejected WHERE id <= ?", ((newest or 0) - REJECTED_KEPT,))
+        try:
+            with self.store.transaction() as conn:
+                newest = conn.execute(
+                    "INSERT INTO mo_delivery_rejected (received_utc, remote, reason, body) VALUES (?, ?, ?, ?)",
+                    (iso_utc(received_utc), remote, reason, body[:REJECTED_BODY_CHARS]),
+                ).lastrowid
+                conn.execute("DELETE FROM mo_delivery_rejected WHERE id <= ?", ((newest or 0) - REJECTED_KEPT,))
+        except StoreError as exc:
+            log.error("rejected MO delivery from %s (%s) not kept: %s", remote, reason, exc)
 
     def rejected_deliveries(self) -> list[tuple[str, str]]:
         return [

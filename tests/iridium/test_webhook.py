@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import socket
+import sqlite3
 import threading
 import urllib.request
 from collections.abc import Iterator
@@ -385,6 +386,30 @@ def test_a_store_that_cannot_be_written_answers_503_so_the_gateway_retries(store
     body = f"imei={IMEI}&momsn=7&data={format_mo(fix_at(T0), 8.9, 3).hex()}".encode()
     status, text, stored = receiver.handle("application/x-www-form-urlencoded", body, "127.0.0.1")
     assert (status, stored) == (503, None) and "retry" in text
+
+
+def test_a_store_that_cannot_be_written_still_answers_every_post_over_http(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A full disk: a report gets 503 (retry), and a delivery refused anyway still gets its refusal, not
+    a connection closed without an answer (keeping the refused body for forensics once raised there)."""
+    connect = Store._connect
+
+    def read_only(self: Store) -> sqlite3.Connection:
+        conn = connect(self)
+        conn.execute("PRAGMA query_only = ON")  # every write now fails inside SQLite
+        return conn
+
+    server = serve(store, LOCAL)
+    monkeypatch.setattr(Store, "_connect", read_only)  # the handler threads open their connections now
+    try:
+        valid = f"imei={IMEI}&momsn=7&data={format_mo(fix_at(T0), 8.9, 3).hex()}".encode()
+        assert _post(server.url, valid, "application/x-www-form-urlencoded") == 503
+        assert _post(server.url, b"imei=1&momsn=7&data=00", "application/x-www-form-urlencoded") == 400
+        assert _post(server.url, b"x" * 4096, "application/x-www-form-urlencoded") == 413
+    finally:
+        server.stop()
+    assert ReportStore(store).for_imei(IMEI) == [] and ReportStore(store).rejected_deliveries() == []
 
 
 def test_the_oldest_rejected_deliveries_make_room_for_new_ones(store: Store, monkeypatch: pytest.MonkeyPatch) -> None:
