@@ -9,6 +9,10 @@ never exclusive, so a refresh can never cancel a FIRE); their results come back 
 
 from __future__ import annotations
 
+import asyncio
+import os
+import signal
+import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from datetime import datetime
@@ -31,6 +35,7 @@ from drs_link.fleet import FleetState
 from drs_link.gonogo import GoNoGoReport, evaluate
 from drs_link.operations import Operations
 from drs_link.origin import ReleaseOrigin, release_origin
+from drs_link.session import record_loss, record_start, unprotected_ssh_warning
 from drs_link.store import Store, utc_now
 from drs_link.telemetry import (
     BalloonSample,
@@ -52,6 +57,11 @@ BALLOON_READ_S = 0.5
 prediction within a second."""
 NO_WEATHER = "no weather loaded: start with --weather FILES (or drs weather fetch)"
 WAITING_FOR_POSITION = "waiting for a position: the capsule's GNSS fix or the balloon feed"
+STORE_WATCH_S = 0.5
+"""How often the shared store is asked whether another console wrote (one PRAGMA): a change shows within 1 s."""
+GO_FINISH_S = 120.0
+"""How long a lost session waits for a Go in flight to finish and be recorded before the process ends."""
+LOST_SIGNALS = (signal.SIGHUP, signal.SIGTERM)
 
 
 class TelemetryArrived(Message):
@@ -120,6 +130,9 @@ class DrsConsole(App[int]):
         self.predicting: set[str] = set()
         """Capsules with a prediction running: one at a time each, so a slow first one never piles up."""
         self.theme = "textual-dark"
+        self._store_version = 0
+        self._audit_seen = 0
+        """The newest audit row this console has shown or written: what another console wrote comes after."""
 
     # Shared state for the screens -------------------------------------------------------------
 
@@ -170,6 +183,8 @@ class DrsConsole(App[int]):
         self.push_screen(FleetScreen())
         if not self.live_timers:
             return
+        if self.commanding:
+            self._start_session()
         if self.ops is not None:
             self.gateway_check()
             self.set_interval(max(1.0, GATEWAY_CHECK_S / self.setup.time_scale), self.gateway_check)
@@ -186,6 +201,53 @@ class DrsConsole(App[int]):
         if self.setup.replay_feed is not None:
             self.set_interval(0.2, self.replay_step)
         self.set_interval(1.0, self.tick)
+        self._store_version = self.store.data_version()
+        self._audit_seen = max((r.id for r in self.store.audit(limit=1)), default=0)
+        self.set_interval(STORE_WATCH_S, self.watch_store)
+
+    def _start_session(self) -> None:
+        """Say what ended the last session if nobody has since, and survive this one being cut off."""
+        loss = record_start(self.store, self.operator)
+        if loss is not None:
+            self.notify(f"last console: {loss.describe()}", severity="warning", timeout=60)
+        warning = unprotected_ssh_warning(os.environ)
+        if warning is not None:
+            self.notify(warning, severity="warning", timeout=30)
+        loop = asyncio.get_running_loop()
+        for sig in LOST_SIGNALS:
+            loop.add_signal_handler(sig, self.session_lost, sig)
+
+    def session_lost(self, sig: signal.Signals) -> None:
+        """SIGHUP (the SSH session dropped) or SIGTERM: disarm on the record, let a Go in flight finish
+        and be recorded by its worker, then end (``drs_link.session``)."""
+        assert self.ops is not None
+        arming = {name: self.ops.ops(name).arming for name in self.setup.capsules}
+        firing = [name for name, a in arming.items() if a.status().state is ArmState.FIRING]
+        record_loss(self.store, self.operator, sig.name, arming, firing)
+        self.run_worker(self._end_after_go(list(arming.values()), 128 + sig.value), group="session-lost")
+
+    async def _end_after_go(self, arming: list, code: int) -> None:
+        deadline = time.monotonic() + GO_FINISH_S
+        while any(a.status().state is ArmState.FIRING for a in arming) and time.monotonic() < deadline:
+            await asyncio.sleep(0.2)
+        self.exit(code)
+
+    def watch_store(self) -> None:
+        """Another console (or a drs command) wrote the shared store: show what and who within a second,
+        and show the screens over it, without any screen polling on its own."""
+        version = self.store.data_version()
+        if version == self._store_version:
+            return
+        self._store_version = version
+        for row in self.store.audit(after_id=self._audit_seen):
+            self._audit_seen = row.id
+            if row.session != self.store.session:
+                about = f"{row.capsule}: " if row.capsule else ""
+                self.notify(f"{about}{row.action} {row.result} — {row.operator}, {row.session or 'another console'}",
+                            timeout=8)  # fmt: skip
+        if self.ops is not None:
+            self.poll_reports()
+        self.refresh_screen()
 
     def tick(self) -> None:
         """Once a second: ages grow, ARM windows run out, first predictions start, the screen shows all."""
@@ -391,5 +453,9 @@ class DrsConsole(App[int]):
         super().notify(message, title=title, severity=severity, timeout=timeout, markup=markup)
 
     def on_unmount(self) -> None:
+        if self.commanding and self.live_timers:
+            loop = asyncio.get_running_loop()
+            for sig in LOST_SIGNALS:
+                loop.remove_signal_handler(sig)
         if self.ops is not None:
             self.ops.close()

@@ -43,6 +43,16 @@ class SessionLoss:
         return "; ".join(parts)
 
 
+def unprotected_ssh_warning(environ: Mapping[str, str]) -> str | None:
+    """Over SSH and outside tmux or screen, a dropped link ends the console: say so at the start."""
+    if environ.get("SSH_CONNECTION") and not (environ.get("TMUX") or environ.get("STY")):
+        return (
+            "this console runs over SSH outside tmux or screen: if the link drops, the console ends "
+            "(disarmed, on the record). Run long operations inside tmux (tmux new -s drs) or screen."
+        )
+    return None
+
+
 def record_loss(
     store: Store, operator: str, signal: str, arming: Mapping[str, ArmingController], go_in_flight: list[str]
 ) -> SessionLoss:

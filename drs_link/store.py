@@ -227,18 +227,18 @@ class Store:
         return AuditRecord(row_id, moment, operator, capsule, action, result, detail, self.session)
 
     def audit(
-        self, capsule: str | None = None, text: str | None = None, limit: int | None = None
+        self, capsule: str | None = None, text: str | None = None, limit: int | None = None, after_id: int = 0
     ) -> list[AuditRecord]:
-        """Audit records oldest first, optionally for one capsule and containing ``text``."""
-        clauses, params = [], []
+        """Audit records oldest first, optionally for one capsule, containing ``text``, or newer than ``after_id``."""
+        clauses: list[str] = ["id > ?"]
+        params: list[object] = [after_id]
         if capsule is not None:
             clauses.append("capsule = ?")
             params.append(capsule)
         if text:
             clauses.append("(action || ' ' || result || ' ' || COALESCE(detail, '') || ' ' || operator) LIKE ?")
             params.append(f"%{text}%")
-        where = f"WHERE {' AND '.join(clauses)}" if clauses else ""
-        sql = f"SELECT * FROM audit {where} ORDER BY id"
+        sql = f"SELECT * FROM audit WHERE {' AND '.join(clauses)} ORDER BY id"
         if limit is not None:
             sql = f"SELECT * FROM ({sql.replace('ORDER BY id', 'ORDER BY id DESC')} LIMIT {int(limit)}) ORDER BY id"
         return [

@@ -105,7 +105,8 @@ def terminal(tmp_path: Path) -> Iterator[Terminal]:
         subprocess.run([TMUX, "kill-session", "-t", session], check=False)
 
 
-def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp_path: Path) -> None:
+def arm_drs1(terminal: Terminal) -> None:
+    """From the start of the demo to DRS1's open ARM window, by keys."""
     shown = terminal.wait_for("DRS3", timeout_s=180)
     assert "DEMO" in shown
     terminal.wait_for("UP ")
@@ -123,6 +124,10 @@ def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp
     assert "Type the capsule's name" not in terminal.screen()
     terminal.keys("a")
     terminal.wait_for("ARMED —")
+
+
+def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp_path: Path) -> None:
+    arm_drs1(terminal)
     terminal.keys("f")
     terminal.wait_for("Type the capsule's name (DRS1)")
     terminal.keys("DRS1", "Enter", "Enter", "end-to-end test, one operator", "Enter")
@@ -157,3 +162,16 @@ def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp
     audit = [(a.action, a.result) for a in store.audit("DRS1")]
     assert ("fire", "authorised") in audit and ("mt.queued", "queued") in audit
     assert [r for r in store.audit("DRS1", text="single_operator_waiver") if r.action == "fire"]
+
+
+def test_a_dropped_terminal_disarms_on_the_record(terminal: Terminal, tmp_path: Path) -> None:
+    # The SSH session dies under the console: the terminal hangs up (SIGHUP), nobody is there to ask.
+    arm_drs1(terminal)
+    subprocess.run([TMUX, "kill-session", "-t", terminal.session], check=True)
+    store = Store.open(next(tmp_path.glob("drs-demo-*/data/drs.sqlite")))
+    deadline = time.monotonic() + 30
+    while not [a for a in store.audit() if a.action == "session.lost"] and time.monotonic() < deadline:
+        time.sleep(0.2)
+    [lost] = [a for a in store.audit() if a.action == "session.lost"]
+    assert lost.detail == {"signal": "SIGHUP", "disarmed": ["DRS1"], "go_in_flight": []}
+    assert ("disarm", "session lost (SIGHUP)") in [(a.action, a.result) for a in store.audit("DRS1")]

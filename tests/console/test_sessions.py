@@ -1,0 +1,93 @@
+"""The console over SSH: a dropped session is a fault it survives, and consoles on one store see each other."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from console.app import DrsConsole
+from drs_link.arming import ArmState
+from drs_link.operations import Operations
+from drs_link.session import LOST, record_loss
+from drs_link.store import Store
+from tests.console.conftest import offline_config, wait_for
+
+pytestmark = pytest.mark.asyncio
+
+
+async def test_sighup_while_armed_disarms_on_the_record_and_ends_the_console(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    app = canned_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("enter", "a")
+        arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
+        assert arming.status().armed
+        app.session_lost(signal.SIGHUP)
+        await wait_for(pilot, lambda: not app.is_running)
+    assert app.return_value == 128 + signal.SIGHUP
+    assert ("disarm", "session lost (SIGHUP)") in [(a.action, a.result) for a in app.store.audit("DRS1")]
+    [lost] = [a for a in app.store.audit() if a.action == LOST]
+    assert lost.detail == {"signal": "SIGHUP", "disarmed": ["DRS1"], "go_in_flight": []}
+
+
+async def test_sigterm_during_go_lets_the_go_finish_before_the_console_ends(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    app = canned_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
+        arming._state = ArmState.FIRING  # the FIRE worker is inside fire(), sending Go
+        app.session_lost(signal.SIGTERM)
+        await pilot.pause(0.6)
+        assert app.is_running, "the Go's own worker must finish and record it first"
+        arming._state = ArmState.FIRED
+        await wait_for(pilot, lambda: not app.is_running)
+    assert app.return_value == 128 + signal.SIGTERM
+    [lost] = [a for a in app.store.audit() if a.action == LOST]
+    assert lost.detail is not None and lost.detail["go_in_flight"] == ["DRS1"]
+
+
+def live_console(tmp_path: Path) -> DrsConsole:
+    """A commanding console with its timers running, on capsules nobody listens for (port 9)."""
+    from console.app import ConsoleSetup
+
+    config = offline_config(tmp_path)
+    store = Store.open(config.store_path)
+    setup = ConsoleSetup(mode="live", capsules=["DRS1", "DRS2", "DRS3"], store=store,
+                         operations=Operations(config, store), export_dir=tmp_path / "exports")  # fmt: skip
+    return DrsConsole(setup)
+
+
+async def test_the_next_console_shows_how_the_last_session_ended(tmp_path: Path) -> None:
+    store = Store.open(offline_config(tmp_path).store_path)
+    record_loss(store, "EL", "SIGHUP", {}, go_in_flight=[])
+    app = live_console(tmp_path)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await wait_for(pilot, lambda: any("last console: session lost at" in n.message for n in app._notifications))
+        await pilot.press("q", "tab", "enter")
+    assert [a.action for a in store.audit() if a.action.startswith("session.")][-1] == "session.started"
+
+
+async def test_what_another_console_does_to_the_store_shows_here_with_who_did_it(tmp_path: Path) -> None:
+    app = live_console(tmp_path)
+    config = tmp_path / "other.toml"
+    config.write_text(f'[operator]\nname = "JM"\n[data]\ndir = "{tmp_path / "data"}"\n'
+                      '[[capsule]]\nname = "DRS2"\nhost = "127.0.0.1"\nport = 9\n')  # fmt: skip
+    other_console = (
+        "import sys; from drs_link.config import load_config; from drs_link.operations import Operations; "
+        "from drs_link.store import Store; c = load_config(sys.argv[1]); "
+        "Operations(c, Store.open(c.store_path)).ops('DRS2').waivers.grant('gnss', 'JM', 'no sky in the hangar')"
+    )
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause(0.5)
+        subprocess.run([sys.executable, "-c", other_console, str(config)], check=True)
+        await wait_for(pilot, lambda: any("DRS2: waiver granted — JM" in n.message for n in app._notifications))
+        [note] = [n.message for n in app._notifications if "waiver granted" in n.message]
+        assert app.store.session not in note and " pid " in note, "the other process is named"
+        await pilot.press("q", "tab", "enter")
