@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.metadata
 import logging
 import os
 import sys
@@ -55,6 +54,21 @@ EXIT_USAGE = 2
 _OPTIONS_WITH_VALUES = ("--config", "--log-level")
 
 
+class _VersionAction(argparse.Action):
+    """argparse's own version action needs the text when the parser is built: importing importlib.metadata
+    and reading the installed distribution's metadata then cost every `drs` run 60 ms, so it is done only
+    when asked for."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, help: str | None = None) -> None:  # noqa: A002
+        super().__init__(option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, nargs=0, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: object) -> None:
+        import importlib.metadata
+
+        print(f"drs {importlib.metadata.version('drs-console')}")
+        parser.exit()
+
+
 def _command_in(argv: Sequence[str]) -> str | None:
     """The command word of ``argv`` (the first word that is not an option or a global option's value)."""
     words = iter(argv)
@@ -74,7 +88,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         description="SuperBIT DRS operations: predict landings, talk to capsules, track descents.",
         epilog="exit status: 0 done, 1 the command failed or refused, 2 the command line is wrong",
     )
-    parser.add_argument("--version", action="version", version=f"drs {importlib.metadata.version('drs-console')}")
+    parser.add_argument("--version", action=_VersionAction, help="print the installed version and exit")
     parser.add_argument("--config", metavar="FILE", default=None, help=config_help())
     parser.add_argument(
         "-v", "--verbose", action="count", default=0, help="log more: -v for info, -vv for debug (to stderr)"
