@@ -107,7 +107,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--repeats", type=int, default=200, help="bench: single predictions timed (default 200)"
     )
     bench.add_argument("--ensemble-repeats", type=int, default=10, help="bench: ensembles timed (default 10)")
-    bench.add_argument("--bench-members", type=int, default=1000, help="bench: ensemble size (default 1000)")
+    bench.add_argument(
+        "--bench-members", type=int, default=1000, help=f"bench: ensemble size (default 1000, at most {MAX_MEMBERS:,})"
+    )
     bench.add_argument(
         "--skip-compile", action="store_true", help="bench: do not time a fresh-process compile"
     )
@@ -353,6 +355,8 @@ def _print_whole_process(files: Sequence[Path], cache_dir: Path) -> None:
 
 
 def run_bench(args: argparse.Namespace) -> int:
+    if not 1 <= args.bench_members <= MAX_MEMBERS:
+        raise UsageError(f"--bench-members {args.bench_members}: give 1 to {MAX_MEMBERS:,} (memory grows with it)")
     import numba
 
     from predictor.demo_weather import demo_weather_files

@@ -20,6 +20,7 @@ import numpy as np
 
 from predictor.errors import PredictorError, UsageError
 from predictor.payload import PROFILES
+from predictor.planning.limits import MAX_MEMBER_DESCENTS
 
 BENCH_START = datetime(2024, 5, 1, 6, 0, tzinfo=UTC)
 
@@ -50,8 +51,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     plan.add_argument("--max-target-km", type=float, help="go needs expected target distance ≤ this")
     plan.add_argument("--max-sigma-km", type=float, help="go needs the 1σ major axis ≤ this")
     plan.add_argument(
-        "--members", type=int, default=0, help="ensemble members per candidate (default 0: none)"
-    )
+        "--members", type=int, default=0,
+        help=f"ensemble members per candidate (default 0: none; candidates × members at most {MAX_MEMBER_DESCENTS:,})",
+    )  # fmt: skip
     plan.add_argument("--seed", type=int, default=0, help="ensemble seed (default 0)")
     plan.add_argument("--float-wind-sigma", type=float, default=2.0, metavar="MS",
                       help="σ of the float-altitude wind error, m/s (default 2)")  # fmt: skip

@@ -44,6 +44,7 @@ from predictor.planning.batch import (
     BatchLandings,
     descend_batch,
 )
+from predictor.planning.limits import MAX_MEMBER_DESCENTS
 from predictor.prediction import DEFAULT_RATE_SIGMA, DEFAULT_WIND_SIGMA_MS, iso_z
 from predictor.terrain import Terrain
 from predictor.uncertainty import GEOD, LAUNCH, Ellipse, ErrorModel, parametric_ellipse
@@ -319,6 +320,12 @@ def plan_release(
         float_wind_sigma_ms,
         time_tolerance_s,
     )
+    if members * balloon.t_s.size > MAX_MEMBER_DESCENTS:
+        raise PredictorError(
+            f"{balloon.t_s.size} candidates × {members} members is {members * balloon.t_s.size:,} member descents, "
+            f"over the {MAX_MEMBER_DESCENTS:,} one sweep may run (memory grows with them): fewer members, "
+            "a shorter sweep or a wider step"
+        )
     base = Model.for_payload(payload, *effects)
     rel_lat, rel_lon, rel_z, rel_t = balloon.lat, balloon.lon, balloon.alt_m, balloon.t_s
     central = descend_batch(

@@ -219,6 +219,12 @@ def test_real_gfs_sample_files_give_a_plausible_descent(
     assert -180.0 <= doc["landing"]["lon"] < 180.0
 
 
+def test_the_bench_ensemble_is_bounded_like_the_real_one(capsys: pytest.CaptureFixture[str]) -> None:
+    """A user-sized ensemble everywhere: --members was bounded (10 million grew to 24 GB), --bench-members not."""
+    assert main(["predict", "bench", "--bench-members", "10000000", "--skip-compile"]) == 2
+    assert "--bench-members 10000000: give 1 to 100,000" in capsys.readouterr().err
+
+
 def test_bench_prints_every_measured_figure(capsys: pytest.CaptureFixture[str]) -> None:
     args = [
         "predict",
