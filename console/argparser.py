@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import functools
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
@@ -17,9 +18,15 @@ from typing import Any, NoReturn
 class DrsArgumentParser(argparse.ArgumentParser):
     """An ArgumentParser whose errors name the first unknown option, with the closest real one."""
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
+    def __init__(self, *args: Any, root: DrsArgumentParser | None = None, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._argv: list[str] = []
+        self._root = root
+        """The `drs` parser itself, for a command's parser: `drs mo serve -v` is told where -v goes."""
+
+    def add_subparsers(self, **kwargs: Any) -> Any:
+        kwargs.setdefault("parser_class", functools.partial(type(self), root=self._root or self))
+        return super().add_subparsers(**kwargs)
 
     def parse_known_args(  # type: ignore[override]
         self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
@@ -37,7 +44,9 @@ class DrsArgumentParser(argparse.ArgumentParser):
         if unknown is not None:
             message = f"unrecognized option {unknown}"
             close = difflib.get_close_matches(unknown, self._long_options(), n=1, cutoff=0.6)
-            if close:
+            if self._root is not None and (unknown in self._root._option_string_actions or self._root._short_with_value(unknown)):
+                message += f" here: it is an option of drs itself, given before the command (drs {unknown} …)"
+            elif close:
                 message += f" (did you mean {close[0]}?)"
         super().error(message)
 

@@ -44,6 +44,8 @@ def test_a_mistyped_option_is_named_with_the_close_real_one() -> None:
         (["mt", "status", "DRS1", "--json=yes", "--xyzzy"], "drs mt status: error: unrecognized option --xyzzy"),
         (["--confg", "x.toml", "mo", "health"], "drs: error: unrecognized option --confg (did you mean --config?)"),
         (["predict", "--lat", "-12.5", "--bogus=4"], "drs predict: error: unrecognized option --bogus"),
+        (["mo", "serve", "-vv"], "drs mo serve: error: unrecognized option -vv here: it is an option of drs itself, "
+                                 "given before the command (drs -vv …)"),
     ],
 )
 def test_an_unknown_option_is_named_wherever_it_is(
