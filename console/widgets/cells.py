@@ -108,7 +108,7 @@ def _link_level(v: LinkSample) -> Level:
 
 # Release ----------------------------------------------------------------------------------------
 
-_RELEASE_SHORT = {"idle": "IDLE", "go-sent-unverified": "GO SENT?", "released": "RELEASED"}
+_RELEASE_SHORT = {"idle": "IDLE", "power-on-unknown": "PWR ?", "go-sent-unverified": "GO SENT?", "released": "RELEASED"}
 _RELEASE_LONG = {
     "idle": "idle, not powered",
     "go-sent-unverified": "Go sent, release not yet confirmed",

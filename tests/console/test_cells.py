@@ -44,6 +44,7 @@ STORAGE = {"used_bytes": 12_400_000_000, "total_bytes": 128_000_000_000, "raid":
         ("link", {"up": True}, 3, "UP 3s"),
         ("link", {"up": False}, 150, f"{STALE_GLYPH}DOWN 2m"),
         ("release", {"state": "powered", "nmea_seen": False}, 3, "PWR noNMEA 3s"),
+        ("release", {"state": "power-on-unknown"}, 3, "PWR ? 3s"),
         ("gnss", {"has_fix": True, "sats": 9, "hdop": 0.9}, 3, "9sv H0.9 3s"),
         ("gnss", {"has_fix": False, "sats": 2}, 3, "NOFIX 2sv 3s"),
         ("storage", STORAGE, 4, "116G free 4s"),
