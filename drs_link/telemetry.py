@@ -25,6 +25,7 @@ from typing import Any, ClassVar, Union, get_args, get_origin, get_type_hints
 from drs_link.capsule import ReleaseState
 from drs_link.errors import LinkError
 from drs_link.store import iso_utc, parse_iso_utc
+from predictor.geofiles.output import EXPORT_MODE
 
 FORMAT_VERSION = 1
 
@@ -340,14 +341,19 @@ class TelemetryRecord:
 
 
 class TelemetryRecorder:
-    """Appends records to a JSONL file; thread-safe, each line durable before ``append`` returns."""
+    """Appends records to a JSONL file; thread-safe, each line durable before ``append`` returns.
+
+    The file is created like an export (``EXPORT_MODE``, 0640): it repeats what the console showed,
+    capsule positions and operators' notes among it, so no other user of the laptop may read it.
+    """
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self._lock = threading.Lock()
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._file = self.path.open("a", encoding="utf-8")
+            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, EXPORT_MODE)
+            self._file = os.fdopen(fd, "a", encoding="utf-8")
         except OSError as exc:
             raise LinkError(f"cannot record telemetry to {self.path}: {exc}") from None
 

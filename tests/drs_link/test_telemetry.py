@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import stat
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -16,6 +18,7 @@ from drs_link.telemetry import (
     ReportSample,
     TelemetryFormatError,
     TelemetryRecord,
+    TelemetryRecorder,
     read_recording,
 )
 from tests.samples import REQUIRED, prediction
@@ -93,3 +96,17 @@ def test_a_malformed_part_of_a_prediction_is_named_down_to_the_item(tmp_path: Pa
     (tmp_path / "t.jsonl").write_text(line + "\n")
     with pytest.raises(TelemetryFormatError, match=r"t\.jsonl:1: prediction\.outline_2sigma\[1\]\[1\]: expected a"):
         read_recording(tmp_path / "t.jsonl")
+
+
+def test_a_recording_is_created_for_its_owner_and_group_only(tmp_path: Path) -> None:
+    """Like an export (#16: files were 0644, readable by every user of the laptop); the umask is cleared so
+    that a mode coming from it, not from the recorder, would show."""
+    old = os.umask(0)
+    try:
+        recorder = TelemetryRecorder(tmp_path / "launch.jsonl")
+    finally:
+        os.umask(old)
+    recorder.append(TelemetryRecord(T0, "DRS1", ReleaseSample("idle")))
+    recorder.close()
+    assert stat.S_IMODE((tmp_path / "launch.jsonl").stat().st_mode) == 0o640
+    assert [r.data for r in read_recording(tmp_path / "launch.jsonl")] == [ReleaseSample("idle")]
