@@ -38,11 +38,17 @@ LEGACY_CONFIG_DIR = Path("~/.config/drs")
 LEGACY_DATA_DIR = Path("~/.local/share/drs")
 
 
+_warned_legacy: set[Path] = set()
+"""Old places already warned about: every capsule's known_hosts default asks again, once is enough."""
+
+
 def _current_or_legacy(directory: Path, legacy: Path, name: str) -> Path:
     """``directory/name``, unless only the pre-XDG ``legacy/name`` exists: then that, with a warning."""
     current, old = directory / name, legacy.expanduser() / name
     if current != old and not current.exists() and old.exists():
-        log.warning("using %s from its old place; the default is now %s (move it, or keep it there)", old, current)
+        if old not in _warned_legacy:
+            _warned_legacy.add(old)
+            log.warning("using %s from its old place; the default is now %s (move it, or keep it there)", old, current)
         return old
     return current
 

@@ -118,14 +118,18 @@ def test_files_in_the_pre_xdg_places_keep_working(xdg: Path, caplog: pytest.LogC
     old_config, old_data = xdg / "home" / ".config" / "drs", xdg / "home" / ".local" / "share" / "drs"
     old_config.mkdir(parents=True)
     old_data.mkdir(parents=True)
-    (old_config / "drs.toml").write_text('[operator]\nname = "EL"\n')
+    capsules = "".join(f'[[capsule]]\nname = "D{n}"\nhost = "h"\n' for n in (1, 2))
+    (old_config / "drs.toml").write_text('[operator]\nname = "EL"\n' + capsules)
+    (old_config / "known_hosts").write_text("")
     (old_data / "drs.sqlite").write_bytes(b"")
     config = load_config()
     assert (config.source, config.operator.name, config.store_path) == (
         old_config / "drs.toml", "EL", old_data / "drs.sqlite"
     )
+    assert [c.known_hosts for c in config.capsules] == [old_config / "known_hosts"] * 2
     moved = [r.getMessage() for r in caplog.records if "from its old place" in r.getMessage()]
-    assert len(moved) == 2 and str(xdg / "xdg-data" / "drs" / "drs.sqlite") in moved[1]
+    assert len(moved) == 3, "once for each file, not once for each capsule"
+    assert any(str(xdg / "xdg-data" / "drs" / "drs.sqlite") in message for message in moved)
 
 
 def test_invalid_toml_names_the_file(tmp_path: Path) -> None:
