@@ -290,13 +290,18 @@ def test_a_send_that_raises_is_recorded_as_delivery_unknown_not_left_confirmed(r
     assert life.get(command.id).state == lc.DELIVERY_UNKNOWN
 
 
+def _commands_of(store: Store) -> list[tuple[object, ...]]:
+    return [(c.id, c.state, c.detail, c.delivered_report_id, c.effects) for c in lc.CommandLifecycle(store, "x").for_imei(IMEI)]
+
+
 @pytest.mark.parametrize("history", [3, 150])
 def test_the_work_after_each_post_is_the_open_commands_reports_not_the_flight(
-    rig, monkeypatch: pytest.MonkeyPatch, history: int
+    rig, monkeypatch: pytest.MonkeyPatch, history: int, tmp_path: Path
 ) -> None:
     """``drs mo serve`` advances the commands after every post; it re-read and re-parsed every stored
     report to do so, work that grew with the flight. Counted here (reports parsed per post), not timed:
-    the same whether 3 or 150 reports came before, and the outcome is the whole history's."""
+    the same whether 3 or 150 reports came before; and after every post the commands are what
+    ``observe`` on the whole history makes of a copy of the store."""
     store, reports, gateway, client, clock = rig
     capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
     next_alarm = fly(capsule, gateway, reports, T0, history)
@@ -307,8 +312,12 @@ def test_the_work_after_each_post_is_the_open_commands_reports_not_the_flight(
 
     def post_then_observe(at) -> list[str]:  # type: ignore[no-untyped-def]
         fly(capsule, gateway, reports, at, 1)
+        twin = Store.open(tmp_path / f"twin-{at:%H%M%S}.sqlite")
+        store.conn.backup(twin.conn)
+        lc.CommandLifecycle(twin, "alice", clock).observe(ReportStore(twin).for_imei(IMEI), IMEI)
         parsed.clear()
         states = [c.state for c in life.observe_store(reports, IMEI)]
+        assert _commands_of(store) == _commands_of(twin)
         return [*states, len(parsed)]  # type: ignore[list-item]
 
     assert post_then_observe(next_alarm) == [0], "no open command: nothing to read"
