@@ -44,7 +44,19 @@ class LogfmtFormatter(logging.Formatter):
 
 
 class _DrsHandler(logging.StreamHandler):
-    """Ours, so a second `drs` run in one process (the tests) replaces it and leaves others' handlers be."""
+    """Ours, so a second `drs` run in one process (the tests) replaces it and leaves others' handlers be.
+
+    It writes to whatever ``sys.stderr`` is when a record comes, as Python's last-resort handler does: a
+    stream fixed at the run's start may since have been closed (a test's capture) or replaced.
+    """
+
+    @property  # type: ignore[override]
+    def stream(self) -> object:
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, _stream: object) -> None:
+        """StreamHandler sets it; the property already answers with the current stderr."""
 
 
 def _ours(record: logging.LogRecord) -> bool:
@@ -56,7 +68,7 @@ def configure_logging(level: int) -> None:
     root = logging.getLogger()
     for old in [h for h in root.handlers if isinstance(h, _DrsHandler)]:
         root.removeHandler(old)
-    handler = _DrsHandler(sys.stderr)
+    handler = _DrsHandler()
     handler.setFormatter(LogfmtFormatter())
     if level > logging.DEBUG:
         handler.addFilter(_ours)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.metadata
+import io
 import logging
 import os
 import re
@@ -88,11 +89,11 @@ def test_log_level_and_verbose_choose_what_reaches_stderr(tmp_path: Path) -> Non
 
 
 def test_records_are_one_line_with_fields_and_libraries_speak_only_at_debug(
-    capsys: pytest.CaptureFixture[str],
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """paramiko logs ERROR for a reset the link reports itself: an operator must see that failure once."""
     root = logging.getLogger()
-    before = list(root.handlers)
+    before, level = list(root.handlers), root.level
     try:
         configure_logging(logging.WARNING)
         logging.getLogger("paramiko.transport").error("Socket exception: Connection reset by peer (104)")
@@ -103,5 +104,10 @@ def test_records_are_one_line_with_fields_and_libraries_speak_only_at_debug(
         configure_logging(logging.DEBUG)
         logging.getLogger("paramiko.transport").error("Socket exception")
         assert " ERROR paramiko.transport: Socket exception" in capsys.readouterr().err
+        later = io.StringIO()  # stderr replaced after the run began (a test's capture closed, a redirect)
+        monkeypatch.setattr(sys, "stderr", later)
+        logging.getLogger("drs_link.test").warning("still heard")
+        assert later.getvalue().endswith(" WARNING drs_link.test: still heard\n")
     finally:
         root.handlers[:] = before
+        root.setLevel(level)
