@@ -403,6 +403,13 @@ def test_non_physical_values_are_refused_naming_the_file(tmp_path: Path, cache: 
     )  # fmt: skip
     with pytest.raises(WeatherError, match=r"zero_kelvin\.grib2: t = 0 K at 1000 hPa is outside 100…400 K"):
         load_weather([zero_kelvin], cache_dir=cache)
+    heights = np.broadcast_to(np.array([5.0e6, 6.0e6])[:, None, None], shape)  # rising, so only the range sees it
+    in_space = write_gfs_grib2(
+        tmp_path / "in_space.grib2", CYCLE, 0, [1000.0, 500.0], [45.0, 46.0], [6.0, 7.0],
+        np.zeros(shape), np.zeros(shape), np.full(shape, 250.0), heights,
+    )  # fmt: skip
+    with pytest.raises(WeatherError, match=r"in_space\.grib2: gh = 5e\+06 gpm at 1000 hPa is outside -2000…100000 gpm"):
+        load_weather([in_space], cache_dir=cache)
 
 
 def as_ecmwf_geopotential(source: Path, target: Path) -> Path:
