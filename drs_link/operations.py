@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 
@@ -27,14 +27,14 @@ from drs_link.errors import ConfigError, LinkError
 from drs_link.gonogo import ExclusionZone, GoNoGoReport, WaiverBook
 from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.interval import interval_track
-from drs_link.iridium.landed import landed_after_each
+from drs_link.iridium.landed import LandedVerdicts
 from drs_link.iridium.lifecycle import Command, CommandLifecycle
 from drs_link.iridium.mt import MtMessage
 from drs_link.iridium.procedure import complete_mt_steps
 from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.ssh import CapsuleLink, HostKeyError
 from drs_link.storage import read_storage
-from drs_link.store import Store, utc_now
+from drs_link.store import Store, iso_utc, utc_now
 from drs_link.sync import Syncer
 from drs_link.telemetry import (
     GatewaySample,
@@ -124,6 +124,31 @@ def report_record(capsule: str, stored: StoredReport, interval_min: int, landed:
     return TelemetryRecord(stored.time, capsule, sample)
 
 
+@dataclass
+class _ReportsRead:
+    """One capsule's reports as the console has read them (time order), each with its landed verdict.
+
+    Why kept: a report poll re-read and re-parsed the whole flight whenever one report was new; now it
+    parses the new ones and feeds them to the landing rule, unless one sorts before a report already
+    read (an old attachment imported late), when it reads the history again.
+    """
+
+    stored: list[StoredReport] = field(default_factory=list)
+    landed: list[bool] = field(default_factory=list)
+    verdicts: LandedVerdicts = field(default_factory=LandedVerdicts)
+    newest_id: int = 0
+
+    def add(self, report: StoredReport) -> None:
+        self.stored.append(report)
+        self.landed.append(self.verdicts.add(report))
+        self.newest_id = max(self.newest_id, report.id)
+
+    def follows(self, report: StoredReport) -> bool:
+        """Whether ``report`` sorts after every report read so far, in the store's order (time, then id)."""
+        last = self.stored[-1]
+        return (iso_utc(last.time), last.id) < (iso_utc(report.time), report.id)
+
+
 class Operations:
     """One console's live connection to its capsules and gateway."""
 
@@ -146,7 +171,9 @@ class Operations:
         self.checklists = load_checklists(PROCEDURE_DIR)
         self.reports = ReportStore(store)
         self.lifecycle = CommandLifecycle(store, self.operator, clock)
-        self._seen_reports: dict[str, int] = {}
+        self._reports_read: dict[str, _ReportsRead] = {}
+        self._reports_lock = threading.Lock()
+        """Report polls may overlap on worker threads; each must see what the one before it read."""
         self.capsules: dict[str, CapsuleOps] = {}
         for capsule in config.capsules:
             link = CapsuleLink(capsule)
@@ -299,18 +326,25 @@ class Operations:
         imei = self.ops(name).config.imei
         if not imei:
             return []
-        seen = self._seen_reports.get(name, 0)
-        newest = self.reports.newest_id(imei)
-        if newest is None or newest <= seen:
-            return []
-        stored = self.reports.for_imei(imei)
-        self._seen_reports[name] = max(r.id for r in stored)
-        self.lifecycle.observe(stored, imei)
-        track = interval_track(stored, self.lifecycle.for_imei(imei))
-        return self._emit([
-            report_record(name, r, track.overdue_after(r), landed)
-            for r, landed in zip(stored, landed_after_each(stored), strict=True) if r.id > seen
-        ])  # fmt: skip
+        with self._reports_lock:
+            read = self._reports_read.get(name)
+            seen = read.newest_id if read is not None else 0
+            fresh = self.reports.for_imei(imei, after_id=seen)
+            if not fresh:
+                return []
+            if read is None or not read.follows(fresh[0]):
+                history = fresh if read is None else self.reports.for_imei(imei)
+                read = self._reports_read[name] = _ReportsRead()
+                fresh = history
+            for report in fresh:
+                read.add(report)
+            self.lifecycle.observe_store(self.reports, imei)
+            track = interval_track(read.stored, self.lifecycle.for_imei(imei))
+            records = [
+                report_record(name, r, track.overdue_after(r), landed)
+                for r, landed in zip(read.stored, read.landed, strict=True) if r.id > seen
+            ]  # fmt: skip
+        return self._emit(records)
 
     def stored_reports(self, name: str) -> list[StoredReport]:
         imei = self.ops(name).config.imei

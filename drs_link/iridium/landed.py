@@ -97,18 +97,19 @@ def landed_evidence(reports: Sequence[StoredReport], ground_m: float | None = No
     )
 
 
-def landed_after_each(reports: Sequence[StoredReport]) -> list[bool]:
-    """``landed_evidence(reports[: i + 1]).on_ground`` for each i (no DEM), in one pass.
+class LandedVerdicts:
+    """``landed_evidence(reports so far).on_ground`` (no DEM), one report at a time, in time order (as
+    ``ReportStore.for_imei`` gives them).
 
-    Why: the console marks each report with the verdict on the reports up to it, and asking
-    ``landed_evidence`` of every prefix re-ran the landing rule on the whole track each time, which
-    is quadratic (0.24 s for 400 reports at start-up). ``reports`` are in time order, as
-    ``ReportStore.for_imei`` gives them.
+    Why one at a time: the console marks each report with the verdict on the reports up to it, and
+    asking ``landed_evidence`` of every prefix re-ran the landing rule on the whole track each time,
+    which is quadratic (0.24 s for 400 reports at start-up); fed in order, each report is one step.
     """
-    watch = LandingWatch()
-    verdicts = []
-    for stored in reports:
+
+    def __init__(self) -> None:
+        self._watch = LandingWatch()
+
+    def add(self, stored: StoredReport) -> bool:
         if (point := track_point(stored)) is not None:
-            watch.add(point)
-        verdicts.append(watch.on_site)
-    return verdicts
+            self._watch.add(point)
+        return self._watch.on_site

@@ -200,14 +200,13 @@ class ReportStore:
             for row in self.store.query("SELECT reason, body FROM mo_delivery_rejected ORDER BY id")
         ]
 
-    def for_imei(self, imei: str) -> list[StoredReport]:
-        """All reports of one modem in time order (arrival order breaks ties)."""
-        rows = self.store.query("SELECT * FROM mo_report WHERE imei = ? ORDER BY sort_utc, id", (imei,))
+    def for_imei(self, imei: str, after_id: int = 0) -> list[StoredReport]:
+        """The reports of one modem in time order (arrival order breaks ties); ``after_id``: only those
+        stored after that one (ids grow with every store, as SQLite has one writer at a time)."""
+        rows = self.store.query(
+            "SELECT * FROM mo_report WHERE imei = ? AND id > ? ORDER BY sort_utc, id", (imei, after_id)
+        )
         return [_row_to_report(row) for row in rows]
-
-    def newest_id(self, imei: str) -> int | None:
-        """The id of the modem's last stored report: whether anything arrived, without reading any."""
-        return self.store.query("SELECT MAX(id) AS id FROM mo_report WHERE imei = ?", (imei,))[0]["id"]
 
     def tail(self, imei: str, session_after: datetime | None, report_ids: list[int]) -> list[StoredReport]:
         """The end of ``for_imei`` from the first report that came in a session after ``session_after``

@@ -17,7 +17,7 @@ from drs_link.iridium import recovery
 from drs_link.iridium import reports as report_module
 from drs_link.iridium.authorize import authorize_mt
 from drs_link.iridium.firmware import format_mo
-from drs_link.iridium.landed import landed_after_each, landed_evidence
+from drs_link.iridium.landed import LandedVerdicts, landed_evidence
 from drs_link.iridium.lifecycle import NOT_SENT, CommandLifecycle
 from drs_link.iridium.mo import parse_payload
 from drs_link.iridium.mt import MtComposer
@@ -84,17 +84,19 @@ def test_the_verdict_after_each_report_is_landed_evidence_on_the_reports_up_to_i
     carried = [*landed(T0), away, back[0], away, stored(9, T0 + timedelta(minutes=20), 412.0, 0.5, lat=46.7)]
     verdicts = []
     for reports in [*real_flights(shared_data), [*landed(T0), away, *back], carried]:
-        verdicts += landed_after_each(reports)
-        assert landed_after_each(reports) == [landed_evidence(reports[: i + 1]).on_ground for i in range(len(reports))]
+        fed = LandedVerdicts()
+        verdicts += [fed.add(report) for report in reports]
+        assert verdicts[-len(reports) :] == [landed_evidence(reports[: i + 1]).on_ground for i in range(len(reports))]
     assert 0 < sum(verdicts) < len(verdicts)
 
 
-def test_the_console_runs_the_landing_rule_once_per_fix_at_start_up_and_reads_nothing_when_nothing_is_new(
+def test_the_console_reads_each_report_once_and_runs_the_landing_rule_once_per_fix(
     tmp_path: Path, shared_data: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The console marks each report with the landed verdict on the reports up to it. It asked
     ``landed_evidence`` of every prefix (0.24 s for 400 reports at start-up, growing with the square) and
-    re-read every report at each poll; work is counted here, not timed."""
+    re-read and re-parsed every report whenever one was new; work is counted here, not timed. Only an
+    old report imported late, sorting before what was read, makes it read the history again."""
     flight = max(real_flights(shared_data), key=len)
     config = parse_config({"operator": {"name": "alice"}, "data": {"dir": str(tmp_path / "data")},
                            "capsule": [{"name": "DRS1", "host": "127.0.0.1", "port": 9, "imei": IMEI}]})  # fmt: skip
@@ -118,6 +120,17 @@ def test_the_console_runs_the_landing_rule_once_per_fix_at_start_up_and_reads_no
                     "parsed": len(flight)}  # fmt: skip
     work.update(fixes=0, parsed=0)
     assert ops.new_reports("DRS1") == [] and work == {"fixes": 0, "parsed": 0}
+    for added, read_again in ((stored(10_001, flight[-1].time + timedelta(minutes=2), 412.0, 0.2), False),
+                              (stored(10_002, flight[0].time - timedelta(minutes=2), 400.0, 0.0), True)):  # fmt: skip
+        ReportStore(store).add(added.delivery)
+        work.update(fixes=0, parsed=0)
+        [record] = ops.new_reports("DRS1")
+        done = dict(work)
+        everything = ReportStore(store).for_imei(IMEI)
+        fixes = sum(r.report is not None and r.report.fix is not None for r in everything)
+        assert done == ({"fixes": fixes, "parsed": 1 + len(everything)} if read_again else {"fixes": 1, "parsed": 1})
+        upto = [r.delivery.momsn for r in everything].index(added.delivery.momsn) + 1
+        assert record.data.landed == landed_evidence(everything[:upto]).on_ground  # type: ignore[union-attr]
 
 
 @pytest.fixture
