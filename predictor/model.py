@@ -18,24 +18,24 @@ Each term adds its increment to what the terms before it produced; a scale facto
 then corrections, then dynamics such as ``wind_lag`` that must see the final wind), and in the given
 order within a stage.
 
-Why a kind switch and not Python callbacks: the whole descent runs compiled (numba), for 1000 members
-at once, and a compiled loop cannot call arbitrary Python objects. Each term is therefore a small
-``@njit`` function ``(p, p_off, s_off, env, vel, state)`` that reads its parameters at
-``p[p_off + i]`` and its per-trajectory state at ``state[s_off + j]``; a model is a table of
-(family, kind, p_off, s_off) rows that ``apply_family`` walks. One compiled integrator serves every
-model, and numba caches it on disk.
+Why a registry and not Python callbacks: the whole descent runs compiled (numba), for 1000 members
+at once, and a compiled loop cannot call arbitrary Python objects. Each term class therefore carries
+its ``kernel``, a small ``@njit`` function ``(p, p_off, s_off, env, vel, state)`` that reads its
+parameters at ``p[p_off + i]`` and its per-trajectory state at ``state[s_off + j]``. ``TERMS`` lists
+every term once; a term's kind is its place in that list, and the compiled dispatch is built from
+it, so a model is a table of (family, kind, p_off, s_off) rows that ``apply_family`` walks. One
+compiled integrator serves every model, and numba caches it on disk.
 
-Adding a term (see docs/predictor.md): write its ``@njit(cache=True)`` function, give it a
-``KIND_*`` number and a branch in ``apply_term``, and add a frozen dataclass subclass of ``Term``
-whose float fields are its parameters, with ``name``, ``family``, ``stage`` and ``kind``. Parameters
-may be per-trajectory arrays (ensemble members, one value per flight): a field then holds an array
-with one value per trajectory instead of a float.
+Adding a term (see docs/architecture.md): a frozen dataclass subclass of ``Term`` in this file whose
+float fields are its parameters, with ``name``, ``family``, ``stage`` and its ``kernel``, and its
+class in ``TERMS``. Parameters may be per-trajectory arrays (ensemble members, one value per flight):
+a field then holds an array with one value per trajectory instead of a float.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar
 
@@ -78,22 +78,12 @@ FAMILY_TIMING = 0
 FAMILY_VERTICAL = 1
 FAMILY_HORIZONTAL = 2
 
-KIND_TERMINAL_VELOCITY = 0
-KIND_WIND = 1
-KIND_DESCENT_RATE_SCALE = 2
-KIND_DRAG_DENSITY_EXPONENT = 3
-KIND_DEPLOYMENT_DELAY = 4
-KIND_BINNED_DESCENT_RATE = 5
-KIND_WIND_SCALE = 6
-KIND_WIND_ROTATION = 7
-KIND_WIND_BAND_SCALE = 8
-KIND_WIND_OFFSET = 9
-KIND_BINNED_WIND = 10
-KIND_WIND_LAG = 11
-KIND_WEATHER_TIME_OFFSET = 12
-KIND_SEA_LEVEL_RATE = 13
-KIND_MEASURED_DESCENT_RATE = 14
+BASE_STAGE = 0
+"""The stage of the terms a chain is built on (a drag law, the wind); every later stage is an effect."""
 STANDARD_SEA_LEVEL_DENSITY = 1.225
+
+Kernel = Callable[[np.ndarray, int, int, np.ndarray, np.ndarray, np.ndarray], None]
+"""A term's compiled step: (p, p_off, s_off, env, vel, state), adding the term's increment in place."""
 
 
 @dataclass(frozen=True)
@@ -104,7 +94,7 @@ class Term:
     family: ClassVar[str] = ""
     stage: ClassVar[int] = 1
     n_state: ClassVar[int] = 0
-    kind: ClassVar[int] = -1
+    kernel: ClassVar[Kernel]
 
     def columns(self) -> list[float | np.ndarray]:
         """One entry per parameter slot: a float, or an array with one value per trajectory."""
@@ -121,9 +111,6 @@ class Term:
         return out
 
 
-# ---------------------------------------------------------------- term kernels
-
-
 @njit(cache=True)
 def _bin_of(p: np.ndarray, p_off: int, n_bins: int, z: float) -> int:
     if z < p[p_off] or z >= p[p_off + n_bins]:
@@ -134,248 +121,12 @@ def _bin_of(p: np.ndarray, p_off: int, n_bins: int, z: float) -> int:
     return b
 
 
-@njit(cache=True)
-def _terminal_velocity(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    vel[VEL_DOWN] += math.sqrt(2.0 * p[p_off] * env[ENV_G] / (env[ENV_RHO] * p[p_off + 1]))
-
-
-@njit(cache=True)
-def _sea_level_rate(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    vel[VEL_DOWN] += p[p_off] * math.sqrt(p[p_off + 1] / env[ENV_RHO])
-
-
-@njit(cache=True)
-def _measured_descent_rate(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    n_bins = int(p[p_off])
-    b = int(math.floor((env[ENV_Z] - p[p_off + 1]) / p[p_off + 2]))
-    vel[VEL_DOWN] += p[p_off + 3 + min(max(b, 0), n_bins - 1)]
-
-
-@njit(cache=True)
-def _wind(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
-    vel[VEL_EAST] += env[ENV_U_WIND]
-    vel[VEL_NORTH] += env[ENV_V_WIND]
-
-
-@njit(cache=True)
-def _descent_rate_scale(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    vel[VEL_DOWN] += (p[p_off] - 1.0) * vel[VEL_DOWN]
-
-
-@njit(cache=True)
-def _drag_density_exponent(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    factor = (env[ENV_RHO] / p[p_off + 1]) ** (-p[p_off])
-    vel[VEL_DOWN] += (factor - 1.0) * vel[VEL_DOWN]
-
-
-@njit(cache=True)
-def _deployment_delay(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    fast_left = p[p_off] - env[ENV_T_START]
-    if fast_left <= 0.0:
-        return
-    slow = vel[VEL_DOWN]
-    fast = slow * p[p_off + 1]
-    fast_height = fast_left * fast
-    if fast_height >= env[ENV_DZ]:
-        vel[VEL_DOWN] = fast
-    else:
-        duration = fast_left + (env[ENV_DZ] - fast_height) / slow
-        vel[VEL_DOWN] = env[ENV_DZ] / duration
-
-
-@njit(cache=True)
-def _binned_descent_rate(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    n_bins = int(p[p_off])
-    b = _bin_of(p, p_off + 1, n_bins, env[ENV_Z])
-    if b >= 0:
-        vel[VEL_DOWN] += (p[p_off + n_bins + 2 + b] - 1.0) * vel[VEL_DOWN]
-
-
-@njit(cache=True)
-def _wind_scale(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    vel[VEL_EAST] += (p[p_off] - 1.0) * vel[VEL_EAST]
-    vel[VEL_NORTH] += (p[p_off] - 1.0) * vel[VEL_NORTH]
-
-
-@njit(cache=True)
-def _wind_rotation(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    a = math.radians(p[p_off])
-    east = vel[VEL_EAST]
-    north = vel[VEL_NORTH]
-    vel[VEL_EAST] = east * math.cos(a) + north * math.sin(a)
-    vel[VEL_NORTH] = -east * math.sin(a) + north * math.cos(a)
-
-
-@njit(cache=True)
-def _wind_band_scale(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    if p[p_off] <= env[ENV_Z] < p[p_off + 1]:
-        vel[VEL_EAST] += (p[p_off + 2] - 1.0) * vel[VEL_EAST]
-        vel[VEL_NORTH] += (p[p_off + 2] - 1.0) * vel[VEL_NORTH]
-
-
-@njit(cache=True)
-def _wind_offset(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    vel[VEL_EAST] += p[p_off]
-    vel[VEL_NORTH] += p[p_off + 1]
-
-
-@njit(cache=True)
-def _binned_wind(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    n_bins = int(p[p_off])
-    b = _bin_of(p, p_off + 1, n_bins, env[ENV_Z])
-    if b >= 0:
-        vel[VEL_EAST] += p[p_off + n_bins + 2 + b]
-        vel[VEL_NORTH] += p[p_off + 2 * n_bins + 2 + b]
-
-
-@njit(cache=True)
-def _wind_lag(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    if math.isnan(state[s_off]):
-        state[s_off] = vel[VEL_EAST]
-        state[s_off + 1] = vel[VEL_NORTH]
-    tau = p[p_off]
-    dt = env[ENV_DT]
-    decay = math.exp(-dt / tau) if tau > 0.0 else 0.0
-    mean_weight = tau / dt * (1.0 - decay) if tau > 0.0 else 0.0
-    for k in range(2):
-        air = vel[VEL_EAST + k]
-        lag = state[s_off + k] - air
-        vel[VEL_EAST + k] = air + lag * mean_weight
-        state[s_off + k] = air + lag * decay
-
-
-@njit(cache=True)
-def _weather_time_offset(
-    p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
-) -> None:
-    env[ENV_TIME_SHIFT] += p[p_off]
-
-
-@njit(cache=True)
-def apply_term(
-    kind: int,
-    params: np.ndarray,
-    p_off: int,
-    s_off: int,
-    env: np.ndarray,
-    vel: np.ndarray,
-    state: np.ndarray,
-    active: np.ndarray,
-    lo: int,
-    hi: int,
-) -> None:
-    """Run one term on the active trajectories lo…hi−1: the only place that lists every term's function.
-
-    The kind is tested once and the loop over trajectories sits inside each branch, so the compiled
-    loop is as tight as if the term were written into the integrator.
-    """
-    if kind == KIND_TERMINAL_VELOCITY:
-        for i in range(lo, hi):
-            if active[i]:
-                _terminal_velocity(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_SEA_LEVEL_RATE:
-        for i in range(lo, hi):
-            if active[i]:
-                _sea_level_rate(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_MEASURED_DESCENT_RATE:
-        for i in range(lo, hi):
-            if active[i]:
-                _measured_descent_rate(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_WIND:
-        for i in range(lo, hi):
-            if active[i]:
-                _wind(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_DESCENT_RATE_SCALE:
-        for i in range(lo, hi):
-            if active[i]:
-                _descent_rate_scale(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_DRAG_DENSITY_EXPONENT:
-        for i in range(lo, hi):
-            if active[i]:
-                _drag_density_exponent(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_DEPLOYMENT_DELAY:
-        for i in range(lo, hi):
-            if active[i]:
-                _deployment_delay(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_BINNED_DESCENT_RATE:
-        for i in range(lo, hi):
-            if active[i]:
-                _binned_descent_rate(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_WIND_SCALE:
-        for i in range(lo, hi):
-            if active[i]:
-                _wind_scale(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_WIND_ROTATION:
-        for i in range(lo, hi):
-            if active[i]:
-                _wind_rotation(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_WIND_BAND_SCALE:
-        for i in range(lo, hi):
-            if active[i]:
-                _wind_band_scale(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_WIND_OFFSET:
-        for i in range(lo, hi):
-            if active[i]:
-                _wind_offset(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_BINNED_WIND:
-        for i in range(lo, hi):
-            if active[i]:
-                _binned_wind(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_WIND_LAG:
-        for i in range(lo, hi):
-            if active[i]:
-                _wind_lag(params[i], p_off, s_off, env[i], vel[i], state[i])
-    elif kind == KIND_WEATHER_TIME_OFFSET:
-        for i in range(lo, hi):
-            if active[i]:
-                _weather_time_offset(params[i], p_off, s_off, env[i], vel[i], state[i])
-
-
-@njit(cache=True)
-def apply_family(
-    table: np.ndarray,
-    family: int,
-    params: np.ndarray,
-    env: np.ndarray,
-    vel: np.ndarray,
-    state: np.ndarray,
-    active: np.ndarray,
-    lo: int,
-    hi: int,
-) -> None:
-    """Run, in order, the terms of one family (FAMILY_TIMING, FAMILY_VERTICAL, FAMILY_HORIZONTAL).
-
-    ``params``, ``env``, ``vel`` and ``state`` have one row per trajectory.
-    """
-    for row in range(table.shape[0]):
-        if table[row, 0] == family:
-            apply_term(table[row, 1], params, table[row, 2], table[row, 3], env, vel, state, active, lo, hi)
+def _check_bins(edges: Sequence[float], values: Sequence[Sequence[float]], name: str) -> None:
+    if len(edges) < 2 or any(b <= a for a, b in zip(edges[:-1], edges[1:], strict=False)):
+        raise PredictorError(f"{name}: bin edges must be at least two strictly increasing altitudes")
+    for column in values:
+        if len(column) != len(edges) - 1:
+            raise PredictorError(f"{name}: need one value per bin ({len(edges) - 1}), got {len(column)}")
 
 
 # ---------------------------------------------------------------- base terms
@@ -389,13 +140,16 @@ class TerminalVelocity(Term):
     cda_m2: float | np.ndarray
     name: ClassVar[str] = "terminal_velocity"
     family: ClassVar[str] = "vertical"
-    stage: ClassVar[int] = 0
+    stage: ClassVar[int] = BASE_STAGE
 
     @classmethod
     def of(cls, payload: Payload) -> TerminalVelocity:
         return cls(mass_kg=payload.mass_kg, cda_m2=payload.cda_m2)
 
-    kind: ClassVar[int] = KIND_TERMINAL_VELOCITY
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        vel[VEL_DOWN] += math.sqrt(2.0 * p[p_off] * env[ENV_G] / (env[ENV_RHO] * p[p_off + 1]))
 
 
 @dataclass(frozen=True)
@@ -411,8 +165,12 @@ class SeaLevelRate(Term):
     reference_density: float | np.ndarray = 1.1045**2
     name: ClassVar[str] = "sea_level_rate"
     family: ClassVar[str] = "vertical"
-    stage: ClassVar[int] = 0
-    kind: ClassVar[int] = KIND_SEA_LEVEL_RATE
+    stage: ClassVar[int] = BASE_STAGE
+
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        vel[VEL_DOWN] += p[p_off] * math.sqrt(p[p_off + 1] / env[ENV_RHO])
 
 
 @dataclass(frozen=True)
@@ -430,7 +188,7 @@ class MeasuredDescentRate(Term):
     rates_ms: tuple[float, ...] = (5.0,)
     name: ClassVar[str] = "measured_descent_rate"
     family: ClassVar[str] = "vertical"
-    stage: ClassVar[int] = 0
+    stage: ClassVar[int] = BASE_STAGE
 
     def __post_init__(self) -> None:
         if not self.rates_ms or not self.bin_m > 0:
@@ -446,7 +204,12 @@ class MeasuredDescentRate(Term):
             *map(float, self.rates_ms),
         ]
 
-    kind: ClassVar[int] = KIND_MEASURED_DESCENT_RATE
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        n_bins = int(p[p_off])
+        b = int(math.floor((env[ENV_Z] - p[p_off + 1]) / p[p_off + 2]))
+        vel[VEL_DOWN] += p[p_off + 3 + min(max(b, 0), n_bins - 1)]
 
 
 @dataclass(frozen=True)
@@ -455,9 +218,13 @@ class Wind(Term):
 
     name: ClassVar[str] = "wind"
     family: ClassVar[str] = "horizontal"
-    stage: ClassVar[int] = 0
+    stage: ClassVar[int] = BASE_STAGE
 
-    kind: ClassVar[int] = KIND_WIND
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        vel[VEL_EAST] += env[ENV_U_WIND]
+        vel[VEL_NORTH] += env[ENV_V_WIND]
 
 
 # ---------------------------------------------------------------- vertical effects
@@ -471,7 +238,10 @@ class DescentRateScale(Term):
     name: ClassVar[str] = "descent_rate_scale"
     family: ClassVar[str] = "vertical"
 
-    kind: ClassVar[int] = KIND_DESCENT_RATE_SCALE
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        vel[VEL_DOWN] += (p[p_off] - 1.0) * vel[VEL_DOWN]
 
 
 @dataclass(frozen=True)
@@ -487,7 +257,11 @@ class DragDensityExponent(Term):
     name: ClassVar[str] = "drag_density_exponent"
     family: ClassVar[str] = "vertical"
 
-    kind: ClassVar[int] = KIND_DRAG_DENSITY_EXPONENT
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        factor = (env[ENV_RHO] / p[p_off + 1]) ** (-p[p_off])
+        vel[VEL_DOWN] += (factor - 1.0) * vel[VEL_DOWN]
 
 
 @dataclass(frozen=True)
@@ -503,7 +277,20 @@ class DeploymentDelay(Term):
     name: ClassVar[str] = "deployment_delay"
     family: ClassVar[str] = "vertical"
 
-    kind: ClassVar[int] = KIND_DEPLOYMENT_DELAY
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        fast_left = p[p_off] - env[ENV_T_START]
+        if fast_left <= 0.0:
+            return
+        slow = vel[VEL_DOWN]
+        fast = slow * p[p_off + 1]
+        fast_height = fast_left * fast
+        if fast_height >= env[ENV_DZ]:
+            vel[VEL_DOWN] = fast
+        else:
+            duration = fast_left + (env[ENV_DZ] - fast_height) / slow
+            vel[VEL_DOWN] = env[ENV_DZ] / duration
 
 
 @dataclass(frozen=True)
@@ -521,7 +308,13 @@ class BinnedDescentRate(Term):
     def columns(self) -> list[float | np.ndarray]:
         return [float(len(self.factors)), *map(float, self.edges_m), *map(float, self.factors)]
 
-    kind: ClassVar[int] = KIND_BINNED_DESCENT_RATE
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        n_bins = int(p[p_off])
+        b = _bin_of(p, p_off + 1, n_bins, env[ENV_Z])
+        if b >= 0:
+            vel[VEL_DOWN] += (p[p_off + n_bins + 2 + b] - 1.0) * vel[VEL_DOWN]
 
 
 # ---------------------------------------------------------------- horizontal effects
@@ -535,7 +328,11 @@ class WindScale(Term):
     name: ClassVar[str] = "wind_scale"
     family: ClassVar[str] = "horizontal"
 
-    kind: ClassVar[int] = KIND_WIND_SCALE
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        vel[VEL_EAST] += (p[p_off] - 1.0) * vel[VEL_EAST]
+        vel[VEL_NORTH] += (p[p_off] - 1.0) * vel[VEL_NORTH]
 
 
 @dataclass(frozen=True)
@@ -546,7 +343,14 @@ class WindRotation(Term):
     name: ClassVar[str] = "wind_rotation"
     family: ClassVar[str] = "horizontal"
 
-    kind: ClassVar[int] = KIND_WIND_ROTATION
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        a = math.radians(p[p_off])
+        east = vel[VEL_EAST]
+        north = vel[VEL_NORTH]
+        vel[VEL_EAST] = east * math.cos(a) + north * math.sin(a)
+        vel[VEL_NORTH] = -east * math.sin(a) + north * math.cos(a)
 
 
 @dataclass(frozen=True)
@@ -559,7 +363,12 @@ class WindBandScale(Term):
     name: ClassVar[str] = "wind_band_scale"
     family: ClassVar[str] = "horizontal"
 
-    kind: ClassVar[int] = KIND_WIND_BAND_SCALE
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        if p[p_off] <= env[ENV_Z] < p[p_off + 1]:
+            vel[VEL_EAST] += (p[p_off + 2] - 1.0) * vel[VEL_EAST]
+            vel[VEL_NORTH] += (p[p_off + 2] - 1.0) * vel[VEL_NORTH]
 
 
 @dataclass(frozen=True)
@@ -571,7 +380,11 @@ class WindOffset(Term):
     name: ClassVar[str] = "wind_offset"
     family: ClassVar[str] = "horizontal"
 
-    kind: ClassVar[int] = KIND_WIND_OFFSET
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        vel[VEL_EAST] += p[p_off]
+        vel[VEL_NORTH] += p[p_off + 1]
 
 
 @dataclass(frozen=True)
@@ -595,7 +408,14 @@ class BinnedWind(Term):
             *map(float, self.north_ms),
         ]
 
-    kind: ClassVar[int] = KIND_BINNED_WIND
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        n_bins = int(p[p_off])
+        b = _bin_of(p, p_off + 1, n_bins, env[ENV_Z])
+        if b >= 0:
+            vel[VEL_EAST] += p[p_off + n_bins + 2 + b]
+            vel[VEL_NORTH] += p[p_off + 2 * n_bins + 2 + b]
 
 
 @dataclass(frozen=True)
@@ -616,7 +436,21 @@ class WindLag(Term):
     def initial_state(self) -> list[float]:
         return [math.nan, math.nan]
 
-    kind: ClassVar[int] = KIND_WIND_LAG
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        if math.isnan(state[s_off]):
+            state[s_off] = vel[VEL_EAST]
+            state[s_off + 1] = vel[VEL_NORTH]
+        tau = p[p_off]
+        dt = env[ENV_DT]
+        decay = math.exp(-dt / tau) if tau > 0.0 else 0.0
+        mean_weight = tau / dt * (1.0 - decay) if tau > 0.0 else 0.0
+        for k in range(2):
+            air = vel[VEL_EAST + k]
+            lag = state[s_off + k] - air
+            vel[VEL_EAST + k] = air + lag * mean_weight
+            state[s_off + k] = air + lag * decay
 
 
 # ---------------------------------------------------------------- timing effects
@@ -630,34 +464,130 @@ class WeatherTimeOffset(Term):
     name: ClassVar[str] = "weather_time_offset"
     family: ClassVar[str] = "timing"
 
-    kind: ClassVar[int] = KIND_WEATHER_TIME_OFFSET
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        env[ENV_TIME_SHIFT] += p[p_off]
 
 
-EFFECTS: dict[str, type[Term]] = {
-    cls.name: cls
-    for cls in (
-        DescentRateScale,
-        DragDensityExponent,
-        DeploymentDelay,
-        BinnedDescentRate,
-        WindScale,
-        WindRotation,
-        WindBandScale,
-        WindOffset,
-        BinnedWind,
-        WindLag,
-        WeatherTimeOffset,
-    )
-}
-"""Every effect term by name, for configuration files and the calibration library."""
+# ---------------------------------------------------------------- the registry
+
+TERMS: tuple[type[Term], ...] = (
+    TerminalVelocity,
+    SeaLevelRate,
+    MeasuredDescentRate,
+    Wind,
+    DescentRateScale,
+    DragDensityExponent,
+    DeploymentDelay,
+    BinnedDescentRate,
+    WindScale,
+    WindRotation,
+    WindBandScale,
+    WindOffset,
+    BinnedWind,
+    WindLag,
+    WeatherTimeOffset,
+)
+"""Every term the integrator can run, each once: its kind is its index here, and the compiled dispatch,
+``KINDS`` and ``EFFECTS`` are all made from this tuple, so a term cannot be half registered."""
+
+KINDS: dict[type[Term], int] = {cls: kind for kind, cls in enumerate(TERMS)}
+
+EFFECTS: dict[str, type[Term]] = {cls.name: cls for cls in TERMS if cls.stage != BASE_STAGE}
+"""Every effect term by name, for configuration files and the calibration library (the base terms
+a chain is built on are not effects: a model file that listed a drag law among its effects would
+fall at twice the rate)."""
 
 
-def _check_bins(edges: Sequence[float], values: Sequence[Sequence[float]], name: str) -> None:
-    if len(edges) < 2 or any(b <= a for a, b in zip(edges[:-1], edges[1:], strict=False)):
-        raise PredictorError(f"{name}: bin edges must be at least two strictly increasing altitudes")
-    for column in values:
-        if len(column) != len(edges) - 1:
-            raise PredictorError(f"{name}: need one value per bin ({len(edges) - 1}), got {len(column)}")
+def kind_of(term: Term) -> int:
+    """The term's kind; a term class missing from ``TERMS`` is refused, since no compiled code runs it."""
+    kind = KINDS.get(type(term))
+    if kind is None:
+        raise PredictorError(
+            f"term {term.name!r} ({type(term).__name__}) is not registered in predictor.model.TERMS, "
+            "so the integrator has no kernel for it"
+        )
+    return kind
+
+
+@njit(inline="always")
+def _unknown_kind(
+    kind: int,
+    params: np.ndarray,
+    p_off: int,
+    s_off: int,
+    env: np.ndarray,
+    vel: np.ndarray,
+    state: np.ndarray,
+    active: np.ndarray,
+    lo: int,
+    hi: int,
+) -> None:
+    raise PredictorError("the model table names a term kind that is not in predictor.model.TERMS")
+
+
+def _dispatch(kernels: tuple[Kernel, ...], kind: int = 0) -> Any:
+    """The compiled ``apply_term`` for ``kernels`` (kinds ``kind``, ``kind`` + 1, …), made from the registry.
+
+    numba cannot call a kernel chosen at run time without an indirect call per trajectory, so each
+    kind gets its own compiled branch, as a hand-written if/elif chain would: the kind is tested once
+    and the loop over trajectories calls its kernel directly (inlined). Past the last kernel the kind is
+    unknown, which raises rather than leaving the step without the term.
+    """
+    if not kernels:
+        return _unknown_kind
+    kernel, others = kernels[0], _dispatch(kernels[1:], kind + 1)
+
+    @njit(inline="always")
+    def apply_term(
+        k: int,
+        params: np.ndarray,
+        p_off: int,
+        s_off: int,
+        env: np.ndarray,
+        vel: np.ndarray,
+        state: np.ndarray,
+        active: np.ndarray,
+        lo: int,
+        hi: int,
+    ) -> None:
+        if k == kind:
+            for i in range(lo, hi):
+                if active[i]:
+                    kernel(params[i], p_off, s_off, env[i], vel[i], state[i])
+        else:
+            others(k, params, p_off, s_off, env, vel, state, active, lo, hi)
+
+    return apply_term
+
+
+apply_term = _dispatch(tuple(cls.kernel for cls in TERMS))
+"""Run the term of one kind on the active trajectories lo…hi−1 (unknown kinds raise)."""
+
+
+@njit(cache=True)
+def apply_family(
+    table: np.ndarray,
+    family: int,
+    params: np.ndarray,
+    env: np.ndarray,
+    vel: np.ndarray,
+    state: np.ndarray,
+    active: np.ndarray,
+    lo: int,
+    hi: int,
+) -> None:
+    """Run, in order, the terms of one family (FAMILY_TIMING, FAMILY_VERTICAL, FAMILY_HORIZONTAL).
+
+    ``params``, ``env``, ``vel`` and ``state`` have one row per trajectory.
+    """
+    for row in range(table.shape[0]):
+        if table[row, 0] == family:
+            apply_term(table[row, 1], params, table[row, 2], table[row, 3], env, vel, state, active, lo, hi)
+
+
+# ---------------------------------------------------------------- the chain
 
 
 @dataclass(frozen=True)
@@ -671,6 +601,7 @@ class Model:
         for term in self.terms:
             if term.family not in FAMILIES:
                 raise PredictorError(f"term {term.name!r} has unknown family {term.family!r}")
+            kind_of(term)
         if not any(term.family == "vertical" for term in self.terms):
             raise PredictorError("the model has no vertical term: nothing sets the descent rate")
         order = sorted(range(len(self.terms)), key=lambda i: self.terms[i].stage)
@@ -713,7 +644,7 @@ class Model:
 
     def table(self) -> np.ndarray:
         """One row (family, kind, p_off, s_off) per term, in execution order, for ``apply_family``."""
-        rows = [(FAMILIES.index(t.family), t.kind, p_off, s_off) for t, p_off, s_off in self._offsets()]
+        rows = [(FAMILIES.index(t.family), kind_of(t), p_off, s_off) for t, p_off, s_off in self._offsets()]
         return np.asarray(rows, dtype=np.int64).reshape(-1, 4)
 
     def describe(self) -> list[dict[str, Any]]:

@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pytest
 
-from predictor import EFFECTS, Model, Payload, PredictorError, predict
+from predictor import EFFECTS, Model, Payload, PredictorError, Term, predict
 from predictor.model import (
+    BASE_STAGE,
+    ENV_SIZE,
+    FAMILIES,
+    FAMILY_VERTICAL,
+    TERMS,
     BinnedDescentRate,
     BinnedWind,
     DeploymentDelay,
@@ -23,6 +30,7 @@ from predictor.model import (
     WindOffset,
     WindRotation,
     WindScale,
+    apply_family,
 )
 from tests.predictor.predict_helpers import H_ISO, RELEASE, RHO0, closed_form_fall_time, isothermal_cube
 
@@ -194,3 +202,28 @@ def test_sea_level_rate_matches_its_closed_form() -> None:
     res = predict(CALM, RELEASE, 46.0, 4.0, z_top, model=Model((SeaLevelRate(rate_ms=rate), Wind())))
     expected = 2 * H_ISO * (1 - math.exp(-z_top / (2 * H_ISO))) / (rate * math.sqrt(1.1045**2 / RHO0))
     assert res.descent_s == pytest.approx(expected, rel=1e-5)
+
+
+def test_every_registered_term_has_its_own_kind_kernel_and_name() -> None:
+    table = Model.for_payload(PAYLOAD, DescentRateScale()).table()
+    assert table[:, 1].tolist() == [TERMS.index(TerminalVelocity), TERMS.index(Wind), TERMS.index(DescentRateScale)]
+    assert len({cls.name for cls in TERMS}) == len(TERMS)
+    assert all(callable(cls.kernel) and cls.family in FAMILIES for cls in TERMS)
+    assert set(EFFECTS.values()) == {cls for cls in TERMS if cls.stage != BASE_STAGE}
+
+
+def test_a_term_missing_from_the_registry_is_refused_not_skipped() -> None:
+    @dataclass(frozen=True)
+    class Unregistered(Term):
+        name: ClassVar[str] = "unregistered"
+        family: ClassVar[str] = "vertical"
+
+    with pytest.raises(PredictorError, match="not registered"):
+        Model.for_payload(PAYLOAD, Unregistered())
+
+
+def test_the_compiled_dispatch_refuses_an_unknown_kind() -> None:
+    table = np.array([[FAMILY_VERTICAL, len(TERMS), 0, 0]], dtype=np.int64)
+    rows = np.zeros((1, 4))
+    with pytest.raises(PredictorError, match="not in predictor.model.TERMS"):
+        apply_family(table, FAMILY_VERTICAL, rows, np.zeros((1, ENV_SIZE)), np.zeros((1, 3)), rows, np.ones(1, bool), 0, 1)
