@@ -25,9 +25,8 @@ from __future__ import annotations
 import math
 import os
 import weakref
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -59,6 +58,7 @@ from predictor.model import (
     VEL_DOWN,
     VEL_EAST,
     VEL_NORTH,
+    Chain,
     apply_family,
 )
 
@@ -88,8 +88,7 @@ FIELD_V = 2
 FIELD_LOG_RHO = 3
 
 
-@dataclass(frozen=True, eq=False)
-class PackedWeather:
+class PackedWeather(NamedTuple):
     """A cube rearranged for the kernel: columns contiguous in level, times in epoch seconds."""
 
     t_s: np.ndarray
@@ -371,6 +370,63 @@ def _cached_with_model(dispatcher: Any) -> Any:
     return dispatcher
 
 
+class Release(NamedTuple):
+    """Where and when each trajectory is let go, one value per trajectory."""
+
+    time: np.ndarray
+    """Epoch seconds."""
+    lat: np.ndarray
+    lon: np.ndarray
+    alt_m: np.ndarray
+
+    def rows(self, lo: int, hi: int) -> Release:
+        """Trajectories lo…hi−1 alone, contiguous as the kernel needs them."""
+        return Release(*(np.ascontiguousarray(a[lo:hi]) for a in self))
+
+
+class Stepping(NamedTuple):
+    """How every trajectory of one call is stepped."""
+
+    step_m: float
+    """Δz of every step."""
+    floor_m: float
+    """Each trajectory is stepped down to here."""
+    time_tolerance_s: float
+    """How far beyond the weather's first/last time it is held constant."""
+
+
+class Record(NamedTuple):
+    """What the stepper writes: the recorded paths, (n, columns), and per trajectory how it went."""
+
+    lat: np.ndarray
+    lon: np.ndarray
+    z: np.ndarray
+    t: np.ndarray
+    """Epoch seconds."""
+    path: np.ndarray
+    """Path length projected to the ground, m."""
+    skip: np.ndarray
+    """Points are recorded from step ``skip[i]`` on (point 0 is the release); set before the run."""
+    n_rec: np.ndarray
+    """How many points were recorded; the rest of a row is left unwritten."""
+    status: np.ndarray
+    """A STATUS_* code."""
+    time_held_s: np.ndarray
+    """How far beyond the weather's time span the trajectory was held, s."""
+    failed_at: np.ndarray
+    """(n, 5): lat, lon, altitude, time and step index where a trajectory failed."""
+
+    @classmethod
+    def empty(cls, skip: np.ndarray, columns: int) -> Record:
+        n = skip.shape[0]
+        paths = (np.empty((n, columns)) for _ in range(5))
+        return cls(*paths, skip, np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n), np.zeros((n, 5)))
+
+    def recorded(self) -> np.ndarray:
+        """(n, columns): True where a point was recorded."""
+        return np.arange(self.z.shape[1])[None, :] < self.n_rec[:, None]
+
+
 @njit(cache=True)
 def _note_failure(failed_at: np.ndarray, i: int, lat: float, lon: float, z: float, t: float, k: int) -> None:
     failed_at[i, 0] = lat
@@ -383,39 +439,19 @@ def _note_failure(failed_at: np.ndarray, i: int, lat: float, lon: float, z: floa
 @_cached_with_model
 @njit(cache=True)
 def _descend_range(
-    lo: int,
-    hi: int,
-    t_s: np.ndarray,
-    lats: np.ndarray,
-    lons: np.ndarray,
-    columns: np.ndarray,
-    time_tolerance_s: float,
-    table: np.ndarray,
-    params: np.ndarray,
-    state: np.ndarray,
-    lat0: np.ndarray,
-    lon0: np.ndarray,
-    z0: np.ndarray,
-    t0: np.ndarray,
-    dz: float,
-    z_floor: float,
-    skip: np.ndarray,
-    out_lat: np.ndarray,
-    out_lon: np.ndarray,
-    out_z: np.ndarray,
-    out_t: np.ndarray,
-    out_path: np.ndarray,
-    n_rec: np.ndarray,
-    status: np.ndarray,
-    time_held_s: np.ndarray,
-    failed_at: np.ndarray,
+    lo: int, hi: int, weather: PackedWeather, stepping: Stepping, chain: Chain, release: Release, record: Record
 ) -> None:
     """Trajectories lo…hi−1 stepped together: each phase of a step runs for all of them before the next.
 
     Phases rather than one trajectory at a time, so that each term's kind is dispatched once per
     step for the whole range instead of once per trajectory and step.
     """
-    n = lat0.shape[0]
+    t_s, lats, lons, columns = weather.t_s, weather.lats, weather.lons, weather.columns
+    dz, z_floor, time_tolerance_s = stepping.step_m, stepping.floor_m, stepping.time_tolerance_s
+    table, params, state = chain.table, chain.params, chain.state
+    t0 = release.time
+    out_lat, out_lon, out_z, out_t, out_path, skip, n_rec, status, time_held_s, failed_at = record
+    n = t0.shape[0]
     nt = t_s.shape[0]
     env = np.zeros((n, ENV_SIZE))
     vel = np.zeros((n, 3))
@@ -429,9 +465,9 @@ def _descend_range(
         memo_z = np.empty((0, 0, 0))
         memo = np.empty((1, 1, 1, 4))
     active = np.zeros(n, dtype=np.bool_)
-    lat = lat0.copy()
-    lon = lon0.copy()
-    z = z0.copy()
+    lat = release.lat.copy()
+    lon = release.lon.copy()
+    z = release.alt_m.copy()
     t = t0.copy()
     path = np.zeros(n)
     dt = np.zeros(n)
@@ -560,40 +596,12 @@ def _descend_range(
 @_cached_with_model
 @njit(cache=True, parallel=True)
 def _descend_parallel(
-    t_s: np.ndarray,
-    lats: np.ndarray,
-    lons: np.ndarray,
-    columns: np.ndarray,
-    time_tolerance_s: float,
-    table: np.ndarray,
-    params: np.ndarray,
-    state: np.ndarray,
-    lat0: np.ndarray,
-    lon0: np.ndarray,
-    z0: np.ndarray,
-    t0: np.ndarray,
-    dz: float,
-    z_floor: float,
-    skip: np.ndarray,
-    out_lat: np.ndarray,
-    out_lon: np.ndarray,
-    out_z: np.ndarray,
-    out_t: np.ndarray,
-    out_path: np.ndarray,
-    n_rec: np.ndarray,
-    status: np.ndarray,
-    time_held_s: np.ndarray,
-    failed_at: np.ndarray,
-    chunks: int,
+    weather: PackedWeather, stepping: Stepping, chain: Chain, release: Release, record: Record, blocks: int
 ) -> None:
     """One contiguous range of trajectories per thread."""
-    n = lat0.shape[0]
-    for c in prange(chunks):
-        _descend_range(
-            c * n // chunks, (c + 1) * n // chunks,
-            t_s, lats, lons, columns, time_tolerance_s, table, params, state, lat0, lon0, z0, t0, dz, z_floor,
-            skip, out_lat, out_lon, out_z, out_t, out_path, n_rec, status, time_held_s, failed_at,
-        )  # fmt: skip
+    n = release.time.shape[0]
+    for c in prange(blocks):
+        _descend_range(c * n // blocks, (c + 1) * n // blocks, weather, stepping, chain, release, record)
 
 
 COMPILE_NOTICE = "compiling the predictor (once)…"
@@ -611,53 +619,34 @@ def kernels_compiled() -> bool:
 
 
 def descend(
-    t_s: np.ndarray,
-    lats: np.ndarray,
-    lons: np.ndarray,
-    columns: np.ndarray,
-    time_tolerance_s: float,
-    table: np.ndarray,
-    params: np.ndarray,
-    state: np.ndarray,
-    lat0: np.ndarray,
-    lon0: np.ndarray,
-    z0: np.ndarray,
-    t0: np.ndarray,
-    dz: float,
-    z_floor: float,
-    skip: np.ndarray,
-    out_lat: np.ndarray,
-    out_lon: np.ndarray,
-    out_z: np.ndarray,
-    out_t: np.ndarray,
-    out_path: np.ndarray,
-    n_rec: np.ndarray,
-    status: np.ndarray,
-    time_held_s: np.ndarray,
-    failed_at: np.ndarray,
-    chunks: int,
-) -> None:
-    """Step every trajectory from (lat0, lon0, z0, t0) down to z_floor, recording each step.
+    weather: PackedWeather,
+    chain: Chain,
+    release: Release,
+    stepping: Stepping,
+    record_below_m: float = math.inf,
+    blocks: int = 1,
+) -> Record:
+    """Step every trajectory from its release down to the floor, recording each step: the one engine
+    under predict, ensembles, planning, calibration and live.
 
-    ``table``, ``params`` and ``state`` come from ``Model.table``, ``parameter_matrix`` and
-    ``state_matrix``. Points are recorded into the (n, columns) ``out_*`` arrays from point
-    ``skip[i]`` on (point 0 is the release; skipping the high part saves memory when only the
-    landing matters); ``n_rec`` is the recorded count per trajectory, ``status`` a STATUS_* code,
-    ``time_held_s`` how far beyond the weather's time span it was held, and ``failed_at`` (n, 5)
-    lat, lon, altitude, time and step index where a trajectory failed.
+    ``chain`` is ``Model.chain(n)`` (or its rows). Recording starts one step above ``record_below_m``
+    (everything when infinite): when only the landing matters, the high part of each path is not kept,
+    which saves memory. A trajectory that fails stops with its status; what to do about it is the
+    caller's choice.
 
-    Trajectories are split into ``chunks`` contiguous ranges run in parallel; with one chunk the
+    Trajectories are split into ``blocks`` contiguous ranges run in parallel; with one block the
     range runs on the calling thread, because a parallel launch costs milliseconds when the
     machine's cores are busy and a single descent takes a fraction of that.
     """
-    if chunks <= 1:
-        _descend_range(
-            0, lat0.shape[0],
-            t_s, lats, lons, columns, time_tolerance_s, table, params, state, lat0, lon0, z0, t0, dz, z_floor,
-            skip, out_lat, out_lon, out_z, out_t, out_path, n_rec, status, time_held_s, failed_at,
-        )  # fmt: skip
+    step_m, floor_m = stepping.step_m, stepping.floor_m
+    steps = np.ceil(np.maximum(release.alt_m - floor_m, 0.0) / step_m).astype(np.int64) + 1
+    if math.isinf(record_below_m):
+        skip = np.zeros(steps.shape[0], dtype=np.int64)
     else:
-        _descend_parallel(
-            t_s, lats, lons, columns, time_tolerance_s, table, params, state, lat0, lon0, z0, t0, dz, z_floor,
-            skip, out_lat, out_lon, out_z, out_t, out_path, n_rec, status, time_held_s, failed_at, chunks,
-        )  # fmt: skip
+        skip = np.maximum(np.floor((release.alt_m - record_below_m) / step_m).astype(np.int64) - 1, 0)
+    record = Record.empty(skip, int((steps - skip).max()) + 1)
+    if blocks <= 1:
+        _descend_range(0, steps.shape[0], weather, stepping, chain, release, record)
+    else:
+        _descend_parallel(weather, stepping, chain, release, record, blocks)
+    return record

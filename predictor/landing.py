@@ -17,6 +17,8 @@ from predictor.terrain import Terrain
 
 HIGHEST_GROUND_M = 8900.0
 """No terrain is higher: points above it need no terrain lookup (most of a 30 km descent)."""
+LOWEST_GROUND_M = -500.0
+"""No terrain is lower (Dead Sea shore −430 m): paths are stepped down to here before the crossing is found."""
 
 
 def wrap_lon(lon: np.ndarray | float) -> np.ndarray:

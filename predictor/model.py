@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -590,6 +590,21 @@ def apply_family(
 # ---------------------------------------------------------------- the chain
 
 
+class Chain(NamedTuple):
+    """A model as the compiled integrator takes it: arrays only, one row per trajectory."""
+
+    table: np.ndarray
+    """One row (family, kind, p_off, s_off) per term, in execution order."""
+    params: np.ndarray
+    """(n, P) parameters of every trajectory."""
+    state: np.ndarray
+    """(n, S) per-trajectory state of the terms that keep one."""
+
+    def rows(self, lo: int, hi: int) -> Chain:
+        """Trajectories lo…hi−1 alone, contiguous as the kernel needs them."""
+        return Chain(self.table, np.ascontiguousarray(self.params[lo:hi]), np.ascontiguousarray(self.state[lo:hi]))
+
+
 @dataclass(frozen=True)
 class Model:
     """An ordered set of terms; the integrator runs whatever it is given."""
@@ -646,6 +661,10 @@ class Model:
         """One row (family, kind, p_off, s_off) per term, in execution order, for ``apply_family``."""
         rows = [(FAMILIES.index(t.family), kind_of(t), p_off, s_off) for t, p_off, s_off in self._offsets()]
         return np.asarray(rows, dtype=np.int64).reshape(-1, 4)
+
+    def chain(self, n: int) -> Chain:
+        """The model for ``n`` trajectories, as the integrator takes it."""
+        return Chain(self.table(), self.parameter_matrix(n), self.state_matrix(n))
 
     def describe(self) -> list[dict[str, Any]]:
         return [{"effect": t.name, "family": t.family, "parameters": t.parameters()} for t in self.ordered()]

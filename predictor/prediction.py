@@ -29,18 +29,19 @@ from predictor.integrate import (
     STATUS_OUTSIDE_REGION,
     STATUS_OUTSIDE_TIME,
     TOP_TOLERANCE_M,
+    Record,
+    Release,
+    Stepping,
     descend,
     drift_at_float,
     packed,
 )
-from predictor.landing import HIGHEST_GROUND_M, ground_crossings, wrap_lon
+from predictor.landing import HIGHEST_GROUND_M, LOWEST_GROUND_M, ground_crossings, wrap_lon
 from predictor.model import DescentRateScale, Model, Term, WindOffset
 from predictor.payload import PROFILES, Payload
 from predictor.terrain import Terrain
 from predictor.uncertainty import GEOD, LAUNCH, Ellipse, ErrorModel, empirical_ellipse, parametric_ellipse
 
-LOWEST_GROUND_M = -500.0
-"""The stepper runs every path down to here (Dead Sea shore −430 m) before the crossing is found."""
 DRIFT_STEP_S = 60.0
 CHUNKS_PER_THREAD = 4
 """Trajectory blocks per numba thread: smaller blocks even out a thread that other work slows down."""
@@ -186,17 +187,6 @@ class _Landings:
     """Index of the first recorded point below the ground, per trajectory."""
 
 
-@dataclass(frozen=True)
-class _Paths:
-    lat: np.ndarray
-    lon: np.ndarray
-    z: np.ndarray
-    t: np.ndarray
-    path: np.ndarray
-    n_rec: np.ndarray
-    time_held_s: float
-
-
 def _check_question(
     time: datetime, lat: float, lon: float, alt_m: float, step_m: float, drift_minutes: float
 ) -> None:
@@ -259,50 +249,36 @@ def _coverage_error(
 def _integrate(
     cube: WeatherCube,
     model: Model,
-    lat0: np.ndarray,
-    lon0: np.ndarray,
-    z0: np.ndarray,
-    t0: np.ndarray,
+    release: Release,
     step_m: float,
     time_tolerance_s: float,
     whole_track: bool = True,
-) -> _Paths:
+) -> Record:
     """Run the stepper; without ``whole_track`` only the part near and below the highest ground is kept."""
-    w = packed(cube)
-    n = lat0.size
-    steps = np.ceil((z0 - LOWEST_GROUND_M) / step_m).astype(np.int64) + 1
-    if whole_track:
-        skip = np.zeros(n, dtype=np.int64)
-    else:
-        skip = np.maximum(np.floor((z0 - HIGHEST_GROUND_M) / step_m).astype(np.int64) - 1, 0)
-    columns = int((steps - skip).max()) + 1
-    out = [np.empty((n, columns)) for _ in range(5)]
-    n_rec = np.zeros(n, dtype=np.int64)
-    status = np.zeros(n, dtype=np.int64)
-    held = np.zeros(n)
-    failed_at = np.zeros((n, 5))
-    descend(
-        w.t_s, w.lats, w.lons, w.columns, time_tolerance_s,
-        model.table(), model.parameter_matrix(n), model.state_matrix(n),
-        lat0, lon0, z0, t0, step_m, LOWEST_GROUND_M, skip,
-        *out, n_rec, status, held, failed_at, min(n, CHUNKS_PER_THREAD * get_num_threads()),
-    )  # fmt: skip
-    bad = np.flatnonzero(status != STATUS_OK)
+    n = release.time.size
+    paths = descend(
+        packed(cube),
+        model.chain(n),
+        release,
+        Stepping(step_m, LOWEST_GROUND_M, time_tolerance_s),
+        record_below_m=math.inf if whole_track else HIGHEST_GROUND_M,
+        blocks=min(n, CHUNKS_PER_THREAD * get_num_threads()),
+    )
+    bad = np.flatnonzero(paths.status != STATUS_OK)
     if bad.size:
-        lat, lon, z, t, k = failed_at[int(bad[0])]
+        lat, lon, z, t, k = paths.failed_at[int(bad[0])]
         phase = "release point" if k == 0 else "descent"
-        raise _coverage_error(cube, int(status[bad[0]]), phase, t, lat, lon, z)
-    return _Paths(*out, n_rec=n_rec, time_held_s=float(held.max()))
+        raise _coverage_error(cube, int(paths.status[bad[0]]), phase, t, lat, lon, z)
+    return paths
 
 
-def _find_landings(paths: _Paths, terrain: Terrain) -> _Landings:
+def _find_landings(paths: Record, terrain: Terrain) -> _Landings:
     """First crossing of each path with the ground; every path must land, or the question is wrong.
 
     Only the part of the paths below the highest ground on Earth is looked at (from the step before
     the first point under that ceiling), which is most of the cost saved for a 30 km release.
     """
-    k_max = paths.z.shape[1]
-    valid = np.arange(k_max)[None, :] < paths.n_rec[:, None]
+    valid = paths.recorded()
     under_ceiling = valid & (paths.z <= HIGHEST_GROUND_M)
     if not under_ceiling.any():
         raise PredictorError(f"no path came below {HIGHEST_GROUND_M:.0f} m; nothing can have landed")
@@ -398,10 +374,8 @@ def predict(
     rel_lat, rel_lon, rel_t, decision = _release_state(
         cube, time, lat, lon, alt_m, drift_minutes, time_tolerance_s
     )
-    paths = _integrate(
-        cube, chain, np.array([rel_lat]), np.array([rel_lon]), np.array([alt_m]), np.array([rel_t]),
-        step_m, time_tolerance_s,
-    )  # fmt: skip
+    release = Release(np.array([rel_t]), np.array([rel_lat]), np.array([rel_lon]), np.array([alt_m]))
+    paths = _integrate(cube, chain, release, step_m, time_tolerance_s)
     land = _find_landings(paths, terrain)
     return _build_prediction(
         cube, paths, land, 0, terrain, payload, chain, step_m, error_model, probabilities, decision
@@ -410,7 +384,7 @@ def predict(
 
 def _build_prediction(
     cube: WeatherCube,
-    paths: _Paths,
+    paths: Record,
     land: _Landings,
     row: int,
     terrain: Terrain,
@@ -440,9 +414,10 @@ def _build_prediction(
             0, "DEMO WEATHER: generated analytic atmosphere, not a forecast; do not use for operations"
         )
     warnings.append(f"landing altitude from {terrain_source}")
-    if paths.time_held_s > 0.0:
+    time_held_s = float(paths.time_held_s.max())
+    if time_held_s > 0.0:
         warnings.append(
-            f"weather held at its nearest valid time for up to {paths.time_held_s / 60:.0f} min "
+            f"weather held at its nearest valid time for up to {time_held_s / 60:.0f} min "
             f"(the weather covers {_describe_span(cube)})"
         )
     return Prediction(
@@ -519,7 +494,7 @@ def predict_landings(
     if not np.all(np.isfinite(z0) & (z0 > 0.0)):
         raise PredictorError("every release altitude must be a positive number of metres")
     _check_question(_from_epoch(t0[0]), float(la[0]), float(lo[0]), float(z0[0]), step_m, 0.0)
-    paths = _integrate(wx, model, la, lo, z0, t0, step_m, time_tolerance_s, whole_track=False)
+    paths = _integrate(wx, model, Release(t0, la, lo, z0), step_m, time_tolerance_s, whole_track=False)
     land = _find_landings(paths, terrain)
     azimuth, _, distance_m = GEOD.inv(wrap_lon(lo), la, wrap_lon(land.lon), land.lat)
     return LandingSet(
@@ -593,16 +568,8 @@ def predict_ensemble(
             cubes[0], time, lat, lon, alt_m, drift_minutes, time_tolerance_s
         )
         ones = np.ones(members)
-        paths = _integrate(
-            cubes[0],
-            model,
-            ones * rel_lat,
-            ones * rel_lon,
-            ones * alt_m,
-            ones * rel_t,
-            step_m,
-            time_tolerance_s,
-        )
+        release = Release(ones * rel_t, ones * rel_lat, ones * rel_lon, ones * alt_m)
+        paths = _integrate(cubes[0], model, release, step_m, time_tolerance_s)
         land = _find_landings(paths, terrain)
         landings = (land.lat, land.lon, land.alt_m, land.t_s - rel_t)
         perturbations: dict[str, Any] = {

@@ -36,14 +36,14 @@ from predictor.calibration.cleaning import Flight
 from predictor.calibration.tracks import Fix
 from predictor.cube import WeatherCube
 from predictor.errors import PredictorError
-from predictor.integrate import DEFAULT_TIME_TOLERANCE_S, STATUS_OK, descend, packed
+from predictor.integrate import DEFAULT_TIME_TOLERANCE_S, STATUS_OK, Release, Stepping, descend, packed
+from predictor.landing import LOWEST_GROUND_M
 from predictor.model import MeasuredDescentRate, Model, Term, Wind
 from predictor.payload import Payload
 from predictor.terrain import Terrain
 
 WGS84_A = 6378137.0
 WGS84_E2 = 6.69437999014e-3
-LOWEST_GROUND_M = -500.0
 HIGHEST_GROUND_KM = 8.9
 """No terrain is higher (Everest 8849 m): the DEM is only read below this."""
 MIN_REPLAY_RATE_MS = 0.1
@@ -239,25 +239,22 @@ def run(
         model = Model((replay_term(case, step_m), Wind(), *kept))
     else:
         model = Model.for_payload(payload, *effects)
-    w = packed(case.cube)
-    z0 = case.start_alt_m
     floor = LOWEST_GROUND_M if case.terrain is not None else case.landing_alt_m - 2.0 * step_m
-    n_max = int(math.ceil((z0 - floor) / step_m)) + 2
-    out = [np.full((n, n_max), np.nan) for _ in range(5)]
-    n_rec = np.zeros(n, dtype=np.int64)
-    status = np.zeros(n, dtype=np.int64)
-    held = np.zeros(n)
     t0 = case.start_time.timestamp()
     ones = np.ones(n)
-    descend(
-        w.t_s, w.lats, w.lons, w.columns, DEFAULT_TIME_TOLERANCE_S,
-        model.table(), model.parameter_matrix(n), model.state_matrix(n),
-        ones * case.start_lat, ones * case.start_lon, ones * z0, ones * t0, step_m, floor,
-        np.zeros(n, dtype=np.int64), *out, n_rec, status, held, np.zeros((n, 5)), min(n, get_num_threads()),
-    )  # fmt: skip
-    lat, lon, z, t, _ = out
+    release = Release(ones * t0, ones * case.start_lat, ones * case.start_lon, ones * case.start_alt_m)
+    record = descend(
+        packed(case.cube),
+        model.chain(n),
+        release,
+        Stepping(step_m, floor, DEFAULT_TIME_TOLERANCE_S),
+        blocks=min(n, get_num_threads()),
+    )
+    # NaN past each path's end, so that what reads whole rows (the ground under every point) finds nothing there.
+    recorded = record.recorded()
+    lat, lon, z, t = (np.where(recorded, a, np.nan) for a in record[:4])
     x, y = case.local(lat, lon)
-    return Runs(t=t - t0, x=x, y=y, z=z / 1000.0, n_rec=n_rec, ok=status == STATUS_OK)
+    return Runs(t=t - t0, x=x, y=y, z=z / 1000.0, n_rec=record.n_rec, ok=record.status == STATUS_OK)
 
 
 def ground_km(case: FlightCase, runs: Runs) -> np.ndarray:

@@ -1,8 +1,8 @@
 """Many descents that start at different times, places and altitudes, in one compiled call per chunk.
 
 ``predict_ensemble`` starts every member at one release; a release-window sweep needs 120 releases
-× 200 members, each from its own time and position. The stepper (``integrate.descend``) already takes
-per-trajectory starts, so this module drives it directly and finds each path's ground crossing the
+× 200 members, each from its own time and position. The descent engine (``integrate.descend``) takes
+per-trajectory releases, so this module drives it directly and finds each path's ground crossing the
 same way ``predict`` does (first recorded point at or under the terrain, linear interpolation inside
 that step), so a trajectory here lands exactly where ``predict`` puts the same release.
 
@@ -14,18 +14,26 @@ within ~50 MB whatever the batch size.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import get_num_threads
 
 from predictor.cube import WeatherCube
-from predictor.integrate import DEFAULT_TIME_TOLERANCE_S, STATUS_OK, descend, packed
-from predictor.landing import HIGHEST_GROUND_M, ground_crossings, wrap_lon
+from predictor.integrate import (
+    DEFAULT_TIME_TOLERANCE_S,
+    STATUS_OK,
+    Record,
+    Release,
+    Stepping,
+    descend,
+    packed,
+)
+from predictor.landing import HIGHEST_GROUND_M, LOWEST_GROUND_M, ground_crossings, wrap_lon
 from predictor.model import Model
 from predictor.terrain import Terrain
 
-LOWEST_GROUND_M = -500.0
 CHUNK = 4096
 STATUS_RELEASE_UNDERGROUND = 101
 STATUS_NO_GROUND = 102
@@ -61,40 +69,31 @@ def descend_batch(
     """Land every trajectory; the model's per-trajectory parameters have one value per row of lat0."""
     n = lat0.size
     w = packed(cube)
-    params = model.parameter_matrix(n)
-    state = model.state_matrix(n)
-    table = model.table()
+    chain = model.chain(n)
+    stepping = Stepping(step_m, LOWEST_GROUND_M, time_tolerance_s)
     out = {name: np.full(n, np.nan) for name in ("lat", "lon", "alt_m", "t_s", "path_m", "lead")}
     status = np.zeros(n, dtype=np.int64)
     threads = get_num_threads()
     for lo in range(0, n, CHUNK):
         hi = min(lo + CHUNK, n)
-        m = hi - lo
         finite = np.isfinite(lat0[lo:hi]) & np.isfinite(lon0[lo:hi]) & np.isfinite(z0[lo:hi])
         # Rows without a start (the balloon left the weather before them) get a harmless start and are
         # marked afterwards; the kernel needs finite numbers.
-        la = np.where(finite, lat0[lo:hi], 0.0)
-        lo_ = np.where(finite, lon0[lo:hi], 0.0)
-        zz = np.where(finite, z0[lo:hi], LOWEST_GROUND_M - 1.0)
-        steps = np.ceil((np.maximum(zz, LOWEST_GROUND_M) - LOWEST_GROUND_M) / step_m).astype(np.int64) + 1
-        if with_lead:
-            skip = np.zeros(m, dtype=np.int64)
-        else:
-            # Only the part near and below the highest ground is recorded (as predict does for members).
-            skip = np.maximum(np.floor((zz - HIGHEST_GROUND_M) / step_m).astype(np.int64) - 1, 0)
-        rec = [np.empty((m, int((steps - skip).max()) + 1)) for _ in range(5)]
-        n_rec = np.zeros(m, dtype=np.int64)
-        code = np.zeros(m, dtype=np.int64)
-        held = np.zeros(m)
-        failed_at = np.zeros((m, 5))
-        descend(
-            w.t_s, w.lats, w.lons, w.columns, time_tolerance_s,
-            table, np.ascontiguousarray(params[lo:hi]), np.ascontiguousarray(state[lo:hi]),
-            la, lo_, zz, np.ascontiguousarray(t0[lo:hi]), step_m, LOWEST_GROUND_M, skip,
-            *rec, n_rec, code, held, failed_at, min(m, threads),
+        release = Release(
+            np.ascontiguousarray(t0[lo:hi]),
+            np.where(finite, lat0[lo:hi], 0.0),
+            np.where(finite, lon0[lo:hi], 0.0),
+            np.where(finite, z0[lo:hi], LOWEST_GROUND_M - 1.0),
+        )
+        # Unless the lead is wanted, only the part near and below the highest ground is recorded (as
+        # predict does for members).
+        record = descend(
+            w, chain.rows(lo, hi), release, stepping,
+            record_below_m=math.inf if with_lead else HIGHEST_GROUND_M, blocks=min(hi - lo, threads),
         )  # fmt: skip
+        code = record.status
         code[~finite] = -1
-        part = _landings(rec, n_rec, code, terrain, w.t_s, w.lead_h, with_lead)
+        part = _landings(record, code, terrain, w.t_s, w.lead_h, with_lead)
         for name, values in part.items():
             out[name][lo:hi] = values
         status[lo:hi] = code
@@ -111,8 +110,7 @@ def descend_batch(
 
 
 def _landings(
-    rec: list[np.ndarray],
-    n_rec: np.ndarray,
+    record: Record,
     code: np.ndarray,
     terrain: Terrain,
     t_axis: np.ndarray,
@@ -120,9 +118,9 @@ def _landings(
     with_lead: bool,
 ) -> dict[str, np.ndarray]:
     """First ground crossing per row (rows with a bad code are left NaN; ``code`` is updated in place)."""
-    lat, lon, z, t, path = rec
-    m, k_max = z.shape
-    valid = (np.arange(k_max)[None, :] < n_rec[:, None]) & (code == STATUS_OK)[:, None]
+    lat, lon, z, t, path = record[:5]
+    m = z.shape[0]
+    valid = record.recorded() & (code == STATUS_OK)[:, None]
     crossing = ground_crossings(lat, lon, z, valid, terrain)
     # A crossing at the first recorded point is the release itself under the ground (with nothing
     # skipped), or a path whose skipped part already went under (impossible above 8900 m).
