@@ -15,7 +15,7 @@ import signal
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import datetime, timedelta
 from pathlib import Path
 
 from textual import on, work
@@ -23,7 +23,7 @@ from textual.app import App, SystemCommand
 from textual.binding import Binding
 from textual.message import Message
 from textual.notifications import SeverityLevel
-from textual.screen import Screen
+from textual.screen import ModalScreen, Screen
 from textual.worker import Worker, WorkerState
 
 from console.predictions import PredictionService
@@ -62,6 +62,7 @@ STORE_WATCH_S = 0.5
 GO_FINISH_S = 120.0
 """How long a lost session waits for a Go in flight to finish and be recorded before the process ends."""
 LOST_SIGNALS = (signal.SIGHUP, signal.SIGTERM)
+LOW_BANDWIDTH_AGE_STEP_S = 10.0
 
 
 class TelemetryArrived(Message):
@@ -97,6 +98,8 @@ class ConsoleSetup:
     team_position: tuple[float, float] | None = None
     export_dir: Path = Path(".")
     banner_note: str = ""
+    low_bandwidth: bool = False
+    """``--low-bandwidth`` or ``[console] low_bandwidth``: see ``DrsConsole.view_time``."""
     poll_period_s: float = POLL_PERIOD_S
     prediction_period_s: float = 60.0
     time_scale: float = 1.0
@@ -130,6 +133,8 @@ class DrsConsole(App[int]):
         self.predicting: set[str] = set()
         """Capsules with a prediction running: one at a time each, so a slow first one never piles up."""
         self.theme = "textual-dark"
+        if setup.low_bandwidth:
+            self.animation_level = "none"
         self._store_version = 0
         self._audit_seen = 0
         """The newest audit row this console has shown or written: what another console wrote comes after."""
@@ -159,6 +164,15 @@ class DrsConsole(App[int]):
 
     def now(self) -> datetime:
         return self.setup.clock()
+
+    def view_time(self) -> datetime:
+        """The time the fleet's ages are shown at: ``now``, or on a thin link ``now`` in steps of
+        ``LOW_BANDWIDTH_AGE_STEP_S``, so the many ages on screen change every 10 s instead of every second
+        (each change is bytes on the link). Countdowns, the clock and every decision use ``now``."""
+        now = self.now()
+        if not self.setup.low_bandwidth:
+            return now
+        return now - timedelta(seconds=now.timestamp() % LOW_BANDWIDTH_AGE_STEP_S)
 
     def banner(self) -> str:
         words = {"demo": "DEMO — simulated capsules, gateway and weather", "replay": "REPLAY — commanding disabled",
@@ -261,11 +275,17 @@ class DrsConsole(App[int]):
         self.refresh_screen()
 
     def refresh_screen(self) -> None:
-        """Every screen on the stack, not only the top one: time must not stand still behind a dialog
-        (an ARM countdown frozen under the FIRE dialog ran out unseen)."""
-        for screen in self.screen_stack:
+        """Every screen in sight: the top one and, under a dialog, the screens it shows: time must not
+        stand still behind a dialog (an ARM countdown frozen under the FIRE dialog ran out unseen).
+
+        A screen hidden under another is redrawn when it comes back (``ConsoleScreen.on_screen_resume``),
+        not while hidden: Textual repaints the whole top screen for any change to the screen beneath
+        it, which was a full-screen repaint every second on the release screen over the fleet."""
+        for screen in reversed(self.screen_stack):
             if hasattr(screen, "refresh_view"):
                 screen.refresh_view()
+            if not isinstance(screen, ModalScreen):
+                break
 
     # Workers ----------------------------------------------------------------------------------
 

@@ -12,6 +12,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from datetime import datetime, timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -33,6 +34,12 @@ NOT_A_TERMINAL = (
 )
 
 
+LOW_BANDWIDTH_HELP = (
+    "for a thin SSH link: no animation or zebra stripes, the fleet's ages in 10-s steps (countdowns stay "
+    "exact); also [console] low_bandwidth = true"
+)
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     console = subparsers.add_parser("console", help="the operator console (full-screen terminal app)")
     mode = console.add_mutually_exclusive_group()
@@ -49,11 +56,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     console.add_argument(
         "--terrain", type=Path, metavar="DIR", help="SRTM tiles / DEM directory for predictions"
     )
+    console.add_argument("--low-bandwidth", action="store_true", help=LOW_BANDWIDTH_HELP)
     console.set_defaults(func=cmd_console)
     demo = subparsers.add_parser("demo", help="the console with everything simulated (= drs console --demo)")
     demo.add_argument(
         "--speed", type=float, default=None, help="simulated seconds per real second (default 4)"
     )
+    demo.add_argument("--low-bandwidth", action="store_true", help=LOW_BANDWIDTH_HELP)
     demo.set_defaults(func=cmd_demo, demo=True, replay=None, weather=None, terrain=None)
 
 
@@ -169,14 +178,15 @@ def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None)
 def cmd_console(args: argparse.Namespace) -> int:
     _require_terminal()
     if args.demo:
-        return run_demo(args.speed or 4.0)
+        return run_demo(args.speed or 4.0, args.low_bandwidth)
     config = load_config(args.config)
+    thin = args.low_bandwidth or config.console.low_bandwidth
     if args.replay is not None:
         setup, _ = replay_setup(args.replay, args.speed or 1.0, config)
-        return run_console(setup)
+        return run_console(replace(setup, low_bandwidth=thin))
     from console.chase import started_chase_feed
 
-    setup = live_setup(config, args.weather, args.terrain)
+    setup = replace(live_setup(config, args.weather, args.terrain), low_bandwidth=thin)
     chase = started_chase_feed(config, setup)
     try:
         return run_console(setup)
@@ -187,7 +197,7 @@ def cmd_console(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     _require_terminal()
-    return run_demo(args.speed or 4.0)
+    return run_demo(args.speed or 4.0, args.low_bandwidth)
 
 
 def demo_setup(
@@ -215,7 +225,7 @@ def demo_setup(
     )  # fmt: skip
 
 
-def run_demo(speed: float) -> int:
+def run_demo(speed: float, low_bandwidth: bool = False) -> int:
     from console.demo import DemoWorld
 
     root = Path(tempfile.mkdtemp(prefix="drs-demo-"))
@@ -227,7 +237,8 @@ def run_demo(speed: float) -> int:
     try:
         config = world.start()
         recorder = _recorder(config)
-        result = run_console(demo_setup(world, config, root / "exports", recorder))
+        setup = demo_setup(world, config, root / "exports", recorder)
+        result = run_console(replace(setup, low_bandwidth=low_bandwidth))
     finally:
         world.stop()
     print(f"drs demo: session kept in {root}; replay it with: drs console --replay {recorder.path}")

@@ -118,6 +118,8 @@ class ConsoleConfig:
     exclusion_zones_file: Path | None = None
     team_position: str = ""
     prediction_period_s: float = 60.0
+    low_bandwidth: bool = False
+    """Over a thin SSH link: no animation, no zebra stripes, ages in 10-s steps (countdowns stay exact)."""
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """Bytes per second the console writes to its terminal (``make bench-bytes``): what an SSH link carries.
 
-Starts ``drs demo`` in a real terminal (tmux, 120×40) and records the terminal's real output stream
-with ``tmux pipe-pane``, as a slow link would carry it, in three states an operator sits in:
+Starts ``drs demo --speed 1`` (launch-day pace: the demo's default ×4 ticks every age four times a
+second) in a real terminal (tmux, 120×40) and records the terminal's real output stream with ``tmux
+pipe-pane``, as a slow link would carry it, in three states an operator sits in:
 
 * the idle fleet screen, once the first predictions are in;
 * the release screen of DRS1 with the ARM window open (the countdown ticking);
@@ -121,7 +122,7 @@ def main() -> int:
     if shutil.which("tmux") is None:
         print("console_bytes: needs tmux (apt-get install tmux)", file=sys.stderr)
         return 1
-    demo = f"{DRS} demo" + (" --low-bandwidth" if args.low_bandwidth else "")
+    demo = f"{DRS} demo --speed 1" + (" --low-bandwidth" if args.low_bandwidth else "")
     with tempfile.TemporaryDirectory() as folder:
         top = measure("top -d 1", lambda t: t.wait_for(r"load average"), 30.0, Path(folder))
         print(f"top -d 1 (the yardstick): {top / 1000:.2f} kB/s")

@@ -36,6 +36,10 @@ class ConsoleScreen(Screen[None]):
     def compose_footer(self) -> ComposeResult:
         yield Footer(compact=True)
 
+    def on_screen_resume(self) -> None:
+        """Back on top: the app redraws only the screens in sight, so catch up with what changed."""
+        self.refresh_view()
+
     def refresh_view(self) -> None:
         if not self.ready:
             return

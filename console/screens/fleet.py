@@ -10,6 +10,7 @@ from console.screens.base import ConsoleScreen
 from console.widgets.capsule_detail import CapsuleDetail
 from console.widgets.cells import balloon_lines
 from console.widgets.fleet_table import FleetTable
+from console.widgets.quiet import set_content
 
 
 class FleetScreen(ConsoleScreen):
@@ -30,7 +31,9 @@ class FleetScreen(ConsoleScreen):
 
     def on_mount(self) -> None:
         self.ready = True
-        self.query_one("#fleet", FleetTable).focus()
+        table = self.query_one("#fleet", FleetTable)
+        table.zebra_stripes = not self.console.setup.low_bandwidth  # a colour that carries no meaning
+        table.focus()
         self.watch(self.app, "theme", self._theme_changed, init=False)
         self.refresh_view()
 
@@ -40,16 +43,16 @@ class FleetScreen(ConsoleScreen):
 
     def update_view(self) -> None:
         app = self.console
-        now = app.now()
+        now = app.view_time()
         self.query_one("#fleet", FleetTable).show(app.fleet.capsules, now)
         self.show_detail()
         feed = app.setup.balloon_feed
         lines = balloon_lines(app.fleet.balloon, feed.status() if feed else None, now)
-        self.query_one("#balloon", Static).update("\n".join(lines))
+        set_content(self.query_one("#balloon", Static), "\n".join(lines))
 
     def show_detail(self) -> None:
         telemetry = self.console.fleet.capsules[self.selected()]
-        self.query_one("#fleet-detail", CapsuleDetail).show(telemetry, self.console.now())
+        self.query_one("#fleet-detail", CapsuleDetail).show(telemetry, self.console.view_time())
 
     def selected(self) -> str:
         table = self.query_one("#fleet", FleetTable)

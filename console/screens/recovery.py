@@ -26,6 +26,7 @@ from textual.widgets import Static
 
 from console.screens.commanding import CommandingScreen, command_bindings
 from console.widgets.landing_map import LandingMap, MapLayers
+from console.widgets.quiet import set_content
 from drs_link.iridium.commanded import CommandedSettings, commanded_settings
 from drs_link.iridium.recovery import (
     LandingEstimate,
@@ -174,8 +175,9 @@ class RecoveryScreen(CommandingScreen):
             "",
             "Phone: " + phone_summary(self.capsule, self.landing, last, team),
         ]
-        self.query_one("#recovery-text", Static).update(
-            Text("\n").join(Text(line) if isinstance(line, str) else line for line in lines)
+        set_content(
+            self.query_one("#recovery-text", Static),
+            Text("\n").join(Text(line) if isinstance(line, str) else line for line in lines),
         )
         prediction = self.console.fleet.capsules[self.capsule].reading(PredictionSample).value
         descending = self.live if self.landing is None and self.track else None

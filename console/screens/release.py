@@ -18,6 +18,7 @@ from textual.widgets import DataTable, Label, Static
 
 from console.screens.base import FOOTER_ROOM, ConsoleScreen
 from console.screens.modals import ConfirmModal, HazardConfirmation, HazardModal, TextPromptModal
+from console.widgets.quiet import fill_rows, set_content
 from drs_link.arming import ArmState
 from drs_link.checklist import StepKind, StepState
 from drs_link.errors import LinkError
@@ -79,6 +80,8 @@ class ReleaseScreen(ConsoleScreen):
         self.detail_width = 0
         self.checklist_widths = (0, 0)
         self.gonogo_titles: dict[str, str] = {}
+        self.binding_states: tuple[bool | None, ...] = ()
+        """What check_action said of each key at the last refresh: the footer is redrawn only on a change."""
 
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
@@ -112,8 +115,9 @@ class ReleaseScreen(ConsoleScreen):
         app = self.console
         now = app.now()
         checklist = app.checklists[self.checklist_index]
-        self.query_one("#checklist-title", Label).update(
-            f"{checklist.title} ({self.checklist_index + 1}/{len(app.checklists)}) — {self.capsule}"
+        set_content(
+            self.query_one("#checklist-title", Label),
+            f"{checklist.title} ({self.checklist_index + 1}/{len(app.checklists)}) — {self.capsule}",
         )
         table = self.query_one("#checklist", DataTable)
         row = table.cursor_row
@@ -121,34 +125,36 @@ class ReleaseScreen(ConsoleScreen):
         statuses = app.checklist_run(self.capsule, checklist).statuses(facts)
         whos = [f"{s.operator} {s.at:%H:%M:%S}Z" if s.operator and s.at else "" for s in statuses]
         self.fit_checklist_columns(table, max((len(who) for who in whos), default=0))
-        table.clear()
         self.step_texts.clear()
+        rows = []
         for status, who in zip(statuses, whos, strict=True):
             kind = {StepKind.MANUAL: "", StepKind.AUTO: "(auto) ", StepKind.COMMAND: "(cmd) "}[status.step.kind]
             step = Text(f"{kind}{status.step.text}", no_wrap=True, overflow="ellipsis")
             by = Text(who, no_wrap=True, overflow="ellipsis")
-            table.add_row(Text(STATE_GLYPH[status.state]), step, by, key=status.step.id)
+            rows.append((status.step.id, (Text(STATE_GLYPH[status.state]), step, by)))
             self.step_texts[status.step.id] = f"▸ {kind}{status.step.text}" + (f" — {who}" if who else "")
-        if table.row_count:
+        if fill_rows(table, rows) and table.row_count:
             table.move_cursor(row=min(row, table.row_count - 1))
         self.show_step_detail()
         report = app.gonogo(self.capsule)
         gonogo = self.query_one("#gonogo", DataTable)
         grow = gonogo.cursor_row
         self.fit_gonogo_columns(gonogo)
-        gonogo.clear()
         self.gonogo_titles = {item.key: item.title for item in report.items}
+        rows = []
         for item in report.items:
             style = "dim" if item.verdict is Verdict.NOT_APPLICABLE else ""  # greyed: no longer applies
-            gonogo.add_row(
-                Text(VERDICT_GLYPH[item.verdict], style=style), Text(item.title, style=style),
-                Text(item.detail, style=style), key=item.key, height=None,
-            )  # fmt: skip
-        if gonogo.row_count:
+            cells = (Text(VERDICT_GLYPH[item.verdict], style=style), Text(item.title, style=style),
+                     Text(item.detail, style=style))  # fmt: skip
+            rows.append((item.key, cells))
+        if fill_rows(gonogo, rows, auto_height=True) and gonogo.row_count:
             gonogo.move_cursor(row=min(grow, gonogo.row_count - 1))
-        self.query_one("#arm-status", Static).update(self.arm_text(report.go))
+        set_content(self.query_one("#arm-status", Static), self.arm_text(report.go))
         self.show_waive_hint()
-        self.refresh_bindings()
+        keys = tuple(self.check_action(b.action, ()) for b in self.BINDINGS)
+        if keys != self.binding_states:  # the footer recomposes on each call: only when a key comes or goes
+            self.binding_states = keys
+            self.refresh_bindings()
 
     def fit_checklist_columns(self, table: DataTable[Any], by_width: int) -> None:
         """State and "by / when" keep their width, the step takes the rest (in full below the table).
@@ -178,7 +184,7 @@ class ReleaseScreen(ConsoleScreen):
 
     def show_step_detail(self) -> None:
         step = self._selected_step()
-        self.query_one("#step-detail", Static).update(self.step_texts.get(step, "") if step else "")
+        set_content(self.query_one("#step-detail", Static), self.step_texts.get(step, "") if step else "")
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         if self.ready and event.data_table.id == "checklist":
@@ -194,7 +200,7 @@ class ReleaseScreen(ConsoleScreen):
         """Say on screen how ``w`` picks its item: the trial found it only by tabbing into the table."""
         hint = self.query_one("#gonogo-hint", Static)
         hint.display = self.console.commanding and not self.released()
-        hint.update(self.waive_hint())
+        set_content(hint, self.waive_hint())
 
     def waive_hint(self) -> str:
         item = self._highlighted_item()

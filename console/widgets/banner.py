@@ -9,6 +9,8 @@ from rich.cells import cell_len
 from rich.text import Text
 from textual.widgets import Static
 
+from console.widgets.quiet import set_content
+
 
 def cut(text: str, width: int) -> str:
     """``text`` in at most ``width`` cells, an ellipsis marking where it was cut."""
@@ -47,7 +49,7 @@ class ModeBanner(Static):
         self.set_class(app.mode == "replay", "replay")
         mode, note = app.banner(), app.setup.banner_note
         mode = mode.removesuffix(note).rstrip() if note else mode
-        self.update(banner_line(mode, note, app.now(), app.operator, self.size.width))
+        set_content(self, banner_line(mode, note, app.now(), app.operator, self.size.width))
 
     def on_mount(self) -> None:
         self.refresh_banner()

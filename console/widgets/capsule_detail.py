@@ -9,22 +9,28 @@ from __future__ import annotations
 from datetime import datetime
 
 from rich.table import Table
-from textual.widgets import Static
 
 from console.widgets.cells import FIELDS, LEVEL_CLASSES
+from console.widgets.quiet import LineQuietStatic
 from drs_link.fleet import CapsuleTelemetry
 
 
-class CapsuleDetail(Static):
+class CapsuleDetail(LineQuietStatic):
     COMPONENT_CLASSES = LEVEL_CLASSES | {"capsule-detail--label"}
 
     def show(self, telemetry: CapsuleTelemetry, now: datetime) -> None:
         """A label column and a wrapping value column, so a long line wraps under its value."""
-        self.border_title = telemetry.name
-        grid = Table.grid(padding=(0, 1), expand=True)
+        if self.border_title != telemetry.name:
+            self.border_title = telemetry.name
+        lines = [(field.label, field.line(telemetry, now)) for field in FIELDS]
         label = self.get_component_rich_style("capsule-detail--label", partial=True)
+        levels = tuple(str(self.get_component_rich_style(c, partial=True)) for c in sorted(LEVEL_CLASSES))
+        key = (tuple(lines), str(label), levels)
+        if self.shows(key):
+            return
+        grid = Table.grid(padding=(0, 1), expand=True)
         grid.add_column(no_wrap=True, style=label)
         grid.add_column(ratio=1, overflow="fold")
-        for field in FIELDS:
-            grid.add_row(field.label, field.line(telemetry, now).styled(self))
-        self.update(grid)
+        for name, cell in lines:
+            grid.add_row(name, cell.styled(self))
+        self.show_content(grid, key)

@@ -17,6 +17,7 @@ from textual import events
 from textual.widgets import DataTable
 
 from console.widgets.cells import FIELDS, LEVEL_CLASSES, Field
+from console.widgets.quiet import set_cell
 from drs_link.fleet import CapsuleTelemetry
 from drs_link.staleness import MISSING_TEXT
 
@@ -93,4 +94,4 @@ class FleetTable(DataTable[Text | str]):
             return
         for name in self.capsules:
             for field, cell in zip(self.shown, self._cells(name, self.shown), strict=True):
-                self.update_cell(name, field.kind, cell)
+                set_cell(self, name, field.kind, cell)
