@@ -27,6 +27,7 @@ from textual.screen import ModalScreen, Screen
 from textual.worker import Worker, WorkerState
 
 from console.predictions import PredictionService
+from drs_link.approval import Approval, ApprovalBook, approved, current_login, pending_text
 from drs_link.arming import ArmState
 from drs_link.balloon_feed import BalloonFeed
 from drs_link.checklist import PROCEDURE_DIR, Checklist, ChecklistRun, load_checklists
@@ -179,6 +180,16 @@ class DrsConsole(App[int]):
                  "live": "LIVE"}  # fmt: skip
         text = words.get(self.mode, self.mode.upper())
         return f"{text} {self.setup.banner_note}".strip()
+
+    def approval(self, capsule: str, action: str, summary: str) -> int:
+        """Ask another login to approve a hazardous command and wait (from a worker thread); the
+        approval's id, or RefusedError when it was rejected or expired (``drs_link.approval``)."""
+        book = ApprovalBook(self.store, self.now)
+
+        def pending(request: Approval) -> None:
+            self.post_message(OperatorNotice(f"{capsule}: {pending_text(request)}", "warning"))
+
+        return approved(book, capsule, action, summary, self.operator, current_login(), pending)
 
     def checklist_run(self, capsule: str, checklist: Checklist) -> ChecklistRun:
         return ChecklistRun(self.store, checklist, capsule, self.now)

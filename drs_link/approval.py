@@ -261,3 +261,32 @@ def _approval(row: Mapping[str, object]) -> Approval:
 
 def _text(value: object) -> str | None:
     return None if value is None else str(value)
+
+
+def approved(
+    book: ApprovalBook,
+    capsule: str,
+    action: str,
+    summary: str,
+    operator: str,
+    login: Login,
+    on_pending: Callable[[Approval], None],
+) -> int:
+    """Ask another login to approve and wait (blocking: a worker thread or a CLI); the approval's id
+    once approved, else RefusedError saying how the request ended. ``on_pending`` tells the operator
+    which request to have approved."""
+    request = book.request(capsule, action, summary, operator, login)
+    on_pending(request)
+    decided = book.wait(request.id)
+    if decided.state != "approved":
+        why = f" ({decided.reason})" if decided.reason else ""
+        raise RefusedError(f"approval #{request.id} {decided.status(book.clock())}{why}: nothing sent")
+    return request.id
+
+
+def pending_text(request: Approval) -> str:
+    """What the requester is told while the request waits."""
+    return (
+        f"approval #{request.id}: waiting for another login to run `drs approve {request.id}` "
+        f"(expires {request.expires_utc:%H:%M:%S}Z)"
+    )

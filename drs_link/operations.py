@@ -284,11 +284,17 @@ class Operations:
         complete_command(self.store, self.checklists, name, command, self.operator, result, {}, self.clock)
 
     def fire(
-        self, name: str, typed_name: str, report: GoNoGoReport, second: str | None, waiver: str | None
+        self,
+        name: str,
+        typed_name: str,
+        report: GoNoGoReport,
+        second: str | None,
+        waiver: str | None,
+        approval: int | None = None,
     ) -> list[TelemetryRecord]:
         ops = self.ops(name)
         with ops.lock:
-            record = ops.arming.fire(typed_name, report, second, waiver)
+            record = ops.arming.fire(typed_name, report, second, waiver, approval=approval)
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
         return self._emit([

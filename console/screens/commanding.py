@@ -176,13 +176,17 @@ class CommandingScreen(ConsoleScreen):
 
         ops = self.console.ops
         try:
+            approval = (
+                self.console.approval(self.capsule, "parachute", message.text)
+                if hazard is not None and hazard.await_approval else None
+            )  # fmt: skip
             authorize_mt(
                 ops.store, self.capsule, ops.operator, message, ops.stored_reports(self.capsule),
                 second_operator=hazard.second_operator if hazard else None,
                 single_operator_waiver=hazard.single_operator_waiver if hazard else None,
                 require_second_operator=ops.config.console.require_second_operator,
                 override_landed=hazard.override_reason if hazard else None,
-                queue_by=queue_by, now=self.console.now(),
+                queue_by=queue_by, now=self.console.now(), approval=approval,
             )  # fmt: skip
             command = ops.send_mt(self.capsule, message, confirmation)
         except LinkError as exc:

@@ -7,7 +7,7 @@ These only collect what the operator says; whether it is enough is decided by ``
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from textual.actions import SkipAction
 from textual.app import ComposeResult
@@ -79,6 +79,8 @@ class HazardConfirmation:
     second_operator: str
     single_operator_waiver: str
     override_reason: str = ""
+    await_approval: bool = False
+    """Ask another login to approve (``drs approve``) instead of a typed second name."""
 
 
 class HazardModal(ModalScreen[HazardConfirmation | None]):
@@ -131,6 +133,7 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
                 yield Input(id="override", placeholder="override reason (logged with the evidence)")
             with Horizontal(classes="dialog-buttons"):
                 yield Button("Cancel", id="cancel", variant="primary")
+                yield Button("Ask another login", id="approval", tooltip="the second operator approves with drs approve")
                 yield Button(self.action_name, id="confirm", variant="error")
 
     def on_mount(self) -> None:
@@ -167,6 +170,9 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
             self.dismiss(self._answer())
 
     def on_button_pressed(self, event: Button.Pressed) -> None:
+        if event.button.id == "approval":
+            self.dismiss(replace(self._answer(), await_approval=True))
+            return
         self.dismiss(self._answer() if event.button.id == "confirm" else None)
 
     def action_cancel(self) -> None:

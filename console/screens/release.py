@@ -423,11 +423,15 @@ class ReleaseScreen(ConsoleScreen):
         from console.app import OperatorNotice, TelemetryArrived
 
         assert self.ops is not None
-        report = self.app.call_from_thread(self.console.gonogo, self.capsule)
         try:
+            approval = (
+                self.console.approval(self.capsule, "go", f"Go: release {self.capsule}")
+                if answer.await_approval else None
+            )  # fmt: skip
+            report = self.app.call_from_thread(self.console.gonogo, self.capsule)
             records = self.ops.fire(
                 self.capsule, answer.typed_name, report, answer.second_operator or None,
-                answer.single_operator_waiver or None,
+                answer.single_operator_waiver or None, approval,
             )  # fmt: skip
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))

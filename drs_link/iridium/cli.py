@@ -19,7 +19,7 @@ from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 
-from drs_link.approval import ApprovalBook, current_login
+from drs_link.approval import ApprovalBook, approved, current_login, pending_text
 from drs_link.checklist import PROCEDURE_DIR, load_checklists
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
@@ -246,15 +246,11 @@ def _await_approval(
     checked again at submit, still holds)."""
     book = ApprovalBook(store)
     summary = f"{message.text}; landed: {landed_evidence(reports).summary}"
-    request = book.request(capsule, "parachute", summary, operator, current_login())
-    print(f"approval #{request.id}: waiting for another login to run `drs approve {request.id}` "
-          f"(expires {request.expires_utc:%H:%M:%S}Z)", flush=True)  # fmt: skip
-    decided = book.wait(request.id)
-    if decided.state != "approved":
-        why = f" ({decided.reason})" if decided.reason else ""
-        raise RefusedError(f"approval #{request.id} {decided.status(utc_now())}{why}: nothing sent")
-    print(f"approval #{request.id}: approved by {decided.decided_by} ({decided.decider})", flush=True)
-    return request.id
+    approval = approved(book, capsule, "parachute", summary, operator, current_login(),
+                        lambda request: print(pending_text(request), flush=True))  # fmt: skip
+    decided = book.get(approval)
+    print(f"approval #{approval}: approved by {decided.decided_by} ({decided.decider})", flush=True)
+    return approval
 
 
 def _mt_status(args: argparse.Namespace) -> int:

@@ -12,6 +12,7 @@ from console.app import DrsConsole, TelemetryArrived
 from console.demo import DemoWorld
 from console.screens.modals import ConfirmModal, HazardModal
 from console.screens.release import ReleaseScreen
+from drs_link.approval import ApprovalBook, Login, current_login
 from drs_link.arming import ArmingController, ArmState
 from drs_link.capsule import ReleaseState
 from drs_link.errors import RefusedError
@@ -174,3 +175,27 @@ async def test_time_runs_behind_the_fire_dialog_and_fire_after_the_arm_window_is
         await wait_for(pilot, lambda: any("FIRE refused: not armed: ARM window expired at" in n.message
                                           for n in app._notifications))  # fmt: skip
         assert world.sims[0].firmware.go_at is None
+
+
+async def test_fire_waits_for_another_login_to_approve_then_releases(
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    world, app = demo
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_release_go(pilot, app)
+        arming = polls_never_disarm(app, monkeypatch)
+        await pilot.press("a", "f", *"DRS1")
+        await pilot.click("#approval")
+        book = ApprovalBook(app.store)
+        await wait_for(pilot, lambda: bool(book.open_requests("DRS1")))
+        [request] = book.open_requests("DRS1")
+        assert request.action == "go" and request.requester == current_login()
+        await pilot.pause(0.5)
+        assert world.sims[0].firmware.go_at is None, "nothing is sent while the request waits"
+        with pytest.raises(RefusedError, match="cannot approve it"):
+            book.decide(request.id, "EL", current_login(), approve=True)
+        book.decide(request.id, "JM", Login("jm-on-the-other-console"), approve=True)
+        await wait_for(pilot, lambda: arming.status().state is ArmState.FIRED)
+        assert world.sims[0].firmware.go_at is not None
+        [fire] = [a for a in app.store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
+        assert fire.detail is not None and fire.detail["approved_by"] == "JM (jm-on-the-other-console)"
