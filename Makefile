@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 
 UV_VERSION := 0.13.9
 
-.PHONY: demo test lint bench bench-console bench-bytes venv screenshots lock
+.PHONY: demo test lint bench bench-console bench-bytes bench-consoles venv screenshots lock
 
 # The exact, hash-checked versions of requirements.lock: every machine installs what the suite was
 # last green with. pyproject.toml keeps ranges for people who install the package as a library.
@@ -46,6 +46,9 @@ bench-console: $(STAMP)
 
 bench-bytes: $(STAMP)
 	$(BIN)/python tools/console_bytes.py
+
+bench-consoles: $(STAMP)
+	$(BIN)/python tools/second_console_latency.py
 
 screenshots: $(STAMP)
 	$(BIN)/python tools/screenshots.py
