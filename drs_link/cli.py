@@ -13,6 +13,7 @@ from pathlib import Path
 
 from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
 
+from drs_link.approval import ApprovalBook, approved, current_login, pending_text
 from drs_link.backends.agent import AgentBackend
 from drs_link.backends.stock import StockBackend
 from drs_link.bench import run_bench
@@ -91,6 +92,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     authority.add_argument(
         "--confirm", metavar="NAME", help="with --take-over: the capsule's name, instead of typing it"
     )
+    authority.add_argument(
+        "--await-approval", action="store_true",
+        help="with --take-over: wait until another login approves it (drs approve ID)",
+    )  # fmt: skip
     authority.set_defaults(func=cmd_authority)
 
     enrol = actions.add_parser("enrol", help="show the Pi's host key fingerprint; save it once compared")
@@ -256,11 +261,24 @@ def cmd_go(args: argparse.Namespace) -> int:
     return 0
 
 
+def _take_over_approved(machine: ReleaseStateMachine, reason: str) -> None:
+    """Another login approves the take-over before it is made; the approval is spent and audited."""
+    book, login = ApprovalBook(machine.store), current_login()
+    summary = f"release-authority take-over: {reason}"
+    approval = approved(book, machine.name, "authority", summary, machine.operator, login,
+                        lambda request: print(pending_text(request), flush=True))  # fmt: skip
+    people = book.use(approval, machine.name, "authority", login)
+    machine.store.append_audit(machine.operator, machine.name, "authority-take-over", "approved", people)
+    print(f"approval #{approval}: approved by {people['approved_by']}", flush=True)
+
+
 def cmd_authority(args: argparse.Namespace) -> int:
     if args.take_over and args.release:
         raise UsageError(f"{args.name}: authority: --take-over and --release cannot be combined")
     if args.confirm is not None and not args.take_over:
         raise UsageError(f"{args.name}: authority: --confirm only confirms --take-over")
+    if args.await_approval and not args.take_over:
+        raise UsageError(f"{args.name}: authority: --await-approval is for --take-over")
     machine, link = _machine(args, need_operator=args.take_over or args.release)
     try:
         if args.release:
@@ -291,6 +309,8 @@ def cmd_authority(args: argparse.Namespace) -> int:
                 ).strip()
             except EOFError:
                 typed = ""
+        if args.await_approval:
+            _take_over_approved(machine, args.reason)
         now = machine.take_over(seen, typed, args.reason)
     finally:
         link.close()

@@ -11,11 +11,13 @@ from pathlib import Path
 import pytest
 
 from console.app import DrsConsole
+from console.demo import DemoWorld
 from drs_link.arming import ArmState
 from drs_link.operations import Operations
 from drs_link.session import LOST, record_loss
 from drs_link.store import Store
 from tests.console.conftest import offline_config, wait_for
+from tests.console.test_release_flow import open_release_go, polls_never_disarm
 
 pytestmark = pytest.mark.asyncio
 
@@ -91,3 +93,25 @@ async def test_what_another_console_does_to_the_store_shows_here_with_who_did_it
         [note] = [n.message for n in app._notifications if "waiver granted" in n.message]
         assert app.store.session not in note and " pid " in note, "the other process is named"
         await pilot.press("q", "tab", "enter")
+
+
+async def test_sighup_during_a_real_go_lets_it_finish_and_records_it_once(
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    world, app = demo
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_release_go(pilot, app)
+        arming = polls_never_disarm(app, monkeypatch)
+        world.sims[0].faults.answer_delay_s = 3.0  # the Pi has acted; the console hears it 3 s later
+        await pilot.press("a", "f", *"DRS1", "enter", "enter", *"alone", "enter")
+        await wait_for(pilot, lambda: arming.status().state is ArmState.FIRING)
+        app.session_lost(signal.SIGHUP)
+        await pilot.pause(0.5)
+        assert app.is_running, "the console waits for the Go in flight"
+        await wait_for(pilot, lambda: not app.is_running)
+    assert arming.status().state is ArmState.FIRED and world.sims[0].firmware.go_at is not None
+    assert app.return_value == 128 + signal.SIGHUP
+    released = [a for a in app.store.audit("DRS1") if a.action == "go" and a.result.startswith("released")]
+    assert len(released) == 1
+    [lost] = [a for a in app.store.audit() if a.action == LOST]
+    assert lost.detail is not None and lost.detail["go_in_flight"] == ["DRS1"]

@@ -10,6 +10,7 @@ import pty
 import select
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from datetime import UTC, datetime, timedelta
@@ -19,6 +20,7 @@ import paramiko
 import pytest
 
 from drs_link import remote
+from drs_link.approval import ApprovalBook, Login
 from drs_link.backends import AuthorityState, AuthorityStatus
 from drs_link.backends.agent import AgentBackend
 from drs_link.backends.stock import StockBackend
@@ -518,3 +520,34 @@ def test_cli_power_on_prompt_takes_end_of_input_as_no_and_says_so_in_one_line(
     assert b"Traceback" not in shown and b"drs: error: DRS1: power-on refused" in shown
     assert sim.firmware.powered_at is None, "nothing was switched on"
 
+
+@pytest.mark.slow
+def test_cli_take_over_waits_for_another_login_to_approve(
+    cli: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    # Mission control's rule for taking release authority away from another console: another
+    # person approves it from their own login (drs approve), not a name typed beside the request.
+    sim, config = cli
+    _other_console(tmp_path, config, sim)
+    book = ApprovalBook(Store.open(tmp_path / "data" / "drs.sqlite"))
+
+    def approve_when_asked() -> None:
+        deadline = time.monotonic() + 60
+        while not book.open_requests("DRS1") and time.monotonic() < deadline:
+            time.sleep(0.05)
+        [request] = book.open_requests("DRS1")
+        book.decide(request.id, "JM", Login("jm-at-the-ground-station"), approve=True)
+
+    approver = threading.Thread(target=approve_when_asked)
+    approver.start()
+    argv = ("capsule", "authority", "DRS1", "--take-over", "--reason", "console2 died", "--confirm", "DRS1",
+            "--await-approval")  # fmt: skip
+    assert drs(config, *argv) == 0
+    approver.join()
+    out = capsys.readouterr().out
+    assert "approval #1: waiting for another login to run `drs approve 1`" in out
+    assert "approval #1: approved by JM (jm-at-the-ground-station)" in out
+    assert sim.authority is not None and sim.authority[0] == default_holder("EL")
+    audit = [(a.action, a.result) for a in book.store.audit("DRS1")]
+    assert audit.index(("authority-take-over", "approved")) < audit.index(("authority-take-over", "started"))
+    assert book.get(1).state == "used"
