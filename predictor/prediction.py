@@ -414,7 +414,7 @@ def _build_prediction(
             0, "DEMO WEATHER: generated analytic atmosphere, not a forecast; do not use for operations"
         )
     warnings.append(f"landing altitude from {terrain_source}")
-    time_held_s = float(paths.time_held_s.max())
+    time_held_s = float(paths.time_held_s[row])
     if time_held_s > 0.0:
         warnings.append(
             f"weather held at its nearest valid time for up to {time_held_s / 60:.0f} min "
