@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import os
 import signal
+import threading
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -63,6 +64,8 @@ STORE_WATCH_S = 0.5
 GO_FINISH_S = 120.0
 """How long a lost session waits for a Go in flight to finish and be recorded before the process ends."""
 LOST_SIGNALS = (signal.SIGHUP, signal.SIGTERM)
+SHUTDOWN_GRACE_S = 5.0
+"""After a lost session, how long an orderly shutdown may take before the process simply ends."""
 LOW_BANDWIDTH_AGE_STEP_S = 10.0
 
 
@@ -255,6 +258,11 @@ class DrsConsole(App[int]):
         deadline = time.monotonic() + GO_FINISH_S
         while any(a.status().state is ArmState.FIRING for a in arming) and time.monotonic() < deadline:
             await asyncio.sleep(0.2)
+        if not self.is_headless:
+            # With the terminal hung up, Textual's shutdown can block for good flushing output nobody
+            # reads (its writer thread stops on the dead pty; a console was found alive hours later,
+            # holding the store and its links). Everything owed is on the record by now.
+            threading.Timer(SHUTDOWN_GRACE_S, os._exit, args=(code,)).start()
         self.exit(code)
 
     def watch_store(self) -> None:

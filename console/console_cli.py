@@ -241,5 +241,8 @@ def run_demo(speed: float, low_bandwidth: bool = False) -> int:
         result = run_console(replace(setup, low_bandwidth=low_bandwidth))
     finally:
         world.stop()
-    print(f"drs demo: session kept in {root}; replay it with: drs console --replay {recorder.path}")
+    try:
+        print(f"drs demo: session kept in {root}; replay it with: drs console --replay {recorder.path}")
+    except OSError:
+        pass  # the terminal hung up (the session was lost): the store and recording say it all
     return result

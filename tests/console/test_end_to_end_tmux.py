@@ -7,6 +7,7 @@ posting webhooks to the console's receiver, predictions on demo weather. Only wh
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -175,3 +176,21 @@ def test_a_dropped_terminal_disarms_on_the_record(terminal: Terminal, tmp_path: 
     [lost] = [a for a in store.audit() if a.action == "session.lost"]
     assert lost.detail == {"signal": "SIGHUP", "disarmed": ["DRS1"], "go_in_flight": []}
     assert ("disarm", "session lost (SIGHUP)") in [(a.action, a.result) for a in store.audit("DRS1")]
+    deadline = time.monotonic() + 30
+    while holders(store.path) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not holders(store.path), "the console ended: nothing holds its store any more"
+
+
+def holders(path: Path) -> list[int]:
+    """Processes other than this one with ``path`` open (Linux /proc)."""
+    found = []
+    for fd_dir in Path("/proc").glob("[0-9]*/fd"):
+        if fd_dir.parent.name == str(os.getpid()):
+            continue
+        try:
+            if any(os.readlink(fd) == str(path) for fd in fd_dir.iterdir()):
+                found.append(int(fd_dir.parent.name))
+        except OSError:
+            continue
+    return found
