@@ -286,6 +286,10 @@ class Field(Generic[S]):
     level: Callable[[S], Level]
     pending_status: bool = False
     """Whether a ``PredictionStatus`` says what the console is doing about a value it has never had."""
+    after_release: Literal["live", "history", "final"] = "live"
+    """What Go makes of the value: ``history`` for what the Pi sent (it shuts down at Go, so a link
+    down and old NMEA are what Go leaves: shown plainly, no alarm colour, no STALE); ``final`` for
+    the release record (nothing polls or changes it until a reset: it never goes stale)."""
 
     @property
     def kind(self) -> str:
@@ -320,6 +324,8 @@ class Field(Generic[S]):
             return Cell(self.pending(t, "short") or MISSING_TEXT, "none")
         text, error, level = self._described(reading.value, self.short)
         text = f"{text or 'BAD DATA'} {short_age(reading.age_s(now) or 0.0)}"
+        if t.released and self.after_release != "live":
+            return Cell(text, "bad" if error else "none" if self.after_release == "history" else level)
         if state is Freshness.STALE:
             return Cell(f"{STALE_GLYPH}{text}", "bad" if error else "stale")
         return Cell(text, "bad" if error else level)
@@ -332,17 +338,22 @@ class Field(Generic[S]):
             return Cell(f"{MISSING_TEXT} {self.pending(t) or 'nothing received yet'}", "none")
         text, error, level = self._described(reading.value, self.long)
         age = long_age(reading.age_s(now) or 0.0)
+        if t.released and self.after_release == "history":
+            return Cell(f"{error or text} — {age}; history: the Pi shut down at Go", "bad" if error else "none")
+        if t.released and self.after_release == "final":
+            return Cell(f"{error or text} — {age}", "bad" if error else level)
         if state is Freshness.STALE:
             return Cell(f"{error or text} — {STALE_GLYPH}STALE {age}", "bad" if error else "stale")
         return Cell(f"{error or text} — {age}", "bad" if error else level)
 
 
 FIELDS: tuple[Field[Any], ...] = (
-    Field(LinkSample, "Link", "Link", 4, _link_short, _link_long, _link_level),
-    Field(ReleaseSample, "Release", "Release", 10, _release_short, _release_long, _release_level),
-    Field(GnssSample, "GNSS", "GNSS", 10, _gnss_short, _gnss_long, _gnss_level),
-    Field(StorageSample, "Storage", "Storage", 10, _storage_short, _storage_long, _storage_level),
-    Field(SyncSample, "Sync", "Sync", 4, _sync_short, _sync_long, _sync_level),
+    Field(LinkSample, "Link", "Link", 4, _link_short, _link_long, _link_level, after_release="history"),
+    Field(ReleaseSample, "Release", "Release", 10, _release_short, _release_long, _release_level,
+          after_release="final"),  # fmt: skip
+    Field(GnssSample, "GNSS", "GNSS", 10, _gnss_short, _gnss_long, _gnss_level, after_release="history"),
+    Field(StorageSample, "Storage", "Storage", 10, _storage_short, _storage_long, _storage_level, after_release="history"),
+    Field(SyncSample, "Sync", "Sync", 4, _sync_short, _sync_long, _sync_level, after_release="history"),
     Field(ReportSample, "Battery/last MO", "Battery/MO", 12, _report_short, _report_long, _report_level),
     Field(PredictionSample, "Prediction", "Prediction", 10, _prediction_short, _prediction_long, _always_ok,
           pending_status=True),  # fmt: skip
