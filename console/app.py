@@ -276,7 +276,8 @@ class DrsConsole(App[int]):
             self._audit_seen = row.id
             if row.session != self.store.session:
                 about = f"{row.capsule}: " if row.capsule else ""
-                self.notify(f"{about}{row.action} {row.result} — {row.operator}, {row.session or 'another console'}",
+                hint = " (A on the fleet: approvals)" if row.action == "approval.requested" else ""
+                self.notify(f"{about}{row.action} {row.result} — {row.operator}, {row.session or 'another console'}{hint}",
                             timeout=8)  # fmt: skip
         if self.ops is not None:
             self.poll_reports()

@@ -10,6 +10,7 @@ from textual.app import SystemCommand
 
 def palette_commands(app: Any) -> Iterator[SystemCommand]:
     """Every screen for every capsule, reachable by typing its name in the palette (Ctrl+P)."""
+    from console.screens.approvals import ApprovalScreen
     from console.screens.history import HistoryScreen
     from console.screens.iridium import IridiumScreen
     from console.screens.predictions import PredictionScreen
@@ -17,6 +18,9 @@ def palette_commands(app: Any) -> Iterator[SystemCommand]:
     from console.screens.release import ReleaseScreen
 
     yield SystemCommand("History", "Audit log: search and export", lambda: app.push_screen(HistoryScreen()))
+    if app.commanding:
+        yield SystemCommand("Approvals", "Hazardous commands waiting for a second operator",
+                            lambda: app.push_screen(ApprovalScreen()))  # fmt: skip
     for name in app.setup.capsules:
         for title, screen in (
             ("Release", ReleaseScreen),

@@ -20,6 +20,7 @@ class FleetScreen(ConsoleScreen):
         Binding("i", "iridium", "Iridium"),
         Binding("v", "recovery", "Recovery"),
         Binding("h", "history", "History"),
+        Binding("A", "approvals", "Approvals", show=False),
     ]
 
     def compose(self) -> ComposeResult:
@@ -79,6 +80,11 @@ class FleetScreen(ConsoleScreen):
         from console.screens.iridium import IridiumScreen
 
         self.app.push_screen(IridiumScreen(self.selected()))
+
+    def action_approvals(self) -> None:
+        from console.screens.approvals import ApprovalScreen
+
+        self.app.push_screen(ApprovalScreen())
 
     def action_recovery(self) -> None:
         from console.screens.recovery import RecoveryScreen

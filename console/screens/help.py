@@ -16,7 +16,8 @@ HELP = """\
 **Fleet** (a row per capsule with the columns that fit; the highlighted capsule in full words below;
 ⌛ marks a value older than twice its period, and the words say STALE; the balloon's position and
 its feed's health at the bottom):
-`↑`/`↓` choose · `Enter`/`r` release · `p` predictions · `i` Iridium · `v` recovery · `h` history
+`↑`/`↓` choose · `Enter`/`r` release · `p` predictions · `i` Iridium · `v` recovery · `h` history ·
+`A` approvals (a second operator's hazardous commands waiting for your login)
 
 **Release**: `[` `]` switch checklist · `Space` tick a manual step · `x` skip (reason) ·
 `o` power on (confirm; cannot be undone by software) · `s` sync data · `w` waive a go/no-go item

@@ -9,9 +9,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from textual.widgets import DataTable
 
 from console.app import DrsConsole
 from console.demo import DemoWorld
+from console.screens.approvals import ApprovalScreen
+from console.screens.modals import ConfirmModal
+from drs_link.approval import ApprovalBook, Login, current_login
 from drs_link.arming import ArmState
 from drs_link.operations import Operations
 from drs_link.session import LOST, record_loss
@@ -115,3 +119,31 @@ async def test_sighup_during_a_real_go_lets_it_finish_and_records_it_once(
     assert len(released) == 1
     [lost] = [a for a in app.store.audit() if a.action == LOST]
     assert lost.detail is not None and lost.detail["go_in_flight"] == ["DRS1"]
+
+
+async def test_a_second_console_approves_from_its_own_login_and_the_requester_cannot(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    app = canned_app()
+    book = ApprovalBook(app.store)
+    approve = book.request("DRS1", "parachute", "[PARACHUTE=01:19]", "JM", Login("jm-at-the-tent"))
+    reject = book.request("DRS3", "authority", "take-over: console2 died", "JM", Login("jm-at-the-tent"))
+    mine = book.request("DRS2", "go", "release DRS2", "EL", current_login())
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("A")
+        assert isinstance(app.screen, ApprovalScreen)
+        table = app.screen.query_one("#approvals", DataTable)
+        assert table.row_count == 3
+        await pilot.press("enter")  # the first: another login's request
+        assert isinstance(app.screen, ConfirmModal)
+        await pilot.press("tab", "enter")
+        await wait_for(pilot, lambda: book.get(approve.id).state == "approved")
+        assert book.get(approve.id).decider == current_login()
+        await wait_for(pilot, lambda: table.row_count == 2)
+        await pilot.press("x", *"console2 is back", "enter")
+        await wait_for(pilot, lambda: book.get(reject.id).state == "rejected")
+        assert book.get(reject.id).reason == "console2 is back"
+        await wait_for(pilot, lambda: table.row_count == 1)
+        await pilot.press("enter", "tab", "enter")  # this console's own request
+        await wait_for(pilot, lambda: any("cannot approve it" in n.message for n in app._notifications))
+        assert book.get(mine.id).state == "pending"

@@ -1,0 +1,105 @@
+"""Requests waiting for a second operator: approved or rejected here, from this console's own login.
+
+The second operator of a hazardous command (Go, PARACHUTE, a take-over of release authority) is
+another login, not a name typed beside the first (``drs_link.approval``). Another console on the same
+store shows the request as it arrives; here its operator reads what they are approving, then Enter
+approves and ``x`` rejects with a reason. The rule is below the screen: the requester's own login is
+refused, whichever console it sits at.
+"""
+
+from __future__ import annotations
+
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.widgets import DataTable, Static
+
+from console.screens.base import ConsoleScreen
+from console.screens.modals import ConfirmModal, TextPromptModal
+from console.widgets.quiet import fill_rows, set_content
+from drs_link.approval import ACTIONS, ApprovalBook, current_login
+from drs_link.errors import LinkError
+
+COLUMNS = ("#", "Capsule", "Command", "Requested by", "Expires")
+
+
+class ApprovalScreen(ConsoleScreen):
+    BINDINGS = [
+        Binding("escape", "app.pop_screen", "Back"),
+        Binding("enter", "approve", "Approve"),
+        Binding("x", "reject", "Reject"),
+    ]
+
+    def compose(self) -> ComposeResult:
+        yield from self.compose_banner()
+        yield DataTable(id="approvals", cursor_type="row")
+        yield Static(id="approval-detail", markup=False)
+        yield from self.compose_footer()
+
+    def on_mount(self) -> None:
+        self.ready = True
+        table = self.query_one("#approvals", DataTable)
+        for title in COLUMNS:
+            table.add_column(title)
+        table.focus()
+        self.refresh_view()
+
+    @property
+    def book(self) -> ApprovalBook:
+        return ApprovalBook(self.console.store, self.console.now)
+
+    def update_view(self) -> None:
+        now = self.console.now()
+        requests = self.book.open_requests()
+        rows = [
+            (str(r.id), (str(r.id), r.capsule, f"{ACTIONS[r.action]}: {r.summary}",
+                         f"{r.requested_by} ({r.requester})", f"{r.expires_utc:%H:%M:%S}Z"))
+            for r in requests
+        ]  # fmt: skip
+        fill_rows(self.query_one("#approvals", DataTable), rows)
+        you = f"You are {current_login()}: the requester's own login cannot approve."
+        text = "Nothing waits for approval." if not requests else "Enter approves the highlighted request, x rejects it."
+        set_content(self.query_one("#approval-detail", Static), f"{text}\n{you}\n{len(requests)} waiting at {now:%H:%M:%S}Z")
+
+    def selected(self) -> int | None:
+        table = self.query_one("#approvals", DataTable)
+        if not table.row_count:
+            return None
+        return int(str(table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value))
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        """Enter on a row reaches the table first: it approves, as the footer says."""
+        self.action_approve()
+
+    def action_approve(self) -> None:
+        approval = self.selected()
+        if approval is None:
+            return
+        request = self.book.get(approval)
+
+        def confirmed(yes: bool | None) -> None:
+            if yes:
+                self._decide(approval, True, "")
+
+        body = (f"{request.capsule}: {ACTIONS[request.action]}: {request.summary}\n"
+                f"requested by {request.requested_by} ({request.requester})")  # fmt: skip
+        self.app.push_screen(ConfirmModal(f"Approve #{approval}?", body, "Approve"), confirmed)
+
+    def action_reject(self) -> None:
+        approval = self.selected()
+        if approval is None:
+            return
+
+        def reason(answer: str | None) -> None:
+            if answer is not None and answer.strip():
+                self._decide(approval, False, answer.strip())
+
+        self.app.push_screen(TextPromptModal(f"Reject #{approval}", "Why (the requester is told):"), reason)
+
+    def _decide(self, approval: int, approve: bool, reason: str) -> None:
+        try:
+            decided = self.book.decide(approval, self.console.operator, current_login(), approve, reason)
+        except LinkError as exc:
+            self.app.notify(str(exc), severity="error", timeout=12)
+            return
+        self.app.notify(f"#{decided.id} {decided.state}")
+        self.refresh_view()
