@@ -14,7 +14,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from drs_link.backends.stock import StockBackend
+from drs_link.backends.registry import build_backend
 from drs_link.capsule import ReleaseStateMachine
 from drs_link.config import CapsuleConfig, parse_config
 from drs_link.simulator import CapsuleSimulator
@@ -80,7 +80,7 @@ def run_bench(sync_mb: float = 32.0, rounds: int = 20, clock_scale: float = 40.0
             machine = ReleaseStateMachine(
                 Store.open(root / "drs.sqlite"),
                 config,
-                StockBackend(config, link),
+                build_backend(config, link),
                 "bench",
                 clock=sim.clock.now,
                 sleep=sim.clock.sleep,

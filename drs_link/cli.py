@@ -14,8 +14,7 @@ from pathlib import Path
 from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
 
 from drs_link.approval import ApprovalBook, approved, current_login, pending_text
-from drs_link.backends.agent import AgentBackend
-from drs_link.backends.stock import StockBackend
+from drs_link.backends.registry import build_backend
 from drs_link.bench import run_bench
 from drs_link.capsule import ReleaseState, ReleaseStateMachine, record_as_dict, take_over_outcome
 from drs_link.checklist import PROCEDURE_DIR, Checklist, complete_command, load_checklists
@@ -128,8 +127,7 @@ def _machine(args: argparse.Namespace, need_operator: bool) -> tuple[ReleaseStat
     if need_operator and not config.operator.name:
         raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
     link = CapsuleLink(capsule)
-    backend = AgentBackend(capsule, link) if capsule.backend == "agent" else StockBackend(capsule, link)
-    return ReleaseStateMachine(store, capsule, backend, config.operator.name), link
+    return ReleaseStateMachine(store, capsule, build_backend(capsule, link), config.operator.name), link
 
 
 def cmd_status(args: argparse.Namespace) -> int:
@@ -319,23 +317,20 @@ def cmd_authority(args: argparse.Namespace) -> int:
 
 
 def cmd_released(args: argparse.Namespace) -> int:
-    config, capsule, store = _context(args)
-    machine = ReleaseStateMachine(store, capsule, StockBackend(capsule, CapsuleLink(capsule)), config.operator.name)
+    machine, _ = _machine(args, need_operator=False)
     checklists = load_checklists(PROCEDURE_DIR)
     record = machine.record_released(args.confirm, args.evidence)
     _command_done(machine, checklists, "fire", record.note or "released")
-    print(f"{capsule.name}: {record.note}")
+    print(f"{machine.name}: {record.note}")
     return 0
 
 
 def cmd_reset(args: argparse.Namespace) -> int:
-    config, capsule, store = _context(args)
-    link = CapsuleLink(capsule)
-    machine = ReleaseStateMachine(store, capsule, StockBackend(capsule, link), config.operator.name)
+    machine, _ = _machine(args, need_operator=False)
     checklists = load_checklists(PROCEDURE_DIR)
     machine.reset(args.confirm)
     _command_done(machine, checklists, "reset", "release state reset")
-    print(f"{capsule.name}: reset to idle")
+    print(f"{machine.name}: reset to idle")
     return 0
 
 

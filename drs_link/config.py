@@ -271,8 +271,9 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
             raise ConfigError(f"{key}.{name}: must name a Python interpreter on the Pi")
     if not 1 <= capsule.port <= 65535:
         raise ConfigError(f"{key}.port: {capsule.port} is not a TCP port (1-65535)")
-    if capsule.backend not in ("stock", "agent"):
-        raise ConfigError(f"{key}.backend: {capsule.backend!r} is not one of 'stock', 'agent'")
+    if capsule.backend not in BACKEND_NAMES:
+        names = ", ".join(repr(name) for name in BACKEND_NAMES)
+        raise ConfigError(f"{key}.backend: {capsule.backend!r} is not one of {names}")
     if capsule.imei is not None and not IMEI_RE.match(capsule.imei):
         raise ConfigError(f"{key}.imei: {capsule.imei!r} must be the modem's 15-digit IMEI")
     if capsule.rockblock_serial is not None and not 0 < capsule.rockblock_serial <= 9_999_999:
@@ -286,6 +287,8 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
         _check_range(f"{key}.{name}", getattr(capsule, name), 0.001, 3600.0, "a link that slow is down")
 
 
+BACKEND_NAMES = ("stock", "agent")
+"""What a capsule's ``backend`` key accepts; ``drs_link.backends.registry`` maps each to its class."""
 MAX_LEASE_S = 86_400.0
 """A day: a lease of 1e19 s overflowed the Pi's 64-bit shell arithmetic and let a second console take over."""
 VARIABLE_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,127}$")

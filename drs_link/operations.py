@@ -18,8 +18,7 @@ from shapely import Polygon
 
 from drs_link.arming import ArmingController
 from drs_link.backends import AuthorityStatus
-from drs_link.backends.agent import AgentBackend
-from drs_link.backends.stock import StockBackend
+from drs_link.backends.registry import build_backend
 from drs_link.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
 from drs_link.checklist import PROCEDURE_DIR, complete_command, load_checklists
 from drs_link.config import CapsuleConfig, Config
@@ -177,9 +176,7 @@ class Operations:
         self.capsules: dict[str, CapsuleOps] = {}
         for capsule in config.capsules:
             link = CapsuleLink(capsule)
-            backend = (
-                AgentBackend(capsule, link) if capsule.backend == "agent" else StockBackend(capsule, link)
-            )
+            backend = build_backend(capsule, link)
             kwargs = {"sleep": sleep} if sleep is not None else {}
             machine = ReleaseStateMachine(store, capsule, backend, self.operator, clock=clock, **kwargs)  # type: ignore[arg-type]
             arming = ArmingController(

@@ -22,8 +22,7 @@ import pytest
 from drs_link import remote
 from drs_link.approval import ApprovalBook, Login
 from drs_link.backends import AuthorityState, AuthorityStatus
-from drs_link.backends.agent import AgentBackend
-from drs_link.backends.stock import StockBackend
+from drs_link.backends.registry import build_backend
 from drs_link.capsule import ReleaseState, ReleaseStateMachine, default_holder
 from drs_link.config import CapsuleConfig, load_config
 from drs_link.errors import RefusedError
@@ -105,15 +104,12 @@ def _machine(
     config: CapsuleConfig,
     sim: CapsuleSimulator,
     holder: str,
-    backend: str = "stock",
 ) -> ReleaseStateMachine:
     """One console: its own store and its own holder name, as on its own laptop."""
-    link = CapsuleLink(config)
-    driver = AgentBackend(config, link) if backend == "agent" else StockBackend(config, link)
     return ReleaseStateMachine(
         Store.open(tmp_path / holder / "drs.sqlite"),
         config,
-        driver,
+        build_backend(config, CapsuleLink(config)),
         holder.split("@")[0],
         clock=sim.clock.now,
         sleep=sim.clock.sleep,
@@ -139,7 +135,7 @@ def test_the_holder_and_lease_are_shown_after_power_on(
 ) -> None:
     sim = make_sim()
     config = sim_config(sim, backend=backend)
-    mine = _machine(tmp_path, config, sim, "EL@console1", backend)
+    mine = _machine(tmp_path, config, sim, "EL@console1")
     assert mine.authority().state is AuthorityState.FREE
     mine.power_on(confirmed=True)
     before = int(sim.clock.now().timestamp())
