@@ -417,9 +417,9 @@ class Record(NamedTuple):
     """(n, 5): lat, lon, altitude, time and step index where a trajectory failed."""
 
     @classmethod
-    def empty(cls, skip: np.ndarray, columns: int) -> Record:
+    def empty(cls, skip: np.ndarray, columns: int, fill: float | None = None) -> Record:
         n = skip.shape[0]
-        paths = (np.empty((n, columns)) for _ in range(5))
+        paths = (np.empty((n, columns)) if fill is None else np.full((n, columns), fill) for _ in range(5))
         return cls(*paths, skip, np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n), np.zeros((n, 5)))
 
     def recorded(self) -> np.ndarray:
@@ -625,6 +625,7 @@ def descend(
     release: Release,
     stepping: Stepping,
     record_below_m: float = math.inf,
+    fill: float | None = None,
     blocks: int = 1,
 ) -> Record:
     """Step every trajectory from its release down to the floor, recording each step: the one engine
@@ -632,25 +633,30 @@ def descend(
 
     ``chain`` is ``Model.chain(n)`` (or its rows). Recording starts one step above ``record_below_m``
     (everything when infinite): when only the landing matters, the high part of each path is not kept,
-    which saves memory. A trajectory that fails stops with its status; what to do about it is the
-    caller's choice.
+    which saves memory. Past each path's end the record holds ``fill``, or is left unwritten (None),
+    which is cheaper for callers that read only what ``Record.recorded`` marks. A trajectory that fails
+    stops with its status; what to do about it is the caller's choice.
 
     Trajectories are split into ``blocks`` contiguous ranges run in parallel; with one block the
     range runs on the calling thread, because a parallel launch costs milliseconds when the
     machine's cores are busy and a single descent takes a fraction of that.
     """
+    n = release.alt_m.shape[0]
     step_m, floor_m = stepping.step_m, stepping.floor_m
-    steps = np.ceil(np.maximum(release.alt_m - floor_m, 0.0) / step_m).astype(np.int64) + 1
     if math.isinf(record_below_m):
-        skip = np.zeros(steps.shape[0], dtype=np.int64)
+        skip = np.zeros(n, dtype=np.int64)
+        # The highest release needs the most steps: one scalar instead of an array per call.
+        columns = math.ceil(max(float(release.alt_m.max()) - floor_m, 0.0) / step_m) + 2
     else:
+        steps = np.ceil(np.maximum(release.alt_m - floor_m, 0.0) / step_m).astype(np.int64) + 1
         skip = np.maximum(np.floor((release.alt_m - record_below_m) / step_m).astype(np.int64) - 1, 0)
-    record = Record.empty(skip, int((steps - skip).max()) + 1)
+        columns = int((steps - skip).max()) + 1
+    record = Record.empty(skip, columns, fill)
     # Plain tuples across the boundary, unpacked by position inside: numba types a NamedTuple argument
     # in Python on every call and a plain tuple in C, which saves a few µs of every single descent.
     args = (tuple(weather), tuple(stepping), tuple(chain), tuple(release), tuple(record))
     if blocks <= 1:
-        _descend_range(0, steps.shape[0], *args)
+        _descend_range(0, n, *args)
     else:
         _descend_parallel(*args, blocks)
     return record

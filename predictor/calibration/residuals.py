@@ -248,11 +248,12 @@ def run(
         model.chain(n),
         release,
         Stepping(step_m, floor, DEFAULT_TIME_TOLERANCE_S),
+        # NaN past each path's end, so that what reads whole rows (the ground under every point) finds
+        # nothing there.
+        fill=np.nan,
         blocks=min(n, get_num_threads()),
     )
-    # NaN past each path's end, so that what reads whole rows (the ground under every point) finds nothing there.
-    recorded = record.recorded()
-    lat, lon, z, t = (np.where(recorded, a, np.nan) for a in record[:4])
+    lat, lon, z, t = record[:4]
     x, y = case.local(lat, lon)
     return Runs(t=t - t0, x=x, y=y, z=z / 1000.0, n_rec=record.n_rec, ok=record.status == STATUS_OK)
 
