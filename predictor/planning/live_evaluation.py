@@ -63,7 +63,6 @@ LOWEST_SHARE = 0.6
 """A checkpoint's report must be at least this share of its height (a data gap skips the checkpoint)."""
 DECAYS_M = (1000.0, 2000.0, 4000.0, 8000.0, 16000.0, math.inf)
 RECENT_RATE_WINDOW_M = 3000.0
-LAWS = ("profile", "model")
 PLAIN = "model · plain"
 RATE = "model · rate"
 RELATIVE = "model · relative rate"
