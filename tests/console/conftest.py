@@ -3,7 +3,10 @@ demo weather and terrain), and a fixed-time console fed from telemetry records f
 
 from __future__ import annotations
 
+import shutil
+import subprocess
 import time
+import uuid
 from collections.abc import Callable, Iterator
 from dataclasses import replace
 from datetime import UTC, datetime, timedelta
@@ -179,3 +182,18 @@ def canned_app(
         return app
 
     return build
+
+
+@pytest.fixture(scope="session")
+def tmux_server() -> Iterator[None]:
+    """One tmux server for every test: killing a test's last session ends the server, and the next
+    test's new-session raced its shutdown ("server exited unexpectedly") on a loaded CI machine."""
+    tmux = shutil.which("tmux")
+    if tmux is None:
+        pytest.skip("tmux is not installed (.ci/run installs it)")
+    keeper = f"drs-keeper-{uuid.uuid4().hex[:8]}"
+    subprocess.run([tmux, "new-session", "-d", "-s", keeper, "sleep 86400"], check=True)
+    try:
+        yield
+    finally:
+        subprocess.run([tmux, "kill-session", "-t", keeper], check=False)

@@ -95,7 +95,7 @@ def queue_parachute(terminal: Terminal, attempts: int = 6) -> str:
 
 
 @pytest.fixture
-def terminal(tmp_path: Path) -> Iterator[Terminal]:
+def terminal(tmp_path: Path, tmux_server: None) -> Iterator[Terminal]:
     session = f"drs-e2e-{uuid.uuid4().hex[:8]}"
     log = tmp_path / "after-exit.txt"
     command = f"cd {REPO} && TMPDIR={tmp_path} .venv/bin/drs demo --speed 60; echo EXITED $? > {log}; sleep 30"

@@ -75,7 +75,7 @@ def test_on_a_thin_link_ages_step_by_ten_seconds_and_the_clock_does_not(
 
 
 @pytest.fixture
-def piped_demo(tmp_path: Path) -> Iterator[tuple[Terminal, Path]]:
+def piped_demo(tmp_path: Path, tmux_server: None) -> Iterator[tuple[Terminal, Path]]:
     """``drs demo --speed 1`` in tmux at 120×40, its output stream piped to a file byte for byte."""
     if shutil.which("tmux") is None:
         pytest.skip("tmux is not installed")
