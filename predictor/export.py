@@ -12,7 +12,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from predictor.geofiles import DEMO_LABEL, geojson, gpx, kml
+from predictor.geofiles import DEMO_LABEL, geojson, gpx
 from predictor.geofiles.geometry import line_parts, polygon_parts, position
 from predictor.geofiles.output import write_text
 from predictor.prediction import EnsemblePrediction, Prediction
@@ -68,6 +68,10 @@ def _path(pred: Prediction) -> list[tuple[float, float, float]]:
 
 
 def to_kml(result: Prediction | EnsemblePrediction) -> str:
+    # fastkml is imported here, when a KML is asked for: it costs ~50 ms, which every `drs predict`
+    # paid before writing its JSON.
+    from predictor.geofiles import kml
+
     pred = _central(result)
     styles = [kml.style("path", _PATH_COLOUR, width=3)]
     contents: list[kml.Feature] = [

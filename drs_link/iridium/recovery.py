@@ -20,8 +20,7 @@ from pyproj import Geod
 
 from drs_link.errors import LinkError
 from drs_link.iridium.reports import StoredReport
-from predictor.geofiles import DEMO_LABEL, gpx, kml
-from predictor.geofiles.geometry import line_parts, position
+from predictor.geofiles import DEMO_LABEL
 from predictor.geofiles.output import write_text
 
 GEOD = Geod(ellps="WGS84")
@@ -315,6 +314,8 @@ def write_gpx(
 
     ``predicted`` is (lat, lon, alt) from release to landing, so its last point is the predicted landing.
     """
+    from predictor.geofiles import gpx  # at use, as kml below
+
     waypoints = []
     if landing is not None:
         waypoints.append(
@@ -351,6 +352,11 @@ def write_kml(
     predicted_is_demo: bool = False,
 ) -> Path:
     """The measured and predicted tracks at their altitudes, the landing and the predicted landing."""
+    # Imported here: fastkml, shapely and antimeridian cost ~80 ms, and this module is on the import
+    # path of every drs command through the PARACHUTE landed gate, `drs --help` included.
+    from predictor.geofiles import kml
+    from predictor.geofiles.geometry import line_parts, position
+
     styles = [kml.style("measured", "ff0000ff", width=3), kml.style("predicted", "ffff0000", width=3)]
     tracks = (
         (f"{name} measured", "measured", [(p.lon, p.lat, p.alt_m) for p in measured]),
