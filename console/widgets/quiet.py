@@ -14,6 +14,7 @@ from collections.abc import Hashable, Sequence
 
 from rich.cells import cell_len
 from rich.console import RenderableType
+from rich.segment import Segment
 from rich.text import Text
 from textual.coordinate import Coordinate
 from textual.geometry import Region
@@ -31,6 +32,25 @@ def _key(content: str | Text) -> Hashable:
     return content
 
 
+def _key_of(content: RenderableType, key: Hashable | None) -> Hashable:
+    """The given key, or the content's own when it is text (a rich renderable cannot be compared)."""
+    if key is not None:
+        return key
+    if not isinstance(content, str | Text):
+        raise TypeError("a rich renderable needs the key that decides how it draws")
+    return _key(content)
+
+
+def _rendered(widget: Widget, content: RenderableType) -> list[list[Segment]] | None:
+    """``content`` as rich wraps it at the widget's content width (None before the widget has one)."""
+    width = widget.content_region.width or widget.size.width
+    if width <= 0:
+        return None
+    console = widget.app.console
+    renderable = Text(content) if isinstance(content, str) else content
+    return console.render_lines(renderable, console.options.update_width(width), pad=False)
+
+
 def shows(widget: Static | Label, key: Hashable) -> bool:
     """Whether the widget already shows what ``key`` describes (build nothing new if so)."""
     shown = getattr(widget, _SHOWN, None)
@@ -44,27 +64,15 @@ def set_content(widget: Static | Label, content: RenderableType, key: Hashable |
     Layout is asked for only when the content's height at the widget's width changes, the one way a
     new content can move other widgets.
     """
-    if key is None:
-        if not isinstance(content, str | Text):
-            raise TypeError("a rich renderable needs the key that decides how it draws")
-        key = _key(content)
+    key = _key_of(content, key)
     if shows(widget, key):
         return False
     shown = getattr(widget, _SHOWN, None)
-    height = _height(widget, content)
+    lines = _rendered(widget, content)
+    height = -1 if lines is None else len(lines)  # not laid out yet: the first update lays it out anyway
     setattr(widget, _SHOWN, (key, height))
     widget.update(content, layout=shown is None or shown[1] != height)
     return True
-
-
-def _height(widget: Static | Label, content: RenderableType) -> int:
-    """Lines ``content`` takes at the widget's content width (wrapped as rich wraps it)."""
-    width = widget.content_region.width or widget.size.width
-    if width <= 0:
-        return -1  # not laid out yet: the first update lays it out anyway
-    console = widget.app.console
-    renderable = Text(content) if isinstance(content, str) else content
-    return len(console.render_lines(renderable, console.options.update_width(width), pad=False))
 
 
 def set_cell(table: DataTable, row_key: str, column_key: ColumnKey | str, value: str | Text) -> None:
@@ -95,21 +103,22 @@ def fill_rows(table: DataTable, rows: Sequence[tuple[str, Sequence[str | Text]]]
     otherwise, or when a changed cell of an ``auto_height`` table may wrap to another height, the rows
     are cleared and added again (the caller puts the cursor back).
     """
-    keys = [key for key, _ in rows]
     columns = list(table.ordered_columns)
-    same = keys == [str(row.key.value) for row in table.ordered_rows]
-    if same and auto_height:
-        same = not any(
-            max(cell_len(_plain(value)), cell_len(_plain(table.get_cell(key, column.key)))) > column.content_width
+    if [key for key, _ in rows] == [str(row.key.value) for row in table.ordered_rows]:
+        changed = [
+            (key, column, value, current)
             for key, cells in rows
             for column, value in zip(columns, cells, strict=True)
-            if _key(value) != _key(table.get_cell(key, column.key))
+            if _key(value) != _key(current := table.get_cell(key, column.key))
+        ]
+        wraps = auto_height and any(
+            max(cell_len(_plain(value)), cell_len(_plain(current))) > column.content_width
+            for _, column, value, current in changed
         )
-    if same:
-        for key, cells in rows:
-            for column, value in zip(columns, cells, strict=True):
+        if not wraps:
+            for key, column, value, _ in changed:
                 set_cell(table, key, column.key, value)
-        return False
+            return False
     table.clear()
     for key, cells in rows:
         table.add_row(*cells, key=key, height=None if auto_height else 1)
@@ -144,19 +153,11 @@ class LineQuietStatic(Widget):
 
     def show_content(self, content: RenderableType, key: Hashable | None = None) -> bool:
         """Show ``content`` (a rich renderable needs its ``key``); True when anything was repainted."""
-        if key is None:
-            if not isinstance(content, str | Text):
-                raise TypeError("a rich renderable needs the key that decides how it draws")
-            key = _key(content)
+        key = _key_of(content, key)
         if self.shows(key):
             return False
-        width = self.content_region.width or self.size.width
-        lines = None
-        if width > 0:
-            console = self.app.console
-            renderable = Text(content) if isinstance(content, str) else content
-            rendered = console.render_lines(renderable, console.options.update_width(width), pad=False)
-            lines = [tuple((segment.text, str(segment.style)) for segment in line) for line in rendered]
+        rendered = _rendered(self, content)
+        lines = None if rendered is None else [tuple((s.text, str(s.style)) for s in line) for line in rendered]
         previous, self._content, self._key = self._lines, content, key
         self._lines = lines
         if previous is None or lines is None or len(previous) != len(lines):
@@ -164,5 +165,6 @@ class LineQuietStatic(Widget):
             return True
         top = int(self.scroll_y)
         changed = [y - top for y, (old, new) in enumerate(zip(previous, lines, strict=True)) if old != new]
+        width = self.content_region.width or self.size.width
         self.refresh(*(Region(0, y, width, 1) for y in changed if 0 <= y < self.content_region.height))
         return True
