@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from drs_link.approval import ApprovalBook, Login, approved, pending_text
 from drs_link.errors import ConfigError
 from predictor.errors import UsageError
 
@@ -29,8 +30,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     approve.set_defaults(func=run_approve)
 
 
+def wait_for_approval(book: ApprovalBook, capsule: str, action: str, summary: str, operator: str, login: Login) -> int:
+    """A command's wait in a terminal (drs mt send, drs capsule authority): which request to approve,
+    then who approved it; RefusedError when it was rejected or expired."""
+    approval = approved(book, capsule, action, summary, operator, login,
+                        lambda request: print(pending_text(request), flush=True))  # fmt: skip
+    decided = book.get(approval)
+    print(f"approval #{approval}: approved by {decided.decided_by} ({decided.decider})", flush=True)
+    return approval
+
+
 def run_approve(args: argparse.Namespace) -> int:
-    from drs_link.approval import ApprovalBook, current_login
+    from drs_link.approval import current_login
     from drs_link.config import load_config
     from drs_link.store import Store, utc_now
 

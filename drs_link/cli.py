@@ -13,7 +13,8 @@ from pathlib import Path
 
 from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
 
-from drs_link.approval import ApprovalBook, approved, current_login, pending_text
+from drs_link.approval import ApprovalBook, current_login
+from drs_link.approval_cli import wait_for_approval
 from drs_link.backends.registry import build_backend
 from drs_link.bench import run_bench
 from drs_link.capsule import ReleaseState, ReleaseStateMachine, record_as_dict, take_over_outcome
@@ -263,11 +264,9 @@ def _take_over_approved(machine: ReleaseStateMachine, reason: str) -> None:
     """Another login approves the take-over before it is made; the approval is spent and audited."""
     book, login = ApprovalBook(machine.store), current_login()
     summary = f"release-authority take-over: {reason}"
-    approval = approved(book, machine.name, "authority", summary, machine.operator, login,
-                        lambda request: print(pending_text(request), flush=True))  # fmt: skip
+    approval = wait_for_approval(book, machine.name, "authority", summary, machine.operator, login)
     people = book.use(approval, machine.name, "authority", login)
     machine.store.append_audit(machine.operator, machine.name, "authority-take-over", "approved", people)
-    print(f"approval #{approval}: approved by {people['approved_by']}", flush=True)
 
 
 def cmd_authority(args: argparse.Namespace) -> int:

@@ -19,7 +19,8 @@ from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 
-from drs_link.approval import ApprovalBook, approved, current_login, pending_text
+from drs_link.approval import ApprovalBook, current_login
+from drs_link.approval_cli import wait_for_approval
 from drs_link.checklist import PROCEDURE_DIR, load_checklists
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
@@ -244,13 +245,8 @@ def _await_approval(
 ) -> int:
     """Ask another login to approve, and wait; the send goes on only once it has (and its deadline,
     checked again at submit, still holds)."""
-    book = ApprovalBook(store)
     summary = f"{message.text}; landed: {landed_evidence(reports).summary}"
-    approval = approved(book, capsule, "parachute", summary, operator, current_login(),
-                        lambda request: print(pending_text(request), flush=True))  # fmt: skip
-    decided = book.get(approval)
-    print(f"approval #{approval}: approved by {decided.decided_by} ({decided.decider})", flush=True)
-    return approval
+    return wait_for_approval(ApprovalBook(store), capsule, "parachute", summary, operator, current_login())
 
 
 def _mt_status(args: argparse.Namespace) -> int:
