@@ -241,6 +241,10 @@ class ReleaseStateMachine:
         self._audit(action, "refused", {"reason": reason})
         return RefusedError(f"{self.name}: {action} refused: {reason}")
 
+    def _refuse_changed(self, action: str, changed: _StateChanged, hint: str = "") -> RefusedError:
+        """A compare-and-set lost to another step: say what the capsule became."""
+        return self._refuse(action, f"the capsule became {changed.current.state.value} meanwhile{hint}")
+
     # Power-on ---------------------------------------------------------------------------------
 
     def power_on(self, confirmed: bool) -> ReleaseRecord:
@@ -266,9 +270,7 @@ class ReleaseStateMachine:
         try:
             self._swap(current, attempt)
         except _StateChanged as changed:
-            raise self._refuse(
-                "power-on", f"the capsule became {changed.current.state.value} meanwhile (another console?)"
-            ) from None
+            raise self._refuse_changed("power-on", changed, " (another console?)") from None
         self._audit("power-on", "started", {"holder": self.holder, "session": attempt.session})
         try:
             result = self.backend.power_on(self.holder, self.capsule.authority_lease_s)
@@ -419,9 +421,7 @@ class ReleaseStateMachine:
         except _TokenUsed:
             raise self._refuse("go", "the confirmation token was already used") from None
         except _StateChanged as changed:
-            raise self._refuse(
-                "go", f"the capsule became {changed.current.state.value} meanwhile (another console?)"
-            ) from None
+            raise self._refuse_changed("go", changed, " (another console?)") from None
         retry = {"retry_of_go_at": iso_utc(record.go_at)} if record.go_at else {}
         self._audit("go", "sending", {"session": record.session, **retry})
         try:
@@ -496,7 +496,7 @@ class ReleaseStateMachine:
         try:
             self._swap(seen, released)
         except _StateChanged as changed:
-            raise self._refuse("released", f"the capsule became {changed.current.state.value} meanwhile") from None
+            raise self._refuse_changed("released", changed) from None
         self._audit("go", "released (recorded by the operator)", {"evidence": evidence.strip()})
         return released
 
@@ -602,9 +602,7 @@ class ReleaseStateMachine:
         try:
             self._swap(seen, record)
         except _StateChanged as changed:
-            raise self._refuse(
-                "reset", f"the capsule became {changed.current.state.value} meanwhile"
-            ) from None
+            raise self._refuse_changed("reset", changed) from None
         self._audit("reset", "ok", {"from": seen.state.value})
         return record
 
