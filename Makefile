@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 
 UV_VERSION := 0.13.9
 
-.PHONY: demo test lint bench bench-console bench-bytes bench-consoles venv screenshots lock
+.PHONY: demo test lint house bench bench-console bench-bytes bench-consoles venv screenshots lock
 
 # The exact, hash-checked versions of requirements.lock: every machine installs what the suite was
 # last green with. pyproject.toml keeps ranges for people who install the package as a library.
@@ -40,6 +40,10 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/drs predict bench
+
+# The house as docs/architecture.md draws it, made from the code's imports.
+house: $(STAMP)
+	$(BIN)/python tools/house_diagram.py
 
 bench-console: $(STAMP)
 	$(BIN)/python tools/console_latency.py

@@ -28,27 +28,38 @@ from textual.screen import ModalScreen, Screen
 from textual.worker import Worker, WorkerState
 
 from console.predictions import PredictionService
-from drs_link.approval import Approval, ApprovalBook, approved, current_login, pending_text
-from drs_link.arming import ArmState
-from drs_link.balloon_feed import BalloonFeed
-from drs_link.checklist import PROCEDURE_DIR, Checklist, ChecklistRun, load_checklists
 from drs_link.errors import LinkError
-from drs_link.fleet import FleetState
-from drs_link.gonogo import GoNoGoReport, evaluate
-from drs_link.operations import Operations
-from drs_link.origin import ReleaseOrigin, release_origin
-from drs_link.session import record_loss, record_start, unprotected_ssh_warning
-from drs_link.store import Store, utc_now
-from drs_link.telemetry import (
+from drs_link.feeds import BalloonFeed
+from drs_link.ops import (
+    PROCEDURE_DIR,
+    Approval,
+    ApprovalBook,
+    ArmState,
     BalloonSample,
+    Checklist,
+    ChecklistRun,
+    FleetState,
     GnssSample,
+    GoNoGoReport,
     LinkSample,
+    Operations,
     PredictionSample,
     PredictionStatus,
+    ReleaseOrigin,
     TelemetryRecord,
+    approved,
+    current_login,
+    evaluate,
+    load_checklists,
+    pending_text,
+    record_loss,
+    record_start,
+    release_origin,
+    unprotected_ssh_warning,
 )
+from drs_link.store import Store, utc_now
+from predictor.descent import COMPILE_NOTICE, kernels_compiled
 from predictor.errors import PredictorError
-from predictor.integrate import COMPILE_NOTICE, kernels_compiled
 
 POLL_PERIOD_S = 5.0
 REPORT_POLL_S = 3.0
@@ -186,7 +197,7 @@ class DrsConsole(App[int]):
 
     def approval(self, capsule: str, action: str, summary: str) -> int:
         """Ask another login to approve a hazardous command and wait (from a worker thread); the
-        approval's id, or RefusedError when it was rejected or expired (``drs_link.approval``)."""
+        approval's id, or RefusedError when it was rejected or expired (``drs_link.ops.approval``)."""
         book = ApprovalBook(self.store, self.now)
 
         def pending(request: Approval) -> None:
@@ -247,7 +258,7 @@ class DrsConsole(App[int]):
 
     def session_lost(self, sig: signal.Signals) -> None:
         """SIGHUP (the SSH session dropped) or SIGTERM: disarm on the record, let a Go in flight finish
-        and be recorded by its worker, then end (``drs_link.session``)."""
+        and be recorded by its worker, then end (``drs_link.ops.session``)."""
         assert self.ops is not None
         arming = {name: self.ops.ops(name).arming for name in self.setup.capsules}
         firing = [name for name, a in arming.items() if a.status().state is ArmState.FIRING]
@@ -350,7 +361,7 @@ class DrsConsole(App[int]):
             self.post_message(TelemetryArrived(records))
 
     def prediction_origin(self, capsule: str) -> ReleaseOrigin | None:
-        """Where a release would start (the rule is ``drs_link.origin.release_origin``)."""
+        """Where a release would start (the rule is ``drs_link.ops.origin.release_origin``)."""
         return release_origin(self.fleet, capsule, self.now())
 
     def refresh_predictions(self, names: Iterable[str] | None = None) -> None:

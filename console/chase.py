@@ -1,6 +1,6 @@
 """The console's chase feed: its capsules and their latest predictions on the chase team's chasemapper.
 
-The feed itself (packets, socket, the shared landing table) is ``drs_link.chase``; what only the
+The feed itself (packets, socket, the shared landing table) is ``drs_link.feeds.chase``; what only the
 console has is its predictions. Before each round the feed keeps every capsule's latest one: the live
 re-prediction of a descending capsule (from its Iridium fixes), else the "release now" prediction
 from the balloon. Keeping it writes the capsule's KML at its fixed path for chasemapper's
@@ -15,14 +15,14 @@ from __future__ import annotations
 import logging
 from typing import TYPE_CHECKING
 
-from drs_link.chase import ChaseFeed, ChaseSender, ChaseStore, chase_kml_path, chase_points
 from drs_link.config import Config
-from drs_link.iridium.recovery import detect_landing, track_from_reports
+from drs_link.feeds import ChaseFeed, ChaseSender, ChaseStore, chase_kml_path, chase_points
+from drs_link.iridium import detect_landing, track_from_reports
 from predictor.errors import PredictorError
 
 if TYPE_CHECKING:
     from console.app import ConsoleSetup
-    from drs_link.chase import ChasePoint
+    from drs_link.feeds import ChasePoint
     from predictor import Prediction
 
 log = logging.getLogger(__name__)

@@ -23,17 +23,21 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from drs_link.balloon_feed import format_ozimux
 from drs_link.config import Config, MoConfig, parse_config
-from drs_link.iridium.firmware import GnssFix
-from drs_link.iridium.reports import ReportStore
-from drs_link.iridium.webhook import MoHttpServer, MoReceiver
-from drs_link.simulator import CapsuleSimulator, GnssSky
-from drs_link.simulator.keys import write_ed25519
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock, generate_test_keys, post_mo
+from drs_link.feeds import format_ozimux
+from drs_link.iridium import GnssFix, MoHttpServer, MoReceiver, ReportStore
+from drs_link.sim import (
+    CapsuleSimulator,
+    GnssSky,
+    SimulatedCapsule,
+    SimulatedRockblock,
+    generate_test_keys,
+    post_mo,
+    write_ed25519,
+)
 from drs_link.store import Store
 from predictor import Terrain, load_weather, predict
-from predictor.demo_weather import demo_weather_files
+from predictor.environment import demo_weather_files
 
 SITE = (67.8887, 21.0856)
 """Esrange, where the simulated capsules' GNSS starts."""

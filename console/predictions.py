@@ -1,7 +1,7 @@
 """Landing predictions for the console: "release now" and "release in N minutes" from the balloon's position.
 
 Also the release-window sweep (when to drop, as a go/no-go timeline) and the live re-prediction
-of a descending capsule from its reports (``predictor.planning`` and ``predictor.live``).
+of a descending capsule from its reports (``predictor.planning`` and ``predictor.prediction.live``).
 
 Blocking (weather files, numba), so the app calls it from a worker thread. Each answer becomes a
 ``PredictionSample`` telemetry record carrying what the screens and go/no-go need (landing, σ∥/σ⊥,
@@ -17,15 +17,20 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from drs_link.origin import ReleaseOrigin
-from drs_link.telemetry import Contour, PredictionSample, TelemetryRecord
+from drs_link.ops import Contour, PredictionSample, ReleaseOrigin, TelemetryRecord
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
+from predictor.calibration import CalibratedModel, load_model
 from predictor.errors import PredictorError
-from predictor.export import write_geojson, write_gpx, write_kml
-from predictor.live import LivePredictor, Report
-from predictor.model_file import CalibratedModel, load_model
-from predictor.planning.sweep import plan_release
-from predictor.zones import Feature, load_zones
+from predictor.planning import plan_release
+from predictor.prediction import (
+    Feature,
+    LivePredictor,
+    Report,
+    load_zones,
+    write_geojson,
+    write_gpx,
+    write_kml,
+)
 
 PATH_POINTS = 60
 WINDOW_HOURS = 2.0

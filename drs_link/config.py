@@ -288,7 +288,7 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
 
 
 BACKEND_NAMES = ("stock", "agent")
-"""What a capsule's ``backend`` key accepts; ``drs_link.backends.registry`` maps each to its class."""
+"""What a capsule's ``backend`` key accepts; ``drs_link.link.backends.registry`` maps each to its class."""
 MAX_LEASE_S = 86_400.0
 """A day: a lease of 1e19 s overflowed the Pi's 64-bit shell arithmetic and let a second console take over."""
 VARIABLE_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,127}$")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pyproj  # noqa: F401  (before any test imports eccodes: see predictor/native_libs.py)
+import pyproj  # noqa: F401  (before any test imports eccodes: see predictor/environment/native_libs.py)
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]

@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Any
 
-from drs_link.telemetry import Contour, PredictionSample
+from drs_link.ops.telemetry import Contour, PredictionSample
 
 RELEASED = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 

@@ -17,9 +17,9 @@ from pathlib import Path
 from textual.pilot import Pilot
 
 from console.app import DrsConsole
-from console.console_cli import demo_setup
+from console.commands.console import demo_setup
 from console.demo import DemoWorld
-from drs_link.arming import ArmState
+from drs_link.ops.arming import ArmState
 
 SIZE = (120, 36)
 SPEED = 20.0

@@ -1,7 +1,7 @@
 """Requests waiting for a second operator: approved or rejected here, from this console's own login.
 
 The second operator of a hazardous command (Go, PARACHUTE, a take-over of release authority) is
-another login, not a name typed beside the first (``drs_link.approval``). Another console on the same
+another login, not a name typed beside the first (``drs_link.ops.approval``). Another console on the same
 store shows the request as it arrives; here its operator reads what they are approving, then Enter
 approves and ``x`` rejects with a reason. The rule is below the screen: the requester's own login is
 refused, whichever console it sits at.
@@ -16,8 +16,8 @@ from textual.widgets import DataTable, Static
 from console.screens.base import ConsoleScreen
 from console.screens.modals import ConfirmModal, TextPromptModal
 from console.widgets.quiet import fill_rows, set_content
-from drs_link.approval import ACTIONS, ApprovalBook, current_login
 from drs_link.errors import LinkError
+from drs_link.ops import ACTIONS, ApprovalBook, current_login
 
 COLUMNS = ("#", "Capsule", "Command", "Requested by", "Expires")
 

@@ -17,10 +17,8 @@ from textual.binding import Binding
 from console.screens.base import ConsoleScreen
 from console.screens.modals import HazardConfirmation, HazardModal, TextPromptModal
 from drs_link.errors import LinkError
-from drs_link.iridium.authorize import authorize_mt
-from drs_link.iridium.landed import landed_evidence
-from drs_link.iridium.mt import MtComposer, MtMessage, parse_hhmm
-from drs_link.iridium.parachute import ParachutePlan, plan_parachute
+from drs_link.iridium import MtComposer, MtMessage, ParachutePlan, landed_evidence, parse_hhmm, plan_parachute
+from drs_link.ops import authorize_mt
 
 COMMAND_ACTIONS = ("interval", "sounder", "parachute", "parachute_at")
 

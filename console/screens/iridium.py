@@ -18,9 +18,8 @@ from textual.containers import Vertical
 from textual.widgets import DataTable, Label, Static
 
 from console.screens.commanding import CommandingScreen, command_bindings
-from drs_link.iridium.health import assess
-from drs_link.iridium.lifecycle import Command
-from drs_link.operations import report_position
+from drs_link.iridium import Command, assess
+from drs_link.ops import report_position
 
 RELOAD_S = 2.0
 COMMAND_COLUMNS = ("#", "Text", "State", "Updated", "Detail")

@@ -17,8 +17,7 @@ from console.screens.base import ConsoleScreen
 from console.widgets.landing_map import LandingMap, MapLayers
 from console.widgets.release_timeline import default_cursor, render_timeline
 from drs_link.errors import LinkError
-from drs_link.staleness import STALE_GLYPH, format_age
-from drs_link.telemetry import PredictionSample
+from drs_link.ops import STALE_GLYPH, PredictionSample, format_age
 from predictor.errors import PredictorError
 
 

@@ -1,7 +1,7 @@
 """Recovery of one capsule: where it landed and how sure, how far from the team, the phone line, exports.
 
 While it is still descending (fixes arriving, no landing detected) it also shows the live
-re-prediction from the latest fix (``predictor.live``, computed in the same worker that reads the
+re-prediction from the latest fix (``predictor.prediction.live``, computed in the same worker that reads the
 reports), so the team drives towards where it is going now, not where it was predicted at release.
 
 The team also needs, on this one screen, what the sounder, the report interval and the parachute
@@ -27,10 +27,11 @@ from textual.widgets import Static
 from console.screens.commanding import CommandingScreen, command_bindings
 from console.widgets.landing_map import LandingMap, MapLayers
 from console.widgets.quiet import set_content
-from drs_link.iridium.commanded import CommandedSettings, commanded_settings
-from drs_link.iridium.recovery import (
+from drs_link.iridium import (
+    CommandedSettings,
     LandingEstimate,
     TrackPoint,
+    commanded_settings,
     detect_landing,
     distance_bearing,
     phone_summary,
@@ -38,8 +39,7 @@ from drs_link.iridium.recovery import (
     write_gpx,
     write_kml,
 )
-from drs_link.staleness import format_age
-from drs_link.telemetry import PredictionSample, ReportSample
+from drs_link.ops import PredictionSample, ReportSample, format_age
 from predictor.errors import PredictorError
 
 RELOAD_S = 2.0

@@ -19,11 +19,8 @@ from textual.widgets import DataTable, Label, Static
 from console.screens.base import FOOTER_ROOM, ConsoleScreen
 from console.screens.modals import ConfirmModal, HazardConfirmation, HazardModal, TextPromptModal
 from console.widgets.quiet import fill_rows, set_content
-from drs_link.arming import ArmState
-from drs_link.checklist import StepKind, StepState
 from drs_link.errors import LinkError
-from drs_link.gonogo import WAIVABLE, GoNoGoReport, Verdict
-from drs_link.operations import Operations
+from drs_link.ops import WAIVABLE, ArmState, GoNoGoReport, Operations, StepKind, StepState, Verdict
 
 POWER_ON_TEXT = (
     "Power-on runs DRS_on.py: it latches the battery relay and boots the microcontroller and GNSS.\n"

@@ -12,7 +12,7 @@ from rich.table import Table
 
 from console.widgets.cells import FIELDS, LEVEL_CLASSES
 from console.widgets.quiet import LineQuietStatic
-from drs_link.fleet import CapsuleTelemetry
+from drs_link.ops import CapsuleTelemetry
 
 
 class CapsuleDetail(LineQuietStatic):

@@ -18,20 +18,24 @@ from rich.cells import cell_len
 from rich.text import Text
 from textual.widget import Widget
 
-from drs_link.balloon_feed import FeedStatus
-from drs_link.fleet import CapsuleTelemetry
-from drs_link.staleness import MISSING_TEXT, STALE_GLYPH, Freshness, Reading, format_age
-from drs_link.telemetry import (
+from drs_link.feeds import FeedStatus
+from drs_link.ops import (
+    MISSING_TEXT,
+    STALE_GLYPH,
     BalloonSample,
+    CapsuleTelemetry,
+    Freshness,
     GnssSample,
     LinkSample,
     PredictionSample,
     PredictionStatus,
+    Reading,
     ReleaseSample,
     ReportSample,
     Sample,
     StorageSample,
     SyncSample,
+    format_age,
 )
 
 Level = Literal["ok", "warn", "bad", "stale", "none"]

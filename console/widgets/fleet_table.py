@@ -18,8 +18,7 @@ from textual.widgets import DataTable
 
 from console.widgets.cells import FIELDS, LEVEL_CLASSES, Field
 from console.widgets.quiet import set_cell
-from drs_link.fleet import CapsuleTelemetry
-from drs_link.staleness import MISSING_TEXT
+from drs_link.ops import MISSING_TEXT, CapsuleTelemetry
 
 NAME_TITLE = "Capsule"
 

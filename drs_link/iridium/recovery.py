@@ -20,8 +20,7 @@ from pyproj import Geod
 
 from drs_link.errors import LinkError
 from drs_link.iridium.reports import StoredReport
-from predictor.geofiles import DEMO_LABEL
-from predictor.geofiles.output import write_text
+from predictor.geofiles import DEMO_LABEL, write_text
 
 GEOD = Geod(ellps="WGS84")
 MIN_DESCENT_M = 500.0
@@ -354,8 +353,7 @@ def write_kml(
     """The measured and predicted tracks at their altitudes, the landing and the predicted landing."""
     # Imported here: fastkml, shapely and antimeridian cost ~80 ms, and this module is on the import
     # path of every drs command through the PARACHUTE landed gate, `drs --help` included.
-    from predictor.geofiles import kml
-    from predictor.geofiles.geometry import line_parts, position
+    from predictor.geofiles import kml, line_parts, position
 
     styles = [kml.style("measured", "ff0000ff", width=3), kml.style("predicted", "ffff0000", width=3)]
     tracks = (

@@ -1,6 +1,6 @@
 """A capsule's stored position reports as the canonical track CSV, so recorded flights feed calibration.
 
-The calibration tools read ``time,lat,lon,alt_m[,pressure_pa[,speed_mps]]`` (``predictor.calibration.tracks``);
+The calibration tools read ``time,lat,lon,alt_m[,pressure_pa[,speed_mps]]`` (``predictor.tracks.reading``);
 writing through that module's own writer keeps one definition of the format. Only reports with a
 GNSS fix become rows: a no-fix report's Iridium position is kilometres wide and would poison a
 residual, so it is skipped and counted, as are payloads that were stored as rejected. Nothing
@@ -16,8 +16,8 @@ from pathlib import Path
 
 from drs_link.errors import LinkError
 from drs_link.iridium.reports import StoredReport
-from predictor.calibration.tracks import Fix, write_canonical_csv
-from predictor.geofiles.output import EXPORT_MODE
+from predictor.geofiles import EXPORT_MODE
+from predictor.tracks import Fix, write_canonical_csv
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,26 @@
-"""Calibration inputs: measured flight tracks, the rules that clean them, and the winds of their ascents.
+"""The calibration loop: measured descents against predicted ones, and what is learned from them.
 
-The calibration loop (residuals, effects, selection) and live re-prediction build on three things
-from here: ``tracks`` reads every track format into one ``Track`` of ``Fix`` es, ``cleaning`` turns a
-track into a ``Flight`` (ascent, descent, landing, and why anything was dropped or why the flight
-cannot be used), and ``ascent_winds`` turns a flight's own ascent into a ``WeatherCube`` so that a
-real descent can be predicted with no forecast at all.
+``residuals`` compares, ``effects`` lists the fit-able effects and the binned correction, ``selection``
+chooses effects family by family leave-one-flight-out, ``ellipse_fit`` fits the landing ellipse,
+``report`` writes the results, and ``run`` is what ``drs calibrate`` runs. ``model_file`` is the
+calibrated model every prediction can fly; ``live_evaluation`` (with ``live_bench``) measures live
+re-prediction on real descents and adds its settings to that model.
 """
+
+from predictor.lazy_door import lazy_door
+
+__getattr__, __dir__, __all__ = lazy_door(
+    __name__,
+    {
+        "CalibratedModel": "model_file",
+        "bench": "live_bench",
+        "evaluate": "live_evaluation",
+        "flown_model": "model_file",
+        "live_settings": "live_evaluation",
+        "load_model": "model_file",
+        "run_bench": "run",
+        "run_calibrate": "run",
+        "save_model": "model_file",
+        "write_report": "live_evaluation",
+    },
+)

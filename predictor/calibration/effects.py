@@ -1,6 +1,6 @@
 """The effects library as fit-able candidates, and the altitude-binned correction for what it lacks.
 
-A candidate is one of ``predictor.model``'s effect terms with ONE continuous parameter to fit (and,
+A candidate is one of ``predictor.descent.model``'s effect terms with ONE continuous parameter to fit (and,
 for an effect that needs a place, a small set of discrete variants such as the altitude band of
 ``wind_band_scale``). Every other parameter is held at a stated value: with 10–30 flights, each
 extra free parameter mostly fits noise, and a parameter the data cannot pin down (the fast-fall
@@ -28,8 +28,8 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import minimize_scalar
 
 from predictor.calibration.residuals import BinBudget
+from predictor.descent import EFFECTS, BinnedDescentRate, BinnedWind, Term
 from predictor.errors import PredictorError
-from predictor.model import EFFECTS, BinnedDescentRate, BinnedWind, Term
 
 BIN_EDGES_M = tuple(float(z) for z in range(0, 39_000, 3000))
 """Altitude bins of the binned correction: 3 km, coarse enough for 2–5 min fixes (1–4 km apart)."""

@@ -1,6 +1,6 @@
 """σ0, h, k, q of the landing-ellipse model, by maximum likelihood of a bivariate normal.
 
-The model (Sirks et al. 2020, ``predictor.uncertainty``): the landing error along the predicted
+The model (Sirks et al. 2020, ``predictor.prediction.uncertainty``): the landing error along the predicted
 drift direction is N(0, σ∥²) and across it N(0, σ⊥²), independent, with σ∥² = σ0² + h·d² + k·t²
 and σ⊥ = σ∥/q (d: release→landing distance, km; t: mean forecast lead time, h).
 
@@ -29,7 +29,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from predictor.errors import PredictorError
-from predictor.uncertainty import HINDSIGHT, LAUNCH, ErrorModel, coverage
+from predictor.prediction import HINDSIGHT, LAUNCH, ErrorModel, coverage
 
 BOOTSTRAP_SAMPLES = 200
 PAPER_OBJECTIVE = "paper_objective_refitted"

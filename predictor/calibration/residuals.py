@@ -32,15 +32,23 @@ from datetime import datetime
 import numpy as np
 from numba import get_num_threads, njit
 
-from predictor.calibration.cleaning import Flight
-from predictor.calibration.tracks import Fix
-from predictor.cube import WeatherCube
+from predictor.descent import (
+    DEFAULT_TIME_TOLERANCE_S,
+    LOWEST_GROUND_M,
+    STATUS_OK,
+    MeasuredDescentRate,
+    Model,
+    Payload,
+    Release,
+    Stepping,
+    Term,
+    Wind,
+    descend,
+    packed,
+)
+from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError
-from predictor.integrate import DEFAULT_TIME_TOLERANCE_S, STATUS_OK, Release, Stepping, descend, packed
-from predictor.landing import LOWEST_GROUND_M
-from predictor.model import MeasuredDescentRate, Model, Term, Wind
-from predictor.payload import Payload
-from predictor.terrain import Terrain
+from predictor.tracks import Fix, Flight
 
 WGS84_A = 6378137.0
 WGS84_E2 = 6.69437999014e-3

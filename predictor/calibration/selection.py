@@ -59,9 +59,8 @@ from predictor.calibration.residuals import (
     run,
     score,
 )
+from predictor.descent import Payload, Term
 from predictor.errors import PredictorError
-from predictor.model import Term
-from predictor.payload import Payload
 
 ALPHA = 0.05
 BOOTSTRAP_SAMPLES = 4000

@@ -5,4 +5,19 @@ those files open correctly elsewhere (the antimeridian, ring direction, schema o
 for handhelds, ``-`` for stdout) live here so that no exporter can get one of them wrong alone.
 """
 
+from predictor.lazy_door import lazy_door
+
 DEMO_LABEL = "DEMO WEATHER, NOT A FORECAST"
+
+__getattr__, __dir__, __all__ = lazy_door(
+    __name__,
+    {
+        "EXPORT_MODE": "output",
+        "is_stdout": "output",
+        "line_parts": "geometry",
+        "piped": "output",
+        "polygon_parts": "geometry",
+        "position": "geometry",
+        "write_text": "output",
+    },
+)

@@ -21,12 +21,12 @@ from datetime import UTC, datetime
 
 import numpy as np
 
-from predictor.cube import WeatherCube
+from predictor.descent import DEFAULT_TIME_TOLERANCE_S, STATUS_OK, drift_at_float, packed
+from predictor.environment import WeatherCube
 from predictor.errors import OutOfCoverageError, PredictorError
-from predictor.integrate import DEFAULT_TIME_TOLERANCE_S, STATUS_OK, drift_at_float, packed
 
 FLOAT_STEP_S = 60.0
-"""The stepper's longest step (the same as ``predictor.prediction.DRIFT_STEP_S``)."""
+"""The stepper's longest step (the same as ``predictor.prediction.landings.DRIFT_STEP_S``)."""
 DEFAULT_FLOAT_WIND_SIGMA_MS = 2.0
 DEFAULT_POSITION_SIGMA_KM = 0.01
 """GNSS position of the balloon now."""

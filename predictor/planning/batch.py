@@ -20,19 +20,21 @@ from dataclasses import dataclass
 import numpy as np
 from numba import get_num_threads
 
-from predictor.cube import WeatherCube
-from predictor.integrate import (
+from predictor.descent import (
     DEFAULT_TIME_TOLERANCE_S,
+    HIGHEST_GROUND_M,
+    LOWEST_GROUND_M,
     STATUS_OK,
+    Model,
     Record,
     Release,
     Stepping,
     descend,
+    ground_crossings,
     packed,
+    wrap_lon,
 )
-from predictor.landing import HIGHEST_GROUND_M, LOWEST_GROUND_M, ground_crossings, wrap_lon
-from predictor.model import Model
-from predictor.terrain import Terrain
+from predictor.environment import Terrain, WeatherCube
 
 CHUNK = 4096
 STATUS_RELEASE_UNDERGROUND = 101

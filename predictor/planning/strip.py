@@ -12,9 +12,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from predictor.geofiles import DEMO_LABEL, geojson, kml
-from predictor.geofiles.geometry import line_parts, polygon_parts, position
-from predictor.geofiles.output import write_text
+from predictor.geofiles import DEMO_LABEL, geojson, kml, line_parts, polygon_parts, position, write_text
 from predictor.planning.sweep import Candidate, ReleasePlan
 from predictor.prediction import iso_z
 

@@ -24,19 +24,23 @@ from typing import Any
 import numpy as np
 from shapely.geometry.base import BaseGeometry
 
-from predictor.cube import WeatherCube
-from predictor.errors import PredictorError
-from predictor.integrate import (
+from predictor.descent import (
     DEFAULT_TIME_TOLERANCE_S,
+    PROFILES,
     STATUS_ABOVE_TOP,
     STATUS_NOT_DESCENDING,
     STATUS_OUTSIDE_REGION,
     STATUS_OUTSIDE_TIME,
+    DescentRateScale,
+    Model,
+    Payload,
+    Term,
+    WindOffset,
     degrees_per_metre,
+    wrap_lon,
 )
-from predictor.landing import wrap_lon
-from predictor.model import DescentRateScale, Model, Term, WindOffset
-from predictor.payload import PROFILES, Payload
+from predictor.environment import Terrain, WeatherCube
+from predictor.errors import PredictorError
 from predictor.planning.balloon import DEFAULT_FLOAT_WIND_SIGMA_MS, AltitudePlan, BalloonPath, balloon_path
 from predictor.planning.batch import (
     STATUS_NO_GROUND,
@@ -45,16 +49,21 @@ from predictor.planning.batch import (
     descend_batch,
 )
 from predictor.planning.limits import MAX_MEMBER_DESCENTS
-from predictor.prediction import DEFAULT_RATE_SIGMA, DEFAULT_WIND_SIGMA_MS, iso_z
-from predictor.terrain import Terrain
-from predictor.uncertainty import GEOD, LAUNCH, Ellipse, ErrorModel, parametric_ellipse
-from predictor.zones import (
+from predictor.prediction import (
+    DEFAULT_RATE_SIGMA,
+    DEFAULT_WIND_SIGMA_MS,
+    GEOD,
+    LAUNCH,
+    Ellipse,
+    ErrorModel,
     Feature,
     LocalPlane,
     distance_at_center_km,
     ellipse_covariance,
     expected_distance_km,
     inside_any,
+    iso_z,
+    parametric_ellipse,
     zone_probabilities,
 )
 

@@ -14,13 +14,13 @@ from datetime import UTC, datetime, timedelta
 import numpy as np
 import pytest
 
-from predictor.calibration.cleaning import clean
 from predictor.calibration.residuals import FlightCase, flight_case
-from predictor.calibration.standard_atmosphere import R_DRY_AIR, pressure_temperature
-from predictor.calibration.synthetic import synthetic_flight
-from predictor.cube import WeatherCube
-from predictor.model import Term, WindOffset
-from predictor.payload import PROFILES
+from predictor.descent.model import Term, WindOffset
+from predictor.descent.payload import PROFILES
+from predictor.environment.cube import WeatherCube
+from predictor.tracks.cleaning import clean
+from predictor.tracks.standard_atmosphere import R_DRY_AIR, pressure_temperature
+from predictor.tracks.synthetic import synthetic_flight
 
 LAUNCH = datetime(2024, 5, 1, 8, 0, 0, tzinfo=UTC)
 PAYLOAD = PROFILES["superbit-test"]

@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 from pyproj import Geod
 
-from predictor.calibration.ascent_winds import ascent_weather_cube, ascent_wind_profile
-from predictor.calibration.cleaning import Flight, clean
-from predictor.calibration.standard_atmosphere import R_DRY_AIR, pressure_temperature
-from predictor.calibration.tracks import Fix, Track, read_track
-from predictor.cube import WeatherCube
+from predictor.descent.payload import PROFILES
+from predictor.environment.cube import WeatherCube
 from predictor.errors import WeatherError
-from predictor.payload import PROFILES
-from predictor.prediction import predict
+from predictor.prediction.landings import predict
+from predictor.tracks.ascent_winds import ascent_weather_cube, ascent_wind_profile
+from predictor.tracks.cleaning import Flight, clean
+from predictor.tracks.reading import Fix, Track, read_track
+from predictor.tracks.standard_atmosphere import R_DRY_AIR, pressure_temperature
 
 GEOD = Geod(ellps="WGS84")
 T0 = datetime(2024, 5, 1, 8, 0, 0, tzinfo=UTC)
@@ -244,7 +244,7 @@ def test_the_1hz_v4_ascent_gives_a_standard_atmosphere_cube_with_fine_layers(sha
 def test_the_predictor_flies_real_descents_through_ascent_cubes_to_near_the_real_landings(
     shared_data: Path,
 ) -> None:
-    """The contract with predictor.prediction.predict: with no forecast at all, the median landing
+    """The contract with predictor.prediction.landings.predict: with no forecast at all, the median landing
     error over these 10 flights is a few km against 10-86 km of drift (a wrong sign or unit would
     put it near the drift itself). The path is cut at the measured landing altitude (no DEM here)."""
     folder = shared_data / "tracks" / "pyballoon_superbit"

@@ -9,15 +9,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from console.cli import main
-from predictor.calibration.standard_atmosphere import pressure_temperature
-from predictor.calibration.synthetic import synthetic_flight
-from predictor.calibration.tracks import write_canonical_csv
-from predictor.gribwrite import GFS_LEVELS_HPA, gfs_file_name, write_gfs_grib2
-from predictor.model import DescentRateScale
-from predictor.model_file import load_model
-from predictor.payload import PROFILES
-from predictor.weather import load_weather
+from console.commands.main import main
+from predictor.calibration.model_file import load_model
+from predictor.descent.model import DescentRateScale
+from predictor.descent.payload import PROFILES
+from predictor.environment.gribwrite import GFS_LEVELS_HPA, gfs_file_name, write_gfs_grib2
+from predictor.environment.weather import load_weather
+from predictor.tracks.reading import write_canonical_csv
+from predictor.tracks.standard_atmosphere import pressure_temperature
+from predictor.tracks.synthetic import synthetic_flight
 
 PAYLOAD = PROFILES["superbit-test"]
 

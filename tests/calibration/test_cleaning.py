@@ -11,9 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from predictor.calibration.cleaning import TERRAIN_LANDING_TOLERANCE_M, Flight, clean, distance_m
-from predictor.calibration.tracks import Fix, Track, read_track
-from predictor.terrain import Terrain, tile_name
+from predictor.environment.terrain import Terrain, tile_name
+from predictor.tracks.cleaning import TERRAIN_LANDING_TOLERANCE_M, Flight, clean, distance_m
+from predictor.tracks.reading import Fix, Track, read_track
 
 FLIGHT_FILE = re.compile(r"^\d+-\d+-\d+(_\d)?\.csv$")
 T0 = datetime(2024, 5, 1, 8, 0, 0, tzinfo=UTC)

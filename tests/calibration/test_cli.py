@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from console.cli import main
-from predictor.calibration import cli
-from predictor.calibration.tracks import TrackError
+from console.commands import tracks as cli
+from console.commands.main import main
+from predictor.tracks.reading import TrackError
 
 
 def run(argv: list[str]) -> int:
@@ -132,6 +132,7 @@ def test_the_drs_entry_point_runs_tracks_summary_and_reports_bad_input_in_one_li
 
 def test_the_command_lines_default_effect_count_is_the_selections() -> None:
     """The parser states the default without importing the selection (numba, scipy): the two must agree."""
-    from predictor.calibration import calibrate_cli, selection
+    from console.commands import calibrate as calibrate_cli
+    from predictor.calibration import selection
 
     assert calibrate_cli.DEFAULT_MAX_EFFECTS == selection.DEFAULT_MAX_EFFECTS

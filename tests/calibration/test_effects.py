@@ -7,8 +7,8 @@ import pytest
 
 from predictor.calibration.effects import LIBRARY, Candidate, fit_binned, library
 from predictor.calibration.residuals import BinBudget
+from predictor.descent.model import EFFECTS, FAMILIES, WindBandScale
 from predictor.errors import PredictorError
-from predictor.model import EFFECTS, FAMILIES, WindBandScale
 
 
 @pytest.mark.parametrize("candidate", LIBRARY, ids=[c.name for c in LIBRARY])

@@ -12,7 +12,7 @@ from predictor.calibration.ellipse_fit import fit_ellipse
 from predictor.calibration.report import Exclusion, result_json, write_report
 from predictor.calibration.residuals import FlightCase
 from predictor.calibration.selection import Calibration, calibrate
-from predictor.payload import PROFILES
+from predictor.descent.payload import PROFILES
 
 PAYLOAD = PROFILES["superbit-test"]
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

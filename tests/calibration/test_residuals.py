@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from predictor.calibration.cleaning import clean
 from predictor.calibration.effects import BIN_EDGES_M, fit_binned
 from predictor.calibration.residuals import FlightCase, bin_budget, flight_case, residuals, run, score
-from predictor.calibration.tracks import Fix, Track
+from predictor.descent.model import DescentRateScale, WindOffset, WindRotation
+from predictor.descent.payload import PROFILES
+from predictor.environment.terrain import Terrain, tile_name
 from predictor.errors import PredictorError
-from predictor.model import DescentRateScale, WindOffset, WindRotation
-from predictor.payload import PROFILES
-from predictor.terrain import Terrain, tile_name
+from predictor.tracks.cleaning import clean
+from predictor.tracks.reading import Fix, Track
 
 PAYLOAD = PROFILES["superbit-test"]
 Cases = Callable[..., list[FlightCase]]

@@ -10,9 +10,9 @@ import pytest
 from predictor.calibration.effects import Candidate, library
 from predictor.calibration.residuals import FlightCase
 from predictor.calibration.selection import HORIZONTAL, VERTICAL, calibrate, paired_test
+from predictor.descent.model import WindScale
+from predictor.descent.payload import PROFILES
 from predictor.errors import PredictorError
-from predictor.model import WindScale
-from predictor.payload import PROFILES
 
 
 def test_an_improvement_on_every_flight_passes() -> None:

@@ -29,14 +29,14 @@ from predictor.calibration.effects import LIBRARY, library
 from predictor.calibration.report import verdict
 from predictor.calibration.residuals import FlightCase
 from predictor.calibration.selection import calibrate
-from predictor.model import (
+from predictor.descent.model import (
     DescentRateScale,
     DragDensityExponent,
     WeatherTimeOffset,
     WindBandScale,
     WindOffset,
 )
-from predictor.payload import PROFILES
+from predictor.descent.payload import PROFILES
 
 PAYLOAD = PROFILES["superbit-test"]
 Cases = Callable[..., list[FlightCase]]

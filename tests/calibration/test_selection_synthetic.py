@@ -14,7 +14,7 @@ from predictor.calibration.effects import LIBRARY, library
 from predictor.calibration.report import verdict
 from predictor.calibration.residuals import FlightCase
 from predictor.calibration.selection import calibrate
-from predictor.model import (
+from predictor.descent.model import (
     DeploymentDelay,
     DescentRateScale,
     DragDensityExponent,
@@ -25,7 +25,7 @@ from predictor.model import (
     WindRotation,
     WindScale,
 )
-from predictor.payload import PROFILES
+from predictor.descent.payload import PROFILES
 
 PAYLOAD = PROFILES["superbit-test"]
 Cases = Callable[..., list[FlightCase]]

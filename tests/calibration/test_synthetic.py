@@ -7,14 +7,14 @@ from datetime import UTC, datetime, timedelta
 import numpy as np
 import pytest
 
-from predictor.calibration.ascent_winds import ascent_wind_profile
-from predictor.calibration.cleaning import clean, distance_m
-from predictor.calibration.standard_atmosphere import R_DRY_AIR, pressure_temperature
-from predictor.calibration.synthetic import synthetic_flight
-from predictor.cube import WeatherCube
+from predictor.descent.model import DescentRateScale
+from predictor.descent.payload import PROFILES
+from predictor.environment.cube import WeatherCube
 from predictor.errors import PredictorError
-from predictor.model import DescentRateScale
-from predictor.payload import PROFILES
+from predictor.tracks.ascent_winds import ascent_wind_profile
+from predictor.tracks.cleaning import clean, distance_m
+from predictor.tracks.standard_atmosphere import R_DRY_AIR, pressure_temperature
+from predictor.tracks.synthetic import synthetic_flight
 
 LAUNCH = datetime(2024, 5, 1, 8, 0, 0, tzinfo=UTC)
 PAYLOAD = PROFILES["superbit-test"]

@@ -11,7 +11,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from predictor.calibration.tracks import (
+from predictor.errors import PredictorError
+from predictor.tracks.reading import (
     Fix,
     TrackError,
     read_canonical_csv,
@@ -21,7 +22,6 @@ from predictor.calibration.tracks import (
     read_v4_csv,
     write_canonical_csv,
 )
-from predictor.errors import PredictorError
 
 FLIGHT_FILE = re.compile(r"^\d+-\d+-\d+(_\d)?\.csv$")
 

@@ -17,15 +17,14 @@ import pytest
 from textual.pilot import Pilot
 
 from console.app import ConsoleSetup, DrsConsole
-from console.console_cli import _team, demo_setup
+from console.commands.console import _team, demo_setup
 from console.demo import DemoWorld, write_demo_terrain
 from console.predictions import PredictionService, ReleaseOrigin
 from drs_link.config import Config, parse_config
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.operations import Operations
-from drs_link.store import Store
-from drs_link.telemetry import (
+from drs_link.ops.operations import Operations
+from drs_link.ops.telemetry import (
     BalloonSample,
     GatewaySample,
     GnssSample,
@@ -36,8 +35,9 @@ from drs_link.telemetry import (
     SyncSample,
     TelemetryRecord,
 )
+from drs_link.store import Store
 from predictor import Terrain
-from predictor.demo_weather import demo_weather_files
+from predictor.environment.demo_weather import demo_weather_files
 
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 SITE = (67.8887, 21.0856)

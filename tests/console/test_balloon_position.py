@@ -11,8 +11,8 @@ import pytest
 from console.app import ConsoleSetup, DrsConsole
 from console.demo import DemoWorld
 from console.widgets.cells import FIELDS
+from drs_link.ops.telemetry import GnssSample, PredictionSample
 from drs_link.store import Store
-from drs_link.telemetry import GnssSample, PredictionSample
 from tests.console.conftest import offline_config, wait_for
 from tests.console.test_fleet_view import detail_of, painted
 

@@ -9,10 +9,10 @@ import pytest
 from rich.cells import cell_len
 
 from console.widgets.cells import FIELDS, Field, balloon_lines, short_age
-from drs_link.balloon_feed import FeedStatus
-from drs_link.fleet import PERIOD_S, CapsuleTelemetry, FleetState
-from drs_link.staleness import MISSING_TEXT, STALE_GLYPH, Reading
-from drs_link.telemetry import SAMPLES, BalloonSample, TelemetryRecord
+from drs_link.feeds.balloon_feed import FeedStatus
+from drs_link.ops.fleet import PERIOD_S, CapsuleTelemetry, FleetState
+from drs_link.ops.staleness import MISSING_TEXT, STALE_GLYPH, Reading
+from drs_link.ops.telemetry import SAMPLES, BalloonSample, TelemetryRecord
 from tests.console.conftest import T0
 from tests.samples import REQUIRED
 

@@ -16,14 +16,14 @@ import pytest
 from console.app import ConsoleSetup
 from console.chase import started_chase_feed
 from console.predictions import PredictionService, ReleaseOrigin
-from drs_link.chase import chase_kml_path
 from drs_link.config import Config, parse_config
+from drs_link.feeds.chase import chase_kml_path
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.operations import Operations
+from drs_link.ops.operations import Operations
 from drs_link.store import Store
 from predictor import Terrain
-from predictor.demo_weather import demo_weather_files
+from predictor.environment.demo_weather import demo_weather_files
 from tests.console.conftest import SITE, T0
 
 IMEI = "300434060000001"

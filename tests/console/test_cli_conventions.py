@@ -13,15 +13,15 @@ from pathlib import Path
 
 import pytest
 
-from console.cli import main
-from console.logs import configure_logging
+from console.commands.logs import configure_logging
+from console.commands.main import main
 
 REPO = Path(__file__).resolve().parents[2]
 
 
 def drs(*argv: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "console.cli", *argv], cwd=REPO, capture_output=True, text=True, timeout=120,
+        [sys.executable, "-m", "console.commands.main", *argv], cwd=REPO, capture_output=True, text=True, timeout=120,
         env={**os.environ, **(env or {})},
     )  # fmt: skip
 

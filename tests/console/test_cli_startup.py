@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from console.cli import COMMAND_MODULES, _command_in
+from console.commands.main import COMMAND_MODULES, _command_in
 
 REPO = Path(__file__).resolve().parents[2]
 HEAVY = ("numba", "xarray", "pandas", "eccodes", "gribapi", "matplotlib", "textual")
@@ -17,7 +17,7 @@ HEAVY = ("numba", "xarray", "pandas", "eccodes", "gribapi", "matplotlib", "textu
 
 PROBE = """
 import json, sys
-from console.cli import main
+from console.commands.main import main
 try:
     main(sys.argv[1:])
 except SystemExit:
@@ -46,8 +46,8 @@ def test_every_command_help_imports_none_of_the_heavy_modules(command: str) -> N
 def test_a_command_loads_only_its_own_module() -> None:
     """`drs predict` never imports the SSH stack or the console's modules."""
     probe = (
-        "import sys; from console.cli import build_parser; build_parser('predict'); "
-        "print(sorted(m for m in ('paramiko', 'drs_link.cli', 'console.console_cli') if m in sys.modules))"
+        "import sys; from console.commands.main import build_parser; build_parser('predict'); "
+        "print(sorted(m for m in ('paramiko', 'console.commands.capsule', 'console.commands.console') if m in sys.modules))"
     )
     done = subprocess.run([sys.executable, "-c", probe], cwd=REPO, capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]"
@@ -68,7 +68,7 @@ def test_the_command_word_is_found_after_the_global_options(argv: list[str], com
 
 def test_a_mistyped_command_lists_the_real_ones() -> None:
     done = subprocess.run(
-        [sys.executable, "-m", "console.cli", "predcit"], cwd=REPO, capture_output=True, text=True, timeout=120
+        [sys.executable, "-m", "console.commands.main", "predcit"], cwd=REPO, capture_output=True, text=True, timeout=120
     )
     assert done.returncode == 2
     assert "invalid choice: 'predcit'" in done.stderr and "predict" in done.stderr
@@ -76,21 +76,21 @@ def test_a_mistyped_command_lists_the_real_ones() -> None:
 
 def test_a_closed_pipe_ends_quietly_without_a_traceback(tmp_path: Path) -> None:
     """`drs … | head`: the reader leaves early; no BrokenPipeError reaches the operator."""
-    from predictor.model_file import CalibratedModel, save_model
-    from predictor.payload import PROFILES
+    from predictor.calibration.model_file import CalibratedModel, save_model
+    from predictor.descent.payload import PROFILES
 
     model = save_model(CalibratedModel(PROFILES["drs"], (), None), tmp_path / "m.json")
     for argv, status in ((["model", "show", str(model)], 141), (["predict", "--help"], 0)):
         probe = (
             "import os, sys; r, w = os.pipe(); os.close(r); os.dup2(w, 1); "
-            f"from console.cli import main; sys.exit(main({argv!r}))"
+            f"from console.commands.main import main; sys.exit(main({argv!r}))"
         )
         done = subprocess.run([sys.executable, "-c", probe], cwd=REPO, capture_output=True, text=True, timeout=120)
         assert (done.returncode, done.stderr) == (status, ""), argv
 
 
 def test_ensemble_size_is_bounded_and_the_bound_is_in_help(capsys: pytest.CaptureFixture[str]) -> None:
-    from console.cli import main
+    from console.commands.main import main
 
     assert main(["predict", "--demo-weather", "--lat", "1", "--lon", "1", "--alt", "28000",
                  "--time", "2026-01-01T00:00Z", "--members", "10000000"]) == 2  # fmt: skip

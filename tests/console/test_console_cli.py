@@ -10,10 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from console.console_cli import ReplayFeed, replay_setup
+from console.commands.console import ReplayFeed, replay_setup
 from drs_link.config import parse_config
 from drs_link.errors import ConfigError
-from drs_link.telemetry import (
+from drs_link.ops.telemetry import (
     GnssSample,
     LinkSample,
     TelemetryFormatError,
@@ -28,7 +28,7 @@ T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 
 def test_drs_demo_without_a_terminal_says_so_in_one_line_and_fails() -> None:
     result = subprocess.run(
-        [sys.executable, "-m", "console.cli", "demo"], cwd=REPO, stdin=subprocess.DEVNULL,
+        [sys.executable, "-m", "console.commands.main", "demo"], cwd=REPO, stdin=subprocess.DEVNULL,
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert result.returncode == 1
@@ -38,7 +38,7 @@ def test_drs_demo_without_a_terminal_says_so_in_one_line_and_fails() -> None:
 
 def test_console_refuses_demo_and_replay_together() -> None:
     result = subprocess.run(
-        [sys.executable, "-m", "console.cli", "console", "--demo", "--replay", "x.jsonl"], cwd=REPO,
+        [sys.executable, "-m", "console.commands.main", "console", "--demo", "--replay", "x.jsonl"], cwd=REPO,
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert result.returncode == 2 and "not allowed with argument" in result.stderr
@@ -104,7 +104,7 @@ def test_replay_hands_out_records_as_its_clock_passes_them(tmp_path: Path) -> No
 
 
 def test_a_bad_exclusion_zone_file_is_refused_naming_the_key(tmp_path: Path) -> None:
-    from drs_link.operations import load_exclusion_zones
+    from drs_link.ops.operations import load_exclusion_zones
 
     path = tmp_path / "zones.geojson"
     path.write_text('{"type": "FeatureCollection", "features": [{"geometry": {"type": "Point"}}]}')
@@ -116,7 +116,7 @@ def test_a_bad_exclusion_zone_file_is_refused_naming_the_key(tmp_path: Path) -> 
 
 
 def test_live_console_without_capsules_says_what_to_do(tmp_path: Path) -> None:
-    from console.console_cli import live_setup
+    from console.commands.console import live_setup
 
     config = parse_config({"data": {"dir": str(tmp_path)}})
     with pytest.raises(ConfigError, match=r"no \[\[capsule\]\].*drs demo"):

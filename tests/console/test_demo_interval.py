@@ -15,7 +15,7 @@ from console.demo import DemoWorld, Descent
 from drs_link.config import MoConfig
 from drs_link.iridium.reports import ReportStore
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock, generate_test_keys
+from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock, generate_test_keys
 from drs_link.store import Store
 from tests.console.conftest import T0
 

@@ -23,9 +23,8 @@ from console.screens.fleet import FleetScreen
 from console.widgets.capsule_detail import CapsuleDetail
 from console.widgets.cells import FIELDS
 from console.widgets.fleet_table import FleetTable
-from drs_link.staleness import STALE_GLYPH, format_age
-from drs_link.store import Store
-from drs_link.telemetry import (
+from drs_link.ops.staleness import STALE_GLYPH, format_age
+from drs_link.ops.telemetry import (
     GnssSample,
     LinkSample,
     PredictionSample,
@@ -33,6 +32,7 @@ from drs_link.telemetry import (
     SyncSample,
     TelemetryRecord,
 )
+from drs_link.store import Store
 from tests.console.conftest import T0, canned_records, wait_for
 
 pytestmark = pytest.mark.asyncio

@@ -19,8 +19,8 @@ from console.screens.recovery import RecoveryScreen
 from drs_link.config import RockblockConfig, parse_config
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
-from drs_link.operations import Operations
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock
+from drs_link.ops.operations import Operations
+from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
 from tests.clock import ManualClock
 from tests.console.conftest import T0, wait_for

@@ -14,12 +14,11 @@ from pathlib import Path
 
 import pytest
 
-import console.cli as entry
+import console.commands.main as entry
 from console.app import ConsoleSetup, DrsConsole
-from console.console_cli import live_setup
+from console.commands.console import live_setup
 from console.screens.iridium import IridiumScreen
 from console.screens.modals import HazardModal, TextPromptModal
-from drs_link.checklist import PROCEDURE_DIR, ChecklistRun, StepState, load_checklists
 from drs_link.config import CapsuleConfig, load_config
 from drs_link.errors import ConfigError
 from drs_link.iridium import lifecycle as lc
@@ -27,8 +26,9 @@ from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.operations import Operations
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock
+from drs_link.ops.checklist import PROCEDURE_DIR, ChecklistRun, StepState, load_checklists
+from drs_link.ops.operations import Operations
+from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store, utc_now
 from tests.clock import ManualClock
 from tests.console.conftest import wait_for
@@ -197,7 +197,7 @@ def test_a_zone_file_is_refused_for_the_same_reason_by_drs_plan_and_the_console(
     ring: list[list[float]],
     reason: str,
 ) -> None:
-    """One loader (predictor.zones): the console's go/no-go once accepted files the planner refused."""
+    """One loader (predictor.prediction.zones): the console's go/no-go once accepted files the planner refused."""
     zones = tmp_path / "zones.geojson"
     feature = {
         "type": "Feature",

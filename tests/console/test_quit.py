@@ -9,7 +9,7 @@ import pytest
 from console.app import DrsConsole
 from console.screens.fleet import FleetScreen
 from console.screens.modals import ConfirmModal
-from drs_link.arming import ArmState
+from drs_link.ops.arming import ArmState
 
 pytestmark = pytest.mark.asyncio
 

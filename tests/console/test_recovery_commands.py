@@ -16,15 +16,15 @@ from textual.pilot import Pilot
 from textual.widgets import DataTable
 
 from console.app import ConsoleSetup, DrsConsole
-from console.console_cli import _team
+from console.commands.console import _team
 from console.screens.iridium import IridiumScreen
 from console.screens.modals import TextPromptModal
 from console.screens.recovery import RecoveryScreen
 from drs_link.config import RockblockConfig
 from drs_link.iridium.firmware import GnssFix
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.operations import Operations
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock
+from drs_link.ops.operations import Operations
+from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
 from tests.console.conftest import T0, offline_config, seed_reports, wait_for
 

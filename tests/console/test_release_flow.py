@@ -12,11 +12,11 @@ from console.app import DrsConsole, TelemetryArrived
 from console.demo import DemoWorld
 from console.screens.modals import ConfirmModal, HazardModal
 from console.screens.release import ReleaseScreen
-from drs_link.approval import ApprovalBook, Login, current_login
-from drs_link.arming import ArmingController, ArmState
-from drs_link.capsule import ReleaseState
 from drs_link.errors import RefusedError
-from drs_link.telemetry import LinkSample, TelemetryRecord
+from drs_link.ops.approval import ApprovalBook, Login, current_login
+from drs_link.ops.arming import ArmingController, ArmState
+from drs_link.ops.capsule import ReleaseState
+from drs_link.ops.telemetry import LinkSample, TelemetryRecord
 from tests.console.conftest import wait_for
 
 pytestmark = pytest.mark.asyncio

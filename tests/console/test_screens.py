@@ -20,7 +20,7 @@ from console.screens.recovery import RecoveryScreen
 from console.screens.release import ReleaseScreen
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.telemetry import BalloonSample, TelemetryRecord
+from drs_link.ops.telemetry import BalloonSample, TelemetryRecord
 from tests.console.conftest import T0, wait_for
 
 pytestmark = pytest.mark.asyncio

@@ -15,10 +15,10 @@ from console.app import DrsConsole
 from console.demo import DemoWorld
 from console.screens.approvals import ApprovalScreen
 from console.screens.modals import ConfirmModal
-from drs_link.approval import ApprovalBook, Login, current_login
-from drs_link.arming import ArmState
-from drs_link.operations import Operations
-from drs_link.session import LOST, record_loss
+from drs_link.ops.approval import ApprovalBook, Login, current_login
+from drs_link.ops.arming import ArmState
+from drs_link.ops.operations import Operations
+from drs_link.ops.session import LOST, record_loss
 from drs_link.store import Store
 from tests.console.conftest import offline_config, wait_for
 from tests.console.test_release_flow import open_release_go, polls_never_disarm
@@ -86,7 +86,7 @@ async def test_what_another_console_does_to_the_store_shows_here_with_who_did_it
     config.write_text(f'[operator]\nname = "JM"\n[data]\ndir = "{tmp_path / "data"}"\n'
                       '[[capsule]]\nname = "DRS2"\nhost = "127.0.0.1"\nport = 9\n')  # fmt: skip
     other_console = (
-        "import sys; from drs_link.config import load_config; from drs_link.operations import Operations; "
+        "import sys; from drs_link.config import load_config; from drs_link.ops.operations import Operations; "
         "from drs_link.store import Store; c = load_config(sys.argv[1]); "
         "Operations(c, Store.open(c.store_path)).ops('DRS2').waivers.grant('gnss', 'JM', 'no sky in the hangar')"
     )

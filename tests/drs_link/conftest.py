@@ -10,8 +10,8 @@ import paramiko
 import pytest
 
 from drs_link.config import CapsuleConfig, parse_config
-from drs_link.simulator import CapsuleSimulator
-from drs_link.simulator.keys import write_ed25519
+from drs_link.sim import CapsuleSimulator
+from drs_link.sim.keys import write_ed25519
 
 # 23 s of firmware boot and the Go script's 9 s take well under a second at this speed.
 SIM_SCALE = 40.0

@@ -7,12 +7,12 @@ from pathlib import Path
 
 import pytest
 
-from drs_link.backends.agent import AGENT_SOURCE, AgentBackend
-from drs_link.capsule import ReleaseState, ReleaseStateMachine
 from drs_link.config import CapsuleConfig
 from drs_link.errors import LinkError
-from drs_link.simulator import CapsuleSimulator
-from drs_link.ssh import CapsuleLink
+from drs_link.link.backends.agent import AGENT_SOURCE, AgentBackend
+from drs_link.link.ssh import CapsuleLink
+from drs_link.ops.capsule import ReleaseState, ReleaseStateMachine
+from drs_link.sim import CapsuleSimulator
 from drs_link.store import Store
 
 pytestmark = pytest.mark.slow

@@ -15,12 +15,12 @@ from pathlib import Path
 
 import pytest
 
-from drs_link.approval import ApprovalBook, Login, current_login, key_fingerprint
 from drs_link.errors import RefusedError
-from drs_link.iridium.authorize import authorize_mt
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
-from drs_link.simulator.rockblock import SimulatedRockblock
+from drs_link.ops.approval import ApprovalBook, Login, current_login, key_fingerprint
+from drs_link.ops.authorize import authorize_mt
+from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
 from tests.clock import ManualClock
 from tests.iridium.helpers import IMEI
@@ -139,7 +139,7 @@ def test_parachute_with_an_approval_from_another_login_is_audited_with_both(tmp_
     assert authorised["result"] == "authorised" and authorised["approval"] == str(request.id)
 
 
-CHILD = "import sys; from console.cli import main; sys.exit(main(sys.argv[1:]))"
+CHILD = "import sys; from console.commands.main import main; sys.exit(main(sys.argv[1:]))"
 
 
 def test_drs_mt_send_waits_for_drs_approve_from_another_key(

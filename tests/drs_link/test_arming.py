@@ -9,16 +9,16 @@ from pathlib import Path
 
 import pytest
 
-from drs_link.approval import ApprovalBook, Login
-from drs_link.arming import ArmingController, ArmState, check_second_operator
-from drs_link.backends.stock import StockBackend
-from drs_link.capsule import ReleaseState, ReleaseStateMachine
 from drs_link.config import CapsuleConfig, parse_config
 from drs_link.errors import RefusedError
-from drs_link.gonogo import GoNoGoInputs, GoNoGoReport, PredictionCheck, WaiverBook, evaluate
-from drs_link.simulator import CapsuleSimulator
-from drs_link.ssh import CapsuleLink
-from drs_link.staleness import Reading
+from drs_link.link.backends.stock import StockBackend
+from drs_link.link.ssh import CapsuleLink
+from drs_link.ops.approval import ApprovalBook, Login
+from drs_link.ops.arming import ArmingController, ArmState, check_second_operator
+from drs_link.ops.capsule import ReleaseState, ReleaseStateMachine
+from drs_link.ops.gonogo import GoNoGoInputs, GoNoGoReport, PredictionCheck, WaiverBook, evaluate
+from drs_link.ops.staleness import Reading
+from drs_link.sim import CapsuleSimulator
 from drs_link.store import Store
 from tests.clock import ManualClock
 

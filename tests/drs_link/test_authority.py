@@ -19,15 +19,15 @@ from pathlib import Path
 import paramiko
 import pytest
 
-from drs_link import remote
-from drs_link.approval import ApprovalBook, Login
-from drs_link.backends import AuthorityState, AuthorityStatus
-from drs_link.backends.registry import build_backend
-from drs_link.capsule import ReleaseState, ReleaseStateMachine, default_holder
 from drs_link.config import CapsuleConfig, load_config
 from drs_link.errors import RefusedError
-from drs_link.simulator import CapsuleSimulator
-from drs_link.ssh import CapsuleLink
+from drs_link.link import remote
+from drs_link.link.backends import AuthorityState, AuthorityStatus
+from drs_link.link.backends.registry import build_backend
+from drs_link.link.ssh import CapsuleLink
+from drs_link.ops.approval import ApprovalBook, Login
+from drs_link.ops.capsule import ReleaseState, ReleaseStateMachine, default_holder
+from drs_link.sim import CapsuleSimulator
 from drs_link.store import Store, iso_utc
 
 from .test_cli import _one_line_error, _write_config, drs
@@ -453,7 +453,7 @@ def test_cli_take_over_in_a_terminal_asks_for_the_capsules_name(
     sim, config = cli
     _other_console(tmp_path, config, sim)
     runner = (
-        "import sys, console.cli as c; sys.exit(c.main(sys.argv[1:]))"
+        "import sys, console.commands.main as c; sys.exit(c.main(sys.argv[1:]))"
     )
     argv = [
         "--config",
@@ -493,7 +493,7 @@ def test_cli_power_on_prompt_takes_end_of_input_as_no_and_says_so_in_one_line(
 ) -> None:
     sim, config = cli
     runner = (
-        "import sys, console.cli as c; sys.exit(c.main(sys.argv[1:]))"
+        "import sys, console.commands.main as c; sys.exit(c.main(sys.argv[1:]))"
     )
     master, slave = pty.openpty()
     proc = subprocess.Popen(

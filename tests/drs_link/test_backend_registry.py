@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import pytest
 
-from drs_link.backends.agent import AgentBackend
-from drs_link.backends.registry import BACKENDS, build_backend
-from drs_link.backends.stock import StockBackend
 from drs_link.config import BACKEND_NAMES, parse_config
-from drs_link.ssh import CapsuleLink
+from drs_link.link.backends.agent import AgentBackend
+from drs_link.link.backends.registry import BACKENDS, build_backend
+from drs_link.link.backends.stock import StockBackend
+from drs_link.link.ssh import CapsuleLink
 
 
 def test_the_config_accepts_exactly_the_registered_backends() -> None:

@@ -15,8 +15,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from console.cli import main
-from drs_link.balloon_feed import (
+from console.commands.main import main
+from drs_link.config import BalloonFeedConfig, Config, parse_config
+from drs_link.errors import ConfigError, LinkError
+from drs_link.feeds.balloon_feed import (
     ALTITUDE_ABSURD,
     BAD_CHECKSUM,
     FUTURE_TIME,
@@ -38,11 +40,9 @@ from drs_link.balloon_feed import (
     parse_feed_line,
     reconnect_delay_s,
 )
-from drs_link.config import BalloonFeedConfig, Config, parse_config
-from drs_link.errors import ConfigError, LinkError
-from drs_link.fleet import FleetState
-from drs_link.nmea import format_gga, format_rmc, nmea_checksum
-from drs_link.telemetry import BalloonSample, TelemetryRecord
+from drs_link.link.nmea import format_gga, format_rmc, nmea_checksum
+from drs_link.ops.fleet import FleetState
+from drs_link.ops.telemetry import BalloonSample, TelemetryRecord
 from tests.clock import ManualClock
 from tests.ports import free_port
 

@@ -16,11 +16,18 @@ from pathlib import Path
 
 import pytest
 
-from console.cli import main
-from drs_link.balloon_feed import BalloonFeed
-from drs_link.chase import LIVE_LANDING_S, ChasePoint, ChaseSender, ChaseStore, KeptLanding, chase_points
+from console.commands.main import main
 from drs_link.config import BalloonFeedConfig, load_config
 from drs_link.errors import ConfigError
+from drs_link.feeds.balloon_feed import BalloonFeed
+from drs_link.feeds.chase import (
+    LIVE_LANDING_S,
+    ChasePoint,
+    ChaseSender,
+    ChaseStore,
+    KeptLanding,
+    chase_points,
+)
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.store import Store

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from drs_link.checklist import (
+from drs_link.errors import ConfigError, RefusedError
+from drs_link.ops.checklist import (
     PROCEDURE_DIR,
     ChecklistRun,
     StepState,
@@ -15,7 +16,6 @@ from drs_link.checklist import (
     load_checklists,
     parse_checklist,
 )
-from drs_link.errors import ConfigError, RefusedError
 from drs_link.store import Store
 
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)

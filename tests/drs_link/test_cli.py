@@ -15,15 +15,15 @@ from typing import Any
 import paramiko
 import pytest
 
-import console.cli
-from drs_link.capsule import ConfirmationToken, ReleaseRecord, ReleaseStateMachine
-from drs_link.checklist import PROCEDURE_DIR, ChecklistRun, StepState, load_checklists
+import console.commands.main
 from drs_link.config import load_config
 from drs_link.errors import StoreError
-from drs_link.operations import Operations
-from drs_link.simulator import CapsuleSimulator
-from drs_link.simulator.keys import generate_ed25519
-from drs_link.ssh import fingerprint
+from drs_link.link.ssh import fingerprint
+from drs_link.ops.capsule import ConfirmationToken, ReleaseRecord, ReleaseStateMachine
+from drs_link.ops.checklist import PROCEDURE_DIR, ChecklistRun, StepState, load_checklists
+from drs_link.ops.operations import Operations
+from drs_link.sim import CapsuleSimulator
+from drs_link.sim.keys import generate_ed25519
 from drs_link.store import Store
 
 from .conftest import capsule_table
@@ -59,7 +59,7 @@ def setup(
 
 
 def drs(config: Path, *args: str) -> int:
-    return console.cli.main(["--config", str(config), *args])
+    return console.commands.main.main(["--config", str(config), *args])
 
 
 def _one_line_error(capsys: pytest.CaptureFixture[str]) -> str:
@@ -260,7 +260,7 @@ def _done_steps(store: Store) -> dict[str, str | None]:
 def test_power_on_go_and_reset_tick_their_steps_from_the_cli_as_from_the_console(
     make_sim: Callable[..., CapsuleSimulator], client_key: tuple[Path, paramiko.PKey], tmp_path: Path
 ) -> None:
-    """One rule (drs_link.checklist.complete_command): the CLI used to tick nothing."""
+    """One rule (drs_link.ops.checklist.complete_command): the CLI used to tick nothing."""
     for side in ("cli", "console"):
         (tmp_path / side).mkdir()
     cli_config = _write_config(tmp_path / "cli", [make_sim()], client_key[0])
@@ -285,7 +285,7 @@ def test_power_on_go_and_reset_tick_their_steps_from_the_cli_as_from_the_console
     }
 
 
-DRS_IN_A_CHILD = "import sys, console.cli; sys.exit(console.cli.main(sys.argv[1:]))"
+DRS_IN_A_CHILD = "import sys, console.commands.main; sys.exit(console.commands.main.main(sys.argv[1:]))"
 
 
 def _kill_when(

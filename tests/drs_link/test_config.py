@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from console.cli import main
+from console.commands.main import main
 from drs_link.config import CapsuleConfig, Config, load_config, parse_config
 from drs_link.errors import ConfigError
 

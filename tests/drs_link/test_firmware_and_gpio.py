@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from datetime import UTC, datetime, timedelta
 
-from drs_link.nmea import summarise
-from drs_link.simulator.firmware import Firmware, GnssSky
-from drs_link.simulator.gpio import ENABLE_LOW, SET_INPUT, SUPPLY, FakeGpio
+from drs_link.link.nmea import summarise
+from drs_link.sim.firmware import Firmware, GnssSky
+from drs_link.sim.gpio import ENABLE_LOW, SET_INPUT, SUPPLY, FakeGpio
 from tests.clock import ManualClock
 
 T0 = datetime(2026, 6, 1, 12, 0, 0, tzinfo=UTC)

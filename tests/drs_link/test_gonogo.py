@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from drs_link.errors import RefusedError
-from drs_link.fleet import FleetState
-from drs_link.gonogo import (
+from drs_link.ops.fleet import FleetState
+from drs_link.ops.gonogo import (
     ExclusionZone,
     GoNoGoInputs,
     PredictionCheck,
@@ -18,9 +18,9 @@ from drs_link.gonogo import (
     WaiverBook,
     evaluate,
 )
-from drs_link.staleness import Reading
+from drs_link.ops.staleness import Reading
+from drs_link.ops.telemetry import GnssSample, ReleaseSample, TelemetryRecord
 from drs_link.store import Store
-from drs_link.telemetry import GnssSample, ReleaseSample, TelemetryRecord
 
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 

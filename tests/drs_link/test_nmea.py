@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drs_link.nmea import (
+from drs_link.link.nmea import (
     GgaSentence,
     RmcSentence,
     date_problem,

@@ -5,9 +5,9 @@ from __future__ import annotations
 from dataclasses import replace
 from datetime import UTC, datetime, timedelta
 
-from drs_link.fleet import FleetState
-from drs_link.origin import release_origin
-from drs_link.telemetry import BalloonSample, GnssSample, TelemetryRecord
+from drs_link.ops.fleet import FleetState
+from drs_link.ops.origin import release_origin
+from drs_link.ops.telemetry import BalloonSample, GnssSample, TelemetryRecord
 
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 FIX = GnssSample(has_fix=True, lat=67.9, lon=21.1, alt_m=31400.0)

@@ -30,20 +30,20 @@ from pathlib import Path
 import paramiko
 import pytest
 
-from drs_link import remote
-from drs_link.backends import AuthorityState
-from drs_link.backends.agent import AGENT_SOURCE, AgentBackend
-from drs_link.backends.stock import StockBackend
-from drs_link.capsule import ReleaseState, ReleaseStateMachine
 from drs_link.config import CapsuleConfig, parse_config
 from drs_link.errors import RefusedError
-from drs_link.nmea import format_gga, format_rmc
-from drs_link.simulator import Firmware, SimClock
-from drs_link.simulator.keys import generate_ed25519, write_ed25519
-from drs_link.ssh import CapsuleLink, HostKeyError, fingerprint
-from drs_link.storage import read_storage
+from drs_link.link import remote
+from drs_link.link.backends import AuthorityState
+from drs_link.link.backends.agent import AGENT_SOURCE, AgentBackend
+from drs_link.link.backends.stock import StockBackend
+from drs_link.link.nmea import format_gga, format_rmc
+from drs_link.link.ssh import CapsuleLink, HostKeyError, fingerprint
+from drs_link.link.storage import read_storage
+from drs_link.link.sync import Syncer
+from drs_link.ops.capsule import ReleaseState, ReleaseStateMachine
+from drs_link.sim import Firmware, SimClock
+from drs_link.sim.keys import generate_ed25519, write_ed25519
 from drs_link.store import Store
-from drs_link.sync import Syncer
 from tests.ports import free_port
 
 pytestmark = pytest.mark.slow

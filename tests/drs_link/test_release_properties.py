@@ -9,10 +9,10 @@ from hypothesis import settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
-from drs_link.backends import GoResult
-from drs_link.capsule import ConfirmationToken, ReleaseState, ReleaseStateMachine
 from drs_link.config import CapsuleConfig
 from drs_link.errors import LinkError, RefusedError
+from drs_link.link.backends import GoResult
+from drs_link.ops.capsule import ConfirmationToken, ReleaseState, ReleaseStateMachine
 from drs_link.store import Store
 from tests.clock import ManualClock
 

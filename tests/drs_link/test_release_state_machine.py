@@ -8,11 +8,11 @@ from pathlib import Path
 
 import pytest
 
-from drs_link.backends import GoResult, PowerOnResult
-from drs_link.capsule import ConfirmationToken, ReleaseState, ReleaseStateMachine, default_holder
 from drs_link.config import CapsuleConfig
 from drs_link.errors import LinkError, RefusedError, StoreError
-from drs_link.nmea import format_gga
+from drs_link.link.backends import GoResult, PowerOnResult
+from drs_link.link.nmea import format_gga
+from drs_link.ops.capsule import ConfirmationToken, ReleaseState, ReleaseStateMachine, default_holder
 from drs_link.store import Store
 from tests.clock import ManualClock
 

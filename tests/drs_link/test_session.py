@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from drs_link.session import record_loss, record_start
+from drs_link.ops.session import record_loss, record_start
 from drs_link.store import Store
 from tests.clock import ManualClock
 from tests.drs_link.test_arming import T0, controller, go_report

@@ -13,14 +13,14 @@ from pathlib import Path
 import paramiko
 import pytest
 
-from drs_link import remote
-from drs_link.backends.stock import StockBackend
-from drs_link.capsule import ReleaseState, ReleaseStateMachine
 from drs_link.config import CapsuleConfig, parse_config
 from drs_link.errors import LinkError, RefusedError
-from drs_link.simulator import CapsuleSimulator, GnssSky
-from drs_link.simulator.keys import generate_ed25519
-from drs_link.ssh import CapsuleLink, HostKeyError, LinkDownError, fingerprint
+from drs_link.link import remote
+from drs_link.link.backends.stock import StockBackend
+from drs_link.link.ssh import CapsuleLink, HostKeyError, LinkDownError, fingerprint
+from drs_link.ops.capsule import ReleaseState, ReleaseStateMachine
+from drs_link.sim import CapsuleSimulator, GnssSky
+from drs_link.sim.keys import generate_ed25519
 from drs_link.store import Store
 
 pytestmark = pytest.mark.slow
@@ -347,7 +347,7 @@ def test_simulator_entry_point_serves_capsules_until_terminated(
         [
             sys.executable,
             "-m",
-            "drs_link.simulator",
+            "drs_link.sim",
             "--name",
             "DRS1",
             "--name",

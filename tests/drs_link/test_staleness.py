@@ -6,7 +6,7 @@ from datetime import UTC, datetime, timedelta
 
 import pytest
 
-from drs_link.staleness import STALE_GLYPH, Freshness, Reading, format_age
+from drs_link.ops.staleness import STALE_GLYPH, Freshness, Reading, format_age
 
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 

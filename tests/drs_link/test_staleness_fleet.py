@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from datetime import UTC, datetime, timedelta
 
-from drs_link.fleet import FleetState
-from drs_link.gonogo import evaluate
-from drs_link.staleness import Freshness
-from drs_link.telemetry import (
+from drs_link.ops.fleet import FleetState
+from drs_link.ops.gonogo import evaluate
+from drs_link.ops.staleness import Freshness
+from drs_link.ops.telemetry import (
     GatewaySample,
     GnssSample,
     LinkSample,

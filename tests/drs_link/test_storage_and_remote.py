@@ -7,8 +7,8 @@ import shlex
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drs_link import remote
-from drs_link.storage import parse_df, parse_mdstat
+from drs_link.link import remote
+from drs_link.link.storage import parse_df, parse_mdstat
 
 DF = """Filesystem        1-blocks         Used    Available Capacity Mounted on
 /dev/md0      127834202112 40000000000 81298292736      33% /mnt/raid1

@@ -11,11 +11,11 @@ import pytest
 
 from drs_link.config import CapsuleConfig
 from drs_link.errors import LinkError
-from drs_link.simulator import CapsuleSimulator
-from drs_link.ssh import CapsuleLink
-from drs_link.storage import read_storage
+from drs_link.link.ssh import CapsuleLink
+from drs_link.link.storage import read_storage
+from drs_link.link.sync import PARTIAL_SUFFIX, Syncer
+from drs_link.sim import CapsuleSimulator
 from drs_link.store import Store
-from drs_link.sync import PARTIAL_SUFFIX, Syncer
 
 pytestmark = pytest.mark.slow
 

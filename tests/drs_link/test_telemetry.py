@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from drs_link.telemetry import (
+from drs_link.ops.telemetry import (
     SAMPLES,
     BalloonSample,
     Contour,

@@ -15,10 +15,10 @@ import pytest
 
 from drs_link.iridium import recovery
 from predictor import EnsemblePrediction, Payload, Prediction, WeatherCube, predict, predict_ensemble
-from predictor import export as prediction_files
 from predictor.geofiles.geojson import dumps
 from predictor.planning import strip
 from predictor.planning.sweep import plan_release
+from predictor.prediction import export as prediction_files
 from tests.iridium.flight_logs import flight_reports
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 

@@ -10,11 +10,11 @@ import gpxpy
 import pytest
 from lxml import etree
 
-from console.cli import main
+from console.commands.main import main
 from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.store import Store
-from predictor.demo_weather import demo_weather_files
+from predictor.environment.demo_weather import demo_weather_files
 from predictor.errors import UsageError
 from predictor.geofiles import geojson
 from predictor.geofiles.output import piped

@@ -6,7 +6,7 @@ from datetime import UTC, datetime, timedelta
 
 from drs_link.iridium.firmware import GnssFix
 from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
-from drs_link.simulator.rockblock import MoDelivery, SimulatedCapsule, SimulatedRockblock
+from drs_link.sim.rockblock import MoDelivery, SimulatedCapsule, SimulatedRockblock
 
 IMEI = "300234010753370"
 T0 = datetime(2026, 7, 1, 10, 0, 7, tzinfo=UTC)

@@ -13,16 +13,16 @@ from pathlib import Path
 
 import pytest
 
-import console.cli as entry
+import console.commands.main as entry
 from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.simulator.rockblock import MoDelivery, Scripted, SimulatedCapsule, SimulatedRockblock, post_mo
+from drs_link.sim.rockblock import MoDelivery, Scripted, SimulatedCapsule, SimulatedRockblock, post_mo
 from drs_link.store import Store, utc_now
 
 from .helpers import IMEI, T0, fix_at, fly
 
 REPO = Path(__file__).resolve().parents[2]
-DRS = "import sys, console.cli as c; sys.exit(c.main())"
+DRS = "import sys, console.commands.main as c; sys.exit(c.main())"
 
 
 @pytest.fixture

@@ -21,7 +21,7 @@ from drs_link.iridium.commanded import CommandedSettings, commanded_settings
 from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.mt import MtComposer, MtMessage
 from drs_link.iridium.reports import ReportStore
-from drs_link.simulator.rockblock import Scripted, SimulatedCapsule, SimulatedRockblock
+from drs_link.sim.rockblock import Scripted, SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
 from tests.clock import ManualClock
 

@@ -14,7 +14,7 @@ from drs_link.iridium.parachute import plan_parachute
 from drs_link.iridium.recovery import detect_landing, distance_bearing, track_from_reports
 from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock, generate_test_keys, post_mo
+from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock, generate_test_keys, post_mo
 from drs_link.store import Store
 
 from .helpers import IMEI, T0, fix_at

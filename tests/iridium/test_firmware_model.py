@@ -14,7 +14,7 @@ from drs_link.iridium.firmware import (
 from drs_link.iridium.mo import parse_payload
 from drs_link.iridium.recovery import detect_landing, distance_bearing, track_from_reports
 from drs_link.iridium.reports import Delivery, StoredReport
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedDescent, SimulatedRockblock
+from drs_link.sim.rockblock import SimulatedCapsule, SimulatedDescent, SimulatedRockblock
 
 from .helpers import IMEI, fix_at
 

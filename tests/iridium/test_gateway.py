@@ -10,7 +10,7 @@ from keyring.backend import KeyringBackend
 from drs_link.config import RockblockConfig
 from drs_link.errors import ConfigError
 from drs_link.iridium.gateway import FAILURE_MEANINGS, RockblockGateway, resolve_password
-from drs_link.simulator.rockblock import Scripted, SimulatedRockblock
+from drs_link.sim.rockblock import Scripted, SimulatedRockblock
 from tests.ports import free_port
 
 IMEI = "300234010753370"

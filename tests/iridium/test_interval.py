@@ -15,17 +15,17 @@ from pathlib import Path
 import pytest
 
 from drs_link.config import RockblockConfig, parse_config
-from drs_link.fleet import CapsuleTelemetry
 from drs_link.iridium import lifecycle as lc
 from drs_link.iridium.health import assess
 from drs_link.iridium.interval import interval_track
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.parachute import plan_parachute
 from drs_link.iridium.reports import ReportStore, StoredReport
-from drs_link.operations import Operations
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedRockblock
+from drs_link.ops.fleet import CapsuleTelemetry
+from drs_link.ops.operations import Operations
+from drs_link.ops.telemetry import ReportSample
+from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
-from drs_link.telemetry import ReportSample
 from tests.clock import ManualClock
 
 from .helpers import IMEI, T0, fly

@@ -20,7 +20,7 @@ from drs_link.iridium import reports as report_module
 from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
-from drs_link.simulator.rockblock import Scripted, SimulatedCapsule, SimulatedRockblock
+from drs_link.sim.rockblock import Scripted, SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store, utc_now
 from tests.clock import ManualClock
 

@@ -1,7 +1,7 @@
 """PARACHUTE is refused until the reports show the capsule on the ground: from the CLI and the console alike.
 
-The CLI runs through `console.cli.main` against the simulated RockBLOCK on loopback; the gate itself
-(`drs_link.iridium.authorize`) is the one the console calls, pinned there in tests/console.
+The CLI runs through `console.commands.main.main` against the simulated RockBLOCK on loopback; the gate itself
+(`drs_link.ops.authorize`) is the one the console calls, pinned there in tests/console.
 """
 
 from __future__ import annotations
@@ -15,15 +15,15 @@ from drs_link.config import parse_config
 from drs_link.errors import RefusedError
 from drs_link.iridium import recovery
 from drs_link.iridium import reports as report_module
-from drs_link.iridium.authorize import authorize_mt
 from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.landed import LandedVerdicts, landed_evidence
 from drs_link.iridium.lifecycle import NOT_SENT, CommandLifecycle
 from drs_link.iridium.mo import parse_payload
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
-from drs_link.operations import Operations
-from drs_link.simulator.rockblock import SimulatedRockblock
+from drs_link.ops.authorize import authorize_mt
+from drs_link.ops.operations import Operations
+from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
 from tests.iridium.flight_logs import flight_reports
 from tests.iridium.helpers import IMEI, T0, fix_at

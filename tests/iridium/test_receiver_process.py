@@ -19,13 +19,13 @@ import pytest
 from drs_link.config import parse_config
 from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.reports import ReportStore
-from drs_link.simulator.rockblock import MoDelivery, mo_body, post_mo
+from drs_link.sim.rockblock import MoDelivery, mo_body, post_mo
 from drs_link.store import Store
 
 from .helpers import IMEI, T0, fix_at
 
 REPO = Path(__file__).resolve().parents[2]
-DRS = "import sys, console.cli as c; sys.exit(c.main())"
+DRS = "import sys, console.commands.main as c; sys.exit(c.main())"
 
 
 def delivery(momsn: int) -> MoDelivery:
@@ -158,9 +158,9 @@ def test_sigterm_mid_burst_drains_and_loses_no_acknowledged_report(
     assert len(acknowledged) > 100 and acknowledged <= receiver.stored_momsns()
     refused = [status for status in answers.values() if status != 200]
     assert refused and all(isinstance(status, str) for status in refused), refused  # no 4xx/5xx, only closed doors
-    assert " INFO drs_link.iridium.cli: stopping signal=SIGTERM" in err
+    assert " INFO console.commands.iridium: stopping signal=SIGTERM" in err
     assert " INFO drs_link.iridium.webhook: draining in_flight=" in err
-    assert " INFO drs_link.iridium.cli: stopped unanswered=0" in err
+    assert " INFO console.commands.iridium: stopped unanswered=0" in err
 
 
 def _post_from(url: str, body: bytes, forwarded: str | None) -> int:

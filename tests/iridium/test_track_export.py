@@ -11,10 +11,10 @@ import pytest
 from drs_link.errors import LinkError
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.iridium.track_export import export_track
-from drs_link.simulator.rockblock import SimulatedCapsule, SimulatedDescent, SimulatedRockblock
+from drs_link.sim.rockblock import SimulatedCapsule, SimulatedDescent, SimulatedRockblock
 from drs_link.store import Store
-from predictor.calibration.cleaning import Flight, clean
-from predictor.calibration.tracks import read_track
+from predictor.tracks.cleaning import Flight, clean
+from predictor.tracks.reading import read_track
 
 from .flight_logs import flight_reports
 from .helpers import IMEI, T0, to_delivery

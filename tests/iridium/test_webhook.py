@@ -21,7 +21,7 @@ from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.importer import import_files
 from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
-from drs_link.simulator.rockblock import MoDelivery, generate_test_keys, post_mo
+from drs_link.sim.rockblock import MoDelivery, generate_test_keys, post_mo
 from drs_link.store import Store
 
 from .helpers import IMEI, T0, fix_at

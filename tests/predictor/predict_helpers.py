@@ -12,7 +12,7 @@ from datetime import UTC, datetime
 
 import numpy as np
 
-from predictor.cube import WeatherCube
+from predictor.environment.cube import WeatherCube
 
 R_DRY = 287.05
 G0 = 9.80665

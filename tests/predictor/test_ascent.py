@@ -7,9 +7,9 @@ from datetime import timedelta
 import numpy as np
 import pytest
 
-from predictor.ascent import ascend
 from predictor.errors import OutOfCoverageError, PredictorError
-from predictor.uncertainty import GEOD
+from predictor.prediction.uncertainty import GEOD
+from predictor.tawhiri.ascent import ascend
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
 

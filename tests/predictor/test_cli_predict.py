@@ -1,4 +1,4 @@
-"""`drs predict` end to end: GRIB2 written by eccodes, read by load_weather, run through console.cli.main."""
+"""`drs predict` end to end: GRIB2 written by eccodes, read by load_weather, run through console.commands.main.main."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from console.cli import main
+from console.commands.main import main
 from predictor import Terrain, load_weather, payload_profile, predict
-from predictor.gribwrite import gfs_file_name, write_gfs_grib2
+from predictor.environment.gribwrite import gfs_file_name, write_gfs_grib2
 from tests.predictor.predict_helpers import H_ISO, LEVELS_HPA, P0_HPA, T_ISO
 
 CYCLE = datetime(2024, 5, 1, 0, tzinfo=UTC)

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from predictor.cube import WeatherCube
-from predictor.demo_weather import demo_weather_files, isa_height_and_temperature
-from predictor.weather import DEMO_SOURCE, load_weather
+from predictor.environment.cube import WeatherCube
+from predictor.environment.demo_weather import demo_weather_files, isa_height_and_temperature
+from predictor.environment.weather import DEMO_SOURCE, load_weather
 
 START = datetime(2026, 11, 22, 7, 40, tzinfo=UTC)
 

@@ -14,7 +14,7 @@ import gpxpy
 import pytest
 
 from predictor import EnsemblePrediction, Payload, Prediction, PredictorError, predict, predict_ensemble
-from predictor.export import to_geojson, to_json, write_geojson, write_gpx, write_json, write_kml
+from predictor.prediction.export import to_geojson, to_json, write_geojson, write_gpx, write_json, write_kml
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
 KML_NS = {"k": "http://www.opengis.net/kml/2.2"}
@@ -105,7 +105,7 @@ def test_gpx_leads_with_the_predicted_landing_for_a_handheld(prediction: Predict
 
 
 def test_gpx_of_demo_weather_names_every_waypoint_demo(demo_ensemble: EnsemblePrediction) -> None:
-    from predictor.export import to_gpx
+    from predictor.prediction.export import to_gpx
 
     gpx = gpxpy.parse(to_gpx(demo_ensemble))
     assert [w.name for w in gpx.waypoints] == ["DEMO PRED LAND", "DEMO RELEASE"]

@@ -10,8 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from predictor.errors import WeatherError
-from predictor.gfs_fetch import (
+from predictor.environment.gfs_fetch import (
     DEFAULT_URL_TEMPLATE,
     Downloader,
     ForecastFile,
@@ -21,8 +20,9 @@ from predictor.gfs_fetch import (
     plan_forecast_files,
     redact_url,
 )
-from predictor.gribwrite import GFS_LEVELS_HPA, write_gfs_grib2
-from predictor.weather import load_weather
+from predictor.environment.gribwrite import GFS_LEVELS_HPA, write_gfs_grib2
+from predictor.environment.weather import load_weather
+from predictor.errors import WeatherError
 from tests.predictor.grib_server import GribServer
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from predictor.gribwrite import DEMO_GENERATING_PROCESS, gfs_file_name, write_gfs_grib2
+from predictor.environment.gribwrite import DEMO_GENERATING_PROCESS, gfs_file_name, write_gfs_grib2
 
 LEVELS = np.array([1000.0, 850.0, 500.0, 250.0, 100.0, 10.0, 1.0])
 

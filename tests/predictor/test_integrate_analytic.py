@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from predictor import OutOfCoverageError, Payload, WeatherCube, predict
-from predictor.uncertainty import GEOD
+from predictor.prediction.uncertainty import GEOD
 from tests.predictor.predict_helpers import (
     G0,
     H_ISO,

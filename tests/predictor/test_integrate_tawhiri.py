@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from predictor import Model, WeatherCube, predict
-from predictor.model import SeaLevelRate, Wind
+from predictor.descent.model import SeaLevelRate, Wind
 
 LEVELS_HPA = np.array([*range(1000, 99, -25), 70, 50, 30, 20, 10, 7, 5, 3, 2, 1], dtype=float)
 R_AIR = 287.053

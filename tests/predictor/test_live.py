@@ -7,22 +7,22 @@ from pathlib import Path
 
 import pytest
 
-from console.cli import main
-from predictor.calibration.cleaning import clean
-from predictor.calibration.synthetic import synthetic_flight
-from predictor.calibration.tracks import Fix
-from predictor.cube import WeatherCube
+from console.commands.main import main
+from predictor.descent.model import BinnedWind, DescentRateScale, Term
+from predictor.descent.payload import PROFILES
+from predictor.environment.cube import WeatherCube
 from predictor.errors import PredictorError
-from predictor.live import (
+from predictor.prediction.live import (
     DEFAULT_CORRECTION,
     LIVE_ERROR_MODEL,
     NO_CORRECTION,
     LiveCorrection,
     LivePredictor,
 )
-from predictor.model import BinnedWind, DescentRateScale, Term
-from predictor.payload import PROFILES
-from predictor.uncertainty import GEOD
+from predictor.prediction.uncertainty import GEOD
+from predictor.tracks.cleaning import clean
+from predictor.tracks.reading import Fix
+from predictor.tracks.synthetic import synthetic_flight
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
 PAYLOAD = PROFILES["drs"]

@@ -16,12 +16,12 @@ from datetime import timedelta
 import numpy as np
 import pytest
 
-from predictor.calibration.cleaning import clean
-from predictor.calibration.synthetic import synthetic_flight
-from predictor.calibration.tracks import Fix
-from predictor.live import LiveCorrection, LivePredictor, TypicalRate, fit_rate
-from predictor.model import DescentRateScale, DragDensityExponent
-from predictor.payload import PROFILES
+from predictor.descent.model import DescentRateScale, DragDensityExponent
+from predictor.descent.payload import PROFILES
+from predictor.prediction.live import LiveCorrection, LivePredictor, TypicalRate, fit_rate
+from predictor.tracks.cleaning import clean
+from predictor.tracks.reading import Fix
+from predictor.tracks.synthetic import synthetic_flight
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
 PAYLOAD = PROFILES["drs"]

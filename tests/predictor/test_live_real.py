@@ -10,23 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from console.cli import main
-from predictor.calibration.ascent_winds import ascent_weather_cube
-from predictor.calibration.cleaning import clean
-from predictor.calibration.tracks import read_track
-from predictor.live import (
-    DEFAULT_CORRECTION,
-    DEFAULT_LIVE,
-    LIVE_ERROR_MODEL,
-    NO_CORRECTION,
-    TYPICAL_RATE,
-    LivePredictor,
-    LiveSettings,
-)
-from predictor.model import DragDensityExponent
-from predictor.model_file import CalibratedModel, load_model, save_model
-from predictor.payload import PROFILES
-from predictor.planning.live_evaluation import (
+from console.commands.main import main
+from predictor.calibration.live_evaluation import (
     Evaluation,
     evaluate,
     fit_live_sigma,
@@ -38,6 +23,21 @@ from predictor.planning.live_evaluation import (
     wind_helps,
     write_report,
 )
+from predictor.calibration.model_file import CalibratedModel, load_model, save_model
+from predictor.descent.model import DragDensityExponent
+from predictor.descent.payload import PROFILES
+from predictor.prediction.live import (
+    DEFAULT_CORRECTION,
+    DEFAULT_LIVE,
+    LIVE_ERROR_MODEL,
+    NO_CORRECTION,
+    TYPICAL_RATE,
+    LivePredictor,
+    LiveSettings,
+)
+from predictor.tracks.ascent_winds import ascent_weather_cube
+from predictor.tracks.cleaning import clean
+from predictor.tracks.reading import read_track
 from tests.conftest import REPO_ROOT
 
 REPORT = REPO_ROOT / "docs" / "planning" / "live-reprediction.md"

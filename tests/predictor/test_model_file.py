@@ -8,15 +8,21 @@ from pathlib import Path
 
 import pytest
 
-from console.cli import main
-from predictor.demo_weather import demo_weather_files
-from predictor.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, TypicalRate
-from predictor.model import BinnedDescentRate, DescentRateScale, DragDensityExponent
-from predictor.model_file import SCHEMA_VERSION, CalibratedModel, ModelFileError, load_model, save_model
-from predictor.payload import Payload
-from predictor.prediction import predict
-from predictor.uncertainty import ErrorModel
-from predictor.weather import load_weather
+from console.commands.main import main
+from predictor.calibration.model_file import (
+    SCHEMA_VERSION,
+    CalibratedModel,
+    ModelFileError,
+    load_model,
+    save_model,
+)
+from predictor.descent.model import BinnedDescentRate, DescentRateScale, DragDensityExponent
+from predictor.descent.payload import Payload
+from predictor.environment.demo_weather import demo_weather_files
+from predictor.environment.weather import load_weather
+from predictor.prediction.landings import predict
+from predictor.prediction.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, TypicalRate
+from predictor.prediction.uncertainty import ErrorModel
 
 WHEN = datetime(2026, 11, 22, 12, tzinfo=UTC)
 RELEASE = ("--lat", "46.5", "--lon", "6.6", "--alt", "28000", "--time", "2026-11-22T12:00Z")

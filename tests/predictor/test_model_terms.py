@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from predictor import EFFECTS, Model, Payload, PredictorError, Term, predict
-from predictor.model import (
+from predictor.descent.model import (
     BASE_STAGE,
     ENV_SIZE,
     FAMILIES,
@@ -225,5 +225,5 @@ def test_a_term_missing_from_the_registry_is_refused_not_skipped() -> None:
 def test_the_compiled_dispatch_refuses_an_unknown_kind() -> None:
     table = np.array([[FAMILY_VERTICAL, len(TERMS), 0, 0]], dtype=np.int64)
     rows = np.zeros((1, 4))
-    with pytest.raises(PredictorError, match="not in predictor.model.TERMS"):
+    with pytest.raises(PredictorError, match="not in predictor.descent.model.TERMS"):
         apply_family(table, FAMILY_VERTICAL, rows, np.zeros((1, ENV_SIZE)), np.zeros((1, 3)), rows, np.ones(1, bool), 0, 1)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from predictor import payload_profile, predict
-from predictor.calibration.standard_atmosphere import R_DRY_AIR, pressure_temperature
-from predictor.cube import WeatherCube
+from predictor.environment.cube import WeatherCube
+from predictor.tracks.standard_atmosphere import R_DRY_AIR, pressure_temperature
 from tests.predictor.predict_helpers import LEVELS_HPA, RELEASE
 
 

@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 import shapely
 
-from predictor.cube import WeatherCube
+from predictor.environment.cube import WeatherCube
 from predictor.errors import PredictorError
 from predictor.planning.balloon import AltitudePlan, balloon_path
 from predictor.planning.strip import to_geojson, to_kml, write_geojson, write_kml
 from predictor.planning.sweep import Candidate, Thresholds, plan_release, rank_windows
-from predictor.prediction import predict, predict_ensemble
-from predictor.zones import Feature, load_zones
+from predictor.prediction.landings import predict, predict_ensemble
+from predictor.prediction.zones import Feature, load_zones
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
 

@@ -1,4 +1,4 @@
-"""`drs plan` end to end: GRIB2 written by eccodes, zone/target GeoJSON files, console.cli.main."""
+"""`drs plan` end to end: GRIB2 written by eccodes, zone/target GeoJSON files, console.commands.main.main."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from console.cli import main
-from predictor.gribwrite import gfs_file_name, write_gfs_grib2
+from console.commands.main import main
+from predictor.environment.gribwrite import gfs_file_name, write_gfs_grib2
 from tests.predictor.predict_helpers import H_ISO, LEVELS_HPA, P0_HPA, T_ISO
 
 CYCLE = datetime(2024, 5, 1, 0, tzinfo=UTC)

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 import shapely
 
-from console.cli import main
-from predictor.plausibility import far_features_warning, far_team_warning, release_altitude_warning
+from console.commands.main import main
+from predictor.prediction.plausibility import far_features_warning, far_team_warning, release_altitude_warning
 from tests.predictor.test_planning_cli import args as plan_args
 from tests.predictor.test_planning_cli import geojson_file, grib_files  # noqa: F401  (the fixture)
 

@@ -16,8 +16,8 @@ from predictor import (
     predict_ensemble,
     predict_landings,
 )
-from predictor.model import DescentRateScale
-from predictor.uncertainty import GEOD
+from predictor.descent.model import DescentRateScale
+from predictor.prediction.uncertainty import GEOD
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
 PAYLOAD = Payload(mass_kg=1.029, cda_m2=1.13)

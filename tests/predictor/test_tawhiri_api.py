@@ -23,14 +23,14 @@ from typing import Any
 
 import pytest
 
-from console.cli import build_parser, main
-from predictor.demo_weather import demo_weather_files
-from predictor.model import DescentRateScale
-from predictor.model_file import CalibratedModel, save_model
-from predictor.payload import Payload
-from predictor.serve_cli import build_server
-from predictor.tawhiri_api import ApiServer
-from predictor.uncertainty import ErrorModel
+from console.commands.main import build_parser, main
+from console.commands.serve import build_server
+from predictor.calibration.model_file import CalibratedModel, save_model
+from predictor.descent.model import DescentRateScale
+from predictor.descent.payload import Payload
+from predictor.environment.demo_weather import demo_weather_files
+from predictor.prediction.uncertainty import ErrorModel
+from predictor.tawhiri.api import ApiServer
 
 LAUNCH = datetime(2024, 5, 1, 6, 0, tzinfo=UTC)
 LAUNCH_LAT, LAUNCH_LON = 52.2, -0.4

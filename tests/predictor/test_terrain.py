@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from predictor.environment.terrain import SEA_LEVEL_SOURCE, Terrain, tile_corner_of, tile_name
 from predictor.errors import TerrainError
-from predictor.terrain import SEA_LEVEL_SOURCE, Terrain, tile_corner_of, tile_name
 
 SRTM3 = 1201
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from predictor.environment.terrain import Terrain
 from predictor.errors import TerrainError
-from predictor.terrain import Terrain
 
 # ETOPO 2022 and GEBCO are cell-centred global grids; 1° keeps the files small.
 LATS = np.arange(-89.5, 90.0, 1.0)
@@ -143,9 +143,9 @@ def test_netcdf4_dem_without_h5py_says_which_package_to_install(tmp_path: Path) 
         f"""
         import sys
         sys.modules["h5py"] = None  # importing it now raises ImportError, as if it were not installed
-        import pyproj  # noqa: F401  (native library order, see predictor/native_libs.py)
+        import pyproj  # noqa: F401  (native library order, see predictor/environment/native_libs.py)
         from predictor.errors import TerrainError
-        from predictor.terrain import Terrain
+        from predictor.environment.terrain import Terrain
         try:
             Terrain.from_netcdf({str(dem)!r})
         except TerrainError as exc:

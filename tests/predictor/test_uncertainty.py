@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from predictor import HINDSIGHT, LAUNCH, ErrorModel, PredictorError
-from predictor.uncertainty import GEOD, coverage, empirical_ellipse, n_sigma_for, parametric_ellipse
+from predictor.prediction.uncertainty import (
+    GEOD,
+    coverage,
+    empirical_ellipse,
+    n_sigma_for,
+    parametric_ellipse,
+)
 
 
 def test_capsule_1_known_answer_from_the_paper() -> None:

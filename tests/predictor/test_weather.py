@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 import xarray as xr
 
-import predictor.weather as weather
+import predictor.environment.weather as weather
+from predictor.environment.gribwrite import DEMO_GENERATING_PROCESS, GFS_GENERATING_PROCESS, write_gfs_grib2
+from predictor.environment.weather import DEMO_SOURCE, geometric_altitude, load_weather
 from predictor.errors import WeatherError
-from predictor.gribwrite import DEMO_GENERATING_PROCESS, GFS_GENERATING_PROCESS, write_gfs_grib2
-from predictor.weather import DEMO_SOURCE, geometric_altitude, load_weather
 
 LEVELS = np.array([1000.0, 850.0, 500.0, 250.0, 100.0, 50.0, 10.0])
 CYCLE = datetime(2024, 5, 1, 6)

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from console.cli import main
-from predictor.gribwrite import GFS_LEVELS_HPA, write_gfs_grib2
+from console.commands.main import main
+from predictor.environment.gribwrite import GFS_LEVELS_HPA, write_gfs_grib2
 from tests.predictor.grib_server import GribServer
 
 

@@ -17,13 +17,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from console.cli import main
+from console.commands.main import main
+from console.commands.weather import default_gfs_dir
+from predictor.environment.gfs_cache import LOCK_NAME, free_space_warning, prune
+from predictor.environment.gfs_fetch import Downloader, ForecastFile, Region
+from predictor.environment.gribwrite import GFS_LEVELS_HPA, write_gfs_grib2
+from predictor.environment.weather import load_weather
 from predictor.errors import WeatherError
-from predictor.gfs_cache import LOCK_NAME, free_space_warning, prune
-from predictor.gfs_fetch import Downloader, ForecastFile, Region
-from predictor.gribwrite import GFS_LEVELS_HPA, write_gfs_grib2
-from predictor.weather import load_weather
-from predictor.weather_cli import default_gfs_dir
 from tests.predictor.grib_server import GribServer
 from tests.predictor.test_weather_cli import serve_cycle
 

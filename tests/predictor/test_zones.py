@@ -11,7 +11,7 @@ import pytest
 import shapely
 
 from predictor.errors import PredictorError
-from predictor.zones import (
+from predictor.prediction.zones import (
     LocalPlane,
     ellipse_covariance,
     expected_distance_km,

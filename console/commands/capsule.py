@@ -1,0 +1,432 @@
+"""``drs capsule …`` and ``drs sync``: the release steps and the data upload, scriptable for checklists.
+
+Every refusal and failure is a ``LinkError`` that ``console.commands.main`` prints as one line with a
+non-zero exit; the state machine audits each step before this module reports it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
+
+from console.commands.approve import wait_for_approval
+from drs_link.config import CapsuleConfig, Config, load_config
+from drs_link.errors import ConfigError, LinkError, RefusedError
+from drs_link.link import (
+    CapsuleLink,
+    HostKeyError,
+    Syncer,
+    enrol_host_key,
+    fingerprint,
+    known_hosts_name,
+    read_storage,
+    scan_host_key,
+)
+from drs_link.link.backends.registry import build_backend
+from drs_link.ops import (
+    PROCEDURE_DIR,
+    ApprovalBook,
+    Checklist,
+    ReleaseState,
+    ReleaseStateMachine,
+    complete_command,
+    current_login,
+    load_checklists,
+    record_as_dict,
+    take_over_outcome,
+)
+from drs_link.sim import capsule_bench
+from drs_link.store import Store
+from predictor.errors import UsageError
+
+EXIT_MICROCONTROLLER_SILENT = 3
+EXIT_LINK_DOWN = 4
+
+POWER_ON_WARNING = (
+    "Power-on pulses the latching relay: the capsule's batteries stay connected until someone presses "
+    "the OFF button on the unit. Software cannot switch it off again."
+)
+
+TAKE_OVER_WARNING = (
+    "Taking over makes {holder} the only console that can power on and release {name}; "
+    "the console that held it is refused from now on. The audit log records who, from whom and why."
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    capsule = subparsers.add_parser("capsule", help="talk to a capsule's Pi over SSH: status, power-on, go")
+    actions = capsule.add_subparsers(dest="capsule_command", metavar="ACTION", required=True)
+
+    status = actions.add_parser("status", help="release state, microcontroller, GNSS fix and storage")
+    status.add_argument("name")
+    status.add_argument("--json", action="store_true", help="machine-readable output")
+    status.set_defaults(func=cmd_status)
+
+    power = actions.add_parser("power-on", help="run DRS_on.py (latches the battery relay)")
+    power.add_argument("name")
+    power.add_argument("--yes", action="store_true", help="confirm without the interactive prompt")
+    power.set_defaults(func=cmd_power_on)
+
+    go = actions.add_parser("go", help="release: run DRS_GoGoGo.py (refused unless confirmed and powered)")
+    go.add_argument("name")
+    go.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name to confirm")
+    go.set_defaults(func=cmd_go)
+
+    reset = actions.add_parser("reset", help="after recovery: allow a new release of this capsule")
+    reset.add_argument("name")
+    reset.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name")
+    reset.set_defaults(func=cmd_reset)
+
+    released = actions.add_parser(
+        "released", help="settle an unverified Go as released, on evidence (the Pi is down, the reports show the fall)"
+    )
+    released.add_argument("name")
+    released.add_argument("--evidence", metavar="TEXT", required=True, help="what shows it left (audit log)")
+    released.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name")
+    released.set_defaults(func=cmd_released)
+
+    authority = actions.add_parser(
+        "authority", help="who holds the release authority on the Pi; take it over or give it up"
+    )
+    authority.add_argument("name")
+    authority.add_argument(
+        "--take-over", action="store_true", help="make this console the holder (needs --reason and the name)"
+    )
+    authority.add_argument("--release", action="store_true", help="give up this console's own authority")
+    authority.add_argument("--reason", default="", help="why, for the audit log (required with --take-over)")
+    authority.add_argument(
+        "--confirm", metavar="NAME", help="with --take-over: the capsule's name, instead of typing it"
+    )
+    authority.add_argument(
+        "--await-approval", action="store_true",
+        help="with --take-over: wait until another login approves it (drs approve ID)",
+    )  # fmt: skip
+    authority.set_defaults(func=cmd_authority)
+
+    enrol = actions.add_parser("enrol", help="show the Pi's host key fingerprint; save it once compared")
+    enrol.add_argument("name")
+    enrol.add_argument("--fingerprint", metavar="SHA256", help="the fingerprint read on the Pi itself")
+    enrol.set_defaults(func=cmd_enrol)
+
+    bench = actions.add_parser("bench", help="measure link overhead and sync speed against a local simulator")
+    bench.add_argument("--mb", type=float, default=32.0, help="size of the synced test file (MiB)")
+    bench.add_argument("--rounds", type=int, default=20, help="heartbeat round trips to time")
+    bench.set_defaults(func=cmd_bench)
+
+    sync = subparsers.add_parser("sync", help="upload a directory to a capsule's storage mount (verified)")
+    sync.add_argument("name")
+    sync.add_argument("source", type=Path, metavar="SOURCE_DIR")
+    sync.add_argument("--status", action="store_true", help="only report what is missing or changed")
+    sync.add_argument("--hash", action="store_true", help="with --status: also compare sha256")
+    sync.add_argument("--json", action="store_true", help="with --status: machine-readable output")
+    sync.set_defaults(func=cmd_sync)
+
+
+def _context(args: argparse.Namespace) -> tuple[Config, CapsuleConfig, Store]:
+    config = load_config(args.config)
+    capsule = config.capsule(args.name)
+    return config, capsule, Store.open(config.store_path)
+
+
+def _machine(args: argparse.Namespace, need_operator: bool) -> tuple[ReleaseStateMachine, CapsuleLink]:
+    config, capsule, store = _context(args)
+    if need_operator and not config.operator.name:
+        raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
+    link = CapsuleLink(capsule)
+    return ReleaseStateMachine(store, capsule, build_backend(capsule, link), config.operator.name), link
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    machine, link = _machine(args, need_operator=False)
+    record = machine.record()
+    report: dict[str, object] = {"release": record_as_dict(record)}
+    exit_code = 0
+    if record.state is ReleaseState.RELEASED:
+        report["link"] = {"up": False, "note": "released: the Pi shut itself down"}
+    else:
+        try:
+            link.connect()
+            report["link"] = {"up": True}
+            storage = read_storage(link, machine.capsule.storage_mount, machine.capsule.raid_device)
+            report["storage"] = storage.as_dict()
+            if record.state is ReleaseState.POWERED:
+                mcu = machine.check_microcontroller()
+                report["microcontroller"] = {"waiting_for_go": mcu.waiting_for_go, "diagnosis": mcu.diagnosis}
+                report["gnss"] = mcu.gnss.as_dict()
+        except HostKeyError:
+            raise
+        except LinkError as exc:
+            report["link"] = {"up": False, "error": str(exc)}
+            exit_code = EXIT_LINK_DOWN
+        finally:
+            link.close()
+    if args.json:
+        print(json.dumps(report, indent=2, sort_keys=True))
+    else:
+        _print_status(machine.name, report)
+    return exit_code
+
+
+def _print_status(name: str, report: dict[str, object]) -> None:
+    release = report["release"]
+    assert isinstance(release, dict)
+    print(f"{name}: {release['state']}" + (f" ({release['note']})" if release.get("note") else ""))
+    link = report.get("link", {})
+    assert isinstance(link, dict)
+    print(
+        f"  link: {'up' if link.get('up') else 'DOWN'}" + (f" - {link['error']}" if link.get("error") else "")
+    )
+    storage = report.get("storage")
+    if isinstance(storage, dict) and isinstance(storage.get("total_bytes"), int) and storage["total_bytes"]:
+        used = int(storage["used_bytes"]) / int(storage["total_bytes"])
+        print(
+            f"  storage: {storage['mount']} {used:.1%} used, {storage['available_bytes']} bytes free; "
+            f"RAID {storage['raid_state']} {storage['raid_members'] or ''}"
+        )
+    mcu = report.get("microcontroller")
+    if isinstance(mcu, dict):
+        print(f"  microcontroller: {mcu['diagnosis']}")
+    gnss = report.get("gnss")
+    if isinstance(gnss, dict) and gnss.get("nmea_seen"):
+        age = f"{gnss['age_s']:.0f} s old" if gnss.get("age_s") is not None else "age unknown"
+        position = (
+            f"{gnss['latitude']:.5f}, {gnss['longitude']:.5f}"
+            if gnss.get("latitude") is not None
+            else "no position"
+        )
+        print(
+            f"  GNSS: {gnss['fix_quality_name']}, {gnss['satellites']} sats, HDOP {gnss['hdop']}, "
+            f"{position}, {age} ({gnss['sentences_malformed']} malformed, "
+            f"{gnss['sentences_bad_checksum']} bad checksum)"
+        )
+        if gnss.get("date_problem"):
+            print(f"  GNSS warning: {gnss['date_problem']}")
+
+
+def _command_done(machine: ReleaseStateMachine, checklists: list[Checklist], command: str, result: str) -> None:
+    """The checklist step a release command completes: the console's rule (``Operations``), here too."""
+    complete_command(machine.store, checklists, machine.name, command, machine.operator, result, {})
+
+
+def cmd_power_on(args: argparse.Namespace) -> int:
+    machine, link = _machine(args, need_operator=True)
+    checklists = load_checklists(PROCEDURE_DIR)  # a broken procedure file refuses before the relay latches
+    print(POWER_ON_WARNING)
+    confirmed = args.yes
+    if not confirmed:
+        if not sys.stdin.isatty():
+            raise RefusedError(
+                f"{machine.name}: power-on refused: pass --yes, or run it in a terminal to confirm"
+            )
+        try:
+            typed = input(f"Type the capsule name ({machine.name}) to power it on: ")
+        except EOFError:
+            typed = ""
+        confirmed = typed.strip() == machine.name
+    try:
+        machine.power_on(confirmed)
+        _command_done(machine, checklists, "power-on", "relay latched")
+        print(f"{machine.name}: power-on done; waiting for the microcontroller's NMEA (up to ~25 s)")
+        report = machine.wait_for_microcontroller()
+    finally:
+        link.close()
+    print(f"{machine.name}: {report.diagnosis}")
+    if report.waiting_for_go:
+        gnss = report.gnss
+        print(f"{machine.name}: GNSS {gnss.fix_quality_name}, {gnss.satellites} satellites, HDOP {gnss.hdop}")
+        return 0
+    return EXIT_MICROCONTROLLER_SILENT
+
+
+def _step(line: str) -> None:
+    """A progress line, flushed at once: Go takes about 12 s and used to print nothing until the end."""
+    print(line, flush=True)
+
+
+def cmd_go(args: argparse.Namespace) -> int:
+    machine, link = _machine(args, need_operator=True)
+    checklists = load_checklists(PROCEDURE_DIR)
+    try:
+        token = machine.confirm(args.confirm)
+        record = machine.record()
+        _step(f"{machine.name}: confirmation accepted (capsule {record.state.value})")
+        if record.nmea_seen_at is None:
+            _step(f"{machine.name}: reading the serial log: is the microcontroller waiting for Go?")
+            _step(f"{machine.name}: {machine.check_microcontroller().diagnosis}")
+        _step(
+            f"{machine.name}: sending Go over SSH (the Go script writes GoGoGo, then shuts the Pi down; "
+            "about 10 s)…"
+        )
+        released = machine.go(token)
+        _command_done(machine, checklists, "fire", released.note or "Go sent")
+    finally:
+        link.close()
+    print(f"{machine.name}: {released.note}; release A opens about 32 s after Go")
+    return 0
+
+
+def _take_over_approved(machine: ReleaseStateMachine, reason: str) -> None:
+    """Another login approves the take-over before it is made; the approval is spent and audited."""
+    book, login = ApprovalBook(machine.store), current_login()
+    summary = f"release-authority take-over: {reason}"
+    approval = wait_for_approval(book, machine.name, "authority", summary, machine.operator, login)
+    people = book.use(approval, machine.name, "authority", login)
+    machine.store.append_audit(machine.operator, machine.name, "authority-take-over", "approved", people)
+
+
+def cmd_authority(args: argparse.Namespace) -> int:
+    if args.take_over and args.release:
+        raise UsageError(f"{args.name}: authority: --take-over and --release cannot be combined")
+    if args.confirm is not None and not args.take_over:
+        raise UsageError(f"{args.name}: authority: --confirm only confirms --take-over")
+    if args.await_approval and not args.take_over:
+        raise UsageError(f"{args.name}: authority: --await-approval is for --take-over")
+    machine, link = _machine(args, need_operator=args.take_over or args.release)
+    try:
+        if args.release:
+            given_up = machine.release_authority(args.reason)
+            if given_up.holder is None:
+                print(f"{machine.name}: this console held no release authority: it is free")
+            else:
+                print(f"{machine.name}: release authority given up; it was {given_up.describe()}")
+            return 0
+        if args.take_over:
+            machine.check_take_over(args.reason)
+            if args.confirm is None and not sys.stdin.isatty():
+                raise RefusedError(
+                    f"{machine.name}: take-over refused: pass --confirm {machine.name}, "
+                    "or run it in a terminal to confirm"
+                )
+        seen = machine.authority()
+        mine = " (this console)" if seen.holder == machine.holder else ""
+        print(f"{machine.name}: release authority {seen.describe()}{mine}")
+        if not args.take_over:
+            return 0
+        typed = args.confirm
+        if typed is None:
+            print(TAKE_OVER_WARNING.format(name=machine.name, holder=machine.holder))
+            try:
+                typed = input(
+                    f"Type the capsule name ({machine.name}) to take over its release authority: "
+                ).strip()
+            except EOFError:
+                typed = ""
+        if args.await_approval:
+            _take_over_approved(machine, args.reason)
+        now = machine.take_over(seen, typed, args.reason)
+    finally:
+        link.close()
+    print(f"{machine.name}: release authority {take_over_outcome(seen, machine.holder)}: {now.describe()}")
+    return 0
+
+
+def cmd_released(args: argparse.Namespace) -> int:
+    machine, _ = _machine(args, need_operator=False)
+    checklists = load_checklists(PROCEDURE_DIR)
+    record = machine.record_released(args.confirm, args.evidence)
+    _command_done(machine, checklists, "fire", record.note or "released")
+    print(f"{machine.name}: {record.note}")
+    return 0
+
+
+def cmd_reset(args: argparse.Namespace) -> int:
+    machine, _ = _machine(args, need_operator=False)
+    checklists = load_checklists(PROCEDURE_DIR)
+    machine.reset(args.confirm)
+    _command_done(machine, checklists, "reset", "release state reset")
+    print(f"{machine.name}: reset to idle")
+    return 0
+
+
+def cmd_enrol(args: argparse.Namespace) -> int:
+    config, capsule, store = _context(args)
+    if capsule.jump_host:
+        raise LinkError(f"{capsule.name}: enrol through a jump host is not supported; add the key by hand")
+    key = scan_host_key(capsule.host, capsule.port, capsule.connect_timeout_s)
+    offered = fingerprint(key)
+    name = known_hosts_name(capsule.host, capsule.port)
+    print(f"{name} offers {key.get_name()} {offered}")
+    if args.fingerprint is None:
+        print(
+            "Compare it with `ssh-keygen -lf /etc/ssh/ssh_host_ed25519_key.pub` on the Pi, then re-run with "
+            f"--fingerprint {offered}"
+        )
+        return 1
+    if args.fingerprint != offered:
+        raise RefusedError(f"{capsule.name}: enrol refused: the Pi offers {offered}, not {args.fingerprint}")
+    store.append_audit(
+        config.operator.name or "unknown", capsule.name, "enrol", "ok", {"fingerprint": offered}
+    )
+    enrol_host_key(capsule.known_hosts, capsule.host, capsule.port, key)
+    print(f"{capsule.name}: host key saved to {capsule.known_hosts}")
+    return 0
+
+
+def cmd_sync(args: argparse.Namespace) -> int:
+    config, capsule, store = _context(args)
+    link = CapsuleLink(capsule)
+    syncer = Syncer(store, link, capsule.name, capsule.storage_mount, capsule.raid_device)
+    try:
+        if args.status:
+            status = syncer.status(args.source, with_hash=args.hash)
+            if args.json:
+                print(json.dumps(status.as_dict(), indent=2, sort_keys=True))
+            else:
+                print(
+                    f"{capsule.name}: {len(status.up_to_date)} up to date, {len(status.missing)} missing, "
+                    f"{len(status.changed)} changed, {status.bytes_pending} bytes pending"
+                )
+            return 0 if not (status.missing or status.changed) else 1
+        return _run_sync(syncer, args.source, store, config.operator.name or "unknown")
+    finally:
+        link.close()
+
+
+def _run_sync(syncer: Syncer, source: Path, store: Store, operator: str) -> int:
+    def verified(relative: str) -> None:
+        store.append_audit(operator, syncer.capsule, "sync-file", "verified", {"path": relative})
+
+    with Progress(
+        TextColumn("{task.description}"), BarColumn(), DownloadColumn(), TransferSpeedColumn(), transient=True
+    ) as progress:
+        tasks: dict[str, int] = {}
+
+        def on_progress(relative: str, done: int, total: int) -> None:
+            if relative not in tasks:
+                tasks[relative] = progress.add_task(relative, total=total)
+            progress.update(tasks[relative], completed=done)
+
+        try:
+            report = syncer.sync(source, on_progress=on_progress, on_verified=verified)
+        except LinkError as exc:
+            store.append_audit(operator, syncer.capsule, "sync", "failed", {"error": str(exc)})
+            raise
+    store.append_audit(
+        operator, syncer.capsule, "sync", "ok", {"uploaded": len(report.uploaded), "bytes": report.bytes_sent}
+    )
+    print(
+        f"{syncer.capsule}: {len(report.uploaded)} files uploaded and verified by sha256 on the Pi, "
+        f"{len(report.skipped)} already up to date, {report.bytes_sent} bytes sent"
+    )
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    if args.mb <= 0 or args.rounds < 1:
+        raise UsageError("bench: --mb must be positive and --rounds at least 1")
+    result = capsule_bench.run_bench(sync_mb=args.mb, rounds=args.rounds)
+    print(f"SSH connect + host-key check (median): {result.connect_ms_median:.1f} ms")
+    print(
+        f"heartbeat round trip: median {result.heartbeat_ms_median:.1f} ms, "
+        f"p95 {result.heartbeat_ms_p95:.1f} ms"
+    )
+    print(f"sync {result.sync_mb:.0f} MiB incl. sha256 on the Pi: {result.sync_mb_per_s:.1f} MiB/s")
+    print(
+        f"power-on -> NMEA -> Go -> Pi shut down: {result.release_sim_s:.1f} s simulated "
+        f"({result.release_wall_s:.2f} s wall at clock x{result.clock_scale:.0f})"
+    )
+    return 0

@@ -1,0 +1,65 @@
+"""``drs chase``: put the capsules on the chase team's chasemapper from any machine that holds the store.
+
+The console does this itself when ``[chase] udp`` is set; this command is for a second laptop, a
+machine without the console, or a check before the flight (``--once`` sends one round, prints it and
+exits). It prints every packet it sends, so a team sees what their chasemapper should show.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from datetime import UTC, datetime
+
+from drs_link.config import load_config
+from drs_link.errors import ConfigError
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    chase = subparsers.add_parser(
+        "chase",
+        help="send the capsules (and their predicted landings) to chasemapper as Horus UDP",
+        description="Read the store and send, for each capsule with a position, a Horus UDP PAYLOAD_SUMMARY "
+        "(and NAME_LAND at a live predicted landing) to chasemapper, every 10 s.",
+    )
+    chase.add_argument(
+        "--udp",
+        metavar="HOST:PORT",
+        help="where chasemapper listens (default [chase] udp), e.g. 255.255.255.255:55672",
+    )
+    chase.add_argument("--once", action="store_true", help="send one round, print it and exit")
+    chase.set_defaults(func=cmd_chase)
+
+
+def cmd_chase(args: argparse.Namespace) -> int:
+    from drs_link.feeds import CHASE_PERIOD_S, ChaseSender, chase_points
+    from drs_link.store import Store
+
+    config = load_config(args.config)
+    target = args.udp or config.chase.udp
+    if not target:
+        raise ConfigError("drs chase needs --udp HOST:PORT or [chase] udp in the configuration")
+    sender = ChaseSender(target, "--udp" if args.udp else "chase.udp")
+    store = Store.open(config.store_path)
+    every = "once" if args.once else f"every {CHASE_PERIOD_S:g} s"
+    print(
+        f"drs chase: sending to udp {sender.target} {every} from {config.store_path}",
+        file=sys.stderr,
+        flush=True,
+    )
+    try:
+        while True:
+            points = chase_points(config, store, datetime.now(UTC))
+            sender.send(points)
+            for point in points:
+                print(json.dumps(point.packet()), flush=True)
+            if not points:
+                print("drs chase: no capsule has a position in the store yet", file=sys.stderr, flush=True)
+            if args.once:
+                return 0
+            time.sleep(CHASE_PERIOD_S)
+    finally:
+        sender.close()
+        store.close()

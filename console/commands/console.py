@@ -1,0 +1,248 @@
+"""``drs console [--demo] [--replay FILE]`` and ``drs demo``: build the console's setup and run it.
+
+The console is a full-screen terminal app; started without a terminal (a pipe, CI, cron) it
+would hang or draw garbage, so it refuses with one line instead. Textual, the predictor and the
+SSH stack are imported only when the console starts, so every other ``drs`` command stays quick.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from datetime import datetime, timedelta
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from drs_link.config import Config, load_config
+from drs_link.errors import ConfigError, LinkError
+from drs_link.ops import TelemetryRecord, TelemetryRecorder, read_recording
+from drs_link.store import Store
+
+if TYPE_CHECKING:
+    from console.app import ConsoleSetup
+    from console.demo import DemoWorld
+    from drs_link.feeds import BalloonFeed
+    from predictor import Terrain
+
+NOT_A_TERMINAL = (
+    "the console is a full-screen terminal app and stdout is not a terminal; "
+    "run it from an interactive shell (for a scripted check use `drs capsule status`)"
+)
+
+
+LOW_BANDWIDTH_HELP = (
+    "for a thin SSH link: no animation or zebra stripes, the fleet's ages in 10-s steps (countdowns stay "
+    "exact); also [console] low_bandwidth = true"
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    console = subparsers.add_parser("console", help="the operator console (full-screen terminal app)")
+    mode = console.add_mutually_exclusive_group()
+    mode.add_argument("--demo", action="store_true", help="simulated capsules, gateway, weather and terrain")
+    mode.add_argument(
+        "--replay", type=Path, metavar="FILE", help="replay a telemetry recording (no commanding)"
+    )
+    console.add_argument(
+        "--speed", type=float, default=None, help="demo time scale / replay speed (default 4 / 1)"
+    )
+    console.add_argument(
+        "--weather", type=Path, nargs="+", metavar="GRIB", help="GFS GRIB2 files for predictions"
+    )
+    console.add_argument(
+        "--terrain", type=Path, metavar="DIR", help="SRTM tiles / DEM directory for predictions"
+    )
+    console.add_argument("--low-bandwidth", action="store_true", help=LOW_BANDWIDTH_HELP)
+    console.set_defaults(func=cmd_console)
+    demo = subparsers.add_parser("demo", help="the console with everything simulated (= drs console --demo)")
+    demo.add_argument(
+        "--speed", type=float, default=None, help="simulated seconds per real second (default 4)"
+    )
+    demo.add_argument("--low-bandwidth", action="store_true", help=LOW_BANDWIDTH_HELP)
+    demo.set_defaults(func=cmd_demo, demo=True, replay=None, weather=None, terrain=None)
+
+
+def _require_terminal() -> None:
+    if not (sys.stdout.isatty() and sys.stdin.isatty()):
+        raise LinkError(NOT_A_TERMINAL)
+
+
+def _team(config: Config) -> tuple[float, float] | None:
+    from drs_link.iridium import parse_position
+
+    text = config.console.team_position.strip()
+    if not text:
+        return None
+    try:
+        return parse_position(text)
+    except (LinkError, ValueError) as exc:
+        raise ConfigError(f"console.team_position: {exc}") from None
+
+
+def started_balloon_feed(config: Config, clock: Callable[[], datetime]) -> BalloonFeed | None:
+    """The configured ground-station feed, already listening: a port in use stops the start, not a launch."""
+    from drs_link.feeds import BalloonFeed
+
+    if not config.balloon_feed.kind:
+        return None
+    feed = BalloonFeed(config.balloon_feed, clock)
+    feed.start()
+    return feed
+
+
+def run_console(setup: ConsoleSetup) -> int:
+    from console.app import DrsConsole
+
+    try:
+        return DrsConsole(setup).run() or 0
+    finally:
+        setup.close()
+
+
+def _recorder(config: Config) -> TelemetryRecorder:
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    return TelemetryRecorder(config.data.dir / "recordings" / f"telemetry-{stamp}.jsonl")
+
+
+class ReplayFeed:
+    """Hands out recorded records as the replay clock passes their times (``speed`` × real time)."""
+
+    def __init__(self, records: list[TelemetryRecord], speed: float) -> None:
+        if speed <= 0:
+            raise ConfigError("--speed must be positive")
+        self.records = records
+        self.speed = speed
+        self.start = records[0].time
+        self._t0 = time.monotonic()
+        self._next = 0
+
+    def clock(self) -> datetime:
+        return self.start + timedelta(seconds=(time.monotonic() - self._t0) * self.speed)
+
+    def due(self) -> list[TelemetryRecord]:
+        now = self.clock()
+        out = []
+        while self._next < len(self.records) and self.records[self._next].time <= now:
+            out.append(self.records[self._next])
+            self._next += 1
+        return out
+
+
+def replay_setup(path: Path, speed: float, config: Config) -> tuple[ConsoleSetup, ReplayFeed]:
+    """The recording through the same views; History shows this machine's audit log; nothing commands."""
+    from console.app import ConsoleSetup
+
+    records = read_recording(path)
+    feed = ReplayFeed(records, speed)
+    names = sorted({r.capsule for r in records if r.capsule}) or [c.name for c in config.capsules]
+    store = Store.open(config.store_path)
+    setup = ConsoleSetup(
+        mode="replay", capsules=names, store=store, clock=feed.clock, banner_note=f"{path.name} ×{speed:g}",
+        replay_feed=feed.due,
+    )  # fmt: skip
+    return setup, feed
+
+
+def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None) -> ConsoleSetup:
+    from console.app import ConsoleSetup
+    from console.predictions import PredictionService, capsule_models
+    from drs_link.ops import Operations
+    from predictor import Terrain
+
+    if not config.capsules:
+        raise ConfigError(
+            "no [[capsule]] in the configuration: add one (see docs/console.md) or try `drs demo`"
+        )
+    store = Store.open(config.store_path)
+    operations = Operations(config, store, recorder=_recorder(config))
+    predictions = None
+    if weather:
+        files = list(weather)
+        terrain_factory: Callable[[], Terrain] = (
+            (lambda: Terrain.from_dir(terrain)) if terrain is not None else Terrain.sea_level
+        )
+        models = capsule_models([(c.name, c.model) for c in config.capsules])
+        predictions = PredictionService(lambda: files, terrain_factory, operations.clock, models)
+    return ConsoleSetup(
+        mode="live", capsules=[c.name for c in config.capsules], store=store, operations=operations,
+        predictions=predictions, balloon_feed=started_balloon_feed(config, operations.clock),
+        team_position=_team(config), export_dir=config.data.dir / "exports",
+        prediction_period_s=config.console.prediction_period_s,
+    )  # fmt: skip
+
+
+def cmd_console(args: argparse.Namespace) -> int:
+    _require_terminal()
+    if args.demo:
+        return run_demo(args.speed or 4.0, args.low_bandwidth)
+    config = load_config(args.config)
+    thin = args.low_bandwidth or config.console.low_bandwidth
+    if args.replay is not None:
+        setup, _ = replay_setup(args.replay, args.speed or 1.0, config)
+        return run_console(replace(setup, low_bandwidth=thin))
+    from console.chase import started_chase_feed
+
+    setup = replace(live_setup(config, args.weather, args.terrain), low_bandwidth=thin)
+    chase = started_chase_feed(config, setup)
+    try:
+        return run_console(setup)
+    finally:
+        if chase is not None:
+            chase.stop()
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    _require_terminal()
+    return run_demo(args.speed or 4.0, args.low_bandwidth)
+
+
+def demo_setup(
+    world: DemoWorld, config: Config, export_dir: Path, recorder: TelemetryRecorder | None = None,
+    poll_period_s: float | None = None, prediction_period_s: float | None = None,
+) -> ConsoleSetup:
+    """The console wired to a started demo world as ``drs demo`` runs it; tests and screenshots change the pace."""
+    from console.app import ConsoleSetup
+    from console.predictions import PredictionService
+    from drs_link.ops import Operations
+
+    speed = world.speed
+    store = Store.open(config.store_path)
+    return ConsoleSetup(
+        mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
+        operations=Operations(config, store, clock=world.clock, recorder=recorder, environ=world.environ),
+        predictions=PredictionService(lambda: world.weather_files, world.terrain, world.clock),
+        balloon_feed=started_balloon_feed(config, world.clock), team_position=_team(config),
+        export_dir=export_dir, banner_note=f"×{speed:g} time",
+        poll_period_s=min(3.0, max(1.0, 8.0 / speed)) if poll_period_s is None else poll_period_s,
+        prediction_period_s=(
+            config.console.prediction_period_s / speed if prediction_period_s is None else prediction_period_s
+        ),
+        time_scale=speed,
+    )  # fmt: skip
+
+
+def run_demo(speed: float, low_bandwidth: bool = False) -> int:
+    from console.demo import DemoWorld
+
+    root = Path(tempfile.mkdtemp(prefix="drs-demo-"))
+    try:
+        world = DemoWorld(root, speed)
+    except ValueError as exc:
+        raise ConfigError(f"--speed: {exc}") from None
+    print(f"drs demo: starting simulated capsules, gateway and weather in {root} …", flush=True)
+    try:
+        config = world.start()
+        recorder = _recorder(config)
+        setup = demo_setup(world, config, root / "exports", recorder)
+        result = run_console(replace(setup, low_bandwidth=low_bandwidth))
+    finally:
+        world.stop()
+    try:
+        print(f"drs demo: session kept in {root}; replay it with: drs console --replay {recorder.path}")
+    except OSError:
+        pass  # the terminal hung up (the session was lost): the store and recording say it all
+    return result

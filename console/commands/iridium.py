@@ -1,0 +1,560 @@
+"""`drs mt …`, `drs mo …` and `drs recovery …`: the Iridium side from a terminal.
+
+Every check lives in the domain modules; this only collects arguments, prints what they say and
+turns refusals into one-line errors (console/commands/main.py prints LinkError as ``drs: error: …``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import logging
+import math
+import re
+import signal
+import sys
+from collections.abc import Callable, Iterator
+from dataclasses import replace
+from datetime import datetime
+from pathlib import Path
+
+from console.commands.approve import wait_for_approval
+from drs_link.config import CapsuleConfig, Config, load_config
+from drs_link.errors import ConfigError, LinkError, RefusedError
+from drs_link.iridium import (
+    FLUSH_WARNING,
+    LandingEstimate,
+    MoHttpServer,
+    MoReceiver,
+    MtComposer,
+    MtMessage,
+    ReportStore,
+    RockblockGateway,
+    StoredReport,
+    TrackPoint,
+    assess,
+    detect_landing,
+    distance_bearing,
+    export_track,
+    import_files,
+    landed_evidence,
+    parse_hex,
+    parse_hhmm,
+    parse_position,
+    phone_summary,
+    plan_parachute,
+    read_gpsd_position,
+    track_from_reports,
+    write_gpx,
+    write_kml,
+)
+from drs_link.iridium import lifecycle as lc
+from drs_link.ops import (
+    PROCEDURE_DIR,
+    ApprovalBook,
+    authorize_mt,
+    carries_parachute,
+    complete_mt_steps,
+    current_login,
+    load_checklists,
+)
+from drs_link.sim import mo_bench
+from drs_link.store import Store, iso_utc, utc_now
+from predictor.errors import UsageError
+from predictor.geofiles import piped
+from predictor.prediction import emit, far_team_warning
+
+_IMEI_RE = re.compile(r"\d{15}")
+log = logging.getLogger(__name__)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    mt = subparsers.add_parser("mt", help="commands to a capsule over Iridium (RockBLOCK MT)")
+    mt_actions = mt.add_subparsers(dest="mt_action", metavar="ACTION", required=True)
+    send = mt_actions.add_parser("send", help="compose one MT; --dry-run shows it, --confirm NAME queues it")
+    send.add_argument("name", help="capsule name from the configuration")
+    send.add_argument("--interval", type=int, metavar="N", help="reporting interval, 1-1440 minutes")
+    send.add_argument("--sounder", choices=("on", "off"), help="switch the sounder")
+    send.add_argument(
+        "--parachute", metavar="HH:MM|next", help="open release B: a UTC time, or 'next' to compute"
+    )
+    send.add_argument("--rb-destination", type=int, metavar="SERIAL", help="forward reports (0 = off)")
+    send.add_argument("--rb-source", type=int, metavar="SERIAL", help="the unit's own RockBLOCK serial")
+    send.add_argument("--accept-midnight", action="store_true", help="allow a PARACHUTE window across 00:00Z")
+    send.add_argument("--flush", action="store_true", help="empty the gateway's MT queue first (hazardous)")
+    send.add_argument("--dry-run", action="store_true", help="print the exact text and hex; send nothing")
+    send.add_argument("--confirm", metavar="NAME", help="the capsule's name again: required for a real send")
+    send.add_argument(
+        "--second-operator", metavar="NAME", help="PARACHUTE: a second person, not the operator"
+    )
+    send.add_argument(
+        "--single-operator-waiver", metavar="REASON", help="PARACHUTE: why one person sends it alone (logged)"
+    )
+    send.add_argument(
+        "--await-approval", action="store_true",
+        help="PARACHUTE: wait for another login to approve it (drs approve ID) instead of naming a second operator",
+    )  # fmt: skip
+    send.add_argument(
+        "--override-landed",
+        metavar="REASON",
+        help="PARACHUTE without landed evidence in the reports: why (needs a second operator or a waiver)",
+    )
+    send.set_defaults(func=_mt_send)
+    status = mt_actions.add_parser("status", help="the lifecycle of this capsule's commands")
+    status.add_argument("name")
+    status.add_argument("--json", action="store_true", help="print JSON")
+    status.set_defaults(func=_mt_status)
+    resolve = mt_actions.add_parser(
+        "resolve", help="record what the RockBLOCK portal shows for a command whose delivery is unknown"
+    )
+    resolve.add_argument("name", help="capsule name from the configuration")
+    resolve.add_argument(
+        "command_id", type=int, metavar="MT_LOCAL_ID", help="the MT number `drs mt status` shows"
+    )
+    outcome = resolve.add_mutually_exclusive_group(required=True)
+    outcome.add_argument(
+        "--queued", type=int, metavar="GATEWAY_ID", help="the portal shows it queued with this id"
+    )
+    outcome.add_argument(
+        "--not-sent", action="store_true", help="the portal shows it never reached the gateway"
+    )
+    resolve.add_argument("--note", default="", metavar="TEXT", help="what you saw, kept in the audit log")
+    resolve.set_defaults(func=_mt_resolve)
+
+    mo = subparsers.add_parser("mo", help="capsule reports over Iridium (RockBLOCK MO)")
+    mo_actions = mo.add_subparsers(dest="mo_action", metavar="ACTION", required=True)
+    parse = mo_actions.add_parser("parse", help="decode one report given as the gateway's hex")
+    parse.add_argument("hex")
+    parse.add_argument("--json", action="store_true", help="print JSON")
+    parse.set_defaults(func=_mo_parse)
+    serve = mo_actions.add_parser("serve", help="receive the gateway's webhook deliveries ([mo] config)")
+    serve.add_argument("--host", help="override mo.listen_host")
+    serve.add_argument("--port", type=int, help="override mo.listen_port (0: any free port)")
+    serve.set_defaults(func=_mo_serve, log_default=logging.INFO)  # a service: its access log is its record
+    importer = mo_actions.add_parser(
+        "import", help="store saved SBD attachments (RockBLOCK or Iridium-direct file names)"
+    )
+    importer.add_argument("files", nargs="+", type=Path)
+    importer.set_defaults(func=_mo_import)
+    bench = mo_actions.add_parser("bench", help="measure webhook store+answer latency and parser speed")
+    bench.add_argument("--posts", type=int, default=200, help="deliveries POSTed one at a time (default 200)")
+    bench.add_argument("--clients", type=int, default=20, help="clients POSTing at once in the burst (default 20)")
+    bench.add_argument("--per-client", type=int, default=50, help="deliveries each burst client POSTs (default 50)")
+    bench.set_defaults(func=_mo_bench)
+    health = mo_actions.add_parser("health", help="battery, resets, gaps and spacing from the reports")
+    health.add_argument("name")
+    health.add_argument("--json", action="store_true", help="print JSON")
+    health.set_defaults(func=_mo_health)
+    export = mo_actions.add_parser("export", help="the stored position fixes as a canonical track CSV")
+    export.add_argument("name", nargs="?", help="capsule name from the configuration")
+    export.add_argument("--imei", help="a modem's IMEI instead of a configured capsule's name")
+    export.add_argument("--out", type=Path, required=True, metavar="TRACK.csv")
+    export.add_argument("--force", action="store_true", help="replace an existing --out file")
+    export.set_defaults(func=_mo_export)
+
+    recovery = subparsers.add_parser("recovery", help="landing estimate, distance from you, GPX/KML export")
+    recovery.add_argument("name")
+    recovery.add_argument("--from", dest="origin", metavar="LAT,LON|gpsd", help="your position, or 'gpsd'")
+    recovery.add_argument(
+        "--gpx", type=Path, metavar="OUT", help="write GPX for a handheld (landings, tracks); - for stdout"
+    )
+    recovery.add_argument(
+        "--kml", type=Path, metavar="OUT", help="write KML of the landings and tracks; - for stdout"
+    )
+    recovery.add_argument("--predicted", type=Path, metavar="GEOJSON", help="a predicted track (LineString)")
+    recovery.add_argument("--json", action="store_true", help="print JSON (the summary line is one of its fields)")
+    recovery.set_defaults(func=_recovery)
+
+
+def _open(args: argparse.Namespace) -> tuple[Config, Store]:
+    config = load_config(args.config)
+    return config, Store.open(config.store_path)
+
+
+def _capsule_reports(config: Config, store: Store, name: str) -> tuple[CapsuleConfig, list[StoredReport]]:
+    capsule = config.capsule(name)
+    if not capsule.imei:
+        raise ConfigError(f"capsule {name}: imei is not configured; reports and commands are keyed by IMEI")
+    return capsule, ReportStore(store).for_imei(capsule.imei)
+
+
+def _compose(args: argparse.Namespace, config: Config, store: Store) -> tuple[MtMessage, datetime | None]:
+    """The message, and the PARACHUTE plan's queue-before deadline when it carries one."""
+    composer = MtComposer()
+    queue_by = None
+    if args.interval is not None:
+        composer.interval(args.interval)
+    if args.rb_source is not None:
+        composer.rb_source(args.rb_source)
+    if args.rb_destination is not None:
+        composer.rb_destination(args.rb_destination)
+    if args.sounder is not None:
+        composer.sounder(args.sounder == "on")
+    if args.parachute is not None:
+        capsule, reports = _capsule_reports(config, store, args.name)
+        life = lc.CommandLifecycle(store, config.operator.name)
+        life.observe(reports, capsule.imei or "")
+        requested = None if args.parachute == "next" else parse_hhmm(args.parachute)
+        plan = plan_parachute(
+            reports, utc_now(), life.for_imei(capsule.imei or ""), requested, args.accept_midnight
+        )
+        print(f"window: {plan.window_text()}")
+        for warning in plan.warnings:
+            print(f"warning: {warning}")
+        composer.parachute(plan.hour, plan.minute)
+        queue_by = plan.queue_by
+    return composer.build(), queue_by
+
+
+def _mt_send(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    capsule = config.capsule(args.name)
+    message, queue_by = _compose(args, config, store)
+    print(f"text: {message.text}")
+    print(f"hex:  {message.hex} ({len(message.payload)} bytes)")
+    if args.flush:
+        print(f"warning: {FLUSH_WARNING}")
+    reports: list[StoredReport] = []
+    if carries_parachute(message):
+        reports = _capsule_reports(config, store, args.name)[1]
+        print(f"landed: {landed_evidence(reports).summary}")
+    if args.dry_run:
+        print("dry run: nothing sent")
+        return 0
+    if args.confirm is None:
+        raise RefusedError(f"a real send needs --confirm {capsule.name} (or --dry-run to only look)")
+    if not config.operator.name:
+        raise ConfigError("operator.name: set [operator] name; every command is audited with it")
+    checklists = load_checklists(PROCEDURE_DIR)  # a broken procedure file refuses before anything is sent
+    approval = None
+    if args.await_approval:
+        if not carries_parachute(message):
+            raise UsageError("--await-approval is for PARACHUTE, the command the two-person rule covers")
+        approval = _await_approval(store, capsule.name, config.operator.name, message, reports)
+    authorize_mt(
+        store, capsule.name, config.operator.name, message, reports,
+        second_operator=args.second_operator, single_operator_waiver=args.single_operator_waiver,
+        require_second_operator=config.console.require_second_operator, override_landed=args.override_landed,
+        queue_by=queue_by, now=utc_now(), approval=approval,
+    )  # fmt: skip
+    gateway = RockblockGateway.from_config(config.rockblock)
+    life = lc.CommandLifecycle(store, config.operator.name)
+    command = life.request(capsule, message, flush=args.flush)
+    command = life.send(command.id, args.confirm, gateway)
+    print(f"MT {command.id}: {command.state}: {command.detail}")
+    for step in complete_mt_steps(
+        store, checklists, config.operator.name, command, _capsule_reports(config, store, args.name)[1]
+    ):
+        print(f"checklist: done: {step.text}")
+    return 0 if command.state == lc.QUEUED else 1
+
+
+def _await_approval(
+    store: Store, capsule: str, operator: str, message: MtMessage, reports: list[StoredReport]
+) -> int:
+    """Ask another login to approve, and wait; the send goes on only once it has (and its deadline,
+    checked again at submit, still holds)."""
+    summary = f"{message.text}; landed: {landed_evidence(reports).summary}"
+    return wait_for_approval(ApprovalBook(store), capsule, "parachute", summary, operator, current_login())
+
+
+def _mt_status(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    capsule, reports = _capsule_reports(config, store, args.name)
+    life = lc.CommandLifecycle(store, config.operator.name)
+    life.observe(reports, capsule.imei or "")
+    commands = life.for_imei(capsule.imei or "")
+    if args.json:
+        listed = [_command_json(command) for command in commands]
+        print(json.dumps({"capsule": capsule.name, "imei": capsule.imei, "commands": listed}, indent=2))
+        return 0
+    for command in commands:
+        print(
+            f"MT {command.id} {command.requested_utc:%Y-%m-%d %H:%M:%S}Z {command.text} {command.state}: "
+            f"{command.detail}"
+        )
+    return 0
+
+
+def _command_json(command: lc.Command) -> dict[str, object]:
+    return {
+        "id": command.id, "text": command.text, "state": command.state, "detail": command.detail,
+        "operator": command.operator, "flush": command.flush, "requested_utc": iso_utc(command.requested_utc),
+        "updated_utc": iso_utc(command.updated_utc),
+        "queued_utc": iso_utc(command.queued_utc) if command.queued_utc else None,
+        "gateway_id": command.mt_id, "delivered_report_id": command.delivered_report_id, "effects": command.effects,
+    }  # fmt: skip
+
+
+def _mt_resolve(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    if not config.operator.name:
+        raise ConfigError("operator.name: set [operator] name; every resolution is audited with it")
+    capsule, reports = _capsule_reports(config, store, args.name)
+    life = lc.CommandLifecycle(store, config.operator.name)
+    if args.not_sent:
+        command = life.resolve_not_sent(args.command_id, capsule.name, args.note)
+    else:
+        command = life.resolve_queued(args.command_id, capsule.name, args.queued, reports, args.note)
+    print(f"MT {command.id} {command.text}: {command.state}: {command.detail}")
+    for changed in life.observe(reports, capsule.imei or ""):
+        print(f"MT {changed.id} {changed.text}: {changed.state}: {changed.detail}")
+    return 0
+
+
+def _mo_parse(args: argparse.Namespace) -> int:
+    result = parse_hex(args.hex)
+    if args.json:
+        print(json.dumps(result.as_dict(), indent=2))
+        return 0 if result.accepted else 1
+    if result.report is None:
+        raise LinkError(f"not a DRS report: {result.reason}")
+    report = result.report
+    if report.fix is None:
+        print("fix: none (19700101000000): use the Iridium position and CEP of the delivery")
+    else:
+        fix = report.fix
+        print(
+            f"fix: {fix.time:%Y-%m-%d %H:%M:%S}Z {fix.lat:.6f},{fix.lon:.6f} alt {fix.alt_m} m "
+            f"speed {fix.speed_ms} m/s course {fix.course_deg}° hdop {fix.hdop} sats {fix.sats}"
+        )
+    print(f"battery: {report.vbat:.2f} V  iteration: {report.iteration}")
+    if report.forwarding:
+        print(f"forwarding: to RockBLOCK {report.rb_destination}, from {report.rb_source}")
+    return 0
+
+
+def _mo_serve(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    mo_config = config.mo
+    if args.host is not None or args.port is not None:
+        mo_config = replace(
+            mo_config,
+            listen_host=args.host if args.host is not None else mo_config.listen_host,
+            listen_port=args.port if args.port is not None else mo_config.listen_port,
+        )
+    reports = ReportStore(store)
+    life = lc.CommandLifecycle(store, config.operator.name)
+
+    def after_answer(stored: StoredReport) -> None:
+        report = stored.report
+        if report is None:
+            what = f"rejected: {stored.parsed.reason}"
+        elif report.fix is None:
+            what = f"no fix, battery {report.vbat:.2f} V"
+        else:
+            fix = report.fix
+            what = f"{fix.lat:.5f},{fix.lon:.5f} {fix.alt_m} m at {fix.time:%H:%M:%S}Z"
+            what += f", battery {report.vbat:.2f} V"
+        print(f"MO {stored.delivery.imei} #{stored.delivery.momsn}: {what}", flush=True)
+        for command in life.observe_store(reports, stored.delivery.imei):
+            print(f"MT {command.id} {command.text}: {command.state}", flush=True)
+
+    with _stop_signals() as wait_for_stop:
+        try:
+            server = MoHttpServer(MoReceiver(reports, mo_config, after_answer)).start()
+        except OSError as exc:
+            raise LinkError(
+                f"cannot listen on {mo_config.listen_host}:{mo_config.listen_port}: {exc.strerror}"
+            ) from None
+        print(f"listening on {server.url} (Ctrl-C or SIGTERM stops it, after answering what has arrived)", flush=True)
+        log.info("listening", extra={"url": server.url, "trusted_proxy": mo_config.trusted_proxy or "none"})
+        log.info("stopping", extra={"signal": wait_for_stop()})
+        unanswered = server.stop()
+    log.info("stopped", extra={"unanswered": unanswered})
+    return 0
+
+
+_STOP_SIGNALS = {signal.SIGTERM, signal.SIGINT}
+
+
+@contextlib.contextmanager
+def _stop_signals() -> Iterator[Callable[[], str]]:
+    """A wait for SIGTERM (systemd's stop) or SIGINT (Ctrl-C) that returns its name, so the server drains.
+
+    Python's default for SIGTERM ends the process at once, with whatever was in flight unanswered. The
+    signals are blocked before any server thread starts (threads inherit the mask) and taken with
+    ``sigwait``: no handler runs at an arbitrary moment, where setting an Event could deadlock on a lock
+    the interrupted code holds.
+    """
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    try:
+        yield lambda: signal.Signals(signal.sigwait(_STOP_SIGNALS)).name
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _mo_import(args: argparse.Namespace) -> int:
+    _, store = _open(args)
+    outcomes = import_files(args.files, ReportStore(store))
+    for outcome in outcomes:
+        print(f"{outcome.path}: {outcome.status}: {outcome.message}")
+    return 1 if any(o.status == "error" for o in outcomes) else 0
+
+
+def _mo_export(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    if (args.name is None) == (args.imei is None):
+        raise UsageError("give either a capsule NAME or --imei IMEI, not both or neither")
+    if args.name is not None:
+        _, reports = _capsule_reports(config, store, args.name)
+        who = args.name
+    else:
+        if not _IMEI_RE.fullmatch(args.imei):
+            raise UsageError(f"--imei {args.imei!r}: an IMEI is 15 digits")
+        reports = ReportStore(store).for_imei(args.imei)
+        who = f"IMEI {args.imei}"
+    result = export_track(reports, args.out, who, overwrite=args.force)
+    print(
+        f"wrote {result.path}: {result.fixes} fixes of {who}; skipped {result.without_fix} report(s) "
+        f"without a fix and {result.rejected} rejected"
+    )
+    return 0
+
+
+def _mo_bench(args: argparse.Namespace) -> int:
+    for option, value, most in (("--posts", args.posts, 10_000), ("--clients", args.clients, 200),
+                                ("--per-client", args.per_client, 10_000)):  # fmt: skip
+        if not 1 <= value <= most:
+            raise UsageError(f"{option} must be from 1 to {most}")
+    for line in mo_bench.run_bench(args.posts, args.clients, args.per_client).lines():
+        print(line)
+    return 0
+
+
+def _mo_health(args: argparse.Namespace) -> int:
+    config, store = _open(args)
+    capsule, reports = _capsule_reports(config, store, args.name)
+    life = lc.CommandLifecycle(store, config.operator.name)
+    life.observe(reports, capsule.imei or "")
+    health = assess(reports, life.for_imei(capsule.imei or ""))
+    if args.json:
+        document = {
+            "capsule": capsule.name, "imei": capsule.imei, "reports": health.reports,
+            "last_report_utc": iso_utc(health.last_report) if health.last_report else None,
+            "last_vbat": health.last_vbat,
+            "findings": [{"kind": f.kind, "report_id": f.report_id, "message": f.message} for f in health.findings],
+        }  # fmt: skip
+        print(json.dumps(document, indent=2))
+        return 0
+    last = f"{health.last_report:%Y-%m-%d %H:%M:%S}Z" if health.last_report else "never"
+    vbat = f"{health.last_vbat:.2f} V" if health.last_vbat is not None else "unknown"
+    print(f"{capsule.name}: {health.reports} reports, last {last}, battery {vbat}")
+    for finding in health.findings:
+        print(f"{finding.kind}: {finding.message}")
+    return 0
+
+
+def _says_demo(node: object) -> bool:
+    """Whether any member of a GeoJSON document says ``is_demo`` (drs predict marks every feature)."""
+    if isinstance(node, dict):
+        return node.get("is_demo") is True or any(_says_demo(v) for v in node.values())
+    return isinstance(node, list) and any(_says_demo(v) for v in node)
+
+
+def _read_predicted(path: Path) -> tuple[list[tuple[float, float, float]], bool]:
+    """The first path of a GeoJSON file as (lat, lon, alt) points: a LineString, or a MultiLineString
+    (a path cut at ±180°, as drs predict --geojson writes one) with its parts joined; and whether the
+    file says it was predicted on demo weather, which the recovery files must then say too."""
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise LinkError(f"--predicted {path}: cannot read GeoJSON ({type(exc).__name__})") from None
+    stack = [document]
+    while stack:
+        node = stack.pop(0)
+        if isinstance(node, dict):
+            kind = node.get("type")
+            if kind in {"LineString", "MultiLineString"} and isinstance(node.get("coordinates"), list):
+                lines = node["coordinates"] if kind == "MultiLineString" else [node["coordinates"]]
+                try:
+                    points = [
+                        (float(c[1]), float(c[0]), float(c[2]) if len(c) > 2 else 0.0)
+                        for line in lines
+                        for c in line
+                    ]
+                except (TypeError, ValueError, IndexError):
+                    raise LinkError(f"--predicted {path}: LineString coordinates are not numbers") from None
+                return points, _says_demo(document)
+            stack.extend(v for v in node.values() if isinstance(v, dict | list))
+        elif isinstance(node, list):
+            stack.extend(v for v in node if isinstance(v, dict | list))
+    raise LinkError(f"--predicted {path}: no LineString in the GeoJSON")
+
+
+def _recovery(args: argparse.Namespace) -> int:
+    # With --json or a '-' output, stdout carries that one document and the lines for people go to stderr.
+    said = sys.stderr if piped(gpx=args.gpx, kml=args.kml, json=args.json) or args.json else sys.stdout
+    config, store = _open(args)
+    capsule, reports = _capsule_reports(config, store, args.name)
+    team = None
+    if args.origin == "gpsd":
+        team = read_gpsd_position()
+    elif args.origin is not None:
+        team = parse_position(args.origin)
+    predicted, predicted_is_demo = _read_predicted(args.predicted) if args.predicted else ([], False)
+    track = track_from_reports(reports)
+    landing = detect_landing(track)
+    coarse = None
+    if reports and (position := reports[-1].iridium_position()) is not None:
+        coarse = (*position, reports[-1].session_time)
+    capsule_at = (landing.lat, landing.lon) if landing else (track[-1].lat, track[-1].lon) if track else None
+    if team is not None and capsule_at is not None:
+        emit(far_team_warning(team, capsule_at))
+    summary = phone_summary(capsule.name, landing, track[-1] if track else None, team, coarse)
+    if not args.json:
+        print(summary, file=said)
+        if landing is not None:
+            print(
+                f"landed {landing.landed_at:%Y-%m-%d %H:%M:%S}Z at {landing.alt_m:.0f} m; "
+                f"{landing.count} fixes kept, {landing.rejected} rejected; "
+                f"last on site {landing.last_fix_at:%H:%M:%S}Z",
+                file=said,
+            )
+    if args.gpx:
+        write_gpx(args.gpx, capsule.name, track, predicted, landing, predicted_is_demo=predicted_is_demo)
+        print(f"wrote {args.gpx}", file=said)
+    if args.kml:
+        write_kml(args.kml, capsule.name, track, predicted, landing, predicted_is_demo=predicted_is_demo)
+        print(f"wrote {args.kml}", file=said)
+    if args.json:
+        print(json.dumps(_recovery_json(capsule.name, summary, landing, track, team, coarse), indent=2))
+    return 0
+
+
+def _recovery_json(
+    name: str,
+    summary: str,
+    landing: LandingEstimate | None,
+    track: list[TrackPoint],
+    team: tuple[float, float] | None,
+    coarse: tuple[float, float, float, datetime] | None,
+) -> dict[str, object]:
+    """What the summary line says, as numbers: the distance and bearing are from the team to the best
+    position there is (the landing, else the last fix, else Iridium's coarse one)."""
+    last = track[-1] if track else None
+    document: dict[str, object] = {
+        "capsule": name,
+        "summary": summary,
+        "landing": None if landing is None else {
+            "lat": landing.lat, "lon": landing.lon, "alt_m": landing.alt_m,
+            "std_m": None if math.isnan(landing.std_m) else landing.std_m, "fixes": landing.count,
+            "rejected": landing.rejected, "landed_utc": iso_utc(landing.landed_at),
+            "last_fix_utc": iso_utc(landing.last_fix_at),
+            "moved_utc": iso_utc(landing.moved_at) if landing.moved_at else None,
+        },
+        "last_fix": None if last is None else {
+            "time_utc": iso_utc(last.time), "lat": last.lat, "lon": last.lon, "alt_m": last.alt_m,
+            "speed_ms": last.speed_ms,
+        },
+        "iridium_position": None if coarse is None else {
+            "lat": coarse[0], "lon": coarse[1], "cep_m": coarse[2], "time_utc": iso_utc(coarse[3]),
+        },
+        "from": None if team is None else {"lat": team[0], "lon": team[1]},
+    }  # fmt: skip
+    best = (landing.lat, landing.lon) if landing else (last.lat, last.lon) if last else coarse[:2] if coarse else None
+    if team is not None and best is not None:
+        distance, bearing = distance_bearing(team[0], team[1], best[0], best[1])
+        document["distance_m"], document["bearing_deg"] = distance, bearing
+    return document

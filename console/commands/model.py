@@ -1,0 +1,64 @@
+"""`drs model show PATH`: a calibrated model file, for a person to read before flying it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    model = subparsers.add_parser("model", help="calibrated model files written by drs calibrate --save-model")
+    actions = model.add_subparsers(dest="model_command", metavar="ACTION", required=True)
+    show = actions.add_parser("show", help="print what a model holds and where it came from")
+    show.add_argument("path", help="the model file")
+    show.add_argument("--json", action="store_true", help="print the file's content, validated")
+    show.set_defaults(func=run_show)
+
+
+def run_show(args: argparse.Namespace) -> int:
+    from predictor.calibration import load_model
+
+    model = load_model(args.path)
+    if args.json:
+        print(json.dumps(model.to_dict(), indent=2, ensure_ascii=False))
+        return 0
+    p, prov = model.payload, model.provenance
+    lines = [
+        f"model     {model.label()}",
+        f"payload   {p.name}: {p.mass_kg:g} kg, Cd·A {p.cda_m2:g} m²",
+    ]
+    if model.terms:
+        for term in model.terms:
+            values = ", ".join(f"{k} {v}" for k, v in term.parameters().items())
+            lines.append(f"term      {term.name} ({term.family}): {values}")
+    else:
+        lines.append("term      none: calibration found no effect that helped held-out flights")
+    if model.ellipse is not None:
+        e = model.ellipse
+        lines.append(f"ellipse   σ0 {e.sigma0_km:.3g} km, h {e.h:.3g}, k {e.k_km2_per_h2:.3g} km²/h², q {e.q:.3g}")
+    else:
+        lines.append("ellipse   none (too few flights): predictions use the paper's launch model")
+    if model.live is not None:
+        sigma = model.live.error_model
+        lines.append("live      " + ("; ".join(b.describe() for b in model.live.correction.bands) or "plain re-prediction"))
+        lines.append(
+            "live 1σ   "
+            + ", ".join(
+                f"{h:g} km {a:.2f}×{c:.2f} km"
+                for h, a, c in zip(sigma.heights_km, sigma.sigma_parallel_km, sigma.sigma_perpendicular_km, strict=True)
+            )
+        )
+    else:
+        lines.append("live      not evaluated with this law: drs live flies the defaults (drs live evaluate --save-model)")
+    flights = prov.get("flights") or []
+    lines.append(f"flights   {len(flights)}: {', '.join(flights[:8])}{' …' if len(flights) > 8 else ''}")
+    lines.append(f"weather   {prov.get('weather', 'unknown')}")
+    for label, key in (("before", "held_out_before"), ("after", "held_out_after")):
+        scores = prov.get(key) or {}
+        parts = [f"{metric} mean {value.get('mean'):.3f}" for metric, value in scores.items()
+                 if isinstance(value, dict) and isinstance(value.get("mean"), int | float)]  # fmt: skip
+        if parts:
+            lines.append(f"{label:<9} (held out) {', '.join(parts)}")
+    lines.append(f"made by   drs {prov.get('project_version', '?')}: {prov.get('command', '?')}")
+    print("\n".join(lines))
+    return 0

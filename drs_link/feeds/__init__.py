@@ -1,0 +1,25 @@
+"""Field interoperability on the LAN: the balloon's position in, the capsules on the chase map out.
+
+``balloon_feed`` reads a ground station's NMEA, OziMux or Horus feed; ``chase`` sends Horus
+``PAYLOAD_SUMMARY`` packets to chasemapper.
+"""
+
+from predictor.lazy_door import lazy_door
+
+__getattr__, __dir__, __all__ = lazy_door(
+    __name__,
+    {
+        "BalloonFeed": "balloon_feed",
+        "BalloonFix": "balloon_feed",
+        "CHASE_PERIOD_S": "chase",
+        "ChaseFeed": "chase",
+        "ChasePoint": "chase",
+        "ChaseSender": "chase",
+        "ChaseStore": "chase",
+        "FeedStatus": "balloon_feed",
+        "Rejection": "balloon_feed",
+        "chase_kml_path": "chase",
+        "chase_points": "chase",
+        "format_ozimux": "balloon_feed",
+    },
+)

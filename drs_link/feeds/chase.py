@@ -1,0 +1,229 @@
+"""The capsules on the chase team's map: Horus UDP ``PAYLOAD_SUMMARY`` packets for chasemapper (issue #14).
+
+A chase car runs chasemapper fed by Horus UDP (horus-gui on 55672, auto_rx on 55673). Each capsule
+with a position (its newest Iridium fix in the store) is sent under its own name with the fields
+horusdemodlib's ``send_payload_summary`` writes and chasemapper reads: ``callsign``, ``latitude``,
+``longitude``, ``altitude`` (m), ``speed`` (km/h, -1 unknown), ``heading`` (-1 unknown), ``time``
+(``HH:MM:SS`` UTC) and ``comment``. A capsule with a live prediction is also sent as ``NAME_LAND`` at
+the predicted landing, timed by when it was predicted (chasemapper drops a packet not newer than the
+last of the same callsign, and a later prediction may land earlier).
+
+Everything is sent again every period: chasemapper keeps only what it hears, so a laptop started
+late still gets every capsule within one period, and a repeated fix is dropped there as a duplicate.
+The console keeps its latest predictions in the store (``ChaseStore``), so ``drs chase`` in another
+terminal or on another machine sends the same landings, and as a KML at a fixed path per capsule for
+chasemapper's ``[kml_overlays]``. The comment starts with ``OWN_COMMENT`` so our own balloon feed,
+listening on the same port, does not take a capsule for the balloon.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import socket
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from drs_link.config import Config, host_port
+from drs_link.errors import LinkError
+from drs_link.feeds.balloon_feed import OWN_COMMENT
+from drs_link.iridium import ReportStore
+from drs_link.store import Store, iso_utc, parse_iso_utc
+
+if TYPE_CHECKING:  # the predictor (numba) loads only where a prediction is kept
+    from predictor.prediction import Prediction
+
+log = logging.getLogger(__name__)
+
+CHASE_PERIOD_S = 10.0
+LIVE_LANDING_S = 900.0
+"""A kept landing older than this is not sent: the console predicts every minute, so it has stopped."""
+LANDING_SUFFIX = "_LAND"
+
+CHASE_DDL = """
+CREATE TABLE IF NOT EXISTS chase_landing (
+    capsule TEXT PRIMARY KEY,
+    predicted_utc TEXT NOT NULL,
+    landing_utc TEXT NOT NULL,
+    lat REAL NOT NULL,
+    lon REAL NOT NULL,
+    alt_m REAL NOT NULL,
+    kind TEXT NOT NULL,
+    is_demo INTEGER NOT NULL
+);
+"""
+
+
+@dataclass(frozen=True)
+class ChasePoint:
+    callsign: str
+    time: datetime
+    lat: float
+    lon: float
+    alt_m: float
+    speed_kmh: float | None
+    heading_deg: float | None
+    comment: str
+
+    def packet(self) -> dict[str, object]:
+        """The ``PAYLOAD_SUMMARY`` as horusdemodlib sends it (-1: not known)."""
+        return {
+            "type": "PAYLOAD_SUMMARY",
+            "callsign": self.callsign,
+            "latitude": self.lat,
+            "longitude": self.lon,
+            "altitude": self.alt_m,
+            "speed": -1 if self.speed_kmh is None else round(self.speed_kmh, 1),
+            "heading": -1 if self.heading_deg is None else round(self.heading_deg, 1),
+            "time": f"{self.time:%H:%M:%S}",
+            "comment": self.comment,
+        }
+
+
+@dataclass(frozen=True)
+class KeptLanding:
+    capsule: str
+    predicted_at: datetime
+    landing_time: datetime
+    lat: float
+    lon: float
+    alt_m: float
+    kind: str
+    """"live re-prediction" (descending) or "release now" (still on the balloon)."""
+    is_demo: bool
+
+
+def chase_kml_path(data_dir: Path, capsule: str) -> Path:
+    """Where a capsule's latest prediction is kept: one fixed path for chasemapper's ``overlay_N_path``."""
+    return data_dir / "chase" / f"{capsule}.kml"
+
+
+class ChaseStore:
+    """The latest landing prediction of each capsule, shared by the console and ``drs chase``."""
+
+    def __init__(self, store: Store) -> None:
+        self.store = store
+        store.ensure_schema(CHASE_DDL)
+
+    def keep(
+        self, capsule: str, prediction: Prediction, kind: str, predicted_at: datetime, kml: Path
+    ) -> None:
+        """Write the prediction's KML at its fixed path, then remember its landing for the feed."""
+        from predictor.prediction import write_kml
+
+        kml.parent.mkdir(parents=True, exist_ok=True)
+        partial = kml.with_name(kml.name + ".partial")
+        write_kml(prediction, partial)
+        os.replace(partial, kml)  # chasemapper may read the overlay at any moment: never half a file
+        land = prediction.landing
+        self.record(KeptLanding(capsule, predicted_at, land.time, land.lat, land.lon, land.alt_m, kind,
+                                prediction.is_demo))  # fmt: skip
+
+    def record(self, landing: KeptLanding) -> None:
+        self.store.write(
+            "INSERT OR REPLACE INTO chase_landing VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            (landing.capsule, iso_utc(landing.predicted_at), iso_utc(landing.landing_time), landing.lat,
+             landing.lon, landing.alt_m, landing.kind, int(landing.is_demo)),
+        )  # fmt: skip
+
+    def landings(self) -> dict[str, KeptLanding]:
+        rows = self.store.query("SELECT * FROM chase_landing")
+        return {
+            row["capsule"]: KeptLanding(
+                row["capsule"],
+                parse_iso_utc(row["predicted_utc"]),
+                parse_iso_utc(row["landing_utc"]),
+                row["lat"],
+                row["lon"],
+                row["alt_m"],
+                row["kind"],
+                bool(row["is_demo"]),
+            )  # fmt: skip
+            for row in rows
+        }
+
+
+def chase_points(config: Config, store: Store, now: datetime) -> list[ChasePoint]:
+    """Each configured capsule's newest fix, and its landing if one was predicted in the last minutes."""
+    reports = ReportStore(store)
+    landings = ChaseStore(store).landings()
+    points = []
+    for capsule in config.capsules:
+        stored = reports.for_imei(capsule.imei) if capsule.imei else []
+        fixes = [r.report.fix for r in stored if r.report is not None]
+        fix = next((f for f in reversed(fixes) if f is not None), None)
+        if fix is not None:
+            points.append(ChasePoint(
+                capsule.name, fix.time, fix.lat, fix.lon, float(fix.alt_m), fix.speed_ms * 3.6,
+                float(fix.course_deg), f"{OWN_COMMENT} capsule {capsule.name}, Iridium fix",
+            ))  # fmt: skip
+        land = landings.get(capsule.name)
+        if land is not None and now - land.predicted_at <= timedelta(seconds=LIVE_LANDING_S):
+            demo = " DEMO weather, not a forecast" if land.is_demo else ""
+            points.append(ChasePoint(
+                capsule.name + LANDING_SUFFIX, land.predicted_at, land.lat, land.lon, land.alt_m, None, None,
+                f"{OWN_COMMENT} predicted landing {land.landing_time:%H:%M}Z ({land.kind}){demo}",
+            ))  # fmt: skip
+    return points
+
+
+class ChaseSender:
+    """One UDP socket to the chase LAN; a broadcast address is allowed (chasemapper listens on any)."""
+
+    def __init__(self, target: str, key: str = "--udp") -> None:
+        self.host, self.port = host_port(target, key)
+        self.target = f"{self.host}:{self.port}"
+        try:
+            family, kind, proto, _, self.address = socket.getaddrinfo(
+                self.host, self.port, type=socket.SOCK_DGRAM
+            )[0]
+        except OSError as exc:
+            raise LinkError(f"cannot send to udp {self.target}: {exc.strerror or exc}") from None
+        self._sock = socket.socket(family, kind, proto)
+        self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+
+    def send(self, points: Sequence[ChasePoint]) -> None:
+        for point in points:
+            data = json.dumps(point.packet()).encode("ascii")
+            try:
+                self._sock.sendto(data, self.address)
+            except OSError as exc:
+                raise LinkError(f"cannot send to udp {self.target}: {exc.strerror or exc}") from None
+
+    def close(self) -> None:
+        self._sock.close()
+
+
+class ChaseFeed:
+    """Sends ``points()`` every ``period_s`` on its own thread until stopped; a failed round is logged and retried."""
+
+    def __init__(
+        self, sender: ChaseSender, points: Callable[[], list[ChasePoint]], period_s: float = CHASE_PERIOD_S
+    ) -> None:
+        self.sender = sender
+        self._points = points
+        self.period_s = period_s
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"chase feed {sender.target}", daemon=True)
+
+    def start(self) -> ChaseFeed:
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=10.0)
+        self.sender.close()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self.sender.send(self._points())
+            except Exception:  # the console's other work goes on: the team sees it in the log
+                log.exception("chase feed to %s: a round failed", self.sender.target)
+            self._stop.wait(self.period_s)

@@ -1,0 +1,86 @@
+"""The rules an MT must pass before it is requested, the same for `drs mt send` and the console.
+
+Most commands need only the capsule's name typed (the lifecycle checks it). PARACHUTE, which drops
+the parachute, also needs the two-person rule and landed evidence (``drs_link.iridium.landed``);
+without that evidence it can only be forced by an explicit override with a reason, given by a second
+operator or under a logged single-operator waiver. Every refusal and every authorisation is in the
+audit log with the evidence and the last fix, so nobody has to reconstruct later why it went out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from datetime import datetime
+from typing import Any
+
+from drs_link.errors import RefusedError
+from drs_link.iridium import MtMessage, StoredReport, landed_evidence
+from drs_link.ops.approval import ApprovalBook, Login, current_login
+from drs_link.ops.arming import check_second_operator
+from drs_link.store import Store
+
+PARACHUTE_PREFIX = "[PARACHUTE="
+
+
+def carries_parachute(message: MtMessage) -> bool:
+    return any(command.startswith(PARACHUTE_PREFIX) for command in message.commands)
+
+
+def authorize_mt(
+    store: Store,
+    capsule: str,
+    operator: str,
+    message: MtMessage,
+    reports: Sequence[StoredReport],
+    *,
+    second_operator: str | None = None,
+    single_operator_waiver: str | None = None,
+    require_second_operator: bool = True,
+    override_landed: str | None = None,
+    ground_m: float | None = None,
+    queue_by: datetime | None = None,
+    now: datetime | None = None,
+    approval: int | None = None,
+    login: Login | None = None,
+) -> dict[str, Any]:
+    """Refuse ``message`` (RefusedError, audited) unless its rules hold; return what to audit with it.
+
+    ``queue_by`` is the PARACHUTE plan's deadline: checked here, at submit, against ``now``, because a
+    dialog may have stood open past it (the firmware would reject the time and the command be lost).
+    ``approval`` is a request another login approved (``drs_link.ops.approval``): it stands for the second
+    operator, and is spent here, once, by the login that requested it.
+    """
+    if not carries_parachute(message):
+        return {}
+    evidence = landed_evidence(reports, ground_m)
+
+    def refuse(reason: str) -> RefusedError:
+        store.append_audit(operator, capsule, "mt.parachute", "refused",
+                           {"text": message.text, "reason": reason, "landed": evidence.audit()})  # fmt: skip
+        return RefusedError(f"{capsule}: PARACHUTE refused: {reason}")
+
+    if queue_by is not None and now is not None and now > queue_by:
+        raise refuse(
+            f"the queue-before deadline {queue_by:%H:%M:%S}Z passed ({(now - queue_by).total_seconds():.0f} s ago) "
+            "while the dialog was open; plan the time again"
+        )
+    try:
+        if approval is not None:
+            people = ApprovalBook(store).use(approval, capsule, "parachute", login or current_login())
+        else:
+            people = check_second_operator(operator, second_operator, single_operator_waiver, require_second_operator)
+    except RefusedError as exc:
+        raise refuse(str(exc)) from None
+    details: dict[str, Any] = {"text": message.text, "landed": evidence.audit(), **people}
+    if not evidence.on_ground:
+        override = (override_landed or "").strip()
+        if not override:
+            raise refuse(
+                f"no landed evidence ({evidence.summary}); it would drop the parachute in flight. To override, "
+                "give a reason and a second operator (or a logged single-operator waiver)"
+            )
+        if not people:
+            raise refuse("overriding the landed check needs a second operator or a logged single-operator waiver")
+        details["override_landed"] = override
+    store.append_audit(operator, capsule, "mt.parachute", "authorised", details)
+    return details

@@ -1,0 +1,378 @@
+"""The console's engine without a screen: polls capsules, runs release steps, reads Iridium reports.
+
+Every method blocks (SSH, SQLite, HTTP) and is meant to be called from a worker thread; results
+come back as telemetry records that the screen folds into its fleet state on its own thread. The
+release rules themselves live in ``arming``/``gonogo``/``capsule``; this module only wires one
+set of them per configured capsule, so the CLI, tests and the Textual app share one path.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+
+from shapely import Polygon
+
+from drs_link.config import CapsuleConfig, Config
+from drs_link.errors import ConfigError, LinkError
+from drs_link.iridium import (
+    Command,
+    CommandLifecycle,
+    LandedVerdicts,
+    MtMessage,
+    ReportStore,
+    RockblockGateway,
+    StoredReport,
+    interval_track,
+)
+from drs_link.link import AuthorityStatus, CapsuleLink, HostKeyError, Syncer, read_storage
+from drs_link.link.backends.registry import build_backend
+from drs_link.ops.arming import ArmingController
+from drs_link.ops.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
+from drs_link.ops.checklist import PROCEDURE_DIR, complete_command, load_checklists
+from drs_link.ops.gonogo import ExclusionZone, GoNoGoReport, WaiverBook
+from drs_link.ops.procedure import complete_mt_steps
+from drs_link.ops.telemetry import (
+    GatewaySample,
+    GnssSample,
+    LinkSample,
+    ReleaseSample,
+    ReportSample,
+    StorageSample,
+    SyncSample,
+    TelemetryRecord,
+    TelemetryRecorder,
+)
+from drs_link.store import Store, iso_utc, utc_now
+from predictor.prediction import ZoneFileError, load_zones
+
+GNSS_UERE_M = 5.0
+"""Metres of position error per unit of HDOP (a typical user range error), for the fix's uncertainty."""
+
+
+def load_exclusion_zones(path: Path | None) -> tuple[ExclusionZone, ...]:
+    """The zones go/no-go checks, read by the planner's own loader (``predictor.prediction.zones.load_zones``).
+
+    One reader, so go/no-go and the release-window sweep accept and refuse the same files and see the
+    same polygons (MultiPolygon parts, holes, rings across the antimeridian); each part keeps its
+    feature's name.
+    """
+    if path is None:
+        return ()
+    try:
+        features = load_zones(path)
+    except ZoneFileError as exc:
+        raise ConfigError(f"console.exclusion_zones_file: {exc}") from None
+    zones = []
+    for feature in features:
+        for part in getattr(feature.geometry, "geoms", (feature.geometry,)):
+            if isinstance(part, Polygon):
+                holes = tuple(tuple(ring.coords) for ring in part.interiors)
+                zones.append(ExclusionZone(feature.name, tuple(part.exterior.coords), holes))
+    return tuple(zones)
+
+
+@dataclass
+class CapsuleOps:
+    config: CapsuleConfig
+    link: CapsuleLink
+    machine: ReleaseStateMachine
+    arming: ArmingController
+    waivers: WaiverBook
+    syncer: Syncer
+    lock: threading.Lock
+
+
+def report_position(stored: StoredReport) -> tuple[float, float, float, str] | None:
+    """(lat, lon, uncertainty m, source): the GNSS fix, else the Iridium network's estimate and CEP."""
+    report = stored.report
+    if report is not None and report.fix is not None:
+        return report.fix.lat, report.fix.lon, report.fix.hdop * GNSS_UERE_M, "gnss"
+    coarse = stored.iridium_position()
+    return (*coarse, "iridium") if coarse is not None else None
+
+
+def report_record(capsule: str, stored: StoredReport, interval_min: int, landed: bool) -> TelemetryRecord:
+    """One Iridium report as telemetry (position from the fix, else the Iridium estimate).
+
+    ``interval_min`` is the longest time the next report may take (``IntervalTrack.overdue_after``):
+    the report's staleness period, so a report is not called stale before the next one is due.
+    ``landed`` is ``drs_link.iridium.landed``'s verdict on the reports up to this one: the rule the
+    PARACHUTE gate and the checklist's steps use, so the fleet never says landed when they do not.
+    """
+    report = stored.report
+    fix = report.fix if report else None
+    position = report_position(stored)
+    sample = ReportSample(
+        momsn=stored.delivery.momsn,
+        has_fix=fix is not None,
+        lat=position[0] if position else None,
+        lon=position[1] if position else None,
+        uncertainty_m=position[2] if position else None,
+        position_source=position[3] if position else None,
+        alt_m=fix.alt_m if fix else None,
+        speed_ms=fix.speed_ms if fix else None,
+        sats=fix.sats if fix else None,
+        vbat=report.vbat if report else None,
+        iteration=report.iteration if report else None,
+        interval_min=interval_min,
+        landed=landed,
+    )
+    return TelemetryRecord(stored.time, capsule, sample)
+
+
+@dataclass
+class _ReportsRead:
+    """One capsule's reports as the console has read them (time order), each with its landed verdict.
+
+    Why kept: a report poll re-read and re-parsed the whole flight whenever one report was new; now it
+    parses the new ones and feeds them to the landing rule, unless one sorts before a report already
+    read (an old attachment imported late), when it reads the history again.
+    """
+
+    stored: list[StoredReport] = field(default_factory=list)
+    landed: list[bool] = field(default_factory=list)
+    verdicts: LandedVerdicts = field(default_factory=LandedVerdicts)
+    newest_id: int = 0
+
+    def add(self, report: StoredReport) -> None:
+        self.stored.append(report)
+        self.landed.append(self.verdicts.add(report))
+        self.newest_id = max(self.newest_id, report.id)
+
+    def follows(self, report: StoredReport) -> bool:
+        """Whether ``report`` sorts after every report read so far, in the store's order (time, then id)."""
+        last = self.stored[-1]
+        return (iso_utc(last.time), last.id) < (iso_utc(report.time), report.id)
+
+
+class Operations:
+    """One console's live connection to its capsules and gateway."""
+
+    def __init__(
+        self,
+        config: Config,
+        store: Store,
+        clock: Callable[[], datetime] = utc_now,
+        recorder: TelemetryRecorder | None = None,
+        environ: dict[str, str] | None = None,
+        sleep: Callable[[float], None] | None = None,
+    ) -> None:
+        self.config = config
+        self.store = store
+        self.clock = clock
+        self.recorder = recorder
+        self.environ = environ
+        self.operator = config.operator.name or "unknown"
+        self.zones = load_exclusion_zones(config.console.exclusion_zones_file)
+        self.checklists = load_checklists(PROCEDURE_DIR)
+        self.reports = ReportStore(store)
+        self.lifecycle = CommandLifecycle(store, self.operator, clock)
+        self._reports_read: dict[str, _ReportsRead] = {}
+        self._reports_lock = threading.Lock()
+        """Report polls may overlap on worker threads; each must see what the one before it read."""
+        self.capsules: dict[str, CapsuleOps] = {}
+        for capsule in config.capsules:
+            link = CapsuleLink(capsule)
+            backend = build_backend(capsule, link)
+            kwargs = {"sleep": sleep} if sleep is not None else {}
+            machine = ReleaseStateMachine(store, capsule, backend, self.operator, clock=clock, **kwargs)  # type: ignore[arg-type]
+            arming = ArmingController(
+                store, machine, self.operator, clock, config.console.arm_window_s,
+                config.console.require_second_operator,
+            )  # fmt: skip
+            self.capsules[capsule.name] = CapsuleOps(
+                capsule, link, machine, arming, WaiverBook(store, capsule.name, clock),
+                Syncer(store, link, capsule.name, capsule.storage_mount, capsule.raid_device), threading.Lock(),
+            )  # fmt: skip
+
+    def _emit(self, records: list[TelemetryRecord]) -> list[TelemetryRecord]:
+        if self.recorder is not None:
+            for record in records:
+                self.recorder.append(record)
+        return records
+
+    def ops(self, name: str) -> CapsuleOps:
+        if name not in self.capsules:
+            raise ConfigError(f"no capsule named {name!r} in the configuration")
+        return self.capsules[name]
+
+    def _release_record(self, name: str, record: ReleaseRecord) -> TelemetryRecord:
+        sample = ReleaseSample(record.state.value, record.nmea_seen_at is not None, record.note, record.released_at)
+        return TelemetryRecord(self.clock(), name, sample)
+
+    def poll(self, name: str) -> list[TelemetryRecord]:
+        """Link, release state, microcontroller/GNSS, storage and sync of one capsule, as records."""
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.machine.record()
+            out = [self._release_record(name, record)]
+            if record.state in (ReleaseState.RELEASED, ReleaseState.GO_SENT):
+                out.append(TelemetryRecord(self.clock(), name, LinkSample(False, "released")))
+                return self._emit(out)
+            try:
+                ops.link.ensure_connected()
+                up = ops.link.heartbeat()
+            except HostKeyError as exc:
+                out.append(TelemetryRecord(self.clock(), name, LinkSample(False, str(exc))))
+                return self._emit(out)
+            except LinkError as exc:
+                up = False
+                note = str(exc)
+            else:
+                note = "heartbeat answered" if up else "heartbeat failed"
+            out.append(TelemetryRecord(self.clock(), name, LinkSample(up, note)))
+            if not up:
+                ops.link.close()
+                return self._emit(out)
+            try:
+                if record.state is ReleaseState.POWERED:
+                    mcu = ops.machine.check_microcontroller()
+                    gnss = mcu.gnss
+                    out.append(self._release_record(name, ops.machine.record()))
+                    out.append(TelemetryRecord(self.clock(), name, GnssSample(
+                        has_fix=gnss.has_fix, quality=gnss.fix_quality_name, sats=gnss.satellites,
+                        hdop=gnss.hdop, lat=gnss.latitude, lon=gnss.longitude, alt_m=gnss.altitude_m,
+                        fix_age_s=gnss.age_s, diagnosis=mcu.diagnosis, date_problem=gnss.date_problem,
+                    )))  # fmt: skip
+                storage = read_storage(ops.link, ops.config.storage_mount, ops.config.raid_device)
+                usage = storage.usage
+                out.append(TelemetryRecord(self.clock(), name, StorageSample(
+                    used_bytes=usage.used_bytes if usage else None,
+                    total_bytes=usage.total_bytes if usage else None,
+                    raid=storage.raid.state if storage.raid else "missing",
+                )))  # fmt: skip
+                if ops.config.sync_source is not None:
+                    status = ops.syncer.status(ops.config.sync_source)
+                    total = status.bytes_pending + sum(
+                        p.stat().st_size for p in ops.config.sync_source.rglob("*")
+                        if p.is_file() and p.relative_to(ops.config.sync_source).as_posix() in status.up_to_date
+                    )  # fmt: skip
+                    fraction = 1.0 if total == 0 else 1.0 - status.bytes_pending / total
+                    out.append(TelemetryRecord(self.clock(), name, SyncSample(
+                        fraction=fraction, bytes_pending=status.bytes_pending,
+                        files_pending=len(status.missing) + len(status.changed),
+                    )))  # fmt: skip
+            except LinkError as exc:
+                out.append(TelemetryRecord(self.clock(), name, LinkSample(False, str(exc))))
+            return self._emit(out)
+
+    def sync(self, name: str) -> list[TelemetryRecord]:
+        ops = self.ops(name)
+        if ops.config.sync_source is None:
+            raise ConfigError(f"capsule {name}: sync_source is not configured")
+        with ops.lock:
+            ops.syncer.sync(ops.config.sync_source)
+        return self.poll(name)
+
+    def power_on(self, name: str) -> list[TelemetryRecord]:
+        """Confirmed by the operator before this is called (the relay cannot be switched off by software)."""
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.machine.power_on(confirmed=True)
+            ops.arming.disarm("power-on")
+            self._command_done(name, "power-on", "relay latched")
+        return self._emit([self._release_record(name, record)])
+
+    def _command_done(self, name: str, command: str, result: str) -> None:
+        """The checklist step a release command completes, by the rule ``drs capsule`` uses too."""
+        complete_command(self.store, self.checklists, name, command, self.operator, result, {}, self.clock)
+
+    def fire(
+        self,
+        name: str,
+        typed_name: str,
+        report: GoNoGoReport,
+        second: str | None,
+        waiver: str | None,
+        approval: int | None = None,
+    ) -> list[TelemetryRecord]:
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.arming.fire(typed_name, report, second, waiver, approval=approval)
+            ops.link.close()
+            self._command_done(name, "fire", record.note or "Go sent")
+        return self._emit([
+            self._release_record(name, record),
+            TelemetryRecord(self.clock(), name, LinkSample(False, "released: the Pi shut down")),
+        ])  # fmt: skip
+
+    def authority(self, name: str) -> AuthorityStatus:
+        """Who holds the capsule's release authority on its Pi (read-only), for the release screen to show."""
+        ops = self.ops(name)
+        with ops.lock:
+            return ops.machine.authority()
+
+    def reset(self, name: str, typed_name: str) -> list[TelemetryRecord]:
+        """After recovery: the state machine checks the typed name; then ARM is possible again."""
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.machine.reset(typed_name)
+            ops.arming.after_reset()
+            ops.waivers.clear()
+            self._command_done(name, "reset", "release state reset")
+        return self._emit([self._release_record(name, record)])
+
+    def gateway_check(self) -> list[TelemetryRecord]:
+        """Whether commands could be sent: the gateway's address and credentials are configured."""
+        try:
+            RockblockGateway.from_config(self.config.rockblock, self.environ)
+            sample = GatewaySample(True, f"user {self.config.rockblock.username}")
+        except ConfigError as exc:
+            sample = GatewaySample(False, str(exc))
+        return self._emit([TelemetryRecord(self.clock(), None, sample)])
+
+    def new_reports(self, name: str) -> list[TelemetryRecord]:
+        """Iridium reports of one capsule stored since the last call (webhook or importer wrote them)."""
+        imei = self.ops(name).config.imei
+        if not imei:
+            return []
+        with self._reports_lock:
+            read = self._reports_read.get(name)
+            seen = read.newest_id if read is not None else 0
+            fresh = self.reports.for_imei(imei, after_id=seen)
+            if not fresh:
+                return []
+            if read is None or not read.follows(fresh[0]):
+                history = fresh if read is None else self.reports.for_imei(imei)
+                read = self._reports_read[name] = _ReportsRead()
+                fresh = history
+            for report in fresh:
+                read.add(report)
+            self.lifecycle.observe_store(self.reports, imei)
+            track = interval_track(read.stored, self.lifecycle.for_imei(imei))
+            records = [
+                report_record(name, r, track.overdue_after(r), landed)
+                for r, landed in zip(read.stored, read.landed, strict=True) if r.id > seen
+            ]  # fmt: skip
+        return self._emit(records)
+
+    def stored_reports(self, name: str) -> list[StoredReport]:
+        imei = self.ops(name).config.imei
+        return self.reports.for_imei(imei) if imei else []
+
+    def commands(self, name: str) -> list[Command]:
+        imei = self.ops(name).config.imei
+        return self.lifecycle.for_imei(imei) if imei else []
+
+    def send_mt(self, name: str, message: MtMessage, confirmation: str) -> Command:
+        """Request and queue one MT; ``confirmation`` must be the capsule's name (checked by the lifecycle).
+
+        A queued MT completes its checklist steps here, by the rule ``drs mt send`` uses too.
+        """
+        gateway = RockblockGateway.from_config(self.config.rockblock, self.environ)
+        command = self.lifecycle.request(self.ops(name).config, message)
+        command = self.lifecycle.send(command.id, confirmation, gateway)
+        complete_mt_steps(
+            self.store, self.checklists, self.operator, command, self.stored_reports(name), self.clock
+        )
+        return command
+
+    def close(self) -> None:
+        for ops in self.capsules.values():
+            ops.link.close()
+        if self.recorder is not None:
+            self.recorder.close()

@@ -1,0 +1,65 @@
+"""Which checklist step a queued MT completes: one rule for `drs mt send` and the console.
+
+The console used to tick steps itself after a send (by how the MT text started, so a combined
+``[INTERVAL=5][SOUNDER_OFF]`` ticked only the first) and the CLI never did; a SOUNDER_OFF sent
+during the descent ticked "Sounder off once the capsule is in hand". Now both front ends call
+``complete_mt_steps`` after a send: every command the MT carries completes its step by the
+procedure's own rule (``drs_link.ops.checklist.complete_command``), judged on facts read from the
+capsule's reports the same way for both (landed = ``drs_link.iridium.landed``, the PARACHUTE gate's rule).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from datetime import datetime
+
+from drs_link.iridium import StoredReport, landed_evidence
+from drs_link.iridium import lifecycle as lc
+from drs_link.ops.checklist import Checklist, Step, complete_command
+from drs_link.store import Store, utc_now
+
+MT_STEP_COMMANDS = (
+    ("[INTERVAL=", "mt-interval"),
+    ("[PARACHUTE=", "mt-parachute"),
+    ("[SOUNDER_OFF]", "mt-sounder-off"),
+)
+"""The checklist command each MT command is, by how it starts (SOUNDER_ON completes no step)."""
+
+
+def report_facts(reports: Sequence[StoredReport]) -> dict[str, object]:
+    """The checklist facts the reports alone establish (drs_link.ops.checklist.FACTS)."""
+    return {
+        "reports_received": len(reports),
+        "landed": landed_evidence(reports).on_ground if reports else None,
+    }
+
+
+def complete_mt_steps(
+    store: Store,
+    checklists: Sequence[Checklist],
+    operator: str,
+    command: lc.Command,
+    reports: Sequence[StoredReport],
+    clock: Callable[[], datetime] = utc_now,
+) -> list[Step]:
+    """The steps a send completed: none unless the gateway queued it (a refused or failed send did nothing)."""
+    if command.state != lc.QUEUED:
+        return []
+    facts = report_facts(reports)
+    done = []
+    for text in command.effects:
+        for prefix, name in MT_STEP_COMMANDS:
+            if text.startswith(prefix):
+                completed = complete_command(
+                    store,
+                    checklists,
+                    command.capsule,
+                    name,
+                    operator,
+                    f"{text} queued (MT {command.id})",
+                    facts,
+                    clock,
+                )
+                if completed is not None:
+                    done.append(completed[1])
+    return done

@@ -1,0 +1,320 @@
+"""The calibrated model: what `drs calibrate --save-model` learned, in one file every prediction can fly.
+
+Why a file: the calibration loop finds the effect the model lacks and measures the error before and
+after, but a finding that stays in a report changes no landing. The file carries everything a
+prediction needs (the payload, the selected terms with their fitted parameters, the binned correction
+when it passed, the landing-ellipse model) and where it came from, so `drs predict --model`, `drs plan
+--model` and a capsule's `model` key in drs.toml fly exactly what was calibrated, and say so.
+
+Loading is strict: a missing, corrupt or future-schema file, an unknown term or an impossible value is
+refused in one line that names the file and the field. Nothing falls back to defaults, because a
+prediction that silently ignored its calibration is worse than none.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from predictor.descent import EFFECTS, Model, Payload, Term, payload_profile
+from predictor.environment import Terrain, WeatherCube
+from predictor.errors import PredictorError, UsageError
+from predictor.prediction import (
+    DEFAULT_LIVE,
+    ERROR_MODELS,
+    NO_CORRECTION,
+    Band,
+    ErrorModel,
+    LiveCorrection,
+    LiveErrorModel,
+    LivePredictor,
+    LiveSettings,
+    TypicalRate,
+)
+
+SCHEMA_VERSION = 2
+"""2 added the optional ``live`` section: a drs that reads only 1 refuses such a file rather than fly
+the model without the live settings measured for it."""
+FILE_KIND = "drs-calibrated-model"
+
+
+class ModelFileError(PredictorError):
+    """A calibrated-model file cannot be used; the message names the file and the field."""
+
+
+@dataclass(frozen=True)
+class CalibratedModel:
+    payload: Payload
+    terms: tuple[Term, ...]
+    """The selected effect terms with their fitted parameters, then the binned correction if it passed."""
+    ellipse: ErrorModel | None
+    """The landing-ellipse model fitted on the held-out errors (None when too few flights)."""
+    provenance: dict[str, Any] = field(default_factory=dict)
+    """Flights, weather, held-out before/after per metric, date, command and project version."""
+    source_path: Path | None = None
+    live: LiveSettings | None = None
+    """The live corrections and live ellipse measured with this model's law (``drs live evaluate
+    --save-model``); None: not evaluated live, and live re-prediction flies ``DEFAULT_LIVE``."""
+
+    def live_predictor(self, cube: WeatherCube, terrain: Terrain | None = None, corrected: bool = True) -> LivePredictor:
+        """A live predictor flying this model's law with its own live settings (``corrected``: its bands)."""
+        settings = self.live or DEFAULT_LIVE
+        correction = settings.correction if corrected else NO_CORRECTION
+        return LivePredictor(cube, self.payload, terrain, correction, settings.error_model, effects=self.terms)
+
+    def model(self) -> Model:
+        return Model.for_payload(self.payload, *self.terms)
+
+    def chosen_ellipse(self, name: str | None) -> ErrorModel:
+        """The ellipse a prediction carries: ``name`` (``--error-model``) when given, else this model's
+        fitted ellipse (what its own held-out errors measured), else the launch parameters of the paper."""
+        if name is not None:
+            return ERROR_MODELS[name]
+        return self.ellipse if self.ellipse is not None else ERROR_MODELS["launch"]
+
+    def document(self, path: str | Path) -> dict[str, Any]:
+        """This model as the JSON outputs name it, so a reader can fly it again."""
+        return {
+            "path": str(path),
+            "label": self.label(),
+            "terms": [{"effect": t.name, "parameters": t.parameters()} for t in self.terms],
+            "provenance": self.provenance,
+        }
+
+    def label(self) -> str:
+        """How a prediction names the model that made it."""
+        if self.source_path is None and not self.terms:
+            return f"{self.payload.name} profile"
+        where = self.source_path.name if self.source_path else "calibrated model"
+        when = self.provenance.get("created_utc", "")[:10]
+        flights = self.provenance.get("flights")
+        count = f" on {len(flights)} flights" if isinstance(flights, list) else ""
+        return f"{where} (calibrated {when}{count})" if when else where
+
+    def to_dict(self) -> dict[str, Any]:
+        ellipse = None
+        if self.ellipse is not None:
+            ellipse = {k: getattr(self.ellipse, k) for k in ("sigma0_km", "h", "k_km2_per_h2", "q")}
+        return {
+            "kind": FILE_KIND,
+            "schema": SCHEMA_VERSION,
+            "payload": self.payload.to_dict(),
+            "terms": [{"effect": t.name, "parameters": t.parameters()} for t in self.terms],
+            "ellipse": ellipse,
+            **({"live": _live_to_dict(self.live)} if self.live is not None else {}),
+            "provenance": self.provenance,
+        }
+
+
+def _bound(value: float) -> float | None:
+    """JSON has no infinity: an open end of a band or an unlimited window is null."""
+    return value if math.isfinite(value) else None
+
+
+def _live_to_dict(live: LiveSettings) -> dict[str, Any]:
+    def band(b: Band) -> dict[str, Any]:
+        typical = b.typical_rate
+        return {
+            "lower_m": _bound(b.lower_m),
+            "upper_m": _bound(b.upper_m),
+            "use_rate": b.use_rate,
+            "rate_window_m": _bound(b.rate_window_m),
+            "typical_rate": {"heights_km": list(typical.heights_km), "factors": list(typical.factors)}
+            if typical is not None else None,
+            "wind_decay_m": b.decay_m,
+        }  # fmt: skip
+
+    e = live.error_model
+    return {
+        "bands": [band(b) for b in live.correction.bands],
+        "wind_window_m": live.correction.wind_window_m,
+        "error_model": {
+            "heights_km": list(e.heights_km),
+            "sigma_parallel_km": list(e.sigma_parallel_km),
+            "sigma_perpendicular_km": list(e.sigma_perpendicular_km),
+        },
+    }
+
+
+def save_model(model: CalibratedModel, path: str | Path) -> Path:
+    """Write atomically (a temporary file, fsync, rename): a crash never leaves half a model."""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    text = json.dumps(model.to_dict(), indent=2, ensure_ascii=False) + "\n"
+    handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as out:
+            out.write(text)
+            out.flush()
+            os.fsync(out.fileno())
+        os.replace(temporary, target)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    return target
+
+
+def load_model(path: str | Path) -> CalibratedModel:
+    source = Path(path)
+
+    def refuse(where: str, problem: str) -> ModelFileError:
+        return ModelFileError(f"model file {source}: {where}: {problem}" if where else f"model file {source}: {problem}")
+
+    try:
+        raw = json.loads(source.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ModelFileError(f"model file {source} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise refuse("", f"cannot be read ({exc})") from None
+    except json.JSONDecodeError as exc:
+        raise refuse("", f"is not valid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})") from None
+    if not isinstance(raw, dict) or raw.get("kind") != FILE_KIND:
+        raise refuse("kind", f"not a calibrated model (expected kind {FILE_KIND!r})")
+    schema = raw.get("schema")
+    if not isinstance(schema, int) or isinstance(schema, bool) or schema < 1:
+        raise refuse("schema", f"must be a whole number ≥ 1, got {schema!r}")
+    if schema > SCHEMA_VERSION:
+        raise refuse("schema", f"version {schema} is newer than this drs reads ({SCHEMA_VERSION}); update drs")
+    payload = _payload(raw.get("payload"), refuse)
+    terms = _terms(raw.get("terms"), refuse)
+    ellipse = _ellipse(raw.get("ellipse"), refuse)
+    live = _live(raw["live"], refuse) if "live" in raw else None
+    provenance = raw.get("provenance", {})
+    if not isinstance(provenance, dict):
+        raise refuse("provenance", "must be an object")
+    return CalibratedModel(payload, terms, ellipse, provenance, source, live)
+
+
+def _number(value: Any, where: str, refuse: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise refuse(where, f"must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _payload(raw: Any, refuse: Any) -> Payload:
+    if not isinstance(raw, dict):
+        raise refuse("payload", "missing (it must give mass_kg and cda_m2)")
+    mass = _number(raw.get("mass_kg"), "payload.mass_kg", refuse)
+    cda = _number(raw.get("cda_m2"), "payload.cda_m2", refuse)
+    if mass <= 0:
+        raise refuse("payload.mass_kg", f"must be a positive number of kg, got {mass:g}")
+    if cda <= 0:
+        raise refuse("payload.cda_m2", f"must be a positive number of m², got {cda:g}")
+    name = str(raw.get("name", "calibrated"))
+    return Payload(mass, cda, name=name, source=str(raw.get("source", "calibrated model file")))
+
+
+def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
+    if not isinstance(raw, list):
+        raise refuse("terms", "must be a list (empty when calibration selected nothing)")
+    terms = []
+    for index, item in enumerate(raw):
+        where = f"terms[{index}]"
+        if not isinstance(item, dict):
+            raise refuse(where, "must be an object with effect and parameters")
+        kind = EFFECTS.get(str(item.get("effect")))
+        if kind is None:
+            raise refuse(f"{where}.effect", f"{item.get('effect')!r} is not a known effect (known: {', '.join(EFFECTS)})")
+        parameters = item.get("parameters", {})
+        if not isinstance(parameters, dict):
+            raise refuse(f"{where}.parameters", "must be an object")
+        known = {f.name: f for f in dataclasses.fields(kind)}
+        values: dict[str, Any] = {}
+        for key, value in parameters.items():
+            if key not in known:
+                raise refuse(f"{where}.parameters.{key}", f"is not a parameter of {kind.name} ({', '.join(known)})")
+            if isinstance(value, list):
+                values[key] = tuple(_number(v, f"{where}.parameters.{key}[{i}]", refuse) for i, v in enumerate(value))
+            else:
+                values[key] = _number(value, f"{where}.parameters.{key}", refuse)
+        try:
+            terms.append(kind(**values))
+        except (PredictorError, TypeError) as exc:
+            raise refuse(where, str(exc)) from None
+    return tuple(terms)
+
+
+def _ellipse(raw: Any, refuse: Any) -> ErrorModel | None:
+    if raw is None:
+        return None
+    if not isinstance(raw, dict):
+        raise refuse("ellipse", "must be an object or null")
+    values = [_number(raw.get(key), f"ellipse.{key}", refuse) for key in ("sigma0_km", "h", "k_km2_per_h2", "q")]
+    try:
+        return ErrorModel(*values, name="calibrated")
+    except PredictorError as exc:
+        raise refuse("ellipse", str(exc)) from None
+
+
+def _numbers(raw: Any, where: str, refuse: Any, positive: bool = False) -> tuple[float, ...]:
+    if not isinstance(raw, list) or not raw:
+        raise refuse(where, "must be a non-empty list of numbers")
+    values = tuple(_number(v, f"{where}[{i}]", refuse) for i, v in enumerate(raw))
+    if positive and min(values) <= 0.0:
+        raise refuse(where, f"must all be positive, got {min(values):g}")
+    return values
+
+
+def _optional(raw: Any, where: str, refuse: Any, unbounded: float) -> float:
+    return unbounded if raw is None else _number(raw, where, refuse)
+
+
+def _live(raw: Any, refuse: Any) -> LiveSettings:
+    if not isinstance(raw, dict):
+        raise refuse("live", "must be an object with bands, wind_window_m and error_model")
+    if not isinstance(raw.get("bands"), list):
+        raise refuse("live.bands", "must be a list (empty: a plain re-prediction at every height)")
+    bands = []
+    for i, item in enumerate(raw["bands"]):
+        where = f"live.bands[{i}]"
+        if not isinstance(item, dict) or not isinstance(item.get("use_rate"), bool):
+            raise refuse(where, "must be an object with lower_m, upper_m, use_rate (true/false) and the rest")
+        lower = _optional(item.get("lower_m"), f"{where}.lower_m", refuse, -math.inf)
+        upper = _optional(item.get("upper_m"), f"{where}.upper_m", refuse, math.inf)
+        if lower >= upper:
+            raise refuse(where, f"lower_m {lower:g} must be below upper_m {upper:g}")
+        window = _optional(item.get("rate_window_m"), f"{where}.rate_window_m", refuse, math.inf)
+        decay = item.get("wind_decay_m")
+        decay_m = None if decay is None else _number(decay, f"{where}.wind_decay_m", refuse)
+        if window <= 0.0 or (decay_m is not None and decay_m <= 0.0):
+            raise refuse(where, "rate_window_m and wind_decay_m must be positive lengths (or null)")
+        typical = item.get("typical_rate")
+        if typical is not None:
+            if not isinstance(typical, dict):
+                raise refuse(f"{where}.typical_rate", "must be an object with heights_km and factors, or null")
+            heights = _numbers(typical.get("heights_km"), f"{where}.typical_rate.heights_km", refuse)
+            factors = _numbers(typical.get("factors"), f"{where}.typical_rate.factors", refuse, positive=True)
+            if len(heights) != len(factors):
+                raise refuse(f"{where}.typical_rate", "heights_km and factors must be as long as each other")
+            typical = TypicalRate(heights, factors)
+        bands.append(Band(lower, upper, item["use_rate"], decay_m, window, typical))
+    wind_window = _number(raw.get("wind_window_m"), "live.wind_window_m", refuse)
+    error = raw.get("error_model")
+    if not isinstance(error, dict):
+        raise refuse("live.error_model", "must be an object with heights_km and the two sigma lists")
+    columns = [
+        _numbers(error.get(key), f"live.error_model.{key}", refuse, positive=key != "heights_km")
+        for key in ("heights_km", "sigma_parallel_km", "sigma_perpendicular_km")
+    ]
+    if len({len(c) for c in columns}) != 1:
+        raise refuse("live.error_model", "heights_km and the two sigma lists must be as long as each other")
+    return LiveSettings(LiveCorrection(tuple(bands), wind_window), LiveErrorModel(*columns))
+
+
+def flown_model(
+    model_path: str | Path | None, profile: str | None, mass_kg: float | None, cda_m2: float | None
+) -> CalibratedModel:
+    """What a command flies: a calibrated model file, or a payload profile (with --mass/--cda overrides)
+    as a model without calibrated terms. One rule for predict, plan and live: the file carries its payload,
+    so both together are refused rather than one silently winning."""
+    if model_path is not None:
+        if profile is not None or mass_kg is not None or cda_m2 is not None:
+            raise UsageError("give --model or --payload/--mass/--cda, not both: the model carries its payload")
+        return load_model(model_path)
+    return CalibratedModel(payload_profile(profile or "drs").overridden(mass_kg=mass_kg, cda_m2=cda_m2), (), None)

@@ -1,0 +1,158 @@
+"""Generated DEMO weather: an analytic atmosphere written as GFS-like GRIB2, for running without a network.
+
+Why GRIB and not a cube built in memory: the demo then exercises exactly the path real forecasts take
+(eccodes files → ``load_weather`` → cube), so a demo that works says something about the product.
+Every file is marked with ``DEMO_GENERATING_PROCESS`` in its GRIB header; ``load_weather`` turns that
+into ``is_demo=True`` and a source that says DEMO, which every output carries.
+
+The atmosphere:
+- temperature and geopotential height of the ICAO standard atmosphere at each pressure level
+  (1000 … 1 hPa, i.e. up to ~48 km, above any release altitude), with a weak poleward cooling
+  below 250 hPa;
+- a westerly jet stream of ~40 m/s at 250 hPa whose core meanders in latitude and strength with
+  longitude and time, weak winds (a few m/s, turning easterly) in the stratosphere above ~22 km,
+  and a small meridional wind wave;
+- geopotential height tilted across the jet so that the jet is roughly geostrophic.
+It is plausible, not a forecast: it must never be mistaken for one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import numpy as np
+import platformdirs
+
+from predictor.environment.gribwrite import (
+    DEMO_GENERATING_PROCESS,
+    GFS_LEVELS_HPA,
+    gfs_file_name,
+    write_gfs_grib2,
+)
+
+GRID_DEG = 0.5
+STEP_H = 3
+_GAS_CONSTANT = 287.05287
+_G0 = 9.80665
+_OMEGA = 7.2921e-5
+_ISA_LAYERS = (
+    # geopotential base height (m), base temperature (K), lapse rate (K/m), base pressure (Pa)
+    (0.0, 288.15, -0.0065, 101325.0),
+    (11000.0, 216.65, 0.0, 22632.06),
+    (20000.0, 216.65, 0.001, 5474.889),
+    (32000.0, 228.65, 0.0028, 868.0187),
+    (47000.0, 270.65, 0.0, 110.9063),
+)
+_VERSION = 1  # bump when the atmosphere changes, so cached demo files are regenerated
+
+
+def default_demo_dir() -> Path:
+    return platformdirs.user_cache_path("drs") / "demo-weather"
+
+
+def demo_weather_files(
+    center_lat: float,
+    center_lon: float,
+    start: datetime,
+    cache_dir: str | Path | None = None,
+    *,
+    hours: int = 12,
+    half_width_deg: float = 8.0,
+) -> list[Path]:
+    """GRIB2 files of the demo atmosphere around a point, valid from before ``start`` to ``start + hours``.
+
+    Files are made on first use under ``cache_dir`` (default ``~/.cache/drs/demo-weather``) and reused:
+    one "cycle" (``start`` rounded down to 00/06/12/18 UTC) with 3-hourly steps, on a 0.5° grid of
+    ±``half_width_deg`` around the point (rounded to the grid), named like NOMADS files.
+    """
+    start_utc = start.astimezone(UTC) if start.tzinfo else start.replace(tzinfo=UTC)
+    cycle = start_utc.replace(hour=start_utc.hour - start_utc.hour % 6, minute=0, second=0, microsecond=0)
+    last_step = math.ceil((start_utc + timedelta(hours=hours) - cycle) / timedelta(hours=STEP_H)) * STEP_H
+    lat0 = round(float(center_lat) / GRID_DEG) * GRID_DEG
+    lon0 = round((float(center_lon) + 180.0) % 360.0 / GRID_DEG) * GRID_DEG - 180.0
+    lats = np.arange(max(lat0 - half_width_deg, -90.0), min(lat0 + half_width_deg, 90.0) + 1e-9, GRID_DEG)
+    lons = np.arange(lon0 - half_width_deg, lon0 + half_width_deg + 1e-9, GRID_DEG)
+
+    key = hashlib.sha256(
+        f"{_VERSION} {lat0} {lon0} {half_width_deg} {cycle.isoformat()} {last_step}".encode()
+    ).hexdigest()[:16]
+    folder = (Path(cache_dir) if cache_dir is not None else default_demo_dir()) / key
+    files = []
+    for step in range(0, last_step + 1, STEP_H):
+        path = folder / gfs_file_name(cycle, step)
+        if not path.is_file():
+            partial = path.with_name(path.name + ".partial")
+            u, v, t, gh = demo_atmosphere(lats, lons, cycle + timedelta(hours=step), lat0, lon0)
+            write_gfs_grib2(
+                partial,
+                cycle,
+                step,
+                GFS_LEVELS_HPA,
+                lats,
+                lons,
+                u,
+                v,
+                t,
+                gh,
+                generating_process=DEMO_GENERATING_PROCESS,
+            )
+            os.replace(partial, path)  # a half-written file never looks complete
+        files.append(path)
+    return files
+
+
+def isa_height_and_temperature(pressure_hpa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Geopotential height (gpm) and temperature (K) of the standard atmosphere at given pressures."""
+    p = np.asarray(pressure_hpa, dtype=np.float64) * 100.0
+    height = np.empty_like(p)
+    temperature = np.empty_like(p)
+    for index, pressure in np.ndenumerate(p):
+        base_h, base_t, lapse, base_p = next(
+            layer for layer in reversed(_ISA_LAYERS) if pressure <= layer[3] or layer[0] == 0.0
+        )
+        if lapse == 0.0:
+            h = base_h - _GAS_CONSTANT * base_t / _G0 * math.log(pressure / base_p)
+        else:
+            h = base_h + base_t / lapse * ((pressure / base_p) ** (-_GAS_CONSTANT * lapse / _G0) - 1.0)
+        height[index] = h
+        temperature[index] = base_t + lapse * (h - base_h)
+    return height, temperature
+
+
+def demo_atmosphere(
+    lats: np.ndarray, lons: np.ndarray, valid: datetime, lat0: float, lon0: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """u, v (m/s), t (K), gh (gpm) on ``GFS_LEVELS_HPA`` × lats × lons at one valid time."""
+    levels = np.asarray(GFS_LEVELS_HPA, dtype=np.float64)
+    height, temperature = isa_height_and_temperature(levels)
+    hours = (valid - datetime(2000, 1, 1, tzinfo=UTC)).total_seconds() / 3600.0
+    lat2, lon2 = np.meshgrid(lats, lons, indexing="ij")
+    phase = 2.0 * np.pi * ((lon2 - lon0) / 30.0 - hours / 48.0)
+    core_lat = lat0 + 2.0 * np.sin(phase)
+    hemisphere = 1.0 if lat0 >= 0.0 else -1.0
+    jet_shape = 0.25 + 0.75 * np.exp(-(((lat2 - core_lat) / 8.0) ** 2)) * (1.0 + 0.1 * np.cos(phase))
+
+    h = height[:, None, None]
+    jet_speed = 36.0 * np.exp(-(((h - 10400.0) / 4500.0) ** 2))
+    stratosphere = -6.0 / (1.0 + np.exp(-(h - 22000.0) / 3000.0))
+    u = 4.0 * np.exp(-h / 12000.0) + jet_speed * jet_shape + stratosphere
+    v = 3.0 * np.cos(phase + np.pi / 3.0) * (0.3 + jet_speed / 36.0)
+
+    troposphere = (levels >= 250.0)[:, None, None]
+    t = temperature[:, None, None] - np.where(troposphere, 0.4 * hemisphere * (lat2 - lat0), 0.0)
+    t = np.broadcast_to(t, u.shape)
+
+    # Geostrophic tilt: u = -(g/f)·∂gh/∂y, integrated northward from the centre latitude.
+    coriolis = 2.0 * _OMEGA * math.sin(math.radians(lat0))
+    coriolis = math.copysign(max(abs(coriolis), 2.0 * _OMEGA * math.sin(math.radians(15.0))), hemisphere)
+    dy = np.radians(np.diff(lats)) * 6371000.0
+    u_mid = 0.5 * (u[:, 1:, :] + u[:, :-1, :])
+    slope = np.concatenate([np.zeros_like(u[:, :1, :]), np.cumsum(u_mid * dy[None, :, None], axis=1)], axis=1)
+    centre_row = int(np.argmin(np.abs(lats - lat0)))
+    tilt = -(coriolis / _G0) * (slope - slope[:, centre_row : centre_row + 1, :])
+    gh = h + tilt
+    return u, v, np.array(t), gh

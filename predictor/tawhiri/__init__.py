@@ -1,0 +1,15 @@
+"""Our predictor behind Tawhiri's v1 API, so chase software asks it as it asks SondeHub.
+
+``api`` answers the requests; ``ascent`` is Tawhiri's standard ascent profile, which that API needs.
+"""
+
+from predictor.lazy_door import lazy_door
+
+__getattr__, __dir__, __all__ = lazy_door(
+    __name__,
+    {
+        "ApiServer": "api",
+        "PredictorService": "api",
+        "WeatherSource": "api",
+    },
+)

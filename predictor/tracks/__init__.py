@@ -1,0 +1,23 @@
+"""Measured flights: the input of calibration and of every evaluation on real data.
+
+``reading`` reads every track format into one ``Track`` of ``Fix`` es, ``cleaning`` turns a track into a
+``Flight`` by stated rules (ascent, descent, landing, and why anything was dropped), ``ascent_winds``
+turns a flight's own ascent into a ``WeatherCube``, ``standard_atmosphere`` fills pressure where none
+was logged, and ``synthetic`` flies flights with a known truth for tests.
+"""
+
+from predictor.lazy_door import lazy_door
+
+__getattr__, __dir__, __all__ = lazy_door(
+    __name__,
+    {
+        "Fix": "reading",
+        "Flight": "cleaning",
+        "MIN_ASCENT_FIXES": "ascent_winds",
+        "TrackError": "reading",
+        "ascent_weather_cube": "ascent_winds",
+        "clean": "cleaning",
+        "read_track": "reading",
+        "write_canonical_csv": "reading",
+    },
+)

@@ -1,0 +1,100 @@
+"""The house's shape, as docs/architecture.md describes it: rooms with one door each, and no cycles.
+
+import-linter (``make lint``) checks that rooms import only downward; these tests check what it cannot
+express: that code outside a room reaches it only through its ``__init__``, that every room says what
+it holds, and that no module imports itself back through others at run time.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import grimp
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("predictor", "drs_link", "console")
+ROOMS_WITHOUT_DOOR_YET: frozenset[str] = frozenset({"console.screens", "console.widgets", "drs_link.link.backends"})
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _rooms() -> list[str]:
+    """Every folder below a top-level package: deepest first, so a module belongs to its nearest room."""
+    rooms = [
+        _module_name(init.parent / "__init__.py")
+        for package in PACKAGES
+        for init in (ROOT / package).rglob("__init__.py")
+        if init.parent != ROOT / package
+    ]
+    return sorted(rooms, key=len, reverse=True)
+
+
+def _room_of(module: str, rooms: list[str]) -> str | None:
+    return next((room for room in rooms if module.startswith(room + ".")), None)
+
+
+def _imported_modules(tree: ast.AST) -> list[tuple[int, str]]:
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            found.append((node.lineno, node.module))
+        elif isinstance(node, ast.Import):
+            found.extend((node.lineno, alias.name) for alias in node.names)
+    return found
+
+
+def test_code_outside_a_room_enters_it_only_by_its_door() -> None:
+    rooms = _rooms()
+    side_doors = []
+    for package in PACKAGES:
+        for path in (ROOT / package).rglob("*.py"):
+            importer = _module_name(path)
+            for line, module in _imported_modules(ast.parse(path.read_text())):
+                room = _room_of(module, rooms)
+                if room is None or room in ROOMS_WITHOUT_DOOR_YET:
+                    continue
+                if importer != room and not importer.startswith(room + "."):
+                    side_doors.append(f"{path.relative_to(ROOT)}:{line} imports {module}, not {room}")
+    assert side_doors == []
+
+
+@pytest.mark.parametrize("room", _rooms())
+def test_every_room_says_what_it_holds(room: str) -> None:
+    door = ROOT / room.replace(".", "/") / "__init__.py"
+    docstring = ast.get_docstring(ast.parse(door.read_text()))
+    assert docstring and len(docstring) > 40, f"{door} needs a docstring that says what the room holds"
+
+
+def test_a_door_names_only_what_its_room_defines() -> None:
+    """A lazy door's name that no module defines would fail only when first used, on launch day."""
+    import importlib
+
+    for room in _rooms():
+        door = importlib.import_module(room)
+        for name in getattr(door, "__all__", ()):
+            assert getattr(door, name) is not None, f"{room}.{name}"
+
+
+@pytest.mark.parametrize("package", ["predictor", "drs_link"])
+def test_no_module_imports_itself_back_through_others(package: str) -> None:
+    """Run-time imports only: an import under ``TYPE_CHECKING`` is a type annotation, never executed."""
+    graph = grimp.build_graph(package, exclude_type_checking_imports=True)
+    cycles = []
+    for module in sorted(graph.modules):
+        for imported in graph.find_modules_directly_imported_by(module):
+            if imported != module and graph.chain_exists(imported=module, importer=imported):
+                cycles.append(f"{module} -> {imported} -> … -> {module}")
+    assert cycles == []
+
+
+def test_the_picture_in_the_architecture_doc_is_the_code_as_it_is() -> None:
+    """The graph in docs/architecture.md is made by tools/house_diagram.py (``make house``) from grimp's
+    import graph: a room that gains or loses a neighbour must be drawn again."""
+    from tools.house_diagram import mermaid
+
+    assert mermaid() in (ROOT / "docs" / "architecture.md").read_text()
