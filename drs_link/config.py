@@ -28,6 +28,7 @@ from typing import Any
 
 import platformdirs
 
+from drs_link.link.backends import backend_names
 from drs_link.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -36,6 +37,8 @@ CONFIG_ENV = "DRS_CONFIG"
 CONFIG_NAME = "drs.toml"
 LEGACY_CONFIG_DIR = Path("~/.config/drs")
 LEGACY_DATA_DIR = Path("~/.local/share/drs")
+DEFAULT_BACKEND = "stock"
+"""The flown scripts, what capsules carry; named first where the backends are listed."""
 
 
 _warned_legacy: set[Path] = set()
@@ -163,7 +166,7 @@ class CapsuleConfig:
     storage_mount: str = "/mnt/raid1"
     raid_device: str = "/dev/md0"
     serial_device: str = "/dev/ttyS0"
-    backend: str = "stock"
+    backend: str = DEFAULT_BACKEND
     rockblock_serial: int | None = None
     imei: str | None = None
     model: Path | None = None
@@ -271,8 +274,8 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
             raise ConfigError(f"{key}.{name}: must name a Python interpreter on the Pi")
     if not 1 <= capsule.port <= 65535:
         raise ConfigError(f"{key}.port: {capsule.port} is not a TCP port (1-65535)")
-    if capsule.backend not in BACKEND_NAMES:
-        names = ", ".join(repr(name) for name in BACKEND_NAMES)
+    if capsule.backend not in backend_names():
+        names = ", ".join(repr(name) for name in sorted(backend_names(), key=lambda name: name != DEFAULT_BACKEND))
         raise ConfigError(f"{key}.backend: {capsule.backend!r} is not one of {names}")
     if capsule.imei is not None and not IMEI_RE.match(capsule.imei):
         raise ConfigError(f"{key}.imei: {capsule.imei!r} must be the modem's 15-digit IMEI")
@@ -287,8 +290,6 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
         _check_range(f"{key}.{name}", getattr(capsule, name), 0.001, 3600.0, "a link that slow is down")
 
 
-BACKEND_NAMES = ("stock", "agent")
-"""What a capsule's ``backend`` key accepts; ``drs_link.link.backends.registry`` maps each to its class."""
 MAX_LEASE_S = 86_400.0
 """A day: a lease of 1e19 s overflowed the Pi's 64-bit shell arithmetic and let a second console take over."""
 VARIABLE_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,127}$")

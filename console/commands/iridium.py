@@ -19,51 +19,42 @@ from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 
+from drs_link.ops.approval import ApprovalBook, current_login
 from console.commands.approve import wait_for_approval
+from drs_link.ops.checklist import PROCEDURE_DIR, load_checklists
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
-from drs_link.iridium import (
-    FLUSH_WARNING,
+from drs_link.iridium import lifecycle as lc
+from drs_link.ops.authorize import authorize_mt, carries_parachute
+from drs_link.sim.mo_bench import run_bench
+from drs_link.iridium.commands import CATALOGUE, LISTED, PARACHUTE, parse_hhmm
+from drs_link.iridium.gateway import FLUSH_WARNING, RockblockGateway
+from drs_link.iridium.health import assess
+from drs_link.iridium.importer import import_files
+from drs_link.iridium.landed import landed_evidence
+from drs_link.iridium.mo import parse_hex
+from drs_link.iridium.mt import MtComposer, MtMessage
+from drs_link.iridium.parachute import plan_parachute
+from drs_link.ops.procedure import complete_mt_steps
+from drs_link.iridium.recovery import (
     LandingEstimate,
-    MoHttpServer,
-    MoReceiver,
-    MtComposer,
-    MtMessage,
-    ReportStore,
-    RockblockGateway,
-    StoredReport,
     TrackPoint,
-    assess,
     detect_landing,
     distance_bearing,
-    export_track,
-    import_files,
-    landed_evidence,
-    parse_hex,
-    parse_hhmm,
     parse_position,
     phone_summary,
-    plan_parachute,
     read_gpsd_position,
     track_from_reports,
     write_gpx,
     write_kml,
 )
-from drs_link.iridium import lifecycle as lc
-from drs_link.ops import (
-    PROCEDURE_DIR,
-    ApprovalBook,
-    authorize_mt,
-    carries_parachute,
-    complete_mt_steps,
-    current_login,
-    load_checklists,
-)
-from drs_link.sim import mo_bench
+from drs_link.iridium.reports import ReportStore, StoredReport
+from drs_link.iridium.track_export import export_track
+from drs_link.iridium.webhook import MoHttpServer, MoReceiver
 from drs_link.store import Store, iso_utc, utc_now
 from predictor.errors import UsageError
-from predictor.geofiles import piped
-from predictor.prediction import emit, far_team_warning
+from predictor.geofiles.output import piped
+from predictor.prediction.plausibility import emit, far_team_warning
 
 _IMEI_RE = re.compile(r"\d{15}")
 log = logging.getLogger(__name__)
@@ -74,13 +65,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     mt_actions = mt.add_subparsers(dest="mt_action", metavar="ACTION", required=True)
     send = mt_actions.add_parser("send", help="compose one MT; --dry-run shows it, --confirm NAME queues it")
     send.add_argument("name", help="capsule name from the configuration")
-    send.add_argument("--interval", type=int, metavar="N", help="reporting interval, 1-1440 minutes")
-    send.add_argument("--sounder", choices=("on", "off"), help="switch the sounder")
-    send.add_argument(
-        "--parachute", metavar="HH:MM|next", help="open release B: a UTC time, or 'next' to compute"
-    )
-    send.add_argument("--rb-destination", type=int, metavar="SERIAL", help="forward reports (0 = off)")
-    send.add_argument("--rb-source", type=int, metavar="SERIAL", help="the unit's own RockBLOCK serial")
+    for command in LISTED:
+        send.add_argument(command.flag, **command.option)
     send.add_argument("--accept-midnight", action="store_true", help="allow a PARACHUTE window across 00:00Z")
     send.add_argument("--flush", action="store_true", help="empty the gateway's MT queue first (hazardous)")
     send.add_argument("--dry-run", action="store_true", help="print the exact text and hex; send nothing")
@@ -181,28 +167,26 @@ def _capsule_reports(config: Config, store: Store, name: str) -> tuple[CapsuleCo
 
 def _compose(args: argparse.Namespace, config: Config, store: Store) -> tuple[MtMessage, datetime | None]:
     """The message, and the PARACHUTE plan's queue-before deadline when it carries one."""
-    composer = MtComposer()
+    composer = MtComposer(CATALOGUE)
     queue_by = None
-    if args.interval is not None:
-        composer.interval(args.interval)
-    if args.rb_source is not None:
-        composer.rb_source(args.rb_source)
-    if args.rb_destination is not None:
-        composer.rb_destination(args.rb_destination)
-    if args.sounder is not None:
-        composer.sounder(args.sounder == "on")
-    if args.parachute is not None:
+    for command in sorted(LISTED, key=lambda c: c is PARACHUTE):  # plan only once the rest is accepted
+        given = getattr(args, command.dest)
+        if given is None:
+            continue
+        if command is not PARACHUTE:
+            composer.add(command.name, command.from_option(given))
+            continue
         capsule, reports = _capsule_reports(config, store, args.name)
         life = lc.CommandLifecycle(store, config.operator.name)
         life.observe(reports, capsule.imei or "")
-        requested = None if args.parachute == "next" else parse_hhmm(args.parachute)
+        requested = None if given == "next" else parse_hhmm(given)
         plan = plan_parachute(
             reports, utc_now(), life.for_imei(capsule.imei or ""), requested, args.accept_midnight
         )
         print(f"window: {plan.window_text()}")
         for warning in plan.warnings:
             print(f"warning: {warning}")
-        composer.parachute(plan.hour, plan.minute)
+        composer.add(command.name, (plan.hour, plan.minute))
         queue_by = plan.queue_by
     return composer.build(), queue_by
 
@@ -418,7 +402,7 @@ def _mo_bench(args: argparse.Namespace) -> int:
                                 ("--per-client", args.per_client, 10_000)):  # fmt: skip
         if not 1 <= value <= most:
             raise UsageError(f"{option} must be from 1 to {most}")
-    for line in mo_bench.run_bench(args.posts, args.clients, args.per_client).lines():
+    for line in run_bench(args.posts, args.clients, args.per_client).lines():
         print(line)
     return 0
 

@@ -1,7 +1,8 @@
 """Commanding one capsule over Iridium from whichever screen the operator is on: one confirmation flow.
 
-The Iridium screen and the recovery screen both send INTERVAL, SOUNDER and PARACHUTE; a team in the
-field must not meet a second, subtly different set of confirmations. Every send shows the exact
+The Iridium screen and the recovery screen both send the catalogue's commands that have console
+keys (``drs_link.iridium.commands``: INTERVAL, SOUNDER and PARACHUTE); a team in the field must not
+meet a second, subtly different set of confirmations. Every send shows the exact
 ASCII and hex and needs the capsule's name (the command lifecycle refuses otherwise); PARACHUTE
 also goes through the window helper, which refuses a time the capsule would reject, and the
 two-person rule. The refusals themselves are ``drs_link``'s; this only asks and reports.
@@ -17,33 +18,33 @@ from textual.binding import Binding
 from console.screens.base import ConsoleScreen
 from console.screens.modals import HazardConfirmation, HazardModal, TextPromptModal
 from drs_link.errors import LinkError
-from drs_link.iridium import MtComposer, MtMessage, ParachutePlan, landed_evidence, parse_hhmm, plan_parachute
-from drs_link.ops import authorize_mt
+from drs_link.ops.authorize import authorize_mt
+from drs_link.iridium.commands import LISTED, PARACHUTE, MtCommand, by_name
+from drs_link.iridium.landed import landed_evidence
+from drs_link.iridium.mt import MtComposer, MtMessage
+from drs_link.iridium.parachute import ParachutePlan, plan_parachute
 
-COMMAND_ACTIONS = ("interval", "sounder", "parachute", "parachute_at")
+COMMAND_ACTIONS = ("command",)
 
 
-def command_bindings(paired: bool) -> list[Binding]:
-    """The same keys on every screen that commands.
+def command_bindings(paired: bool, listed: tuple[MtCommand, ...] = LISTED) -> list[Binding]:
+    """The same keys on every screen that commands: each catalogue command's ``keys``, as listed.
 
-    ``paired`` gives the narrow footer one entry per key pair (``o/O`` sounder off/on, ``c/C``
+    ``paired`` gives the narrow footer one entry per command (``o/O`` sounder off/on, ``c/C``
     parachute by the helper / at a typed time) so that all of them fit at 80 columns.
     """
-    if not paired:
-        return [
-            Binding("n", "interval", "INTERVAL"),
-            Binding("o", "sounder(False)", "Sounder off"),
-            Binding("O", "sounder(True)", "Sounder on", show=False),
-            Binding("c", "parachute", "Parachute"),
-            Binding("C", "parachute_at", "Parachute at…", show=False),
-        ]
-    return [
-        Binding("n", "interval", "INTERVAL"),
-        Binding("o", "sounder(False)", "Sounder off/on", key_display="o/O"),
-        Binding("O", "sounder(True)", "Sounder on", show=False),
-        Binding("c", "parachute", "Parachute", key_display="c/C"),
-        Binding("C", "parachute_at", "Parachute at…", show=False),
-    ]
+    bindings = []
+    for command in listed:
+        for index, key in enumerate(command.keys):
+            action = f"command({command.name!r}, {key.value!r})"
+            if index > 0:
+                bindings.append(Binding(key.key, action, key.description, show=False))
+            elif paired and len(command.keys) > 1:
+                display = "/".join(k.key for k in command.keys)
+                bindings.append(Binding(key.key, action, command.pair_label, key_display=display))
+            else:
+                bindings.append(Binding(key.key, action, key.description))
+    return bindings
 
 
 class CommandingScreen(ConsoleScreen):
@@ -74,28 +75,42 @@ class CommandingScreen(ConsoleScreen):
             typed,
         )
 
-    def action_interval(self) -> None:
-        def chosen(answer: str | None) -> None:
-            if answer is None:
-                return
-            try:
-                message = MtComposer().interval(int(answer.strip())).build()
-            except ValueError:
-                self.app.notify(f"INTERVAL {answer!r} is not a whole number of minutes", severity="error")
-                return
-            except LinkError as exc:
-                self.app.notify(str(exc), severity="error")
-                return
-            self._send_after_name(
-                message,
-                "The next report keeps the old spacing; the new interval spaces the reports after it.",
-            )
+    def action_command(self, name: str, given: object = None) -> None:
+        """One key of a catalogue command: its fixed value, or the value the operator types at its prompt.
 
-        self.app.push_screen(TextPromptModal("INTERVAL", "Minutes between reports (1-1440):", "2"), chosen)
+        PARACHUTE goes through the window helper (``next``: the helper picks the time) and the hazard
+        confirmation; every other command shows its text and hex and asks for the capsule's name.
+        """
+        command = by_name()[name]
+        if given is None and command.prompt is not None and command.read is not None:
+            prompt, read = command.prompt, command.read
 
-    def action_sounder(self, on: bool) -> None:
-        message = MtComposer().sounder(on).build()
-        self._send_after_name(message, "The sounder change is never confirmed by telemetry.")
+            def typed(answer: str | None) -> None:
+                if answer is None:
+                    return
+                try:
+                    value = read(answer)
+                except LinkError as exc:
+                    self.app.notify(str(exc), severity="error")
+                    return
+                self._send_value(command, value)
+
+            self.app.push_screen(TextPromptModal(prompt.title, prompt.question, prompt.default), typed)
+            return
+        self._send_value(command, given)
+
+    def _send_value(self, command: MtCommand, value: object) -> None:
+        if command is PARACHUTE:
+            plan = self._plan(value if isinstance(value, tuple) else None)  # "next": the helper picks
+            if plan is not None:
+                self._confirm_parachute(plan)
+            return
+        try:
+            message = MtComposer().add(command.name, value).build()
+        except LinkError as exc:
+            self.app.notify(str(exc), severity="error")
+            return
+        self._send_after_name(message, command.note)
 
     def _plan(self, requested: tuple[int, int] | None) -> ParachutePlan | None:
         ops = self.console.ops
@@ -108,7 +123,7 @@ class CommandingScreen(ConsoleScreen):
             return None
 
     def _confirm_parachute(self, plan: ParachutePlan) -> None:
-        message = MtComposer().parachute(plan.hour, plan.minute).build()
+        message = MtComposer().add(PARACHUTE.name, (plan.hour, plan.minute)).build()
         evidence = landed_evidence(self.console.ops.stored_reports(self.capsule))
         verdict = "Landed evidence" if evidence.on_ground else "NO LANDED EVIDENCE"
         text = "\n".join(
@@ -138,28 +153,6 @@ class CommandingScreen(ConsoleScreen):
 
         self.app.push_screen(
             HazardModal(self.capsule, "PARACHUTE", text, second, override, countdown), confirmed
-        )
-
-    def action_parachute(self) -> None:
-        plan = self._plan(None)
-        if plan is not None:
-            self._confirm_parachute(plan)
-
-    def action_parachute_at(self) -> None:
-        def chosen(answer: str | None) -> None:
-            if answer is None:
-                return
-            try:
-                requested = parse_hhmm(answer)
-            except LinkError as exc:
-                self.app.notify(str(exc), severity="error")
-                return
-            plan = self._plan(requested)
-            if plan is not None:
-                self._confirm_parachute(plan)
-
-        self.app.push_screen(
-            TextPromptModal("PARACHUTE at", "HH:MM (UTC) to check against the window:"), chosen
         )
 
     @work(thread=True, exit_on_error=False, group="mt-send")

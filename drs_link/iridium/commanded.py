@@ -10,13 +10,12 @@ on the unit and is passed over, so the latest one that may have gone down is wha
 
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
 
 from drs_link.iridium import lifecycle as lc
-from drs_link.iridium.firmware import parachute_accepted
+from drs_link.iridium.commands import INTERVAL, PARACHUTE, SOUNDER, MtCommand, is_command, parachute_accepted
 from drs_link.iridium.mo import Fix
 from drs_link.iridium.reports import StoredReport
 
@@ -24,8 +23,6 @@ NEVER_LEFT = frozenset({lc.REQUESTED, lc.FAILED, lc.NOT_SENT, lc.FLUSHED})
 """States in which the MT never reached (or was deleted from) the gateway queue: no effect on the unit."""
 DESCENT_CHANGE_MS = 3.0
 """A change of descent rate below this (or below half the rate before) is fix noise, not a hint."""
-_INTERVAL_RE = re.compile(r"\[INTERVAL=([0-9]+)\]")
-_PARACHUTE_RE = re.compile(r"\[PARACHUTE=([0-9]{2}):([0-9]{2})\]")
 
 
 @dataclass(frozen=True)
@@ -68,17 +65,17 @@ def _queue_key(command: lc.Command) -> tuple[datetime, int]:
     return _sent_at(command), command.id
 
 
-def _live(commands: Sequence[lc.Command], prefix: str) -> list[lc.Command]:
-    """Commands carrying ``prefix`` that may have reached the unit, in gateway queue order."""
+def _live(commands: Sequence[lc.Command], kind: MtCommand) -> list[lc.Command]:
+    """Commands carrying ``kind`` that may have reached the unit, in gateway queue order."""
     found = [
-        c for c in commands if c.state not in NEVER_LEFT and any(t.startswith(prefix) for t in c.effects)
+        c for c in commands if c.state not in NEVER_LEFT and any(is_command(t, kind) for t in c.effects)
     ]
     return sorted(found, key=_queue_key)
 
 
-def _part(command: lc.Command, prefix: str) -> str:
+def _part(command: lc.Command, kind: MtCommand) -> str:
     """The sub-command of this MT that sets one thing (an MT may carry several)."""
-    return next(t for t in command.effects if t.startswith(prefix))
+    return next(t for t in command.effects if is_command(t, kind))
 
 
 def _progress(command: lc.Command, commands: Sequence[lc.Command], by_id: dict[int, StoredReport]) -> str:
@@ -107,9 +104,9 @@ def _progress(command: lc.Command, commands: Sequence[lc.Command], by_id: dict[i
     return f"probably delivered at {at}"
 
 
-def _companion_evidence(command: lc.Command, prefix: str) -> str:
+def _companion_evidence(command: lc.Command, kind: MtCommand) -> str:
     """What the other commands of the same MT showed: a change that showed proves the whole MT went down."""
-    others = [effect for text, effect in command.effects.items() if not text.startswith(prefix)]
+    others = [effect for text, effect in command.effects.items() if not is_command(text, kind)]
     if lc.SEEN in others:
         return "; the change sent with it showed, so it did go down"
     if lc.NOT_SEEN in others:
@@ -127,7 +124,7 @@ def _measured(reports: Sequence[StoredReport]) -> str:
 
 
 def sounder_status(commands: Sequence[lc.Command], by_id: dict[int, StoredReport]) -> SettingStatus:
-    live = _live(commands, "[SOUNDER_")
+    live = _live(commands, SOUNDER)
     if not live:
         return SettingStatus(
             "Sounder",
@@ -136,12 +133,12 @@ def sounder_status(commands: Sequence[lc.Command], by_id: dict[int, StoredReport
         )
 
     def value(command: lc.Command) -> str:
-        return "ON" if "[SOUNDER_ON]" in command.effects else "OFF"
+        return "ON" if SOUNDER.decode(_part(command, SOUNDER)) else "OFF"
 
     latest = live[-1]
     detail = _progress(latest, commands, by_id)
     if latest.delivered_report_id is not None:
-        detail += _companion_evidence(latest, "[SOUNDER_") + "; cannot be confirmed by telemetry"
+        detail += _companion_evidence(latest, SOUNDER) + "; cannot be confirmed by telemetry"
     else:
         delivered = [c for c in live[:-1] if c.delivered_report_id is not None]
         if delivered:
@@ -153,13 +150,12 @@ def interval_status(
     commands: Sequence[lc.Command], reports: Sequence[StoredReport], by_id: dict[int, StoredReport]
 ) -> SettingStatus:
     measured = _measured(reports)
-    live = _live(commands, "[INTERVAL=")
+    live = _live(commands, INTERVAL)
     if not live:
         return SettingStatus("Interval", "unknown", f"never commanded from this console; {measured}")
     latest = live[-1]
-    text = _part(latest, "[INTERVAL=")
-    match = _INTERVAL_RE.fullmatch(text)
-    value = f"{match.group(1)} min" if match else text
+    text = _part(latest, INTERVAL)
+    value = f"{INTERVAL.decode(text)} min"
     effect = latest.effects[text]
     progress = _progress(latest, commands, by_id)
     if effect == lc.SEEN:
@@ -203,15 +199,13 @@ def _descent_hint(reports: Sequence[StoredReport], delivered_report_id: int) -> 
 
 def _window_verdict(text: str, report: StoredReport | None) -> str:
     """When the report it went down with makes the firmware reject it for certain, say so: it was lost."""
-    match = _PARACHUTE_RE.fullmatch(text)
-    if report is None or match is None:
+    if report is None:
         return ""
+    hour, minute = PARACHUTE.decode(text)
     fix = report.report.fix if report.report is not None else None
     if fix is None:
         return "; that report had no fix and a no-fix cycle ignores PARACHUTE: lost if it went down then"
-    if not parachute_accepted(
-        int(match.group(1)) * 60 + int(match.group(2)), fix.time.hour * 60 + fix.time.minute
-    ):
+    if not parachute_accepted(hour * 60 + minute, fix.time.hour * 60 + fix.time.minute):
         return (
             f"; the {_hhmm(fix.time)} fix is outside its ±14 min window: "
             "rejected and lost if it went down then"
@@ -222,15 +216,15 @@ def _window_verdict(text: str, report: StoredReport | None) -> str:
 def parachute_status(
     commands: Sequence[lc.Command], reports: Sequence[StoredReport], by_id: dict[int, StoredReport]
 ) -> SettingStatus:
-    live = _live(commands, "[PARACHUTE=")
+    live = _live(commands, PARACHUTE)
     if not live:
         return SettingStatus("Parachute", "none", "no release commanded from this console")
     latest = live[-1]
-    text = _part(latest, "[PARACHUTE=")
+    text = _part(latest, PARACHUTE)
     detail = _progress(latest, commands, by_id)
     hint = ""
     if latest.delivered_report_id is not None:
-        detail += _companion_evidence(latest, "[PARACHUTE=")
+        detail += _companion_evidence(latest, PARACHUTE)
         detail += _window_verdict(text, by_id.get(latest.delivered_report_id))
         hint = _descent_hint(reports, latest.delivered_report_id)
     detail += "; the release cannot be confirmed by telemetry" + hint

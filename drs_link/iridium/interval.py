@@ -20,18 +20,17 @@ possible; one the reports did not show (rejected or not downloaded) changed noth
 
 from __future__ import annotations
 
-import re
 import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
 
 from drs_link.iridium import lifecycle as lc
+from drs_link.iridium.commands import INTERVAL
 from drs_link.iridium.reports import StoredReport
 
 DEFAULT_INTERVAL_MIN = 2
 """The firmware's INTERVAL when its flash is initialised (drs_protocol.md 3.2)."""
-_INTERVAL_RE = re.compile(r"\[INTERVAL=([0-9]+)\]")
 
 
 def infer_interval_min(fix_times: Sequence[datetime]) -> int | None:
@@ -79,9 +78,9 @@ class IntervalTrack:
 
 def _interval_of(command: lc.Command) -> tuple[str, int] | None:
     for text in command.effects:
-        match = _INTERVAL_RE.fullmatch(text)
-        if match:
-            return text, int(match.group(1))
+        minutes = INTERVAL.decode(text)
+        if minutes is not None:
+            return text, minutes
     return None
 
 

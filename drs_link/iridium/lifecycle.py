@@ -17,7 +17,6 @@ A real send needs a confirmation that names the capsule, checked here below any 
 from __future__ import annotations
 
 import json
-import re
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
@@ -25,6 +24,7 @@ from typing import Any
 
 from drs_link.config import CapsuleConfig
 from drs_link.errors import RefusedError
+from drs_link.iridium.commands import CATALOGUE, NEVER_VISIBLE, NOT_SEEN, PENDING, SEEN, read_text
 from drs_link.iridium.gateway import FLUSH_WARNING, RockblockGateway
 from drs_link.iridium.mt import MtMessage
 from drs_link.iridium.reports import ReportStore, StoredReport
@@ -62,9 +62,8 @@ EFFECT_CONFIRMED = "effect_confirmed"
 UNCONFIRMABLE = "unconfirmable"
 TIMED_OUT = "timed_out"
 
-PENDING, SEEN, NEVER_VISIBLE, NOT_SEEN = "pending", "seen", "never visible", "not seen"
-EFFECT_REPORTS = 5
-"""Reports after delivery within which an INTERVAL/RBDESTINATION change must show, else timed out."""
+UNSEEN_NAMES = " and ".join(command.name for command in CATALOGUE if command.confirm is None)
+"""The commands no report can show the effect of (the catalogue's without ``confirm``)."""
 INTERRUPTED_AFTER = timedelta(minutes=15)
 """A command still ``requested`` or ``confirmed`` this long after was being sent by a process that
 stopped (kill -9, a crash, a lost laptop) before the gateway answered: longer than any send can take
@@ -72,7 +71,6 @@ stopped (kill -9, a crash, a lost laptop) before the gateway answered: longer th
 QUEUE_TIMEOUT = timedelta(hours=3)
 """A command still undelivered after this long with no report at all is called timed out."""
 _SEND_OUTCOME = {"queued": QUEUED, "failed": FAILED, "not_sent": NOT_SENT, "unknown": DELIVERY_UNKNOWN}
-_COMMAND_RE = re.compile(r"\[([A-Z_]+)(?:=([0-9:]+))?\]")
 
 
 @dataclass(frozen=True)
@@ -127,10 +125,11 @@ def _row_to_command(row: Any) -> Command:
 
 
 def _initial_effects(commands: tuple[str, ...] | list[str]) -> dict[str, str]:
+    """Pending for a command whose effect the reports can show (the catalogue's ``confirm``), else never visible."""
     effects = {}
-    for command in commands:
-        name = command[1:].split("=")[0].rstrip("]")
-        effects[command] = PENDING if name in ("INTERVAL", "RBDESTINATION", "RBSOURCE") else NEVER_VISIBLE
+    for text in commands:
+        found = read_text(text)
+        effects[text] = PENDING if found is not None and found[0].confirm is not None else NEVER_VISIBLE
     return effects
 
 
@@ -167,11 +166,6 @@ def _caveat(command: Command, unresolved: list[Command]) -> str:
         f"; uncertain until MT {ids} (delivery unknown, queued before it) is resolved: "
         "if the gateway did queue it, it went down first and this one later"
     )
-
-
-def _spacing_matches(seconds: float, minutes: int) -> bool:
-    """A fix-to-fix spacing equals INTERVAL allowing for fix acquisition jitter (up to about 1 min)."""
-    return abs(seconds - minutes * 60) <= max(60.0, 0.05 * minutes * 60)
 
 
 class CommandLifecycle:
@@ -495,8 +489,7 @@ class CommandLifecycle:
             return self._set(
                 command,
                 UNCONFIRMABLE,
-                note
-                + "; PARACHUTE and SOUNDER leave no trace in the reports: their effect can not be confirmed",
+                f"{note}; {UNSEEN_NAMES} leave no trace in the reports: their effect can not be confirmed",
                 delivered_report_id=report.id,
             )
         return self._set(command, PROBABLY_DELIVERED, note, delivered_report_id=report.id)
@@ -510,23 +503,11 @@ class CommandLifecycle:
         for text in effects:
             if effects[text] != PENDING:
                 continue
-            match = _COMMAND_RE.fullmatch(text)
-            if match is None:
+            found = read_text(text)
+            if found is None or found[0].confirm is None:
                 continue
-            name, value = match.group(1), int(match.group(2))
-            if name == "INTERVAL":
-                effects[text] = self._interval_seen(value, after)
-            elif name == "RBDESTINATION" and after:
-                report = after[0].report
-                assert report is not None
-                effects[text] = SEEN if (report.rb_destination or 0) == value else NOT_SEEN
-            elif name == "RBSOURCE" and after:
-                report = after[0].report
-                assert report is not None
-                if report.rb_source is None:
-                    effects[text] = NEVER_VISIBLE
-                else:
-                    effects[text] = SEEN if report.rb_source == value else NOT_SEEN
+            command_kind, value = found
+            effects[text] = command_kind.confirm(value, after)
         if effects == command.effects:
             return None
         if PENDING in effects.values():
@@ -546,12 +527,3 @@ class CommandLifecycle:
         return self._set(
             command, UNCONFIRMABLE, f"no effect can be confirmed: {summary}", effects=json.dumps(effects)
         )
-
-    @staticmethod
-    def _interval_seen(minutes: int, after: list[StoredReport]) -> str:
-        """The new INTERVAL shows between the next two reports: the alarm already armed keeps the old one."""
-        fixes = [r.report.fix.time for r in after if r.report is not None and r.report.fix is not None]
-        for earlier, later in zip(fixes, fixes[1:], strict=False):
-            if _spacing_matches((later - earlier).total_seconds(), minutes):
-                return SEEN
-        return NOT_SEEN if len(after) >= EFFECT_REPORTS else PENDING

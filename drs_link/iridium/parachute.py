@@ -18,7 +18,7 @@ from datetime import datetime, timedelta
 
 from drs_link.errors import RefusedError
 from drs_link.iridium import lifecycle as lc
-from drs_link.iridium.firmware import parachute_accepted
+from drs_link.iridium.commands import MINUTES_PER_DAY, PARACHUTE_WINDOW_MIN, parachute_accepted
 from drs_link.iridium.interval import IntervalTrack, interval_track, minutes_text
 from drs_link.iridium.reports import StoredReport
 
@@ -34,7 +34,9 @@ WANTED_SLACK_MIN = 2
 are covered: a fix earlier than any seen so far must not push the command out of the window."""
 LONG_INTERVAL_MIN = 10
 HISTORY = 12
-MIDNIGHT_GUARD_MIN = 15
+MIDNIGHT_GUARD_MIN = PARACHUTE_WINDOW_MIN
+REACH_MIN = PARACHUTE_WINDOW_MIN - 1
+"""How far (minutes) a PARACHUTE time may lie from the fix minute and still be accepted: 14."""
 
 
 class ParachuteRefused(RefusedError):
@@ -109,7 +111,7 @@ def _residuals(reports: list[StoredReport], track: IntervalTrack) -> list[timede
 @functools.cache
 def _accepted_at(g_minute: int) -> frozenset[int]:
     """Every PARACHUTE minute the firmware accepts when its fix minute is ``g_minute``."""
-    return frozenset(p for p in range(1440) if parachute_accepted(p, g_minute))
+    return frozenset(p for p in range(MINUTES_PER_DAY) if parachute_accepted(p, g_minute))
 
 
 def _accepted_in(cycle: CycleForecast) -> frozenset[int]:
@@ -126,7 +128,10 @@ def _covered(p_minute: int, accepted_sets: list[frozenset[int]]) -> int:
 
 
 def _slack(p_minute: int, cycle: CycleForecast) -> int:
-    return min(14 - min(abs(p_minute - g), 1440 - abs(p_minute - g)) for g in cycle.minutes_of_day())
+    """Minutes to spare before the fix minute that is furthest from ``p_minute`` leaves its window."""
+    return min(
+        REACH_MIN - min(abs(p_minute - g), MINUTES_PER_DAY - abs(p_minute - g)) for g in cycle.minutes_of_day()
+    )
 
 
 def plan_parachute(
@@ -176,13 +181,15 @@ def plan_parachute(
     first_offset = 1
     while alarm(first_offset) + early + session_delay - QUEUE_MARGIN <= now:
         first_offset += 1
-    horizon = max(1, (29 + min(then) - 1) // min(then) + 1)
+    horizon = max(1, (2 * REACH_MIN + min(then)) // min(then) + 1)
     cycles = [
         CycleForecast(k, alarm(k) + early, alarm(k, latest=True) + late)
         for k in range(first_offset, first_offset + horizon)
     ]
-    if len(cycles[0].minutes_of_day()) > 28:
-        raise ParachuteRefused("the next fix time cannot be predicted within 28 min: no HH:MM is safe")
+    if len(cycles[0].minutes_of_day()) > 2 * REACH_MIN:
+        raise ParachuteRefused(
+            f"the next fix time cannot be predicted within {2 * REACH_MIN} min: no HH:MM is safe"
+        )
     accepted_sets = [_accepted_in(cycle) for cycle in cycles]
     accepted = sorted(accepted_sets[0])
     candidates = [requested[0] * 60 + requested[1]] if requested is not None else accepted or [0]
@@ -207,7 +214,7 @@ def plan_parachute(
         )
     chosen = cycles[:covered]
     minutes = [best, *(g for cycle in chosen for g in cycle.minutes_of_day())]
-    near_midnight = any(m < MIDNIGHT_GUARD_MIN or m >= 1440 - MIDNIGHT_GUARD_MIN for m in minutes)
+    near_midnight = any(m < MIDNIGHT_GUARD_MIN or m >= MINUTES_PER_DAY - MIDNIGHT_GUARD_MIN for m in minutes)
     if near_midnight and not accept_midnight:
         raise ParachuteRefused(
             "the window is within 15 min of 00:00 UTC, where the firmware's rule is loose (23:46 matches "

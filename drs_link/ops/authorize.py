@@ -13,17 +13,19 @@ from collections.abc import Sequence
 from datetime import datetime
 from typing import Any
 
-from drs_link.errors import RefusedError
-from drs_link.iridium import MtMessage, StoredReport, landed_evidence
 from drs_link.ops.approval import ApprovalBook, Login, current_login
 from drs_link.ops.arming import check_second_operator
+from drs_link.errors import RefusedError
+from drs_link.iridium.commands import PARACHUTE, is_command
+from drs_link.iridium.landed import landed_evidence
+from drs_link.iridium.mt import MtMessage
+from drs_link.iridium.reports import StoredReport
 from drs_link.store import Store
-
-PARACHUTE_PREFIX = "[PARACHUTE="
 
 
 def carries_parachute(message: MtMessage) -> bool:
-    return any(command.startswith(PARACHUTE_PREFIX) for command in message.commands)
+    """Whether the two-person rule and the landed gate apply: the MT opens release B."""
+    return any(is_command(text, PARACHUTE) for text in message.commands)
 
 
 def authorize_mt(

@@ -3,8 +3,8 @@
 The console used to tick steps itself after a send (by how the MT text started, so a combined
 ``[INTERVAL=5][SOUNDER_OFF]`` ticked only the first) and the CLI never did; a SOUNDER_OFF sent
 during the descent ticked "Sounder off once the capsule is in hand". Now both front ends call
-``complete_mt_steps`` after a send: every command the MT carries completes its step by the
-procedure's own rule (``drs_link.ops.checklist.complete_command``), judged on facts read from the
+``complete_mt_steps`` after a send: every command the MT carries completes the step the catalogue
+names for it (``MtCommand.checklist_step``; SOUNDER_ON completes none) by the procedure's own rule (``drs_link.ops.checklist.complete_command``), judged on facts read from the
 capsule's reports the same way for both (landed = ``drs_link.iridium.landed``, the PARACHUTE gate's rule).
 """
 
@@ -13,17 +13,12 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from datetime import datetime
 
-from drs_link.iridium import StoredReport, landed_evidence
-from drs_link.iridium import lifecycle as lc
 from drs_link.ops.checklist import Checklist, Step, complete_command
+from drs_link.iridium import lifecycle as lc
+from drs_link.iridium.commands import read_text
+from drs_link.iridium.landed import landed_evidence
+from drs_link.iridium.reports import StoredReport
 from drs_link.store import Store, utc_now
-
-MT_STEP_COMMANDS = (
-    ("[INTERVAL=", "mt-interval"),
-    ("[PARACHUTE=", "mt-parachute"),
-    ("[SOUNDER_OFF]", "mt-sounder-off"),
-)
-"""The checklist command each MT command is, by how it starts (SOUNDER_ON completes no step)."""
 
 
 def report_facts(reports: Sequence[StoredReport]) -> dict[str, object]:
@@ -48,18 +43,13 @@ def complete_mt_steps(
     facts = report_facts(reports)
     done = []
     for text in command.effects:
-        for prefix, name in MT_STEP_COMMANDS:
-            if text.startswith(prefix):
-                completed = complete_command(
-                    store,
-                    checklists,
-                    command.capsule,
-                    name,
-                    operator,
-                    f"{text} queued (MT {command.id})",
-                    facts,
-                    clock,
-                )
-                if completed is not None:
-                    done.append(completed[1])
+        found = read_text(text)
+        name = found[0].checklist_step(found[1]) if found is not None else None
+        if name is None:
+            continue
+        completed = complete_command(
+            store, checklists, command.capsule, name, operator, f"{text} queued (MT {command.id})", facts, clock
+        )
+        if completed is not None:
+            done.append(completed[1])
     return done

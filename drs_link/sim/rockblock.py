@@ -4,7 +4,7 @@ The Iridium network cannot exist here, so this stands in for it and behaves like
 failures included: the MT endpoint answers ``OK,<id>`` or each documented ``FAILED`` code, can be
 told to answer slowly or reset the connection, queues MTs per IMEI and hands out one per session;
 the capsule builds byte-exact MO reports and applies downloaded MTs with the firmware's own rules
-(``drs_link.iridium.firmware``), including the ±14 min PARACHUTE test and silent loss of bad commands.
+(``drs_link.iridium.commands``), including the ±14 min PARACHUTE test and silent loss of bad commands.
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ import jwt
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric import rsa
 
-from drs_link.iridium import GnssFix, MtEffect, apply_mt, format_mo
+from drs_link.iridium.commands import MtEffect, apply_mt
+from drs_link.iridium.firmware import GnssFix, format_mo
 
 MAX_MT_BYTES_GATEWAY = 270
 MT_PATH = "/rockblock/MT"

@@ -46,7 +46,7 @@ async def test_recovery_does_not_call_a_report_stale_before_the_next_is_due_on_t
         reports = ReportStore(store)
         alarm = fly(capsule, gateway, reports, T0, 3)
         clock.now = alarm - timedelta(seconds=30)
-        operations.send_mt("DRS1", MtComposer().interval(5).build(), "DRS1")
+        operations.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
         fly(capsule, gateway, reports, alarm, 4)  # downloaded, one more 2-min cycle, then 5-min cycles
         last = reports.for_imei(IMEI)[-1]
         clock.now = last.time + timedelta(minutes=4, seconds=48)

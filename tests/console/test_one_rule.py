@@ -142,7 +142,7 @@ def history_on_a_commanded_interval(store: Store, gateway: SimulatedRockblock, n
     for n in range(12):
         if n == 7:
             clock.now = alarm - timedelta(seconds=30)
-            command = life.request(CAPSULE, MtComposer().interval(5).build())
+            command = life.request(CAPSULE, MtComposer().add("INTERVAL", 5).build())
             life.send(command.id, "DRS1", client)
         fix = GnssFix(alarm, 67.71, 21.60, 412.0, 0.0, 0.0, 0.9, 9)
         mo = capsule.session(gateway, fix, alarm + timedelta(seconds=20))

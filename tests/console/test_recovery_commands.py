@@ -17,6 +17,7 @@ from textual.widgets import DataTable
 
 from console.app import ConsoleSetup, DrsConsole
 from console.commands.console import _team
+from console.screens.commanding import COMMAND_ACTIONS
 from console.screens.iridium import IridiumScreen
 from console.screens.modals import TextPromptModal
 from console.screens.recovery import RecoveryScreen
@@ -160,7 +161,7 @@ async def test_replay_shows_no_command_keys_on_the_recovery_screen(
         assert isinstance(screen, RecoveryScreen)
         await app.workers.wait_for_complete()
         await pilot.pause()
-        for action in ("interval", "sounder", "parachute", "parachute_at"):
+        for action in COMMAND_ACTIONS:
             assert screen.check_action(action, ()) is None
         await pilot.press("o", "n", "c")
         assert app.screen is screen

@@ -64,7 +64,7 @@ async def test_the_mt_detail_is_shown_whole_at_120x40(canned_app: Callable[..., 
     app = canned_app(now=T0)
     assert app.ops is not None
     lifecycle = app.ops.lifecycle
-    command = lifecycle.request(app.ops.config.capsules[1], MtComposer().interval(5).build())
+    command = lifecycle.request(app.ops.config.capsules[1], MtComposer().add("INTERVAL", 5).build())
     failed = lifecycle.send(command.id, "DRS2", _Refusing())  # type: ignore[arg-type]
     assert len(failed.detail) > 120
     async with app.run_test(size=(120, 40)) as pilot:

@@ -128,7 +128,7 @@ def test_parachute_with_an_approval_from_another_login_is_audited_with_both(tmp_
     store = seed(tmp_path, landed(recent(10.5)))
     reports = ReportStore(store).for_imei(IMEI)
     book = ApprovalBook(store)
-    message = MtComposer().parachute(1, 19).build()
+    message = MtComposer().add("PARACHUTE", (1, 19)).build()
     request = book.request("DRS1", "parachute", message.text, "alice", ALICE_A)
     with pytest.raises(RefusedError, match="not approved"):
         authorize_mt(store, "DRS1", "alice", message, reports, approval=request.id, login=ALICE_A)

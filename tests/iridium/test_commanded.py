@@ -112,7 +112,7 @@ def test_a_no_fix_report_breaks_the_measured_spacing(rig: Rig) -> None:
 
 def test_sounder_on_is_queued_then_probably_delivered_and_never_confirmed(rig: Rig) -> None:
     rig.fly(T0, 3)
-    command = rig.send(MtComposer().sounder(True).build(), at(5))
+    command = rig.send(MtComposer().add("SOUNDER", True).build(), at(5))
     queued = rig.settings().sounder
     assert (queued.value, queued.command_id) == ("ON", command.id)
     assert queued.line == "Sounder: ON — queued 10:05Z, not yet fetched"
@@ -124,9 +124,9 @@ def test_sounder_on_is_queued_then_probably_delivered_and_never_confirmed(rig: R
 
 
 def test_a_later_off_supersedes_an_earlier_on_and_says_what_holds_until_then(rig: Rig) -> None:
-    rig.send(MtComposer().sounder(True).build(), at(1))
+    rig.send(MtComposer().add("SOUNDER", True).build(), at(1))
     rig.cycle(at(2))
-    rig.send(MtComposer().sounder(False).build(), at(3))
+    rig.send(MtComposer().add("SOUNDER", False).build(), at(3))
     pending = rig.settings().sounder
     assert pending.line == (
         "Sounder: OFF — queued 10:03Z, not yet fetched; "
@@ -140,16 +140,16 @@ def test_a_later_off_supersedes_an_earlier_on_and_says_what_holds_until_then(rig
 
 
 def test_commands_that_never_left_or_were_flushed_change_nothing(rig: Rig) -> None:
-    rig.send(MtComposer().sounder(True).build(), at(1))
+    rig.send(MtComposer().add("SOUNDER", True).build(), at(1))
     rig.cycle(at(2))
     delivered_on = rig.settings().sounder.line
     rig.gateway.script(Scripted("failed", code=13))
-    assert rig.send(MtComposer().sounder(False).build(), at(3)).state == lc.FAILED
-    wrong_name = rig.life.request(CAPSULE, MtComposer().sounder(False).build())
+    assert rig.send(MtComposer().add("SOUNDER", False).build(), at(3)).state == lc.FAILED
+    wrong_name = rig.life.request(CAPSULE, MtComposer().add("SOUNDER", False).build())
     with pytest.raises(RefusedError):
         rig.life.send(wrong_name.id, "DRS2", rig.client)
-    flushed = rig.send(MtComposer().sounder(False).build(), at(4))
-    rig.send(MtComposer().interval(3).build(), at(5), flush=True)
+    flushed = rig.send(MtComposer().add("SOUNDER", False).build(), at(4))
+    rig.send(MtComposer().add("INTERVAL", 3).build(), at(5), flush=True)
     assert rig.life.get(flushed.id).state == lc.FLUSHED
     with socket.socket() as closed:
         closed.bind(("127.0.0.1", 0))
@@ -157,13 +157,13 @@ def test_commands_that_never_left_or_were_flushed_change_nothing(rig: Rig) -> No
     unreachable = RockblockGateway(
         f"http://127.0.0.1:{port}/rockblock/MT", "ops", "pw", connect_attempts=1, retry_delay_s=0.0
     )
-    not_sent = rig.life.request(CAPSULE, MtComposer().sounder(False).build())
+    not_sent = rig.life.request(CAPSULE, MtComposer().add("SOUNDER", False).build())
     assert rig.life.send(not_sent.id, "DRS1", unreachable).state == lc.NOT_SENT
     assert rig.settings().sounder.line == delivered_on
 
 
 def test_a_send_the_console_died_in_says_the_gateway_answer_was_never_recorded(rig: Rig) -> None:
-    command = rig.life.request(CAPSULE, MtComposer().sounder(False).build())
+    command = rig.life.request(CAPSULE, MtComposer().add("SOUNDER", False).build())
     # What the store holds when the console stops between the operator's confirmation and the
     # gateway's answer: the lifecycle writes "confirmed" before the request goes out.
     rig.store.write("UPDATE mt_command SET state = ? WHERE id = ?", (lc.CONFIRMED, command.id))
@@ -174,13 +174,13 @@ def test_a_send_the_console_died_in_says_the_gateway_answer_was_never_recorded(r
 
 def test_delivery_unknown_sends_the_operator_to_the_portal_and_shadows_later_attributions(rig: Rig) -> None:
     rig.gateway.script(Scripted("reset"))
-    unknown = rig.send(MtComposer().sounder(False).build(), at(1))
+    unknown = rig.send(MtComposer().add("SOUNDER", False).build(), at(1))
     assert unknown.state == lc.DELIVERY_UNKNOWN
     assert rig.settings().sounder.line == (
         "Sounder: OFF — sent 10:01Z, delivery unknown (no gateway answer): "
         "check the portal, resolve on the Iridium screen"
     )
-    rig.send(MtComposer().sounder(True).build(), at(2))
+    rig.send(MtComposer().add("SOUNDER", True).build(), at(2))
     rig.cycle(at(3))
     assert rig.settings().sounder.line == (
         "Sounder: ON — probably delivered at the 10:03Z report or later "
@@ -190,7 +190,7 @@ def test_delivery_unknown_sends_the_operator_to_the_portal_and_shadows_later_att
 
 
 def test_a_queued_command_with_no_report_for_hours_is_probably_still_at_the_gateway(rig: Rig) -> None:
-    rig.send(MtComposer().sounder(False).build(), at(1))
+    rig.send(MtComposer().add("SOUNDER", False).build(), at(1))
     rig.clock.now = at(1) + lc.QUEUE_TIMEOUT + timedelta(minutes=1)
     rig.life.observe(rig.reports.for_imei(IMEI), IMEI)
     assert rig.settings().sounder.line == (
@@ -200,7 +200,7 @@ def test_a_queued_command_with_no_report_for_hours_is_probably_still_at_the_gate
 
 def test_an_interval_is_pending_until_the_spacing_shows_it(rig: Rig) -> None:
     alarm = rig.fly(T0, 3)
-    rig.send(MtComposer().interval(5).build(), at(5))
+    rig.send(MtComposer().add("INTERVAL", 5).build(), at(5))
     assert rig.settings().interval.line == (
         "Interval: 5 min — queued 10:05Z, not yet fetched; pending: measured spacing 2.0 min"
     )
@@ -217,7 +217,7 @@ def test_an_interval_is_pending_until_the_spacing_shows_it(rig: Rig) -> None:
 
 
 def test_an_interval_the_spacing_never_shows_is_called_not_seen(rig: Rig) -> None:
-    rig.send(MtComposer().interval(7).build(), at(0.5))
+    rig.send(MtComposer().add("INTERVAL", 7).build(), at(0.5))
     rig.gateway.queues[IMEI].clear()
     rig.gateway.queues[IMEI].append(b"[interval=7]")
     rig.fly(at(1), 7)
@@ -229,7 +229,7 @@ def test_an_interval_the_spacing_never_shows_is_called_not_seen(rig: Rig) -> Non
 
 def test_an_interval_seen_in_the_same_mt_vouches_for_the_sounder_sent_with_it(rig: Rig) -> None:
     alarm = rig.fly(T0, 2)
-    rig.send(MtComposer().interval(5).sounder(False).build(), at(3))
+    rig.send(MtComposer().add("INTERVAL", 5).add("SOUNDER", False).build(), at(3))
     rig.fly(rig.fly(alarm, 1), 2)
     assert rig.settings().sounder.line == (
         "Sounder: OFF — probably delivered at the 10:04Z report; the change sent with it showed, "
@@ -239,7 +239,7 @@ def test_an_interval_seen_in_the_same_mt_vouches_for_the_sounder_sent_with_it(ri
 
 def test_a_parachute_delivered_after_landing_is_never_confirmed_and_adds_no_hint(rig: Rig) -> None:
     rig.fly(T0, 3)
-    rig.send(MtComposer().parachute(10, 6).build(), at(5))
+    rig.send(MtComposer().add("PARACHUTE", (10, 6)).build(), at(5))
     assert rig.settings().parachute.line == (
         "Parachute: PARACHUTE=10:06 — queued 10:05Z, not yet fetched; "
         "the release cannot be confirmed by telemetry"
@@ -256,7 +256,7 @@ def test_a_parachute_delivered_after_landing_is_never_confirmed_and_adds_no_hint
 def test_a_change_of_descent_rate_after_delivery_is_given_as_a_hint_only(rig: Rig) -> None:
     for minute, alt in ((0, 3000.0), (2, 2400.0), (4, 1800.0)):
         rig.cycle(at(minute), alt=alt)
-    rig.send(MtComposer().parachute(10, 6).build(), at(5))
+    rig.send(MtComposer().add("PARACHUTE", (10, 6)).build(), at(5))
     rig.cycle(at(6), alt=1200.0)
     rig.cycle(at(8), alt=200.0)
     assert rig.capsule.parachute_open
@@ -269,7 +269,7 @@ def test_a_change_of_descent_rate_after_delivery_is_given_as_a_hint_only(rig: Ri
 def test_a_steady_descent_after_delivery_adds_no_hint(rig: Rig) -> None:
     for minute, alt in ((0, 3000.0), (2, 2400.0), (4, 1800.0)):
         rig.cycle(at(minute), alt=alt)
-    rig.send(MtComposer().parachute(10, 6).build(), at(5))
+    rig.send(MtComposer().add("PARACHUTE", (10, 6)).build(), at(5))
     rig.cycle(at(6), alt=1200.0)
     rig.cycle(at(8), alt=620.0)
     assert rig.settings().parachute.detail.endswith("the release cannot be confirmed by telemetry")
@@ -277,7 +277,7 @@ def test_a_steady_descent_after_delivery_adds_no_hint(rig: Rig) -> None:
 
 def test_a_parachute_downloaded_in_a_no_fix_cycle_is_called_lost(rig: Rig) -> None:
     rig.fly(T0, 2)
-    rig.send(MtComposer().parachute(10, 4).build(), at(3))
+    rig.send(MtComposer().add("PARACHUTE", (10, 4)).build(), at(3))
     rig.cycle(at(4), alt=None)
     assert not rig.capsule.parachute_open
     assert rig.settings().parachute.line == (
@@ -289,7 +289,7 @@ def test_a_parachute_downloaded_in_a_no_fix_cycle_is_called_lost(rig: Rig) -> No
 
 def test_a_parachute_outside_the_window_of_its_fix_is_called_rejected(rig: Rig) -> None:
     rig.fly(T0, 2)
-    rig.send(MtComposer().parachute(10, 30).build(), at(3))
+    rig.send(MtComposer().add("PARACHUTE", (10, 30)).build(), at(3))
     rig.cycle(at(4))
     assert not rig.capsule.parachute_open
     assert "the 10:04Z fix is outside its ±14 min window: rejected and lost if it went down then" in (

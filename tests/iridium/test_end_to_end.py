@@ -55,7 +55,7 @@ def test_descent_landing_and_parachute_release_through_every_part(tmp_path: Path
 
         clock_now[0] = stored[-1].time + timedelta(seconds=40)
         plan = plan_parachute(stored, clock_now[0], life.for_imei(IMEI))
-        message = MtComposer().parachute(plan.hour, plan.minute).sounder(False).build()
+        message = MtComposer().add("PARACHUTE", (plan.hour, plan.minute)).add("SOUNDER", False).build()
         capsule_config = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=IMEI)
         command = life.send(life.request(capsule_config, message).id, "DRS1", client)
         assert command.state == lc.QUEUED

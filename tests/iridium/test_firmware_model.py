@@ -4,13 +4,8 @@ from __future__ import annotations
 
 from datetime import UTC, datetime, timedelta
 
-from drs_link.iridium.firmware import (
-    NO_FIX_MINUTE_OF_DAY,
-    apply_mt,
-    arduino_to_int,
-    format_mo,
-    parachute_accepted,
-)
+from drs_link.iridium.commands import apply_mt, parachute_accepted
+from drs_link.iridium.firmware import NO_FIX_MINUTE_OF_DAY, arduino_to_int, format_mo
 from drs_link.iridium.mo import parse_payload
 from drs_link.iridium.recovery import detect_landing, distance_bearing, track_from_reports
 from drs_link.iridium.reports import Delivery, StoredReport

@@ -81,7 +81,7 @@ def test_interval_health_follows_the_simulators_switch_over(rig: Rig) -> None:
     """[INTERVAL=5] downloaded with report k: k→k+1 stays 2 min, 5 min from k+1 on; nothing is flagged."""
     alarm = rig.fly(T0, 4)
     rig.clock.now = alarm - timedelta(seconds=30)
-    command = rig.ops.send_mt("DRS1", MtComposer().interval(5).build(), "DRS1")
+    command = rig.ops.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
     assert command.state == lc.QUEUED
     alarm = rig.fly(alarm, 2)  # report 4 downloads it; report 5 still comes after 2 min
     assert spacings_min(rig.stored()) == [2, 2, 2, 2, 2], "the simulator switches over as the firmware does"
@@ -103,7 +103,7 @@ def test_interval_health_follows_the_simulators_switch_over(rig: Rig) -> None:
 def test_a_missed_cycle_on_the_new_interval_is_judged_against_it(rig: Rig) -> None:
     alarm = rig.fly(T0, 3)
     rig.clock.now = alarm - timedelta(seconds=30)
-    rig.ops.send_mt("DRS1", MtComposer().interval(5).build(), "DRS1")
+    rig.ops.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
     alarm = rig.fly(alarm, 4)
     rig.fly(alarm + timedelta(minutes=5), 1)  # the session at ``alarm`` failed: 10 min between fixes
     [finding] = assess(rig.stored(), rig.commands()).findings
@@ -114,7 +114,7 @@ def test_a_report_is_not_stale_before_the_next_one_is_due_on_the_new_interval(ri
     """The trial: a report 4 min 48 s old was called STALE on a 5-minute interval."""
     alarm = rig.fly(T0, 3)
     rig.clock.now = alarm - timedelta(seconds=30)
-    rig.ops.send_mt("DRS1", MtComposer().interval(5).build(), "DRS1")
+    rig.ops.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
     rig.fly(alarm, 4)
     telemetry = CapsuleTelemetry("DRS1")
     for record in rig.records:
@@ -130,7 +130,7 @@ def test_the_parachute_plan_uses_the_old_spacing_for_the_next_cycle_and_the_new_
     """INTERVAL=5 went down with the last report: the next cycle is 2 min on, the ones after 5 min apart."""
     alarm = rig.fly(T0, 4)
     rig.clock.now = alarm - timedelta(seconds=30)
-    rig.ops.send_mt("DRS1", MtComposer().interval(5).build(), "DRS1")
+    rig.ops.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
     alarm = rig.fly(alarm, 1)
     last_fix = rig.stored()[-1].report.fix.time  # type: ignore[union-attr]
     plan = plan_parachute(rig.stored(), last_fix + timedelta(seconds=45), rig.commands())

@@ -44,7 +44,7 @@ def test_interval_command_runs_from_request_to_effect_confirmed(rig) -> None:
     capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
     next_alarm = fly(capsule, gateway, reports, T0, 3)
     life = lc.CommandLifecycle(store, "alice", clock)
-    command = life.request(CAPSULE, MtComposer().interval(5).build())
+    command = life.request(CAPSULE, MtComposer().add("INTERVAL", 5).build())
     assert command.state == lc.REQUESTED
     with pytest.raises(RefusedError, match="must name the capsule 'DRS1'"):
         life.send(command.id, "drs1", client)
@@ -53,7 +53,7 @@ def test_interval_command_runs_from_request_to_effect_confirmed(rig) -> None:
     with pytest.raises(RefusedError, match="never sent twice"):
         life.send(command.id, "DRS1", client)  # a refused command stays refused: the operator asks again
     clock.now = next_alarm - timedelta(seconds=30)
-    command = life.send(life.request(CAPSULE, MtComposer().interval(5).build()).id, "DRS1", client)
+    command = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 5).build()).id, "DRS1", client)
     assert (command.state, command.mt_id) == (lc.QUEUED, 4114652)
     with pytest.raises(RefusedError, match="never sent twice"):
         life.send(command.id, "DRS1", client)
@@ -82,7 +82,7 @@ def test_parachute_and_sounder_are_delivered_but_unconfirmable(rig) -> None:
     store, reports, gateway, client, clock = rig
     capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
     life = lc.CommandLifecycle(store, "alice", clock)
-    command = life.request(CAPSULE, MtComposer().parachute(10, 5).sounder(False).build())
+    command = life.request(CAPSULE, MtComposer().add("PARACHUTE", (10, 5)).add("SOUNDER", False).build())
     life.send(command.id, "DRS1", client)
     fly(capsule, gateway, reports, T0 + timedelta(minutes=1), 1)
     [changed] = life.observe(reports.for_imei(IMEI), IMEI)
@@ -94,8 +94,8 @@ def test_one_mt_per_session_so_two_queued_commands_need_two_reports(rig) -> None
     store, reports, gateway, client, clock = rig
     capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
     life = lc.CommandLifecycle(store, "alice", clock)
-    first = life.send(life.request(CAPSULE, MtComposer().sounder(False).build()).id, "DRS1", client)
-    second = life.send(life.request(CAPSULE, MtComposer().sounder(True).build()).id, "DRS1", client)
+    first = life.send(life.request(CAPSULE, MtComposer().add("SOUNDER", False).build()).id, "DRS1", client)
+    second = life.send(life.request(CAPSULE, MtComposer().add("SOUNDER", True).build()).id, "DRS1", client)
     fly(capsule, gateway, reports, T0 + timedelta(minutes=1), 1)
     life.observe(reports.for_imei(IMEI), IMEI)
     assert [life.get(first.id).state, life.get(second.id).state] == [lc.UNCONFIRMABLE, lc.QUEUED]
@@ -108,9 +108,9 @@ def test_gateway_outcomes_other_than_ok_are_recorded_and_never_resent(rig) -> No
     store, _reports, gateway, client, clock = rig
     life = lc.CommandLifecycle(store, "alice", clock)
     gateway.script(Scripted("failed", code=13), Scripted("slow", delay_s=1.0))
-    failed = life.send(life.request(CAPSULE, MtComposer().interval(3).build()).id, "DRS1", client)
+    failed = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 3).build()).id, "DRS1", client)
     assert failed.state == lc.FAILED and "insufficient credit" in failed.detail
-    unknown = life.send(life.request(CAPSULE, MtComposer().interval(3).build()).id, "DRS1", client)
+    unknown = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 3).build()).id, "DRS1", client)
     assert unknown.state == lc.DELIVERY_UNKNOWN and "check the RockBLOCK portal" in unknown.detail
     with pytest.raises(RefusedError):
         life.send(unknown.id, "DRS1", client)
@@ -120,8 +120,8 @@ def test_gateway_outcomes_other_than_ok_are_recorded_and_never_resent(rig) -> No
 def test_flush_marks_older_queued_commands_flushed(rig) -> None:
     store, _reports, gateway, client, clock = rig
     life = lc.CommandLifecycle(store, "alice", clock)
-    older = life.send(life.request(CAPSULE, MtComposer().interval(3).build()).id, "DRS1", client)
-    newer = life.send(life.request(CAPSULE, MtComposer().interval(4).build(), flush=True).id, "DRS1", client)
+    older = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 3).build()).id, "DRS1", client)
+    newer = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 4).build(), flush=True).id, "DRS1", client)
     assert life.get(older.id).state == lc.FLUSHED
     assert newer.state == lc.QUEUED
     assert list(gateway.queues[IMEI]) == [b"[INTERVAL=4]"]
@@ -131,7 +131,7 @@ def test_flush_marks_older_queued_commands_flushed(rig) -> None:
 def test_queued_command_with_no_report_for_hours_times_out(rig) -> None:
     store, reports, _gateway, client, clock = rig
     life = lc.CommandLifecycle(store, "alice", clock)
-    command = life.send(life.request(CAPSULE, MtComposer().interval(3).build()).id, "DRS1", client)
+    command = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 3).build()).id, "DRS1", client)
     assert life.observe(reports.for_imei(IMEI), IMEI) == []
     clock.now = T0 + lc.QUEUE_TIMEOUT + timedelta(minutes=1)
     [changed] = life.observe(reports.for_imei(IMEI), IMEI)
@@ -142,7 +142,7 @@ def test_interval_whose_spacing_never_shows_times_out(rig) -> None:
     store, reports, gateway, client, clock = rig
     capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
     life = lc.CommandLifecycle(store, "alice", clock)
-    command = life.send(life.request(CAPSULE, MtComposer().interval(7).build()).id, "DRS1", client)
+    command = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 7).build()).id, "DRS1", client)
     gateway.queues[IMEI].clear()
     gateway.queues[IMEI].append(b"[interval=7]")
     fly(capsule, gateway, reports, T0 + timedelta(minutes=1), 7)
@@ -155,16 +155,16 @@ def test_request_without_imei_is_refused(rig) -> None:
     store, *_ = rig
     life = lc.CommandLifecycle(store, "alice")
     with pytest.raises(RefusedError, match="no imei configured"):
-        life.request(CapsuleConfig(name="DRS2", host="x"), MtComposer().interval(3).build())
+        life.request(CapsuleConfig(name="DRS2", host="x"), MtComposer().add("INTERVAL", 3).build())
 
 
 def test_every_audit_record_carries_the_lifecycle_clock_not_the_wall_clock(rig) -> None:
     store, _reports, _gateway, client, clock = rig
     life = lc.CommandLifecycle(store, "alice", clock)
-    command = life.request(CAPSULE, MtComposer().interval(3).build())
+    command = life.request(CAPSULE, MtComposer().add("INTERVAL", 3).build())
     with pytest.raises(RefusedError):
         life.send(command.id, "DRS2", client)
-    life.send(life.request(CAPSULE, MtComposer().interval(3).build()).id, "DRS1", client)
+    life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 3).build()).id, "DRS1", client)
     records = store.audit(capsule="DRS1")
     assert [r.action for r in records][:3] == ["mt.requested", "mt.send", "mt.not_sent"]
     assert {r.time_utc for r in records} == {clock()}
@@ -197,7 +197,7 @@ def test_the_same_command_sent_from_eight_threads_at_once_reaches_the_gateway_on
     store, _, gateway, client, clock = rig
     life = lc.CommandLifecycle(store, "alice", clock)
     for trial in range(5):
-        command = life.request(CAPSULE, MtComposer().interval(5 + trial).build())
+        command = life.request(CAPSULE, MtComposer().add("INTERVAL", 5 + trial).build())
         assert sorted(_race(store, command.id, client, clock, 8)) == ["queued"] + ["refused"] * 7
     assert len(gateway.requests) == 5
 
@@ -217,7 +217,7 @@ def test_a_send_killed_after_the_gateway_took_it_becomes_delivery_unknown_and_ca
     """kill -9 once left the command 'confirmed' forever, which ``drs mt resolve`` refused to settle."""
     store, _, gateway, _, _ = rig
     life = lc.CommandLifecycle(store, "alice")
-    command = life.request(CAPSULE, MtComposer().interval(30).build())
+    command = life.request(CAPSULE, MtComposer().add("INTERVAL", 30).build())
     gateway.script(Scripted("slow", delay_s=30.0))
     child = subprocess.Popen([sys.executable, "-c", SEND_IN_A_CHILD, str(store.path), str(command.id), gateway.url])
     try:
@@ -246,7 +246,7 @@ from drs_link.iridium import lifecycle as lc
 from drs_link.iridium.mt import MtComposer
 from drs_link.store import Store
 capsule = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=sys.argv[2], rockblock_serial=11800)
-lc.CommandLifecycle(Store.open(sys.argv[1]), "alice").request(capsule, MtComposer().interval(30).build())
+lc.CommandLifecycle(Store.open(sys.argv[1]), "alice").request(capsule, MtComposer().add("INTERVAL", 30).build())
 threading.Event().wait()  # stopped between the request and the send
 """
 
@@ -272,14 +272,14 @@ def test_a_process_killed_between_request_and_send_leaves_a_command_closed_as_ne
     assert closed.state == lc.NOT_SENT and "never reached the gateway" in closed.detail
     with pytest.raises(RefusedError, match="never sent twice"):
         life.send(command.id, "DRS1", client)
-    again = life.send(life.request(CAPSULE, MtComposer().interval(30).build()).id, "DRS1", client)
+    again = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 30).build()).id, "DRS1", client)
     assert again.state == lc.QUEUED and len(gateway.requests) == 1
 
 
 def test_a_send_that_raises_is_recorded_as_delivery_unknown_not_left_confirmed(rig) -> None:
     store, _, _, _, clock = rig
     life = lc.CommandLifecycle(store, "alice", clock)
-    command = life.request(CAPSULE, MtComposer().sounder(False).build())
+    command = life.request(CAPSULE, MtComposer().add("SOUNDER", False).build())
 
     class BreaksMidSend:
         def send(self, imei: str, data: bytes, flush: bool = False) -> object:
@@ -322,7 +322,7 @@ def test_the_work_after_each_post_is_the_open_commands_reports_not_the_flight(
 
     assert post_then_observe(next_alarm) == [0], "no open command: nothing to read"
     clock.now = next_alarm + timedelta(minutes=1, seconds=30)
-    command = life.send(life.request(CAPSULE, MtComposer().interval(5).build()).id, "DRS1", client)
+    command = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 5).build()).id, "DRS1", client)
     outcomes = [post_then_observe(next_alarm + timedelta(minutes=2 * (i + 1))) for i in range(2)]
     outcomes.append(post_then_observe(next_alarm + timedelta(minutes=9)))
     outcomes.append(post_then_observe(next_alarm + timedelta(minutes=14)))

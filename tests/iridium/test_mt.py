@@ -9,16 +9,17 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from drs_link.errors import RefusedError
-from drs_link.iridium.firmware import GnssFix, apply_mt
-from drs_link.iridium.mt import MtComposer, MtRefusedError, parse_hhmm
+from drs_link.iridium.commands import apply_mt, parse_hhmm
+from drs_link.iridium.firmware import GnssFix
+from drs_link.iridium.mt import MtComposer, MtRefusedError
 
 
 @pytest.mark.parametrize(
     ("composer", "hex_text"),
     [
-        (MtComposer().interval(5), "5B494E54455256414C3D355D"),
-        (MtComposer().parachute(14, 5), "5B5041524143485554453D31343A30355D"),
-        (MtComposer().sounder(False), "5B534F554E4445525F4F46465D"),
+        (MtComposer().add("INTERVAL", 5), "5B494E54455256414C3D355D"),
+        (MtComposer().add("PARACHUTE", (14, 5)), "5B5041524143485554453D31343A30355D"),
+        (MtComposer().add("SOUNDER", False), "5B534F554E4445525F4F46465D"),
     ],
 )
 def test_protocol_examples_are_byte_exact(composer: MtComposer, hex_text: str) -> None:
@@ -27,35 +28,35 @@ def test_protocol_examples_are_byte_exact(composer: MtComposer, hex_text: str) -
 
 def test_several_commands_go_into_one_message_in_firmware_order() -> None:
     message = (
-        MtComposer().sounder(True).parachute(0, 7).interval(1440).rb_destination(0).rb_source(11800).build()
+        MtComposer().add("SOUNDER", True).add("PARACHUTE", (0, 7)).add("INTERVAL", 1440).add("RBDESTINATION", 0).add("RBSOURCE", 11800).build()
     )
     assert message.text == "[INTERVAL=1440][RBSOURCE=11800][RBDESTINATION=0][PARACHUTE=00:07][SOUNDER_ON]"
 
 
 def test_sounder_on_and_off_together_are_refused() -> None:
     with pytest.raises(MtRefusedError, match="never send SOUNDER_ON and SOUNDER_OFF together"):
-        MtComposer().sounder(True).sounder(False)
+        MtComposer().add("SOUNDER", True).add("SOUNDER", False)
 
 
 @pytest.mark.parametrize("minutes", [0, 1441, -1, 2.5, True, "5"])
 def test_interval_outside_the_firmware_range_is_refused(minutes: object) -> None:
     with pytest.raises(MtRefusedError):
-        MtComposer().interval(minutes)  # type: ignore[arg-type]
+        MtComposer().add("INTERVAL", minutes)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize(("hour", "minute"), [(24, 0), (0, 60), (-1, 5), (0, 845)])
 def test_parachute_outside_canonical_time_is_refused(hour: int, minute: int) -> None:
     with pytest.raises(MtRefusedError, match="PARACHUTE"):
-        MtComposer().parachute(hour, minute)
+        MtComposer().add("PARACHUTE", (hour, minute))
 
 
 def test_repeated_command_empty_message_and_bad_serial_are_refused_as_refused_errors() -> None:
     with pytest.raises(MtRefusedError, match="already in this message"):
-        MtComposer().interval(5).interval(6)
+        MtComposer().add("INTERVAL", 5).add("INTERVAL", 6)
     with pytest.raises(RefusedError, match="no command given"):
         MtComposer().build()
     with pytest.raises(MtRefusedError, match="RockBLOCK serial"):
-        MtComposer().rb_destination(10_000_000)
+        MtComposer().add("RBDESTINATION", 10_000_000)
 
 
 @pytest.mark.parametrize("text", ["1405", "14:5", "24:00", "14:60", " 14 :05", "0:845", "１４:05"])
@@ -81,15 +82,15 @@ def test_no_input_makes_the_composer_emit_something_the_firmware_misreads(
     composer = MtComposer()
     try:
         if interval is not None:
-            composer.interval(interval)
+            composer.add("INTERVAL", interval)
         if parachute is not None:
-            composer.parachute(*parachute)
+            composer.add("PARACHUTE", parachute)
         if sounder is not None:
-            composer.sounder(sounder)
+            composer.add("SOUNDER", sounder)
         if destination is not None:
-            composer.rb_destination(destination)
+            composer.add("RBDESTINATION", destination)
         if source is not None:
-            composer.rb_source(source)
+            composer.add("RBSOURCE", source)
         message = composer.build()
     except MtRefusedError:
         return

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from drs_link.iridium.firmware import apply_mt, format_mo
+from drs_link.iridium.commands import apply_mt
+from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.mo import parse_payload
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.parachute import ParachuteRefused, plan_parachute
@@ -57,7 +58,7 @@ def test_two_minute_grid_gives_a_time_accepted_over_many_cycles(tmp_path: Path) 
     plan = plan_parachute(reports, now=last + timedelta(seconds=50), commands=())
     assert plan.interval_min == 2
     assert len(plan.cycles) >= 10
-    text = MtComposer().parachute(plan.hour, plan.minute).build().text
+    text = MtComposer().add("PARACHUTE", (plan.hour, plan.minute)).build().text
     for cycle in plan.cycles:
         for second in range(0, int((cycle.fix_latest - cycle.fix_earliest).total_seconds()) + 1, 10):
             assert downloaded_at(text, cycle.fix_earliest + timedelta(seconds=second))
@@ -84,7 +85,7 @@ def test_every_interval_gives_an_hhmm_the_firmware_accepts_at_the_downloading_fi
         alarm = last - timedelta(seconds=jitter[-1]) + plan.cycles[0].offset * timedelta(minutes=interval)
         actual_fix = (alarm + timedelta(seconds=rng.uniform(min(jitter), max(jitter)))).replace(microsecond=0)
         assert actual_fix > now, interval
-        text = MtComposer().parachute(plan.hour, plan.minute).build().text
+        text = MtComposer().add("PARACHUTE", (plan.hour, plan.minute)).build().text
         assert downloaded_at(text, actual_fix), (interval, plan.window_text(), actual_fix)
         long_warning = any("only" in w for w in plan.warnings)
         assert long_warning == (interval > 10 or len(plan.cycles) == 1), interval
@@ -96,7 +97,7 @@ def test_window_near_midnight_is_refused_unless_confirmed_and_then_works_across_
     with pytest.raises(ParachuteRefused, match="within 15 min of 00:00 UTC"):
         plan_parachute(reports, now=last + timedelta(seconds=40), commands=())
     plan = plan_parachute(reports, now=last + timedelta(seconds=40), commands=(), accept_midnight=True)
-    text = MtComposer().parachute(plan.hour, plan.minute).build().text
+    text = MtComposer().add("PARACHUTE", (plan.hour, plan.minute)).build().text
     assert downloaded_at(text, datetime(2026, 7, 2, 0, 0, 30, tzinfo=UTC))
     assert any("crosses midnight" in w for w in plan.warnings)
 

@@ -219,7 +219,7 @@ def test_a_send_refused_for_the_wrong_name_is_recorded_as_not_sent_not_left_requ
 
 def test_a_queue_before_deadline_that_passed_while_a_dialog_was_open_is_refused_at_submit(tmp_path: Path) -> None:
     store = Store.open(tmp_path / "drs.sqlite")
-    message = MtComposer().parachute(10, 20).build()
+    message = MtComposer().add("PARACHUTE", (10, 20)).build()
     deadline = T0 + timedelta(minutes=12)
     with pytest.raises(RefusedError, match=r"queue-before deadline 10:12:07Z passed \(30 s ago\)"):
         authorize_mt(store, "DRS1", "alice", message, landed(T0), single_operator_waiver="alone",

@@ -58,10 +58,10 @@ def unknown_but_queued(rig: Rig) -> tuple[lc.CommandLifecycle, SimulatedCapsule,
     life = lc.CommandLifecycle(store, "alice", clock)
     clock.now = T0 + timedelta(minutes=3)
     gateway.script(Scripted("slow", delay_s=0.8))
-    unknown = send(life, MtComposer().sounder(False), client)
+    unknown = send(life, MtComposer().add("SOUNDER", False), client)
     assert unknown.state == lc.DELIVERY_UNKNOWN
     clock.now += timedelta(seconds=10)
-    interval = send(life, MtComposer().interval(5), client)
+    interval = send(life, MtComposer().add("INTERVAL", 5), client)
     assert interval.state == lc.QUEUED
     fly(capsule, gateway, reports, next_alarm, 4)
     clock.now = T0 + timedelta(minutes=20)
@@ -104,10 +104,10 @@ def test_a_later_command_whose_report_does_not_change_is_left_alone(rig: Rig) ->
     life = lc.CommandLifecycle(store, "alice", clock)
     clock.now = T0 + timedelta(minutes=1)
     gateway.script(Scripted("slow", delay_s=0.8))
-    unknown = send(life, MtComposer().sounder(False), client)
+    unknown = send(life, MtComposer().add("SOUNDER", False), client)
     next_alarm = fly(capsule, gateway, reports, next_alarm, 1)
     clock.now = next_alarm - timedelta(seconds=30)
-    later = send(life, MtComposer().sounder(True), client)
+    later = send(life, MtComposer().add("SOUNDER", True), client)
     fly(capsule, gateway, reports, next_alarm, 1)
     life.observe(reports.for_imei(IMEI), IMEI)
     before = life.get(later.id)
@@ -124,13 +124,13 @@ def test_resolving_as_not_sent_closes_it_and_a_new_request_can_be_sent(rig: Rig)
     store, reports, gateway, client, clock = rig
     life = lc.CommandLifecycle(store, "bob", clock)
     gateway.script(Scripted("reset"))
-    unknown = send(life, MtComposer().interval(3), client)
+    unknown = send(life, MtComposer().add("INTERVAL", 3), client)
     assert unknown.state == lc.DELIVERY_UNKNOWN and gateway.queues.get(IMEI, []) == []
     closed = life.resolve_not_sent(unknown.id, "DRS1", note="nothing in the portal's MT list")
     assert closed.state == lc.NOT_SENT and closed.queued_utc is None
     assert "never reached the gateway" in closed.detail and "nothing in the portal's MT list" in closed.detail
     assert life.observe(reports.for_imei(IMEI), IMEI) == []
-    again = send(life, MtComposer().interval(3), client)
+    again = send(life, MtComposer().add("INTERVAL", 3), client)
     assert again.state == lc.QUEUED and again.id != unknown.id
     [resolution] = [r for r in store.audit(capsule="DRS1") if r.action == "mt.resolved"]
     assert (resolution.operator, resolution.result) == ("bob", lc.NOT_SENT)
@@ -139,11 +139,11 @@ def test_resolving_as_not_sent_closes_it_and_a_new_request_can_be_sent(rig: Rig)
 def test_only_a_command_of_unknown_delivery_can_be_resolved_and_only_once(rig: Rig) -> None:
     store, reports, gateway, client, clock = rig
     life = lc.CommandLifecycle(store, "alice", clock)
-    queued = send(life, MtComposer().interval(3), client)
+    queued = send(life, MtComposer().add("INTERVAL", 3), client)
     gateway.script(Scripted("failed", code=13), Scripted("reset"), Scripted("reset"))
-    failed = send(life, MtComposer().interval(4), client)
-    first = send(life, MtComposer().interval(5), client)
-    second = send(life, MtComposer().interval(6), client)
+    failed = send(life, MtComposer().add("INTERVAL", 4), client)
+    first = send(life, MtComposer().add("INTERVAL", 5), client)
+    second = send(life, MtComposer().add("INTERVAL", 6), client)
     history = reports.for_imei(IMEI)
     for command in (queued, failed):
         with pytest.raises(RefusedError, match=f"is {command.state}: only a command in delivery_unknown"):
@@ -175,9 +175,9 @@ def test_a_bad_resolution_is_refused_and_changes_nothing(
 ) -> None:
     store, reports, gateway, client, clock = rig
     life = lc.CommandLifecycle(store, "alice", clock)
-    send(life, MtComposer().interval(3), client)
+    send(life, MtComposer().add("INTERVAL", 3), client)
     gateway.script(Scripted("reset"))
-    unknown = send(life, MtComposer().interval(4), client)
+    unknown = send(life, MtComposer().add("INTERVAL", 4), client)
     with pytest.raises(RefusedError, match=message):
         life.resolve_queued(unknown.id, capsule, mt_id, reports.for_imei(IMEI), note=note)
     assert life.get(unknown.id) == unknown

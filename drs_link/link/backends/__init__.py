@@ -3,10 +3,16 @@
 ``stock`` runs the flown DRS_Python_Tools scripts unchanged (the default: it is what capsules
 carry); ``agent`` would install a maintained script of our own. The release state machine only
 sees this interface, so the two stay interchangeable.
+
+Each backend is a module of this package named as the config's ``backend`` key, declaring its class
+as ``BACKEND`` (``drs_link.link.backends.registry`` builds it). ``backend_names`` lists them by module
+name without importing any, so the config can validate the key on every read without loading the
+backends (or paramiko) and without importing the registry, whose backends take the config.
 """
 
 from __future__ import annotations
 
+import pkgutil
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from enum import StrEnum
@@ -18,6 +24,19 @@ from drs_link.store import iso_utc
 
 if TYPE_CHECKING:
     from drs_link.link.ssh import CommandResult
+
+SUPPORT_MODULES = frozenset({"authority", "pi_agent", "registry"})
+"""The modules of this package that are not backends: the shared authority lock, the agent's Pi
+script and the registry. A module missing here and from the backends fails the registry's test."""
+
+
+def backend_names() -> tuple[str, ...]:
+    """Every backend a capsule's ``backend`` key may name: the package's other modules, by name only."""
+    return tuple(
+        module.name
+        for module in pkgutil.iter_modules(__path__)
+        if module.name not in SUPPORT_MODULES and not module.ispkg
+    )
 
 
 @dataclass(frozen=True)

@@ -102,3 +102,7 @@ class AgentBackend(PiReleaseAuthority):
             output=result.stdout,
             acknowledged=ACK_LINE in lines,
         )
+
+
+BACKEND = AgentBackend
+"""This module's backend, as ``drs_link.link.backends.registry`` finds it."""

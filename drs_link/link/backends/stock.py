@@ -52,3 +52,7 @@ class StockBackend(PiReleaseAuthority):
             exit_status=result.exit_status,
             output=result.stdout,
         )
+
+
+BACKEND = StockBackend
+"""This module's backend, as ``drs_link.link.backends.registry`` finds it."""
