@@ -81,7 +81,7 @@ class MtCommand:
     firmware: Callable[[str, int], tuple[Any, str | None]]
     """The firmware's reading of a whole MT text at fix minute G: (value it acts on or None, a note)."""
     doc: str
-    """One line for ``docs/iridium.md`` and the ``drs mt send`` help."""
+    """Its line in ``docs/iridium.md``'s list of commands (a test keeps the two equal)."""
     flag: str
     """Its ``drs mt send`` option."""
     option: Mapping[str, Any]
