@@ -28,8 +28,8 @@ from typing import Any
 
 import platformdirs
 
-from drs_link.link.backends import backend_names
 from drs_link.errors import ConfigError
+from drs_link.link.backends import backend_names
 
 log = logging.getLogger(__name__)
 

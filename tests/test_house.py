@@ -15,7 +15,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("predictor", "drs_link", "console")
-ROOMS_WITHOUT_DOOR_YET: frozenset[str] = frozenset({"console.screens", "console.widgets", "drs_link.link.backends"})
+ROOMS_WITHOUT_DOOR_YET: frozenset[str] = frozenset({"console.screens", "console.widgets"})
 
 
 def _module_name(path: Path) -> str:
@@ -35,6 +35,9 @@ def _rooms() -> list[str]:
 
 
 def _room_of(module: str, rooms: list[str]) -> str | None:
+    """The room ``module`` sits inside; None for a room's own door, which is how others enter it."""
+    if module in rooms:
+        return None
     return next((room for room in rooms if module.startswith(room + ".")), None)
 
 

@@ -26,7 +26,7 @@ from drs_link.link import (
     read_storage,
     scan_host_key,
 )
-from drs_link.link.backends.registry import build_backend
+from drs_link.link.backends import build_backend
 from drs_link.ops import (
     PROCEDURE_DIR,
     ApprovalBook,

@@ -19,42 +19,54 @@ from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 
-from drs_link.ops.approval import ApprovalBook, current_login
 from console.commands.approve import wait_for_approval
-from drs_link.ops.checklist import PROCEDURE_DIR, load_checklists
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
-from drs_link.iridium import lifecycle as lc
-from drs_link.ops.authorize import authorize_mt, carries_parachute
-from drs_link.sim.mo_bench import run_bench
-from drs_link.iridium.commands import CATALOGUE, LISTED, PARACHUTE, parse_hhmm
-from drs_link.iridium.gateway import FLUSH_WARNING, RockblockGateway
-from drs_link.iridium.health import assess
-from drs_link.iridium.importer import import_files
-from drs_link.iridium.landed import landed_evidence
-from drs_link.iridium.mo import parse_hex
-from drs_link.iridium.mt import MtComposer, MtMessage
-from drs_link.iridium.parachute import plan_parachute
-from drs_link.ops.procedure import complete_mt_steps
-from drs_link.iridium.recovery import (
+from drs_link.iridium import (
+    CATALOGUE,
+    FLUSH_WARNING,
+    LISTED,
+    PARACHUTE,
     LandingEstimate,
+    MoHttpServer,
+    MoReceiver,
+    MtComposer,
+    MtMessage,
+    ReportStore,
+    RockblockGateway,
+    StoredReport,
     TrackPoint,
+    assess,
     detect_landing,
     distance_bearing,
+    export_track,
+    import_files,
+    landed_evidence,
+    parse_hex,
+    parse_hhmm,
     parse_position,
     phone_summary,
+    plan_parachute,
     read_gpsd_position,
     track_from_reports,
     write_gpx,
     write_kml,
 )
-from drs_link.iridium.reports import ReportStore, StoredReport
-from drs_link.iridium.track_export import export_track
-from drs_link.iridium.webhook import MoHttpServer, MoReceiver
+from drs_link.iridium import lifecycle as lc
+from drs_link.ops import (
+    PROCEDURE_DIR,
+    ApprovalBook,
+    authorize_mt,
+    carries_parachute,
+    complete_mt_steps,
+    current_login,
+    load_checklists,
+)
+from drs_link.sim import run_bench
 from drs_link.store import Store, iso_utc, utc_now
 from predictor.errors import UsageError
-from predictor.geofiles.output import piped
-from predictor.prediction.plausibility import emit, far_team_warning
+from predictor.geofiles import piped
+from predictor.prediction import emit, far_team_warning
 
 _IMEI_RE = re.compile(r"\d{15}")
 log = logging.getLogger(__name__)

@@ -18,11 +18,18 @@ from textual.binding import Binding
 from console.screens.base import ConsoleScreen
 from console.screens.modals import HazardConfirmation, HazardModal, TextPromptModal
 from drs_link.errors import LinkError
-from drs_link.ops.authorize import authorize_mt
-from drs_link.iridium.commands import LISTED, PARACHUTE, MtCommand, by_name
-from drs_link.iridium.landed import landed_evidence
-from drs_link.iridium.mt import MtComposer, MtMessage
-from drs_link.iridium.parachute import ParachutePlan, plan_parachute
+from drs_link.iridium import (
+    LISTED,
+    PARACHUTE,
+    MtCommand,
+    MtComposer,
+    MtMessage,
+    ParachutePlan,
+    by_name,
+    landed_evidence,
+    plan_parachute,
+)
+from drs_link.ops import authorize_mt
 
 COMMAND_ACTIONS = ("command",)
 

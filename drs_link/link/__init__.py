@@ -10,12 +10,9 @@ from predictor.lazy_door import lazy_door
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
-        "AuthorityStatus": "backends",
-        "CapsuleBackend": "backends",
         "CapsuleLink": "ssh",
         "GgaSentence": "nmea",
         "GnssStatus": "nmea",
-        "GoResult": "backends",
         "HostKeyError": "ssh",
         "Syncer": "sync",
         "enrol_host_key": "ssh",

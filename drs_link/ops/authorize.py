@@ -13,13 +13,10 @@ from collections.abc import Sequence
 from datetime import datetime
 from typing import Any
 
+from drs_link.errors import RefusedError
+from drs_link.iridium import PARACHUTE, MtMessage, StoredReport, is_command, landed_evidence
 from drs_link.ops.approval import ApprovalBook, Login, current_login
 from drs_link.ops.arming import check_second_operator
-from drs_link.errors import RefusedError
-from drs_link.iridium.commands import PARACHUTE, is_command
-from drs_link.iridium.landed import landed_evidence
-from drs_link.iridium.mt import MtMessage
-from drs_link.iridium.reports import StoredReport
 from drs_link.store import Store
 
 

@@ -22,7 +22,8 @@ from enum import StrEnum
 
 from drs_link.config import CapsuleConfig
 from drs_link.errors import LinkError, RefusedError, StoreError
-from drs_link.link import AuthorityStatus, CapsuleBackend, GnssStatus, GoResult, summarise
+from drs_link.link import GnssStatus, summarise
+from drs_link.link.backends import AuthorityStatus, CapsuleBackend, GoResult
 from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
 
 TOKEN_TTL_S = 60.0

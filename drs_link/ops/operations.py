@@ -28,8 +28,8 @@ from drs_link.iridium import (
     StoredReport,
     interval_track,
 )
-from drs_link.link import AuthorityStatus, CapsuleLink, HostKeyError, Syncer, read_storage
-from drs_link.link.backends.registry import build_backend
+from drs_link.link import CapsuleLink, HostKeyError, Syncer, read_storage
+from drs_link.link.backends import AuthorityStatus, build_backend
 from drs_link.ops.arming import ArmingController
 from drs_link.ops.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
 from drs_link.ops.checklist import PROCEDURE_DIR, complete_command, load_checklists

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from drs_link.config import CapsuleConfig, parse_config
 from drs_link.link import CapsuleLink, Syncer
-from drs_link.link.backends.registry import build_backend
+from drs_link.link.backends import build_backend
 from drs_link.ops import ReleaseStateMachine
 from drs_link.sim import CapsuleSimulator
 from drs_link.sim.keys import write_ed25519

@@ -28,8 +28,7 @@ import jwt
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric import rsa
 
-from drs_link.iridium.commands import MtEffect, apply_mt
-from drs_link.iridium.firmware import GnssFix, format_mo
+from drs_link.iridium import GnssFix, MtEffect, apply_mt, format_mo
 
 MAX_MT_BYTES_GATEWAY = 270
 MT_PATH = "/rockblock/MT"

@@ -10,12 +10,12 @@ import sys
 
 import pytest
 
+from drs_link.config import parse_config
+from drs_link.errors import ConfigError
 from drs_link.link.backends import SUPPORT_MODULES, CapsuleBackend, backend_names
 from drs_link.link.backends.agent import AgentBackend
 from drs_link.link.backends.registry import BACKEND_ATTRIBUTE, backend_class, build_backend
 from drs_link.link.backends.stock import StockBackend
-from drs_link.config import parse_config
-from drs_link.errors import ConfigError
 from drs_link.link.ssh import CapsuleLink
 
 

@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 
 import console.commands.main as entry
-from console.screens.commanding import command_bindings
 from console.commands import iridium as iridium_cli
+from console.screens.commanding import command_bindings
 from drs_link.iridium.commands import (
     CATALOGUE,
     LISTED,

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Protocol
 from drs_link.errors import LinkError, RefusedError
 from drs_link.link import remote
 from drs_link.store import iso_utc
+from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
     from drs_link.link.ssh import CommandResult
@@ -141,3 +142,7 @@ def raise_for(step: str, result: CommandResult, capsule: str) -> None:
     raise LinkError(
         f"{capsule}: {step} failed with exit status {result.exit_status}: {message or 'no message'}"
     )
+
+
+# The registry imports every backend (and paramiko): opened only when a caller builds one.
+__getattr__, __dir__, _ = lazy_door(__name__, {"build_backend": "registry"})
