@@ -265,6 +265,29 @@ class DragDensityExponent(Term):
 
 
 @dataclass(frozen=True)
+class VerticalAirMotion(Term):
+    """The air itself rises at ``speed_ms`` (sinks when negative), so over the ground the capsule falls
+    that much slower than through the air: rate − w.
+
+    Why it is its own effect: the 1 Hz descents of issue #11 fell about 6 % slower than the drag law in
+    the last 3 km. A density exponent explains that as drag changing with density, a slowing that grows
+    smoothly all the way down; rising air (lee waves, a convective boundary layer) explains it as a
+    constant speed, which weighs most where the fall is slowest, near the ground. They are told apart
+    by the altitude–time record of the last kilometres, so calibration needs both to choose between them.
+    An updraft faster than the fall stops the descent, which the integrator reports as not descending.
+    """
+
+    speed_ms: float | np.ndarray = 0.0
+    name: ClassVar[str] = "vertical_air_motion"
+    family: ClassVar[str] = "vertical"
+
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        vel[VEL_DOWN] -= p[p_off]
+
+
+@dataclass(frozen=True)
 class DeploymentDelay(Term):
     """The canopy opens ``delay_s`` after release; until then the capsule falls ``speed_factor`` faster.
 
@@ -479,6 +502,7 @@ TERMS: tuple[type[Term], ...] = (
     Wind,
     DescentRateScale,
     DragDensityExponent,
+    VerticalAirMotion,
     DeploymentDelay,
     BinnedDescentRate,
     WindScale,

@@ -23,6 +23,7 @@ from predictor.descent.model import (
     DragDensityExponent,
     SeaLevelRate,
     TerminalVelocity,
+    VerticalAirMotion,
     WeatherTimeOffset,
     Wind,
     WindBandScale,
@@ -32,7 +33,15 @@ from predictor.descent.model import (
     WindScale,
     apply_family,
 )
-from tests.predictor.predict_helpers import H_ISO, RELEASE, RHO0, closed_form_fall_time, isothermal_cube
+from tests.predictor.predict_helpers import (
+    G0,
+    H_ISO,
+    R_GRAVITY,
+    RELEASE,
+    RHO0,
+    closed_form_fall_time,
+    isothermal_cube,
+)
 
 PAYLOAD = Payload(mass_kg=1.029, cda_m2=1.13)
 CALM = isothermal_cube()
@@ -72,6 +81,27 @@ def test_drag_density_exponent_matches_its_closed_form() -> None:
     expected = closed_form_fall_time(PAYLOAD.mass_kg, PAYLOAD.cda_m2, 30000.0, beta=beta)
     assert res.descent_s == pytest.approx(expected, rel=1e-4)
     assert res.descent_s != pytest.approx(descent().descent_s, rel=1e-3)
+
+
+@pytest.mark.parametrize("w", [0.4, -0.4])
+def test_vertical_air_motion_matches_the_fall_through_moving_air(w: float) -> None:
+    """T = ∫ dz / (v(z) − w), with the drag law's v(z) in the isothermal test atmosphere."""
+    from scipy.integrate import quad
+
+    v0 = math.sqrt(2.0 * PAYLOAD.mass_kg * G0 / (RHO0 * PAYLOAD.cda_m2))
+
+    def seconds_per_metre(z: float) -> float:
+        return 1.0 / (v0 * math.exp(0.5 * z / H_ISO) / (1.0 + z / R_GRAVITY) - w)
+
+    expected, _ = quad(seconds_per_metre, 0.0, 30000.0, limit=200)
+    res = descent(CALM, VerticalAirMotion(speed_ms=w))
+    assert res.descent_s == pytest.approx(expected, rel=1e-4)
+    assert (res.descent_s > descent().descent_s) == (w > 0)
+
+
+def test_an_updraft_faster_than_the_fall_stops_the_descent_with_an_error() -> None:
+    with pytest.raises(PredictorError, match="no positive descent rate"):
+        descent(CALM, VerticalAirMotion(speed_ms=50.0))
 
 
 def test_deployment_delay_saves_the_fast_fall_time_whatever_the_step() -> None:
