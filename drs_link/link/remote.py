@@ -150,17 +150,23 @@ def read_serial(tools_dir: str, python: str, offset: int) -> RemoteCommand:
     return RemoteCommand("read-serial", (tools_dir, python, str(int(offset))), script)
 
 
-def go(tools_dir: str, python: str, holder: str) -> RemoteCommand:
-    """Run the stock Go script while holding the authority lock (fd 9 stays open until shutdown)."""
+def _as_holder(tools_dir: str, holder: str, command: str) -> str:
+    """Enter tools_dir and run ``command`` only if ``holder`` holds the release authority (with the lock
+    on fd 9 kept open until the command ends): the one guard every Go runs behind."""
     check_holder(holder)
     q = shlex.quote
-    script = (
+    return (
         f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
         f"{_authority_prelude(holder)}; "
         f'if [ "$held_by" != {q(holder)} ]; then '
         f"{_NO_AUTHORITY_MESSAGE} >&2; exit {EXIT_NO_AUTHORITY}; fi; "
-        f"{q(python)} DRS_GoGoGo.py"
+        f"{command}"
     )
+
+
+def go(tools_dir: str, python: str, holder: str) -> RemoteCommand:
+    """Run the stock Go script while holding the authority lock (fd 9 stays open until shutdown)."""
+    script = _as_holder(tools_dir, holder, f"{shlex.quote(python)} DRS_GoGoGo.py")
     return RemoteCommand("go", (tools_dir, python, holder), script)
 
 
@@ -256,15 +262,8 @@ def agent_read(tools_dir: str, python: str, offset: int) -> RemoteCommand:
 
 
 def agent_go(tools_dir: str, python: str, holder: str, serial_device: str) -> RemoteCommand:
-    check_holder(holder)
     q = shlex.quote
-    script = (
-        f"cd {q(tools_dir)} || exit {EXIT_NO_TOOLS}; "
-        f"{_authority_prelude(holder)}; "
-        f'if [ "$held_by" != {q(holder)} ]; then '
-        f"{_NO_AUTHORITY_MESSAGE} >&2; exit {EXIT_NO_AUTHORITY}; fi; "
-        f"{q(python)} {AGENT_NAME} go --serial {q(serial_device)}"
-    )
+    script = _as_holder(tools_dir, holder, f"{q(python)} {AGENT_NAME} go --serial {q(serial_device)}")
     return RemoteCommand("agent-go", (tools_dir, python, holder, serial_device), script)
 
 
