@@ -29,7 +29,7 @@ def room_edges() -> set[tuple[str, str]]:
     """(importer room, imported room) for every run-time import between two rooms of one package, and
     (package, package) for an import between packages. A package's own modules (errors, config, the
     store) are its foundation, which every room of it may use: those edges would only add noise."""
-    graph = grimp.build_graph(*PACKAGES, exclude_type_checking_imports=True)
+    graph = grimp.build_graph(*PACKAGES, exclude_type_checking_imports=True, cache_dir=None)
     all_rooms = rooms()
 
     def room_of(module: str) -> str:
