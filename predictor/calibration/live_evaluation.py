@@ -7,7 +7,9 @@ operations). At each checkpoint (the first report at or below 25, 20, 15, 10, 5 
 ground) the landing and the remaining descent time are predicted from that report, with two laws:
 
 * ``profile``: the payload profile's drag law (the textbook v ∝ ρ^-½);
-* ``model``: the calibrated model (``--model``: its payload and terms, e.g. a density exponent),
+* ``model``: the calibrated model (``--model``: its payload and terms, e.g. a density exponent). On a
+  flight the model was calibrated on, its terms are refitted without that flight
+  (``held_out_laws``), so that the law is held out too, not only the live choices;
 
 and with these live corrections on top of each law:
 
@@ -39,7 +41,9 @@ from pathlib import Path
 import numpy as np
 
 from predictor.calibration.model_file import CalibratedModel
-from predictor.descent import PROFILES, Payload
+from predictor.calibration.residuals import FlightCase, flight_case
+from predictor.calibration.selection import refit_without_each
+from predictor.descent import PROFILES, Payload, Term
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError
 from predictor.prediction import (
@@ -172,6 +176,9 @@ class Evaluation:
     all_flights_choice: dict[float, tuple[str | None, str | None]] = field(default_factory=dict)
     typical_rate: TypicalRate = TypicalRate((), ())
     """The typical whole-descent rate factor of all the flights by checkpoint (what ships)."""
+    held_out_laws: dict[str, tuple[Term, ...]] = field(default_factory=dict)
+    """Flight → the model's terms refitted without it, for the flights the model was calibrated on
+    (each flies its own fold's law); empty when the model's law never saw these flights."""
 
     def held_out_name(self, case: Case) -> str:
         """The configuration this case gets from its held-out choices, rate and wind alike."""
@@ -238,7 +245,8 @@ def _errors(pred_lat: float, pred_lon: float, origin: Fix, truth: Fix) -> tuple[
 
 @dataclass(frozen=True)
 class _Flight:
-    """A usable test flight, ready to be replayed: its descent, weather, ground and checkpoints."""
+    """A usable test flight, ready to be replayed: its descent, weather, ground and checkpoints, and
+    the same as the calibration scores it (to refit the model's law without it)."""
 
     name: str
     descent: list[Fix]
@@ -246,6 +254,7 @@ class _Flight:
     cube: WeatherCube
     ground: LevelGround
     checkpoints: dict[float, Fix | None]
+    case: FlightCase
 
 
 def _usable(paths: Sequence[str | Path], day: date | None, skipped: list[str]) -> list[_Flight]:
@@ -263,9 +272,56 @@ def _usable(paths: Sequence[str | Path], day: date | None, skipped: list[str]) -
         descent = list(flight.descent)
         checkpoints = {k: _checkpoint_fix(descent, flight.landing.alt_m, k) for k in CHECKPOINTS_KM}
         flights.append(
-            _Flight(flight.name, descent, flight.landing, cube, LevelGround(flight.landing.alt_m), checkpoints)
-        )
+            _Flight(
+                flight.name, descent, flight.landing, cube, LevelGround(flight.landing.alt_m), checkpoints,
+                flight_case(flight, cube),
+            )
+        )  # fmt: skip
     return flights
+
+
+def refit_agreement(model: CalibratedModel, refit: Sequence[Term]) -> str | None:
+    """Why the refit on all the flights is not the model's law (None when it is, within 1e-6 relative).
+
+    A fold's law is the model's law without one flight only if, with every flight, the refit gives the
+    model back: same terms, same parameters. Otherwise the model was calibrated on other flights,
+    weather, payload or step than this evaluation has, and its held-out laws cannot be rebuilt here.
+    """
+    if [t.name for t in refit] != [t.name for t in model.terms]:
+        return f"terms {[t.name for t in refit]} against the model's {[t.name for t in model.terms]}"
+    for ours, theirs in zip(refit, model.terms, strict=True):
+        for key, value in theirs.parameters().items():
+            again = np.asarray(ours.parameters()[key], dtype=float)
+            if again.shape != np.shape(value) or not np.allclose(again, value, rtol=1e-6, atol=1e-9):
+                return f"{ours.name} {key} {again.tolist()} against the model's {value}"
+    return None
+
+
+def held_out_laws(model: CalibratedModel, flights: Sequence[_Flight]) -> dict[str, CalibratedModel]:
+    """Flight name → the model with its law refitted without that flight (leave-one-flight-out).
+
+    Only for the flights the model was calibrated on (its provenance); a flight it never saw flies the
+    model itself, whose law is then independent of it. Refused when the model's calibration flights
+    are not all here, or when refitting on them does not give the model's own parameters back.
+    """
+    calibrated = model.provenance.get("flights")
+    names = [f.name for f in flights]
+    if not model.terms or not isinstance(calibrated, list) or not set(calibrated) & set(names):
+        return {}
+    where = model.source_path or "the model"
+    missing = sorted(set(calibrated) - set(names))
+    if missing:
+        raise PredictorError(
+            f"{where}: its law cannot be held out: it was calibrated on flights not given ({', '.join(missing)})"
+        )
+    seen = [f for f in flights if f.name in calibrated]
+    refit, folds = refit_without_each([f.case for f in seen], model.payload, model.terms)
+    disagreement = refit_agreement(model, refit)
+    if disagreement is not None:
+        raise PredictorError(
+            f"{where}: its law cannot be held out: refitted on its {len(seen)} flights it gives {disagreement}"
+        )
+    return {f.name: dataclasses.replace(model, terms=terms) for f, terms in zip(seen, folds, strict=True)}
 
 
 def _rate_survey(flights: Sequence[_Flight], model: CalibratedModel) -> dict[tuple[str, float], float]:
@@ -303,8 +359,9 @@ def evaluate(
 
     ``profile`` is the payload of the textbook law (default: the 2018–2019 test payload the SuperBIT
     flights were predicted with); ``model`` the calibrated model (default: that profile, uncalibrated);
-    ``day`` the UTC date of logs that store times of day only. The relative rate of each flight is
-    divided by the typical factor of the OTHER flights, so that it too is held out.
+    ``day`` the UTC date of logs that store times of day only. Each flight the model was calibrated
+    on flies the model's law refitted without it, and its relative rate is divided by the typical
+    factor of the OTHER flights under that law, so that both are held out.
     """
     profile = profile or PROFILES["superbit-test"]
     model = model or CalibratedModel(profile, (), None)
@@ -317,14 +374,17 @@ def evaluate(
         profile_label=profile.name,
     )
     flights = _usable(paths, day, result.skipped)
-    survey = _rate_survey(flights, model)
-    result.typical_rate = _typical(survey)
+    laws = held_out_laws(model, flights)
+    result.held_out_laws = {name: law.terms for name, law in laws.items()}
+    result.typical_rate = _typical(_rate_survey(flights, model))
     for flight in flights:
-        configs = configurations(_typical(survey, leave_out=flight.name))
+        law = laws.get(flight.name, model)
+        # The typical factor this flight is divided by: the other flights' fits with its own fold's law.
+        configs = configurations(_typical(_rate_survey(flights, law), leave_out=flight.name))
         landing, descent = flight.landing, flight.descent
         live = {
             "profile": LivePredictor(flight.cube, profile, flight.ground, NO_CORRECTION),
-            "model": LivePredictor(flight.cube, model.payload, flight.ground, NO_CORRECTION, effects=model.terms),
+            "model": LivePredictor(flight.cube, law.payload, flight.ground, NO_CORRECTION, effects=law.terms),
         }
         touchdown_s = _touchdown_s(descent, landing.alt_m)
         start = live["model"].predict_from(descent[0]).prediction.landing
@@ -565,6 +625,28 @@ def _plot(result: Evaluation, kms: list[float], png: Path) -> None:
     plt.close(fig)
 
 
+def _held_out_text(result: Evaluation) -> str:
+    """What is held out in the numbers above, and how far the refitted laws spread."""
+    if not result.held_out_laws:
+        return (
+            "The model's law was not calibrated on these flights, so it is held out as it stands; the "
+            "live choices and the typical factors are held out per flight."
+        )
+    spread = []
+    for k, term in enumerate(next(iter(result.held_out_laws.values()))):
+        for key, value in term.parameters().items():
+            values = [terms[k].parameters()[key] for terms in result.held_out_laws.values()]
+            if isinstance(value, float) and len(set(values)) > 1:
+                spread.append(f"`{term.name}` {key} {min(values):.4g}–{max(values):.4g}")
+    return (
+        f"Everything is held out: each of the {len(result.held_out_laws)} flights the model was calibrated "
+        "on flies the model's law refitted without it (leave-one-flight-out, the calibration's own fit; "
+        f"across the folds {', '.join(spread) or 'the parameters do not change'}), the typical factor it "
+        "is divided by comes from the other flights' fits with that law, and its live choices from the "
+        "other flights' held-out predictions."
+    )
+
+
 def _bands_text(shipped: LiveCorrection) -> str:
     return "; ".join(b.describe() for b in shipped.bands) or "nothing (plain re-prediction everywhere)"
 
@@ -637,10 +719,9 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
             f"From 20 km the remaining-time error with the model and its held-out live corrections is "
             f"{model_s:.0f} s (mean |error|) against {textbook_s:.0f} s for the ρ^-½ extrapolation of the "
             f"measured rate: {100 * model_s / textbook_s:.0f} % (95 % interval {100 * low:.0f}–{100 * high:.0f} % "
-            f"with the flights resampled, {BOOTSTRAP_RESAMPLES} paired bootstrap draws). The model's law was "
-            "calibrated on these same flights (its parameters are not held out); the live choices and the "
-            "typical factors are. Typical whole-descent rate factor of all the flights by checkpoint (what "
-            "ships, `predictor.prediction.live.TYPICAL_RATE`): "
+            f"with the flights resampled, {BOOTSTRAP_RESAMPLES} paired bootstrap draws). {_held_out_text(result)} "
+            "Typical whole-descent rate factor of all the flights by checkpoint, with the model's own law "
+            "(what ships, `predictor.prediction.live.TYPICAL_RATE`): "
             + ", ".join(
                 f"{h:g} km {f:.4f}"
                 for h, f in zip(result.typical_rate.heights_km, result.typical_rate.factors, strict=True)

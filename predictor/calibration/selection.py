@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from predictor.calibration.effects import BIN_EDGES_M, BinnedCorrection, Candidate, fit_binned
+from predictor.calibration.effects import BIN_EDGES_M, LIBRARY, BinnedCorrection, Candidate, fit_binned
 from predictor.calibration.residuals import (
     FlightCase,
     FlightResiduals,
@@ -59,7 +59,7 @@ from predictor.calibration.residuals import (
     run,
     score,
 )
-from predictor.descent import Payload, Term
+from predictor.descent import BinnedDescentRate, BinnedWind, Payload, Term
 from predictor.errors import PredictorError
 
 ALPHA = 0.05
@@ -552,8 +552,17 @@ def _losses(
 def _binned(
     batch: _Batch, selected_folds: list[list[Fit]], selected_full: list[Fit]
 ) -> tuple[BinnedCorrection, HeldOut]:
-    """The binned correction per fold from the training flights' residuals, scored on the held-out one:
-    rate factors from the plain runs (the vertical record), added winds from the replayed runs, whose
+    """The binned correction per fold from the training flights' residuals, scored on the held-out one."""
+    folds = _binned_folds(batch, selected_folds, selected_full)
+    corrections = [fold.terms() for fold in folds[:-1]]
+    return folds[-1], batch.heldout(selected_folds, corrections)
+
+
+def _binned_folds(
+    batch: _Batch, selected_folds: list[list[Fit]], selected_full: list[Fit]
+) -> list[BinnedCorrection]:
+    """The binned correction fitted without each flight, then on all of them (n + 1 entries): rate
+    factors from the plain runs (the vertical record), added winds from the replayed runs, whose
     horizontal error is the wind's alone."""
     n = len(batch.cases)
     edges = np.asarray(BIN_EDGES_M)
@@ -574,8 +583,51 @@ def _binned(
             measured_s=rate.measured_s,
         )  # fmt: skip
 
-    corrections = [fold(i).terms() for i in range(n)]
-    return fold(n), batch.heldout(selected_folds, corrections)
+    return [fold(i) for i in range(n + 1)]
+
+
+def refit_without_each(
+    cases: Sequence[FlightCase], payload: Payload, terms: Sequence[Term], step_m: float = 200.0
+) -> tuple[tuple[Term, ...], list[tuple[Term, ...]]]:
+    """A calibrated model's terms fitted again on all the flights, and without each one in turn.
+
+    Why: a check of the model on the flights it was calibrated on (``drs live evaluate``) is honest
+    only when each flight is flown with the law fitted WITHOUT it. The terms are refitted the way
+    ``calibrate`` fitted what it selected: the library effects in their order, each with the earlier
+    ones held per fold, then jointly when there are several, then the binned correction's parts the
+    model keeps on top. Which terms the model has is taken as given (the selection is not repeated).
+    ``step_m`` is ``drs calibrate``'s default step, which the committed models were calibrated with
+    (a refit that does not give the model back shows a different one).
+    Returns (the all-flights refit, one tuple of terms per flight in ``cases`` order).
+    """
+    known = {c.name: c for c in LIBRARY}
+    library_terms = [t for t in terms if t.name in known]
+    binned_parts = {t.name for t in terms if t.name not in known}
+    unknown = binned_parts - {BinnedDescentRate.name, BinnedWind.name}
+    if unknown:
+        raise PredictorError(f"cannot refit {', '.join(sorted(unknown))}: not a library effect or binned correction")
+    n = len(cases)
+    if n < 3:
+        raise PredictorError(f"leave-one-flight-out needs at least 3 usable flights, got {n}")
+    batch = _Batch(cases, payload, step_m)
+    folds: list[list[Fit]] = [[] for _ in range(n)]
+    full: list[Fit] = []
+    for term in library_terms:
+        fit, per_fold = _fit(batch, known[term.name], folds, full)
+        full.append(fit)
+        for row, fold_fit in zip(folds, per_fold, strict=True):
+            row.append(fold_fit)
+    if len(full) > 1:
+        _refit_jointly(batch, folds, full)
+    binned: list[tuple[Term, ...]] = [()] * (n + 1)
+    if binned_parts:
+        binned = [
+            tuple(t for t in correction.terms() if t.name in binned_parts)
+            for correction in _binned_folds(batch, folds, full)
+        ]
+    rows = [*folds, full]
+    refits = [tuple(f.term() for f in row) + extra for row, extra in zip(rows, binned, strict=True)]
+    return refits[-1], refits[:-1]
 
 
 def _t_future(case: FlightCase) -> float:
