@@ -142,19 +142,19 @@ class HeldOut:
 
     def summary(self) -> dict[str, dict[str, float | None]]:
         return {
-            "track_rms_km": _mean_median(self.track_rms_km),
-            "time_rms_s": _mean_median(self.time_rms_s),
+            "track_rms_km": mean_median(self.track_rms_km),
+            "time_rms_s": mean_median(self.time_rms_s),
             "pressure_time_rms_s": _with_pressure(self.pressure_time_rms_s),
-            "altitude_rms_km": _mean_median(self.altitude_rms_km),
-            "horizontal_rms_km": _mean_median(self.horizontal_rms_km),
-            "landing_error_km": _mean_median(self.landing_error_km),
-            "descent_time_error_s": _mean_median(
+            "altitude_rms_km": mean_median(self.altitude_rms_km),
+            "horizontal_rms_km": mean_median(self.horizontal_rms_km),
+            "landing_error_km": mean_median(self.landing_error_km),
+            "descent_time_error_s": mean_median(
                 np.abs(self.descent_time_error_s), signed=self.descent_time_error_s
             ),
         }
 
 
-def _mean_median(values: np.ndarray, signed: np.ndarray | None = None) -> dict[str, float | None]:
+def mean_median(values: np.ndarray, signed: np.ndarray | None = None) -> dict[str, float | None]:
     """Mean and median; None (JSON null) when any flight's run failed, so a failure cannot hide."""
 
     def number(x: float) -> float | None:
@@ -171,7 +171,7 @@ def _with_pressure(values: np.ndarray) -> dict[str, float | None]:
     logged = values[np.isfinite(values)]
     out: dict[str, float | None] = {"mean": None, "median": None}
     if logged.size:
-        out = _mean_median(logged)
+        out = mean_median(logged)
     return {**out, "flights": int(logged.size)}
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -9,9 +10,10 @@ import pytest
 
 from predictor.calibration.effects import library
 from predictor.calibration.ellipse_fit import fit_ellipse
-from predictor.calibration.report import Exclusion, result_json, write_report
+from predictor.calibration.report import Exclusion, landing_change, result_json, write_report
 from predictor.calibration.residuals import FlightCase
 from predictor.calibration.selection import Calibration, calibrate
+from predictor.descent.model import DragDensityExponent
 from predictor.descent.payload import PROFILES
 
 PAYLOAD = PROFILES["superbit-test"]
@@ -81,3 +83,26 @@ def test_a_preface_stands_under_the_title_and_survives_regeneration(
     assert text.startswith("# Synthetic\n\n## Summary in plain words\n\nThe capsule fell slower near the ground.\n\n")
     assert text.count("Summary in plain words") == 1
     assert text.index("Summary in plain words") < text.index("## What the data showed")
+
+
+def test_the_landing_change_is_paired_flight_by_flight_and_split_by_what_the_descent_time_did(
+    synthetic_cases: Callable[..., list[FlightCase]], tmp_path: Path
+) -> None:
+    cal = calibrate(synthetic_cases((DragDensityExponent(exponent=0.15),), n=4), PAYLOAD, library(["drag_density_exponent"]))
+    change = landing_change(cal)
+    d = cal.after.landing_error_km - cal.baseline.landing_error_km
+    assert change["mean_change_km"]["value"] == pytest.approx(d.mean(), abs=1e-4)
+    assert change["median_of_changes_km"]["value"] == pytest.approx(np.median(d), abs=1e-4)
+    for key in ("mean_change_km", "median_of_changes_km", "median_shift_km"):
+        c = change[key]
+        assert c["low"] <= c["value"] <= c["high"], key
+    closer, further = change["descent_time_closer"], change["descent_time_further"]
+    assert closer["flights"] + further["flights"] == 4 and change["landing_closer"] == int((d < 0).sum())
+    # The exponent the flights carry fixes every descent time, and with it the landings.
+    assert closer == {"flights": 4, "landing_closer": 4, "median_change_km": pytest.approx(np.median(d), abs=1e-4)}
+    assert change["median_of_changes_km"]["high"] < 0.0
+    data = result_json(cal, None, [], PAYLOAD.to_dict(), "synthetic")
+    write_report(tmp_path / "r.md", cal, None, [], "Synthetic", "drs calibrate ...", data)
+    text = (tmp_path / "r.md").read_text(encoding="utf-8")
+    assert "## Landing error: before and after, flight by flight (held out)" in text
+    assert "Flights whose descent time came closer to the measured one: 4 of 4 land closer" in text
