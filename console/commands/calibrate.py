@@ -7,6 +7,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from console.commands.tracks import iso_date
+
 DEFAULT_STEP_M = 200.0
 """Altitude step of every calibration run: 150 steps from 30 km. The step's truncation error is the
 same for every candidate, so it cannot favour one; halving it doubles the run time."""
@@ -22,6 +24,12 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 def run_bench(args: argparse.Namespace) -> int:
     from predictor.calibration import run_bench as run
+
+    return run(args)
+
+
+def run_vertical(args: argparse.Namespace) -> int:
+    from predictor.calibration import run_vertical as run
 
     return run(args)
 
@@ -54,10 +62,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _inputs(bench, required=True)
     bench.add_argument("--repeat", type=int, default=1, metavar="N", help="runs; the best is reported")
     bench.set_defaults(func=run_bench)
+    vertical = actions.add_parser(
+        "vertical",
+        help="a saved model's descent law on flights it never saw, scored on the vertical record alone "
+        "(no landing needed: a record that ends in the air is scored to its last fix)",
+    )
+    _inputs(vertical, required=True)
+    vertical.add_argument("--model", type=Path, required=True, metavar="PATH", help="the calibrated model")
+    vertical.add_argument("--json", type=Path, metavar="OUT", help="write the results as JSON; - for stdout")
+    vertical.add_argument("--report", type=Path, metavar="OUT.md", help="write a Markdown report")
+    vertical.set_defaults(func=run_vertical)
 
 
 def _inputs(parser: argparse.ArgumentParser, required: bool) -> None:
     parser.add_argument("--tracks", nargs="+", metavar="FILE", required=required, help="flight track files")
+    parser.add_argument(
+        "--date", type=iso_date, metavar="YYYY-MM-DD", help="UTC date of the first fix, for logs with times of day only (V4)"
+    )
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files covering every descent")
     source.add_argument(

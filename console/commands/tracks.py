@@ -27,7 +27,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     summary.add_argument("--json", action="store_true", help="print JSON instead of text")
     summary.add_argument(
         "--date",
-        type=_iso_date,
+        type=iso_date,
         default=None,
         metavar="YYYY-MM-DD",
         help="UTC date of the first fix, for logs that record only times of day (the V4 logger)",
@@ -45,7 +45,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     bench.add_argument(
         "--repeat", type=int, default=5, metavar="N", help="runs; the best is reported (default 5)"
     )
-    bench.add_argument("--date", type=_iso_date, default=None, metavar="YYYY-MM-DD")
+    bench.add_argument("--date", type=iso_date, default=None, metavar="YYYY-MM-DD")
     bench.set_defaults(func=run_bench)
 
 
@@ -185,7 +185,8 @@ def _line_list(lines: tuple[int, ...]) -> str:
     return ", ".join(runs)
 
 
-def _iso_date(text: str) -> date:
+def iso_date(text: str) -> date:
+    """``--date``: the UTC day of a log that records only times of day (one parser for every command)."""
     try:
         return date.fromisoformat(text)
     except ValueError:

@@ -4,7 +4,8 @@
 chooses effects family by family leave-one-flight-out, ``ellipse_fit`` fits the landing ellipse,
 ``report`` writes the results, and ``run`` is what ``drs calibrate`` runs. ``model_file`` is the
 calibrated model every prediction can fly; ``live_evaluation`` (with ``live_bench``) measures live
-re-prediction on real descents and adds its settings to that model.
+re-prediction on real descents and adds its settings to that model; ``vertical_check`` flies a saved
+law on flights it never saw, on the vertical record alone (``drs calibrate vertical``).
 """
 
 from predictor.lazy_door import lazy_door
@@ -20,6 +21,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "load_model": "model_file",
         "run_bench": "run",
         "run_calibrate": "run",
+        "run_vertical": "run",
         "save_model": "model_file",
         "write_report": "live_evaluation",
     },

@@ -23,7 +23,7 @@ import numpy as np
 
 from predictor.calibration.effects import LIBRARY, library
 from predictor.calibration.ellipse_fit import MIN_FLIGHTS, EllipseFit, fit_ellipse
-from predictor.calibration.model_file import CalibratedModel, save_model
+from predictor.calibration.model_file import CalibratedModel, load_model, save_model
 from predictor.calibration.report import Exclusion, result_json, verdict, write_report
 from predictor.calibration.residuals import FlightCase, flight_case, run, score
 from predictor.calibration.selection import Calibration, calibrate
@@ -69,7 +69,7 @@ def prepare(args: argparse.Namespace) -> Inputs:
     cases: list[FlightCase] = []
     excluded: list[Exclusion] = []
     for name in args.tracks:
-        flight = clean(read_track(name), terrain)
+        flight = clean(read_track(name, day=args.date), terrain)
         if not flight.usable:
             excluded.append(Exclusion(flight.name, "cleaning: " + "; ".join(flight.exclusions)))
             continue
@@ -214,6 +214,41 @@ def _print_summary(cal: Calibration, inputs: Inputs, data: dict[str, Any], out: 
     selected = ", ".join(f"{f['effect']} ({f['family']})" for f in data["selected"])
     print(f"selected: {selected or 'none'}", file=out)
     print(verdict(cal), file=out)
+
+
+def run_vertical(args: argparse.Namespace) -> int:
+    """``drs calibrate vertical``: a saved model's descent law on flights it never saw, vertical record only."""
+    from predictor.calibration import vertical_check
+
+    if args.weather is None and args.winds is None:
+        raise PredictorError("give the weather: --weather FILE... or --winds ascent")
+    model = load_model(args.model)
+    shared = load_weather(args.weather, cache_dir=args.cache_dir) if args.weather else None
+    checks = []
+    for name in args.tracks:
+        flight = clean(read_track(name, day=args.date))
+        cube = shared if shared is not None else ascent_weather_cube(flight)
+        case = vertical_check.vertical_case(flight, cube)
+        checks.append(vertical_check.check_flight(case, model, flight.usable, args.step))
+    parts = ["drs", "calibrate", "vertical", "--model", str(args.model), "--tracks", *args.tracks]
+    parts += ["--weather", *args.weather] if args.weather else ["--winds", args.winds]
+    parts += ["--date", args.date.isoformat()] if args.date else []
+    parts += ["--report", str(args.report)] if args.report else []
+    parts += ["--json", str(args.json)] if args.json else []
+    command = shlex.join(parts)
+    if args.report:
+        vertical_check.write_report(args.report, checks, model, command)
+    if args.json:
+        write_text(args.json, json.dumps(vertical_check.to_json(checks, model, command), indent=2) + "\n", "JSON")
+    said = sys.stderr if is_stdout(args.json) else sys.stdout
+    for check in checks:
+        for law in check.scores:
+            print(
+                f"{check.name}: {law.law}: time-at-altitude RMS {law.time_rms_s:.0f} s, altitude-at-time RMS "
+                f"{law.altitude_rms_km:.3f} km, time-to-end error {law.descent_time_error_s:+.0f} s",
+                file=said,
+            )
+    return 0
 
 
 def run_bench(args: argparse.Namespace) -> int:
