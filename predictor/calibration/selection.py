@@ -307,7 +307,7 @@ class Calibration:
         return tuple(term for term, record in ((rate, "vertical"), (wind, "horizontal")) if record in passed)
 
 
-class _Batch:
+class FlightBatch:
     """Runs many (effects, parameters) rows of one flight as one call of the stepper."""
 
     def __init__(self, cases: Sequence[FlightCase], payload: Payload, step_m: float) -> None:
@@ -360,7 +360,7 @@ def calibrate(
     unknown = {c.family for c in candidates} - set(FAMILY_ORDER)
     if unknown:
         raise PredictorError(f"unknown effect family {', '.join(sorted(unknown))}")
-    batch = _Batch(cases, payload, step_m)
+    batch = FlightBatch(cases, payload, step_m)
     baseline = batch.heldout([[]] * n)
     baseline_residuals = tuple(residuals(cases[i], batch.runs(i, [[]])) for i in range(n))
     baseline_replayed = tuple(residuals(cases[i], batch.runs(i, [[]], replay=True)) for i in range(n))
@@ -428,7 +428,7 @@ def calibrate(
 
 
 def _family(
-    batch: _Batch,
+    batch: FlightBatch,
     family: str,
     baseline: HeldOut,
     rounds: Sequence[tuple[CandidateResult, ...]],
@@ -458,7 +458,7 @@ def _family(
 
 
 def _try(
-    batch: _Batch,
+    batch: FlightBatch,
     candidate: Candidate,
     selected_folds: list[list[Fit]],
     selected_full: list[Fit],
@@ -469,14 +469,14 @@ def _try(
 ) -> CandidateResult:
     """Fit the candidate per fold and on all flights (other selected effects held), score held out."""
     n = len(batch.cases)
-    full, folds_fit = _fit(batch, candidate, selected_folds, selected_full)
+    full, folds_fit = fit_candidate(batch, candidate, selected_folds, selected_full)
     heldout = batch.heldout([[*selected_folds[i], folds_fit[i]] for i in range(n)])
     tests = _tests(RECORDS[candidate.family], reference, heldout, alpha, seed)
     return CandidateResult(round_no, full, tuple(folds_fit), heldout, tests)
 
 
-def _fit(
-    batch: _Batch, candidate: Candidate, held_folds: list[list[Fit]], held_full: list[Fit]
+def fit_candidate(
+    batch: FlightBatch, candidate: Candidate, held_folds: list[list[Fit]], held_full: list[Fit]
 ) -> tuple[Fit, list[Fit]]:
     """The candidate fitted on all flights and per fold, with the ``held`` effects in the model.
 
@@ -499,7 +499,7 @@ def _fit(
     return full, fits
 
 
-def _refit_jointly(batch: _Batch, selected_folds: list[list[Fit]], selected_full: list[Fit]) -> None:
+def _refit_jointly(batch: FlightBatch, selected_folds: list[list[Fit]], selected_full: list[Fit]) -> None:
     """Refit each selected effect on its own record with the others held at their latest values,
     ``JOINT_SWEEPS`` times (in place): an effect selected early was fitted without the later ones and
     has absorbed part of them. Fold i's fits still never see flight i."""
@@ -507,14 +507,14 @@ def _refit_jointly(batch: _Batch, selected_folds: list[list[Fit]], selected_full
         for k in range(len(selected_full)):
             others_folds = [[f for m, f in enumerate(row) if m != k] for row in selected_folds]
             others_full = [f for m, f in enumerate(selected_full) if m != k]
-            full, folds = _fit(batch, selected_full[k].candidate, others_folds, others_full)
+            full, folds = fit_candidate(batch, selected_full[k].candidate, others_folds, others_full)
             selected_full[k] = full
             for i, fit in enumerate(folds):
                 selected_folds[i][k] = fit
 
 
 def _losses(
-    batch: _Batch, candidate: Candidate, selected_folds: list[list[Fit]], selected_full: list[Fit]
+    batch: FlightBatch, candidate: Candidate, selected_folds: list[list[Fit]], selected_full: list[Fit]
 ) -> np.ndarray:
     """loss[j, i, g]: flight j's squared score (summed over the family's records, each in units of its
     floor) at grid point g with fold i's selected effects (i = n: the all-flights fit; loss[j, j] = 0,
@@ -550,7 +550,7 @@ def _losses(
 
 
 def _binned(
-    batch: _Batch, selected_folds: list[list[Fit]], selected_full: list[Fit]
+    batch: FlightBatch, selected_folds: list[list[Fit]], selected_full: list[Fit]
 ) -> tuple[BinnedCorrection, HeldOut]:
     """The binned correction per fold from the training flights' residuals, scored on the held-out one."""
     folds = _binned_folds(batch, selected_folds, selected_full)
@@ -559,7 +559,7 @@ def _binned(
 
 
 def _binned_folds(
-    batch: _Batch, selected_folds: list[list[Fit]], selected_full: list[Fit]
+    batch: FlightBatch, selected_folds: list[list[Fit]], selected_full: list[Fit]
 ) -> list[BinnedCorrection]:
     """The binned correction fitted without each flight, then on all of them (n + 1 entries): rate
     factors from the plain runs (the vertical record), added winds from the replayed runs, whose
@@ -609,11 +609,11 @@ def refit_without_each(
     n = len(cases)
     if n < 3:
         raise PredictorError(f"leave-one-flight-out needs at least 3 usable flights, got {n}")
-    batch = _Batch(cases, payload, step_m)
+    batch = FlightBatch(cases, payload, step_m)
     folds: list[list[Fit]] = [[] for _ in range(n)]
     full: list[Fit] = []
     for term in library_terms:
-        fit, per_fold = _fit(batch, known[term.name], folds, full)
+        fit, per_fold = fit_candidate(batch, known[term.name], folds, full)
         full.append(fit)
         for row, fold_fit in zip(folds, per_fold, strict=True):
             row.append(fold_fit)

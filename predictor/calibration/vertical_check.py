@@ -28,7 +28,7 @@ import numpy as np
 from predictor.calibration.effects import LIBRARY, Candidate
 from predictor.calibration.model_file import CalibratedModel
 from predictor.calibration.residuals import FlightCase, flight_case
-from predictor.calibration.selection import Fit, _Batch, _fit
+from predictor.calibration.selection import Fit, FlightBatch, fit_candidate
 from predictor.environment import WeatherCube
 from predictor.errors import PredictorError
 from predictor.tracks import Flight
@@ -85,7 +85,7 @@ def _library_fits(model: CalibratedModel) -> list[Fit]:
     return fits
 
 
-def _score(batch: _Batch, fits: list[Fit], law: str) -> LawScore:
+def _score(batch: FlightBatch, fits: list[Fit], law: str) -> LawScore:
     s = batch.scores(0, [fits])
     return LawScore(
         law,
@@ -103,10 +103,10 @@ def check_flight(case: FlightCase, model: CalibratedModel, landed: bool, step_m:
     if case.name in (model.provenance.get("flights") or ()):
         raise PredictorError(f"{case.name}: the model was calibrated on this flight, so its law is not held out here")
     law = _library_fits(model)
-    batch = _Batch([case], model.payload, step_m)
+    batch = FlightBatch([case], model.payload, step_m)
 
     def with_scale(held: list[Fit]) -> list[Fit]:
-        scale, _ = _fit(batch, SCALE, [list(held)], list(held))
+        scale, _ = fit_candidate(batch, SCALE, [list(held)], list(held))
         return [*held, scale]
 
     def profiled(candidate: Candidate, held: list[Fit]) -> Fit:
