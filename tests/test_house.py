@@ -73,14 +73,30 @@ def test_every_room_says_what_it_holds(room: str) -> None:
     assert docstring and len(docstring) > 40, f"{door} needs a docstring that says what the room holds"
 
 
-def test_a_door_names_only_what_its_room_defines() -> None:
-    """A lazy door's name that no module defines would fail only when first used, on launch day."""
+def _defined_at_top(path: Path) -> set[str]:
+    names = set()
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.FunctionDef | ast.ClassDef):
+            names.add(node.name)
+        elif isinstance(node, ast.Assign):
+            names |= {target.id for target in node.targets if isinstance(target, ast.Name)}
+        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+            names.add(node.target.id)
+    return names
+
+
+def test_a_door_names_only_what_its_room_defines_once() -> None:
+    """A lazy door's name that no module defines would fail only when first used, on launch day; one that
+    two modules define (each bench has its ``run_bench``) would open whichever the door happens to name."""
     import importlib
 
     for room in _rooms():
         door = importlib.import_module(room)
+        folder = ROOT / room.replace(".", "/")
         for name in getattr(door, "__all__", ()):
             assert getattr(door, name) is not None, f"{room}.{name}"
+            homes = [p.stem for p in folder.glob("*.py") if p.name != "__init__.py" and name in _defined_at_top(p)]
+            assert len(homes) <= 1, f"{room}.{name} is defined in {homes}: import the module instead"
 
 
 @pytest.mark.parametrize("package", ["predictor", "drs_link"])

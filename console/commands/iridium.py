@@ -62,7 +62,7 @@ from drs_link.ops import (
     current_login,
     load_checklists,
 )
-from drs_link.sim import run_bench
+from drs_link.sim import mo_bench
 from drs_link.store import Store, iso_utc, utc_now
 from predictor.errors import UsageError
 from predictor.geofiles import piped
@@ -414,7 +414,7 @@ def _mo_bench(args: argparse.Namespace) -> int:
                                 ("--per-client", args.per_client, 10_000)):  # fmt: skip
         if not 1 <= value <= most:
             raise UsageError(f"{option} must be from 1 to {most}")
-    for line in run_bench(args.posts, args.clients, args.per_client).lines():
+    for line in mo_bench.run_bench(args.posts, args.clients, args.per_client).lines():
         print(line)
     return 0
 

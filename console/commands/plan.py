@@ -345,7 +345,7 @@ def run_live(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from predictor.calibration import evaluate, flown_model, live_settings, save_model, write_report
+    from predictor.calibration import flown_model, live_evaluation, live_settings, save_model
 
     if not args.tracks:
         raise UsageError("drs live evaluate needs track files")
@@ -356,7 +356,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     # without calibrated terms), so the difference is the law and not the mass or Cd·A.
     profile = args.payload if args.model is not None or args.payload is not None else "superbit-test"
     model = flown_model(args.model, profile, args.mass, args.cda)
-    result = evaluate(
+    result = live_evaluation.evaluate(
         args.tracks, model=model if args.model is not None else None, profile=model.payload, day=_day(args.date)
     )
     if not result.flights:
@@ -364,7 +364,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     names = sorted({Path(t).parent.name for t in args.tracks})
     flown = f" --model {args.model}" if args.model is not None else ""
     command = f"drs live evaluate <{len(args.tracks)} track files in {', '.join(names)}>{flown} --out {args.out}"
-    md = write_report(result, args.out, command)
+    md = live_evaluation.write_report(result, args.out, command)
     if args.save_model:
         saved = save_model(live_settings(model, result, command), args.save_model)
         print(f"{saved}: the model with its live settings", file=sys.stderr)

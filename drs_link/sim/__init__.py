@@ -19,7 +19,6 @@ __getattr__, __dir__, __all__ = lazy_door(
         "SimulatedRockblock": "rockblock",
         "generate_test_keys": "rockblock",
         "post_mo": "rockblock",
-        "run_bench": "capsule_bench",
         "write_ed25519": "keys",
     },
 )

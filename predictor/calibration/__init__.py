@@ -23,6 +23,5 @@ __getattr__, __dir__, __all__ = lazy_door(
         "run_calibrate": "run",
         "run_vertical": "run",
         "save_model": "model_file",
-        "write_report": "live_evaluation",
     },
 )

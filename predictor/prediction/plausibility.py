@@ -12,12 +12,11 @@ import sys
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from pyproj import Geod
+from predictor.prediction.uncertainty import GEOD
 
 if TYPE_CHECKING:  # shapely loads with the zone checks, not with `drs recovery`
     from shapely.geometry.base import BaseGeometry
 
-GEOD = Geod(ellps="WGS84")
 
 KM_LIKE_ALTITUDE_M = (1.0, 60.0)
 """An --alt in this range of metres is very likely kilometres: balloons release from 1–60 km, and a
