@@ -4,7 +4,9 @@ The app owns no release rules: it folds telemetry into ``FleetState``, shows it,
 into intents for ``drs_link`` (``Operations``, ``ArmingController``, ``ChecklistRun``), which
 accept or refuse them. SSH, SQLite, HTTP and predictions run in thread workers (one group per
 capsule for polls, re-armed only when the previous poll finished; the release in its own group,
-never exclusive, so a refresh can never cancel a FIRE); their results come back as messages.
+never exclusive, so a refresh can never cancel a FIRE); their results come back as messages
+(``console.messages``). The screens never see the app: each is handed the ``ConsoleContext``
+(``console.context``) it works on, and the fleet opens them from ``console.screens.registry``.
 """
 
 from __future__ import annotations
@@ -14,30 +16,28 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
-from datetime import datetime, timedelta
-from pathlib import Path
+from collections.abc import Iterable
+from datetime import datetime
 
 from textual import on, work
 from textual.app import App, SystemCommand
 from textual.binding import Binding
-from textual.message import Message
 from textual.notifications import SeverityLevel
 from textual.screen import ModalScreen, Screen
 from textual.worker import Worker, WorkerState
 
-from console.predictions import PredictionService
+from console.context import ConsoleContext, ConsoleSetup
+from console.messages import OperatorNotice, TelemetryArrived
+from console.screens.fleet import FleetScreen
+from console.screens.help import HelpScreen
+from console.screens.modals import ConfirmModal
+from console.screens.registry import palette_commands
 from drs_link.errors import LinkError
-from drs_link.feeds import BalloonFeed
 from drs_link.ops import (
-    PROCEDURE_DIR,
-    Approval,
-    ApprovalBook,
+    ArmingController,
     ArmState,
     BalloonSample,
     Checklist,
-    ChecklistRun,
     FleetState,
     GnssSample,
     GoNoGoReport,
@@ -47,21 +47,14 @@ from drs_link.ops import (
     PredictionStatus,
     ReleaseOrigin,
     TelemetryRecord,
-    approved,
-    current_login,
-    evaluate,
-    load_checklists,
-    pending_text,
     record_loss,
     record_start,
-    release_origin,
     unprotected_ssh_warning,
 )
-from drs_link.store import Store, utc_now
+from drs_link.store import Store
 from predictor.descent import COMPILE_NOTICE, kernels_compiled
 from predictor.errors import PredictorError
 
-POLL_PERIOD_S = 5.0
 REPORT_POLL_S = 3.0
 PREDICTION_LEAD_MIN = (0, 10)
 GATEWAY_CHECK_S = 300.0
@@ -77,53 +70,6 @@ GO_FINISH_S = 120.0
 LOST_SIGNALS = (signal.SIGHUP, signal.SIGTERM)
 SHUTDOWN_GRACE_S = 5.0
 """After a lost session, how long an orderly shutdown may take before the process simply ends."""
-LOW_BANDWIDTH_AGE_STEP_S = 10.0
-
-
-class TelemetryArrived(Message):
-    """Records from a worker (poll, command, replay); folded into the fleet state on the UI thread."""
-
-    def __init__(self, records: list[TelemetryRecord]) -> None:
-        super().__init__()
-        self.records = records
-
-
-class OperatorNotice(Message):
-    """A one-line result or refusal for the operator (never a traceback)."""
-
-    def __init__(self, text: str, severity: str = "information") -> None:
-        super().__init__()
-        self.text = text
-        self.severity = severity
-
-
-@dataclass
-class ConsoleSetup:
-    """Everything the app runs on; built by ``console_cli`` for live, demo and replay."""
-
-    mode: str
-    capsules: list[str]
-    store: Store
-    clock: Callable[[], datetime] = utc_now
-    operations: Operations | None = None
-    predictions: PredictionService | None = None
-    balloon_feed: BalloonFeed | None = None
-    """The configured ground-station feed of the balloon's position (started and stopped by the caller)."""
-    replay_feed: Callable[[], list[TelemetryRecord]] | None = None
-    team_position: tuple[float, float] | None = None
-    export_dir: Path = Path(".")
-    banner_note: str = ""
-    low_bandwidth: bool = False
-    """``--low-bandwidth`` or ``[console] low_bandwidth``: see ``DrsConsole.view_time``."""
-    poll_period_s: float = POLL_PERIOD_S
-    prediction_period_s: float = 60.0
-    time_scale: float = 1.0
-    """Simulated seconds per real second (the demo): timers are real, telemetry times are not."""
-
-    def close(self) -> None:
-        """Stop what runs beside the app (the balloon feed's reader); the store closes with Operations."""
-        if self.balloon_feed is not None:
-            self.balloon_feed.stop()
 
 
 class DrsConsole(App[int]):
@@ -137,13 +83,8 @@ class DrsConsole(App[int]):
 
     def __init__(self, setup: ConsoleSetup, live_timers: bool = True) -> None:
         super().__init__()
-        self.setup = setup
-        poll_period = 2.0 * setup.poll_period_s * setup.time_scale
-        self.fleet = FleetState.for_capsules(setup.capsules, poll_period if setup.operations else 0.0)
-        self.checklists: list[Checklist] = (
-            setup.operations.checklists if setup.operations else load_checklists(PROCEDURE_DIR)
-        )
-        """The procedure the operations layer ticks, so the screen shows the steps it completes."""
+        self.context = ConsoleContext(setup, lambda text: self.post_message(OperatorNotice(text, "warning")))
+        """What the screens work on (``console.context``): each screen the app opens is handed it."""
         self.live_timers = live_timers
         self.predicting: set[str] = set()
         """Capsules with a prediction running: one at a time each, so a slow first one never piles up."""
@@ -154,72 +95,59 @@ class DrsConsole(App[int]):
         self._audit_seen = 0
         """The newest audit row this console has shown or written: what another console wrote comes after."""
 
-    # Shared state for the screens -------------------------------------------------------------
+    # The context's state and calls, as the app's own code (and its tests) name them ------------
 
     @property
-    def mode(self) -> str:
-        return self.setup.mode
+    def setup(self) -> ConsoleSetup:
+        return self.context.setup
+
+    @setup.setter
+    def setup(self, setup: ConsoleSetup) -> None:
+        self.context.setup = setup
+
+    @property
+    def fleet(self) -> FleetState:
+        return self.context.fleet
+
+    @property
+    def checklists(self) -> list[Checklist]:
+        return self.context.checklists
 
     @property
     def commanding(self) -> bool:
-        """Replay can never command: there is no Operations behind it, and the keys are disabled."""
-        return self.setup.operations is not None and self.setup.mode != "replay"
+        return self.context.commanding
 
     @property
     def ops(self) -> Operations | None:
-        return self.setup.operations
+        return self.context.ops
 
     @property
     def store(self) -> Store:
-        return self.setup.store
+        return self.context.store
 
     @property
     def operator(self) -> str:
-        return self.ops.operator if self.ops else "replay"
+        return self.context.operator
 
     def now(self) -> datetime:
-        return self.setup.clock()
+        return self.context.now()
 
     def view_time(self) -> datetime:
-        """The time the fleet's ages are shown at: ``now``, or on a thin link ``now`` in steps of
-        ``LOW_BANDWIDTH_AGE_STEP_S``, so the many ages on screen change every 10 s instead of every second
-        (each change is bytes on the link). Countdowns, the clock and every decision use ``now``."""
-        now = self.now()
-        if not self.setup.low_bandwidth:
-            return now
-        return now - timedelta(seconds=now.timestamp() % LOW_BANDWIDTH_AGE_STEP_S)
+        return self.context.view_time()
 
     def banner(self) -> str:
-        words = {"demo": "DEMO — simulated capsules, gateway and weather", "replay": "REPLAY — commanding disabled",
-                 "live": "LIVE"}  # fmt: skip
-        text = words.get(self.mode, self.mode.upper())
-        return f"{text} {self.setup.banner_note}".strip()
-
-    def approval(self, capsule: str, action: str, summary: str) -> int:
-        """Ask another login to approve a hazardous command and wait (from a worker thread); the
-        approval's id, or RefusedError when it was rejected or expired (``drs_link.ops.approval``)."""
-        book = ApprovalBook(self.store, self.now)
-
-        def pending(request: Approval) -> None:
-            self.post_message(OperatorNotice(f"{capsule}: {pending_text(request)}", "warning"))
-
-        return approved(book, capsule, action, summary, self.operator, current_login(), pending)
-
-    def checklist_run(self, capsule: str, checklist: Checklist) -> ChecklistRun:
-        return ChecklistRun(self.store, checklist, capsule, self.now)
+        return self.context.banner()
 
     def gonogo(self, capsule: str) -> GoNoGoReport:
-        telemetry = self.fleet.capsules[capsule]
-        zones = self.ops.zones if self.ops else ()
-        waivers = self.ops.ops(capsule).waivers.waivers if self.ops else []
-        return evaluate(capsule, telemetry.gonogo_inputs(self.now(), zones), self.now(), waivers)
+        return self.context.gonogo(capsule)
+
+    def prediction_origin(self, capsule: str) -> ReleaseOrigin | None:
+        return self.context.prediction_origin(capsule)
 
     # Lifecycle --------------------------------------------------------------------------------
 
     def on_mount(self) -> None:
-        from console.screens.fleet import FleetScreen
-
-        self.push_screen(FleetScreen())
+        self.push_screen(FleetScreen(self.context))
         if not self.live_timers:
             return
         if self.commanding:
@@ -232,7 +160,7 @@ class DrsConsole(App[int]):
             self.set_interval(max(0.5, min(REPORT_POLL_S, 30.0 / self.setup.time_scale)), self.poll_reports)
         if self.setup.predictions is not None:
             self.set_interval(self.setup.prediction_period_s, self.refresh_predictions)
-        elif self.mode != "replay":  # a replay shows the predictions it recorded
+        elif self.context.mode != "replay":  # a replay shows the predictions it recorded
             for name in self.setup.capsules:
                 self.fleet.apply(self.prediction_status(name, "no weather", NO_WEATHER))
         if self.setup.balloon_feed is not None:
@@ -260,12 +188,12 @@ class DrsConsole(App[int]):
         """SIGHUP (the SSH session dropped) or SIGTERM: disarm on the record, let a Go in flight finish
         and be recorded by its worker, then end (``drs_link.ops.session``)."""
         assert self.ops is not None
-        arming = {name: self.ops.ops(name).arming for name in self.setup.capsules}
+        arming = {name: self.context.arming(name) for name in self.setup.capsules}
         firing = [name for name, a in arming.items() if a.status().state is ArmState.FIRING]
         record_loss(self.store, self.operator, sig.name, arming, firing)
         self.run_worker(self._end_after_go(list(arming.values()), 128 + sig.value), group="session-lost")
 
-    async def _end_after_go(self, arming: list, code: int) -> None:
+    async def _end_after_go(self, arming: list[ArmingController], code: int) -> None:
         deadline = time.monotonic() + GO_FINISH_S
         while any(a.status().state is ArmState.FIRING for a in arming) and time.monotonic() < deadline:
             await asyncio.sleep(0.2)
@@ -298,7 +226,7 @@ class DrsConsole(App[int]):
         """Once a second: ages grow, ARM windows run out, first predictions start, the screen shows all."""
         if self.ops is not None:
             for name in self.setup.capsules:
-                arming = self.ops.ops(name).arming
+                arming = self.context.arming(name)
                 if arming.status().armed:
                     arming.observe(self.gonogo(name))
         if self.setup.predictions is not None:
@@ -360,10 +288,6 @@ class DrsConsole(App[int]):
         if records:
             self.post_message(TelemetryArrived(records))
 
-    def prediction_origin(self, capsule: str) -> ReleaseOrigin | None:
-        """Where a release would start (the rule is ``drs_link.ops.origin.release_origin``)."""
-        return release_origin(self.fleet, capsule, self.now())
-
     def refresh_predictions(self, names: Iterable[str] | None = None) -> None:
         for name in self.setup.capsules if names is None else names:
             if self.fleet.capsules[name].released or name in self.predicting:
@@ -419,7 +343,7 @@ class DrsConsole(App[int]):
         if self.ops is not None:
             touched = {r.capsule for r in message.records if r.capsule}
             for name in touched & set(self.setup.capsules):
-                arming = self.ops.ops(name).arming
+                arming = self.context.arming(name)
                 link_down = any(
                     r.capsule == name and isinstance(r.data, LinkSample) and not r.data.up for r in message.records
                 )
@@ -433,7 +357,7 @@ class DrsConsole(App[int]):
 
     @on(OperatorNotice)
     def show_notice(self, message: OperatorNotice) -> None:
-        self.notify(message.text, severity=message.severity, timeout=8)  # type: ignore[arg-type]
+        self.notify(message.text, severity=message.severity, timeout=8)
 
     @on(Worker.StateChanged)
     def worker_failed(self, event: Worker.StateChanged) -> None:
@@ -443,8 +367,6 @@ class DrsConsole(App[int]):
     # Actions ----------------------------------------------------------------------------------
 
     def action_help(self) -> None:
-        from console.screens.help import HelpScreen
-
         self.push_screen(HelpScreen())
 
     async def action_quit(self) -> None:
@@ -456,9 +378,7 @@ class DrsConsole(App[int]):
         if not self.commanding:
             self.exit(0)
             return
-        from console.screens.modals import ConfirmModal
-
-        arming = {name: self.ops.ops(name).arming for name in self.setup.capsules}
+        arming = {name: self.context.arming(name) for name in self.setup.capsules}
         firing = [name for name, a in arming.items() if a.status().state is ArmState.FIRING]
         if firing:
             self.notify(
@@ -487,9 +407,7 @@ class DrsConsole(App[int]):
 
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
         yield from super().get_system_commands(screen)
-        from console.screens import palette_commands
-
-        yield from palette_commands(self)
+        yield from palette_commands(self.context, self.push_screen)
 
     def notify(
         self,

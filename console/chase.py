@@ -21,7 +21,7 @@ from drs_link.iridium import detect_landing, track_from_reports
 from predictor.errors import PredictorError
 
 if TYPE_CHECKING:
-    from console.app import ConsoleSetup
+    from console.context import ConsoleSetup
     from drs_link.feeds import ChasePoint
     from predictor import Prediction
 

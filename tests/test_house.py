@@ -99,7 +99,7 @@ def test_a_door_names_only_what_its_room_defines_once() -> None:
             assert len(homes) <= 1, f"{room}.{name} is defined in {homes}: import the module instead"
 
 
-@pytest.mark.parametrize("package", ["predictor", "drs_link"])
+@pytest.mark.parametrize("package", ["predictor", "drs_link", "console"])
 def test_no_module_imports_itself_back_through_others(package: str) -> None:
     """Run-time imports only: an import under ``TYPE_CHECKING`` is a type annotation, never executed."""
     graph = grimp.build_graph(package, exclude_type_checking_imports=True, cache_dir=None)

@@ -23,7 +23,7 @@ from drs_link.ops import TelemetryRecord, TelemetryRecorder, read_recording
 from drs_link.store import Store
 
 if TYPE_CHECKING:
-    from console.app import ConsoleSetup
+    from console.context import ConsoleSetup
     from console.demo import DemoWorld
     from drs_link.feeds import BalloonFeed
     from predictor import Terrain
@@ -134,7 +134,7 @@ class ReplayFeed:
 
 def replay_setup(path: Path, speed: float, config: Config) -> tuple[ConsoleSetup, ReplayFeed]:
     """The recording through the same views; History shows this machine's audit log; nothing commands."""
-    from console.app import ConsoleSetup
+    from console.context import ConsoleSetup
 
     records = read_recording(path)
     feed = ReplayFeed(records, speed)
@@ -148,7 +148,7 @@ def replay_setup(path: Path, speed: float, config: Config) -> tuple[ConsoleSetup
 
 
 def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None) -> ConsoleSetup:
-    from console.app import ConsoleSetup
+    from console.context import ConsoleSetup
     from console.predictions import PredictionService, capsule_models
     from drs_link.ops import Operations
     from predictor import Terrain
@@ -205,7 +205,7 @@ def demo_setup(
     poll_period_s: float | None = None, prediction_period_s: float | None = None,
 ) -> ConsoleSetup:
     """The console wired to a started demo world as ``drs demo`` runs it; tests and screenshots change the pace."""
-    from console.app import ConsoleSetup
+    from console.context import ConsoleSetup
     from console.predictions import PredictionService
     from drs_link.ops import Operations
 

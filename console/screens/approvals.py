@@ -45,10 +45,10 @@ class ApprovalScreen(ConsoleScreen):
 
     @property
     def book(self) -> ApprovalBook:
-        return ApprovalBook(self.console.store, self.console.now)
+        return ApprovalBook(self.context.store, self.context.now)
 
     def update_view(self) -> None:
-        now = self.console.now()
+        now = self.context.now()
         requests = self.book.open_requests()
         rows = [
             (str(r.id), (str(r.id), r.capsule, f"{ACTIONS[r.action]}: {r.summary}",
@@ -97,7 +97,7 @@ class ApprovalScreen(ConsoleScreen):
 
     def _decide(self, approval: int, approve: bool, reason: str) -> None:
         try:
-            decided = self.book.decide(approval, self.console.operator, current_login(), approve, reason)
+            decided = self.book.decide(approval, self.context.operator, current_login(), approve, reason)
         except LinkError as exc:
             self.app.notify(str(exc), severity="error", timeout=12)
             return

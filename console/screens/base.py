@@ -1,14 +1,13 @@
-"""What every console screen shares: the mode banner on top, the key bindings at the bottom."""
+"""What every console screen shares: the context it works on, the mode banner on top, the keys at the bottom."""
 
 from __future__ import annotations
-
-from typing import Any
 
 from textual.app import ComposeResult
 from textual.css.query import NoMatches
 from textual.screen import Screen
 from textual.widgets import Footer
 
+from console.context import ConsoleContext
 from console.widgets.banner import ModeBanner
 
 FOOTER_ROOM = 100
@@ -25,13 +24,13 @@ class ConsoleScreen(Screen[None]):
     ready = False
     """Set once mounted: the app's one-second tick can reach a screen before its widgets exist."""
 
-    @property
-    def console(self) -> Any:
-        """The DrsConsole app (typed loosely: screens and app import each other)."""
-        return self.app
+    def __init__(self, context: ConsoleContext) -> None:
+        super().__init__()
+        self.context = context
+        """The fleet, the clock, the settings and the calls into ``drs_link``: never the app itself."""
 
     def compose_banner(self) -> ComposeResult:
-        yield ModeBanner(id="banner", markup=False)
+        yield ModeBanner(self.context, id="banner")
 
     def compose_footer(self) -> ComposeResult:
         yield Footer(compact=True)

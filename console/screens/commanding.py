@@ -15,6 +15,7 @@ from datetime import datetime
 from textual import work
 from textual.binding import Binding
 
+from console.messages import OperatorNotice
 from console.screens.base import ConsoleScreen
 from console.screens.modals import HazardConfirmation, HazardModal, TextPromptModal
 from drs_link.errors import LinkError
@@ -61,7 +62,7 @@ class CommandingScreen(ConsoleScreen):
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         """Replay has nothing to send with: the command keys are disabled (shown dimmed in the footer)."""
-        if action in COMMAND_ACTIONS and not self.console.commanding:
+        if action in COMMAND_ACTIONS and not self.context.commanding:
             return None
         return True
 
@@ -120,10 +121,11 @@ class CommandingScreen(ConsoleScreen):
         self._send_after_name(message, command.note)
 
     def _plan(self, requested: tuple[int, int] | None) -> ParachutePlan | None:
-        ops = self.console.ops
+        ops = self.context.ops
+        assert ops is not None  # the keys that send are disabled without one (check_action)
         try:
             return plan_parachute(
-                ops.stored_reports(self.capsule), self.console.now(), ops.commands(self.capsule), requested
+                ops.stored_reports(self.capsule), self.context.now(), ops.commands(self.capsule), requested
             )
         except LinkError as exc:
             self.app.notify(f"PARACHUTE refused: {exc}", severity="error", timeout=12)
@@ -131,12 +133,14 @@ class CommandingScreen(ConsoleScreen):
 
     def _confirm_parachute(self, plan: ParachutePlan) -> None:
         message = MtComposer().add(PARACHUTE.name, (plan.hour, plan.minute)).build()
-        evidence = landed_evidence(self.console.ops.stored_reports(self.capsule))
+        ops = self.context.ops
+        assert ops is not None  # the keys that send are disabled without one (check_action)
+        evidence = landed_evidence(ops.stored_reports(self.capsule))
         verdict = "Landed evidence" if evidence.on_ground else "NO LANDED EVIDENCE"
         text = "\n".join(
             [f"{verdict}: {evidence.summary}", plan.window_text(), *(f"! {w}" for w in plan.warnings)]
         )
-        second = self.console.ops.config.console.require_second_operator
+        second = ops.config.console.require_second_operator
         override = (
             None
             if evidence.on_ground
@@ -151,7 +155,7 @@ class CommandingScreen(ConsoleScreen):
                 self.send_worker(message, answer.typed_name, answer, plan.queue_by)
 
         def countdown() -> str:
-            left = (plan.queue_by - self.console.now()).total_seconds()
+            left = (plan.queue_by - self.context.now()).total_seconds()
             if left <= 0:
                 return (
                     f"queue-before {plan.queue_by:%H:%M:%S}Z has PASSED: sending will be refused; plan again"
@@ -170,12 +174,11 @@ class CommandingScreen(ConsoleScreen):
         hazard: HazardConfirmation | None,
         queue_by: datetime | None = None,
     ) -> None:
-        from console.app import OperatorNotice
-
-        ops = self.console.ops
+        ops = self.context.ops
+        assert ops is not None  # the keys that send are disabled without one (check_action)
         try:
             approval = (
-                self.console.approval(self.capsule, "parachute", message.text)
+                self.context.approval(self.capsule, "parachute", message.text)
                 if hazard is not None and hazard.await_approval else None
             )  # fmt: skip
             authorize_mt(
@@ -184,7 +187,7 @@ class CommandingScreen(ConsoleScreen):
                 single_operator_waiver=hazard.single_operator_waiver if hazard else None,
                 require_second_operator=ops.config.console.require_second_operator,
                 override_landed=hazard.override_reason if hazard else None,
-                queue_by=queue_by, now=self.console.now(), approval=approval,
+                queue_by=queue_by, now=self.context.now(), approval=approval,
             )  # fmt: skip
             command = ops.send_mt(self.capsule, message, confirmation)
         except LinkError as exc:

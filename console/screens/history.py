@@ -15,6 +15,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.widgets import DataTable, Input, Static
 
+from console.context import ConsoleContext
 from console.screens.base import ConsoleScreen
 from drs_link.store import AuditRecord, iso_utc
 
@@ -34,6 +35,12 @@ def detail_words(detail: dict[str, Any] | None) -> str:
     )
 
 
+HELP = """\
+type to search (the search box has the focus) · `↓`/`Enter` the entries, the highlighted
+one's detail (reasons) below · `e` export JSONL (from the entries)"""
+"""The keys, as the help screen lists them (``console.screens.registry``)."""
+
+
 class HistoryScreen(ConsoleScreen):
     BINDINGS = [
         Binding("escape", "app.pop_screen", "Back"),
@@ -41,8 +48,8 @@ class HistoryScreen(ConsoleScreen):
         Binding("down", "entries", "Entries", show=False),
     ]
 
-    def __init__(self) -> None:
-        super().__init__()
+    def __init__(self, context: ConsoleContext) -> None:
+        super().__init__(context)
         self.records: dict[int, AuditRecord] = {}
 
     def compose(self) -> ComposeResult:
@@ -69,7 +76,7 @@ class HistoryScreen(ConsoleScreen):
         entry's detail is also shown whole below the table when it is highlighted.
         """
         table = self.query_one("#audit", DataTable)
-        self.records = {r.id: r for r in reversed(self.console.store.audit(text=text or None, limit=HISTORY_ROWS))}
+        self.records = {r.id: r for r in reversed(self.context.store.audit(text=text or None, limit=HISTORY_ROWS))}
         rows = [
             (f"{r.time_utc:%m-%d %H:%M:%S}", r.operator, r.capsule or "", r.action, r.result)
             for r in self.records.values()
@@ -115,11 +122,11 @@ class HistoryScreen(ConsoleScreen):
 
     def action_export(self) -> None:
         text = self.query_one("#search", Input).value or None
-        directory = self.console.setup.export_dir
+        directory = self.context.setup.export_dir
         directory.mkdir(parents=True, exist_ok=True)
-        path = directory / f"audit-{self.console.now():%Y%m%dT%H%M%SZ}.jsonl"
+        path = directory / f"audit-{self.context.now():%Y%m%dT%H%M%SZ}.jsonl"
         with path.open("w", encoding="utf-8") as out:
-            for r in self.console.store.audit(text=text):
+            for r in self.context.store.audit(text=text):
                 out.write(json.dumps({"time_utc": iso_utc(r.time_utc), "operator": r.operator, "capsule": r.capsule,
                                       "action": r.action, "result": r.result, "detail": r.detail}) + "\n")  # fmt: skip
         self.app.notify(f"audit exported to {path}")

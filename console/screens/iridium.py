@@ -17,6 +17,7 @@ from textual.binding import Binding
 from textual.containers import Vertical
 from textual.widgets import DataTable, Label, Static
 
+from console.context import ConsoleContext
 from console.screens.commanding import CommandingScreen, command_bindings
 from drs_link.iridium import Command, assess
 from drs_link.ops import report_position
@@ -31,6 +32,12 @@ LIFECYCLE_WORDS = {
 }
 
 
+HELP = """\
+`n` INTERVAL · `o`/`O` sounder off/on · `c` parachute (helper picks HH:MM) ·
+`R` refresh"""
+"""The keys, as the help screen lists them (``console.screens.registry``)."""
+
+
 class IridiumScreen(CommandingScreen):
     BINDINGS = [
         Binding("escape", "app.pop_screen", "Back"),
@@ -38,8 +45,8 @@ class IridiumScreen(CommandingScreen):
         Binding("R", "reload", "Refresh"),
     ]
 
-    def __init__(self, capsule: str) -> None:
-        super().__init__()
+    def __init__(self, context: ConsoleContext, capsule: str) -> None:
+        super().__init__(context)
         self.capsule = capsule
         self.loaded_at = time.monotonic()
 
@@ -62,7 +69,7 @@ class IridiumScreen(CommandingScreen):
 
     @work(thread=True, exit_on_error=False, group="iridium-read")
     def action_reload(self) -> None:
-        ops = self.console.ops
+        ops = self.context.ops
         if ops is None:
             return
         reports = ops.stored_reports(self.capsule)

@@ -12,6 +12,8 @@ from textual.binding import Binding
 from textual.containers import Horizontal
 from textual.widgets import Static
 
+from console.context import ConsoleContext
+from console.messages import OperatorNotice, TelemetryArrived
 from console.predictions import ReleaseOrigin
 from console.screens.base import ConsoleScreen
 from console.widgets.landing_map import LandingMap, MapLayers
@@ -42,6 +44,10 @@ def describe(prediction: PredictionSample | None, age_s: float | None, stale: bo
     return "\n".join(lines)
 
 
+HELP = "`+`/`-` release lead time · `←`/`→` release-window cursor · `e` export KML + GeoJSON + GPX"
+"""The keys, as the help screen lists them (``console.screens.registry``)."""
+
+
 class PredictionScreen(ConsoleScreen):
     BINDINGS = [
         Binding("escape", "app.pop_screen", "Back"),
@@ -52,8 +58,8 @@ class PredictionScreen(ConsoleScreen):
         Binding("right", "cursor(1)", "time ▶", show=False),
     ]
 
-    def __init__(self, capsule: str) -> None:
-        super().__init__()
+    def __init__(self, context: ConsoleContext, capsule: str) -> None:
+        super().__init__(context)
         self.capsule = capsule
         self.lead_min = 10
         self.window: dict[str, Any] | None = None
@@ -75,9 +81,9 @@ class PredictionScreen(ConsoleScreen):
         self.refresh_view()
 
     def update_view(self) -> None:
-        app = self.console
-        now = app.now()
-        telemetry = app.fleet.capsules[self.capsule]
+        context = self.context
+        now = context.now()
+        telemetry = context.fleet.capsules[self.capsule]
         texts = []
         for minutes in (0, self.lead_min):
             reading = telemetry.predictions.get(minutes)
@@ -88,8 +94,8 @@ class PredictionScreen(ConsoleScreen):
         self.query_one("#prediction-numbers", Static).update(f"{self.capsule}\n\n" + "\n\n".join(texts))
         now_pred = telemetry.predictions.get(0)
         value = now_pred.value if now_pred else None
-        zones = [z.ring for z in app.ops.zones] if app.ops else []
-        balloon = app.fleet.balloon.value
+        zones = [z.ring for z in context.ops.zones] if context.ops else []
+        balloon = context.fleet.balloon.value
         self.query_one("#prediction-map", LandingMap).layers = MapLayers(
             path=list(value.path) if value else (),
             ellipse=list(value.outline_2sigma) if value else (),
@@ -97,8 +103,8 @@ class PredictionScreen(ConsoleScreen):
             landing=(value.landing_lon, value.landing_lat) if value else None,
             release=(value.release_lon, value.release_lat) if value else None,
             balloon=(balloon.lon, balloon.lat) if balloon else None,
-            team=(app.setup.team_position[1], app.setup.team_position[0])
-            if app.setup.team_position
+            team=(context.setup.team_position[1], context.setup.team_position[0])
+            if context.setup.team_position
             else None,
         )
         self.update_timeline(value)
@@ -106,8 +112,8 @@ class PredictionScreen(ConsoleScreen):
     def update_timeline(self, now_prediction: PredictionSample | None) -> None:
         basis = now_prediction.release_time if now_prediction else None
         if basis is not None and basis != self.window_basis and not self.window_running:
-            origin = self.console.prediction_origin(self.capsule)
-            if origin is not None and self.console.setup.predictions is not None:
+            origin = self.context.prediction_origin(self.capsule)
+            if origin is not None and self.context.setup.predictions is not None:
                 self.window_basis, self.window_running = basis, True
                 self.sweep(origin)
         age = (
@@ -115,7 +121,7 @@ class PredictionScreen(ConsoleScreen):
             if self.window is None
             else "computed "
             + format_age(
-                (self.console.now() - datetime.fromisoformat(self.window["computed_at"])).total_seconds()
+                (self.context.now() - datetime.fromisoformat(self.window["computed_at"])).total_seconds()
             )
             + " ago"
         )
@@ -124,13 +130,11 @@ class PredictionScreen(ConsoleScreen):
 
     @work(thread=True, exit_on_error=False, group="release-window")
     def sweep(self, origin: ReleaseOrigin) -> None:
-        from console.app import OperatorNotice
-
-        ops = self.console.ops
+        ops = self.context.ops
         zones_file = ops.config.console.exclusion_zones_file if ops else None
         window = self.window
         try:
-            window = self.console.setup.predictions.release_window(origin, zones_file)
+            window = self.context.setup.predictions.release_window(origin, zones_file)
         except PredictorError as exc:
             self.app.post_message(OperatorNotice(f"release window failed: {exc}", "warning"))
         finally:
@@ -149,17 +153,15 @@ class PredictionScreen(ConsoleScreen):
 
     def action_lead(self, step: int) -> None:
         self.lead_min = max(5, min(120, self.lead_min + step))
-        origin = self.console.prediction_origin(self.capsule)
-        if origin is not None and self.console.setup.predictions is not None:
+        origin = self.context.prediction_origin(self.capsule)
+        if origin is not None and self.context.setup.predictions is not None:
             self.predict_lead(origin)
         self.refresh_view()
 
     @work(thread=True, exit_on_error=False, group="predictions")
     def predict_lead(self, origin: ReleaseOrigin) -> None:
-        from console.app import OperatorNotice, TelemetryArrived
-
         try:
-            records = self.console.setup.predictions.predict(
+            records = self.context.setup.predictions.predict(
                 self.capsule, origin, release_in=(self.lead_min,)
             )
         except PredictorError as exc:
@@ -168,11 +170,11 @@ class PredictionScreen(ConsoleScreen):
         self.app.post_message(TelemetryArrived(records))
 
     def action_export(self) -> None:
-        service = self.console.setup.predictions
+        service = self.context.setup.predictions
         if service is None:
             self.app.notify("no predictor in this session (replay): nothing to export", severity="warning")
             return
-        directory = self.console.setup.export_dir
+        directory = self.context.setup.export_dir
         try:
             directory.mkdir(parents=True, exist_ok=True)
             paths = service.export(self.capsule, directory)

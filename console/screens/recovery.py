@@ -24,7 +24,9 @@ from textual.binding import Binding
 from textual.containers import Horizontal
 from textual.widgets import Static
 
+from console.context import ConsoleContext
 from console.screens.commanding import CommandingScreen, command_bindings
+from console.screens.iridium import IridiumScreen
 from console.widgets.landing_map import LandingMap, MapLayers
 from console.widgets.quiet import set_content
 from drs_link.iridium import (
@@ -45,6 +47,12 @@ from predictor.errors import PredictorError
 RELOAD_S = 2.0
 
 
+HELP = """\
+`e` export GPX + KML · `n` INTERVAL · `o`/`O` sounder off/on · `c`/`C` parachute
+(the same confirmations as on the Iridium screen; sounder and parachute cannot be confirmed by telemetry)"""
+"""The keys, as the help screen lists them (``console.screens.registry``)."""
+
+
 class RecoveryScreen(CommandingScreen):
     BINDINGS = [
         Binding("escape", "app.pop_screen", "Back", show=False),
@@ -53,8 +61,8 @@ class RecoveryScreen(CommandingScreen):
         *command_bindings(paired=True),
     ]
 
-    def __init__(self, capsule: str) -> None:
-        super().__init__()
+    def __init__(self, context: ConsoleContext, capsule: str) -> None:
+        super().__init__(context)
         self.capsule = capsule
         self.track: list[TrackPoint] = []
         self.landing: LandingEstimate | None = None
@@ -76,13 +84,13 @@ class RecoveryScreen(CommandingScreen):
 
     @work(thread=True, exit_on_error=False, group="recovery-read")
     def load(self) -> None:
-        ops = self.console.ops
+        ops = self.context.ops
         reports = ops.stored_reports(self.capsule) if ops else []
         settings = commanded_settings(ops.commands(self.capsule), reports) if ops else None
         track = track_from_reports(reports)
         landing = detect_landing(track)
         live, error = None, None
-        service = self.console.setup.predictions
+        service = self.context.setup.predictions
         if landing is None and track and service is not None:
             try:
                 live = service.live(self.capsule, track)
@@ -108,7 +116,7 @@ class RecoveryScreen(CommandingScreen):
     def settings_lines(self) -> list[Text]:
         """Setting and value in bold: what a team in the field looks for first (is the sounder ON?)."""
         if self.settings is None:
-            state = "reading" if self.console.ops else "not known in replay"
+            state = "reading" if self.context.ops else "not known in replay"
             return [Text(f"Sounder, interval, parachute: {state}")]
         lines = []
         for status in self.settings.statuses():
@@ -126,7 +134,7 @@ class RecoveryScreen(CommandingScreen):
             return ["Live re-prediction: computing"]
         live, landing, ellipse = self.live, self.live["landing"], self.live["ellipse"]
         report_time = datetime.fromisoformat(live["report"]["time"])
-        age = format_age((self.console.now() - report_time).total_seconds())
+        age = format_age((self.context.now() - report_time).total_seconds())
         rate = live["measured_rate_factor"]
         measured = "— (needs two fixes)" if rate is None else f"{rate:.2f}"
         lines = [
@@ -137,7 +145,7 @@ class RecoveryScreen(CommandingScreen):
             f"  measured rate factor {measured} from {live['legs_used']} leg{'' if live['legs_used'] == 1 else 's'}",
             f"  correction: {live['correction']}",
         ]
-        team = self.console.setup.team_position
+        team = self.context.setup.team_position
         if team is not None:
             distance, bearing = distance_bearing(team[0], team[1], landing["lat"], landing["lon"])
             lines.append(f"  from the team: {distance / 1000:.2f} km at {bearing:.0f}°")
@@ -147,7 +155,7 @@ class RecoveryScreen(CommandingScreen):
         if time.monotonic() - self.loaded_at >= RELOAD_S:
             self.loaded_at = time.monotonic()
             self.load()
-        team = self.console.setup.team_position
+        team = self.context.setup.team_position
         last = self.track[-1] if self.track else None
         lines: list[str | Text] = [f"{self.capsule} recovery", ""]
         if self.landing is not None:
@@ -167,10 +175,10 @@ class RecoveryScreen(CommandingScreen):
             lines += self.live_lines()
         else:
             lines.append("No GNSS fix received yet")
-        reading = self.console.fleet.capsules[self.capsule].reading(ReportSample)
+        reading = self.context.fleet.capsules[self.capsule].reading(ReportSample)
         lines += [
             "",
-            "Last report: " + reading.label(self.console.now(), lambda v: f"VBAT {v.vbat} V"),
+            "Last report: " + reading.label(self.context.now(), lambda v: f"VBAT {v.vbat} V"),
             *self.settings_lines(),
             "",
             "Phone: " + phone_summary(self.capsule, self.landing, last, team),
@@ -179,7 +187,7 @@ class RecoveryScreen(CommandingScreen):
             self.query_one("#recovery-text", Static),
             Text("\n").join(Text(line) if isinstance(line, str) else line for line in lines),
         )
-        prediction = self.console.fleet.capsules[self.capsule].reading(PredictionSample).value
+        prediction = self.context.fleet.capsules[self.capsule].reading(PredictionSample).value
         descending = self.live if self.landing is None and self.track else None
         outline = descending["outline_2sigma"] if descending else prediction.outline_2sigma if prediction else ()
         self.query_one("#recovery-map", LandingMap).layers = MapLayers(
@@ -200,15 +208,13 @@ class RecoveryScreen(CommandingScreen):
         return None
 
     def action_iridium(self) -> None:
-        from console.screens.iridium import IridiumScreen
-
-        self.app.push_screen(IridiumScreen(self.capsule))
+        self.app.push_screen(IridiumScreen(self.context, self.capsule))
 
     def action_export(self) -> None:
-        directory = self.console.setup.export_dir
+        directory = self.context.setup.export_dir
         directory.mkdir(parents=True, exist_ok=True)
-        stamp = f"{self.console.now():%Y%m%dT%H%M%SZ}"
-        prediction = self.console.fleet.capsules[self.capsule].reading(PredictionSample).value
+        stamp = f"{self.context.now():%Y%m%dT%H%M%SZ}"
+        prediction = self.context.fleet.capsules[self.capsule].reading(PredictionSample).value
         predicted = [(lat, lon, 0.0) for lon, lat in prediction.path] if prediction else []
         gpx = directory / f"{self.capsule}-recovery-{stamp}.gpx"
         kml = directory / f"{self.capsule}-recovery-{stamp}.kml"

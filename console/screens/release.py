@@ -16,6 +16,8 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label, Static
 
+from console.context import ConsoleContext
+from console.messages import OperatorNotice, TelemetryArrived
 from console.screens.base import FOOTER_ROOM, ConsoleScreen
 from console.screens.modals import ConfirmModal, HazardConfirmation, HazardModal, TextPromptModal
 from console.widgets.quiet import fill_rows, set_content
@@ -50,6 +52,16 @@ BEFORE_RELEASE_ONLY = ("power_on", "sync", "arm", "fire", "waive")
 """Keys that only mean something before the drop; after Go they are hidden (``reset`` stays, for recovery)."""
 
 
+HELP = """\
+`[` `]` switch checklist · `Space` tick a manual step · `x` skip (reason) ·
+`o` power on (confirm; cannot be undone by software) · `s` sync data · `w` waive a go/no-go item
+(GNSS fix or sync only; logged): the first `w` moves onto one, `↑`/`↓` another, `w` again asks
+why · `a` ARM (only on GO; opens a countdown) · `d` disarm ·
+`f` FIRE (only while armed; type the capsule's name; second operator or a logged waiver) ·
+`R` reset after recovery (type the name)"""
+"""The keys, as the help screen lists them (``console.screens.registry``)."""
+
+
 class ReleaseScreen(ConsoleScreen):
     HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (FOOTER_ROOM, "-stacked"), (140, "-wide")]
     """Below 140 columns the checklist and the go/no-go stack, so neither loses its words; below
@@ -69,8 +81,8 @@ class ReleaseScreen(ConsoleScreen):
         Binding("R", "reset", "Reset", show=False),
     ]
 
-    def __init__(self, capsule: str) -> None:
-        super().__init__()
+    def __init__(self, context: ConsoleContext, capsule: str) -> None:
+        super().__init__(context)
         self.capsule = capsule
         self.checklist_index = 0
         self.step_texts: dict[str, str] = {}
@@ -97,29 +109,29 @@ class ReleaseScreen(ConsoleScreen):
     def on_mount(self) -> None:
         self.ready = True
         checklist = self.query_one("#checklist", DataTable)
-        ids = [c.id for c in self.console.checklists]
+        ids = [c.id for c in self.context.checklists]
         self.checklist_index = ids.index("release-day") if "release-day" in ids else 0
         checklist.focus()
         self.refresh_view()
 
     @property
     def ops(self) -> Operations | None:
-        return self.console.ops
+        return self.context.ops
 
     # Rendering --------------------------------------------------------------------------------
 
     def update_view(self) -> None:
-        app = self.console
-        now = app.now()
-        checklist = app.checklists[self.checklist_index]
+        context = self.context
+        now = context.now()
+        checklist = context.checklists[self.checklist_index]
         set_content(
             self.query_one("#checklist-title", Label),
-            f"{checklist.title} ({self.checklist_index + 1}/{len(app.checklists)}) — {self.capsule}",
+            f"{checklist.title} ({self.checklist_index + 1}/{len(context.checklists)}) — {self.capsule}",
         )
         table = self.query_one("#checklist", DataTable)
         row = table.cursor_row
-        facts = app.fleet.capsules[self.capsule].facts(now)
-        statuses = app.checklist_run(self.capsule, checklist).statuses(facts)
+        facts = context.fleet.capsules[self.capsule].facts(now)
+        statuses = context.checklist_run(self.capsule, checklist).statuses(facts)
         whos = [f"{s.operator} {s.at:%H:%M:%S}Z" if s.operator and s.at else "" for s in statuses]
         self.fit_checklist_columns(table, max((len(who) for who in whos), default=0))
         self.step_texts.clear()
@@ -133,7 +145,7 @@ class ReleaseScreen(ConsoleScreen):
         if fill_rows(table, rows) and table.row_count:
             table.move_cursor(row=min(row, table.row_count - 1))
         self.show_step_detail()
-        report = app.gonogo(self.capsule)
+        report = context.gonogo(self.capsule)
         gonogo = self.query_one("#gonogo", DataTable)
         grow = gonogo.cursor_row
         self.fit_gonogo_columns(gonogo)
@@ -196,7 +208,7 @@ class ReleaseScreen(ConsoleScreen):
     def show_waive_hint(self) -> None:
         """Say on screen how ``w`` picks its item: the trial found it only by tabbing into the table."""
         hint = self.query_one("#gonogo-hint", Static)
-        hint.display = self.console.commanding and not self.released()
+        hint.display = self.context.commanding and not self.released()
         set_content(hint, self.waive_hint())
 
     def waive_hint(self) -> str:
@@ -209,9 +221,9 @@ class ReleaseScreen(ConsoleScreen):
         return f"{title} cannot be waived: ↑/↓ to the GNSS fix or sync"
 
     def arm_text(self, go: bool) -> str:
-        if not self.console.commanding:
+        if not self.context.commanding:
             return "REPLAY: commanding disabled"
-        status = self.console.ops.ops(self.capsule).arming.status()
+        status = self.context.arming(self.capsule).status()
         poll = "GO" if go else "NO-GO"
         if status.state is ArmState.ARMED:
             return f"▶ ARMED — {status.remaining_s:.0f} s left to FIRE (f). Poll: {poll}. d disarms."
@@ -224,22 +236,22 @@ class ReleaseScreen(ConsoleScreen):
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         commanding = ("power_on", "sync", "waive", "arm", "disarm", "fire", "tick", "skip", "reset")
-        if action in commanding and not self.console.commanding:
+        if action in commanding and not self.context.commanding:
             return None
         if action in BEFORE_RELEASE_ONLY and self.released():
             return None  # the Pi is shut down: these keys leave the footer instead of failing after a dialog
         if action == "fire":
-            return True if self.console.ops.ops(self.capsule).arming.status().armed else None
+            return True if self.context.arming(self.capsule).status().armed else None
         return True
 
     def released(self) -> bool:
-        armed = self.console.ops.ops(self.capsule).arming.status().state if self.console.commanding else None
-        return self.console.fleet.capsules[self.capsule].released or armed in (ArmState.FIRING, ArmState.FIRED)
+        armed = self.context.arming(self.capsule).status().state if self.context.commanding else None
+        return self.context.fleet.capsules[self.capsule].released or armed in (ArmState.FIRING, ArmState.FIRED)
 
     # Actions ----------------------------------------------------------------------------------
 
     def action_checklist(self, step: int) -> None:
-        self.checklist_index = (self.checklist_index + step) % len(self.console.checklists)
+        self.checklist_index = (self.checklist_index + step) % len(self.context.checklists)
         self.query_one("#checklist", DataTable).move_cursor(row=0)
         self.refresh_view()
 
@@ -256,9 +268,9 @@ class ReleaseScreen(ConsoleScreen):
         step = self._selected_step()
         if step is None:
             return
-        run = self.console.checklist_run(self.capsule, self.console.checklists[self.checklist_index])
+        run = self.context.checklist_run(self.capsule, self.context.checklists[self.checklist_index])
         try:
-            run.tick(step, self.console.operator)
+            run.tick(step, self.context.operator)
         except LinkError as exc:
             self._refused(exc)
         self.refresh_view()
@@ -271,9 +283,9 @@ class ReleaseScreen(ConsoleScreen):
         def done(reason: str | None) -> None:
             if reason is None:
                 return
-            run = self.console.checklist_run(self.capsule, self.console.checklists[self.checklist_index])
+            run = self.context.checklist_run(self.capsule, self.context.checklists[self.checklist_index])
             try:
-                run.skip(step, self.console.operator, reason)
+                run.skip(step, self.context.operator, reason)
             except LinkError as exc:
                 self._refused(exc)
             self.refresh_view()
@@ -289,8 +301,6 @@ class ReleaseScreen(ConsoleScreen):
 
     @work(thread=True, exit_on_error=False, group="release")
     def power_on_worker(self) -> None:
-        from console.app import OperatorNotice, TelemetryArrived
-
         assert self.ops is not None
         try:
             records = self.ops.power_on(self.capsule)
@@ -302,8 +312,6 @@ class ReleaseScreen(ConsoleScreen):
 
     @work(thread=True, exit_on_error=False, group="release")
     def action_sync(self) -> None:
-        from console.app import OperatorNotice, TelemetryArrived
-
         assert self.ops is not None
         try:
             self.app.post_message(OperatorNotice(f"{self.capsule}: syncing data…"))
@@ -336,7 +344,7 @@ class ReleaseScreen(ConsoleScreen):
         if item is None:
             return
         if not table.has_focus:
-            self.choose_waivable(self.console.gonogo(self.capsule))
+            self.choose_waivable(self.context.gonogo(self.capsule))
             return
         if item not in WAIVABLE:
             self.app.notify(self.waive_hint(), severity="warning")
@@ -346,7 +354,7 @@ class ReleaseScreen(ConsoleScreen):
             if reason is None:
                 return
             try:
-                self.ops.ops(self.capsule).waivers.grant(item, self.console.operator, reason)  # type: ignore[union-attr]
+                self.ops.ops(self.capsule).waivers.grant(item, self.context.operator, reason)  # type: ignore[union-attr]
             except LinkError as exc:
                 self._refused(exc)
             self.refresh_view()
@@ -359,18 +367,18 @@ class ReleaseScreen(ConsoleScreen):
     def action_arm(self) -> None:
         assert self.ops is not None
         try:
-            self.ops.ops(self.capsule).arming.arm(self.console.gonogo(self.capsule))
+            self.context.arming(self.capsule).arm(self.context.gonogo(self.capsule))
         except LinkError as exc:
             self._refused(exc)
         self.refresh_view()
 
     def action_disarm(self) -> None:
-        assert self.ops is not None
-        self.ops.ops(self.capsule).arming.disarm("operator disarmed")
+        self.context.arming(self.capsule).disarm("operator disarmed")
         self.refresh_view()
 
     def action_fire(self) -> None:
-        second = self.console.setup.operations.config.console.require_second_operator
+        assert self.ops is not None
+        second = self.ops.config.console.require_second_operator
 
         def confirmed(answer: HazardConfirmation | None) -> None:
             if answer is not None:
@@ -382,7 +390,7 @@ class ReleaseScreen(ConsoleScreen):
 
     def fire_countdown(self) -> str:
         """The ARM window as the FIRE dialog shows it; FIRE is checked against it again on submit."""
-        status = self.console.ops.ops(self.capsule).arming.status()
+        status = self.context.arming(self.capsule).status()
         if status.state is ArmState.ARMED and status.armed_until is not None:
             return f"ARMED — {status.remaining_s:.0f} s left (window closes {status.armed_until:%H:%M:%S}Z)"
         reason = status.last_disarm_reason or status.state.value
@@ -404,8 +412,6 @@ class ReleaseScreen(ConsoleScreen):
 
     @work(thread=True, exit_on_error=False, group="release")
     def reset_worker(self, typed_name: str) -> None:
-        from console.app import OperatorNotice, TelemetryArrived
-
         assert self.ops is not None
         try:
             records = self.ops.reset(self.capsule, typed_name)
@@ -417,15 +423,13 @@ class ReleaseScreen(ConsoleScreen):
 
     @work(thread=True, exit_on_error=False, group="release")
     def fire_worker(self, answer: HazardConfirmation) -> None:
-        from console.app import OperatorNotice, TelemetryArrived
-
         assert self.ops is not None
         try:
             approval = (
-                self.console.approval(self.capsule, "go", f"Go: release {self.capsule}")
+                self.context.approval(self.capsule, "go", f"Go: release {self.capsule}")
                 if answer.await_approval else None
             )  # fmt: skip
-            report = self.app.call_from_thread(self.console.gonogo, self.capsule)
+            report = self.app.call_from_thread(self.context.gonogo, self.capsule)
             records = self.ops.fire(
                 self.capsule, answer.typed_name, report, answer.second_operator or None,
                 answer.single_operator_waiver or None, approval,

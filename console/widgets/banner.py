@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any
 
 from rich.cells import cell_len
 from rich.text import Text
 from textual.widgets import Static
 
+from console.context import ConsoleContext
 from console.widgets.quiet import set_content
 
 
@@ -43,13 +43,17 @@ def banner_line(mode: str, note: str, now: datetime, operator: str, width: int) 
 class ModeBanner(Static):
     """Shown on every screen, so a DEMO or REPLAY session can never be taken for the live one."""
 
+    def __init__(self, context: ConsoleContext, *, id: str | None = None) -> None:
+        super().__init__(id=id, markup=False)
+        self.context = context
+
     def refresh_banner(self) -> None:
-        app: Any = self.app
-        self.set_class(app.mode == "demo", "demo")
-        self.set_class(app.mode == "replay", "replay")
-        mode, note = app.banner(), app.setup.banner_note
+        context = self.context
+        self.set_class(context.mode == "demo", "demo")
+        self.set_class(context.mode == "replay", "replay")
+        mode, note = context.banner(), context.setup.banner_note
         mode = mode.removesuffix(note).rstrip() if note else mode
-        set_content(self, banner_line(mode, note, app.now(), app.operator, self.size.width))
+        set_content(self, banner_line(mode, note, context.now(), context.operator, self.size.width))
 
     def on_mount(self) -> None:
         self.refresh_banner()

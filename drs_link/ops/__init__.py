@@ -16,6 +16,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Approval": "approval",
         "ApprovalBook": "approval",
         "ArmState": "arming",
+        "ArmingController": "arming",
         "BalloonSample": "telemetry",
         "CapsuleTelemetry": "fleet",
         "Checklist": "checklist",

@@ -1,0 +1,152 @@
+"""What the screens work on, typed: the session's setup, the fleet state, and the calls into ``drs_link``.
+
+Screens used to be handed the app itself, typed ``Any`` (the app imports the screens, so the screens
+could not import it back without a circle) and reached through it (``console.ops.ops(name).arming``).
+The app now builds one ``ConsoleContext`` and hands it to each screen it opens; the screens read
+the fleet, the clock and the settings from it and ask it for go/no-go, arming, checklists and
+approvals. Nothing here imports Textual: it is the plain-Python side of the console.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+from pathlib import Path
+
+from console.predictions import PredictionService
+from drs_link.feeds import BalloonFeed
+from drs_link.ops import (
+    PROCEDURE_DIR,
+    Approval,
+    ApprovalBook,
+    ArmingController,
+    Checklist,
+    ChecklistRun,
+    FleetState,
+    GoNoGoReport,
+    Operations,
+    ReleaseOrigin,
+    TelemetryRecord,
+    approved,
+    current_login,
+    evaluate,
+    load_checklists,
+    pending_text,
+    release_origin,
+)
+from drs_link.store import Store, utc_now
+
+POLL_PERIOD_S = 5.0
+LOW_BANDWIDTH_AGE_STEP_S = 10.0
+
+
+@dataclass
+class ConsoleSetup:
+    """Everything the app runs on; built by ``console.commands.console`` for live, demo and replay."""
+
+    mode: str
+    capsules: list[str]
+    store: Store
+    clock: Callable[[], datetime] = utc_now
+    operations: Operations | None = None
+    predictions: PredictionService | None = None
+    balloon_feed: BalloonFeed | None = None
+    """The configured ground-station feed of the balloon's position (started and stopped by the caller)."""
+    replay_feed: Callable[[], list[TelemetryRecord]] | None = None
+    team_position: tuple[float, float] | None = None
+    export_dir: Path = Path(".")
+    banner_note: str = ""
+    low_bandwidth: bool = False
+    """``--low-bandwidth`` or ``[console] low_bandwidth``: see ``ConsoleContext.view_time``."""
+    poll_period_s: float = POLL_PERIOD_S
+    prediction_period_s: float = 60.0
+    time_scale: float = 1.0
+    """Simulated seconds per real second (the demo): timers are real, telemetry times are not."""
+
+    def close(self) -> None:
+        """Stop what runs beside the app (the balloon feed's reader); the store closes with Operations."""
+        if self.balloon_feed is not None:
+            self.balloon_feed.stop()
+
+
+class ConsoleContext:
+    """The session's state and the domain calls a screen makes; one per app, shared by its screens."""
+
+    def __init__(self, setup: ConsoleSetup, warn: Callable[[str], None]) -> None:
+        self.setup = setup
+        poll_period = 2.0 * setup.poll_period_s * setup.time_scale
+        self.fleet = FleetState.for_capsules(setup.capsules, poll_period if setup.operations else 0.0)
+        self.checklists: list[Checklist] = (
+            setup.operations.checklists if setup.operations else load_checklists(PROCEDURE_DIR)
+        )
+        """The procedure the operations layer ticks, so the screen shows the steps it completes."""
+        self.warn = warn
+        """Tells the operator something from any thread (the app posts it as a notice)."""
+
+    @property
+    def mode(self) -> str:
+        return self.setup.mode
+
+    @property
+    def commanding(self) -> bool:
+        """Replay can never command: there is no Operations behind it, and the keys are disabled."""
+        return self.setup.operations is not None and self.setup.mode != "replay"
+
+    @property
+    def ops(self) -> Operations | None:
+        return self.setup.operations
+
+    @property
+    def store(self) -> Store:
+        return self.setup.store
+
+    @property
+    def operator(self) -> str:
+        return self.ops.operator if self.ops else "replay"
+
+    def now(self) -> datetime:
+        return self.setup.clock()
+
+    def view_time(self) -> datetime:
+        """The time the fleet's ages are shown at: ``now``, or on a thin link ``now`` in steps of
+        ``LOW_BANDWIDTH_AGE_STEP_S``, so the many ages on screen change every 10 s instead of every second
+        (each change is bytes on the link). Countdowns, the clock and every decision use ``now``."""
+        now = self.now()
+        if not self.setup.low_bandwidth:
+            return now
+        return now - timedelta(seconds=now.timestamp() % LOW_BANDWIDTH_AGE_STEP_S)
+
+    def banner(self) -> str:
+        words = {"demo": "DEMO — simulated capsules, gateway and weather", "replay": "REPLAY — commanding disabled",
+                 "live": "LIVE"}  # fmt: skip
+        text = words.get(self.mode, self.mode.upper())
+        return f"{text} {self.setup.banner_note}".strip()
+
+    def arming(self, capsule: str) -> ArmingController:
+        """The capsule's ARM/FIRE controller; only a commanding console has one (check ``commanding``)."""
+        assert self.ops is not None
+        return self.ops.ops(capsule).arming
+
+    def approval(self, capsule: str, action: str, summary: str) -> int:
+        """Ask another login to approve a hazardous command and wait (from a worker thread); the
+        approval's id, or RefusedError when it was rejected or expired (``drs_link.ops.approval``)."""
+        book = ApprovalBook(self.store, self.now)
+
+        def pending(request: Approval) -> None:
+            self.warn(f"{capsule}: {pending_text(request)}")
+
+        return approved(book, capsule, action, summary, self.operator, current_login(), pending)
+
+    def checklist_run(self, capsule: str, checklist: Checklist) -> ChecklistRun:
+        return ChecklistRun(self.store, checklist, capsule, self.now)
+
+    def gonogo(self, capsule: str) -> GoNoGoReport:
+        telemetry = self.fleet.capsules[capsule]
+        zones = self.ops.zones if self.ops else ()
+        waivers = self.ops.ops(capsule).waivers.waivers if self.ops else []
+        return evaluate(capsule, telemetry.gonogo_inputs(self.now(), zones), self.now(), waivers)
+
+    def prediction_origin(self, capsule: str) -> ReleaseOrigin | None:
+        """Where a release would start (the rule is ``drs_link.ops.origin.release_origin``)."""
+        return release_origin(self.fleet, capsule, self.now())

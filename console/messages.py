@@ -1,0 +1,29 @@
+"""The messages workers send the app: what came in, and what to tell the operator.
+
+They live apart from the app so that the screens, whose workers post them, never import the app
+(the app imports the screens). Both are safe to post from a worker thread.
+"""
+
+from __future__ import annotations
+
+from textual.message import Message
+from textual.notifications import SeverityLevel
+
+from drs_link.ops import TelemetryRecord
+
+
+class TelemetryArrived(Message):
+    """Records from a worker (poll, command, replay); folded into the fleet state on the UI thread."""
+
+    def __init__(self, records: list[TelemetryRecord]) -> None:
+        super().__init__()
+        self.records = records
+
+
+class OperatorNotice(Message):
+    """A one-line result or refusal for the operator (never a traceback)."""
+
+    def __init__(self, text: str, severity: SeverityLevel = "information") -> None:
+        super().__init__()
+        self.text = text
+        self.severity = severity
