@@ -222,6 +222,11 @@ class StepStatus:
     at: datetime | None
     note: str | None
 
+    @property
+    def finished(self) -> bool:
+        """Done, skipped with a reason, or an automatic step the telemetry meets: nothing left to do."""
+        return self.state in (StepState.DONE, StepState.SKIPPED, StepState.MET)
+
 
 class ChecklistRun:
     """One checklist for one capsule: ticks, skips and command completions, durable and audited."""
@@ -307,9 +312,7 @@ class ChecklistRun:
         return out
 
     def complete(self, facts: Mapping[str, object]) -> bool:
-        return all(
-            s.state in (StepState.DONE, StepState.SKIPPED, StepState.MET) for s in self.statuses(facts)
-        )
+        return all(s.finished for s in self.statuses(facts))
 
 
 def complete_command(
