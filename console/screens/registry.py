@@ -15,7 +15,7 @@ from textual.app import SystemCommand
 from textual.screen import Screen
 
 from console.context import ConsoleContext
-from console.screens import approvals, history, iridium, predictions, recovery, release
+from console.screens import approvals, checklists, history, iridium, predictions, recovery, release
 from console.screens.base import ConsoleScreen
 
 
@@ -55,6 +55,8 @@ SCREENS: tuple[ScreenEntry, ...] = (
     ScreenEntry("Approvals", "A", "`A` approvals (a second operator's hazardous commands waiting for your login)",
                 approvals.ApprovalScreen, about="Hazardous commands waiting for a second operator",
                 commanding_only=True),
+    ScreenEntry("Checklists", "c", "`c` checklists (every capsule's, read-only)", checklists.ChecklistsScreen,
+                checklists.HELP, about="Every capsule's checklists: steps finished, not met, the next one"),
 )  # fmt: skip
 
 
