@@ -28,10 +28,7 @@ from textual.worker import Worker, WorkerState
 
 from console.context import ConsoleContext, ConsoleSetup
 from console.messages import OperatorNotice, TelemetryArrived
-from console.screens.fleet import FleetScreen
-from console.screens.help import HelpScreen
-from console.screens.modals import ConfirmModal
-from console.screens.registry import palette_commands
+from console.screens import ConfirmModal, FleetScreen, HelpScreen, palette_commands
 from drs_link.errors import LinkError
 from drs_link.ops import (
     ArmingController,

@@ -15,7 +15,7 @@ from textual.widgets import DataTable, Static
 
 from console.screens.base import ConsoleScreen
 from console.screens.modals import ConfirmModal, TextPromptModal
-from console.widgets.quiet import fill_rows, set_content
+from console.widgets import fill_rows, set_content
 from drs_link.errors import LinkError
 from drs_link.ops import ACTIONS, ApprovalBook, current_login
 

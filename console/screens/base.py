@@ -8,7 +8,7 @@ from textual.screen import Screen
 from textual.widgets import Footer
 
 from console.context import ConsoleContext
-from console.widgets.banner import ModeBanner
+from console.widgets import ModeBanner
 
 FOOTER_ROOM = 100
 """Below this many columns the footer drops its "^p palette" hint (console.tcss): at 80 the hint,

@@ -19,7 +19,7 @@ from textual.widgets import DataTable, Static
 from console.context import ConsoleContext
 from console.screens.base import ConsoleScreen
 from console.screens.release import STATE_GLYPH
-from console.widgets.quiet import fill_rows, set_content
+from console.widgets import fill_rows, set_content
 from drs_link.ops import StepState
 
 COLUMNS = ("Capsule", "Checklist", "Finished", "Not met", "Next step")

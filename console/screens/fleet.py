@@ -8,10 +8,7 @@ from textual.widgets import DataTable, Static
 
 from console.screens.base import ConsoleScreen
 from console.screens.registry import SCREENS, screen_entry
-from console.widgets.capsule_detail import CapsuleDetail
-from console.widgets.cells import balloon_lines
-from console.widgets.fleet_table import FleetTable
-from console.widgets.quiet import set_content
+from console.widgets import CapsuleDetail, FleetTable, balloon_lines, set_content
 
 
 class FleetScreen(ConsoleScreen):

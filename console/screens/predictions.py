@@ -16,8 +16,7 @@ from console.context import ConsoleContext
 from console.messages import OperatorNotice, TelemetryArrived
 from console.predictions import ReleaseOrigin
 from console.screens.base import ConsoleScreen
-from console.widgets.landing_map import LandingMap, MapLayers
-from console.widgets.release_timeline import default_cursor, render_timeline
+from console.widgets import LandingMap, MapLayers, default_cursor, render_timeline
 from drs_link.errors import LinkError
 from drs_link.ops import STALE_GLYPH, PredictionSample, format_age
 from predictor.errors import PredictorError

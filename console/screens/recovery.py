@@ -27,8 +27,7 @@ from textual.widgets import Static
 from console.context import ConsoleContext
 from console.screens.commanding import CommandingScreen, command_bindings
 from console.screens.iridium import IridiumScreen
-from console.widgets.landing_map import LandingMap, MapLayers
-from console.widgets.quiet import set_content
+from console.widgets import LandingMap, MapLayers, set_content
 from drs_link.iridium import (
     CommandedSettings,
     LandingEstimate,

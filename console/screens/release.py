@@ -20,7 +20,7 @@ from console.context import ConsoleContext
 from console.messages import OperatorNotice, TelemetryArrived
 from console.screens.base import FOOTER_ROOM, ConsoleScreen
 from console.screens.modals import ConfirmModal, HazardConfirmation, HazardModal, TextPromptModal
-from console.widgets.quiet import fill_rows, set_content
+from console.widgets import fill_rows, set_content
 from drs_link.errors import LinkError
 from drs_link.ops import WAIVABLE, ArmState, GoNoGoReport, Operations, StepKind, StepState, Verdict
 
