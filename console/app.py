@@ -28,7 +28,7 @@ from textual.worker import Worker, WorkerState
 
 from console.context import ConsoleContext, ConsoleSetup
 from console.messages import OperatorNotice, TelemetryArrived
-from console.screens import ConfirmModal, FleetScreen, HelpScreen, palette_commands
+from console.screens import ConfirmModal, FleetScreen
 from drs_link.errors import LinkError
 from drs_link.ops import (
     ArmingController,
@@ -364,6 +364,8 @@ class DrsConsole(App[int]):
     # Actions ----------------------------------------------------------------------------------
 
     def action_help(self) -> None:
+        from console.screens import HelpScreen  # Markdown and every screen's help: only when asked for
+
         self.push_screen(HelpScreen())
 
     async def action_quit(self) -> None:
@@ -404,6 +406,8 @@ class DrsConsole(App[int]):
 
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
         yield from super().get_system_commands(screen)
+        from console.screens import palette_commands
+
         yield from palette_commands(self.context, self.push_screen)
 
     def notify(

@@ -25,7 +25,7 @@ FOOTNOTE = "Any change, lost link or stale critical input disarms. REPLAY sessio
 def help_text() -> str:
     """The help as Markdown: the fleet's key for each screen, then each screen's own keys, in registry order."""
     fleet_keys = " · ".join([HEADER, *(entry.keys_help for entry in SCREENS)])
-    sections = [f"**{entry.title}**: {entry.help}" for entry in SCREENS if entry.help]
+    sections = [f"**{entry.title}**: {entry.help()}" for entry in SCREENS if entry.help()]
     return "\n\n".join([fleet_keys, *sections, FOOTNOTE]) + "\n"
 
 
