@@ -116,3 +116,16 @@ def test_the_picture_in_the_architecture_doc_is_the_code_as_it_is() -> None:
     from tools.house_diagram import mermaid
 
     assert mermaid() in (ROOT / "docs" / "architecture.md").read_text()
+
+
+def test_the_tests_live_in_the_room_they_pin() -> None:
+    """tests/ mirrors the house: a folder below tests/<package>/ is named for one of that package's rooms."""
+    rooms = set(_rooms())
+    strays = [
+        str(folder.relative_to(ROOT))
+        for package in PACKAGES
+        if (ROOT / "tests" / package).is_dir()
+        for folder in (ROOT / "tests" / package).iterdir()
+        if folder.is_dir() and not folder.name.startswith("__") and f"{package}.{folder.name}" not in rooms
+    ]
+    assert strays == []

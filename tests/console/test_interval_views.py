@@ -24,7 +24,7 @@ from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
 from tests.clock import ManualClock
 from tests.console.conftest import T0, wait_for
-from tests.iridium.helpers import fly
+from tests.drs_link.iridium.helpers import fly
 
 IMEI = "300434060000010"
 pytestmark = pytest.mark.asyncio

@@ -83,7 +83,7 @@ def polls_never_disarm(app: DrsConsole, monkeypatch: pytest.MonkeyPatch) -> Armi
 
     On a loaded machine the demo's poll (×8 pace) can see the SSH link 20 demo seconds stale, a
     2.5 s stall, and disarm (or refuse FIRE, which reads the poll again) with its own reason before
-    what a test is about. That poll's disarming is pinned in ``tests/drs_link/test_arming.py`` and
+    what a test is about. That poll's disarming is pinned in ``tests/drs_link/ops/test_arming.py`` and
     by ``test_link_loss_disarms`` and ``test_stale_data_blocks_arm`` here.
     """
     arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]

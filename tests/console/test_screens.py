@@ -65,7 +65,7 @@ async def test_the_parachute_helper_offers_a_window_and_needs_a_different_second
 async def test_parachute_in_flight_shows_no_landed_evidence_and_is_refused_with_nothing_sent(
     canned_app: Callable[..., DrsConsole],
 ) -> None:
-    """The same gate as `drs mt send --parachute` (tests/iridium/test_parachute_gate.py), from the console."""
+    """The same gate as `drs mt send --parachute` (tests/drs_link/iridium/test_parachute_gate.py), from the console."""
     app = canned_app(now=T0)
     imei = app.ops.config.capsules[2].imei if app.ops else None
     assert imei is not None

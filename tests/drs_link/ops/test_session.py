@@ -7,7 +7,7 @@ from pathlib import Path
 from drs_link.ops.session import record_loss, record_start
 from drs_link.store import Store
 from tests.clock import ManualClock
-from tests.drs_link.test_arming import T0, controller, go_report
+from tests.drs_link.ops.test_arming import T0, controller, go_report
 
 
 def test_a_lost_session_disarms_what_was_armed_and_says_so_once_to_the_next_console(tmp_path: Path) -> None:

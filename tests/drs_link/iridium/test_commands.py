@@ -31,7 +31,7 @@ from drs_link.iridium.commands import (
 from drs_link.iridium.firmware import GnssFix, arduino_to_int, value_after
 from drs_link.iridium.mt import MtComposer
 
-DOCS = Path(__file__).parents[2] / "docs" / "iridium.md"
+DOCS = Path(__file__).parents[3] / "docs" / "iridium.md"
 SAMPLES = {"INTERVAL": 5, "RBSOURCE": 11800, "RBDESTINATION": 16366, "PARACHUTE": (12, 5), "SOUNDER": False}
 FIX = GnssFix(datetime(2026, 1, 1, 12, 0, tzinfo=UTC), 0, 0, 0, 0, 0, 1, 5)
 

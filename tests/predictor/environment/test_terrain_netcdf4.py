@@ -158,7 +158,7 @@ def test_netcdf4_dem_without_h5py_says_which_package_to_install(tmp_path: Path) 
         text=True,
         timeout=120,
         check=True,
-        cwd=Path(__file__).resolve().parents[2],
+        cwd=Path(__file__).resolve().parents[3],
     )
     assert run.stdout == (
         f"DEM {dem} is netCDF4/HDF5, which needs the h5netcdf and h5py packages (h5py is missing): "

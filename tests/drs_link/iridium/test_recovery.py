@@ -30,7 +30,7 @@ from .flight_logs import flight_reports, summary
 FLIGHTS = sorted(
     path.name
     for path in (
-        Path(__file__).resolve().parents[3] / "shared" / "data" / "tracks" / "pyballoon_superbit"
+        Path(__file__).resolve().parents[4] / "shared" / "data" / "tracks" / "pyballoon_superbit"
     ).glob("*.csv")
     if path.name[0].isdigit()
 )

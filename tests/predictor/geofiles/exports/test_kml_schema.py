@@ -8,7 +8,7 @@ import fastkml
 import pytest
 from lxml import etree
 
-from tests.exports.conftest import PRODUCTS, Written
+from tests.predictor.geofiles.exports.conftest import PRODUCTS, Written
 
 KML = "{http://www.opengis.net/kml/2.2}"
 SCHEMA = Path(fastkml.__file__).parent / "schema" / "ogckml22.xsd"

@@ -12,7 +12,7 @@ import pytest
 
 from console.commands.main import main
 from predictor.environment.gribwrite import GFS_LEVELS_HPA, write_gfs_grib2
-from tests.predictor.grib_server import GribServer
+from tests.predictor.environment.grib_server import GribServer
 
 
 @pytest.fixture(autouse=True)

@@ -682,7 +682,7 @@ def test_balloon_feed_section_must_be_a_table() -> None:
 
 
 def test_docs_example_is_a_valid_balloon_feed() -> None:
-    text = (Path(__file__).resolve().parents[2] / "docs" / "console.md").read_text()
+    text = (Path(__file__).resolve().parents[3] / "docs" / "console.md").read_text()
     section = text[text.index("## Balloon feed") :]
     start = section.index("```toml\n") + len("```toml\n")
     feed = parse_config(tomllib.loads(section[start : section.index("```", start)])).balloon_feed

@@ -19,7 +19,7 @@ from predictor.geofiles.geojson import dumps
 from predictor.planning import strip
 from predictor.planning.sweep import plan_release
 from predictor.prediction import export as prediction_files
-from tests.iridium.flight_logs import flight_reports
+from tests.drs_link.iridium.flight_logs import flight_reports
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
 PAYLOAD = Payload(mass_kg=1.029, cda_m2=1.13)
@@ -57,7 +57,7 @@ def _prediction_files(result: Prediction | EnsemblePrediction, crosses: bool, is
 
 @pytest.fixture(scope="session")
 def products(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Written]:
-    shared = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+    shared = Path(__file__).resolve().parents[4].parent / "shared" / "data"
     out: dict[str, Written] = {}
     alps = isothermal_cube(u=8.0, v=3.0)
     out["predict single"] = _prediction_files(

@@ -9,7 +9,7 @@ from predictor.calibration.selection import refit_without_each
 from predictor.descent.model import BinnedDescentRate, DragDensityExponent, WindOffset
 from predictor.descent.payload import PROFILES
 from predictor.errors import PredictorError
-from tests.calibration.conftest import make_cases
+from tests.predictor.calibration.conftest import make_cases
 
 PAYLOAD = PROFILES["superbit-test"]
 EXPONENTS = (0.05, 0.12, 0.2, 0.3)

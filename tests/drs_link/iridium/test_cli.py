@@ -21,7 +21,7 @@ from drs_link.store import Store, utc_now
 
 from .helpers import IMEI, T0, fix_at, fly
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 DRS = "import sys, console.commands.main as c; sys.exit(c.main())"
 
 

@@ -16,8 +16,8 @@ from predictor.descent.payload import PROFILES
 from predictor.errors import PredictorError
 from predictor.tracks.cleaning import clean
 from predictor.tracks.synthetic import synthetic_flight
-from tests.calibration.conftest import LAUNCH, jet_cube
 from tests.conftest import REPO_ROOT
+from tests.predictor.calibration.conftest import LAUNCH, jet_cube
 
 PAYLOAD = PROFILES["superbit-test"]
 REPORT = REPO_ROOT / "docs" / "calibration" / "v4-vertical.md"

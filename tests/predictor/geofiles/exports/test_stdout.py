@@ -18,7 +18,7 @@ from predictor.environment.demo_weather import demo_weather_files
 from predictor.errors import UsageError
 from predictor.geofiles import geojson
 from predictor.geofiles.output import piped
-from tests.iridium.helpers import IMEI, T0, fix_at
+from tests.drs_link.iridium.helpers import IMEI, T0, fix_at
 
 WANAKA = ["predict", "--demo-weather", "--lat", "-44.7", "--lon", "179.64", "--alt", "28000",
           "--time", "2026-01-10T03:00Z"]  # fmt: skip

@@ -23,7 +23,7 @@ from predictor.environment.gfs_fetch import (
 from predictor.environment.gribwrite import GFS_LEVELS_HPA, write_gfs_grib2
 from predictor.environment.weather import load_weather
 from predictor.errors import WeatherError
-from tests.predictor.grib_server import GribServer
+from tests.predictor.environment.grib_server import GribServer
 
 
 def utc(text: str) -> datetime:

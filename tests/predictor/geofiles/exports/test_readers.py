@@ -13,7 +13,7 @@ import shapely
 from pyproj import Geod
 from shapely.geometry import shape
 
-from tests.exports.conftest import PRODUCTS, Written
+from tests.predictor.geofiles.exports.conftest import PRODUCTS, Written
 
 GEOD = Geod(ellps="WGS84")
 GEOJSON = [p for p in PRODUCTS if not p.startswith("recovery")]

@@ -23,9 +23,9 @@ from drs_link.ops.authorize import authorize_mt
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
 from tests.clock import ManualClock
-from tests.iridium.helpers import IMEI
-from tests.iridium.test_cli import run, write_config
-from tests.iridium.test_parachute_gate import audit_of, landed, recent, seed
+from tests.drs_link.iridium.helpers import IMEI
+from tests.drs_link.iridium.test_cli import run, write_config
+from tests.drs_link.iridium.test_parachute_gate import audit_of, landed, recent, seed
 
 ALICE_A = Login("ops", "SHA256:keyA")
 ALICE_B = Login("ops", "SHA256:keyB")

@@ -14,7 +14,7 @@ import pytest
 
 from drs_link.iridium.track_export import export_track
 from predictor.geofiles.output import write_text
-from tests.iridium.flight_logs import flight_reports
+from tests.drs_link.iridium.flight_logs import flight_reports
 
 
 @pytest.fixture

@@ -29,11 +29,10 @@ from drs_link.ops.approval import ApprovalBook, Login
 from drs_link.ops.capsule import ReleaseState, ReleaseStateMachine, default_holder
 from drs_link.sim import CapsuleSimulator
 from drs_link.store import Store, iso_utc
-
-from .test_cli import _one_line_error, _write_config, drs
+from tests.drs_link.test_cli import _one_line_error, _write_config, drs
 
 TOOLS = "/home/pi/DRS_Python_Tools"
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 
 
 # The status, the marker line and the templates -------------------------------------------------
