@@ -15,7 +15,15 @@ from dataclasses import dataclass
 from datetime import datetime
 
 from drs_link.iridium import lifecycle as lc
-from drs_link.iridium.commands import INTERVAL, PARACHUTE, SOUNDER, MtCommand, is_command, parachute_accepted
+from drs_link.iridium.commands import (
+    INTERVAL,
+    PARACHUTE,
+    PARACHUTE_REACH_MIN,
+    SOUNDER,
+    MtCommand,
+    is_command,
+    parachute_accepted,
+)
 from drs_link.iridium.mo import Fix
 from drs_link.iridium.reports import StoredReport
 
@@ -207,7 +215,7 @@ def _window_verdict(text: str, report: StoredReport | None) -> str:
         return "; that report had no fix and a no-fix cycle ignores PARACHUTE: lost if it went down then"
     if not parachute_accepted(hour * 60 + minute, fix.time.hour * 60 + fix.time.minute):
         return (
-            f"; the {_hhmm(fix.time)} fix is outside its ±14 min window: "
+            f"; the {_hhmm(fix.time)} fix is outside its ±{PARACHUTE_REACH_MIN} min window: "
             "rejected and lost if it went down then"
         )
     return ""

@@ -34,6 +34,8 @@ INTERVAL_MIN, INTERVAL_MAX = 1, 1440
 """The minutes ``[INTERVAL=n]`` is accepted within; the alarm handler caps at 1440 too (3.5)."""
 PARACHUTE_WINDOW_MIN = 15
 """``[PARACHUTE=hh:mm]`` is accepted when G−15 < P < G+15: within ±14 min of the cycle's fix minute G."""
+PARACHUTE_REACH_MIN = PARACHUTE_WINDOW_MIN - 1
+"""How far (minutes) a PARACHUTE time may lie from the fix minute and still be accepted: 14."""
 MINUTES_PER_DAY = 1440
 MAX_RB_SERIAL = 9_999_999
 PENDING, SEEN, NEVER_VISIBLE, NOT_SEEN = "pending", "seen", "never visible", "not seen"
@@ -297,7 +299,7 @@ PARACHUTE = MtCommand(
     decode=_decoder(r"\[PARACHUTE=([0-9]{2}):([0-9]{2})\]", lambda m: (int(m.group(1)), int(m.group(2)))),
     firmware=_firmware_parachute,
     flag="--parachute",
-    doc="`[PARACHUTE=HH:MM]`: open release B at the end of the cycle whose fix is within ±14 min (UTC)",
+    doc=f"`[PARACHUTE=HH:MM]`: open release B at the end of the cycle whose fix is within ±{PARACHUTE_REACH_MIN} min (UTC)",
     option={"metavar": "HH:MM|next", "help": "open release B: a UTC time, or 'next' to compute"},
     read=parse_hhmm,
     prompt=Prompt("PARACHUTE at", "HH:MM (UTC) to check against the window:"),

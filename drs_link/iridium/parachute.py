@@ -18,7 +18,13 @@ from datetime import datetime, timedelta
 
 from drs_link.errors import RefusedError
 from drs_link.iridium import lifecycle as lc
-from drs_link.iridium.commands import MINUTES_PER_DAY, PARACHUTE_WINDOW_MIN, parachute_accepted
+from drs_link.iridium.commands import (
+    MINUTES_PER_DAY,
+    PARACHUTE,
+    PARACHUTE_REACH_MIN,
+    PARACHUTE_WINDOW_MIN,
+    parachute_accepted,
+)
 from drs_link.iridium.interval import IntervalTrack, interval_track, minutes_text
 from drs_link.iridium.reports import StoredReport
 
@@ -35,8 +41,6 @@ are covered: a fix earlier than any seen so far must not push the command out of
 LONG_INTERVAL_MIN = 10
 HISTORY = 12
 MIDNIGHT_GUARD_MIN = PARACHUTE_WINDOW_MIN
-REACH_MIN = PARACHUTE_WINDOW_MIN - 1
-"""How far (minutes) a PARACHUTE time may lie from the fix minute and still be accepted: 14."""
 
 
 class ParachuteRefused(RefusedError):
@@ -84,7 +88,7 @@ class ParachutePlan:
     def window_text(self) -> str:
         first, last = self.cycles[0], self.cycles[-1]
         return (
-            f"[PARACHUTE={self.hhmm}] queue before {self.queue_by:%H:%M:%S}Z; the next cycle's fix falls "
+            f"{PARACHUTE.encode((self.hour, self.minute))} queue before {self.queue_by:%H:%M:%S}Z; the next cycle's fix falls "
             f"{first.fix_earliest:%H:%M:%S}-{first.fix_latest:%H:%M:%S}Z and accepts {self.accepted_window}; "
             "still accepted if downloaded up to the cycle with its fix by "
             f"{last.fix_latest:%H:%M:%S}Z ({len(self.cycles)} cycle(s) of {minutes_text(self.intervals)})"
@@ -130,7 +134,7 @@ def _covered(p_minute: int, accepted_sets: list[frozenset[int]]) -> int:
 def _slack(p_minute: int, cycle: CycleForecast) -> int:
     """Minutes to spare before the fix minute that is furthest from ``p_minute`` leaves its window."""
     return min(
-        REACH_MIN - min(abs(p_minute - g), MINUTES_PER_DAY - abs(p_minute - g)) for g in cycle.minutes_of_day()
+        PARACHUTE_REACH_MIN - min(abs(p_minute - g), MINUTES_PER_DAY - abs(p_minute - g)) for g in cycle.minutes_of_day()
     )
 
 
@@ -181,14 +185,14 @@ def plan_parachute(
     first_offset = 1
     while alarm(first_offset) + early + session_delay - QUEUE_MARGIN <= now:
         first_offset += 1
-    horizon = max(1, (2 * REACH_MIN + min(then)) // min(then) + 1)
+    horizon = max(1, (2 * PARACHUTE_REACH_MIN + min(then)) // min(then) + 1)
     cycles = [
         CycleForecast(k, alarm(k) + early, alarm(k, latest=True) + late)
         for k in range(first_offset, first_offset + horizon)
     ]
-    if len(cycles[0].minutes_of_day()) > 2 * REACH_MIN:
+    if len(cycles[0].minutes_of_day()) > 2 * PARACHUTE_REACH_MIN:
         raise ParachuteRefused(
-            f"the next fix time cannot be predicted within {2 * REACH_MIN} min: no HH:MM is safe"
+            f"the next fix time cannot be predicted within {2 * PARACHUTE_REACH_MIN} min: no HH:MM is safe"
         )
     accepted_sets = [_accepted_in(cycle) for cycle in cycles]
     accepted = sorted(accepted_sets[0])
