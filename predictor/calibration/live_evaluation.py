@@ -376,11 +376,14 @@ def evaluate(
     flights = _usable(paths, day, result.skipped)
     laws = held_out_laws(model, flights)
     result.held_out_laws = {name: law.terms for name, law in laws.items()}
-    result.typical_rate = _typical(_rate_survey(flights, model))
+    model_survey = _rate_survey(flights, model)
+    result.typical_rate = _typical(model_survey)
     for flight in flights:
         law = laws.get(flight.name, model)
-        # The typical factor this flight is divided by: the other flights' fits with its own fold's law.
-        configs = configurations(_typical(_rate_survey(flights, law), leave_out=flight.name))
+        # The typical factor this flight is divided by: the other flights' fits with its own fold's law
+        # (a flight the model never saw flies the model's own law, whose survey is already made).
+        survey = model_survey if law is model else _rate_survey(flights, law)
+        configs = configurations(_typical(survey, leave_out=flight.name))
         landing, descent = flight.landing, flight.descent
         live = {
             "profile": LivePredictor(flight.cube, profile, flight.ground, NO_CORRECTION),
