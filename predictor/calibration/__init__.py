@@ -15,7 +15,6 @@ __getattr__, __dir__, __all__ = lazy_door(
     {
         "CalibratedModel": "model_file",
         "bench": "live_bench",
-        "evaluate": "live_evaluation",
         "flown_model": "model_file",
         "live_settings": "live_evaluation",
         "load_model": "model_file",
