@@ -13,8 +13,7 @@ from pathlib import Path
 import grimp
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("predictor", "drs_link", "console")
+from tools.house_diagram import PACKAGES, ROOT, mermaid, rooms
 
 
 def _module_name(path: Path) -> str:
@@ -23,14 +22,9 @@ def _module_name(path: Path) -> str:
 
 
 def _rooms() -> list[str]:
-    """Every folder below a top-level package: deepest first, so a module belongs to its nearest room."""
-    rooms = [
-        _module_name(init.parent / "__init__.py")
-        for package in PACKAGES
-        for init in (ROOT / package).rglob("__init__.py")
-        if init.parent != ROOT / package
-    ]
-    return sorted(rooms, key=len, reverse=True)
+    """Every folder below a top-level package, deepest first (the diagram's rooms, without the packages'
+    own foundations), so a module belongs to its nearest room."""
+    return [room for room in rooms() if "." in room]
 
 
 def _room_of(module: str, rooms: list[str]) -> str | None:
@@ -113,8 +107,6 @@ def test_no_module_imports_itself_back_through_others(package: str) -> None:
 def test_the_picture_in_the_architecture_doc_is_the_code_as_it_is() -> None:
     """The graph in docs/architecture.md is made by tools/house_diagram.py (``make house``) from grimp's
     import graph: a room that gains or loses a neighbour must be drawn again."""
-    from tools.house_diagram import mermaid
-
     assert mermaid() in (ROOT / "docs" / "architecture.md").read_text()
 
 
