@@ -172,9 +172,8 @@ def _firmware_serial(name: str) -> Callable[[str, int], tuple[int | None, str | 
 
     def firmware(text: str, g_minute: int) -> tuple[int | None, str | None]:
         raw = value_after(text, f"[{name}=", "]")
-        if raw is None or arduino_to_int(raw) < 0:
-            return None, None
-        return arduino_to_int(raw), None
+        serial = arduino_to_int(raw) if raw is not None else -1
+        return (serial, None) if serial >= 0 else (None, None)
 
     return firmware
 
