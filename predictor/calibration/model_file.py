@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from predictor.descent import EFFECTS, Model, Payload, Term, payload_profile
+from predictor.descent import EFFECTS, Model, Payload, RatePrior, Term, payload_profile
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, UsageError
 from predictor.prediction import (
@@ -38,9 +38,9 @@ from predictor.prediction import (
     TypicalRate,
 )
 
-SCHEMA_VERSION = 2
-"""2 added the optional ``live`` section: a drs that reads only 1 refuses such a file rather than fly
-the model without the live settings measured for it."""
+SCHEMA_VERSION = 3
+"""2 added the optional ``live`` section, 3 the optional ``rate_prior``: a drs that reads an older
+schema refuses such a file rather than fly the model without what was measured for it."""
 FILE_KIND = "drs-calibrated-model"
 
 
@@ -61,6 +61,9 @@ class CalibratedModel:
     live: LiveSettings | None = None
     """The live corrections and live ellipse measured with this model's law (``drs live evaluate
     --save-model``); None: not evaluated live, and live re-prediction flies ``DEFAULT_LIVE``."""
+    rate_prior: RatePrior | None = None
+    """The spread of each calibration flight's own rate factor λ around the shared law (None: the
+    calibration did not fit λ per flight)."""
 
     def live_predictor(self, cube: WeatherCube, terrain: Terrain | None = None, corrected: bool = True) -> LivePredictor:
         """A live predictor flying this model's law with its own live settings (``corrected``: its bands)."""
@@ -108,6 +111,7 @@ class CalibratedModel:
             "terms": [{"effect": t.name, "parameters": t.parameters()} for t in self.terms],
             "ellipse": ellipse,
             **({"live": _live_to_dict(self.live)} if self.live is not None else {}),
+            **({"rate_prior": self.rate_prior.to_dict()} if self.rate_prior is not None else {}),
             "provenance": self.provenance,
         }
 
@@ -185,10 +189,11 @@ def load_model(path: str | Path) -> CalibratedModel:
     terms = _terms(raw.get("terms"), refuse)
     ellipse = _ellipse(raw.get("ellipse"), refuse)
     live = _live(raw["live"], refuse) if "live" in raw else None
+    rate_prior = _rate_prior(raw["rate_prior"], refuse) if "rate_prior" in raw else None
     provenance = raw.get("provenance", {})
     if not isinstance(provenance, dict):
         raise refuse("provenance", "must be an object")
-    return CalibratedModel(payload, terms, ellipse, provenance, source, live)
+    return CalibratedModel(payload, terms, ellipse, provenance, source, live, rate_prior)
 
 
 def _number(value: Any, where: str, refuse: Any) -> float:
@@ -250,6 +255,22 @@ def _ellipse(raw: Any, refuse: Any) -> ErrorModel | None:
         return ErrorModel(*values, name="calibrated")
     except PredictorError as exc:
         raise refuse("ellipse", str(exc)) from None
+
+
+def _rate_prior(raw: Any, refuse: Any) -> RatePrior:
+    if not isinstance(raw, dict):
+        raise refuse("rate_prior", "must be an object with median, log_sigma and flights")
+    flights = raw.get("flights")
+    if isinstance(flights, bool) or not isinstance(flights, int):
+        raise refuse("rate_prior.flights", f"must be a whole number of flights, got {flights!r}")
+    try:
+        return RatePrior(
+            _number(raw.get("median"), "rate_prior.median", refuse),
+            _number(raw.get("log_sigma"), "rate_prior.log_sigma", refuse),
+            flights,
+        )
+    except PredictorError as exc:
+        raise refuse("rate_prior", str(exc)) from None
 
 
 def _numbers(raw: Any, where: str, refuse: Any, positive: bool = False) -> tuple[float, ...]:

@@ -1,8 +1,8 @@
 """The descent physics as a chain of small terms, and the one compiled engine that steps them.
 
 ``model`` holds every physical effect as a registered term, ``payload`` the two numbers the drag law
-needs, ``integrate`` the stepper that knows no physics (``descend``), and ``landing`` where a path
-meets the ground.
+needs, ``integrate`` the stepper that knows no physics (``descend``), ``landing`` where a path
+meets the ground, and ``rate_prior`` what a flight's own rate factor is expected to be.
 """
 
 from predictor.lazy_door import lazy_door
@@ -22,6 +22,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Model": "model",
         "PROFILES": "payload",
         "Payload": "payload",
+        "RatePrior": "rate_prior",
         "Record": "integrate",
         "Release": "integrate",
         "STATUS_ABOVE_TOP": "integrate",
