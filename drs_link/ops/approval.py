@@ -11,6 +11,11 @@ stays as the logged single-operator path.
 
 Every change of a request is one compare-and-set in SQLite, so two approvers, or an approval racing
 its expiry, can never both win.
+
+A request is bound to one action instance: the capsule, the action, the exact command (the MT text, or
+the ARM window's id) and a deadline (the window's end, the PARACHUTE's queue-before time). It is void
+when its ARM window closes or the capsule's release state changes, and its requester may cancel it;
+``use`` checks the binding again, so an approval can only ever send the command it was given for.
 """
 
 from __future__ import annotations
@@ -27,6 +32,8 @@ from datetime import datetime, timedelta
 from pathlib import Path
 
 from drs_link.errors import RefusedError
+from drs_link.ops.arm_window import ARMED
+from drs_link.ops.arm_window import DDL as ARM_WINDOW_DDL
 from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
 
 APPROVAL_TTL_S = 300.0
@@ -54,6 +61,18 @@ CREATE TABLE IF NOT EXISTS approval (
 );
 CREATE INDEX IF NOT EXISTS approval_state ON approval (state, expires_utc);
 """
+_BINDING_COLUMNS = {"command": "TEXT", "window_id": "INTEGER", "capsule_state": "TEXT"}
+"""What one request is bound to; added in place to stores made before the binding (NULL for old rows)."""
+USABLE = (
+    f"state IN ('pending', 'approved') AND expires_utc > ? AND (window_id IS NULL OR window_id IN "
+    f"(SELECT id FROM arm_window WHERE state = '{ARMED}' AND until_utc > ?))"
+)
+"""SQL: a request that can still be decided or spent: not expired, and its ARM window (if any) still open."""
+
+
+def window_command(window_id: int) -> str:
+    """The exact command a Go approval is bound to: one ARM window."""
+    return f"ARM window #{window_id}"
 
 
 @dataclass(frozen=True)
@@ -116,10 +135,16 @@ class Approval:
     requested_utc: datetime
     expires_utc: datetime
     state: str
-    """pending, approved, rejected or used (an expired request keeps its state and is refused by time)."""
+    """pending, approved, rejected, used, void (its window closed, the capsule's state changed) or
+    cancelled (an expired request keeps its state and is refused by time)."""
     decided_by: str | None
     decider: Login | None
     reason: str | None
+    command: str | None = None
+    """The exact command it was given for: the MT text, ``ARM window #N``, or the take-over's reason."""
+    window_id: int | None = None
+    capsule_state: str | None = None
+    """The capsule's release state when it was asked for: any change voids it."""
 
     def expired(self, now: datetime) -> bool:
         return now >= self.expires_utc
@@ -146,24 +171,38 @@ class ApprovalBook:
         self.store = store
         self.clock = clock
         store.ensure_schema(_DDL)
+        store.ensure_schema(ARM_WINDOW_DDL)
+        have = {str(row["name"]) for row in store.query("PRAGMA table_info(approval)")}
+        missing = [(name, kind) for name, kind in _BINDING_COLUMNS.items() if name not in have]
+        if missing:
+            with store.transaction() as conn:
+                for name, kind in missing:
+                    conn.execute(f"ALTER TABLE approval ADD COLUMN {name} {kind}")
 
     def request(
-        self, capsule: str, action: str, summary: str, operator: str, login: Login, ttl_s: float = APPROVAL_TTL_S
+        self, capsule: str, action: str, summary: str, operator: str, login: Login, ttl_s: float = APPROVAL_TTL_S,
+        *, command: str | None = None, window_id: int | None = None, deadline: datetime | None = None,
+        capsule_state: str | None = None,
     ) -> Approval:
-        """A pending request another login must approve before ``expires``; audited."""
+        """A pending request another login must approve before ``expires`` (the TTL or the action's own
+        deadline, whichever is first), bound to ``command``/``window_id``/``capsule_state``; audited."""
         if action not in ACTIONS:
             raise ValueError(f"unknown hazardous action {action!r}")
         now = self.clock()
         expires = now + timedelta(seconds=ttl_s)
+        if deadline is not None:
+            expires = min(expires, deadline)
         with self.store.transaction() as conn:
             row_id = conn.execute(
                 "INSERT INTO approval (capsule, action, summary, requested_by, requester_user, requester_key, "
-                "requested_utc, expires_utc, state) VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'pending')",
-                (capsule, action, summary, operator, login.user, login.key_fingerprint, iso_utc(now), iso_utc(expires)),
-            ).lastrowid
+                "requested_utc, expires_utc, state, command, window_id, capsule_state) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'pending', ?, ?, ?)",
+                (capsule, action, summary, operator, login.user, login.key_fingerprint, iso_utc(now), iso_utc(expires),
+                 command, window_id, capsule_state),
+            ).lastrowid  # fmt: skip
         self.store.append_audit(operator, capsule, "approval.requested", "pending",
                                 {"approval": row_id, "action": action, "summary": summary, "login": str(login),
-                                 "expires_utc": iso_utc(expires)})  # fmt: skip
+                                 "command": command, "expires_utc": iso_utc(expires)})  # fmt: skip
         return self.get(int(row_id or 0))
 
     def get(self, approval_id: int) -> Approval:
@@ -172,14 +211,54 @@ class ApprovalBook:
             raise RefusedError(f"approval #{approval_id} does not exist")
         return _approval(rows[0])
 
-    def open_requests(self, capsule: str | None = None) -> list[Approval]:
-        """Pending requests that have not expired, oldest first: what an approver is asked about."""
+    def open_requests(self, capsule: str | None = None, requested_by: Login | None = None) -> list[Approval]:
+        """Pending requests that can still be used (not expired, their ARM window still open), oldest
+        first: what an approver is asked about, and what a requester still waits for."""
         now = iso_utc(self.clock())
-        sql = "SELECT * FROM approval WHERE state = 'pending' AND expires_utc > ?"
-        params: tuple[str, ...] = (now,)
+        sql = f"SELECT * FROM approval WHERE state = 'pending' AND {USABLE}"
+        params: tuple[str, ...] = (now, now)
         if capsule is not None:
-            sql, params = sql + " AND capsule = ?", (now, capsule)
-        return [_approval(row) for row in self.store.query(sql + " ORDER BY id", params)]
+            sql, params = sql + " AND capsule = ?", (*params, capsule)
+        requests = [_approval(row) for row in self.store.query(sql + " ORDER BY id", params)]
+        if requested_by is not None:
+            requests = [r for r in requests if r.requester.same_person(requested_by)]
+        return requests
+
+    def usable(self, request: Approval) -> bool:
+        """Whether a request can still be decided or spent (see ``USABLE``)."""
+        now = iso_utc(self.clock())
+        rows = self.store.query(f"SELECT id FROM approval WHERE id = ? AND {USABLE}", (request.id, now, now))
+        return bool(rows)
+
+    def _end(self, where: str, params: tuple[object, ...], state: str, reason: str, operator: str) -> list[int]:
+        """Move every matching pending/approved request to ``state`` (void, cancelled); audited each."""
+        with self.store.transaction() as conn:
+            rows = conn.execute(
+                f"SELECT id, capsule FROM approval WHERE state IN ('pending', 'approved') AND {where}", params
+            ).fetchall()
+            for row in rows:
+                conn.execute("UPDATE approval SET state = ?, reason = ? WHERE id = ?", (state, reason, row["id"]))
+        for row in rows:
+            self.store.append_audit(operator, str(row["capsule"]), f"approval.{state}", state,
+                                    {"approval": int(row["id"]), "reason": reason})  # fmt: skip
+        return [int(row["id"]) for row in rows]
+
+    def void_window(self, capsule: str, window_id: int, reason: str, operator: str) -> list[int]:
+        """The ARM window closed: every request given for it is void."""
+        return self._end("capsule = ? AND window_id = ?", (capsule, window_id), "void", reason, operator)
+
+    def void_capsule(self, capsule: str, reason: str, operator: str) -> list[int]:
+        """The capsule's release state changed (power-on, release, reset): every request for it is void."""
+        return self._end("capsule = ?", (capsule,), "void", reason, operator)
+
+    def cancel(self, approval_id: int, operator: str, login: Login) -> Approval:
+        """The requester withdraws a request (pending or approved, not yet spent); audited."""
+        request = self.get(approval_id)
+        if not request.requester.same_person(login):
+            raise RefusedError(f"approval #{approval_id} was requested by {request.requester}; only they can cancel it")
+        if not self._end("id = ?", (approval_id,), "cancelled", f"cancelled by {operator}", operator):
+            raise RefusedError(f"approval #{approval_id} is {self.get(approval_id).status(self.clock())}: nothing to cancel")
+        return self.get(approval_id)
 
     def decide(self, approval_id: int, operator: str, login: Login, approve: bool, reason: str = "") -> Approval:
         """Approve or reject a pending request from a login that is not the requester's."""
@@ -200,28 +279,43 @@ class ApprovalBook:
         with self.store.transaction() as conn:
             changed = conn.execute(
                 "UPDATE approval SET state = ?, decided_by = ?, decider_user = ?, decider_key = ?, decided_utc = ?, "
-                "reason = ? WHERE id = ? AND state = 'pending' AND expires_utc > ?",
+                f"reason = ? WHERE id = ? AND state = 'pending' AND {USABLE}",
                 (verdict, operator, login.user, login.key_fingerprint, iso_utc(now), reason.strip() or None,
-                 approval_id, iso_utc(now)),
+                 approval_id, iso_utc(now), iso_utc(now)),
             ).rowcount  # fmt: skip
         if not changed:
-            raise refuse(f"it is {self.get(approval_id).status(now)}, not pending")
+            raise refuse(f"it is {self.why_not(self.get(approval_id), now)}, not pending")
         self.store.append_audit(operator, request.capsule, f"approval.{verdict}", verdict,
                                 {"approval": approval_id, "action": request.action, "requested_by": request.requested_by,
                                  "requester_login": str(request.requester), "login": str(login),
                                  "reason": reason.strip()})  # fmt: skip
         return self.get(approval_id)
 
+    def why_not(self, request: Approval, now: datetime) -> str:
+        """A request's state as a refusal says it, naming a closed ARM window as the reason."""
+        if request.state in ("pending", "approved") and not request.expired(now) and not self.usable(request):
+            return f"void (ARM window #{request.window_id} closed)"
+        if request.state in ("void", "cancelled") and request.reason:
+            return f"{request.state} ({request.reason})"
+        return request.status(now)
+
     def wait(self, approval_id: int, poll_s: float = 0.25) -> Approval:
-        """Block until the request is decided or expires (its state then says which)."""
+        """Block until the request is decided, expires, or can no longer be used (its window closed)."""
         while True:
             request = self.get(approval_id)
-            if request.state != "pending" or request.expired(self.clock()):
+            if request.state != "pending" or not self.usable(request):
                 return request
             time.sleep(poll_s)
 
-    def use(self, approval_id: int, capsule: str, action: str, login: Login) -> dict[str, str]:
-        """Spend an approval on the command it was given for, once; what to audit with the command."""
+    def use(
+        self, approval_id: int, capsule: str, action: str, login: Login, command: str | None = None,
+        capsule_state: str | None = None,
+    ) -> dict[str, str]:
+        """Spend an approval on the command it was given for, once; what to audit with the command.
+
+        ``command`` and ``capsule_state`` are what is about to be sent and the capsule's state now: an
+        approval bound to another command, window or state is refused.
+        """
         request = self.get(approval_id)
         now = self.clock()
         if request.capsule != capsule or request.action != action:
@@ -231,13 +325,20 @@ class ApprovalBook:
             )
         if not request.requester.same_person(login):
             raise RefusedError(f"approval #{approval_id} was requested by {request.requester}, not by {login}")
+        if request.command is not None and command is not None and request.command != command:
+            raise RefusedError(f"approval #{approval_id} was given for {request.command}, not {command}")
+        if request.capsule_state is not None and capsule_state is not None and request.capsule_state != capsule_state:
+            self.void_capsule(capsule, f"capsule state changed: {request.capsule_state} → {capsule_state}", "drs")
+            raise RefusedError(
+                f"approval #{approval_id} was given while {capsule} was {request.capsule_state}; it is now {capsule_state}"
+            )
         with self.store.transaction() as conn:
             changed = conn.execute(
-                "UPDATE approval SET state = 'used' WHERE id = ? AND state = 'approved' AND expires_utc > ?",
-                (approval_id, iso_utc(now)),
+                f"UPDATE approval SET state = 'used' WHERE id = ? AND state = 'approved' AND {USABLE}",
+                (approval_id, iso_utc(now), iso_utc(now)),
             ).rowcount
         if not changed:
-            raise RefusedError(f"approval #{approval_id} is {self.get(approval_id).status(now)}, not approved")
+            raise RefusedError(f"approval #{approval_id} is {self.why_not(self.get(approval_id), now)}, not approved")
         return {"approved_by": f"{request.decided_by} ({request.decider})", "approval": str(approval_id)}
 
 
@@ -256,6 +357,9 @@ def _approval(row: Mapping[str, object]) -> Approval:
         decided_by=_text(row["decided_by"]),
         decider=decider,
         reason=_text(row["reason"]),
+        command=_text(row["command"]),
+        window_id=None if row["window_id"] is None else int(str(row["window_id"])),
+        capsule_state=_text(row["capsule_state"]),
     )
 
 
@@ -271,16 +375,24 @@ def approved(
     operator: str,
     login: Login,
     on_pending: Callable[[Approval], None],
+    *,
+    command: str | None = None,
+    window_id: int | None = None,
+    deadline: datetime | None = None,
+    capsule_state: str | None = None,
 ) -> int:
     """Ask another login to approve and wait (blocking: a worker thread or a CLI); the approval's id
     once approved, else RefusedError saying how the request ended. ``on_pending`` tells the operator
-    which request to have approved."""
-    request = book.request(capsule, action, summary, operator, login)
+    which request to have approved; the rest is the binding (``ApprovalBook.request``)."""
+    request = book.request(
+        capsule, action, summary, operator, login,
+        command=command, window_id=window_id, deadline=deadline, capsule_state=capsule_state,
+    )  # fmt: skip
     on_pending(request)
     decided = book.wait(request.id)
-    if decided.state != "approved":
-        why = f" ({decided.reason})" if decided.reason else ""
-        raise RefusedError(f"approval #{request.id} {decided.status(book.clock())}{why}: nothing sent")
+    if decided.state != "approved" or not book.usable(decided):
+        why = f" ({decided.reason})" if decided.reason and decided.state == "rejected" else ""
+        raise RefusedError(f"approval #{request.id} {book.why_not(decided, book.clock())}{why}: nothing sent")
     return request.id
 
 

@@ -7,6 +7,11 @@ the same values ARM saw: any change, a lost link or a stale critical input disar
 goes through the release state machine's own confirmation token (``ReleaseStateMachine.confirm``
 and ``go``), so the Pi-side preconditions are checked a second time by the layer that owns them.
 Every transition is audited before it is reported.
+
+The window lives in the shared store (``drs_link.ops.arm_window``): one per capsule across every console
+and ``drs`` process, held by the process that opened it. An approval is bound to one window
+(``drs_link.ops.approval``): when the window closes, for whatever reason, its approvals are void, so a
+late approval can never fire the capsule in a later window.
 """
 
 from __future__ import annotations
@@ -19,10 +24,11 @@ from enum import StrEnum
 from typing import Protocol
 
 from drs_link.errors import RefusedError
-from drs_link.ops.approval import ApprovalBook, Login, current_login
+from drs_link.ops.approval import ApprovalBook, Login, current_login, window_command
+from drs_link.ops.arm_window import ARMED, CLOSED, FIRED, FIRING, ArmWindow, ArmWindows, expired_reason
 from drs_link.ops.capsule import ConfirmationToken, ReleaseRecord
 from drs_link.ops.gonogo import GoNoGoReport
-from drs_link.store import Store, utc_now
+from drs_link.store import Store, session_name, utc_now
 
 DEFAULT_ARM_WINDOW_S = 60.0
 
@@ -45,41 +51,75 @@ class ArmState(StrEnum):
     FIRED = "fired"
 
 
+_STATES = {ARMED: ArmState.ARMED, FIRING: ArmState.FIRING, FIRED: ArmState.FIRED, CLOSED: ArmState.DISARMED}
+
+
 @dataclass(frozen=True)
 class ArmStatus:
     state: ArmState
     armed_until: datetime | None
     remaining_s: float
     last_disarm_reason: str | None
+    window: ArmWindow | None = None
+    """The capsule's latest ARM window, whoever holds it."""
+    mine: bool = True
+    """Whether this process holds the window (only the holder can FIRE in it)."""
 
     @property
     def armed(self) -> bool:
         return self.state is ArmState.ARMED
 
+    def holder_text(self) -> str:
+        """Who holds another console's window, for the screen and the refusal: account@host pid."""
+        return "" if self.window is None or self.mine else f"held by {self.window.who()}"
+
+
+SECOND_LOGIN_HOWTO = (
+    "ask another login to approve it (the console's 'Ask another login', or --await-approval here), "
+    "then the second operator runs `drs approve ID` from their own login"
+)
+
 
 def check_second_operator(
-    first: str, second: str | None, single_operator_waiver: str | None, required: bool
+    first: str,
+    second: str | None,
+    single_operator_waiver: str | None,
+    required: bool,
+    crew: tuple[str, ...] = (),
 ) -> dict[str, str]:
-    """The two-person rule for hazardous commands (FIRE, PARACHUTE); returns what to audit.
+    """The two-person rule for hazardous commands (FIRE, PARACHUTE, a take-over); returns what to audit.
 
-    The second operator must be a different person; a team of one may waive the rule, but only
-    by saying why, and the waiver is audited with the command.
+    With the rule required (``[console] require_second_operator``) only another login's approval
+    satisfies it: a typed name or a waiver can be written by one person alone, so both are refused and
+    the refusal says how to get an approval. Without it, a typed second operator must be a different
+    person named in the configured crew list, and a team of one may waive the rule, saying why (audited).
     """
     first_name = first.strip()
     second_name = (second or "").strip()
+    waiver = (single_operator_waiver or "").strip()
+    if required:
+        typed = "a typed second operator" if second_name else "a single-operator waiver" if waiver else ""
+        if typed:
+            raise RefusedError(
+                f"require_second_operator is on: {typed} is not accepted; {SECOND_LOGIN_HOWTO}"
+            )
+        raise RefusedError(f"require_second_operator is on: a second login's approval is needed; {SECOND_LOGIN_HOWTO}")
     if second_name:
         if second_name.casefold() == first_name.casefold():
             raise RefusedError(f"the second operator must be a different person than {first_name!r}")
+        if second_name.casefold() not in {name.casefold() for name in crew}:
+            listed = ", ".join(crew) if crew else "none configured"
+            raise RefusedError(
+                f"the second operator {second_name!r} is not in the crew list ([console] crew: {listed})"
+            )
         return {"second_operator": second_name}
-    if single_operator_waiver and single_operator_waiver.strip():
-        return {"single_operator_waiver": single_operator_waiver.strip()}
-    if not required:
-        return {}
-    raise RefusedError("a second operator (a different name) is required, or a logged single-operator waiver")
+    if waiver:
+        return {"single_operator_waiver": waiver}
+    return {}
 
 
 class ArmingController:
-    """The ARM window of one capsule; thread-safe because FIRE runs in a worker thread."""
+    """The ARM window of one capsule as this process sees it; thread-safe because FIRE runs in a worker."""
 
     def __init__(
         self,
@@ -89,6 +129,8 @@ class ArmingController:
         clock: Callable[[], datetime] = utc_now,
         arm_window_s: float = DEFAULT_ARM_WINDOW_S,
         require_second_operator: bool = False,
+        holder: str | None = None,
+        crew: tuple[str, ...] = (),
     ) -> None:
         if arm_window_s <= 0:
             raise ValueError("the ARM window must be positive")
@@ -98,11 +140,12 @@ class ArmingController:
         self.clock = clock
         self.arm_window_s = arm_window_s
         self.require_second_operator = require_second_operator
+        self.crew = crew
+        self.session = session_name()
+        self.holder = holder or self.session
+        """Who may FIRE in a window this controller opens: this process, or (the CLI) account@host."""
+        self.windows = ArmWindows(store)
         self._lock = threading.RLock()
-        self._state = ArmState.DISARMED
-        self._armed_until: datetime | None = None
-        self._fingerprint: str | None = None
-        self._last_reason: str | None = None
 
     @property
     def capsule(self) -> str:
@@ -112,22 +155,30 @@ class ArmingController:
         self.store.append_audit(self.operator, self.capsule, action, result, detail, when=self.clock())
 
     def status(self) -> ArmStatus:
-        """The current state; an ARM window that has run out is closed (and audited) here."""
+        """The current state; an ARM window that has run out is closed (and audited, once) here."""
         with self._lock:
             now = self.clock()
-            if self._state is ArmState.ARMED and self._armed_until is not None and now >= self._armed_until:
-                self._disarm(f"ARM window expired at {self._armed_until:%H:%M:%S}Z")
-            remaining = 0.0
-            if self._state is ArmState.ARMED and self._armed_until is not None:
-                remaining = max(0.0, (self._armed_until - now).total_seconds())
-            return ArmStatus(self._state, self._armed_until, remaining, self._last_reason)
+            window = self.windows.latest(self.capsule)
+            if window is not None and window.state == ARMED and now >= window.until_utc:
+                self._close(window, expired_reason(window))
+                window = self.windows.latest(self.capsule)
+            if window is None:
+                return ArmStatus(ArmState.DISARMED, None, 0.0, None)
+            state = _STATES[window.state]
+            armed = state is ArmState.ARMED
+            remaining = max(0.0, (window.until_utc - now).total_seconds()) if armed else 0.0
+            return ArmStatus(
+                state, window.until_utc if armed else None, remaining,
+                window.reason if state is ArmState.DISARMED else None, window, window.holder == self.holder,
+            )  # fmt: skip
 
-    def _disarm(self, reason: str) -> None:
-        self._state = ArmState.DISARMED
-        self._armed_until = None
-        self._fingerprint = None
-        self._last_reason = reason
-        self._audit("disarm", reason)
+    def _close(self, window: ArmWindow, reason: str, states: tuple[str, ...] = (ARMED,)) -> None:
+        """Close a window and void every approval given for it; audited by whichever process won."""
+        if self.windows.close(window.id, reason, self.clock(), states):
+            self._audit("disarm", reason, {"window": window.id, "held_by": window.session})
+            ApprovalBook(self.store, self.clock).void_window(
+                self.capsule, window.id, f"ARM window #{window.id} closed: {reason}", self.operator
+            )
 
     def arm(self, report: GoNoGoReport) -> ArmStatus:
         with self._lock:
@@ -139,39 +190,85 @@ class ArmingController:
             if not report.go:
                 self._audit("arm", "refused", {"reason": report.summary()})
                 raise RefusedError(f"{self.capsule}: ARM refused: {report.summary()}")
-            self._state = ArmState.ARMED
-            self._armed_until = self.clock() + timedelta(seconds=self.arm_window_s)
-            self._fingerprint = report.fingerprint
-            self._last_reason = None
-            self._audit("arm", "armed", {"window_s": self.arm_window_s, "inputs": report.fingerprint})
+            now = self.clock()
+            before = self.windows.latest(self.capsule)
+            window, in_way = self.windows.open(
+                self.capsule, self.holder, self.session, self.operator, now,
+                now + timedelta(seconds=self.arm_window_s), report.fingerprint,
+            )  # fmt: skip
+            if window is None:
+                assert in_way is not None
+                why = (
+                    f"ARM window #{in_way.id} is held by {in_way.who()} until {in_way.until_utc:%H:%M:%S}Z; "
+                    "one ARM per capsule"
+                    if in_way.state == ARMED else f"the capsule is {in_way.state}"
+                )  # fmt: skip
+                self._audit("arm", "refused", {"reason": why})
+                raise RefusedError(f"{self.capsule}: ARM refused: {why}")
+            if before is not None and before.state == ARMED:
+                self._audit("disarm", "re-armed", {"window": before.id})
+                ApprovalBook(self.store, self.clock).void_window(
+                    self.capsule, before.id, f"ARM window #{before.id} closed: re-armed", self.operator
+                )
+            self._audit("arm", "armed", {"window": window.id, "window_s": self.arm_window_s,
+                                         "inputs": report.fingerprint})  # fmt: skip
             return self.status()
 
-    def disarm(self, reason: str) -> ArmStatus:
+    def disarm(self, reason: str, any_holder: bool = False) -> ArmStatus:
+        """Close this process's window; ``any_holder``: an operator's explicit disarm closes anyone's
+        (disarming is always the safe direction)."""
         with self._lock:
-            if self._state is ArmState.ARMED:
-                self._disarm(reason)
+            status = self.status()
+            if status.window is not None and status.armed and (status.mine or any_holder):
+                self._close(status.window, reason)
             return self.status()
 
     def observe(self, report: GoNoGoReport) -> ArmStatus:
-        """Feed each new poll: a NO-GO or any changed value disarms at once."""
+        """Feed each new poll: a NO-GO or any changed value disarms this process's window at once."""
         with self._lock:
-            if self.status().state is not ArmState.ARMED:
-                return self.status()
+            status = self.status()
+            if not status.armed or not status.mine or status.window is None:
+                return status
             if not report.go:
-                self._disarm(f"no longer GO: {report.summary()}")
-            elif report.fingerprint != self._fingerprint:
-                self._disarm("inputs changed since ARM")
+                self._close(status.window, f"no longer GO: {report.summary()}")
+            elif report.fingerprint != status.window.fingerprint:
+                self._close(status.window, "inputs changed since ARM")
             return self.status()
 
     def after_reset(self) -> ArmStatus:
         """The capsule was recovered and reset (``ReleaseStateMachine.reset``): a new release may start."""
         with self._lock:
-            if self._state is ArmState.FIRED:
-                self._disarm("capsule reset after recovery")
+            window = self.windows.latest(self.capsule)
+            if window is not None and window.state in (FIRING, FIRED):
+                self._close(window, "capsule reset after recovery", (FIRING, FIRED))
             return self.status()
 
     def link_lost(self) -> ArmStatus:
         return self.disarm("link lost")
+
+    def window_for_approval(self, typed_name: str) -> ArmWindow:
+        """The window a Go approval is asked for: this process's open one (else the refusal FIRE gives)."""
+        with self._lock:
+            status = self._fireable(typed_name)
+            assert status.window is not None
+            return status.window
+
+    def _fireable(self, typed_name: str) -> ArmStatus:
+        status = self.status()
+        if status.state is not ArmState.ARMED:
+            why = f"not armed: {status.last_disarm_reason}" if status.last_disarm_reason else "not armed"
+            self._audit("fire", "refused", {"reason": why})
+            raise RefusedError(f"{self.capsule}: FIRE refused: {why}")
+        if not status.mine:
+            why = f"the ARM window is {status.holder_text()}, not this console"
+            self._audit("fire", "refused", {"reason": why})
+            raise RefusedError(f"{self.capsule}: FIRE refused: {why}")
+        if typed_name != self.capsule:
+            self._audit("fire", "refused", {"reason": "wrong capsule name typed", "typed": typed_name})
+            raise RefusedError(
+                f"{self.capsule}: FIRE refused: the typed name {typed_name!r} does not name {self.capsule!r}"
+            )
+        return status
 
     def fire(
         self,
@@ -184,47 +281,39 @@ class ArmingController:
     ) -> ReleaseRecord:
         """Release; blocking (SSH), so call it from a worker thread. Refused unless every rule holds.
 
-        ``approval``: a Go request another login approved (``drs_link.ops.approval``), spent here once in
-        place of a typed second operator.
+        ``approval``: a Go request another login approved for this very window
+        (``drs_link.ops.approval``), spent here once in place of a typed second operator.
         """
         with self._lock:
-            status = self.status()
-            if status.state is not ArmState.ARMED:
-                why = f"not armed: {status.last_disarm_reason}" if status.last_disarm_reason else "not armed"
-                self._audit("fire", "refused", {"reason": why})
-                raise RefusedError(f"{self.capsule}: FIRE refused: {why}")
-            if typed_name != self.capsule:
-                self._audit("fire", "refused", {"reason": "wrong capsule name typed", "typed": typed_name})
-                raise RefusedError(
-                    f"{self.capsule}: FIRE refused: the typed name {typed_name!r} does not name {self.capsule!r}"
-                )
-            self.observe(report)
-            if self._state is not ArmState.ARMED:
-                raise RefusedError(f"{self.capsule}: FIRE refused and disarmed: {self._last_reason}")
+            status = self._fireable(typed_name)
+            assert status.window is not None
+            window = status.window
+            if not self.observe(report).armed:
+                raise RefusedError(f"{self.capsule}: FIRE refused and disarmed: {self.status().last_disarm_reason}")
             try:
                 if approval is not None:
                     people = ApprovalBook(self.store, self.clock).use(
-                        approval, self.capsule, "go", login or current_login()
+                        approval, self.capsule, "go", login or current_login(), window_command(window.id)
                     )
                 else:
                     people = check_second_operator(
-                        self.operator, second_operator, single_operator_waiver, self.require_second_operator
-                    )
+                        self.operator, second_operator, single_operator_waiver, self.require_second_operator,
+                        self.crew,
+                    )  # fmt: skip
             except RefusedError as exc:
                 self._audit("fire", "refused", {"reason": str(exc)})
                 raise RefusedError(f"{self.capsule}: FIRE refused: {exc}") from None
-            self._state = ArmState.FIRING
-            self._audit("fire", "authorised", {"inputs": report.fingerprint, **people})
+            if not self.windows.start_firing(window.id, self.holder, self.clock()):
+                why = f"ARM window #{window.id} closed: {self.status().last_disarm_reason or 'expired'}"
+                self._audit("fire", "refused", {"reason": why})
+                raise RefusedError(f"{self.capsule}: FIRE refused: {why}")
+            self._audit("fire", "authorised", {"window": window.id, "inputs": report.fingerprint, **people})
         try:
             token = self.machine.confirm(typed_name)
             record = self.machine.go(token)
         except Exception:
             with self._lock:
-                self._state = ArmState.DISARMED
-                self._armed_until = None
-                self._last_reason = "FIRE failed"
+                self._close(window, "FIRE failed", (FIRING,))
             raise
-        with self._lock:
-            self._state = ArmState.FIRED
-            self._armed_until = None
+        self.windows.fired(window.id, self.clock())
         return record

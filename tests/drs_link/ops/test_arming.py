@@ -133,25 +133,40 @@ def test_a_wrong_capsule_name_is_refused_and_nothing_is_sent(store: Store) -> No
     assert store.audit("DRS1")[-1].detail == {"reason": "wrong capsule name typed", "typed": "DRS2"}
 
 
-def test_the_second_operator_must_be_a_different_person() -> None:
+def test_without_the_rule_a_typed_second_operator_must_be_another_person_on_the_crew_list() -> None:
+    crew = ("EL", "MS")
     with pytest.raises(RefusedError, match="different person"):
-        check_second_operator("EL", " el ", None, required=True)
-    with pytest.raises(RefusedError, match="second operator"):
-        check_second_operator("EL", None, None, required=True)
-    assert check_second_operator("EL", "MS", None, required=True) == {"second_operator": "MS"}
-    assert check_second_operator("EL", None, "alone on the ridge", required=True) == {
-        "single_operator_waiver": "alone on the ridge"
-    }
+        check_second_operator("EL", " el ", None, required=False, crew=crew)
+    with pytest.raises(RefusedError, match=r"'Bob' is not in the crew list \(\[console\] crew: EL, MS\)"):
+        check_second_operator("EL", "Bob", None, required=False, crew=crew)
+    with pytest.raises(RefusedError, match="crew: none configured"):
+        check_second_operator("EL", "MS", None, required=False)
+    assert check_second_operator("EL", "ms", None, required=False, crew=crew) == {"second_operator": "ms"}
     assert check_second_operator("EL", None, None, required=False) == {}
     assert check_second_operator("EL", None, "alone", required=False) == {"single_operator_waiver": "alone"}
 
 
-def test_fire_with_a_required_second_operator_refuses_the_same_name(store: Store) -> None:
+@pytest.mark.parametrize(
+    ("second", "waiver", "words"),
+    [("MS", None, "a typed second operator is not accepted"), (None, "alone", "a single-operator waiver is not "
+     "accepted"), (None, None, "a second login's approval is needed")],
+)  # fmt: skip
+def test_with_the_rule_required_only_another_logins_approval_counts(
+    second: str | None, waiver: str | None, words: str
+) -> None:
+    """#23: `--second-operator Bob` and `--single-operator-waiver alone` were accepted with the rule on."""
+    with pytest.raises(RefusedError, match=words) as refused:
+        check_second_operator("EL", second, waiver, required=True, crew=("EL", "MS"))
+    assert "drs approve ID" in str(refused.value)
+
+
+def test_fire_with_a_required_second_operator_refuses_a_typed_name(store: Store) -> None:
     clock = ManualClock(T0)
     arming = controller(store, clock, require_second_operator=True)
     arming.arm(go_report(clock))
-    with pytest.raises(RefusedError, match="different person"):
-        arming.fire("DRS1", go_report(clock), second_operator="EL")
+    with pytest.raises(RefusedError, match="typed second operator is not accepted"):
+        arming.fire("DRS1", go_report(clock), second_operator="MS")
+    assert arming.status().armed
 
 
 def test_fire_spends_only_an_approval_another_login_gave_for_go(store: Store) -> None:
