@@ -118,6 +118,8 @@ class ConsoleConfig:
 
     arm_window_s: float = 60.0
     require_second_operator: bool = False
+    crew: tuple[str, ...] = ()
+    """Who may be typed as a second operator when ``require_second_operator`` is off."""
     exclusion_zones_file: Path | None = None
     team_position: str = ""
     prediction_period_s: float = 60.0
@@ -238,6 +240,10 @@ def _coerce(key: str, annotation: Any, value: Any) -> Any:
         if not isinstance(value, str):
             raise ConfigError(f"{key}: expected a string, got {value!r}")
         return value
+    if annotation == tuple[str, ...]:
+        if not isinstance(value, list) or not all(isinstance(v, str) and v.strip() for v in value):
+            raise ConfigError(f"{key}: expected a list of names, got {value!r}")
+        return tuple(v.strip() for v in value)
     raise TypeError(f"unsupported config field type {annotation!r}")
 
 

@@ -19,7 +19,6 @@ from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 
-from console.commands.approve import wait_for_approval
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.iridium import (
@@ -33,7 +32,6 @@ from drs_link.iridium import (
     MtComposer,
     MtMessage,
     ReportStore,
-    RockblockGateway,
     StoredReport,
     TrackPoint,
     assess,
@@ -53,15 +51,7 @@ from drs_link.iridium import (
     write_kml,
 )
 from drs_link.iridium import lifecycle as lc
-from drs_link.ops import (
-    PROCEDURE_DIR,
-    ApprovalBook,
-    authorize_mt,
-    carries_parachute,
-    complete_mt_steps,
-    current_login,
-    load_checklists,
-)
+from drs_link.ops import Operations, SecondOperator, cli_holder, hazard_of, pending_text
 from drs_link.sim import mo_bench
 from drs_link.store import Store, iso_utc, utc_now
 from predictor.errors import UsageError
@@ -204,6 +194,7 @@ def _compose(args: argparse.Namespace, config: Config, store: Store) -> tuple[Mt
 
 
 def _mt_send(args: argparse.Namespace) -> int:
+    """Compose and show; the gate, the approval, the send and the checklist are ``Operations.send_mt``'s."""
     config, store = _open(args)
     capsule = config.capsule(args.name)
     message, queue_by = _compose(args, config, store)
@@ -211,10 +202,9 @@ def _mt_send(args: argparse.Namespace) -> int:
     print(f"hex:  {message.hex} ({len(message.payload)} bytes)")
     if args.flush:
         print(f"warning: {FLUSH_WARNING}")
-    reports: list[StoredReport] = []
-    if carries_parachute(message):
-        reports = _capsule_reports(config, store, args.name)[1]
-        print(f"landed: {landed_evidence(reports).summary}")
+    hazardous = hazard_of(message) is not None
+    if hazardous:
+        print(f"landed: {landed_evidence(_capsule_reports(config, store, args.name)[1]).summary}")
     if args.dry_run:
         print("dry run: nothing sent")
         return 0
@@ -222,37 +212,27 @@ def _mt_send(args: argparse.Namespace) -> int:
         raise RefusedError(f"a real send needs --confirm {capsule.name} (or --dry-run to only look)")
     if not config.operator.name:
         raise ConfigError("operator.name: set [operator] name; every command is audited with it")
-    checklists = load_checklists(PROCEDURE_DIR)  # a broken procedure file refuses before anything is sent
-    approval = None
-    if args.await_approval:
-        if not carries_parachute(message):
-            raise UsageError("--await-approval is for PARACHUTE, the command the two-person rule covers")
-        approval = _await_approval(store, capsule.name, config.operator.name, message, reports)
-    authorize_mt(
-        store, capsule.name, config.operator.name, message, reports,
-        second_operator=args.second_operator, single_operator_waiver=args.single_operator_waiver,
-        require_second_operator=config.console.require_second_operator, override_landed=args.override_landed,
-        queue_by=queue_by, now=utc_now(), approval=approval,
+    if args.await_approval and not hazardous:
+        raise UsageError("--await-approval is for PARACHUTE, the command the two-person rule covers")
+    second = SecondOperator(
+        args.second_operator, args.single_operator_waiver, args.await_approval,
+        lambda request: print(pending_text(request), flush=True),
     )  # fmt: skip
-    gateway = RockblockGateway.from_config(config.rockblock)
-    life = lc.CommandLifecycle(store, config.operator.name)
-    command = life.request(capsule, message, flush=args.flush)
-    command = life.send(command.id, args.confirm, gateway)
+    ops = Operations(config, store, holder=cli_holder())
+    try:
+        sent = ops.send_mt(
+            capsule.name, message, args.confirm, second, override_landed=args.override_landed,
+            queue_by=queue_by, flush=args.flush,
+        )  # fmt: skip
+    finally:
+        ops.close()
+    if "approval" in sent.authorised:
+        print(f"approval #{sent.authorised['approval']}: approved by {sent.authorised['approved_by']}")
+    command = sent.command
     print(f"MT {command.id}: {command.state}: {command.detail}")
-    for step in complete_mt_steps(
-        store, checklists, config.operator.name, command, _capsule_reports(config, store, args.name)[1]
-    ):
+    for step in sent.steps:
         print(f"checklist: done: {step.text}")
     return 0 if command.state == lc.QUEUED else 1
-
-
-def _await_approval(
-    store: Store, capsule: str, operator: str, message: MtMessage, reports: list[StoredReport]
-) -> int:
-    """Ask another login to approve, and wait; the send goes on only once it has (and its deadline,
-    checked again at submit, still holds)."""
-    summary = f"{message.text}; landed: {landed_evidence(reports).summary}"
-    return wait_for_approval(ApprovalBook(store), capsule, "parachute", summary, operator, current_login())
 
 
 def _mt_status(args: argparse.Namespace) -> int:

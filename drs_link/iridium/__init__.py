@@ -14,6 +14,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "CommandedSettings": "commanded",
         "FLUSH_WARNING": "gateway",
         "GnssFix": "firmware",
+        "Hazard": "commands",
         "LISTED": "commands",
         "LandedVerdicts": "landed",
         "LandingEstimate": "recovery",

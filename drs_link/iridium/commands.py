@@ -18,6 +18,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any
 
 from drs_link.errors import RefusedError
@@ -67,6 +68,12 @@ class ConsoleKey:
     value: Any = None
 
 
+class Hazard(StrEnum):
+    ROUTINE = "routine"
+    CRITICAL = "critical"
+    """Drops the parachute (irreversible, dangerous in flight): landed evidence and a second operator."""
+
+
 @dataclass(frozen=True, eq=False)
 class MtCommand:
     """One firmware command; every part of ``drs`` that handles it reads it from here.
@@ -105,6 +112,9 @@ class MtCommand:
     """The procedure command (``drs_link.ops.checklist.COMMANDS``) a queued send of this value completes."""
     repeat_refusal: str = ""
     """Why a second one in the same message is refused, when it is more than "only the first counts"."""
+    hazard: Hazard = field(default_factory=lambda: Hazard.ROUTINE)
+    """How dangerous it is: a CRITICAL command passes the landed gate and the two-person rule
+    (``drs_link.ops.authorize``), whichever face sends it; both faces read this, never the command's identity."""
 
     @property
     def dest(self) -> str:
@@ -305,6 +315,7 @@ PARACHUTE = MtCommand(
     keys=(ConsoleKey("c", "Parachute", "next"), ConsoleKey("C", "Parachute at…")),
     pair_label="Parachute",
     checklist_step=lambda hour_minute: "mt-parachute",
+    hazard=Hazard.CRITICAL,
 )
 SOUNDER = MtCommand(
     name="SOUNDER",

@@ -1,6 +1,6 @@
 """The operations layer: every safety rule, below any screen, for the CLI and the console alike.
 
-``capsule`` is the release state machine; ``arming`` ARM then FIRE; ``gonogo`` the poll before ARM;
+``capsule`` is the release state machine; ``arming`` ARM then FIRE, in the windows of ``arm_window``; ``gonogo`` the poll before ARM;
 ``checklist`` and ``procedure`` the procedures as data; ``approval`` the second operator;
 ``authorize`` the PARACHUTE gate; ``telemetry``, ``fleet``, ``staleness`` and ``origin`` what is known
 of each capsule and how old it is; ``session`` a console that ends without quitting; and
@@ -16,6 +16,8 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Approval": "approval",
         "ApprovalBook": "approval",
         "ArmState": "arming",
+        "ArmStatus": "arming",
+        "ArmWindow": "arm_window",
         "ArmingController": "arming",
         "BalloonSample": "telemetry",
         "CapsuleTelemetry": "fleet",
@@ -34,6 +36,8 @@ __getattr__, __dir__, __all__ = lazy_door(
         "PredictionSample": "telemetry",
         "PredictionStatus": "telemetry",
         "Reading": "staleness",
+        "SECOND_LOGIN_HOWTO": "arming",
+        "SecondOperator": "operations",
         "ReleaseOrigin": "origin",
         "ReleaseSample": "telemetry",
         "ReleaseState": "capsule",
@@ -52,11 +56,13 @@ __getattr__, __dir__, __all__ = lazy_door(
         "approved": "approval",
         "authorize_mt": "authorize",
         "carries_parachute": "authorize",
+        "cli_holder": "operations",
         "complete_command": "checklist",
         "complete_mt_steps": "procedure",
         "current_login": "approval",
         "evaluate": "gonogo",
         "format_age": "staleness",
+        "hazard_of": "authorize",
         "load_checklists": "checklist",
         "pending_text": "approval",
         "read_recording": "telemetry",

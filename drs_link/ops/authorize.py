@@ -1,9 +1,11 @@
 """The rules an MT must pass before it is requested, the same for `drs mt send` and the console.
 
-Most commands need only the capsule's name typed (the lifecycle checks it). PARACHUTE, which drops
-the parachute, also needs the two-person rule and landed evidence (``drs_link.iridium.landed``);
-without that evidence it can only be forced by an explicit override with a reason, given by a second
-operator or under a logged single-operator waiver. Every refusal and every authorisation is in the
+Most commands need only the capsule's name typed (the lifecycle checks it). A CRITICAL one (its
+catalogue entry's ``hazard``: PARACHUTE, which drops the parachute) also needs the two-person rule and
+landed evidence (``drs_link.iridium.landed``); without that evidence it can only be forced by an explicit
+override with a reason, given by a second operator or under a logged single-operator waiver (with
+``require_second_operator``, only another login's approval). ``Operations.send_mt`` runs this gate itself,
+so no caller can queue a PARACHUTE past it. Every refusal and every authorisation is in the
 audit log with the evidence and the last fix, so nobody has to reconstruct later why it went out.
 """
 
@@ -14,15 +16,24 @@ from datetime import datetime
 from typing import Any
 
 from drs_link.errors import RefusedError
-from drs_link.iridium import PARACHUTE, MtMessage, StoredReport, is_command, landed_evidence
+from drs_link.iridium import Hazard, MtCommand, MtMessage, StoredReport, landed_evidence, read_text
 from drs_link.ops.approval import ApprovalBook, Login, current_login
 from drs_link.ops.arming import check_second_operator
 from drs_link.store import Store
 
 
+def hazard_of(message: MtMessage) -> MtCommand | None:
+    """The message's CRITICAL command, by each catalogue command's ``hazard``; None when all are routine."""
+    for text in message.commands:
+        found = read_text(text)
+        if found is not None and found[0].hazard is Hazard.CRITICAL:
+            return found[0]
+    return None
+
+
 def carries_parachute(message: MtMessage) -> bool:
-    """Whether the two-person rule and the landed gate apply: the MT opens release B."""
-    return any(is_command(text, PARACHUTE) for text in message.commands)
+    """Whether the two-person rule and the landed gate apply: the MT carries a CRITICAL command."""
+    return hazard_of(message) is not None
 
 
 def authorize_mt(
@@ -34,7 +45,8 @@ def authorize_mt(
     *,
     second_operator: str | None = None,
     single_operator_waiver: str | None = None,
-    require_second_operator: bool = True,
+    require_second_operator: bool = False,
+    crew: tuple[str, ...] = (),
     override_landed: str | None = None,
     ground_m: float | None = None,
     queue_by: datetime | None = None,
@@ -65,9 +77,11 @@ def authorize_mt(
         )
     try:
         if approval is not None:
-            people = ApprovalBook(store).use(approval, capsule, "parachute", login or current_login())
+            people = ApprovalBook(store).use(approval, capsule, "parachute", login or current_login(), message.text)
         else:
-            people = check_second_operator(operator, second_operator, single_operator_waiver, require_second_operator)
+            people = check_second_operator(
+                operator, second_operator, single_operator_waiver, require_second_operator, crew
+            )
     except RefusedError as exc:
         raise refuse(str(exc)) from None
     details: dict[str, Any] = {"text": message.text, "landed": evidence.audit(), **people}

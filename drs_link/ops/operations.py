@@ -8,6 +8,9 @@ set of them per configured capsule, so the CLI, tests and the Textual app share 
 
 from __future__ import annotations
 
+import os
+import pwd
+import socket
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -17,7 +20,7 @@ from pathlib import Path
 from shapely import Polygon
 
 from drs_link.config import CapsuleConfig, Config
-from drs_link.errors import ConfigError, LinkError
+from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.iridium import (
     Command,
     CommandLifecycle,
@@ -30,10 +33,14 @@ from drs_link.iridium import (
 )
 from drs_link.link import CapsuleLink, HostKeyError, Syncer, read_storage
 from drs_link.link.backends import AuthorityStatus, build_backend
-from drs_link.ops.arming import ArmingController
+from drs_link.ops.approval import Approval, ApprovalBook, Login, approved, current_login, window_command
+from drs_link.ops.arming import ArmingController, ArmStatus
+from drs_link.ops.authorize import authorize_mt, hazard_of
 from drs_link.ops.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
-from drs_link.ops.checklist import PROCEDURE_DIR, complete_command, load_checklists
-from drs_link.ops.gonogo import ExclusionZone, GoNoGoReport, WaiverBook
+from drs_link.ops.checklist import PROCEDURE_DIR, Step, complete_command, load_checklists
+from drs_link.ops.fleet import CapsuleTelemetry, FleetState
+from drs_link.ops.gonogo import ExclusionZone, GoNoGoReport, Waiver, WaiverBook, evaluate
+from drs_link.ops.origin import ReleaseOrigin, release_origin
 from drs_link.ops.procedure import complete_mt_steps
 from drs_link.ops.telemetry import (
     GatewaySample,
@@ -48,6 +55,39 @@ from drs_link.ops.telemetry import (
 )
 from drs_link.store import Store, iso_utc, utc_now
 from predictor.prediction import ZoneFileError, load_zones
+
+Predict = Callable[[str, ReleaseOrigin], list[TelemetryRecord]]
+"""A landing prediction "release now" from an origin, as telemetry (the console's ``PredictionService``)."""
+OnPending = Callable[[Approval], None]
+"""Told which approval request waits, so the operator can have it approved."""
+
+
+@dataclass(frozen=True)
+class SecondOperator:
+    """How the two-person rule is met for one hazardous action, as the operator gave it: a typed name,
+    a logged waiver, or (``await_approval``) another login's approval, asked for and waited on here."""
+
+    name: str | None = None
+    waiver: str | None = None
+    await_approval: bool = False
+    on_pending: OnPending | None = None
+
+
+def cli_holder() -> str:
+    """Who holds an ARM window opened by ``drs capsule arm``: the OS account on this host, so that the
+    ``drs capsule go`` that follows (another process) may FIRE in it, and no console or other account may."""
+    return f"{pwd.getpwuid(os.geteuid()).pw_name}@{socket.gethostname()} drs"
+
+
+@dataclass(frozen=True)
+class SentMt:
+    """What one send did: the command as queued (or failed), the checklist steps it completed, and what
+    the gate authorised it with (the evidence, the second operator or approval; empty for a routine one)."""
+
+    command: Command
+    steps: list[Step]
+    authorised: dict[str, object]
+
 
 GNSS_UERE_M = 5.0
 """Metres of position error per unit of HDOP (a typical user range error), for the fix's uncertainty."""
@@ -160,17 +200,23 @@ class Operations:
         recorder: TelemetryRecorder | None = None,
         environ: dict[str, str] | None = None,
         sleep: Callable[[float], None] | None = None,
+        holder: str | None = None,
+        login: Login | None = None,
     ) -> None:
+        """``holder``: who may FIRE in an ARM window this process opens (default: this process;
+        ``drs`` uses account@host so that ``drs capsule arm`` and ``drs capsule go`` are one holder)."""
         self.config = config
         self.store = store
         self.clock = clock
         self.recorder = recorder
         self.environ = environ
         self.operator = config.operator.name or "unknown"
+        self.login = login or current_login()
         self.zones = load_exclusion_zones(config.console.exclusion_zones_file)
         self.checklists = load_checklists(PROCEDURE_DIR)
         self.reports = ReportStore(store)
         self.lifecycle = CommandLifecycle(store, self.operator, clock)
+        self.approvals = ApprovalBook(store, clock)
         self._reports_read: dict[str, _ReportsRead] = {}
         self._reports_lock = threading.Lock()
         """Report polls may overlap on worker threads; each must see what the one before it read."""
@@ -182,7 +228,7 @@ class Operations:
             machine = ReleaseStateMachine(store, capsule, backend, self.operator, clock=clock, **kwargs)  # type: ignore[arg-type]
             arming = ArmingController(
                 store, machine, self.operator, clock, config.console.arm_window_s,
-                config.console.require_second_operator,
+                config.console.require_second_operator, holder, config.console.crew,
             )  # fmt: skip
             self.capsules[capsule.name] = CapsuleOps(
                 capsule, link, machine, arming, WaiverBook(store, capsule.name, clock),
@@ -274,6 +320,7 @@ class Operations:
         with ops.lock:
             record = ops.machine.power_on(confirmed=True)
             ops.arming.disarm("power-on")
+            self.approvals.void_capsule(name, "capsule state changed: powered on", self.operator)
             self._command_done(name, "power-on", "relay latched")
         return self._emit([self._release_record(name, record)])
 
@@ -281,20 +328,58 @@ class Operations:
         """The checklist step a release command completes, by the rule ``drs capsule`` uses too."""
         complete_command(self.store, self.checklists, name, command, self.operator, result, {}, self.clock)
 
+    def gonogo(self, name: str, telemetry: CapsuleTelemetry) -> GoNoGoReport:
+        """The go/no-go poll of one capsule on what ``telemetry`` holds, with this process's waivers."""
+        now = self.clock()
+        return evaluate(name, telemetry.gonogo_inputs(now, self.zones), now, self.ops(name).waivers.waivers)
+
+    def poll_gonogo(self, name: str, predict: Predict | None = None) -> GoNoGoReport:
+        """The go/no-go poll for a process without a console's fleet (``drs capsule arm/go``): poll the
+        capsule and the gateway now, predict "release now" from the fresh fix (when weather is given),
+        and judge them by the same ``evaluate`` and the same items the console's release screen shows."""
+        fleet = FleetState.for_capsules([name])
+        for record in [*self.poll(name), *self.gateway_check()]:
+            fleet.apply(record)
+        origin = release_origin(fleet, name, self.clock())
+        if predict is not None and origin is not None:
+            for record in predict(name, origin):
+                fleet.apply(record)
+        return self.gonogo(name, fleet.capsules[name])
+
+    def waive(self, name: str, item: str, reason: str) -> Waiver:
+        """Waive one go/no-go item (GNSS fix or sync only), with this operator's name; audited."""
+        return self.ops(name).waivers.grant(item, self.operator, reason)
+
+    def arm(self, name: str, report: GoNoGoReport) -> ArmStatus:
+        """Open the capsule's ARM window on a GO poll (one per capsule across consoles); audited."""
+        return self.ops(name).arming.arm(report)
+
     def fire(
         self,
         name: str,
         typed_name: str,
         report: GoNoGoReport,
-        second: str | None,
-        waiver: str | None,
-        approval: int | None = None,
+        second: SecondOperator = SecondOperator(),
     ) -> list[TelemetryRecord]:
+        """FIRE (Go) in this process's open ARM window: every rule of ``ArmingController.fire``.
+
+        With ``second.await_approval`` another login's approval is asked for, bound to this ARM window
+        and ending with it, and waited on (without holding the capsule's lock) before FIRE is tried.
+        """
         ops = self.ops(name)
+        approval = None
+        if second.await_approval:
+            window = ops.arming.window_for_approval(typed_name)
+            approval = approved(
+                self.approvals, name, "go", f"Go: release {name} in ARM window #{window.id}", self.operator,
+                self.login, second.on_pending or (lambda request: None), command=window_command(window.id),
+                window_id=window.id, deadline=window.until_utc,
+            )  # fmt: skip
         with ops.lock:
-            record = ops.arming.fire(typed_name, report, second, waiver, approval=approval)
+            record = ops.arming.fire(typed_name, report, second.name, second.waiver, approval, self.login)
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
+        self.approvals.void_capsule(name, "capsule state changed: released", self.operator)
         return self._emit([
             self._release_record(name, record),
             TelemetryRecord(self.clock(), name, LinkSample(False, "released: the Pi shut down")),
@@ -313,6 +398,7 @@ class Operations:
             record = ops.machine.reset(typed_name)
             ops.arming.after_reset()
             ops.waivers.clear()
+            self.approvals.void_capsule(name, "capsule state changed: reset after recovery", self.operator)
             self._command_done(name, "reset", "release state reset")
         return self._emit([self._release_record(name, record)])
 
@@ -358,18 +444,49 @@ class Operations:
         imei = self.ops(name).config.imei
         return self.lifecycle.for_imei(imei) if imei else []
 
-    def send_mt(self, name: str, message: MtMessage, confirmation: str) -> Command:
-        """Request and queue one MT; ``confirmation`` must be the capsule's name (checked by the lifecycle).
+    def send_mt(
+        self,
+        name: str,
+        message: MtMessage,
+        confirmation: str,
+        second: SecondOperator = SecondOperator(),
+        *,
+        override_landed: str | None = None,
+        queue_by: datetime | None = None,
+        flush: bool = False,
+    ) -> SentMt:
+        """Gate, request and queue one MT, the one path of ``drs mt send`` and the console.
 
-        A queued MT completes its checklist steps here, by the rule ``drs mt send`` uses too.
+        A hazardous command (``MtCommand.hazard``: PARACHUTE) passes ``authorize_mt`` first, the landed
+        gate and the two-person rule, whoever calls; with ``second.await_approval`` another login's
+        approval is asked for, bound to this exact text and the queue-before deadline. ``confirmation``
+        must be the capsule's name (checked by the lifecycle). A queued MT completes its checklist steps
+        here.
         """
+        capsule = self.ops(name).config
+        reports = self.stored_reports(name)
+        approval = None
+        if second.await_approval:
+            if hazard_of(message) is None:
+                raise RefusedError(f"{name}: {message.text} needs no second operator: nothing to approve")
+            approval = approved(
+                self.approvals, name, "parachute", message.text, self.operator, self.login,
+                second.on_pending or (lambda request: None), command=message.text, deadline=queue_by,
+            )  # fmt: skip
+        authorised = authorize_mt(
+            self.store, name, self.operator, message, reports, second_operator=second.name,
+            single_operator_waiver=second.waiver,
+            require_second_operator=self.config.console.require_second_operator, crew=self.config.console.crew,
+            override_landed=override_landed, queue_by=queue_by, now=self.clock(), approval=approval,
+            login=self.login,
+        )  # fmt: skip
         gateway = RockblockGateway.from_config(self.config.rockblock, self.environ)
-        command = self.lifecycle.request(self.ops(name).config, message)
+        command = self.lifecycle.request(capsule, message, flush=flush)
         command = self.lifecycle.send(command.id, confirmation, gateway)
-        complete_mt_steps(
+        steps = complete_mt_steps(
             self.store, self.checklists, self.operator, command, self.stored_reports(name), self.clock
         )
-        return command
+        return SentMt(command, steps, authorised)
 
     def close(self) -> None:
         for ops in self.capsules.values():

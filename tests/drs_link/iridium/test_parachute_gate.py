@@ -176,6 +176,7 @@ def test_cli_override_needs_a_reason_and_a_second_operator_and_is_audited_with_t
 ) -> None:
     monkeypatch.setenv("DRS_TEST_RB", "pw")
     config = write_config(tmp_path, gateway.url)
+    config.write_text(config.read_text().replace("[[capsule]]", '[console]\ncrew = ["alice", "bob"]\n[[capsule]]'))
     store = seed(tmp_path, falling(recent(9)))
     argv = ["mt", "send", "DRS1", "--parachute", "next", "--accept-midnight", "--confirm", "DRS1",
             "--override-landed", "capsule seen on the ground by the chase team; GNSS frozen"]  # fmt: skip
@@ -183,7 +184,8 @@ def test_cli_override_needs_a_reason_and_a_second_operator_and_is_audited_with_t
     assert "overriding the landed check needs a second operator" in capsys.readouterr().err
     assert gateway.requests == []
     assert run(config, *argv, "--second-operator", "alice") == 1, "the operator cannot be their own second"
-    capsys.readouterr()
+    assert run(config, *argv, "--second-operator", "Bobby") == 1, "#23: a name nobody configured"
+    assert "'Bobby' is not in the crew list ([console] crew: alice, bob)" in capsys.readouterr().err
     assert run(config, *argv, "--second-operator", "bob") == 0
     assert len(gateway.requests) == 1
     authorised = audit_of(store, "mt.parachute")[-1]

@@ -49,14 +49,14 @@ def store(tmp_path: Path) -> Store:
     return Store.open(tmp_path / "drs.sqlite")
 
 
-def offline_machine(store: Store, clock: ManualClock) -> ReleaseStateMachine:
+def offline_machine(store: Store, clock: ManualClock, name: str = "DRS1") -> ReleaseStateMachine:
     """The real state machine for a capsule nobody is connected to (the tests that never reach Go)."""
-    capsule = parse_config({"capsule": [{"name": "DRS1", "host": "127.0.0.1", "port": 9}]}).capsules[0]
+    capsule = parse_config({"capsule": [{"name": name, "host": "127.0.0.1", "port": 9}]}).capsules[0]
     return ReleaseStateMachine(store, capsule, StockBackend(capsule, CapsuleLink(capsule)), "EL", clock=clock)
 
 
-def controller(store: Store, clock: ManualClock, **kwargs: object) -> ArmingController:
-    return ArmingController(store, offline_machine(store, clock), "EL", clock=clock, **kwargs)  # type: ignore[arg-type]
+def controller(store: Store, clock: ManualClock, name: str = "DRS1", **kwargs: object) -> ArmingController:
+    return ArmingController(store, offline_machine(store, clock, name), "EL", clock=clock, **kwargs)  # type: ignore[arg-type]
 
 
 def test_fire_is_refused_without_arm_and_the_refusal_is_audited(store: Store) -> None:

@@ -13,7 +13,7 @@ from tests.drs_link.ops.test_arming import T0, controller, go_report
 def test_a_lost_session_disarms_what_was_armed_and_says_so_once_to_the_next_console(tmp_path: Path) -> None:
     store = Store.open(tmp_path / "drs.sqlite")
     clock = ManualClock(T0)
-    armed, idle = controller(store, clock), controller(store, clock)
+    armed, idle = controller(store, clock), controller(store, clock, "DRS2")
     armed.arm(go_report(clock))
     assert record_start(store, "EL") is None, "a first start has nothing to report"
     loss = record_loss(store, "EL", "SIGHUP", {"DRS1": armed, "DRS2": idle}, go_in_flight=[])
