@@ -21,7 +21,7 @@ from console.screens.modals import HazardConfirmation, HazardModal, TextPromptMo
 from drs_link.errors import LinkError
 from drs_link.iridium import (
     LISTED,
-    PARACHUTE,
+    Hazard,
     MtCommand,
     MtComposer,
     MtMessage,
@@ -30,7 +30,7 @@ from drs_link.iridium import (
     landed_evidence,
     plan_parachute,
 )
-from drs_link.ops import authorize_mt
+from drs_link.ops import SecondOperator, pending_text
 
 COMMAND_ACTIONS = ("command",)
 
@@ -86,7 +86,7 @@ class CommandingScreen(ConsoleScreen):
     def action_command(self, name: str, given: object = None) -> None:
         """One key of a catalogue command: its fixed value, or the value the operator types at its prompt.
 
-        PARACHUTE goes through the window helper (``next``: the helper picks the time) and the hazard
+        A critical command (PARACHUTE) goes through the window helper (``next``: the helper picks the time) and the hazard
         confirmation; every other command shows its text and hex and asks for the capsule's name.
         """
         command = by_name()[name]
@@ -108,7 +108,7 @@ class CommandingScreen(ConsoleScreen):
         self._send_value(command, given)
 
     def _send_value(self, command: MtCommand, value: object) -> None:
-        if command is PARACHUTE:
+        if command.hazard is Hazard.CRITICAL:
             plan = self._plan(value if isinstance(value, tuple) else None)  # "next": the helper picks
             if plan is not None:
                 self._confirm_parachute(plan)
@@ -132,7 +132,7 @@ class CommandingScreen(ConsoleScreen):
             return None
 
     def _confirm_parachute(self, plan: ParachutePlan) -> None:
-        message = MtComposer().add(PARACHUTE.name, (plan.hour, plan.minute)).build()
+        message = MtComposer().add("PARACHUTE", (plan.hour, plan.minute)).build()
         ops = self.context.ops
         assert ops is not None  # the keys that send are disabled without one (check_action)
         evidence = landed_evidence(ops.stored_reports(self.capsule))
@@ -176,20 +176,15 @@ class CommandingScreen(ConsoleScreen):
     ) -> None:
         ops = self.context.ops
         assert ops is not None  # the keys that send are disabled without one (check_action)
+        second = SecondOperator(
+            hazard.second_operator or None, hazard.single_operator_waiver or None, hazard.await_approval,
+            lambda request: self.context.warn(f"{self.capsule}: {pending_text(request)}"),
+        ) if hazard is not None else SecondOperator()  # fmt: skip
         try:
-            approval = (
-                self.context.approval(self.capsule, "parachute", message.text)
-                if hazard is not None and hazard.await_approval else None
-            )  # fmt: skip
-            authorize_mt(
-                ops.store, self.capsule, ops.operator, message, ops.stored_reports(self.capsule),
-                second_operator=hazard.second_operator if hazard else None,
-                single_operator_waiver=hazard.single_operator_waiver if hazard else None,
-                require_second_operator=ops.config.console.require_second_operator,
-                override_landed=hazard.override_reason if hazard else None,
-                queue_by=queue_by, now=self.context.now(), approval=approval,
-            )  # fmt: skip
-            command = ops.send_mt(self.capsule, message, confirmation)
+            command = ops.send_mt(
+                self.capsule, message, confirmation, second,
+                override_landed=hazard.override_reason if hazard else None, queue_by=queue_by,
+            ).command  # fmt: skip
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return

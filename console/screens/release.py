@@ -22,7 +22,17 @@ from console.screens.base import FOOTER_ROOM, ConsoleScreen
 from console.screens.modals import ConfirmModal, HazardConfirmation, HazardModal, TextPromptModal
 from console.widgets import fill_rows, set_content
 from drs_link.errors import LinkError
-from drs_link.ops import WAIVABLE, ArmState, GoNoGoReport, Operations, StepKind, StepState, Verdict
+from drs_link.ops import (
+    WAIVABLE,
+    ArmState,
+    GoNoGoReport,
+    Operations,
+    SecondOperator,
+    StepKind,
+    StepState,
+    Verdict,
+    pending_text,
+)
 
 POWER_ON_TEXT = (
     "Power-on runs DRS_on.py: it latches the battery relay and boots the microcontroller and GNSS.\n"
@@ -424,16 +434,15 @@ class ReleaseScreen(ConsoleScreen):
     @work(thread=True, exit_on_error=False, group="release")
     def fire_worker(self, answer: HazardConfirmation) -> None:
         assert self.ops is not None
+        second = SecondOperator(
+            answer.second_operator or None, answer.single_operator_waiver or None, answer.await_approval,
+            lambda request: self.context.warn(f"{self.capsule}: {pending_text(request)}"),
+        )  # fmt: skip
         try:
-            approval = (
-                self.context.approval(self.capsule, "go", f"Go: release {self.capsule}")
-                if answer.await_approval else None
-            )  # fmt: skip
-            report = self.app.call_from_thread(self.context.gonogo, self.capsule)
-            records = self.ops.fire(
-                self.capsule, answer.typed_name, report, answer.second_operator or None,
-                answer.single_operator_waiver or None, approval,
-            )  # fmt: skip
+            def poll() -> GoNoGoReport:
+                return self.app.call_from_thread(self.context.gonogo, self.capsule)
+
+            records = self.ops.fire(self.capsule, answer.typed_name, poll, second)
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return

@@ -358,13 +358,14 @@ class Operations:
         self,
         name: str,
         typed_name: str,
-        report: GoNoGoReport,
+        poll: Callable[[], GoNoGoReport],
         second: SecondOperator = SecondOperator(),
     ) -> list[TelemetryRecord]:
         """FIRE (Go) in this process's open ARM window: every rule of ``ArmingController.fire``.
 
         With ``second.await_approval`` another login's approval is asked for, bound to this ARM window
         and ending with it, and waited on (without holding the capsule's lock) before FIRE is tried.
+        ``poll`` is the go/no-go poll, taken once the approval is in: FIRE judges the inputs of the moment.
         """
         ops = self.ops(name)
         approval = None
@@ -376,7 +377,7 @@ class Operations:
                 window_id=window.id, deadline=window.until_utc,
             )  # fmt: skip
         with ops.lock:
-            record = ops.arming.fire(typed_name, report, second.name, second.waiver, approval, self.login)
+            record = ops.arming.fire(typed_name, poll(), second.name, second.waiver, approval, self.login)
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
         self.approvals.void_capsule(name, "capsule state changed: released", self.operator)

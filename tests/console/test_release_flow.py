@@ -16,6 +16,7 @@ from drs_link.errors import RefusedError
 from drs_link.ops.approval import ApprovalBook, Login, current_login
 from drs_link.ops.arming import ArmingController, ArmState
 from drs_link.ops.capsule import ReleaseState
+from drs_link.ops.operations import SecondOperator
 from drs_link.ops.telemetry import LinkSample, TelemetryRecord
 from tests.console.conftest import wait_for
 
@@ -51,7 +52,7 @@ async def test_fire_is_disabled_until_armed_and_the_domain_refuses_it_anyway(
         assert app.screen is screen
         assert app.ops is not None
         with pytest.raises(RefusedError, match="not armed"):
-            app.ops.fire("DRS1", "DRS1", app.gonogo("DRS1"), None, "test")
+            app.ops.fire("DRS1", "DRS1", lambda: app.gonogo("DRS1"), SecondOperator(waiver="test"))
         assert world.sims[0].firmware.go_at is None
 
 
