@@ -29,13 +29,21 @@ from drs_link.link import (
 from drs_link.link.backends import build_backend
 from drs_link.ops import (
     PROCEDURE_DIR,
+    WAIVABLE,
     ApprovalBook,
     Checklist,
+    GoNoGoReport,
+    Operations,
+    Predict,
+    ReleaseSample,
     ReleaseState,
     ReleaseStateMachine,
+    SecondOperator,
+    cli_holder,
     complete_command,
     current_login,
     load_checklists,
+    pending_text,
     record_as_dict,
     take_over_outcome,
 )
@@ -71,9 +79,32 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     power.add_argument("--yes", action="store_true", help="confirm without the interactive prompt")
     power.set_defaults(func=cmd_power_on)
 
-    go = actions.add_parser("go", help="release: run DRS_GoGoGo.py (refused unless confirmed and powered)")
+    arm = actions.add_parser(
+        "arm", help="poll go/no-go now and, on GO, open the ARM window that `drs capsule go` fires in",
+        description="The console's ARM: the same go/no-go items, the same window (console.arm_window_s), one "
+        "per capsule across consoles. The window is this account's on this host: `drs capsule go` from it "
+        "may FIRE inside it, no console may.",
+    )  # fmt: skip
+    arm.add_argument("name")
+    _poll_options(arm)
+    arm.set_defaults(func=cmd_arm)
+
+    disarm = actions.add_parser("disarm", help="close the capsule's ARM window, whoever holds it (audited)")
+    disarm.add_argument("name")
+    disarm.set_defaults(func=cmd_disarm)
+
+    go = actions.add_parser(
+        "go", help="FIRE: run DRS_GoGoGo.py inside the ARM window of `drs capsule arm` (the console's rules)"
+    )
     go.add_argument("name")
     go.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name to confirm")
+    _poll_options(go)
+    go.add_argument("--second-operator", metavar="NAME", help="a second person from [console] crew (rule off)")
+    go.add_argument("--single-operator-waiver", metavar="REASON", help="why one person fires alone (rule off; logged)")
+    go.add_argument(
+        "--await-approval", action="store_true",
+        help="wait until another login approves this Go (drs approve ID); the approval ends with the ARM window",
+    )  # fmt: skip
     go.set_defaults(func=cmd_go)
 
     reset = actions.add_parser("reset", help="after recovery: allow a new release of this capsule")
@@ -124,6 +155,79 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sync.add_argument("--hash", action="store_true", help="with --status: also compare sha256")
     sync.add_argument("--json", action="store_true", help="with --status: machine-readable output")
     sync.set_defaults(func=cmd_sync)
+
+
+def _poll_options(parser: argparse.ArgumentParser) -> None:
+    """What the go/no-go poll needs from a terminal: waivers, and the weather to predict the landing from."""
+    parser.add_argument(
+        "--waive", metavar="ITEM=REASON", action="append", default=[],
+        help=f"waive a NO-GO item ({', '.join(WAIVABLE)}) with a reason (logged); give the same to arm and go",
+    )  # fmt: skip
+    parser.add_argument(
+        "--weather", type=Path, nargs="+", metavar="GRIB2",
+        help="GFS files for the landing prediction go/no-go checks (without: 'Prediction fresh: no data')",
+    )
+
+
+def _waivers(texts: list[str]) -> list[tuple[str, str]]:
+    waivers = []
+    for text in texts:
+        item, _, reason = text.partition("=")
+        if not item.strip() or not reason.strip():
+            raise UsageError(f"--waive {text!r}: write ITEM=REASON, e.g. --waive gnss='dropping on dead reckoning'")
+        waivers.append((item.strip(), reason.strip()))
+    return waivers
+
+
+def _release_ops(args: argparse.Namespace) -> tuple[Operations, Predict | None]:
+    """The console's engine for one release command: the same rules, held by this account (``cli_holder``)."""
+    config = load_config(args.config)
+    config.capsule(args.name)
+    if not config.operator.name:
+        raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
+    waivers = _waivers(args.waive)
+    ops = Operations(config, Store.open(config.store_path), holder=cli_holder())
+    for item, reason in waivers:
+        ops.waive(args.name, item, reason)
+    if not args.weather:
+        return ops, None
+    from console.predictions import PredictionService, capsule_models
+    from predictor import Terrain
+
+    files = list(args.weather)
+    models = capsule_models([(c.name, c.model) for c in config.capsules])
+    service = PredictionService(lambda: files, Terrain.sea_level, ops.clock, models)
+    return ops, lambda name, origin: service.predict(name, origin, release_in=(0,))
+
+
+def _print_poll(report: GoNoGoReport) -> None:
+    for item in report.items:
+        print(f"  {item.verdict.value:7} {item.title}: {item.detail}")
+
+
+def cmd_arm(args: argparse.Namespace) -> int:
+    ops, predict = _release_ops(args)
+    try:
+        _step(f"{args.name}: polling go/no-go (link, microcontroller, GNSS, sync, prediction, gateway)…")
+        report = ops.poll_gonogo(args.name, predict)
+        _print_poll(report)
+        status = ops.arm(args.name, report)
+    finally:
+        ops.close()
+    assert status.window is not None
+    print(
+        f"{args.name}: ARMED (window #{status.window.id}) until {status.window.until_utc:%H:%M:%S}Z, "
+        f"{status.remaining_s:.0f} s: run `drs capsule go {args.name} --confirm {args.name}` within it"
+    )
+    return 0
+
+
+def cmd_disarm(args: argparse.Namespace) -> int:
+    config = load_config(args.config)
+    ops = Operations(config, Store.open(config.store_path), holder=cli_holder())
+    status = ops.ops(args.name).arming.disarm("operator disarmed (drs capsule disarm)", any_holder=True)
+    print(f"{args.name}: {status.state.value}" + (f" ({status.last_disarm_reason})" if status.last_disarm_reason else ""))
+    return 0
 
 
 def _context(args: argparse.Namespace) -> tuple[Config, CapsuleConfig, Store]:
@@ -248,24 +352,30 @@ def _step(line: str) -> None:
 
 
 def cmd_go(args: argparse.Namespace) -> int:
-    machine, link = _machine(args, need_operator=True)
-    checklists = load_checklists(PROCEDURE_DIR)
-    try:
-        token = machine.confirm(args.confirm)
-        record = machine.record()
-        _step(f"{machine.name}: confirmation accepted (capsule {record.state.value})")
-        if record.nmea_seen_at is None:
-            _step(f"{machine.name}: reading the serial log: is the microcontroller waiting for Go?")
-            _step(f"{machine.name}: {machine.check_microcontroller().diagnosis}")
+    """FIRE as the console fires (``Operations.fire``): inside the ARM window, on a poll that still says
+    GO with the values ARM saw, with the typed name and the two-person rule; nothing reaches the Pi otherwise."""
+    ops, predict = _release_ops(args)
+    second = SecondOperator(
+        args.second_operator, args.single_operator_waiver, args.await_approval,
+        lambda request: print(pending_text(request), flush=True),
+    )  # fmt: skip
+
+    def poll() -> GoNoGoReport:
+        _step(f"{args.name}: polling go/no-go again: FIRE needs the verdicts ARM saw")
+        report = ops.poll_gonogo(args.name, predict)
+        _print_poll(report)
         _step(
-            f"{machine.name}: sending Go over SSH (the Go script writes GoGoGo, then shuts the Pi down; "
+            f"{args.name}: sending Go over SSH (the Go script writes GoGoGo, then shuts the Pi down; "
             "about 10 s)…"
         )
-        released = machine.go(token)
-        _command_done(machine, checklists, "fire", released.note or "Go sent")
+        return report
+
+    try:
+        records = ops.fire(args.name, args.confirm, poll, second)
     finally:
-        link.close()
-    print(f"{machine.name}: {released.note}; release A opens about 32 s after Go")
+        ops.close()
+    note = next((r.data.note for r in records if isinstance(r.data, ReleaseSample)), None) or "Go sent"
+    print(f"{args.name}: {note}; release A opens about 32 s after Go")
     return 0
 
 

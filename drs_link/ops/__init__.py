@@ -33,6 +33,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "MISSING_TEXT": "staleness",
         "Operations": "operations",
         "PROCEDURE_DIR": "checklist",
+        "Predict": "operations",
         "PredictionSample": "telemetry",
         "PredictionStatus": "telemetry",
         "Reading": "staleness",

@@ -376,8 +376,9 @@ class Operations:
                 self.login, second.on_pending or (lambda request: None), command=window_command(window.id),
                 window_id=window.id, deadline=window.until_utc,
             )  # fmt: skip
+        report = poll()  # before the lock: a poll of the capsule (drs capsule go) takes it itself
         with ops.lock:
-            record = ops.arming.fire(typed_name, poll(), second.name, second.waiver, approval, self.login)
+            record = ops.arming.fire(typed_name, report, second.name, second.waiver, approval, self.login)
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
         self.approvals.void_capsule(name, "capsule state changed: released", self.operator)

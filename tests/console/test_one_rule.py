@@ -8,30 +8,43 @@ store, and compares what each did or said.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+import re
+import time
+from collections.abc import Callable, Iterator
 from datetime import datetime, timedelta
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import console.commands.main as entry
 from console.app import ConsoleSetup, DrsConsole
 from console.commands.console import live_setup
+from console.predictions import PredictionService
 from console.screens.iridium import IridiumScreen
 from console.screens.modals import HazardModal, TextPromptModal
 from drs_link.config import CapsuleConfig, load_config
-from drs_link.errors import ConfigError
+from drs_link.errors import ConfigError, RefusedError
 from drs_link.iridium import lifecycle as lc
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.ops.checklist import PROCEDURE_DIR, ChecklistRun, StepState, load_checklists
-from drs_link.ops.operations import Operations
+from drs_link.ops.fleet import FleetState
+from drs_link.ops.gonogo import GoNoGoReport
+from drs_link.ops.operations import Operations, SecondOperator
+from drs_link.ops.origin import release_origin
+from drs_link.sim import CapsuleSimulator
+from drs_link.sim.keys import write_ed25519
 from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store, utc_now
+from predictor import Terrain
+from predictor.environment.gribwrite import gfs_file_name, write_gfs_grib2
 from tests.clock import ManualClock
 from tests.console.conftest import wait_for
+from tests.drs_link.conftest import SIM_SCALE, capsule_table
+from tests.predictor.predict_helpers import H_ISO, LEVELS_HPA, P0_HPA, T_ISO
 
 IMEI = "300434060000010"
 PASSWORD = "pw-one-rule"
@@ -223,3 +236,239 @@ def test_a_zone_file_is_refused_for_the_same_reason_by_drs_plan_and_the_console(
         live_setup(load_config(config), None, None)
     from_console = str(refused.value).removeprefix("console.exclusion_zones_file: ")
     assert from_cli == from_console and reason in from_cli and "feature 0 (Kiruna)" in from_cli
+
+
+# Go: the CLI's `drs capsule arm` / `drs capsule go` and the console's ARM / FIRE are one set of rules
+# (``Operations.arm``/``Operations.fire``), pinned here against the capsule simulator on loopback SSH.
+
+GO_PASSWORD = "pw-go"
+TIME = re.compile(r"\d\d:\d\d:\d\dZ")
+SYNC_WAIVER = "the ground copy holds the rest"
+CHILD = "import sys; from console.commands.main import main; sys.exit(main(sys.argv[1:]))"
+
+
+@pytest.fixture(scope="module")
+def weather(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    """GFS files written by eccodes over the simulator's sky (Esrange) for the hours around now."""
+    root = tmp_path_factory.mktemp("gfs")
+    now = utc_now()
+    cycle = now.replace(minute=0, second=0, microsecond=0) - timedelta(hours=now.hour % 6)
+    lats, lons = np.arange(64.0, 71.01, 0.5), np.arange(16.0, 27.01, 0.5)
+    shape = (LEVELS_HPA.size, lats.size, lons.size)
+    gh = np.broadcast_to((-H_ISO * np.log(LEVELS_HPA / P0_HPA))[:, None, None], shape)
+    return [
+        write_gfs_grib2(root / gfs_file_name(cycle, step), cycle, step, LEVELS_HPA, lats, lons,
+                        np.full(shape, 8.0), np.full(shape, 2.0), np.full(shape, T_ISO), gh)
+        for step in (0, 3, 6, 9)
+    ]  # fmt: skip
+
+
+def go_config(tmp_path: Path, sim: CapsuleSimulator, key: Path, console: str = "") -> Path:
+    known_hosts = tmp_path / "known_hosts"
+    known_hosts.write_text(sim.known_hosts_line())
+    table = capsule_table(sim, key, known_hosts=str(known_hosts), python="python3")
+    capsule = "\n".join(f"{k} = {json.dumps(v)}" for k, v in table.items())
+    path = tmp_path / "drs.toml"
+    path.write_text(
+        f'[operator]\nname = "EL"\n[data]\ndir = "{tmp_path / "data"}"\n'
+        f'[rockblock]\nmt_url = "http://127.0.0.1:9/rockblock/MT"\nusername = "ops"\npassword_env = "DRS_GO_RB"\n'
+        f'[console]\ncrew = ["EL", "MS"]\n{console}\n[[capsule]]\n{capsule}\n'
+    )
+    return path
+
+
+class Face:
+    """One front end's way to ARM and FIRE: ``drs`` (main(), or a child process) or the console's call
+    path (``Operations`` fed by its own polls into a fleet, as ``console.app`` feeds it)."""
+
+    def __init__(self, kind: str, config: Path, weather: list[Path], capsys: pytest.CaptureFixture[str]) -> None:
+        self.kind, self.config, self.weather, self.capsys = kind, config, weather, capsys
+        self.ops: Operations | None = None
+
+    def console_ops(self) -> Operations:
+        if self.ops is None:
+            config = load_config(self.config)
+            self.ops = Operations(config, Store.open(config.store_path), environ={"DRS_GO_RB": GO_PASSWORD})
+            files = list(self.weather)
+            self.predictions = PredictionService(lambda: files, Terrain.sea_level, self.ops.clock)
+        return self.ops
+
+    def console_poll(self) -> GoNoGoReport:
+        """What the console's timers do (poll, gateway check, prediction) and what its release screen asks."""
+        ops = self.console_ops()
+        fleet = FleetState.for_capsules(["DRS1"])
+        for record in [*ops.poll("DRS1"), *ops.gateway_check()]:
+            fleet.apply(record)
+        origin = release_origin(fleet, "DRS1", ops.clock())
+        if origin is not None:
+            for record in self.predictions.predict("DRS1", origin):
+                fleet.apply(record)
+        return ops.gonogo("DRS1", fleet.capsules["DRS1"])
+
+    def _cli(self, *argv: str) -> str | None:
+        self.capsys.readouterr()
+        code = entry.main(["--config", str(self.config), *argv])
+        err = self.capsys.readouterr().err.strip()
+        return None if code == 0 else err.removeprefix("drs: error: ")
+
+    def arm(self, *waive: str) -> str | None:
+        """ARM; None when armed, else the refusal."""
+        if self.kind == "cli":
+            return self._cli("capsule", "arm", "DRS1", "--weather", *map(str, self.weather), *waive)
+        ops = self.console_ops()
+        try:
+            for argument in waive[1::2]:
+                item, _, reason = argument.partition("=")
+                ops.waive("DRS1", item, reason)
+            ops.arm("DRS1", self.console_poll())
+        except RefusedError as exc:
+            return str(exc)
+        return None
+
+    def go(self, *waive: str, second: SecondOperator | None = None) -> str | None:
+        """FIRE; None when released, else the refusal."""
+        second = second or SecondOperator()
+        if self.kind == "cli":
+            people = [f"--second-operator={second.name}"] if second.name else []
+            return self._cli("capsule", "go", "DRS1", "--confirm", "DRS1", "--weather", *map(str, self.weather),
+                             *waive, *people)  # fmt: skip
+        ops = self.console_ops()
+        try:
+            ops.fire("DRS1", "DRS1", self.console_poll, second)
+        except RefusedError as exc:
+            return str(exc)
+        return None
+
+    def close(self) -> None:
+        if self.ops is not None:
+            self.ops.close()
+
+
+@pytest.fixture
+def powered(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[..., tuple[CapsuleSimulator, Path, Store]]]:
+    """A powered simulated capsule waiting for Go, and a config for it (extra [console] lines given)."""
+    monkeypatch.setenv("DRS_GO_RB", GO_PASSWORD)
+    key = tmp_path / "keys" / "id_ed25519"
+    public = write_ed25519(key)
+    started: list[CapsuleSimulator] = []
+
+    def start(console: str = "") -> tuple[CapsuleSimulator, Path, Store]:
+        sim = CapsuleSimulator(authorized_keys=[public], clock_scale=SIM_SCALE)
+        sim.start()
+        started.append(sim)
+        config = go_config(tmp_path, sim, key, console)
+        assert entry.main(["--config", str(config), "capsule", "power-on", "DRS1", "--yes"]) == 0
+        return sim, config, Store.open(load_config(config).store_path)
+
+    yield start
+    for sim in started:
+        sim.stop()
+
+
+def same_words(refusals: dict[str, str | None]) -> str:
+    """The refusal both faces gave, once the times in it are blanked; they must be one sentence."""
+    texts = {face: TIME.sub("HH:MM:SSZ", text or "") for face, text in refusals.items()}
+    assert len(set(texts.values())) == 1 and all(texts.values()), refusals
+    return texts["cli"]
+
+
+def fire_results(store: Store) -> list[str]:
+    return [a.result for a in store.audit("DRS1") if a.action == "fire"]
+
+
+@pytest.mark.slow
+def test_go_without_arm_is_refused_in_the_same_words_from_both_faces_and_nothing_reaches_the_pi(
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """#22: `drs capsule go` ran no go/no-go poll, no ARM window and no two-person rule."""
+    sim, config, store = powered()
+    refusals = {}
+    for kind in ("cli", "console"):
+        face = Face(kind, config, weather, capsys)
+        refusals[kind] = face.go()
+        face.close()
+    assert same_words(refusals) == "DRS1: FIRE refused: not armed"
+    assert sim.firmware.go_at is None
+    assert fire_results(store) == ["refused", "refused"]
+
+
+@pytest.mark.slow
+def test_a_failing_go_no_go_item_refuses_arm_in_the_consoles_words_and_then_go(
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Nothing syncs in this setup: "Storage sync complete: no data" is NO-GO until it is waived."""
+    sim, config, store = powered()
+    arms, goes = {}, {}
+    for kind in ("cli", "console"):
+        face = Face(kind, config, weather, capsys)
+        arms[kind], goes[kind] = face.arm(), face.go()
+        face.close()
+    assert same_words(arms) == "DRS1: ARM refused: NO-GO: Storage sync complete: no data"
+    assert same_words(goes) == "DRS1: FIRE refused: not armed"
+    assert sim.firmware.go_at is None
+    assert [a.result for a in store.audit("DRS1") if a.action == "arm"] == ["refused", "refused"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["cli", "console"])
+def test_go_with_the_failing_item_waived_releases_and_the_waiver_is_in_the_audit(
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    capsys: pytest.CaptureFixture[str], kind: str,
+) -> None:
+    sim, config, store = powered()
+    face = Face(kind, config, weather, capsys)
+    waive = ("--waive", f"sync={SYNC_WAIVER}")
+    assert face.arm(*waive) is None
+    assert face.go(*waive) is None, "the crew list is not needed without the rule: nobody was typed"
+    face.close()
+    assert sim.firmware.go_at is not None
+    granted = [a.detail for a in store.audit("DRS1") if a.action == "waiver" and a.result == "granted"]
+    assert granted and all(d == {"item": "sync", "reason": SYNC_WAIVER} for d in granted)
+    actions = [(a.action, a.result) for a in store.audit("DRS1")]
+    assert ("arm", "armed") in actions and ("fire", "authorised") in actions
+    assert ("go", "released, Pi shut down") in actions and actions[-1][0] == "checklist.done"
+
+
+@pytest.mark.slow
+def test_go_after_the_arm_window_expired_is_refused_the_same_from_both_faces(
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    sim, config, store = powered("arm_window_s = 5.0")
+    waive = ("--waive", f"sync={SYNC_WAIVER}")
+    refusals = {}
+    for kind in ("cli", "console"):
+        face = Face(kind, config, weather, capsys)
+        assert face.arm(*waive) is None
+        time.sleep(5.2)
+        refusals[kind] = face.go(*waive)
+        face.close()
+    assert same_words(refusals) == "DRS1: FIRE refused: not armed: ARM window expired at HH:MM:SSZ"
+    assert sim.firmware.go_at is None
+    assert fire_results(store) == ["refused", "refused"]
+
+
+@pytest.mark.slow
+def test_with_the_rule_required_go_needs_another_logins_approval_from_both_faces(
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """#23: a typed `--second-operator` satisfied the two-person rule with require_second_operator on."""
+    sim, config, store = powered("require_second_operator = true")
+    waive = ("--waive", f"sync={SYNC_WAIVER}")
+    alone, typed = {}, {}
+    for kind in ("cli", "console"):
+        face = Face(kind, config, weather, capsys)
+        assert face.arm(*waive) is None
+        alone[kind] = face.go(*waive)
+        typed[kind] = face.go(*waive, second=SecondOperator(name="MS"))
+        face.close()
+        assert entry.main(["--config", str(config), "capsule", "disarm", "DRS1"]) == 0
+    assert same_words(alone).startswith(
+        "DRS1: FIRE refused: require_second_operator is on: a second login's approval is needed; ask another login"
+    )
+    assert "typed second operator is not accepted" in same_words(typed) and "drs approve ID" in same_words(typed)
+    assert sim.firmware.go_at is None
+    assert fire_results(store) == ["refused"] * 4
