@@ -39,6 +39,7 @@ from drs_link.ops import (
     ReleaseState,
     ReleaseStateMachine,
     SecondOperator,
+    TelemetryRecord,
     cli_holder,
     complete_command,
     current_login,
@@ -355,6 +356,13 @@ def cmd_go(args: argparse.Namespace) -> int:
     """FIRE as the console fires (``Operations.fire``): inside the ARM window, on a poll that still says
     GO with the values ARM saw, with the typed name and the two-person rule; nothing reaches the Pi otherwise."""
     ops, predict = _release_ops(args)
+    if ops.release_state(args.name) is ReleaseState.GO_SENT:
+        _step(f"{args.name}: Go was sent and never verified: finishing it (the first Go's time is kept)…")
+        try:
+            records = ops.finish_go(args.name, args.confirm)
+        finally:
+            ops.close()
+        return _released(args.name, records)
     second = SecondOperator(
         args.second_operator, args.single_operator_waiver, args.await_approval,
         lambda request: print(pending_text(request), flush=True),
@@ -374,8 +382,12 @@ def cmd_go(args: argparse.Namespace) -> int:
         records = ops.fire(args.name, args.confirm, poll, second)
     finally:
         ops.close()
+    return _released(args.name, records)
+
+
+def _released(name: str, records: list[TelemetryRecord]) -> int:
     note = next((r.data.note for r in records if isinstance(r.data, ReleaseSample)), None) or "Go sent"
-    print(f"{args.name}: {note}; release A opens about 32 s after Go")
+    print(f"{name}: {note}; release A opens about 32 s after Go")
     return 0
 
 

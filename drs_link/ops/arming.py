@@ -255,6 +255,10 @@ class ArmingController:
 
     def _fireable(self, typed_name: str) -> ArmStatus:
         status = self.status()
+        if status.state in (ArmState.FIRING, ArmState.FIRED):
+            why = f"the capsule is {status.state.value}"
+            self._audit("fire", "refused", {"reason": why})
+            raise RefusedError(f"{self.capsule}: FIRE refused: {why}")
         if status.state is not ArmState.ARMED:
             why = f"not armed: {status.last_disarm_reason}" if status.last_disarm_reason else "not armed"
             self._audit("fire", "refused", {"reason": why})

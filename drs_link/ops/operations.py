@@ -387,6 +387,24 @@ class Operations:
             TelemetryRecord(self.clock(), name, LinkSample(False, "released: the Pi shut down")),
         ])  # fmt: skip
 
+    def finish_go(self, name: str, typed_name: str) -> list[TelemetryRecord]:
+        """Finish a Go that left and was never verified (the process sending it died on the way): the
+        state machine retries it, keeping the first Go's time. Not a new release decision, so no ARM:
+        refused in every state but ``go-sent-unverified``, which only a FIRE under every rule reaches."""
+        ops = self.ops(name)
+        with ops.lock:
+            if ops.machine.record().state is not ReleaseState.GO_SENT:
+                raise RefusedError(f"{name}: finish refused: only an unverified Go (go-sent-unverified) is finished")
+            self.store.append_audit(self.operator, name, "go", "finishing", {"state": ReleaseState.GO_SENT.value},
+                                    when=self.clock())  # fmt: skip
+            record = ops.machine.go(ops.machine.confirm(typed_name))
+            ops.link.close()
+            self._command_done(name, "fire", record.note or "Go sent")
+        return self._emit([self._release_record(name, record)])
+
+    def release_state(self, name: str) -> ReleaseState:
+        return self.ops(name).machine.record().state
+
     def authority(self, name: str) -> AuthorityStatus:
         """Who holds the capsule's release authority on its Pi (read-only), for the release screen to show."""
         ops = self.ops(name)

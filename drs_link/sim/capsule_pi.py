@@ -58,6 +58,8 @@ class Faults:
     drop_after_bytes: int | None = None
     drop_on_command: str | None = None
     response_delay_s: float = 0.0
+    slow_command: tuple[str, float] | None = None
+    """One labelled command answered that many seconds late (the others at once): a Go the Pi still runs."""
     answer_delay_s: float = 0.0
     """Seconds a command's exit status is held back after it ran: the Pi has acted, the console not heard."""
     raid_degraded: bool = False
@@ -387,6 +389,9 @@ class CapsuleSimulator:
         if self.faults.response_delay_s:
             time.sleep(self.faults.response_delay_s)
         parsed = remote.parse_label(command)
+        slow = self.faults.slow_command
+        if parsed is not None and slow is not None and parsed[0] == slow[0]:
+            time.sleep(slow[1])
         if parsed is not None and parsed[0] == self.faults.drop_on_command:
             self.faults.drop_on_command = None
             self.drop_link()

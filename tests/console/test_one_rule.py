@@ -14,7 +14,6 @@ from collections.abc import Callable, Iterator
 from datetime import datetime, timedelta
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 import console.commands.main as entry
@@ -40,11 +39,10 @@ from drs_link.sim.keys import write_ed25519
 from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store, utc_now
 from predictor import Terrain
-from predictor.environment.gribwrite import gfs_file_name, write_gfs_grib2
 from tests.clock import ManualClock
 from tests.console.conftest import wait_for
 from tests.drs_link.conftest import SIM_SCALE, capsule_table
-from tests.predictor.predict_helpers import H_ISO, LEVELS_HPA, P0_HPA, T_ISO
+from tests.release_helpers import ROCKBLOCK_TOML, SYNC_WAIVER, write_weather
 
 IMEI = "300434060000010"
 PASSWORD = "pw-one-rule"
@@ -243,24 +241,12 @@ def test_a_zone_file_is_refused_for_the_same_reason_by_drs_plan_and_the_console(
 
 GO_PASSWORD = "pw-go"
 TIME = re.compile(r"\d\d:\d\d:\d\dZ")
-SYNC_WAIVER = "the ground copy holds the rest"
 CHILD = "import sys; from console.commands.main import main; sys.exit(main(sys.argv[1:]))"
 
 
 @pytest.fixture(scope="module")
 def weather(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
-    """GFS files written by eccodes over the simulator's sky (Esrange) for the hours around now."""
-    root = tmp_path_factory.mktemp("gfs")
-    now = utc_now()
-    cycle = now.replace(minute=0, second=0, microsecond=0) - timedelta(hours=now.hour % 6)
-    lats, lons = np.arange(64.0, 71.01, 0.5), np.arange(16.0, 27.01, 0.5)
-    shape = (LEVELS_HPA.size, lats.size, lons.size)
-    gh = np.broadcast_to((-H_ISO * np.log(LEVELS_HPA / P0_HPA))[:, None, None], shape)
-    return [
-        write_gfs_grib2(root / gfs_file_name(cycle, step), cycle, step, LEVELS_HPA, lats, lons,
-                        np.full(shape, 8.0), np.full(shape, 2.0), np.full(shape, T_ISO), gh)
-        for step in (0, 3, 6, 9)
-    ]  # fmt: skip
+    return write_weather(tmp_path_factory.mktemp("gfs"))
 
 
 def go_config(tmp_path: Path, sim: CapsuleSimulator, key: Path, console: str = "") -> Path:
@@ -271,7 +257,7 @@ def go_config(tmp_path: Path, sim: CapsuleSimulator, key: Path, console: str = "
     path = tmp_path / "drs.toml"
     path.write_text(
         f'[operator]\nname = "EL"\n[data]\ndir = "{tmp_path / "data"}"\n'
-        f'[rockblock]\nmt_url = "http://127.0.0.1:9/rockblock/MT"\nusername = "ops"\npassword_env = "DRS_GO_RB"\n'
+        f"{ROCKBLOCK_TOML}"
         f'[console]\ncrew = ["EL", "MS"]\n{console}\n[[capsule]]\n{capsule}\n'
     )
     return path

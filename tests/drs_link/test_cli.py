@@ -25,6 +25,7 @@ from drs_link.ops.operations import Operations
 from drs_link.sim import CapsuleSimulator
 from drs_link.sim.keys import generate_ed25519
 from drs_link.store import Store
+from tests.release_helpers import ROCKBLOCK_PASSWORD_ENV, ROCKBLOCK_TOML, release_args, write_weather
 
 from .conftest import capsule_table
 
@@ -40,7 +41,8 @@ def _toml(value: Any) -> str:
 def _write_config(tmp_path: Path, sims: list[CapsuleSimulator], key: Path, operator: str = "EL") -> Path:
     known_hosts = tmp_path / "known_hosts"
     known_hosts.write_text("".join(sim.known_hosts_line() for sim in sims))
-    lines = [f"[operator]\nname = {_toml(operator)}", f"[data]\ndir = {_toml(str(tmp_path / 'data'))}"]
+    lines = [f"[operator]\nname = {_toml(operator)}", f"[data]\ndir = {_toml(str(tmp_path / 'data'))}",
+             ROCKBLOCK_TOML]  # fmt: skip
     for sim in sims:
         table = capsule_table(sim, key, known_hosts=str(known_hosts), python="python3")
         lines.append("[[capsule]]\n" + "\n".join(f"{k} = {_toml(v)}" for k, v in table.items()))
@@ -48,6 +50,23 @@ def _write_config(tmp_path: Path, sims: list[CapsuleSimulator], key: Path, opera
     path.write_text("\n".join(lines) + "\n")
     tomllib.loads(path.read_text())
     return path
+
+
+@pytest.fixture(autouse=True)
+def rockblock_password(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The gateway credentials go/no-go checks (``drs capsule arm``/``go``), for this process and its children."""
+    monkeypatch.setenv(ROCKBLOCK_PASSWORD_ENV, "pw")
+
+
+@pytest.fixture(scope="module")
+def weather(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    return write_weather(tmp_path_factory.mktemp("gfs"))
+
+
+def arm_and_go(config: Path, weather: list[Path], confirm: str = "DRS1") -> int:
+    """`drs capsule arm` then `drs capsule go`, as the release-day procedure runs them; the go's exit code."""
+    assert drs(config, "capsule", "arm", "DRS1", *release_args(weather)) == 0
+    return drs(config, "capsule", "go", "DRS1", "--confirm", confirm, *release_args(weather))
 
 
 @pytest.fixture
@@ -79,7 +98,7 @@ def test_status_json_before_power_on(
 
 
 def test_full_release_from_the_command_line(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str]
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], weather: list[Path],
 ) -> None:
     sim, config = setup
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
@@ -89,17 +108,18 @@ def test_full_release_from_the_command_line(
     report = json.loads(capsys.readouterr().out)
     assert report["release"]["state"] == "powered" and report["gnss"]["has_fix"]
     assert report["microcontroller"]["waiting_for_go"]
-    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    assert arm_and_go(config, weather) == 0
     assert "released, Pi shut down" in capsys.readouterr().out
     assert sim.firmware.go_at is not None
     assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 1
-    assert "already released" in _one_line_error(capsys)
+    assert "FIRE refused: the capsule is fired" in _one_line_error(capsys)
     assert drs(config, "capsule", "status", "DRS1") == 0
     assert "released" in capsys.readouterr().out
 
 
 def test_go_says_each_step_as_it_starts(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+    weather: list[Path],
 ) -> None:
     """Go takes about 12 s; the trial saw nothing until it ended. What was printed before Go left counts."""
     _, config = setup
@@ -113,30 +133,33 @@ def test_go_says_each_step_as_it_starts(
         return go(machine, token)
 
     monkeypatch.setattr(ReleaseStateMachine, "go", watched_go)
-    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    assert arm_and_go(config, weather) == 0
     assert len(printed_before_go) == 1
-    assert "DRS1: confirmation accepted" in printed_before_go[0]
+    assert "DRS1: polling go/no-go again" in printed_before_go[0]
     assert "DRS1: sending Go over SSH" in printed_before_go[0]
     assert "released, Pi shut down" in capsys.readouterr().out
 
 
 def test_go_with_a_confirmation_naming_another_capsule_is_refused(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str]
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], weather: list[Path],
 ) -> None:
     sim, config = setup
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
     capsys.readouterr()
-    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS2") == 1
+    assert arm_and_go(config, weather, confirm="DRS2") == 1
     assert "does not name 'DRS1'" in _one_line_error(capsys)
     assert sim.firmware.go_at is None
 
 
 def test_go_before_power_on_is_refused(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str]
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], weather: list[Path],
 ) -> None:
     sim, config = setup
+    assert drs(config, "capsule", "arm", "DRS1", *release_args(weather)) == 1
+    assert "ARM refused: NO-GO: " in (refused := _one_line_error(capsys))
+    assert "Power-on done: power-on has not succeeded" in refused
     assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 1
-    assert "power-on has not succeeded" in _one_line_error(capsys)
+    assert "FIRE refused: not armed" in _one_line_error(capsys)
     assert not any("drs:go" in c for c in sim.commands)
 
 
@@ -258,14 +281,15 @@ def _done_steps(store: Store) -> dict[str, str | None]:
 
 
 def test_power_on_go_and_reset_tick_their_steps_from_the_cli_as_from_the_console(
-    make_sim: Callable[..., CapsuleSimulator], client_key: tuple[Path, paramiko.PKey], tmp_path: Path
+    make_sim: Callable[..., CapsuleSimulator], client_key: tuple[Path, paramiko.PKey], tmp_path: Path,
+    weather: list[Path],
 ) -> None:
     """One rule (drs_link.ops.checklist.complete_command): the CLI used to tick nothing."""
     for side in ("cli", "console"):
         (tmp_path / side).mkdir()
     cli_config = _write_config(tmp_path / "cli", [make_sim()], client_key[0])
     assert drs(cli_config, "capsule", "power-on", "DRS1", "--yes") == 0
-    assert drs(cli_config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    assert arm_and_go(cli_config, weather) == 0
     cli_store = Store.open(tmp_path / "cli" / "data" / "drs.sqlite")
     assert _done_steps(cli_store) == {"power-on": "relay latched", "fire": "released, Pi shut down"}
     assert drs(cli_config, "capsule", "reset", "DRS1", "--confirm", "DRS1") == 0
@@ -310,14 +334,16 @@ def _kill_when(
 
 
 def test_go_killed_while_the_pi_runs_it_stays_unverified_and_reset_is_refused(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path, weather: list[Path],
 ) -> None:
     sim, config = setup
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
-    sim.faults.response_delay_s = 20.0
+    assert drs(config, "capsule", "arm", "DRS1", *release_args(weather)) == 0
+    sim.faults.slow_command = ("go", 20.0)
     store = Store.open(tmp_path / "data" / "drs.sqlite")
-    _kill_when(config, ["capsule", "go", "DRS1", "--confirm", "DRS1"], store, "go-sent-unverified")
-    sim.faults.response_delay_s = 0.0
+    argv = ["capsule", "go", "DRS1", "--confirm", "DRS1", *release_args(weather)]
+    _kill_when(config, argv, store, "go-sent-unverified")
+    sim.faults.slow_command = None
     capsys.readouterr()
     assert drs(config, "capsule", "status", "DRS1", "--json") == 0
     assert json.loads(capsys.readouterr().out)["release"]["state"] == "go-sent-unverified"
@@ -325,13 +351,14 @@ def test_go_killed_while_the_pi_runs_it_stays_unverified_and_reset_is_refused(
     assert "Go was sent and not verified" in _one_line_error(capsys)
 
 
-def _go_killed_after_gogogo(sim: CapsuleSimulator, config: Path, store: Store) -> str:
+def _go_killed_after_gogogo(sim: CapsuleSimulator, config: Path, store: Store, weather: list[Path]) -> str:
     """Power on, then kill ``drs capsule go`` once the Pi has written GoGoGo; returns the recorded Go time.
 
     The Pi's script dies on its next write to the dead session (as the stock script does on a broken
     pipe), so the Pi stays up and the microcontroller has its Go."""
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
-    argv = ["capsule", "go", "DRS1", "--confirm", "DRS1"]
+    assert drs(config, "capsule", "arm", "DRS1", *release_args(weather)) == 0
+    argv = ["capsule", "go", "DRS1", "--confirm", "DRS1", *release_args(weather)]
     _kill_when(config, argv, store, "go-sent-unverified", lambda: sim.firmware.go_at is not None)
     [row] = store.query("SELECT state, go_at FROM release_state WHERE capsule = 'DRS1'")
     assert row["state"] == "go-sent-unverified"
@@ -339,11 +366,12 @@ def _go_killed_after_gogogo(sim: CapsuleSimulator, config: Path, store: Store) -
 
 
 def test_go_killed_after_the_pi_wrote_gogogo_is_finished_by_a_retry_that_keeps_the_first_go_time(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path,
+    weather: list[Path],
 ) -> None:
     sim, config = setup
     store = Store.open(tmp_path / "data" / "drs.sqlite")
-    go_at = _go_killed_after_gogogo(sim, config, store)
+    go_at = _go_killed_after_gogogo(sim, config, store, weather)
     assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
     assert "released, Pi shut down" in capsys.readouterr().out
     [row] = store.query("SELECT state, go_at FROM release_state WHERE capsule = 'DRS1'")
@@ -351,13 +379,14 @@ def test_go_killed_after_the_pi_wrote_gogogo_is_finished_by_a_retry_that_keeps_t
 
 
 def test_go_killed_with_a_pi_that_then_halted_is_settled_released_by_the_operator_with_evidence(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path,
+    weather: list[Path],
 ) -> None:
     """With the Pi halted no Go retry can confirm the release and reset is refused: that left no way out.
     The operator records it released with the evidence (the release time is the Go's); then reset works."""
     sim, config = setup
     store = Store.open(tmp_path / "data" / "drs.sqlite")
-    go_at = _go_killed_after_gogogo(sim, config, store)
+    go_at = _go_killed_after_gogogo(sim, config, store, weather)
     sim.stop()  # the Pi halted
     capsys.readouterr()
     assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 1
@@ -379,7 +408,7 @@ def _status(config: Path, capsys: pytest.CaptureFixture[str]) -> dict[str, Any]:
 
 
 def test_power_on_killed_before_the_pi_ran_it_is_outcome_unknown_and_reset_settles_it(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path, weather: list[Path],
 ) -> None:
     """Killed after the attempt was recorded and before the Pi ran the script: the console cannot know
     which, so it says so; Go is refused until the operator, having found the relay off, resets."""
@@ -391,14 +420,14 @@ def test_power_on_killed_before_the_pi_ran_it_is_outcome_unknown_and_reset_settl
     release = _status(config, capsys)["release"]
     assert release["state"] == "power-on-unknown" and "power-on outcome unknown: check the relay" in release["note"]
     assert not sim.gpio.relay_latched
-    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 1
-    assert "power-on has not succeeded" in _one_line_error(capsys)
+    assert drs(config, "capsule", "arm", "DRS1", *release_args(weather)) == 1
+    assert "Power-on done: power-on has not succeeded" in _one_line_error(capsys)
     assert drs(config, "capsule", "reset", "DRS1", "--confirm", "DRS1") == 0
     assert _status(config, capsys)["release"]["state"] == "idle"
 
 
 def test_power_on_killed_after_the_pi_latched_the_relay_is_outcome_unknown_and_power_on_again_settles_it(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path, weather: list[Path],
 ) -> None:
     """The Pi ran the script (the relay is latched) and the console died before it heard: this once left
     'idle' over a latched relay. Power-on again (a second SET pulse changes nothing) gives the session Go needs."""
@@ -412,12 +441,12 @@ def test_power_on_killed_after_the_pi_latched_the_relay_is_outcome_unknown_and_p
     assert _status(config, capsys)["release"]["state"] == "power-on-unknown"
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
     assert _status(config, capsys)["release"]["state"] == "powered"
-    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    assert arm_and_go(config, weather) == 0
     assert "released, Pi shut down" in capsys.readouterr().out and sim.firmware.go_at is not None
 
 
 def test_power_on_killed_while_waiting_for_the_microcontroller_is_kept_and_go_proceeds(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path, weather: list[Path],
 ) -> None:
     sim, config = setup
     store = Store.open(tmp_path / "data" / "drs.sqlite")
@@ -431,5 +460,5 @@ def test_power_on_killed_while_waiting_for_the_microcontroller_is_kept_and_go_pr
         if report["microcontroller"]["waiting_for_go"] or time.monotonic() > deadline:
             break
         time.sleep(0.5)
-    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    assert arm_and_go(config, weather) == 0
     assert "released, Pi shut down" in capsys.readouterr().out and sim.firmware.go_at is not None

@@ -29,7 +29,8 @@ from drs_link.ops.approval import ApprovalBook, Login
 from drs_link.ops.capsule import ReleaseState, ReleaseStateMachine, default_holder
 from drs_link.sim import CapsuleSimulator
 from drs_link.store import Store, iso_utc
-from tests.drs_link.test_cli import _one_line_error, _write_config, drs
+from tests.drs_link.test_cli import _one_line_error, _write_config, arm_and_go, drs
+from tests.release_helpers import ROCKBLOCK_PASSWORD_ENV, write_weather
 
 TOOLS = "/home/pi/DRS_Python_Tools"
 REPO = Path(__file__).resolve().parents[3]
@@ -409,7 +410,9 @@ def test_cli_take_over_needs_an_operator_name_and_an_unreleased_capsule(
     client_key: tuple[Path, paramiko.PKey],
     capsys: pytest.CaptureFixture[str],
     tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
+    monkeypatch.setenv(ROCKBLOCK_PASSWORD_ENV, "pw")
     sim = make_sim()
     (tmp_path / "nameless").mkdir()
     nameless = _write_config(tmp_path / "nameless", [sim], client_key[0], operator="")
@@ -422,7 +425,7 @@ def test_cli_take_over_needs_an_operator_name_and_an_unreleased_capsule(
     assert capsys.readouterr().out == "DRS1: release authority free\n"
     config = _write_config(tmp_path, [sim], client_key[0])
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
-    assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
+    assert arm_and_go(config, write_weather(tmp_path / "gfs")) == 0
     capsys.readouterr()
     assert drs(config, *take_over) == 1
     assert "take-over refused: the capsule is already released" in _one_line_error(capsys)
