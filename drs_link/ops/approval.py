@@ -293,7 +293,7 @@ class ApprovalBook:
 
     def why_not(self, request: Approval, now: datetime) -> str:
         """A request's state as a refusal says it, naming a closed ARM window as the reason."""
-        if request.state in ("pending", "approved") and not request.expired(now) and not self.usable(request):
+        if request.state in ("pending", "approved") and request.window_id is not None and not self.usable(request):
             return f"void (ARM window #{request.window_id} closed)"
         if request.state in ("void", "cancelled") and request.reason:
             return f"{request.state} ({request.reason})"

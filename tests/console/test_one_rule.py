@@ -8,7 +8,12 @@ store, and compares what each did or said.
 from __future__ import annotations
 
 import json
+import os
+import pwd
 import re
+import socket
+import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
 from datetime import datetime, timedelta
@@ -42,6 +47,7 @@ from predictor import Terrain
 from tests.clock import ManualClock
 from tests.console.conftest import wait_for
 from tests.drs_link.conftest import SIM_SCALE, capsule_table
+from tests.drs_link.ops.test_approval import ssh_key
 from tests.release_helpers import ROCKBLOCK_TOML, SYNC_WAIVER, write_weather
 
 IMEI = "300434060000010"
@@ -458,3 +464,68 @@ def test_with_the_rule_required_go_needs_another_logins_approval_from_both_faces
     assert "typed second operator is not accepted" in same_words(typed) and "drs approve ID" in same_words(typed)
     assert sim.firmware.go_at is None
     assert fire_results(store) == ["refused"] * 4
+
+
+def drs_child(config: Path, *argv: str, env: dict[str, str] | None = None) -> subprocess.Popen[str]:
+    """`drs argv` as another process (another console, another terminal)."""
+    return subprocess.Popen([sys.executable, "-c", CHILD, "--config", str(config), *argv], text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, **(env or {})})  # fmt: skip
+
+
+@pytest.mark.slow
+def test_one_arm_per_capsule_across_processes_and_the_refusal_names_who_holds_it(
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """#23: two consoles were both ARMED on one capsule. A `drs capsule arm` process holds the window;
+    this process, arming and firing as the console does, is refused and told who holds it."""
+    sim, config, store = powered()
+    child = drs_child(config, "capsule", "arm", "DRS1", "--weather", *map(str, weather), "--waive", f"sync={SYNC_WAIVER}")
+    out, err = child.communicate(timeout=120)
+    assert child.returncode == 0, err
+    console = Face("console", config, weather, capsys)
+    refused = console.arm("--waive", f"sync={SYNC_WAIVER}")
+    holder = f"EL at {pwd.getpwuid(os.geteuid()).pw_name}@{socket.gethostname()} pid {child.pid}"
+    assert refused is not None and TIME.sub("HH:MM:SSZ", refused) == (
+        f"DRS1: ARM refused: ARM window #1 is held by {holder} until HH:MM:SSZ; one ARM per capsule"
+    )
+    assert console.go() == f"DRS1: FIRE refused: the ARM window is held by {holder}, not this console"
+    status = console.console_ops().ops("DRS1").arming.status()
+    assert status.armed and not status.mine and status.holder_text() == f"held by {holder}"
+    console.close()
+    assert sim.firmware.go_at is None
+    armed = [a for a in store.audit("DRS1") if a.action == "arm"]
+    assert [a.result for a in armed] == ["armed", "refused"] and armed[0].session == holder.removeprefix("EL at ")
+
+
+@pytest.mark.slow
+def test_an_approval_that_waited_past_its_arm_window_can_never_fire_in_a_later_one(
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path], tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """#23: ARM, FIRE, ask another login, let the window expire, ARM again, approve: the capsule RELEASED."""
+    sim, config, store = powered("arm_window_s = 5.0\nrequire_second_operator = true")
+    alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
+    args = ["--weather", *map(str, weather), "--waive", f"sync={SYNC_WAIVER}"]
+    assert entry.main(["--config", str(config), "capsule", "arm", "DRS1", *args]) == 0
+    go = drs_child(config, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args,
+                   env={"SSH_USER_AUTH": str(alice)})  # fmt: skip
+    try:
+        assert go.stdout is not None
+        waiting = next(line for line in go.stdout if line.startswith("approval #"))
+        assert "waiting for another login to run `drs approve 1`" in waiting
+        out, err = go.communicate(timeout=60)  # the window closes while it waits
+    finally:
+        go.kill()
+    assert go.returncode == 1 and "approval #1 void (ARM window #1 closed): nothing sent" in err, err
+    assert entry.main(["--config", str(config), "capsule", "arm", "DRS1", *args]) == 0, "a later window"
+    capsys.readouterr()
+    approver = drs_child(config, "approve", env={"SSH_USER_AUTH": str(bob)})
+    assert approver.communicate(timeout=60)[0].strip() == "nothing waits for approval"
+    approver = drs_child(config, "approve", "1", env={"SSH_USER_AUTH": str(bob)})
+    refused = approver.communicate(timeout=60)[1]
+    assert approver.returncode == 1 and "approval #1 refused: it is void (ARM window #1 closed" in refused
+    assert sim.firmware.go_at is None
+    approvals = [(a.action, a.result) for a in store.audit("DRS1") if a.action.startswith("approval.")]
+    assert approvals == [("approval.requested", "pending"), ("approval.void", "void"), ("approval.approved", "refused")]
+    assert not [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
