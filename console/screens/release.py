@@ -67,7 +67,8 @@ HELP = """\
 `o` power on (confirm; cannot be undone by software) · `s` sync data · `w` waive a go/no-go item
 (GNSS fix or sync only; logged): the first `w` moves onto one, `↑`/`↓` another, `w` again asks
 why · `a` ARM (only on GO; opens a countdown) · `d` disarm ·
-`f` FIRE (only while armed; type the capsule's name; second operator or a logged waiver) ·
+`f` FIRE (only while armed; type the capsule's name; second operator or a logged waiver, or with
+`require_second_operator` another login's approval) · `c` cancel the approval request that waits ·
 `R` reset after recovery (type the name)"""
 """The keys, as the help screen lists them (``console.screens.registry``)."""
 
@@ -88,6 +89,7 @@ class ReleaseScreen(ConsoleScreen):
         Binding("right_square_bracket", "checklist(1)", "Next list", show=False),
         Binding("x", "skip", "Skip", show=False),
         Binding("d", "disarm", "Disarm", show=False),
+        Binding("c", "cancel_approval", "Cancel approval"),
         Binding("R", "reset", "Reset", show=False),
     ]
 
@@ -168,7 +170,8 @@ class ReleaseScreen(ConsoleScreen):
             rows.append((item.key, cells))
         if fill_rows(gonogo, rows, auto_height=True) and gonogo.row_count:
             gonogo.move_cursor(row=min(grow, gonogo.row_count - 1))
-        set_content(self.query_one("#arm-status", Static), self.arm_text(report.go))
+        approval = self.approval_text()
+        set_content(self.query_one("#arm-status", Static), self.arm_text(report.go) + (f"\n{approval}" if approval else ""))
         self.show_waive_hint()
         keys = tuple(self.check_action(b.action, ()) for b in self.BINDINGS)
         if keys != self.binding_states:  # the footer recomposes on each call: only when a key comes or goes
@@ -235,6 +238,11 @@ class ReleaseScreen(ConsoleScreen):
             return "REPLAY: commanding disabled"
         status = self.context.arming(self.capsule).status()
         poll = "GO" if go else "NO-GO"
+        if status.state is ArmState.ARMED and not status.mine:
+            return (
+                f"▶ ARMED by another console ({status.holder_text()}) — {status.remaining_s:.0f} s left; "
+                f"FIRE here is refused. Poll: {poll}. d disarms it."
+            )
         if status.state is ArmState.ARMED:
             return f"▶ ARMED — {status.remaining_s:.0f} s left to FIRE (f). Poll: {poll}. d disarms."
         if status.state is ArmState.FIRING:
@@ -244,14 +252,28 @@ class ReleaseScreen(ConsoleScreen):
         reason = f" (last: {status.last_disarm_reason})" if status.last_disarm_reason else ""
         return f"○ DISARMED{reason}. Poll: {poll}. a = ARM"
 
+    def approval_text(self) -> str:
+        """A request this login made that waits for another login: a live line with its own countdown."""
+        if not self.context.commanding or self.ops is None:
+            return ""
+        now = self.context.now()
+        return " ".join(
+            f"⧗ approval #{r.id} ({r.summary}) waits for another login: drs approve {r.id} — "
+            f"{max(0.0, (r.expires_utc - now).total_seconds()):.0f} s left · c cancels"
+            for r in self.ops.waiting_approvals(self.capsule)
+        )
+
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        if action == "cancel_approval":
+            return bool(self.context.commanding and self.ops and self.ops.waiting_approvals(self.capsule))
         commanding = ("power_on", "sync", "waive", "arm", "disarm", "fire", "tick", "skip", "reset")
         if action in commanding and not self.context.commanding:
             return None
         if action in BEFORE_RELEASE_ONLY and self.released():
             return None  # the Pi is shut down: these keys leave the footer instead of failing after a dialog
         if action == "fire":
-            return True if self.context.arming(self.capsule).status().armed else None
+            status = self.context.arming(self.capsule).status()
+            return True if status.armed and status.mine else None
         return True
 
     def released(self) -> bool:
@@ -383,7 +405,18 @@ class ReleaseScreen(ConsoleScreen):
         self.refresh_view()
 
     def action_disarm(self) -> None:
-        self.context.arming(self.capsule).disarm("operator disarmed")
+        self.context.arming(self.capsule).disarm("operator disarmed", any_holder=True)
+        self.refresh_view()
+
+    def action_cancel_approval(self) -> None:
+        assert self.ops is not None
+        try:
+            cancelled = self.ops.cancel_approvals(self.capsule)
+        except LinkError as exc:
+            self._refused(exc)
+            return
+        for request in cancelled:
+            self.app.notify(f"{self.capsule}: approval #{request.id} cancelled: nothing will be sent on it")
         self.refresh_view()
 
     def action_fire(self) -> None:

@@ -387,6 +387,14 @@ class Operations:
             TelemetryRecord(self.clock(), name, LinkSample(False, "released: the Pi shut down")),
         ])  # fmt: skip
 
+    def waiting_approvals(self, name: str) -> list[Approval]:
+        """This login's requests for ``name`` that still wait for another login (and can still be used)."""
+        return self.approvals.open_requests(name, requested_by=self.login)
+
+    def cancel_approvals(self, name: str) -> list[Approval]:
+        """Withdraw this login's waiting requests for ``name``: the action waiting on them is refused."""
+        return [self.approvals.cancel(r.id, self.operator, self.login) for r in self.waiting_approvals(name)]
+
     def finish_go(self, name: str, typed_name: str) -> list[TelemetryRecord]:
         """Finish a Go that left and was never verified (the process sending it died on the way): the
         state machine retries it, keeping the first Go's time. Not a new release decision, so no ARM:

@@ -200,3 +200,34 @@ async def test_fire_waits_for_another_login_to_approve_then_releases(
         assert world.sims[0].firmware.go_at is not None
         [fire] = [a for a in app.store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
         assert fire.detail is not None and fire.detail["approved_by"] == "JM (jm-on-the-other-console)"
+
+
+async def test_a_waiting_approval_is_a_live_line_with_its_countdown_and_c_cancels_it(
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """#23: the waiting request showed only as a toast and stayed pending after its window closed."""
+    world, app = demo
+    async with app.run_test(size=(120, 40)) as pilot:
+        screen = await open_release_go(pilot, app)
+        polls_never_disarm(app, monkeypatch)
+        assert screen.check_action("cancel_approval", ()) is False, "nothing waits: no cancel key"
+        await pilot.press("a", "f", *"DRS1")
+        await pilot.click("#approval")
+        book = ApprovalBook(app.store)
+        await wait_for(pilot, lambda: bool(book.open_requests("DRS1")))
+        [request] = book.open_requests("DRS1")
+        assert request.command == f"ARM window #{request.window_id}"
+        line = screen.query_one("#arm-status", Static)
+        await wait_for(pilot, lambda: f"approval #{request.id}" in str(line.render()))
+        first = str(line.render())
+        assert "s left · c cancels" in first and screen.check_action("cancel_approval", ()) is True
+        await wait_for(pilot, lambda: str(line.render()) != first)  # its own countdown runs
+        await pilot.press("c")
+        await wait_for(pilot, lambda: any(f"approval #{request.id} cancelled" in n.message
+                                          for n in app._notifications))  # fmt: skip
+        await wait_for(pilot, lambda: f"approval #{request.id}" not in str(line.render()))
+        with pytest.raises(RefusedError, match="is cancelled"):
+            book.decide(request.id, "JM", Login("jm-on-the-other-console"), approve=True)
+        await pilot.pause(0.5)
+        assert world.sims[0].firmware.go_at is None
+        assert [a.result for a in app.store.audit("DRS1") if a.action == "approval.cancelled"] == ["cancelled"]
