@@ -13,7 +13,6 @@ from pathlib import Path
 
 from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
 
-from console.commands.approve import wait_for_approval
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.link import (
@@ -30,7 +29,6 @@ from drs_link.link.backends import build_backend
 from drs_link.ops import (
     PROCEDURE_DIR,
     WAIVABLE,
-    ApprovalBook,
     Checklist,
     GoNoGoReport,
     Operations,
@@ -42,7 +40,6 @@ from drs_link.ops import (
     TelemetryRecord,
     cli_holder,
     complete_command,
-    current_login,
     load_checklists,
     pending_text,
     record_as_dict,
@@ -137,6 +134,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--await-approval", action="store_true",
         help="with --take-over: wait until another login approves it (drs approve ID)",
     )  # fmt: skip
+    authority.add_argument("--second-operator", metavar="NAME", help="with --take-over: a crew member (rule off)")
+    authority.add_argument(
+        "--single-operator-waiver", metavar="REASON", help="with --take-over: why alone (rule off; logged)"
+    )
     authority.set_defaults(func=cmd_authority)
 
     enrol = actions.add_parser("enrol", help="show the Pi's host key fingerprint; save it once compared")
@@ -391,15 +392,6 @@ def _released(name: str, records: list[TelemetryRecord]) -> int:
     return 0
 
 
-def _take_over_approved(machine: ReleaseStateMachine, reason: str) -> None:
-    """Another login approves the take-over before it is made; the approval is spent and audited."""
-    book, login = ApprovalBook(machine.store), current_login()
-    summary = f"release-authority take-over: {reason}"
-    approval = wait_for_approval(book, machine.name, "authority", summary, machine.operator, login)
-    people = book.use(approval, machine.name, "authority", login)
-    machine.store.append_audit(machine.operator, machine.name, "authority-take-over", "approved", people)
-
-
 def cmd_authority(args: argparse.Namespace) -> int:
     if args.take_over and args.release:
         raise UsageError(f"{args.name}: authority: --take-over and --release cannot be combined")
@@ -407,7 +399,9 @@ def cmd_authority(args: argparse.Namespace) -> int:
         raise UsageError(f"{args.name}: authority: --confirm only confirms --take-over")
     if args.await_approval and not args.take_over:
         raise UsageError(f"{args.name}: authority: --await-approval is for --take-over")
-    machine, link = _machine(args, need_operator=args.take_over or args.release)
+    if args.take_over:
+        return _take_over(args)
+    machine, link = _machine(args, need_operator=args.release)
     try:
         if args.release:
             given_up = machine.release_authority(args.reason)
@@ -416,32 +410,50 @@ def cmd_authority(args: argparse.Namespace) -> int:
             else:
                 print(f"{machine.name}: release authority given up; it was {given_up.describe()}")
             return 0
-        if args.take_over:
-            machine.check_take_over(args.reason)
-            if args.confirm is None and not sys.stdin.isatty():
-                raise RefusedError(
-                    f"{machine.name}: take-over refused: pass --confirm {machine.name}, "
-                    "or run it in a terminal to confirm"
-                )
         seen = machine.authority()
+    finally:
+        link.close()
+    mine = " (this console)" if seen.holder == machine.holder else ""
+    print(f"{machine.name}: release authority {seen.describe()}{mine}")
+    return 0
+
+
+def _take_over(args: argparse.Namespace) -> int:
+    """The take-over is ``Operations.take_over``'s (the two-person rule, the approval, the Pi's check);
+    this shows who holds it now and asks for the name."""
+    config = load_config(args.config)
+    config.capsule(args.name)
+    if not config.operator.name:
+        raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
+    ops = Operations(config, Store.open(config.store_path), holder=cli_holder())
+    machine = ops.ops(args.name).machine
+    try:
+        machine.check_take_over(args.reason)
+        if args.confirm is None and not sys.stdin.isatty():
+            raise RefusedError(
+                f"{machine.name}: take-over refused: pass --confirm {machine.name}, or run it in a terminal to confirm"
+            )
+        seen = ops.authority(args.name)
         mine = " (this console)" if seen.holder == machine.holder else ""
         print(f"{machine.name}: release authority {seen.describe()}{mine}")
-        if not args.take_over:
-            return 0
         typed = args.confirm
         if typed is None:
             print(TAKE_OVER_WARNING.format(name=machine.name, holder=machine.holder))
             try:
-                typed = input(
-                    f"Type the capsule name ({machine.name}) to take over its release authority: "
-                ).strip()
+                typed = input(f"Type the capsule name ({machine.name}) to take over its release authority: ").strip()
             except EOFError:
                 typed = ""
-        if args.await_approval:
-            _take_over_approved(machine, args.reason)
-        now = machine.take_over(seen, typed, args.reason)
+        second = SecondOperator(
+            args.second_operator, args.single_operator_waiver, args.await_approval,
+            lambda request: print(pending_text(request), flush=True),
+        )  # fmt: skip
+        now = ops.take_over(args.name, seen, typed, args.reason, second)
     finally:
-        link.close()
+        ops.close()
+    approved_by = [a.detail for a in ops.store.audit(args.name) if a.action == "authority-take-over"
+                   and a.result == "approved" and a.detail and "approved_by" in a.detail]  # fmt: skip
+    if args.await_approval and approved_by:
+        print(f"approval #{approved_by[-1]['approval']}: approved by {approved_by[-1]['approved_by']}")
     print(f"{machine.name}: release authority {take_over_outcome(seen, machine.holder)}: {now.describe()}")
     return 0
 

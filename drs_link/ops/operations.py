@@ -34,7 +34,7 @@ from drs_link.iridium import (
 from drs_link.link import CapsuleLink, HostKeyError, Syncer, read_storage
 from drs_link.link.backends import AuthorityStatus, build_backend
 from drs_link.ops.approval import Approval, ApprovalBook, Login, approved, current_login, window_command
-from drs_link.ops.arming import ArmingController, ArmStatus
+from drs_link.ops.arming import ArmingController, ArmStatus, check_second_operator
 from drs_link.ops.authorize import authorize_mt, hazard_of
 from drs_link.ops.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
 from drs_link.ops.checklist import PROCEDURE_DIR, Step, complete_command, load_checklists
@@ -409,6 +409,44 @@ class Operations:
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
         return self._emit([self._release_record(name, record)])
+
+    def take_over(
+        self, name: str, seen: AuthorityStatus, typed_name: str, reason: str,
+        second: SecondOperator = SecondOperator(),
+    ) -> AuthorityStatus:
+        """Take over the capsule's release authority from what the operator was shown (``seen``).
+
+        Hazardous like FIRE: with ``require_second_operator`` only another login's approval, bound to
+        this take-over and the capsule's state, lets it go ahead (a typed name or a waiver is refused);
+        without the rule an approval, a crew member's name or a waiver may still be given and is audited.
+        """
+        ops = self.ops(name)
+        ops.machine.check_take_over(reason, seen)
+        command, state = f"release-authority take-over: {reason.strip()}", self.release_state(name).value
+        people: dict[str, str] = {}
+        try:
+            if second.await_approval:
+                approval = approved(
+                    self.approvals, name, "authority", command, self.operator, self.login,
+                    second.on_pending or (lambda request: None), command=command, capsule_state=state,
+                )  # fmt: skip
+                people = self.approvals.use(approval, name, "authority", self.login, command, self.release_state(name).value)
+            else:
+                people = check_second_operator(
+                    self.operator, second.name, second.waiver, self.config.console.require_second_operator,
+                    self.config.console.crew,
+                )  # fmt: skip
+        except RefusedError as exc:
+            self.store.append_audit(self.operator, name, "authority-take-over", "refused",
+                                    {"reason": reason.strip(), "refusal": str(exc)}, when=self.clock())  # fmt: skip
+            raise RefusedError(f"{name}: take-over refused: {exc}") from None
+        if people:
+            self.store.append_audit(self.operator, name, "authority-take-over", "approved", people, when=self.clock())
+        with ops.lock:
+            try:
+                return ops.machine.take_over(seen, typed_name, reason)
+            finally:
+                ops.link.close()
 
     def release_state(self, name: str) -> ReleaseState:
         return self.ops(name).machine.record().state

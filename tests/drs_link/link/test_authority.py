@@ -549,3 +549,29 @@ def test_cli_take_over_waits_for_another_login_to_approve(
     audit = [(a.action, a.result) for a in book.store.audit("DRS1")]
     assert audit.index(("authority-take-over", "approved")) < audit.index(("authority-take-over", "started"))
     assert book.get(1).state == "used"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("given", "words"),
+    [((), "a second login's approval is needed"), (("--second-operator", "MS"), "a typed second operator is not "
+     "accepted"), (("--single-operator-waiver", "alone"), "a single-operator waiver is not accepted")],
+)  # fmt: skip
+def test_with_the_rule_required_a_take_over_needs_another_logins_approval(
+    cli: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path,
+    given: tuple[str, ...], words: str,
+) -> None:
+    """#23: with require_second_operator, a take-over went ahead on a typed name or a waiver."""
+    sim, config = cli
+    config.write_text(config.read_text().replace("[[capsule]]", "[console]\nrequire_second_operator = true\n"
+                                                 'crew = ["EL", "MS"]\n[[capsule]]', 1))  # fmt: skip
+    _other_console(tmp_path, config, sim)
+    argv = ("capsule", "authority", "DRS1", "--take-over", "--reason", "console2 died", "--confirm", "DRS1")
+    assert drs(config, *argv, *given) == 1
+    refused = _one_line_error(capsys)
+    assert f"DRS1: take-over refused: require_second_operator is on: {words}" in refused
+    assert "--await-approval" in refused and "drs approve ID" in refused
+    assert sim.authority is not None and sim.authority[0] == "JR@console2", "the holder is unchanged"
+    [audited] = [a for a in Store.open(tmp_path / "data" / "drs.sqlite").audit("DRS1")
+                 if a.action == "authority-take-over"]  # fmt: skip
+    assert audited.result == "refused" and words in str(audited.detail)
