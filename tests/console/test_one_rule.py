@@ -529,3 +529,67 @@ def test_an_approval_that_waited_past_its_arm_window_can_never_fire_in_a_later_o
     approvals = [(a.action, a.result) for a in store.audit("DRS1") if a.action.startswith("approval.")]
     assert approvals == [("approval.requested", "pending"), ("approval.void", "void"), ("approval.approved", "refused")]
     assert not [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
+
+
+OVERRIDE = "the chase team sees it on the ground; GNSS frozen"
+
+
+def parachute_refusal(config: Path, front_end: str, capsys: pytest.CaptureFixture[str], *people: str) -> str:
+    """PARACHUTE in flight with a landed override, from ``drs mt send`` or through ``Operations.send_mt``
+    (what the console's commanding screen calls, and any other caller)."""
+    if front_end == "cli":
+        capsys.readouterr()
+        argv = ["mt", "send", "DRS1", "--parachute", "next", "--accept-midnight", "--confirm", "DRS1",
+                "--override-landed", OVERRIDE, *people]  # fmt: skip
+        assert cli(config, *argv) == 1
+        return capsys.readouterr().err.strip().removeprefix("drs: error: ")
+    config_ = load_config(config)
+    ops = Operations(config_, Store.open(config_.store_path), environ={"DRS_ONE_RULE_RB": PASSWORD})
+    now = utc_now()
+    message = MtComposer().add("PARACHUTE", (now.hour, now.minute)).build()
+    second = SecondOperator(name=people[1] if people else None)
+    with pytest.raises(RefusedError) as refused:
+        ops.send_mt("DRS1", message, "DRS1", second, override_landed=OVERRIDE)
+    return str(refused.value)
+
+
+@pytest.mark.parametrize("front_end", ["cli", "operations"])
+def test_parachute_in_flight_is_refused_through_any_caller_and_nothing_reaches_the_gateway(
+    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str], front_end: str,
+) -> None:
+    """#22: `Operations.send_mt` never gated; only the screen called the landed gate before it."""
+    monkeypatch.setenv("DRS_ONE_RULE_RB", PASSWORD)
+    config = write_config(tmp_path, gateway)
+    store = Store.open(load_config(config).store_path)
+    falling(store, utc_now() - timedelta(minutes=12), 6)
+    refused = parachute_refusal(config, front_end, capsys)
+    assert refused == (
+        "DRS1: PARACHUTE refused: overriding the landed check needs a second operator or a logged "
+        "single-operator waiver"
+    )
+    assert gateway.requests == []
+    assert store.query("SELECT COUNT(*) AS n FROM mt_command")[0]["n"] == 0
+
+
+@pytest.mark.parametrize("front_end", ["cli", "operations"])
+def test_with_the_rule_on_a_typed_second_operator_cannot_override_the_landed_gate(
+    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str], front_end: str,
+) -> None:
+    """#23: `--override-landed "…" --second-operator Bob` queued PARACHUTE while it fell at 16 m/s."""
+    monkeypatch.setenv("DRS_ONE_RULE_RB", PASSWORD)
+    config = write_config(tmp_path, gateway)
+    config.write_text(config.read_text().replace(
+        "require_second_operator = false", 'require_second_operator = true\ncrew = ["alice", "bob"]'
+    ))  # fmt: skip
+    store = Store.open(load_config(config).store_path)
+    falling(store, utc_now() - timedelta(minutes=12), 6)
+    refused = parachute_refusal(config, front_end, capsys, "--second-operator", "bob")
+    assert refused.startswith(
+        "DRS1: PARACHUTE refused: require_second_operator is on: a typed second operator is not accepted; "
+        "ask another login to approve it"
+    )
+    assert gateway.requests == []
+    [audited] = [a for a in store.audit("DRS1") if a.action == "mt.parachute"]
+    assert audited.result == "refused"
