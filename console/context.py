@@ -18,8 +18,6 @@ from console.predictions import PredictionService
 from drs_link.feeds import BalloonFeed
 from drs_link.ops import (
     PROCEDURE_DIR,
-    Approval,
-    ApprovalBook,
     ArmingController,
     Checklist,
     ChecklistRun,
@@ -28,11 +26,8 @@ from drs_link.ops import (
     Operations,
     ReleaseOrigin,
     TelemetryRecord,
-    approved,
-    current_login,
     evaluate,
     load_checklists,
-    pending_text,
     release_origin,
 )
 from drs_link.store import Store, utc_now
@@ -127,16 +122,6 @@ class ConsoleContext:
         """The capsule's ARM/FIRE controller; only a commanding console has one (check ``commanding``)."""
         assert self.ops is not None
         return self.ops.ops(capsule).arming
-
-    def approval(self, capsule: str, action: str, summary: str) -> int:
-        """Ask another login to approve a hazardous command and wait (from a worker thread); the
-        approval's id, or RefusedError when it was rejected or expired (``drs_link.ops.approval``)."""
-        book = ApprovalBook(self.store, self.now)
-
-        def pending(request: Approval) -> None:
-            self.warn(f"{capsule}: {pending_text(request)}")
-
-        return approved(book, capsule, action, summary, self.operator, current_login(), pending)
 
     def checklist_run(self, capsule: str, checklist: Checklist) -> ChecklistRun:
         return ChecklistRun(self.store, checklist, capsule, self.now)

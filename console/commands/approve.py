@@ -1,7 +1,8 @@
 """`drs approve`: the second operator's side of the two-person rule, from their own login.
 
 A hazardous command sent with ``--await-approval`` waits as pending; the second operator lists what
-waits and approves or rejects it here, in their own session. The login (OS account, SSH key) decides
+waits and approves or rejects it here, in their own session. Only what can still be used is listed: a
+request whose ARM window closed, whose capsule changed state or whose requester cancelled it is void. The login (OS account, SSH key) decides
 who they are, not a name typed next to the requester's.
 """
 
@@ -11,7 +12,7 @@ import argparse
 import json
 
 from drs_link.errors import ConfigError
-from drs_link.ops import ApprovalBook, Login, approved, pending_text
+from drs_link.ops import ApprovalBook
 from predictor.errors import UsageError
 
 
@@ -28,16 +29,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     approve.add_argument("--reason", default="", help="why (logged; required with --reject)")
     approve.add_argument("--json", action="store_true", help="list as JSON, one object per request")
     approve.set_defaults(func=run_approve)
-
-
-def wait_for_approval(book: ApprovalBook, capsule: str, action: str, summary: str, operator: str, login: Login) -> int:
-    """A command's wait in a terminal (drs mt send, drs capsule authority): which request to approve,
-    then who approved it; RefusedError when it was rejected or expired."""
-    approval = approved(book, capsule, action, summary, operator, login,
-                        lambda request: print(pending_text(request), flush=True))  # fmt: skip
-    decided = book.get(approval)
-    print(f"approval #{approval}: approved by {decided.decided_by} ({decided.decider})", flush=True)
-    return approval
 
 
 def run_approve(args: argparse.Namespace) -> int:

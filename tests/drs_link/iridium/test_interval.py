@@ -81,7 +81,7 @@ def test_interval_health_follows_the_simulators_switch_over(rig: Rig) -> None:
     """[INTERVAL=5] downloaded with report k: k→k+1 stays 2 min, 5 min from k+1 on; nothing is flagged."""
     alarm = rig.fly(T0, 4)
     rig.clock.now = alarm - timedelta(seconds=30)
-    command = rig.ops.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
+    command = rig.ops.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1").command
     assert command.state == lc.QUEUED
     alarm = rig.fly(alarm, 2)  # report 4 downloads it; report 5 still comes after 2 min
     assert spacings_min(rig.stored()) == [2, 2, 2, 2, 2], "the simulator switches over as the firmware does"
