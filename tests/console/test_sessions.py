@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 from collections.abc import Callable
+from datetime import timedelta
 from pathlib import Path
 
 import pytest
@@ -48,11 +49,14 @@ async def test_sigterm_during_go_lets_the_go_finish_before_the_console_ends(
     app = canned_app()
     async with app.run_test(size=(120, 40)) as pilot:
         arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
-        arming._state = ArmState.FIRING  # the FIRE worker is inside fire(), sending Go
+        now = arming.clock()
+        window, _ = arming.windows.open("DRS1", arming.holder, arming.session, "EL", now, now + timedelta(minutes=1), "")
+        assert window is not None and arming.windows.start_firing(window.id, arming.holder, now)  # Go is being sent
+        assert arming.status().state is ArmState.FIRING
         app.session_lost(signal.SIGTERM)
         await pilot.pause(0.6)
         assert app.is_running, "the Go's own worker must finish and record it first"
-        arming._state = ArmState.FIRED
+        arming.windows.fired(window.id, now)
         await wait_for(pilot, lambda: not app.is_running)
     assert app.return_value == 128 + signal.SIGTERM
     [lost] = [a for a in app.store.audit() if a.action == LOST]
