@@ -2,8 +2,8 @@
 
 A hazardous command sent with ``--await-approval`` waits as pending; the second operator lists what
 waits and approves or rejects it here, in their own session. Only what can still be used is listed: a
-request whose ARM window closed, whose capsule changed state or whose requester cancelled it is void. The login (OS account, SSH key) decides
-who they are, not a name typed next to the requester's.
+request whose ARM window closed, whose capsule changed state or whose requester cancelled it is void.
+The login (OS account, SSH key) decides who they are, not a name typed next to the requester's.
 """
 
 from __future__ import annotations

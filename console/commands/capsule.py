@@ -98,10 +98,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     go.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name to confirm")
     _poll_options(go)
     go.add_argument("--second-operator", metavar="NAME", help="a second person from [console] crew (rule off)")
-    go.add_argument("--single-operator-waiver", metavar="REASON", help="why one person fires alone (rule off; logged)")
+    go.add_argument(
+        "--single-operator-waiver", metavar="REASON", help="why one person fires alone (rule off; logged)"
+    )
     go.add_argument(
         "--await-approval", action="store_true",
-        help="wait until another login approves this Go (drs approve ID); the approval ends with the ARM window",
+        help="wait until another login approves this Go (drs approve ID); the approval ends with the window",
     )  # fmt: skip
     go.set_defaults(func=cmd_go)
 
@@ -134,7 +136,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--await-approval", action="store_true",
         help="with --take-over: wait until another login approves it (drs approve ID)",
     )  # fmt: skip
-    authority.add_argument("--second-operator", metavar="NAME", help="with --take-over: a crew member (rule off)")
+    authority.add_argument(
+        "--second-operator", metavar="NAME", help="with --take-over: a crew member (rule off)"
+    )
     authority.add_argument(
         "--single-operator-waiver", metavar="REASON", help="with --take-over: why alone (rule off; logged)"
     )
@@ -163,7 +167,7 @@ def _poll_options(parser: argparse.ArgumentParser) -> None:
     """What the go/no-go poll needs from a terminal: waivers, and the weather to predict the landing from."""
     parser.add_argument(
         "--waive", metavar="ITEM=REASON", action="append", default=[],
-        help=f"waive a NO-GO item ({', '.join(WAIVABLE)}) with a reason (logged); give the same to arm and go",
+        help=f"waive a NO-GO item ({', '.join(WAIVABLE)}) with a reason (logged); the same to arm and go",
     )  # fmt: skip
     parser.add_argument(
         "--weather", type=Path, nargs="+", metavar="GRIB2",
@@ -176,7 +180,7 @@ def _waivers(texts: list[str]) -> list[tuple[str, str]]:
     for text in texts:
         item, _, reason = text.partition("=")
         if not item.strip() or not reason.strip():
-            raise UsageError(f"--waive {text!r}: write ITEM=REASON, e.g. --waive gnss='dropping on dead reckoning'")
+            raise UsageError(f"--waive {text!r}: write ITEM=REASON, e.g. --waive gnss='no fix, dropping anyway'")
         waivers.append((item.strip(), reason.strip()))
     return waivers
 
@@ -228,7 +232,8 @@ def cmd_disarm(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     ops = Operations(config, Store.open(config.store_path), holder=cli_holder())
     status = ops.ops(args.name).arming.disarm("operator disarmed (drs capsule disarm)", any_holder=True)
-    print(f"{args.name}: {status.state.value}" + (f" ({status.last_disarm_reason})" if status.last_disarm_reason else ""))
+    reason = f" ({status.last_disarm_reason})" if status.last_disarm_reason else ""
+    print(f"{args.name}: {status.state.value}{reason}")
     return 0
 
 
@@ -355,7 +360,7 @@ def _step(line: str) -> None:
 
 def cmd_go(args: argparse.Namespace) -> int:
     """FIRE as the console fires (``Operations.fire``): inside the ARM window, on a poll that still says
-    GO with the values ARM saw, with the typed name and the two-person rule; nothing reaches the Pi otherwise."""
+    GO with the values ARM saw, with the typed name and the two-person rule; else nothing reaches the Pi."""
     ops, predict = _release_ops(args)
     if ops.release_state(args.name) is ReleaseState.GO_SENT:
         _step(f"{args.name}: Go was sent and never verified: finishing it (the first Go's time is kept)…")
@@ -431,7 +436,8 @@ def _take_over(args: argparse.Namespace) -> int:
         machine.check_take_over(args.reason)
         if args.confirm is None and not sys.stdin.isatty():
             raise RefusedError(
-                f"{machine.name}: take-over refused: pass --confirm {machine.name}, or run it in a terminal to confirm"
+                f"{machine.name}: take-over refused: pass --confirm {machine.name}, "
+                "or run it in a terminal to confirm"
             )
         seen = ops.authority(args.name)
         mine = " (this console)" if seen.holder == machine.holder else ""
@@ -440,7 +446,8 @@ def _take_over(args: argparse.Namespace) -> int:
         if typed is None:
             print(TAKE_OVER_WARNING.format(name=machine.name, holder=machine.holder))
             try:
-                typed = input(f"Type the capsule name ({machine.name}) to take over its release authority: ").strip()
+                question = f"Type the capsule name ({machine.name}) to take over its release authority: "
+                typed = input(question).strip()
             except EOFError:
                 typed = ""
         second = SecondOperator(

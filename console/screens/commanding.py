@@ -86,8 +86,9 @@ class CommandingScreen(ConsoleScreen):
     def action_command(self, name: str, given: object = None) -> None:
         """One key of a catalogue command: its fixed value, or the value the operator types at its prompt.
 
-        A critical command (PARACHUTE) goes through the window helper (``next``: the helper picks the time) and the hazard
-        confirmation; every other command shows its text and hex and asks for the capsule's name.
+        A critical command (PARACHUTE) goes through the window helper (``next``: the helper picks the time)
+        and the hazard confirmation; every other command shows its text and hex and asks for the capsule's
+        name.
         """
         command = by_name()[name]
         if given is None and command.prompt is not None and command.read is not None:

@@ -171,7 +171,8 @@ class ReleaseScreen(ConsoleScreen):
         if fill_rows(gonogo, rows, auto_height=True) and gonogo.row_count:
             gonogo.move_cursor(row=min(grow, gonogo.row_count - 1))
         approval = self.approval_text()
-        set_content(self.query_one("#arm-status", Static), self.arm_text(report.go) + (f"\n{approval}" if approval else ""))
+        arm = self.arm_text(report.go) + (f"\n{approval}" if approval else "")
+        set_content(self.query_one("#arm-status", Static), arm)
         self.show_waive_hint()
         keys = tuple(self.check_action(b.action, ()) for b in self.BINDINGS)
         if keys != self.binding_states:  # the footer recomposes on each call: only when a key comes or goes

@@ -114,7 +114,7 @@ class MtCommand:
     """Why a second one in the same message is refused, when it is more than "only the first counts"."""
     hazard: Hazard = field(default_factory=lambda: Hazard.ROUTINE)
     """How dangerous it is: a CRITICAL command passes the landed gate and the two-person rule
-    (``drs_link.ops.authorize``), whichever face sends it; both faces read this, never the command's identity."""
+    (``drs_link.ops.authorize``), whichever face sends it; both faces read this, never its identity."""
 
     @property
     def dest(self) -> str:

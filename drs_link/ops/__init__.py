@@ -1,8 +1,8 @@
 """The operations layer: every safety rule, below any screen, for the CLI and the console alike.
 
-``capsule`` is the release state machine; ``arming`` ARM then FIRE, in the windows of ``arm_window``; ``gonogo`` the poll before ARM;
-``checklist`` and ``procedure`` the procedures as data; ``approval`` the second operator;
-``authorize`` the PARACHUTE gate; ``telemetry``, ``fleet``, ``staleness`` and ``origin`` what is known
+``capsule`` is the release state machine; ``arming`` ARM then FIRE, in the windows of ``arm_window``;
+``gonogo`` the poll before ARM; ``checklist`` and ``procedure`` the procedures as data; ``approval`` the
+second operator; ``authorize`` the PARACHUTE gate; ``telemetry``, ``fleet``, ``staleness`` and ``origin`` what is known
 of each capsule and how old it is; ``session`` a console that ends without quitting; and
 ``operations`` the console's engine without a screen.
 """

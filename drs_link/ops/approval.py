@@ -197,8 +197,8 @@ class ApprovalBook:
                 "INSERT INTO approval (capsule, action, summary, requested_by, requester_user, requester_key, "
                 "requested_utc, expires_utc, state, command, window_id, capsule_state) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'pending', ?, ?, ?)",
-                (capsule, action, summary, operator, login.user, login.key_fingerprint, iso_utc(now), iso_utc(expires),
-                 command, window_id, capsule_state),
+                (capsule, action, summary, operator, login.user, login.key_fingerprint, iso_utc(now),
+                 iso_utc(expires), command, window_id, capsule_state),
             ).lastrowid  # fmt: skip
         self.store.append_audit(operator, capsule, "approval.requested", "pending",
                                 {"approval": row_id, "action": action, "summary": summary, "login": str(login),
@@ -255,9 +255,12 @@ class ApprovalBook:
         """The requester withdraws a request (pending or approved, not yet spent); audited."""
         request = self.get(approval_id)
         if not request.requester.same_person(login):
-            raise RefusedError(f"approval #{approval_id} was requested by {request.requester}; only they can cancel it")
+            raise RefusedError(
+                f"approval #{approval_id} was requested by {request.requester}; only they can cancel it"
+            )
         if not self._end("id = ?", (approval_id,), "cancelled", f"cancelled by {operator}", operator):
-            raise RefusedError(f"approval #{approval_id} is {self.get(approval_id).status(self.clock())}: nothing to cancel")
+            now = self.get(approval_id).status(self.clock())
+            raise RefusedError(f"approval #{approval_id} is {now}: nothing to cancel")
         return self.get(approval_id)
 
     def decide(self, approval_id: int, operator: str, login: Login, approve: bool, reason: str = "") -> Approval:
@@ -330,7 +333,8 @@ class ApprovalBook:
         if request.capsule_state is not None and capsule_state is not None and request.capsule_state != capsule_state:
             self.void_capsule(capsule, f"capsule state changed: {request.capsule_state} → {capsule_state}", "drs")
             raise RefusedError(
-                f"approval #{approval_id} was given while {capsule} was {request.capsule_state}; it is now {capsule_state}"
+                f"approval #{approval_id} was given while {capsule} was {request.capsule_state}; "
+                f"it is now {capsule_state}"
             )
         with self.store.transaction() as conn:
             changed = conn.execute(
@@ -338,7 +342,8 @@ class ApprovalBook:
                 (approval_id, iso_utc(now), iso_utc(now)),
             ).rowcount
         if not changed:
-            raise RefusedError(f"approval #{approval_id} is {self.why_not(self.get(approval_id), now)}, not approved")
+            why = self.why_not(self.get(approval_id), now)
+            raise RefusedError(f"approval #{approval_id} is {why}, not approved")
         return {"approved_by": f"{request.decided_by} ({request.decider})", "approval": str(approval_id)}
 
 

@@ -66,7 +66,9 @@ class ArmWindows:
         store.ensure_schema(DDL)
 
     def latest(self, capsule: str) -> ArmWindow | None:
-        rows = self.store.query("SELECT * FROM arm_window WHERE capsule = ? ORDER BY id DESC LIMIT 1", (capsule,))
+        rows = self.store.query(
+            "SELECT * FROM arm_window WHERE capsule = ? ORDER BY id DESC LIMIT 1", (capsule,)
+        )
         return _window(rows[0]) if rows else None
 
     def get(self, window_id: int) -> ArmWindow | None:
@@ -74,7 +76,13 @@ class ArmWindows:
         return _window(rows[0]) if rows else None
 
     def open(
-        self, capsule: str, holder: str, session: str, operator: str, now: datetime, until: datetime,
+        self,
+        capsule: str,
+        holder: str,
+        session: str,
+        operator: str,
+        now: datetime,
+        until: datetime,
         fingerprint: str,
     ) -> tuple[ArmWindow | None, ArmWindow | None]:
         """Open a window unless another holder's is open or a FIRE is under way: (new window, None), or
@@ -91,7 +99,12 @@ class ArmWindows:
                 if current.state == ARMED:
                     conn.execute(
                         "UPDATE arm_window SET state = ?, closed_utc = ?, reason = ? WHERE id = ?",
-                        (CLOSED, iso_utc(now), "re-armed" if current.open_at(now) else expired_reason(current), current.id),
+                        (
+                            CLOSED,
+                            iso_utc(now),
+                            "re-armed" if current.open_at(now) else expired_reason(current),
+                            current.id,
+                        ),
                     )
             row_id = conn.execute(
                 "INSERT INTO arm_window (capsule, holder, session, operator, armed_utc, until_utc, fingerprint, "
@@ -100,7 +113,9 @@ class ArmWindows:
             ).lastrowid
         return self.get(int(row_id or 0)), None
 
-    def close(self, window_id: int, reason: str, now: datetime, from_states: tuple[str, ...] = (ARMED,)) -> bool:
+    def close(
+        self, window_id: int, reason: str, now: datetime, from_states: tuple[str, ...] = (ARMED,)
+    ) -> bool:
         """Close a window still in one of ``from_states``; whether this call closed it."""
         marks = ", ".join("?" for _ in from_states)
         with self.store.transaction() as conn:

@@ -103,7 +103,9 @@ def check_second_operator(
             raise RefusedError(
                 f"require_second_operator is on: {typed} is not accepted; {SECOND_LOGIN_HOWTO}"
             )
-        raise RefusedError(f"require_second_operator is on: a second login's approval is needed; {SECOND_LOGIN_HOWTO}")
+        raise RefusedError(
+            f"require_second_operator is on: a second login's approval is needed; {SECOND_LOGIN_HOWTO}"
+        )
     if second_name:
         if second_name.casefold() == first_name.casefold():
             raise RefusedError(f"the second operator must be a different person than {first_name!r}")
@@ -293,7 +295,8 @@ class ArmingController:
             assert status.window is not None
             window = status.window
             if not self.observe(report).armed:
-                raise RefusedError(f"{self.capsule}: FIRE refused and disarmed: {self.status().last_disarm_reason}")
+                why = self.status().last_disarm_reason
+                raise RefusedError(f"{self.capsule}: FIRE refused and disarmed: {why}")
             try:
                 if approval is not None:
                     people = ApprovalBook(self.store, self.clock).use(

@@ -402,9 +402,11 @@ class Operations:
         ops = self.ops(name)
         with ops.lock:
             if ops.machine.record().state is not ReleaseState.GO_SENT:
-                raise RefusedError(f"{name}: finish refused: only an unverified Go (go-sent-unverified) is finished")
-            self.store.append_audit(self.operator, name, "go", "finishing", {"state": ReleaseState.GO_SENT.value},
-                                    when=self.clock())  # fmt: skip
+                raise RefusedError(
+                    f"{name}: finish refused: only an unverified Go (go-sent-unverified) is finished"
+                )
+            detail = {"state": ReleaseState.GO_SENT.value}
+            self.store.append_audit(self.operator, name, "go", "finishing", detail, when=self.clock())
             record = ops.machine.go(ops.machine.confirm(typed_name))
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
@@ -437,8 +439,8 @@ class Operations:
                     self.config.console.crew,
                 )  # fmt: skip
         except RefusedError as exc:
-            self.store.append_audit(self.operator, name, "authority-take-over", "refused",
-                                    {"reason": reason.strip(), "refusal": str(exc)}, when=self.clock())  # fmt: skip
+            detail = {"reason": reason.strip(), "refusal": str(exc)}
+            self.store.append_audit(self.operator, name, "authority-take-over", "refused", detail, when=self.clock())
             raise RefusedError(f"{name}: take-over refused: {exc}") from None
         if people:
             self.store.append_audit(self.operator, name, "authority-take-over", "approved", people, when=self.clock())
@@ -542,7 +544,8 @@ class Operations:
         authorised = authorize_mt(
             self.store, name, self.operator, message, reports, second_operator=second.name,
             single_operator_waiver=second.waiver,
-            require_second_operator=self.config.console.require_second_operator, crew=self.config.console.crew,
+            require_second_operator=self.config.console.require_second_operator,
+            crew=self.config.console.crew,
             override_landed=override_landed, queue_by=queue_by, now=self.clock(), approval=approval,
             login=self.login,
         )  # fmt: skip

@@ -57,7 +57,8 @@ def record_loss(
     store: Store, operator: str, signal: str, arming: Mapping[str, ArmingController], go_in_flight: list[str]
 ) -> SessionLoss:
     """Disarm every open window (audited by the arming controller) and write the loss itself."""
-    disarmed = [name for name, controller in arming.items() if controller.status().armed and controller.status().mine]
+    held = {name: controller.status() for name, controller in arming.items()}
+    disarmed = [name for name, status in held.items() if status.armed and status.mine]
     for name in disarmed:
         arming[name].disarm(f"session lost ({signal})")
     record = store.append_audit(operator, None, LOST, "disarmed" if disarmed else "recorded",
