@@ -187,12 +187,8 @@ def _waivers(texts: list[str]) -> list[tuple[str, str]]:
 
 def _release_ops(args: argparse.Namespace) -> tuple[Operations, Predict | None]:
     """The console's engine for one release command: the same rules, held by this account (``cli_holder``)."""
-    config = load_config(args.config)
-    config.capsule(args.name)
-    if not config.operator.name:
-        raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
     waivers = _waivers(args.waive)
-    ops = Operations(config, Store.open(config.store_path), holder=cli_holder())
+    ops = _operations(args, need_operator=True)
     for item, reason in waivers:
         ops.waive(args.name, item, reason)
     if not args.weather:
@@ -201,7 +197,7 @@ def _release_ops(args: argparse.Namespace) -> tuple[Operations, Predict | None]:
     from predictor import Terrain
 
     files = list(args.weather)
-    models = capsule_models([(c.name, c.model) for c in config.capsules])
+    models = capsule_models([(c.name, c.model) for c in ops.config.capsules])
     service = PredictionService(lambda: files, Terrain.sea_level, ops.clock, models)
     return ops, lambda name, origin: service.predict(name, origin, release_in=(0,))
 
@@ -229,8 +225,7 @@ def cmd_arm(args: argparse.Namespace) -> int:
 
 
 def cmd_disarm(args: argparse.Namespace) -> int:
-    config = load_config(args.config)
-    ops = Operations(config, Store.open(config.store_path), holder=cli_holder())
+    ops = _operations(args, need_operator=False)
     status = ops.ops(args.name).arming.disarm("operator disarmed (drs capsule disarm)", any_holder=True)
     reason = f" ({status.last_disarm_reason})" if status.last_disarm_reason else ""
     print(f"{args.name}: {status.state.value}{reason}")
@@ -323,9 +318,19 @@ def _command_done(machine: ReleaseStateMachine, checklists: list[Checklist], com
     complete_command(machine.store, checklists, machine.name, command, machine.operator, result, {})
 
 
+def _operations(args: argparse.Namespace, need_operator: bool) -> Operations:
+    """The console's engine for one command (a broken procedure file refuses here, before anything moves)."""
+    config = load_config(args.config)
+    config.capsule(args.name)
+    if need_operator and not config.operator.name:
+        raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
+    return Operations(config, Store.open(config.store_path), holder=cli_holder())
+
+
 def cmd_power_on(args: argparse.Namespace) -> int:
-    machine, link = _machine(args, need_operator=True)
-    checklists = load_checklists(PROCEDURE_DIR)  # a broken procedure file refuses before the relay latches
+    """``Operations.power_on``, as the console's Power key: the checklist step, a disarm, void approvals."""
+    ops = _operations(args, need_operator=True)
+    machine = ops.ops(args.name).machine
     print(POWER_ON_WARNING)
     confirmed = args.yes
     if not confirmed:
@@ -339,12 +344,11 @@ def cmd_power_on(args: argparse.Namespace) -> int:
             typed = ""
         confirmed = typed.strip() == machine.name
     try:
-        machine.power_on(confirmed)
-        _command_done(machine, checklists, "power-on", "relay latched")
+        ops.power_on(args.name, confirmed)
         print(f"{machine.name}: power-on done; waiting for the microcontroller's NMEA (up to ~25 s)")
         report = machine.wait_for_microcontroller()
     finally:
-        link.close()
+        ops.close()
     print(f"{machine.name}: {report.diagnosis}")
     if report.waiting_for_go:
         gnss = report.gnss
@@ -426,11 +430,7 @@ def cmd_authority(args: argparse.Namespace) -> int:
 def _take_over(args: argparse.Namespace) -> int:
     """The take-over is ``Operations.take_over``'s (the two-person rule, the approval, the Pi's check);
     this shows who holds it now and asks for the name."""
-    config = load_config(args.config)
-    config.capsule(args.name)
-    if not config.operator.name:
-        raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
-    ops = Operations(config, Store.open(config.store_path), holder=cli_holder())
+    ops = _operations(args, need_operator=True)
     machine = ops.ops(args.name).machine
     try:
         machine.check_take_over(args.reason)
@@ -475,11 +475,13 @@ def cmd_released(args: argparse.Namespace) -> int:
 
 
 def cmd_reset(args: argparse.Namespace) -> int:
-    machine, _ = _machine(args, need_operator=False)
-    checklists = load_checklists(PROCEDURE_DIR)
-    machine.reset(args.confirm)
-    _command_done(machine, checklists, "reset", "release state reset")
-    print(f"{machine.name}: reset to idle")
+    """``Operations.reset``, as the console's reset key: ARM possible again, waivers and approvals void."""
+    ops = _operations(args, need_operator=False)
+    try:
+        ops.reset(args.name, args.confirm)
+    finally:
+        ops.close()
+    print(f"{args.name}: reset to idle")
     return 0
 
 

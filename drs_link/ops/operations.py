@@ -314,11 +314,12 @@ class Operations:
             ops.syncer.sync(ops.config.sync_source)
         return self.poll(name)
 
-    def power_on(self, name: str) -> list[TelemetryRecord]:
-        """Confirmed by the operator before this is called (the relay cannot be switched off by software)."""
+    def power_on(self, name: str, confirmed: bool = True) -> list[TelemetryRecord]:
+        """Confirmed by the operator before this is called (the relay cannot be switched off by software);
+        ``confirmed`` False is refused (and audited) by the state machine. Voids the capsule's approvals."""
         ops = self.ops(name)
         with ops.lock:
-            record = ops.machine.power_on(confirmed=True)
+            record = ops.machine.power_on(confirmed=confirmed)
             ops.arming.disarm("power-on")
             self.approvals.void_capsule(name, "capsule state changed: powered on", self.operator)
             self._command_done(name, "power-on", "relay latched")
