@@ -344,6 +344,8 @@ class ApprovalBook:
         if not changed:
             why = self.why_not(self.get(approval_id), now)
             raise RefusedError(f"approval #{approval_id} is {why}, not approved")
+        self.store.append_audit(request.requested_by, capsule, "approval.used", "used",
+                                {"approval": approval_id, "command": command or request.command})  # fmt: skip
         return {"approved_by": f"{request.decided_by} ({request.decider})", "approval": str(approval_id)}
 
 

@@ -173,7 +173,7 @@ def test_drs_mt_send_waits_for_drs_approve_from_another_key(
     authorised = audit_of(store, "mt.parachute")[-1]
     assert authorised["approved_by"].startswith("alice (") and authorised["approval"] == "1"
     assert [r.result for r in store.audit("DRS1") if r.action.startswith("approval.")] == [
-        "pending", "refused", "approved"
+        "pending", "refused", "approved", "used"
     ]
 
 

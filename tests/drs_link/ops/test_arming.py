@@ -13,7 +13,7 @@ from drs_link.config import CapsuleConfig, parse_config
 from drs_link.errors import RefusedError
 from drs_link.link.backends.stock import StockBackend
 from drs_link.link.ssh import CapsuleLink
-from drs_link.ops.approval import ApprovalBook, Login
+from drs_link.ops.approval import ApprovalBook, Login, window_command
 from drs_link.ops.arming import ArmingController, ArmState, check_second_operator
 from drs_link.ops.capsule import ReleaseState, ReleaseStateMachine
 from drs_link.ops.gonogo import GoNoGoInputs, GoNoGoReport, PredictionCheck, WaiverBook, evaluate
@@ -208,7 +208,7 @@ def test_armed_fire_releases_the_simulated_capsule_through_the_state_machine_tok
     record = arming.fire("DRS1", report, **people)  # type: ignore[arg-type]
     assert record.state is ReleaseState.RELEASED and sim.firmware.go_at is not None
     assert arming.status().state is ArmState.FIRED
-    actions = [(a.action, a.result) for a in store.audit("DRS1")]
+    actions = [(a.action, a.result) for a in store.audit("DRS1") if not a.action.startswith("approval.")]
     assert actions[-5:] == [
         ("arm", "armed"),
         ("fire", "authorised"),
@@ -221,3 +221,58 @@ def test_armed_fire_releases_the_simulated_capsule_through_the_state_machine_tok
     machine.reset("DRS1")
     assert arming.after_reset().last_disarm_reason == "capsule reset after recovery"
     link.close()
+
+
+def test_a_late_approval_never_fires_in_a_later_arm_window(store: Store) -> None:
+    """#23: ARM, ask another login, let the window expire, ARM again, approve: it fired the capsule."""
+    clock = ManualClock(T0)
+    arming = controller(store, clock, arm_window_s=30.0, require_second_operator=True)
+    book = ApprovalBook(store, clock)
+    first = arming.arm(go_report(clock)).window
+    assert first is not None
+    request = book.request("DRS1", "go", "release DRS1", "EL", Login("el"), command=window_command(first.id),
+                           window_id=first.id, deadline=first.until_utc)  # fmt: skip
+    assert request.expires_utc == first.until_utc, "the deadline is the window's end"
+    clock.advance(31)
+    second = arming.arm(go_report(clock)).window
+    assert second is not None and second.id != first.id
+    assert book.open_requests() == [], "drs approve lists only what can still be used"
+    with pytest.raises(RefusedError, match=r"it is void \(ARM window #1 closed: ARM window expired at"):
+        book.decide(request.id, "JM", Login("jm"), approve=True)
+    with pytest.raises(RefusedError, match="FIRE refused: approval #1 was given for ARM window #1, not ARM window #2"):
+        arming.fire("DRS1", go_report(clock), approval=request.id, login=Login("el"))
+    assert arming.status().armed, "the refusal leaves the new window as it was"
+    actions = [(a.action, a.result) for a in store.audit("DRS1")]
+    assert ("approval.void", "void") in actions and ("fire", "refused") in actions
+
+
+def test_an_approval_for_one_window_cannot_be_spent_in_another(store: Store) -> None:
+    clock = ManualClock(T0)
+    arming = controller(store, clock, require_second_operator=True)
+    book = ApprovalBook(store, clock)
+    first = arming.arm(go_report(clock)).window
+    assert first is not None
+    request = book.request("DRS1", "go", "release DRS1", "EL", Login("el"), command=window_command(first.id),
+                           window_id=first.id, deadline=first.until_utc)  # fmt: skip
+    book.decide(request.id, "JM", Login("jm"), approve=True)
+    arming.disarm("operator disarmed", any_holder=True)
+    assert book.get(request.id).state == "void"
+    arming.arm(go_report(clock))
+    with pytest.raises(RefusedError, match="was given for ARM window #1, not ARM window #2"):
+        arming.fire("DRS1", go_report(clock), approval=request.id, login=Login("el"))
+
+
+def test_one_arm_per_capsule_the_second_holder_is_refused_and_told_who_holds_it(store: Store) -> None:
+    clock = ManualClock(T0)
+    console1 = controller(store, clock, holder="el@laptop1 pid 1")
+    console2 = controller(store, clock, holder="jm@laptop2 pid 2")
+    console1.arm(go_report(clock))
+    with pytest.raises(RefusedError, match=r"ARM window #1 is held by EL at .* until 12:01:00Z; one ARM per capsule"):
+        console2.arm(go_report(clock))
+    assert console2.status().armed and not console2.status().mine
+    with pytest.raises(RefusedError, match="the ARM window is held by EL at .*, not this console"):
+        console2.fire("DRS1", go_report(clock), single_operator_waiver="alone")
+    console2.observe(go_report(clock, gnss_fix=Reading(False, T0, 10.0)))
+    assert console1.status().armed, "another console's poll never disarms a window it does not hold"
+    clock.advance(61)
+    assert console2.arm(go_report(clock)).mine, "once the window ran out, another console may ARM"
