@@ -267,15 +267,14 @@ def _mt_resolve(args: argparse.Namespace) -> int:
     config, store = _open(args)
     if not config.operator.name:
         raise ConfigError("operator.name: set [operator] name; every resolution is audited with it")
-    capsule, reports = _capsule_reports(config, store, args.name)
-    life = lc.CommandLifecycle(store, config.operator.name)
-    if args.not_sent:
-        command = life.resolve_not_sent(args.command_id, capsule.name, args.note)
-    else:
-        command = life.resolve_queued(args.command_id, capsule.name, args.queued, reports, args.note)
-    print(f"MT {command.id} {command.text}: {command.state}: {command.detail}")
-    for changed in life.observe(reports, capsule.imei or ""):
-        print(f"MT {changed.id} {changed.text}: {changed.state}: {changed.detail}")
+    _capsule_reports(config, store, args.name)  # an unknown capsule or one without an IMEI is refused first
+    ops = Operations(config, store, holder=cli_holder())
+    try:
+        commands = ops.resolve_mt(args.name, args.command_id, None if args.not_sent else args.queued, args.note)
+    finally:
+        ops.close()
+    for command in commands:
+        print(f"MT {command.id} {command.text}: {command.state}: {command.detail}")
     return 0
 
 

@@ -558,6 +558,17 @@ class Operations:
         )
         return SentMt(command, steps, authorised)
 
+    def resolve_mt(self, name: str, command_id: int, gateway_id: int | None, note: str = "") -> list[Command]:
+        """Record what the RockBLOCK portal shows for an MT whose delivery is unknown: queued as
+        ``gateway_id``, or (None) never sent; then the reports move it on. The resolved command first,
+        then every other that changed; audited by the lifecycle."""
+        reports = self.stored_reports(name)
+        if gateway_id is None:
+            command = self.lifecycle.resolve_not_sent(command_id, name, note)
+        else:
+            command = self.lifecycle.resolve_queued(command_id, name, gateway_id, reports, note)
+        return [command, *self.lifecycle.observe(reports, self.ops(name).config.imei or "")]
+
     def close(self) -> None:
         for ops in self.capsules.values():
             ops.link.close()
