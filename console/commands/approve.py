@@ -44,7 +44,7 @@ def run_approve(args: argparse.Namespace) -> int:
             if args.json:
                 print(json.dumps({"id": request.id, "capsule": request.capsule, "action": request.action,
                                   "summary": request.summary, "requested_by": request.requested_by,
-                                  "login": str(request.requester),
+                                  "login": str(request.requester), "command": request.command,
                                   "expires_utc": request.expires_utc.isoformat()}))  # fmt: skip
             else:
                 print(request.describe(utc_now()))

@@ -593,3 +593,34 @@ def test_with_the_rule_on_a_typed_second_operator_cannot_override_the_landed_gat
     assert gateway.requests == []
     [audited] = [a for a in store.audit("DRS1") if a.action == "mt.parachute"]
     assert audited.result == "refused"
+
+
+@pytest.mark.slow
+def test_with_the_rule_required_drs_capsule_go_fires_once_another_login_approves(
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path], tmp_path: Path,
+) -> None:
+    """The way through: `drs capsule go --await-approval`, then `drs approve ID` from another key."""
+    sim, config, store = powered("arm_window_s = 120.0\nrequire_second_operator = true")
+    alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
+    args = ["--weather", *map(str, weather), "--waive", f"sync={SYNC_WAIVER}"]
+    assert entry.main(["--config", str(config), "capsule", "arm", "DRS1", *args]) == 0
+    go = drs_child(config, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args,
+                   env={"SSH_USER_AUTH": str(alice)})  # fmt: skip
+    try:
+        assert go.stdout is not None
+        next(line for line in go.stdout if line.startswith("approval #1: waiting"))
+        assert sim.firmware.go_at is None, "nothing is sent while it waits"
+        listed = drs_child(config, "approve", env={"SSH_USER_AUTH": str(bob)}).communicate(timeout=60)[0]
+        assert listed.startswith("#1 DRS1 Go (release): Go: release DRS1 in ARM window #1 — requested by EL")
+        approver = drs_child(config, "approve", "1", env={"SSH_USER_AUTH": str(bob)})
+        assert approver.wait(timeout=60) == 0
+        out, err = go.communicate(timeout=120)
+    finally:
+        go.kill()
+    assert go.returncode == 0, err
+    assert "released, Pi shut down" in out and sim.firmware.go_at is not None
+    [fire] = [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
+    assert fire.detail is not None and fire.detail["approval"] == "1" and fire.detail["window"] == 1
+    assert [a.result for a in store.audit("DRS1") if a.action.startswith("approval.")] == [
+        "pending", "approved", "used"
+    ]
