@@ -231,3 +231,23 @@ async def test_a_waiting_approval_is_a_live_line_with_its_countdown_and_c_cancel
         await pilot.pause(0.5)
         assert world.sims[0].firmware.go_at is None
         assert [a.result for a in app.store.audit("DRS1") if a.action == "approval.cancelled"] == ["cancelled"]
+
+
+async def test_a_window_another_console_holds_is_shown_as_theirs_and_fire_stays_off(
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """#23: two consoles were both ARMED on one capsule, each reading the other's notices as its own."""
+    world, app = demo
+    async with app.run_test(size=(120, 40)) as pilot:
+        screen = await open_release_go(pilot, app)
+        mine = polls_never_disarm(app, monkeypatch)
+        other = ArmingController(app.store, mine.machine, "JM", clock=mine.clock, holder="jm@laptop2 pid 7")
+        other.arm(app.gonogo("DRS1"))
+        line = screen.query_one("#arm-status", Static)
+        await wait_for(pilot, lambda: "ARMED by another console (held by JM at " in str(line.render()))
+        assert screen.check_action("fire", ()) is None
+        await pilot.press("a")
+        await wait_for(pilot, lambda: any("ARM refused: ARM window #1 is held by JM at " in n.message
+                                          for n in app._notifications))  # fmt: skip
+        assert other.status().mine and other.status().armed, "the refusal changed nothing"
+        assert world.sims[0].firmware.go_at is None
