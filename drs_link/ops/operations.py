@@ -211,7 +211,7 @@ class Operations:
         self.recorder = recorder
         self.environ = environ
         self.operator = config.operator.name or "unknown"
-        self.login = login or current_login()
+        self._login = login
         self.zones = load_exclusion_zones(config.console.exclusion_zones_file)
         self.checklists = load_checklists(PROCEDURE_DIR)
         self.reports = ReportStore(store)
@@ -234,6 +234,13 @@ class Operations:
                 capsule, link, machine, arming, WaiverBook(store, capsule.name, clock),
                 Syncer(store, link, capsule.name, capsule.storage_mount, capsule.raid_device), threading.Lock(),
             )  # fmt: skip
+
+    @property
+    def login(self) -> Login:
+        """Who is at this keyboard (``approval.current_login``), asked for only when an approval needs it."""
+        if self._login is None:
+            self._login = current_login()
+        return self._login
 
     def _emit(self, records: list[TelemetryRecord]) -> list[TelemetryRecord]:
         if self.recorder is not None:
@@ -379,7 +386,8 @@ class Operations:
             )  # fmt: skip
         report = poll()  # before the lock: a poll of the capsule (drs capsule go) takes it itself
         with ops.lock:
-            record = ops.arming.fire(typed_name, report, second.name, second.waiver, approval, self.login)
+            login = self.login if approval is not None else None
+            record = ops.arming.fire(typed_name, report, second.name, second.waiver, approval, login)
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
         self.approvals.void_capsule(name, "capsule state changed: released", self.operator)
@@ -548,7 +556,7 @@ class Operations:
             require_second_operator=self.config.console.require_second_operator,
             crew=self.config.console.crew,
             override_landed=override_landed, queue_by=queue_by, now=self.clock(), approval=approval,
-            login=self.login,
+            login=self.login if approval is not None else None,
         )  # fmt: skip
         gateway = RockblockGateway.from_config(self.config.rockblock, self.environ)
         command = self.lifecycle.request(capsule, message, flush=flush)
