@@ -204,3 +204,26 @@ def test_an_approval_request_is_refused_for_a_command_the_rule_does_not_cover(tm
     book = ApprovalBook(Store.open(tmp_path / "drs.sqlite"))
     with pytest.raises(ValueError, match="unknown hazardous action"):
         book.request("DRS1", "interval", "[INTERVAL=5]", "alice", ALICE_A)
+
+
+def test_an_approval_is_void_once_the_capsules_state_changed_and_its_requester_may_cancel_one(
+    book: ApprovalBook,
+) -> None:
+    """#23: a request stayed "pending" after the capsule it was for had been released."""
+    take_over = "release-authority take-over: laptop1 died"
+    request = book.request("DRS1", "authority", take_over, "alice", ALICE_A, command=take_over,
+                           capsule_state="powered")  # fmt: skip
+    book.decide(request.id, "bob", ALICE_B, approve=True)
+    with pytest.raises(RefusedError, match="was given for release-authority take-over: laptop1 died, not"):
+        book.use(request.id, "DRS1", "authority", ALICE_A, "release-authority take-over: other", "powered")
+    with pytest.raises(RefusedError, match="was given while DRS1 was powered; it is now released"):
+        book.use(request.id, "DRS1", "authority", ALICE_A, take_over, "released")
+    assert book.get(request.id).state == "void" and book.open_requests() == []
+    second = book.request("DRS1", "parachute", "[PARACHUTE=01:19]", "alice", ALICE_A, command="[PARACHUTE=01:19]")
+    with pytest.raises(RefusedError, match="only they can cancel it"):
+        book.cancel(second.id, "bob", ALICE_B)
+    assert book.cancel(second.id, "alice", ALICE_A).state == "cancelled"
+    with pytest.raises(RefusedError, match=r"it is cancelled \(cancelled by alice\), not pending"):
+        book.decide(second.id, "bob", ALICE_B, approve=True)
+    states = [(a.action, a.result) for a in book.store.audit("DRS1")]
+    assert ("approval.void", "void") in states and ("approval.cancelled", "cancelled") in states
