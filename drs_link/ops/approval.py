@@ -396,7 +396,11 @@ def approved(
         command=command, window_id=window_id, deadline=deadline, capsule_state=capsule_state,
     )  # fmt: skip
     on_pending(request)
-    decided = book.wait(request.id)
+    try:
+        decided = book.wait(request.id)
+    except KeyboardInterrupt:  # Ctrl-C at `drs … --await-approval`: nobody waits for it any more
+        book.cancel(request.id, operator, login)
+        raise
     if decided.state != "approved" or not book.usable(decided):
         why = f" ({decided.reason})" if decided.reason and decided.state == "rejected" else ""
         raise RefusedError(f"approval #{request.id} {book.why_not(decided, book.clock())}{why}: nothing sent")
