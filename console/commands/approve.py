@@ -20,8 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "approve",
         help="list hazardous commands waiting for a second operator, or approve/reject one",
         description="Without ID: the requests waiting for approval. With ID: approve it (or --reject it). "
-        "The approver must be another login than the requester: another OS account, or over SSH "
-        "another key (sshd's ExposeAuthInfo yes).",
+        "The approver must be another login than the requester: another OS account, or another "
+        "person's key of the [[approver]] list, proven by a signature from ssh-agent ($SSH_AUTH_SOCK).",
     )
     approve.add_argument("approval_id", nargs="?", type=int, metavar="ID", help="the request to decide")
     approve.add_argument("--reject", action="store_true", help="reject instead of approving")
