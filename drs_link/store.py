@@ -8,6 +8,7 @@ own their tables: they call ``ensure_schema`` with their DDL instead of editing 
 
 from __future__ import annotations
 
+import grp
 import json
 import os
 import pwd
@@ -75,6 +76,89 @@ class AuditRecord:
     """The process that wrote it (``session_name``); None for rows older than the column."""
 
 
+SHARED_DIR_MODE = 0o2770
+"""A store directory that several OS accounts share (``drs setup shared-store``): owner and group
+read, write and enter it, nobody else; setgid, so every file made in it (the store, its -wal and -shm)
+belongs to the directory's group whichever operator's console created it."""
+SHARED_FILE_MODE = 0o660
+PRIVATE_FILE_MODE = 0o600
+
+
+def shared_directory(directory: Path) -> bool:
+    """Whether ``directory`` is set up for a group of accounts: setgid and group read-write-enter."""
+    try:
+        mode = directory.stat().st_mode
+    except OSError:
+        return False
+    return mode & SHARED_DIR_MODE == SHARED_DIR_MODE
+
+
+def share_directory(directory: Path, group: str, store_name: str = "drs.sqlite") -> list[str]:
+    """Make ``directory`` a store several OS accounts use: owned by ``group``, mode 2770, and the store
+    with its -wal and -shm group read-write (0660). Idempotent; what was done, one line each.
+
+    Only the group's members (and root) can then read or write the audit: the operators' accounts,
+    added to the group by root (``usermod -aG GROUP NAME``), not everyone on the machine."""
+    try:
+        gid = grp.getgrnam(group).gr_gid
+    except KeyError:
+        raise StoreError(
+            f"group {group!r} does not exist: as root, `groupadd {group}`, then `usermod -aG {group} NAME` "
+            "for each operator's account"
+        ) from None
+    done = []
+    try:
+        directory.mkdir(mode=0o700, parents=True, exist_ok=True)
+        os.chown(directory, -1, gid)
+        directory.chmod(SHARED_DIR_MODE)
+        done.append(f"{directory}: group {group}, mode 2770 (setgid: new files belong to {group})")
+        for name in (store_name, f"{store_name}-wal", f"{store_name}-shm"):
+            file = directory / name
+            if file.exists():
+                os.chown(file, -1, gid)
+                file.chmod(SHARED_FILE_MODE)
+                done.append(f"{file}: group {group}, mode 0660")
+    except OSError as exc:
+        raise StoreError(
+            f"cannot share {directory} with group {group}: {exc.strerror} (run it as the directory's owner, "
+            "a member of the group, or root)"
+        ) from None
+    return done
+
+
+def _protect(path: Path) -> None:
+    """Create the store file with its mode before SQLite does (its -wal and -shm take the main file's
+    mode). The audit log names operators and holds the gateway's echoes: owner only, unless the
+    directory is a shared one, where the group (the operators) reads and writes it too and nobody else.
+    Another account's file is left as it is: only its owner may change its mode, and says so if it
+    cannot be used."""
+    mode = SHARED_FILE_MODE if shared_directory(path.parent) else PRIVATE_FILE_MODE
+    try:
+        path.touch(mode=mode, exist_ok=True)
+        info = path.stat()
+        if info.st_uid == os.geteuid() and info.st_mode & 0o777 != mode:
+            path.chmod(mode)
+    except OSError as exc:
+        raise StoreError(f"cannot create the store {path}: {exc}{_sharing_hint(path)}") from None
+    if not os.access(path, os.R_OK | os.W_OK):
+        raise StoreError(f"cannot use the store {path}: permission denied{_sharing_hint(path)}")
+
+
+def _sharing_hint(path: Path) -> str:
+    owner = path.parent.stat().st_uid if path.parent.exists() else os.geteuid()
+    if owner == os.geteuid():
+        return ""
+    return (f" (it belongs to {_account(owner)}; to share one store between accounts, run "
+            f"`drs setup shared-store {path.parent} --group GROUP` as its owner or root: docs/console.md)")  # fmt: skip
+
+
+def _account(uid: int) -> str:
+    try:
+        return pwd.getpwuid(uid).pw_name
+    except KeyError:
+        return f"uid {uid}"
+
+
 class Store:
     """A SQLite database file shared by threads and processes."""
 
@@ -96,14 +180,7 @@ class Store:
             path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
         except OSError as exc:
             raise StoreError(f"cannot create the data directory {path.parent}: {exc}") from None
-        try:
-            # The audit log names operators and holds the gateway's echoes: owner only, before SQLite
-            # creates the file (its -wal and -shm take the main file's mode).
-            path.touch(mode=0o600, exist_ok=True)
-            if path.stat().st_mode & 0o077:
-                path.chmod(0o600)
-        except OSError as exc:
-            raise StoreError(f"cannot create the store {path}: {exc}") from None
+        _protect(path)
         store = cls(path)
         store.ensure_schema(_AUDIT_DDL)
         store._add_session_column()
