@@ -2,7 +2,7 @@
 
 ``capsule`` is the release state machine; ``arming`` ARM then FIRE; ``gonogo`` the poll before ARM;
 ``checklist`` and ``procedure`` the procedures as data; ``approval`` the second operator;
-``authorize`` the PARACHUTE gate; ``telemetry``, ``fleet``, ``staleness`` and ``origin`` what is known
+``authorize`` the PARACHUTE gate, ``override`` what stays on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and ``origin`` what is known
 of each capsule and how old it is; ``session`` a console that ends without quitting; and
 ``operations`` the console's engine without a screen.
 """
@@ -34,6 +34,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "PredictionSample": "telemetry",
         "PredictionStatus": "telemetry",
         "Reading": "staleness",
+        "ParachuteOverride": "override",
         "ReleaseOrigin": "origin",
         "ReleaseSample": "telemetry",
         "ReleaseState": "capsule",
@@ -55,9 +56,12 @@ __getattr__, __dir__, __all__ = lazy_door(
         "complete_command": "checklist",
         "complete_mt_steps": "procedure",
         "current_login": "approval",
+        "drop_schedule": "override",
+        "after_drop": "override",
         "evaluate": "gonogo",
         "format_age": "staleness",
         "load_checklists": "checklist",
+        "parachute_override": "override",
         "pending_text": "approval",
         "read_recording": "telemetry",
         "record_as_dict": "capsule",
