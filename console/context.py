@@ -9,6 +9,7 @@ approvals. Nothing here imports Textual: it is the plain-Python side of the cons
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime, timedelta
@@ -26,18 +27,22 @@ from drs_link.ops import (
     FleetState,
     GoNoGoReport,
     Operations,
+    ParachuteOverride,
     ReleaseOrigin,
     TelemetryRecord,
     approved,
     current_login,
     evaluate,
     load_checklists,
+    parachute_override,
     pending_text,
     release_origin,
 )
 from drs_link.store import Store, utc_now
 
 POLL_PERIOD_S = 5.0
+OVERRIDE_READ_S = 1.0
+"""How often the store is read for PARACHUTE overrides: every screen in sight asks once a second."""
 LOW_BANDWIDTH_AGE_STEP_S = 10.0
 
 
@@ -83,6 +88,7 @@ class ConsoleContext:
         """The procedure the operations layer ticks, so the screen shows the steps it completes."""
         self.warn = warn
         """Tells the operator something from any thread (the app posts it as a notice)."""
+        self._overrides: tuple[float, list[ParachuteOverride]] = (-OVERRIDE_READ_S, [])
 
     @property
     def mode(self) -> str:
@@ -137,6 +143,21 @@ class ConsoleContext:
             self.warn(f"{capsule}: {pending_text(request)}")
 
         return approved(book, capsule, action, summary, self.operator, current_login(), pending)
+
+    def parachute_overrides(self) -> list[ParachuteOverride]:
+        """Each capsule's PARACHUTE queued without landed evidence (``drs_link.ops.override``), from any
+        console on the store; read at most once per ``OVERRIDE_READ_S``."""
+        read_at, found = self._overrides
+        if self.ops is None or time.monotonic() - read_at < OVERRIDE_READ_S:
+            return found
+        found = []
+        for capsule in self.setup.capsules:
+            override = parachute_override(capsule, self.store.audit(capsule, text="mt.parachute"),
+                                          self.ops.commands(capsule))  # fmt: skip
+            if override is not None:
+                found.append(override)
+        self._overrides = (time.monotonic(), found)
+        return found
 
     def checklist_run(self, capsule: str, checklist: Checklist) -> ChecklistRun:
         return ChecklistRun(self.store, checklist, capsule, self.now)
