@@ -1,0 +1,62 @@
+"""The smaller trust defects of issue #23, item 7, each pinned where the operator reads it.
+
+Each test fails on the console as the issue found it: a console without weather said "needs a fresh
+position" on Predictions and in go/no-go, the gateway item said "credentials valid" though nothing had
+been checked, and a released capsule's predictions said "computing" for ever.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from console.app import NO_WEATHER, ConsoleSetup, DrsConsole
+from console.screens.predictions import PredictionScreen
+from drs_link.ops.telemetry import GatewaySample, ReleaseSample, TelemetryRecord
+from drs_link.store import Store
+from tests.console.conftest import T0, offline_config, wait_for
+
+pytestmark = pytest.mark.asyncio
+
+
+def painted(app: DrsConsole, selector: str) -> str:
+    return str(app.screen.query_one(selector).render())
+
+
+async def test_without_weather_predictions_and_go_no_go_say_no_weather_loaded(tmp_path: Path) -> None:
+    config = offline_config(tmp_path)
+    app = DrsConsole(ConsoleSetup(mode="live", capsules=["DRS1"], store=Store.open(config.store_path)))
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("p")
+        assert isinstance(app.screen, PredictionScreen)
+        await wait_for(pilot, lambda: "no weather loaded" in painted(app, "#prediction-numbers"))
+        assert f"Release now: no prediction yet ({NO_WEATHER})" in painted(app, "#prediction-numbers")
+        assert painted(app, "#release-timeline") == f"Release window: {NO_WEATHER}"
+        assert "fresh position" not in painted(app, "#prediction-numbers") + painted(app, "#release-timeline")
+        [item] = [i for i in app.gonogo("DRS1").items if i.key == "prediction"]
+        assert item.detail == NO_WEATHER
+
+
+async def test_a_released_capsule_s_predictions_point_to_recovery(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    app = canned_app()
+    app.fleet.apply(TelemetryRecord(T0, "DRS3", ReleaseSample("released", released_at=T0)))
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("down", "down", "p")
+        assert isinstance(app.screen, PredictionScreen) and app.screen.capsule == "DRS3"
+        await wait_for(pilot, lambda: "Recovery" in painted(app, "#prediction-numbers"))
+        assert "Release now: no prediction yet (released: no more release predictions; where it is falling " \
+               "is on Recovery (Esc, then v))" in painted(app, "#prediction-numbers")  # fmt: skip
+        assert painted(app, "#release-timeline").startswith("Release window: released:")
+        assert "computing" not in painted(app, "#release-timeline")
+
+
+async def test_the_gateway_item_says_configured_and_not_verified(canned_app: Callable[..., DrsConsole]) -> None:
+    app = canned_app()
+    app.fleet.apply(TelemetryRecord(T0, None, GatewaySample(True, "user ops")))
+    [item] = [i for i in app.gonogo("DRS1").items if i.key == "gateway"]
+    assert item.title == "Gateway configured" and item.detail.startswith("not verified, ")
+    assert "valid" not in item.title + item.detail
