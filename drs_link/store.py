@@ -15,10 +15,10 @@ import pwd
 import socket
 import sqlite3
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +39,14 @@ CREATE INDEX IF NOT EXISTS audit_capsule_time ON audit (capsule, time_utc);
 """
 _AUDIT_SESSION_COLUMN = "ALTER TABLE audit ADD COLUMN session TEXT"
 """Stores made before the session column get it on first open (SQLite adds it in place, NULL for old rows)."""
+_CLOCK_DDL = """
+CREATE TABLE IF NOT EXISTS store_clock (
+    id INTEGER PRIMARY KEY CHECK (id = 1),
+    wall_utc TEXT NOT NULL,
+    store_utc TEXT NOT NULL,
+    scale REAL NOT NULL
+);
+"""
 
 
 def session_name() -> str:
@@ -82,6 +90,13 @@ read, write and enter it, nobody else; setgid, so every file made in it (the sto
 belongs to the directory's group whichever operator's console created it."""
 SHARED_FILE_MODE = 0o660
 PRIVATE_FILE_MODE = 0o600
+
+
+def _scaled_clock(wall: datetime, start: datetime, scale: float) -> Callable[[], datetime]:
+    def now() -> datetime:
+        return start + timedelta(seconds=(utc_now() - wall).total_seconds() * scale)
+
+    return now
 
 
 def shared_directory(directory: Path) -> bool:
@@ -168,6 +183,8 @@ class Store:
         self._schemas: list[str] = []
         self._schema_lock = threading.Lock()
         self.session = session_name()
+        self.clock: Callable[[], datetime] = utc_now
+        """The store's time: the wall clock, or a simulated one every process on the store shares (``run_clock``)."""
         self._writer = threading.RLock()
         """Writers of this process take turns here before SQLite's lock. Left to SQLite, a thread that
         finds the database locked sleeps in its busy handler (1, 2, 5 … 100 ms a try), and with 20
@@ -184,7 +201,28 @@ class Store:
         store = cls(path)
         store.ensure_schema(_AUDIT_DDL)
         store._add_session_column()
+        store._adopt_clock()
         return store
+
+    def run_clock(self, start: datetime, scale: float) -> None:
+        """Make this store's time simulated (the demo): ``start`` now, running ``scale`` times faster.
+
+        Written into the store, so every process that opens it reads the same time: the demo once wrote
+        its audit with two clocks (wall and ×4), History came out of order, and the demo console and
+        `drs approve` disagreed about when an approval expires."""
+        self.ensure_schema(_CLOCK_DDL)
+        wall = utc_now()
+        self.write("INSERT OR REPLACE INTO store_clock (id, wall_utc, store_utc, scale) VALUES (1, ?, ?, ?)",
+                   (iso_utc(wall), iso_utc(start), scale))  # fmt: skip
+        self.clock = _scaled_clock(wall, start, scale)
+
+    def _adopt_clock(self) -> None:
+        if not self.query("SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'store_clock'"):
+            return
+        rows = self.query("SELECT wall_utc, store_utc, scale FROM store_clock WHERE id = 1")
+        if rows:
+            row = rows[0]
+            self.clock = _scaled_clock(parse_iso_utc(row["wall_utc"]), parse_iso_utc(row["store_utc"]), row["scale"])
 
     def _add_session_column(self) -> None:
         columns = {row["name"] for row in self.query("PRAGMA table_info(audit)")}
@@ -294,7 +332,7 @@ class Store:
         when: datetime | None = None,
     ) -> AuditRecord:
         """Record one step durably; only after this returns may anyone be told it happened."""
-        moment = when or utc_now()
+        moment = when or self.clock()
         detail_json = json.dumps(detail, sort_keys=True, default=str) if detail is not None else None
         row_id = self.write(
             "INSERT INTO audit (time_utc, operator, capsule, action, result, detail, session) "

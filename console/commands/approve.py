@@ -43,7 +43,7 @@ def wait_for_approval(book: ApprovalBook, capsule: str, action: str, summary: st
 def run_approve(args: argparse.Namespace) -> int:
     from drs_link.config import load_config
     from drs_link.ops import current_login
-    from drs_link.store import Store, utc_now
+    from drs_link.store import Store
 
     config = load_config(args.config)
     book = ApprovalBook(Store.open(config.store_path))
@@ -56,7 +56,7 @@ def run_approve(args: argparse.Namespace) -> int:
                                   "login": str(request.requester),
                                   "expires_utc": request.expires_utc.isoformat()}))  # fmt: skip
             else:
-                print(request.describe(utc_now()))
+                print(request.describe(book.clock()))
         if not requests and not args.json:
             print("nothing waits for approval")
         return 0
@@ -65,5 +65,5 @@ def run_approve(args: argparse.Namespace) -> int:
     if args.reject and not args.reason.strip():
         raise UsageError("--reject needs --reason: the requester is told why")
     decided = book.decide(args.approval_id, config.operator.name, current_login(), not args.reject, args.reason)
-    print(decided.describe(utc_now()))
+    print(decided.describe(book.clock()))
     return 0

@@ -24,7 +24,7 @@ from datetime import datetime, timedelta
 from drs_link.config import approvers_in_use
 from drs_link.errors import RefusedError
 from drs_link.ops.identity import account_name, prove_agent_key
-from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
+from drs_link.store import Store, iso_utc, parse_iso_utc
 
 APPROVAL_TTL_S = 300.0
 """How long a request may wait for its approval, and an approval for its use: long enough to reach
@@ -121,9 +121,10 @@ class Approval:
 class ApprovalBook:
     """The approval requests in the shared store."""
 
-    def __init__(self, store: Store, clock: Callable[[], datetime] = utc_now) -> None:
+    def __init__(self, store: Store, clock: Callable[[], datetime] | None = None) -> None:
         self.store = store
-        self.clock = clock
+        self.clock = clock or store.clock
+        """The store's time by default: a demo's simulated time is every process's time (``Store.run_clock``)."""
         store.ensure_schema(_DDL)
 
     def request(
