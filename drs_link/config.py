@@ -207,7 +207,15 @@ class Config:
             if capsule.name == name:
                 return capsule
         known = ", ".join(c.name for c in self.capsules) or "none configured"
-        raise ConfigError(f"no capsule named {name!r} in the configuration (known: {known})")
+        raise ConfigError(f"no capsule named {name!r} in {self.where()} (known: {known})")
+
+    def where(self) -> str:
+        """Which file these settings came from, or the path looked for when there was none: an error that
+        says "none configured" must say where it looked, or the operator edits the wrong file."""
+        if self.source is not None:
+            return str(self.source)
+        return (f"the defaults: no configuration file at {default_config_path()} "
+                f"(create it, or give --config FILE or ${CONFIG_ENV})")  # fmt: skip
 
     @property
     def store_path(self) -> Path:

@@ -7,6 +7,9 @@ been checked, and a released capsule's predictions said "computing" for ever.
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -60,3 +63,17 @@ async def test_the_gateway_item_says_configured_and_not_verified(canned_app: Cal
     [item] = [i for i in app.gonogo("DRS1").items if i.key == "gateway"]
     assert item.title == "Gateway configured" and item.detail.startswith("not verified, ")
     assert "valid" not in item.title + item.detail
+
+
+def test_a_missing_configuration_is_named_with_the_path_looked_for(tmp_path: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if k != "DRS_CONFIG"}
+    env.update(HOME=str(tmp_path / "home"), XDG_CONFIG_HOME=str(tmp_path / "config"),
+               XDG_DATA_HOME=str(tmp_path / "data"))  # fmt: skip
+    done = subprocess.run([sys.executable, "-m", "console.commands.main", "mo", "health", "DRS1"], env=env,
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 1
+    assert done.stderr == (
+        f"drs: error: no capsule named 'DRS1' in the defaults: no configuration file at "
+        f"{tmp_path / 'config' / 'drs' / 'drs.toml'} (create it, or give --config FILE or $DRS_CONFIG) "
+        "(known: none configured)\n"
+    )
