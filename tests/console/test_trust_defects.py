@@ -77,3 +77,21 @@ def test_a_missing_configuration_is_named_with_the_path_looked_for(tmp_path: Pat
         f"{tmp_path / 'config' / 'drs' / 'drs.toml'} (create it, or give --config FILE or $DRS_CONFIG) "
         "(known: none configured)\n"
     )
+
+
+async def test_every_key_is_in_the_footer_or_the_help(canned_app: Callable[..., DrsConsole]) -> None:
+    """Iridium's `C` and `O` were bound but in neither the footer nor the help; Approvals' keys nowhere."""
+    from console.screens.help import help_text
+    from console.screens.iridium import IridiumScreen
+
+    app = canned_app()
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("i")
+        assert isinstance(app.screen, IridiumScreen)
+        await pilot.pause()
+        shown = {binding.key_display or binding.key for _, binding, _, _ in app.active_bindings.values()
+                 if binding.show}  # fmt: skip
+        assert {"o/O", "c/C"} <= shown
+    text = help_text()
+    assert "`C` parachute at a time you type" in text
+    assert "**Approvals**: `↑`/`↓` a request · `Enter` approve it · `x` reject it" in text
