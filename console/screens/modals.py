@@ -16,6 +16,8 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, Static
 
+from drs_link.ops import WAIVER_REASON_MAX
+
 
 class ConfirmModal(ModalScreen[bool]):
     """Yes/No with *Cancel* focused: Enter on a reflex never confirms."""
@@ -51,17 +53,20 @@ class TextPromptModal(ModalScreen[str | None]):
 
     BINDINGS = [Binding("escape", "cancel", "Cancel")]
 
-    def __init__(self, title: str, prompt: str, placeholder: str = "") -> None:
+    def __init__(self, title: str, prompt: str, placeholder: str = "", max_length: int = WAIVER_REASON_MAX) -> None:
         super().__init__()
         self.title_text = title
         self.prompt = prompt
-        self.placeholder = placeholder
+        self.placeholder = placeholder or f"at most {max_length} characters"
+        self.max_length = max_length
+        """Characters the answer may have, said in the empty field: every answer here is a reason or a value,
+        and a reason of thousands of characters pushed go/no-go and the checklist off the screen."""
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
             yield Label(self.title_text, classes="dialog-title", markup=False)
             yield Static(self.prompt, classes="dialog-body", markup=False)
-            yield Input(placeholder=self.placeholder, id="answer")
+            yield Input(placeholder=self.placeholder, id="answer", max_length=self.max_length)
 
     def on_mount(self) -> None:
         self.query_one("#answer", Input).focus()

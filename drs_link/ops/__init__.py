@@ -50,6 +50,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "TelemetryRecorder": "telemetry",
         "Verdict": "gonogo",
         "WAIVABLE": "gonogo",
+        "WAIVER_REASON_MAX": "gonogo",
         "approved": "approval",
         "authorize_mt": "authorize",
         "carries_parachute": "authorize",

@@ -234,6 +234,11 @@ def _fingerprint(items: Sequence[GoNoGoItem]) -> str:
     return hashlib.sha256(json.dumps(verdicts).encode()).hexdigest()[:16]
 
 
+WAIVER_REASON_MAX = 200
+"""Characters of a waiver reason: a sentence fits, and the go/no-go and checklist stay on an 80×24 screen
+(a 3,000-character reason pushed them off it). Longer accounts belong in the flight log."""
+
+
 @dataclass
 class WaiverBook:
     """The waivers of one capsule's current release attempt, each audited when granted."""
@@ -251,6 +256,9 @@ class WaiverBook:
             raise RefusedError(f"{self.capsule}: {item!r} cannot be waived (only {', '.join(WAIVABLE)})")
         if not operator.strip() or not reason.strip():
             raise RefusedError(f"{self.capsule}: a waiver needs the operator's name and a reason")
+        if len(reason.strip()) > WAIVER_REASON_MAX:
+            raise RefusedError(f"{self.capsule}: a waiver reason is at most {WAIVER_REASON_MAX} characters "
+                               f"({len(reason.strip())} given): one sentence; the rest belongs in the flight log")  # fmt: skip
         waiver = Waiver(item, operator.strip(), reason.strip(), self.clock())
         self.store.append_audit(
             waiver.operator, self.capsule, "waiver", "granted", {"item": item, "reason": waiver.reason},

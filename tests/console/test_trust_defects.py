@@ -95,3 +95,27 @@ async def test_every_key_is_in_the_footer_or_the_help(canned_app: Callable[..., 
     text = help_text()
     assert "`C` parachute at a time you type" in text
     assert "**Approvals**: `↑`/`↓` a request · `Enter` approve it · `x` reject it" in text
+
+
+async def test_a_waiver_reason_is_capped_at_its_stated_length(canned_app: Callable[..., DrsConsole]) -> None:
+    """A 3,000-character reason pushed go/no-go and the checklist off the screen: the field takes 200, says
+    so, and the operations layer refuses a longer one from any caller."""
+    from console.screens.modals import TextPromptModal
+    from drs_link.errors import RefusedError
+    from drs_link.ops import WAIVER_REASON_MAX
+
+    app = canned_app()
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("enter", "w", "w")
+        prompt = app.screen
+        assert isinstance(prompt, TextPromptModal)
+        field = prompt.query_one("#answer")
+        assert WAIVER_REASON_MAX == 200 and field.placeholder == "at most 200 characters"  # type: ignore[attr-defined]
+        await pilot.press(*("x" * 210), "enter")
+        await wait_for(pilot, lambda: bool(app.store.audit("DRS1", text="xxxx")))
+        [granted] = [r for r in app.store.audit("DRS1") if r.action == "waiver" and r.result == "granted"
+                     and "xxx" in str(r.detail)]  # fmt: skip
+        assert granted.detail is not None and len(granted.detail["reason"]) == 200
+        assert app.ops is not None
+        with pytest.raises(RefusedError, match=r"a waiver reason is at most 200 characters \(3000 given\)"):
+            app.ops.ops("DRS1").waivers.grant("gnss", "EL", "y" * 3000)
