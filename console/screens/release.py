@@ -239,7 +239,7 @@ class ReleaseScreen(ConsoleScreen):
         if action in commanding and not self.context.commanding:
             return None
         if action in BEFORE_RELEASE_ONLY and self.released():
-            return None  # the Pi is shut down: these keys leave the footer instead of failing after a dialog
+            return False  # the Pi is shut down: these keys leave the footer (None would only dim them)
         if action == "fire":
             return True if self.context.arming(self.capsule).status().armed else None
         return True

@@ -119,3 +119,22 @@ async def test_a_waiver_reason_is_capped_at_its_stated_length(canned_app: Callab
         assert app.ops is not None
         with pytest.raises(RefusedError, match=r"a waiver reason is at most 200 characters \(3000 given\)"):
             app.ops.ops("DRS1").waivers.grant("gnss", "EL", "y" * 3000)
+
+
+async def test_after_release_the_footer_offers_no_arm_fire_power_sync_or_waive(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    from console.screens.release import ReleaseScreen
+
+    app = canned_app()
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("enter")
+        assert isinstance(app.screen, ReleaseScreen)
+        before = {binding.action for _, binding, enabled, _ in app.active_bindings.values() if binding.show}
+        assert {"arm", "fire", "power_on", "sync", "waive"} <= before
+        app.fleet.apply(TelemetryRecord(T0, "DRS1", ReleaseSample("released", released_at=T0)))
+        app.refresh_screen()
+        await pilot.pause()
+        after = {binding.action for _, binding, _, _ in app.active_bindings.values() if binding.show}
+        assert not {"arm", "fire", "power_on", "sync", "waive"} & after, after
+        assert "reset" in {binding.action for _, binding, _, _ in app.active_bindings.values()}
