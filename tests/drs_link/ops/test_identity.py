@@ -141,3 +141,25 @@ def test_an_approver_entry_that_is_not_a_public_key_names_itself(tmp_path: Path)
     path.write_text('[[approver]]\nname = "Bob"\n')
     with pytest.raises(ConfigError, match=r"approver\[0\]\.key: required key is missing"):
         load_config(path)
+
+
+def test_drs_setup_login_says_which_login_the_rule_sees(tmp_path: Path, keys: dict[str, Path]) -> None:
+    approvers = approver_tables(EL=keys["el"])
+    el_config = config(tmp_path, "EL", approvers)
+
+    def setup_login(env: dict[str, str]) -> str:
+        done = subprocess.run([sys.executable, "-c", CHILD, "--config", str(el_config), "setup", "login"],
+                              env=env, capture_output=True, text=True, timeout=60, check=True)  # fmt: skip
+        return done.stdout.strip()
+
+    assert setup_login(clean_env()) == (
+        f"{account_name()}: the OS account only (no ssh-agent ($SSH_AUTH_SOCK is not set)); another person "
+        "must approve from another account"
+    )
+    with ssh_agent(tmp_path / "agent", keys["el"]) as sock:
+        assert setup_login(clean_env(SSH_AUTH_SOCK=sock)) == (
+            f"{account_name()} (key {printed_fingerprint(keys['el'])}): acts as EL (key proven by ssh-agent, "
+            "listed in [[approver]])"
+        )
+    with ssh_agent(tmp_path / "stranger-agent", keys["stranger"]) as sock:
+        assert "the agent holds no key of the [[approver]] list" in setup_login(clean_env(SSH_AUTH_SOCK=sock))
