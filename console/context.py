@@ -152,7 +152,7 @@ class ConsoleContext:
             return found
         found = []
         for capsule in self.setup.capsules:
-            override = parachute_override(capsule, self.store.audit(capsule, text="mt.parachute"),
+            override = parachute_override(capsule, self.store.audit(capsule, action="mt.parachute"),
                                           self.ops.commands(capsule))  # fmt: skip
             if override is not None:
                 found.append(override)

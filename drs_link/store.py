@@ -36,6 +36,7 @@ CREATE TABLE IF NOT EXISTS audit (
     session TEXT
 );
 CREATE INDEX IF NOT EXISTS audit_capsule_time ON audit (capsule, time_utc);
+CREATE INDEX IF NOT EXISTS audit_capsule_action ON audit (capsule, action);
 """
 _AUDIT_SESSION_COLUMN = "ALTER TABLE audit ADD COLUMN session TEXT"
 """Stores made before the session column get it on first open (SQLite adds it in place, NULL for old rows)."""
@@ -342,14 +343,19 @@ class Store:
         return AuditRecord(row_id, moment, operator, capsule, action, result, detail, self.session)
 
     def audit(
-        self, capsule: str | None = None, text: str | None = None, limit: int | None = None, after_id: int = 0
+        self, capsule: str | None = None, text: str | None = None, limit: int | None = None, after_id: int = 0,
+        action: str | None = None,
     ) -> list[AuditRecord]:
-        """Audit records oldest first, optionally for one capsule, containing ``text``, or newer than ``after_id``."""
+        """Audit records oldest first, optionally for one capsule, containing ``text``, newer than ``after_id``,
+        or of one ``action`` (an exact match: what a screen asks every second must not scan every detail)."""
         clauses: list[str] = ["id > ?"]
         params: list[object] = [after_id]
         if capsule is not None:
             clauses.append("capsule = ?")
             params.append(capsule)
+        if action is not None:
+            clauses.append("action = ?")
+            params.append(action)
         if text:
             clauses.append("(action || ' ' || result || ' ' || COALESCE(detail, '') || ' ' || operator) LIKE ?")
             params.append(f"%{text}%")

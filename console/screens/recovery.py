@@ -97,7 +97,7 @@ class RecoveryScreen(CommandingScreen):
         reports = ops.stored_reports(self.capsule) if ops else []
         commands = ops.commands(self.capsule) if ops else []
         settings = commanded_settings(commands, reports) if ops else None
-        override = parachute_override(self.capsule, self.context.store.audit(self.capsule, text="mt.parachute"),
+        override = parachute_override(self.capsule, self.context.store.audit(self.capsule, action="mt.parachute"),
                                       commands)  # fmt: skip
         drop = (override, *drop_schedule(override, reports)) if override is not None else None
         track = track_from_reports(reports)

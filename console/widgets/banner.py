@@ -72,7 +72,8 @@ class OverrideBanner(Static):
 
     def refresh_banner(self) -> None:
         lines = [f"⚠ {override.banner()}" for override in self.context.parachute_overrides()]
-        self.display = bool(lines)
+        if self.display != bool(lines):  # only a change costs a layout (console/widgets/quiet.py)
+            self.display = bool(lines)
         if lines:
             set_content(self, "\n".join(lines))
 
