@@ -94,6 +94,9 @@ PRIVATE_FILE_MODE = 0o600
 
 
 def _scaled_clock(wall: datetime, start: datetime, scale: float) -> Callable[[], datetime]:
+    """``start`` at the wall time ``wall``, running ``scale`` times faster: from the wall clock, which every
+    process reads alike (a monotonic clock is per machine boot, not per store)."""
+
     def now() -> datetime:
         return start + timedelta(seconds=(utc_now() - wall).total_seconds() * scale)
 
@@ -161,7 +164,16 @@ def _protect(path: Path) -> None:
 
 
 def _sharing_hint(path: Path) -> str:
-    owner = path.parent.stat().st_uid if path.parent.exists() else os.geteuid()
+    """How to share the store, when it (or its directory) belongs to another account."""
+    owner = None
+    for place in (path, path.parent):  # the file, else (not there, or not even visible) its directory
+        try:
+            owner = place.stat().st_uid
+            break
+        except OSError:
+            continue
+    if owner is None:
+        return ""
     if owner == os.geteuid():
         return ""
     return (f" (it belongs to {_account(owner)}; to share one store between accounts, run "
