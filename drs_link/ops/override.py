@@ -19,12 +19,11 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 
 from drs_link.iridium import PARACHUTE, StoredReport, is_command
+from drs_link.iridium import commanded as mt_commanded
 from drs_link.iridium import commands as mt_commands
 from drs_link.iridium import lifecycle as lc
 from drs_link.store import AuditRecord
 
-NEVER_LEFT = frozenset({lc.REQUESTED, lc.FAILED, lc.NOT_SENT, lc.FLUSHED})
-"""An MT in these states never reached the gateway queue: it cannot drop anything."""
 GONE_MODE_SPACING = timedelta(minutes=2)
 """The report spacing in Gone mode when the reports do not show it yet (drs_protocol.md 5.3)."""
 
@@ -72,10 +71,11 @@ def parachute_override(
     if not detail.get("override_landed") or not text:
         return None
     carried = [c for c in commands if c.text == text]
-    if not carried or carried[-1].state in NEVER_LEFT:
+    command = max(carried, key=lambda c: c.id) if carried else None
+    if command is None or command.state in mt_commanded.NEVER_LEFT:  # it never left: it cannot drop anything
         return None
     return ParachuteOverride(capsule, text, latest.operator, _approver(detail), str(detail["override_landed"]),
-                             max(carried, key=lambda c: c.id))  # fmt: skip
+                             command)  # fmt: skip
 
 
 def _spacing(reports: Sequence[StoredReport]) -> timedelta:
