@@ -449,7 +449,9 @@ def _approvers(tables: Any) -> tuple[ApproverConfig, ...]:
         approver = _build(ApproverConfig, table, f"approver[{index}]")
         fields = approver.key.split()
         if len(fields) < 2 or not fields[0].startswith(("ssh-", "ecdsa-", "sk-")):
-            raise ConfigError(f"approver[{index}].key: must be an OpenSSH public key line (ssh-ed25519 AAAA…)")
+            raise ConfigError(
+                f"approver[{index}].key: must be an OpenSSH public key line (ssh-ed25519 AAAA…)"
+            )
         if not approver.name.strip():
             raise ConfigError(f"approver[{index}].name: the person's operator name is required")
         approvers.append(approver)

@@ -176,8 +176,10 @@ def _sharing_hint(path: Path) -> str:
         return ""
     if owner == os.geteuid():
         return ""
-    return (f" (it belongs to {_account(owner)}; to share one store between accounts, run "
-            f"`drs setup shared-store {path.parent} --group GROUP` as its owner or root: docs/console.md)")  # fmt: skip
+    return (
+        f" (it belongs to {_account(owner)}; to share one store between accounts, run "
+        f"`drs setup shared-store {path.parent} --group GROUP` as its owner or root: docs/console.md)"
+    )
 
 
 def _account(uid: int) -> str:
@@ -197,7 +199,7 @@ class Store:
         self._schema_lock = threading.Lock()
         self.session = session_name()
         self.clock: Callable[[], datetime] = utc_now
-        """The store's time: the wall clock, or a simulated one every process on the store shares (``run_clock``)."""
+        """The store's time: the wall clock, or a simulated one all processes on it share (``run_clock``)."""
         self._writer = threading.RLock()
         """Writers of this process take turns here before SQLite's lock. Left to SQLite, a thread that
         finds the database locked sleeps in its busy handler (1, 2, 5 … 100 ms a try), and with 20
@@ -235,7 +237,8 @@ class Store:
         rows = self.query("SELECT wall_utc, store_utc, scale FROM store_clock WHERE id = 1")
         if rows:
             row = rows[0]
-            self.clock = _scaled_clock(parse_iso_utc(row["wall_utc"]), parse_iso_utc(row["store_utc"]), row["scale"])
+            wall, start = parse_iso_utc(row["wall_utc"]), parse_iso_utc(row["store_utc"])
+            self.clock = _scaled_clock(wall, start, row["scale"])
 
     def _add_session_column(self) -> None:
         columns = {row["name"] for row in self.query("PRAGMA table_info(audit)")}
@@ -355,11 +358,16 @@ class Store:
         return AuditRecord(row_id, moment, operator, capsule, action, result, detail, self.session)
 
     def audit(
-        self, capsule: str | None = None, text: str | None = None, limit: int | None = None, after_id: int = 0,
+        self,
+        capsule: str | None = None,
+        text: str | None = None,
+        limit: int | None = None,
+        after_id: int = 0,
         action: str | None = None,
     ) -> list[AuditRecord]:
-        """Audit records oldest first, optionally for one capsule, containing ``text``, newer than ``after_id``,
-        or of one ``action`` (an exact match: what a screen asks every second must not scan every detail)."""
+        """Audit records oldest first, optionally for one capsule, containing ``text``, newer than
+        ``after_id``, or of one ``action`` (an exact match: what a screen asks every second must not scan
+        every detail)."""
         clauses: list[str] = ["id > ?"]
         params: list[object] = [after_id]
         if capsule is not None:

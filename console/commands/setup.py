@@ -26,8 +26,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     login = actions.add_parser(
         "login",
         help="show the login the two-person rule sees for this session",
-        description="The OS account of this process's real uid and, if ssh-agent ($SSH_AUTH_SOCK) holds a key "
-        "of the configuration's [[approver]] list, that key (proven by a signature) and its person.",
+        description="The OS account of this process's real uid and, if ssh-agent ($SSH_AUTH_SOCK) holds "
+        "a key of the configuration's [[approver]] list, that key (proven by a signature) and its person.",
     )
     login.set_defaults(func=run_login)
 
@@ -36,7 +36,8 @@ def run_shared_store(args: argparse.Namespace) -> int:
     from drs_link.config import load_config
     from drs_link.store import share_directory
 
-    directory = args.directory.expanduser().absolute() if args.directory else load_config(args.config).data.dir
+    given = args.directory
+    directory = given.expanduser().absolute() if given else load_config(args.config).data.dir
     for line in share_directory(directory, args.group):
         print(line)
     group = grp.getgrnam(args.group)
@@ -57,8 +58,12 @@ def run_login(args: argparse.Namespace) -> int:
     if login.person:
         print(f"{login}: acts as {login.person} (key proven by ssh-agent, listed in [[approver]])")
         return 0
-    why = ("no ssh-agent ($SSH_AUTH_SOCK is not set)" if not os.environ.get("SSH_AUTH_SOCK")
-           else "no [[approver]] list in the configuration" if not config.approvers
-           else "the agent holds no key of the [[approver]] list")  # fmt: skip
+    why = (
+        "no ssh-agent ($SSH_AUTH_SOCK is not set)"
+        if not os.environ.get("SSH_AUTH_SOCK")
+        else "no [[approver]] list in the configuration"
+        if not config.approvers
+        else "the agent holds no key of the [[approver]] list"
+    )
     print(f"{login}: the OS account only ({why}); another person must approve from another account")
     return 0

@@ -20,7 +20,10 @@ from drs_link.errors import LinkError
 from drs_link.ops import ACTIONS, ApprovalBook, current_login
 
 COLUMNS = ("#", "Capsule", "Command", "Requested by", "Expires")
-HELP = "`↑`/`↓` a request · `Enter` approve it · `x` reject it (asks the reason) · the requester's own login is refused"
+HELP = (
+    "`↑`/`↓` a request · `Enter` approve it · `x` reject it (asks the reason) · "
+    "the requester's own login is refused"
+)
 """The keys, as the help screen lists them (``console.screens.registry``)."""
 
 

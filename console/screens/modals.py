@@ -53,7 +53,9 @@ class TextPromptModal(ModalScreen[str | None]):
 
     BINDINGS = [Binding("escape", "cancel", "Cancel")]
 
-    def __init__(self, title: str, prompt: str, placeholder: str = "", max_length: int = WAIVER_REASON_MAX) -> None:
+    def __init__(
+        self, title: str, prompt: str, placeholder: str = "", max_length: int = WAIVER_REASON_MAX
+    ) -> None:
         super().__init__()
         self.title_text = title
         self.prompt = prompt
@@ -136,7 +138,8 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
             yield Label("…or single-operator waiver (why you are alone):", markup=False)
             yield Input(id="waiver", placeholder="reason (logged)")
             if self.override_prompt is not None:
-                yield Static(self.override_prompt, markup=False, classes="dialog-warning")  # wraps; a Label did not
+                # A Static wraps; the Label it was ran to 161 columns and scrolled sideways.
+                yield Static(self.override_prompt, markup=False, classes="dialog-warning")
                 yield Input(id="override", placeholder="override reason (logged with the evidence)")
             with Horizontal(classes="dialog-buttons"):
                 yield Button("Cancel", id="cancel", variant="primary")

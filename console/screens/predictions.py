@@ -26,7 +26,11 @@ RELEASED = "released: no more release predictions; where it is falling is on Rec
 
 
 def describe(
-    prediction: PredictionSample | None, age_s: float | None, stale: bool, title: str, pending: str = NEEDS_POSITION
+    prediction: PredictionSample | None,
+    age_s: float | None,
+    stale: bool,
+    title: str,
+    pending: str = NEEDS_POSITION,
 ) -> str:
     """``pending`` says why there is none yet, as the console knows it (no weather, waiting, released)."""
     if prediction is None:
@@ -140,7 +144,8 @@ class PredictionScreen(ConsoleScreen):
             + " ago"
         )
         cursor = self.cursor if self.cursor is not None else default_cursor(self.window) if self.window else 0
-        timeline = render_timeline(self.window, cursor, age, missing=pending if now_prediction is None else "computing")
+        missing = pending if now_prediction is None else "computing"
+        timeline = render_timeline(self.window, cursor, age, missing=missing)
         self.query_one("#release-timeline", Static).update(timeline)
 
     @work(thread=True, exit_on_error=False, group="release-window")

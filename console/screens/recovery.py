@@ -97,8 +97,8 @@ class RecoveryScreen(CommandingScreen):
         reports = ops.stored_reports(self.capsule) if ops else []
         commands = ops.commands(self.capsule) if ops else []
         settings = commanded_settings(commands, reports) if ops else None
-        override = parachute_override(self.capsule, self.context.store.audit(self.capsule, action="mt.parachute"),
-                                      commands)  # fmt: skip
+        parachutes = self.context.store.audit(self.capsule, action="mt.parachute")
+        override = parachute_override(self.capsule, parachutes, commands)
         drop = (override, *drop_schedule(override, reports)) if override is not None else None
         track = track_from_reports(reports)
         landing = detect_landing(track)
@@ -129,7 +129,10 @@ class RecoveryScreen(CommandingScreen):
         if self.drop is None:
             return []
         override, drop, words = self.drop
-        return [f"⚠ {override.text} queued WITHOUT landed evidence: {words}", f"  {after_drop(drop, landing_time)}"]
+        return [
+            f"⚠ {override.text} queued WITHOUT landed evidence: {words}",
+            f"  {after_drop(drop, landing_time)}",
+        ]
 
     def reload_after_send(self) -> None:
         self.load()

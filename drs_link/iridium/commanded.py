@@ -189,7 +189,8 @@ def _sea_level_rate(a: Fix, b: Fix) -> float:
     raw rate halved from 18 km to 5 km under an intact canopy and was taken for a release."""
     from predictor.tracks import pressure_temperature
 
-    (pressure, temperature), (p0, t0) = pressure_temperature((a.alt_m + b.alt_m) / 2.0), pressure_temperature(0.0)
+    pressure, temperature = pressure_temperature((a.alt_m + b.alt_m) / 2.0)
+    p0, t0 = pressure_temperature(0.0)
     return _descent_rate(a, b) * math.sqrt(float((pressure / temperature) / (p0 / t0)))
 
 

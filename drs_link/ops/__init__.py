@@ -1,8 +1,9 @@
 """The operations layer: every safety rule, below any screen, for the CLI and the console alike.
 
 ``capsule`` is the release state machine; ``arming`` ARM then FIRE; ``gonogo`` the poll before ARM;
-``checklist`` and ``procedure`` the procedures as data; ``approval`` the second operator;
-``authorize`` the PARACHUTE gate, ``override`` what stays on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and ``origin`` what is known
+``checklist`` and ``procedure`` the procedures as data; ``approval`` the second operator and
+``identity`` which login is another person; ``authorize`` the PARACHUTE gate, ``override`` what stays
+on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and ``origin`` what is known
 of each capsule and how old it is; ``session`` a console that ends without quitting; and
 ``operations`` the console's engine without a screen.
 """

@@ -5,8 +5,9 @@ rule. COSMOS and Yamcs take a critical command's approval from another operator'
 hazardous command (Go with the rule on, PARACHUTE, a take-over of release authority) can wait as
 *pending approval* in the shared store until a different login approves or rejects it, from a second
 console or with `drs approve`. The login is the OS account of the real uid and an SSH key proven by
-an ssh-agent signature against the ``[[approver]]`` list (``identity``), never a typed name or a variable. A request expires
-(``APPROVAL_TTL_S``), an approval is used once, and both identities are audited. The typed-name waiver
+an ssh-agent signature against the ``[[approver]]`` list (``identity``), never a typed name or a
+variable. A request expires (``APPROVAL_TTL_S``), an approval is used once, and both identities are
+audited. The typed-name waiver
 stays as the logged single-operator path.
 
 Every change of a request is one compare-and-set in SQLite, so two approvers, or an approval racing
@@ -124,7 +125,7 @@ class ApprovalBook:
     def __init__(self, store: Store, clock: Callable[[], datetime] | None = None) -> None:
         self.store = store
         self.clock = clock or store.clock
-        """The store's time by default: a demo's simulated time is every process's time (``Store.run_clock``)."""
+        """The store's time by default: a demo's simulated time is every process's (``Store.run_clock``)."""
         store.ensure_schema(_DDL)
 
     def request(
@@ -175,11 +176,13 @@ class ApprovalBook:
         if request.requester.same_person(login):
             raise refuse(
                 f"the same login ({login}) that requested it cannot approve it: run drs approve from another "
-                "person's login (a different OS account, or their own key of the [[approver]] list in ssh-agent)"
+                "person's login (a different OS account, or their own [[approver]] key in ssh-agent)"
             )
         if operator.casefold() == request.requested_by.casefold():
-            raise refuse(f"{operator} requested it and cannot approve it too: the second operator approves under "
-                         "their own name")  # fmt: skip
+            raise refuse(
+                f"{operator} requested it and cannot approve it too: "
+                "the second operator approves under their own name"
+            )
         with self.store.transaction() as conn:
             changed = conn.execute(
                 "UPDATE approval SET state = ?, decided_by = ?, decider_user = ?, decider_key = ?, decided_utc = ?, "

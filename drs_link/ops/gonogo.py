@@ -257,8 +257,10 @@ class WaiverBook:
         if not operator.strip() or not reason.strip():
             raise RefusedError(f"{self.capsule}: a waiver needs the operator's name and a reason")
         if len(reason.strip()) > WAIVER_REASON_MAX:
-            raise RefusedError(f"{self.capsule}: a waiver reason is at most {WAIVER_REASON_MAX} characters "
-                               f"({len(reason.strip())} given): one sentence; the rest belongs in the flight log")  # fmt: skip
+            raise RefusedError(
+                f"{self.capsule}: a waiver reason is at most {WAIVER_REASON_MAX} characters "
+                f"({len(reason.strip())} given): one sentence; the rest belongs in the flight log"
+            )
         waiver = Waiver(item, operator.strip(), reason.strip(), self.clock())
         self.store.append_audit(
             waiver.operator, self.capsule, "waiver", "granted", {"item": item, "reason": waiver.reason},

@@ -49,7 +49,7 @@ def fingerprint(blob: bytes) -> str:
 
 
 def key_blob(public_key_line: str) -> bytes | None:
-    """The wire blob of an OpenSSH public key line (``ssh-ed25519 AAAA… comment``), None if it is not one."""
+    """The wire blob of an OpenSSH public key line (``ssh-ed25519 AAAA… comment``); None if not one."""
     fields = public_key_line.split()
     if len(fields) < 2:
         return None
@@ -59,7 +59,9 @@ def key_blob(public_key_line: str) -> bytes | None:
         return None
 
 
-def prove_agent_key(approvers: Iterable[tuple[str, str]], environ: Mapping[str, str] = os.environ) -> ProvenKey | None:
+def prove_agent_key(
+    approvers: Iterable[tuple[str, str]], environ: Mapping[str, str] = os.environ
+) -> ProvenKey | None:
     """The first listed approver (``(name, public key line)``) whose key in the ssh-agent at
     ``$SSH_AUTH_SOCK`` signs a fresh challenge that verifies against the LISTED public key; None when
     there is no agent, no listed key in it, or no valid signature."""

@@ -62,7 +62,9 @@ def parachute_override(
 ) -> ParachuteOverride | None:
     """The override in force for ``capsule``: its latest authorised PARACHUTE overrode the landed gate and
     the MT that carried it may have reached the gateway (the newest command with that text)."""
-    authorised = [r for r in records if r.capsule == capsule and r.action == "mt.parachute" and r.result == "authorised"]
+    authorised = [
+        r for r in records if r.capsule == capsule and r.action == "mt.parachute" and r.result == "authorised"
+    ]
     if not authorised:
         return None
     latest = authorised[-1]
@@ -74,8 +76,8 @@ def parachute_override(
     command = max(carried, key=lambda c: c.id) if carried else None
     if command is None or command.state in mt_commanded.NEVER_LEFT:  # it never left: it cannot drop anything
         return None
-    return ParachuteOverride(capsule, text, latest.operator, _approver(detail), str(detail["override_landed"]),
-                             command)  # fmt: skip
+    reason = str(detail["override_landed"])
+    return ParachuteOverride(capsule, text, latest.operator, _approver(detail), reason, command)
 
 
 def _spacing(reports: Sequence[StoredReport]) -> timedelta:
@@ -84,7 +86,9 @@ def _spacing(reports: Sequence[StoredReport]) -> timedelta:
     return GONE_MODE_SPACING
 
 
-def drop_schedule(override: ParachuteOverride, reports: Sequence[StoredReport]) -> tuple[datetime | None, str]:
+def drop_schedule(
+    override: ParachuteOverride, reports: Sequence[StoredReport]
+) -> tuple[datetime | None, str]:
     """When release B opens as the firmware does it, and the sentence that says so: the end of the cycle
     that downloads the MT, if that cycle's fix is inside the window; None when it will never open."""
     part = next((t for t in override.command.effects if is_command(t, PARACHUTE)), override.text)
@@ -97,7 +101,8 @@ def drop_schedule(override: ParachuteOverride, reports: Sequence[StoredReport]) 
         if fix is None:
             return None, "downloaded in a no-fix cycle, which ignores PARACHUTE: release B stays closed"
         if not mt_commands.parachute_accepted(hour * 60 + minute, fix.time.hour * 60 + fix.time.minute):
-            return None, f"downloaded with the {fix.time:%H:%M}Z fix, outside ±{reach} min: rejected, release B closed"
+            outside = f"downloaded with the {fix.time:%H:%M}Z fix, outside ±{reach} min"
+            return None, f"{outside}: rejected, release B closed"
         return fix.time, f"release B opened at the end of the {fix.time:%H:%M:%S}Z cycle (after its report)"
     if not reports:
         return None, f"no report yet: release B opens at the end of the first cycle within ±{reach} min"
@@ -105,10 +110,14 @@ def drop_schedule(override: ParachuteOverride, reports: Sequence[StoredReport]) 
     latest = hour * 60 + minute + reach
     last_minute = f"{latest // 60 % 24:02d}:{latest % 60:02d}"
     if not mt_commands.parachute_accepted(hour * 60 + minute, expected.hour * 60 + expected.minute):
-        return None, (f"the next cycle (expected {expected:%H:%M}Z) is outside ±{reach} min of "
-                      f"{hour:02d}:{minute:02d}: it will be rejected")  # fmt: skip
-    return expected, (f"scheduled drop at the end of the next cycle, expected {expected:%H:%M:%S}Z "
-                      f"(accepted until {last_minute}Z)")  # fmt: skip
+        return None, (
+            f"the next cycle (expected {expected:%H:%M}Z) is outside ±{reach} min of "
+            f"{hour:02d}:{minute:02d}: it will be rejected"
+        )
+    return expected, (
+        f"scheduled drop at the end of the next cycle, expected {expected:%H:%M:%S}Z "
+        f"(accepted until {last_minute}Z)"
+    )
 
 
 def after_drop(drop: datetime | None, landing_time: datetime | None) -> str:
@@ -118,6 +127,6 @@ def after_drop(drop: datetime | None, landing_time: datetime | None) -> str:
     if landing_time is not None and landing_time <= drop:
         return f"the canopy landing ({landing_time:%H:%M:%S}Z) comes before the drop"
     return (
-        f"from {drop:%H:%M:%S}Z it falls WITHOUT its parachute: faster and nearer below the drop point than any "
-        "canopy prediction shown; a canopy landing after that time will not happen"
+        f"from {drop:%H:%M:%S}Z it falls WITHOUT its parachute: faster and nearer below the drop point "
+        "than any canopy prediction shown; a canopy landing after that time will not happen"
     )

@@ -36,8 +36,14 @@ class _Host(App[None]):
         self.answers: list[HazardConfirmation | None] = []
 
     def on_mount(self) -> None:
-        modal = HazardModal("DRS1", "PARACHUTE", CONSEQUENCE, True, override_prompt=OVERRIDE,
-                            countdown=lambda: "queue before 12:20:00Z — 840 s left")  # fmt: skip
+        modal = HazardModal(
+            "DRS1",
+            "PARACHUTE",
+            CONSEQUENCE,
+            True,
+            override_prompt=OVERRIDE,
+            countdown=lambda: "queue before 12:20:00Z — 840 s left",
+        )
         self.push_screen(modal, self.answers.append)
 
 
@@ -52,7 +58,9 @@ async def test_the_parachute_dialog_fits_80x24_and_scrolls_to_the_focused_field_
         pane = app.screen.query_one(VerticalScroll)
         assert pane.region.bottom <= 24 and pane.region.y >= 0, "the dialog is inside the screen"
         assert pane.max_scroll_y > 0, "taller than the screen: this test checks the scrolling"
-        assert pane.max_scroll_x == 0, "every line wraps inside the dialog (the override prompt ran to 161 columns)"
+        assert pane.max_scroll_x == 0, (
+            "every line wraps inside the dialog (the override prompt ran to 161 columns)"
+        )
         visited = []
         for _ in range(3):
             await pilot.press("enter")

@@ -51,15 +51,37 @@ def overridden_app(tmp_path: Path, gateway: SimulatedRockblock, override: bool =
     for n, alt in enumerate((19_900.0, 18_000.0, 16_100.0)):
         at = T0 - timedelta(minutes=6 - 2 * n)
         fix = GnssFix(at, 67.70, 21.60 + 0.01 * n, alt, 12.0, 90.0, 0.9, 9)
-        ReportStore(store).add(Delivery(imei, n, format_mo(fix, 8.7, n).hex(), "webhook",
-                                        at + timedelta(seconds=20), transmit_utc=at + timedelta(seconds=15)))  # fmt: skip
+        ReportStore(store).add(
+            Delivery(
+                imei,
+                n,
+                format_mo(fix, 8.7, n).hex(),
+                "webhook",
+                at + timedelta(seconds=20),
+                transmit_utc=at + timedelta(seconds=15),
+            )
+        )
     if override:
         message = MtComposer().add("PARACHUTE", (12, 0)).build()
-        authorize_mt(store, "DRS1", "EL", message, operations.stored_reports("DRS1"), single_operator_waiver="alone",
-                     require_second_operator=False, override_landed="chase sees it down")  # fmt: skip
+        authorize_mt(
+            store,
+            "DRS1",
+            "EL",
+            message,
+            operations.stored_reports("DRS1"),
+            single_operator_waiver="alone",
+            require_second_operator=False,
+            override_landed="chase sees it down",
+        )
         operations.send_mt("DRS1", message, "DRS1")
-    setup = ConsoleSetup(mode="live", capsules=["DRS1", "DRS2", "DRS3"], store=store, clock=lambda: T0,
-                         operations=operations, export_dir=tmp_path / "exports")  # fmt: skip
+    setup = ConsoleSetup(
+        mode="live",
+        capsules=["DRS1", "DRS2", "DRS3"],
+        store=store,
+        clock=lambda: T0,
+        operations=operations,
+        export_dir=tmp_path / "exports",
+    )
     return DrsConsole(setup, live_timers=False)
 
 
@@ -88,8 +110,10 @@ async def test_the_override_banner_stays_on_the_fleet_release_and_recovery_scree
         await until_banner(pilot, app)
         await wait_for(pilot, lambda: screen.drop is not None)
         text = str(screen.query_one("#recovery-text").render())
-        assert ("⚠ [PARACHUTE=12:00] queued WITHOUT landed evidence: scheduled drop at the end of the next "
-                "cycle, expected 12:00:00Z (accepted until 12:14Z)") in text  # fmt: skip
+        assert (
+            "⚠ [PARACHUTE=12:00] queued WITHOUT landed evidence: scheduled drop at the end of the next "
+            "cycle, expected 12:00:00Z (accepted until 12:14Z)"
+        ) in text
         assert "from 12:00:00Z it falls WITHOUT its parachute" in text
 
 

@@ -51,13 +51,17 @@ async def test_a_released_capsule_s_predictions_point_to_recovery(
         await pilot.press("down", "down", "p")
         assert isinstance(app.screen, PredictionScreen) and app.screen.capsule == "DRS3"
         await wait_for(pilot, lambda: "Recovery" in painted(app, "#prediction-numbers"))
-        assert "Release now: no prediction yet (released: no more release predictions; where it is falling " \
-               "is on Recovery (Esc, then v))" in painted(app, "#prediction-numbers")  # fmt: skip
+        assert (
+            "Release now: no prediction yet (released: no more release predictions; where it is falling "
+            "is on Recovery (Esc, then v))" in painted(app, "#prediction-numbers")
+        )
         assert painted(app, "#release-timeline").startswith("Release window: released:")
         assert "computing" not in painted(app, "#release-timeline")
 
 
-async def test_the_gateway_item_says_configured_and_not_verified(canned_app: Callable[..., DrsConsole]) -> None:
+async def test_the_gateway_item_says_configured_and_not_verified(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
     app = canned_app()
     app.fleet.apply(TelemetryRecord(T0, None, GatewaySample(True, "user ops")))
     [item] = [i for i in app.gonogo("DRS1").items if i.key == "gateway"]
@@ -67,10 +71,18 @@ async def test_the_gateway_item_says_configured_and_not_verified(canned_app: Cal
 
 def test_a_missing_configuration_is_named_with_the_path_looked_for(tmp_path: Path) -> None:
     env = {k: v for k, v in os.environ.items() if k != "DRS_CONFIG"}
-    env.update(HOME=str(tmp_path / "home"), XDG_CONFIG_HOME=str(tmp_path / "config"),
-               XDG_DATA_HOME=str(tmp_path / "data"))  # fmt: skip
-    done = subprocess.run([sys.executable, "-m", "console.commands.main", "mo", "health", "DRS1"], env=env,
-                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    env.update(
+        HOME=str(tmp_path / "home"),
+        XDG_CONFIG_HOME=str(tmp_path / "config"),
+        XDG_DATA_HOME=str(tmp_path / "data"),
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "console.commands.main", "mo", "health", "DRS1"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 1
     assert done.stderr == (
         f"drs: error: no capsule named 'DRS1' in the defaults: no configuration file at "
@@ -89,8 +101,11 @@ async def test_every_key_is_in_the_footer_or_the_help(canned_app: Callable[..., 
         await pilot.press("i")
         assert isinstance(app.screen, IridiumScreen)
         await pilot.pause()
-        shown = {binding.key_display or binding.key for _, binding, _, _ in app.active_bindings.values()
-                 if binding.show}  # fmt: skip
+        shown = {
+            binding.key_display or binding.key
+            for _, binding, _, _ in app.active_bindings.values()
+            if binding.show
+        }
         assert {"o/O", "c/C"} <= shown
     text = help_text()
     assert "`C` parachute at a time you type" in text
@@ -110,11 +125,15 @@ async def test_a_waiver_reason_is_capped_at_its_stated_length(canned_app: Callab
         prompt = app.screen
         assert isinstance(prompt, TextPromptModal)
         field = prompt.query_one("#answer")
-        assert WAIVER_REASON_MAX == 200 and field.placeholder == "at most 200 characters"  # type: ignore[attr-defined]
+        assert WAIVER_REASON_MAX == 200
+        assert field.placeholder == "at most 200 characters"  # type: ignore[attr-defined]
         await pilot.press(*("x" * 210), "enter")
         await wait_for(pilot, lambda: bool(app.store.audit("DRS1", text="xxxx")))
-        [granted] = [r for r in app.store.audit("DRS1") if r.action == "waiver" and r.result == "granted"
-                     and "xxx" in str(r.detail)]  # fmt: skip
+        [granted] = [
+            r
+            for r in app.store.audit("DRS1")
+            if r.action == "waiver" and r.result == "granted" and "xxx" in str(r.detail)
+        ]
         assert granted.detail is not None and len(granted.detail["reason"]) == 200
         assert app.ops is not None
         with pytest.raises(RefusedError, match=r"a waiver reason is at most 200 characters \(3000 given\)"):

@@ -54,7 +54,7 @@ def accounts() -> Iterator[tuple[str, str, str]]:
 
 @pytest.fixture
 def place() -> Iterator[Path]:
-    """A directory every account can enter and make its own in, like /tmp (pytest's tmp_path is root's, 0700)."""
+    """A directory every account can enter and make its own in, like /tmp (pytest's tmp_path is 0700)."""
     path = Path(tempfile.mkdtemp(prefix="drs-shared-"))
     path.chmod(0o1777)
     yield path
@@ -118,11 +118,16 @@ def test_one_accounts_request_is_approved_by_the_other_through_a_shared_store(
 
     code, out = as_account(bob, lambda: main(["--config", str(bob_config), "approve", "1"]))
     assert code == 1, out
-    assert f"it belongs to {alice}" in out and "drs setup shared-store" in out, "the refusal says how to share"
+    assert f"it belongs to {alice}" in out and "drs setup shared-store" in out, (
+        "the refusal says how to share"
+    )
 
     code, out = as_account(alice, lambda: main(["setup", "shared-store", str(store_dir), "--group", group]))
     assert code == 0, out
-    assert f"{store_dir}: group {group}, mode 2770" in out and f"{store_dir / 'drs.sqlite'}: group {group}" in out
+    assert (
+        f"{store_dir}: group {group}, mode 2770" in out
+        and f"{store_dir / 'drs.sqlite'}: group {group}" in out
+    )
     assert stat.S_IMODE(store_dir.stat().st_mode) == 0o2770
     assert stat.S_IMODE((store_dir / "drs.sqlite").stat().st_mode) == 0o660
 

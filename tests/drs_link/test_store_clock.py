@@ -23,16 +23,26 @@ def test_another_process_on_a_demo_store_writes_and_judges_in_the_demo_s_time(tm
     demo.run_clock(START, 4.0)
     demo.append_audit("EL", "DRS1", "arm", "armed")
     request = ApprovalBook(demo).request("DRS1", "go", "release DRS1", "EL", Login("el"))
-    other = ("import sys; from drs_link.store import Store; from drs_link.ops.approval import ApprovalBook; "
-             "s = Store.open(sys.argv[1]); s.append_audit('JM', 'DRS1', 'approval.note', 'ok'); "
-             "print(ApprovalBook(s).get(1).expires_utc.isoformat(), ApprovalBook(s).clock().isoformat())")  # fmt: skip
-    out = subprocess.run([sys.executable, "-c", other, str(path)], check=True, capture_output=True, text=True).stdout
+    other = (
+        "import sys; from drs_link.store import Store; from drs_link.ops.approval import ApprovalBook; "
+        "s = Store.open(sys.argv[1]); s.append_audit('JM', 'DRS1', 'approval.note', 'ok'); "
+        "print(ApprovalBook(s).get(1).expires_utc.isoformat(), ApprovalBook(s).clock().isoformat())"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", other, str(path)], check=True, capture_output=True, text=True
+    ).stdout
     expires, their_now = (parse_iso_utc(word) for word in out.split())
     assert expires == request.expires_utc
-    assert abs((their_now - demo.clock()).total_seconds()) < 60.0, "the same simulated time (a start-up apart)"
-    assert their_now < START + timedelta(hours=1) and utc_now() - their_now > timedelta(days=1), "not the wall"
+    assert abs((their_now - demo.clock()).total_seconds()) < 60.0, (
+        "the same simulated time (a start-up apart)"
+    )
+    assert their_now < START + timedelta(hours=1) and utc_now() - their_now > timedelta(days=1), (
+        "not the wall"
+    )
     times = [row.time_utc for row in Store.open(path).audit("DRS1")]
-    assert times == sorted(times) and all(t < START + timedelta(hours=1) for t in times), "one clock, in order"
+    assert times == sorted(times) and all(t < START + timedelta(hours=1) for t in times), (
+        "one clock, in order"
+    )
 
 
 def test_a_store_without_a_clock_keeps_the_wall_clock(tmp_path: Path) -> None:

@@ -73,7 +73,10 @@ def test_a_fall_three_times_faster_after_delivery_is_still_hinted(rig: Rig) -> N
     """3× the canopy's speed: less than a capsule without its canopy would fall, so the least to catch."""
     descend(rig, free_fall_from_minute=6)
     detail = rig.settings().parachute.detail
-    assert "hint only: the descent rate went from" in detail and "(a release or a landing both do that)" in detail
+    assert (
+        "hint only: the descent rate went from" in detail
+        and "(a release or a landing both do that)" in detail
+    )
 
 
 def test_the_step_is_one_second_so_the_law_is_followed_closely() -> None:

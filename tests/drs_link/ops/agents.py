@@ -24,14 +24,17 @@ def public_line(key: Path) -> str:
 
 def printed_fingerprint(key: Path) -> str:
     """The fingerprint as ssh-keygen itself prints it, to compare ours against."""
-    out = subprocess.run(["ssh-keygen", "-l", "-E", "sha256", "-f", str(key)], check=True, capture_output=True,
-                         text=True).stdout  # fmt: skip
+    out = subprocess.run(
+        ["ssh-keygen", "-l", "-E", "sha256", "-f", str(key)], check=True, capture_output=True, text=True
+    ).stdout
     return out.split()[1]
 
 
 def approver_tables(**people: Path) -> str:
     """``[[approver]]`` TOML for ``name=key`` pairs."""
-    return "".join(f'[[approver]]\nname = "{name}"\nkey = "{public_line(key)}"\n' for name, key in people.items())
+    return "".join(
+        f'[[approver]]\nname = "{name}"\nkey = "{public_line(key)}"\n' for name, key in people.items()
+    )
 
 
 @contextmanager
@@ -39,8 +42,9 @@ def ssh_agent(directory: Path, *keys: Path) -> Iterator[str]:
     """An ssh-agent process holding ``keys``; yields its socket path (the value of SSH_AUTH_SOCK)."""
     directory.mkdir(parents=True, exist_ok=True)
     sock = directory / f"agent.{len(list(directory.glob('agent.*')))}.sock"
-    agent = subprocess.Popen(["ssh-agent", "-D", "-a", str(sock)], stdout=subprocess.DEVNULL,
-                             stderr=subprocess.DEVNULL)  # fmt: skip
+    agent = subprocess.Popen(
+        ["ssh-agent", "-D", "-a", str(sock)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     try:
         deadline = time.monotonic() + 10.0
         while not sock.exists():
@@ -48,8 +52,12 @@ def ssh_agent(directory: Path, *keys: Path) -> Iterator[str]:
                 raise RuntimeError("ssh-agent did not start")
             time.sleep(0.02)
         for key in keys:
-            subprocess.run(["ssh-add", "-q", str(key)], check=True, capture_output=True,
-                           env={**os.environ, "SSH_AUTH_SOCK": str(sock)})  # fmt: skip
+            subprocess.run(
+                ["ssh-add", "-q", str(key)],
+                check=True,
+                capture_output=True,
+                env={**os.environ, "SSH_AUTH_SOCK": str(sock)},
+            )
         yield str(sock)
     finally:
         agent.kill()

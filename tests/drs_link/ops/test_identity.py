@@ -39,8 +39,13 @@ def clean_env(**extra: str) -> dict[str, str]:
 
 
 def drs_approve(config_file: Path, env: dict[str, str], *argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-c", CHILD, "--config", str(config_file), "approve", *argv],
-                          env=env, capture_output=True, text=True, timeout=60)  # fmt: skip
+    return subprocess.run(
+        [sys.executable, "-c", CHILD, "--config", str(config_file), "approve", *argv],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
 
 
 def request_as(config_file: Path, env: dict[str, str]) -> int:
@@ -68,29 +73,43 @@ def test_a_forged_ssh_user_auth_is_not_another_login(tmp_path: Path, keys: dict[
         forged[name].write_text("publickey " + public_line(keys[name]) + "\n")
     approvers = approver_tables(EL=keys["el"], Bob=keys["bob"])
     request = request_as(config(tmp_path, "EL", approvers), clean_env(SSH_USER_AUTH=str(forged["el"])))
-    approving = drs_approve(config(tmp_path, "Bob", approvers), clean_env(SSH_USER_AUTH=str(forged["bob"])),
-                            str(request))  # fmt: skip
+    approving = drs_approve(
+        config(tmp_path, "Bob", approvers), clean_env(SSH_USER_AUTH=str(forged["bob"])), str(request)
+    )
     assert approving.returncode == 1, approving.stdout
-    assert f"approval #{request} refused: the same login ({account_name()}) that requested it" in approving.stderr
+    assert (
+        f"approval #{request} refused: the same login ({account_name()}) that requested it"
+        in approving.stderr
+    )
     assert current_login(clean_env(SSH_USER_AUTH=str(forged["bob"]))) == Login(account_name())
 
 
-def test_a_listed_key_proven_by_a_real_ssh_agent_is_another_person(tmp_path: Path, keys: dict[str, Path]) -> None:
+def test_a_listed_key_proven_by_a_real_ssh_agent_is_another_person(
+    tmp_path: Path, keys: dict[str, Path]
+) -> None:
     approvers = approver_tables(EL=keys["el"], Bob=keys["bob"])
-    with ssh_agent(tmp_path / "el-agent", keys["el"]) as el_sock, ssh_agent(tmp_path / "bob-agent", keys["bob"]) as bob_sock:
+    with (
+        ssh_agent(tmp_path / "el-agent", keys["el"]) as el_sock,
+        ssh_agent(tmp_path / "bob-agent", keys["bob"]) as bob_sock,
+    ):
         request = request_as(config(tmp_path, "EL", approvers), clean_env(SSH_AUTH_SOCK=el_sock))
-        approving = drs_approve(config(tmp_path, "bob-console", approvers), clean_env(SSH_AUTH_SOCK=bob_sock),
-                                str(request))  # fmt: skip
+        approving = drs_approve(
+            config(tmp_path, "bob-console", approvers), clean_env(SSH_AUTH_SOCK=bob_sock), str(request)
+        )
     assert approving.returncode == 0, approving.stderr
     book = ApprovalBook(Store.open(tmp_path / "data" / "drs.sqlite"))
     decided = book.get(request)
     assert decided.state == "approved"
-    assert decided.requested_by == "EL" and decided.requester.key_fingerprint == printed_fingerprint(keys["el"])
+    assert decided.requested_by == "EL" and decided.requester.key_fingerprint == printed_fingerprint(
+        keys["el"]
+    )
     assert decided.decided_by == "Bob", "the proven key's person, not the name typed in the approver's file"
     assert decided.decider == Login(account_name(), printed_fingerprint(keys["bob"]))
 
 
-def test_the_same_uid_without_a_proven_key_is_not_a_second_login(tmp_path: Path, keys: dict[str, Path]) -> None:
+def test_the_same_uid_without_a_proven_key_is_not_a_second_login(
+    tmp_path: Path, keys: dict[str, Path]
+) -> None:
     approvers = approver_tables(EL=keys["el"], Bob=keys["bob"])
     bob_config = config(tmp_path, "Bob", approvers)
     with ssh_agent(tmp_path / "el-agent", keys["el"]) as el_sock:
@@ -116,13 +135,16 @@ def test_a_person_with_two_listed_keys_cannot_approve_their_own_request(
     approvers = approver_tables(EL=keys["el"]) + approver_tables(EL=keys["bob"])
     with ssh_agent(tmp_path / "a", keys["el"]) as first, ssh_agent(tmp_path / "b", keys["bob"]) as second:
         request = request_as(config(tmp_path, "EL", approvers), clean_env(SSH_AUTH_SOCK=first))
-        approving = drs_approve(config(tmp_path, "Someone", approvers), clean_env(SSH_AUTH_SOCK=second),
-                                str(request))  # fmt: skip
+        approving = drs_approve(
+            config(tmp_path, "Someone", approvers), clean_env(SSH_AUTH_SOCK=second), str(request)
+        )
     assert approving.returncode == 1
     assert "EL requested it and cannot approve it too" in approving.stderr
 
 
-def test_the_agent_proof_checks_the_listed_key_and_the_signature(tmp_path: Path, keys: dict[str, Path]) -> None:
+def test_the_agent_proof_checks_the_listed_key_and_the_signature(
+    tmp_path: Path, keys: dict[str, Path]
+) -> None:
     listed = [("EL", public_line(keys["el"])), ("Bob", public_line(keys["bob"]))]
     with ssh_agent(tmp_path / "agent", keys["stranger"], keys["bob"]) as sock:
         proven = prove_agent_key(listed, {"SSH_AUTH_SOCK": sock})
@@ -148,8 +170,14 @@ def test_drs_setup_login_says_which_login_the_rule_sees(tmp_path: Path, keys: di
     el_config = config(tmp_path, "EL", approvers)
 
     def setup_login(env: dict[str, str]) -> str:
-        done = subprocess.run([sys.executable, "-c", CHILD, "--config", str(el_config), "setup", "login"],
-                              env=env, capture_output=True, text=True, timeout=60, check=True)  # fmt: skip
+        done = subprocess.run(
+            [sys.executable, "-c", CHILD, "--config", str(el_config), "setup", "login"],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=True,
+        )
         return done.stdout.strip()
 
     assert setup_login(clean_env()) == (

@@ -45,8 +45,16 @@ def falling(rig: Rig) -> None:
 def overridden_send(rig: Rig, hhmm: tuple[int, int]) -> lc.Command:
     message = MtComposer().add("PARACHUTE", hhmm).build()
     reports = rig.reports.for_imei(IMEI)
-    authorize_mt(rig.store, "DRS1", "alice", message, reports, single_operator_waiver=WAIVER,
-                 require_second_operator=False, override_landed=REASON)  # fmt: skip
+    authorize_mt(
+        rig.store,
+        "DRS1",
+        "alice",
+        message,
+        reports,
+        single_operator_waiver=WAIVER,
+        require_second_operator=False,
+        override_landed=REASON,
+    )
     return rig.send(message, at(5))
 
 
@@ -78,7 +86,9 @@ def test_the_banner_names_who_overrode_and_who_approved_until_the_drop(rig: Rig)
     assert drop == at(6) and words == "release B opened at the end of the 10:06:07Z cycle (after its report)"
 
 
-def test_a_parachute_outside_the_window_of_its_cycle_is_said_to_be_rejected_as_the_firmware_does(rig: Rig) -> None:
+def test_a_parachute_outside_the_window_of_its_cycle_is_said_to_be_rejected_as_the_firmware_does(
+    rig: Rig,
+) -> None:
     falling(rig)
     overridden_send(rig, (10, 30))
     override = override_now(rig)
@@ -107,16 +117,31 @@ def test_a_later_parachute_with_landed_evidence_ends_the_banner(rig: Rig) -> Non
     for minute in (8, 10, 12, 14):
         rig.cycle(at(minute), alt=420.0)
     message = MtComposer().add("PARACHUTE", (10, 16)).build()
-    authorize_mt(rig.store, "DRS1", "alice", message, rig.reports.for_imei(IMEI), single_operator_waiver=WAIVER,
-                 require_second_operator=False)  # fmt: skip
+    authorize_mt(
+        rig.store,
+        "DRS1",
+        "alice",
+        message,
+        rig.reports.for_imei(IMEI),
+        single_operator_waiver=WAIVER,
+        require_second_operator=False,
+    )
     assert override_now(rig) is None
 
 
 def test_nothing_is_said_when_the_overridden_mt_never_reached_the_gateway(rig: Rig) -> None:
     falling(rig)
     message = MtComposer().add("PARACHUTE", (10, 6)).build()
-    authorize_mt(rig.store, "DRS1", "alice", message, rig.reports.for_imei(IMEI), single_operator_waiver=WAIVER,
-                 require_second_operator=False, override_landed=REASON)  # fmt: skip
+    authorize_mt(
+        rig.store,
+        "DRS1",
+        "alice",
+        message,
+        rig.reports.for_imei(IMEI),
+        single_operator_waiver=WAIVER,
+        require_second_operator=False,
+        override_landed=REASON,
+    )
     rig.clock.now = at(5) + timedelta(seconds=1)
     rig.life.request(CAPSULE, message)  # and never sent
     assert override_now(rig) is None, "requested, never sent: it cannot drop anything"
