@@ -21,13 +21,12 @@ from drs_link.ops.telemetry import GatewaySample, ReleaseSample, TelemetryRecord
 from drs_link.store import Store
 from tests.console.conftest import T0, offline_config, wait_for
 
-pytestmark = pytest.mark.asyncio
-
 
 def painted(app: DrsConsole, selector: str) -> str:
     return str(app.screen.query_one(selector).render())
 
 
+@pytest.mark.asyncio
 async def test_without_weather_predictions_and_go_no_go_say_no_weather_loaded(tmp_path: Path) -> None:
     config = offline_config(tmp_path)
     app = DrsConsole(ConsoleSetup(mode="live", capsules=["DRS1"], store=Store.open(config.store_path)))
@@ -42,6 +41,7 @@ async def test_without_weather_predictions_and_go_no_go_say_no_weather_loaded(tm
         assert item.detail == NO_WEATHER
 
 
+@pytest.mark.asyncio
 async def test_a_released_capsule_s_predictions_point_to_recovery(
     canned_app: Callable[..., DrsConsole],
 ) -> None:
@@ -59,6 +59,7 @@ async def test_a_released_capsule_s_predictions_point_to_recovery(
         assert "computing" not in painted(app, "#release-timeline")
 
 
+@pytest.mark.asyncio
 async def test_the_gateway_item_says_configured_and_not_verified(
     canned_app: Callable[..., DrsConsole],
 ) -> None:
@@ -91,6 +92,7 @@ def test_a_missing_configuration_is_named_with_the_path_looked_for(tmp_path: Pat
     )
 
 
+@pytest.mark.asyncio
 async def test_every_key_is_in_the_footer_or_the_help(canned_app: Callable[..., DrsConsole]) -> None:
     """Iridium's `C` and `O` were bound but in neither the footer nor the help; Approvals' keys nowhere."""
     from console.screens.help import help_text
@@ -112,6 +114,7 @@ async def test_every_key_is_in_the_footer_or_the_help(canned_app: Callable[..., 
     assert "**Approvals**: `↑`/`↓` a request · `Enter` approve it · `x` reject it" in text
 
 
+@pytest.mark.asyncio
 async def test_a_waiver_reason_is_capped_at_its_stated_length(canned_app: Callable[..., DrsConsole]) -> None:
     """A 3,000-character reason pushed go/no-go and the checklist off the screen: the field takes 200, says
     so, and the operations layer refuses a longer one from any caller."""
@@ -140,6 +143,7 @@ async def test_a_waiver_reason_is_capped_at_its_stated_length(canned_app: Callab
             app.ops.ops("DRS1").waivers.grant("gnss", "EL", "y" * 3000)
 
 
+@pytest.mark.asyncio
 async def test_after_release_the_footer_offers_no_arm_fire_power_sync_or_waive(
     canned_app: Callable[..., DrsConsole],
 ) -> None:
@@ -157,3 +161,32 @@ async def test_after_release_the_footer_offers_no_arm_fire_power_sync_or_waive(
         after = {binding.action for _, binding, _, _ in app.active_bindings.values() if binding.show}
         assert not {"arm", "fire", "power_on", "sync", "waive"} & after, after
         assert "reset" in {binding.action for _, binding, _, _ in app.active_bindings.values()}
+
+
+@pytest.mark.asyncio
+async def test_arm_while_armed_asks_before_it_restarts_the_window(
+    canned_app: Callable[..., DrsConsole], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from console.screens.modals import ConfirmModal
+    from drs_link.ops.gonogo import GoNoGoItem, GoNoGoReport, Verdict
+
+    app = canned_app()
+    assert app.ops is not None
+    arming = app.ops.ops("DRS1").arming
+    go = GoNoGoReport("DRS1", (GoNoGoItem("link", "SSH link up", Verdict.GO, "up"),), "all-go", T0)
+    monkeypatch.setattr(app.context, "gonogo", lambda capsule: go)
+
+    def windows() -> int:
+        return len([r for r in app.store.audit("DRS1") if (r.action, r.result) == ("arm", "armed")])
+
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("enter", "a")
+        await wait_for(pilot, lambda: arming.status().armed)
+        assert windows() == 1
+        await pilot.press("a")
+        assert isinstance(app.screen, ConfirmModal), "a second `a` asks first"
+        await pilot.press("enter")  # Cancel has the focus: a reflex Enter restarts nothing
+        await wait_for(pilot, lambda: not isinstance(app.screen, ConfirmModal))
+        assert windows() == 1 and arming.status().armed
+        await pilot.press("a", "tab", "enter")
+        await wait_for(pilot, lambda: windows() == 2)
