@@ -9,6 +9,7 @@ approvals. Nothing here imports Textual: it is the plain-Python side of the cons
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime, timedelta
@@ -24,15 +25,19 @@ from drs_link.ops import (
     FleetState,
     GoNoGoReport,
     Operations,
+    ParachuteOverride,
     ReleaseOrigin,
     TelemetryRecord,
     evaluate,
     load_checklists,
+    parachute_override,
     release_origin,
 )
 from drs_link.store import Store, utc_now
 
 POLL_PERIOD_S = 5.0
+OVERRIDE_READ_S = 1.0
+"""How often the store is read for PARACHUTE overrides: every screen in sight asks once a second."""
 LOW_BANDWIDTH_AGE_STEP_S = 10.0
 
 
@@ -78,6 +83,7 @@ class ConsoleContext:
         """The procedure the operations layer ticks, so the screen shows the steps it completes."""
         self.warn = warn
         """Tells the operator something from any thread (the app posts it as a notice)."""
+        self._overrides: tuple[float, list[ParachuteOverride]] = (-OVERRIDE_READ_S, [])
 
     @property
     def mode(self) -> str:
@@ -122,6 +128,21 @@ class ConsoleContext:
         """The capsule's ARM/FIRE controller; only a commanding console has one (check ``commanding``)."""
         assert self.ops is not None
         return self.ops.ops(capsule).arming
+
+    def parachute_overrides(self) -> list[ParachuteOverride]:
+        """Each capsule's PARACHUTE queued without landed evidence (``drs_link.ops.override``), from any
+        console on the store; read at most once per ``OVERRIDE_READ_S``."""
+        read_at, found = self._overrides
+        if self.ops is None or time.monotonic() - read_at < OVERRIDE_READ_S:
+            return found
+        found = []
+        for capsule in self.setup.capsules:
+            override = parachute_override(capsule, self.store.audit(capsule, action="mt.parachute"),
+                                          self.ops.commands(capsule))  # fmt: skip
+            if override is not None:
+                found.append(override)
+        self._overrides = (time.monotonic(), found)
+        return found
 
     def checklist_run(self, capsule: str, checklist: Checklist) -> ChecklistRun:
         return ChecklistRun(self.store, checklist, capsule, self.now)

@@ -186,6 +186,7 @@ class DemoWorld:
         self.gateway = SimulatedRockblock("drs-demo", secrets.token_urlsafe(12), tuple(self.iridium)).start()
         data_dir = self.root / "data"
         self.store = Store.open(data_dir / "drs.sqlite")
+        self.store.run_clock(self.clock(), self.speed)  # every process on this store reads the demo's time
         # The demo gateway signs every delivery as Ground Control does, with a key of its own.
         self.jwt_private_key, public = generate_test_keys()
         self.jwt_public_key_file = self.root / "rockblock-jwt-public.pem"

@@ -182,6 +182,16 @@ class CapsuleConfig:
 
 
 @dataclass(frozen=True)
+class ApproverConfig:
+    """A person who may approve a hazardous command with their SSH key (``[[approver]]``): ``key`` is the
+    public key line (``ssh-ed25519 AAAA… comment``). The console proves the key by a signature from
+    ssh-agent (``drs_link/ops/identity.py``); the list is only as trustworthy as who can edit this file."""
+
+    name: str
+    key: str
+
+
+@dataclass(frozen=True)
 class Config:
     operator: OperatorConfig = field(default_factory=OperatorConfig)
     data: DataConfig = field(default_factory=DataConfig)
@@ -191,6 +201,7 @@ class Config:
     balloon_feed: BalloonFeedConfig = field(default_factory=BalloonFeedConfig)
     chase: ChaseConfig = field(default_factory=ChaseConfig)
     capsules: tuple[CapsuleConfig, ...] = ()
+    approvers: tuple[ApproverConfig, ...] = ()
     source: Path | None = None
 
     def capsule(self, name: str) -> CapsuleConfig:
@@ -198,7 +209,15 @@ class Config:
             if capsule.name == name:
                 return capsule
         known = ", ".join(c.name for c in self.capsules) or "none configured"
-        raise ConfigError(f"no capsule named {name!r} in the configuration (known: {known})")
+        raise ConfigError(f"no capsule named {name!r} in {self.where()} (known: {known})")
+
+    def where(self) -> str:
+        """Which file these settings came from, or the path looked for when there was none: an error that
+        says "none configured" must say where it looked, or the operator edits the wrong file."""
+        if self.source is not None:
+            return str(self.source)
+        return (f"the defaults: no configuration file at {default_config_path()} "
+                f"(create it, or give --config FILE or ${CONFIG_ENV})")  # fmt: skip
 
     @property
     def store_path(self) -> Path:
@@ -401,9 +420,9 @@ def parse_config(document: dict[str, Any], source: Path | None = None) -> Config
         "balloon_feed": BalloonFeedConfig,
         "chase": ChaseConfig,
     }
-    unknown = sorted(set(document) - set(sections) - {"capsule"})
+    unknown = sorted(set(document) - set(sections) - {"capsule", "approver"})
     if unknown:
-        allowed = ", ".join(sorted([*sections, "capsule"]))
+        allowed = ", ".join(sorted([*sections, "capsule", "approver"]))
         raise ConfigError(f"{unknown[0]}: unknown section (allowed: {allowed})")
     kwargs: dict[str, Any] = {
         name: _build(cls, document[name], name) for name, cls in sections.items() if name in document
@@ -424,7 +443,34 @@ def parse_config(document: dict[str, Any], source: Path | None = None) -> Config
     duplicates = sorted({n for n in names if names.count(n) > 1})
     if duplicates:
         raise ConfigError(f"capsule.name: {duplicates[0]!r} is used by more than one capsule")
-    return Config(**kwargs, capsules=tuple(capsules), source=source)
+    return Config(**kwargs, capsules=tuple(capsules), approvers=_approvers(document.get("approver", [])),
+                  source=source)  # fmt: skip
+
+
+def _approvers(tables: Any) -> tuple[ApproverConfig, ...]:
+    if not isinstance(tables, list):
+        raise ConfigError("approver: write each approver as an [[approver]] table with name and key")
+    approvers = []
+    for index, table in enumerate(tables):
+        approver = _build(ApproverConfig, table, f"approver[{index}]")
+        fields = approver.key.split()
+        if len(fields) < 2 or not fields[0].startswith(("ssh-", "ecdsa-", "sk-")):
+            raise ConfigError(
+                f"approver[{index}].key: must be an OpenSSH public key line (ssh-ed25519 AAAA…)"
+            )
+        if not approver.name.strip():
+            raise ConfigError(f"approver[{index}].name: the person's operator name is required")
+        approvers.append(approver)
+    return tuple(approvers)
+
+
+_approvers_in_use: tuple[ApproverConfig, ...] = ()
+
+
+def approvers_in_use() -> tuple[ApproverConfig, ...]:
+    """The ``[[approver]]`` list of the configuration this process loaded last. The login is proven deep
+    below the command that read the file (``current_login``), and must be proven against that file."""
+    return _approvers_in_use
 
 
 def load_config(path: str | Path | None = None) -> Config:
@@ -450,4 +496,7 @@ def load_config(path: str | Path | None = None) -> Config:
         raise ConfigError(f"{resolved}: not valid TOML: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{resolved}: cannot read: {exc}") from None
-    return parse_config(document, source=resolved)
+    config = parse_config(document, source=resolved)
+    global _approvers_in_use
+    _approvers_in_use = config.approvers
+    return config

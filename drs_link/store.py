@@ -8,16 +8,17 @@ own their tables: they call ``ensure_schema`` with their DDL instead of editing 
 
 from __future__ import annotations
 
+import grp
 import json
 import os
 import pwd
 import socket
 import sqlite3
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -35,9 +36,18 @@ CREATE TABLE IF NOT EXISTS audit (
     session TEXT
 );
 CREATE INDEX IF NOT EXISTS audit_capsule_time ON audit (capsule, time_utc);
+CREATE INDEX IF NOT EXISTS audit_capsule_action ON audit (capsule, action);
 """
 _AUDIT_SESSION_COLUMN = "ALTER TABLE audit ADD COLUMN session TEXT"
 """Stores made before the session column get it on first open (SQLite adds it in place, NULL for old rows)."""
+_CLOCK_DDL = """
+CREATE TABLE IF NOT EXISTS store_clock (
+    id INTEGER PRIMARY KEY CHECK (id = 1),
+    wall_utc TEXT NOT NULL,
+    store_utc TEXT NOT NULL,
+    scale REAL NOT NULL
+);
+"""
 
 
 def session_name() -> str:
@@ -75,6 +85,110 @@ class AuditRecord:
     """The process that wrote it (``session_name``); None for rows older than the column."""
 
 
+SHARED_DIR_MODE = 0o2770
+"""A store directory that several OS accounts share (``drs setup shared-store``): owner and group
+read, write and enter it, nobody else; setgid, so every file made in it (the store, its -wal and -shm)
+belongs to the directory's group whichever operator's console created it."""
+SHARED_FILE_MODE = 0o660
+PRIVATE_FILE_MODE = 0o600
+
+
+def _scaled_clock(wall: datetime, start: datetime, scale: float) -> Callable[[], datetime]:
+    """``start`` at the wall time ``wall``, running ``scale`` times faster: from the wall clock, which every
+    process reads alike (a monotonic clock is per machine boot, not per store)."""
+
+    def now() -> datetime:
+        return start + timedelta(seconds=(utc_now() - wall).total_seconds() * scale)
+
+    return now
+
+
+def shared_directory(directory: Path) -> bool:
+    """Whether ``directory`` is set up for a group of accounts: setgid and group read-write-enter."""
+    try:
+        mode = directory.stat().st_mode
+    except OSError:
+        return False
+    return mode & SHARED_DIR_MODE == SHARED_DIR_MODE
+
+
+def share_directory(directory: Path, group: str, store_name: str = "drs.sqlite") -> list[str]:
+    """Make ``directory`` a store several OS accounts use: owned by ``group``, mode 2770, and the store
+    with its -wal and -shm group read-write (0660). Idempotent; what was done, one line each.
+
+    Only the group's members (and root) can then read or write the audit: the operators' accounts,
+    added to the group by root (``usermod -aG GROUP NAME``), not everyone on the machine."""
+    try:
+        gid = grp.getgrnam(group).gr_gid
+    except KeyError:
+        raise StoreError(
+            f"group {group!r} does not exist: as root, `groupadd {group}`, then `usermod -aG {group} NAME` "
+            "for each operator's account"
+        ) from None
+    done = []
+    try:
+        directory.mkdir(mode=0o700, parents=True, exist_ok=True)
+        os.chown(directory, -1, gid)
+        directory.chmod(SHARED_DIR_MODE)
+        done.append(f"{directory}: group {group}, mode 2770 (setgid: new files belong to {group})")
+        for name in (store_name, f"{store_name}-wal", f"{store_name}-shm"):
+            file = directory / name
+            if file.exists():
+                os.chown(file, -1, gid)
+                file.chmod(SHARED_FILE_MODE)
+                done.append(f"{file}: group {group}, mode 0660")
+    except OSError as exc:
+        raise StoreError(
+            f"cannot share {directory} with group {group}: {exc.strerror} (run it as the directory's owner, "
+            "a member of the group, or root)"
+        ) from None
+    return done
+
+
+def _protect(path: Path) -> None:
+    """Create the store file with its mode before SQLite does (its -wal and -shm take the main file's
+    mode). The audit log names operators and holds the gateway's echoes: owner only, unless the
+    directory is a shared one, where the group (the operators) reads and writes it too and nobody else.
+    Another account's file is left as it is: only its owner may change its mode, and says so if it
+    cannot be used."""
+    mode = SHARED_FILE_MODE if shared_directory(path.parent) else PRIVATE_FILE_MODE
+    try:
+        path.touch(mode=mode, exist_ok=True)
+        info = path.stat()
+        if info.st_uid == os.geteuid() and info.st_mode & 0o777 != mode:
+            path.chmod(mode)
+    except OSError as exc:
+        raise StoreError(f"cannot create the store {path}: {exc}{_sharing_hint(path)}") from None
+    if not os.access(path, os.R_OK | os.W_OK):
+        raise StoreError(f"cannot use the store {path}: permission denied{_sharing_hint(path)}")
+
+
+def _sharing_hint(path: Path) -> str:
+    """How to share the store, when it (or its directory) belongs to another account."""
+    owner = None
+    for place in (path, path.parent):  # the file, else (not there, or not even visible) its directory
+        try:
+            owner = place.stat().st_uid
+            break
+        except OSError:
+            continue
+    if owner is None:
+        return ""
+    if owner == os.geteuid():
+        return ""
+    return (
+        f" (it belongs to {_account(owner)}; to share one store between accounts, run "
+        f"`drs setup shared-store {path.parent} --group GROUP` as its owner or root: docs/console.md)"
+    )
+
+
+def _account(uid: int) -> str:
+    try:
+        return pwd.getpwuid(uid).pw_name
+    except KeyError:
+        return f"uid {uid}"
+
+
 class Store:
     """A SQLite database file shared by threads and processes."""
 
@@ -84,6 +198,8 @@ class Store:
         self._schemas: list[str] = []
         self._schema_lock = threading.Lock()
         self.session = session_name()
+        self.clock: Callable[[], datetime] = utc_now
+        """The store's time: the wall clock, or a simulated one all processes on it share (``run_clock``)."""
         self._writer = threading.RLock()
         """Writers of this process take turns here before SQLite's lock. Left to SQLite, a thread that
         finds the database locked sleeps in its busy handler (1, 2, 5 … 100 ms a try), and with 20
@@ -96,18 +212,33 @@ class Store:
             path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
         except OSError as exc:
             raise StoreError(f"cannot create the data directory {path.parent}: {exc}") from None
-        try:
-            # The audit log names operators and holds the gateway's echoes: owner only, before SQLite
-            # creates the file (its -wal and -shm take the main file's mode).
-            path.touch(mode=0o600, exist_ok=True)
-            if path.stat().st_mode & 0o077:
-                path.chmod(0o600)
-        except OSError as exc:
-            raise StoreError(f"cannot create the store {path}: {exc}") from None
+        _protect(path)
         store = cls(path)
         store.ensure_schema(_AUDIT_DDL)
         store._add_session_column()
+        store._adopt_clock()
         return store
+
+    def run_clock(self, start: datetime, scale: float) -> None:
+        """Make this store's time simulated (the demo): ``start`` now, running ``scale`` times faster.
+
+        Written into the store, so every process that opens it reads the same time: the demo once wrote
+        its audit with two clocks (wall and ×4), History came out of order, and the demo console and
+        `drs approve` disagreed about when an approval expires."""
+        self.ensure_schema(_CLOCK_DDL)
+        wall = utc_now()
+        self.write("INSERT OR REPLACE INTO store_clock (id, wall_utc, store_utc, scale) VALUES (1, ?, ?, ?)",
+                   (iso_utc(wall), iso_utc(start), scale))  # fmt: skip
+        self.clock = _scaled_clock(wall, start, scale)
+
+    def _adopt_clock(self) -> None:
+        if not self.query("SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'store_clock'"):
+            return
+        rows = self.query("SELECT wall_utc, store_utc, scale FROM store_clock WHERE id = 1")
+        if rows:
+            row = rows[0]
+            wall, start = parse_iso_utc(row["wall_utc"]), parse_iso_utc(row["store_utc"])
+            self.clock = _scaled_clock(wall, start, row["scale"])
 
     def _add_session_column(self) -> None:
         columns = {row["name"] for row in self.query("PRAGMA table_info(audit)")}
@@ -217,7 +348,7 @@ class Store:
         when: datetime | None = None,
     ) -> AuditRecord:
         """Record one step durably; only after this returns may anyone be told it happened."""
-        moment = when or utc_now()
+        moment = when or self.clock()
         detail_json = json.dumps(detail, sort_keys=True, default=str) if detail is not None else None
         row_id = self.write(
             "INSERT INTO audit (time_utc, operator, capsule, action, result, detail, session) "
@@ -227,14 +358,24 @@ class Store:
         return AuditRecord(row_id, moment, operator, capsule, action, result, detail, self.session)
 
     def audit(
-        self, capsule: str | None = None, text: str | None = None, limit: int | None = None, after_id: int = 0
+        self,
+        capsule: str | None = None,
+        text: str | None = None,
+        limit: int | None = None,
+        after_id: int = 0,
+        action: str | None = None,
     ) -> list[AuditRecord]:
-        """Audit records oldest first, optionally for one capsule, containing ``text``, or newer than ``after_id``."""
+        """Audit records oldest first, optionally for one capsule, containing ``text``, newer than
+        ``after_id``, or of one ``action`` (an exact match: what a screen asks every second must not scan
+        every detail)."""
         clauses: list[str] = ["id > ?"]
         params: list[object] = [after_id]
         if capsule is not None:
             clauses.append("capsule = ?")
             params.append(capsule)
+        if action is not None:
+            clauses.append("action = ?")
+            params.append(action)
         if text:
             clauses.append("(action || ' ' || result || ' ' || COALESCE(detail, '') || ' ' || operator) LIKE ?")
             params.append(f"%{text}%")

@@ -21,8 +21,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "approve",
         help="list hazardous commands waiting for a second operator, or approve/reject one",
         description="Without ID: the requests waiting for approval. With ID: approve it (or --reject it). "
-        "The approver must be another login than the requester: another OS account, or over SSH "
-        "another key (sshd's ExposeAuthInfo yes).",
+        "The approver must be another login than the requester: another OS account, or another "
+        "person's key of the [[approver]] list, proven by a signature from ssh-agent ($SSH_AUTH_SOCK).",
     )
     approve.add_argument("approval_id", nargs="?", type=int, metavar="ID", help="the request to decide")
     approve.add_argument("--reject", action="store_true", help="reject instead of approving")
@@ -34,7 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run_approve(args: argparse.Namespace) -> int:
     from drs_link.config import load_config
     from drs_link.ops import current_login
-    from drs_link.store import Store, utc_now
+    from drs_link.store import Store
 
     config = load_config(args.config)
     book = ApprovalBook(Store.open(config.store_path))
@@ -47,7 +47,7 @@ def run_approve(args: argparse.Namespace) -> int:
                                   "login": str(request.requester), "command": request.command,
                                   "expires_utc": request.expires_utc.isoformat()}))  # fmt: skip
             else:
-                print(request.describe(utc_now()))
+                print(request.describe(book.clock()))
         if not requests and not args.json:
             print("nothing waits for approval")
         return 0
@@ -56,5 +56,5 @@ def run_approve(args: argparse.Namespace) -> int:
     if args.reject and not args.reason.strip():
         raise UsageError("--reject needs --reason: the requester is told why")
     decided = book.decide(args.approval_id, config.operator.name, current_login(), not args.reject, args.reason)
-    print(decided.describe(utc_now()))
+    print(decided.describe(book.clock()))
     return 0

@@ -41,6 +41,7 @@ COMMAND_MODULES: dict[str, str] = {
     "recovery": "console.commands.iridium",
     "balloon": "console.commands.balloon",
     "approve": "console.commands.approve",
+    "setup": "console.commands.setup",
     "chase": "console.commands.chase",
     "serve": "console.commands.serve",
     "console": "console.commands.console",

@@ -20,6 +20,11 @@ from drs_link.errors import LinkError
 from drs_link.ops import ACTIONS, ApprovalBook, current_login
 
 COLUMNS = ("#", "Capsule", "Command", "Requested by", "Expires")
+HELP = (
+    "`↑`/`↓` a request · `Enter` approve it · `x` reject it (asks the reason) · "
+    "the requester's own login is refused"
+)
+"""The keys, as the help screen lists them (``console.screens.registry``)."""
 
 
 class ApprovalScreen(ConsoleScreen):
@@ -36,6 +41,9 @@ class ApprovalScreen(ConsoleScreen):
         yield from self.compose_footer()
 
     def on_mount(self) -> None:
+        self.you = current_login()
+        """Proven once for the screen's line (an agent key proves itself by signing, which an agent loaded
+        with ``ssh-add -c`` asks its owner to confirm); each decision proves it again."""
         self.ready = True
         table = self.query_one("#approvals", DataTable)
         for title in COLUMNS:
@@ -56,7 +64,7 @@ class ApprovalScreen(ConsoleScreen):
             for r in requests
         ]  # fmt: skip
         fill_rows(self.query_one("#approvals", DataTable), rows)
-        you = f"You are {current_login()}: the requester's own login cannot approve."
+        you = f"You are {self.you}: the requester's own login cannot approve."
         text = "Nothing waits for approval." if not requests else "Enter approves the highlighted request, x rejects it."
         set_content(self.query_one("#approval-detail", Static), f"{text}\n{you}\n{len(requests)} waiting at {now:%H:%M:%S}Z")
 

@@ -8,7 +8,7 @@ from textual.screen import Screen
 from textual.widgets import Footer
 
 from console.context import ConsoleContext
-from console.widgets import ModeBanner
+from console.widgets import ModeBanner, OverrideBanner
 
 FOOTER_ROOM = 100
 """Below this many columns the footer drops its "^p palette" hint (console.tcss): at 80 the hint,
@@ -31,6 +31,7 @@ class ConsoleScreen(Screen[None]):
 
     def compose_banner(self) -> ComposeResult:
         yield ModeBanner(self.context, id="banner")
+        yield OverrideBanner(self.context, id="override-banner")
 
     def compose_footer(self) -> ComposeResult:
         yield Footer(compact=True)
@@ -44,6 +45,7 @@ class ConsoleScreen(Screen[None]):
             return
         try:
             self.query_one(ModeBanner).refresh_banner()
+            self.query_one(OverrideBanner).refresh_banner()
             self.update_view()
         except NoMatches:
             return  # the screen is being torn down (app exiting): nothing left to draw

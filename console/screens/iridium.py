@@ -34,14 +34,14 @@ LIFECYCLE_WORDS = {
 
 HELP = """\
 `n` INTERVAL · `o`/`O` sounder off/on · `c` parachute (helper picks HH:MM) ·
-`R` refresh"""
+`C` parachute at a time you type (checked against the window) · `R` refresh"""
 """The keys, as the help screen lists them (``console.screens.registry``)."""
 
 
 class IridiumScreen(CommandingScreen):
     BINDINGS = [
         Binding("escape", "app.pop_screen", "Back"),
-        *command_bindings(paired=False),
+        *command_bindings(paired=True),
         Binding("R", "reload", "Refresh"),
     ]
 

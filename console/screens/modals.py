@@ -12,9 +12,11 @@ from dataclasses import dataclass, replace
 from textual.actions import SkipAction
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Horizontal, Vertical
+from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, Static
+
+from drs_link.ops import WAIVER_REASON_MAX
 
 
 class ConfirmModal(ModalScreen[bool]):
@@ -51,17 +53,22 @@ class TextPromptModal(ModalScreen[str | None]):
 
     BINDINGS = [Binding("escape", "cancel", "Cancel")]
 
-    def __init__(self, title: str, prompt: str, placeholder: str = "") -> None:
+    def __init__(
+        self, title: str, prompt: str, placeholder: str = "", max_length: int = WAIVER_REASON_MAX
+    ) -> None:
         super().__init__()
         self.title_text = title
         self.prompt = prompt
-        self.placeholder = placeholder
+        self.placeholder = placeholder or f"at most {max_length} characters"
+        self.max_length = max_length
+        """Characters the answer may have, said in the empty field: every answer here is a reason or a value,
+        and a reason of thousands of characters pushed go/no-go and the checklist off the screen."""
 
     def compose(self) -> ComposeResult:
         with Vertical(classes="dialog"):
             yield Label(self.title_text, classes="dialog-title", markup=False)
             yield Static(self.prompt, classes="dialog-body", markup=False)
-            yield Input(placeholder=self.placeholder, id="answer")
+            yield Input(placeholder=self.placeholder, id="answer", max_length=self.max_length)
 
     def on_mount(self) -> None:
         self.query_one("#answer", Input).focus()
@@ -117,7 +124,9 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
 
     def compose(self) -> ComposeResult:
         need = "required" if self.second_required else "optional"
-        with Vertical(classes="dialog hazard"):
+        # It scrolls: at 80×24 the PARACHUTE dialog with its override field is taller than the screen, and
+        # a field or button that Tab or Enter reaches is scrolled into sight.
+        with VerticalScroll(classes="dialog hazard"):
             yield Label(f"{self.action_name} {self.capsule}", classes="dialog-title", markup=False)
             if self.countdown is not None:
                 yield Label(self.countdown(), id="countdown", classes="dialog-warning", markup=False)
@@ -129,7 +138,8 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
             yield Label("…or single-operator waiver (why you are alone):", markup=False)
             yield Input(id="waiver", placeholder="reason (logged)")
             if self.override_prompt is not None:
-                yield Label(self.override_prompt, markup=False, classes="dialog-warning")
+                # A Static wraps; the Label it was ran to 161 columns and scrolled sideways.
+                yield Static(self.override_prompt, markup=False, classes="dialog-warning")
                 yield Input(id="override", placeholder="override reason (logged with the evidence)")
             with Horizontal(classes="dialog-buttons"):
                 yield Button("Cancel", id="cancel", variant="primary")
@@ -159,11 +169,14 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
 
     def action_next_field(self) -> None:
         """On the last field (or a button) Enter goes on to the widget: the last field's Submitted
-        comes after the characters queued before it, so the answer is read whole."""
+        comes after the characters queued before it, so the answer is read whole. Elsewhere Enter moves
+        to the next FIELD, never to a button: once it landed on Cancel and the next Enter closed the
+        dialog unseen."""
         focused = self.focused
         if not isinstance(focused, Input) or focused.id == self._last_field():
             raise SkipAction()
-        self.focus_next()
+        fields = list(self.query(Input))
+        self.set_focus(fields[fields.index(focused) + 1])  # at once, not after the keys already queued
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         if event.input.id == self._last_field():
@@ -173,7 +186,12 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
         if event.button.id == "approval":
             self.dismiss(replace(self._answer(), await_approval=True))
             return
-        self.dismiss(self._answer() if event.button.id == "confirm" else None)
+        if event.button.id == "confirm":
+            self.dismiss(self._answer())
+        else:
+            self.action_cancel()
 
     def action_cancel(self) -> None:
+        """Cancelled, and said so: a dialog that closes without a word leaves the operator unsure."""
+        self.app.notify(f"{self.action_name} {self.capsule} cancelled: nothing sent")
         self.dismiss(None)

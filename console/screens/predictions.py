@@ -18,13 +18,23 @@ from console.predictions import ReleaseOrigin
 from console.screens.base import ConsoleScreen
 from console.widgets import LandingMap, MapLayers, default_cursor, render_timeline
 from drs_link.errors import LinkError
-from drs_link.ops import STALE_GLYPH, PredictionSample, format_age
+from drs_link.ops import STALE_GLYPH, PredictionSample, PredictionStatus, format_age
 from predictor.errors import PredictorError
 
+NEEDS_POSITION = "needs a fresh position: capsule GNSS or balloon feed"
+RELEASED = "released: no more release predictions; where it is falling is on Recovery (Esc, then v)"
 
-def describe(prediction: PredictionSample | None, age_s: float | None, stale: bool, title: str) -> str:
+
+def describe(
+    prediction: PredictionSample | None,
+    age_s: float | None,
+    stale: bool,
+    title: str,
+    pending: str = NEEDS_POSITION,
+) -> str:
+    """``pending`` says why there is none yet, as the console knows it (no weather, waiting, released)."""
     if prediction is None:
-        return f"{title}: no prediction yet (needs a fresh position: capsule GNSS or balloon feed)"
+        return f"{title}: no prediction yet ({pending})"
     mark = f"{STALE_GLYPH}STALE " if stale else ""
     lines = [
         f"{title} — {mark}computed {format_age(age_s or 0.0)} ago",
@@ -83,13 +93,14 @@ class PredictionScreen(ConsoleScreen):
         context = self.context
         now = context.now()
         telemetry = context.fleet.capsules[self.capsule]
+        pending = self.pending()
         texts = []
         for minutes in (0, self.lead_min):
             reading = telemetry.predictions.get(minutes)
             title = "Release now" if minutes == 0 else f"Release in {minutes} min"
             value = reading.value if reading else None
             texts.append(describe(value, reading.age_s(now) if reading else None,
-                                  bool(reading and not reading.is_fresh(now)), title))  # fmt: skip
+                                  bool(reading and not reading.is_fresh(now)), title, pending))  # fmt: skip
         self.query_one("#prediction-numbers", Static).update(f"{self.capsule}\n\n" + "\n\n".join(texts))
         now_pred = telemetry.predictions.get(0)
         value = now_pred.value if now_pred else None
@@ -106,9 +117,17 @@ class PredictionScreen(ConsoleScreen):
             if context.setup.team_position
             else None,
         )
-        self.update_timeline(value)
+        self.update_timeline(value, pending)
 
-    def update_timeline(self, now_prediction: PredictionSample | None) -> None:
+    def pending(self) -> str:
+        """Why a prediction is missing: released (they stop at Go), else what the console said it is doing."""
+        telemetry = self.context.fleet.capsules[self.capsule]
+        if telemetry.released:
+            return RELEASED
+        status = telemetry.reading(PredictionStatus).value
+        return status.text if status is not None and status.text else NEEDS_POSITION
+
+    def update_timeline(self, now_prediction: PredictionSample | None, pending: str) -> None:
         basis = now_prediction.release_time if now_prediction else None
         if basis is not None and basis != self.window_basis and not self.window_running:
             origin = self.context.prediction_origin(self.capsule)
@@ -125,7 +144,9 @@ class PredictionScreen(ConsoleScreen):
             + " ago"
         )
         cursor = self.cursor if self.cursor is not None else default_cursor(self.window) if self.window else 0
-        self.query_one("#release-timeline", Static).update(render_timeline(self.window, cursor, age))
+        missing = pending if now_prediction is None else "computing"
+        timeline = render_timeline(self.window, cursor, age, missing=missing)
+        self.query_one("#release-timeline", Static).update(timeline)
 
     @work(thread=True, exit_on_error=False, group="release-window")
     def sweep(self, origin: ReleaseOrigin) -> None:

@@ -40,7 +40,15 @@ from drs_link.iridium import (
     write_gpx,
     write_kml,
 )
-from drs_link.ops import PredictionSample, ReportSample, format_age
+from drs_link.ops import (
+    ParachuteOverride,
+    PredictionSample,
+    ReportSample,
+    after_drop,
+    drop_schedule,
+    format_age,
+    parachute_override,
+)
 from predictor.errors import PredictorError
 
 RELOAD_S = 2.0
@@ -68,6 +76,8 @@ class RecoveryScreen(CommandingScreen):
         self.live: dict[str, Any] | None = None
         self.live_error: str | None = None
         self.settings: CommandedSettings | None = None
+        self.drop: tuple[ParachuteOverride, datetime | None, str] | None = None
+        """A PARACHUTE queued without landed evidence, when release B opens, and that in words."""
         self.loaded_at = time.monotonic()
 
     def compose(self) -> ComposeResult:
@@ -85,7 +95,11 @@ class RecoveryScreen(CommandingScreen):
     def load(self) -> None:
         ops = self.context.ops
         reports = ops.stored_reports(self.capsule) if ops else []
-        settings = commanded_settings(ops.commands(self.capsule), reports) if ops else None
+        commands = ops.commands(self.capsule) if ops else []
+        settings = commanded_settings(commands, reports) if ops else None
+        parachutes = self.context.store.audit(self.capsule, action="mt.parachute")
+        override = parachute_override(self.capsule, parachutes, commands)
+        drop = (override, *drop_schedule(override, reports)) if override is not None else None
         track = track_from_reports(reports)
         landing = detect_landing(track)
         live, error = None, None
@@ -95,7 +109,7 @@ class RecoveryScreen(CommandingScreen):
                 live = service.live(self.capsule, track)
             except PredictorError as exc:
                 error = str(exc)
-        self.app.call_from_thread(self.show, track, landing, live, error, settings)
+        self.app.call_from_thread(self.show, track, landing, live, error, settings, drop)
 
     def show(
         self,
@@ -104,10 +118,21 @@ class RecoveryScreen(CommandingScreen):
         live: dict[str, Any] | None,
         error: str | None,
         settings: CommandedSettings | None,
+        drop: tuple[ParachuteOverride, datetime | None, str] | None = None,
     ) -> None:
         self.track, self.landing, self.live, self.live_error = track, landing, live, error
-        self.settings = settings
+        self.settings, self.drop = settings, drop
         self.refresh_view()
+
+    def drop_lines(self, landing_time: datetime | None) -> list[str]:
+        """The override's drop, as the firmware does it, and what the descent becomes after it."""
+        if self.drop is None:
+            return []
+        override, drop, words = self.drop
+        return [
+            f"⚠ {override.text} queued WITHOUT landed evidence: {words}",
+            f"  {after_drop(drop, landing_time)}",
+        ]
 
     def reload_after_send(self) -> None:
         self.load()
@@ -143,6 +168,7 @@ class RecoveryScreen(CommandingScreen):
             f"  σ∥ {ellipse['sigma_parallel_km']:.2f} km  σ⊥ {ellipse['sigma_perpendicular_km']:.2f} km",
             f"  measured rate factor {measured} from {live['legs_used']} leg{'' if live['legs_used'] == 1 else 's'}",
             f"  correction: {live['correction']}",
+            *self.drop_lines(datetime.fromisoformat(landing["time"])),
         ]
         team = self.context.setup.team_position
         if team is not None:
@@ -172,6 +198,8 @@ class RecoveryScreen(CommandingScreen):
                 f"Not landed (visibly): last fix {last.lat:.5f}, {last.lon:.5f} at {last.alt_m:.0f} m"
             )
             lines += self.live_lines()
+            if self.live is None:
+                lines += self.drop_lines(None)
         else:
             lines.append("No GNSS fix received yet")
         reading = self.context.fleet.capsules[self.capsule].reading(ReportSample)

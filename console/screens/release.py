@@ -271,7 +271,7 @@ class ReleaseScreen(ConsoleScreen):
         if action in commanding and not self.context.commanding:
             return None
         if action in BEFORE_RELEASE_ONLY and self.released():
-            return None  # the Pi is shut down: these keys leave the footer instead of failing after a dialog
+            return False  # the Pi is shut down: these keys leave the footer (None would only dim them)
         if action == "fire":
             status = self.context.arming(self.capsule).status()
             return True if status.armed and status.mine else None
@@ -399,6 +399,15 @@ class ReleaseScreen(ConsoleScreen):
 
     def action_arm(self) -> None:
         assert self.ops is not None
+        status = self.context.arming(self.capsule).status()
+        if status.armed:  # `a` again once silently restarted the window: ask first
+            body = f"{self.capsule} is ARMED, {status.remaining_s:.0f} s left. ARM again starts a new window."
+            restart = ConfirmModal("ARM again?", body, "Restart the window")
+            self.app.push_screen(restart, lambda yes: self._arm() if yes else None)
+            return
+        self._arm()
+
+    def _arm(self) -> None:
         try:
             self.context.arming(self.capsule).arm(self.context.gonogo(self.capsule))
         except LinkError as exc:

@@ -10,6 +10,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "LandingMap": "landing_map",
         "MapLayers": "landing_map",
         "ModeBanner": "banner",
+        "OverrideBanner": "banner",
         "balloon_lines": "cells",
         "default_cursor": "release_timeline",
         "fill_rows": "quiet",

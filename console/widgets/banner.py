@@ -60,3 +60,22 @@ class ModeBanner(Static):
 
     def on_resize(self) -> None:
         self.refresh_banner()
+
+
+class OverrideBanner(Static):
+    """Under the mode banner on every screen while a PARACHUTE is queued without landed evidence: an
+    override in flight must never look like a normal recovery (issue #23). Hidden otherwise."""
+
+    def __init__(self, context: ConsoleContext, *, id: str | None = None) -> None:
+        super().__init__(id=id, markup=False)
+        self.context = context
+
+    def refresh_banner(self) -> None:
+        lines = [f"⚠ {override.banner()}" for override in self.context.parachute_overrides()]
+        if self.display != bool(lines):  # only a change costs a layout (console/widgets/quiet.py)
+            self.display = bool(lines)
+        if lines:
+            set_content(self, "\n".join(lines))
+
+    def on_mount(self) -> None:
+        self.refresh_banner()

@@ -32,9 +32,12 @@ def default_cursor(window: dict[str, Any]) -> int:
     return window["recommended"] or 0
 
 
-def render_timeline(window: dict[str, Any] | None, cursor: int, age_text: str, indent: str = "  ") -> str:
+def render_timeline(
+    window: dict[str, Any] | None, cursor: int, age_text: str, indent: str = "  ", missing: str = "computing"
+) -> str:
+    """``missing`` says why there is no window yet (no weather, no position, released)."""
     if window is None:
-        return "Release window: computing (needs a fresh position: capsule GNSS or balloon feed)"
+        return f"Release window: {missing}"
     candidates = window["candidates"]
     if not candidates:
         return "Release window: no candidate release times"

@@ -2,9 +2,10 @@
 
 ``capsule`` is the release state machine; ``arming`` ARM then FIRE, in the windows of ``arm_window``;
 ``gonogo`` the poll before ARM; ``checklist`` and ``procedure`` the procedures as data; ``approval`` the
-second operator; ``authorize`` the PARACHUTE gate; ``telemetry``, ``fleet``, ``staleness`` and ``origin`` what is known
-of each capsule and how old it is; ``session`` a console that ends without quitting; and
-``operations`` the console's engine without a screen.
+second operator and ``identity`` which login is another person; ``authorize`` the PARACHUTE gate,
+``override`` what stays on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and
+``origin`` what is known of each capsule and how old it is; ``session`` a console that ends without
+quitting; and ``operations`` the console's engine without a screen.
 """
 
 from predictor.lazy_door import lazy_door
@@ -36,6 +37,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Predict": "operations",
         "PredictionSample": "telemetry",
         "PredictionStatus": "telemetry",
+        "ParachuteOverride": "override",
         "Reading": "staleness",
         "SECOND_LOGIN_HOWTO": "arming",
         "SecondOperator": "operations",
@@ -54,6 +56,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "TelemetryRecorder": "telemetry",
         "Verdict": "gonogo",
         "WAIVABLE": "gonogo",
+        "WAIVER_REASON_MAX": "gonogo",
         "approved": "approval",
         "authorize_mt": "authorize",
         "carries_parachute": "authorize",
@@ -61,10 +64,13 @@ __getattr__, __dir__, __all__ = lazy_door(
         "complete_command": "checklist",
         "complete_mt_steps": "procedure",
         "current_login": "approval",
+        "drop_schedule": "override",
+        "after_drop": "override",
         "evaluate": "gonogo",
         "format_age": "staleness",
         "hazard_of": "authorize",
         "load_checklists": "checklist",
+        "parachute_override": "override",
         "pending_text": "approval",
         "read_recording": "telemetry",
         "record_as_dict": "capsule",

@@ -4,9 +4,10 @@ Why: a second name typed into the same dialog lets one person at one keyboard sa
 rule. COSMOS and Yamcs take a critical command's approval from another operator's own session. Here a
 hazardous command (Go with the rule on, PARACHUTE, a take-over of release authority) can wait as
 *pending approval* in the shared store until a different login approves or rejects it, from a second
-console or with `drs approve`. The login is the OS account and, over SSH, the fingerprint of the key
-the session authenticated with (OpenSSH's ``ExposeAuthInfo``), never a typed name. A request expires
-(``APPROVAL_TTL_S``), an approval is used once, and both identities are audited. The typed-name waiver
+console or with `drs approve`. The login is the OS account of the real uid and an SSH key proven by
+an ssh-agent signature against the ``[[approver]]`` list (``identity``), never a typed name or a
+variable. A request expires (``APPROVAL_TTL_S``), an approval is used once, and both identities are
+audited. The typed-name waiver
 stays as the logged single-operator path.
 
 Every change of a request is one compare-and-set in SQLite, so two approvers, or an approval racing
@@ -20,21 +21,18 @@ when its ARM window closes or the capsule's release state changes, and its reque
 
 from __future__ import annotations
 
-import base64
-import binascii
-import hashlib
 import os
-import pwd
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime, timedelta
-from pathlib import Path
 
+from drs_link.config import approvers_in_use
 from drs_link.errors import RefusedError
 from drs_link.ops.arm_window import ARMED
 from drs_link.ops.arm_window import DDL as ARM_WINDOW_DDL
-from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
+from drs_link.ops.identity import account_name, prove_agent_key
+from drs_link.store import Store, iso_utc, parse_iso_utc
 
 APPROVAL_TTL_S = 300.0
 """How long a request may wait for its approval, and an approval for its use: long enough to reach
@@ -81,6 +79,9 @@ class Login:
 
     user: str
     key_fingerprint: str | None = None
+    """Only a key proven by a signature (``identity.prove_agent_key``)."""
+    person: str | None = field(default=None, compare=False)
+    """The ``[[approver]]`` the proven key belongs to: the operator name this login acts under."""
 
     def same_person(self, other: Login) -> bool:
         """Two sessions of one account are one person unless both came in with different keys (a
@@ -95,33 +96,12 @@ class Login:
         return f"{self.user} (key {self.key_fingerprint})" if self.key_fingerprint else self.user
 
 
-def key_fingerprint(auth_info: str) -> str | None:
-    """The SHA256 fingerprint of the first public key in OpenSSH's ``SSH_USER_AUTH`` file, as
-    ``ssh-keygen -l`` prints it (None when the session did not authenticate with a key)."""
-    for line in auth_info.splitlines():
-        fields = line.split()
-        if len(fields) >= 3 and fields[0] == "publickey":
-            try:
-                blob = base64.b64decode(fields[2], validate=True)
-            except (binascii.Error, ValueError):
-                return None
-            digest = base64.b64encode(hashlib.sha256(blob).digest()).decode().rstrip("=")
-            return f"SHA256:{digest}"
-    return None
-
-
 def current_login(environ: Mapping[str, str] = os.environ) -> Login:
-    """This process's login: the effective OS account (not $USER, which anyone can set) and, when
-    sshd exposes it, the key the SSH session authenticated with."""
-    user = pwd.getpwuid(os.geteuid()).pw_name
-    auth_file = environ.get("SSH_USER_AUTH")
-    fingerprint = None
-    if auth_file:
-        try:
-            fingerprint = key_fingerprint(Path(auth_file).read_text(encoding="utf-8", errors="replace"))
-        except OSError:
-            fingerprint = None
-    return Login(user, fingerprint)
+    """This process's login as only the kernel or a signature can tell it (``identity``): the real uid's
+    account and, when ssh-agent proves a key of the configuration's ``[[approver]]`` list, that key and
+    its person. Nothing a shell can set (``$USER``, ``$SSH_USER_AUTH``) counts."""
+    proven = prove_agent_key(((a.name, a.key) for a in approvers_in_use()), environ)
+    return Login(account_name(), proven.fingerprint, proven.person) if proven else Login(account_name())
 
 
 @dataclass(frozen=True)
@@ -167,9 +147,10 @@ class Approval:
 class ApprovalBook:
     """The approval requests in the shared store."""
 
-    def __init__(self, store: Store, clock: Callable[[], datetime] = utc_now) -> None:
+    def __init__(self, store: Store, clock: Callable[[], datetime] | None = None) -> None:
         self.store = store
-        self.clock = clock
+        self.clock = clock or store.clock
+        """The store's time by default: a demo's simulated time is every process's (``Store.run_clock``)."""
         store.ensure_schema(_DDL)
         store.ensure_schema(ARM_WINDOW_DDL)
         have = {str(row["name"]) for row in store.query("PRAGMA table_info(approval)")}
@@ -188,7 +169,7 @@ class ApprovalBook:
         deadline, whichever is first), bound to ``command``/``window_id``/``capsule_state``; audited."""
         if action not in ACTIONS:
             raise ValueError(f"unknown hazardous action {action!r}")
-        now = self.clock()
+        now, operator = self.clock(), login.person or operator
         expires = now + timedelta(seconds=ttl_s)
         if deadline is not None:
             expires = min(expires, deadline)
@@ -266,7 +247,7 @@ class ApprovalBook:
     def decide(self, approval_id: int, operator: str, login: Login, approve: bool, reason: str = "") -> Approval:
         """Approve or reject a pending request from a login that is not the requester's."""
         request = self.get(approval_id)
-        now = self.clock()
+        now, operator = self.clock(), login.person or operator
         verdict = "approved" if approve else "rejected"
 
         def refuse(why: str) -> RefusedError:
@@ -277,7 +258,12 @@ class ApprovalBook:
         if request.requester.same_person(login):
             raise refuse(
                 f"the same login ({login}) that requested it cannot approve it: run drs approve from another "
-                "person's login (a different account, or over SSH a different key)"
+                "person's login (a different OS account, or their own [[approver]] key in ssh-agent)"
+            )
+        if operator.casefold() == request.requested_by.casefold():
+            raise refuse(
+                f"{operator} requested it and cannot approve it too: "
+                "the second operator approves under their own name"
             )
         with self.store.transaction() as conn:
             changed = conn.execute(

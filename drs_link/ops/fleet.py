@@ -19,6 +19,7 @@ from drs_link.ops.telemetry import (
     GnssSample,
     LinkSample,
     PredictionSample,
+    PredictionStatus,
     ReleaseSample,
     ReportSample,
     Sample,
@@ -134,6 +135,7 @@ class CapsuleTelemetry:
             powered=self.powered,
             exclusion_zones=zones,
             released=release.after_release() if release else None,
+            prediction_pending=self.reading(PredictionStatus).map(lambda status: status.text).value,
         )
 
 

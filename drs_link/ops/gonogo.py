@@ -71,6 +71,8 @@ class GoNoGoInputs:
     exclusion_zones: tuple[ExclusionZone, ...] = ()
     released: str | None = None
     """After Go: what the release record says ("released 12:03Z, Pi shut down"); None before."""
+    prediction_pending: str | None = None
+    """Why there is no prediction yet, when the console said ("no weather loaded: …"), for "no data"."""
 
 
 @dataclass(frozen=True)
@@ -136,6 +138,8 @@ def _prediction_item(inputs: GoNoGoInputs, now: datetime) -> GoNoGoItem:
     base = _fresh_true("prediction", "Prediction fresh", Reading(
         reading.value is not None, reading.received_at, reading.expected_period_s, reading.tolerance
     ), now, "fresh", "none")  # fmt: skip
+    if reading.value is None and inputs.prediction_pending:
+        return GoNoGoItem("prediction", "Prediction fresh", Verdict.NO_GO, inputs.prediction_pending)
     if base.verdict is not Verdict.GO or reading.value is None:
         return base
     outline = reading.value.outline_2sigma
@@ -190,7 +194,8 @@ def evaluate(
         _sync_item(inputs.sync_fraction, now),
         _prediction_item(inputs, now),
         _fresh_true(
-            "gateway", "Gateway credentials valid", inputs.gateway_credentials, now, "valid", "invalid or missing"
+            "gateway", "Gateway configured", inputs.gateway_credentials, now, "not verified",
+            "invalid or missing",
         ),
     ]
     by_item = {waiver.item: waiver for waiver in waivers}
@@ -206,7 +211,7 @@ def evaluate(
 PRE_RELEASE_CHECKS = (
     ("link", "SSH link up"), ("power", "Power-on done"), ("microcontroller", "Microcontroller talking"),
     ("gnss", "GNSS fix fresh"), ("sync", "Storage sync complete"), ("prediction", "Prediction fresh"),
-    ("gateway", "Gateway credentials valid"),
+    ("gateway", "Gateway configured"),
 )  # fmt: skip
 
 
@@ -229,6 +234,11 @@ def _fingerprint(items: Sequence[GoNoGoItem]) -> str:
     return hashlib.sha256(json.dumps(verdicts).encode()).hexdigest()[:16]
 
 
+WAIVER_REASON_MAX = 200
+"""Characters of a waiver reason: a sentence fits, and the go/no-go and checklist stay on an 80×24 screen
+(a 3,000-character reason pushed them off it). Longer accounts belong in the flight log."""
+
+
 @dataclass
 class WaiverBook:
     """The waivers of one capsule's current release attempt, each audited when granted."""
@@ -246,6 +256,11 @@ class WaiverBook:
             raise RefusedError(f"{self.capsule}: {item!r} cannot be waived (only {', '.join(WAIVABLE)})")
         if not operator.strip() or not reason.strip():
             raise RefusedError(f"{self.capsule}: a waiver needs the operator's name and a reason")
+        if len(reason.strip()) > WAIVER_REASON_MAX:
+            raise RefusedError(
+                f"{self.capsule}: a waiver reason is at most {WAIVER_REASON_MAX} characters "
+                f"({len(reason.strip())} given): one sentence; the rest belongs in the flight log"
+            )
         waiver = Waiver(item, operator.strip(), reason.strip(), self.clock())
         self.store.append_audit(
             waiver.operator, self.capsule, "waiver", "granted", {"item": item, "reason": waiver.reason},

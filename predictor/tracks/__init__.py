@@ -17,6 +17,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "TrackError": "reading",
         "ascent_weather_cube": "ascent_winds",
         "clean": "cleaning",
+        "pressure_temperature": "standard_atmosphere",
         "read_track": "reading",
         "write_canonical_csv": "reading",
     },

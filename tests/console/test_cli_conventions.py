@@ -63,7 +63,7 @@ def test_a_usage_error_exits_2_and_an_operational_failure_1(tmp_path: Path) -> N
     config.write_text(f'[data]\ndir = "{tmp_path / "data"}"\n')
     refused = drs("--config", str(config), "mo", "health", "DRS1")
     assert refused.returncode == 1
-    assert refused.stderr == "drs: error: no capsule named 'DRS1' in the configuration (known: none configured)\n"
+    assert refused.stderr == f"drs: error: no capsule named 'DRS1' in {config} (known: none configured)\n"
     meaningless = drs("--config", str(config), "mo", "export", "--out", str(tmp_path / "t.csv"))
     assert meaningless.returncode == 2
     assert meaningless.stderr == "drs: error: give either a capsule NAME or --imei IMEI, not both or neither\n"

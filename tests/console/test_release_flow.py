@@ -74,7 +74,7 @@ async def test_a_complete_release_by_keys_sends_go_to_the_simulated_capsule(
         actions = [(a.action, a.result) for a in app.store.audit("DRS1")]
         assert ("fire", "authorised") in actions and ("go", "released, Pi shut down") in actions
         for action in ("power_on", "arm", "fire", "sync", "waive"):
-            assert screen.check_action(action, ()) is None, f"{action} after release"
+            assert screen.check_action(action, ()) is False, f"{action} after release: not in the footer"
         assert screen.check_action("reset", ()) is True
         await wait_for(pilot, lambda: app.gonogo("DRS1").summary().startswith("NO-GO: Released: released "))
 

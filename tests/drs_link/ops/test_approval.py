@@ -1,8 +1,9 @@
 """Second-operator approval from another login: the request waits, a different login decides, once.
 
-Logins are real: the OS account of this process and SSH public keys made by ssh-keygen, exposed the
-way sshd's ExposeAuthInfo does (a file named by SSH_USER_AUTH). The PARACHUTE send runs as a real
-`drs` process against the simulated RockBLOCK on loopback while `drs approve` runs from another login.
+Logins are real: the OS account of this process and SSH keys made by ssh-keygen, proven through a real
+ssh-agent against the configuration's [[approver]] list (test_identity.py pins the proof itself). The
+PARACHUTE send runs as a real `drs` process against the simulated RockBLOCK on loopback while
+`drs approve` runs from another login.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import pytest
 from drs_link.errors import RefusedError
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
-from drs_link.ops.approval import ApprovalBook, Login, current_login, key_fingerprint
+from drs_link.ops.approval import ApprovalBook, Login
 from drs_link.ops.authorize import authorize_mt
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
@@ -26,27 +27,10 @@ from tests.clock import ManualClock
 from tests.drs_link.iridium.helpers import IMEI
 from tests.drs_link.iridium.test_cli import run, write_config
 from tests.drs_link.iridium.test_parachute_gate import audit_of, landed, recent, seed
+from tests.drs_link.ops.agents import approver_tables, ssh_agent, ssh_key
 
 ALICE_A = Login("ops", "SHA256:keyA")
 ALICE_B = Login("ops", "SHA256:keyB")
-
-
-def ssh_key(tmp_path: Path, name: str) -> Path:
-    """An ed25519 key pair, and the SSH_USER_AUTH file sshd would write for a session made with it."""
-    key = tmp_path / name
-    subprocess.run(["ssh-keygen", "-q", "-t", "ed25519", "-N", "", "-f", str(key)], check=True)
-    auth = tmp_path / f"{name}.auth"
-    auth.write_text("publickey " + (tmp_path / f"{name}.pub").read_text())
-    return auth
-
-
-def test_the_fingerprint_is_the_one_ssh_keygen_prints(tmp_path: Path) -> None:
-    auth = ssh_key(tmp_path, "k")
-    printed = subprocess.run(["ssh-keygen", "-l", "-E", "sha256", "-f", str(tmp_path / "k.pub")],
-                             check=True, capture_output=True, text=True).stdout.split()[1]  # fmt: skip
-    assert key_fingerprint(auth.read_text()) == printed
-    assert current_login({"SSH_USER_AUTH": str(auth)}) == Login(current_login({}).user, printed)
-    assert key_fingerprint("password\n") is None, "a password session has no key"
 
 
 def test_one_account_is_one_person_unless_different_keys_say_otherwise() -> None:
@@ -146,10 +130,12 @@ def test_drs_mt_send_waits_for_drs_approve_from_another_key(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
-    with SimulatedRockblock(username="ops", password="pw") as gateway:
+    with SimulatedRockblock(username="ops", password="pw") as gateway, \
+            ssh_agent(tmp_path / "a", alice) as alice_sock, ssh_agent(tmp_path / "b", bob) as bob_sock:
         config = write_config(tmp_path, gateway.url)
+        config.write_text(config.read_text() + approver_tables(alice=alice, bob=bob))
         store = seed(tmp_path, landed(recent(10.5)))
-        env = {**os.environ, "DRS_TEST_RB": "pw", "SSH_USER_AUTH": str(alice)}
+        env = {**os.environ, "DRS_TEST_RB": "pw", "SSH_AUTH_SOCK": alice_sock}
         argv = ["--config", str(config), "mt", "send", "DRS1", "--parachute", "next", "--accept-midnight",
                 "--confirm", "DRS1", "--await-approval"]  # fmt: skip
         sender = subprocess.Popen([sys.executable, "-c", CHILD, *argv], env=env, stdout=subprocess.PIPE, text=True)
@@ -158,10 +144,10 @@ def test_drs_mt_send_waits_for_drs_approve_from_another_key(
             waiting = next(line for line in sender.stdout if line.startswith("approval #"))
             assert "waiting for another login to run `drs approve 1`" in waiting
             assert gateway.requests == [], "nothing is sent while it waits"
-            monkeypatch.setenv("SSH_USER_AUTH", str(alice))
+            monkeypatch.setenv("SSH_AUTH_SOCK", alice_sock)
             assert run(config, "approve", "1") == 1, "the sender's own key cannot approve"
             assert "cannot approve it" in capsys.readouterr().err
-            monkeypatch.setenv("SSH_USER_AUTH", str(bob))
+            monkeypatch.setenv("SSH_AUTH_SOCK", bob_sock)
             assert run(config, "approve") == 0
             assert "#1 DRS1 PARACHUTE: [PARACHUTE=" in capsys.readouterr().out
             assert run(config, "approve", "1") == 0
@@ -169,9 +155,9 @@ def test_drs_mt_send_waits_for_drs_approve_from_another_key(
             assert sender.wait(timeout=60) == 0, rest
         finally:
             sender.kill()
-        assert "approved by alice" in rest and len(gateway.requests) == 1
+        assert "approved by bob" in rest and len(gateway.requests) == 1
     authorised = audit_of(store, "mt.parachute")[-1]
-    assert authorised["approved_by"].startswith("alice (") and authorised["approval"] == "1"
+    assert authorised["approved_by"].startswith("bob (") and authorised["approval"] == "1"
     assert [r.result for r in store.audit("DRS1") if r.action.startswith("approval.")] == [
         "pending", "refused", "approved", "used"
     ]
@@ -179,10 +165,12 @@ def test_drs_mt_send_waits_for_drs_approve_from_another_key(
 
 def test_a_rejected_request_sends_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
-    with SimulatedRockblock(username="ops", password="pw") as gateway:
+    with SimulatedRockblock(username="ops", password="pw") as gateway, \
+            ssh_agent(tmp_path / "a", alice) as alice_sock, ssh_agent(tmp_path / "b", bob) as bob_sock:
         config = write_config(tmp_path, gateway.url)
+        config.write_text(config.read_text() + approver_tables(alice=alice, bob=bob))
         seed(tmp_path, landed(recent(10.5)))
-        env = {**os.environ, "DRS_TEST_RB": "pw", "SSH_USER_AUTH": str(alice)}
+        env = {**os.environ, "DRS_TEST_RB": "pw", "SSH_AUTH_SOCK": alice_sock}
         argv = ["--config", str(config), "mt", "send", "DRS1", "--parachute", "next", "--accept-midnight",
                 "--confirm", "DRS1", "--await-approval"]  # fmt: skip
         sender = subprocess.Popen([sys.executable, "-c", CHILD, *argv], env=env, stdout=subprocess.PIPE,
@@ -190,7 +178,7 @@ def test_a_rejected_request_sends_nothing(tmp_path: Path, monkeypatch: pytest.Mo
         try:
             assert sender.stdout is not None
             next(line for line in sender.stdout if line.startswith("approval #"))
-            monkeypatch.setenv("SSH_USER_AUTH", str(bob))
+            monkeypatch.setenv("SSH_AUTH_SOCK", bob_sock)
             assert run(config, "approve", "1", "--reject") == 2, "a rejection says why"
             assert run(config, "approve", "1", "--reject", "--reason", "still swinging in the tree") == 0
             _, err = sender.communicate(timeout=60)

@@ -1,0 +1,134 @@
+"""After a PARACHUTE override in flight the console stays loud: a banner on the fleet, release and
+recovery screens, no tick on "Landing confirmed", and Recovery says when release B opens (issue #23).
+
+The override goes through the real gate (``authorize_mt``) and the MT through the real lifecycle to
+the simulated RockBLOCK on loopback, as `drs mt send --override-landed` from another terminal does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import replace
+from datetime import timedelta
+from pathlib import Path
+
+import pytest
+from textual.pilot import Pilot
+
+from console.app import ConsoleSetup, DrsConsole
+from console.screens.recovery import RecoveryScreen
+from console.screens.release import ReleaseScreen
+from drs_link.config import RockblockConfig
+from drs_link.iridium.firmware import GnssFix, format_mo
+from drs_link.iridium.mt import MtComposer
+from drs_link.iridium.reports import Delivery, ReportStore
+from drs_link.ops.authorize import authorize_mt
+from drs_link.ops.operations import Operations
+from drs_link.sim.rockblock import SimulatedRockblock
+from drs_link.store import Store
+from tests.console.conftest import T0, offline_config, wait_for
+
+pytestmark = pytest.mark.asyncio
+BANNER = (
+    "⚠ DRS1: PARACHUTE queued WITHOUT landed evidence (override by EL, approved by nobody: "
+    "single-operator waiver “alone”)"
+)
+
+
+@pytest.fixture
+def gateway() -> Iterator[SimulatedRockblock]:
+    with SimulatedRockblock(username="ops", password="pw") as gateway:
+        yield gateway
+
+
+def overridden_app(tmp_path: Path, gateway: SimulatedRockblock, override: bool = True) -> DrsConsole:
+    """DRS1 falling through 16 km at 16 m/s, every 2 min, and PARACHUTE=12:00 queued (with the override)."""
+    config = offline_config(tmp_path)
+    config = replace(config, rockblock=RockblockConfig(mt_url=gateway.url, username="ops", timeout_s=5.0))
+    store = Store.open(config.store_path)
+    operations = Operations(config, store, clock=lambda: T0, environ={"DRS_ROCKBLOCK_PASSWORD": "pw"})
+    imei = config.capsules[0].imei or ""
+    for n, alt in enumerate((19_900.0, 18_000.0, 16_100.0)):
+        at = T0 - timedelta(minutes=6 - 2 * n)
+        fix = GnssFix(at, 67.70, 21.60 + 0.01 * n, alt, 12.0, 90.0, 0.9, 9)
+        ReportStore(store).add(
+            Delivery(
+                imei,
+                n,
+                format_mo(fix, 8.7, n).hex(),
+                "webhook",
+                at + timedelta(seconds=20),
+                transmit_utc=at + timedelta(seconds=15),
+            )
+        )
+    if override:
+        message = MtComposer().add("PARACHUTE", (12, 0)).build()
+        authorize_mt(
+            store,
+            "DRS1",
+            "EL",
+            message,
+            operations.stored_reports("DRS1"),
+            single_operator_waiver="alone",
+            require_second_operator=False,
+            override_landed="chase sees it down",
+        )
+        operations.send_mt("DRS1", message, "DRS1")
+    setup = ConsoleSetup(
+        mode="live",
+        capsules=["DRS1", "DRS2", "DRS3"],
+        store=store,
+        clock=lambda: T0,
+        operations=operations,
+        export_dir=tmp_path / "exports",
+    )
+    return DrsConsole(setup, live_timers=False)
+
+
+def banner(app: DrsConsole) -> str:
+    widget = app.screen.query_one("#override-banner")
+    return str(widget.render()) if widget.display else ""
+
+
+async def until_banner(pilot: Pilot[int], app: DrsConsole) -> None:
+    app.refresh_screen()
+    await wait_for(pilot, lambda: banner(app) == BANNER)
+
+
+async def test_the_override_banner_stays_on_the_fleet_release_and_recovery_screens(
+    tmp_path: Path, gateway: SimulatedRockblock
+) -> None:
+    app = overridden_app(tmp_path, gateway)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await until_banner(pilot, app)
+        await pilot.press("enter")
+        assert isinstance(app.screen, ReleaseScreen)
+        await until_banner(pilot, app)
+        await pilot.press("escape", "v")
+        screen = app.screen
+        assert isinstance(screen, RecoveryScreen) and screen.capsule == "DRS1"
+        await until_banner(pilot, app)
+        await wait_for(pilot, lambda: screen.drop is not None)
+        text = str(screen.query_one("#recovery-text").render())
+        assert (
+            "⚠ [PARACHUTE=12:00] queued WITHOUT landed evidence: scheduled drop at the end of the next "
+            "cycle, expected 12:00:00Z (accepted until 12:14Z)"
+        ) in text
+        assert "from 12:00:00Z it falls WITHOUT its parachute" in text
+
+
+async def test_no_banner_without_an_override(tmp_path: Path, gateway: SimulatedRockblock) -> None:
+    app = overridden_app(tmp_path, gateway, override=False)
+    async with app.run_test(size=(80, 24)) as pilot:
+        app.refresh_screen()
+        await pilot.pause()
+        assert banner(app) == ""
+        assert not app.screen.query_one("#override-banner").display
+
+
+async def test_the_checklist_does_not_tick_landing_confirmed_after_an_override(
+    tmp_path: Path, gateway: SimulatedRockblock
+) -> None:
+    app = overridden_app(tmp_path, gateway)
+    ticked = app.store.query("SELECT step, state FROM checklist_step WHERE capsule = 'DRS1'")
+    assert [(row["step"], row["state"]) for row in ticked if row["step"] == "parachute"] == []

@@ -1,0 +1,149 @@
+"""Two OS accounts share one store (`drs setup shared-store`): one account's request is approved by the other.
+
+Real parts: two accounts and a group made with useradd/groupadd for the test, processes running with
+those accounts' uids (the kernel's, as the two-person rule counts them), the real file modes, SQLite's
+WAL files and `drs approve`. The processes are forks of this one that drop root before running the
+command: this machine's Python lives under /root, which other accounts cannot enter, so a fresh
+interpreter could not start as them; what the test checks (the kernel's permission checks on the
+store, the uid as the login) is the same in a fork.
+"""
+
+from __future__ import annotations
+
+import os
+import pwd
+import shutil
+import stat
+import subprocess
+import sys
+import tempfile
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+import console.commands.approve  # noqa: F401 - imported before the forks drop root (see the docstring)
+import console.commands.setup  # noqa: F401
+from console.commands.main import main
+from drs_link.config import load_config
+from drs_link.errors import StoreError
+from drs_link.ops.approval import ApprovalBook, Login, current_login
+from drs_link.store import Store
+
+pytestmark = pytest.mark.skipif(
+    os.geteuid() != 0 or shutil.which("useradd") is None,
+    reason="creates two OS accounts with useradd/groupadd, which needs root (CI runs as root)",
+)
+
+
+@pytest.fixture
+def accounts() -> Iterator[tuple[str, str, str]]:
+    """Two new accounts (alice, bob) in a new group of operators; removed afterwards."""
+    tag = f"{os.getpid() % 100000}"
+    group, alice, bob = f"drsops{tag}", f"drsalice{tag}", f"drsbob{tag}"
+    subprocess.run(["groupadd", group], check=True)
+    try:
+        for user in (alice, bob):
+            subprocess.run(["useradd", "-M", "-N", "-G", group, "-s", "/usr/sbin/nologin", user], check=True)
+        yield alice, bob, group
+    finally:
+        for user in (alice, bob):
+            subprocess.run(["userdel", user], check=False, capture_output=True)
+        subprocess.run(["groupdel", group], check=False, capture_output=True)
+
+
+@pytest.fixture
+def place() -> Iterator[Path]:
+    """A directory every account can enter and make its own in, like /tmp (pytest's tmp_path is 0700)."""
+    path = Path(tempfile.mkdtemp(prefix="drs-shared-"))
+    path.chmod(0o1777)
+    yield path
+    shutil.rmtree(path, ignore_errors=True)
+
+
+def as_account(user: str, work: Callable[[], int]) -> tuple[int, str]:
+    """Run ``work`` in a child process with ``user``'s uid, gid and groups; its exit code and output."""
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: never returns into pytest
+        code = 70
+        try:
+            os.close(read_end)
+            out = os.fdopen(write_end, "w", buffering=1)
+            sys.stdout = sys.stderr = out
+            account = pwd.getpwnam(user)
+            os.setgroups(os.getgrouplist(user, account.pw_gid))
+            os.setgid(account.pw_gid)
+            os.setuid(account.pw_uid)
+            code = work()
+            out.flush()
+        except BaseException as exc:  # noqa: BLE001 - reported to the parent, which fails the test
+            print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
+        finally:
+            os._exit(code)
+    os.close(write_end)
+    with os.fdopen(read_end) as pipe:
+        output = pipe.read()
+    _, status = os.waitpid(pid, 0)
+    return os.waitstatus_to_exitcode(status), output
+
+
+def config_for(place: Path, operator: str, store: Path) -> Path:
+    path = place / f"{operator}.toml"
+    path.write_text(f'[operator]\nname = "{operator}"\n[data]\ndir = "{store}"\n')
+    path.chmod(0o644)
+    return path
+
+
+def test_one_accounts_request_is_approved_by_the_other_through_a_shared_store(
+    accounts: tuple[str, str, str], place: Path
+) -> None:
+    alice, bob, group = accounts
+    store_dir = place / "data"
+    alice_config, bob_config = config_for(place, alice, store_dir), config_for(place, bob, store_dir)
+    # Once as root, so every module `drs approve` needs is imported before a fork drops root; then the
+    # store goes again, for alice to make it as she would in the field.
+    assert main(["--config", str(alice_config), "approve"]) == 0
+    shutil.rmtree(store_dir)
+
+    def request() -> int:
+        load_config(alice_config)
+        book = ApprovalBook(Store.open(store_dir / "drs.sqlite"))
+        made = book.request("DRS1", "parachute", "[PARACHUTE=01:19]", alice, current_login())
+        print(f"request #{made.id} by {made.requester}")
+        return 0
+
+    code, out = as_account(alice, request)
+    assert code == 0 and f"request #1 by {alice}" in out, out
+
+    code, out = as_account(bob, lambda: main(["--config", str(bob_config), "approve", "1"]))
+    assert code == 1, out
+    assert f"it belongs to {alice}" in out and "drs setup shared-store" in out, (
+        "the refusal says how to share"
+    )
+
+    code, out = as_account(alice, lambda: main(["setup", "shared-store", str(store_dir), "--group", group]))
+    assert code == 0, out
+    assert (
+        f"{store_dir}: group {group}, mode 2770" in out
+        and f"{store_dir / 'drs.sqlite'}: group {group}" in out
+    )
+    assert stat.S_IMODE(store_dir.stat().st_mode) == 0o2770
+    assert stat.S_IMODE((store_dir / "drs.sqlite").stat().st_mode) == 0o660
+
+    code, out = as_account(bob, lambda: main(["--config", str(bob_config), "approve", "1"]))
+    assert code == 0, out
+    assert "approved by" in out and bob in out
+
+    decided = ApprovalBook(Store.open(store_dir / "drs.sqlite")).get(1)
+    assert decided.state == "approved" and decided.requester == Login(alice) and decided.decider == Login(bob)
+    for name in os.listdir(store_dir):  # the -wal and -shm bob's SQLite made are the group's too
+        info = (store_dir / name).stat()
+        assert info.st_gid == os.stat(store_dir).st_gid and stat.S_IMODE(info.st_mode) & 0o007 == 0, name
+
+
+def test_a_group_that_does_not_exist_is_named_with_how_to_make_it(tmp_path: Path) -> None:
+    with pytest.raises(StoreError, match=r"group 'no-such-drs-group' does not exist: as root, `groupadd"):
+        from drs_link.store import share_directory
+
+        share_directory(tmp_path / "data", "no-such-drs-group")
