@@ -20,10 +20,12 @@ from typing import Any
 from drs_link.ops import Contour, PredictionSample, ReleaseOrigin, TelemetryRecord
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
 from predictor.calibration import CalibratedModel, load_model
+from predictor.descent import PROFILES
 from predictor.errors import PredictorError
 from predictor.planning import plan_release
 from predictor.prediction import (
     Feature,
+    LivePrediction,
     LivePredictor,
     Report,
     load_zones,
@@ -202,10 +204,9 @@ class PredictionService:
             live = self._live.get(capsule)
             if live is None or (live.reports and reports[0].time < live.reports[0].time):
                 model = self.models.get(capsule)
-                live = self._live[capsule] = (
-                    model.live_predictor(cube, terrain)
-                    if model is not None else LivePredictor(cube, terrain=terrain)
-                )  # fmt: skip
+                # A capsule without a model flies the default payload's law the same way, and says so.
+                flown = model if model is not None else CalibratedModel(PROFILES["drs"], (), None)
+                live = self._live[capsule] = flown.live_predictor(cube, terrain)
             fresh = []
             for (
                 report
@@ -221,26 +222,22 @@ class PredictionService:
             self.live_latest[capsule] = result.prediction
             outline, path = map_geometry(result.prediction)
             data = {**result.to_dict(), "outline_2sigma": outline, "path": path}
-            data["measured_rate_factor"] = live.measured(fresh[-1].alt_m)[0] if live.legs else None
-            data["correction"] = live_correction_text(
-                result.rate_factor, result.wind_error_ms, result.decay_m
-            )
+            data["measured_rate_factor"] = result.rate.measured if result.rate is not None else None
+            data["correction"] = live_correction_text(result)
             self._live_latest[capsule] = data
             return data
 
 
-def live_correction_text(
-    rate_factor: float, wind_error_ms: tuple[float, float], decay_m: float | None
-) -> str:
-    """Which measured correction the prediction used, in words (the operator must know what changed)."""
+def live_correction_text(result: LivePrediction) -> str:
+    """Which measured correction the prediction used, in words (the operator must know what changed),
+    and what it flies that is not the model's own (its notes)."""
     parts = []
-    if rate_factor != 1.0:
-        parts.append(f"descent rate ×{rate_factor:.2f}")
-    if decay_m is not None and wind_error_ms != (0.0, 0.0):
-        parts.append(
-            f"wind error E {wind_error_ms[0]:+.1f} N {wind_error_ms[1]:+.1f} m/s fading over {decay_m:.0f} m"
-        )
-    return ", ".join(parts) if parts else "none (forecast only)"
+    if result.rate is not None:
+        parts.append(result.rate.describe())
+    east, north = result.wind_error_ms
+    if result.decay_m is not None and (east, north) != (0.0, 0.0):
+        parts.append(f"wind error E {east:+.1f} N {north:+.1f} m/s fading over {result.decay_m:.0f} m")
+    return "; ".join([", ".join(parts) if parts else "none (forecast only)", *result.notes])
 
 
 def capsule_models(capsules: Sequence[tuple[str, Path | None]]) -> dict[str, CalibratedModel]:
