@@ -49,7 +49,8 @@ def run_show(args: argparse.Namespace) -> int:
             )
         )
     else:
-        lines.append("live      not evaluated with this law: drs live flies the defaults (drs live evaluate --save-model)")
+        lines.append("live      not evaluated with this law: drs live flies its shape with each flight's own λ update and "
+                     "the default ellipse, and says so (drs live evaluate --save-model)")
     flights = prov.get("flights") or []
     lines.append(f"flights   {len(flights)}: {', '.join(flights[:8])}{' …' if len(flights) > 8 else ''}")
     lines.append(f"weather   {prov.get('weather', 'unknown')}")

@@ -604,8 +604,9 @@ textbook law's with the same λ estimator, from 20 km and from 10 km."""
 
 
 def live_settings(model: CalibratedModel, result: Evaluation, command: str) -> CalibratedModel:
-    """The model with what its evaluation kept: the shipped correction bands, the λ discrepancy and the
-    live ellipse; and, when its calibration gave it no λ prior, the one these flights measured."""
+    """The model with what its evaluation kept: the shipped correction bands, the λ discrepancy, the λ
+    prior these flights measured on its law (flown only when its calibration gave it none) and the
+    live ellipse."""
     prior, discrepancy = result.rate_laws["model"]
     ratios = {}
     for km in FLOOR_KMS:
@@ -622,14 +623,10 @@ def live_settings(model: CalibratedModel, result: Evaluation, command: str) -> C
             "command": command,
             "evaluated_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
             **ratios,
-            "rate_prior_from": "the calibration" if model.rate_prior is not None or prior is None
-            else "drs live evaluate: the flights' whole-descent λ on the model's law",
         },
-    }  # fmt: skip
-    settings = LiveSettings(shipped_correction(result), fit_live_sigma(result), discrepancy)
-    return dataclasses.replace(
-        model, live=settings, provenance=provenance, rate_prior=model.rate_prior or prior
-    )
+    }
+    settings = LiveSettings(shipped_correction(result), fit_live_sigma(result), discrepancy, prior)
+    return dataclasses.replace(model, live=settings, provenance=provenance)
 
 
 BOOTSTRAP_RESAMPLES = 2000

@@ -73,18 +73,21 @@ class CalibratedModel:
         its bands; otherwise the plain restart from each report). Without live settings of its own it
         flies its shape with this flight's own λ update, and every prediction says what is not its own."""
         notes = []
-        if self.rate_prior is None:
-            notes.append("no λ prior in the model: λ from this descent alone")
         if self.live is None:
             notes.append("no live settings of its own: its shape with this flight's own λ update, no wind correction")
             notes.append(DEFAULT_ELLIPSE_NOTE)
             settings = LiveSettings(OWN_RATE, LIVE_ERROR_MODEL)
         else:
             settings = self.live
+        prior = self.rate_prior or settings.prior
+        if prior is None:
+            notes.append("no λ prior in the model: λ from this descent alone")
+        elif self.rate_prior is None:
+            notes.append("λ prior from the model's live evaluation (its calibration gave none)")
         correction = settings.correction if corrected else NO_CORRECTION
         return LivePredictor(
             cube, self.payload, terrain, correction, settings.error_model, effects=self.terms,
-            prior=self.rate_prior, discrepancy=settings.discrepancy, notes=notes,
+            prior=prior, discrepancy=settings.discrepancy, notes=notes,
         )  # fmt: skip
 
     def model(self) -> Model:
@@ -150,6 +153,7 @@ def _live_to_dict(live: LiveSettings) -> dict[str, Any]:
         "discrepancy": {
             "heights_km": list(d.heights_km), "log_bias": list(d.log_bias), "log_sigma": list(d.log_sigma),
         },
+        **({"prior": live.prior.to_dict()} if live.prior is not None else {}),
         "error_model": {
             "heights_km": list(e.heights_km),
             "sigma_parallel_km": list(e.sigma_parallel_km),
@@ -329,6 +333,8 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
                                ("heights_km", "sigma_parallel_km", "sigma_perpendicular_km"), refuse)),
         RateDiscrepancy(*_table(raw.get("discrepancy"), "live.discrepancy",
                                 ("heights_km", "log_bias", "log_sigma"), refuse)),
+        _rate_prior(raw["prior"], lambda field, problem: refuse(field.replace("rate_prior", "live.prior"), problem))
+        if "prior" in raw else None,
     )  # fmt: skip
 
 

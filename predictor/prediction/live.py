@@ -84,8 +84,8 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.139, 3.638, 3.321, 3.464, 2.107, 1.602),
-    sigma_perpendicular_km=(3.581, 3.803, 3.857, 3.321, 1.529, 0.789),
+    sigma_parallel_km=(4.139, 3.899, 3.546, 3.711, 2.199, 1.665),
+    sigma_perpendicular_km=(3.581, 3.803, 3.856, 3.321, 1.529, 0.789),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,
 ``DEFAULT_ELLIPSE_NOTE``): measured by ``drs live evaluate`` on the 30 SuperBIT test flights with the
@@ -188,6 +188,9 @@ class LiveSettings:
     correction: LiveCorrection
     error_model: LiveErrorModel
     discrepancy: RateDiscrepancy = NO_DISCREPANCY
+    prior: RatePrior | None = None
+    """The λ prior the evaluation measured (the flights' whole-descent λ on this law), flown when the
+    model's calibration gave it none of its own."""
 
 
 DEFAULT_ELLIPSE_NOTE = (

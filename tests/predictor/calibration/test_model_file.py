@@ -21,7 +21,7 @@ from predictor.descent.payload import Payload
 from predictor.environment.demo_weather import demo_weather_files
 from predictor.environment.weather import load_weather
 from predictor.prediction.landings import predict
-from predictor.prediction.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, TypicalRate
+from predictor.prediction.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, RateDiscrepancy
 from predictor.prediction.uncertainty import ErrorModel
 
 WHEN = datetime(2026, 11, 22, 12, tzinfo=UTC)
@@ -36,9 +36,9 @@ def example() -> CalibratedModel:
         ErrorModel(1.2, 5e-4, 0.0, 1.3, name="calibrated"),
         {"created_utc": "2026-11-24T23:00:00Z", "flights": ["18-5-19", "18-6-30"], "weather": "ascent winds"},
         live=LiveSettings(
-            LiveCorrection((Band(0.0, 5000.0, True, None, 3000.0),
-                            Band(5000.0, float("inf"), True, 2000.0, typical_rate=TypicalRate((5.0, 20.0), (1.0, 1.04))))),
+            LiveCorrection((Band(0.0, 5000.0, True, None), Band(5000.0, float("inf"), True, 2000.0))),
             LiveErrorModel((20.0, 2.0), (3.9, 1.6), (3.8, 0.8)),
+            RateDiscrepancy((5.0, 20.0), (0.0, 0.04), (0.02, 0.05)),
         ),
     )  # fmt: skip
 
@@ -48,7 +48,7 @@ def test_a_saved_model_loads_back_the_same(tmp_path: Path) -> None:
     loaded = load_model(path)
     assert loaded.payload == example().payload and loaded.terms == example().terms
     assert loaded.ellipse == example().ellipse and loaded.provenance == example().provenance
-    assert loaded.live == example().live, "bands (open ends included), typical factors and live sigma"
+    assert loaded.live == example().live, "bands (open ends included), λ discrepancy and live sigma"
     assert loaded.label() == "m.json (calibrated 2026-11-24 on 2 flights)"
     assert [p.name for p in tmp_path.iterdir()] == ["m.json"], "no temporary file left behind"
 
@@ -86,8 +86,8 @@ def test_drs_model_show_names_the_payload_terms_ellipse_and_provenance(
     out = capsys.readouterr().out
     for text in ("superbit-test: 6 kg, Cd·A 1.36 m²", "term      drag_density_exponent (vertical): exponent 0.06",
                  "ellipse   σ0 1.2 km", "flights   2: 18-5-19, 18-6-30", "weather   ascent winds",
-                 "live      0 km–5 km: rate on the last 3 km, wind off; 5 km–top: rate on the whole descent "
-                 "relative to the typical factor, wind L = 2 km", "live 1σ   20 km 3.90×3.80 km"):  # fmt: skip
+                 "live      0 km–5 km: own λ updated, wind off; 5 km–top: own λ updated, wind L = 2 km",
+                 "live 1σ   20 km 3.90×3.80 km"):  # fmt: skip
         assert text in out
 
 
@@ -130,14 +130,15 @@ def _with(change: dict) -> dict:
         (_with({"live": []}), r"live: must be an object with bands"),
         (_with({"live.bands.0.use_rate": "yes"}), r"live\.bands\[0\]: must be an object with .* use_rate \(true/false\)"),
         (_with({"live.bands.0.upper_m": -1.0}), r"live\.bands\[0\]: lower_m 0 must be below upper_m -1"),
-        (_with({"live.bands.1.wind_decay_m": 0.0}), r"live\.bands\[1\]: rate_window_m and wind_decay_m must be positive"),
-        (_with({"live.bands.1.typical_rate.factors": [1.0, -1.0]}),
-         r"live\.bands\[1\]\.typical_rate\.factors: must all be positive, got -1"),
-        (_with({"live.error_model.sigma_parallel_km": [3.9]}), r"live\.error_model: heights_km and the two sigma"),
+        (_with({"live.bands.1.wind_decay_m": 0.0}), r"live\.bands\[1\]: wind_decay_m must be a positive length"),
+        (_with({"live.discrepancy.log_sigma": [0.02, -0.05]}),
+         r"live\.discrepancy\.log_sigma: must not be negative, got -0\.05"),
+        (_with({"live.error_model.sigma_parallel_km": [3.9]}),
+         r"live\.error_model: heights_km, sigma_parallel_km, sigma_perpendicular_km must be as long"),
     ],
     ids=["corrupt", "kind", "future-schema", "schema-type", "negative-mass", "cda-text", "unknown-effect",
          "unknown-parameter", "nan", "bins", "ellipse", "terms-type", "live-type", "live-use-rate", "live-band-order",
-         "live-decay", "live-typical", "live-sigma"],  # fmt: skip
+         "live-decay", "live-discrepancy", "live-sigma"],  # fmt: skip
 )
 def test_a_bad_model_file_is_refused_naming_the_file_and_the_field(
     tmp_path: Path, document: object, message: str

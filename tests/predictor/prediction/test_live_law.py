@@ -11,12 +11,11 @@ under a fresh seed far below 10⁻⁶).
 
 from __future__ import annotations
 
+import math
 from datetime import timedelta
 
 import numpy as np
 import pytest
-
-import math
 
 from predictor.descent import RatePrior
 from predictor.descent.model import DeploymentDelay, DescentRateScale, DragDensityExponent
