@@ -84,7 +84,7 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.139, 3.899, 3.546, 3.711, 2.199, 1.665),
+    sigma_parallel_km=(4.139, 3.897, 3.545, 3.712, 2.2, 1.666),
     sigma_perpendicular_km=(3.581, 3.803, 3.856, 3.321, 1.529, 0.789),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,
@@ -278,7 +278,10 @@ def _log_sigma(design: np.ndarray, weights: np.ndarray, residual: np.ndarray, sc
     """
     weighted = design * weights[:, None]
     try:
-        covariance = np.linalg.inv(design.T @ weighted) * scale**2
+        # scale² × n / (n − 2): two parameters were fitted on these residuals. A line through two fixes
+        # leaves none, and its scale is the 1 s floor: the spread the evaluation measured across
+        # flights for records as short (``RateDiscrepancy``) is then what says how far off it can be.
+        covariance = np.linalg.inv(design.T @ weighted) * scale**2 * residual.size / max(residual.size - 2, 1)
     except np.linalg.LinAlgError:
         return math.inf
     rho = 0.0

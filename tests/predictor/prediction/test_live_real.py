@@ -106,7 +106,7 @@ def test_the_live_choices_hardly_depend_on_the_other_flights_laws(shared_data: P
 
 def test_a_law_that_cannot_be_held_out_is_refused(shared_data: Path) -> None:
     folder = shared_data / "tracks" / "pyballoon_superbit"
-    flights = _usable([folder / n for n in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")], None, [])
+    flights = _usable([folder / n for n in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")], None, [], None, None)
     names = [f.name for f in flights]
     committed = load_model(MODEL)
     with pytest.raises(PredictorError, match=r"cannot be held out: it was calibrated on flights not given \(18-10-28"):
@@ -228,7 +228,10 @@ def test_live_cli_re_predicts_a_real_descent_from_each_fix(
     assert main(["live", "--track", str(track), "--ascent-winds", "--payload", "superbit-test"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert lines[-1].startswith("measured landing 2019-07-28T20:46:00Z")
-    assert len(lines) > 10 and all("→" in line and " (in " in line for line in lines[:-1])
+    assert lines[0] == "drs live: superbit-test profile"
+    assert any(line.startswith("  note: live ellipse: the default (measured with the SuperBIT model") for line in lines[1:4])
+    predictions = [line for line in lines[:-1] if not line.startswith(("drs live:", "  note:"))]
+    assert len(predictions) > 10 and all("→" in line and " (in " in line and " λ " in line for line in predictions)
 
 
 def test_live_cli_json_gives_the_landing_time_the_remaining_time_and_the_fixes_fitted(
