@@ -52,6 +52,7 @@ from predictor.descent import PROFILES, Payload, RatePrior, Term
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, WeatherError
 from predictor.prediction import (
+    CONSTANT_WIND_M,
     GEOD,
     NO_CORRECTION,
     NO_DISCREPANCY,
@@ -87,7 +88,7 @@ def corrections() -> dict[str, LiveCorrection]:
     """Every live correction tried on the calibrated model, by name."""
     configs = {"plain": NO_CORRECTION, OWN: OWN_RATE}
     for decay in DECAYS_M:
-        stored = 1e12 if math.isinf(decay) else decay
+        stored = 10 * CONSTANT_WIND_M if math.isinf(decay) else decay
         configs[f"wind {_wind_label(decay)}"] = LiveCorrection.everywhere(False, stored)
         configs[f"{OWN} + wind {_wind_label(decay)}"] = LiveCorrection.everywhere(True, stored)
     return configs

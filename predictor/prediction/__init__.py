@@ -11,6 +11,7 @@ __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
         "Band": "live",
+        "CONSTANT_WIND_M": "live",
         "DEFAULT_ELLIPSE_NOTE": "live",
         "DEFAULT_RATE_SIGMA": "landings",
         "DEFAULT_WIND_SIGMA_MS": "landings",

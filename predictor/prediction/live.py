@@ -47,6 +47,8 @@ from predictor.prediction.uncertainty import GEOD, ErrorModel
 WIND_BIN_M = 250.0
 RATE_FACTOR_LIMITS = (0.5, 2.0)
 """A measured rate factor outside this is a bad fix or a failed canopy, not a calibration."""
+CONSTANT_WIND_M = 1e11
+"""A decay length this long (JSON has no ∞) carries the measured wind error unchanged to the ground."""
 MIN_PAIR_DROP_M = 200.0
 """Report pairs closer in altitude than this say too little about rate or wind (GNSS noise)."""
 HUBER_K = 1.345
@@ -146,7 +148,10 @@ class Band:
         lower = "ground" if not math.isfinite(self.lower_m) else f"{self.lower_m / 1000:g} km"
         upper = "top" if not math.isfinite(self.upper_m) else f"{self.upper_m / 1000:g} km"
         rate = "own λ updated" if self.use_rate else "rate off"
-        wind = "off" if self.decay_m is None else f"L = {self.decay_m / 1000:g} km"
+        if self.decay_m is None:
+            wind = "off"
+        else:
+            wind = "L = ∞ (constant)" if self.decay_m >= CONSTANT_WIND_M else f"L = {self.decay_m / 1000:g} km"
         return f"{lower}–{upper}: {rate}, wind {wind}"
 
 
