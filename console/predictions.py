@@ -123,12 +123,7 @@ class PredictionService:
         cube, terrain = self._inputs()
         now = self.clock()
         records = []
-        model = self.models.get(capsule)
-        flown: dict[str, Any] = {}
-        if model is not None:
-            flown = {"payload": model.payload, "effects": model.terms}
-            if model.ellipse is not None:
-                flown["error_model"] = model.ellipse
+        flown, label = self._flown(capsule)
         for minutes in release_in:
             result = predict(
                 cube, now, origin.lat, origin.lon, origin.alt_m, terrain=terrain, drift_minutes=float(minutes),
@@ -136,9 +131,19 @@ class PredictionService:
             )  # fmt: skip
             if minutes == 0:
                 self.latest[capsule] = result
-            label = model.label() if model is not None else "drs profile"
             records.append(TelemetryRecord(now, capsule, prediction_sample(result, minutes, origin.source, label)))
         return records
+
+    def _flown(self, capsule: str | None) -> tuple[dict[str, Any], str]:
+        """What a capsule's predictions and sweeps fly (its model's payload, terms and ellipse, or the
+        default profile) and how they name it: one rule for the release prediction and the window."""
+        model = self.models.get(capsule) if capsule is not None else None
+        if model is None:
+            return {}, "drs profile"
+        flown: dict[str, Any] = {"payload": model.payload, "effects": model.terms}
+        if model.ellipse is not None:
+            flown["error_model"] = model.ellipse
+        return flown, model.label()
 
     def export(self, capsule: str, directory: Path) -> list[Path]:
         prediction = self.latest.get(capsule)
@@ -157,9 +162,12 @@ class PredictionService:
         zones_file: Path | None,
         hours: float = WINDOW_HOURS,
         every_minutes: float = WINDOW_STEP_MIN,
+        capsule: str | None = None,
     ) -> dict[str, object]:
-        """The sweep from now as plain data: one entry per candidate, the verdict, the recommended one."""
+        """The sweep from now as plain data: one entry per candidate, the verdict, the recommended one.
+        It flies ``capsule``'s model as its release prediction does (the go/no-go depends on it)."""
         cube, terrain = self._inputs()
+        flown, label = self._flown(capsule)
         zones: tuple[Feature, ...] = load_zones(zones_file) if zones_file is not None else ()
         now = self.clock()
         plan = plan_release(
@@ -172,11 +180,13 @@ class PredictionService:
             every_minutes,
             zones=zones,
             terrain=terrain,
+            **flown,
         )
         recommended = plan.windows[0].recommended if plan.windows else None
         return {
             "computed_at": now.isoformat(),
             "origin_source": origin.source,
+            "model": label,
             "every_minutes": every_minutes,
             "verdict": plan.verdict,
             "recommended": recommended,
@@ -185,6 +195,7 @@ class PredictionService:
                     "time": c.release_time.isoformat(),
                     "go": c.go,
                     "landed": c.status is None,
+                    "landing_time": c.landing_time.isoformat() if c.landing_time is not None else None,
                     "reasons": list(c.reasons),
                 }
                 for c in plan.candidates

@@ -60,6 +60,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     plan.add_argument(
         "--payload", choices=sorted(PROFILES), help="payload profile (default drs; not with --model)"
     )
+    plan.add_argument("--mass", type=float, metavar="KG", help="override the profile's mass (not with --model)")
+    plan.add_argument("--cda", type=float, metavar="M2", help="override the profile's Cd·A (not with --model)")
     plan.add_argument(
         "--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model): its payload, terms and "
         "ellipse replace --payload",
@@ -138,7 +140,7 @@ def run_plan(args: argparse.Namespace) -> int:
 
     summary_to = sys.stderr if piped(kml=args.kml, geojson=args.geojson, json=args.json) else sys.stdout
     start = _parse_time(args.start, "--from")
-    model = flown_model(args.model, args.payload, None, None)
+    model = flown_model(args.model, args.payload, args.mass, args.cda)
     flown: dict[str, Any] = {"payload": model.payload, "effects": model.terms}
     if model.ellipse is not None:
         flown["error_model"] = model.ellipse

@@ -304,3 +304,27 @@ def test_on_a_real_1_hz_descent_the_rate_fit_does_not_swing_with_the_payload(sha
                 jumps.append(abs(fit.factor / previous.factor - 1.0))
             previous = fit
     assert len(jumps) > 100 and max(jumps) < 0.01
+
+
+def test_evaluate_says_why_a_track_is_unusable(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # A descent-only record (the same flight from its highest fix on) has no ascent to take winds from.
+    lines = (shared_data / "tracks" / "pyballoon_superbit" / "19-7-28.csv").read_text().splitlines()
+    top = max(range(len(lines)), key=lambda i: float(lines[i].split(",")[4]))
+    descent_only = tmp_path / "descent-only.csv"
+    descent_only.write_text("\n".join(lines[top:]) + "\n")
+    assert main(["live", "evaluate", str(descent_only), "--out", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err
+    assert "no usable flight among the tracks given: descent-only: no ascent winds:" in err
+    assert "(a descent-only track needs --weather)" in err
+
+
+def test_a_model_without_terms_is_not_said_to_be_uncalibrated_on_these_flights(
+    shared_data: Path, tmp_path: Path
+) -> None:
+    folder = shared_data / "tracks" / "pyballoon_superbit"
+    three = evaluate([folder / n for n in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")])
+    text = write_report(three, tmp_path, "drs live evaluate <3 tracks>").read_text(encoding="utf-8")
+    assert "The model has no calibrated terms: its law is the payload's drag law" in text
+    assert "not calibrated on these flights" not in text
