@@ -104,6 +104,10 @@ class Candidate:
         return int(variant), best_value, best
 
 
+def _heights() -> tuple[Mapping[str, float], ...]:
+    return tuple({"height_m": float(h)} for h in range(6000, 27_001, 3000))
+
+
 def _bands() -> tuple[Mapping[str, float], ...]:
     return tuple({"bottom_m": float(b), "top_m": float(b + 6000)} for b in range(0, 27_000, 3000))
 
@@ -137,6 +141,16 @@ LIBRARY: tuple[Candidate, ...] = (
         0.0,
         fixed={"speed_factor": 3.0},
         why="the canopy opens late: 3× faster fall until then (the factor trades off with the delay)",
+    ),
+    Candidate(
+        "two_regime_rate",
+        "vertical",
+        "factor",
+        tuple(np.linspace(0.7, 1.6, 10)),
+        (0.5, 2.0),
+        1.0,
+        variants=_heights(),
+        why="a canopy that opens further below a height: a factor on the rate above it (heights every 3 km)",
     ),
     Candidate(
         "wind_scale",
