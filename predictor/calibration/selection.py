@@ -397,6 +397,9 @@ def calibrate(
     unknown = {c.family for c in candidates} - set(FAMILY_ORDER)
     if unknown:
         raise PredictorError(f"unknown effect family {', '.join(sorted(unknown))}")
+    # λ is each flight's own (profiled out of the shape record, pooled as the rate prior): as a shared
+    # term it would only be seen where a flight's λ hits its bounds.
+    candidates = [c for c in candidates if c.name != RATE_SCALE.name]
     batch = FlightBatch(cases, payload, step_m)
     baseline = batch.heldout([[]] * n)
     baseline_residuals = tuple(residuals(cases[i], batch.runs(i, [[]])) for i in range(n))

@@ -22,7 +22,7 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 @pytest.fixture(scope="module")
 def calibrated(plain_cases: list[FlightCase]) -> Calibration:
-    return calibrate(plain_cases, PAYLOAD, library(["descent_rate_scale", "wind_rotation"]))
+    return calibrate(plain_cases, PAYLOAD, library(["drag_density_exponent", "wind_rotation"]))
 
 
 def _ellipse(cal: Calibration):  # noqa: ANN202
@@ -41,7 +41,10 @@ def test_the_json_has_the_keys_the_issue_names(calibrated: Calibration) -> None:
     for block in (data["baseline"], data["after"], *(c["heldout"] for c in data["candidates"])):
         for metric in ("landing_error_km", "descent_time_error_s"):
             assert set(block[metric]) >= {"mean", "median"}
-    assert [c["effect"] for c in data["candidates"]] == ["descent_rate_scale", "wind_rotation"]
+    assert [c["effect"] for c in data["candidates"]] == ["drag_density_exponent", "wind_rotation"]
+    assert set(data["rate_prior"]) == {"median", "log_sigma", "flights", "per_flight"}
+    assert data["rate_prior"]["flights"] == 5 and set(data["rate_prior"]["per_flight"]) == set(data["flights"])
+    assert data["unstable"] == [] and set(data["rate_only"]) == set(data["baseline"])
     assert {c["family"] for c in data["candidates"]} == {"vertical", "horizontal"}
     assert all(isinstance(c["parameters"], dict) for c in data["candidates"])
     model = data["uncertainty_model"]
@@ -67,7 +70,9 @@ def test_the_markdown_report_states_its_verdict_and_links_real_plots(
         assert f"]({png.name})" in text
     assert "## Vertical family (scored on the vertical record)" in text
     assert "## Horizontal family (scored on the horizontal record)" in text
-    assert "| descent_rate_scale | scale = " in text and "paper (launch), same errors" in text
+    assert "| drag_density_exponent | reference_density = 1.225, exponent = " in text
+    assert "paper (launch), same errors" in text
+    assert "| plain law × median λ of the other flights (λ alone) |" in text and "the rate prior is median λ" in text
 
 
 def test_a_preface_stands_under_the_title_and_survives_regeneration(
