@@ -163,8 +163,8 @@ def speed_finding(cal: Calibration) -> str:
     systematic = [r for r in rows if r["systematic"]]
     if not systematic:
         return (
-            "With the plain model the measured descent speed shows no systematic difference from the predicted "
-            f"one in any 3 km bin (every bin within ±{SYSTEMATIC_SPEED:.0%} or not agreed on by the flights)."
+            "With the plain law (each flight's own λ taken out) the measured descent speed shows no systematic "
+            f"difference from the predicted one in any 3 km bin (every bin within ±{SYSTEMATIC_SPEED:.0%} or not agreed on by the flights)."
         )
 
     def words(r: dict[str, Any]) -> str:
@@ -177,7 +177,7 @@ def speed_finding(cal: Calibration) -> str:
 
     low = systematic[0]
     high = max(systematic, key=lambda r: abs(r["ratio"] - 1.0))
-    text = f"With the plain model the measured descent is {words(low)}"
+    text = f"With the plain law (each flight's own λ taken out) the measured descent is {words(low)}"
     if high is not low:
         text += f", and {words(high)}"
     return text + "."
@@ -454,8 +454,8 @@ def write_report(
             )
     lines += [
         "",
-        "Measured / predicted descent speed by altitude bin (plain model): predicted over measured time to "
-        "cross the bin, summed over the flights that crossed it (below the last airborne fix nothing is "
+        "Measured / predicted descent speed by altitude bin (plain law, each flight's predicted times divided "
+        "by its own λ): predicted over measured time to cross the bin, summed over the flights that crossed it (below the last airborne fix nothing is "
         "counted, the touchdown is somewhere in that interval), with a 95 % bootstrap interval over flights; "
         f"systematic = beyond ±{SYSTEMATIC_SPEED:.0%} and agreed on by the flights:",
         "",
@@ -509,14 +509,19 @@ def write_report(
 
 
 def speed_ratio_by_altitude(cal: Calibration, edges_m: Sequence[float], seed: int = 0) -> list[dict[str, Any]]:
-    """The plain model's measured/predicted descent speed per altitude bin, from crossing times.
+    """The plain law's measured/predicted descent speed per altitude bin, from crossing times, with each
+    flight's own λ taken out (the shape's residual).
 
     Per bin: Σ predicted / Σ measured time to cross it over the flights that crossed it (time-weighted,
     so a bin crossed briefly weighs little), its 95 % paired-bootstrap interval over flights, and
-    whether it is a systematic difference: beyond ±``SYSTEMATIC_SPEED`` and, with 3 or more flights,
-    an interval that excludes 1 (for fewer flights the tolerance alone decides).
+    whether it is a systematic difference: beyond ±``SYSTEMATIC_SPEED``, crossed by 3 or more flights
+    (a partial bin at the top, crossed by one or two, says nothing general) and an interval that
+    excludes 1.
     """
-    predicted = np.array([b.predicted_s for b in cal.baseline_budgets])
+    # Each flight's predicted times divided by its own λ: the shape's residual, as the shape record
+    # reads it (a flight family that falls 5 % slow everywhere is the rate prior, not a shape).
+    own = np.where(np.isfinite(cal.baseline.rate_factor), cal.baseline.rate_factor, 1.0)
+    predicted = np.array([b.predicted_s for b in cal.baseline_budgets]) / own[:, None]
     measured = np.array([b.measured_s for b in cal.baseline_budgets])
     rows = []
     rng = np.random.default_rng(seed)
@@ -530,7 +535,7 @@ def speed_ratio_by_altitude(cal: Calibration, edges_m: Sequence[float], seed: in
         if p.size >= 3:
             picks = rng.integers(0, p.size, (BOOTSTRAP_SAMPLES, p.size))
             low, high = (float(x) for x in np.quantile(p[picks].sum(axis=1) / m[picks].sum(axis=1), (0.025, 0.975)))
-        agreed = p.size < 3 or low > 1.0 or high < 1.0
+        agreed = p.size >= 3 and (low > 1.0 or high < 1.0)
         rows.append({
             "bottom_m": lo, "top_m": hi, "flights": int(p.size), "measured_s": round(float(m.sum()), 1),
             "ratio": round(ratio, 4), "low": round(low, 4), "high": round(high, 4),

@@ -43,6 +43,7 @@ record; a part that still clears the margin means the library lacks something.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -468,7 +469,8 @@ def calibrate(
         baseline_replayed=baseline_replayed,
         after_residuals=after_residuals,
         after_replayed=after_replayed,
-        baseline_budgets=tuple(bin_budget(cases[i], batch.runs(i, [[]]), 0, np.asarray(BIN_EDGES_M)) for i in range(n)),
+        baseline_budgets=tuple(_whole_bins(cases[i], bin_budget(cases[i], batch.runs(i, [[]]), 0, np.asarray(BIN_EDGES_M)))
+                               for i in range(n)),  # fmt: skip
         predicted_drift_km=np.array([r.predicted_drift_km for r in after_residuals]),
         t_future_h=np.array([_t_future(c) for c in cases]),
         rate_prior=prior,
@@ -476,6 +478,16 @@ def calibrate(
         rate_factors=factors,
         rate_only=rate_only,
         stability=decision_stability(rounds, references, alpha, seed),
+    )
+
+
+def _whole_bins(case: FlightCase, budget: BinBudget) -> BinBudget:
+    """The budget without the bin that holds the descent start: the burst falls between two fixes, so
+    the measured time below the first one includes the rest of the climb and the fall back to it (up
+    to a fix interval, minutes at 2–5 min cadence), which no descent law should be asked to explain."""
+    top = np.asarray(BIN_EDGES_M[1:]) > case.start_alt_m
+    return dataclasses.replace(
+        budget, measured_s=np.where(top, 0.0, budget.measured_s), predicted_s=np.where(top, 0.0, budget.predicted_s)
     )
 
 
