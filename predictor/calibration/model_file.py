@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from predictor.calibration.effects import parameter_limits
 from predictor.descent import EFFECTS, Model, Payload, RatePrior, Term, payload_profile
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, UsageError
@@ -39,6 +40,10 @@ from predictor.prediction import (
     LiveSettings,
     RateDiscrepancy,
 )
+
+PAYLOAD_LIMITS = {"mass_kg": (0.05, 50.0), "cda_m2": (0.02, 50.0)}
+"""A balloon payload under a parachute: 50 g to 50 kg, Cd·A 0.02–50 m² (a 1 kg capsule under a 4 ft
+canopy is 0.43 m²). Outside them no calibration was run; a 10⁶ kg payload falls as a stone."""
 
 SCHEMA_VERSION = 3
 """2 added the optional ``live`` section, 3 the optional ``rate_prior``: a drs that reads an older
@@ -117,7 +122,12 @@ class CalibratedModel:
         when = self.provenance.get("created_utc", "")[:10]
         flights = self.provenance.get("flights")
         count = f" on {len(flights)} flights" if isinstance(flights, list) else ""
-        return f"{where} (calibrated {when}{count})" if when else where
+        label = f"{where} (calibrated {when}{count})" if when else where
+        unstable = self.provenance.get("unstable_terms")
+        if isinstance(unstable, list) and unstable:
+            # Visible wherever the model is named (drs predict, plan, live, the console).
+            label += f" [FLAG: {', '.join(map(str, unstable))} chosen in under 2/3 of the selection's folds]"
+        return label
 
     def to_dict(self) -> dict[str, Any]:
         ellipse = None
@@ -227,6 +237,10 @@ def _payload(raw: Any, refuse: Any) -> Payload:
         raise refuse("payload.mass_kg", f"must be a positive number of kg, got {mass:g}")
     if cda <= 0:
         raise refuse("payload.cda_m2", f"must be a positive number of m², got {cda:g}")
+    for key, value in (("mass_kg", mass), ("cda_m2", cda)):
+        low, high = PAYLOAD_LIMITS[key]
+        if not low <= value <= high:
+            raise refuse(f"payload.{key}", f"{value:g} is outside the payloads drs calibrates ({low:g}–{high:g})")
     name = str(raw.get("name", "calibrated"))
     return Payload(mass, cda, name=name, source=str(raw.get("source", "calibrated model file")))
 
@@ -235,6 +249,7 @@ def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
     if not isinstance(raw, list):
         raise refuse("terms", "must be a list (empty when calibration selected nothing)")
     terms = []
+    limits = parameter_limits()
     for index, item in enumerate(raw):
         where = f"terms[{index}]"
         if not isinstance(item, dict):
@@ -254,11 +269,24 @@ def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
                 values[key] = tuple(_number(v, f"{where}.parameters.{key}[{i}]", refuse) for i, v in enumerate(value))
             else:
                 values[key] = _number(value, f"{where}.parameters.{key}", refuse)
+            _within(values[key], limits.get((kind.name, key)), f"{where}.parameters.{key}", refuse)
+        if kind.name == "wind_band_scale" and values.get("bottom_m", 8000.0) >= values.get("top_m", 14000.0):
+            raise refuse(f"{where}.parameters", "wind_band_scale: bottom_m must be below top_m")
         try:
             terms.append(kind(**values))
         except (PredictorError, TypeError) as exc:
             raise refuse(where, str(exc)) from None
     return tuple(terms)
+
+
+def _within(value: float | tuple[float, ...], limits: tuple[float, float] | None, where: str, refuse: Any) -> None:
+    """Refuse a value outside the calibration's own bounds (``effects.parameter_limits``)."""
+    if limits is None:
+        return
+    low, high = limits
+    for v in value if isinstance(value, tuple) else (value,):
+        if not low <= v <= high:
+            raise refuse(where, f"{v:g} is outside the calibration's bounds {low:g}…{high:g}")
 
 
 def _ellipse(raw: Any, refuse: Any) -> ErrorModel | None:

@@ -91,6 +91,28 @@ def test_drs_model_show_names_the_payload_terms_ellipse_and_provenance(
         assert text in out
 
 
+def test_a_model_with_an_unstable_term_says_so_wherever_it_is_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from dataclasses import replace
+
+    from predictor.descent.rate_prior import RatePrior
+
+    model = replace(example(), provenance={**example().provenance, "unstable_terms": ["drag_density_exponent"],
+                                           "selection_stability": {"drag_density_exponent": 0.6}},
+                    rate_prior=RatePrior(1.04, 0.08, 30))  # fmt: skip
+    path = save_model(model, tmp_path / "m.json")
+    assert "[FLAG: drag_density_exponent chosen in under 2/3 of the selection's folds]" in load_model(path).label()
+    files = demo_weather_files(46.5, 6.6, WHEN, cache_dir=tmp_path / "wx")
+    assert main(["predict", "--weather", *map(str, files), "--cache-dir", str(tmp_path / "c"), *RELEASE,
+                 "--model", str(path)]) == 0  # fmt: skip
+    assert "FLAG: drag_density_exponent chosen in under 2/3" in capsys.readouterr().out
+    assert main(["model", "show", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "λ prior   median 1.04, sd of ln λ 0.08 over 30 flights" in out
+    assert "stability drag_density_exponent chosen in 60% of folds" in out
+
+
 def _write(tmp_path: Path, document: object) -> Path:
     path = tmp_path / "bad.json"
     path.write_text(document if isinstance(document, str) else json.dumps(document))
@@ -151,3 +173,57 @@ def test_a_missing_model_file_is_one_line_from_the_cli(tmp_path: Path, capsys: p
     assert main(["predict", "--demo-weather", *RELEASE, "--model", str(tmp_path / "none.json")]) == 1
     err = capsys.readouterr().err
     assert err == f"drs: error: model file {tmp_path / 'none.json'} does not exist\n"
+
+
+def _one_term(effect: str, parameters: dict) -> dict:
+    document = _good()
+    document["terms"] = [{"effect": effect, "parameters": parameters}]
+    return document
+
+
+@pytest.mark.parametrize(
+    ("document", "message"),
+    [
+        (_one_term("drag_density_exponent", {"exponent": 5.0}),
+         r"terms\[0\]\.parameters\.exponent: 5 is outside the calibration's bounds -0\.5…0\.5"),
+        (_one_term("descent_rate_scale", {"scale": 10.0}), r"terms\[0\]\.parameters\.scale: 10 is outside .* 0\.5…2"),
+        (_one_term("wind_scale", {"scale": -1.0}), r"terms\[0\]\.parameters\.scale: -1 is outside .* 0\.3…2"),
+        (_one_term("deployment_delay", {"delay_s": -5.0}), r"terms\[0\]\.parameters\.delay_s: -5 is outside .* 0…240"),
+        (_one_term("deployment_delay", {"delay_s": 30.0, "speed_factor": 0.1}),
+         r"terms\[0\]\.parameters\.speed_factor: 0\.1 is outside .* 1…10"),
+        (_one_term("two_regime_rate", {"height_m": 20000.0, "factor": 3.0}),
+         r"terms\[0\]\.parameters\.factor: 3 is outside .* 0\.5…2"),
+        (_one_term("two_regime_rate", {"height_m": 1e6, "factor": 1.2}),
+         r"terms\[0\]\.parameters\.height_m: 1e\+06 is outside .* -500…50000"),
+        (_one_term("binned_descent_rate", {"edges_m": [0.0, 5000.0], "factors": [4.0]}),
+         r"terms\[0\]\.parameters\.factors: 4 is outside .* 0\.5…2"),
+        (_one_term("wind_band_scale", {"bottom_m": 9000.0, "top_m": 3000.0, "scale": 1.2}),
+         r"terms\[0\]\.parameters: wind_band_scale: bottom_m must be below top_m"),
+        (_with({"payload.mass_kg": 1e6}), r"payload\.mass_kg: 1e\+06 is outside the payloads drs calibrates \(0\.05–50\)"),
+        (_with({"payload.cda_m2": 1e-4}), r"payload\.cda_m2: 0\.0001 is outside the payloads drs calibrates"),
+    ],
+    ids=["exponent", "rate-scale", "negative-wind-scale", "negative-delay", "fast-fall-factor", "two-regime-factor",
+         "two-regime-height", "binned-factor", "band-order", "mass", "cda"],  # fmt: skip
+)
+def test_an_impossible_value_is_refused_in_one_line_naming_the_file_and_the_field(
+    tmp_path: Path, document: dict, message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _write(tmp_path, document)
+    with pytest.raises(ModelFileError, match=rf"^model file {tmp_path / 'bad.json'}: {message}"):
+        load_model(path)
+    assert main(["predict", "--demo-weather", *RELEASE, "--model", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"drs: error: model file {path}: ")
+
+
+def test_every_parameter_of_every_effect_has_the_calibrations_bounds() -> None:
+    """A term added to the registry without bounds would let any value of it fly."""
+    import dataclasses
+
+    from predictor.calibration.effects import parameter_limits
+    from predictor.descent.model import EFFECTS
+
+    limits = parameter_limits()
+    missing = [(name, f.name) for name, cls in EFFECTS.items() for f in dataclasses.fields(cls)
+               if (name, f.name) not in limits]  # fmt: skip
+    assert missing == []
