@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from predictor.calibration.effects import parameter_limits
-from predictor.descent import EFFECTS, Model, Payload, RatePrior, Term, payload_profile
+from predictor.descent import EFFECTS, DescentRateScale, Model, Payload, RatePrior, Term, payload_profile
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, UsageError
 from predictor.prediction import (
@@ -84,7 +84,7 @@ class CalibratedModel:
             settings = LiveSettings(OWN_RATE, LIVE_ERROR_MODEL)
         else:
             settings = self.live
-        prior = self.rate_prior or settings.prior
+        prior = self._prior_on_terms() or settings.prior
         if prior is None:
             notes.append("no λ prior in the model: λ from this descent alone")
         elif self.rate_prior is None:
@@ -94,6 +94,15 @@ class CalibratedModel:
             cube, self.payload, terrain, correction, settings.error_model, effects=self.terms,
             prior=prior, discrepancy=settings.discrepancy, notes=notes,
         )  # fmt: skip
+
+    def _prior_on_terms(self) -> RatePrior | None:
+        """The calibration's λ prior as a factor on the law the terms fly, which is what live re-prediction
+        scales: a ``descent_rate_scale`` among the terms is the prior's median already flown (the
+        calibration's convention), so the update then starts from 1 with the prior's spread."""
+        if self.rate_prior is None:
+            return None
+        flown = math.prod(float(t.scale) for t in self.terms if isinstance(t, DescentRateScale))
+        return dataclasses.replace(self.rate_prior, median=self.rate_prior.median / flown)
 
     def model(self) -> Model:
         return Model.for_payload(self.payload, *self.terms)

@@ -86,8 +86,8 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.139, 3.897, 3.545, 3.712, 2.2, 1.666),
-    sigma_perpendicular_km=(3.581, 3.803, 3.856, 3.321, 1.529, 0.789),
+    sigma_parallel_km=(4.043, 3.946, 3.577, 3.856, 2.236, 1.677),
+    sigma_perpendicular_km=(3.602, 3.829, 3.876, 3.085, 1.625, 0.789),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,
 ``DEFAULT_ELLIPSE_NOTE``): measured by ``drs live evaluate`` on the 30 SuperBIT test flights with the

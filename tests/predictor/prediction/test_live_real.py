@@ -60,6 +60,11 @@ def result(shared_data: Path) -> Evaluation:
     return evaluate(files, model=load_model(MODEL))
 
 
+def exponent(terms: tuple) -> float:
+    (law,) = [t for t in terms if t.name == "drag_density_exponent"]
+    return float(law.exponent)
+
+
 def mean_time_s(result: Evaluation, km: float, name: str) -> float:
     return float(np.mean(np.abs(held_out(result, km)[name][1])))
 
@@ -76,12 +81,12 @@ def test_all_thirty_flights_are_evaluated_at_most_checkpoints(result: Evaluation
 
 def test_each_flight_flies_the_law_refitted_without_it(result: Evaluation) -> None:
     # The model was calibrated on these 30 flights: evaluated on them with its own exponent, each flight
-    # would be flown with a law it helped fit. Refitted without it, the exponent moves by up to ±0.009.
+    # would be flown with a law it helped fit. Refitted without it, the exponent moves (0.064–0.076).
     committed = load_model(MODEL)
     assert set(result.held_out_laws) == set(result.flights) == set(committed.provenance["flights"])
-    exponents = [terms[0].exponent for terms in result.held_out_laws.values()]
+    exponents = [exponent(terms) for terms in result.held_out_laws.values()]
     assert len(set(exponents)) > 20
-    assert min(exponents) < committed.terms[0].exponent < max(exponents)
+    assert min(exponents) < exponent(committed.terms) < max(exponents)
     assert max(exponents) - min(exponents) > 0.01
 
 
@@ -112,7 +117,7 @@ def test_a_law_that_cannot_be_held_out_is_refused(shared_data: Path) -> None:
     with pytest.raises(PredictorError, match=r"cannot be held out: it was calibrated on flights not given \(18-10-28"):
         held_out_laws(committed, flights)
     on_three = dataclasses.replace(committed, provenance={"flights": names})
-    with pytest.raises(PredictorError, match="refitted on its 3 flights it gives drag_density_exponent exponent"):
+    with pytest.raises(PredictorError, match="refitted on its 3 flights it gives descent_rate_scale scale"):
         held_out_laws(on_three, flights)
     assert held_out_laws(dataclasses.replace(committed, provenance={"flights": ["another"]}), flights) == {}
 
@@ -140,15 +145,17 @@ def test_the_correction_is_kept_only_where_held_out_flights_gained(result: Evalu
 
 def test_the_model_is_no_worse_than_the_textbook_law_with_the_same_lambda_estimator(result: Evaluation) -> None:
     # The issue's floor against the textbook law: the same λ update (prior and discrepancy from the
-    # other flights, on its own law). Measured 0.99 from 20 km and 0.85 from 10 km (deterministic: no
-    # draw, so it fails only if the estimator or the data change).
+    # other flights, on its own law). Measured 193 s against 194 s from 20 km (0.99) and 127 s against
+    # 156 s from 10 km (0.81); deterministic (no draw), so it fails only if the estimator or the data
+    # change. From 20 km the margin is 1 s: the model's shape adds nothing there that λ with the
+    # textbook law's own discrepancy does not (the report says so).
     for km in (20.0, 10.0):
         assert mean_time_s(result, km, HELD_OUT_LIVE) <= mean_time_s(result, km, TEXTBOOK_RATE), km
 
 
 def test_the_lambda_update_beats_the_plain_restart_from_20_km_down(result: Evaluation) -> None:
     # Against the plain restart with the nominal payload (drs live --no-correction): measured 0.81 from
-    # 20 km and 0.74 from 10 km. The issue asks ≤ 0.8 at both: met from 10 km, missed by 0.01 from 20 km
+    # 20 km and 0.71 from 10 km. The issue asks ≤ 0.8 at both: met from 10 km, missed by 0.01 from 20 km
     # (the report says so); pinned here at what was measured, with the 95 % interval's upper end below 1.
     assert mean_time_s(result, 20.0, HELD_OUT_LIVE) <= 0.85 * mean_time_s(result, 20.0, PLAIN_RESTART)
     assert mean_time_s(result, 10.0, HELD_OUT_LIVE) <= 0.80 * mean_time_s(result, 10.0, PLAIN_RESTART)
@@ -169,7 +176,7 @@ def test_the_discrepancy_takes_the_shared_departure_out_of_the_record(result: Ev
 
 
 def test_the_stated_sigma_of_the_remaining_time_is_honest_high_up(result: Evaluation) -> None:
-    # From 25–15 km most of the remaining-time error is λ's: its stated 1σ holds 64–68 % of the flights
+    # From 25–15 km most of the remaining-time error is λ's: its stated 1σ holds 61–67 % of the flights
     # (a normal error: 68 %). Lower down the touchdown's own 3-minute uncertainty dominates and the
     # report shows the σ too small there.
     for km in (25.0, 20.0, 15.0):
