@@ -17,11 +17,21 @@ from datetime import timedelta
 import numpy as np
 import pytest
 
+from predictor.calibration.model_file import CalibratedModel
 from predictor.descent import RatePrior
 from predictor.descent.model import DeploymentDelay, DescentRateScale, DragDensityExponent
 from predictor.descent.payload import PROFILES
 from predictor.prediction.landings import predict
-from predictor.prediction.live import LiveCorrection, LivePredictor, RateDiscrepancy, fit_rate, update_rate
+from predictor.prediction.live import (
+    DEFAULT_ELLIPSE_NOTE,
+    NO_DISCREPANCY,
+    OWN_RATE,
+    LiveCorrection,
+    LivePredictor,
+    RateDiscrepancy,
+    fit_rate,
+    update_rate,
+)
 from predictor.tracks.cleaning import clean
 from predictor.tracks.reading import Fix
 from predictor.tracks.synthetic import synthetic_flight
@@ -193,3 +203,20 @@ def test_a_canopy_delay_counts_from_the_release_not_from_the_report() -> None:
     restarted_s = predict(cube, fix.time, fix.lat, fix.lon, fix.alt_m, PAYLOAD, effects=(delay,)).descent_s
     assert abs(live_s - truth_s) < 15.0
     assert truth_s - restarted_s > 40.0, "the delay re-applied at the report must show, or this shows nothing"
+
+
+def test_a_model_without_live_settings_flies_its_shape_with_its_own_lambda_and_says_so() -> None:
+    cube = isothermal_cube(u=10.0, v=2.0)
+    bare = CalibratedModel(PAYLOAD, (LAW,), None).live_predictor(cube)
+    assert bare.correction == OWN_RATE and bare.discrepancy == NO_DISCREPANCY and bare.prior is None
+    assert any(n.startswith("no live settings of its own") for n in bare.notes)
+    assert DEFAULT_ELLIPSE_NOTE in bare.notes and "no λ prior in the model: λ from this descent alone" in bare.notes
+    # The calibration's convention: the prior's median flies as a descent_rate_scale among the terms, so
+    # the live update (a factor on those terms) starts from 1 with the prior's spread.
+    prior = RatePrior(median=0.95, log_sigma=0.1, flights=9)
+    calibrated = CalibratedModel(PAYLOAD, (DescentRateScale(scale=0.95), LAW), None, rate_prior=prior)
+    live = calibrated.live_predictor(cube)
+    assert live.prior is not None and live.prior.median == pytest.approx(1.0) and live.prior.log_sigma == 0.1
+    assert not any("prior" in n for n in live.notes)
+    plain = calibrated.live_predictor(cube, corrected=False)
+    assert plain.correction == LiveCorrection(), "--no-correction: the plain restart from each report"
