@@ -146,7 +146,7 @@ LIBRARY: tuple[Candidate, ...] = (
         "two_regime_rate",
         "vertical",
         "factor",
-        tuple(np.linspace(0.7, 1.6, 10)),
+        tuple(np.linspace(0.7, 1.7, 6)),
         (0.5, 2.0),
         1.0,
         variants=_heights(),

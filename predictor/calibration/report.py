@@ -147,6 +147,23 @@ def rate_sentence(cal: Calibration) -> str:
     return text
 
 
+def stability_sentence(cal: Calibration) -> str:
+    """How much the selection rests on single flights (``selection.decision_stability``), in words."""
+    if not cal.stability:
+        return (
+            f"Selection stability: no candidate is chosen in any of the {len(cal.names)} leave-one-flight-out "
+            "folds of the decision."
+        )
+    shares = ", ".join(
+        f"`{name}` in {share:.0%}{' (FLAG: under two thirds)' if share < 2 / 3 else ''}"
+        for name, share in cal.stability.items()
+    )
+    return (
+        f"Selection stability (the decision replayed without each of the {len(cal.names)} flights in turn, "
+        f"the fits not repeated): chosen {shares} of the folds."
+    )
+
+
 def speed_finding(cal: Calibration) -> str:
     """The paper's near-ground check in one sentence: measured/predicted descent speed by altitude bin.
 
@@ -372,6 +389,8 @@ def write_report(
         "## What the data showed",
         "",
         verdict(cal),
+        "",
+        stability_sentence(cal),
         "",
         speed_finding(cal),
         "",
