@@ -86,7 +86,7 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.043, 3.946, 3.577, 3.856, 2.236, 1.677),
+    sigma_parallel_km=(4.043, 3.961, 3.588, 3.856, 2.238, 1.677),
     sigma_perpendicular_km=(3.602, 3.829, 3.876, 3.085, 1.625, 0.789),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,

@@ -9,6 +9,13 @@ with ``model.live_predictor`` against the plain restart from each report with th
 model's mean |remaining-time error| over the unseen flights is never worse than the plain restart's
 by more than 10 % + 10 s.
 
+The two-regime canopy is the hard case: the calibration fits it as ``two_regime_rate`` 1.45× above
+21 km where the truth is 1.3× above 20 km, so a 10 s record down to 20 km reads λ ~9 % slow. The
+live evaluation measures that departure (``RateDiscrepancy``) on the 2-minute calibration flights at
+the checkpoint's height, interpolated between the reports either side of it; taken at the first report
+below 20 km (often 1–4 km lower, where the misfit averages out) it read +1.4 % and live lost there
+(185 s against 159 s); at the height it reads −1.1 % ± 4.8 %, and the update leans on the prior.
+
 Deterministic: every world is seeded (the flights' own λᵢ, bursts, launch points, logging phases and
 GNSS noise), so a failure is a change of the estimator or of the generator, not a draw.
 """
@@ -90,23 +97,13 @@ def remaining_errors(
     return out
 
 
-MISFIT_CANOPY = (
-    "KNOWN FAILURE (#21): the calibration fits the two-regime canopy (truth: 1.3× faster above 20 km) as "
-    "two_regime_rate 1.45× above 21 km; a record's λ from the top down to 20 km then reads ~9 % slow on "
-    "10 s records, which the discrepancy measured on the 2-minute calibration flights (+1.4 % ± 2.3 % at "
-    "20 km) does not take out, and λ flown below makes the rest too long: 185 s against 159 s for the "
-    "plain restart from 20 km (from 10 km: 3 s against 104 s)"
-)
-
-
-@pytest.mark.parametrize(
-    "name",
-    [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=MISFIT_CANOPY)) if n == "two-regime canopy" else n
-     for n in WORLDS],
-)  # fmt: skip
+@pytest.mark.parametrize("name", list(WORLDS))
 def test_on_unseen_flights_live_with_the_model_is_never_much_worse_than_the_plain_restart(
     name: str, weather: tuple[Path, ...], tmp_path: Path
 ) -> None:
+    # Measured (model vs plain restart, mean |remaining-time error|, from 20 / 10 km): noise only 3/2 vs
+    # 73/48 s; two-regime canopy 117/3 vs 159/104 s (the floor from 20 km is 185 s); wind ramp 3/2 vs
+    # 73/48 s; updraft 28/31 vs 283/268 s.
     effects = WORLDS[name]
     model = calibrated(tmp_path, effects, weather)
     assert model.live is not None and model.live.prior is not None
