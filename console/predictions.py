@@ -20,10 +20,12 @@ from typing import Any
 from drs_link.ops import Contour, PredictionSample, ReleaseOrigin, TelemetryRecord
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
 from predictor.calibration import CalibratedModel, load_model
+from predictor.descent import PROFILES
 from predictor.errors import PredictorError
 from predictor.planning import plan_release
 from predictor.prediction import (
     Feature,
+    LivePrediction,
     LivePredictor,
     Report,
     load_zones,
@@ -121,12 +123,7 @@ class PredictionService:
         cube, terrain = self._inputs()
         now = self.clock()
         records = []
-        model = self.models.get(capsule)
-        flown: dict[str, Any] = {}
-        if model is not None:
-            flown = {"payload": model.payload, "effects": model.terms}
-            if model.ellipse is not None:
-                flown["error_model"] = model.ellipse
+        flown, label = self._flown(capsule)
         for minutes in release_in:
             result = predict(
                 cube, now, origin.lat, origin.lon, origin.alt_m, terrain=terrain, drift_minutes=float(minutes),
@@ -134,9 +131,19 @@ class PredictionService:
             )  # fmt: skip
             if minutes == 0:
                 self.latest[capsule] = result
-            label = model.label() if model is not None else "drs profile"
             records.append(TelemetryRecord(now, capsule, prediction_sample(result, minutes, origin.source, label)))
         return records
+
+    def _flown(self, capsule: str | None) -> tuple[dict[str, Any], str]:
+        """What a capsule's predictions and sweeps fly (its model's payload, terms and ellipse, or the
+        default profile) and how they name it: one rule for the release prediction and the window."""
+        model = self.models.get(capsule) if capsule is not None else None
+        if model is None:
+            return {}, "drs profile"
+        flown: dict[str, Any] = {"payload": model.payload, "effects": model.terms}
+        if model.ellipse is not None:
+            flown["error_model"] = model.ellipse
+        return flown, model.label()
 
     def export(self, capsule: str, directory: Path) -> list[Path]:
         prediction = self.latest.get(capsule)
@@ -155,9 +162,12 @@ class PredictionService:
         zones_file: Path | None,
         hours: float = WINDOW_HOURS,
         every_minutes: float = WINDOW_STEP_MIN,
+        capsule: str | None = None,
     ) -> dict[str, object]:
-        """The sweep from now as plain data: one entry per candidate, the verdict, the recommended one."""
+        """The sweep from now as plain data: one entry per candidate, the verdict, the recommended one.
+        It flies ``capsule``'s model as its release prediction does (the go/no-go depends on it)."""
         cube, terrain = self._inputs()
+        flown, label = self._flown(capsule)
         zones: tuple[Feature, ...] = load_zones(zones_file) if zones_file is not None else ()
         now = self.clock()
         plan = plan_release(
@@ -170,11 +180,13 @@ class PredictionService:
             every_minutes,
             zones=zones,
             terrain=terrain,
+            **flown,
         )
         recommended = plan.windows[0].recommended if plan.windows else None
         return {
             "computed_at": now.isoformat(),
             "origin_source": origin.source,
+            "model": label,
             "every_minutes": every_minutes,
             "verdict": plan.verdict,
             "recommended": recommended,
@@ -183,6 +195,7 @@ class PredictionService:
                     "time": c.release_time.isoformat(),
                     "go": c.go,
                     "landed": c.status is None,
+                    "landing_time": c.landing_time.isoformat() if c.landing_time is not None else None,
                     "reasons": list(c.reasons),
                 }
                 for c in plan.candidates
@@ -202,10 +215,9 @@ class PredictionService:
             live = self._live.get(capsule)
             if live is None or (live.reports and reports[0].time < live.reports[0].time):
                 model = self.models.get(capsule)
-                live = self._live[capsule] = (
-                    model.live_predictor(cube, terrain)
-                    if model is not None else LivePredictor(cube, terrain=terrain)
-                )  # fmt: skip
+                # A capsule without a model flies the default payload's law the same way, and says so.
+                flown = model if model is not None else CalibratedModel(PROFILES["drs"], (), None)
+                live = self._live[capsule] = flown.live_predictor(cube, terrain)
             fresh = []
             for (
                 report
@@ -221,26 +233,22 @@ class PredictionService:
             self.live_latest[capsule] = result.prediction
             outline, path = map_geometry(result.prediction)
             data = {**result.to_dict(), "outline_2sigma": outline, "path": path}
-            data["measured_rate_factor"] = live.measured(fresh[-1].alt_m)[0] if live.legs else None
-            data["correction"] = live_correction_text(
-                result.rate_factor, result.wind_error_ms, result.decay_m
-            )
+            data["measured_rate_factor"] = result.rate.measured if result.rate is not None else None
+            data["correction"] = live_correction_text(result)
             self._live_latest[capsule] = data
             return data
 
 
-def live_correction_text(
-    rate_factor: float, wind_error_ms: tuple[float, float], decay_m: float | None
-) -> str:
-    """Which measured correction the prediction used, in words (the operator must know what changed)."""
+def live_correction_text(result: LivePrediction) -> str:
+    """Which measured correction the prediction used, in words (the operator must know what changed),
+    and what it flies that is not the model's own (its notes)."""
     parts = []
-    if rate_factor != 1.0:
-        parts.append(f"descent rate ×{rate_factor:.2f}")
-    if decay_m is not None and wind_error_ms != (0.0, 0.0):
-        parts.append(
-            f"wind error E {wind_error_ms[0]:+.1f} N {wind_error_ms[1]:+.1f} m/s fading over {decay_m:.0f} m"
-        )
-    return ", ".join(parts) if parts else "none (forecast only)"
+    if result.rate is not None:
+        parts.append(result.rate.describe())
+    east, north = result.wind_error_ms
+    if result.decay_m is not None and (east, north) != (0.0, 0.0):
+        parts.append(f"wind error E {east:+.1f} N {north:+.1f} m/s fading over {result.decay_m:.0f} m")
+    return "; ".join([", ".join(parts) if parts else "none (forecast only)", *result.notes])
 
 
 def capsule_models(capsules: Sequence[tuple[str, Path | None]]) -> dict[str, CalibratedModel]:

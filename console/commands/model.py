@@ -33,6 +33,15 @@ def run_show(args: argparse.Namespace) -> int:
             lines.append(f"term      {term.name} ({term.family}): {values}")
     else:
         lines.append("term      none: calibration found no effect that helped held-out flights")
+    if model.rate_prior is not None:
+        r = model.rate_prior
+        lines.append(
+            f"λ prior   median {r.median:.4g}, sd of ln λ {r.log_sigma:.3g} over {r.flights} flights: each flight's "
+            f"own rate factor on the shape (pre-flight descent time ±{100 * r.log_sigma:.0f} % 1σ)"
+        )
+    stability = prov.get("selection_stability")
+    if isinstance(stability, dict) and stability:
+        lines.append("stability " + ", ".join(f"{name} chosen in {share:.0%} of folds" for name, share in stability.items()))
     if model.ellipse is not None:
         e = model.ellipse
         lines.append(f"ellipse   σ0 {e.sigma0_km:.3g} km, h {e.h:.3g}, k {e.k_km2_per_h2:.3g} km²/h², q {e.q:.3g}")
@@ -49,7 +58,8 @@ def run_show(args: argparse.Namespace) -> int:
             )
         )
     else:
-        lines.append("live      not evaluated with this law: drs live flies the defaults (drs live evaluate --save-model)")
+        lines.append("live      not evaluated with this law: drs live flies its shape with each flight's own λ update and "
+                     "the default ellipse, and says so (drs live evaluate --save-model)")
     flights = prov.get("flights") or []
     lines.append(f"flights   {len(flights)}: {', '.join(flights[:8])}{' …' if len(flights) > 8 else ''}")
     lines.append(f"weather   {prov.get('weather', 'unknown')}")

@@ -60,6 +60,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     plan.add_argument(
         "--payload", choices=sorted(PROFILES), help="payload profile (default drs; not with --model)"
     )
+    plan.add_argument("--mass", type=float, metavar="KG", help="override the profile's mass (not with --model)")
+    plan.add_argument("--cda", type=float, metavar="M2", help="override the profile's Cd·A (not with --model)")
     plan.add_argument(
         "--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model): its payload, terms and "
         "ellipse replace --payload",
@@ -81,11 +83,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                       help="evaluate: the leave-one-flight-out report on real tracks; bench: time evaluate "
                       "on the tracks re-sampled to 1 Hz")  # fmt: skip
     live.add_argument("tracks", nargs="*", metavar="TRACK", help="evaluate/bench: track files")
-    live.add_argument("--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files")
+    live.add_argument("--weather", nargs="+", metavar="FILE",
+                      help="GFS GRIB2 files (evaluate: for every flight, instead of each one's ascent winds)")  # fmt: skip
     live.add_argument("--ascent-winds", action="store_true", help="use the track's own ascent as the weather")
     live.add_argument("--track", metavar="FILE", help="the descent's track (any format `drs tracks` reads)")
     live.add_argument("--date", help="UTC date of the first fix, for logs with times of day only (V4)")
-    live.add_argument("--dem", metavar="DIR", help="terrain directory")
+    live.add_argument("--dem", metavar="DIR",
+                      help="terrain directory (evaluate: instead of level ground at each measured landing)")  # fmt: skip
     live.add_argument(
         "--payload", choices=sorted(PROFILES), help="payload profile (default drs; evaluate: superbit-test)"
     )
@@ -98,7 +102,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     live.add_argument(
         "--save-model", metavar="PATH",
         help="evaluate: write the --model file with the live settings measured for its law (correction "
-        "bands, typical rate factors, live ellipse), which drs live and the console then fly",
+        "bands, λ discrepancy, live ellipse; its λ prior when it has none), which drs live and the console fly",
     )  # fmt: skip
     live.add_argument("--cache-dir", metavar="DIR", help="weather cache (default ~/.cache/drs/weather)")
     live.set_defaults(func=run_live)
@@ -136,7 +140,7 @@ def run_plan(args: argparse.Namespace) -> int:
 
     summary_to = sys.stderr if piped(kml=args.kml, geojson=args.geojson, json=args.json) else sys.stdout
     start = _parse_time(args.start, "--from")
-    model = flown_model(args.model, args.payload, None, None)
+    model = flown_model(args.model, args.payload, args.mass, args.cda)
     flown: dict[str, Any] = {"payload": model.payload, "effects": model.terms}
     if model.ellipse is not None:
         flown["error_model"] = model.ellipse
@@ -313,6 +317,9 @@ def run_live(args: argparse.Namespace) -> int:
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
     model = flown_model(args.model, args.payload, args.mass, args.cda)
     live = model.live_predictor(wx, terrain, corrected=not args.no_correction)
+    if not args.json:
+        flown = "plain restart from each report (--no-correction)" if args.no_correction else model.label()
+        print(f"drs live: {flown}" + "".join(f"\n  note: {n}" for n in live.notes))
     descent = list(flight.descent)
     if flight.landing is not None:
         descent = descent[:-1]
@@ -325,10 +332,13 @@ def run_live(args: argparse.Namespace) -> int:
             continue
         p = result.prediction
         minutes, seconds = divmod(round(p.descent_s), 60)
+        spread = result.remaining_sigma_s
         print(
             f"{iso_z(fix.time)}  {fix.alt_m:7.0f} m  → {p.landing.lat:.5f}, {p.landing.lon:.5f} at "
-            f"{iso_z(p.landing.time)[11:19]} (in {minutes}m{seconds:02d}s)  1σ {p.ellipse.sigma_parallel_km:.2f}×"
-            f"{p.ellipse.sigma_perpendicular_km:.2f} km  rate×{result.rate_factor:.2f}"
+            f"{iso_z(p.landing.time)[11:19]} (in {minutes}m{seconds:02d}s"
+            + (f", ± {spread:.0f} s from λ" if spread is not None else "")
+            + f")  1σ {p.ellipse.sigma_parallel_km:.2f}×{p.ellipse.sigma_perpendicular_km:.2f} km  "
+            + (result.rate.describe() if result.rate is not None else "λ off")
             + (
                 f"  wind Δ {result.wind_error_ms[0]:+.1f},{result.wind_error_ms[1]:+.1f} m/s "
                 f"L {result.decay_m / 1000:g} km"
@@ -346,6 +356,7 @@ def run_live(args: argparse.Namespace) -> int:
 
 def run_evaluate(args: argparse.Namespace) -> int:
     from predictor.calibration import flown_model, live_evaluation, live_settings, save_model
+    from predictor.environment import Terrain, load_weather
 
     if not args.tracks:
         raise UsageError("drs live evaluate needs track files")
@@ -356,13 +367,17 @@ def run_evaluate(args: argparse.Namespace) -> int:
     # without calibrated terms), so the difference is the law and not the mass or Cd·A.
     profile = args.payload if args.model is not None or args.payload is not None else "superbit-test"
     model = flown_model(args.model, profile, args.mass, args.cda)
+    weather = load_weather(args.weather, cache_dir=args.cache_dir) if args.weather else None
     result = live_evaluation.evaluate(
-        args.tracks, model=model if args.model is not None else None, profile=model.payload, day=_day(args.date)
-    )
+        args.tracks, model=model if args.model is not None else None, profile=model.payload, day=_day(args.date),
+        weather=weather, terrain=Terrain.from_dir(args.dem) if args.dem else None,
+    )  # fmt: skip
     if not result.flights:
-        raise PredictorError("no usable flight among the tracks given")
+        raise PredictorError(f"no usable flight among the tracks given: {'; '.join(result.skipped)}")
     names = sorted({Path(t).parent.name for t in args.tracks})
     flown = f" --model {args.model}" if args.model is not None else ""
+    flown += f" --weather <{len(args.weather)} GRIB files>" if args.weather else ""
+    flown += f" --dem {args.dem}" if args.dem else ""
     command = f"drs live evaluate <{len(args.tracks)} track files in {', '.join(names)}>{flown} --out {args.out}"
     md = live_evaluation.write_report(result, args.out, command)
     if args.save_model:

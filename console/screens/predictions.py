@@ -154,7 +154,7 @@ class PredictionScreen(ConsoleScreen):
         zones_file = ops.config.console.exclusion_zones_file if ops else None
         window = self.window
         try:
-            window = self.context.setup.predictions.release_window(origin, zones_file)
+            window = self.context.setup.predictions.release_window(origin, zones_file, capsule=self.capsule)
         except PredictorError as exc:
             self.app.post_message(OperatorNotice(f"release window failed: {exc}", "warning"))
         finally:

@@ -104,6 +104,10 @@ class Candidate:
         return int(variant), best_value, best
 
 
+def _heights() -> tuple[Mapping[str, float], ...]:
+    return tuple({"height_m": float(h)} for h in range(6000, 27_001, 3000))
+
+
 def _bands() -> tuple[Mapping[str, float], ...]:
     return tuple({"bottom_m": float(b), "top_m": float(b + 6000)} for b in range(0, 27_000, 3000))
 
@@ -137,6 +141,16 @@ LIBRARY: tuple[Candidate, ...] = (
         0.0,
         fixed={"speed_factor": 3.0},
         why="the canopy opens late: 3× faster fall until then (the factor trades off with the delay)",
+    ),
+    Candidate(
+        "two_regime_rate",
+        "vertical",
+        "factor",
+        tuple(np.linspace(0.7, 1.7, 6)),
+        (0.5, 2.0),
+        1.0,
+        variants=_heights(),
+        why="a canopy that opens further below a height: a factor on the rate above it (heights every 3 km)",
     ),
     Candidate(
         "wind_scale",
@@ -186,6 +200,38 @@ LIBRARY: tuple[Candidate, ...] = (
     ),
 )
 """Every library candidate; ``selection`` tries them all unless given a subset."""
+
+
+ALTITUDE_LIMITS_M = (-500.0, 50_000.0)
+WIND_LIMITS_MS = (-60.0, 60.0)
+FIXED_LIMITS: dict[tuple[str, str], tuple[float, float]] = {
+    ("drag_density_exponent", "reference_density"): (0.5, 2.0),
+    ("deployment_delay", "speed_factor"): (1.0, 10.0),
+    ("two_regime_rate", "height_m"): ALTITUDE_LIMITS_M,
+    ("wind_band_scale", "bottom_m"): ALTITUDE_LIMITS_M,
+    ("wind_band_scale", "top_m"): ALTITUDE_LIMITS_M,
+    ("vertical_air_motion", "speed_ms"): (-5.0, 5.0),
+    ("wind_offset", "east_ms"): WIND_LIMITS_MS,
+    ("wind_offset", "north_ms"): WIND_LIMITS_MS,
+    ("binned_descent_rate", "edges_m"): ALTITUDE_LIMITS_M,
+    ("binned_descent_rate", "factors"): BINNED_FACTOR_BOUNDS,
+    ("binned_wind", "edges_m"): ALTITUDE_LIMITS_M,
+    ("binned_wind", "east_ms"): WIND_LIMITS_MS,
+    ("binned_wind", "north_ms"): WIND_LIMITS_MS,
+}
+"""What the calibration never fits but may hold fixed or get from the binned fit: the range a model file
+may carry (a reference density of sea-level air give or take, a fast fall at most 10× the canopy's,
+heights inside the weather, ±60 m/s of added wind, the binned fit's own factor bounds)."""
+
+
+def parameter_limits() -> dict[tuple[str, str], tuple[float, float]]:
+    """(effect, parameter) → the calibration's own (low, high): a fitted parameter's candidate bounds, the
+    rest from ``FIXED_LIMITS``. A model file with a value outside them was not made by a calibration
+    and is refused (an exponent of 5 is an 8-minute fall from 28 km, a wind scale of −1 blows backwards)."""
+    limits = dict(FIXED_LIMITS)
+    for c in LIBRARY:
+        limits[(c.name, c.parameter)] = c.bounds
+    return limits
 
 
 def library(names: Sequence[str] | None = None) -> tuple[Candidate, ...]:

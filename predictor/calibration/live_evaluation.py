@@ -13,16 +13,21 @@ ground) the landing and the remaining descent time are predicted from that repor
 
 and with these live corrections on top of each law:
 
-* ``plain``: restarted from the report, nothing learned;
-* ``rate``: plus the descent-rate factor fitted on the whole descent so far with the same law (on the
-  profile this is the ρ^-½ extrapolation of the measured rate); ``recent rate``: fitted on the last
-  3 km only (the previous estimator, a baseline);
-* ``wind L`` / ``rate + wind L``: plus the measured wind error, decaying below the capsule with L.
+* ``plain``: restarted from the report, nothing learned (``drs live --no-correction``);
+* ``λ``: this flight's own rate factor on the law, the Bayesian update of a prior with the descent so
+  far (``predictor.prediction.live.update_rate``). The same estimator on both laws: the prior is the
+  spread of the OTHER flights' whole-descent λ on that law, and the discrepancy (how a record's λ down
+  to a height departs from its flight's whole-descent λ) is measured on the OTHER flights with that
+  law, so the textbook law with λ is the fair baseline of the model with λ;
+* ``wind L`` / ``λ + wind L``: plus the measured wind error, decaying below the capsule with L.
 
 Each correction is chosen leave-one-flight-out on the metric it acts on: the rate (a vertical effect)
 on the remaining-time error, the wind (horizontal) on the landing error, each held-out flight getting
-what the OTHER flights preferred. A correction ships (``predictor.prediction.live.DEFAULT_CORRECTION``) only in
-the bands where it helped held-out flights. The same held-out errors fit the live ellipse.
+what the OTHER flights preferred. A correction ships (in the model file's live settings, ``--save-model``) only
+in the bands where it helped held-out flights. The same held-out errors fit the live ellipse.
+
+The weather is each flight's own ascent winds unless GRIB files are given (``--weather``, as ``drs
+calibrate`` takes them), and the ground is level at the measured landing unless a DEM is given.
 
 Every fix of the track is used: each one enters the rate fit and the wind legs (a 1 Hz track of
 10,000 fixes is a few hundred leg probes and six checkpoints), and predictions are made only at the
@@ -43,19 +48,22 @@ import numpy as np
 from predictor.calibration.model_file import CalibratedModel
 from predictor.calibration.residuals import FlightCase, flight_case
 from predictor.calibration.selection import refit_without_each
-from predictor.descent import PROFILES, Payload, Term
+from predictor.descent import PROFILES, Payload, RatePrior, Term
 from predictor.environment import Terrain, WeatherCube
-from predictor.errors import PredictorError
+from predictor.errors import PredictorError, WeatherError
 from predictor.prediction import (
+    CONSTANT_WIND_M,
     GEOD,
     NO_CORRECTION,
+    NO_DISCREPANCY,
+    OWN_RATE,
     Band,
     DescentRecord,
     LiveCorrection,
     LiveErrorModel,
     LivePredictor,
     LiveSettings,
-    TypicalRate,
+    RateDiscrepancy,
 )
 from predictor.tracks import Fix, ascent_weather_cube, clean, read_track
 
@@ -63,10 +71,12 @@ CHECKPOINTS_KM = (25.0, 20.0, 15.0, 10.0, 5.0, 2.0)
 LOWEST_SHARE = 0.6
 """A checkpoint's report must be at least this share of its height (a data gap skips the checkpoint)."""
 DECAYS_M = (1000.0, 2000.0, 4000.0, 8000.0, 16000.0, math.inf)
-RECENT_RATE_WINDOW_M = 3000.0
+OWN = "λ"
+"""The rate correction: this flight's own λ, updated from the prior with the descent so far."""
 PLAIN = "model · plain"
-RATE = "model · rate"
-RELATIVE = "model · relative rate"
+RATE = "model · λ"
+PLAIN_RESTART = "profile · plain"
+TEXTBOOK_RATE = "profile · λ"
 HELD_OUT_LIVE = "model + held-out live"
 
 
@@ -74,57 +84,35 @@ def _wind_label(decay: float) -> str:
     return "const" if math.isinf(decay) else f"{decay / 1000:g} km"
 
 
-RATE_WINDOWS_M = {"rate": math.inf, "recent rate": RECENT_RATE_WINDOW_M}
-"""The two rate estimators: fitted on the whole descent so far, or on its last 3 km."""
-RELATIVE_RATE = "relative rate"
-"""The third: the whole-descent factor divided by the typical one of the other flights at that height."""
-
-
-def _rate_estimators(typical: TypicalRate | None) -> dict[str, tuple[float, TypicalRate | None]]:
-    """Rate estimator name → (fit window, typical factor it is divided by)."""
-    estimators: dict[str, tuple[float, TypicalRate | None]] = {n: (w, None) for n, w in RATE_WINDOWS_M.items()}
-    if typical is not None:
-        estimators[RELATIVE_RATE] = (math.inf, typical)
-    return estimators
-
-
-def corrections(typical: TypicalRate | None = None) -> dict[str, LiveCorrection]:
-    """Every live correction tried on the calibrated model, by name (the relative rate with ``typical``)."""
-    estimators = _rate_estimators(typical)
-    configs = {"plain": NO_CORRECTION}
-    configs.update({n: LiveCorrection.everywhere(True, None, w, t) for n, (w, t) in estimators.items()})
+def corrections() -> dict[str, LiveCorrection]:
+    """Every live correction tried on the calibrated model, by name."""
+    configs = {"plain": NO_CORRECTION, OWN: OWN_RATE}
     for decay in DECAYS_M:
-        stored = 1e12 if math.isinf(decay) else decay
+        stored = 10 * CONSTANT_WIND_M if math.isinf(decay) else decay
         configs[f"wind {_wind_label(decay)}"] = LiveCorrection.everywhere(False, stored)
-        for rate, (window, factor) in estimators.items():
-            configs[f"{rate} + wind {_wind_label(decay)}"] = LiveCorrection.everywhere(True, stored, window, factor)
+        configs[f"{OWN} + wind {_wind_label(decay)}"] = LiveCorrection.everywhere(True, stored)
     return configs
 
 
-PROFILE_CORRECTIONS = {
-    "plain": NO_CORRECTION,
-    "rate": LiveCorrection.everywhere(True, None),
-    "recent rate": LiveCorrection.everywhere(True, None, rate_window_m=RECENT_RATE_WINDOW_M),
-}
-"""On the profile's law only the baselines: nothing learned, and the measured rate carried down with ρ^-½."""
+PROFILE_CORRECTIONS = {"plain": NO_CORRECTION, OWN: OWN_RATE}
+"""On the textbook law only the baselines: the plain restart, and the same λ estimator as the model's."""
 
 
-def configurations(typical: TypicalRate) -> dict[str, tuple[str, LiveCorrection]]:
+def configurations() -> dict[str, tuple[str, LiveCorrection]]:
     """'law · correction' → (law, correction): the profile baselines, then every model correction."""
     configs = {f"profile · {n}": ("profile", c) for n, c in PROFILE_CORRECTIONS.items()}
-    configs.update({f"model · {n}": ("model", c) for n, c in corrections(typical).items()})
+    configs.update({f"model · {n}": ("model", c) for n, c in corrections().items()})
     return configs
 
 
 def _combined(rate: str | None, wind: str | None) -> str:
-    """The model configuration named by a rate choice ('rate', 'recent rate' or None) and a wind
-    choice ('wind 2 km' or None)."""
+    """The model configuration named by a rate choice (λ or None) and a wind choice ('wind 2 km' or None)."""
     if wind is None:
         return f"model · {rate}" if rate else PLAIN
     return f"model · {f'{rate} + ' if rate else ''}{wind}"
 
 
-RATE_CHOICES: tuple[str | None, ...] = (None, *RATE_WINDOWS_M, RELATIVE_RATE)
+RATE_CHOICES: tuple[str | None, ...] = (None, OWN)
 WIND_CHOICES: tuple[str | None, ...] = (None, *(f"wind {_wind_label(d)}" for d in DECAYS_M))
 
 
@@ -156,6 +144,8 @@ class Case:
     remaining_drift_km: dict[str, float]
     time_error_s: dict[str, float] = field(default_factory=dict)
     """Predicted minus measured remaining descent time, s."""
+    time_sigma_s: dict[str, float] = field(default_factory=dict)
+    """The 1σ of the remaining time the λ update stated, s (configurations that update λ)."""
 
 
 @dataclass
@@ -174,8 +164,12 @@ class Evaluation:
     wind_choice: dict[float, dict[str, str | None]] = field(default_factory=dict)
     """Per checkpoint and held-out flight: the wind correction the other flights' landings gained most from."""
     all_flights_choice: dict[float, tuple[str | None, str | None]] = field(default_factory=dict)
-    typical_rate: TypicalRate = TypicalRate((), ())
-    """The typical whole-descent rate factor of all the flights by checkpoint (what ships)."""
+    rate_laws: dict[str, tuple[RatePrior | None, RateDiscrepancy]] = field(default_factory=dict)
+    """Law ('model', 'profile') → the λ prior and discrepancy of ALL the flights with it (what ships)."""
+    weather_label: str = "each flight's own ascent winds (`ascent_weather_cube`)"
+    ground_label: str = "level at the measured landing altitude"
+    model_terms: tuple[Term, ...] = ()
+    """The model's own terms (none: its law is the payload's drag law)."""
     held_out_laws: dict[str, tuple[Term, ...]] = field(default_factory=dict)
     """Flight → the model's terms refitted without it, for the flights the model was calibrated on
     (each flies its own fold's law); empty when the model's law never saw these flights."""
@@ -252,31 +246,40 @@ class _Flight:
     descent: list[Fix]
     landing: Fix
     cube: WeatherCube
-    ground: LevelGround
+    ground: Terrain
     checkpoints: dict[float, Fix | None]
     case: FlightCase
 
 
-def _usable(paths: Sequence[str | Path], day: date | None, skipped: list[str]) -> list[_Flight]:
+def _usable(
+    paths: Sequence[str | Path], day: date | None, skipped: list[str], weather: WeatherCube | None,
+    terrain: Terrain | None,
+) -> list[_Flight]:
+    """The flights that can be replayed; every other one goes to ``skipped`` with the reason."""
     flights = []
     for path in paths:
-        flight = clean(read_track(path, day=day))
+        flight = clean(read_track(path, day=day), terrain)
         if not flight.usable or flight.landing is None or flight.descent_start is None:
-            skipped.append(f"{flight.name}: {'; '.join(flight.exclusions) or 'no landing'}")
+            skipped.append(f"{flight.name}: {'; '.join(flight.exclusions) or 'no landing found'}")
             continue
         try:
-            cube = ascent_weather_cube(flight)
+            cube = weather if weather is not None else ascent_weather_cube(flight)
         except PredictorError as exc:
-            skipped.append(f"{flight.name}: {exc}")
+            hint = " (a descent-only track needs --weather)" if isinstance(exc, WeatherError) else ""
+            skipped.append(f"{flight.name}: no ascent winds: {exc}{hint}")
             continue
         descent = list(flight.descent)
+        if len(descent) < 3:
+            skipped.append(f"{flight.name}: {len(descent)} descent fixes, too few to replay")
+            continue
         checkpoints = {k: _checkpoint_fix(descent, flight.landing.alt_m, k) for k in CHECKPOINTS_KM}
+        if not any(checkpoints.values()):
+            skipped.append(f"{flight.name}: no report within {LOWEST_SHARE:.0%} of any checkpoint height")
+            continue
+        ground = terrain if terrain is not None else LevelGround(flight.landing.alt_m)
         flights.append(
-            _Flight(
-                flight.name, descent, flight.landing, cube, LevelGround(flight.landing.alt_m), checkpoints,
-                flight_case(flight, cube),
-            )
-        )  # fmt: skip
+            _Flight(flight.name, descent, flight.landing, cube, ground, checkpoints, flight_case(flight, cube, terrain))
+        )
     return flights
 
 
@@ -324,29 +327,83 @@ def held_out_laws(model: CalibratedModel, flights: Sequence[_Flight]) -> dict[st
     return {f.name: dataclasses.replace(model, terms=terms) for f, terms in zip(seen, folds, strict=True)}
 
 
-def _rate_survey(flights: Sequence[_Flight], model: CalibratedModel) -> dict[tuple[str, float], float]:
-    """(flight, checkpoint km) → the whole-descent rate factor on the model's law at that checkpoint."""
-    survey = {}
+@dataclass(frozen=True)
+class _Survey:
+    """Every flight's λ on one law: of its whole descent, and of its record down to each checkpoint."""
+
+    whole: dict[str, float]
+    """Flight → ln λ of the whole descent (the record down to the last airborne fix)."""
+    record: dict[tuple[str, float], tuple[float, float]]
+    """(flight, checkpoint km) → (ln λ of the record down to it, that fit's own σ of ln λ)."""
+
+
+def _rate_survey(flights: Sequence[_Flight], payload: Payload, terms: Sequence[Term]) -> _Survey:
+    """Each record's λ at the checkpoint HEIGHT, not at the checkpoint's report.
+
+    Why: the first report at or below a checkpoint can be minutes of fall below it (4–5 min between
+    SuperBIT fixes, up to 40 % of its height), and a record down to 17 km says something else than one
+    down to 20 km when the law's shape is off near there; a live record of 10 s fixes stops within
+    metres of the height at which its discrepancy is looked up. So the record's ln λ is taken at the
+    report above the checkpoint and at the one below, and interpolated in height to the checkpoint:
+    a dense record gives the same as before, a sparse one no longer labels a lower record as this height.
+    """
+    whole, record_fits = {}, {}
     for flight in flights:
-        record = DescentRecord(LivePredictor(flight.cube, model.payload, flight.ground, effects=model.terms).law)
+        record = DescentRecord(LivePredictor(flight.cube, payload, flight.ground, effects=terms).law)
+        ground_m = flight.landing.alt_m
+        above = {id(flight.descent[i - 1]): km for km, at in flight.checkpoints.items() if at is not None
+                 for i in range(1, len(flight.descent)) if flight.descent[i] is at}  # fmt: skip
+        fits_above: dict[float, tuple[float, float, float]] = {}
         for fix in flight.descent[:-1]:
             record.add(fix)
+            if id(fix) in above:
+                fit = record.rate_fit(fix.alt_m)
+                if fit is not None:
+                    fits_above[above[id(fix)]] = (fix.alt_m - ground_m, math.log(fit.factor), fit.log_sigma)
             for km, at in flight.checkpoints.items():
                 fit = record.rate_fit(fix.alt_m) if at is fix else None
-                if fit is not None:
-                    survey[(flight.name, km)] = fit.factor
-    return survey
+                if fit is None:
+                    continue
+                value, sigma = math.log(fit.factor), fit.log_sigma
+                if km in fits_above:
+                    top_height, top_value, top_sigma = fits_above[km]
+                    share = (top_height - 1000.0 * km) / max(top_height - (fix.alt_m - ground_m), 1e-9)
+                    value = share * value + (1.0 - share) * top_value
+                    sigma = share * sigma + (1.0 - share) * top_sigma
+                record_fits[(flight.name, km)] = (value, sigma)
+        fit = record.rate_fit(flight.descent[-2].alt_m)
+        if fit is not None:
+            whole[flight.name] = math.log(fit.factor)
+    return _Survey(whole, record_fits)
 
 
-def _typical(survey: dict[tuple[str, float], float], leave_out: str | None = None) -> TypicalRate:
-    """The geometric mean factor per checkpoint over the surveyed flights (without ``leave_out``)."""
-    heights, factors = [], []
+def rate_law(survey: _Survey, leave_out: str | None = None) -> tuple[RatePrior | None, RateDiscrepancy]:
+    """The λ prior and discrepancy of the surveyed flights (without ``leave_out``).
+
+    Prior: the median and spread of their whole-descent ln λ. Discrepancy at each checkpoint: the mean
+    of ln(record λ / whole-descent λ), and its spread across flights less the fits' own noise (which
+    the update adds back per record), so that it is not counted twice.
+    """
+    logs = np.array([v for name, v in survey.whole.items() if name != leave_out])
+    prior = None
+    if logs.size >= 3:
+        prior = RatePrior(float(np.exp(logs.mean())), min(float(logs.std(ddof=1)), 1.0), int(logs.size))
+    heights, bias, spread = [], [], []
     for km in CHECKPOINTS_KM:
-        values = [f for (name, k), f in survey.items() if k == km and name != leave_out]
-        if values:
-            heights.append(km)
-            factors.append(round(float(np.exp(np.mean(np.log(values)))), 4))
-    return TypicalRate(tuple(heights), tuple(factors))
+        pairs = [
+            (value - survey.whole[name], sigma)
+            for (name, k), (value, sigma) in survey.record.items()
+            if k == km and name != leave_out and name in survey.whole
+        ]
+        if len(pairs) < 3:
+            continue
+        d = np.array([p[0] for p in pairs])
+        noise = np.array([p[1] ** 2 for p in pairs if math.isfinite(p[1])])
+        heights.append(km)
+        bias.append(round(float(d.mean()), 5))
+        spread.append(round(math.sqrt(max(float(d.var(ddof=1)) - float(noise.mean() if noise.size else 0.0), 0.0)), 5))
+    discrepancy = RateDiscrepancy(tuple(heights), tuple(bias), tuple(spread)) if heights else NO_DISCREPANCY
+    return prior, discrepancy
 
 
 def evaluate(
@@ -354,14 +411,17 @@ def evaluate(
     model: CalibratedModel | None = None,
     profile: Payload | None = None,
     day: date | None = None,
+    weather: WeatherCube | None = None,
+    terrain: Terrain | None = None,
 ) -> Evaluation:
     """Every checkpoint of every usable flight under every configuration.
 
     ``profile`` is the payload of the textbook law (default: the 2018–2019 test payload the SuperBIT
     flights were predicted with); ``model`` the calibrated model (default: that profile, uncalibrated);
-    ``day`` the UTC date of logs that store times of day only. Each flight the model was calibrated
-    on flies the model's law refitted without it, and its relative rate is divided by the typical
-    factor of the OTHER flights under that law, so that both are held out.
+    ``day`` the UTC date of logs that store times of day only; ``weather`` GRIB weather for every
+    flight (default: each flight's ascent winds); ``terrain`` a DEM (default: level ground at each
+    measured landing). Each flight the model was calibrated on flies the model's law refitted without
+    it, and on both laws its λ prior and discrepancy come from the OTHER flights, so all is held out.
     """
     profile = profile or PROFILES["superbit-test"]
     model = model or CalibratedModel(profile, (), None)
@@ -372,23 +432,33 @@ def evaluate(
         start_errors_km={},
         model_label=_describe(model),
         profile_label=profile.name,
+        model_terms=model.terms,
     )
-    flights = _usable(paths, day, result.skipped)
+    if weather is not None:
+        result.weather_label = weather.source
+    if terrain is not None:
+        result.ground_label = "the DEM given (--dem)"
+    flights = _usable(paths, day, result.skipped, weather, terrain)
     laws = held_out_laws(model, flights)
     result.held_out_laws = {name: law.terms for name, law in laws.items()}
-    model_survey = _rate_survey(flights, model)
-    result.typical_rate = _typical(model_survey)
+    model_survey = _rate_survey(flights, model.payload, model.terms)
+    profile_survey = _rate_survey(flights, profile, ())
+    result.rate_laws = {"model": rate_law(model_survey), "profile": rate_law(profile_survey)}
+    configs = configurations()
     for flight in flights:
         law = laws.get(flight.name, model)
-        # The typical factor this flight is divided by: the other flights' fits with its own fold's law
-        # (a flight the model never saw flies the model's own law, whose survey is already made).
-        survey = model_survey if law is model else _rate_survey(flights, law)
-        configs = configurations(_typical(survey, leave_out=flight.name))
+        # The other flights' λ on this flight's own fold's law (a flight the model never saw flies the
+        # model's own law, whose survey is already made).
+        survey = model_survey if law is model else _rate_survey(flights, law.payload, law.terms)
+        model_prior, model_discrepancy = rate_law(survey, leave_out=flight.name)
+        profile_prior, profile_discrepancy = rate_law(profile_survey, leave_out=flight.name)
         landing, descent = flight.landing, flight.descent
         live = {
-            "profile": LivePredictor(flight.cube, profile, flight.ground, NO_CORRECTION),
-            "model": LivePredictor(flight.cube, law.payload, flight.ground, NO_CORRECTION, effects=law.terms),
-        }
+            "profile": LivePredictor(flight.cube, profile, flight.ground, NO_CORRECTION,
+                                     prior=profile_prior, discrepancy=profile_discrepancy),
+            "model": LivePredictor(flight.cube, law.payload, flight.ground, NO_CORRECTION, effects=law.terms,
+                                   prior=model_prior, discrepancy=model_discrepancy),
+        }  # fmt: skip
         touchdown_s = _touchdown_s(descent, landing.alt_m)
         start = live["model"].predict_from(descent[0]).prediction.landing
         result.start_errors_km[flight.name] = _errors(start.lat, start.lon, descent[0], landing)[0]
@@ -402,14 +472,18 @@ def evaluate(
                     continue
                 remaining_s = touchdown_s - (fix.time - descent[0].time).total_seconds()
                 case = Case(flight.name, km, fix.alt_m - landing.alt_m, {}, {}, {}, {})
-                for name, (law, correction) in configs.items():
-                    p = live[law].predict_from(fix, correction).prediction
+                for name, (law_name, correction) in configs.items():
+                    live_prediction = live[law_name].predict_from(fix, correction)
+                    p = live_prediction.prediction
                     d, along, across = _errors(p.landing.lat, p.landing.lon, fix, landing)
                     case.errors_km[name] = d
                     case.along_km[name] = along
                     case.across_km[name] = across
                     case.remaining_drift_km[name] = p.drift_km
                     case.time_error_s[name] = p.descent_s - remaining_s
+                    sigma = live_prediction.remaining_sigma_s
+                    if sigma is not None:
+                        case.time_sigma_s[name] = sigma
                 result.cases.append(case)
     _leave_one_out(result)
     return result
@@ -442,21 +516,12 @@ def _cases(result: Evaluation, km: float) -> list[Case]:
 
 
 def held_out(result: Evaluation, km: float) -> dict[str, tuple[list[float], list[float]]]:
-    """Per checkpoint, (landing errors km, remaining-time errors s) of: the profile's plain and rate
-    (ρ^-½) predictions, the model's plain and rate predictions, and the model with its held-out
-    live corrections."""
+    """Per checkpoint, (landing errors km, remaining-time errors s) of: the textbook law restarted plain
+    and with λ, the model restarted plain and with λ, and the model with its held-out live corrections."""
     cases = _cases(result, km)
     rows = {
         name: ([c.errors_km[name] for c in cases], [c.time_error_s[name] for c in cases])
-        for name in (
-            "profile · plain",
-            "profile · rate",
-            "profile · recent rate",
-            PLAIN,
-            RATE,
-            "model · recent rate",
-            RELATIVE,
-        )
+        for name in (PLAIN_RESTART, TEXTBOOK_RATE, PLAIN, RATE)
     }
     names = [result.held_out_name(c) for c in cases]
     rows[HELD_OUT_LIVE] = (
@@ -530,8 +595,7 @@ def shipped_correction(result: Evaluation) -> LiveCorrection:
     """
     kms = sorted(CHECKPOINTS_KM)
     bands = []
-    configs = corrections(result.typical_rate)
-    estimators = _rate_estimators(result.typical_rate)
+    configs = corrections()
     for i, km in enumerate(kms):
         if km not in result.all_flights_choice:
             continue
@@ -542,64 +606,85 @@ def shipped_correction(result: Evaluation) -> LiveCorrection:
             continue
         lower = -math.inf if i == 0 else 500.0 * (kms[i - 1] + km)
         upper = math.inf if i == len(kms) - 1 else 500.0 * (km + kms[i + 1])
-        window, typical = estimators[rate] if use_rate and rate is not None else (math.inf, None)
-        bands.append(Band(lower, upper, use_rate, decay, window, typical))
+        bands.append(Band(lower, upper, use_rate, decay))
     return LiveCorrection(bands=tuple(bands))
 
 
 SERIES = (
-    ("profile · plain", "profile, plain"),
-    ("profile · rate", "profile + rate (ρ^-½)"),
-    ("profile · recent rate", "profile + last-3-km rate (ρ^-½)"),
+    (PLAIN_RESTART, "plain restart (textbook law)"),
+    (TEXTBOOK_RATE, "textbook law + λ"),
     (PLAIN, "model, plain"),
-    (RATE, "model + rate"),
-    ("model · recent rate", "model + last-3-km rate"),
-    (RELATIVE, "model + relative rate"),
+    (RATE, "model + λ"),
     (HELD_OUT_LIVE, "model + held-out live"),
 )
 """The rows of the report: label in ``held_out`` → what the report calls it."""
+BASELINES = ((PLAIN_RESTART, "plain restart"), (PLAIN, "model plain"), (TEXTBOOK_RATE, "textbook + λ"))
+"""What the model's figure is divided by in the ratio tables: the plain restart with the nominal payload
+(``drs live --no-correction``), the model's own law restarted plain, and the textbook law with the same
+λ estimator."""
+FLOOR_KMS = (20.0, 10.0)
+FLOOR_RATIO = 0.8
+"""The issue's floor: live remaining-time error with the model ≤ 0.8× the plain restart's and ≤ the
+textbook law's with the same λ estimator, from 20 km and from 10 km."""
 
 
 def live_settings(model: CalibratedModel, result: Evaluation, command: str) -> CalibratedModel:
-    """The model with what its evaluation kept: the shipped correction bands and the live ellipse."""
-    model_s, textbook_s = remaining_time_ratio(result, 20.0) if 20.0 in result.rate_choice else (math.nan, math.nan)
+    """The model with what its evaluation kept: the shipped correction bands, the λ discrepancy, the λ
+    prior these flights measured on its law (flown only when its calibration gave it none) and the
+    live ellipse."""
+    prior, discrepancy = result.rate_laws["model"]
+    ratios = {}
+    for km in FLOOR_KMS:
+        if km in result.rate_choice:
+            model_s = float(np.mean(np.abs(held_out(result, km)[HELD_OUT_LIVE][1])))
+            ratios[f"remaining_time_error_{km:g}km_s"] = round(model_s, 1)
+            for name, label in BASELINES:
+                base = float(np.mean(np.abs(held_out(result, km)[name][1])))
+                ratios[f"{label.replace(' ', '_').replace('+', 'with')}_{km:g}km_s"] = round(base, 1)
     provenance = {
         **model.provenance,
         "live": {
             "flights": list(result.flights),
             "command": command,
             "evaluated_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
-            "remaining_time_error_20km_s": None if math.isnan(model_s) else round(model_s, 1),
-            "rho_half_remaining_time_error_20km_s": None if math.isnan(textbook_s) else round(textbook_s, 1),
+            **ratios,
         },
     }
-    settings = LiveSettings(shipped_correction(result), fit_live_sigma(result))
+    settings = LiveSettings(shipped_correction(result), fit_live_sigma(result), discrepancy, prior)
     return dataclasses.replace(model, live=settings, provenance=provenance)
-
-
-def remaining_time_ratio(result: Evaluation, km: float) -> tuple[float, float]:
-    """Mean |remaining-time error| (s) at a checkpoint: the model with its held-out live corrections,
-    and the ρ^-½ extrapolation (the profile with its fitted rate)."""
-    rows = held_out(result, km)
-    return float(np.mean(np.abs(rows[HELD_OUT_LIVE][1]))), float(np.mean(np.abs(rows["profile · rate"][1])))
 
 
 BOOTSTRAP_RESAMPLES = 2000
 
 
-def remaining_time_ratio_interval(result: Evaluation, km: float, seed: int = 0) -> tuple[float, float]:
-    """95 % interval of that ratio with the flights resampled (paired: both errors of a flight together).
+def ratio_interval(
+    model: Sequence[float], baseline: Sequence[float], seed: int = 0
+) -> tuple[float, float, float]:
+    """Mean |model| / mean |baseline| and its 95 % interval with the flights resampled (paired: both
+    errors of a flight together).
 
     Why: 28 flights are few, and one flight with a large miss moves a mean; the interval says how much
     of the ratio is the flights that happened to be flown.
     """
-    rows = held_out(result, km)
-    model = np.abs(np.asarray(rows[HELD_OUT_LIVE][1]))
-    textbook = np.abs(np.asarray(rows["profile · rate"][1]))
-    picks = np.random.default_rng(seed).integers(0, model.size, size=(BOOTSTRAP_RESAMPLES, model.size))
-    ratios = model[picks].mean(axis=1) / textbook[picks].mean(axis=1)
+    a, b = np.abs(np.asarray(model, dtype=float)), np.abs(np.asarray(baseline, dtype=float))
+    picks = np.random.default_rng(seed).integers(0, a.size, size=(BOOTSTRAP_RESAMPLES, a.size))
+    ratios = a[picks].mean(axis=1) / np.maximum(b[picks].mean(axis=1), 1e-12)
     low, high = np.quantile(ratios, (0.025, 0.975))
-    return float(low), float(high)
+    return float(a.mean() / max(b.mean(), 1e-12)), float(low), float(high)
+
+
+def floors(result: Evaluation) -> list[tuple[float, str, float, float, float, bool]]:
+    """(km, baseline, ratio, low, high, met) of the issue's floor on the remaining-time error."""
+    out = []
+    for km in FLOOR_KMS:
+        if km not in result.rate_choice:
+            continue
+        rows = held_out(result, km)
+        for name, label, limit in ((PLAIN_RESTART, "plain restart", FLOOR_RATIO), (PLAIN, "model plain", FLOOR_RATIO),
+                                   (TEXTBOOK_RATE, "textbook + λ", 1.0)):  # fmt: skip
+            ratio, low, high = ratio_interval(rows[HELD_OUT_LIVE][1], rows[name][1])
+            out.append((km, f"{label} (≤ {limit:g}×)", ratio, low, high, ratio <= limit))
+    return out
 
 
 def _plot(result: Evaluation, kms: list[float], png: Path) -> None:
@@ -609,7 +694,7 @@ def _plot(result: Evaluation, kms: list[float], png: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4.2))
-    styles = ("o:", "s--", "x:", "o-", "s-", "x-", "d-", "^-")
+    styles = ("o:", "s--", "o-", "s-", "^-")
     for (name, label), style in zip(SERIES, styles, strict=True):
         left.plot(kms, [np.mean(held_out(result, k)[name][0]) for k in kms], style, label=label)
         right.plot(kms, [np.mean(np.abs(held_out(result, k)[name][1])) for k in kms], style, label=label)
@@ -622,7 +707,7 @@ def _plot(result: Evaluation, kms: list[float], png: Path) -> None:
         ax.invert_xaxis()
         ax.grid(alpha=0.3)
     left.legend(fontsize=7)
-    fig.suptitle(f"Live re-prediction on {len(result.flights)} SuperBIT test flights (ascent winds)")
+    fig.suptitle(f"Live re-prediction on {len(result.flights)} test flights, held out")
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     plt.close(fig)
@@ -631,9 +716,15 @@ def _plot(result: Evaluation, kms: list[float], png: Path) -> None:
 def _held_out_text(result: Evaluation) -> str:
     """What is held out in the numbers above, and how far the refitted laws spread."""
     if not result.held_out_laws:
+        if not result.model_terms:
+            return (
+                "The model has no calibrated terms: its law is the payload's drag law, which no flight set, "
+                "so there is no law to hold out; its λ prior and discrepancy and its live choices are held "
+                "out per flight."
+            )
         return (
-            "The model's law was not calibrated on these flights, so it is held out as it stands; the "
-            "live choices and the typical factors are held out per flight."
+            "The model's law was calibrated on other flights than these, so it is held out as it stands; its "
+            "λ prior and discrepancy and its live choices are held out per flight."
         )
     spread = []
     for k, term in enumerate(next(iter(result.held_out_laws.values()))):
@@ -644,14 +735,36 @@ def _held_out_text(result: Evaluation) -> str:
     return (
         f"Everything is held out: each of the {len(result.held_out_laws)} flights the model was calibrated "
         "on flies the model's law refitted without it (leave-one-flight-out, the calibration's own fit; "
-        f"across the folds {', '.join(spread) or 'the parameters do not change'}), the typical factor it "
-        "is divided by comes from the other flights' fits with that law, and its live choices from the "
+        f"across the folds {', '.join(spread) or 'the parameters do not change'}), its λ prior and "
+        "discrepancy come from the other flights' fits with that law, and its live choices from the "
         "other flights' held-out predictions."
     )
 
 
 def _bands_text(shipped: LiveCorrection) -> str:
     return "; ".join(b.describe() for b in shipped.bands) or "nothing (plain re-prediction everywhere)"
+
+
+def _rate_law_text(name: str, law: tuple[RatePrior | None, RateDiscrepancy]) -> str:
+    prior, discrepancy = law
+    text = (
+        f"median λ {prior.median:.4f}, σ(ln λ) {prior.log_sigma:.4f} over {prior.flights} flights"
+        if prior is not None else "no prior (fewer than 3 whole-descent fits)"
+    )
+    rows = ", ".join(
+        f"{h:g} km {100 * b:+.1f} % ± {100 * s:.1f} %"
+        for h, b, s in zip(discrepancy.heights_km, discrepancy.log_bias, discrepancy.log_sigma, strict=True)
+    )
+    return f"**{name}**: {text}; record λ against whole-descent λ (mean ± spread of the log ratio): {rows}"
+
+
+def _sigma_coverage(result: Evaluation, km: float, name: str) -> str:
+    """How often the stated 1σ of the remaining time held the measured error (normal: 68 %)."""
+    cases = [c for c in _cases(result, km) if name in c.time_sigma_s]
+    if not cases:
+        return "–"
+    inside = np.mean([abs(c.time_error_s[name]) <= c.time_sigma_s[name] for c in cases])
+    return f"{np.median([c.time_sigma_s[name] for c in cases]):.0f} s / {100 * inside:.0f} %"
 
 
 def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
@@ -671,30 +784,30 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
         "",
         f"Flights: {len(result.flights)} used"
         + (f", skipped: {'; '.join(result.skipped)}" if result.skipped else "")
-        + f"; {result.fixes_used} descent fixes, every one fed to the live predictors (rate fit and wind "
-        "legs); predictions only at the checkpoints. Weather: each flight's own ascent winds "
-        "(`ascent_weather_cube`); ground: level at the measured landing altitude. Checkpoint = the first "
-        "report at or below that height above the ground (skipped for a flight whose next report is "
-        f"below {LOWEST_SHARE:.0%} of it, a data gap).",
+        + f"; {result.fixes_used} descent fixes, every one fed to the live predictors (λ update and wind "
+        f"legs); predictions only at the checkpoints. Weather: {result.weather_label}; ground: "
+        f"{result.ground_label}. Checkpoint = the first report at or below that height above the ground "
+        f"(skipped for a flight whose next report is below {LOWEST_SHARE:.0%} of it, a data gap).",
         "",
-        f"Two laws: **profile** = payload `{result.profile_label}` and its drag law (v ∝ ρ^-½); **model** = "
-        f"{result.model_label}. Live corrections: **rate** = one factor on the law's descent rate, "
-        "fitted (Huber, with a free time offset) on every fix of the descent so far with the same law "
-        "that carries it to the ground, so *profile + rate* is the ρ^-½ extrapolation of the measured "
-        f"rate; *last-3-km rate* fits only the fixes within {RECENT_RATE_WINDOW_M / 1000:g} km above the "
-        "report (the previous estimator); *relative rate* divides the whole-descent factor by the typical "
-        "factor (geometric mean) the OTHER flights' own fits gave at that checkpoint, so that the law's "
-        "departure shared by most flights (faster than the law high up) is not carried to the ground as "
-        "if it were this flight's; **wind L** = the measured wind error, decaying below the capsule "
-        f"with L in {', '.join('∞' if math.isinf(d) else f'{d / 1000:g} km' for d in DECAYS_M)}. "
-        "**model + held-out live**: for each flight the rate (off, whole descent, last 3 km or relative, by the "
-        "mean |remaining-time error| of the OTHER flights) and then the wind (by their mean landing error) that the other "
-        "flights preferred at that checkpoint.",
+        f"Two laws: **textbook** = payload `{result.profile_label}` and its drag law (v ∝ ρ^-½, no terms); "
+        f"**model** = {result.model_label}. Live corrections: **plain** = restarted from the report, "
+        "nothing learned (`drs live --no-correction`; on the textbook law this is *the plain restart*); "
+        "**λ** = this flight's own factor on the law's descent rate, a Bayesian update of a log-normal "
+        "prior with the descent so far: the record's time-at-altitude against the law from its top (Huber "
+        "fit with a free time offset, its variance widened by (1+ρ)/(1−ρ) for correlated residuals) less "
+        "the discrepancy a record shows at that height, with that discrepancy's spread added to its "
+        "variance. On each law the prior (the whole-descent λ of the OTHER flights) and the discrepancy "
+        "(measured on the OTHER flights) are that law's own, so *textbook + λ* is the same estimator on "
+        "the textbook law. **wind L** = the measured wind error, decaying below the capsule with L in "
+        f"{', '.join('∞' if math.isinf(d) else f'{d / 1000:g} km' for d in DECAYS_M)}. "
+        "**model + held-out live**: for each flight λ on or off (by the mean |remaining-time error| of "
+        "the OTHER flights) and then the wind (by their mean landing error) that the other flights "
+        "preferred at that checkpoint. Time-since-release terms count from the top of the record.",
         "",
         "Landing error = distance from the predicted to the measured landing. Remaining-time error = "
         "predicted minus measured time from the report to touchdown; the measured touchdown is the last "
         "airborne fix carried to the ground at the rate of its own interval (the first fix on the ground "
-        "is up to one interval late: 3 min on these trackers).",
+        "is up to one interval late: 3 min on the SuperBIT trackers).",
         "",
     ]
 
@@ -715,36 +828,63 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
         "Remaining-time error, s (mean |error| / mean signed error)",
         lambda landing, seconds: f"{np.mean(np.abs(seconds)):.0f} / {np.mean(seconds):+.0f}",
     )
-    if 20.0 in kms:
-        model_s, textbook_s = remaining_time_ratio(result, 20.0)
-        low, high = remaining_time_ratio_interval(result, 20.0)
-        lines += [
-            f"From 20 km the remaining-time error with the model and its held-out live corrections is "
-            f"{model_s:.0f} s (mean |error|) against {textbook_s:.0f} s for the ρ^-½ extrapolation of the "
-            f"measured rate: {100 * model_s / textbook_s:.0f} % (95 % interval {100 * low:.0f}–{100 * high:.0f} % "
-            f"with the flights resampled, {BOOTSTRAP_RESAMPLES} paired bootstrap draws). {_held_out_text(result)} "
-            "Typical whole-descent rate factor of all the flights by checkpoint, with the model's own law "
-            "(what ships, `predictor.prediction.live.TYPICAL_RATE`): "
-            + ", ".join(
-                f"{h:g} km {f:.4f}"
-                for h, f in zip(result.typical_rate.heights_km, result.typical_rate.factors, strict=True)
-            )
-            + ".",
-            "",
-        ]
     lines += [
+        "## The model's figure against the baselines, same run",
+        "",
+        "Ratio of the mean error of *model + held-out live* to each baseline's, with its 95 % interval "
+        f"({BOOTSTRAP_RESAMPLES} paired bootstrap draws of the flights). Below 1: the model does better.",
+        "",
+        "| height km | " + " | ".join(f"time ÷ {label}" for _, label in BASELINES) + " | "
+        + " | ".join(f"landing ÷ {label}" for _, label in BASELINES) + " |",
+        "|---|" + "---|" * (2 * len(BASELINES)),
+    ]
+    for km in kms:
+        rows = held_out(result, km)
+        cells = []
+        for metric in (1, 0):
+            for name, _ in BASELINES:
+                ratio, low, high = ratio_interval(rows[HELD_OUT_LIVE][metric], rows[name][metric])
+                cells.append(f"{ratio:.2f} ({low:.2f}–{high:.2f})")
+        lines.append(f"| {km:g} | {' | '.join(cells)} |")
+    checks = floors(result)
+    lines += [
+        "",
+        "Floors (remaining time, model + held-out live against the baseline): "
+        + "; ".join(
+            f"{km:g} km ÷ {label}: {ratio:.2f} ({low:.2f}–{high:.2f}) {'met' if met else 'NOT met'}"
+            for km, label, ratio, low, high, met in checks
+        )
+        + ".",
+        "",
+        _held_out_text(result),
+        "",
+        "λ on each law, all flights (what the model's live settings ship): "
+        + _rate_law_text("model", result.rate_laws["model"])
+        + "; "
+        + _rate_law_text("textbook", result.rate_laws["profile"])
+        + ".",
+        "",
+        "The 1σ of the remaining time that the λ update states (its posterior σ of ln λ times the "
+        "remaining time; it leaves out the wind and the law's error below) against the measured error: "
+        "median σ / share of flights within it (a normal error: 68 %):",
+        "",
+        "| height km | model + λ | textbook + λ |",
+        "|---|---|---|",
+        *[f"| {km:g} | {_sigma_coverage(result, km, RATE)} | {_sigma_coverage(result, km, TEXTBOOK_RATE)} |"
+          for km in kms],
+        "",
         "![landing and remaining-time error against height](live-reprediction.png)",
         "",
         "## What ships",
         "",
         "A correction ships in a checkpoint's band only where its held-out choice beat the model's plain "
-        "re-prediction on its own metric: the rate on the mean |remaining-time error|, the wind on the "
-        "mean landing error (beyond the rate choice).",
+        "re-prediction on its own metric: λ on the mean |remaining-time error|, the wind on the "
+        "mean landing error (beyond the λ choice).",
         "",
-        "| height km | rate: held-out / plain mean |Δt| s | ships | wind: held-out / rate-only mean km | ships "
+        "| height km | λ: held-out / plain mean |Δt| s | ships | wind: held-out / λ-only mean km | ships "
         "| choice on all flights |",
         "|---|---|---|---|---|---|",
-    ]
+    ]  # fmt: skip
     for km in kms:
         cases = _cases(result, km)
         rate_names = [_combined(result.rate_choice[km][c.flight], None) for c in cases]
@@ -756,9 +896,9 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
         lines.append(
             f"| {km:g} | {rate_held:.0f} / {plain:.0f} | {'yes' if rate_helps(result, km) else 'no'} | "
             f"{wind_held:.2f} / {rate_only:.2f} | {'yes' if wind_helps(result, km) else 'no'} | "
-            f"{rate or 'no rate'}, {wind or 'no wind'} |"
+            f"{rate or 'no λ'}, {wind or 'no wind'} |"
         )
-    shown = ("plain", "rate", "recent rate", "wind 2 km", "wind 8 km", "wind const", "rate + wind 2 km")
+    shown = ("plain", OWN, "wind 2 km", "wind 8 km", "wind const", f"{OWN} + wind 2 km")
     lines += [
         "",
         "Mean landing error (km) of fixed model configurations on all flights (not held out; shows the shape):",
@@ -779,7 +919,7 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
         f"The model from the descent start with no live update: median {np.median(starts):.2f} km, "
         f"mean {np.mean(starts):.2f} km over {len(starts)} flights.",
         "",
-        "Live ellipse (`predictor.prediction.live.LIVE_ERROR_MODEL`): RMS along/across-track error of what ships, "
+        "Live ellipse (the model file's `live.error_model`): RMS along/across-track error of what ships, "
         "per height, and the held-out coverage (each flight against σ fitted without it; a 2-D Gaussian "
         "gives 39.3 % in 1σ, 86.5 % in 2σ):",
         "",
@@ -793,7 +933,7 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
             if h in coverage
         ],
         "",
-        "What ships (`predictor.prediction.live.DEFAULT_CORRECTION`, bands of height above the ground): "
+        "What ships (the model file's `live.bands`, bands of height above the ground): "
         + _bands_text(shipped_correction(result))
         + "; elsewhere a plain re-prediction from the report.",
         "",

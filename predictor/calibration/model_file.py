@@ -22,21 +22,28 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from predictor.descent import EFFECTS, Model, Payload, RatePrior, Term, payload_profile
+from predictor.calibration.effects import parameter_limits
+from predictor.descent import EFFECTS, DescentRateScale, Model, Payload, RatePrior, Term, payload_profile
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, UsageError
 from predictor.prediction import (
-    DEFAULT_LIVE,
+    DEFAULT_ELLIPSE_NOTE,
     ERROR_MODELS,
+    LIVE_ERROR_MODEL,
     NO_CORRECTION,
+    OWN_RATE,
     Band,
     ErrorModel,
     LiveCorrection,
     LiveErrorModel,
     LivePredictor,
     LiveSettings,
-    TypicalRate,
+    RateDiscrepancy,
 )
+
+PAYLOAD_LIMITS = {"mass_kg": (0.05, 50.0), "cda_m2": (0.02, 50.0)}
+"""A balloon payload under a parachute: 50 g to 50 kg, Cd·A 0.02–50 m² (a 1 kg capsule under a 4 ft
+canopy is 0.43 m²). Outside them no calibration was run; a 10⁶ kg payload falls as a stone."""
 
 SCHEMA_VERSION = 3
 """2 added the optional ``live`` section, 3 the optional ``rate_prior``: a drs that reads an older
@@ -59,17 +66,43 @@ class CalibratedModel:
     """Flights, weather, held-out before/after per metric, date, command and project version."""
     source_path: Path | None = None
     live: LiveSettings | None = None
-    """The live corrections and live ellipse measured with this model's law (``drs live evaluate
-    --save-model``); None: not evaluated live, and live re-prediction flies ``DEFAULT_LIVE``."""
+    """The live corrections, λ discrepancy and live ellipse measured with this model's law (``drs live
+    evaluate --save-model``); None: not evaluated live, and live re-prediction flies the shape with this
+    flight's own λ update and the default ellipse, and says so."""
     rate_prior: RatePrior | None = None
     """The spread of each calibration flight's own rate factor λ around the shared law (None: the
     calibration did not fit λ per flight)."""
 
     def live_predictor(self, cube: WeatherCube, terrain: Terrain | None = None, corrected: bool = True) -> LivePredictor:
-        """A live predictor flying this model's law with its own live settings (``corrected``: its bands)."""
-        settings = self.live or DEFAULT_LIVE
+        """A live predictor flying this model's law with its own λ prior and live settings (``corrected``:
+        its bands; otherwise the plain restart from each report). Without live settings of its own it
+        flies its shape with this flight's own λ update, and every prediction says what is not its own."""
+        notes = []
+        if self.live is None:
+            notes.append("no live settings of its own: its shape with this flight's own λ update, no wind correction")
+            notes.append(DEFAULT_ELLIPSE_NOTE)
+            settings = LiveSettings(OWN_RATE, LIVE_ERROR_MODEL)
+        else:
+            settings = self.live
+        prior = self._prior_on_terms() or settings.prior
+        if prior is None:
+            notes.append("no λ prior in the model: λ from this descent alone")
+        elif self.rate_prior is None:
+            notes.append("λ prior from the model's live evaluation (its calibration gave none)")
         correction = settings.correction if corrected else NO_CORRECTION
-        return LivePredictor(cube, self.payload, terrain, correction, settings.error_model, effects=self.terms)
+        return LivePredictor(
+            cube, self.payload, terrain, correction, settings.error_model, effects=self.terms,
+            prior=prior, discrepancy=settings.discrepancy, notes=notes,
+        )  # fmt: skip
+
+    def _prior_on_terms(self) -> RatePrior | None:
+        """The calibration's λ prior as a factor on the law the terms fly, which is what live re-prediction
+        scales: a ``descent_rate_scale`` among the terms is the prior's median already flown (the
+        calibration's convention), so the update then starts from 1 with the prior's spread."""
+        if self.rate_prior is None:
+            return None
+        flown = math.prod(float(t.scale) for t in self.terms if isinstance(t, DescentRateScale))
+        return dataclasses.replace(self.rate_prior, median=self.rate_prior.median / flown)
 
     def model(self) -> Model:
         return Model.for_payload(self.payload, *self.terms)
@@ -98,7 +131,12 @@ class CalibratedModel:
         when = self.provenance.get("created_utc", "")[:10]
         flights = self.provenance.get("flights")
         count = f" on {len(flights)} flights" if isinstance(flights, list) else ""
-        return f"{where} (calibrated {when}{count})" if when else where
+        label = f"{where} (calibrated {when}{count})" if when else where
+        unstable = self.provenance.get("unstable_terms")
+        if isinstance(unstable, list) and unstable:
+            # Visible wherever the model is named (drs predict, plan, live, the console).
+            label += f" [FLAG: {', '.join(map(str, unstable))} chosen in under 2/3 of the selection's folds]"
+        return label
 
     def to_dict(self) -> dict[str, Any]:
         ellipse = None
@@ -123,21 +161,18 @@ def _bound(value: float) -> float | None:
 
 def _live_to_dict(live: LiveSettings) -> dict[str, Any]:
     def band(b: Band) -> dict[str, Any]:
-        typical = b.typical_rate
-        return {
-            "lower_m": _bound(b.lower_m),
-            "upper_m": _bound(b.upper_m),
-            "use_rate": b.use_rate,
-            "rate_window_m": _bound(b.rate_window_m),
-            "typical_rate": {"heights_km": list(typical.heights_km), "factors": list(typical.factors)}
-            if typical is not None else None,
-            "wind_decay_m": b.decay_m,
-        }  # fmt: skip
+        return {"lower_m": _bound(b.lower_m), "upper_m": _bound(b.upper_m), "use_rate": b.use_rate,
+                "wind_decay_m": b.decay_m}  # fmt: skip
 
     e = live.error_model
+    d = live.discrepancy
     return {
         "bands": [band(b) for b in live.correction.bands],
         "wind_window_m": live.correction.wind_window_m,
+        "discrepancy": {
+            "heights_km": list(d.heights_km), "log_bias": list(d.log_bias), "log_sigma": list(d.log_sigma),
+        },
+        **({"prior": live.prior.to_dict()} if live.prior is not None else {}),
         "error_model": {
             "heights_km": list(e.heights_km),
             "sigma_parallel_km": list(e.sigma_parallel_km),
@@ -211,6 +246,10 @@ def _payload(raw: Any, refuse: Any) -> Payload:
         raise refuse("payload.mass_kg", f"must be a positive number of kg, got {mass:g}")
     if cda <= 0:
         raise refuse("payload.cda_m2", f"must be a positive number of m², got {cda:g}")
+    for key, value in (("mass_kg", mass), ("cda_m2", cda)):
+        low, high = PAYLOAD_LIMITS[key]
+        if not low <= value <= high:
+            raise refuse(f"payload.{key}", f"{value:g} is outside the payloads drs calibrates ({low:g}–{high:g})")
     name = str(raw.get("name", "calibrated"))
     return Payload(mass, cda, name=name, source=str(raw.get("source", "calibrated model file")))
 
@@ -219,6 +258,7 @@ def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
     if not isinstance(raw, list):
         raise refuse("terms", "must be a list (empty when calibration selected nothing)")
     terms = []
+    limits = parameter_limits()
     for index, item in enumerate(raw):
         where = f"terms[{index}]"
         if not isinstance(item, dict):
@@ -238,11 +278,24 @@ def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
                 values[key] = tuple(_number(v, f"{where}.parameters.{key}[{i}]", refuse) for i, v in enumerate(value))
             else:
                 values[key] = _number(value, f"{where}.parameters.{key}", refuse)
+            _within(values[key], limits.get((kind.name, key)), f"{where}.parameters.{key}", refuse)
+        if kind.name == "wind_band_scale" and values.get("bottom_m", 8000.0) >= values.get("top_m", 14000.0):
+            raise refuse(f"{where}.parameters", "wind_band_scale: bottom_m must be below top_m")
         try:
             terms.append(kind(**values))
         except (PredictorError, TypeError) as exc:
             raise refuse(where, str(exc)) from None
     return tuple(terms)
+
+
+def _within(value: float | tuple[float, ...], limits: tuple[float, float] | None, where: str, refuse: Any) -> None:
+    """Refuse a value outside the calibration's own bounds (``effects.parameter_limits``)."""
+    if limits is None:
+        return
+    low, high = limits
+    for v in value if isinstance(value, tuple) else (value,):
+        if not low <= v <= high:
+            raise refuse(where, f"{v:g} is outside the calibration's bounds {low:g}…{high:g}")
 
 
 def _ellipse(raw: Any, refuse: Any) -> ErrorModel | None:
@@ -286,46 +339,53 @@ def _optional(raw: Any, where: str, refuse: Any, unbounded: float) -> float:
     return unbounded if raw is None else _number(raw, where, refuse)
 
 
-def _live(raw: Any, refuse: Any) -> LiveSettings:
+def _live(raw: Any, refuse: Any) -> LiveSettings | None:
+    """The live section; None for one written before live re-prediction updated each flight's own λ
+    (no ``discrepancy``): its bands chose among estimators that no longer exist, so the model then flies
+    as one without live settings, which every live prediction says."""
     if not isinstance(raw, dict):
-        raise refuse("live", "must be an object with bands, wind_window_m and error_model")
+        raise refuse("live", "must be an object with bands, wind_window_m, discrepancy and error_model")
+    if "discrepancy" not in raw:
+        return None
     if not isinstance(raw.get("bands"), list):
         raise refuse("live.bands", "must be a list (empty: a plain re-prediction at every height)")
     bands = []
     for i, item in enumerate(raw["bands"]):
         where = f"live.bands[{i}]"
         if not isinstance(item, dict) or not isinstance(item.get("use_rate"), bool):
-            raise refuse(where, "must be an object with lower_m, upper_m, use_rate (true/false) and the rest")
+            raise refuse(where, "must be an object with lower_m, upper_m, use_rate (true/false) and wind_decay_m")
         lower = _optional(item.get("lower_m"), f"{where}.lower_m", refuse, -math.inf)
         upper = _optional(item.get("upper_m"), f"{where}.upper_m", refuse, math.inf)
         if lower >= upper:
             raise refuse(where, f"lower_m {lower:g} must be below upper_m {upper:g}")
-        window = _optional(item.get("rate_window_m"), f"{where}.rate_window_m", refuse, math.inf)
         decay = item.get("wind_decay_m")
         decay_m = None if decay is None else _number(decay, f"{where}.wind_decay_m", refuse)
-        if window <= 0.0 or (decay_m is not None and decay_m <= 0.0):
-            raise refuse(where, "rate_window_m and wind_decay_m must be positive lengths (or null)")
-        typical = item.get("typical_rate")
-        if typical is not None:
-            if not isinstance(typical, dict):
-                raise refuse(f"{where}.typical_rate", "must be an object with heights_km and factors, or null")
-            heights = _numbers(typical.get("heights_km"), f"{where}.typical_rate.heights_km", refuse)
-            factors = _numbers(typical.get("factors"), f"{where}.typical_rate.factors", refuse, positive=True)
-            if len(heights) != len(factors):
-                raise refuse(f"{where}.typical_rate", "heights_km and factors must be as long as each other")
-            typical = TypicalRate(heights, factors)
-        bands.append(Band(lower, upper, item["use_rate"], decay_m, window, typical))
+        if decay_m is not None and decay_m <= 0.0:
+            raise refuse(where, "wind_decay_m must be a positive length (or null)")
+        bands.append(Band(lower, upper, item["use_rate"], decay_m))
     wind_window = _number(raw.get("wind_window_m"), "live.wind_window_m", refuse)
-    error = raw.get("error_model")
-    if not isinstance(error, dict):
-        raise refuse("live.error_model", "must be an object with heights_km and the two sigma lists")
-    columns = [
-        _numbers(error.get(key), f"live.error_model.{key}", refuse, positive=key != "heights_km")
-        for key in ("heights_km", "sigma_parallel_km", "sigma_perpendicular_km")
-    ]
+    return LiveSettings(
+        LiveCorrection(tuple(bands), wind_window),
+        LiveErrorModel(*_table(raw.get("error_model"), "live.error_model",
+                               ("heights_km", "sigma_parallel_km", "sigma_perpendicular_km"), refuse)),
+        RateDiscrepancy(*_table(raw.get("discrepancy"), "live.discrepancy",
+                                ("heights_km", "log_bias", "log_sigma"), refuse)),
+        _rate_prior(raw["prior"], lambda field, problem: refuse(field.replace("rate_prior", "live.prior"), problem))
+        if "prior" in raw else None,
+    )  # fmt: skip
+
+
+def _table(raw: Any, where: str, keys: tuple[str, str, str], refuse: Any) -> list[tuple[float, ...]]:
+    """Three lists as long as each other: heights, then two values per height (sigmas positive, a log
+    spread never negative)."""
+    if not isinstance(raw, dict):
+        raise refuse(where, f"must be an object with {', '.join(keys)}")
+    columns = [_numbers(raw.get(k), f"{where}.{k}", refuse, positive=k.startswith("sigma")) for k in keys]
     if len({len(c) for c in columns}) != 1:
-        raise refuse("live.error_model", "heights_km and the two sigma lists must be as long as each other")
-    return LiveSettings(LiveCorrection(tuple(bands), wind_window), LiveErrorModel(*columns))
+        raise refuse(where, f"{', '.join(keys)} must be as long as each other")
+    if keys[2] == "log_sigma" and min(columns[2]) < 0.0:
+        raise refuse(f"{where}.log_sigma", f"must not be negative, got {min(columns[2]):g}")
+    return columns
 
 
 def flown_model(

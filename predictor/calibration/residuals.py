@@ -55,6 +55,9 @@ WGS84_E2 = 6.69437999014e-3
 HIGHEST_GROUND_KM = 8.9
 """No terrain is higher (Everest 8849 m): the DEM is only read below this."""
 MIN_REPLAY_RATE_MS = 0.1
+RATE_FACTOR_BOUNDS = (0.5, 2.0)
+"""A flight's own λ is fitted within these (the bounds of the ``descent_rate_scale`` candidate): a
+flight outside them is not the payload family the law was fitted for."""
 
 
 @dataclass(frozen=True)
@@ -203,6 +206,12 @@ class Scores:
     read the other way, weighted by where the time is spent (the slow fall near the ground, which sets
     the landing time), where the altitude error is weighted by where the capsule falls fast. The
     landing fix's term is the descent-time error."""
+    shape_time_rms_s: np.ndarray
+    """The shape record: ``time_rms_s`` with the flight's own rate factor λ profiled out, i.e. the
+    predicted times divided by the λ that fits them best (closed form, see ``_profiled``). It scores the
+    law's shape alone, which every flight of a payload family shares, apart from each flight's rate."""
+    rate_factor: np.ndarray
+    """That best λ of the flight under this law (its times ∝ 1/λ), within ``RATE_FACTOR_BOUNDS``."""
     horizontal_rms_km: np.ndarray
     """RMS horizontal distance at the fixes' times (the wind's error when the run was replayed)."""
     landing_error_km: np.ndarray
@@ -279,7 +288,7 @@ def ground_km(case: FlightCase, runs: Runs) -> np.ndarray:
 
 def score(case: FlightCase, runs: Runs) -> Scores:
     n = runs.t.shape[0]
-    out = np.full((n, 9), np.nan)
+    out = np.full((n, 11), np.nan)
     _score_kernel(
         runs.t, runs.x, runs.y, runs.z, ground_km(case, runs), runs.n_rec, runs.ok,
         case.fix_t, case.fix_x, case.fix_y, case.fix_z, case.fix_pressure_z, case.descent_time_s, out,
@@ -290,6 +299,8 @@ def score(case: FlightCase, runs: Runs) -> Scores:
         altitude_rms_km=np.sqrt(out[:, 5]),
         horizontal_rms_km=np.sqrt(out[:, 6]),
         time_rms_s=np.sqrt(out[:, 7]),
+        shape_time_rms_s=np.sqrt(out[:, 9]),
+        rate_factor=out[:, 10],
         pressure_time_rms_s=np.sqrt(out[:, 8]),
         landing_error_km=np.hypot(out[:, 1] - land_x, out[:, 2] - land_y),
         descent_time_error_s=out[:, 3] - case.descent_time_s,
@@ -362,6 +373,7 @@ def _score_kernel(
         out[i, 6] = total_h / fix_t.shape[0]
         out[i, 7] = _mean_squared_time_error(t[i], z[i], tl, zl, fix_z, fix_t, touchdown)
         out[i, 8] = _mean_squared_time_error(t[i], z[i], tl, zl, fix_pressure_z, fix_t, touchdown)
+        out[i, 9], out[i, 10] = _profiled(t[i], z[i], tl, zl, fix_z, fix_t, touchdown)
 
 
 @njit(cache=True)
@@ -398,6 +410,62 @@ def _mean_squared_time_error(
         total += (tj - measured) ** 2
         count += 1
     return total / count if count else np.nan
+
+
+@njit(cache=True)
+def _profiled(
+    t: np.ndarray,
+    z: np.ndarray,
+    tl: float,
+    zl: float,
+    fix_z: np.ndarray,
+    fix_t: np.ndarray,
+    touchdown: float,
+) -> tuple[float, float]:
+    """(mean squared time error at the fixes' altitudes with λ profiled out, that λ).
+
+    A factor λ on the whole descent rate divides every predicted time by λ, so the best λ of the
+    record is closed form: with p the predicted and m the measured times at the fixes' altitudes,
+    1/λ = Σ p·m / Σ p² (least squares), held within ``RATE_FACTOR_BOUNDS``. Exact for a law whose every
+    term scales with the rate (the drag law, a density exponent, two regimes); for a term counted in
+    seconds since release (a deployment delay) it is λ on the predicted time profile, the first-order
+    answer, which is what a flight's λ means to its time at each altitude.
+    """
+    lo, hi = RATE_FACTOR_BOUNDS
+    pp = 0.0
+    pm = 0.0
+    count = 0
+    k = 0
+    last = fix_t.shape[0] - 1
+    predicted = np.empty(fix_t.shape[0])
+    measured = np.empty(fix_t.shape[0])
+    for j in range(fix_t.shape[0]):
+        zj = fix_z[j]
+        if not np.isfinite(zj):
+            continue
+        if zj <= zl:
+            tj = tl
+        elif zj >= z[0]:
+            tj = 0.0
+        else:
+            while k > 0 and z[k] < zj:
+                k -= 1
+            while z[k + 1] >= zj:
+                k += 1
+            tj = t[k] + (zj - z[k]) / (z[k + 1] - z[k]) * (t[k + 1] - t[k])
+        mj = touchdown if j == last else fix_t[j]
+        predicted[count] = tj
+        measured[count] = mj
+        pp += tj * tj
+        pm += tj * mj
+        count += 1
+    if count == 0 or pp <= 0.0 or pm <= 0.0:
+        return np.nan, np.nan
+    inverse = min(max(pm / pp, 1.0 / hi), 1.0 / lo)
+    total = 0.0
+    for j in range(count):
+        total += (inverse * predicted[j] - measured[j]) ** 2
+    return total / count, 1.0 / inverse
 
 
 # ---------------------------------------------------------------- residuals of one prediction

@@ -141,7 +141,7 @@ def calibrated_model(
 ) -> CalibratedModel:
     """What this calibration learned, as the model predictions fly: the selected terms, then the binned
     correction's parts (rate factors, added wind) that beat them on held-out flights."""
-    terms = tuple(fit.term() for fit in cal.selected) + cal.binned_terms()
+    terms = cal.terms()
     provenance = {
         "created_utc": datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
         "project_version": _version(),
@@ -149,12 +149,21 @@ def calibrated_model(
         "flights": [case.name for case in inputs.cases],
         "excluded": [{"flight": e.name, "reason": e.reason} for e in inputs.excluded],
         "weather": inputs.weather,
-        "metric": "per family: vertical altitude_rms_km, horizontal horizontal_rms_km (replayed), timing both",
+        "metric": (
+            "per family: vertical shape_time_rms_s (time at altitude, each flight's own λ profiled out), "
+            "horizontal horizontal_rms_km (replayed), timing both"
+        ),
+        "rate_prior": "descent_rate_scale in terms is the rate prior's median λ; the other terms are the shape",
+        "selection_stability": data["selection_stability"],
+        "unstable_terms": data["unstable"],
+        "held_out_rate_only": data["rate_only"],
         "held_out_before": data["baseline"],
         "held_out_after": data["after"],
         "binned_correction_used": cal.unexplained,
     }
-    return CalibratedModel(inputs.payload, terms, ellipse.model() if ellipse else None, provenance)
+    return CalibratedModel(
+        inputs.payload, terms, ellipse.model() if ellipse else None, provenance, rate_prior=cal.rate_prior
+    )
 
 
 def _version() -> str:

@@ -43,6 +43,7 @@ record; a part that still clears the margin means the library lacks something.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -50,6 +51,7 @@ import numpy as np
 
 from predictor.calibration.effects import BIN_EDGES_M, LIBRARY, BinnedCorrection, Candidate, fit_binned
 from predictor.calibration.residuals import (
+    BinBudget,
     FlightCase,
     FlightResiduals,
     Runs,
@@ -59,13 +61,17 @@ from predictor.calibration.residuals import (
     run,
     score,
 )
-from predictor.descent import BinnedDescentRate, BinnedWind, Payload, Term
+from predictor.descent import BinnedDescentRate, BinnedWind, Payload, RatePrior, Term
 from predictor.errors import PredictorError
 
 ALPHA = 0.05
 BOOTSTRAP_SAMPLES = 4000
 DEFAULT_MAX_EFFECTS = 3
 JOINT_SWEEPS = 2
+STABLE_SHARE = 2.0 / 3.0
+"""A term chosen in fewer than this share of the leave-one-flight-out folds of the decision is flagged."""
+RATE_SCALE = next(c for c in LIBRARY if c.name == "descent_rate_scale")
+"""λ as a term: how a model flies its rate prior's median on top of the shape."""
 FAMILY_ORDER = ("vertical", "horizontal", "timing")
 """The order families are reported in."""
 
@@ -84,8 +90,11 @@ class Record:
     """The least mean held-out improvement that counts, in ``unit``."""
 
 
-VERTICAL = Record("vertical", "time_rms_s", "s", replay=False, floor=10.0)
-"""10 s: 50 m of altitude at the 5 m/s of a parachute near the ground, 100 m of drift in a 10 m/s wind."""
+VERTICAL = Record("vertical", "shape_time_rms_s", "s", replay=False, floor=10.0)
+"""The shape record: time at altitude with each flight's own rate factor λ profiled out (see
+``residuals.Scores.shape_time_rms_s``), so a law is chosen for its shape, which a payload family
+shares, and not for the flight-to-flight scatter of λ, which no shared law can explain.
+10 s: 50 m of altitude at the 5 m/s of a parachute near the ground, 100 m of drift in a 10 m/s wind."""
 HORIZONTAL = Record("horizontal", "horizontal_rms_km", "km", replay=True, floor=0.1)
 """100 m: no recovery decision turns on less."""
 RECORDS: dict[str, tuple[Record, ...]] = {
@@ -117,6 +126,11 @@ class HeldOut:
 
     track_rms_km: np.ndarray
     time_rms_s: np.ndarray
+    """Pooled: flown as predicted (with whatever λ the model flies), the pre-flight error."""
+    shape_time_rms_s: np.ndarray
+    """The shape record: the same with the flight's own λ profiled out."""
+    rate_factor: np.ndarray
+    """The flight's own best λ on top of the model (1: the model's rate is this flight's)."""
     pressure_time_rms_s: np.ndarray
     """NaN for a flight that logged no pressure."""
     altitude_rms_km: np.ndarray
@@ -133,7 +147,8 @@ class HeldOut:
             return np.array([float(getattr(s, name)[0]) for s in source])
 
         return cls(
-            col(scores, "track_rms_km"), col(scores, "time_rms_s"), col(scores, "pressure_time_rms_s"),
+            col(scores, "track_rms_km"), col(scores, "time_rms_s"), col(scores, "shape_time_rms_s"),
+            col(scores, "rate_factor"), col(scores, "pressure_time_rms_s"),
             col(scores, "altitude_rms_km"),
             col(replayed, "horizontal_rms_km"),
             col(scores, "landing_error_km"), col(scores, "descent_time_error_s"),
@@ -144,6 +159,7 @@ class HeldOut:
         return {
             "track_rms_km": mean_median(self.track_rms_km),
             "time_rms_s": mean_median(self.time_rms_s),
+            "shape_time_rms_s": mean_median(self.shape_time_rms_s),
             "pressure_time_rms_s": _with_pressure(self.pressure_time_rms_s),
             "altitude_rms_km": mean_median(self.altitude_rms_km),
             "horizontal_rms_km": mean_median(self.horizontal_rms_km),
@@ -290,9 +306,31 @@ class Calibration:
     """Residuals of the held-out predictions with the selected effects (each flight's own fold)."""
     after_replayed: tuple[FlightResiduals, ...]
     """The same with the measured profile replayed (the horizontal record after selection)."""
+    baseline_budgets: tuple[BinBudget, ...]
+    """Of the plain model: time to cross each altitude bin (``BIN_EDGES_M``), measured and predicted."""
     predicted_drift_km: np.ndarray
     """Release→landing distance of each held-out prediction after selection (the ellipse's d)."""
     t_future_h: np.ndarray
+    rate_prior: RatePrior
+    """The spread of the flights' own λ under the selected shape (fitted on all flights)."""
+    rate_fit: Fit
+    """λ = the prior's median as a ``descent_rate_scale`` fit: what a pre-flight prediction flies."""
+    rate_factors: np.ndarray
+    """Each flight's own λ under the selected shape (fitted on all flights)."""
+    rate_only: HeldOut
+    """The strongest simple baseline: the plain law with the median λ of the other flights, held out."""
+    stability: dict[str, float]
+    """Per candidate chosen in any fold: the share of the leave-one-flight-out folds of the decision
+    (``decision_stability``) that choose it."""
+
+    @property
+    def unstable(self) -> tuple[str, ...]:
+        """Selected terms chosen in fewer than ``STABLE_SHARE`` of the folds: shipped with a visible flag."""
+        return tuple(f.candidate.name for f in self.selected if self.stability.get(f.candidate.name, 0.0) < STABLE_SHARE)
+
+    def terms(self) -> tuple[Term, ...]:
+        """What a pre-flight prediction flies: λ (the prior's median), the shape, the binned parts that passed."""
+        return (self.rate_fit.term(), *(f.term() for f in self.selected), *self.binned_terms())
 
     @property
     def unexplained(self) -> bool:
@@ -360,11 +398,15 @@ def calibrate(
     unknown = {c.family for c in candidates} - set(FAMILY_ORDER)
     if unknown:
         raise PredictorError(f"unknown effect family {', '.join(sorted(unknown))}")
+    # λ is each flight's own (profiled out of the shape record, pooled as the rate prior): as a shared
+    # term it would only be seen where a flight's λ hits its bounds.
+    candidates = [c for c in candidates if c.name != RATE_SCALE.name]
     batch = FlightBatch(cases, payload, step_m)
     baseline = batch.heldout([[]] * n)
     baseline_residuals = tuple(residuals(cases[i], batch.runs(i, [[]])) for i in range(n))
     baseline_replayed = tuple(residuals(cases[i], batch.runs(i, [[]], replay=True)) for i in range(n))
     reference = baseline
+    references = [baseline]
     selected_folds: list[list[Fit]] = [[] for _ in range(n)]
     selected_full: list[Fit] = []
     rounds: list[tuple[CandidateResult, ...]] = []
@@ -392,6 +434,7 @@ def calibrate(
         for i in range(n):
             selected_folds[i].append(best.folds[i])
         reference = best.heldout
+        references.append(reference)
         remaining = [c for c in remaining if c is not best.full.candidate]
     if len(selected_full) > 1:
         _refit_jointly(batch, selected_folds, selected_full)
@@ -401,12 +444,16 @@ def calibrate(
         for family in FAMILY_ORDER
         if any(c.family == family for c in candidates)
     )
-    after = reference
-    binned, binned_heldout = _binned(batch, selected_folds, selected_full)
+    prior, rate_folds, rate_full, factors = rate_priors(batch, selected_folds, selected_full)
+    flown_folds = [[rate_folds[i], *selected_folds[i]] for i in range(n)]
+    flown_full = [rate_full, *selected_full]
+    after = batch.heldout(flown_folds)
+    rate_only = batch.heldout([[f] for f in rate_priors(batch, [[] for _ in range(n)], [])[1]])
+    binned, binned_heldout = _binned(batch, flown_folds, flown_full)
     binned_tests = _tests((VERTICAL, HORIZONTAL), after, binned_heldout, alpha, seed)
-    after_residuals = tuple(residuals(cases[i], batch.runs(i, [selected_folds[i]])) for i in range(n))
+    after_residuals = tuple(residuals(cases[i], batch.runs(i, [flown_folds[i]])) for i in range(n))
     after_replayed = tuple(
-        residuals(cases[i], batch.runs(i, [selected_folds[i]], replay=True)) for i in range(n)
+        residuals(cases[i], batch.runs(i, [flown_folds[i]], replay=True)) for i in range(n)
     )
     return Calibration(
         names=tuple(c.name for c in cases),
@@ -422,9 +469,104 @@ def calibrate(
         baseline_replayed=baseline_replayed,
         after_residuals=after_residuals,
         after_replayed=after_replayed,
+        baseline_budgets=tuple(_whole_bins(cases[i], bin_budget(cases[i], batch.runs(i, [[]]), 0, np.asarray(BIN_EDGES_M)))
+                               for i in range(n)),  # fmt: skip
         predicted_drift_km=np.array([r.predicted_drift_km for r in after_residuals]),
         t_future_h=np.array([_t_future(c) for c in cases]),
+        rate_prior=prior,
+        rate_fit=rate_full,
+        rate_factors=factors,
+        rate_only=rate_only,
+        stability=decision_stability(rounds, references, alpha, seed),
     )
+
+
+def _whole_bins(case: FlightCase, budget: BinBudget) -> BinBudget:
+    """The budget without the bin that holds the descent start: the burst falls between two fixes, so
+    the measured time below the first one includes the rest of the climb and the fall back to it (up
+    to a fix interval, minutes at 2–5 min cadence), which no descent law should be asked to explain."""
+    top = np.asarray(BIN_EDGES_M[1:]) > case.start_alt_m
+    return dataclasses.replace(
+        budget, measured_s=np.where(top, 0.0, budget.measured_s), predicted_s=np.where(top, 0.0, budget.predicted_s)
+    )
+
+
+def rate_priors(
+    batch: FlightBatch, folds: Sequence[Sequence[Fit]], full: Sequence[Fit]
+) -> tuple[RatePrior, list[Fit], Fit, np.ndarray]:
+    """The distribution of the flights' own λ under a shape: on all flights, and per fold without
+    flight i (its λ is then the median of the OTHER flights' λ, each under fold i's shape, so a held-out
+    flight's pre-flight rate never saw its own descent).
+
+    Why a median and the spread of ln λ: λ is a factor (log-normal across a payload family), and the
+    median is not pulled by one flight whose rigging failed. Returns (the all-flights prior, fold i's
+    λ as a fit, the all-flights λ as a fit, each flight's λ under the all-flights shape).
+    """
+    n = len(batch.cases)
+    shared = all(not row for row in folds) and not full
+    factors = np.full((n, n + 1), np.nan)
+    for j in range(n):
+        rows = [list(full)] if shared else [*map(list, folds), list(full)]
+        found = batch.scores(j, rows).rate_factor
+        factors[j] = found[0] if shared else found
+    fold_fits = []
+    for i in range(n):
+        others = np.delete(factors[:, i], i)
+        fold_fits.append(Fit(RATE_SCALE, 0, _prior(others).median))
+    prior = _prior(factors[:, n])
+    return prior, fold_fits, Fit(RATE_SCALE, 0, prior.median), factors[:, n]
+
+
+def _prior(factors: np.ndarray) -> RatePrior:
+    usable = factors[np.isfinite(factors)]
+    if usable.size == 0:
+        raise PredictorError("no flight's descent could be fitted with its own rate factor")
+    logs = np.log(usable)
+    spread = float(np.std(logs, ddof=1)) if usable.size > 1 else 0.0
+    return RatePrior(float(np.exp(np.median(logs))), min(spread, 1.0), int(usable.size))
+
+
+def decision_stability(
+    rounds: Sequence[tuple[CandidateResult, ...]], references: Sequence[HeldOut], alpha: float, seed: int
+) -> dict[str, float]:
+    """How often each candidate is chosen when one flight at a time is left out of the DECISION.
+
+    For each flight k the forward selection is replayed on the other flights' held-out scores: each
+    round's paired tests (same margin, same Bonferroni share) and the ranking, without flight k. A fold
+    follows the selection as long as it picks the same term; where it picks another, that term is
+    counted and the fold stops (its later rounds were never run). The fits are not repeated per fold
+    (flight k still entered the other flights' fits), so this measures how much the decision rests on
+    one flight, the knife edge of the margin, not the whole nested refit. Returns, per candidate chosen
+    in any fold, the share of the n folds that chose it.
+    """
+    if not rounds:
+        return {}
+    n = len(references[0].time_rms_s)
+    chosen: dict[str, int] = {}
+    floors = {r.name: r.floor for r in (VERTICAL, HORIZONTAL)}
+    for k in range(n):
+        keep = np.arange(n) != k
+        for number, results in enumerate(rounds):
+            reference = references[number]
+            share = alpha / len(results)
+            passing = []
+            for result in results:
+                tests = [
+                    paired_test(getattr(reference, t_record.metric)[keep], getattr(result.heldout, t_record.metric)[keep],
+                                share, seed, t_record.floor, t_record)
+                    for t_record in RECORDS[result.full.candidate.family]
+                ]  # fmt: skip
+                if all(t.passed for t in tests):
+                    passing.append((sum(t.mean_improvement / floors[t.record] for t in tests), result))
+            if not passing:
+                break
+            best = max(passing, key=lambda p: p[0])[1]
+            name = best.full.candidate.name
+            chosen[name] = chosen.get(name, 0) + 1
+            followed = number + 1 < len(references) and references[number + 1] is best.heldout
+            if not followed:
+                break
+    return {name: count / n for name, count in sorted(chosen.items(), key=lambda kv: -kv[1])}
 
 
 def _family(
@@ -601,7 +743,9 @@ def refit_without_each(
     Returns (the all-flights refit, one tuple of terms per flight in ``cases`` order).
     """
     known = {c.name: c for c in LIBRARY}
-    library_terms = [t for t in terms if t.name in known]
+    # λ is not refitted as a shared term: it is the median of the training flights' own λ (the prior).
+    library_terms = [t for t in terms if t.name in known and t.name != RATE_SCALE.name]
+    flies_rate = any(t.name == RATE_SCALE.name for t in terms)
     binned_parts = {t.name for t in terms if t.name not in known}
     unknown = binned_parts - {BinnedDescentRate.name, BinnedWind.name}
     if unknown:
@@ -619,6 +763,10 @@ def refit_without_each(
             row.append(fold_fit)
     if len(full) > 1:
         _refit_jointly(batch, folds, full)
+    if flies_rate:
+        _, rate_folds, rate_full, _ = rate_priors(batch, folds, full)
+        folds = [[rate_folds[i], *folds[i]] for i in range(n)]
+        full = [rate_full, *full]
     binned: list[tuple[Term, ...]] = [()] * (n + 1)
     if binned_parts:
         binned = [

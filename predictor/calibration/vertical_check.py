@@ -8,11 +8,13 @@ ground: the run ends at that altitude and the descent time is the time to reach 
 
 The flight's payload is not the calibration's (V4's mass and Cd·A are not in its record), and a wrong
 payload makes every law wrong by a constant factor that would swamp the law's shape. So every law
-gets one descent-rate factor λ fitted on the flight's own vertical record (the same one free
-parameter for each), and what is compared is the law's shape: ρ^-½ against the model's. The model's
-terms are the calibration's, fitted without this flight. Beside them, "on its own": the model's
-library terms and λ fitted on this flight alone (in-sample, so a bound on what a law of that form
-can do here, not a prediction).
+is scored on the shape record, with the flight's own descent-rate factor λ profiled out (the same one
+free parameter for each, in closed form: ``residuals.Scores.shape_time_rms_s``), and what is compared
+is the law's shape: ρ^-½ against the model's. The model's shape terms are the calibration's, fitted
+without this flight (its ``descent_rate_scale``, the rate prior's median for the calibration's own
+payload, is replaced by this flight's λ). Beside them, "on its own": the model's shape terms fitted
+with λ profiled on this flight alone (in-sample, so a bound on what a law of that form can do here,
+not a prediction).
 """
 
 from __future__ import annotations
@@ -23,9 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from predictor.calibration.effects import LIBRARY, Candidate
+from predictor.calibration.effects import LIBRARY
 from predictor.calibration.model_file import CalibratedModel
 from predictor.calibration.residuals import FlightCase, flight_case
 from predictor.calibration.selection import Fit, FlightBatch, fit_candidate
@@ -74,6 +74,8 @@ def _library_fits(model: CalibratedModel) -> list[Fit]:
     known = {c.name: c for c in LIBRARY}
     fits = []
     for term in model.terms:
+        if term.name == SCALE.name:
+            continue
         candidate = known.get(term.name)
         if candidate is None or candidate.variants != ({},):
             raise PredictorError(f"the vertical check flies library effects with one variant; the model has {term.name}")
@@ -106,25 +108,15 @@ def check_flight(case: FlightCase, model: CalibratedModel, landed: bool, step_m:
     batch = FlightBatch([case], model.payload, step_m)
 
     def with_scale(held: list[Fit]) -> list[Fit]:
-        scale, _ = fit_candidate(batch, SCALE, [list(held)], list(held))
-        return [*held, scale]
-
-    def profiled(candidate: Candidate, held: list[Fit]) -> Fit:
-        """The term's value with λ refitted at every grid point: λ and a density law trade off (both
-        change the fall rate high up), so fitting one then the other stalls short of the optimum."""
-
-        def objective(grid: Candidate) -> np.ndarray:
-            rows = [with_scale([*held, Fit(grid, v, x)]) for v, x in grid.points()]
-            return batch.scores(0, rows).time_rms_s ** 2
-
-        variant, value, _ = candidate.fit(objective(candidate))
-        fine = candidate.fine(variant, value)
-        _, value, _ = fine.fit(objective(fine))
-        return Fit(candidate, variant, value)
+        """The law with this flight's own λ, the one the shape record profiles out (closed form)."""
+        return [*held, Fit(SCALE, 0, float(batch.scores(0, [held]).rate_factor[0]))]
 
     own: list[Fit] = []
     for fit in law:
-        own.append(profiled(fit.candidate, list(own)))
+        # Fitted on the shape record, so λ is profiled at every grid value (λ and a density law trade
+        # off, both change the fall rate high up: fitting one then the other would stall short).
+        full, _ = fit_candidate(batch, fit.candidate, [list(own)], list(own))
+        own.append(full)
     scores = (
         _score(batch, [], "ρ^-½, λ = 1"),
         _score(batch, with_scale([]), "ρ^-½, λ fitted here"),
@@ -155,9 +147,12 @@ def write_report(path: Path, checks: Sequence[FlightCheck], model: CalibratedMod
         "so on these they are held out as they stand. A record that ends in the air is scored down to its "
         "last fix, which stands in for the ground. The flight's payload is not the calibration's, and a "
         "wrong mass or Cd·A makes every law wrong by a constant factor, so each law gets one descent-rate "
-        "factor λ fitted on the flight's own vertical record (one free parameter each): what differs "
-        "between the rows is the law's shape. The last row fits the model's vertical terms and λ on this "
-        "flight alone (in-sample: what a law of that form can do here at best, not a prediction).",
+        "factor λ fitted on the flight's own vertical record (one free parameter each, in closed form: the "
+        "predicted times divided by the λ that fits them best, the calibration's shape record): what differs "
+        "between the rows is the law's shape. The model's own `descent_rate_scale` (its rate prior's median, "
+        "for the calibration's payload) is replaced by this flight's λ. The last row fits the model's shape "
+        "terms with λ profiled on this flight alone (in-sample: what a law of that form can do here at best, "
+        "not a prediction).",
         "",
         "Scores on the vertical record (the wind does not enter): time-at-altitude RMS (predicted − measured "
         "time since descent start at each fix's altitude), altitude-at-time RMS, and the error of the time "

@@ -378,10 +378,13 @@ class Release(NamedTuple):
     lat: np.ndarray
     lon: np.ndarray
     alt_m: np.ndarray
+    since_release_s: np.ndarray | None = None
+    """Seconds already fallen at this start (a live report mid-descent), which time-since-release terms
+    count from; None: 0, a start at the release itself."""
 
     def rows(self, lo: int, hi: int) -> Release:
         """Trajectories lo…hi−1 alone, contiguous as the kernel needs them."""
-        return Release(*(np.ascontiguousarray(a[lo:hi]) for a in self))
+        return Release(*(None if a is None else np.ascontiguousarray(a[lo:hi]) for a in self))
 
 
 class Stepping(NamedTuple):
@@ -450,7 +453,7 @@ def _descend_range(
     t_s, lats, lons, columns, _ = weather
     dz, z_floor, time_tolerance_s = stepping
     table, params, state = chain
-    t0, lat0, lon0, z0 = release
+    t0, lat0, lon0, z0, since0 = release
     out_lat, out_lon, out_z, out_t, out_path, skip, n_rec, status, time_held_s, failed_at = record
     n = t0.shape[0]
     nt = t_s.shape[0]
@@ -500,7 +503,7 @@ def _descend_range(
                 if not active[i]:
                     continue
                 zm = z[i] - 0.5 * dz
-                t_rel = t[i] - t0[i]
+                t_rel = t[i] - t0[i] + since0[i]
                 # The metres→degrees factors of the previous step are close enough for this estimate.
                 lat_m[i] = lat[i] + 0.5 * dt_est[i] * v_est[i] * dlat[i]
                 e = env[i]
@@ -652,6 +655,8 @@ def descend(
         skip = np.maximum(np.floor((release.alt_m - record_below_m) / step_m).astype(np.int64) - 1, 0)
         columns = int((steps - skip).max()) + 1
     record = Record.empty(skip, columns, fill)
+    if release.since_release_s is None:
+        release = release._replace(since_release_s=np.zeros(n))
     # Plain tuples across the boundary, unpacked by position inside: numba types a NamedTuple argument
     # in Python on every call and a plain tuple in C, which saves a few µs of every single descent.
     args = (tuple(weather), tuple(stepping), tuple(chain), tuple(release), tuple(record))

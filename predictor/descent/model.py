@@ -317,6 +317,38 @@ class DeploymentDelay(Term):
 
 
 @dataclass(frozen=True)
+class TwoRegimeRate(Term):
+    """A canopy that opens further below a height: above ``height_m`` the fall is ``factor`` × faster.
+
+    Why its own effect: a density exponent makes the rate change smoothly all the way down, a
+    deployment delay makes it fast for a time after release; a canopy that is squeezed shut in thin air
+    and opens out lower down does neither, it has two regimes split at an altitude. The step that
+    contains ``height_m`` gets the exact mean rate of its two parts (time-weighted), so the answer does
+    not depend on the step size.
+    """
+
+    height_m: float | np.ndarray = 20_000.0
+    factor: float | np.ndarray = 1.0
+    name: ClassVar[str] = "two_regime_rate"
+    family: ClassVar[str] = "vertical"
+
+    @staticmethod
+    @njit(cache=True)
+    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+        height = p[p_off]
+        factor = p[p_off + 1]
+        top = env[ENV_Z] + 0.5 * env[ENV_DZ]
+        bottom = env[ENV_Z] - 0.5 * env[ENV_DZ]
+        if bottom >= height:
+            vel[VEL_DOWN] *= factor
+        elif top > height and env[ENV_DZ] > 0.0:
+            above = top - height
+            below = height - bottom
+            slow = vel[VEL_DOWN]
+            vel[VEL_DOWN] = env[ENV_DZ] / (above / (slow * factor) + below / slow)
+
+
+@dataclass(frozen=True)
 class BinnedDescentRate(Term):
     """Non-parametric: a factor on the descent rate per altitude bin (1 outside the bins)."""
 
@@ -512,6 +544,7 @@ TERMS: tuple[type[Term], ...] = (
     BinnedWind,
     WindLag,
     WeatherTimeOffset,
+    TwoRegimeRate,
 )
 """Every term the integrator can run, each once: its kind is its index here, and the compiled dispatch,
 ``KINDS`` and ``EFFECTS`` are all made from this tuple, so a term cannot be half registered."""

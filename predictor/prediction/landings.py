@@ -373,11 +373,13 @@ def predict(
     error_model: ErrorModel = LAUNCH,
     probabilities: Sequence[float] = (),
     time_tolerance_s: float = DEFAULT_TIME_TOLERANCE_S,
+    since_release_s: float = 0.0,
 ) -> Prediction:
     """One descent from release to the ground, with the paper's parametric error ellipse.
 
     ``model`` replaces the whole chain (the payload is then only reported); otherwise the chain is
-    the payload's drag law, the wind, and ``effects``.
+    the payload's drag law, the wind, and ``effects``. ``since_release_s``: a start mid-descent (a live
+    report) that long after the real release, from which time-since-release terms keep counting.
     """
     cube = _cube_of(wx)
     payload = payload or PROFILES["drs"]
@@ -387,7 +389,9 @@ def predict(
     rel_lat, rel_lon, rel_t, decision = _release_state(
         cube, time, lat, lon, alt_m, drift_minutes, time_tolerance_s
     )
-    release = Release(np.array([rel_t]), np.array([rel_lat]), np.array([rel_lon]), np.array([alt_m]))
+    release = Release(
+        np.array([rel_t]), np.array([rel_lat]), np.array([rel_lon]), np.array([alt_m]), np.array([since_release_s])
+    )
     paths = _integrate(cube, chain, release, step_m, time_tolerance_s)
     land = _find_landings(paths, terrain)
     return _build_prediction(

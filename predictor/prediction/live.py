@@ -4,18 +4,15 @@ Why: during descent the capsule reports its position (every ~2 minutes over Irid
 a logger). Each report is the best possible release point for a new prediction (measured position,
 altitude and time), and the reports so far measure two things the forecast got wrong:
 
-* the **descent rate**: one factor λ on the flown model's descent law (its drag law with the density
-  exponent and binned factors a calibrated model carries) is fitted to the whole altitude–time record
-  of the descent so far, and then multiplies that same law below the capsule (``DescentRateScale``).
-  Fitting the rate with the law that will carry it to the ground is the point: a rate measured at
-  20 km and carried down with the textbook ρ^-½ is wrong by the law's error at every height below,
-  and a law changed without refitting the rate is wrong by the rate. The fit is robust (Huber) on
-  every fix, with a free time offset, so the swinging of a 1 Hz record, a late canopy and a single
-  bad fix do not set the factor. A band's ``rate_window_m`` can restrict it to the recent descent
-  (where the held-out flights said the law's shape is not good enough to carry the whole record), and
-  its ``typical_rate`` divides the factor by the one the calibration flights typically showed at that
-  height (``TypicalRate``), so a departure from the law that most flights share is not mistaken for
-  this flight's own;
+* the **descent rate**: this flight's own factor λ on the flown model's descent law (its shape: the
+  drag law with the terms a calibrated model carries). Payload, canopy, rigging and mass differ from
+  flight to flight, so λ does too, while the shape is shared (``predictor.descent.RatePrior``). λ is
+  a Bayesian update of the model's prior with the descent so far (``update_rate``): the record's
+  time-at-altitude against the law from its top gives a measurement of ln λ (a Huber fit with a free
+  time offset, its variance widened for the correlated swing of a 1 Hz record), less the departure of
+  such a record from a flight's whole-descent λ that the model's evaluation measured at this height
+  (``RateDiscrepancy``, with its spread). The posterior λ multiplies the law below the capsule
+  (``DescentRateScale``) and its σ is stated beside the prediction;
 * the **wind**: the measured mean velocity between two reports minus the forecast's mean velocity
   over the same altitudes. An error at altitude does not simply continue to the ground (the jet and
   the stratosphere are different air), so the recent error is applied below the capsule with a weight
@@ -23,8 +20,12 @@ altitude and time), and the reports so far measure two things the forecast got w
   bins). L is chosen on real flights, leave-one-flight-out (``predictor.calibration.live_evaluation``),
   and the correction is switched on only in the altitude bands where it helped held-out flights.
 
-The ellipse shrinks with what is left: σ∥ and σ⊥ are the errors the evaluation measured at the
-report's height above the ground (``LiveErrorModel``).
+The ellipse shrinks with what is left: σ∥ and σ⊥ are the errors the model's own evaluation measured at
+the report's height above the ground (``LiveErrorModel``); a model without live settings of its own
+flies the SuperBIT evaluation's ellipse and every prediction says so (``LivePrediction.notes``).
+
+Time-since-release terms (a canopy that opens late) keep counting from the release, never from the
+report: each prediction from a report starts that long after the top of the descent record.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from predictor.descent import PROFILES, BinnedWind, DescentRateScale, Payload, Term
+from predictor.descent import PROFILES, BinnedWind, DescentRateScale, Payload, RatePrior, Term
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError
 from predictor.prediction.landings import Prediction, Track, iso_z, predict
@@ -46,11 +47,16 @@ from predictor.prediction.uncertainty import GEOD, ErrorModel
 WIND_BIN_M = 250.0
 RATE_FACTOR_LIMITS = (0.5, 2.0)
 """A measured rate factor outside this is a bad fix or a failed canopy, not a calibration."""
+CONSTANT_WIND_M = 1e11
+"""A decay length this long (JSON has no ∞) carries the measured wind error unchanged to the ground."""
 MIN_PAIR_DROP_M = 200.0
 """Report pairs closer in altitude than this say too little about rate or wind (GNSS noise)."""
 HUBER_K = 1.345
 """Huber's constant: 95 % efficiency on Gaussian residuals, bounded influence of a swing or a bad fix."""
 FIT_ITERATIONS = 8
+MAX_LAG1_CORRELATION = 0.98
+"""The correlation of consecutive residuals is capped here: a record that is one smooth swing still
+counts as at least 1 % of its fixes."""
 
 
 @dataclass(frozen=True)
@@ -80,11 +86,12 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.139, 3.638, 3.321, 3.464, 2.107, 1.602),
-    sigma_perpendicular_km=(3.581, 3.803, 3.857, 3.321, 1.529, 0.789),
+    sigma_parallel_km=(4.043, 3.961, 3.588, 3.856, 2.238, 1.677),
+    sigma_perpendicular_km=(3.602, 3.829, 3.876, 3.085, 1.625, 0.789),
 )
-"""Measured by ``drs live evaluate`` on the 30 test flights, each flown with the law refitted without
-it; see docs/planning/live-reprediction.md."""
+"""The default live ellipse, for a law without live settings of its own (said in every prediction,
+``DEFAULT_ELLIPSE_NOTE``): measured by ``drs live evaluate`` on the 30 SuperBIT test flights with the
+2018–2019 model (docs/planning/live-reprediction.md); the committed model file carries the same."""
 
 
 class Report(Protocol):
@@ -97,23 +104,33 @@ class Report(Protocol):
 
 
 @dataclass(frozen=True)
-class TypicalRate:
-    """The rate factor the calibration flights' own whole-descent fits gave, by height above the ground.
+class RateDiscrepancy:
+    """How far the λ a descent record measures from its top down to a height is from the flight's own
+    whole-descent λ, across the model's evaluation flights: mean and spread of the log ratio by height.
 
-    Why: a calibrated law is fitted to whole descents, and real descents depart from it in much the
-    same way on most flights (on the SuperBIT flights, faster than the law high up). A factor fitted
-    on the top of one record carries that shared departure as well as the flight's own, and carried
-    to the ground it makes the fall too short on average. Divided by the typical factor at the same
-    height, only what is particular to this flight is carried down.
+    Why: a law's shape is never exact, and the top of a record falls a little faster or slower than the
+    law in much the same way on most flights (on the SuperBIT flights with the 2019 law, faster high
+    up). Taken as the flight's λ, that shared departure would be carried to the ground; its mean is
+    taken off the measurement, and its flight-to-flight spread widens the measurement's variance, so
+    that the update leans on the prior where the record says little about the rest of the descent.
+    Measured by ``drs live evaluate`` with the model's own law (without the measurement noise, which
+    the update adds per record); linear in height between the checkpoints, held beyond them.
     """
 
     heights_km: tuple[float, ...]
-    factors: tuple[float, ...]
+    log_bias: tuple[float, ...]
+    log_sigma: tuple[float, ...]
 
-    def at(self, height_km: float) -> float:
-        """Linear in height between the measured heights, held beyond them."""
+    def at(self, height_km: float) -> tuple[float, float]:
+        """(mean, standard deviation) of ln(record λ / flight λ) at this height above the ground."""
         order = np.argsort(self.heights_km)
-        return float(np.interp(height_km, np.asarray(self.heights_km)[order], np.asarray(self.factors)[order]))
+        heights = np.asarray(self.heights_km)[order]
+        bias = float(np.interp(height_km, heights, np.asarray(self.log_bias)[order]))
+        return bias, float(np.interp(height_km, heights, np.asarray(self.log_sigma)[order]))
+
+
+NO_DISCREPANCY = RateDiscrepancy((0.0,), (0.0,), (0.0,))
+"""A law whose record is taken at its word: no departure measured (a model not evaluated live)."""
 
 
 @dataclass(frozen=True)
@@ -125,23 +142,16 @@ class Band:
     use_rate: bool
     decay_m: float | None
     """Decay length L of the wind correction (None: no wind correction in this band)."""
-    rate_window_m: float = math.inf
-    """The rate factor is fitted on fixes at most this far above the report (∞: the whole descent)."""
-    typical_rate: TypicalRate | None = None
-    """When set, the fitted factor is divided by the calibration flights' typical one at this height."""
 
     def describe(self) -> str:
-        """The band for a person: heights, the rate estimator, the wind correction."""
+        """The band for a person: heights, the rate update, the wind correction."""
         lower = "ground" if not math.isfinite(self.lower_m) else f"{self.lower_m / 1000:g} km"
         upper = "top" if not math.isfinite(self.upper_m) else f"{self.upper_m / 1000:g} km"
-        window = "the whole descent" if math.isinf(self.rate_window_m) else f"the last {self.rate_window_m / 1000:g} km"
-        if not self.use_rate:
-            rate = "rate off"
-        elif self.typical_rate is not None:
-            rate = f"rate on {window} relative to the typical factor"
+        rate = "own λ updated" if self.use_rate else "rate off"
+        if self.decay_m is None:
+            wind = "off"
         else:
-            rate = f"rate on {window}"
-        wind = "off" if self.decay_m is None else f"L = {self.decay_m / 1000:g} km"
+            wind = "L = ∞ (constant)" if self.decay_m >= CONSTANT_WIND_M else f"L = {self.decay_m / 1000:g} km"
         return f"{lower}–{upper}: {rate}, wind {wind}"
 
 
@@ -156,14 +166,8 @@ class LiveCorrection:
     wind_window_m: float = 2000.0
 
     @classmethod
-    def everywhere(
-        cls,
-        use_rate: bool,
-        decay_m: float | None,
-        rate_window_m: float = math.inf,
-        typical_rate: TypicalRate | None = None,
-    ) -> LiveCorrection:
-        return cls(bands=(Band(-math.inf, math.inf, use_rate, decay_m, rate_window_m, typical_rate),))
+    def everywhere(cls, use_rate: bool, decay_m: float | None) -> LiveCorrection:
+        return cls(bands=(Band(-math.inf, math.inf, use_rate, decay_m),))
 
     def band_at(self, height_m: float) -> Band | None:
         for band in self.bands:
@@ -173,41 +177,30 @@ class LiveCorrection:
 
 
 NO_CORRECTION = LiveCorrection()
-TYPICAL_RATE = TypicalRate(
-    heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0), factors=(0.995, 1.0384, 1.0329, 1.0215, 1.0049, 1.005)
-)
-"""The 30 SuperBIT flights' typical whole-descent factor on the calibrated model's law (``drs live evaluate``)."""
-DEFAULT_CORRECTION = LiveCorrection(
-    bands=(
-        Band(lower_m=-math.inf, upper_m=3500.0, use_rate=True, decay_m=None, rate_window_m=3000.0),
-        Band(lower_m=3500.0, upper_m=7500.0, use_rate=True, decay_m=4000.0, rate_window_m=3000.0),
-        Band(lower_m=7500.0, upper_m=12500.0, use_rate=True, decay_m=None, rate_window_m=3000.0),
-        Band(lower_m=12500.0, upper_m=17500.0, use_rate=True, decay_m=None, typical_rate=TYPICAL_RATE),
-        Band(lower_m=17500.0, upper_m=22500.0, use_rate=True, decay_m=None, typical_rate=TYPICAL_RATE),
-    )
-)
-"""What the leave-one-flight-out evaluation kept with the calibrated model of the 30 SuperBIT flights
-(``drs live evaluate``; docs/planning/live-reprediction.md): the rate fitted on the whole descent and
-taken relative to the typical factor 12.5–22.5 km above the ground, on the last 3 km below (where the
-law's shape no longer carries the whole record as well), and the decaying wind correction only
-3.5–7.5 km; above 22.5 km a plain re-prediction did as well."""
+OWN_RATE = LiveCorrection.everywhere(True, None)
+"""A model without live settings of its own: its shape with this flight's own λ update at every height,
+no wind correction (nothing measured says where one would help)."""
 
 
 @dataclass(frozen=True)
 class LiveSettings:
     """How live re-prediction corrects one model's law, and how sure it then is: what the evaluation kept.
 
-    Both belong to the law they were measured with: the bands and typical factors measured with one
-    calibrated model are the wrong ones for another, so a model file carries its own (``drs live
-    evaluate --model M --save-model``), and ``DEFAULT_LIVE`` is only for a flight without one.
+    All belong to the law they were measured with, so a model file carries its own (``drs live
+    evaluate --model M --save-model``); a model without them flies ``OWN_RATE`` and says so.
     """
 
     correction: LiveCorrection
     error_model: LiveErrorModel
+    discrepancy: RateDiscrepancy = NO_DISCREPANCY
+    prior: RatePrior | None = None
+    """The λ prior the evaluation measured (the flights' whole-descent λ on this law), flown when the
+    model's calibration gave it none of its own."""
 
 
-DEFAULT_LIVE = LiveSettings(DEFAULT_CORRECTION, LIVE_ERROR_MODEL)
-"""What the evaluation of the committed SuperBIT model kept (its model file carries the same; a test pins it)."""
+DEFAULT_ELLIPSE_NOTE = (
+    "live ellipse: the default (measured with the SuperBIT model, not this one; drs live evaluate --save-model)"
+)
 
 
 @dataclass(frozen=True)
@@ -247,6 +240,8 @@ class RateFit:
     """How many fixes the fit used."""
     scale_s: float
     """Robust spread of the time residuals (1.4826 × MAD), s."""
+    log_sigma: float
+    """Standard error of ln λ, widened for residuals correlated from fix to fix (a swing, a slow drift)."""
 
 
 def fit_rate(observed_s: np.ndarray, model_s: np.ndarray) -> RateFit | None:
@@ -274,7 +269,80 @@ def fit_rate(observed_s: np.ndarray, model_s: np.ndarray) -> RateFit | None:
         weights = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-12))
     if coef[0] <= 0.0:
         return None
-    return RateFit(factor=float(1.0 / coef[0]), offset_s=float(coef[1]), fixes=int(observed_s.size), scale_s=scale)
+    return RateFit(float(1.0 / coef[0]), float(coef[1]), int(observed_s.size), scale,
+                   _log_sigma(design, weights, residual, scale, float(coef[0])))  # fmt: skip
+
+
+def _log_sigma(design: np.ndarray, weights: np.ndarray, residual: np.ndarray, scale: float, slope: float) -> float:
+    """σ of ln λ = σ(slope) / slope, with the weighted least-squares variance of the slope times
+    (1 + ρ) / (1 − ρ), ρ the correlation of consecutive residuals.
+
+    Why the factor: the fixes of a 1 Hz record are not independent (the capsule swings under its
+    canopy for tens of seconds, GNSS errors drift), and counted as independent they would make the
+    record look hundreds of times surer than it is; an AR(1) inflation is the textbook correction.
+    """
+    weighted = design * weights[:, None]
+    try:
+        # scale² × n / (n − 2): two parameters were fitted on these residuals. A line through two fixes
+        # leaves none, and its scale is the 1 s floor: the spread the evaluation measured across
+        # flights for records as short (``RateDiscrepancy``) is then what says how far off it can be.
+        covariance = np.linalg.inv(design.T @ weighted) * scale**2 * residual.size / max(residual.size - 2, 1)
+    except np.linalg.LinAlgError:
+        return math.inf
+    rho = 0.0
+    if residual.size > 2:
+        centred = residual - residual.mean()
+        denominator = float(centred @ centred)
+        if denominator > 0.0:
+            rho = min(max(float(centred[1:] @ centred[:-1]) / denominator, 0.0), MAX_LAG1_CORRELATION)
+    variance = float(covariance[0, 0]) * (1.0 + rho) / (1.0 - rho)
+    return math.sqrt(max(variance, 0.0)) / slope
+
+
+@dataclass(frozen=True)
+class RateEstimate:
+    """This flight's λ after the update, and how sure of it the update is."""
+
+    factor: float
+    """The λ flown below the capsule (the posterior median, held within ``RATE_FACTOR_LIMITS``)."""
+    log_sigma: float
+    """Posterior standard deviation of ln λ (∞: no prior and no usable record)."""
+    measured: float | None
+    """λ the record alone says, before the discrepancy and the prior (None: too little record)."""
+    fixes: int
+    prior: RatePrior | None
+
+    def describe(self) -> str:
+        """λ for a person: the posterior, what the record and the prior said."""
+        sigma = "" if math.isinf(self.log_sigma) else f" ± {100 * self.log_sigma:.1f} %"
+        record = f"record {self.measured:.3f} on {self.fixes} fixes" if self.measured else "no record yet"
+        prior = (
+            f"prior {self.prior.median:.3f} ± {100 * self.prior.log_sigma:.1f} % ({self.prior.flights} flights)"
+            if self.prior else "no prior: from this descent alone"
+        )
+        return f"λ {self.factor:.3f}{sigma} ({record}; {prior})"
+
+
+def update_rate(prior: RatePrior | None, fit: RateFit | None, log_bias: float, log_spread: float) -> RateEstimate:
+    """The posterior of ln λ: the prior's normal times the record's, in closed form (both are normal in ln λ).
+
+    The record measures ln λ + ``log_bias`` with variance σ_fit² + ``log_spread``²; without a prior
+    the record alone decides, without a record the prior does, and with neither λ is 1 (the law).
+    """
+    mean, variance = (math.log(prior.median), prior.log_sigma**2) if prior is not None else (0.0, math.inf)
+    measured = None
+    if fit is not None and math.isfinite(fit.log_sigma):
+        measured = fit.factor
+        observed = math.log(fit.factor) - log_bias
+        noise = fit.log_sigma**2 + log_spread**2
+        if math.isinf(variance):
+            mean, variance = observed, noise
+        elif variance > 0.0:
+            precision = 1.0 / variance + 1.0 / max(noise, 1e-12)
+            mean = (mean / variance + observed / max(noise, 1e-12)) / precision
+            variance = 1.0 / precision
+    factor = min(max(math.exp(mean), RATE_FACTOR_LIMITS[0]), RATE_FACTOR_LIMITS[1])
+    return RateEstimate(factor, math.sqrt(variance), measured, fit.fixes if fit is not None else 0, prior)
 
 
 class DescentRecord:
@@ -300,8 +368,12 @@ class DescentRecord:
         self._t.append((report.time - self.top.time).total_seconds())
         self._z.append(report.alt_m)
 
-    def rate_fit(self, alt_m: float, window_m: float = math.inf) -> RateFit | None:
-        """λ on the law from the record's fixes at most ``window_m`` above ``alt_m`` (None: too little)."""
+    def since_top_s(self, report: Report) -> float:
+        """Seconds from the record's top (the release, as far as the reports know) to ``report``."""
+        return 0.0 if self.top is None else max((report.time - self.top.time).total_seconds(), 0.0)
+
+    def rate_fit(self, alt_m: float) -> RateFit | None:
+        """λ on the law from the record's fixes down to ``alt_m`` (None: too little)."""
         if self.top is None or self.top.alt_m - alt_m < MIN_PAIR_DROP_M:
             return None
         if self._model is None:
@@ -309,7 +381,7 @@ class DescentRecord:
             self._model = track.alt_m[::-1].copy(), track.t_s[::-1] - track.t_s[0]
         z_up, model_up = self._model
         z = np.asarray(self._z)
-        keep = (z - alt_m < window_m) & (z >= z_up[0])
+        keep = z >= z_up[0]
         if not keep.any() or float(np.ptp(z[keep])) < MIN_PAIR_DROP_M:
             return None
         return fit_rate(np.asarray(self._t)[keep], np.interp(z[keep], z_up, model_up))
@@ -320,15 +392,29 @@ class LivePrediction:
     prediction: Prediction
     """The prediction from the latest report, with the correction applied and the live ellipse."""
     report: Report
-    rate_factor: float
-    rate_fixes: int
-    """How many fixes the rate factor was fitted on (0: no rate correction)."""
+    rate: RateEstimate | None
+    """This flight's λ update (None: the rate is not corrected at this height)."""
     wind_error_ms: tuple[float, float]
     decay_m: float | None
     legs: tuple[Leg, ...] = field(repr=False)
+    notes: tuple[str, ...] = ()
+    """What this prediction flies that is not the model's own measured live settings (said, not silent)."""
+
+    @property
+    def rate_factor(self) -> float:
+        """The λ flown below the capsule (1: the law as it stands)."""
+        return self.rate.factor if self.rate is not None else 1.0
+
+    @property
+    def remaining_sigma_s(self) -> float | None:
+        """1σ of the remaining descent time from λ's own uncertainty (time ∝ 1/λ), s."""
+        if self.rate is None or math.isinf(self.rate.log_sigma):
+            return None
+        return self.prediction.descent_s * self.rate.log_sigma
 
     def to_dict(self) -> dict[str, Any]:
         p = self.prediction
+        rate = self.rate
         return {
             "report": {
                 "time": iso_z(self.report.time),
@@ -339,12 +425,17 @@ class LivePrediction:
             "landing": p.landing.to_dict(),
             "remaining_drift_km": p.drift_km,
             "remaining_s": p.descent_s,
+            "remaining_sigma_s": self.remaining_sigma_s,
             "ellipse": p.ellipse.to_dict(),
             "rate_factor": self.rate_factor,
-            "rate_fixes_used": self.rate_fixes,
+            "rate_log_sigma": None if rate is None or math.isinf(rate.log_sigma) else rate.log_sigma,
+            "rate_measured": None if rate is None else rate.measured,
+            "rate_fixes_used": 0 if rate is None else rate.fixes,
+            "rate_prior": None if rate is None or rate.prior is None else rate.prior.to_dict(),
             "wind_error_ms": {"east": self.wind_error_ms[0], "north": self.wind_error_ms[1]},
             "wind_decay_m": self.decay_m,
             "legs_used": len(self.legs),
+            "notes": list(self.notes),
             "warnings": list(p.warnings),
         }
 
@@ -362,7 +453,8 @@ class LivePredictor:
     started at the leg's first report and read off its track where it crosses the leg's lower altitude,
     so the comparison uses exactly the physics and weather the prediction will use below. The law the
     rate factor is fitted against is one such prediction from the top of the record (the highest
-    report): the model's seconds from there to every altitude.
+    report): the model's seconds from there to every altitude. Every prediction from a report starts
+    the time-since-release terms at the seconds since that top, not at zero.
     """
 
     def __init__(
@@ -370,10 +462,13 @@ class LivePredictor:
         cube: WeatherCube,
         payload: Payload | None = None,
         terrain: Terrain | None = None,
-        correction: LiveCorrection = DEFAULT_CORRECTION,
+        correction: LiveCorrection = OWN_RATE,
         error_model: LiveErrorModel = LIVE_ERROR_MODEL,
         step_m: float = 100.0,
         effects: Sequence[Term] = (),
+        prior: RatePrior | None = None,
+        discrepancy: RateDiscrepancy = NO_DISCREPANCY,
+        notes: Sequence[str] = (),
     ) -> None:
         self.cube = cube
         self.payload = payload or PROFILES["drs"]
@@ -382,6 +477,9 @@ class LivePredictor:
         self.error_model = error_model
         self.step_m = step_m
         self.effects = tuple(effects)
+        self.prior = prior
+        self.discrepancy = discrepancy
+        self.notes = tuple(notes)
         self.reports: list[Report] = []
         self.legs: list[Leg] = []
         self._leg_start: Report | None = None
@@ -390,7 +488,7 @@ class LivePredictor:
     def _predict(self, report: Report, terms: Sequence[Term], **kwargs: Any) -> Prediction:
         return predict(
             self.cube, report.time, report.lat, report.lon, report.alt_m, self.payload, self.terrain,
-            self.step_m, effects=tuple(terms), **kwargs,
+            self.step_m, effects=tuple(terms), since_release_s=self.record.since_top_s(report), **kwargs,
         )  # fmt: skip
 
     def law(self, report: Report) -> Track:
@@ -440,16 +538,11 @@ class LivePredictor:
         self.record.add(report)
         self.reports.append(report)
 
-    def rate_fit(self, alt_m: float, window_m: float = math.inf) -> RateFit | None:
-        """λ on the flown law from the record's fixes at most ``window_m`` above ``alt_m`` (None: too little)."""
-        return self.record.rate_fit(alt_m, window_m)
-
-    def measured(
-        self, alt_m: float, rate_window_m: float = math.inf
-    ) -> tuple[float, tuple[float, float], float]:
-        """(rate factor, wind error east/north, the altitude the wind was measured at)."""
-        wind, measured_at = self._wind_error(alt_m, self.correction)
-        return _clamped(self.rate_fit(alt_m, rate_window_m)), wind, measured_at
+    def rate(self, report: Report) -> RateEstimate:
+        """This flight's λ from the prior and the record down to ``report`` (the update, not flown)."""
+        height_km = (report.alt_m - float(self.terrain.elevation(report.lat, report.lon))) / 1000.0
+        bias, spread = self.discrepancy.at(height_km)
+        return update_rate(self.prior, self.record.rate_fit(report.alt_m), bias, spread)
 
     def _wind_error(self, alt_m: float, c: LiveCorrection) -> tuple[tuple[float, float], float]:
         """The wind error of recent legs: those whose lower end is within the window above ``alt_m``
@@ -469,13 +562,11 @@ class LivePredictor:
         height = report.alt_m - float(self.terrain.elevation(report.lat, report.lon))
         band = correction.band_at(height)
         decay = band.decay_m if band is not None else None
-        fit = self.rate_fit(report.alt_m, band.rate_window_m) if band is not None and band.use_rate else None
-        typical = band.typical_rate.at(height / 1000.0) if band is not None and band.typical_rate else 1.0
-        rate = _clamped(fit, typical)
+        rate = self.rate(report) if band is not None and band.use_rate else None
         (east, north), measured_at = self._wind_error(report.alt_m, correction)
         terms: list[Term] = list(self.effects)
-        if rate != 1.0:
-            terms.append(DescentRateScale(scale=rate))
+        if rate is not None and rate.factor != 1.0:
+            terms.append(DescentRateScale(scale=rate.factor))
         if decay is not None and self.legs and report.alt_m > -500.0 + WIND_BIN_M:
             edges = np.arange(report.alt_m, -500.0, -WIND_BIN_M)[::-1]
             edges = np.concatenate(([-500.0], edges)) if edges[0] > -500.0 else edges
@@ -492,19 +583,12 @@ class LivePredictor:
         return LivePrediction(
             prediction=prediction,
             report=report,
-            rate_factor=rate,
-            rate_fixes=fit.fixes if fit is not None else 0,
+            rate=rate,
             wind_error_ms=(east, north) if decay is not None else (0.0, 0.0),
             decay_m=decay,
             legs=tuple(self.legs),
+            notes=self.notes,
         )
-
-
-def _clamped(fit: RateFit | None, typical: float = 1.0) -> float:
-    """The rate factor to fly: 1 without a fit, else λ / ``typical`` held within ``RATE_FACTOR_LIMITS``."""
-    if fit is None:
-        return 1.0
-    return min(max(fit.factor / typical, RATE_FACTOR_LIMITS[0]), RATE_FACTOR_LIMITS[1])
 
 
 @dataclass(frozen=True)

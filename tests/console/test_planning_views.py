@@ -16,6 +16,8 @@ from console.screens.recovery import RecoveryScreen
 from console.widgets.landing_map import LandingMap
 from console.widgets.release_timeline import GO, NO_GO, NO_LANDING, default_cursor, render_timeline
 from drs_link.iridium.recovery import TrackPoint
+from predictor.calibration import CalibratedModel
+from predictor.descent import PROFILES
 from predictor.errors import PredictorError
 from tests.console.conftest import SITE, T0, wait_for
 
@@ -151,3 +153,22 @@ def test_live_re_prediction_feeds_each_fix_once_and_skips_a_repeated_one(
         later["report"]["alt_m"] == fixes[-1].alt_m
         and later["remaining_drift_km"] < first["remaining_drift_km"]
     )
+
+
+def test_the_release_window_flies_the_capsules_model_as_its_release_prediction_does(
+    prediction_service: PredictionService,
+) -> None:
+    # A capsule whose model is twice as heavy falls faster: its sweep's landings come earlier, and the
+    # window names the model (the go/no-go is decided on these landings).
+    heavy = CalibratedModel(PROFILES["drs"].overridden(mass_kg=2 * PROFILES["drs"].mass_kg), (), None)
+    service = prediction_service
+    service.models["HEAVY"] = heavy
+    try:
+        origin = ReleaseOrigin(SITE[0], SITE[1], 31500.0, "test")
+        default = service.release_window(origin, None)
+        flown = service.release_window(origin, None, capsule="HEAVY")
+    finally:
+        del service.models["HEAVY"]
+    assert default["model"] == "drs profile" and flown["model"] == heavy.label()
+    pairs = list(zip(default["candidates"], flown["candidates"], strict=True))
+    assert pairs and all(b["landing_time"] < a["landing_time"] for a, b in pairs)

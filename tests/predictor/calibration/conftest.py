@@ -30,8 +30,10 @@ DIRECTIONS_DEG = (20.0, 95.0, 160.0, 230.0, 300.0, 55.0)
 def jet_cube(toward_deg: float, density_change: float = 0.0) -> WeatherCube:
     """Wind toward ``toward_deg``: 8 m/s plus a 25 m/s jet at 11 km, veering 30° over 20 km, and 40 %
     stronger 6 h after launch than 6 h before (so a time offset changes what a descent meets). The
-    air is ``density_change`` denser 6 h after launch than 6 h before (relative; 0: constant in time),
-    so that a time offset can also change the descent rate."""
+    air is ``density_change`` denser 6 h after launch than 6 h before from 20 km up and as much less
+    dense at the ground (relative, linear in between; 0: constant in time), so that a time offset can
+    also change the descent rate, and not by one factor at every altitude (the shape record takes that
+    for the flight's own λ)."""
     z = np.arange(-500.0, 40_001.0, 500.0)
     p, t = pressure_temperature(z)
     start = LAUNCH.replace(tzinfo=None)
@@ -40,15 +42,16 @@ def jet_cube(toward_deg: float, density_change: float = 0.0) -> WeatherCube:
     heading = np.radians(toward_deg + 30.0 * np.clip(z, 0.0, 20_000.0) / 20_000.0)
     shape = (2, len(z), 2, 2)
 
-    def spread(profile: np.ndarray, growth: float = 0.0) -> np.ndarray:
-        scale = np.array([1.0 - growth, 1.0 + growth])[:, None, None, None]
+    def spread(profile: np.ndarray, growth: float | np.ndarray = 0.0) -> np.ndarray:
+        by_level = np.broadcast_to(np.asarray(growth, dtype=float), z.shape)
+        scale = np.stack([1.0 - by_level, 1.0 + by_level])[:, :, None, None]
         return np.broadcast_to(profile[None, :, None, None], shape) * scale
 
     return WeatherCube(
         times=times, lead_h=np.array([0.0, 12.0]), levels_hpa=p / 100.0, lats=np.array([42.0, 50.0]),
         lons=np.array([0.0, 12.0]), z_m=spread(z), u=spread(speed * np.sin(heading), 0.2),
         v=spread(speed * np.cos(heading), 0.2), temperature_k=spread(t),
-        density=spread(p / (R_DRY_AIR * t), 0.5 * density_change),
+        density=spread(p / (R_DRY_AIR * t), 0.5 * density_change * np.clip((z - 10_000.0) / 10_000.0, -1.0, 1.0)),
         source=f"synthetic jet toward {toward_deg:g}°",
     )  # fmt: skip
 

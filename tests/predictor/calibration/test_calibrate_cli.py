@@ -47,7 +47,12 @@ def test_calibrating_real_flights_writes_the_json_and_the_report(
     passed = [t["record"] for t in data["binned_correction"]["tests"] if t["passed"]]
     binned = [name for name, record in (("binned_descent_rate", "vertical"), ("binned_wind", "horizontal"))
               if record in passed]  # fmt: skip
-    assert [t.name for t in model.terms] == [f["effect"] for f in data["selected"]] + binned
+    # λ first (the rate prior's median), then the shape, then the binned parts that passed.
+    assert [t.name for t in model.terms] == ["descent_rate_scale", *(f["effect"] for f in data["selected"]), *binned]
+    assert model.rate_prior is not None and model.rate_prior.to_dict() == {
+        k: data["rate_prior"][k] for k in ("median", "log_sigma", "flights")
+    }
+    assert model.terms[0].parameters()["scale"] == model.rate_prior.median
     assert model.provenance["held_out_before"] == data["baseline"]
     assert model.ellipse is not None
     assert model.ellipse.sigma0_km == pytest.approx(data["uncertainty_model"]["sigma0_km"], abs=1e-3)  # rounded there
@@ -55,7 +60,8 @@ def test_calibrating_real_flights_writes_the_json_and_the_report(
     assert data["excluded"][0]["name"] == "ascent-only" and data["excluded"][0]["reason"].startswith(
         "cleaning:"
     )
-    assert [c["effect"] for c in data["candidates"]] == ["descent_rate_scale", "wind_scale"]
+    # λ is each flight's own (the rate prior), never a shared candidate.
+    assert [c["effect"] for c in data["candidates"]] == ["wind_scale"]
     assert 0.5 < data["baseline"]["landing_error_km"]["median"] < 10.0
     assert data["uncertainty_model"]["k_identifiable"] is False  # ascent winds have no lead time
     assert out_md.is_file() and (tmp_path / "docs" / "cal-speed-ratio.png").is_file()
@@ -158,7 +164,10 @@ def test_flights_logged_in_forecast_weather_are_calibrated_from_grib_files(
     ])  # fmt: skip
     assert status == 0, capsys.readouterr().err
     data = json.loads(out.read_text())
-    assert [s["effect"] for s in data["selected"]] == ["descent_rate_scale"]
-    assert data["selected"][0]["parameters"]["scale"] == pytest.approx(0.8, abs=0.01)
+    # A factor on every flight's rate is no shape: the shape record sees nothing, and λ = 0.8 is the
+    # rate prior every flight shares (the same payload), which the pre-flight prediction flies.
+    assert data["selected"] == []
+    assert data["rate_prior"]["median"] == pytest.approx(0.8, abs=0.01)
+    assert data["rate_prior"]["log_sigma"] < 0.01
     assert data["after"]["track_rms_km"]["mean"] < 0.1 * data["baseline"]["track_rms_km"]["mean"]
     assert data["library_explains_residual"] is True

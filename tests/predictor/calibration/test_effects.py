@@ -28,7 +28,7 @@ def test_the_library_covers_the_three_families_and_every_named_effect() -> None:
     names = {c.name for c in LIBRARY}
     assert names == {
         "descent_rate_scale", "drag_density_exponent", "deployment_delay", "wind_scale", "wind_rotation",
-        "wind_band_scale", "wind_lag", "weather_time_offset",
+        "wind_band_scale", "wind_lag", "weather_time_offset", "two_regime_rate",
     }  # fmt: skip
     assert {c.family for c in LIBRARY} == {"vertical", "horizontal", "timing"}
 

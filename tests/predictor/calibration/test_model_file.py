@@ -21,7 +21,7 @@ from predictor.descent.payload import Payload
 from predictor.environment.demo_weather import demo_weather_files
 from predictor.environment.weather import load_weather
 from predictor.prediction.landings import predict
-from predictor.prediction.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, TypicalRate
+from predictor.prediction.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, RateDiscrepancy
 from predictor.prediction.uncertainty import ErrorModel
 
 WHEN = datetime(2026, 11, 22, 12, tzinfo=UTC)
@@ -36,9 +36,9 @@ def example() -> CalibratedModel:
         ErrorModel(1.2, 5e-4, 0.0, 1.3, name="calibrated"),
         {"created_utc": "2026-11-24T23:00:00Z", "flights": ["18-5-19", "18-6-30"], "weather": "ascent winds"},
         live=LiveSettings(
-            LiveCorrection((Band(0.0, 5000.0, True, None, 3000.0),
-                            Band(5000.0, float("inf"), True, 2000.0, typical_rate=TypicalRate((5.0, 20.0), (1.0, 1.04))))),
+            LiveCorrection((Band(0.0, 5000.0, True, None), Band(5000.0, float("inf"), True, 2000.0))),
             LiveErrorModel((20.0, 2.0), (3.9, 1.6), (3.8, 0.8)),
+            RateDiscrepancy((5.0, 20.0), (0.0, 0.04), (0.02, 0.05)),
         ),
     )  # fmt: skip
 
@@ -48,7 +48,7 @@ def test_a_saved_model_loads_back_the_same(tmp_path: Path) -> None:
     loaded = load_model(path)
     assert loaded.payload == example().payload and loaded.terms == example().terms
     assert loaded.ellipse == example().ellipse and loaded.provenance == example().provenance
-    assert loaded.live == example().live, "bands (open ends included), typical factors and live sigma"
+    assert loaded.live == example().live, "bands (open ends included), λ discrepancy and live sigma"
     assert loaded.label() == "m.json (calibrated 2026-11-24 on 2 flights)"
     assert [p.name for p in tmp_path.iterdir()] == ["m.json"], "no temporary file left behind"
 
@@ -86,9 +86,31 @@ def test_drs_model_show_names_the_payload_terms_ellipse_and_provenance(
     out = capsys.readouterr().out
     for text in ("superbit-test: 6 kg, Cd·A 1.36 m²", "term      drag_density_exponent (vertical): exponent 0.06",
                  "ellipse   σ0 1.2 km", "flights   2: 18-5-19, 18-6-30", "weather   ascent winds",
-                 "live      0 km–5 km: rate on the last 3 km, wind off; 5 km–top: rate on the whole descent "
-                 "relative to the typical factor, wind L = 2 km", "live 1σ   20 km 3.90×3.80 km"):  # fmt: skip
+                 "live      0 km–5 km: own λ updated, wind off; 5 km–top: own λ updated, wind L = 2 km",
+                 "live 1σ   20 km 3.90×3.80 km"):  # fmt: skip
         assert text in out
+
+
+def test_a_model_with_an_unstable_term_says_so_wherever_it_is_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from dataclasses import replace
+
+    from predictor.descent.rate_prior import RatePrior
+
+    model = replace(example(), provenance={**example().provenance, "unstable_terms": ["drag_density_exponent"],
+                                           "selection_stability": {"drag_density_exponent": 0.6}},
+                    rate_prior=RatePrior(1.04, 0.08, 30))  # fmt: skip
+    path = save_model(model, tmp_path / "m.json")
+    assert "[FLAG: drag_density_exponent chosen in under 2/3 of the selection's folds]" in load_model(path).label()
+    files = demo_weather_files(46.5, 6.6, WHEN, cache_dir=tmp_path / "wx")
+    assert main(["predict", "--weather", *map(str, files), "--cache-dir", str(tmp_path / "c"), *RELEASE,
+                 "--model", str(path)]) == 0  # fmt: skip
+    assert "FLAG: drag_density_exponent chosen in under 2/3" in capsys.readouterr().out
+    assert main(["model", "show", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "λ prior   median 1.04, sd of ln λ 0.08 over 30 flights" in out
+    assert "stability drag_density_exponent chosen in 60% of folds" in out
 
 
 def _write(tmp_path: Path, document: object) -> Path:
@@ -130,14 +152,15 @@ def _with(change: dict) -> dict:
         (_with({"live": []}), r"live: must be an object with bands"),
         (_with({"live.bands.0.use_rate": "yes"}), r"live\.bands\[0\]: must be an object with .* use_rate \(true/false\)"),
         (_with({"live.bands.0.upper_m": -1.0}), r"live\.bands\[0\]: lower_m 0 must be below upper_m -1"),
-        (_with({"live.bands.1.wind_decay_m": 0.0}), r"live\.bands\[1\]: rate_window_m and wind_decay_m must be positive"),
-        (_with({"live.bands.1.typical_rate.factors": [1.0, -1.0]}),
-         r"live\.bands\[1\]\.typical_rate\.factors: must all be positive, got -1"),
-        (_with({"live.error_model.sigma_parallel_km": [3.9]}), r"live\.error_model: heights_km and the two sigma"),
+        (_with({"live.bands.1.wind_decay_m": 0.0}), r"live\.bands\[1\]: wind_decay_m must be a positive length"),
+        (_with({"live.discrepancy.log_sigma": [0.02, -0.05]}),
+         r"live\.discrepancy\.log_sigma: must not be negative, got -0\.05"),
+        (_with({"live.error_model.sigma_parallel_km": [3.9]}),
+         r"live\.error_model: heights_km, sigma_parallel_km, sigma_perpendicular_km must be as long"),
     ],
     ids=["corrupt", "kind", "future-schema", "schema-type", "negative-mass", "cda-text", "unknown-effect",
          "unknown-parameter", "nan", "bins", "ellipse", "terms-type", "live-type", "live-use-rate", "live-band-order",
-         "live-decay", "live-typical", "live-sigma"],  # fmt: skip
+         "live-decay", "live-discrepancy", "live-sigma"],  # fmt: skip
 )
 def test_a_bad_model_file_is_refused_naming_the_file_and_the_field(
     tmp_path: Path, document: object, message: str
@@ -150,3 +173,57 @@ def test_a_missing_model_file_is_one_line_from_the_cli(tmp_path: Path, capsys: p
     assert main(["predict", "--demo-weather", *RELEASE, "--model", str(tmp_path / "none.json")]) == 1
     err = capsys.readouterr().err
     assert err == f"drs: error: model file {tmp_path / 'none.json'} does not exist\n"
+
+
+def _one_term(effect: str, parameters: dict) -> dict:
+    document = _good()
+    document["terms"] = [{"effect": effect, "parameters": parameters}]
+    return document
+
+
+@pytest.mark.parametrize(
+    ("document", "message"),
+    [
+        (_one_term("drag_density_exponent", {"exponent": 5.0}),
+         r"terms\[0\]\.parameters\.exponent: 5 is outside the calibration's bounds -0\.5…0\.5"),
+        (_one_term("descent_rate_scale", {"scale": 10.0}), r"terms\[0\]\.parameters\.scale: 10 is outside .* 0\.5…2"),
+        (_one_term("wind_scale", {"scale": -1.0}), r"terms\[0\]\.parameters\.scale: -1 is outside .* 0\.3…2"),
+        (_one_term("deployment_delay", {"delay_s": -5.0}), r"terms\[0\]\.parameters\.delay_s: -5 is outside .* 0…240"),
+        (_one_term("deployment_delay", {"delay_s": 30.0, "speed_factor": 0.1}),
+         r"terms\[0\]\.parameters\.speed_factor: 0\.1 is outside .* 1…10"),
+        (_one_term("two_regime_rate", {"height_m": 20000.0, "factor": 3.0}),
+         r"terms\[0\]\.parameters\.factor: 3 is outside .* 0\.5…2"),
+        (_one_term("two_regime_rate", {"height_m": 1e6, "factor": 1.2}),
+         r"terms\[0\]\.parameters\.height_m: 1e\+06 is outside .* -500…50000"),
+        (_one_term("binned_descent_rate", {"edges_m": [0.0, 5000.0], "factors": [4.0]}),
+         r"terms\[0\]\.parameters\.factors: 4 is outside .* 0\.5…2"),
+        (_one_term("wind_band_scale", {"bottom_m": 9000.0, "top_m": 3000.0, "scale": 1.2}),
+         r"terms\[0\]\.parameters: wind_band_scale: bottom_m must be below top_m"),
+        (_with({"payload.mass_kg": 1e6}), r"payload\.mass_kg: 1e\+06 is outside the payloads drs calibrates \(0\.05–50\)"),
+        (_with({"payload.cda_m2": 1e-4}), r"payload\.cda_m2: 0\.0001 is outside the payloads drs calibrates"),
+    ],
+    ids=["exponent", "rate-scale", "negative-wind-scale", "negative-delay", "fast-fall-factor", "two-regime-factor",
+         "two-regime-height", "binned-factor", "band-order", "mass", "cda"],  # fmt: skip
+)
+def test_an_impossible_value_is_refused_in_one_line_naming_the_file_and_the_field(
+    tmp_path: Path, document: dict, message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _write(tmp_path, document)
+    with pytest.raises(ModelFileError, match=rf"^model file {tmp_path / 'bad.json'}: {message}"):
+        load_model(path)
+    assert main(["predict", "--demo-weather", *RELEASE, "--model", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"drs: error: model file {path}: ")
+
+
+def test_every_parameter_of_every_effect_has_the_calibrations_bounds() -> None:
+    """A term added to the registry without bounds would let any value of it fly."""
+    import dataclasses
+
+    from predictor.calibration.effects import parameter_limits
+    from predictor.descent.model import EFFECTS
+
+    limits = parameter_limits()
+    missing = [(name, f.name) for name, cls in EFFECTS.items() for f in dataclasses.fields(cls)
+               if (name, f.name) not in limits]  # fmt: skip
+    assert missing == []

@@ -8,9 +8,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from predictor.calibration.effects import library
+from predictor.calibration.effects import BIN_EDGES_M, library
 from predictor.calibration.ellipse_fit import fit_ellipse
-from predictor.calibration.report import Exclusion, landing_change, result_json, write_report
+from predictor.calibration.report import (
+    Exclusion,
+    landing_change,
+    result_json,
+    speed_finding,
+    speed_ratio_by_altitude,
+    write_report,
+)
 from predictor.calibration.residuals import FlightCase
 from predictor.calibration.selection import Calibration, calibrate
 from predictor.descent.model import DragDensityExponent
@@ -22,7 +29,7 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 @pytest.fixture(scope="module")
 def calibrated(plain_cases: list[FlightCase]) -> Calibration:
-    return calibrate(plain_cases, PAYLOAD, library(["descent_rate_scale", "wind_rotation"]))
+    return calibrate(plain_cases, PAYLOAD, library(["drag_density_exponent", "wind_rotation"]))
 
 
 def _ellipse(cal: Calibration):  # noqa: ANN202
@@ -41,7 +48,10 @@ def test_the_json_has_the_keys_the_issue_names(calibrated: Calibration) -> None:
     for block in (data["baseline"], data["after"], *(c["heldout"] for c in data["candidates"])):
         for metric in ("landing_error_km", "descent_time_error_s"):
             assert set(block[metric]) >= {"mean", "median"}
-    assert [c["effect"] for c in data["candidates"]] == ["descent_rate_scale", "wind_rotation"]
+    assert [c["effect"] for c in data["candidates"]] == ["drag_density_exponent", "wind_rotation"]
+    assert set(data["rate_prior"]) == {"median", "log_sigma", "flights", "per_flight"}
+    assert data["rate_prior"]["flights"] == 5 and set(data["rate_prior"]["per_flight"]) == set(data["flights"])
+    assert data["unstable"] == [] and set(data["rate_only"]) == set(data["baseline"])
     assert {c["family"] for c in data["candidates"]} == {"vertical", "horizontal"}
     assert all(isinstance(c["parameters"], dict) for c in data["candidates"])
     model = data["uncertainty_model"]
@@ -67,7 +77,9 @@ def test_the_markdown_report_states_its_verdict_and_links_real_plots(
         assert f"]({png.name})" in text
     assert "## Vertical family (scored on the vertical record)" in text
     assert "## Horizontal family (scored on the horizontal record)" in text
-    assert "| descent_rate_scale | scale = " in text and "paper (launch), same errors" in text
+    assert "| drag_density_exponent | reference_density = 1.225, exponent = " in text
+    assert "paper (launch), same errors" in text
+    assert "| plain law × median λ of the other flights (λ alone) |" in text and "the rate prior is median λ" in text
 
 
 def test_a_preface_stands_under_the_title_and_survives_regeneration(
@@ -106,3 +118,23 @@ def test_the_landing_change_is_paired_flight_by_flight_and_split_by_what_the_des
     text = (tmp_path / "r.md").read_text(encoding="utf-8")
     assert "## Landing error: before and after, flight by flight (held out)" in text
     assert "Flights whose descent time came closer to the measured one: 4 of 4 land closer" in text
+
+
+@pytest.mark.parametrize("noise_m", [3.0, 8.0])
+def test_a_noise_only_1_hz_flight_reads_no_systematic_difference(
+    synthetic_cases: Callable[..., list[FlightCase]], noise_m: float
+) -> None:
+    """At 1 Hz the height between two fixes is the GNSS noise; per-interval ratios that dropped the rising
+    ones read a noise-only flight as "160 % faster". Crossing times of 3 km bins do not."""
+    cal = calibrate(synthetic_cases((), n=3, cadence_s=1.0, noise_m=noise_m, seed=7), PAYLOAD, library(["wind_scale"]))
+    assert "shows no systematic difference" in speed_finding(cal)
+    assert all(abs(r["ratio"] - 1.0) < 0.01 for r in speed_ratio_by_altitude(cal, BIN_EDGES_M))
+
+
+def test_a_shape_the_law_lacks_is_read_as_a_systematic_difference_at_1_hz(
+    synthetic_cases: Callable[..., list[FlightCase]],
+) -> None:
+    """The same text can fail: a density exponent of 0.15 makes the fall faster high up and slower low down."""
+    cases = synthetic_cases((DragDensityExponent(exponent=0.15),), n=3, cadence_s=1.0, noise_m=3.0, seed=7)
+    text = speed_finding(calibrate(cases, PAYLOAD, library(["wind_scale"])))
+    assert "slower than predicted at 0–3 km" in text and "faster than predicted" in text

@@ -71,8 +71,9 @@ def test_every_fold_is_fitted_without_its_own_flight(
 
 
 def test_each_family_has_its_record_and_floor() -> None:
-    """Vertical effects on the time-at-altitude record, horizontal ones on the replayed horizontal one."""
-    assert (VERTICAL.metric, VERTICAL.unit, VERTICAL.replay) == ("time_rms_s", "s", False)
+    """Vertical effects on the shape record (time at altitude, each flight's λ profiled out), horizontal ones
+    on the replayed horizontal one."""
+    assert (VERTICAL.metric, VERTICAL.unit, VERTICAL.replay) == ("shape_time_rms_s", "s", False)
     assert (HORIZONTAL.metric, HORIZONTAL.unit, HORIZONTAL.replay) == ("horizontal_rms_km", "km", True)
     before = np.array([130.0, 95.0, 240.0, 180.0])
     assert paired_test(

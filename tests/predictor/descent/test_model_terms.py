@@ -23,6 +23,7 @@ from predictor.descent.model import (
     DragDensityExponent,
     SeaLevelRate,
     TerminalVelocity,
+    TwoRegimeRate,
     VerticalAirMotion,
     WeatherTimeOffset,
     Wind,
@@ -64,6 +65,7 @@ def test_the_library_has_every_effect_the_calibration_needs() -> None:
         "weather_time_offset",
         "binned_descent_rate",
         "binned_wind",
+        "two_regime_rate",
     }
     assert needed <= set(EFFECTS)
     assert {EFFECTS[n].family for n in needed} == {"vertical", "horizontal", "timing"}
@@ -113,6 +115,24 @@ def test_deployment_delay_saves_the_fast_fall_time_whatever_the_step() -> None:
     saved = base.descent_s - coarse.descent_s
     assert saved == pytest.approx((factor - 1.0) * delay, rel=0.08)
     assert coarse.descent_s == pytest.approx(fine.descent_s, abs=0.5)
+
+
+@pytest.mark.parametrize("step_m", [5.0, 100.0, 350.0])
+def test_two_regime_rate_is_the_fall_faster_above_its_height_whatever_the_step(step_m: float) -> None:
+    """T = ∫₀ʰ dz / v(z) + ∫ₕ^top dz / (f·v(z)); the height falls inside a step at 100 and 350 m."""
+    from scipy.integrate import quad
+
+    v0 = math.sqrt(2.0 * PAYLOAD.mass_kg * G0 / (RHO0 * PAYLOAD.cda_m2))
+    height, factor = 20_050.0, 1.3
+
+    def seconds_per_metre(z: float) -> float:
+        return 1.0 / (v0 * math.exp(0.5 * z / H_ISO) / (1.0 + z / R_GRAVITY))
+
+    below, _ = quad(seconds_per_metre, 0.0, height, limit=200)
+    above, _ = quad(seconds_per_metre, height, 30000.0, limit=200)
+    res = descent(CALM, TwoRegimeRate(height_m=height, factor=factor), step_m=step_m)
+    assert res.descent_s == pytest.approx(below + above / factor, rel=1e-4)
+    assert descent(CALM, TwoRegimeRate(height_m=height, factor=1.0)).descent_s == pytest.approx(descent().descent_s)
 
 
 def test_wind_scale_scales_the_drift() -> None:

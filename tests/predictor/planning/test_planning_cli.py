@@ -103,3 +103,20 @@ def test_plan_bad_input_is_one_line_with_its_exit_status(
     assert "needs a targets file" in capsys.readouterr().err
     assert main([*args(grib_files, tmp_path)[:-4], "--hours", "1", "--every-minutes", "0"]) == 1
     assert "sweep step" in capsys.readouterr().err
+
+
+def test_plan_flies_the_mass_and_cda_given_and_refuses_them_beside_a_model(
+    grib_files: list[Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    def landings(*extra: str) -> list[str]:
+        assert main(args(grib_files, tmp_path, "--json", *extra)) == 0
+        return [c["landing"]["time"] for c in json.loads(capsys.readouterr().out)["candidates"]]
+
+    nominal = landings()
+    heavier = landings("--mass", "3.0")
+    draggier = landings("--cda", "5.0")
+    assert all(h < n < d for h, n, d in zip(heavier, nominal, draggier, strict=True)), "heavier falls faster"
+    model = tmp_path / "m.json"
+    model.write_text("{}")
+    assert main(args(grib_files, tmp_path, "--model", str(model), "--mass", "3.0")) == 2
+    assert "give --model or --payload/--mass/--cda, not both" in capsys.readouterr().err

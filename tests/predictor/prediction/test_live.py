@@ -13,9 +13,9 @@ from predictor.descent.payload import PROFILES
 from predictor.environment.cube import WeatherCube
 from predictor.errors import PredictorError
 from predictor.prediction.live import (
-    DEFAULT_CORRECTION,
     LIVE_ERROR_MODEL,
     NO_CORRECTION,
+    OWN_RATE,
     LiveCorrection,
     LivePredictor,
 )
@@ -112,7 +112,7 @@ def test_inside_the_band_the_correction_moves_the_landing_toward_the_truth() -> 
 def test_a_faster_descent_is_measured_and_scales_the_rest_of_the_fall() -> None:
     fixes, truth = descent_of([DescentRateScale(scale=1.3)])
     live, report = fed(fixes, 12000.0)
-    rate, _, _ = live.measured(report.alt_m)
+    rate = live.rate(report).factor
     assert rate == pytest.approx(1.3, abs=0.03)
     plain = live.predict_from(report, NO_CORRECTION)
     corrected = live.predict_from(report, LiveCorrection.everywhere(True, None))
@@ -128,7 +128,7 @@ def test_a_faster_descent_is_measured_and_scales_the_rest_of_the_fall() -> None:
 
 def test_the_live_ellipse_shrinks_as_the_capsule_comes_down() -> None:
     fixes, _ = band_truth()
-    live = LivePredictor(forecast(), PAYLOAD, correction=DEFAULT_CORRECTION)
+    live = LivePredictor(forecast(), PAYLOAD, correction=OWN_RATE)
     sigmas = [live.update(f).prediction.ellipse.sigma_parallel_km for f in fixes]
     assert sigmas[0] == pytest.approx(max(LIVE_ERROR_MODEL.sigma_parallel_km[:2]), rel=0.2)
     assert sigmas[-1] < 0.5 * sigmas[0]

@@ -11,14 +11,27 @@ under a fresh seed far below 10⁻⁶).
 
 from __future__ import annotations
 
+import math
 from datetime import timedelta
 
 import numpy as np
 import pytest
 
-from predictor.descent.model import DescentRateScale, DragDensityExponent
+from predictor.calibration.model_file import CalibratedModel
+from predictor.descent import RatePrior
+from predictor.descent.model import DeploymentDelay, DescentRateScale, DragDensityExponent
 from predictor.descent.payload import PROFILES
-from predictor.prediction.live import LiveCorrection, LivePredictor, TypicalRate, fit_rate
+from predictor.prediction.landings import predict
+from predictor.prediction.live import (
+    DEFAULT_ELLIPSE_NOTE,
+    NO_DISCREPANCY,
+    OWN_RATE,
+    LiveCorrection,
+    LivePredictor,
+    RateDiscrepancy,
+    fit_rate,
+    update_rate,
+)
 from predictor.tracks.cleaning import clean
 from predictor.tracks.reading import Fix
 from predictor.tracks.synthetic import synthetic_flight
@@ -69,23 +82,22 @@ def test_with_the_model_law_the_remaining_time_error_shrinks(cadence_s: float, n
     # ρ^-½ carries the fast upper descent to the ground: the remaining time comes out too short.
     assert textbook_error < -60.0
     assert abs(law_error) < 0.2 * abs(textbook_error)
-    fit = with_law.rate_fit(report.alt_m)
+    fit = with_law.record.rate_fit(report.alt_m)
     assert fit is not None
     assert fit.factor == pytest.approx(TRUE_RATE, rel=0.01)
 
 
-def test_every_fix_of_the_record_is_fitted_and_a_window_narrows_it() -> None:
+def test_every_fix_of_the_record_is_fitted() -> None:
     fixes, _ = descent(1.0, 10.0)
     live = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,))
     report = fed_to(live, fixes)
-    whole = live.rate_fit(report.alt_m)
-    recent = live.rate_fit(report.alt_m, window_m=3000.0)
-    assert whole is not None and recent is not None
+    whole = live.record.rate_fit(report.alt_m)
+    assert whole is not None
     # The record starts at the highest report (GNSS noise can put it a few fixes after the first).
     top = int(np.argmax([f.alt_m for f in live.reports]))
     assert whole.fixes == len(live.reports) - top
-    assert recent.fixes == sum(1 for f in live.reports[top:] if f.alt_m - report.alt_m < 3000.0) < whole.fixes
-    assert live.predict_from(report, WHOLE_DESCENT_RATE).rate_fixes == whole.fixes
+    rate = live.predict_from(report, WHOLE_DESCENT_RATE).rate
+    assert rate is not None and rate.fixes == whole.fixes
 
 
 def test_the_rate_fit_shrugs_off_swinging_and_wild_fixes_that_pull_least_squares() -> None:
@@ -111,26 +123,100 @@ def test_a_record_too_short_gives_no_rate() -> None:
     fixes, _ = descent(180.0, 3.0)
     live = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD)
     live.observe(fixes[0])
-    assert live.rate_fit(fixes[0].alt_m) is None
-    assert live.measured(fixes[0].alt_m)[0] == 1.0
+    assert live.record.rate_fit(fixes[0].alt_m) is None
+    alone = live.rate(fixes[0])
+    assert alone.factor == 1.0 and alone.measured is None and math.isinf(alone.log_sigma)
+    prior = RatePrior(median=1.1, log_sigma=0.05, flights=12)
+    with_prior = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, prior=prior)
+    with_prior.observe(fixes[0])
+    assert with_prior.rate(fixes[0]).factor == pytest.approx(1.1), "no record: the prior's median"
+    assert with_prior.rate(fixes[0]).log_sigma == pytest.approx(0.05)
 
 
-def test_a_factor_every_flight_shares_is_taken_out_and_only_the_flights_own_is_carried_down() -> None:
-    # The synthetic flight falls 20 % faster than the law. If the typical flight at that height also
-    # fell 20 % faster, nothing of it is particular to this flight: the relative rate flies the law as
-    # it is (factor 1), and with a typical factor of 1 the whole-descent rate is flown unchanged.
+def test_a_departure_every_flight_shares_is_taken_out_and_its_spread_leans_on_the_prior() -> None:
+    # The synthetic flight falls 20 % faster than the law. If the evaluation flights' records also
+    # showed 20 % more than their whole descents at this height, nothing of it is this flight's own:
+    # λ comes back to 1.
     fixes, _ = descent(120.0, 3.0)
-    live = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,))
+    live = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,),
+                         discrepancy=RateDiscrepancy((5.0, 25.0), (math.log(TRUE_RATE),) * 2, (0.0, 0.0)))
     report = fed_to(live, fixes)
-    shared = TypicalRate(heights_km=(5.0, 25.0), factors=(1.0, TRUE_RATE))
-    at_report = shared.at(report.alt_m / 1000.0)
-    assert 1.0 < at_report < TRUE_RATE, "linear in height between the typical factors"
-    relative = live.predict_from(report, LiveCorrection.everywhere(True, None, typical_rate=shared))
-    whole = live.predict_from(report, WHOLE_DESCENT_RATE)
-    fit = live.rate_fit(report.alt_m)
+    assert live.rate(report).factor == pytest.approx(1.0, abs=0.01)
+    assert live.rate(report).measured == pytest.approx(TRUE_RATE, rel=0.01)
+    # A record whose departure spreads widely across flights says little: λ stays near the prior.
+    prior = RatePrior(median=1.0, log_sigma=0.05, flights=20)
+    vague = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,), prior=prior,
+                          discrepancy=RateDiscrepancy((5.0, 25.0), (0.0, 0.0), (0.5, 0.5)))
+    sharp = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,), prior=prior)
+    fed_to(vague, fixes)
+    fed_to(sharp, fixes)
+    assert vague.rate(report).factor < 1.01
+    assert sharp.rate(report).factor == pytest.approx(TRUE_RATE, rel=0.02)
+    assert sharp.rate(report).log_sigma < prior.log_sigma
+
+
+def test_the_update_is_the_product_of_two_normals_in_ln_lambda() -> None:
+    prior = RatePrior(median=1.0, log_sigma=0.1, flights=10)
+    fit = fit_rate(np.linspace(0.0, 1000.0, 50) / 1.2, np.linspace(0.0, 1000.0, 50))
     assert fit is not None
-    assert whole.rate_factor == pytest.approx(fit.factor)
-    assert relative.rate_factor == pytest.approx(fit.factor / at_report)
-    plain = live.predict_from(report, LiveCorrection()).prediction.descent_s
-    assert whole.prediction.descent_s < relative.prediction.descent_s < plain
-    assert TypicalRate(heights_km=(5.0, 25.0), factors=(0.9, 1.1)).at(40.0) == pytest.approx(1.1), "held beyond"
+    equal = update_rate(prior, fit, log_bias=0.0, log_spread=math.sqrt(0.1**2 - fit.log_sigma**2))
+    # Equal variances: the posterior mean is half-way in ln λ, its variance halved.
+    assert math.log(equal.factor) == pytest.approx(0.5 * math.log(1.2), rel=1e-6)
+    assert equal.log_sigma == pytest.approx(0.1 / math.sqrt(2.0), rel=1e-6)
+
+
+def test_the_stated_sigma_of_lambda_covers_the_truth_under_correlated_1hz_noise() -> None:
+    # A 1 Hz record whose time errors are AR(1) with 30 s memory (a slow swing and GNSS drift):
+    # counted as independent fixes the σ would be ~8× too small and cover the truth in ~25 % of the
+    # draws. With the (1+ρ)/(1−ρ) widening the 2σ interval should hold it in ~95 %; 20 seeded draws,
+    # at least 16 inside (false-failure rate under fresh seeds 0.3 % for a true 95 % coverage).
+    inside = 0
+    for seed in range(20):
+        rng = np.random.default_rng(100 + seed)
+        model_s = np.arange(0.0, 1200.0)
+        noise = np.zeros(model_s.size)
+        for i in range(1, model_s.size):
+            noise[i] = math.exp(-1.0 / 30.0) * noise[i - 1] + rng.normal(0.0, 2.0)
+        fit = fit_rate(model_s / TRUE_RATE + 25.0 + noise, model_s)
+        assert fit is not None
+        inside += abs(math.log(fit.factor / TRUE_RATE)) <= 2.0 * fit.log_sigma
+    assert inside >= 16
+
+
+def test_a_canopy_delay_counts_from_the_release_not_from_the_report() -> None:
+    # The model and the truth open the canopy 90 s after release, falling 3× faster until then. A live
+    # report from 10 km must not open it again 90 s after the report: that would end the fall early.
+    delay = DeploymentDelay(delay_s=90.0, speed_factor=3.0)
+    cube = isothermal_cube(u=10.0, v=2.0)
+    flown = synthetic_flight(
+        cube, launch_time=RELEASE - timedelta(hours=2), lat=46.0, lon=6.0, payload=PAYLOAD, effects=[delay],
+        cadence_s=60.0, noise_m=0.0, ground_fixes=3, seed=3,
+    )  # fmt: skip
+    fixes = list(clean(flown.track).descent[:-1])
+    live = LivePredictor(cube, PAYLOAD, effects=(delay,), correction=LiveCorrection())
+    for fix in fixes:
+        live.observe(fix)
+        if fix.alt_m <= 10000.0:
+            break
+    truth_s = (flown.landing.time - fix.time).total_seconds()
+    live_s = live.predict_from(fix).prediction.descent_s
+    restarted_s = predict(cube, fix.time, fix.lat, fix.lon, fix.alt_m, PAYLOAD, effects=(delay,)).descent_s
+    assert abs(live_s - truth_s) < 15.0
+    assert truth_s - restarted_s > 40.0, "the delay re-applied at the report must show, or this shows nothing"
+
+
+def test_a_model_without_live_settings_flies_its_shape_with_its_own_lambda_and_says_so() -> None:
+    cube = isothermal_cube(u=10.0, v=2.0)
+    bare = CalibratedModel(PAYLOAD, (LAW,), None).live_predictor(cube)
+    assert bare.correction == OWN_RATE and bare.discrepancy == NO_DISCREPANCY and bare.prior is None
+    assert any(n.startswith("no live settings of its own") for n in bare.notes)
+    assert DEFAULT_ELLIPSE_NOTE in bare.notes and "no λ prior in the model: λ from this descent alone" in bare.notes
+    # The calibration's convention: the prior's median flies as a descent_rate_scale among the terms, so
+    # the live update (a factor on those terms) starts from 1 with the prior's spread.
+    prior = RatePrior(median=0.95, log_sigma=0.1, flights=9)
+    calibrated = CalibratedModel(PAYLOAD, (DescentRateScale(scale=0.95), LAW), None, rate_prior=prior)
+    live = calibrated.live_predictor(cube)
+    assert live.prior is not None and live.prior.median == pytest.approx(1.0) and live.prior.log_sigma == 0.1
+    assert not any("prior" in n for n in live.notes)
+    plain = calibrated.live_predictor(cube, corrected=False)
+    assert plain.correction == LiveCorrection(), "--no-correction: the plain restart from each report"
