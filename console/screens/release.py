@@ -400,7 +400,7 @@ class ReleaseScreen(ConsoleScreen):
     def action_arm(self) -> None:
         assert self.ops is not None
         status = self.context.arming(self.capsule).status()
-        if status.armed:  # `a` again once silently restarted the window: ask first
+        if status.armed and status.mine:  # `a` again once silently restarted the window: ask first
             body = f"{self.capsule} is ARMED, {status.remaining_s:.0f} s left. ARM again starts a new window."
             restart = ConfirmModal("ARM again?", body, "Restart the window")
             self.app.push_screen(restart, lambda yes: self._arm() if yes else None)

@@ -16,6 +16,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
+from contextlib import ExitStack
 from datetime import datetime, timedelta
 from pathlib import Path
 
@@ -47,7 +48,7 @@ from predictor import Terrain
 from tests.clock import ManualClock
 from tests.console.conftest import wait_for
 from tests.drs_link.conftest import SIM_SCALE, capsule_table
-from tests.drs_link.ops.test_approval import ssh_key
+from tests.drs_link.ops.agents import approver_tables, ssh_agent, ssh_key
 from tests.release_helpers import ROCKBLOCK_TOML, SYNC_WAIVER, write_weather
 
 IMEI = "300434060000010"
@@ -466,6 +467,22 @@ def test_with_the_rule_required_go_needs_another_logins_approval_from_both_faces
     assert fire_results(store) == ["refused"] * 4
 
 
+@pytest.fixture
+def two_people(tmp_path: Path) -> Iterator[Callable[[Path], tuple[dict[str, str], dict[str, str]]]]:
+    """Alice and Bob as the rule sees two people: each their own [[approver]] key, proven through their
+    own real ssh-agent (a key file named in $SSH_USER_AUTH no longer counts). Gives each one's env."""
+    with ExitStack() as agents:
+
+        def people(config: Path) -> tuple[dict[str, str], dict[str, str]]:
+            alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
+            config.write_text(config.read_text() + approver_tables(alice=alice, bob=bob))
+            alice_sock = agents.enter_context(ssh_agent(tmp_path / "agent-alice", alice))
+            bob_sock = agents.enter_context(ssh_agent(tmp_path / "agent-bob", bob))
+            return {"SSH_AUTH_SOCK": alice_sock}, {"SSH_AUTH_SOCK": bob_sock}
+
+        yield people
+
+
 def drs_child(config: Path, *argv: str, env: dict[str, str] | None = None) -> subprocess.Popen[str]:
     """`drs argv` as another process (another console, another terminal)."""
     return subprocess.Popen([sys.executable, "-c", CHILD, "--config", str(config), *argv], text=True,
@@ -500,16 +517,16 @@ def test_one_arm_per_capsule_across_processes_and_the_refusal_names_who_holds_it
 
 @pytest.mark.slow
 def test_an_approval_that_waited_past_its_arm_window_can_never_fire_in_a_later_one(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path], tmp_path: Path,
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path], two_people: Callable[[Path], tuple[dict[str, str], dict[str, str]]],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """#23: ARM, FIRE, ask another login, let the window expire, ARM again, approve: the capsule RELEASED."""
     sim, config, store = powered("arm_window_s = 5.0\nrequire_second_operator = true")
-    alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
+    alice, bob = two_people(config)
     args = ["--weather", *map(str, weather), "--waive", f"sync={SYNC_WAIVER}"]
     assert entry.main(["--config", str(config), "capsule", "arm", "DRS1", *args]) == 0
     go = drs_child(config, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args,
-                   env={"SSH_USER_AUTH": str(alice)})  # fmt: skip
+                   env=alice)  # fmt: skip
     try:
         assert go.stdout is not None
         waiting = next(line for line in go.stdout if line.startswith("approval #"))
@@ -520,9 +537,9 @@ def test_an_approval_that_waited_past_its_arm_window_can_never_fire_in_a_later_o
     assert go.returncode == 1 and "approval #1 void (ARM window #1 closed): nothing sent" in err, err
     assert entry.main(["--config", str(config), "capsule", "arm", "DRS1", *args]) == 0, "a later window"
     capsys.readouterr()
-    approver = drs_child(config, "approve", env={"SSH_USER_AUTH": str(bob)})
+    approver = drs_child(config, "approve", env=bob)
     assert approver.communicate(timeout=60)[0].strip() == "nothing waits for approval"
-    approver = drs_child(config, "approve", "1", env={"SSH_USER_AUTH": str(bob)})
+    approver = drs_child(config, "approve", "1", env=bob)
     refused = approver.communicate(timeout=60)[1]
     assert approver.returncode == 1 and "approval #1 refused: it is void (ARM window #1 closed" in refused
     assert sim.firmware.go_at is None
@@ -597,22 +614,22 @@ def test_with_the_rule_on_a_typed_second_operator_cannot_override_the_landed_gat
 
 @pytest.mark.slow
 def test_with_the_rule_required_drs_capsule_go_fires_once_another_login_approves(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path], tmp_path: Path,
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path], two_people: Callable[[Path], tuple[dict[str, str], dict[str, str]]],
 ) -> None:
     """The way through: `drs capsule go --await-approval`, then `drs approve ID` from another key."""
     sim, config, store = powered("arm_window_s = 120.0\nrequire_second_operator = true")
-    alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
+    alice, bob = two_people(config)
     args = ["--weather", *map(str, weather), "--waive", f"sync={SYNC_WAIVER}"]
     assert entry.main(["--config", str(config), "capsule", "arm", "DRS1", *args]) == 0
     go = drs_child(config, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args,
-                   env={"SSH_USER_AUTH": str(alice)})  # fmt: skip
+                   env=alice)  # fmt: skip
     try:
         assert go.stdout is not None
         next(line for line in go.stdout if line.startswith("approval #1: waiting"))
         assert sim.firmware.go_at is None, "nothing is sent while it waits"
-        listed = drs_child(config, "approve", env={"SSH_USER_AUTH": str(bob)}).communicate(timeout=60)[0]
-        assert listed.startswith("#1 DRS1 Go (release): Go: release DRS1 in ARM window #1 — requested by EL")
-        approver = drs_child(config, "approve", "1", env={"SSH_USER_AUTH": str(bob)})
+        listed = drs_child(config, "approve", env=bob).communicate(timeout=60)[0]
+        assert listed.startswith("#1 DRS1 Go (release): Go: release DRS1 in ARM window #1 — requested by alice")
+        approver = drs_child(config, "approve", "1", env=bob)
         assert approver.wait(timeout=60) == 0
         out, err = go.communicate(timeout=120)
     finally:
