@@ -34,6 +34,10 @@ LATE_MARGIN = timedelta(seconds=90)
 """Slack after the latest fix seen: one slow fix acquisition (the firmware tries for up to 2 min)."""
 QUEUE_MARGIN = timedelta(seconds=60)
 """The MT must be at the gateway this long before the earliest predicted session."""
+OPERATOR_MARGIN = timedelta(seconds=45)
+"""Time an operator needs to read the plan and type the name and a reason: a cycle whose queue-before
+falls sooner is left for the next one (the helper once offered "queue before … 5 s left", which the
+check at submit then refused)."""
 DEFAULT_SESSION_DELAY = timedelta(seconds=30)
 WANTED_SLACK_MIN = 2
 """Minutes kept between the chosen HH:MM and the edge of the next cycle's window before more cycles
@@ -183,7 +187,7 @@ def plan_parachute(
     ]
     session_delay = max(min(delays), timedelta(0)) if delays else DEFAULT_SESSION_DELAY
     first_offset = 1
-    while alarm(first_offset) + early + session_delay - QUEUE_MARGIN <= now:
+    while alarm(first_offset) + early + session_delay - QUEUE_MARGIN < now + OPERATOR_MARGIN:
         first_offset += 1
     horizon = max(1, (2 * PARACHUTE_REACH_MIN + min(then)) // min(then) + 1)
     cycles = [

@@ -80,7 +80,7 @@ def queue_parachute(terminal: Terminal, attempts: int = 6) -> str:
     ("…passed while the dialog was open; plan the time again"), which is the behaviour this test must
     not mistake for a failure; six refusals in a row would be.
     """
-    refusal = r"refused"
+    refusal = r"PARACHUTE refused"  # a notice; the dialog itself may say a late send "will be refused"
     for _ in range(attempts):
         terminal.wait_for_absence(refusal)
         terminal.keys("c")

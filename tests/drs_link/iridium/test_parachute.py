@@ -12,7 +12,7 @@ from drs_link.iridium.commands import apply_mt
 from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.mo import parse_payload
 from drs_link.iridium.mt import MtComposer
-from drs_link.iridium.parachute import ParachuteRefused, plan_parachute
+from drs_link.iridium.parachute import OPERATOR_MARGIN, ParachuteRefused, plan_parachute
 from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
 from drs_link.store import Store
 
@@ -71,6 +71,19 @@ def test_send_too_late_for_the_next_session_targets_the_cycle_after(tmp_path: Pa
     plan = plan_parachute(reports, now=last + timedelta(minutes=29, seconds=50), commands=())
     assert plan.cycles[0].offset == 2
     assert any("INTERVAL is 30 min" in w for w in plan.warnings)
+
+
+def test_a_plan_never_leaves_the_operator_less_than_the_margin_to_queue_it(tmp_path: Path) -> None:
+    """#23: the helper offered "queue before … 5 s left"; such a cycle moves to the next one."""
+    last = datetime(2026, 7, 1, 14, 2, 40, tzinfo=UTC)
+    reports = history(tmp_path, last, 2, [30, 45, 38, 52, 40])
+    first = plan_parachute(reports, now=last + timedelta(seconds=5), commands=())
+    for left_s in (60, 44, 20, 5, 1):
+        now = first.queue_by - timedelta(seconds=left_s)
+        plan = plan_parachute(reports, now=now, commands=())
+        assert plan.queue_by - now >= OPERATOR_MARGIN, left_s
+        moved = left_s < OPERATOR_MARGIN.total_seconds()
+        assert (plan.queue_by > first.queue_by) == moved, left_s
 
 
 def test_every_interval_gives_an_hhmm_the_firmware_accepts_at_the_downloading_fix() -> None:
