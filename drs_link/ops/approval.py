@@ -328,7 +328,12 @@ class ApprovalBook:
             )
         if not request.requester.same_person(login):
             raise RefusedError(f"approval #{approval_id} was requested by {request.requester}, not by {login}")
-        if request.command is not None and command is not None and request.command != command:
+        if request.command is None:  # a request from before the binding: it could fire any window
+            raise RefusedError(
+                f"approval #{approval_id} is bound to no command (asked for before approvals were bound to "
+                "one action); ask for a new one"
+            )
+        if command is not None and request.command != command:
             raise RefusedError(f"approval #{approval_id} was given for {request.command}, not {command}")
         if request.capsule_state is not None and capsule_state is not None and request.capsule_state != capsule_state:
             self.void_capsule(capsule, f"capsule state changed: {request.capsule_state} → {capsule_state}", "drs")

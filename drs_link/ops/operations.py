@@ -35,7 +35,7 @@ from drs_link.link import CapsuleLink, HostKeyError, Syncer, read_storage
 from drs_link.link.backends import AuthorityStatus, build_backend
 from drs_link.ops.approval import Approval, ApprovalBook, Login, approved, current_login, window_command
 from drs_link.ops.arming import ArmingController, ArmStatus, check_second_operator
-from drs_link.ops.authorize import authorize_mt, hazard_of
+from drs_link.ops.authorize import approval_command, authorize_mt, hazard_of
 from drs_link.ops.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
 from drs_link.ops.checklist import PROCEDURE_DIR, Step, complete_command, load_checklists
 from drs_link.ops.fleet import CapsuleTelemetry, FleetState
@@ -417,6 +417,7 @@ class Operations:
             detail = {"state": ReleaseState.GO_SENT.value}
             self.store.append_audit(self.operator, name, "go", "finishing", detail, when=self.clock())
             record = ops.machine.go(ops.machine.confirm(typed_name))
+            ops.arming.finished()
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
         return self._emit([self._release_record(name, record)])
@@ -546,9 +547,10 @@ class Operations:
         if second.await_approval:
             if hazard_of(message) is None:
                 raise RefusedError(f"{name}: {message.text} needs no second operator: nothing to approve")
+            bound = approval_command(message, override_landed)
             approval = approved(
-                self.approvals, name, "parachute", message.text, self.operator, self.login,
-                second.on_pending or (lambda request: None), command=message.text, deadline=queue_by,
+                self.approvals, name, "parachute", bound, self.operator, self.login,
+                second.on_pending or (lambda request: None), command=bound, deadline=queue_by,
             )  # fmt: skip
         authorised = authorize_mt(
             self.store, name, self.operator, message, reports, second_operator=second.name,

@@ -73,7 +73,7 @@ def test_the_requesting_login_cannot_approve_its_own_request(book: ApprovalBook)
 
 
 def test_an_approval_is_spent_once_by_its_requester_on_its_command(book: ApprovalBook) -> None:
-    request = book.request("DRS1", "go", "release DRS1", "alice", ALICE_A)
+    request = book.request("DRS1", "go", "release DRS1", "alice", ALICE_A, command="ARM window #1")
     approved = book.decide(request.id, "bob", ALICE_B, approve=True, reason="checked the go/no-go")
     assert approved.state == "approved" and approved.decider == ALICE_B
     with pytest.raises(RefusedError, match="was given for DRS1 Go"):
@@ -96,7 +96,8 @@ def test_a_request_and_an_approval_expire(book: ApprovalBook) -> None:
     assert book.open_requests() == []
     with pytest.raises(RefusedError, match=r"it is pending, expired .*, not pending"):
         book.decide(late.id, "bob", ALICE_B, approve=True)
-    unused = book.request("DRS1", "parachute", "[PARACHUTE=01:21]", "alice", ALICE_A, ttl_s=60.0)
+    unused = book.request("DRS1", "parachute", "[PARACHUTE=01:21]", "alice", ALICE_A, ttl_s=60.0,
+                          command="[PARACHUTE=01:21]")
     book.decide(unused.id, "bob", ALICE_B, approve=True)
     clock.advance(61.0)
     with pytest.raises(RefusedError, match=r"is approved, expired"):
@@ -129,7 +130,7 @@ def test_parachute_with_an_approval_from_another_login_is_audited_with_both(tmp_
     reports = ReportStore(store).for_imei(IMEI)
     book = ApprovalBook(store)
     message = MtComposer().add("PARACHUTE", (1, 19)).build()
-    request = book.request("DRS1", "parachute", message.text, "alice", ALICE_A)
+    request = book.request("DRS1", "parachute", message.text, "alice", ALICE_A, command=message.text)
     with pytest.raises(RefusedError, match="not approved"):
         authorize_mt(store, "DRS1", "alice", message, reports, approval=request.id, login=ALICE_A)
     book.decide(request.id, "bob", ALICE_B, approve=True)
