@@ -410,10 +410,11 @@ class Operations:
         refused in every state but ``go-sent-unverified``, which only a FIRE under every rule reaches."""
         ops = self.ops(name)
         with ops.lock:
-            if ops.machine.record().state is not ReleaseState.GO_SENT:
-                raise RefusedError(
-                    f"{name}: finish refused: only an unverified Go (go-sent-unverified) is finished"
-                )
+            state = ops.machine.record().state
+            if state is not ReleaseState.GO_SENT:
+                why = f"only an unverified Go (go-sent-unverified) is finished; {name} is {state.value}"
+                self.store.append_audit(self.operator, name, "go", "refused", {"reason": why}, when=self.clock())
+                raise RefusedError(f"{name}: finish refused: {why}")
             detail = {"state": ReleaseState.GO_SENT.value}
             self.store.append_audit(self.operator, name, "go", "finishing", detail, when=self.clock())
             record = ops.machine.go(ops.machine.confirm(typed_name))

@@ -19,13 +19,13 @@ from drs_link.errors import RefusedError
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
 from drs_link.ops.approval import ApprovalBook, Login, current_login, key_fingerprint
-from drs_link.ops.authorize import authorize_mt
+from drs_link.ops.authorize import approval_command, authorize_mt
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
 from tests.clock import ManualClock
 from tests.drs_link.iridium.helpers import IMEI
 from tests.drs_link.iridium.test_cli import run, write_config
-from tests.drs_link.iridium.test_parachute_gate import audit_of, landed, recent, seed
+from tests.drs_link.iridium.test_parachute_gate import audit_of, falling, landed, recent, seed
 
 ALICE_A = Login("ops", "SHA256:keyA")
 ALICE_B = Login("ops", "SHA256:keyB")
@@ -228,3 +228,25 @@ def test_an_approval_is_void_once_the_capsules_state_changed_and_its_requester_m
         book.decide(second.id, "bob", ALICE_B, approve=True)
     states = [(a.action, a.result) for a in book.store.audit("DRS1")]
     assert ("approval.void", "void") in states and ("approval.cancelled", "cancelled") in states
+
+
+def test_an_approval_of_the_parachute_text_never_stands_for_an_in_flight_override(tmp_path: Path) -> None:
+    """The approver saw "[PARACHUTE=…]", not that the landed gate would be overridden: the override and its
+    reason are part of what is approved, so the approval of the text alone cannot drop it in flight."""
+    store = seed(tmp_path, falling(recent(10.5)))
+    reports = ReportStore(store).for_imei(IMEI)
+    book = ApprovalBook(store)
+    message = MtComposer().add("PARACHUTE", (1, 19)).build()
+    plain = book.request("DRS1", "parachute", message.text, "alice", ALICE_A, command=message.text)
+    book.decide(plain.id, "bob", ALICE_B, approve=True)
+    override = "the chase team sees it on the ground"
+    with pytest.raises(RefusedError, match=r"was given for \[PARACHUTE=01:19\], not .*OVERRIDE of the landed gate"):
+        authorize_mt(store, "DRS1", "alice", message, reports, approval=plain.id, login=ALICE_A,
+                     override_landed=override)  # fmt: skip
+    bound = approval_command(message, override)
+    told = book.request("DRS1", "parachute", bound, "alice", ALICE_A, command=bound)
+    assert "OVERRIDE of the landed gate: the chase team" in told.describe(utc_now()), "what the approver reads"
+    book.decide(told.id, "bob", ALICE_B, approve=True)
+    people = authorize_mt(store, "DRS1", "alice", message, reports, approval=told.id, login=ALICE_A,
+                          override_landed=override)  # fmt: skip
+    assert people["override_landed"] == override and people["approval"] == str(told.id)
