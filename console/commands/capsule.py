@@ -11,14 +11,13 @@ import json
 import sys
 from pathlib import Path
 
-from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
+from rich.progress import BarColumn, DownloadColumn, Progress, TaskID, TextColumn, TransferSpeedColumn
 
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.link import (
     CapsuleLink,
     HostKeyError,
-    Syncer,
     enrol_host_key,
     fingerprint,
     known_hosts_name,
@@ -510,49 +509,34 @@ def cmd_enrol(args: argparse.Namespace) -> int:
 
 
 def cmd_sync(args: argparse.Namespace) -> int:
-    config, capsule, store = _context(args)
-    link = CapsuleLink(capsule)
-    syncer = Syncer(store, link, capsule.name, capsule.storage_mount, capsule.raid_device)
+    """``Operations.sync`` (the console's Sync key: the same upload, verification and audit), with bars."""
+    ops = _operations(args, need_operator=False)
     try:
         if args.status:
-            status = syncer.status(args.source, with_hash=args.hash)
+            status = ops.sync_status(args.name, args.source, with_hash=args.hash)
             if args.json:
                 print(json.dumps(status.as_dict(), indent=2, sort_keys=True))
             else:
                 print(
-                    f"{capsule.name}: {len(status.up_to_date)} up to date, {len(status.missing)} missing, "
+                    f"{args.name}: {len(status.up_to_date)} up to date, {len(status.missing)} missing, "
                     f"{len(status.changed)} changed, {status.bytes_pending} bytes pending"
                 )
             return 0 if not (status.missing or status.changed) else 1
-        return _run_sync(syncer, args.source, store, config.operator.name or "unknown")
+        with Progress(
+            TextColumn("{task.description}"), BarColumn(), DownloadColumn(), TransferSpeedColumn(), transient=True
+        ) as progress:
+            tasks: dict[str, TaskID] = {}
+
+            def on_progress(relative: str, done: int, total: int) -> None:
+                if relative not in tasks:
+                    tasks[relative] = progress.add_task(relative, total=total)
+                progress.update(tasks[relative], completed=done)
+
+            report = ops.sync(args.name, args.source, on_progress)
     finally:
-        link.close()
-
-
-def _run_sync(syncer: Syncer, source: Path, store: Store, operator: str) -> int:
-    def verified(relative: str) -> None:
-        store.append_audit(operator, syncer.capsule, "sync-file", "verified", {"path": relative})
-
-    with Progress(
-        TextColumn("{task.description}"), BarColumn(), DownloadColumn(), TransferSpeedColumn(), transient=True
-    ) as progress:
-        tasks: dict[str, int] = {}
-
-        def on_progress(relative: str, done: int, total: int) -> None:
-            if relative not in tasks:
-                tasks[relative] = progress.add_task(relative, total=total)
-            progress.update(tasks[relative], completed=done)
-
-        try:
-            report = syncer.sync(source, on_progress=on_progress, on_verified=verified)
-        except LinkError as exc:
-            store.append_audit(operator, syncer.capsule, "sync", "failed", {"error": str(exc)})
-            raise
-    store.append_audit(
-        operator, syncer.capsule, "sync", "ok", {"uploaded": len(report.uploaded), "bytes": report.bytes_sent}
-    )
+        ops.close()
     print(
-        f"{syncer.capsule}: {len(report.uploaded)} files uploaded and verified by sha256 on the Pi, "
+        f"{args.name}: {len(report.uploaded)} files uploaded and verified by sha256 on the Pi, "
         f"{len(report.skipped)} already up to date, {report.bytes_sent} bytes sent"
     )
     return 0

@@ -31,7 +31,7 @@ from drs_link.iridium import (
     StoredReport,
     interval_track,
 )
-from drs_link.link import CapsuleLink, HostKeyError, Syncer, read_storage
+from drs_link.link import CapsuleLink, HostKeyError, Syncer, SyncReport, SyncStatus, read_storage
 from drs_link.link.backends import AuthorityStatus, build_backend
 from drs_link.ops.approval import Approval, ApprovalBook, Login, approved, current_login, window_command
 from drs_link.ops.arming import ArmingController, ArmStatus, check_second_operator
@@ -58,6 +58,8 @@ from predictor.prediction import ZoneFileError, load_zones
 
 Predict = Callable[[str, ReleaseOrigin], list[TelemetryRecord]]
 """A landing prediction "release now" from an origin, as telemetry (the console's ``PredictionService``)."""
+SyncProgress = Callable[[str, int, int], None]
+"""Told (file, bytes done, bytes in it) while a sync uploads, for a progress bar."""
 OnPending = Callable[[Approval], None]
 """Told which approval request waits, so the operator can have it approved."""
 
@@ -313,13 +315,37 @@ class Operations:
                 out.append(TelemetryRecord(self.clock(), name, LinkSample(False, str(exc))))
             return self._emit(out)
 
-    def sync(self, name: str) -> list[TelemetryRecord]:
-        ops = self.ops(name)
-        if ops.config.sync_source is None:
+    def _sync_source(self, name: str, source: Path | None) -> Path:
+        chosen = source if source is not None else self.ops(name).config.sync_source
+        if chosen is None:
             raise ConfigError(f"capsule {name}: sync_source is not configured")
+        return chosen
+
+    def sync(self, name: str, source: Path | None = None, on_progress: SyncProgress | None = None) -> SyncReport:
+        """Upload ``source`` (default: the capsule's ``sync_source``) to its storage, each file verified by
+        sha256 on the Pi; every verified file, the outcome and a failure are audited, whichever face asked."""
+        ops = self.ops(name)
+        chosen = self._sync_source(name, source)
+
+        def verified(relative: str) -> None:
+            self.store.append_audit(self.operator, name, "sync-file", "verified", {"path": relative}, when=self.clock())
+
         with ops.lock:
-            ops.syncer.sync(ops.config.sync_source)
-        return self.poll(name)
+            try:
+                report = ops.syncer.sync(chosen, on_progress=on_progress, on_verified=verified)
+            except LinkError as exc:
+                self.store.append_audit(self.operator, name, "sync", "failed", {"error": str(exc)}, when=self.clock())
+                raise
+        detail = {"uploaded": len(report.uploaded), "bytes": report.bytes_sent}
+        self.store.append_audit(self.operator, name, "sync", "ok", detail, when=self.clock())
+        return report
+
+    def sync_status(self, name: str, source: Path | None = None, with_hash: bool = False) -> SyncStatus:
+        """What a sync of ``source`` would upload (missing or changed files), read-only."""
+        ops = self.ops(name)
+        chosen = self._sync_source(name, source)
+        with ops.lock:
+            return ops.syncer.status(chosen, with_hash=with_hash)
 
     def power_on(self, name: str, confirmed: bool = True) -> list[TelemetryRecord]:
         """Confirmed by the operator before this is called (the relay cannot be switched off by software);
