@@ -34,10 +34,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run_approve(args: argparse.Namespace) -> int:
     from drs_link.config import load_config
     from drs_link.ops import current_login
-    from drs_link.store import Store, utc_now
 
     config = load_config(args.config)
-    book = ApprovalBook(Store.open(config.store_path))
+    book = ApprovalBook.open(config.store_path)
     if args.approval_id is None:
         requests = book.open_requests()
         for request in requests:
@@ -47,7 +46,7 @@ def run_approve(args: argparse.Namespace) -> int:
                                   "login": str(request.requester), "command": request.command,
                                   "expires_utc": request.expires_utc.isoformat()}))  # fmt: skip
             else:
-                print(request.describe(utc_now()))
+                print(request.describe(book.clock()))
         if not requests and not args.json:
             print("nothing waits for approval")
         return 0
@@ -56,5 +55,5 @@ def run_approve(args: argparse.Namespace) -> int:
     if args.reject and not args.reason.strip():
         raise UsageError("--reject needs --reason: the requester is told why")
     decided = book.decide(args.approval_id, config.operator.name, current_login(), not args.reject, args.reason)
-    print(decided.describe(utc_now()))
+    print(decided.describe(book.clock()))
     return 0

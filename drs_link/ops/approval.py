@@ -179,6 +179,11 @@ class ApprovalBook:
                 for name, kind in missing:
                     conn.execute(f"ALTER TABLE approval ADD COLUMN {name} {kind}")
 
+    @classmethod
+    def open(cls, store_path: Path) -> ApprovalBook:
+        """The requests in the store at ``store_path`` (``drs approve``, from the approver's own login)."""
+        return cls(Store.open(store_path))
+
     def request(
         self, capsule: str, action: str, summary: str, operator: str, login: Login, ttl_s: float = APPROVAL_TTL_S,
         *, command: str | None = None, window_id: int | None = None, deadline: datetime | None = None,

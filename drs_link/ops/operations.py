@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from shapely import Polygon
 
@@ -31,12 +32,23 @@ from drs_link.iridium import (
     StoredReport,
     interval_track,
 )
-from drs_link.link import CapsuleLink, HostKeyError, Syncer, SyncReport, SyncStatus, read_storage
+from drs_link.link import (
+    CapsuleLink,
+    HostKeyError,
+    Syncer,
+    SyncReport,
+    SyncStatus,
+    enrol_host_key,
+    fingerprint,
+    known_hosts_name,
+    read_storage,
+    scan_host_key,
+)
 from drs_link.link.backends import AuthorityStatus, build_backend
 from drs_link.ops.approval import Approval, ApprovalBook, Login, approved, current_login, window_command
 from drs_link.ops.arming import ArmingController, ArmStatus, check_second_operator
 from drs_link.ops.authorize import approval_command, authorize_mt, hazard_of
-from drs_link.ops.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
+from drs_link.ops.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine, record_as_dict
 from drs_link.ops.checklist import PROCEDURE_DIR, Step, complete_command, load_checklists
 from drs_link.ops.fleet import CapsuleTelemetry, FleetState
 from drs_link.ops.gonogo import ExclusionZone, GoNoGoReport, Waiver, WaiverBook, evaluate
@@ -55,6 +67,9 @@ from drs_link.ops.telemetry import (
 )
 from drs_link.store import Store, iso_utc, utc_now
 from predictor.prediction import ZoneFileError, load_zones
+
+if TYPE_CHECKING:
+    import paramiko
 
 Predict = Callable[[str, ReleaseOrigin], list[TelemetryRecord]]
 """A landing prediction "release now" from an origin, as telemetry (the console's ``PredictionService``)."""
@@ -79,6 +94,18 @@ def cli_holder() -> str:
     """Who holds an ARM window opened by ``drs capsule arm``: the OS account on this host, so that the
     ``drs capsule go`` that follows (another process) may FIRE in it, and no console or other account may."""
     return f"{pwd.getpwuid(os.geteuid()).pw_name}@{socket.gethostname()} drs"
+
+
+@dataclass(frozen=True)
+class HostKeyOffer:
+    """The host key a capsule's Pi offers, for the operator to compare with the one read on the Pi."""
+
+    address: str
+    """As known_hosts names it (``[host]:port``)."""
+    key_type: str
+    fingerprint: str
+    key: paramiko.PKey
+    """The key itself (paramiko's), saved as it was offered once the operator confirms it."""
 
 
 @dataclass(frozen=True)
@@ -236,6 +263,11 @@ class Operations:
                 capsule, link, machine, arming, WaiverBook(store, capsule.name, clock),
                 Syncer(store, link, capsule.name, capsule.storage_mount, capsule.raid_device), threading.Lock(),
             )  # fmt: skip
+
+    @classmethod
+    def open(cls, config: Config, holder: str | None = None) -> Operations:
+        """The engine of one ``drs`` command: the configured store, nothing polled yet."""
+        return cls(config, Store.open(config.store_path), holder=holder)
 
     @property
     def login(self) -> Login:
@@ -486,6 +518,68 @@ class Operations:
                 return ops.machine.take_over(seen, typed_name, reason)
             finally:
                 ops.link.close()
+
+    def capsule_status(self, name: str) -> tuple[dict[str, object], bool]:
+        """``drs capsule status``: the release record, storage, microcontroller and GNSS as one report
+        (read-only), and whether the link was up. A refused host key is raised, never reported as down."""
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.machine.record()
+            report: dict[str, object] = {"release": record_as_dict(record)}
+            if record.state is ReleaseState.RELEASED:
+                report["link"] = {"up": False, "note": "released: the Pi shut itself down"}
+                return report, False
+            try:
+                ops.link.connect()
+                report["link"] = {"up": True}
+                report["storage"] = read_storage(ops.link, ops.config.storage_mount, ops.config.raid_device).as_dict()
+                if record.state is ReleaseState.POWERED:
+                    mcu = ops.machine.check_microcontroller()
+                    report["microcontroller"] = {"waiting_for_go": mcu.waiting_for_go, "diagnosis": mcu.diagnosis}
+                    report["gnss"] = mcu.gnss.as_dict()
+            except HostKeyError:
+                raise
+            except LinkError as exc:
+                report["link"] = {"up": False, "error": str(exc)}
+                return report, False
+            finally:
+                ops.link.close()
+        return report, True
+
+    def release_authority(self, name: str, reason: str) -> AuthorityStatus:
+        """Give up this console's release authority on the Pi (end of a shift); what was given up."""
+        ops = self.ops(name)
+        with ops.lock:
+            try:
+                return ops.machine.release_authority(reason)
+            finally:
+                ops.link.close()
+
+    def record_released(self, name: str, typed_name: str, evidence: str) -> ReleaseRecord:
+        """Settle an unverified Go as released on the operator's evidence; the checklist's Go step too."""
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.machine.record_released(typed_name, evidence)
+            self._command_done(name, "fire", record.note or "released")
+        self.approvals.void_capsule(name, "capsule state changed: released", self.operator)
+        return record
+
+    def host_key_offer(self, name: str) -> HostKeyOffer:
+        """The host key the Pi offers now (``drs capsule enrol``), before anything is trusted."""
+        capsule = self.ops(name).config
+        if capsule.jump_host:
+            raise LinkError(f"{capsule.name}: enrol through a jump host is not supported; add the key by hand")
+        key = scan_host_key(capsule.host, capsule.port, capsule.connect_timeout_s)
+        return HostKeyOffer(known_hosts_name(capsule.host, capsule.port), key.get_name(), fingerprint(key), key)
+
+    def enrol(self, name: str, offer: HostKeyOffer, read_on_pi: str) -> Path:
+        """Trust ``offer`` only if it is the fingerprint the operator read on the Pi itself; audited."""
+        capsule = self.ops(name).config
+        if read_on_pi != offer.fingerprint:
+            raise RefusedError(f"{capsule.name}: enrol refused: the Pi offers {offer.fingerprint}, not {read_on_pi}")
+        self.store.append_audit(self.operator, capsule.name, "enrol", "ok", {"fingerprint": offer.fingerprint})
+        enrol_host_key(capsule.known_hosts, capsule.host, capsule.port, offer.key)
+        return capsule.known_hosts
 
     def release_state(self, name: str) -> ReleaseState:
         return self.ops(name).machine.record().state
