@@ -27,10 +27,13 @@ from drs_link.iridium import (
     CommandLifecycle,
     LandedVerdicts,
     MtMessage,
+    ParachutePlan,
     ReportStore,
     RockblockGateway,
     StoredReport,
     interval_track,
+    landed_evidence,
+    plan_parachute,
 )
 from drs_link.link import (
     CapsuleLink,
@@ -638,6 +641,30 @@ class Operations:
     def stored_reports(self, name: str) -> list[StoredReport]:
         imei = self.ops(name).config.imei
         return self.reports.for_imei(imei) if imei else []
+
+    def reports_of(self, name: str) -> list[StoredReport]:
+        """The capsule's Iridium reports in time order; refused when it has no IMEI to key them by."""
+        imei = self.ops(name).config.imei
+        if not imei:
+            raise ConfigError(f"capsule {name}: imei is not configured; reports and commands are keyed by IMEI")
+        return self.reports.for_imei(imei)
+
+    def mt_status(self, name: str) -> list[Command]:
+        """The capsule's MTs after the reports moved them on (delivered, applied), oldest first."""
+        reports = self.reports_of(name)
+        imei = self.ops(name).config.imei or ""
+        self.lifecycle.observe(reports, imei)
+        return self.lifecycle.for_imei(imei)
+
+    def plan_parachute(self, name: str, requested: tuple[int, int] | None, accept_midnight: bool) -> ParachutePlan:
+        """When a PARACHUTE can fire (``requested`` HH:MM, or the next cycle): the reports, the MTs already
+        queued and the queue-before deadline that ``send_mt`` re-checks at submit."""
+        commands = self.mt_status(name)
+        return plan_parachute(self.reports_of(name), self.clock(), commands, requested, accept_midnight)
+
+    def landed_summary(self, name: str) -> str:
+        """The landed evidence the PARACHUTE gate will judge, in its words, for the operator to read first."""
+        return landed_evidence(self.reports_of(name)).summary
 
     def commands(self, name: str) -> list[Command]:
         imei = self.ops(name).config.imei
