@@ -183,6 +183,7 @@ def _compose(args: argparse.Namespace, ops: Operations) -> tuple[MtMessage, date
             composer.add(command.name, command.from_option(given))
             continue
         requested = None if given == "next" else parse_hhmm(given)
+        ops.mt_status(args.name)  # the reports move the MTs on first, as the console's report poll does
         plan = ops.plan_parachute(args.name, requested, args.accept_midnight)
         print(f"window: {plan.window_text()}")
         for warning in plan.warnings:
@@ -203,7 +204,7 @@ def _mt_send(args: argparse.Namespace) -> int:
         print(f"warning: {FLUSH_WARNING}")
     hazardous = hazard_of(message) is not None
     if hazardous:
-        print(f"landed: {ops.landed_summary(args.name)}")
+        print(f"landed: {ops.landed(args.name).summary}")
     if args.dry_run:
         print("dry run: nothing sent")
         return 0

@@ -14,6 +14,10 @@ __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
         "ACTIONS": "approval",
+        "by_name": "face_types",
+        "MtCommand": "face_types",
+        "LandedEvidence": "face_types",
+        "Hazard": "face_types",
         "CATALOGUE": "face_types",
         "FLUSH_WARNING": "face_types",
         "LISTED": "face_types",

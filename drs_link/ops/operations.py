@@ -25,6 +25,7 @@ from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.iridium import (
     Command,
     CommandLifecycle,
+    LandedEvidence,
     LandedVerdicts,
     MtMessage,
     ParachutePlan,
@@ -656,15 +657,16 @@ class Operations:
         self.lifecycle.observe(reports, imei)
         return self.lifecycle.for_imei(imei)
 
-    def plan_parachute(self, name: str, requested: tuple[int, int] | None, accept_midnight: bool) -> ParachutePlan:
-        """When a PARACHUTE can fire (``requested`` HH:MM, or the next cycle): the reports, the MTs already
-        queued and the queue-before deadline that ``send_mt`` re-checks at submit."""
-        commands = self.mt_status(name)
-        return plan_parachute(self.reports_of(name), self.clock(), commands, requested, accept_midnight)
+    def plan_parachute(
+        self, name: str, requested: tuple[int, int] | None, accept_midnight: bool = False
+    ) -> ParachutePlan:
+        """When a PARACHUTE can fire (``requested`` HH:MM, or the next cycle): the reports, the MTs known
+        (read-only: ``mt_status`` moves them on first) and the queue-before deadline ``send_mt`` re-checks."""
+        return plan_parachute(self.reports_of(name), self.clock(), self.commands(name), requested, accept_midnight)
 
-    def landed_summary(self, name: str) -> str:
-        """The landed evidence the PARACHUTE gate will judge, in its words, for the operator to read first."""
-        return landed_evidence(self.reports_of(name)).summary
+    def landed(self, name: str) -> LandedEvidence:
+        """The landed evidence the PARACHUTE gate will judge, for the operator to read before sending."""
+        return landed_evidence(self.reports_of(name))
 
     def commands(self, name: str) -> list[Command]:
         imei = self.ops(name).config.imei
