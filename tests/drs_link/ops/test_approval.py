@@ -250,3 +250,17 @@ def test_an_approval_of_the_parachute_text_never_stands_for_an_in_flight_overrid
     people = authorize_mt(store, "DRS1", "alice", message, reports, approval=told.id, login=ALICE_A,
                           override_landed=override)  # fmt: skip
     assert people["override_landed"] == override and people["approval"] == str(told.id)
+
+
+def test_an_approval_for_one_parachute_time_never_sends_another(tmp_path: Path) -> None:
+    store = seed(tmp_path, landed(recent(10.5)))
+    reports = ReportStore(store).for_imei(IMEI)
+    book = ApprovalBook(store)
+    approved_text = MtComposer().add("PARACHUTE", (1, 19)).build()
+    request = book.request("DRS1", "parachute", approved_text.text, "alice", ALICE_A, command=approved_text.text)
+    book.decide(request.id, "bob", ALICE_B, approve=True)
+    other = MtComposer().add("PARACHUTE", (1, 21)).build()
+    with pytest.raises(RefusedError, match=r"was given for \[PARACHUTE=01:19\], not \[PARACHUTE=01:21\]"):
+        authorize_mt(store, "DRS1", "alice", other, reports, approval=request.id, login=ALICE_A)
+    assert book.get(request.id).state == "approved", "still only good for 01:19"
+    assert audit_of(store, "mt.parachute")[-1]["result"] == "refused"
