@@ -34,10 +34,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run_approve(args: argparse.Namespace) -> int:
     from drs_link.config import load_config
     from drs_link.ops import current_login
-    from drs_link.store import Store
 
     config = load_config(args.config)
-    book = ApprovalBook(Store.open(config.store_path))
+    book = ApprovalBook.open(config.store_path)
     if args.approval_id is None:
         requests = book.open_requests()
         for request in requests:

@@ -11,42 +11,24 @@ import json
 import sys
 from pathlib import Path
 
-from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
+from rich.progress import BarColumn, DownloadColumn, Progress, TaskID, TextColumn, TransferSpeedColumn
 
-from drs_link.config import CapsuleConfig, Config, load_config
-from drs_link.errors import ConfigError, LinkError, RefusedError
-from drs_link.link import (
-    CapsuleLink,
-    HostKeyError,
-    Syncer,
-    enrol_host_key,
-    fingerprint,
-    known_hosts_name,
-    read_storage,
-    scan_host_key,
-)
-from drs_link.link.backends import build_backend
+from drs_link.config import load_config
+from drs_link.errors import ConfigError, RefusedError
 from drs_link.ops import (
-    PROCEDURE_DIR,
     WAIVABLE,
-    Checklist,
     GoNoGoReport,
     Operations,
     Predict,
     ReleaseSample,
     ReleaseState,
-    ReleaseStateMachine,
     SecondOperator,
     TelemetryRecord,
     cli_holder,
-    complete_command,
-    load_checklists,
     pending_text,
-    record_as_dict,
     take_over_outcome,
 )
 from drs_link.sim import capsule_bench
-from drs_link.store import Store
 from predictor.errors import UsageError
 
 EXIT_MICROCONTROLLER_SILENT = 3
@@ -232,49 +214,18 @@ def cmd_disarm(args: argparse.Namespace) -> int:
     return 0
 
 
-def _context(args: argparse.Namespace) -> tuple[Config, CapsuleConfig, Store]:
-    config = load_config(args.config)
-    capsule = config.capsule(args.name)
-    return config, capsule, Store.open(config.store_path)
-
-
-def _machine(args: argparse.Namespace, need_operator: bool) -> tuple[ReleaseStateMachine, CapsuleLink]:
-    config, capsule, store = _context(args)
-    if need_operator and not config.operator.name:
-        raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
-    link = CapsuleLink(capsule)
-    return ReleaseStateMachine(store, capsule, build_backend(capsule, link), config.operator.name), link
-
-
 def cmd_status(args: argparse.Namespace) -> int:
-    machine, link = _machine(args, need_operator=False)
-    record = machine.record()
-    report: dict[str, object] = {"release": record_as_dict(record)}
-    exit_code = 0
-    if record.state is ReleaseState.RELEASED:
-        report["link"] = {"up": False, "note": "released: the Pi shut itself down"}
-    else:
-        try:
-            link.connect()
-            report["link"] = {"up": True}
-            storage = read_storage(link, machine.capsule.storage_mount, machine.capsule.raid_device)
-            report["storage"] = storage.as_dict()
-            if record.state is ReleaseState.POWERED:
-                mcu = machine.check_microcontroller()
-                report["microcontroller"] = {"waiting_for_go": mcu.waiting_for_go, "diagnosis": mcu.diagnosis}
-                report["gnss"] = mcu.gnss.as_dict()
-        except HostKeyError:
-            raise
-        except LinkError as exc:
-            report["link"] = {"up": False, "error": str(exc)}
-            exit_code = EXIT_LINK_DOWN
-        finally:
-            link.close()
+    ops = _operations(args, need_operator=False)
+    try:
+        report, up = ops.capsule_status(args.name)
+    finally:
+        ops.close()
+    released = ops.release_state(args.name) is ReleaseState.RELEASED
     if args.json:
         print(json.dumps(report, indent=2, sort_keys=True))
     else:
-        _print_status(machine.name, report)
-    return exit_code
+        _print_status(args.name, report)
+    return 0 if up or released else EXIT_LINK_DOWN
 
 
 def _print_status(name: str, report: dict[str, object]) -> None:
@@ -313,18 +264,13 @@ def _print_status(name: str, report: dict[str, object]) -> None:
             print(f"  GNSS warning: {gnss['date_problem']}")
 
 
-def _command_done(machine: ReleaseStateMachine, checklists: list[Checklist], command: str, result: str) -> None:
-    """The checklist step a release command completes: the console's rule (``Operations``), here too."""
-    complete_command(machine.store, checklists, machine.name, command, machine.operator, result, {})
-
-
 def _operations(args: argparse.Namespace, need_operator: bool) -> Operations:
     """The console's engine for one command (a broken procedure file refuses here, before anything moves)."""
     config = load_config(args.config)
     config.capsule(args.name)
     if need_operator and not config.operator.name:
         raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
-    return Operations(config, Store.open(config.store_path), holder=cli_holder())
+    return Operations.open(config, holder=cli_holder())
 
 
 def cmd_power_on(args: argparse.Namespace) -> int:
@@ -410,18 +356,19 @@ def cmd_authority(args: argparse.Namespace) -> int:
         raise UsageError(f"{args.name}: authority: --await-approval is for --take-over")
     if args.take_over:
         return _take_over(args)
-    machine, link = _machine(args, need_operator=args.release)
+    ops = _operations(args, need_operator=args.release)
+    machine = ops.ops(args.name).machine
     try:
         if args.release:
-            given_up = machine.release_authority(args.reason)
+            given_up = ops.release_authority(args.name, args.reason)
             if given_up.holder is None:
                 print(f"{machine.name}: this console held no release authority: it is free")
             else:
                 print(f"{machine.name}: release authority given up; it was {given_up.describe()}")
             return 0
-        seen = machine.authority()
+        seen = ops.authority(args.name)
     finally:
-        link.close()
+        ops.close()
     mine = " (this console)" if seen.holder == machine.holder else ""
     print(f"{machine.name}: release authority {seen.describe()}{mine}")
     return 0
@@ -466,11 +413,12 @@ def _take_over(args: argparse.Namespace) -> int:
 
 
 def cmd_released(args: argparse.Namespace) -> int:
-    machine, _ = _machine(args, need_operator=False)
-    checklists = load_checklists(PROCEDURE_DIR)
-    record = machine.record_released(args.confirm, args.evidence)
-    _command_done(machine, checklists, "fire", record.note or "released")
-    print(f"{machine.name}: {record.note}")
+    ops = _operations(args, need_operator=False)
+    try:
+        record = ops.record_released(args.name, args.confirm, args.evidence)
+    finally:
+        ops.close()
+    print(f"{args.name}: {record.note}")
     return 0
 
 
@@ -486,73 +434,49 @@ def cmd_reset(args: argparse.Namespace) -> int:
 
 
 def cmd_enrol(args: argparse.Namespace) -> int:
-    config, capsule, store = _context(args)
-    if capsule.jump_host:
-        raise LinkError(f"{capsule.name}: enrol through a jump host is not supported; add the key by hand")
-    key = scan_host_key(capsule.host, capsule.port, capsule.connect_timeout_s)
-    offered = fingerprint(key)
-    name = known_hosts_name(capsule.host, capsule.port)
-    print(f"{name} offers {key.get_name()} {offered}")
+    ops = _operations(args, need_operator=False)
+    offer = ops.host_key_offer(args.name)
+    print(f"{offer.address} offers {offer.key_type} {offer.fingerprint}")
     if args.fingerprint is None:
         print(
             "Compare it with `ssh-keygen -lf /etc/ssh/ssh_host_ed25519_key.pub` on the Pi, then re-run with "
-            f"--fingerprint {offered}"
+            f"--fingerprint {offer.fingerprint}"
         )
         return 1
-    if args.fingerprint != offered:
-        raise RefusedError(f"{capsule.name}: enrol refused: the Pi offers {offered}, not {args.fingerprint}")
-    store.append_audit(
-        config.operator.name or "unknown", capsule.name, "enrol", "ok", {"fingerprint": offered}
-    )
-    enrol_host_key(capsule.known_hosts, capsule.host, capsule.port, key)
-    print(f"{capsule.name}: host key saved to {capsule.known_hosts}")
+    saved = ops.enrol(args.name, offer, args.fingerprint)
+    print(f"{args.name}: host key saved to {saved}")
     return 0
 
 
 def cmd_sync(args: argparse.Namespace) -> int:
-    config, capsule, store = _context(args)
-    link = CapsuleLink(capsule)
-    syncer = Syncer(store, link, capsule.name, capsule.storage_mount, capsule.raid_device)
+    """``Operations.sync`` (the console's Sync key: the same upload, verification and audit), with bars."""
+    ops = _operations(args, need_operator=False)
     try:
         if args.status:
-            status = syncer.status(args.source, with_hash=args.hash)
+            status = ops.sync_status(args.name, args.source, with_hash=args.hash)
             if args.json:
                 print(json.dumps(status.as_dict(), indent=2, sort_keys=True))
             else:
                 print(
-                    f"{capsule.name}: {len(status.up_to_date)} up to date, {len(status.missing)} missing, "
+                    f"{args.name}: {len(status.up_to_date)} up to date, {len(status.missing)} missing, "
                     f"{len(status.changed)} changed, {status.bytes_pending} bytes pending"
                 )
             return 0 if not (status.missing or status.changed) else 1
-        return _run_sync(syncer, args.source, store, config.operator.name or "unknown")
+        with Progress(
+            TextColumn("{task.description}"), BarColumn(), DownloadColumn(), TransferSpeedColumn(), transient=True
+        ) as progress:
+            tasks: dict[str, TaskID] = {}
+
+            def on_progress(relative: str, done: int, total: int) -> None:
+                if relative not in tasks:
+                    tasks[relative] = progress.add_task(relative, total=total)
+                progress.update(tasks[relative], completed=done)
+
+            report = ops.sync(args.name, args.source, on_progress)
     finally:
-        link.close()
-
-
-def _run_sync(syncer: Syncer, source: Path, store: Store, operator: str) -> int:
-    def verified(relative: str) -> None:
-        store.append_audit(operator, syncer.capsule, "sync-file", "verified", {"path": relative})
-
-    with Progress(
-        TextColumn("{task.description}"), BarColumn(), DownloadColumn(), TransferSpeedColumn(), transient=True
-    ) as progress:
-        tasks: dict[str, int] = {}
-
-        def on_progress(relative: str, done: int, total: int) -> None:
-            if relative not in tasks:
-                tasks[relative] = progress.add_task(relative, total=total)
-            progress.update(tasks[relative], completed=done)
-
-        try:
-            report = syncer.sync(source, on_progress=on_progress, on_verified=verified)
-        except LinkError as exc:
-            store.append_audit(operator, syncer.capsule, "sync", "failed", {"error": str(exc)})
-            raise
-    store.append_audit(
-        operator, syncer.capsule, "sync", "ok", {"uploaded": len(report.uploaded), "bytes": report.bytes_sent}
-    )
+        ops.close()
     print(
-        f"{syncer.capsule}: {len(report.uploaded)} files uploaded and verified by sha256 on the Pi, "
+        f"{args.name}: {len(report.uploaded)} files uploaded and verified by sha256 on the Pi, "
         f"{len(report.skipped)} already up to date, {report.bytes_sent} bytes sent"
     )
     return 0

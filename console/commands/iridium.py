@@ -21,39 +21,46 @@ from pathlib import Path
 
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
-from drs_link.iridium import (
-    CATALOGUE,
-    FLUSH_WARNING,
-    LISTED,
-    PARACHUTE,
+from drs_link.iridium import (  # the MO receiver and the recovery pipeline: not yet behind Operations (#22)
     LandingEstimate,
     MoHttpServer,
     MoReceiver,
-    MtComposer,
-    MtMessage,
     ReportStore,
-    StoredReport,
     TrackPoint,
     assess,
     detect_landing,
     distance_bearing,
     export_track,
     import_files,
-    landed_evidence,
     parse_hex,
-    parse_hhmm,
     parse_position,
     phone_summary,
-    plan_parachute,
     read_gpsd_position,
     track_from_reports,
     write_gpx,
     write_kml,
 )
 from drs_link.iridium import lifecycle as lc
-from drs_link.ops import Operations, SecondOperator, cli_holder, hazard_of, pending_text
+from drs_link.ops import (
+    CATALOGUE,
+    FLUSH_WARNING,
+    LISTED,
+    PARACHUTE,
+    QUEUED,
+    Command,
+    MtComposer,
+    MtMessage,
+    Operations,
+    SecondOperator,
+    StoredReport,
+    cli_holder,
+    hazard_of,
+    iso_utc,
+    parse_hhmm,
+    pending_text,
+)
 from drs_link.sim import mo_bench
-from drs_link.store import Store, iso_utc, utc_now
+from drs_link.store import Store
 from predictor.errors import UsageError
 from predictor.geofiles import piped
 from predictor.prediction import emit, far_team_warning
@@ -155,19 +162,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     recovery.set_defaults(func=_recovery)
 
 
-def _open(args: argparse.Namespace) -> tuple[Config, Store]:
+def _open(args: argparse.Namespace) -> tuple[Config, Operations]:
     config = load_config(args.config)
-    return config, Store.open(config.store_path)
+    return config, Operations.open(config, holder=cli_holder())
 
 
-def _capsule_reports(config: Config, store: Store, name: str) -> tuple[CapsuleConfig, list[StoredReport]]:
-    capsule = config.capsule(name)
-    if not capsule.imei:
-        raise ConfigError(f"capsule {name}: imei is not configured; reports and commands are keyed by IMEI")
-    return capsule, ReportStore(store).for_imei(capsule.imei)
+def _capsule_reports(ops: Operations, name: str) -> tuple[CapsuleConfig, list[StoredReport]]:
+    return ops.config.capsule(name), ops.reports_of(name)
 
 
-def _compose(args: argparse.Namespace, config: Config, store: Store) -> tuple[MtMessage, datetime | None]:
+def _compose(args: argparse.Namespace, ops: Operations) -> tuple[MtMessage, datetime | None]:
     """The message, and the PARACHUTE plan's queue-before deadline when it carries one."""
     composer = MtComposer(CATALOGUE)
     queue_by = None
@@ -178,13 +182,9 @@ def _compose(args: argparse.Namespace, config: Config, store: Store) -> tuple[Mt
         if command is not PARACHUTE:
             composer.add(command.name, command.from_option(given))
             continue
-        capsule, reports = _capsule_reports(config, store, args.name)
-        life = lc.CommandLifecycle(store, config.operator.name)
-        life.observe(reports, capsule.imei or "")
         requested = None if given == "next" else parse_hhmm(given)
-        plan = plan_parachute(
-            reports, utc_now(), life.for_imei(capsule.imei or ""), requested, args.accept_midnight
-        )
+        ops.mt_status(args.name)  # the reports move the MTs on first, as the console's report poll does
+        plan = ops.plan_parachute(args.name, requested, args.accept_midnight)
         print(f"window: {plan.window_text()}")
         for warning in plan.warnings:
             print(f"warning: {warning}")
@@ -195,16 +195,16 @@ def _compose(args: argparse.Namespace, config: Config, store: Store) -> tuple[Mt
 
 def _mt_send(args: argparse.Namespace) -> int:
     """Compose and show; the gate, the approval, the send and the checklist are ``Operations.send_mt``'s."""
-    config, store = _open(args)
+    config, ops = _open(args)
     capsule = config.capsule(args.name)
-    message, queue_by = _compose(args, config, store)
+    message, queue_by = _compose(args, ops)
     print(f"text: {message.text}")
     print(f"hex:  {message.hex} ({len(message.payload)} bytes)")
     if args.flush:
         print(f"warning: {FLUSH_WARNING}")
     hazardous = hazard_of(message) is not None
     if hazardous:
-        print(f"landed: {landed_evidence(_capsule_reports(config, store, args.name)[1]).summary}")
+        print(f"landed: {ops.landed(args.name).summary}")
     if args.dry_run:
         print("dry run: nothing sent")
         return 0
@@ -218,7 +218,6 @@ def _mt_send(args: argparse.Namespace) -> int:
         args.second_operator, args.single_operator_waiver, args.await_approval,
         lambda request: print(pending_text(request), flush=True),
     )  # fmt: skip
-    ops = Operations(config, store, holder=cli_holder())
     try:
         sent = ops.send_mt(
             capsule.name, message, args.confirm, second, override_landed=args.override_landed,
@@ -232,15 +231,13 @@ def _mt_send(args: argparse.Namespace) -> int:
     print(f"MT {command.id}: {command.state}: {command.detail}")
     for step in sent.steps:
         print(f"checklist: done: {step.text}")
-    return 0 if command.state == lc.QUEUED else 1
+    return 0 if command.state == QUEUED else 1
 
 
 def _mt_status(args: argparse.Namespace) -> int:
-    config, store = _open(args)
-    capsule, reports = _capsule_reports(config, store, args.name)
-    life = lc.CommandLifecycle(store, config.operator.name)
-    life.observe(reports, capsule.imei or "")
-    commands = life.for_imei(capsule.imei or "")
+    _, ops = _open(args)
+    capsule = ops.config.capsule(args.name)
+    commands = ops.mt_status(args.name)
     if args.json:
         listed = [_command_json(command) for command in commands]
         print(json.dumps({"capsule": capsule.name, "imei": capsule.imei, "commands": listed}, indent=2))
@@ -253,7 +250,7 @@ def _mt_status(args: argparse.Namespace) -> int:
     return 0
 
 
-def _command_json(command: lc.Command) -> dict[str, object]:
+def _command_json(command: Command) -> dict[str, object]:
     return {
         "id": command.id, "text": command.text, "state": command.state, "detail": command.detail,
         "operator": command.operator, "flush": command.flush, "requested_utc": iso_utc(command.requested_utc),
@@ -264,11 +261,10 @@ def _command_json(command: lc.Command) -> dict[str, object]:
 
 
 def _mt_resolve(args: argparse.Namespace) -> int:
-    config, store = _open(args)
+    config, ops = _open(args)
     if not config.operator.name:
         raise ConfigError("operator.name: set [operator] name; every resolution is audited with it")
-    _capsule_reports(config, store, args.name)  # an unknown capsule or one without an IMEI is refused first
-    ops = Operations(config, store, holder=cli_holder())
+    ops.reports_of(args.name)  # an unknown capsule or one without an IMEI is refused first
     try:
         commands = ops.resolve_mt(args.name, args.command_id, None if args.not_sent else args.queued, args.note)
     finally:
@@ -301,7 +297,8 @@ def _mo_parse(args: argparse.Namespace) -> int:
 
 
 def _mo_serve(args: argparse.Namespace) -> int:
-    config, store = _open(args)
+    config = load_config(args.config)  # not Operations: the webhook must start whatever the console's files say
+    store = Store.open(config.store_path)
     mo_config = config.mo
     if args.host is not None or args.port is not None:
         mo_config = replace(
@@ -361,7 +358,7 @@ def _stop_signals() -> Iterator[Callable[[], str]]:
 
 
 def _mo_import(args: argparse.Namespace) -> int:
-    _, store = _open(args)
+    store = Store.open(load_config(args.config).store_path)
     outcomes = import_files(args.files, ReportStore(store))
     for outcome in outcomes:
         print(f"{outcome.path}: {outcome.status}: {outcome.message}")
@@ -369,16 +366,16 @@ def _mo_import(args: argparse.Namespace) -> int:
 
 
 def _mo_export(args: argparse.Namespace) -> int:
-    config, store = _open(args)
+    _, ops = _open(args)
     if (args.name is None) == (args.imei is None):
         raise UsageError("give either a capsule NAME or --imei IMEI, not both or neither")
     if args.name is not None:
-        _, reports = _capsule_reports(config, store, args.name)
+        reports = ops.reports_of(args.name)
         who = args.name
     else:
         if not _IMEI_RE.fullmatch(args.imei):
             raise UsageError(f"--imei {args.imei!r}: an IMEI is 15 digits")
-        reports = ReportStore(store).for_imei(args.imei)
+        reports = ops.reports.for_imei(args.imei)
         who = f"IMEI {args.imei}"
     result = export_track(reports, args.out, who, overwrite=args.force)
     print(
@@ -399,11 +396,9 @@ def _mo_bench(args: argparse.Namespace) -> int:
 
 
 def _mo_health(args: argparse.Namespace) -> int:
-    config, store = _open(args)
-    capsule, reports = _capsule_reports(config, store, args.name)
-    life = lc.CommandLifecycle(store, config.operator.name)
-    life.observe(reports, capsule.imei or "")
-    health = assess(reports, life.for_imei(capsule.imei or ""))
+    _, ops = _open(args)
+    capsule, reports = _capsule_reports(ops, args.name)
+    health = assess(reports, ops.mt_status(args.name))
     if args.json:
         document = {
             "capsule": capsule.name, "imei": capsule.imei, "reports": health.reports,
@@ -461,8 +456,8 @@ def _read_predicted(path: Path) -> tuple[list[tuple[float, float, float]], bool]
 def _recovery(args: argparse.Namespace) -> int:
     # With --json or a '-' output, stdout carries that one document and the lines for people go to stderr.
     said = sys.stderr if piped(gpx=args.gpx, kml=args.kml, json=args.json) or args.json else sys.stdout
-    config, store = _open(args)
-    capsule, reports = _capsule_reports(config, store, args.name)
+    _, ops = _open(args)
+    capsule, reports = _capsule_reports(ops, args.name)
     team = None
     if args.origin == "gpsd":
         team = read_gpsd_position()

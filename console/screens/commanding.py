@@ -19,18 +19,17 @@ from console.messages import OperatorNotice
 from console.screens.base import ConsoleScreen
 from console.screens.modals import HazardConfirmation, HazardModal, TextPromptModal
 from drs_link.errors import LinkError
-from drs_link.iridium import (
+from drs_link.ops import (
     LISTED,
     Hazard,
     MtCommand,
     MtComposer,
     MtMessage,
     ParachutePlan,
+    SecondOperator,
     by_name,
-    landed_evidence,
-    plan_parachute,
+    pending_text,
 )
-from drs_link.ops import SecondOperator, pending_text
 
 COMMAND_ACTIONS = ("command",)
 
@@ -125,9 +124,7 @@ class CommandingScreen(ConsoleScreen):
         ops = self.context.ops
         assert ops is not None  # the keys that send are disabled without one (check_action)
         try:
-            return plan_parachute(
-                ops.stored_reports(self.capsule), self.context.now(), ops.commands(self.capsule), requested
-            )
+            return ops.plan_parachute(self.capsule, requested)
         except LinkError as exc:
             self.app.notify(f"PARACHUTE refused: {exc}", severity="error", timeout=12)
             return None
@@ -136,7 +133,7 @@ class CommandingScreen(ConsoleScreen):
         message = MtComposer().add("PARACHUTE", (plan.hour, plan.minute)).build()
         ops = self.context.ops
         assert ops is not None  # the keys that send are disabled without one (check_action)
-        evidence = landed_evidence(ops.stored_reports(self.capsule))
+        evidence = ops.landed(self.capsule)
         verdict = "Landed evidence" if evidence.on_ground else "NO LANDED EVIDENCE"
         text = "\n".join(
             [f"{verdict}: {evidence.summary}", plan.window_text(), *(f"! {w}" for w in plan.warnings)]

@@ -348,7 +348,8 @@ class ReleaseScreen(ConsoleScreen):
         assert self.ops is not None
         try:
             self.app.post_message(OperatorNotice(f"{self.capsule}: syncing data…"))
-            self.app.post_message(TelemetryArrived(self.ops.sync(self.capsule)))
+            self.ops.sync(self.capsule)
+            self.app.post_message(TelemetryArrived(self.ops.poll(self.capsule)))
             self.app.post_message(OperatorNotice(f"{self.capsule}: sync finished and verified"))
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))

@@ -16,6 +16,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "GnssFix": "firmware",
         "Hazard": "commands",
         "LISTED": "commands",
+        "LandedEvidence": "landed",
         "LandedVerdicts": "landed",
         "LandingEstimate": "recovery",
         "MoHttpServer": "webhook",

@@ -14,6 +14,8 @@ __getattr__, __dir__, __all__ = lazy_door(
         "GgaSentence": "nmea",
         "GnssStatus": "nmea",
         "HostKeyError": "ssh",
+        "SyncReport": "sync",
+        "SyncStatus": "sync",
         "Syncer": "sync",
         "enrol_host_key": "ssh",
         "find_sentence": "nmea",

@@ -5,7 +5,8 @@
 second operator and ``identity`` which login is another person; ``authorize`` the PARACHUTE gate,
 ``override`` what stays on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and
 ``origin`` what is known of each capsule and how old it is; ``session`` a console that ends without
-quitting; and ``operations`` the console's engine without a screen.
+quitting; and ``operations`` the console's engine without a screen; ``face_types`` the values below it that
+the faces show and compose, so that they import this door alone.
 """
 
 from predictor.lazy_door import lazy_door
@@ -14,6 +15,22 @@ __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
         "ACTIONS": "approval",
+        "by_name": "face_types",
+        "MtCommand": "face_types",
+        "LandedEvidence": "face_types",
+        "Hazard": "face_types",
+        "CATALOGUE": "face_types",
+        "FLUSH_WARNING": "face_types",
+        "LISTED": "face_types",
+        "PARACHUTE": "face_types",
+        "QUEUED": "face_types",
+        "Command": "face_types",
+        "MtComposer": "face_types",
+        "MtMessage": "face_types",
+        "ParachutePlan": "face_types",
+        "StoredReport": "face_types",
+        "iso_utc": "face_types",
+        "parse_hhmm": "face_types",
         "Approval": "approval",
         "ApprovalBook": "approval",
         "ArmState": "arming",

@@ -26,6 +26,7 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
+from pathlib import Path
 
 from drs_link.config import approvers_in_use
 from drs_link.errors import RefusedError
@@ -159,6 +160,11 @@ class ApprovalBook:
             with store.transaction() as conn:
                 for name, kind in missing:
                     conn.execute(f"ALTER TABLE approval ADD COLUMN {name} {kind}")
+
+    @classmethod
+    def open(cls, store_path: Path) -> ApprovalBook:
+        """The requests in the store at ``store_path`` (``drs approve``, from the approver's own login)."""
+        return cls(Store.open(store_path))
 
     def request(
         self, capsule: str, action: str, summary: str, operator: str, login: Login, ttl_s: float = APPROVAL_TTL_S,
@@ -314,7 +320,12 @@ class ApprovalBook:
             )
         if not request.requester.same_person(login):
             raise RefusedError(f"approval #{approval_id} was requested by {request.requester}, not by {login}")
-        if request.command is not None and command is not None and request.command != command:
+        if request.command is None:  # a request from before the binding: it could fire any window
+            raise RefusedError(
+                f"approval #{approval_id} is bound to no command (asked for before approvals were bound to "
+                "one action); ask for a new one"
+            )
+        if command is not None and request.command != command:
             raise RefusedError(f"approval #{approval_id} was given for {request.command}, not {command}")
         if request.capsule_state is not None and capsule_state is not None and request.capsule_state != capsule_state:
             self.void_capsule(capsule, f"capsule state changed: {request.capsule_state} → {capsule_state}", "drs")

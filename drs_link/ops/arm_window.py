@@ -10,11 +10,13 @@ is a compare-and-set too, so it is audited once, by whichever process saw it fir
 
 from __future__ import annotations
 
+import os
+import secrets
 from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime
 
-from drs_link.store import Store, iso_utc, parse_iso_utc
+from drs_link.store import Store, iso_utc, parse_iso_utc, session_name
 
 DDL = """
 CREATE TABLE IF NOT EXISTS arm_window (
@@ -33,6 +35,15 @@ CREATE TABLE IF NOT EXISTS arm_window (
 CREATE INDEX IF NOT EXISTS arm_window_capsule ON arm_window (capsule, id);
 """
 ARMED, FIRING, FIRED, CLOSED = "armed", "firing", "fired", "closed"
+_TOKENS: dict[int, str] = {}
+
+
+def process_holder() -> str:
+    """Who holds a window this process opens: its session (account@host pid) and a random token drawn
+    once per process. Why the token: a console that crashed while ARMED leaves its window open until it
+    runs out, and a new process that the kernel gives the same pid must not be able to FIRE in it."""
+    token = _TOKENS.setdefault(os.getpid(), secrets.token_hex(4))
+    return f"{session_name()} #{token}"
 
 
 @dataclass(frozen=True)
@@ -135,6 +146,7 @@ class ArmWindows:
         return bool(changed)
 
     def fired(self, window_id: int, now: datetime) -> None:
+        """FIRING → FIRED: the Go this window authorised reached the Pi (or was finished later)."""
         with self.store.transaction() as conn:
             conn.execute(
                 "UPDATE arm_window SET state = ?, closed_utc = ? WHERE id = ? AND state = ?",

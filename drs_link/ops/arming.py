@@ -25,12 +25,25 @@ from typing import Protocol
 
 from drs_link.errors import RefusedError
 from drs_link.ops.approval import ApprovalBook, Login, current_login, window_command
-from drs_link.ops.arm_window import ARMED, CLOSED, FIRED, FIRING, ArmWindow, ArmWindows, expired_reason
-from drs_link.ops.capsule import ConfirmationToken, ReleaseRecord
+from drs_link.ops.arm_window import (
+    ARMED,
+    CLOSED,
+    FIRED,
+    FIRING,
+    ArmWindow,
+    ArmWindows,
+    expired_reason,
+    process_holder,
+)
+from drs_link.ops.capsule import ConfirmationToken, ReleaseRecord, ReleaseState
 from drs_link.ops.gonogo import GoNoGoReport
 from drs_link.store import Store, session_name, utc_now
 
 DEFAULT_ARM_WINDOW_S = 60.0
+FIRING_STALE_S = 30.0
+"""How long after its window's end a FIRING window whose Go never left is taken for a FIRE that died.
+Between FIRING and the state machine's write-ahead ``go-sent-unverified`` there is no network, only
+SQLite: milliseconds. Without this, a console killed there would block the capsule's ARM for ever."""
 
 
 class ReleaseMachine(Protocol):
@@ -42,6 +55,8 @@ class ReleaseMachine(Protocol):
     def confirm(self, typed_name: str) -> ConfirmationToken: ...
 
     def go(self, token: ConfirmationToken) -> ReleaseRecord: ...
+
+    def record(self) -> ReleaseRecord: ...
 
 
 class ArmState(StrEnum):
@@ -144,8 +159,9 @@ class ArmingController:
         self.require_second_operator = require_second_operator
         self.crew = crew
         self.session = session_name()
-        self.holder = holder or self.session
-        """Who may FIRE in a window this controller opens: this process, or (the CLI) account@host."""
+        self.holder = holder or process_holder()
+        """Who may FIRE in a window this controller opens: this process (its session and a random token,
+        so a later process given the same pid is not it), or (the CLI) account@host."""
         self.windows = ArmWindows(store)
         self._lock = threading.RLock()
 
@@ -164,6 +180,9 @@ class ArmingController:
             if window is not None and window.state == ARMED and now >= window.until_utc:
                 self._close(window, expired_reason(window))
                 window = self.windows.latest(self.capsule)
+            if window is not None and window.state == FIRING and self._fire_died(window, now):
+                self._close(window, "FIRE stopped before Go left (the firing process ended)", (FIRING,))
+                window = self.windows.latest(self.capsule)
             if window is None:
                 return ArmStatus(ArmState.DISARMED, None, 0.0, None)
             state = _STATES[window.state]
@@ -173,6 +192,19 @@ class ArmingController:
                 state, window.until_utc if armed else None, remaining,
                 window.reason if state is ArmState.DISARMED else None, window, window.holder == self.holder,
             )  # fmt: skip
+
+    def _fire_died(self, window: ArmWindow, now: datetime) -> bool:
+        """A FIRING window long past its end whose Go never left: the state machine is still before Go."""
+        if (now - window.until_utc).total_seconds() < FIRING_STALE_S:
+            return False
+        return self.machine.record().state not in (ReleaseState.GO_SENT, ReleaseState.RELEASED)
+
+    def finished(self) -> None:
+        """An unverified Go was finished (``Operations.finish_go``): the window that authorised it fired."""
+        with self._lock:
+            window = self.windows.latest(self.capsule)
+            if window is not None and window.state == FIRING:
+                self.windows.fired(window.id, self.clock())
 
     def _close(self, window: ArmWindow, reason: str, states: tuple[str, ...] = (ARMED,)) -> None:
         """Close a window and void every approval given for it; audited by whichever process won."""

@@ -31,6 +31,14 @@ def hazard_of(message: MtMessage) -> MtCommand | None:
     return None
 
 
+def approval_command(message: MtMessage, override_landed: str | None) -> str:
+    """What a PARACHUTE approval is given for: the exact text and, when the landed gate is overridden, the
+    override and its reason, so the approver sees an in-flight drop and an approval for the text alone
+    never stands for one."""
+    override = (override_landed or "").strip()
+    return f"{message.text} (OVERRIDE of the landed gate: {override})" if override else message.text
+
+
 def carries_parachute(message: MtMessage) -> bool:
     """Whether the two-person rule and the landed gate apply: the MT carries a CRITICAL command."""
     return hazard_of(message) is not None
@@ -77,7 +85,9 @@ def authorize_mt(
         )
     try:
         if approval is not None:
-            people = ApprovalBook(store).use(approval, capsule, "parachute", login or current_login(), message.text)
+            people = ApprovalBook(store).use(
+                approval, capsule, "parachute", login or current_login(), approval_command(message, override_landed)
+            )
         else:
             people = check_second_operator(
                 operator, second_operator, single_operator_waiver, require_second_operator, crew

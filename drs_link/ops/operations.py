@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from shapely import Polygon
 
@@ -24,19 +25,34 @@ from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.iridium import (
     Command,
     CommandLifecycle,
+    LandedEvidence,
     LandedVerdicts,
     MtMessage,
+    ParachutePlan,
     ReportStore,
     RockblockGateway,
     StoredReport,
     interval_track,
+    landed_evidence,
+    plan_parachute,
 )
-from drs_link.link import CapsuleLink, HostKeyError, Syncer, read_storage
+from drs_link.link import (
+    CapsuleLink,
+    HostKeyError,
+    Syncer,
+    SyncReport,
+    SyncStatus,
+    enrol_host_key,
+    fingerprint,
+    known_hosts_name,
+    read_storage,
+    scan_host_key,
+)
 from drs_link.link.backends import AuthorityStatus, build_backend
 from drs_link.ops.approval import Approval, ApprovalBook, Login, approved, current_login, window_command
 from drs_link.ops.arming import ArmingController, ArmStatus, check_second_operator
-from drs_link.ops.authorize import authorize_mt, hazard_of
-from drs_link.ops.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine
+from drs_link.ops.authorize import approval_command, authorize_mt, hazard_of
+from drs_link.ops.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine, record_as_dict
 from drs_link.ops.checklist import PROCEDURE_DIR, Step, complete_command, load_checklists
 from drs_link.ops.fleet import CapsuleTelemetry, FleetState
 from drs_link.ops.gonogo import ExclusionZone, GoNoGoReport, Waiver, WaiverBook, evaluate
@@ -56,8 +72,13 @@ from drs_link.ops.telemetry import (
 from drs_link.store import Store, iso_utc, utc_now
 from predictor.prediction import ZoneFileError, load_zones
 
+if TYPE_CHECKING:
+    import paramiko
+
 Predict = Callable[[str, ReleaseOrigin], list[TelemetryRecord]]
 """A landing prediction "release now" from an origin, as telemetry (the console's ``PredictionService``)."""
+SyncProgress = Callable[[str, int, int], None]
+"""Told (file, bytes done, bytes in it) while a sync uploads, for a progress bar."""
 OnPending = Callable[[Approval], None]
 """Told which approval request waits, so the operator can have it approved."""
 
@@ -77,6 +98,18 @@ def cli_holder() -> str:
     """Who holds an ARM window opened by ``drs capsule arm``: the OS account on this host, so that the
     ``drs capsule go`` that follows (another process) may FIRE in it, and no console or other account may."""
     return f"{pwd.getpwuid(os.geteuid()).pw_name}@{socket.gethostname()} drs"
+
+
+@dataclass(frozen=True)
+class HostKeyOffer:
+    """The host key a capsule's Pi offers, for the operator to compare with the one read on the Pi."""
+
+    address: str
+    """As known_hosts names it (``[host]:port``)."""
+    key_type: str
+    fingerprint: str
+    key: paramiko.PKey
+    """The key itself (paramiko's), saved as it was offered once the operator confirms it."""
 
 
 @dataclass(frozen=True)
@@ -235,6 +268,11 @@ class Operations:
                 Syncer(store, link, capsule.name, capsule.storage_mount, capsule.raid_device), threading.Lock(),
             )  # fmt: skip
 
+    @classmethod
+    def open(cls, config: Config, holder: str | None = None) -> Operations:
+        """The engine of one ``drs`` command: the configured store, nothing polled yet."""
+        return cls(config, Store.open(config.store_path), holder=holder)
+
     @property
     def login(self) -> Login:
         """Who is at this keyboard (``approval.current_login``), asked for only when an approval needs it."""
@@ -313,13 +351,37 @@ class Operations:
                 out.append(TelemetryRecord(self.clock(), name, LinkSample(False, str(exc))))
             return self._emit(out)
 
-    def sync(self, name: str) -> list[TelemetryRecord]:
-        ops = self.ops(name)
-        if ops.config.sync_source is None:
+    def _sync_source(self, name: str, source: Path | None) -> Path:
+        chosen = source if source is not None else self.ops(name).config.sync_source
+        if chosen is None:
             raise ConfigError(f"capsule {name}: sync_source is not configured")
+        return chosen
+
+    def sync(self, name: str, source: Path | None = None, on_progress: SyncProgress | None = None) -> SyncReport:
+        """Upload ``source`` (default: the capsule's ``sync_source``) to its storage, each file verified by
+        sha256 on the Pi; every verified file, the outcome and a failure are audited, whichever face asked."""
+        ops = self.ops(name)
+        chosen = self._sync_source(name, source)
+
+        def verified(relative: str) -> None:
+            self.store.append_audit(self.operator, name, "sync-file", "verified", {"path": relative}, when=self.clock())
+
         with ops.lock:
-            ops.syncer.sync(ops.config.sync_source)
-        return self.poll(name)
+            try:
+                report = ops.syncer.sync(chosen, on_progress=on_progress, on_verified=verified)
+            except LinkError as exc:
+                self.store.append_audit(self.operator, name, "sync", "failed", {"error": str(exc)}, when=self.clock())
+                raise
+        detail = {"uploaded": len(report.uploaded), "bytes": report.bytes_sent}
+        self.store.append_audit(self.operator, name, "sync", "ok", detail, when=self.clock())
+        return report
+
+    def sync_status(self, name: str, source: Path | None = None, with_hash: bool = False) -> SyncStatus:
+        """What a sync of ``source`` would upload (missing or changed files), read-only."""
+        ops = self.ops(name)
+        chosen = self._sync_source(name, source)
+        with ops.lock:
+            return ops.syncer.status(chosen, with_hash=with_hash)
 
     def power_on(self, name: str, confirmed: bool = True) -> list[TelemetryRecord]:
         """Confirmed by the operator before this is called (the relay cannot be switched off by software);
@@ -410,13 +472,15 @@ class Operations:
         refused in every state but ``go-sent-unverified``, which only a FIRE under every rule reaches."""
         ops = self.ops(name)
         with ops.lock:
-            if ops.machine.record().state is not ReleaseState.GO_SENT:
-                raise RefusedError(
-                    f"{name}: finish refused: only an unverified Go (go-sent-unverified) is finished"
-                )
+            state = ops.machine.record().state
+            if state is not ReleaseState.GO_SENT:
+                why = f"only an unverified Go (go-sent-unverified) is finished; {name} is {state.value}"
+                self.store.append_audit(self.operator, name, "go", "refused", {"reason": why}, when=self.clock())
+                raise RefusedError(f"{name}: finish refused: {why}")
             detail = {"state": ReleaseState.GO_SENT.value}
             self.store.append_audit(self.operator, name, "go", "finishing", detail, when=self.clock())
             record = ops.machine.go(ops.machine.confirm(typed_name))
+            ops.arming.finished()
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
         return self._emit([self._release_record(name, record)])
@@ -458,6 +522,68 @@ class Operations:
                 return ops.machine.take_over(seen, typed_name, reason)
             finally:
                 ops.link.close()
+
+    def capsule_status(self, name: str) -> tuple[dict[str, object], bool]:
+        """``drs capsule status``: the release record, storage, microcontroller and GNSS as one report
+        (read-only), and whether the link was up. A refused host key is raised, never reported as down."""
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.machine.record()
+            report: dict[str, object] = {"release": record_as_dict(record)}
+            if record.state is ReleaseState.RELEASED:
+                report["link"] = {"up": False, "note": "released: the Pi shut itself down"}
+                return report, False
+            try:
+                ops.link.connect()
+                report["link"] = {"up": True}
+                report["storage"] = read_storage(ops.link, ops.config.storage_mount, ops.config.raid_device).as_dict()
+                if record.state is ReleaseState.POWERED:
+                    mcu = ops.machine.check_microcontroller()
+                    report["microcontroller"] = {"waiting_for_go": mcu.waiting_for_go, "diagnosis": mcu.diagnosis}
+                    report["gnss"] = mcu.gnss.as_dict()
+            except HostKeyError:
+                raise
+            except LinkError as exc:
+                report["link"] = {"up": False, "error": str(exc)}
+                return report, False
+            finally:
+                ops.link.close()
+        return report, True
+
+    def release_authority(self, name: str, reason: str) -> AuthorityStatus:
+        """Give up this console's release authority on the Pi (end of a shift); what was given up."""
+        ops = self.ops(name)
+        with ops.lock:
+            try:
+                return ops.machine.release_authority(reason)
+            finally:
+                ops.link.close()
+
+    def record_released(self, name: str, typed_name: str, evidence: str) -> ReleaseRecord:
+        """Settle an unverified Go as released on the operator's evidence; the checklist's Go step too."""
+        ops = self.ops(name)
+        with ops.lock:
+            record = ops.machine.record_released(typed_name, evidence)
+            self._command_done(name, "fire", record.note or "released")
+        self.approvals.void_capsule(name, "capsule state changed: released", self.operator)
+        return record
+
+    def host_key_offer(self, name: str) -> HostKeyOffer:
+        """The host key the Pi offers now (``drs capsule enrol``), before anything is trusted."""
+        capsule = self.ops(name).config
+        if capsule.jump_host:
+            raise LinkError(f"{capsule.name}: enrol through a jump host is not supported; add the key by hand")
+        key = scan_host_key(capsule.host, capsule.port, capsule.connect_timeout_s)
+        return HostKeyOffer(known_hosts_name(capsule.host, capsule.port), key.get_name(), fingerprint(key), key)
+
+    def enrol(self, name: str, offer: HostKeyOffer, read_on_pi: str) -> Path:
+        """Trust ``offer`` only if it is the fingerprint the operator read on the Pi itself; audited."""
+        capsule = self.ops(name).config
+        if read_on_pi != offer.fingerprint:
+            raise RefusedError(f"{capsule.name}: enrol refused: the Pi offers {offer.fingerprint}, not {read_on_pi}")
+        self.store.append_audit(self.operator, capsule.name, "enrol", "ok", {"fingerprint": offer.fingerprint})
+        enrol_host_key(capsule.known_hosts, capsule.host, capsule.port, offer.key)
+        return capsule.known_hosts
 
     def release_state(self, name: str) -> ReleaseState:
         return self.ops(name).machine.record().state
@@ -517,6 +643,31 @@ class Operations:
         imei = self.ops(name).config.imei
         return self.reports.for_imei(imei) if imei else []
 
+    def reports_of(self, name: str) -> list[StoredReport]:
+        """The capsule's Iridium reports in time order; refused when it has no IMEI to key them by."""
+        imei = self.ops(name).config.imei
+        if not imei:
+            raise ConfigError(f"capsule {name}: imei is not configured; reports and commands are keyed by IMEI")
+        return self.reports.for_imei(imei)
+
+    def mt_status(self, name: str) -> list[Command]:
+        """The capsule's MTs after the reports moved them on (delivered, applied), oldest first."""
+        reports = self.reports_of(name)
+        imei = self.ops(name).config.imei or ""
+        self.lifecycle.observe(reports, imei)
+        return self.lifecycle.for_imei(imei)
+
+    def plan_parachute(
+        self, name: str, requested: tuple[int, int] | None, accept_midnight: bool = False
+    ) -> ParachutePlan:
+        """When a PARACHUTE can fire (``requested`` HH:MM, or the next cycle): the reports, the MTs known
+        (read-only: ``mt_status`` moves them on first) and the queue-before deadline ``send_mt`` re-checks."""
+        return plan_parachute(self.reports_of(name), self.clock(), self.commands(name), requested, accept_midnight)
+
+    def landed(self, name: str) -> LandedEvidence:
+        """The landed evidence the PARACHUTE gate will judge, for the operator to read before sending."""
+        return landed_evidence(self.reports_of(name))
+
     def commands(self, name: str) -> list[Command]:
         imei = self.ops(name).config.imei
         return self.lifecycle.for_imei(imei) if imei else []
@@ -546,9 +697,10 @@ class Operations:
         if second.await_approval:
             if hazard_of(message) is None:
                 raise RefusedError(f"{name}: {message.text} needs no second operator: nothing to approve")
+            bound = approval_command(message, override_landed)
             approval = approved(
-                self.approvals, name, "parachute", message.text, self.operator, self.login,
-                second.on_pending or (lambda request: None), command=message.text, deadline=queue_by,
+                self.approvals, name, "parachute", bound, self.operator, self.login,
+                second.on_pending or (lambda request: None), command=bound, deadline=queue_by,
             )  # fmt: skip
         authorised = authorize_mt(
             self.store, name, self.operator, message, reports, second_operator=second.name,

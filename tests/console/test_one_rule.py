@@ -425,6 +425,30 @@ def test_go_with_the_failing_item_waived_releases_and_the_waiver_is_in_the_audit
 
 
 @pytest.mark.slow
+def test_a_waiver_given_to_arm_but_not_to_go_disarms_and_finish_go_is_no_back_door(
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Waivers live in one process: `drs capsule go` without the waiver `arm` had sees the NO-GO, and the
+    changed verdict closes the window. ``finish_go`` (no ARM) finishes only a Go that already left."""
+    sim, config, store = powered()
+    face = Face("cli", config, weather, capsys)
+    assert face.arm("--waive", f"sync={SYNC_WAIVER}") is None
+    refusal = face.go()
+    assert refusal is not None and refusal.startswith("DRS1: FIRE refused and disarmed: no longer GO: NO-GO: "), refusal
+    assert "Storage sync complete" in refusal
+    assert face.go("--waive", f"sync={SYNC_WAIVER}") == "DRS1: FIRE refused: not armed: no longer GO: " + refusal.split(
+        "no longer GO: ", 1)[1]  # fmt: skip
+    ops = Operations(load_config(config), store)
+    with pytest.raises(RefusedError, match="DRS1: finish refused: only an unverified Go .* DRS1 is powered"):
+        ops.finish_go("DRS1", "DRS1")
+    ops.close()
+    assert sim.firmware.go_at is None
+    assert not [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
+    assert [a.result for a in store.audit("DRS1") if a.action == "go"] == ["refused"]
+
+
+@pytest.mark.slow
 def test_go_after_the_arm_window_expired_is_refused_the_same_from_both_faces(
     powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
     capsys: pytest.CaptureFixture[str],

@@ -9,6 +9,7 @@ import sys
 import time
 import tomllib
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ import pytest
 
 import console.commands.main
 from drs_link.config import load_config
-from drs_link.errors import StoreError
+from drs_link.errors import LinkError, StoreError
 from drs_link.link.ssh import fingerprint
 from drs_link.ops.capsule import ConfirmationToken, ReleaseRecord, ReleaseStateMachine
 from drs_link.ops.checklist import PROCEDURE_DIR, ChecklistRun, StepState, load_checklists
@@ -245,6 +246,34 @@ def test_sync_command_uploads_and_audits(
     assert json.loads(capsys.readouterr().out)["bytes_pending"] == 0
     audit = Store.open(tmp_path / "data" / "drs.sqlite").audit("DRS1")
     assert [(a.action, a.result) for a in audit] == [("sync-file", "verified"), ("sync", "ok")]
+
+
+def test_the_consoles_sync_is_the_clis_path_with_progress_and_the_same_audit(
+    setup: tuple[CapsuleSimulator, Path], tmp_path: Path
+) -> None:
+    """The console's Sync key (``Operations.sync`` on the configured source) used to upload unaudited."""
+    sim, config_path = setup
+    source = tmp_path / "payload"
+    source.mkdir()
+    (source / "a.bin").write_bytes(b"a" * 50_000)
+    config = load_config(config_path)
+    config = replace(config, capsules=(replace(config.capsules[0], sync_source=source),))
+    store = Store.open(config.store_path)
+    ops = Operations(config, store)
+    progress: list[tuple[str, int, int]] = []
+    try:
+        assert list(ops.sync_status("DRS1").missing) == ["a.bin"]
+        report = ops.sync("DRS1", on_progress=lambda *seen: progress.append(seen))
+        assert list(report.uploaded) == ["a.bin"] and progress[-1] == ("a.bin", 50_000, 50_000)
+        assert (sim.storage_dir / "a.bin").read_bytes() == b"a" * 50_000
+        sim.stop()
+        (source / "b.bin").write_bytes(b"b")
+        with pytest.raises(LinkError):
+            ops.sync("DRS1")
+    finally:
+        ops.close()
+    audit = [(a.action, a.result, a.operator) for a in store.audit("DRS1")]
+    assert audit == [("sync-file", "verified", "EL"), ("sync", "ok", "EL"), ("sync", "failed", "EL")]
 
 
 def test_sync_of_a_missing_directory_is_a_one_line_error(

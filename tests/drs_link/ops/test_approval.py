@@ -20,13 +20,13 @@ from drs_link.errors import RefusedError
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
 from drs_link.ops.approval import ApprovalBook, Login
-from drs_link.ops.authorize import authorize_mt
+from drs_link.ops.authorize import approval_command, authorize_mt
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
 from tests.clock import ManualClock
 from tests.drs_link.iridium.helpers import IMEI
 from tests.drs_link.iridium.test_cli import run, write_config
-from tests.drs_link.iridium.test_parachute_gate import audit_of, landed, recent, seed
+from tests.drs_link.iridium.test_parachute_gate import audit_of, falling, landed, recent, seed
 from tests.drs_link.ops.agents import approver_tables, ssh_agent, ssh_key
 
 ALICE_A = Login("ops", "SHA256:keyA")
@@ -57,7 +57,7 @@ def test_the_requesting_login_cannot_approve_its_own_request(book: ApprovalBook)
 
 
 def test_an_approval_is_spent_once_by_its_requester_on_its_command(book: ApprovalBook) -> None:
-    request = book.request("DRS1", "go", "release DRS1", "alice", ALICE_A)
+    request = book.request("DRS1", "go", "release DRS1", "alice", ALICE_A, command="ARM window #1")
     approved = book.decide(request.id, "bob", ALICE_B, approve=True, reason="checked the go/no-go")
     assert approved.state == "approved" and approved.decider == ALICE_B
     with pytest.raises(RefusedError, match="was given for DRS1 Go"):
@@ -80,7 +80,8 @@ def test_a_request_and_an_approval_expire(book: ApprovalBook) -> None:
     assert book.open_requests() == []
     with pytest.raises(RefusedError, match=r"it is pending, expired .*, not pending"):
         book.decide(late.id, "bob", ALICE_B, approve=True)
-    unused = book.request("DRS1", "parachute", "[PARACHUTE=01:21]", "alice", ALICE_A, ttl_s=60.0)
+    unused = book.request("DRS1", "parachute", "[PARACHUTE=01:21]", "alice", ALICE_A, ttl_s=60.0,
+                          command="[PARACHUTE=01:21]")
     book.decide(unused.id, "bob", ALICE_B, approve=True)
     clock.advance(61.0)
     with pytest.raises(RefusedError, match=r"is approved, expired"):
@@ -113,7 +114,7 @@ def test_parachute_with_an_approval_from_another_login_is_audited_with_both(tmp_
     reports = ReportStore(store).for_imei(IMEI)
     book = ApprovalBook(store)
     message = MtComposer().add("PARACHUTE", (1, 19)).build()
-    request = book.request("DRS1", "parachute", message.text, "alice", ALICE_A)
+    request = book.request("DRS1", "parachute", message.text, "alice", ALICE_A, command=message.text)
     with pytest.raises(RefusedError, match="not approved"):
         authorize_mt(store, "DRS1", "alice", message, reports, approval=request.id, login=ALICE_A)
     book.decide(request.id, "bob", ALICE_B, approve=True)
@@ -215,3 +216,39 @@ def test_an_approval_is_void_once_the_capsules_state_changed_and_its_requester_m
         book.decide(second.id, "bob", ALICE_B, approve=True)
     states = [(a.action, a.result) for a in book.store.audit("DRS1")]
     assert ("approval.void", "void") in states and ("approval.cancelled", "cancelled") in states
+
+
+def test_an_approval_of_the_parachute_text_never_stands_for_an_in_flight_override(tmp_path: Path) -> None:
+    """The approver saw "[PARACHUTE=…]", not that the landed gate would be overridden: the override and its
+    reason are part of what is approved, so the approval of the text alone cannot drop it in flight."""
+    store = seed(tmp_path, falling(recent(10.5)))
+    reports = ReportStore(store).for_imei(IMEI)
+    book = ApprovalBook(store)
+    message = MtComposer().add("PARACHUTE", (1, 19)).build()
+    plain = book.request("DRS1", "parachute", message.text, "alice", ALICE_A, command=message.text)
+    book.decide(plain.id, "bob", ALICE_B, approve=True)
+    override = "the chase team sees it on the ground"
+    with pytest.raises(RefusedError, match=r"was given for \[PARACHUTE=01:19\], not .*OVERRIDE of the landed gate"):
+        authorize_mt(store, "DRS1", "alice", message, reports, approval=plain.id, login=ALICE_A,
+                     override_landed=override)  # fmt: skip
+    bound = approval_command(message, override)
+    told = book.request("DRS1", "parachute", bound, "alice", ALICE_A, command=bound)
+    assert "OVERRIDE of the landed gate: the chase team" in told.describe(utc_now()), "what the approver reads"
+    book.decide(told.id, "bob", ALICE_B, approve=True)
+    people = authorize_mt(store, "DRS1", "alice", message, reports, approval=told.id, login=ALICE_A,
+                          override_landed=override)  # fmt: skip
+    assert people["override_landed"] == override and people["approval"] == str(told.id)
+
+
+def test_an_approval_for_one_parachute_time_never_sends_another(tmp_path: Path) -> None:
+    store = seed(tmp_path, landed(recent(10.5)))
+    reports = ReportStore(store).for_imei(IMEI)
+    book = ApprovalBook(store)
+    approved_text = MtComposer().add("PARACHUTE", (1, 19)).build()
+    request = book.request("DRS1", "parachute", approved_text.text, "alice", ALICE_A, command=approved_text.text)
+    book.decide(request.id, "bob", ALICE_B, approve=True)
+    other = MtComposer().add("PARACHUTE", (1, 21)).build()
+    with pytest.raises(RefusedError, match=r"was given for \[PARACHUTE=01:19\], not \[PARACHUTE=01:21\]"):
+        authorize_mt(store, "DRS1", "alice", other, reports, approval=request.id, login=ALICE_A)
+    assert book.get(request.id).state == "approved", "still only good for 01:19"
+    assert audit_of(store, "mt.parachute")[-1]["result"] == "refused"

@@ -14,7 +14,7 @@ from drs_link.errors import RefusedError
 from drs_link.link.backends.stock import StockBackend
 from drs_link.link.ssh import CapsuleLink
 from drs_link.ops.approval import ApprovalBook, Login, window_command
-from drs_link.ops.arming import ArmingController, ArmState, check_second_operator
+from drs_link.ops.arming import FIRING_STALE_S, ArmingController, ArmState, check_second_operator
 from drs_link.ops.capsule import ReleaseState, ReleaseStateMachine
 from drs_link.ops.gonogo import GoNoGoInputs, GoNoGoReport, PredictionCheck, WaiverBook, evaluate
 from drs_link.ops.staleness import Reading
@@ -173,7 +173,7 @@ def test_fire_spends_only_an_approval_another_login_gave_for_go(store: Store) ->
     clock = ManualClock(T0)
     arming = controller(store, clock, require_second_operator=True)
     book = ApprovalBook(store, clock)
-    request = book.request("DRS1", "go", "release DRS1", "EL", Login("el"))
+    request = book.request("DRS1", "go", "release DRS1", "EL", Login("el"), command=window_command(1))
     arming.arm(go_report(clock))
     with pytest.raises(RefusedError, match=r"FIRE refused: approval #1 is pending, not approved"):
         arming.fire("DRS1", go_report(clock), approval=request.id, login=Login("el"))
@@ -200,7 +200,7 @@ def test_armed_fire_releases_the_simulated_capsule_through_the_state_machine_tok
     people: dict[str, object] = {"single_operator_waiver": "test drop, one person"}
     if second == "approval":  # the second operator approved from their own login
         book = ApprovalBook(store, sim.clock.now)
-        request = book.request("DRS1", "go", "release DRS1", "EL", Login("el"))
+        request = book.request("DRS1", "go", "release DRS1", "EL", Login("el"), command=window_command(1))
         book.decide(request.id, "JM", Login("jm"), approve=True)
         people = {"approval": request.id, "login": Login("el")}
     report = evaluate("DRS1", inputs(sim.clock.now()), sim.clock.now())
@@ -276,3 +276,190 @@ def test_one_arm_per_capsule_the_second_holder_is_refused_and_told_who_holds_it(
     assert console1.status().armed, "another console's poll never disarms a window it does not hold"
     clock.advance(61)
     assert console2.arm(go_report(clock)).mine, "once the window ran out, another console may ARM"
+
+
+# Attacks of a flight-safety review: each tries to make FIRE happen when it must not.
+
+
+def approved_go(store: Store, clock: ManualClock, window_id: int | None, capsule: str = "DRS1") -> int:
+    """A Go request of login ``el``, bound to ``window_id`` (None: unbound, as rows made before the binding),
+    approved by another login."""
+    book = ApprovalBook(store, clock)
+    bound = {"command": window_command(window_id), "window_id": window_id} if window_id is not None else {}
+    request = book.request(capsule, "go", f"release {capsule}", "EL", Login("el"), **bound)  # type: ignore[arg-type]
+    book.decide(request.id, "JM", Login("jm"), approve=True)
+    return request.id
+
+
+def test_an_approval_bound_to_no_window_never_fires(store: Store) -> None:
+    """A request from before the binding (NULL command) could be spent in any window within its TTL."""
+    clock = ManualClock(T0)
+    arming = controller(store, clock, require_second_operator=True)
+    unbound = approved_go(store, clock, None)
+    arming.arm(go_report(clock))
+    with pytest.raises(RefusedError, match=r"FIRE refused: approval #1 is bound to no command .* ask for a new one"):
+        arming.fire("DRS1", go_report(clock), approval=unbound, login=Login("el"))
+    assert arming.status().armed and ApprovalBook(store, clock).get(unbound).state == "approved"
+
+
+def test_an_approval_for_another_capsule_never_fires_this_one(store: Store) -> None:
+    clock = ManualClock(T0)
+    other = controller(store, clock, "DRS2")
+    arming = controller(store, clock, require_second_operator=True)
+    window2 = other.arm(evaluate("DRS2", inputs(clock()), clock())).window
+    assert window2 is not None
+    theirs = approved_go(store, clock, window2.id, "DRS2")
+    window1 = arming.arm(go_report(clock)).window
+    assert window1 is not None
+    with pytest.raises(RefusedError, match="approval #1 was given for DRS2 Go .release., not DRS1 Go"):
+        arming.fire("DRS1", go_report(clock), approval=theirs, login=Login("el"))
+
+
+def test_the_window_is_checked_again_at_submit_after_the_approval_is_spent(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The window runs out between the checks before the approval and the FIRING compare-and-set (a slow
+    disk, a paused process): the compare-and-set reads the clock again and refuses."""
+    clock = ManualClock(T0)
+    arming = controller(store, clock, arm_window_s=30.0, require_second_operator=True)
+    window = arming.arm(go_report(clock)).window
+    assert window is not None
+    approval = approved_go(store, clock, window.id)
+    spend = ApprovalBook.use
+
+    def slow_use(book: ApprovalBook, *args: object, **kwargs: object) -> dict[str, str]:
+        people = spend(book, *args, **kwargs)  # type: ignore[arg-type]
+        clock.advance(31)
+        return people
+
+    monkeypatch.setattr(ApprovalBook, "use", slow_use)
+    with pytest.raises(RefusedError, match=r"FIRE refused: ARM window #1 closed: ARM window expired at 12:00:30Z"):
+        arming.fire("DRS1", go_report(clock), approval=approval, login=Login("el"))
+    assert arming.status().state is ArmState.DISARMED
+    assert not [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
+
+
+def test_two_processes_arming_at_once_open_one_window(tmp_path: Path) -> None:
+    """Each console has its own connection to the store; the compare-and-set lets exactly one win."""
+    import threading
+
+    clock = ManualClock(T0)
+    path = tmp_path / "shared.sqlite"
+    consoles = [controller(Store.open(path), clock, holder=f"op{i}@laptop{i} pid {i}") for i in range(4)]
+    start = threading.Barrier(len(consoles))
+    outcomes: list[str] = []
+
+    def arm(console: ArmingController) -> None:
+        start.wait()
+        try:
+            outcomes.append("armed" if console.arm(go_report(clock)).mine else "lost")
+        except RefusedError as exc:
+            outcomes.append(str(exc))
+
+    threads = [threading.Thread(target=arm, args=(console,)) for console in consoles]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert outcomes.count("armed") == 1, outcomes
+    assert all("one ARM per capsule" in o for o in outcomes if o != "armed"), outcomes
+    rows = Store.open(path).query("SELECT state FROM arm_window")
+    assert [row["state"] for row in rows] == ["armed"]
+
+
+def test_a_crashed_consoles_arm_window_blocks_the_capsule_only_until_it_runs_out(store: Store) -> None:
+    clock = ManualClock(T0)
+    crashed = controller(store, clock, holder="el@laptop1 pid 4242 #0badf00d")
+    crashed.arm(go_report(clock))
+    del crashed  # the console died while ARMED: nobody closes its window
+    console = controller(store, clock)
+    with pytest.raises(RefusedError, match="held by EL at .* until 12:01:00Z"):
+        console.arm(go_report(clock))
+    clock.advance(60)
+    assert console.arm(go_report(clock)).mine
+    disarms = [a.result for a in store.audit("DRS1") if a.action == "disarm"]
+    assert disarms == ["ARM window expired at 12:01:00Z"], "closed once, audited once"
+
+
+def test_a_new_process_given_a_dead_consoles_pid_cannot_fire_in_its_window(store: Store) -> None:
+    """The holder was account@host pid: a process that the kernel gave the crashed console's pid was it."""
+    clock = ManualClock(T0)
+    crashed = controller(store, clock)
+    window = crashed.arm(go_report(clock)).window
+    assert window is not None
+    store.write("UPDATE arm_window SET holder = ? WHERE id = ?", (f"{window.session} #deadbeef", window.id))
+    reborn = controller(store, clock)  # same account, host and pid as the window's session
+    assert reborn.session == window.session and not reborn.status().mine
+    with pytest.raises(RefusedError, match="FIRE refused: the ARM window is held by EL at .*, not this console"):
+        reborn.fire("DRS1", go_report(clock), single_operator_waiver="alone")
+
+
+def test_a_fire_that_died_before_go_left_frees_the_capsule_after_a_grace(store: Store) -> None:
+    """A console killed between FIRING and the state machine's go-sent write left FIRING for ever."""
+    clock = ManualClock(T0)
+    arming = controller(store, clock)
+    window = arming.arm(go_report(clock)).window
+    assert window is not None and arming.windows.start_firing(window.id, arming.holder, clock())
+    clock.advance(60 + FIRING_STALE_S - 1)
+    with pytest.raises(RefusedError, match="ARM refused: the capsule is firing"):
+        arming.arm(go_report(clock))
+    clock.advance(1)
+    status = arming.status()
+    assert status.state is ArmState.DISARMED
+    assert status.last_disarm_reason == "FIRE stopped before Go left (the firing process ended)"
+    assert arming.arm(go_report(clock)).armed
+
+
+def test_a_go_that_left_keeps_its_window_firing_for_finish_go(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Past the grace, a FIRING window whose Go did leave (go-sent-unverified) is not freed for a new ARM."""
+    clock = ManualClock(T0)
+    arming = controller(store, clock)
+    window = arming.arm(go_report(clock)).window
+    assert window is not None and arming.windows.start_firing(window.id, arming.holder, clock())
+    sent = replace(arming.machine.record(), state=ReleaseState.GO_SENT)
+    monkeypatch.setattr(ReleaseStateMachine, "record", lambda machine: sent)
+    clock.advance(3600)
+    assert arming.status().state is ArmState.FIRING
+    with pytest.raises(RefusedError, match="the capsule is firing"):
+        arming.arm(go_report(clock))
+    arming.finished()
+    assert arming.status().state is ArmState.FIRED
+
+
+ARM_IN_A_CHILD = """
+import sys, time
+from datetime import UTC, datetime
+from drs_link.errors import RefusedError
+from drs_link.store import Store
+from tests.clock import ManualClock
+from tests.drs_link.ops.test_arming import controller, go_report
+start, path = float(sys.argv[1]), sys.argv[2]
+clock = ManualClock(datetime(2026, 9, 1, 12, 0, tzinfo=UTC))
+arming = controller(Store.open(path), clock)  # this process's own holder (session and token)
+time.sleep(max(0.0, start - time.time()))
+try:
+    print("armed" if arming.arm(go_report(clock)).mine else "lost")
+except RefusedError as exc:
+    print(exc)
+"""
+
+
+def test_four_processes_arming_at_the_same_moment_open_one_window(tmp_path: Path) -> None:
+    """Real processes, each with its own holder and connection, released at one wall-clock instant."""
+    import subprocess
+    import sys
+    import time
+
+    path = tmp_path / "shared.sqlite"
+    Store.open(path)
+    start = time.time() + 3.0  # after every child has imported and opened the store
+    children = [
+        subprocess.Popen([sys.executable, "-c", ARM_IN_A_CHILD, str(start), str(path)], stdout=subprocess.PIPE, text=True)
+        for _ in range(4)
+    ]
+    outcomes = [child.communicate(timeout=60)[0].strip() for child in children]
+    assert outcomes.count("armed") == 1, outcomes
+    assert all("one ARM per capsule" in o for o in outcomes if o != "armed"), outcomes
+    assert [row["state"] for row in Store.open(path).query("SELECT state FROM arm_window")] == ["armed"]
