@@ -68,6 +68,10 @@ INTERRUPTED_AFTER = timedelta(minutes=15)
 """A command still ``requested`` or ``confirmed`` this long after was being sent by a process that
 stopped (kill -9, a crash, a lost laptop) before the gateway answered: longer than any send can take
 (``rockblock.timeout_s`` is at most 600 s; a request is sent at once)."""
+RECHECK_REPORTS = 10
+"""A confirmed effect stays open to contradiction for this many reports after its delivery: a verdict
+read from a few spacings (lost sessions can mimic an interval) is re-read as more come, and later
+reports that contradict it re-open it. Bounded so that the work after each post stays small."""
 QUEUE_TIMEOUT = timedelta(hours=3)
 """A command still undelivered after this long with no report at all is called timed out."""
 _SEND_OUTCOME = {"queued": QUEUED, "failed": FAILED, "not_sent": NOT_SENT, "unknown": DELIVERY_UNKNOWN}
@@ -154,6 +158,25 @@ def _assign(commands: list[Command], reports: list[StoredReport]) -> dict[int, S
             used.add(delivering.id)
             assignment[command.id] = delivering
     return assignment
+
+
+def _effect_reports(command: Command, reports: list[StoredReport], commands: list[Command]) -> list[StoredReport] | None:
+    """The accepted reports after the one that delivered ``command``, up to where a later delivered command
+    of the same kind takes over (its delivering report and the next still run on this one's value, by the
+    switch-over rule); None while its delivering report is not among ``reports``."""
+    position = {r.id: i for i, r in enumerate(reports)}
+    index = position.get(command.delivered_report_id) if command.delivered_report_id is not None else None
+    if index is None:
+        return None
+    kinds = {found[0].name for text in command.effects if (found := read_text(text)) is not None}
+    end = len(reports)
+    for other in commands:
+        at = position.get(other.delivered_report_id) if other.delivered_report_id is not None else None
+        if other.id == command.id or at is None or at <= index:
+            continue
+        if any((found := read_text(text)) is not None and found[0].name in kinds for text in other.effects):
+            end = min(end, at + 2)
+    return [r for r in reports[index + 1 : end] if r.report is not None]
 
 
 def _caveat(command: Command, unresolved: list[Command]) -> str:
@@ -454,7 +477,11 @@ class CommandLifecycle:
                 command = self._deliver(command, delivering, _caveat(command, unresolved))
                 changed.append(command)
             if command.state == PROBABLY_DELIVERED:
-                updated = self._check_effects(command, reports, _caveat(command, unresolved))
+                updated = self._check_effects(command, reports, commands, _caveat(command, unresolved))
+                if updated is not None:
+                    changed.append(updated)
+            elif command.state == EFFECT_CONFIRMED:
+                updated = self._recheck_effects(command, reports, commands)
                 if updated is not None:
                     changed.append(updated)
         return changed
@@ -474,6 +501,12 @@ class CommandLifecycle:
             for c in commands
             if c.state == PROBABLY_DELIVERED and c.delivered_report_id is not None
         ]
+        delivered += [
+            c.delivered_report_id
+            for c in commands
+            if c.state == EFFECT_CONFIRMED and c.delivered_report_id is not None
+            and self._reports_after(c.delivered_report_id) <= RECHECK_REPORTS
+        ]  # fmt: skip
         if not queued and not delivered:
             return []
         return self.observe(reports.tail(imei, min(queued, default=None), delivered), imei)
@@ -494,11 +527,44 @@ class CommandLifecycle:
             )
         return self._set(command, PROBABLY_DELIVERED, note, delivered_report_id=report.id)
 
-    def _check_effects(self, command: Command, reports: list[StoredReport], caveat: str) -> Command | None:
-        index = next((i for i, r in enumerate(reports) if r.id == command.delivered_report_id), None)
-        if index is None:
+    def _reports_after(self, report_id: int) -> int:
+        """How many reports of the same modem sort after this one."""
+        rows = self.store.query(
+            "SELECT COUNT(*) AS n FROM mo_report AS r JOIN mo_report AS d ON d.id = ? "
+            "WHERE r.imei = d.imei AND (r.sort_utc, r.id) > (d.sort_utc, d.id)",
+            (report_id,),
+        )
+        return int(rows[0]["n"]) if rows else 0
+
+    def _recheck_effects(
+        self, command: Command, reports: list[StoredReport], commands: list[Command]
+    ) -> Command | None:
+        """Re-open a confirmed effect that later reports contradict (``RECHECK_REPORTS``)."""
+        after = _effect_reports(command, reports, commands)
+        if after is None:
             return None
-        after = [r for r in reports[index + 1 :] if r.report is not None]
+        after = after[:RECHECK_REPORTS]
+        effects = dict(command.effects)
+        for text, state in command.effects.items():
+            found = read_text(text)
+            if state == SEEN and found is not None and found[0].confirm is not None:
+                effects[text] = found[0].confirm(found[1], after)
+        if NOT_SEEN not in effects.values():
+            return None
+        summary = "; ".join(f"{text}: {state}" for text, state in effects.items())
+        return self._set(
+            command,
+            TIMED_OUT,
+            f"effect once confirmed, now contradicted by later reports (re-opened): {summary}",
+            effects=json.dumps(effects),
+        )
+
+    def _check_effects(
+        self, command: Command, reports: list[StoredReport], commands: list[Command], caveat: str
+    ) -> Command | None:
+        after = _effect_reports(command, reports, commands)
+        if after is None:
+            return None
         effects = dict(command.effects)
         for text in effects:
             if effects[text] != PENDING:

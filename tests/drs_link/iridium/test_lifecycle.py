@@ -63,6 +63,8 @@ def test_interval_command_runs_from_request_to_effect_confirmed(rig) -> None:
     assert changed.state == lc.PROBABLY_DELIVERED and "MOMSN 3" in changed.detail
     assert capsule.interval_min == 5
     fly(capsule, gateway, reports, next_alarm + timedelta(minutes=2), 2)
+    assert life.observe(reports.for_imei(IMEI), IMEI) == [], "one spacing at 5 min is not yet the new interval"
+    fly(capsule, gateway, reports, next_alarm + timedelta(minutes=12), 1)
     [changed] = life.observe(reports.for_imei(IMEI), IMEI)
     assert changed.state == lc.EFFECT_CONFIRMED
     actions = [record.action for record in store.audit(capsule="DRS1")]
@@ -324,7 +326,56 @@ def test_the_work_after_each_post_is_the_open_commands_reports_not_the_flight(
     clock.now = next_alarm + timedelta(minutes=1, seconds=30)
     command = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 5).build()).id, "DRS1", client)
     outcomes = [post_then_observe(next_alarm + timedelta(minutes=2 * (i + 1))) for i in range(2)]
-    outcomes.append(post_then_observe(next_alarm + timedelta(minutes=9)))
-    outcomes.append(post_then_observe(next_alarm + timedelta(minutes=14)))
-    assert outcomes == [[lc.PROBABLY_DELIVERED, 1], [2], [lc.EFFECT_CONFIRMED, 3], [0]]
+    outcomes += [post_then_observe(next_alarm + timedelta(minutes=4 + 5 * i)) for i in range(1, 4)]
+    assert outcomes == [[lc.PROBABLY_DELIVERED, 1], [2], [3], [lc.EFFECT_CONFIRMED, 4], [5]]
+    # A confirmed effect stays open to contradiction for RECHECK_REPORTS reports, then nothing is read.
+    last = next_alarm + timedelta(minutes=19)
+    rest = [post_then_observe(last + timedelta(minutes=5 * i)) for i in range(1, lc.RECHECK_REPORTS - 2)]
+    assert rest == [[1 + after] for after in range(5, lc.RECHECK_REPORTS + 1)] + [[0]], (
+        "the delivering report and those after it, until more than RECHECK_REPORTS follow it"
+    )
     assert life.get(command.id).state == lc.EFFECT_CONFIRMED
+
+
+def test_an_interval_is_not_confirmed_by_lost_sessions_and_later_contradicting_spacings_reopen_it(rig) -> None:
+    """#24 item 3: [INTERVAL=30] was called confirmed from one 30-min gap of lost sessions while the capsule
+    stayed at 2 min. Here it never takes the command (the download is garbage): one gap of lost sessions is
+    not enough, two are (a coincidence no rule can tell), and the 2-min spacing that follows re-opens it."""
+    store, reports, gateway, client, clock = rig
+    capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
+    alarm = fly(capsule, gateway, reports, T0, 3)
+    life = lc.CommandLifecycle(store, "alice", clock)
+    clock.now = alarm - timedelta(seconds=30)
+    command = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 30).build()).id, "DRS1", client)
+    gateway.queues[IMEI].clear()
+    gateway.queues[IMEI].append(b"[interval=30]")  # not a command the firmware reads: it stays at 2 min
+
+    def state_after(*minutes_from_alarm: float) -> str:
+        for minutes in minutes_from_alarm:
+            fly(capsule, gateway, reports, alarm + timedelta(minutes=minutes), 1)
+        life.observe(reports.for_imei(IMEI), IMEI)
+        return life.get(command.id).state
+
+    assert state_after(0, 2) == lc.PROBABLY_DELIVERED
+    assert state_after(32) == lc.PROBABLY_DELIVERED, "one 30-min gap: sessions lost at 2 min, or the new value"
+    assert state_after(62) == lc.EFFECT_CONFIRMED, "two adjacent 30-min spacings and nothing against them"
+    assert state_after(64) == lc.TIMED_OUT
+    reopened = life.get(command.id)
+    assert "now contradicted by later reports (re-opened)" in reopened.detail
+    assert reopened.effects == {"[INTERVAL=30]": "not seen"}
+
+
+def test_a_single_gap_of_lost_sessions_then_the_old_spacing_is_not_seen(rig) -> None:
+    store, reports, gateway, client, clock = rig
+    capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
+    alarm = fly(capsule, gateway, reports, T0, 3)
+    life = lc.CommandLifecycle(store, "alice", clock)
+    clock.now = alarm - timedelta(seconds=30)
+    command = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 30).build()).id, "DRS1", client)
+    gateway.queues[IMEI].clear()
+    gateway.queues[IMEI].append(b"[interval=30]")
+    for minutes in (0, 2, 32, 34):
+        fly(capsule, gateway, reports, alarm + timedelta(minutes=minutes), 1)
+    life.observe(reports.for_imei(IMEI), IMEI)
+    final = life.get(command.id)
+    assert final.state == lc.TIMED_OUT and "[INTERVAL=30]: not seen" in final.detail
