@@ -236,6 +236,8 @@ def _mt_send(args: argparse.Namespace) -> int:
     )  # fmt: skip
     gateway = RockblockGateway.from_config(config.rockblock)
     life = lc.CommandLifecycle(store, config.operator.name)
+    for older in life.unresolved_like(capsule.imei or "", message.text):
+        print(f"warning: MT {older.id} {older.text} is delivery_unknown: {lc.RETRY_WARNING}")
     command = life.request(capsule, message, flush=args.flush)
     command = life.send(command.id, args.confirm, gateway)
     print(f"MT {command.id}: {command.state}: {command.detail}")

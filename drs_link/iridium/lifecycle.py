@@ -16,14 +16,20 @@ A real send needs a confirmation that names the capsule, checked here below any 
 
 from __future__ import annotations
 
+import fcntl
 import json
-from collections.abc import Callable
+import os
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
+from pathlib import Path
 from typing import Any
 
 from drs_link.config import CapsuleConfig
-from drs_link.errors import RefusedError
+from drs_link.errors import RefusedError, StoreError
 from drs_link.iridium.commands import CATALOGUE, NEVER_VISIBLE, NOT_SEEN, PENDING, SEEN, read_text
 from drs_link.iridium.gateway import FLUSH_WARNING, RockblockGateway
 from drs_link.iridium.mt import MtMessage
@@ -72,6 +78,10 @@ RECHECK_REPORTS = 10
 """A confirmed effect stays open to contradiction for this many reports after its delivery: a verdict
 read from a few spacings (lost sessions can mimic an interval) is re-read as more come, and later
 reports that contradict it re-open it. Bounded so that the work after each post stays small."""
+RETRY_WARNING = (
+    "if the gateway did queue it, this sends the same MT twice; settle it first with drs mt resolve "
+    "(the RockBLOCK portal shows what is queued)"
+)
 QUEUE_TIMEOUT = timedelta(hours=3)
 """A command still undelivered after this long with no report at all is called timed out."""
 _SEND_OUTCOME = {"queued": QUEUED, "failed": FAILED, "not_sent": NOT_SENT, "unknown": DELIVERY_UNKNOWN}
@@ -179,6 +189,96 @@ def _effect_reports(command: Command, reports: list[StoredReport], commands: lis
     return [r for r in reports[index + 1 : end] if r.report is not None]
 
 
+_HELD: dict[Path, int] = {}
+"""The sender locks this process holds, by path: one per command it requested and has not finished."""
+_HELD_LOCK = threading.Lock()
+
+
+def _sender_lock(store: Store, command_id: int) -> Path:
+    return store.path.parent / "mt-senders" / f"{store.path.name}.{command_id}.lock"
+
+
+def _hold(path: Path) -> bool:
+    """Take the sender lock (or find it already held by this process); False if another process has it.
+
+    Why a lock and not a PID: the kernel drops an flock when its holder dies however it dies (kill -9
+    too), so "no live sender" is a fact read at once, not a guess after INTERRUPTED_AFTER, and a
+    recycled PID can not fake a live one.
+    """
+    with _HELD_LOCK:
+        if path in _HELD:
+            return True
+        try:
+            path.parent.mkdir(mode=0o700, exist_ok=True)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+        except OSError as exc:
+            raise StoreError(f"cannot write the MT sender lock {path}: {exc.strerror or exc}") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            return False
+        _HELD[path] = fd
+        return True
+
+
+def _release(path: Path) -> None:
+    with _HELD_LOCK:
+        fd = _HELD.pop(path, None)
+        if fd is not None:
+            path.unlink(missing_ok=True)
+            os.close(fd)
+
+
+def _sender_alive(path: Path) -> bool:
+    """Whether a process (this one included) still holds the sender lock of a command."""
+    with _HELD_LOCK:
+        if path in _HELD:
+            return True
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        return False
+    except OSError:
+        return True  # cannot tell: the INTERRUPTED_AFTER rule settles it
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)  # closing drops a lock taken just now
+    return False
+
+
+class Terminated(SystemExit):
+    """SIGTERM during a send: raised in the main thread so the send is recorded before the process ends."""
+
+    def __init__(self) -> None:
+        super().__init__(128 + signal.SIGTERM)
+
+    def __repr__(self) -> str:
+        return "SIGTERM"
+
+
+@contextmanager
+def _terminate_as_exit() -> Iterator[None]:
+    """SIGTERM raises ``Terminated`` while the gateway call runs (main thread only: a worker thread can not
+    set handlers, and the console stops its workers itself). Python's default ends the process at once,
+    and the command stayed ``confirmed`` with nobody to say it may be queued."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum: int, frame: object) -> None:
+        raise Terminated
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _caveat(command: Command, unresolved: list[Command]) -> str:
     """Why an attribution may be one report early: an older command may be queued without our knowing."""
     older = [c for c in unresolved if _queue_order(c) < _queue_order(command)]
@@ -205,13 +305,17 @@ class CommandLifecycle:
         """Settle what a stopped process left half done. A send cut off after ``confirmed`` may or may not
         have reached the gateway: say so, so that ``drs mt resolve`` can settle it and attribution never
         guesses across it. One cut off while still ``requested`` never left this machine (``confirmed``
-        is written before the gateway is called): close it as not sent, so it shows as what it is."""
+        is written before the gateway is called): close it as not sent, so it shows as what it is.
+
+        A command is settled at once when no process holds its sender lock (``_hold``), and in any case
+        after ``INTERRUPTED_AFTER`` (a sender hung past any send's timeout)."""
         cutoff = iso_utc(self.clock() - INTERRUPTED_AFTER)
         rows = self.store.query(
-            "SELECT * FROM mt_command WHERE state IN (?, ?) AND updated_utc < ? ORDER BY id",
-            (REQUESTED, CONFIRMED, cutoff),
+            "SELECT * FROM mt_command WHERE state IN (?, ?) ORDER BY id", (REQUESTED, CONFIRMED)
         )
         for command in map(_row_to_command, rows):
+            if iso_utc(command.updated_utc) >= cutoff and _sender_alive(_sender_lock(self.store, command.id)):
+                continue
             try:
                 if command.state == REQUESTED:
                     self._set(
@@ -311,21 +415,35 @@ class CommandLifecycle:
                     effects,
                 ),
             ).lastrowid
-        self.store.append_audit(
-            self.operator,
-            capsule.name,
-            "mt.requested",
-            REQUESTED,
-            {"command_id": command_id, "text": message.text, "flush": flush},
-            when=moment,
-        )
+            # Held before the row is committed, so no other process ever sees it without its sender.
+            _hold(_sender_lock(self.store, int(command_id or 0)))
+        detail: dict[str, Any] = {"command_id": command_id, "text": message.text, "flush": flush}
+        unresolved = [c.id for c in self.unresolved_like(capsule.imei, message.text)]
+        if unresolved:
+            detail["retry_over_unresolved"] = unresolved
+            detail["warning"] = RETRY_WARNING
+        self.store.append_audit(self.operator, capsule.name, "mt.requested", REQUESTED, detail, when=moment)
         return self.get(int(command_id or 0))
+
+    def unresolved_like(self, imei: str, text: str) -> list[Command]:
+        """Commands of this modem with the same text whose delivery is still unknown: a retry may queue
+        the same MT twice (the gateway may hold the first), which the operator must be told before."""
+        return [c for c in self.for_imei(imei) if c.text == text and c.state == DELIVERY_UNKNOWN]
 
     def send(self, command_id: int, confirmation: str, gateway: RockblockGateway) -> Command:
         """Queue a requested command at the gateway once; refused unless ``confirmation`` names it."""
+        lock = _sender_lock(self.store, command_id)
+        try:
+            return self._send(command_id, confirmation, gateway, lock)
+        finally:
+            _release(lock)
+
+    def _send(self, command_id: int, confirmation: str, gateway: RockblockGateway, lock: Path) -> Command:
         command = self.get(command_id)
         if command.state != REQUESTED:
             raise RefusedError(f"MT {command_id} is {command.state}, not requested: it is never sent twice")
+        if not _hold(lock):
+            raise RefusedError(f"MT {command_id} is being sent by another process: it is never sent twice")
         if confirmation != command.capsule:
             self.store.append_audit(
                 self.operator,
@@ -345,7 +463,8 @@ class CommandLifecycle:
         command = self._set(command, CONFIRMED, detail, expected=REQUESTED)
         request_written_by = self.clock()
         try:
-            result = gateway.send(command.imei, command.text.encode("ascii"), flush=command.flush)
+            with _terminate_as_exit():
+                result = gateway.send(command.imei, command.text.encode("ascii"), flush=command.flush)
         except BaseException as exc:
             self._set(
                 command, DELIVERY_UNKNOWN, f"the send stopped before the gateway answered ({exc!r}): it may "

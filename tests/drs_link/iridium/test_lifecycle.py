@@ -21,7 +21,7 @@ from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
 from drs_link.sim.rockblock import Scripted, SimulatedCapsule, SimulatedRockblock
-from drs_link.store import Store, utc_now
+from drs_link.store import Store
 from tests.clock import ManualClock
 
 from .helpers import IMEI, T0, fly
@@ -209,35 +209,39 @@ import sys
 from drs_link.config import CapsuleConfig
 from drs_link.iridium import lifecycle as lc
 from drs_link.iridium.gateway import RockblockGateway
+from drs_link.iridium.mt import MtComposer
 from drs_link.store import Store
+capsule = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=sys.argv[3], rockblock_serial=11800)
 life = lc.CommandLifecycle(Store.open(sys.argv[1]), "alice")
-life.send(int(sys.argv[2]), "DRS1", RockblockGateway(sys.argv[3], "ops", "pw", timeout_s=60, retry_delay_s=0.0))
+command = life.request(capsule, MtComposer().add("INTERVAL", 30).build())
+life.send(command.id, "DRS1", RockblockGateway(sys.argv[2], "ops", "pw", timeout_s=60, retry_delay_s=0.0))
 """
 
 
-def test_a_send_killed_after_the_gateway_took_it_becomes_delivery_unknown_and_can_be_resolved(rig) -> None:
-    """kill -9 once left the command 'confirmed' forever, which ``drs mt resolve`` refused to settle."""
+@pytest.mark.parametrize("stop", [signal.SIGKILL, signal.SIGTERM])
+def test_a_send_stopped_after_the_gateway_took_it_is_delivery_unknown_at_once_and_can_be_resolved(
+    rig, stop: signal.Signals
+) -> None:
+    """kill -9 or SIGTERM once left the command 'confirmed' for 15 minutes, which ``drs mt resolve`` refused
+    to settle: the sender's lock dies with it, so the next look settles it."""
     store, _, gateway, _, _ = rig
-    life = lc.CommandLifecycle(store, "alice")
-    command = life.request(CAPSULE, MtComposer().add("INTERVAL", 30).build())
+    lc.CommandLifecycle(store, "bob")  # the table exists before the child writes its row
     gateway.script(Scripted("slow", delay_s=30.0))
-    child = subprocess.Popen([sys.executable, "-c", SEND_IN_A_CHILD, str(store.path), str(command.id), gateway.url])
+    child = subprocess.Popen([sys.executable, "-c", SEND_IN_A_CHILD, str(store.path), gateway.url, IMEI])
     try:
         deadline = time.monotonic() + 60
         while not gateway.requests and time.monotonic() < deadline:
             time.sleep(0.05)
-        assert gateway.requests and life.get(command.id).state == lc.CONFIRMED
+        [command] = lc.CommandLifecycle(store, "bob").for_imei(IMEI)
+        assert gateway.requests and command.state == lc.CONFIRMED, "a live sender is left alone"
     finally:
-        child.send_signal(signal.SIGKILL)
-        child.wait()
-    right_after = lc.CommandLifecycle(store, "bob")
-    assert right_after.get(command.id).state == lc.CONFIRMED  # it might still be in flight elsewhere
-    with pytest.raises(RefusedError, match="only a command in delivery_unknown"):
-        right_after.resolve_not_sent(command.id, "DRS1")
-    later = ManualClock(utc_now() + lc.INTERRUPTED_AFTER + timedelta(seconds=1))
-    recovered = lc.CommandLifecycle(store, "bob", later).get(command.id)
+        child.send_signal(stop)
+        child.wait(timeout=30)
+    recovered = lc.CommandLifecycle(store, "bob").get(command.id)
     assert recovered.state == lc.DELIVERY_UNKNOWN and "stopped before the gateway answered" in recovered.detail
-    resolved = lc.CommandLifecycle(store, "bob", later).resolve_not_sent(command.id, "DRS1", "gateway shows nothing")
+    if stop == signal.SIGTERM:
+        assert child.returncode == 128 + signal.SIGTERM and "(SIGTERM)" in recovered.detail
+    resolved = lc.CommandLifecycle(store, "bob").resolve_not_sent(command.id, "DRS1", "gateway shows nothing")
     assert resolved.state == lc.NOT_SENT
 
 
@@ -249,27 +253,27 @@ from drs_link.iridium.mt import MtComposer
 from drs_link.store import Store
 capsule = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=sys.argv[2], rockblock_serial=11800)
 lc.CommandLifecycle(Store.open(sys.argv[1]), "alice").request(capsule, MtComposer().add("INTERVAL", 30).build())
+print("requested", flush=True)
 threading.Event().wait()  # stopped between the request and the send
 """
 
 
 def test_a_process_killed_between_request_and_send_leaves_a_command_closed_as_never_sent(rig) -> None:
-    """The step before the send: nothing left the machine, so after the interrupted-send time it is closed
-    as not sent (it once stayed 'requested' for good) and the same command can be requested again."""
+    """The step before the send: nothing left the machine, so once its process is gone it is closed as not
+    sent (it once stayed 'requested' for good) and the same command can be requested again."""
     store, _, gateway, client, _ = rig
     lc.CommandLifecycle(store, "bob")  # the table exists before the child writes its row
-    child = subprocess.Popen([sys.executable, "-c", REQUEST_IN_A_CHILD, str(store.path), IMEI])
+    child = subprocess.Popen(
+        [sys.executable, "-c", REQUEST_IN_A_CHILD, str(store.path), IMEI], stdout=subprocess.PIPE, text=True
+    )
     try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and not store.query("SELECT id FROM mt_command"):
-            time.sleep(0.05)
+        assert child.stdout is not None and child.stdout.readline() == "requested\n"
+        [command] = lc.CommandLifecycle(store, "bob").for_imei(IMEI)
+        assert command.state == lc.REQUESTED, "its process is alive: it may still send it"
     finally:
         child.send_signal(signal.SIGKILL)
         child.wait()
-    [command] = lc.CommandLifecycle(store, "bob").for_imei(IMEI)
-    assert command.state == lc.REQUESTED  # it might still be about to send elsewhere
-    later = ManualClock(utc_now() + lc.INTERRUPTED_AFTER + timedelta(seconds=1))
-    life = lc.CommandLifecycle(store, "bob", later)
+    life = lc.CommandLifecycle(store, "bob")
     closed = life.get(command.id)
     assert closed.state == lc.NOT_SENT and "never reached the gateway" in closed.detail
     with pytest.raises(RefusedError, match="never sent twice"):
