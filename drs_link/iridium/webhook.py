@@ -112,9 +112,20 @@ def _transmit_time(text: str | None) -> datetime | None:
         return None
 
 
-def _same_value(claim: object, delivered: str) -> bool:
-    """Equal as text, or as numbers: the gateway's claims format is not documented (drs_protocol.md
-    4.2), and ``46.5`` signed for a delivered ``46.5000`` must not refuse a real report forever."""
+_EXACT = frozenset(_MUST_BE_SIGNED)
+"""Claims compared as exact text: the report's identity and payload. As numbers, 17 significant digits,
+``_`` separators and leading zeros once let three altered ``data`` values be stored as verified."""
+JWT_LEEWAY_S = 30
+"""Clock difference allowed between Ground Control and this machine on ``iat``/``exp`` (both keep NTP
+time; a token issued 1 s "in the future" was once refused with a 401 and the report lost to retries)."""
+
+
+def _same_value(name: str, claim: object, delivered: str) -> bool:
+    """``imei``, ``momsn`` and ``data`` equal as exact text (an integer claim as its decimal digits); the
+    other fields also as numbers: the gateway's claims format is not documented (drs_protocol.md 4.2),
+    and ``46.5`` signed for a delivered ``46.5000`` must not refuse a real report forever."""
+    if name in _EXACT:
+        return isinstance(claim, str | int) and not isinstance(claim, bool) and str(claim) == delivered
     if str(claim) == delivered:
         return True
     try:
@@ -165,7 +176,9 @@ class MoReceiver:
         if self.public_key is None:
             return fields, False
         try:
-            claims: dict[str, Any] = jwt.decode(token, self.public_key, algorithms=JWT_ALGORITHMS)
+            claims: dict[str, Any] = jwt.decode(
+                token, self.public_key, algorithms=JWT_ALGORITHMS, leeway=JWT_LEEWAY_S
+            )
         except jwt.PyJWTError as exc:
             raise DeliveryRejected(401, f"JWT rejected: {type(exc).__name__}") from None
         missing = [name for name in _MUST_BE_SIGNED if name not in claims]
@@ -173,7 +186,7 @@ class MoReceiver:
             raise DeliveryRejected(401, f"the JWT does not sign {', '.join(missing)}")
         delivered = {name: value for name, value in fields.items() if name != "JWT"}
         for name, value in delivered.items():
-            if name in claims and not _same_value(claims[name], value):
+            if name in claims and not _same_value(name, claims[name], value):
                 raise DeliveryRejected(401, f"JWT claim {name} does not match the delivered {name}")
         unsigned = sorted(set(delivered) - set(claims))
         if unsigned:

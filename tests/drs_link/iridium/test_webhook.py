@@ -422,3 +422,35 @@ def test_the_oldest_rejected_deliveries_make_room_for_new_ones(store: Store, mon
     kept = book.rejected_deliveries()
     assert [reason for reason, _ in kept] == [f"garbage {n}" for n in range(7, 12)]
     assert all(len(body) == reports.REJECTED_BODY_CHARS for _, body in kept)
+
+
+@pytest.mark.parametrize(
+    ("field", "altered"),
+    [("data", "31323334353637383931"), ("data", "3132_3334_3536_3738_3930"), ("data", "0031323334353637383930"),
+     ("momsn", "09"), ("momsn", "9.0"), ("imei", "0300234010753370")],
+)  # fmt: skip
+def test_identity_and_payload_claims_are_compared_as_exact_text_not_as_numbers(
+    store: Store, require_signed: MoConfig, gateway_keys: tuple[str, str], field: str, altered: str
+) -> None:
+    """#24 item 5: a signed data of 20 digits matched a delivered one differing in the 20th digit (equal as
+    floats), with ``_`` separators or with leading zeros, and was stored as verified."""
+    fields = {**delivery(9).fields(), "data": "31323334353637383930"}
+    claims: dict[str, object] = {**fields, "momsn": 9}
+    body = json.dumps({**fields, field: altered, "JWT": _signed(gateway_keys[0], claims)}).encode()
+    assert _post_json_once(store, require_signed, body) == 401
+    assert ReportStore(store).for_imei(IMEI) == [] and ReportStore(store).for_imei("0300234010753370") == []
+    assert [reason for reason, _ in ReportStore(store).rejected_deliveries()] == [
+        f"JWT claim {field} does not match the delivered {field}"
+    ]
+
+
+def test_a_token_issued_a_second_ahead_of_this_clock_is_accepted_within_the_leeway(
+    store: Store, require_signed: MoConfig, gateway_keys: tuple[str, str]
+) -> None:
+    import time
+
+    fields = delivery(10).fields()
+    ahead = _signed(gateway_keys[0], {**fields, "iat": int(time.time()) + 2})
+    assert _post_json_once(store, require_signed, json.dumps({**fields, "JWT": ahead}).encode()) == 200
+    far = _signed(gateway_keys[0], {**fields, "momsn": "11", "iat": int(time.time()) + 600})
+    assert _post_json_once(store, require_signed, json.dumps({**fields, "momsn": "11", "JWT": far}).encode()) == 401
