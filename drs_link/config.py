@@ -293,6 +293,9 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
 MAX_LEASE_S = 86_400.0
 """A day: a lease of 1e19 s overflowed the Pi's 64-bit shell arithmetic and let a second console take over."""
 VARIABLE_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,127}$")
+PASSWORD_ENV_RE = re.compile(r"^[A-Z_][A-Z0-9_]{0,127}$")
+"""Capitals only: ``password_env = "hunter2xyz"`` (the password itself) once passed and was printed by the
+error that the variable is not set; a name in capitals is a name, a password rarely is."""
 
 
 def _check_range(key: str, value: float, low: float, high: float, why: str) -> None:
@@ -314,10 +317,10 @@ def _check_sections(sections: dict[str, Any]) -> None:
     rockblock: RockblockConfig | None = sections.get("rockblock")
     if rockblock is not None:
         _check_range("rockblock.timeout_s", rockblock.timeout_s, 0.5, 600.0, "the gateway answers within seconds")
-        if rockblock.password_env and not VARIABLE_NAME_RE.match(rockblock.password_env):
+        if rockblock.password_env and not PASSWORD_ENV_RE.match(rockblock.password_env):
             raise ConfigError(
-                "rockblock.password_env: must be the NAME of an environment variable (letters, digits, _); "
-                "the value is not shown here in case it is the password itself"
+                "rockblock.password_env: must be the NAME of an environment variable in capitals (A-Z, 0-9, _), "
+                "such as DRS_ROCKBLOCK_PASSWORD; the value is not shown here in case it is the password itself"
             )
     mo: MoConfig | None = sections.get("mo")
     if mo is not None:
