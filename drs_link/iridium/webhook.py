@@ -31,6 +31,8 @@ from typing import Any
 from urllib.parse import parse_qs
 
 import jwt
+from cryptography.hazmat.primitives import serialization
+from cryptography.hazmat.primitives.asymmetric import rsa
 
 from drs_link.config import MoConfig
 from drs_link.errors import ConfigError, StoreError
@@ -40,6 +42,7 @@ from drs_link.store import parse_iso_utc, utc_now
 log = logging.getLogger(__name__)
 access_log = logging.getLogger(f"{__name__}.access")
 
+MAX_KEY_BYTES = 65_536
 HEALTH_PATH = "/health"
 HEALTH_WAIT_S = 0.5
 REQUEST_DEADLINE_S = 20.0
@@ -68,11 +71,20 @@ def load_public_key(path: Path | None) -> str | None:
     if path is None:
         return None
     try:
-        text = path.read_text(encoding="ascii")
+        with open(path, "rb") as file:
+            data = file.read(MAX_KEY_BYTES + 1)
+        text = data.decode("ascii")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"mo.jwt_public_key_file: cannot read {path}: {exc}") from None
-    if "PUBLIC KEY" not in text:
+    if len(data) > MAX_KEY_BYTES or "PUBLIC KEY" not in text:
         raise ConfigError(f"mo.jwt_public_key_file: {path} is not a PEM public key")
+    try:
+        key = serialization.load_pem_public_key(data)
+    except ValueError:
+        # Parsed here, at start: a key with garbage inside once let the receiver start and 401 every delivery.
+        raise ConfigError(f"mo.jwt_public_key_file: {path} holds a PEM block that is not a valid public key") from None
+    if not isinstance(key, rsa.RSAPublicKey):
+        raise ConfigError(f"mo.jwt_public_key_file: {path} is not an RSA key (Ground Control signs with RS256)")
     return text
 
 
