@@ -474,13 +474,23 @@ class CommandLifecycle:
             raise
         state = _SEND_OUTCOME[result.status]
         columns: dict[str, Any] = {}
-        if state == QUEUED:
-            columns = {"queued_utc": iso_utc(self.clock()), "mt_id": result.mt_id}
-            if command.flush:
-                self._flush_older(command)
-        elif state == DELIVERY_UNKNOWN:
-            columns = {"queued_utc": iso_utc(request_written_by)}
-        return self._set(command, state, result.detail, expected=CONFIRMED, **columns)
+        try:
+            if state == QUEUED:
+                columns = {"queued_utc": iso_utc(self.clock()), "mt_id": result.mt_id}
+                if command.flush:
+                    self._flush_older(command)
+            elif state == DELIVERY_UNKNOWN:
+                columns = {"queued_utc": iso_utc(request_written_by)}
+            return self._set(command, state, result.detail, expected=CONFIRMED, **columns)
+        except StoreError as exc:
+            # The gateway has acted; the store only failed to say so. Without this the operator read a
+            # store error and nothing about the MT already queued (and might send it again).
+            acted = f"queued it as MT {result.mt_id}" if state == QUEUED else f"answered: {result.detail}"
+            raise StoreError(
+                f"the gateway {acted} (command {command.id}, {command.text}), but the store could not record "
+                f"it ({exc}); do not send it again: it stays 'confirmed' until the store is writable, then "
+                "becomes delivery_unknown for drs mt resolve"
+            ) from None
 
     def _unknown(self, command_id: int, capsule: str) -> Command:
         """The command an operator may resolve: this capsule's, and still of unknown delivery."""

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from drs_link.config import CapsuleConfig
-from drs_link.errors import RefusedError
+from drs_link.errors import RefusedError, StoreError
 from drs_link.iridium import lifecycle as lc
 from drs_link.iridium import reports as report_module
 from drs_link.iridium.gateway import RockblockGateway
@@ -383,3 +383,26 @@ def test_a_single_gap_of_lost_sessions_then_the_old_spacing_is_not_seen(rig) -> 
     life.observe(reports.for_imei(IMEI), IMEI)
     final = life.get(command.id)
     assert final.state == lc.TIMED_OUT and "[INTERVAL=30]: not seen" in final.detail
+
+
+def test_a_store_failure_after_the_gateway_queued_says_so_with_the_mt_id(rig, monkeypatch: pytest.MonkeyPatch) -> None:
+    """#24 item 12: the operator read only the store's error, nothing of the MT the gateway had queued."""
+    store, _, gateway, client, clock = rig
+    life = lc.CommandLifecycle(store, "alice", clock)
+    command = life.request(CAPSULE, MtComposer().add("INTERVAL", 9).build())
+    apply = lc.CommandLifecycle._apply
+
+    def full_disk_at_queued(self: lc.CommandLifecycle, changes: list) -> None:  # type: ignore[type-arg]
+        if any(change.state == lc.QUEUED for change in changes):
+            raise StoreError("the store drs.sqlite cannot be written: database or disk is full")
+        apply(self, changes)
+
+    monkeypatch.setattr(lc.CommandLifecycle, "_apply", full_disk_at_queued)
+    with pytest.raises(StoreError) as failed:
+        life.send(command.id, "DRS1", client)
+    message = str(failed.value)
+    assert message.startswith("the gateway queued it as MT 4114652 (command"), message
+    assert "do not send it again" in message and "[INTERVAL=9]" in message and len(gateway.requests) == 1
+    monkeypatch.undo()
+    settled = lc.CommandLifecycle(store, "bob", clock).get(command.id)
+    assert settled.state == lc.DELIVERY_UNKNOWN, "the sender is gone: settled once the store takes writes"
