@@ -257,6 +257,7 @@ def test_email_attachments_import_once_and_bad_files_are_reported(store: Store, 
     [
         (f"{IMEI}-000123.bin", 123, None),
         (f"{IMEI}-00000.sbd", 0, None),
+        (f"{IMEI}_125.sbd", 125, None),
         (f"19-04-07_09-59-59_{IMEI}_000124.sbd", 124, datetime(2019, 4, 7, 9, 59, 59, tzinfo=UTC)),
     ],
 )
