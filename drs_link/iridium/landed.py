@@ -89,8 +89,7 @@ def _trusted_reports(reports: Sequence[StoredReport]) -> tuple[list[StoredReport
     with_fix = [r for r in reports if track_point(r) is not None]
     verified = any(r.delivery.jwt_verified for r in with_fix)
     unverified = [r.id for r in with_fix if verified and not r.delivery.jwt_verified]
-    leeway = timedelta(seconds=FUTURE_LEEWAY_S)
-    future = [r.id for r in with_fix if r.time > r.delivery.received_utc + leeway]
+    future = [r.id for r in with_fix if _future_dated(r)]
     left_out = set(unverified) | set(future)
     kept = [r for r in with_fix if r.id not in left_out]
     trusted = {
@@ -101,6 +100,11 @@ def _trusted_reports(reports: Sequence[StoredReport]) -> tuple[list[StoredReport
         "ignored_future_dated": future,
     }
     return kept, verified, trusted
+
+
+def _future_dated(stored: StoredReport) -> bool:
+    """The report's fix is dated after its own arrival, beyond the clock leeway."""
+    return stored.time > stored.delivery.received_utc + timedelta(seconds=FUTURE_LEEWAY_S)
 
 
 def _jump(track: list[TrackPoint]) -> str | None:
@@ -190,8 +194,30 @@ class LandedVerdicts:
 
     def __init__(self) -> None:
         self._watch = LandingWatch()
+        self._points: list[tuple[TrackPoint, bool]] = []
+        """Every fix not dated after its arrival, and whether its report was JWT-verified."""
+        self._verified_only = False
+        self._jumped = False
 
     def add(self, stored: StoredReport) -> bool:
-        if (point := track_point(stored)) is not None:
-            self._watch.add(point)
-        return self._watch.on_site
+        """The same trust as ``landed_evidence``: the first verified report drops the unverified ones
+        (the track is rebuilt once), future-dated fixes are left out, and a jump ends the landing."""
+        point = track_point(stored)
+        if point is not None and not _future_dated(stored):
+            verified = stored.delivery.jwt_verified
+            self._points.append((point, verified))
+            if verified and not self._verified_only:
+                self._verified_only = True
+                self._watch, self._jumped = LandingWatch(), False
+                for earlier, trusted in self._points:
+                    if trusted:
+                        self._feed(earlier)
+            elif verified or not self._verified_only:
+                self._feed(point)
+        return self._watch.on_site and not self._jumped
+
+    def _feed(self, point: TrackPoint) -> None:
+        track = self._watch.track
+        if track and _jump([track[-1], point]) is not None:
+            self._jumped = True
+        self._watch.add(point)
