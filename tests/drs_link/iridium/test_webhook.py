@@ -18,7 +18,7 @@ import pytest
 from drs_link.config import MoConfig
 from drs_link.errors import ConfigError
 from drs_link.iridium.firmware import format_mo
-from drs_link.iridium.importer import import_files
+from drs_link.iridium.importer import NAMES_ACCEPTED, import_files
 from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
 from drs_link.sim.rockblock import MoDelivery, generate_test_keys, post_mo
@@ -246,7 +246,7 @@ def test_email_attachments_import_once_and_bad_files_are_reported(store: Store, 
     reports = ReportStore(store)
     outcomes = import_files([good, garbage, badly_named, huge, missing, good], reports)
     assert [o.status for o in outcomes] == ["new", "rejected", "error", "error", "error", "duplicate"]
-    assert "name is not <imei>-<momsn>.bin or .sbd (RockBLOCK) or YY-MM-DD_hh-mm-ss_<imei>_<momsn>.sbd" in outcomes[2].message
+    assert outcomes[2].message == f"name is not {NAMES_ACCEPTED}" and "<imei>_<momsn>.sbd (RockBLOCK)" in NAMES_ACCEPTED
     assert [r.delivery.momsn for r in reports.for_imei(IMEI)] == [13, 12] or [
         r.delivery.momsn for r in reports.for_imei(IMEI)
     ] == [12, 13]
