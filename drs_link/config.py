@@ -331,8 +331,9 @@ def _check_sections(sections: dict[str, Any]) -> None:
         _check_range("rockblock.timeout_s", rockblock.timeout_s, 0.5, 600.0, "the gateway answers within seconds")
         if rockblock.password_env and not PASSWORD_ENV_RE.match(rockblock.password_env):
             raise ConfigError(
-                "rockblock.password_env: must be the NAME of an environment variable in capitals (A-Z, 0-9, _), "
-                "such as DRS_ROCKBLOCK_PASSWORD; the value is not shown here in case it is the password itself"
+                "rockblock.password_env: must be the NAME of an environment variable in capitals "
+                "(A-Z, 0-9, _), such as DRS_ROCKBLOCK_PASSWORD; the value is not shown here in case it is "
+                "the password itself"
             )
     mo: MoConfig | None = sections.get("mo")
     if mo is not None:
@@ -372,9 +373,13 @@ def _check_team_position(text: str) -> None:
     try:
         lat, lon = (float(part) for part in parts)
     except ValueError:
-        raise ConfigError(f"console.team_position: {text!r} must be LAT,LON in decimal degrees, e.g. 46.52,6.63") from None
+        raise ConfigError(
+            f"console.team_position: {text!r} must be LAT,LON in decimal degrees, e.g. 46.52,6.63"
+        ) from None
     if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):  # False for nan
-        raise ConfigError(f"console.team_position: {text!r} must be LAT,LON with -90<=LAT<=90 and -180<=LON<=180")
+        raise ConfigError(
+            f"console.team_position: {text!r} must be LAT,LON with -90<=LAT<=90 and -180<=LON<=180"
+        )
 
 
 def _check_small_file(key: str, path: Path) -> None:
@@ -398,7 +403,8 @@ def _check_host(key: str, host: str) -> None:
 
 
 def _check_jump_host(key: str, spec: str) -> None:
-    """``[user@]host[:port]`` as the SSH link reads it, checked at load (port 99999 once failed at connect)."""
+    """``[user@]host[:port]`` as the SSH link reads it, checked at load (port 99999 once failed at
+    connect)."""
     user, _, rest = spec.rpartition("@")
     host, colon, port_text = rest.partition(":")
     if user and (not user.isprintable() or any(c.isspace() for c in user)):

@@ -406,8 +406,9 @@ def _mo_export(args: argparse.Namespace) -> int:
     result = export_track(reports, args.out, who, overwrite=args.force)
     print(
         f"wrote {result.path}: {result.fixes} fixes of {who}; skipped {result.without_fix} report(s) "
-        f"without a fix and {result.rejected} rejected", file=sys.stderr if str(args.out) == "-" else sys.stdout,
-    )  # fmt: skip
+        f"without a fix and {result.rejected} rejected",
+        file=sys.stderr if str(args.out) == "-" else sys.stdout,
+    )
     return 0
 
 

@@ -117,8 +117,8 @@ def _jump(track: list[TrackPoint]) -> str | None:
             return (
                 f"implausible jump from {_describe(before)} to {_describe(after)}: "
                 f"{abs(after.alt_m - before.alt_m) / 1000:.1f} km {'down' if vertical < 0 else 'up'} and "
-                f"{across * seconds / 1000:.1f} km across in {seconds:.0f} s (limits {MAX_VERTICAL_MS:.0f} m/s "
-                f"vertical, {MAX_HORIZONTAL_MS:.0f} m/s horizontal)"
+                f"{across * seconds / 1000:.1f} km across in {seconds:.0f} s "
+                f"(limits {MAX_VERTICAL_MS:.0f} m/s vertical, {MAX_HORIZONTAL_MS:.0f} m/s horizontal)"
             )
     return None
 

@@ -171,7 +171,9 @@ def _assign(commands: list[Command], reports: list[StoredReport]) -> dict[int, S
     return assignment
 
 
-def _effect_reports(command: Command, reports: list[StoredReport], commands: list[Command]) -> list[StoredReport] | None:
+def _effect_reports(
+    command: Command, reports: list[StoredReport], commands: list[Command]
+) -> list[StoredReport] | None:
     """The accepted reports after the one that delivered ``command``, up to where a later delivered command
     of the same kind takes over (its delivering report and the next still run on this one's value, by the
     switch-over rule); None while its delivering report is not among ``reports``."""

@@ -82,9 +82,13 @@ def load_public_key(path: Path | None) -> str | None:
         key = serialization.load_pem_public_key(data)
     except ValueError:
         # Parsed here, at start: a key with garbage inside once let the receiver start and 401 every delivery.
-        raise ConfigError(f"mo.jwt_public_key_file: {path} holds a PEM block that is not a valid public key") from None
+        raise ConfigError(
+            f"mo.jwt_public_key_file: {path} holds a PEM block that is not a valid public key"
+        ) from None
     if not isinstance(key, rsa.RSAPublicKey):
-        raise ConfigError(f"mo.jwt_public_key_file: {path} is not an RSA key (Ground Control signs with RS256)")
+        raise ConfigError(
+            f"mo.jwt_public_key_file: {path} is not an RSA key (Ground Control signs with RS256)"
+        )
     return text
 
 

@@ -112,7 +112,8 @@ def scan_source(source: Path) -> tuple[list[LocalFile], list[str]]:
         for name in sorted(dirnames):
             if (folder / name).is_symlink():
                 dirnames.remove(name)
-                left_out.append(f"{(folder / name).relative_to(source).as_posix()}/ (a directory link, not followed)")
+                link = (folder / name).relative_to(source).as_posix()
+                left_out.append(f"{link}/ (a directory link, not followed)")
         dirnames.sort()
         for name in sorted(filenames):
             path = folder / name
@@ -289,13 +290,17 @@ class Syncer:
             path = posixpath.join(path, part)
             mode = self._lmode(sftp, path)
             if mode is not None and stat.S_ISLNK(mode):
-                raise LinkError(f"{self.capsule}: {path} on the Pi is a link; refusing to write {relative} through it")
+                raise LinkError(
+                    f"{self.capsule}: {path} on the Pi is a link; refusing to write {relative} through it"
+                )
         partial = self._remote_path(relative) + PARTIAL_SUFFIX
         mode = self._lmode(sftp, partial)
         if mode is not None and stat.S_ISLNK(mode):
             sftp.remove(partial)
         elif mode is not None and not stat.S_ISREG(mode):
-            raise LinkError(f"{self.capsule}: {partial} on the Pi is not a file; remove it to upload {relative}")
+            raise LinkError(
+                f"{self.capsule}: {partial} on the Pi is not a file; remove it to upload {relative}"
+            )
 
     @staticmethod
     def _lmode(sftp: paramiko.SFTPClient, path: str) -> int | None:

@@ -105,7 +105,9 @@ def check_header(file: Path, number: int, handle: int, file_size: int) -> None:
             raise WeatherError(f"{where}: a grid of {ni:,}×{nj:,} points is implausible "
                                f"(more than {MAX_GRID_POINTS:,}); the header is damaged")  # fmt: skip
         if points is not None and points != ni * nj:
-            raise WeatherError(f"{where} holds {points:,} points on a {ni:,}×{nj:,} grid; the header is damaged")
+            raise WeatherError(
+                f"{where} holds {points:,} points on a {ni:,}×{nj:,} grid; the header is damaged"
+            )
     if points is not None and points > MAX_GRID_POINTS:
         raise WeatherError(f"{where}: {points:,} points is implausible (more than {MAX_GRID_POINTS:,})")
     values = _integer(handle, "numberOfValues")
@@ -118,8 +120,8 @@ def check_header(file: Path, number: int, handle: int, file_size: int) -> None:
             datetime(year, month, day, hour, minute, second)
         except ValueError:
             raise WeatherError(
-                f"{where}: reference time {year:04d}-{month:02d}-{day:02d} {hour:02d}:{minute:02d}:{second:02d} "
-                "is not a date; the header is damaged"
+                f"{where}: reference time {year:04d}-{month:02d}-{day:02d} "
+                f"{hour:02d}:{minute:02d}:{second:02d} is not a date; the header is damaged"
             ) from None
         if not YEARS[0] <= year <= YEARS[1]:
             raise WeatherError(f"{where}: reference year {year} is implausible; the header is damaged")

@@ -165,7 +165,9 @@ def _take_message(
         raise WeatherError(f"{file} mixes several grids; use one product per file")
     if eccodes.codes_is_defined(handle, "generatingProcessIdentifier"):
         processes.add(int(eccodes.codes_get(handle, "generatingProcessIdentifier")))
-    cycle = _timestamp(file, "reference", eccodes.codes_get(handle, "dataDate"), eccodes.codes_get(handle, "dataTime"))
+    cycle = _timestamp(
+        file, "reference", eccodes.codes_get(handle, "dataDate"), eccodes.codes_get(handle, "dataTime")
+    )
     valid = _timestamp(
         file, "validity", eccodes.codes_get(handle, "validityDate"), eccodes.codes_get(handle, "validityTime")
     )
@@ -220,7 +222,9 @@ def _timestamp(file: Path, what: str, date: int, hhmm: int) -> np.datetime64:
             raise ValueError
         moment = datetime(date // 10_000, date // 100 % 100, date % 100, hhmm // 100, hhmm % 100)
     except ValueError:
-        raise WeatherError(f"{file}: the {what} time {date} {hhmm:04d} is not a date; the file is damaged") from None
+        raise WeatherError(
+            f"{file}: the {what} time {date} {hhmm:04d} is not a date; the file is damaged"
+        ) from None
     if not YEARS[0] <= moment.year <= YEARS[1]:
         raise WeatherError(f"{file}: the {what} year {moment.year} is implausible; the file is damaged")
     return np.datetime64(moment, "s")
@@ -233,7 +237,9 @@ def _grid_of(file: Path, signature: tuple, box: BBox | None) -> _Grid:
     if i_negative:
         raise WeatherError(f"{file}: longitudes run westward; only eastward-scanned grids are supported")
     if not (-90.0 <= lat_first <= 90.0 and -90.0 <= lat_last <= 90.0):
-        raise WeatherError(f"{file}: the grid's latitudes {lat_first:g}…{lat_last:g} leave the globe; the file is damaged")
+        raise WeatherError(
+            f"{file}: the grid's latitudes {lat_first:g}…{lat_last:g} leave the globe; the file is damaged"
+        )
     dlat = (lat_last - lat_first) / (nj - 1)
     dlon = ((lon_last - lon_first) % 360.0) / (ni - 1)
     if dlon == 0.0:  # a global grid whose last column repeats the first

@@ -148,8 +148,8 @@ def test_the_per_report_verdicts_apply_the_same_trust_as_the_gate() -> None:
     fall = [stored(i, t, alt, v, t + timedelta(seconds=40)) for i, (t, alt, v) in enumerate(signed_fall(now))]
     signed = [replace(r, delivery=replace(r.delivery, jwt_verified=True)) for r in fall]
     last = fall[-1].time
-    still = [stored(30 + i, last + timedelta(minutes=30 + 2 * i), 400.0, 0.0, last + timedelta(minutes=31 + 2 * i))
-             for i in range(3)]  # fmt: skip
+    at = [last + timedelta(minutes=30 + 2 * i) for i in range(3)]
+    still = [stored(30 + i, at[i], 400.0, 0.0, at[i] + timedelta(minutes=1)) for i in range(3)]
     future = [stored(40 + i, last + timedelta(minutes=40 + 2 * i), 400.0, 0.0, last + timedelta(minutes=30))
               for i in range(3)]  # fmt: skip
     jump = [stored(50 + i, last + timedelta(seconds=16 + 60 * i), 400.0, 0.0, last + timedelta(minutes=5 + i))
@@ -157,5 +157,7 @@ def test_the_per_report_verdicts_apply_the_same_trust_as_the_gate() -> None:
     cases = [fall + still, fall[:5] + signed[5:] + still, fall + future, fall + jump, signed + still]
     for reports in cases:
         fed = LandedVerdicts()
-        assert [fed.add(r) for r in reports] == [landed_evidence(reports[: i + 1]).on_ground for i in range(len(reports))]
+        assert [fed.add(r) for r in reports] == [
+            landed_evidence(reports[: i + 1]).on_ground for i in range(len(reports))
+        ]
     assert landed_evidence(fall + still).on_ground and not landed_evidence(signed + still).on_ground

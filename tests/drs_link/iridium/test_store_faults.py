@@ -42,7 +42,9 @@ def receivers() -> Iterator[list[Receiver]]:
             receiver.process.wait(timeout=10)
 
 
-def drs(config: Path, *argv: str, wrap: list[str] | None = None, **env: str) -> subprocess.CompletedProcess[str]:
+def drs(
+    config: Path, *argv: str, wrap: list[str] | None = None, **env: str
+) -> subprocess.CompletedProcess[str]:
     command = [sys.executable, "-c", DRS, "--config", str(config), *argv]
     return subprocess.run(
         [*(wrap or []), *command], cwd=REPO, capture_output=True, text=True, timeout=120,
@@ -52,7 +54,9 @@ def drs(config: Path, *argv: str, wrap: list[str] | None = None, **env: str) -> 
 
 def mo(momsn: int, minutes_ago: float, alt: float = 400.0) -> MoDelivery:
     moment = utc_now().replace(microsecond=0) - timedelta(minutes=minutes_ago)
-    return MoDelivery(IMEI, 11800, momsn, format_mo(fix_at(moment, alt=alt), 8.9, momsn), moment, 46.5, 6.6, 2.0)
+    return MoDelivery(
+        IMEI, 11800, momsn, format_mo(fix_at(moment, alt=alt), 8.9, momsn), moment, 46.5, 6.6, 2.0
+    )
 
 
 def read_only(folder: Path) -> list[str]:
@@ -66,14 +70,20 @@ def read_only(folder: Path) -> list[str]:
     return ["unshare", "-rm", "sh", "-c", script, "sh"]
 
 
-def test_a_store_on_a_read_only_filesystem_is_read_by_recovery_health_status_and_export(tmp_path: Path) -> None:
+def test_a_store_on_a_read_only_filesystem_is_read_by_recovery_health_status_and_export(
+    tmp_path: Path,
+) -> None:
     config = write_config(tmp_path)
     store = Store.open(tmp_path / "data" / "drs.sqlite")
     reports = ReportStore(store)
-    for momsn, (minutes, alt) in enumerate([(30, 9_000.0), (20, 3_000.0), (10, 400.0), (5, 400.0), (1, 400.0)]):
+    for momsn, (minutes, alt) in enumerate(
+        [(30, 9_000.0), (20, 3_000.0), (10, 400.0), (5, 400.0), (1, 400.0)]
+    ):
         reports.add(to_delivery(mo(momsn, minutes, alt)))
-    assert drs(config, "mt", "send", "DRS1", "--interval", "5", "--confirm", "DRS1",
-               DRS_TEST_RB="x").returncode == 1  # fmt: skip  (no gateway: one command, failed)
+    assert (
+        drs(config, "mt", "send", "DRS1", "--interval", "5", "--confirm", "DRS1", DRS_TEST_RB="x").returncode
+        == 1
+    )  # fmt: skip  (no gateway: one command, failed)
     store.close()
     before = (tmp_path / "data" / "drs.sqlite").read_bytes()
     wrap = read_only(tmp_path / "data")
@@ -86,7 +96,9 @@ def test_a_store_on_a_read_only_filesystem_is_read_by_recovery_health_status_and
     assert out.read_text().count("\n") == 6, "a header and the five fixes"
     status = drs(config, "mt", "status", "DRS1", wrap=wrap).stdout
     assert "[INTERVAL=5]" in status
-    refused = drs(config, "mt", "send", "DRS1", "--interval", "7", "--confirm", "DRS1", wrap=wrap, DRS_TEST_RB="x")
+    refused = drs(
+        config, "mt", "send", "DRS1", "--interval", "7", "--confirm", "DRS1", wrap=wrap, DRS_TEST_RB="x"
+    )
     assert refused.returncode == 1 and "read-only filesystem: nothing can be recorded" in refused.stderr
     assert refused.stderr.count("\n") == 1
     assert (tmp_path / "data" / "drs.sqlite").read_bytes() == before
@@ -134,7 +146,8 @@ def test_a_locked_store_gets_503_inside_three_seconds_and_the_post_is_stored_whe
     receivers.append(receiver)
     assert post_mo(receiver.url, mo(1, 3)) == 200
     status, answer = health(receiver.url)
-    assert status == 200 and answer["store_writable"] is True and 0 <= answer["last_delivery_age_s"] < 60  # type: ignore[operator]
+    assert status == 200 and answer["store_writable"] is True
+    assert 0 <= answer["last_delivery_age_s"] < 60  # type: ignore[operator]
     assert set(answer) == {"status", "store_writable", "last_delivery_age_s", "jwt_required"}
     with locked(receiver.store_path):
         started = time.monotonic()
@@ -149,7 +162,9 @@ def test_a_locked_store_gets_503_inside_three_seconds_and_the_post_is_stored_whe
     assert "POST /rockblock/mo 503" in logged
 
 
-def test_an_answer_whose_client_left_is_logged_as_not_sent_not_as_200(tmp_path: Path, receivers: list[Receiver]) -> None:
+def test_an_answer_whose_client_left_is_logged_as_not_sent_not_as_200(
+    tmp_path: Path, receivers: list[Receiver]
+) -> None:
     receiver = Receiver(tmp_path)
     receivers.append(receiver)
     assert post_mo(receiver.url, mo(1, 3)) == 200
@@ -195,14 +210,16 @@ def test_drs_mt_send_says_it_is_waiting_for_a_locked_store(tmp_path: Path) -> No
         assert "queued" in out and len(gateway.requests) == 1
 
 
-def test_a_drip_fed_request_is_cut_off_at_the_request_deadline(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_drip_fed_request_is_cut_off_at_the_request_deadline(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from drs_link.config import MoConfig
     from drs_link.iridium import webhook
 
     monkeypatch.setattr(webhook, "REQUEST_DEADLINE_S", 2.0)
     store = Store.open(tmp_path / "drs.sqlite")
-    server = webhook.MoHttpServer(webhook.MoReceiver(
-        ReportStore(store), MoConfig(listen_host="127.0.0.1", listen_port=0, require_jwt=False))).start()  # fmt: skip
+    config = MoConfig(listen_host="127.0.0.1", listen_port=0, require_jwt=False)
+    server = webhook.MoHttpServer(webhook.MoReceiver(ReportStore(store), config)).start()
     try:
         host, port = server.server_address[:2]
         client = socket.create_connection((host, port), timeout=30)
@@ -219,9 +236,13 @@ def test_a_drip_fed_request_is_cut_off_at_the_request_deadline(tmp_path: Path, m
                 break
         if not cut:
             cut = client.recv(100) == b""
-        assert cut and time.monotonic() - started < 6, "one byte every 0.2 s once held the connection for ever"
+        assert cut and time.monotonic() - started < 6, (
+            "one byte every 0.2 s once held the connection for ever"
+        )
         client.close()
     finally:
         server.stop()
         store.close()
-    assert sqlite3.connect(tmp_path / "drs.sqlite").execute("SELECT COUNT(*) FROM mo_report").fetchone()[0] == 0
+    assert (
+        sqlite3.connect(tmp_path / "drs.sqlite").execute("SELECT COUNT(*) FROM mo_report").fetchone()[0] == 0
+    )

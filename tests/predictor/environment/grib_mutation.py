@@ -32,7 +32,8 @@ def write_base(path: Path) -> bytes:
     layer = [np.full(shape[1:], value) for value in (250.0, 220.0)]
     height = [np.full(shape[1:], value) for value in (5_500.0, 10_300.0)]
     write_gfs_grib2(
-        path, datetime(2026, 7, 1, 6), 3, [500.0, 250.0], np.linspace(45.0, 47.0, 5), np.linspace(6.0, 8.5, 6),
+        path, datetime(2026, 7, 1, 6), 3, [500.0, 250.0],
+        np.linspace(45.0, 47.0, 5), np.linspace(6.0, 8.5, 6),
         np.full(shape, 10.0), np.full(shape, -3.0), np.stack(layer), np.stack(height),
     )  # fmt: skip
     data = path.read_bytes()
@@ -65,7 +66,9 @@ def mutants(base: bytes) -> dict[str, bytes]:
         "ni-2386165793": lambda d: _put(d, _first(3, 31), u32(2_386_165_793)),
         "ni-2386165793-every-message": lambda d: _put(d, _every(3, 31), u32(2_386_165_793)),
         "nj-4000000000-every-message": lambda d: _put(d, _every(3, 35), u32(4_000_000_000)),
-        "ni-100000-nj-100000": lambda d: _put(_put(d, _every(3, 31), u32(100_000)), _every(3, 35), u32(100_000)),
+        "ni-100000-nj-100000": lambda d: _put(
+            _put(d, _every(3, 31), u32(100_000)), _every(3, 35), u32(100_000)
+        ),
         "ni-0": lambda d: _put(d, _every(3, 31), u32(0)),
         "ni-7-every-message": lambda d: _put(d, _every(3, 31), u32(7)),
         "data-points-huge": lambda d: _put(d, _every(3, 7), u32(3_000_000_000)),

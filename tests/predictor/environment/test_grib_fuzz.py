@@ -43,10 +43,13 @@ HEADER_DAMAGE = [
 """Mutants no reader may accept: each names a header value no weather file has, or a cut."""
 
 
-def test_every_grib_mutant_is_read_or_refused_in_one_line_naming_it_under_a_memory_cap(tmp_path: Path) -> None:
+def test_every_grib_mutant_is_read_or_refused_in_one_line_naming_it_under_a_memory_cap(
+    tmp_path: Path,
+) -> None:
     child = subprocess.run(
         [sys.executable, "-c", CHILD, str(CAP_BYTES), str(FOLDER)],
-        cwd=REPO, capture_output=True, text=True, timeout=180, env={"PYTHONPATH": str(REPO), "HOME": str(tmp_path)},
+        cwd=REPO, capture_output=True, text=True, timeout=180,
+        env={"PYTHONPATH": str(REPO), "HOME": str(tmp_path)},
     )  # fmt: skip
     assert child.returncode == 0, child.stderr[-2000:]
     answers = {a["file"].removesuffix(".grib2"): a for a in map(json.loads, child.stdout.splitlines())}
