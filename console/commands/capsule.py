@@ -479,6 +479,8 @@ def cmd_sync(args: argparse.Namespace) -> int:
         f"{args.name}: {len(report.uploaded)} files uploaded and verified by sha256 on the Pi, "
         f"{len(report.skipped)} already up to date, {report.bytes_sent} bytes sent"
     )
+    if report.left_out:
+        print(f"{syncer.capsule}: {len(report.left_out)} entries left out: {'; '.join(report.left_out)}")
     return 0
 
 

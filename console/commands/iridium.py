@@ -47,6 +47,7 @@ from drs_link.ops import (
     LISTED,
     PARACHUTE,
     QUEUED,
+    RETRY_WARNING,
     Command,
     MtComposer,
     MtMessage,
@@ -218,6 +219,8 @@ def _mt_send(args: argparse.Namespace) -> int:
         args.second_operator, args.single_operator_waiver, args.await_approval,
         lambda request: print(pending_text(request), flush=True),
     )  # fmt: skip
+    for older in ops.unresolved_like(capsule.name, message):
+        print(f"warning: MT {older.id} {older.text} is delivery_unknown: {RETRY_WARNING}")
     try:
         sent = ops.send_mt(
             capsule.name, message, args.confirm, second, override_landed=args.override_landed,
@@ -380,7 +383,8 @@ def _mo_export(args: argparse.Namespace) -> int:
     result = export_track(reports, args.out, who, overwrite=args.force)
     print(
         f"wrote {result.path}: {result.fixes} fixes of {who}; skipped {result.without_fix} report(s) "
-        f"without a fix and {result.rejected} rejected"
+        f"without a fix and {result.rejected} rejected",
+        file=sys.stderr if str(args.out) == "-" else sys.stdout,
     )
     return 0
 

@@ -24,6 +24,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "LISTED": "face_types",
         "PARACHUTE": "face_types",
         "QUEUED": "face_types",
+        "RETRY_WARNING": "face_types",
         "Command": "face_types",
         "MtComposer": "face_types",
         "MtMessage": "face_types",

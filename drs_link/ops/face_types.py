@@ -26,6 +26,8 @@ from drs_link.store import iso_utc
 
 QUEUED = lc.QUEUED
 """An MT the gateway accepted: what ``drs mt send`` exits 0 on."""
+RETRY_WARNING = lc.RETRY_WARNING
+"""What a face prints before sending the text of a command whose delivery is still unknown."""
 
 __all__ = [
     "CATALOGUE",
@@ -33,6 +35,7 @@ __all__ = [
     "LISTED",
     "PARACHUTE",
     "QUEUED",
+    "RETRY_WARNING",
     "Command",
     "Hazard",
     "LandedEvidence",

@@ -672,6 +672,11 @@ class Operations:
         imei = self.ops(name).config.imei
         return self.lifecycle.for_imei(imei) if imei else []
 
+    def unresolved_like(self, name: str, message: MtMessage) -> list[Command]:
+        """This capsule's commands with the same text whose delivery is still unknown: a retry may queue
+        the MT twice (the gateway may hold the first), which the operator is told before sending."""
+        return self.lifecycle.unresolved_like(self.ops(name).config.imei or "", message.text)
+
     def send_mt(
         self,
         name: str,
