@@ -480,7 +480,7 @@ def cmd_sync(args: argparse.Namespace) -> int:
         f"{len(report.skipped)} already up to date, {report.bytes_sent} bytes sent"
     )
     if report.left_out:
-        print(f"{syncer.capsule}: {len(report.left_out)} entries left out: {'; '.join(report.left_out)}")
+        print(f"{args.name}: {len(report.left_out)} entries left out: {'; '.join(report.left_out)}")
     return 0
 
 
