@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from console.commands.argparser import input_file, latitude, longitude, positive
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError, UsageError
 from predictor.planning import MAX_MEMBER_DESCENTS
@@ -34,16 +35,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     plan.add_argument("action", nargs="?", choices=("bench",), help="bench: measure the sweep's speed")
     plan.add_argument("--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files")
     plan.add_argument("--dem", metavar="DIR", help="terrain: directory of SRTM .hgt tiles and/or NetCDF DEMs")
-    plan.add_argument("--lat", type=float, help="balloon latitude now, degrees north")
-    plan.add_argument("--lon", type=float, help="balloon longitude now, degrees east")
+    plan.add_argument("--lat", type=latitude, help="balloon latitude now, degrees north")
+    plan.add_argument("--lon", type=longitude, help="balloon longitude now, degrees east")
     plan.add_argument("--alt", type=float, help="balloon (float) altitude, m above mean sea level")
     plan.add_argument("--from", dest="start", metavar="ISO", help="first candidate release time, UTC")
     plan.add_argument("--hours", type=float, default=2.0, help="length of the sweep (default 2 h)")
-    plan.add_argument("--every-minutes", type=float, default=5.0, help="candidate spacing (default 5 min)")
-    plan.add_argument("--altitude-plan", metavar="T=M,...", help="balloon altitude plan: ISO=metres,...")
-    plan.add_argument("--zones", metavar="FILE", help="GeoJSON exclusion zones (Polygon/MultiPolygon)")
     plan.add_argument(
-        "--targets", metavar="FILE", help="GeoJSON targets (points/lines: roads, recovery points)"
+        "--every-minutes", type=positive("minutes"), default=5.0, help="candidate spacing (default 5 min)"
+    )
+    plan.add_argument("--altitude-plan", metavar="T=M,...", help="balloon altitude plan: ISO=metres,...")
+    plan.add_argument(
+        "--zones", metavar="FILE", type=input_file("--zones"),
+        help="GeoJSON exclusion zones (Polygon/MultiPolygon); - reads standard input",
+    )
+    plan.add_argument(
+        "--targets", metavar="FILE", type=input_file("--targets"),
+        help="GeoJSON targets (points/lines: roads, recovery points); - reads standard input",
     )
     plan.add_argument(
         "--max-zone-probability", type=float, default=0.05, help="go needs P(zone) ≤ this (0.05)"

@@ -21,6 +21,7 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from console.commands.argparser import latitude, longitude
 from predictor.descent import PROFILES
 from predictor.environment import weather_bbox
 from predictor.errors import PredictorError, UsageError
@@ -53,8 +54,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--dem", metavar="DIR", help="terrain: directory of SRTM .hgt tiles and/or NetCDF DEMs"
     )
-    parser.add_argument("--lat", type=float, help="release latitude, degrees north")
-    parser.add_argument("--lon", type=float, help="release longitude, degrees east")
+    parser.add_argument("--lat", type=latitude, help="release latitude, degrees north")
+    parser.add_argument("--lon", type=longitude, help="release longitude, degrees east")
     parser.add_argument("--alt", type=float, help="release altitude, m above mean sea level")
     parser.add_argument("--time", help="release (or drift start) time, ISO 8601 UTC, e.g. 2024-05-01T06:30Z")
     parser.add_argument(

@@ -10,6 +10,7 @@ import time
 from datetime import date
 from typing import Any
 
+from console.commands.argparser import input_file
 from predictor.environment import Terrain
 from predictor.tracks import MIN_ASCENT_FIXES, Fix, Flight, TrackError, ascent_weather_cube, clean, read_track
 
@@ -22,7 +23,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="per flight: fixes kept and dropped (with reasons), launch, peak, descent start, landing, drift",
     )
     summary.add_argument(
-        "files", nargs="+", metavar="FILE", help="track files (canonical CSV, GPX, SuperBIT log, V4)"
+        "files", nargs="+", metavar="FILE", type=input_file("FILE"),
+        help="track files (canonical CSV, GPX, SuperBIT log, V4); - reads standard input",
     )
     summary.add_argument("--json", action="store_true", help="print JSON instead of text")
     summary.add_argument(

@@ -18,6 +18,7 @@ import platformdirs
 from rich.console import Console
 from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
 
+from console.commands.argparser import at_least_zero, input_file, latitude, longitude, positive
 from predictor.environment import (
     AVAILABILITY_DELAY,
     DEFAULT_URL_TEMPLATE,
@@ -53,9 +54,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     fetch.add_argument(
         "--time", required=True, help="ISO 8601 release time, e.g. 2024-05-01T06:30Z, or 'now'"
     )
-    fetch.add_argument("--lat", type=float, required=True, help="latitude of the release point, degrees")
+    fetch.add_argument("--lat", type=latitude, required=True, help="latitude of the release point, degrees")
     fetch.add_argument(
-        "--lon", type=float, required=True, help="longitude of the release point, degrees east"
+        "--lon", type=longitude, required=True, help="longitude of the release point, degrees east"
     )
     fetch.add_argument(
         "--radius-km", type=float, default=500.0, help="half-width of the region (default 500 km)"
@@ -89,11 +90,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     prune_parser.add_argument(
-        "--keep-days", type=float, default=None, metavar="N", help="remove cycles older than N days"
+        "--keep-days", type=at_least_zero("days", 36500), default=None, metavar="N",
+        help="remove cycles older than N days",
     )
     prune_parser.add_argument(
         "--max-gb",
-        type=float,
+        type=positive("gigabytes"),
         default=None,
         metavar="X",
         help="then remove the oldest cycles until both caches hold under X GB (10^9 bytes)",
@@ -112,7 +114,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     prune_parser.set_defaults(func=run_prune)
 
     info = commands.add_parser("info", help="what a set of GRIB files holds once loaded as one cube")
-    info.add_argument("files", nargs="+", type=Path, help="GRIB files")
+    info.add_argument(
+        "files", nargs="+", type=lambda text: Path(input_file("FILE")(text)),
+        help="GRIB files; - reads standard input",
+    )
     info.add_argument("--json", action="store_true", help="print JSON")
     info.set_defaults(func=run_info)
 
@@ -193,6 +198,8 @@ def run_fetch(args: argparse.Namespace) -> int:
 def run_prune(args: argparse.Namespace) -> int:
     from predictor.environment import default_cache_dir
 
+    if args.keep_days is None and args.max_gb is None:
+        raise UsageError("say what to prune: --keep-days N, --max-gb X, or both")
     max_bytes = None
     if args.max_gb is not None:
         if not (math.isfinite(args.max_gb) and args.max_gb > 0):
