@@ -503,13 +503,16 @@ def test_command_says_when_the_size_limit_cannot_be_met(
     )
 
 
+PRUNE = "drs weather prune: error: argument"
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--max-gb", "0"], "drs weather prune: error: argument --max-gb: 0 is not a positive number of gigabytes"),
-        (["--max-gb", "nan"], "drs weather prune: error: argument --max-gb: 'nan' is not a number of gigabytes"),
-        (["--max-gb", "-5"], "drs weather prune: error: argument --max-gb: -5 is not a positive number of gigabytes"),
-        (["--keep-days", "-2"], "drs weather prune: error: argument --keep-days: -2 is not between 0 and 36500 days"),
+        (["--max-gb", "0"], f"{PRUNE} --max-gb: 0 is not a positive number of gigabytes"),
+        (["--max-gb", "nan"], f"{PRUNE} --max-gb: 'nan' is not a number of gigabytes"),
+        (["--max-gb", "-5"], f"{PRUNE} --max-gb: -5 is not a positive number of gigabytes"),
+        (["--keep-days", "-2"], f"{PRUNE} --keep-days: -2 is not between 0 and 36500 days"),
         ([], "drs: error: say what to prune: --keep-days N, --max-gb X, or both"),
     ],
 )
