@@ -14,15 +14,11 @@ No `drs` option is spelled with a digit, so nothing is lost.
 from __future__ import annotations
 
 import argparse
-import atexit
-import difflib
 import functools
 import math
 import os
 import re
-import shutil
 import sys
-import tempfile
 from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
 
@@ -60,6 +56,8 @@ class DrsArgumentParser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         unknown = self._unknown_option()
         if unknown is not None:
+            import difflib  # only when there is a mistake to name: `drs --help` stays quick
+
             message = f"unrecognized option {unknown}"
             close = difflib.get_close_matches(unknown, self._long_options(), n=1, cutoff=0.6)
             if self._root is not None and (unknown in self._root._option_string_actions or self._root._short_with_value(unknown)):
@@ -203,6 +201,10 @@ def input_file(option: str) -> Callable[[str], str]:
     def check(text: str) -> str:
         if text != STDIN:
             return text
+        import atexit
+        import shutil
+        import tempfile
+
         data = _read_stdin(option)
         start = data.lstrip()[:1]
         suffix = ".gpx" if start == b"<" else ".json" if start in (b"{", b"[") else ""

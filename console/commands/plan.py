@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import sys
@@ -15,8 +16,6 @@ import time
 from datetime import UTC, date, datetime
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from console.commands.argparser import input_file, latitude, longitude, positive
 from predictor.descent import PROFILES
@@ -159,7 +158,7 @@ def run_plan(args: argparse.Namespace) -> int:
     )
     altitude_plan = AltitudePlan.parse(args.altitude_plan) if args.altitude_plan else None
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
-    hours = args.hours if np.isfinite(args.hours) else 0.0
+    hours = args.hours if math.isfinite(args.hours) else 0.0
     wx = load_weather(
         args.weather, bbox=weather_bbox(args.lat, args.lon, max(hours, 0.0) * 60.0), cache_dir=args.cache_dir
     )
@@ -223,6 +222,7 @@ def plan_summary(plan: object) -> str:
 
 def run_bench(args: argparse.Namespace) -> int:
     import numba
+    import numpy as np
     import shapely
 
     from predictor.environment import demo_weather_files, load_weather

@@ -63,7 +63,7 @@ def _position_options() -> set[tuple[str, str]]:
             elif action.type in POSITION_TYPES:
                 found.add((command.split()[0], action.option_strings[-1]))
 
-    walk(build_parser(), "")
+    walk(build_parser(every_module=True), "")
     return found
 
 
