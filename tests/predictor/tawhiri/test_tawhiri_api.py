@@ -351,3 +351,33 @@ def test_stalled_connections_are_bounded_and_dropped_and_the_server_still_answer
             sock.close()
         served.shutdown()
         served.server_close()
+
+
+def test_serve_demo_weather_and_predict_demo_weather_see_the_same_air(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """#25 item 12: the two commands once landed 857 m apart for the same release."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    argv = ["serve", "predictor", "--port", "0", "--demo-weather", "--cache-dir", str(tmp_path / "cache")]
+    demo = build_server(build_parser("serve").parse_args(argv))
+    thread = threading.Thread(target=demo.serve_forever, daemon=True)
+    thread.start()
+    try:
+        query = chasemapper_query(launch_altitude=30000, burst_altitude=30001, launch_latitude=-44.7,
+                                  launch_longitude=169.13)  # fmt: skip
+        status, _, body = get(demo, query, CAPSULE)
+    finally:
+        demo.shutdown()
+        demo.server_close()
+    assert status == 200, body
+    descent = json.loads(body)["prediction"][1]["trajectory"]
+    burst, landing = descent[0], descent[-1]
+    assert main([
+        "predict", "--demo-weather", "--cache-dir", str(tmp_path / "cache"), "--json",
+        "--lat", repr(burst["latitude"]), "--lon", repr(burst["longitude"] - 360 if burst["longitude"] > 180 else burst["longitude"]),
+        "--alt", repr(burst["altitude"]), "--time", burst["datetime"],
+    ]) == 0  # fmt: skip
+    predicted = json.loads(capsys.readouterr().out)["landing"]
+    assert (landing["latitude"], landing["longitude"] % 360) == pytest.approx(
+        (predicted["lat"], predicted["lon"] % 360), abs=1e-9
+    )
