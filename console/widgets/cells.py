@@ -58,16 +58,17 @@ class Cell:
         return Text(self.text, style=widget.get_component_rich_style(f"level--{self.level}", partial=True))
 
 
-AGE_STEPS_S = ((60.0, 5.0), (600.0, 10.0), (3600.0, 60.0))
-"""(below this age, show it in steps of): an age on screen changes every 5 s, then 10 s, then each
-minute; beyond an hour its format already counts minutes. Every change is a repainted row on an SSH
-link, and one second more on an old reading tells nobody anything (issue #25: the idle fleet wrote
-3.5 kB/s at ×1, mostly ages of fresh readings ticking 0s…4s)."""
+AGE_STEPS_S = ((600.0, 10.0), (3600.0, 60.0))
+"""(from a minute up to this age, show it in steps of): an old age changes every 10 s, then each
+minute; beyond an hour its format already counts minutes, below a minute the view time's own step
+(``ConsoleContext.view_time``) sets the pace. Every change is a repainted row on an SSH link, and
+one second more on an old reading tells nobody anything."""
 
 
 def age_shown(seconds: float) -> float:
-    """The age rounded down to its step (``AGE_STEPS_S``); a negative age (a wrong clock) as it is."""
-    if seconds < 0:
+    """The age rounded down to its step (``AGE_STEPS_S``); under a minute, or negative (a wrong
+    clock), as it is."""
+    if seconds < 60.0:
         return seconds
     for below, step in AGE_STEPS_S:
         if seconds < below:

@@ -143,7 +143,7 @@ async def test_the_detail_shows_the_prediction_and_battery_of_the_highlighted_ca
             f"Prediction landing {prediction.landing_lat:.3f}, {prediction.landing_lon:.3f}, "
             f"{prediction.distance_km:.1f} km at {prediction.bearing_deg:.0f}° from release"
         )
-        age = format_age(age_shown(app.fleet.capsules["DRS1"].reading(PredictionSample).age_s(app.now()) or 0.0))
+        age = format_age(app.fleet.capsules["DRS1"].reading(PredictionSample).age_s(app.now()) or 0.0)
         sigmas = (
             f"σ∥ {prediction.sigma_par_km:.2f} σ⊥ {prediction.sigma_perp_km:.2f} km;"
             f" position from {prediction.origin_source}; model {prediction.model} — {age} ago"
@@ -196,7 +196,7 @@ async def test_a_stale_value_shows_the_glyph_in_the_table_and_stale_in_words_bel
         detail = detail_of(app)
         await wait_for(pilot, lambda: detail.border_title == "DRS3")
         shown = painted(detail)
-        age = format_age(age_shown(link.age_s(now) or 0.0))
+        age = format_age(age_shown(link.age_s(now) or 0.0))  # an old age is shown in 10 s steps
         assert f"Link up — {STALE_GLYPH}STALE {age} ago" in shown
         assert f"RAID degraded — {age} ago" in shown, "storage is as old, but within twice its longer period"
 
