@@ -13,10 +13,7 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
-import numpy as np
 import platformdirs
-from rich.console import Console
-from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
 
 from console.commands.argparser import at_least_zero, input_file, latitude, longitude, positive
 from predictor.environment import (
@@ -33,7 +30,6 @@ from predictor.environment import (
     gfs_file_name,
     plan_forecast_files,
     prune,
-    write_gfs_grib2,
 )
 from predictor.errors import UsageError
 
@@ -160,6 +156,9 @@ def run_fetch(args: argparse.Namespace) -> int:
     low_space = free_space_warning(directory)
     if low_space:
         print(f"warning: {low_space}", file=sys.stderr)
+    from rich.console import Console
+    from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
+
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
@@ -262,6 +261,8 @@ def _size_text(size_bytes: int) -> str:
 
 
 def run_info(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from predictor.environment import load_weather
 
     cube = load_weather(args.files)
@@ -296,7 +297,9 @@ def run_info(args: argparse.Namespace) -> int:
 
 
 def run_bench(args: argparse.Namespace) -> int:
-    from predictor.environment import load_weather
+    import numpy as np
+
+    from predictor.environment import load_weather, write_gfs_grib2
 
     """Cold = no cube cache (the files themselves are in the OS page cache, just written)."""
     if args.files < 1 or args.repeat < 1 or args.grid <= 0 or args.size_deg < args.grid:

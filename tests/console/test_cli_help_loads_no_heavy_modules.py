@@ -26,7 +26,6 @@ except SystemExit:
 print(json.dumps(sorted(m for m in {heavy!r} if m in sys.modules)))
 """
 STILL_HEAVY = {
-    "weather": "predictor.environment.gfs_fetch imports gribwrite (numpy) for RESOLUTIONS and the URL template",
     "capsule": "console/commands/capsule.py imports drs_link.link (paramiko) at module level",
     "sync": "console/commands/capsule.py imports drs_link.link (paramiko) at module level",
     "mt": "console/commands/iridium.py imports drs_link.iridium's webhook (jwt) and recovery (pyproj)",
