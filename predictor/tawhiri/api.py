@@ -600,7 +600,22 @@ class _Handler(BaseHTTPRequestHandler):
         status, kind, body, headers = _error(error, datetime.now(UTC))
         self._reply((status, kind, body, {**headers, "Allow": "GET"}))
 
-    do_POST = do_PUT = do_DELETE = do_PATCH = _not_allowed  # noqa: N815 (http.server's names)
+    do_POST = do_PUT = do_DELETE = do_PATCH = do_OPTIONS = _not_allowed  # noqa: N815 (http.server's names)
+
+    def send_error(self, code: int, message: str | None = None, explain: str | None = None) -> None:
+        """http.server's own refusals (an unknown method, a malformed request line, a header too long)
+        in Tawhiri's error shape too, never its HTML page."""
+        said = message or self.responses.get(code, ("Error",))[0]
+        kind = "NotYetImplementedException" if code == 501 else "RequestException"
+        _, content, body, _ = _error(ApiError(kind, code, f"{said}."), datetime.now(UTC))
+        data = body.encode("utf-8")
+        self.send_response(code, said)
+        self.send_header("Content-Type", content)
+        self.send_header("Content-Length", str(len(data)))
+        self.send_header("Connection", "close")
+        self.end_headers()
+        if getattr(self, "command", None) != "HEAD":
+            self.wfile.write(data)
 
     def _reply(self, reply: Answer) -> None:
         status, kind, body, headers = reply

@@ -381,3 +381,12 @@ def test_serve_demo_weather_and_predict_demo_weather_see_the_same_air(
     assert (landing["latitude"], landing["longitude"] % 360) == pytest.approx(
         (predicted["lat"], predicted["lon"] % 360), abs=1e-9
     )
+
+
+@pytest.mark.parametrize(("method", "status"), [("OPTIONS", 405), ("BREW", 501)])
+def test_other_methods_are_refused_in_tawhiris_error_shape(server: ApiServer, method: str, status: int) -> None:
+    request = urllib.request.Request(server.url, method=method)
+    with pytest.raises(urllib.error.HTTPError) as refused:
+        urllib.request.urlopen(request, timeout=10)
+    assert refused.value.code == status and refused.value.headers["Content-Type"] == "application/json"
+    assert set(json.loads(refused.value.read())) == {"error", "metadata"}
