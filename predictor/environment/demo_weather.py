@@ -40,6 +40,7 @@ from predictor.environment.gribwrite import (
     gfs_file_name,
     write_gfs_grib2,
 )
+from predictor.errors import WeatherError
 
 GRID_DEG = 0.5
 STEP_H = 3
@@ -66,6 +67,9 @@ TAPER_FROM_DEG = 80.0
 """The winds fall off as cos(latitude) poleward of this, to zero at the poles."""
 POLAR_CAP_DEG = 10.0
 """A region reaching this close to a pole is written for every longitude."""
+MAX_DEMO_HOURS = 72
+"""The longest span one call writes (25 files): a caller asking for more is refused, not served by
+filling the disk (a 0.01 m/s ascent once asked for 282 files)."""
 
 
 def default_demo_dir() -> Path:
@@ -87,6 +91,8 @@ def demo_weather_files(
     one "cycle" (``start`` rounded down to 00/06/12/18 UTC) with 3-hourly steps, on a 0.5° grid of
     ±``half_width_deg`` around the point (rounded to the grid), named like NOMADS files.
     """
+    if not (isinstance(hours, int | float) and 0 <= hours <= MAX_DEMO_HOURS):
+        raise WeatherError(f"demo weather is written for 0 to {MAX_DEMO_HOURS} hours, not {hours!r}")
     start_utc = start.astimezone(UTC) if start.tzinfo else start.replace(tzinfo=UTC)
     cycle = start_utc.replace(hour=start_utc.hour - start_utc.hour % 6, minute=0, second=0, microsecond=0)
     last_step = math.ceil((start_utc + timedelta(hours=hours) - cycle) / timedelta(hours=STEP_H)) * STEP_H

@@ -13,6 +13,7 @@ from console.commands.main import main
 from predictor.environment.cube import WeatherCube
 from predictor.environment.demo_weather import demo_weather_files, isa_height_and_temperature
 from predictor.environment.weather import DEMO_SOURCE, load_weather
+from predictor.errors import WeatherError
 
 START = datetime(2026, 11, 22, 7, 40, tzinfo=UTC)
 
@@ -115,3 +116,11 @@ def test_releases_near_the_poles_predict_on_demo_weather(
     assert main(argv) == 0
     landing = json.loads(capsys.readouterr().out)["landing"]
     assert abs(landing["lat"]) <= 90.0 and abs(landing["lat"] - lat) < 1.0
+
+
+@pytest.mark.parametrize("hours", [float("inf"), 1e300, 73, -1])
+def test_a_span_no_flight_needs_is_refused_before_any_file_is_written(tmp_path: Path, hours: float) -> None:
+    """#24 item 6: one request asked for 282 files; infinity raised an OverflowError."""
+    with pytest.raises(WeatherError, match="demo weather is written for 0 to 72 hours"):
+        demo_weather_files(46.0, 6.0, START, tmp_path, hours=hours)  # type: ignore[arg-type]
+    assert not any(tmp_path.iterdir())
