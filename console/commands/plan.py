@@ -89,7 +89,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     live.add_argument("tracks", nargs="*", metavar="TRACK", help="evaluate/bench: track files")
     live.add_argument("--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files")
     live.add_argument("--ascent-winds", action="store_true", help="use the track's own ascent as the weather")
-    live.add_argument("--track", metavar="FILE", help="the descent's track (any format `drs tracks` reads)")
+    live.add_argument(
+        "--track", metavar="FILE", type=input_file("--track"),
+        help="the descent's track (any format `drs tracks` reads); - reads standard input",
+    )
     live.add_argument("--date", help="UTC date of the first fix, for logs with times of day only (V4)")
     live.add_argument("--dem", metavar="DIR", help="terrain directory")
     live.add_argument(

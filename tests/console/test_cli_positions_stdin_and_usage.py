@@ -4,6 +4,7 @@ standard input wherever a file is read, and exit status 2 for every command-line
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import os
 import subprocess
@@ -166,3 +167,25 @@ def test_recovery_reads_the_predicted_track_from_standard_input(tmp_path: Path) 
 def test_standard_input_is_read_once() -> None:
     done = drs("plan", "--zones", "-", "--targets", "-", stdin="{}")
     assert done.returncode == 2 and b"standard input is already read for --zones" in done.stderr
+
+
+@pytest.mark.parametrize(
+    ("argv", "attribute"),
+    [
+        (["live", "--track", "-"], "track"),
+        (["calibrate", "--tracks", "-"], "tracks"),
+        (["plan", "--zones", "-"], "zones"),
+        (["plan", "--targets", "-"], "targets"),
+        (["tracks", "summary", "-"], "files"),
+        (["recovery", "DRS1", "--predicted", "-"], "predicted"),
+        (["weather", "info", "-"], "files"),
+    ],
+)
+def test_every_file_input_reads_standard_input_for_a_dash(
+    argv: list[str], attribute: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    data = b'{"type": "FeatureCollection", "features": []}\n'
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(data)))
+    value = getattr(build_parser(argv[0]).parse_args(argv), attribute)
+    path = Path(value[0] if isinstance(value, list) else value)
+    assert path.read_bytes() == data and path.suffix == ".json"
