@@ -271,11 +271,14 @@ class PredictorService:
         self._cube_key: tuple[Any, ...] | None = None
         self._cube: WeatherCube | None = None
 
-    def _cube_for(self, request: ApiRequest, ascent_s: float, after_burst_s: float) -> WeatherCube:
+    def _cube_for(
+        self, request: ApiRequest, ascent_s: float, after_burst_s: float, descent_minutes: float
+    ) -> WeatherCube:
+        """The weather for ``after_burst_s`` past the burst, over the region a flight of the ascent and
+        ``descent_minutes`` can drift across."""
         lat0, lon0 = round(request.launch_latitude), round(request.launch_longitude)
         hours = max(WEATHER_HOURS, math.ceil((ascent_s + after_burst_s) / 3600.0))
         files = self.weather.files_for(lat0, lon0, request.launch_datetime, hours)
-        descent_minutes = 60.0 if request.descent == CAPSULE_DESCENT else after_burst_s / 60.0
         box = weather_bbox(lat0, lon0, max(REGION_MINUTES, ascent_s / 60.0 + descent_minutes))
         key = (tuple((str(f), f.stat().st_mtime_ns) for f in files), box)
         if key != self._cube_key:
@@ -303,6 +306,7 @@ class PredictorService:
                     f"{MAX_STAGE_S / 3600:.0f} h is flown)."
                 )
             after_burst_s = WEATHER_HOURS_AFTER_BURST * 3600.0
+            descent_minutes = 60.0  # the capsule's: ~40 min from 30 km, and the drift law is generous
             if request.descent == TAWHIRI_DESCENT:
                 ground = min(launch_alt, 0.0)
                 descent_s = tawhiri_descent_s(request.burst_altitude, request.descent_rate, ground)
@@ -312,7 +316,8 @@ class PredictorService:
                         f"would last {descent_s / 3600:.0f} h; at most {MAX_STAGE_S / 3600:.0f} h is flown)."
                     )
                 after_burst_s = max(after_burst_s, descent_s + 3600.0)
-            cube = self._cube_for(request, ascent_s, after_burst_s)
+                descent_minutes = descent_s / 60.0 + 30.0
+            cube = self._cube_for(request, ascent_s, after_burst_s, descent_minutes)
             if request.dataset is not None and request.dataset != dataset_time(cube):
                 raise ApiError(
                     "InvalidDatasetException", 404,
