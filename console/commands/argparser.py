@@ -4,15 +4,26 @@ argparse sets an option it does not know aside and goes on, so ``drs predict --l
 handed ``67.89`` to the optional ``bench`` word and said "argument action: invalid choice: '67.89'",
 which names neither the mistake nor the fix. Every subparser is made from the root parser's class,
 so this one class covers every command.
+
+A word that starts with a minus and a digit is a value, never an option: southern latitudes and
+western longitudes written naturally (``--from -44.7,169.1``, ``--lon -120``) reach their option.
+argparse's own test takes only a bare number (``-44.7``) and called ``-44.7,169.1`` an unknown option.
+No `drs` option is spelled with a digit, so nothing is lost.
 """
 
 from __future__ import annotations
 
 import argparse
-import difflib
 import functools
-from collections.abc import Sequence
+import math
+import os
+import re
+import sys
+from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
+
+VALUE_WITH_MINUS = re.compile(r"^-\.?\d")
+"""``-44.7``, ``-44.7,169.1``, ``-.5``: what argparse consults to tell a value from an option."""
 
 
 class DrsArgumentParser(argparse.ArgumentParser):
@@ -20,6 +31,7 @@ class DrsArgumentParser(argparse.ArgumentParser):
 
     def __init__(self, *args: Any, root: DrsArgumentParser | None = None, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
+        self._negative_number_matcher = VALUE_WITH_MINUS
         self._argv: list[str] = []
         self._root = root
         """The `drs` parser itself, for a command's parser: `drs mo serve -v` is told where -v goes."""
@@ -33,6 +45,8 @@ class DrsArgumentParser(argparse.ArgumentParser):
     ) -> tuple[argparse.Namespace, list[str]]:
         if args is None:
             return super().parse_known_args(args, namespace)
+        if self._root is None:
+            _stdin_taken.clear()  # a new command line (tests run several in one process)
         self._argv = list(args)
         parsed, extras = super().parse_known_args(self._argv, namespace)
         if self._unknown_option() is not None:
@@ -42,6 +56,8 @@ class DrsArgumentParser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         unknown = self._unknown_option()
         if unknown is not None:
+            import difflib  # only when there is a mistake to name: `drs --help` stays quick
+
             message = f"unrecognized option {unknown}"
             close = difflib.get_close_matches(unknown, self._long_options(), n=1, cutoff=0.6)
             if self._root is not None and (unknown in self._root._option_string_actions or self._root._short_with_value(unknown)):
@@ -82,3 +98,135 @@ class DrsArgumentParser(argparse.ArgumentParser):
     def _short_with_value(self, word: str) -> bool:
         """``-n5`` or ``-vv``: a known short option with its value or repeats attached."""
         return not word.startswith("--") and word[:2] in self._option_string_actions
+
+
+# Value types for options: a value out of range is a command-line mistake, so argparse refuses it
+# (exit status 2, the option named) before the command runs.
+
+
+def _finite(text: str, what: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not {what}")
+    return value
+
+
+def latitude(text: str) -> float:
+    """Degrees north, -90…90 (south negative: ``--lat -44.7``)."""
+    value = _finite(text, "a latitude in degrees")
+    if not -90.0 <= value <= 90.0:
+        raise argparse.ArgumentTypeError(f"{text} is not a latitude (-90 to 90 degrees, south negative)")
+    return value
+
+
+def longitude(text: str) -> float:
+    """Degrees east, -180…360 (west negative: ``--lon -120.5``, or 0…360)."""
+    value = _finite(text, "a longitude in degrees")
+    if not -180.0 <= value <= 360.0:
+        raise argparse.ArgumentTypeError(f"{text} is not a longitude (-180 to 180 degrees, west negative)")
+    return value
+
+
+def position_or_gpsd(text: str) -> str:
+    """``LAT,LON`` in decimal degrees (``-44.7,169.1``, ``51.5,-0.1``), or ``gpsd``; kept as typed."""
+    if text == "gpsd":
+        return text
+    parts = text.replace(" ", "").split(",")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"{text!r} is not LAT,LON (e.g. -44.7,169.1) or gpsd")
+    latitude(parts[0])
+    value = longitude(parts[1])
+    if value > 180.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: the longitude must be -180 to 180, west negative")
+    return text
+
+
+def udp_target(text: str) -> str:
+    """``HOST:PORT`` with a port 1…65535 (``[::1]:55672`` for IPv6)."""
+    host, colon, port = text.strip().rpartition(":")
+    if not colon or not host.strip("[]") or any(c.isspace() for c in host):
+        raise argparse.ArgumentTypeError(f"{text!r} is not HOST:PORT, e.g. 255.255.255.255:55672")
+    if not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise argparse.ArgumentTypeError(f"{port!r} in {text!r} is not a UDP port (1-65535)")
+    return text
+
+
+def positive(unit: str) -> Callable[[str], float]:
+    """A number above 0, e.g. ``--every-minutes``; ``unit`` names it in the refusal."""
+
+    def check(text: str) -> float:
+        value = _finite(text, f"a number of {unit}")
+        if value <= 0.0:
+            raise argparse.ArgumentTypeError(f"{text} is not a positive number of {unit}")
+        return value
+
+    return check
+
+
+def at_least_zero(unit: str, most: float) -> Callable[[str], float]:
+    """A number from 0 to ``most``, e.g. ``--keep-days``."""
+
+    def check(text: str) -> float:
+        value = _finite(text, f"a number of {unit}")
+        if not 0.0 <= value <= most:
+            raise argparse.ArgumentTypeError(f"{text} is not between 0 and {most:g} {unit}")
+        return value
+
+    return check
+
+
+# Standard input for inputs, as ``-`` is standard output for outputs (``drs predict --geojson - |
+# drs recovery DRS1 --predicted -``). Standard input can be read once: a second ``-`` is refused.
+
+STDIN = "-"
+_stdin_taken: list[str] = []
+
+
+def _read_stdin(option: str) -> bytes:
+    if _stdin_taken:
+        taken = _stdin_taken[0]
+        raise argparse.ArgumentTypeError(f"standard input is already read for {taken}: only one input can be -")
+    _stdin_taken.append(option)
+    return sys.stdin.buffer.read()
+
+
+def input_file(option: str) -> Callable[[str], str]:
+    """A path to read, or ``-``: standard input, kept in a private temporary file for the readers that
+    want a path (removed at exit). Its name says its kind, for the readers that go by the suffix: ``.gpx``
+    for XML, ``.json`` for JSON, none otherwise (CSV and logs are told apart by their first line)."""
+
+    def check(text: str) -> str:
+        if text != STDIN:
+            return text
+        import atexit
+        import shutil
+        import tempfile
+
+        data = _read_stdin(option)
+        start = data.lstrip()[:1]
+        suffix = ".gpx" if start == b"<" else ".json" if start in (b"{", b"[") else ""
+        folder = tempfile.mkdtemp(prefix="drs-stdin-")
+        atexit.register(shutil.rmtree, folder, ignore_errors=True)
+        path = os.path.join(folder, "stdin" + suffix)
+        with open(path, "wb") as spool:
+            spool.write(data)
+        return path
+
+    return check
+
+
+def text_or_stdin(option: str) -> Callable[[str], str]:
+    """A value given on the command line, or ``-``: the text of standard input, stripped."""
+
+    def check(text: str) -> str:
+        if text != STDIN:
+            return text
+        try:
+            return _read_stdin(option).decode("utf-8").strip()
+        except UnicodeDecodeError:
+            raise argparse.ArgumentTypeError("standard input is not UTF-8 text") from None
+
+    return check

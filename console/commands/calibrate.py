@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from console.commands.argparser import input_file
 from console.commands.tracks import iso_date
 
 DEFAULT_STEP_M = 200.0
@@ -75,7 +76,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _inputs(parser: argparse.ArgumentParser, required: bool) -> None:
-    parser.add_argument("--tracks", nargs="+", metavar="FILE", required=required, help="flight track files")
+    parser.add_argument(
+        "--tracks", nargs="+", metavar="FILE", type=input_file("--tracks"), required=required,
+        help="flight track files; - reads one from standard input",
+    )
     parser.add_argument(
         "--date", type=iso_date, metavar="YYYY-MM-DD", help="UTC date of the first fix, for logs with times of day only (V4)"
     )

@@ -13,8 +13,9 @@ import sys
 import time
 from datetime import UTC, datetime
 
+from console.commands.argparser import udp_target
 from drs_link.config import load_config
-from drs_link.errors import ConfigError
+from predictor.errors import UsageError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -26,6 +27,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     chase.add_argument(
         "--udp",
+        type=udp_target,
         metavar="HOST:PORT",
         help="where chasemapper listens (default [chase] udp), e.g. 255.255.255.255:55672",
     )
@@ -40,7 +42,7 @@ def cmd_chase(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     target = args.udp or config.chase.udp
     if not target:
-        raise ConfigError("drs chase needs --udp HOST:PORT or [chase] udp in the configuration")
+        raise UsageError("drs chase needs --udp HOST:PORT or [chase] udp in the configuration")
     sender = ChaseSender(target, "--udp" if args.udp else "chase.udp")
     store = Store.open(config.store_path)
     every = "once" if args.once else f"every {CHASE_PERIOD_S:g} s"

@@ -19,6 +19,7 @@ from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 
+from console.commands.argparser import input_file, position_or_gpsd, text_or_stdin
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.iridium import (  # the MO receiver and the recovery pipeline: not yet behind Operations (#22)
@@ -121,7 +122,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     mo = subparsers.add_parser("mo", help="capsule reports over Iridium (RockBLOCK MO)")
     mo_actions = mo.add_subparsers(dest="mo_action", metavar="ACTION", required=True)
     parse = mo_actions.add_parser("parse", help="decode one report given as the gateway's hex")
-    parse.add_argument("hex")
+    parse.add_argument("hex", type=text_or_stdin("HEX"), help="the report's hex; - reads standard input")
     parse.add_argument("--json", action="store_true", help="print JSON")
     parse.set_defaults(func=_mo_parse)
     serve = mo_actions.add_parser("serve", help="receive the gateway's webhook deliveries ([mo] config)")
@@ -151,14 +152,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     recovery = subparsers.add_parser("recovery", help="landing estimate, distance from you, GPX/KML export")
     recovery.add_argument("name")
-    recovery.add_argument("--from", dest="origin", metavar="LAT,LON|gpsd", help="your position, or 'gpsd'")
+    recovery.add_argument(
+        "--from", dest="origin", type=position_or_gpsd, metavar="LAT,LON|gpsd", help="your position, or gpsd"
+    )
     recovery.add_argument(
         "--gpx", type=Path, metavar="OUT", help="write GPX for a handheld (landings, tracks); - for stdout"
     )
     recovery.add_argument(
         "--kml", type=Path, metavar="OUT", help="write KML of the landings and tracks; - for stdout"
     )
-    recovery.add_argument("--predicted", type=Path, metavar="GEOJSON", help="a predicted track (LineString)")
+    recovery.add_argument(
+        "--predicted", type=lambda text: Path(input_file("--predicted")(text)), metavar="GEOJSON",
+        help="a predicted track (LineString); - reads standard input",
+    )
     recovery.add_argument("--json", action="store_true", help="print JSON (the summary line is one of its fields)")
     recovery.set_defaults(func=_recovery)
 

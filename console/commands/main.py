@@ -8,7 +8,9 @@ systemd can tell a typo from a refusal: 0 done, 1 the command ran and failed or 
 
 Only the module of the command being run is imported: ``drs predict`` never loads the SSH stack
 or Textual, and a command module keeps its heavy imports (numba, xarray, eccodes, …) inside the
-functions that need them, so ``drs --help`` and every ``drs X --help`` answer at once.
+functions that need them, so every ``drs X --help`` answers at once. ``drs --help`` imports no command
+module at all: it lists the commands from ``COMMAND_HELP`` (a test holds it to what each module
+registers), since importing all eighteen once cost 22× a bare Python start.
 """
 
 from __future__ import annotations
@@ -22,7 +24,6 @@ from collections.abc import Sequence
 
 from console.commands.argparser import DrsArgumentParser
 from console.commands.logs import LEVELS, configure_logging, level_from
-from drs_link.config import config_help
 from drs_link.errors import LinkError
 from predictor.errors import PredictorError, UsageError
 
@@ -48,6 +49,29 @@ COMMAND_MODULES: dict[str, str] = {
     "demo": "console.commands.console",
 }
 """Each `drs` command and the module that registers it (a module may register several)."""
+
+COMMAND_HELP: dict[str, str] = {
+    "predict": "predict a capsule's landing (or `drs predict bench` to measure speed)",
+    "weather": "get, inspect and benchmark GFS weather files",
+    "tracks": "measured flight tracks: read, clean, summarise",
+    "plan": "sweep release times: landing strip, zone risk, go/no-go (or `drs plan bench`)",
+    "live": "re-predict the landing from each fix of a descent track (or `drs live evaluate`)",
+    "calibrate": "find the effect the model lacks from measured descents (leave-one-flight-out) and report "
+    "the error before and after",
+    "model": "calibrated model files written by drs calibrate --save-model",
+    "capsule": "talk to a capsule's Pi over SSH: status, power-on, go",
+    "sync": "upload a directory to a capsule's storage mount (verified)",
+    "mt": "commands to a capsule over Iridium (RockBLOCK MT)",
+    "mo": "capsule reports over Iridium (RockBLOCK MO)",
+    "recovery": "landing estimate, distance from you, GPX/KML export",
+    "balloon": "the balloon's position from a ground-station feed",
+    "approve": "list hazardous commands waiting for a second operator, or approve/reject one",
+    "chase": "send the capsules (and their predicted landings) to chasemapper as Horus UDP",
+    "serve": "serve predictions over HTTP (a Tawhiri v1 API)",
+    "console": "the operator console (full-screen terminal app)",
+    "demo": "the console with everything simulated (= drs console --demo)",
+}
+"""What ``drs --help`` lists: each command's own ``help``, without importing its module."""
 
 OPERATOR_ERRORS = (PredictorError, LinkError)
 EXIT_FAILED = 1
@@ -81,16 +105,25 @@ def _command_in(argv: Sequence[str]) -> str | None:
     return None
 
 
-def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """The parser with ``command``'s module registered, or every module when no known command is given
-    (``drs --help`` lists them all; a mistyped command gets argparse's list of choices)."""
+def _config_help() -> str:
+    """``--config``'s help (``drs_link.config.config_help``'s text, which a test holds it to), without
+    importing the configuration module and the link backends it names."""
+    import platformdirs
+
+    return f"configuration TOML (default: $DRS_CONFIG, else {platformdirs.user_config_path('drs') / 'drs.toml'})"
+
+
+def build_parser(command: str | None = None, *, every_module: bool = False) -> argparse.ArgumentParser:
+    """The parser with ``command``'s module registered; with no known command, each command as a bare
+    name with its help (``drs --help`` lists them; a mistyped command gets argparse's list of choices),
+    or, with ``every_module``, every module registered (for tests that walk every option)."""
     parser = DrsArgumentParser(
         prog="drs",
         description="SuperBIT DRS operations: predict landings, talk to capsules, track descents.",
         epilog="exit status: 0 done, 1 the command failed or refused, 2 the command line is wrong",
     )
     parser.add_argument("--version", action=_VersionAction, help="print the installed version and exit")
-    parser.add_argument("--config", metavar="FILE", default=None, help=config_help())
+    parser.add_argument("--config", metavar="FILE", default=None, help=_config_help())
     parser.add_argument(
         "-v", "--verbose", action="count", default=0, help="log more: -v for info, -vv for debug (to stderr)"
     )
@@ -102,8 +135,12 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     if command in COMMAND_MODULES:
         modules = [COMMAND_MODULES[command]]
-    else:
+    elif every_module:
         modules = list(dict.fromkeys(COMMAND_MODULES.values()))
+    else:
+        for name, said in COMMAND_HELP.items():
+            subparsers.add_parser(name, help=said)
+        return parser
     for module_name in modules:
         importlib.import_module(module_name).register(subparsers)
     return parser

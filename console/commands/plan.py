@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import sys
@@ -16,8 +17,7 @@ from datetime import UTC, date, datetime
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
+from console.commands.argparser import input_file, latitude, longitude, positive
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError, UsageError
 from predictor.planning import MAX_MEMBER_DESCENTS
@@ -34,16 +34,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     plan.add_argument("action", nargs="?", choices=("bench",), help="bench: measure the sweep's speed")
     plan.add_argument("--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files")
     plan.add_argument("--dem", metavar="DIR", help="terrain: directory of SRTM .hgt tiles and/or NetCDF DEMs")
-    plan.add_argument("--lat", type=float, help="balloon latitude now, degrees north")
-    plan.add_argument("--lon", type=float, help="balloon longitude now, degrees east")
+    plan.add_argument("--lat", type=latitude, help="balloon latitude now, degrees north")
+    plan.add_argument("--lon", type=longitude, help="balloon longitude now, degrees east")
     plan.add_argument("--alt", type=float, help="balloon (float) altitude, m above mean sea level")
     plan.add_argument("--from", dest="start", metavar="ISO", help="first candidate release time, UTC")
     plan.add_argument("--hours", type=float, default=2.0, help="length of the sweep (default 2 h)")
-    plan.add_argument("--every-minutes", type=float, default=5.0, help="candidate spacing (default 5 min)")
-    plan.add_argument("--altitude-plan", metavar="T=M,...", help="balloon altitude plan: ISO=metres,...")
-    plan.add_argument("--zones", metavar="FILE", help="GeoJSON exclusion zones (Polygon/MultiPolygon)")
     plan.add_argument(
-        "--targets", metavar="FILE", help="GeoJSON targets (points/lines: roads, recovery points)"
+        "--every-minutes", type=positive("minutes"), default=5.0, help="candidate spacing (default 5 min)"
+    )
+    plan.add_argument("--altitude-plan", metavar="T=M,...", help="balloon altitude plan: ISO=metres,...")
+    plan.add_argument(
+        "--zones", metavar="FILE", type=input_file("--zones"),
+        help="GeoJSON exclusion zones (Polygon/MultiPolygon); - reads standard input",
+    )
+    plan.add_argument(
+        "--targets", metavar="FILE", type=input_file("--targets"),
+        help="GeoJSON targets (points/lines: roads, recovery points); - reads standard input",
     )
     plan.add_argument(
         "--max-zone-probability", type=float, default=0.05, help="go needs P(zone) ≤ this (0.05)"
@@ -86,7 +92,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     live.add_argument("--weather", nargs="+", metavar="FILE",
                       help="GFS GRIB2 files (evaluate: for every flight, instead of each one's ascent winds)")  # fmt: skip
     live.add_argument("--ascent-winds", action="store_true", help="use the track's own ascent as the weather")
-    live.add_argument("--track", metavar="FILE", help="the descent's track (any format `drs tracks` reads)")
+    live.add_argument(
+        "--track", metavar="FILE", type=input_file("--track"),
+        help="the descent's track (any format `drs tracks` reads); - reads standard input",
+    )
     live.add_argument("--date", help="UTC date of the first fix, for logs with times of day only (V4)")
     live.add_argument("--dem", metavar="DIR",
                       help="terrain directory (evaluate: instead of level ground at each measured landing)")  # fmt: skip
@@ -156,7 +165,7 @@ def run_plan(args: argparse.Namespace) -> int:
     )
     altitude_plan = AltitudePlan.parse(args.altitude_plan) if args.altitude_plan else None
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
-    hours = args.hours if np.isfinite(args.hours) else 0.0
+    hours = args.hours if math.isfinite(args.hours) else 0.0
     wx = load_weather(
         args.weather, bbox=weather_bbox(args.lat, args.lon, max(hours, 0.0) * 60.0), cache_dir=args.cache_dir
     )
@@ -220,6 +229,7 @@ def plan_summary(plan: object) -> str:
 
 def run_bench(args: argparse.Namespace) -> int:
     import numba
+    import numpy as np
     import shapely
 
     from predictor.environment import demo_weather_files, load_weather

@@ -8,10 +8,13 @@ import math
 import sys
 import time
 from datetime import date
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from predictor.environment import Terrain
-from predictor.tracks import MIN_ASCENT_FIXES, Fix, Flight, TrackError, ascent_weather_cube, clean, read_track
+from console.commands.argparser import input_file
+from predictor.tracks import Fix, TrackError, read_track
+
+if TYPE_CHECKING:  # cleaning loads numpy and pyproj: `drs tracks --help` does not wait for them
+    from predictor.tracks import Flight
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -22,7 +25,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="per flight: fixes kept and dropped (with reasons), launch, peak, descent start, landing, drift",
     )
     summary.add_argument(
-        "files", nargs="+", metavar="FILE", help="track files (canonical CSV, GPX, SuperBIT log, V4)"
+        "files", nargs="+", metavar="FILE", type=input_file("FILE"),
+        help="track files (canonical CSV, GPX, SuperBIT log, V4); - reads standard input",
     )
     summary.add_argument("--json", action="store_true", help="print JSON instead of text")
     summary.add_argument(
@@ -50,6 +54,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run_summary(args: argparse.Namespace) -> int:
+    from predictor.environment import Terrain
+    from predictor.tracks import clean
+
     flights: list[Flight] = []
     failed = False
     terrain = Terrain.from_dir(args.dem) if args.dem else None
@@ -68,6 +75,8 @@ def run_summary(args: argparse.Namespace) -> int:
 
 def run_bench(args: argparse.Namespace) -> int:
     """Best-of-N wall time per stage, so the numbers in the docs can be re-measured on any machine."""
+    from predictor.tracks import MIN_ASCENT_FIXES, ascent_weather_cube, clean
+
     if args.repeat < 1:
         raise TrackError(f"--repeat must be at least 1, got {args.repeat}")
     best = {"read": math.inf, "clean": math.inf, "ascent cube": math.inf}

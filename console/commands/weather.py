@@ -13,11 +13,9 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
-import numpy as np
 import platformdirs
-from rich.console import Console
-from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
 
+from console.commands.argparser import at_least_zero, input_file, latitude, longitude, positive
 from predictor.environment import (
     AVAILABILITY_DELAY,
     DEFAULT_URL_TEMPLATE,
@@ -32,7 +30,6 @@ from predictor.environment import (
     gfs_file_name,
     plan_forecast_files,
     prune,
-    write_gfs_grib2,
 )
 from predictor.errors import UsageError
 
@@ -53,9 +50,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     fetch.add_argument(
         "--time", required=True, help="ISO 8601 release time, e.g. 2024-05-01T06:30Z, or 'now'"
     )
-    fetch.add_argument("--lat", type=float, required=True, help="latitude of the release point, degrees")
+    fetch.add_argument("--lat", type=latitude, required=True, help="latitude of the release point, degrees")
     fetch.add_argument(
-        "--lon", type=float, required=True, help="longitude of the release point, degrees east"
+        "--lon", type=longitude, required=True, help="longitude of the release point, degrees east"
     )
     fetch.add_argument(
         "--radius-km", type=float, default=500.0, help="half-width of the region (default 500 km)"
@@ -89,11 +86,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     prune_parser.add_argument(
-        "--keep-days", type=float, default=None, metavar="N", help="remove cycles older than N days"
+        "--keep-days", type=at_least_zero("days", 36500), default=None, metavar="N",
+        help="remove cycles older than N days",
     )
     prune_parser.add_argument(
         "--max-gb",
-        type=float,
+        type=positive("gigabytes"),
         default=None,
         metavar="X",
         help="then remove the oldest cycles until both caches hold under X GB (10^9 bytes)",
@@ -112,7 +110,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     prune_parser.set_defaults(func=run_prune)
 
     info = commands.add_parser("info", help="what a set of GRIB files holds once loaded as one cube")
-    info.add_argument("files", nargs="+", type=Path, help="GRIB files")
+    info.add_argument(
+        "files", nargs="+", type=lambda text: Path(input_file("FILE")(text)),
+        help="GRIB files; - reads standard input",
+    )
     info.add_argument("--json", action="store_true", help="print JSON")
     info.set_defaults(func=run_info)
 
@@ -155,6 +156,9 @@ def run_fetch(args: argparse.Namespace) -> int:
     low_space = free_space_warning(directory)
     if low_space:
         print(f"warning: {low_space}", file=sys.stderr)
+    from rich.console import Console
+    from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
+
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
@@ -193,6 +197,8 @@ def run_fetch(args: argparse.Namespace) -> int:
 def run_prune(args: argparse.Namespace) -> int:
     from predictor.environment import default_cache_dir
 
+    if args.keep_days is None and args.max_gb is None:
+        raise UsageError("say what to prune: --keep-days N, --max-gb X, or both")
     max_bytes = None
     if args.max_gb is not None:
         if not (math.isfinite(args.max_gb) and args.max_gb > 0):
@@ -255,6 +261,8 @@ def _size_text(size_bytes: int) -> str:
 
 
 def run_info(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from predictor.environment import load_weather
 
     cube = load_weather(args.files)
@@ -289,7 +297,9 @@ def run_info(args: argparse.Namespace) -> int:
 
 
 def run_bench(args: argparse.Namespace) -> int:
-    from predictor.environment import load_weather
+    import numpy as np
+
+    from predictor.environment import load_weather, write_gfs_grib2
 
     """Cold = no cube cache (the files themselves are in the OS page cache, just written)."""
     if args.files < 1 or args.repeat < 1 or args.grid <= 0 or args.size_deg < args.grid:

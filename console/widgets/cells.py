@@ -58,10 +58,28 @@ class Cell:
         return Text(self.text, style=widget.get_component_rich_style(f"level--{self.level}", partial=True))
 
 
+AGE_STEPS_S = ((600.0, 10.0), (3600.0, 60.0))
+"""(from a minute up to this age, show it in steps of): an old age changes every 10 s, then each
+minute; beyond an hour its format already counts minutes, below a minute the view time's own step
+(``ConsoleContext.view_time``) sets the pace. Every change is a repainted row on an SSH link, and
+one second more on an old reading tells nobody anything."""
+
+
+def age_shown(seconds: float) -> float:
+    """The age rounded down to its step (``AGE_STEPS_S``); under a minute, or negative (a wrong
+    clock), as it is."""
+    if seconds < 60.0:
+        return seconds
+    for below, step in AGE_STEPS_S:
+        if seconds < below:
+            return seconds - seconds % step
+    return seconds
+
+
 def short_age(seconds: float) -> str:
     """The age in its largest whole unit, at most four characters where a cell has little room."""
     sign = "-" if seconds < 0 else ""
-    whole = int(abs(seconds))
+    whole = int(abs(age_shown(seconds)))
     for unit, size in (("d", 86400), ("h", 3600), ("m", 60)):
         if whole >= size:
             return f"{sign}{whole // size}{unit}"
@@ -70,7 +88,7 @@ def short_age(seconds: float) -> str:
 
 def long_age(seconds: float) -> str:
     """The age in words; a negative one means a clock is wrong, which the operator should hear about."""
-    return f"{format_age(seconds)} ago" if seconds >= 0 else "timestamped in the future (clock skew?)"
+    return f"{format_age(age_shown(seconds))} ago" if seconds >= 0 else "timestamped in the future (clock skew?)"
 
 
 def _compact(x: float) -> str:

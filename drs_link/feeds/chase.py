@@ -4,9 +4,18 @@ A chase car runs chasemapper fed by Horus UDP (horus-gui on 55672, auto_rx on 55
 with a position (its newest Iridium fix in the store) is sent under its own name with the fields
 horusdemodlib's ``send_payload_summary`` writes and chasemapper reads: ``callsign``, ``latitude``,
 ``longitude``, ``altitude`` (m), ``speed`` (km/h, -1 unknown), ``heading`` (-1 unknown), ``time``
-(``HH:MM:SS`` UTC) and ``comment``. A capsule with a live prediction is also sent as ``NAME_LAND`` at
-the predicted landing, timed by when it was predicted (chasemapper drops a packet not newer than the
-last of the same callsign, and a later prediction may land earlier).
+(``HH:MM:SS`` UTC) and ``comment``. A capsule with a live prediction also has a landing marker,
+``NAME_LAND``, that chasemapper shows but never flies.
+
+chasemapper 1.6.0 (``horusmapper.py``, ``run_prediction``) predicts every callsign whose track holds
+two points or more, and a track grows by every packet newer than its last point
+(``handle_new_payload_position``). A landing re-sent at each new prediction became a "payload" with a
+speed, flown 0 → 30 km every 15 s. So each marker is a track of one point: it is sent at one fixed
+position and one fixed time (its repeats are dropped there as duplicates), and when the predicted
+landing has moved more than ``MARKER_MOVE_M`` from it, the next marker takes the next callsign
+(``NAME_LAND2``, ``NAME_LAND3``, …). The exact latest prediction is the KML overlay's. An OziMux
+``WAYPOINT`` line would not do: chasemapper's OziListener parses it, but ``horusmapper.py`` never
+gives it a ``waypoint_callback``, so it is not shown at all.
 
 Everything is sent again every period: chasemapper keeps only what it hears, so a laptop started
 late still gets every capsule within one period, and a repeated fix is dropped there as a duplicate.
@@ -20,6 +29,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import socket
 import threading
@@ -44,6 +54,9 @@ CHASE_PERIOD_S = 10.0
 LIVE_LANDING_S = 900.0
 """A kept landing older than this is not sent: the console predicts every minute, so it has stopped."""
 LANDING_SUFFIX = "_LAND"
+MARKER_MOVE_M = 2000.0
+"""A landing this far from its marker gets a new marker: well inside the 1σ ellipse of a live
+re-prediction, and few enough markers (a handful per descent) not to crowd the map."""
 
 CHASE_DDL = """
 CREATE TABLE IF NOT EXISTS chase_landing (
@@ -55,6 +68,14 @@ CREATE TABLE IF NOT EXISTS chase_landing (
     alt_m REAL NOT NULL,
     kind TEXT NOT NULL,
     is_demo INTEGER NOT NULL
+);
+CREATE TABLE IF NOT EXISTS chase_marker (
+    capsule TEXT PRIMARY KEY,
+    number INTEGER NOT NULL,
+    marked_utc TEXT NOT NULL,
+    lat REAL NOT NULL,
+    lon REAL NOT NULL,
+    alt_m REAL NOT NULL
 );
 """
 
@@ -98,6 +119,30 @@ class KeptLanding:
     is_demo: bool
 
 
+@dataclass(frozen=True)
+class LandingMarker:
+    """Where chasemapper shows a capsule's landing: one fixed point and time per callsign."""
+
+    capsule: str
+    number: int
+    marked_at: datetime
+    lat: float
+    lon: float
+    alt_m: float
+
+    @property
+    def callsign(self) -> str:
+        return self.capsule + LANDING_SUFFIX + ("" if self.number == 1 else str(self.number))
+
+
+def surface_distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
+    """Great-circle distance on a 6371 km sphere (haversine): a marker's move, not navigation."""
+    p1, p2 = math.radians(lat1), math.radians(lat2)
+    dp, dl = p2 - p1, math.radians(lon2 - lon1)
+    h = math.sin(dp / 2) ** 2 + math.cos(p1) * math.cos(p2) * math.sin(dl / 2) ** 2
+    return 2 * 6_371_000.0 * math.asin(min(1.0, math.sqrt(h)))
+
+
 def chase_kml_path(data_dir: Path, capsule: str) -> Path:
     """Where a capsule's latest prediction is kept: one fixed path for chasemapper's ``overlay_N_path``."""
     return data_dir / "chase" / f"{capsule}.kml"
@@ -125,11 +170,32 @@ class ChaseStore:
                                 prediction.is_demo))  # fmt: skip
 
     def record(self, landing: KeptLanding) -> None:
-        self.store.write(
-            "INSERT OR REPLACE INTO chase_landing VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-            (landing.capsule, iso_utc(landing.predicted_at), iso_utc(landing.landing_time), landing.lat,
-             landing.lon, landing.alt_m, landing.kind, int(landing.is_demo)),
-        )  # fmt: skip
+        """Remember the landing, and move its marker to it (a new callsign) if it has gone too far."""
+        marker = self.markers().get(landing.capsule)
+        moved = marker is None or surface_distance_m(marker.lat, marker.lon, landing.lat, landing.lon) > MARKER_MOVE_M
+        with self.store.transaction() as conn:
+            conn.execute(
+                "INSERT OR REPLACE INTO chase_landing VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                (landing.capsule, iso_utc(landing.predicted_at), iso_utc(landing.landing_time), landing.lat,
+                 landing.lon, landing.alt_m, landing.kind, int(landing.is_demo)),
+            )  # fmt: skip
+            if moved:
+                number = 1 if marker is None else marker.number + 1
+                conn.execute(
+                    "INSERT OR REPLACE INTO chase_marker VALUES (?, ?, ?, ?, ?, ?)",
+                    (landing.capsule, number, iso_utc(landing.predicted_at), landing.lat, landing.lon,
+                     landing.alt_m),
+                )  # fmt: skip
+
+    def markers(self) -> dict[str, LandingMarker]:
+        rows = self.store.query("SELECT * FROM chase_marker")
+        return {
+            row["capsule"]: LandingMarker(
+                row["capsule"], row["number"], parse_iso_utc(row["marked_utc"]), row["lat"], row["lon"],
+                row["alt_m"],
+            )  # fmt: skip
+            for row in rows
+        }
 
     def landings(self) -> dict[str, KeptLanding]:
         rows = self.store.query("SELECT * FROM chase_landing")
@@ -151,7 +217,8 @@ class ChaseStore:
 def chase_points(config: Config, store: Store, now: datetime) -> list[ChasePoint]:
     """Each configured capsule's newest fix, and its landing if one was predicted in the last minutes."""
     reports = ReportStore(store)
-    landings = ChaseStore(store).landings()
+    chase = ChaseStore(store)
+    landings, markers = chase.landings(), chase.markers()
     points = []
     for capsule in config.capsules:
         stored = reports.for_imei(capsule.imei) if capsule.imei else []
@@ -162,11 +229,11 @@ def chase_points(config: Config, store: Store, now: datetime) -> list[ChasePoint
                 capsule.name, fix.time, fix.lat, fix.lon, float(fix.alt_m), fix.speed_ms * 3.6,
                 float(fix.course_deg), f"{OWN_COMMENT} capsule {capsule.name}, Iridium fix",
             ))  # fmt: skip
-        land = landings.get(capsule.name)
-        if land is not None and now - land.predicted_at <= timedelta(seconds=LIVE_LANDING_S):
+        land, marker = landings.get(capsule.name), markers.get(capsule.name)
+        if land is not None and marker is not None and now - land.predicted_at <= timedelta(seconds=LIVE_LANDING_S):
             demo = " DEMO weather, not a forecast" if land.is_demo else ""
             points.append(ChasePoint(
-                capsule.name + LANDING_SUFFIX, land.predicted_at, land.lat, land.lon, land.alt_m, None, None,
+                marker.callsign, marker.marked_at, marker.lat, marker.lon, marker.alt_m, None, None,
                 f"{OWN_COMMENT} predicted landing {land.landing_time:%H:%M}Z ({land.kind}){demo}",
             ))  # fmt: skip
     return points

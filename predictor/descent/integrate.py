@@ -13,8 +13,8 @@ WGS84 ellipsoid at altitude (radii of curvature M(φ)+h and (N(φ)+h)·cos φ). 
 ground: it runs every trajectory down to ``z_floor`` (below any ground on Earth) and records the
 path; ``predictor.prediction.landings`` finds where the path meets the terrain afterwards.
 
-Weather sampling: linear in time, bilinear in latitude/longitude, and in each of the 8 grid columns
-linear in geometric altitude for the wind and linear in altitude for log-density (exact for an
+Weather sampling: cubic in time (``_time_weights``), bilinear in latitude/longitude, and in each
+grid column linear in geometric altitude for the wind and linear in altitude for log-density (exact for an
 exponential atmosphere). Below a column's lowest level the wind is held at the lowest level's value
 and log-density is extrapolated linearly; above the top level the same holds, but only up to
 ``TOP_TOLERANCE_M`` (beyond that the weather says nothing and the step fails).
@@ -141,6 +141,36 @@ def _bracket(axis: np.ndarray, x: float) -> tuple[int, float]:
 
 
 @njit(cache=True, inline="always")
+def _time_weights(t_s: np.ndarray, it: int, ft: float) -> tuple[float, float, float, float]:
+    """Weights of the valid times it−1, it, it+1, it+2 for a time at fraction ``ft`` of [it, it+1].
+
+    Cubic (Catmull-Rom) through four evenly spaced times, quadratic through three in the first and
+    last interval, linear otherwise (two times, or uneven spacing). A moving weather system sampled
+    every 3 h is undershot between the samples by linear interpolation: on a synthetic jet whose
+    meander moves 36° of phase per step it alone missed the landing by 0.76 % of the drift, against
+    0.04 % for the vertical interpolation and nothing measurable for the altitude step
+    (docs/predictor.md, tests/predictor/descent/test_synthetic_truth.py).
+    """
+    nt = t_s.shape[0]
+    if ft == 0.0 or nt < 3:
+        return 0.0, 1.0 - ft, ft, 0.0
+    h = t_s[it + 1] - t_s[it]
+    even_before = it >= 1 and abs(t_s[it] - t_s[it - 1] - h) < 1.0
+    even_after = it + 2 <= nt - 1 and abs(t_s[it + 2] - t_s[it + 1] - h) < 1.0
+    f = ft
+    if even_before and even_after:
+        f2 = f * f
+        f3 = f2 * f
+        before, at = 0.5 * (-f3 + 2.0 * f2 - f), 0.5 * (3.0 * f3 - 5.0 * f2 + 2.0)
+        return before, at, 0.5 * (-3.0 * f3 + 4.0 * f2 + f), 0.5 * (f3 - f2)
+    if even_after:
+        return 0.0, 0.5 * (f - 1.0) * (f - 2.0), -f * (f - 2.0), 0.5 * f * (f - 1.0)
+    if even_before:
+        return 0.5 * f * (f - 1.0), 1.0 - f * f, 0.5 * f * (f + 1.0), 0.0
+    return 0.0, 1.0 - f, f, 0.0
+
+
+@njit(cache=True, inline="always")
 def _column_at(col: np.ndarray, z: float, dest: np.ndarray, a: int, b: int, c: int, hint: int) -> int:
     """(u, v, log ρ, level) at altitude z of one column into dest[a, b, c, 0:4]; returns the level.
 
@@ -202,12 +232,13 @@ def sample_weather(
     if abs(t - t_c) > time_tolerance_s:
         return STATUS_OUTSIDE_TIME
     it, ft = _bracket(t_s, t_c)
+    w_before, w_at, w_after, w_next = _time_weights(t_s, it, ft)
     ny = lats.shape[0]
     nx = lons.shape[0]
     use_memo = memo_z.size > 0
-    for a in range(2):
-        ti = min(it + a, nt - 1)
-        wt = ft if a == 1 else 1.0 - ft
+    for a in range(4):
+        ti = it - 1 + a
+        wt = w_before if a == 0 else w_at if a == 1 else w_after if a == 2 else w_next
         if wt == 0.0:
             continue
         for b in range(2):

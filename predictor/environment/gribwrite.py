@@ -14,8 +14,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:  # numpy is loaded on first write: `drs weather --help` names GFS_LEVELS_HPA only
+    import numpy as np
 
 GFS_GENERATING_PROCESS = 96
 """NCEP's generating-process number of the GFS model (ON388 table A), as real GFS files carry it."""
@@ -101,6 +103,7 @@ def write_gfs_grib2(
 
     # isort: split
     import eccodes  # loaded on first write: `drs weather --help` needs no GRIB library
+    import numpy as np
 
     levels = np.asarray(levels_hpa, dtype=np.float64)
     lat_axis = np.asarray(lats, dtype=np.float64)
@@ -149,6 +152,8 @@ def write_gfs_grib2(
 def _even_spacing(axis: np.ndarray, name: str) -> float:
     if axis.ndim != 1 or axis.size < 2:
         raise ValueError(f"{name} axis needs at least 2 points")
+    import numpy as np
+
     steps = np.diff(axis)
     if not np.allclose(steps, steps[0], rtol=0, atol=1e-6):
         raise ValueError(f"{name} axis is not evenly spaced")

@@ -3,6 +3,10 @@
 GIS tools (QGIS, ogr2ogr) drop a FeatureCollection's own members and keep only each feature's
 properties, so a demo warning written once at the top vanishes as the file opens: every feature
 repeats it.
+
+The collection's own facts (title, source, DEMO, warnings, a plan's verdict) are a foreign member,
+``"drs"`` (RFC 7946 §6.1): a FeatureCollection must not have ``properties`` (§7.1). A position
+given again as a feature's ``lat``/``lon`` properties keeps the coordinates' 6 decimals (0.1 m).
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from predictor.geofiles import DEMO_LABEL
-from predictor.geofiles.geometry import Coordinate, line_parts, polygon_parts, position
+from predictor.geofiles.geometry import DEGREE_DECIMALS, Coordinate, line_parts, polygon_parts, position
 
 Geometry = dict[str, Any]
 
@@ -64,11 +68,25 @@ def _lists(points: Sequence[Coordinate]) -> list[list[float]]:
     return [list(p) for p in points]
 
 
+COLLECTION_MEMBER = "drs"
+"""The FeatureCollection's foreign member holding what the whole file is."""
+
+
 def feature(geometry: Geometry, kind: str, provenance: Provenance, **properties: Any) -> dict[str, Any]:
     return {
         "type": "Feature",
         "geometry": geometry,
-        "properties": {"kind": kind, **_json_safe(properties), **provenance.properties()},
+        "properties": {"kind": kind, **_rounded_positions(_json_safe(properties)), **provenance.properties()},
+    }
+
+
+def _rounded_positions(properties: dict[str, Any]) -> dict[str, Any]:
+    """``lat``/``lon`` (and ``*_lat``/``*_lon``) to the coordinates' decimals: no false precision."""
+    return {
+        name: round(value, DEGREE_DECIMALS)
+        if isinstance(value, float) and (name in ("lat", "lon") or name.endswith(("_lat", "_lon")))
+        else value
+        for name, value in properties.items()
     }
 
 
@@ -88,7 +106,7 @@ def collection(
 ) -> dict[str, Any]:
     return {
         "type": "FeatureCollection",
-        "properties": {**_json_safe(properties), **provenance.properties()},
+        COLLECTION_MEMBER: {**_json_safe(properties), **provenance.properties()},
         "features": list(features),
     }
 

@@ -3,6 +3,9 @@
 gpsbabel and Garmin units truncate long names and mangle anything outside ASCII (``±`` becomes
 garbage on the screen), and a NaN in ``<ele>`` makes some readers drop the whole file. Names are
 therefore short ASCII labels; the details a person needs go in ``<desc>``, also ASCII.
+
+A track that crosses ±180° is split into one ``<trkseg>`` per side: GDAL and QGIS join the points of
+a segment with straight lines in longitude, and drew a 360°-wide line across the map.
 """
 
 from __future__ import annotations
@@ -77,6 +80,22 @@ def _time(parent: ET.Element, moment: datetime | None) -> None:
         ET.SubElement(parent, f"{{{NS}}}time").text = moment.strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
+def antimeridian_segments(points: Sequence[TrackPoint]) -> list[list[TrackPoint]]:
+    """The points in runs that stay on one side of ±180°: a new run where a step's longitude jumps by
+    more than 180° (the short way round crosses the antimeridian). Positions that are not numbers are
+    kept in the run (``_position`` leaves them out) and do not break it."""
+    runs: list[list[TrackPoint]] = [[]]
+    last: float | None = None
+    for p in points:
+        if math.isfinite(p.lat) and math.isfinite(p.lon):
+            lon = (p.lon + 180.0) % 360.0 - 180.0
+            if last is not None and abs(lon - last) > 180.0:
+                runs.append([])
+            last = lon
+        runs[-1].append(p)
+    return [run for run in runs if run]
+
+
 def to_gpx(
     description: str, waypoints: Sequence[Waypoint], tracks: Sequence[tuple[str, Sequence[TrackPoint]]]
 ) -> str:
@@ -98,10 +117,11 @@ def to_gpx(
             continue
         trk = ET.SubElement(root, f"{{{NS}}}trk")
         ET.SubElement(trk, f"{{{NS}}}name").text = ascii_text(name)
-        segment = ET.SubElement(trk, f"{{{NS}}}trkseg")
-        for p in points:
-            element = _position(segment, "trkpt", p.lat, p.lon, p.alt_m)
-            if element is not None:
-                _time(element, p.time)
+        for side in antimeridian_segments(points):
+            segment = ET.SubElement(trk, f"{{{NS}}}trkseg")
+            for p in side:
+                element = _position(segment, "trkpt", p.lat, p.lon, p.alt_m)
+                if element is not None:
+                    _time(element, p.time)
     ET.indent(root)
     return ET.tostring(root, encoding="unicode", xml_declaration=True)

@@ -10,6 +10,7 @@ at float), so the burst point it hands to the descent comes from the same weathe
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 
@@ -32,7 +33,7 @@ ASCENT_STEP_S = 60.0
 
 @dataclass(frozen=True)
 class Ascent:
-    """The path from launch to burst, the burst last."""
+    """A stage's path: from launch to burst (the burst last), or Tawhiri's descent to the ground."""
 
     t_s: np.ndarray
     """Epoch seconds."""
@@ -48,6 +49,27 @@ class Ascent:
     @property
     def burst(self) -> Point:
         return self.point(-1)
+
+
+Wind = Callable[[float, float, float, float], tuple[float, float]]
+
+
+def wind_sampler(cube: WeatherCube, time_tolerance_s: float, stage: str) -> Wind:
+    """(u, v) in m/s at (epoch s, lat, lon, alt) from the descent stepper's own sampler; leaving the
+    cube is a PredictorError naming the stage."""
+    w = packed(cube)
+    sample = np.zeros(3)
+    hint = np.zeros(1, dtype=np.int64)
+    no_memo, scratch = np.empty((0, 0, 0)), np.empty((1, 1, 1, 4))
+
+    def wind(t: float, la: float, lo: float, z: float) -> tuple[float, float]:
+        code = sample_weather(w.t_s, w.lats, w.lons, w.columns, time_tolerance_s, t, la, lo, z, sample, hint,
+                              no_memo, scratch)  # fmt: skip
+        if code != STATUS_OK:
+            raise _coverage_error(cube, code, stage, t, la, lo, z)
+        return float(sample[0]), float(sample[1])
+
+    return wind
 
 
 def ascend(
@@ -69,21 +91,10 @@ def ascend(
         raise PredictorError(
             f"the burst altitude {burst_alt_m!r} m must be above the launch altitude {alt_m!r} m"
         )
-    w = packed(cube)
+    wind = wind_sampler(cube, time_tolerance_s, "ascent")
     duration_s = (burst_alt_m - alt_m) / rate_ms
     steps = max(1, math.ceil(duration_s / ASCENT_STEP_S))
     h = duration_s / steps
-    sample = np.zeros(3)
-    hint = np.zeros(1, dtype=np.int64)
-    no_memo, scratch = np.empty((0, 0, 0)), np.empty((1, 1, 1, 4))
-
-    def wind(t: float, la: float, lo: float, z: float) -> tuple[float, float]:
-        code = sample_weather(w.t_s, w.lats, w.lons, w.columns, time_tolerance_s, t, la, lo, z, sample, hint,
-                              no_memo, scratch)  # fmt: skip
-        if code != STATUS_OK:
-            raise _coverage_error(cube, code, "ascent", t, la, lo, z)
-        return float(sample[0]), float(sample[1])
-
     t, la, lo, z = time.timestamp(), float(lat), float(lon), float(alt_m)
     path = [(t, la, lo, z)]
     for k in range(1, steps + 1):

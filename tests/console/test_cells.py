@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 from rich.cells import cell_len
 
-from console.widgets.cells import FIELDS, Field, balloon_lines, short_age
+from console.widgets.cells import FIELDS, Field, age_shown, balloon_lines, short_age
 from drs_link.feeds.balloon_feed import FeedStatus
 from drs_link.ops.fleet import PERIOD_S, CapsuleTelemetry, FleetState
 from drs_link.ops.staleness import MISSING_TEXT, STALE_GLYPH, Reading
@@ -113,6 +113,13 @@ def test_short_ages_use_one_unit() -> None:
     assert [short_age(s) for s in (0, 59.9, 60, 3599, 3600, 86399, 86400 * 3, -5)] == [
         "0s", "59s", "1m", "59m", "1h", "23h", "3d", "-5s",
     ]  # fmt: skip
+
+
+def test_old_ages_change_in_steps_that_grow_with_them() -> None:
+    assert [age_shown(s) for s in (0.0, 4.9, 59.9, 60.0, 125.0, 599.0, 600.0, 3599.0, 7265.0, -3.0)] == [
+        0.0, 4.9, 59.9, 60.0, 120.0, 590.0, 600.0, 3540.0, 7265.0, -3.0,
+    ]  # fmt: skip
+    assert [short_age(s) for s in (125.0, 3599.0)] == ["2m", "59m"]
 
 
 def test_telemetry_of_the_wrong_shape_is_named_not_raised() -> None:

@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import json
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from console.commands.main import main
 from predictor.environment.cube import WeatherCube
 from predictor.environment.demo_weather import demo_weather_files, isa_height_and_temperature
 from predictor.environment.weather import DEMO_SOURCE, load_weather
+from predictor.errors import WeatherError
 
 START = datetime(2026, 11, 22, 7, 40, tzinfo=UTC)
 
@@ -80,3 +83,44 @@ def test_demo_weather_anywhere_on_earth(tmp_path: Path, lat: float, lon: float) 
         "2026-01-02T00:00"
     )
     assert np.isfinite(cube.u).all() and (cube.density > 0).all()
+
+
+def test_the_demo_atmosphere_is_one_field_whatever_region_or_span_a_call_writes(tmp_path: Path) -> None:
+    """`drs serve predictor` and `drs predict` once wrote differently centred files over different spans,
+    and the air differed with them (their landings were 857 m apart)."""
+    a = load_weather(demo_weather_files(52.2, -0.4, START, tmp_path / "a", hours=12), cache_dir=tmp_path / "ca")
+    b = load_weather(
+        demo_weather_files(50.0, 3.0, START + timedelta(hours=5), tmp_path / "b", hours=3, half_width_deg=6.0),
+        cache_dir=tmp_path / "cb",
+    )
+    times = np.intersect1d(a.times, b.times)
+    lats, lons = np.intersect1d(a.lats, b.lats), np.intersect1d(a.lons, b.lons)
+    assert times.size >= 1 and lats.size > 10 and lons.size > 10
+
+    def part(cube: WeatherCube, field: np.ndarray) -> np.ndarray:
+        ti = np.isin(cube.times, times)
+        return field[ti][:, :, np.isin(cube.lats, lats)][:, :, :, np.isin(cube.lons, lons)]
+
+    for name in ("u", "v", "z_m", "density"):
+        np.testing.assert_array_equal(part(a, getattr(a, name)), part(b, getattr(b, name)), err_msg=name)
+
+
+@pytest.mark.parametrize(("lat", "lon"), [(-89.7, 10.0), (89.7, -120.0), (-78.0, 166.7), (-85.0, 30.0), (-90.0, 0.0)])
+def test_releases_near_the_poles_predict_on_demo_weather(
+    lat: float, lon: float, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A 16°-wide box once left the descent at ±89.7°: near a pole the weather covers every longitude."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    argv = ["predict", "--demo-weather", "--lat", str(lat), "--lon", str(lon), "--alt", "35000",
+            "--time", "2026-12-01T06:00Z", "--json", "--cache-dir", str(tmp_path / "cache")]  # fmt: skip
+    assert main(argv) == 0
+    landing = json.loads(capsys.readouterr().out)["landing"]
+    assert abs(landing["lat"]) <= 90.0 and abs(landing["lat"] - lat) < 1.0
+
+
+@pytest.mark.parametrize("hours", [float("inf"), 1e300, 73, -1])
+def test_a_span_no_flight_needs_is_refused_before_any_file_is_written(tmp_path: Path, hours: float) -> None:
+    """#24 item 6: one request asked for 282 files; infinity raised an OverflowError."""
+    with pytest.raises(WeatherError, match="demo weather is written for 0 to 72 hours"):
+        demo_weather_files(46.0, 6.0, START, tmp_path, hours=hours)  # type: ignore[arg-type]
+    assert not any(tmp_path.iterdir())

@@ -503,23 +503,30 @@ def test_command_says_when_the_size_limit_cannot_be_met(
     )
 
 
+PRUNE = "drs weather prune: error: argument"
+
+
 @pytest.mark.parametrize(
-    ("argv", "message", "status"),
+    ("argv", "message"),
     [
-        (["--max-gb", "0"], "--max-gb must be a positive number of gigabytes, not 0", 2),
-        (["--max-gb", "nan"], "--max-gb must be a positive number of gigabytes, not nan", 2),
-        (["--max-gb", "-5"], "--max-gb must be a positive number of gigabytes, not -5", 2),
-        (["--keep-days", "-2"], "--keep-days must be between 0 and 36500 days, not -2", 1),
-        ([], "say what to prune: --keep-days N, --max-gb X, or both", 1),
+        (["--max-gb", "0"], f"{PRUNE} --max-gb: 0 is not a positive number of gigabytes"),
+        (["--max-gb", "nan"], f"{PRUNE} --max-gb: 'nan' is not a number of gigabytes"),
+        (["--max-gb", "-5"], f"{PRUNE} --max-gb: -5 is not a positive number of gigabytes"),
+        (["--keep-days", "-2"], f"{PRUNE} --keep-days: -2 is not between 0 and 36500 days"),
+        ([], "drs: error: say what to prune: --keep-days N, --max-gb X, or both"),
     ],
 )
-def test_command_errors_are_one_line(
-    xdg_cache: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str, status: int
+def test_command_errors_are_one_line_and_exit_2(
+    xdg_cache: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str
 ) -> None:
-    """2 where the command line is judged, 1 where the pruning itself refuses (gfs_cache.prune's checks)."""
+    """Every one is a command-line mistake (#25 item 7): exit status 2, the option named."""
     default_gfs_dir().mkdir(parents=True)
-    assert main(["weather", "prune", *argv]) == status
-    assert capsys.readouterr().err == f"drs: error: {message}\n"
+    try:
+        status = main(["weather", "prune", *argv])
+    except SystemExit as exc:
+        status = exc.code
+    assert status == 2
+    assert capsys.readouterr().err.splitlines()[-1] == message
 
 
 def test_command_on_a_missing_cache_is_one_line(

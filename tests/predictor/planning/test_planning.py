@@ -200,7 +200,7 @@ def test_landing_strip_files_carry_every_candidate_and_say_demo(tmp_path: Path) 
         [plan.candidates[0].landing_lon, plan.candidates[0].landing_lat], abs=5e-7
     )
     assert kinds.count("recommended ellipse") == 3
-    assert doc["properties"]["is_demo"] and "DEMO" in doc["properties"]["title"]
+    assert doc["drs"]["is_demo"] and "DEMO" in doc["drs"]["title"]
     assert all(f["properties"]["is_demo"] and "DEMO" in f["properties"]["title"] for f in doc["features"])
     assert "DEMO WEATHER" in to_kml(plan)
     gj = write_geojson(plan, tmp_path / "strip.geojson")

@@ -247,7 +247,8 @@ def test_bench_prints_every_measured_figure(capsys: pytest.CaptureFixture[str]) 
         "over 3 runs",
         "whole process: drs --help",
         "whole process: drs predict (cached weather, warm numba cache)",
-        "python importing numpy and scipy",
+        "× python -c 'import argparse'",
+        "× python -c 'import numpy, scipy.optimize'",
     ):
         assert text in out
 

@@ -66,7 +66,7 @@ def test_geojson_features_and_their_geometry(prediction: Prediction, tmp_path: P
     assert polygon["geometry"]["type"] == "Polygon"
     assert polygon["geometry"]["coordinates"][0][0] == polygon["geometry"]["coordinates"][0][-1]
     assert polygon["properties"]["probability"] == pytest.approx(0.393, abs=1e-3)
-    assert doc["properties"]["is_demo"] is False
+    assert doc["drs"]["is_demo"] is False and "properties" not in doc
     assert all(f["properties"]["source"] == prediction.weather_source for f in doc["features"])
 
 
@@ -78,7 +78,7 @@ def test_demo_ensemble_outputs_say_demo_and_carry_members(
     assert "DEMO WEATHER" in kml_root.find(".//k:Document/k:description", KML_NS).text
     assert kml_root.find(".//k:Folder/k:name", KML_NS).text == "20 ensemble landings"
     geo = to_geojson(demo_ensemble)
-    assert geo["properties"]["is_demo"] is True and "DEMO" in geo["properties"]["title"]
+    assert geo["drs"]["is_demo"] is True and "DEMO" in geo["drs"]["title"]
     members = [f for f in geo["features"] if f["properties"]["kind"] == "ensemble landings"][0]
     assert len(members["geometry"]["coordinates"]) == 20
     assert sum(f["properties"]["kind"] == "ellipse" for f in geo["features"]) == 6
