@@ -416,6 +416,8 @@ def _check_small_file(key: str, path: Path) -> None:
         return
     except OSError as exc:
         raise ConfigError(f"{key}: cannot read {path}: {exc.strerror or exc}") from None
+    except ValueError:
+        raise ConfigError(f"{key}: {str(path)!r} holds a NUL character, which no file name can") from None
     if not stat.S_ISREG(info.st_mode):
         raise ConfigError(f"{key}: {path} is not a regular file")
     if info.st_size > MAX_SECRET_FILE_BYTES:

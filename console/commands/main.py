@@ -66,6 +66,7 @@ COMMAND_HELP: dict[str, str] = {
     "recovery": "landing estimate, distance from you, GPX/KML export",
     "balloon": "the balloon's position from a ground-station feed",
     "approve": "list hazardous commands waiting for a second operator, or approve/reject one",
+    "setup": "prepare this machine for operations (a shared store)",
     "chase": "send the capsules (and their predicted landings) to chasemapper as Horus UDP",
     "serve": "serve predictions over HTTP (a Tawhiri v1 API)",
     "console": "the operator console (full-screen terminal app)",

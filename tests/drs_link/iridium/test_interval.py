@@ -133,7 +133,7 @@ def test_the_parachute_plan_uses_the_old_spacing_for_the_next_cycle_and_the_new_
     rig.ops.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
     alarm = rig.fly(alarm, 1)
     last_fix = rig.stored()[-1].report.fix.time  # type: ignore[union-attr]
-    plan = plan_parachute(rig.stored(), last_fix + timedelta(seconds=45), rig.commands())
+    plan = plan_parachute(rig.stored(), last_fix + timedelta(seconds=5), rig.commands())
     first, second = plan.cycles[0], plan.cycles[1]
     assert first.fix_earliest <= last_fix + timedelta(minutes=2) <= first.fix_latest
     assert second.fix_earliest <= last_fix + timedelta(
