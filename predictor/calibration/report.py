@@ -156,8 +156,9 @@ def stability_sentence(cal: Calibration) -> str:
     ).format(n=len(cal.names))
     if not cal.stability:
         return f"Selection stability ({how}): no candidate is chosen in any fold."
+    shipped = {f.candidate.name for f in cal.selected}
     shares = ", ".join(
-        f"`{name}` in {share:.0%}{' (FLAG: under two thirds)' if share < 2 / 3 else ''}"
+        f"`{name}` in {share:.0%}{' (FLAG: under two thirds)' if name in shipped and share < 2 / 3 else ''}"
         for name, share in cal.stability.items()
     )
     return f"Selection stability ({how}): chosen {shares} of the folds."
