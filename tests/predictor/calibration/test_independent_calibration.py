@@ -11,7 +11,7 @@ gain is large and the same on every flight; before the flight, the scatter of λ
 45-minute fall) swamps a gain of 20–40 s, so there the model is asked only never to be worse than λ
 alone by more than 10 % + 10 s (the issue's own tolerance), and the gain is stated, not promised.
 
-Statistics: each case is one fixed seed (training 11, unseen 29); the selection's own false-selection
+Statistics: noise only is three seeds, each effect one (training 11, unseen 29); the selection's own false-selection
 rate is its test's (α = 0.05 one-sided, Bonferroni over the candidates, plus the floor); the shape-record
 assertions hold with margins of 3–10× on these worlds (numbers in the comments). About 20 s for the
 four cases on one core.
@@ -69,16 +69,21 @@ def _flown(cases: list[FlightCase], terms: tuple[Term, ...]) -> tuple[np.ndarray
             np.array([s.landing_error_km[0] for s in scores]))  # fmt: skip
 
 
-def _world(tmp_path: Path, effects: Effects, weather: tuple[list[Path], WeatherCube]) -> tuple[Calibration, list[FlightCase]]:
-    trained = _cases(tmp_path / "train", effects, 11, 6, weather)
+def _world(
+    tmp_path: Path, effects: Effects, weather: tuple[list[Path], WeatherCube], seed: int = 11
+) -> tuple[Calibration, list[FlightCase]]:
+    trained = _cases(tmp_path / "train", effects, seed, 6, weather)
     unseen = _cases(tmp_path / "unseen", effects, 29, 8, weather)
     return calibrate(trained, PAYLOAD, LIBRARY, step_m=STEP_M), unseen
 
 
+@pytest.mark.parametrize("seed", [11, 12, 13])
 def test_noise_only_selects_nothing_and_its_speed_shows_no_systematic_difference(
-    tmp_path: Path, weather: tuple[list[Path], WeatherCube]
+    tmp_path: Path, weather: tuple[list[Path], WeatherCube], seed: int
 ) -> None:
-    cal, unseen = _world(tmp_path, NOISE_ONLY, weather)
+    """Three draws (measured on seeds 11–15: nothing selected in any, shape record 0.8–1.0 s, sd of ln λ
+    0.027–0.09 from a true 0.06 over 6 flights)."""
+    cal, _ = _world(tmp_path, NOISE_ONLY, weather, seed)
     assert cal.selected == () and not cal.unexplained
     assert "no systematic difference" in speed_finding(cal)
     # The shape (the drag law) is exact up to the weather's sampling: under 10 s once λ is profiled.
