@@ -111,13 +111,20 @@ class Fit:
     candidate: Candidate
     variant: int
     value: float
+    refined: float | None = None
+    """The candidate's ``refined`` key fitted between its variants (None: the variant's own)."""
 
     def term(self) -> Term:
-        return self.candidate.term(self.variant, self.value)
+        return self.candidate.term(self.variant, self.value, self.refined)
+
+    def place(self) -> float:
+        """The value of the candidate's ``refined`` key this fit flies."""
+        return self.candidate.parameters(self.variant, self.value, self.refined)[self.candidate.refined]
 
     def describe(self) -> dict[str, object]:
         c = self.candidate
-        return {"effect": c.name, "family": c.family, "parameters": c.parameters(self.variant, self.value)}
+        parameters = c.parameters(self.variant, self.value, self.refined)
+        return {"effect": c.name, "family": c.family, "parameters": parameters}
 
 
 @dataclass(frozen=True)
@@ -361,7 +368,8 @@ class FlightBatch:
         for k, fit in enumerate(rows[0]):
             variants = np.array([row[k].variant for row in rows])
             values = np.array([row[k].value for row in rows])
-            terms.append(fit.candidate.term(variants, values))
+            places = np.array([row[k].place() for row in rows]) if fit.candidate.refined else None
+            terms.append(fit.candidate.term(variants, values, places))
         return tuple(terms)
 
     def runs(
@@ -653,7 +661,8 @@ def fit_candidate(
 
     Two passes: the candidate's coarse grid, then a fine grid (``Candidate.fine``) around the
     all-flights optimum, used by every fold whose coarse optimum falls inside it (the folds differ by
-    one flight, so nearly always).
+    one flight, so nearly always). A ``refined`` candidate's fine pass fits its height too, per fold
+    from the fold's own sums (``Candidate.fit_refined``).
     """
     n = len(batch.cases)
     coarse = _losses(batch, candidate, held_folds, held_full)
@@ -663,9 +672,13 @@ def fit_candidate(
     fits: list[Fit] = []
     for i in range(n + 1):
         v0, x0, _ = candidate.fit(coarse.sum(axis=0)[i])
+        refined = None
         if v0 == variant and fine_candidate.grid[0] <= x0 <= fine_candidate.grid[-1]:
-            _, x0, _ = fine_candidate.fit(fine.sum(axis=0)[i])
-        fits.append(Fit(candidate, v0, x0))
+            if candidate.refined:
+                refined, x0, _ = fine_candidate.fit_refined(fine.sum(axis=0)[i])
+            else:
+                _, x0, _ = fine_candidate.fit(fine.sum(axis=0)[i])
+        fits.append(Fit(candidate, v0, x0, refined))
     full = fits.pop()
     return full, fits
 
