@@ -112,7 +112,7 @@ def test_an_effect_outside_the_library_gets_its_family_and_cuts_the_error_on_uns
     if effects is TWO_REGIME:
         _assert_the_canopy_is_found(cal, TWO_REGIME)
     if family == "vertical":
-        # The shape record of every unseen flight: measured 2–7 s against 17–34 s (two regimes), 14–15
+        # The shape record of every unseen flight: measured 0.7–1.5 s against 17–34 s (two regimes), 14–15
         # against 49–64 s (updraft); asked: under half, on every flight.
         assert (model[1] < 0.5 * plain[1]).all(), (model[1], plain[1])
     else:
