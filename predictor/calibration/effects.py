@@ -16,8 +16,8 @@ A candidate whose place is a continuous height (``Candidate.refined``: the two-r
 has its height refined in the same fine pass, jointly with the parameter: height and factor trade off
 along a narrow valley (a higher break with a larger factor makes nearly the same fall), so a height
 held on the coarse 3 km grid drags the factor away from the truth (a 1.3× canopy above 20 km was fitted
-as 1.45 above 21 km). The fine table (heights at a third of the coarse spacing × factors over two
-coarse steps each side) is minimised on a bicubic spline through it (a mesh, then a bounded polish).
+as 1.45 above 21 km). The fine table (heights at a third of the coarse spacing × factors a coarse step
+either side) is minimised on a bicubic spline through it (a mesh, then a bounded polish).
 
 The binned correction is not a candidate: it is fitted in closed form from the residuals (time and
 displacement in each altitude bin, measured against predicted) and answers "how much of the error
@@ -42,6 +42,11 @@ BIN_EDGES_M = tuple(float(z) for z in range(0, 39_000, 3000))
 MIN_BIN_SECONDS = 60.0
 """A bin measured for less than this over all training flights keeps factor 1 and no added wind."""
 BINNED_FACTOR_BOUNDS = (0.5, 2.0)
+
+
+REFINED_FACTORS = 5
+"""Values of the fitted parameter per refined height in the fine pass (a coarse step either side, so
+half the coarse spacing apart): the table is heights × these, every row a trajectory per flight and fold."""
 
 
 @dataclass(frozen=True)
@@ -92,8 +97,7 @@ class Candidate:
     def fine(self, variant: int, value: float, points: int = 9) -> Candidate:
         """The same effect on one variant, with a grid spanning the coarse neighbours of ``value``; for a
         ``refined`` candidate, on heights at a third of the coarse spacing between the neighbouring
-        variants, with a grid two coarse steps either side of ``value`` (the valley's factor moves
-        with the height)."""
+        variants, with ``REFINED_FACTORS`` values a coarse step either side of ``value``."""
         grid = np.asarray(self.grid)
         gap = float(np.min(np.diff(grid)))
         if self.refined:
@@ -104,9 +108,9 @@ class Candidate:
             bottom = float(lower.max()) if lower.size else here
             top = float(upper.min()) if upper.size else here
             heights = np.linspace(bottom, top, round((top - bottom) / (spacing / 3.0)) + 1)
-            lo, hi = max(self.bounds[0], value - 2.0 * gap), min(self.bounds[1], value + 2.0 * gap)
+            lo, hi = max(self.bounds[0], value - gap), min(self.bounds[1], value + gap)
             return replace(
-                self, grid=tuple(np.linspace(lo, hi, points)),
+                self, grid=tuple(np.linspace(lo, hi, REFINED_FACTORS)),
                 variants=tuple({**self.variants[variant], self.refined: float(h)} for h in heights),
             )  # fmt: skip
         below, above = grid[grid < value], grid[grid > value]
