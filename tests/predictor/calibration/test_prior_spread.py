@@ -37,10 +37,11 @@ def _model(log_sigma: float | None) -> CalibratedModel:
 
 
 def _predict(tmp_path: Path, capsys: pytest.CaptureFixture[str], model: CalibratedModel, *extra: str) -> str:
-    path = save_model(model, tmp_path / f"m-{model.rate_prior.log_sigma if model.rate_prior else 'none'}.json")
+    name = f"m-{model.rate_prior.log_sigma if model.rate_prior else 'none'}.json"
+    path = save_model(model, tmp_path / name)
     files = demo_weather_files(46.5, 6.6, WHEN, cache_dir=tmp_path / "wx")
-    argv = ["predict", "--weather", *map(str, files), "--cache-dir", str(tmp_path / "c"), *RELEASE, "--model", str(path)]
-    assert main([*argv, *extra]) == 0
+    argv = ["predict", "--weather", *map(str, files), "--cache-dir", str(tmp_path / "c"), *RELEASE]
+    assert main([*argv, "--model", str(path), *extra]) == 0
     return capsys.readouterr().out
 
 
@@ -59,8 +60,9 @@ def test_a_wider_rate_prior_gives_a_wider_descent_time_interval_about_the_predic
         assert spread["descent_sigma_s"] == pytest.approx((times["slow"] - times["fast"]) / 2.0)
         assert spread["landing_shift_km"]["slow"] > 0.0 and spread["landing_shift_km"]["fast"] > 0.0
     assert wide["descent_s"] == narrow["descent_s"], "the spread does not move the prediction"
-    assert wide["rate_prior_spread"]["descent_sigma_s"] > 2.5 * narrow["rate_prior_spread"]["descent_sigma_s"]
-    assert wide["rate_prior_spread"]["landing_shift_km"]["slow"] > narrow["rate_prior_spread"]["landing_shift_km"]["slow"]
+    wider, narrower = wide["rate_prior_spread"], narrow["rate_prior_spread"]
+    assert wider["descent_sigma_s"] > 2.5 * narrower["descent_sigma_s"]
+    assert wider["landing_shift_km"]["slow"] > narrower["landing_shift_km"]["slow"]
 
 
 def test_the_text_names_the_interval_and_a_model_without_a_prior_claims_none(
