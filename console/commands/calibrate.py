@@ -55,6 +55,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="FILE.md",
         help="Markdown placed under the report's title (a hand-written reading of the results)",
     )
+    cal.add_argument(
+        "--nested-stability", action="store_true",
+        help="measure the selection's stability by repeating the whole selection without each flight "
+        "(n times the cost; default: its decisions replayed without each flight)",
+    )  # fmt: skip
     cal.set_defaults(func=run_calibrate)
     actions = cal.add_subparsers(dest="calibrate_command", metavar="ACTION")
     bench = actions.add_parser(

@@ -140,10 +140,18 @@ def run(args: argparse.Namespace) -> int:
     summary_to = (
         sys.stderr if piped(kml=args.kml, geojson=args.geojson, gpx=args.gpx, json=args.json) else sys.stdout
     )
-    from predictor.calibration import flown_model
+    from predictor.calibration import descent_spread, flown_model
     from predictor.descent import COMPILE_NOTICE, kernels_compiled
     from predictor.environment import Terrain, demo_weather_files, load_weather
-    from predictor.prediction import predict, predict_ensemble, to_json, write_geojson, write_gpx, write_kml
+    from predictor.prediction import (
+        EnsemblePrediction,
+        predict,
+        predict_ensemble,
+        to_json,
+        write_geojson,
+        write_gpx,
+        write_kml,
+    )
 
     when = parse_time(args.time)
     files = demo_weather_files(args.lat, args.lon, when) if args.demo_weather else args.weather
@@ -173,6 +181,11 @@ def run(args: argparse.Namespace) -> int:
         )
     else:
         result = predict(wx, when, args.lat, args.lon, args.alt, **common)
+    central = result.central if isinstance(result, EnsemblePrediction) else result
+    spread = None
+    if calibrated is not None:
+        release = (wx, when, args.lat, args.lon, args.alt)
+        spread = descent_spread(calibrated, central, lambda t: predict(*release, **{**common, "effects": t}))
     if args.kml:
         write_kml(result, args.kml)
     if args.geojson:
@@ -183,10 +196,14 @@ def run(args: argparse.Namespace) -> int:
         document = json.loads(to_json(result, track=args.track))
         if calibrated is not None:
             document["model"] = calibrated.document(args.model)
+        if spread is not None:
+            document["rate_prior_spread"] = spread.to_dict()
         print(json.dumps(document, indent=2, ensure_ascii=False))
     else:
         text = summary(result)
-        print(text if calibrated is None else f"{text}\nmodel     {calibrated.label()}", file=summary_to)
+        if calibrated is not None:
+            text += f"\nmodel     {calibrated.label()}" + (f"\n{spread.line()}" if spread is not None else "")
+        print(text, file=summary_to)
     return 0
 
 

@@ -4,7 +4,8 @@
 chooses effects family by family leave-one-flight-out, ``ellipse_fit`` fits the landing ellipse,
 ``report`` writes the results, and ``run`` is what ``drs calibrate`` runs. ``model_file`` is the
 calibrated model every prediction can fly; ``live_evaluation`` (with ``live_bench``) measures live
-re-prediction on real descents and adds its settings to that model; ``vertical_check`` flies a saved
+re-prediction on real descents and adds its settings to that model; ``prior_spread`` flies a prediction
+at the model's rate prior's ±1σ of λ (its descent-time interval); ``vertical_check`` flies a saved
 law on flights it never saw, on the vertical record alone (``drs calibrate vertical``).
 """
 
@@ -18,6 +19,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "flown_model": "model_file",
         "live_settings": "live_evaluation",
         "load_model": "model_file",
+        "descent_spread": "prior_spread",
         "run_bench": "run",
         "run_calibrate": "run",
         "run_vertical": "run",

@@ -12,6 +12,12 @@ for, and the fit for every held-out fold is then a sum over the other flights' r
 refined with ``scipy.optimize.minimize_scalar`` (bounded, to the neighbouring grid values) on a
 cubic spline through the grid's objective; then the same again on a fine grid (9 values between the
 coarse neighbours of the optimum), which takes the spline's error on a coarse grid (0.01 in λ) out.
+A candidate whose place is a continuous height (``Candidate.refined``: the two-regime canopy's break)
+has its height refined in the same fine pass, jointly with the parameter: height and factor trade off
+along a narrow valley (a higher break with a larger factor makes nearly the same fall), so a height
+held on the coarse 3 km grid drags the factor away from the truth (a 1.3× canopy above 20 km was fitted
+as 1.45 above 21 km). The fine table (heights at a third of the coarse spacing × factors a coarse step
+either side) is minimised on a bicubic spline through it (a mesh, then a bounded polish).
 
 The binned correction is not a candidate: it is fitted in closed form from the residuals (time and
 displacement in each altitude bin, measured against predicted) and answers "how much of the error
@@ -24,8 +30,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.interpolate import CubicSpline
-from scipy.optimize import minimize_scalar
+from scipy.interpolate import CubicSpline, RectBivariateSpline
+from scipy.optimize import minimize, minimize_scalar
 
 from predictor.calibration.residuals import BinBudget
 from predictor.descent import EFFECTS, BinnedDescentRate, BinnedWind, Term
@@ -36,6 +42,11 @@ BIN_EDGES_M = tuple(float(z) for z in range(0, 39_000, 3000))
 MIN_BIN_SECONDS = 60.0
 """A bin measured for less than this over all training flights keeps factor 1 and no added wind."""
 BINNED_FACTOR_BOUNDS = (0.5, 2.0)
+
+
+REFINED_FACTORS = 5
+"""Values of the fitted parameter per refined height in the fine pass (a coarse step either side, so
+half the coarse spacing apart): the table is heights × these, every row a trajectory per flight and fold."""
 
 
 @dataclass(frozen=True)
@@ -53,33 +64,87 @@ class Candidate:
     variants: tuple[Mapping[str, float], ...] = ({},)
     """Discrete alternatives tried with every grid value (e.g. altitude bands)."""
     why: str = ""
+    refined: str = ""
+    """A variant key that is a continuous quantity (a height), refined by the fine pass jointly with
+    ``parameter`` (``fine``, ``fit_refined``); "" for variants that are truly discrete."""
 
     def points(self) -> list[tuple[int, float]]:
         """(variant index, value) of every grid point, variant-major."""
         return [(v, x) for v in range(len(self.variants)) for x in self.grid]
 
-    def term(self, variant: np.ndarray | int, value: np.ndarray | float) -> Term:
-        """The model term for one value or for arrays of (variant, value), one per trajectory."""
+    def term(
+        self, variant: np.ndarray | int, value: np.ndarray | float, refined: np.ndarray | float | None = None
+    ) -> Term:
+        """The model term for one value or for arrays of (variant, value), one per trajectory;
+        ``refined``: the value(s) of the ``refined`` key in place of the variants' own."""
         cls = EFFECTS[self.name]
         variant = np.asarray(variant)
         kwargs: dict[str, object] = dict(self.fixed)
         for key in self.variants[0]:
             column = np.array([self.variants[int(i)][key] for i in variant.ravel()])
             kwargs[key] = float(column[0]) if variant.ndim == 0 else column
+        if refined is not None:
+            kwargs[self.refined] = float(refined) if np.ndim(refined) == 0 else np.asarray(refined, float)
         kwargs[self.parameter] = float(value) if np.ndim(value) == 0 else np.asarray(value, dtype=float)
         return cls(**kwargs)
 
-    def parameters(self, variant: int, value: float) -> dict[str, float]:
-        return {**self.fixed, **self.variants[variant], self.parameter: float(value)}
+    def parameters(self, variant: int, value: float, refined: float | None = None) -> dict[str, float]:
+        place = dict(self.variants[variant])
+        if refined is not None:
+            place[self.refined] = float(refined)
+        return {**self.fixed, **place, self.parameter: float(value)}
 
     def fine(self, variant: int, value: float, points: int = 9) -> Candidate:
-        """The same effect on one variant, with a grid spanning the coarse neighbours of ``value``."""
+        """The same effect on one variant, with a grid spanning the coarse neighbours of ``value``; for a
+        ``refined`` candidate, on heights at a third of the coarse spacing between the neighbouring
+        variants, with ``REFINED_FACTORS`` values a coarse step either side of ``value``."""
         grid = np.asarray(self.grid)
-        below, above = grid[grid < value], grid[grid > value]
         gap = float(np.min(np.diff(grid)))
+        if self.refined:
+            places = np.array([v[self.refined] for v in self.variants])
+            here = places[variant]
+            spacing = float(np.min(np.diff(np.sort(places))))
+            lower, upper = places[places < here], places[places > here]
+            bottom = float(lower.max()) if lower.size else here
+            top = float(upper.min()) if upper.size else here
+            heights = np.linspace(bottom, top, round((top - bottom) / (spacing / 3.0)) + 1)
+            lo, hi = max(self.bounds[0], value - gap), min(self.bounds[1], value + gap)
+            return replace(
+                self, grid=tuple(np.linspace(lo, hi, REFINED_FACTORS)),
+                variants=tuple({**self.variants[variant], self.refined: float(h)} for h in heights),
+            )  # fmt: skip
+        below, above = grid[grid < value], grid[grid > value]
         lo = max(self.bounds[0], float(below.max()) if below.size else value - gap)
         hi = min(self.bounds[1], float(above.min()) if above.size else value + gap)
         return replace(self, grid=tuple(np.linspace(lo, hi, points)), variants=(self.variants[variant],))
+
+    def fit_refined(self, objective: np.ndarray) -> tuple[float, float, float]:
+        """(refined value, value, objective) minimising a fine table over (variants × grid): the minimum
+        of a bicubic spline through the table (both axes in grid steps, so the optimiser sees them
+        alike) where it is below the table's best point."""
+        table = np.asarray(objective, dtype=float).reshape(len(self.variants), len(self.grid))
+        places = np.array([v[self.refined] for v in self.variants])
+        finite = np.isfinite(table)
+        if not finite.any():
+            return float(places[len(places) // 2]), self.neutral, float("inf")
+        table = np.where(finite, table, 10.0 * np.nanmax(np.abs(table[finite])) + 1.0)
+        row, col = np.unravel_index(int(np.argmin(table)), table.shape)
+        best = (float(row), float(col), float(table[row, col]))
+        if min(table.shape) >= 4:
+            rows, cols = np.arange(table.shape[0]), np.arange(table.shape[1])
+            spline = RectBivariateSpline(rows, cols, table)
+            # The valley runs diagonally across the cells: a mesh of a tenth of a cell finds it, the
+            # optimiser then polishes that point inside the table.
+            mesh = (np.linspace(0.0, rows[-1], 10 * rows[-1] + 1),
+                    np.linspace(0.0, cols[-1], 10 * cols[-1] + 1))  # fmt: skip
+            values = spline(*mesh)
+            i, j = np.unravel_index(int(np.argmin(values)), values.shape)
+            found = minimize(lambda p: float(spline(p[0], p[1])[0, 0]), x0=(mesh[0][i], mesh[1][j]),
+                             bounds=[(0.0, rows[-1]), (0.0, cols[-1])], method="L-BFGS-B")  # fmt: skip
+            if found.success and float(found.fun) < best[2]:
+                best = (float(found.x[0]), float(found.x[1]), float(found.fun))
+        at = np.arange(table.shape[0]), np.arange(table.shape[1])
+        return float(np.interp(best[0], at[0], places)), float(np.interp(best[1], at[1], self.grid)), best[2]
 
     def fit(self, objective: np.ndarray) -> tuple[int, float, float]:
         """(variant, value, objective) minimising a grid objective of shape (len(points),)."""
@@ -151,6 +216,7 @@ LIBRARY: tuple[Candidate, ...] = (
         1.0,
         variants=_heights(),
         why="a canopy that opens further below a height: a factor on the rate above it (heights every 3 km)",
+        refined="height_m",
     ),
     Candidate(
         "wind_scale",

@@ -107,6 +107,14 @@ class CalibratedModel:
     def model(self) -> Model:
         return Model.for_payload(self.payload, *self.terms)
 
+    def shape_terms(self) -> tuple[Term, ...]:
+        """The terms without the rate prior's median λ: what live re-prediction multiplies by the
+        flight's own λ. A calibration that fitted a rate prior saves its median as the first term
+        (``descent_rate_scale``), so that every command flying ``terms`` flies the pre-flight law."""
+        if self.rate_prior is not None and self.terms and self.terms[0].name == "descent_rate_scale":
+            return self.terms[1:]
+        return self.terms
+
     def chosen_ellipse(self, name: str | None) -> ErrorModel:
         """The ellipse a prediction carries: ``name`` (``--error-model``) when given, else this model's
         fitted ellipse (what its own held-out errors measured), else the launch parameters of the paper."""

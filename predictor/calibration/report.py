@@ -149,19 +149,19 @@ def rate_sentence(cal: Calibration) -> str:
 
 def stability_sentence(cal: Calibration) -> str:
     """How much the selection rests on single flights (``selection.decision_stability``), in words."""
+    how = (
+        "the whole selection repeated without each of the {n} flights in turn"
+        if cal.stability_method == "nested"
+        else "the decisions replayed without each of the {n} flights in turn, the fits not repeated"
+    ).format(n=len(cal.names))
     if not cal.stability:
-        return (
-            f"Selection stability: no candidate is chosen in any of the {len(cal.names)} leave-one-flight-out "
-            "folds of the decision."
-        )
+        return f"Selection stability ({how}): no candidate is chosen in any fold."
+    shipped = {f.candidate.name for f in cal.selected}
     shares = ", ".join(
-        f"`{name}` in {share:.0%}{' (FLAG: under two thirds)' if share < 2 / 3 else ''}"
+        f"`{name}` in {share:.0%}{' (FLAG: under two thirds)' if name in shipped and share < 2 / 3 else ''}"
         for name, share in cal.stability.items()
     )
-    return (
-        f"Selection stability (the decision replayed without each of the {len(cal.names)} flights in turn, "
-        f"the fits not repeated): chosen {shares} of the folds."
-    )
+    return f"Selection stability ({how}): chosen {shares} of the folds."
 
 
 def speed_finding(cal: Calibration) -> str:
@@ -262,6 +262,7 @@ def result_json(
         },
         "rate_only": _error_block(cal.rate_only),
         "selection_stability": {name: round(share, 3) for name, share in cal.stability.items()},
+        "selection_stability_method": cal.stability_method,
         "unstable": list(cal.unstable),
         "verdict": verdict(cal),
         "payload": payload,

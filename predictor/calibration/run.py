@@ -97,6 +97,7 @@ def analyse(inputs: Inputs, args: argparse.Namespace) -> tuple[Calibration, Elli
     cal = calibrate(
         inputs.cases, inputs.payload, library(args.effects) if args.effects else LIBRARY,
         step_m=args.step, max_effects=args.max_effects, seed=args.seed,
+        nested=getattr(args, "nested_stability", False),
     )  # fmt: skip
     ellipse = None
     if len(inputs.cases) >= MIN_FLIGHTS:
@@ -155,6 +156,7 @@ def calibrated_model(
         ),
         "rate_prior": "descent_rate_scale in terms is the rate prior's median λ; the other terms are the shape",
         "selection_stability": data["selection_stability"],
+        "selection_stability_method": cal.stability_method,
         "unstable_terms": data["unstable"],
         "held_out_rate_only": data["rate_only"],
         "held_out_before": data["baseline"],
@@ -204,6 +206,8 @@ def _command(args: argparse.Namespace) -> str:
             parts += ["--preface", str(args.preface)]
     if args.json:
         parts += ["--json", str(args.json)]
+    if getattr(args, "nested_stability", False):
+        parts.append("--nested-stability")
     return shlex.join(parts)
 
 

@@ -111,13 +111,20 @@ class Fit:
     candidate: Candidate
     variant: int
     value: float
+    refined: float | None = None
+    """The candidate's ``refined`` key fitted between its variants (None: the variant's own)."""
 
     def term(self) -> Term:
-        return self.candidate.term(self.variant, self.value)
+        return self.candidate.term(self.variant, self.value, self.refined)
+
+    def place(self) -> float:
+        """The value of the candidate's ``refined`` key this fit flies."""
+        return self.candidate.parameters(self.variant, self.value, self.refined)[self.candidate.refined]
 
     def describe(self) -> dict[str, object]:
         c = self.candidate
-        return {"effect": c.name, "family": c.family, "parameters": c.parameters(self.variant, self.value)}
+        parameters = c.parameters(self.variant, self.value, self.refined)
+        return {"effect": c.name, "family": c.family, "parameters": parameters}
 
 
 @dataclass(frozen=True)
@@ -320,8 +327,10 @@ class Calibration:
     rate_only: HeldOut
     """The strongest simple baseline: the plain law with the median λ of the other flights, held out."""
     stability: dict[str, float]
-    """Per candidate chosen in any fold: the share of the leave-one-flight-out folds of the decision
-    (``decision_stability``) that choose it."""
+    """Per candidate chosen in any fold: the share of the leave-one-flight-out folds that choose it."""
+    stability_method: str = "decision"
+    """"decision": the decisions replayed without each flight (``decision_stability``); "nested": the
+    whole selection repeated without each flight (``nested_stability``)."""
 
     @property
     def unstable(self) -> tuple[str, ...]:
@@ -359,7 +368,8 @@ class FlightBatch:
         for k, fit in enumerate(rows[0]):
             variants = np.array([row[k].variant for row in rows])
             values = np.array([row[k].value for row in rows])
-            terms.append(fit.candidate.term(variants, values))
+            places = np.array([row[k].place() for row in rows]) if fit.candidate.refined else None
+            terms.append(fit.candidate.term(variants, values, places))
         return tuple(terms)
 
     def runs(
@@ -389,9 +399,11 @@ def calibrate(
     max_effects: int = DEFAULT_MAX_EFFECTS,
     alpha: float = ALPHA,
     seed: int = 0,
+    nested: bool = False,
 ) -> Calibration:
     """Forward selection over every candidate (each on its family's records, at most ``max_effects``),
-    then the binned correction."""
+    then the binned correction. ``nested``: the stability comes from the whole selection repeated
+    without each flight (``nested_stability``, n times the cost) instead of its decisions replayed."""
     n = len(cases)
     if n < 3:
         raise PredictorError(f"leave-one-flight-out needs at least 3 usable flights, got {n}")
@@ -405,37 +417,8 @@ def calibrate(
     baseline = batch.heldout([[]] * n)
     baseline_residuals = tuple(residuals(cases[i], batch.runs(i, [[]])) for i in range(n))
     baseline_replayed = tuple(residuals(cases[i], batch.runs(i, [[]], replay=True)) for i in range(n))
-    reference = baseline
-    references = [baseline]
-    selected_folds: list[list[Fit]] = [[] for _ in range(n)]
-    selected_full: list[Fit] = []
-    rounds: list[tuple[CandidateResult, ...]] = []
-    remaining = list(candidates)
-    while remaining and len(selected_full) < max_effects:
-        results = tuple(
-            _try(
-                batch,
-                c,
-                selected_folds,
-                selected_full,
-                reference,
-                alpha / len(remaining),
-                seed,
-                len(rounds) + 1,
-            )
-            for c in remaining
-        )
-        rounds.append(results)
-        passing = [r for r in results if r.passed]
-        if not passing:
-            break
-        best = max(passing, key=lambda r: r.improvement)
-        selected_full.append(best.full)
-        for i in range(n):
-            selected_folds[i].append(best.folds[i])
-        reference = best.heldout
-        references.append(reference)
-        remaining = [c for c in remaining if c is not best.full.candidate]
+    rounds, references, selected_folds, selected_full = _forward(batch, baseline, candidates, max_effects, alpha, seed)
+    reference = references[-1]
     if len(selected_full) > 1:
         _refit_jointly(batch, selected_folds, selected_full)
         reference = batch.heldout(selected_folds)
@@ -477,8 +460,62 @@ def calibrate(
         rate_fit=rate_full,
         rate_factors=factors,
         rate_only=rate_only,
-        stability=decision_stability(rounds, references, alpha, seed),
+        stability=(
+            nested_stability(cases, payload, candidates, step_m, max_effects, alpha, seed)
+            if nested
+            else decision_stability(rounds, references, alpha, seed)
+        ),
+        stability_method="nested" if nested else "decision",
     )
+
+
+def _forward(
+    batch: FlightBatch, baseline: HeldOut, candidates: Sequence[Candidate], max_effects: int, alpha: float, seed: int
+) -> tuple[list[tuple[CandidateResult, ...]], list[HeldOut], list[list[Fit]], list[Fit]]:
+    """The forward selection: (every round's results, the reference of each round and the last one's
+    best, the selected fits per fold, the selected fits on all flights)."""
+    n = len(batch.cases)
+    reference = baseline
+    references = [baseline]
+    selected_folds: list[list[Fit]] = [[] for _ in range(n)]
+    selected_full: list[Fit] = []
+    rounds: list[tuple[CandidateResult, ...]] = []
+    remaining = list(candidates)
+    while remaining and len(selected_full) < max_effects:
+        share = alpha / len(remaining)
+        results = tuple(
+            _try(batch, c, selected_folds, selected_full, reference, share, seed, len(rounds) + 1) for c in remaining
+        )
+        rounds.append(results)
+        passing = [r for r in results if r.passed]
+        if not passing:
+            break
+        best = max(passing, key=lambda r: r.improvement)
+        selected_full.append(best.full)
+        for i in range(n):
+            selected_folds[i].append(best.folds[i])
+        reference = best.heldout
+        references.append(reference)
+        remaining = [c for c in remaining if c is not best.full.candidate]
+    return rounds, references, selected_folds, selected_full
+
+
+def nested_stability(
+    cases: Sequence[FlightCase], payload: Payload, candidates: Sequence[Candidate], step_m: float,
+    max_effects: int, alpha: float, seed: int,
+) -> dict[str, float]:  # fmt: skip
+    """How often each candidate is selected when the WHOLE selection (every fit, every held-out score,
+    every test) is repeated without each flight in turn: nested leave-one-flight-out. Returns, per
+    candidate selected in any fold, the share of the n folds that selected it."""
+    n = len(cases)
+    chosen: dict[str, int] = {}
+    for k in range(n):
+        batch = FlightBatch([c for i, c in enumerate(cases) if i != k], payload, step_m)
+        baseline = batch.heldout([[]] * (n - 1))
+        _, _, _, selected = _forward(batch, baseline, candidates, max_effects, alpha, seed)
+        for fit in selected:
+            chosen[fit.candidate.name] = chosen.get(fit.candidate.name, 0) + 1
+    return {name: count / n for name, count in sorted(chosen.items(), key=lambda kv: -kv[1])}
 
 
 def _whole_bins(case: FlightCase, budget: BinBudget) -> BinBudget:
@@ -624,7 +661,8 @@ def fit_candidate(
 
     Two passes: the candidate's coarse grid, then a fine grid (``Candidate.fine``) around the
     all-flights optimum, used by every fold whose coarse optimum falls inside it (the folds differ by
-    one flight, so nearly always).
+    one flight, so nearly always). A ``refined`` candidate's fine pass fits its height too, per fold
+    from the fold's own sums (``Candidate.fit_refined``).
     """
     n = len(batch.cases)
     coarse = _losses(batch, candidate, held_folds, held_full)
@@ -634,9 +672,13 @@ def fit_candidate(
     fits: list[Fit] = []
     for i in range(n + 1):
         v0, x0, _ = candidate.fit(coarse.sum(axis=0)[i])
+        refined = None
         if v0 == variant and fine_candidate.grid[0] <= x0 <= fine_candidate.grid[-1]:
-            _, x0, _ = fine_candidate.fit(fine.sum(axis=0)[i])
-        fits.append(Fit(candidate, v0, x0))
+            if candidate.refined:
+                refined, x0, _ = fine_candidate.fit_refined(fine.sum(axis=0)[i])
+            else:
+                _, x0, _ = fine_candidate.fit(fine.sum(axis=0)[i])
+        fits.append(Fit(candidate, v0, x0, refined))
     full = fits.pop()
     return full, fits
 

@@ -57,6 +57,33 @@ def test_a_fit_picks_the_best_variant_and_ignores_failed_runs() -> None:
     }
 
 
+def test_a_refined_height_is_found_between_the_coarse_heights_along_a_diagonal_valley() -> None:
+    """The two-regime canopy's height and factor trade off (a higher break, a larger factor): an
+    objective with its minimum at 19.4 km × 1.23 along such a valley. The coarse grid alone gives a
+    height on the 3 km grid; the fine pass gives the minimum (to the spline's error, ≪ the coarse step)."""
+    two = library(["two_regime_rate"])[0]
+
+    def valley(height_m: float, factor: float) -> float:
+        along = (height_m - 19_400.0) / 1000.0
+        across = factor - (1.23 + 0.12 * along)
+        return 0.05 * along**2 + 40.0 * across**2 + 0.2
+
+    coarse = np.array([valley(two.variants[v]["height_m"], x) for v, x in two.points()])
+    variant, value, _ = two.fit(coarse)
+    assert two.variants[variant]["height_m"] in (18_000.0, 21_000.0)
+    fine = two.fine(variant, value)
+    coarse_height = two.variants[variant]["height_m"]
+    heights = [v["height_m"] for v in fine.variants]
+    assert heights == pytest.approx(list(np.arange(coarse_height - 3000.0, coarse_height + 3001.0, 1000.0)))
+    table = np.array([valley(fine.variants[v]["height_m"], x) for v, x in fine.points()])
+    height, factor, best = fine.fit_refined(table)
+    assert height == pytest.approx(19_400.0, abs=50.0) and factor == pytest.approx(1.23, abs=0.005)
+    assert best == pytest.approx(0.2, abs=0.01)
+    assert two.parameters(variant, factor, height) == {"height_m": height, "factor": factor}
+    term = two.term(np.array([variant, variant]), np.array([1.2, 1.3]), np.array([19_000.0, 19_500.0]))
+    assert list(term.height_m) == [19_000.0, 19_500.0] and list(term.factor) == [1.2, 1.3]
+
+
 def test_an_effect_the_data_cannot_see_is_reported_at_its_neutral_value() -> None:
     offset = library(["weather_time_offset"])[0]
     assert offset.fit(np.full(len(offset.grid), 2.0))[1] == 0.0

@@ -11,7 +11,7 @@ gain is large and the same on every flight; before the flight, the scatter of λ
 45-minute fall) swamps a gain of 20–40 s, so there the model is asked only never to be worse than λ
 alone by more than 10 % + 10 s (the issue's own tolerance), and the gain is stated, not promised.
 
-Statistics: each case is one fixed seed (training 11, unseen 29); the selection's own false-selection
+Statistics: noise only is three seeds, each effect one (training 11, unseen 29); the selection's own false-selection
 rate is its test's (α = 0.05 one-sided, Bonferroni over the candidates, plus the floor); the shape-record
 assertions hold with margins of 3–10× on these worlds (numbers in the comments). About 20 s for the
 four cases on one core.
@@ -69,16 +69,21 @@ def _flown(cases: list[FlightCase], terms: tuple[Term, ...]) -> tuple[np.ndarray
             np.array([s.landing_error_km[0] for s in scores]))  # fmt: skip
 
 
-def _world(tmp_path: Path, effects: Effects, weather: tuple[list[Path], WeatherCube]) -> tuple[Calibration, list[FlightCase]]:
-    trained = _cases(tmp_path / "train", effects, 11, 6, weather)
+def _world(
+    tmp_path: Path, effects: Effects, weather: tuple[list[Path], WeatherCube], seed: int = 11
+) -> tuple[Calibration, list[FlightCase]]:
+    trained = _cases(tmp_path / "train", effects, seed, 6, weather)
     unseen = _cases(tmp_path / "unseen", effects, 29, 8, weather)
     return calibrate(trained, PAYLOAD, LIBRARY, step_m=STEP_M), unseen
 
 
+@pytest.mark.parametrize("seed", [11, 12, 13])
 def test_noise_only_selects_nothing_and_its_speed_shows_no_systematic_difference(
-    tmp_path: Path, weather: tuple[list[Path], WeatherCube]
+    tmp_path: Path, weather: tuple[list[Path], WeatherCube], seed: int
 ) -> None:
-    cal, unseen = _world(tmp_path, NOISE_ONLY, weather)
+    """Three draws (measured on seeds 11–15: nothing selected in any, shape record 0.8–1.0 s, sd of ln λ
+    0.027–0.09 from a true 0.06 over 6 flights)."""
+    cal, _ = _world(tmp_path, NOISE_ONLY, weather, seed)
     assert cal.selected == () and not cal.unexplained
     assert "no systematic difference" in speed_finding(cal)
     # The shape (the drag law) is exact up to the weather's sampling: under 10 s once λ is profiled.
@@ -104,8 +109,10 @@ def test_an_effect_outside_the_library_gets_its_family_and_cuts_the_error_on_uns
     rate_only = _flown(unseen, (DescentRateScale(scale=float(np.exp(np.median(np.log(cal.baseline.rate_factor))))),))
     model = _flown(unseen, cal.terms())
     assert model[0].mean() <= 1.1 * rate_only[0].mean() + 10.0, "pre-flight: never worse than λ alone"
+    if effects is TWO_REGIME:
+        _assert_the_canopy_is_found(cal, TWO_REGIME)
     if family == "vertical":
-        # The shape record of every unseen flight: measured 2–7 s against 17–34 s (two regimes), 14–15
+        # The shape record of every unseen flight: measured 0.7–1.5 s against 17–34 s (two regimes), 14–15
         # against 49–64 s (updraft); asked: under half, on every flight.
         assert (model[1] < 0.5 * plain[1]).all(), (model[1], plain[1])
     else:
@@ -113,3 +120,28 @@ def test_an_effect_outside_the_library_gets_its_family_and_cuts_the_error_on_uns
         # most of it (2.2 km): asked, under half on average and better on every flight.
         assert model[2].mean() < 0.5 * plain[2].mean()
         assert (model[2] < plain[2]).all()
+
+
+def _assert_the_canopy_is_found(cal: Calibration, truth: Effects) -> None:
+    """The two-regime fit against the world's truth: height within 300 m, factor within 0.03.
+
+    Measured (6 training flights, seeds 11-13 at 20 km × 1.3; 17.6 km × 1.4, 23.3 km × 1.25, 14.2 km × 1.5
+    and 9.5 km × 1.2 on seed 11): 1-76 m and 0.001-0.007 off on all flights. The tolerance is 4× that and
+    still a tenth of the coarse grid's 3 km step: the coarse height alone fitted 21 km × 1.45 here,
+    1 km and 0.15 off, which fails it (and made live re-prediction from 20 km worse than a restart)."""
+    fitted = next(f for f in cal.selected if f.candidate.name == "two_regime_rate").describe()["parameters"]
+    assert isinstance(fitted, dict)
+    assert truth.faster_above_m is not None
+    assert abs(fitted["height_m"] - truth.faster_above_m) < 300.0, fitted
+    assert abs(fitted["factor"] - truth.faster_factor) < 0.03, fitted
+
+
+def test_a_canopy_break_between_the_coarse_heights_is_fitted_where_it_is(
+    tmp_path: Path, weather: tuple[list[Path], WeatherCube]
+) -> None:
+    """A break at 17.6 km (between the coarse 15 and 18 km, off the fine 1 km heights) × 1.4: the fine
+    pass is not tuned to 20 km."""
+    truth = Effects(faster_above_m=17_600.0, faster_factor=1.4)
+    cal, _ = _world(tmp_path, truth, weather)
+    assert [f.candidate.name for f in cal.selected] == ["two_regime_rate"]
+    _assert_the_canopy_is_found(cal, truth)

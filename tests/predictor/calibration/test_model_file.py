@@ -227,3 +227,14 @@ def test_every_parameter_of_every_effect_has_the_calibrations_bounds() -> None:
     missing = [(name, f.name) for name, cls in EFFECTS.items() for f in dataclasses.fields(cls)
                if (name, f.name) not in limits]  # fmt: skip
     assert missing == []
+
+
+def test_the_shape_is_the_terms_without_the_priors_median() -> None:
+    from dataclasses import replace
+
+    from predictor.descent.rate_prior import RatePrior
+
+    shape = (DragDensityExponent(exponent=0.07),)
+    with_prior = replace(example(), terms=(DescentRateScale(scale=0.96), *shape), rate_prior=RatePrior(0.96, 0.13, 30))
+    assert with_prior.shape_terms() == shape
+    assert replace(with_prior, rate_prior=None).shape_terms() == with_prior.terms, "no prior: λ is a term like any"

@@ -86,3 +86,37 @@ def test_an_unknown_family_is_refused(plain_cases: list[FlightCase]) -> None:
     odd = Candidate("wind_scale", "sideways", "scale", (0.9, 1.0, 1.1), (0.5, 1.5), 1.0)
     with pytest.raises(PredictorError, match="unknown effect family sideways"):
         calibrate(plain_cases, PROFILES["superbit-test"], (odd,))
+
+
+def _heldout(shape_s: np.ndarray):  # noqa: ANN202
+    from predictor.calibration.selection import HeldOut
+
+    n = shape_s.size
+    zeros = np.zeros(n)
+    return HeldOut(zeros, shape_s, shape_s, np.ones(n), zeros, zeros, zeros, zeros, zeros, zeros, zeros)
+
+
+def _result(name: str, before: np.ndarray, improvement: np.ndarray):  # noqa: ANN202
+    from predictor.calibration.selection import CandidateResult, Fit, _tests
+
+    candidate = next(c for c in library() if c.name == name)
+    heldout = _heldout(before - improvement)
+    tests = _tests((VERTICAL,), _heldout(before), heldout, 0.05 / 2, 0)
+    return CandidateResult(1, Fit(candidate, 0, 0.0), (), heldout, tests)
+
+
+def test_a_term_that_passes_on_the_knife_edge_of_the_floor_is_chosen_in_half_the_folds() -> None:
+    """Improvements 19 s on five flights and 1 s on five: the mean is the 10 s floor exactly, so it is
+    selected; without one of the 19 s flights it falls to 9 s and fails, without a 1 s one it rises to
+    11 s: chosen in 5 of 10 folds, under two thirds, flagged. A term that helps every flight by 20 s
+    beside it is chosen in every fold where it ranks first."""
+    from predictor.calibration.selection import STABLE_SHARE, decision_stability
+
+    before = np.full(10, 60.0)
+    edge = _result("drag_density_exponent", before, np.array([19.0] * 5 + [1.0] * 5))
+    assert edge.passed
+    assert decision_stability(((edge,),), (_heldout(before), edge.heldout), 0.05, 0) == {"drag_density_exponent": 0.5}
+    assert 0.5 < STABLE_SHARE
+    solid = _result("two_regime_rate", before, np.full(10, 20.0))
+    shares = decision_stability(((edge, solid),), (_heldout(before), solid.heldout), 0.05, 0)
+    assert shares == {"two_regime_rate": 1.0}

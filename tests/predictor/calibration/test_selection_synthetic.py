@@ -131,3 +131,13 @@ def test_forward_selection_finds_two_hidden_effects_of_different_families(synthe
     assert found["wind_rotation"] == pytest.approx(15.0, abs=0.5)
     assert len(cal.rounds) == 2  # the second round tries wind_scale and keeps nothing
     assert cal.after.track_rms_km.mean() < 0.1 * cal.baseline.track_rms_km.mean()
+
+
+def test_the_nested_stability_repeats_the_whole_selection_without_each_flight(synthetic_cases: Cases) -> None:
+    cases = synthetic_cases((DragDensityExponent(exponent=0.15),), n=4)
+    candidates = library(["drag_density_exponent", "wind_scale"])
+    nested = calibrate(cases, PAYLOAD, candidates, nested=True)
+    assert nested.stability_method == "nested" and nested.stability == {"drag_density_exponent": 1.0}
+    replayed = calibrate(cases, PAYLOAD, candidates)
+    assert replayed.stability_method == "decision" and replayed.stability == {"drag_density_exponent": 1.0}
+    assert nested.unstable == () and [f.candidate.name for f in nested.selected] == ["drag_density_exponent"]
