@@ -10,26 +10,14 @@ import argparse
 import json
 import sys
 from pathlib import Path
-
-from rich.progress import BarColumn, DownloadColumn, Progress, TaskID, TextColumn, TransferSpeedColumn
+from typing import TYPE_CHECKING
 
 from drs_link.config import load_config
 from drs_link.errors import ConfigError, RefusedError
-from drs_link.ops import (
-    WAIVABLE,
-    GoNoGoReport,
-    Operations,
-    Predict,
-    ReleaseSample,
-    ReleaseState,
-    SecondOperator,
-    TelemetryRecord,
-    cli_holder,
-    pending_text,
-    take_over_outcome,
-)
-from drs_link.sim import capsule_bench
 from predictor.errors import UsageError
+
+if TYPE_CHECKING:  # the operations layer loads the SSH link (paramiko) and shapely (numpy): not for --help
+    from drs_link.ops import GoNoGoReport, Operations, Predict, TelemetryRecord
 
 EXIT_MICROCONTROLLER_SILENT = 3
 EXIT_LINK_DOWN = 4
@@ -38,6 +26,10 @@ POWER_ON_WARNING = (
     "Power-on pulses the latching relay: the capsule's batteries stay connected until someone presses "
     "the OFF button on the unit. Software cannot switch it off again."
 )
+
+WAIVABLE_ITEMS = ("gnss", "sync")
+"""``drs_link.ops.WAIVABLE`` (a test holds them equal): that module loads shapely and numpy, and
+``drs capsule --help`` must not wait for them."""
 
 TAKE_OVER_WARNING = (
     "Taking over makes {holder} the only console that can power on and release {name}; "
@@ -149,7 +141,8 @@ def _poll_options(parser: argparse.ArgumentParser) -> None:
     """What the go/no-go poll needs from a terminal: waivers, and the weather to predict the landing from."""
     parser.add_argument(
         "--waive", metavar="ITEM=REASON", action="append", default=[],
-        help=f"waive a NO-GO item ({', '.join(WAIVABLE)}) with a reason (logged); the same to arm and go",
+        help=f"waive a NO-GO item ({', '.join(WAIVABLE_ITEMS)}) with a reason (logged); "
+        "the same to arm and go",
     )  # fmt: skip
     parser.add_argument(
         "--weather", type=Path, nargs="+", metavar="GRIB2",
@@ -215,6 +208,8 @@ def cmd_disarm(args: argparse.Namespace) -> int:
 
 
 def cmd_status(args: argparse.Namespace) -> int:
+    from drs_link.ops import ReleaseState
+
     ops = _operations(args, need_operator=False)
     try:
         report, up = ops.capsule_status(args.name)
@@ -270,6 +265,8 @@ def _operations(args: argparse.Namespace, need_operator: bool) -> Operations:
     config.capsule(args.name)
     if need_operator and not config.operator.name:
         raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
+    from drs_link.ops import Operations, cli_holder
+
     return Operations.open(config, holder=cli_holder())
 
 
@@ -311,6 +308,8 @@ def _step(line: str) -> None:
 def cmd_go(args: argparse.Namespace) -> int:
     """FIRE as the console fires (``Operations.fire``): inside the ARM window, on a poll that still says
     GO with the values ARM saw, with the typed name and the two-person rule; else nothing reaches the Pi."""
+    from drs_link.ops import ReleaseState, SecondOperator, pending_text
+
     ops, predict = _release_ops(args)
     if ops.release_state(args.name) is ReleaseState.GO_SENT:
         _step(f"{args.name}: Go was sent and never verified: finishing it (the first Go's time is kept)…")
@@ -342,6 +341,8 @@ def cmd_go(args: argparse.Namespace) -> int:
 
 
 def _released(name: str, records: list[TelemetryRecord]) -> int:
+    from drs_link.ops import ReleaseSample
+
     note = next((r.data.note for r in records if isinstance(r.data, ReleaseSample)), None) or "Go sent"
     print(f"{name}: {note}; release A opens about 32 s after Go")
     return 0
@@ -377,6 +378,8 @@ def cmd_authority(args: argparse.Namespace) -> int:
 def _take_over(args: argparse.Namespace) -> int:
     """The take-over is ``Operations.take_over``'s (the two-person rule, the approval, the Pi's check);
     this shows who holds it now and asks for the name."""
+    from drs_link.ops import SecondOperator, pending_text, take_over_outcome
+
     ops = _operations(args, need_operator=True)
     machine = ops.ops(args.name).machine
     try:
@@ -450,6 +453,8 @@ def cmd_enrol(args: argparse.Namespace) -> int:
 
 def cmd_sync(args: argparse.Namespace) -> int:
     """``Operations.sync`` (the console's Sync key: the same upload, verification and audit), with bars."""
+    from rich.progress import BarColumn, DownloadColumn, Progress, TaskID, TextColumn, TransferSpeedColumn
+
     ops = _operations(args, need_operator=False)
     try:
         if args.status:
@@ -487,6 +492,8 @@ def cmd_sync(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     if args.mb <= 0 or args.rounds < 1:
         raise UsageError("bench: --mb must be positive and --rounds at least 1")
+    from drs_link.sim import capsule_bench
+
     result = capsule_bench.run_bench(sync_mb=args.mb, rounds=args.rounds)
     print(f"SSH connect + host-key check (median): {result.connect_ms_median:.1f} ms")
     print(

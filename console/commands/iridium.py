@@ -18,54 +18,19 @@ from collections.abc import Callable, Iterator
 from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from console.commands.argparser import input_file, position_or_gpsd, text_or_stdin
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
-from drs_link.iridium import (  # the MO receiver and the recovery pipeline: not yet behind Operations (#22)
-    LandingEstimate,
-    MoHttpServer,
-    MoReceiver,
-    ReportStore,
-    TrackPoint,
-    assess,
-    detect_landing,
-    distance_bearing,
-    export_track,
-    import_files,
-    parse_hex,
-    parse_position,
-    phone_summary,
-    read_gpsd_position,
-    track_from_reports,
-    write_gpx,
-    write_kml,
-)
-from drs_link.iridium import lifecycle as lc
-from drs_link.ops import (
-    CATALOGUE,
-    FLUSH_WARNING,
-    LISTED,
-    PARACHUTE,
-    QUEUED,
-    RETRY_WARNING,
-    Command,
-    MtComposer,
-    MtMessage,
-    Operations,
-    SecondOperator,
-    StoredReport,
-    cli_holder,
-    hazard_of,
-    iso_utc,
-    parse_hhmm,
-    pending_text,
-)
-from drs_link.sim import mo_bench
+from drs_link.iridium import CATALOGUE, LISTED, PARACHUTE  # drs_link.ops's copies load pyproj
 from drs_link.store import Store
 from predictor.errors import UsageError
 from predictor.geofiles import piped
-from predictor.prediction import emit, far_team_warning
+
+if TYPE_CHECKING:  # the webhook loads jwt, the recovery pipeline pyproj, ops paramiko: not for --help
+    from drs_link.iridium import LandingEstimate, TrackPoint
+    from drs_link.ops import Command, MtMessage, Operations, StoredReport
 
 _IMEI_RE = re.compile(r"\d{15}")
 log = logging.getLogger(__name__)
@@ -170,6 +135,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _open(args: argparse.Namespace) -> tuple[Config, Operations]:
+    from drs_link.ops import Operations, cli_holder
+
     config = load_config(args.config)
     return config, Operations.open(config, holder=cli_holder())
 
@@ -180,6 +147,8 @@ def _capsule_reports(ops: Operations, name: str) -> tuple[CapsuleConfig, list[St
 
 def _compose(args: argparse.Namespace, ops: Operations) -> tuple[MtMessage, datetime | None]:
     """The message, and the PARACHUTE plan's queue-before deadline when it carries one."""
+    from drs_link.ops import MtComposer, parse_hhmm
+
     composer = MtComposer(CATALOGUE)
     queue_by = None
     for command in sorted(LISTED, key=lambda c: c is PARACHUTE):  # plan only once the rest is accepted
@@ -202,6 +171,8 @@ def _compose(args: argparse.Namespace, ops: Operations) -> tuple[MtMessage, date
 
 def _mt_send(args: argparse.Namespace) -> int:
     """Compose and show; the gate, the approval, the send and the checklist are ``Operations.send_mt``'s."""
+    from drs_link.ops import FLUSH_WARNING, QUEUED, RETRY_WARNING, SecondOperator, hazard_of, pending_text
+
     config, ops = _open(args)
     capsule = config.capsule(args.name)
     message, queue_by = _compose(args, ops)
@@ -260,6 +231,8 @@ def _mt_status(args: argparse.Namespace) -> int:
 
 
 def _command_json(command: Command) -> dict[str, object]:
+    from drs_link.ops import iso_utc
+
     return {
         "id": command.id, "text": command.text, "state": command.state, "detail": command.detail,
         "operator": command.operator, "flush": command.flush, "requested_utc": iso_utc(command.requested_utc),
@@ -284,6 +257,8 @@ def _mt_resolve(args: argparse.Namespace) -> int:
 
 
 def _mo_parse(args: argparse.Namespace) -> int:
+    from drs_link.iridium import parse_hex
+
     result = parse_hex(args.hex)
     if args.json:
         print(json.dumps(result.as_dict(), indent=2))
@@ -306,6 +281,9 @@ def _mo_parse(args: argparse.Namespace) -> int:
 
 
 def _mo_serve(args: argparse.Namespace) -> int:
+    from drs_link.iridium import MoHttpServer, MoReceiver, ReportStore
+    from drs_link.iridium import lifecycle as lc
+
     config = load_config(args.config)  # not Operations: the webhook must start whatever the console's files say
     store = Store.open(config.store_path)
     mo_config = config.mo
@@ -367,6 +345,8 @@ def _stop_signals() -> Iterator[Callable[[], str]]:
 
 
 def _mo_import(args: argparse.Namespace) -> int:
+    from drs_link.iridium import ReportStore, import_files
+
     store = Store.open(load_config(args.config).store_path)
     outcomes = import_files(args.files, ReportStore(store))
     for outcome in outcomes:
@@ -375,6 +355,8 @@ def _mo_import(args: argparse.Namespace) -> int:
 
 
 def _mo_export(args: argparse.Namespace) -> int:
+    from drs_link.iridium import export_track
+
     _, ops = _open(args)
     if (args.name is None) == (args.imei is None):
         raise UsageError("give either a capsule NAME or --imei IMEI, not both or neither")
@@ -396,6 +378,8 @@ def _mo_export(args: argparse.Namespace) -> int:
 
 
 def _mo_bench(args: argparse.Namespace) -> int:
+    from drs_link.sim import mo_bench
+
     for option, value, most in (("--posts", args.posts, 10_000), ("--clients", args.clients, 200),
                                 ("--per-client", args.per_client, 10_000)):  # fmt: skip
         if not 1 <= value <= most:
@@ -406,6 +390,9 @@ def _mo_bench(args: argparse.Namespace) -> int:
 
 
 def _mo_health(args: argparse.Namespace) -> int:
+    from drs_link.iridium import assess
+    from drs_link.ops import iso_utc
+
     _, ops = _open(args)
     capsule, reports = _capsule_reports(ops, args.name)
     health = assess(reports, ops.mt_status(args.name))
@@ -464,6 +451,17 @@ def _read_predicted(path: Path) -> tuple[list[tuple[float, float, float]], bool]
 
 
 def _recovery(args: argparse.Namespace) -> int:
+    from drs_link.iridium import (
+        detect_landing,
+        parse_position,
+        phone_summary,
+        read_gpsd_position,
+        track_from_reports,
+        write_gpx,
+        write_kml,
+    )
+    from predictor.prediction import emit, far_team_warning
+
     # With --json or a '-' output, stdout carries that one document and the lines for people go to stderr.
     said = sys.stderr if piped(gpx=args.gpx, kml=args.kml, json=args.json) or args.json else sys.stdout
     _, ops = _open(args)
@@ -513,6 +511,9 @@ def _recovery_json(
 ) -> dict[str, object]:
     """What the summary line says, as numbers: the distance and bearing are from the team to the best
     position there is (the landing, else the last fix, else Iridium's coarse one)."""
+    from drs_link.iridium import distance_bearing
+    from drs_link.ops import iso_utc
+
     last = track[-1] if track else None
     document: dict[str, object] = {
         "capsule": name,
