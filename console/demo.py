@@ -192,7 +192,7 @@ class DemoWorld:
         self.jwt_public_key_file = self.root / "rockblock-jwt-public.pem"
         self.jwt_public_key_file.write_text(public)
         mo_config = MoConfig(listen_port=0, jwt_public_key_file=self.jwt_public_key_file)
-        self.receiver = MoHttpServer(MoReceiver(ReportStore(self.store), mo_config)).start()
+        self.receiver = MoHttpServer(MoReceiver(ReportStore(self.store), mo_config, clock=self.clock)).start()
         write_demo_terrain(self.terrain_file)
         zones = write_exclusion_zones(self.root / "exclusion-zones.geojson")
         self.weather_files = demo_weather_files(SITE[0], SITE[1], self.clock(), hours=18)

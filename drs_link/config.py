@@ -19,6 +19,7 @@ import logging
 import math
 import os
 import re
+import stat
 import tomllib
 import types
 import typing
@@ -73,8 +74,15 @@ def config_help() -> str:
     """``--config``'s help, naming the real default on this machine."""
     return f"configuration TOML (default: ${CONFIG_ENV}, else {platformdirs.user_config_path('drs') / CONFIG_NAME})"
 
-CAPSULE_NAME_RE = re.compile(r"^[A-Za-z0-9_-]{1,32}$")
-IMEI_RE = re.compile(r"^\d{15}$")
+CAPSULE_NAME_RE = re.compile(r"\A[A-Za-z0-9_-]{1,32}\Z")
+IMEI_RE = re.compile(r"\A[0-9]{15}\Z")
+r"""ASCII digits, and ``\Z``: ``\d`` took full-width digits and ``$`` a trailing newline, and a capsule so
+configured matched none of its reports."""
+MO_PATH_RE = re.compile(r"\A/[A-Za-z0-9._~/-]*\Z")
+"""What a gateway's URL path can carry as written: a ``?`` starts the query and non-ASCII is sent
+percent-encoded, so either made every delivery a 404."""
+MAX_SECRET_FILE_BYTES = 1_048_576
+"""A key, identity or known_hosts file is a few kB; ``/dev/zero`` as one was read until MemoryError."""
 
 
 @dataclass(frozen=True)
@@ -287,10 +295,14 @@ def _build(cls: type, table: Any, prefix: str) -> Any:
 def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
     if not CAPSULE_NAME_RE.match(capsule.name):
         raise ConfigError(f"{key}.name: {capsule.name!r} must be 1-32 letters, digits, '-' or '_'")
-    if not capsule.host or any(c.isspace() for c in capsule.host):
-        raise ConfigError(f"{key}.host: {capsule.host!r} must be a host name or address without spaces")
-    if not capsule.user or any(c.isspace() for c in capsule.user):
+    _check_host(f"{key}.host", capsule.host)
+    if not capsule.user or not capsule.user.isprintable() or any(c.isspace() for c in capsule.user):
         raise ConfigError(f"{key}.user: {capsule.user!r} must be a login name without spaces")
+    if capsule.jump_host is not None:
+        _check_jump_host(f"{key}.jump_host", capsule.jump_host)
+    for name in ("identity_file", "known_hosts"):
+        if (path := getattr(capsule, name)) is not None:
+            _check_small_file(f"{key}.{name}", path)
     for name in ("tools_dir", "storage_mount", "raid_device", "serial_device"):
         if not getattr(capsule, name).startswith("/"):
             raise ConfigError(f"{key}.{name}: {getattr(capsule, name)!r} must be an absolute path on the Pi")
@@ -318,6 +330,9 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
 MAX_LEASE_S = 86_400.0
 """A day: a lease of 1e19 s overflowed the Pi's 64-bit shell arithmetic and let a second console take over."""
 VARIABLE_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,127}$")
+PASSWORD_ENV_RE = re.compile(r"^[A-Z_][A-Z0-9_]{0,127}$")
+"""Capitals only: ``password_env = "hunter2xyz"`` (the password itself) once passed and was printed by the
+error that the variable is not set; a name in capitals is a name, a password rarely is."""
 
 
 def _check_range(key: str, value: float, low: float, high: float, why: str) -> None:
@@ -339,10 +354,11 @@ def _check_sections(sections: dict[str, Any]) -> None:
     rockblock: RockblockConfig | None = sections.get("rockblock")
     if rockblock is not None:
         _check_range("rockblock.timeout_s", rockblock.timeout_s, 0.5, 600.0, "the gateway answers within seconds")
-        if rockblock.password_env and not VARIABLE_NAME_RE.match(rockblock.password_env):
+        if rockblock.password_env and not PASSWORD_ENV_RE.match(rockblock.password_env):
             raise ConfigError(
-                "rockblock.password_env: must be the NAME of an environment variable (letters, digits, _); "
-                "the value is not shown here in case it is the password itself"
+                "rockblock.password_env: must be the NAME of an environment variable in capitals "
+                "(A-Z, 0-9, _), such as DRS_ROCKBLOCK_PASSWORD; the value is not shown here in case it is "
+                "the password itself"
             )
     mo: MoConfig | None = sections.get("mo")
     if mo is not None:
@@ -357,15 +373,70 @@ def _check_sections(sections: dict[str, Any]) -> None:
                     f"mo.trusted_proxy: {mo.trusted_proxy!r} must be the proxy's IP address as the receiver "
                     "sees it (e.g. 127.0.0.1), not a name"
                 ) from None
-        if not mo.path.startswith("/") or any(c.isspace() for c in mo.path):
-            raise ConfigError(f"mo.path: {mo.path!r} must start with / and contain no spaces (every post would get 404)")
+        if not MO_PATH_RE.match(mo.path):
+            raise ConfigError(
+                f"mo.path: {mo.path!r} must start with / and hold only ASCII letters, digits and . _ ~ / - "
+                "(every post would get 404)"
+            )
+        if mo.jwt_public_key_file is not None:
+            _check_small_file("mo.jwt_public_key_file", mo.jwt_public_key_file)
     console: ConsoleConfig | None = sections.get("console")
     if console is not None:
+        _check_team_position(console.team_position)
         _check_range("console.arm_window_s", console.arm_window_s, 5.0, 3600.0, "seconds to FIRE after ARM")
         _check_range("console.prediction_period_s", console.prediction_period_s, 1.0, 3600.0, "seconds")
     chase: ChaseConfig | None = sections.get("chase")
     if chase is not None and chase.udp:
         host_port(chase.udp, "chase.udp")
+
+
+def _check_team_position(text: str) -> None:
+    """``LAT,LON`` in decimal degrees, finite and on the globe (``nan,nan`` once passed to the console)."""
+    if not text.strip():
+        return
+    parts = text.replace(" ", "").split(",")
+    try:
+        lat, lon = (float(part) for part in parts)
+    except ValueError:
+        raise ConfigError(
+            f"console.team_position: {text!r} must be LAT,LON in decimal degrees, e.g. 46.52,6.63"
+        ) from None
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):  # False for nan
+        raise ConfigError(
+            f"console.team_position: {text!r} must be LAT,LON with -90<=LAT<=90 and -180<=LON<=180"
+        )
+
+
+def _check_small_file(key: str, path: Path) -> None:
+    """A file the program reads whole: if it exists, a regular file of sane size (``/dev/zero``, a FIFO or a
+    directory named here once hung or exhausted memory). A missing one is reported where it is needed."""
+    try:
+        info = path.stat()
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise ConfigError(f"{key}: cannot read {path}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise ConfigError(f"{key}: {path} is not a regular file")
+    if info.st_size > MAX_SECRET_FILE_BYTES:
+        raise ConfigError(f"{key}: {path} is {info.st_size:,} bytes; a key file is a few kB")
+
+
+def _check_host(key: str, host: str) -> None:
+    if not host or not host.isascii() or not host.isprintable() or any(c.isspace() for c in host):
+        raise ConfigError(f"{key}: {host!r} must be a host name or address in printable ASCII without spaces")
+
+
+def _check_jump_host(key: str, spec: str) -> None:
+    """``[user@]host[:port]`` as the SSH link reads it, checked at load (port 99999 once failed at
+    connect)."""
+    user, _, rest = spec.rpartition("@")
+    host, colon, port_text = rest.partition(":")
+    if user and (not user.isprintable() or any(c.isspace() for c in user)):
+        raise ConfigError(f"{key}: the user in {spec!r} must be a login name without spaces")
+    _check_host(key, host)
+    if colon and not (port_text.isascii() and port_text.isdigit() and 1 <= int(port_text) <= 65535):
+        raise ConfigError(f"{key}: port {port_text!r} in {spec!r} is not a TCP port (1-65535)")
 
 
 def host_port(text: str, key: str) -> tuple[str, int]:

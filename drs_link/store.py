@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import grp
 import json
+import logging
 import os
 import pwd
 import socket
 import sqlite3
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -23,6 +25,8 @@ from pathlib import Path
 from typing import Any
 
 from drs_link.errors import StoreError
+
+log = logging.getLogger(__name__)
 
 _AUDIT_DDL = """
 CREATE TABLE IF NOT EXISTS audit (
@@ -55,6 +59,18 @@ def session_name() -> str:
     one store (two operators, each in their own SSH session); each must see what the other did, and
     who did it."""
     return f"{pwd.getpwuid(os.geteuid()).pw_name}@{socket.gethostname()} pid {os.getpid()}"
+
+
+WAIT_NOTICE_S = 1.0
+"""A write that has waited this long for another process's lock says so (``Store.transaction``)."""
+
+
+def _on_read_only_filesystem(path: Path) -> bool:
+    """The store exists on a filesystem mounted read-only (statvfs's ST_RDONLY)."""
+    try:
+        return path.is_file() and bool(os.statvfs(path.parent).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
 
 
 def utc_now() -> datetime:
@@ -192,6 +208,11 @@ def _account(uid: int) -> str:
 class Store:
     """A SQLite database file shared by threads and processes."""
 
+    read_only: bool = False
+    """Opened read-only because its filesystem is (``open``): what it holds can be read, nothing recorded."""
+    WRITE_WAIT_S = 30.0
+    """How long a write waits for another process's lock before it is refused (``transaction``)."""
+
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self._local = threading.local()
@@ -208,6 +229,8 @@ class Store:
     @classmethod
     def open(cls, path: str | Path) -> Store:
         path = Path(path).expanduser()
+        if _on_read_only_filesystem(path):
+            return cls._open_read_only(path)
         try:
             path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
         except OSError as exc:
@@ -240,6 +263,18 @@ class Store:
             wall, start = parse_iso_utc(row["wall_utc"]), parse_iso_utc(row["store_utc"])
             self.clock = _scaled_clock(wall, start, row["scale"])
 
+    @classmethod
+    def _open_read_only(cls, path: Path) -> Store:
+        """A store on a read-only filesystem (a disk remounted read-only after errors, a copy on a DVD):
+        recovery, health, status and export read it; ``open`` once failed on touching the file. SQLite's
+        ``immutable`` mode is right here: nobody can write a file on a read-only filesystem, and a WAL
+        store closed cleanly has no -shm that ``mode=ro`` could use."""
+        store = cls(path)
+        store.read_only = True
+        store.query("SELECT COUNT(*) FROM sqlite_master")  # unreadable: say so now, naming the file
+        store._adopt_clock()
+        return store
+
     def _add_session_column(self) -> None:
         columns = {row["name"] for row in self.query("PRAGMA table_info(audit)")}
         if "session" in columns:
@@ -256,6 +291,15 @@ class Store:
         return int(self.query("PRAGMA data_version")[0][0])
 
     def _connect(self) -> sqlite3.Connection:
+        if self.read_only:
+            uri = f"{self.path.resolve().as_uri()}?immutable=1"
+            try:
+                conn = sqlite3.connect(uri, uri=True, isolation_level=None, check_same_thread=True)
+                conn.row_factory = sqlite3.Row
+                conn.execute("PRAGMA query_only=1")
+            except sqlite3.Error as exc:
+                raise StoreError(f"cannot open the store {self.path} read-only: {exc}") from None
+            return conn
         try:
             conn = sqlite3.connect(self.path, timeout=30.0, isolation_level=None, check_same_thread=True)
             conn.row_factory = sqlite3.Row
@@ -282,21 +326,56 @@ class Store:
             if ddl in self._schemas:
                 return
             self._schemas.append(ddl)
+        if self.read_only:
+            return  # tables missing from an old store are reported by the query that needs them
         try:
             self.conn.executescript(ddl)
         except sqlite3.Error as exc:
             raise StoreError(f"cannot create tables in {self.path}: {exc}") from None
 
     @contextmanager
-    def transaction(self) -> Iterator[sqlite3.Connection]:
-        """One atomic, durable write: committed (and fsynced) when the block ends without error."""
-        with self._writer:
-            yield from self._transaction()
+    def transaction(self, wait_s: float | None = None) -> Iterator[sqlite3.Connection]:
+        """One atomic, durable write: committed (and fsynced) when the block ends without error.
 
-    def _transaction(self) -> Iterator[sqlite3.Connection]:
+        ``wait_s`` bounds the wait for the store's write lock, in this process and from others together
+        (default ``WRITE_WAIT_S``): the receiver must answer the gateway inside its 3 s, and once waited
+        19-30 s behind another process's lock. A wait past ``WAIT_NOTICE_S`` is logged as it happens, so a
+        command line does not sit silent.
+        """
+        if self.read_only:
+            raise StoreError(f"the store {self.path} is on a read-only filesystem: nothing can be recorded")
+        wait = self.WRITE_WAIT_S if wait_s is None else wait_s
+        deadline = time.monotonic() + wait
+        if not self._writer.acquire(timeout=wait):
+            raise StoreError(f"the store {self.path} is busy: no write lock within {wait:g} s")
+        try:
+            yield from self._transaction(deadline)
+        finally:
+            self._writer.release()
+
+    def _begin(self, conn: sqlite3.Connection, deadline: float) -> None:
+        """BEGIN IMMEDIATE within the deadline; says once that it is waiting for another process's lock."""
+        told = False
+        while True:
+            left = deadline - time.monotonic()
+            step = min(max(left, 0.0), WAIT_NOTICE_S) if not told else max(left, 0.0)
+            conn.execute(f"PRAGMA busy_timeout = {int(step * 1000)}")
+            try:
+                conn.execute("BEGIN IMMEDIATE")
+                return
+            except sqlite3.OperationalError as exc:
+                if "locked" not in str(exc) or time.monotonic() >= deadline or told:
+                    raise
+                log.warning("the store %s is locked by another process: waiting up to %.0f s more",
+                            self.path, deadline - time.monotonic())  # fmt: skip
+                told = True
+            finally:
+                conn.execute(f"PRAGMA busy_timeout = {int(self.WRITE_WAIT_S * 1000)}")
+
+    def _transaction(self, deadline: float) -> Iterator[sqlite3.Connection]:
         conn = self.conn
         try:
-            conn.execute("BEGIN IMMEDIATE")
+            self._begin(conn, deadline)
         except sqlite3.Error as exc:
             raise StoreError(f"the store {self.path} cannot be written: {exc}") from None
         try:

@@ -555,6 +555,8 @@ def _run_sync(syncer: Syncer, source: Path, store: Store, operator: str) -> int:
         f"{syncer.capsule}: {len(report.uploaded)} files uploaded and verified by sha256 on the Pi, "
         f"{len(report.skipped)} already up to date, {report.bytes_sent} bytes sent"
     )
+    if report.left_out:
+        print(f"{syncer.capsule}: {len(report.left_out)} entries left out: {'; '.join(report.left_out)}")
     return 0
 
 

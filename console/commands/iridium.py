@@ -220,6 +220,8 @@ def _mt_send(args: argparse.Namespace) -> int:
     )  # fmt: skip
     ops = Operations(config, store, holder=cli_holder())
     try:
+        for older in ops.lifecycle.unresolved_like(capsule.imei or "", message.text):
+            print(f"warning: MT {older.id} {older.text} is delivery_unknown: {lc.RETRY_WARNING}")
         sent = ops.send_mt(
             capsule.name, message, args.confirm, second, override_landed=args.override_landed,
             queue_by=queue_by, flush=args.flush,
@@ -383,7 +385,8 @@ def _mo_export(args: argparse.Namespace) -> int:
     result = export_track(reports, args.out, who, overwrite=args.force)
     print(
         f"wrote {result.path}: {result.fixes} fixes of {who}; skipped {result.without_fix} report(s) "
-        f"without a fix and {result.rejected} rejected"
+        f"without a fix and {result.rejected} rejected",
+        file=sys.stderr if str(args.out) == "-" else sys.stdout,
     )
     return 0
 

@@ -160,11 +160,25 @@ def spacing_matches(seconds: float, minutes: int) -> bool:
 
 
 def _interval_seen(minutes: int, after: Sequence[StoredReport]) -> str:
-    """The new INTERVAL shows between the next two reports: the alarm already armed keeps the old one."""
-    fixes = [r.report.fix.time for r in after if r.report is not None and r.report.fix is not None]
-    for earlier, later in zip(fixes, fixes[1:], strict=False):
-        if spacing_matches((later - earlier).total_seconds(), minutes):
-            return SEEN
+    """The new INTERVAL shows between the reports after the delivering one (the alarm already armed keeps
+    the old spacing), and nothing there contradicts it.
+
+    Why two spacings and no contradiction: the old interval's own spacings, with sessions lost or
+    delivered out of order, can land on the new value once (a 2-min capsule missing 14 sessions shows
+    a 30-min gap), and a single match was once taken as final while the capsule stayed at 2 min. Two
+    adjacent spacings at the new value, and none that is not a whole number of new intervals (missed
+    cycles), rule that out; the lifecycle re-reads the verdict as later reports come (``RECHECK_REPORTS``).
+    """
+    fixes = sorted(r.report.fix.time for r in after if r.report is not None and r.report.fix is not None)
+    spacings = [(b - a).total_seconds() for a, b in zip(fixes, fixes[1:], strict=False)]
+    spacings = [s for s in spacings if s > 30.0]  # the same fix delivered twice
+    for spacing in spacings:
+        cycles = max(1, round(spacing / (minutes * 60)))
+        if not spacing_matches(spacing, cycles * minutes):
+            return NOT_SEEN
+    matched = [spacing_matches(spacing, minutes) for spacing in spacings]
+    if any(a and b for a, b in zip(matched, matched[1:], strict=False)):
+        return SEEN
     return NOT_SEEN if len(after) >= EFFECT_REPORTS else PENDING
 
 

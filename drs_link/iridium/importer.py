@@ -2,7 +2,8 @@
 
 The DRS team received reports by email (drs_protocol.md 4.2); saved attachments carry the IMEI
 and MOMSN only in their file name, so the name is checked as strictly as the content. Two namings
-are in use: RockBLOCK's ``<imei>-<momsn>.bin`` (or ``.sbd``), and Iridium's direct SBD service,
+are in use: RockBLOCK's ``<imei>-<momsn>.bin`` (or ``.sbd``, or ``<imei>_<momsn>``), and Iridium's
+direct SBD service,
 ``YY-MM-DD_hh-mm-ss_<imei>_<momsn>.sbd`` with the transmit time in UTC; either may zero-pad the
 MOMSN. Importing the same file twice is harmless (de-duplicated), and one bad file never stops the
 others.
@@ -19,11 +20,15 @@ from pathlib import Path
 from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
 from drs_link.store import utc_now
 
-ROCKBLOCK_NAME = re.compile(r"^(?P<imei>\d{15})-0*(?P<momsn>\d{1,5})\.(?:bin|sbd)$", re.ASCII)
+ROCKBLOCK_NAME = re.compile(r"\A(?P<imei>\d{15})[-_]0*(?P<momsn>\d{1,5})\.(?:bin|sbd)\Z", re.ASCII)
+"""``<imei>-<momsn>`` and ``<imei>_<momsn>``: both are seen on saved attachments (#25 item 8)."""
 IRIDIUM_DIRECT_NAME = re.compile(
     r"^(?P<when>\d{2}-\d{2}-\d{2}_\d{2}-\d{2}-\d{2})_(?P<imei>\d{15})_0*(?P<momsn>\d{1,5})\.sbd$", re.ASCII
 )
-NAMES_ACCEPTED = "<imei>-<momsn>.bin or .sbd (RockBLOCK) or YY-MM-DD_hh-mm-ss_<imei>_<momsn>.sbd (Iridium)"
+NAMES_ACCEPTED = (
+    "<imei>-<momsn>.bin or .sbd, or <imei>_<momsn>.sbd (RockBLOCK), "
+    "or YY-MM-DD_hh-mm-ss_<imei>_<momsn>.sbd (Iridium)"
+)
 MAX_ATTACHMENT_BYTES = 340
 
 

@@ -16,14 +16,21 @@ A real send needs a confirmation that names the capsule, checked here below any 
 
 from __future__ import annotations
 
+import fcntl
 import json
-from collections.abc import Callable
+import os
+import signal
+import stat
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
+from pathlib import Path
 from typing import Any
 
 from drs_link.config import CapsuleConfig
-from drs_link.errors import RefusedError
+from drs_link.errors import RefusedError, StoreError
 from drs_link.iridium.commands import CATALOGUE, NEVER_VISIBLE, NOT_SEEN, PENDING, SEEN, read_text
 from drs_link.iridium.gateway import FLUSH_WARNING, RockblockGateway
 from drs_link.iridium.mt import MtMessage
@@ -68,6 +75,14 @@ INTERRUPTED_AFTER = timedelta(minutes=15)
 """A command still ``requested`` or ``confirmed`` this long after was being sent by a process that
 stopped (kill -9, a crash, a lost laptop) before the gateway answered: longer than any send can take
 (``rockblock.timeout_s`` is at most 600 s; a request is sent at once)."""
+RECHECK_REPORTS = 10
+"""A confirmed effect stays open to contradiction for this many reports after its delivery: a verdict
+read from a few spacings (lost sessions can mimic an interval) is re-read as more come, and later
+reports that contradict it re-open it. Bounded so that the work after each post stays small."""
+RETRY_WARNING = (
+    "if the gateway did queue it, this sends the same MT twice; settle it first with drs mt resolve "
+    "(the RockBLOCK portal shows what is queued)"
+)
 QUEUE_TIMEOUT = timedelta(hours=3)
 """A command still undelivered after this long with no report at all is called timed out."""
 _SEND_OUTCOME = {"queued": QUEUED, "failed": FAILED, "not_sent": NOT_SENT, "unknown": DELIVERY_UNKNOWN}
@@ -156,6 +171,121 @@ def _assign(commands: list[Command], reports: list[StoredReport]) -> dict[int, S
     return assignment
 
 
+def _effect_reports(
+    command: Command, reports: list[StoredReport], commands: list[Command]
+) -> list[StoredReport] | None:
+    """The accepted reports after the one that delivered ``command``, up to where a later delivered command
+    of the same kind takes over (its delivering report and the next still run on this one's value, by the
+    switch-over rule); None while its delivering report is not among ``reports``."""
+    position = {r.id: i for i, r in enumerate(reports)}
+    index = position.get(command.delivered_report_id) if command.delivered_report_id is not None else None
+    if index is None:
+        return None
+    kinds = {found[0].name for text in command.effects if (found := read_text(text)) is not None}
+    end = len(reports)
+    for other in commands:
+        at = position.get(other.delivered_report_id) if other.delivered_report_id is not None else None
+        if other.id == command.id or at is None or at <= index:
+            continue
+        if any((found := read_text(text)) is not None and found[0].name in kinds for text in other.effects):
+            end = min(end, at + 2)
+    return [r for r in reports[index + 1 : end] if r.report is not None]
+
+
+_HELD: dict[Path, int] = {}
+"""The sender locks this process holds, by path: one per command it requested and has not finished."""
+_HELD_LOCK = threading.Lock()
+
+
+def _sender_lock(store: Store, command_id: int) -> Path:
+    return store.path.parent / "mt-senders" / f"{store.path.name}.{command_id}.lock"
+
+
+def _hold(path: Path) -> bool:
+    """Take the sender lock (or find it already held by this process); False if another process has it.
+
+    Why a lock and not a PID: the kernel drops an flock when its holder dies however it dies (kill -9
+    too), so "no live sender" is a fact read at once, not a guess after INTERRUPTED_AFTER, and a
+    recycled PID can not fake a live one.
+    """
+    with _HELD_LOCK:
+        if path in _HELD:
+            return True
+        # A store shared by a group of accounts (a group-writable data directory) shares its locks too.
+        shared = bool(path.parent.parent.stat().st_mode & stat.S_IWGRP)
+        try:
+            if not path.parent.is_dir():
+                path.parent.mkdir(exist_ok=True)
+                path.parent.chmod(0o2770 if shared else 0o700)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o660 if shared else 0o600)
+        except OSError as exc:
+            raise StoreError(f"cannot write the MT sender lock {path}: {exc.strerror or exc}") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            return False
+        _HELD[path] = fd
+        return True
+
+
+def _release(path: Path) -> None:
+    with _HELD_LOCK:
+        fd = _HELD.pop(path, None)
+        if fd is not None:
+            path.unlink(missing_ok=True)
+            os.close(fd)
+
+
+def _sender_alive(path: Path) -> bool:
+    """Whether a process (this one included) still holds the sender lock of a command."""
+    with _HELD_LOCK:
+        if path in _HELD:
+            return True
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        return False
+    except OSError:
+        return True  # cannot tell: the INTERRUPTED_AFTER rule settles it
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)  # closing drops a lock taken just now
+    return False
+
+
+class Terminated(SystemExit):
+    """SIGTERM during a send: raised in the main thread so the send is recorded before the process ends."""
+
+    def __init__(self) -> None:
+        super().__init__(128 + signal.SIGTERM)
+
+    def __repr__(self) -> str:
+        return "SIGTERM"
+
+
+@contextmanager
+def _terminate_as_exit() -> Iterator[None]:
+    """SIGTERM raises ``Terminated`` while the gateway call runs (main thread only: a worker thread can not
+    set handlers, and the console stops its workers itself). Python's default ends the process at once,
+    and the command stayed ``confirmed`` with nobody to say it may be queued."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum: int, frame: object) -> None:
+        raise Terminated
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _caveat(command: Command, unresolved: list[Command]) -> str:
     """Why an attribution may be one report early: an older command may be queued without our knowing."""
     older = [c for c in unresolved if _queue_order(c) < _queue_order(command)]
@@ -182,13 +312,17 @@ class CommandLifecycle:
         """Settle what a stopped process left half done. A send cut off after ``confirmed`` may or may not
         have reached the gateway: say so, so that ``drs mt resolve`` can settle it and attribution never
         guesses across it. One cut off while still ``requested`` never left this machine (``confirmed``
-        is written before the gateway is called): close it as not sent, so it shows as what it is."""
+        is written before the gateway is called): close it as not sent, so it shows as what it is.
+
+        A command is settled at once when no process holds its sender lock (``_hold``), and in any case
+        after ``INTERRUPTED_AFTER`` (a sender hung past any send's timeout)."""
         cutoff = iso_utc(self.clock() - INTERRUPTED_AFTER)
         rows = self.store.query(
-            "SELECT * FROM mt_command WHERE state IN (?, ?) AND updated_utc < ? ORDER BY id",
-            (REQUESTED, CONFIRMED, cutoff),
+            "SELECT * FROM mt_command WHERE state IN (?, ?) ORDER BY id", (REQUESTED, CONFIRMED)
         )
         for command in map(_row_to_command, rows):
+            if iso_utc(command.updated_utc) >= cutoff and _sender_alive(_sender_lock(self.store, command.id)):
+                continue
             try:
                 if command.state == REQUESTED:
                     self._set(
@@ -288,21 +422,35 @@ class CommandLifecycle:
                     effects,
                 ),
             ).lastrowid
-        self.store.append_audit(
-            self.operator,
-            capsule.name,
-            "mt.requested",
-            REQUESTED,
-            {"command_id": command_id, "text": message.text, "flush": flush},
-            when=moment,
-        )
+            # Held before the row is committed, so no other process ever sees it without its sender.
+            _hold(_sender_lock(self.store, int(command_id or 0)))
+        detail: dict[str, Any] = {"command_id": command_id, "text": message.text, "flush": flush}
+        unresolved = [c.id for c in self.unresolved_like(capsule.imei, message.text)]
+        if unresolved:
+            detail["retry_over_unresolved"] = unresolved
+            detail["warning"] = RETRY_WARNING
+        self.store.append_audit(self.operator, capsule.name, "mt.requested", REQUESTED, detail, when=moment)
         return self.get(int(command_id or 0))
+
+    def unresolved_like(self, imei: str, text: str) -> list[Command]:
+        """Commands of this modem with the same text whose delivery is still unknown: a retry may queue
+        the same MT twice (the gateway may hold the first), which the operator must be told before."""
+        return [c for c in self.for_imei(imei) if c.text == text and c.state == DELIVERY_UNKNOWN]
 
     def send(self, command_id: int, confirmation: str, gateway: RockblockGateway) -> Command:
         """Queue a requested command at the gateway once; refused unless ``confirmation`` names it."""
+        lock = _sender_lock(self.store, command_id)
+        try:
+            return self._send(command_id, confirmation, gateway, lock)
+        finally:
+            _release(lock)
+
+    def _send(self, command_id: int, confirmation: str, gateway: RockblockGateway, lock: Path) -> Command:
         command = self.get(command_id)
         if command.state != REQUESTED:
             raise RefusedError(f"MT {command_id} is {command.state}, not requested: it is never sent twice")
+        if not _hold(lock):
+            raise RefusedError(f"MT {command_id} is being sent by another process: it is never sent twice")
         if confirmation != command.capsule:
             self.store.append_audit(
                 self.operator,
@@ -322,7 +470,8 @@ class CommandLifecycle:
         command = self._set(command, CONFIRMED, detail, expected=REQUESTED)
         request_written_by = self.clock()
         try:
-            result = gateway.send(command.imei, command.text.encode("ascii"), flush=command.flush)
+            with _terminate_as_exit():
+                result = gateway.send(command.imei, command.text.encode("ascii"), flush=command.flush)
         except BaseException as exc:
             self._set(
                 command, DELIVERY_UNKNOWN, f"the send stopped before the gateway answered ({exc!r}): it may "
@@ -332,13 +481,23 @@ class CommandLifecycle:
             raise
         state = _SEND_OUTCOME[result.status]
         columns: dict[str, Any] = {}
-        if state == QUEUED:
-            columns = {"queued_utc": iso_utc(self.clock()), "mt_id": result.mt_id}
-            if command.flush:
-                self._flush_older(command)
-        elif state == DELIVERY_UNKNOWN:
-            columns = {"queued_utc": iso_utc(request_written_by)}
-        return self._set(command, state, result.detail, expected=CONFIRMED, **columns)
+        try:
+            if state == QUEUED:
+                columns = {"queued_utc": iso_utc(self.clock()), "mt_id": result.mt_id}
+                if command.flush:
+                    self._flush_older(command)
+            elif state == DELIVERY_UNKNOWN:
+                columns = {"queued_utc": iso_utc(request_written_by)}
+            return self._set(command, state, result.detail, expected=CONFIRMED, **columns)
+        except StoreError as exc:
+            # The gateway has acted; the store only failed to say so. Without this the operator read a
+            # store error and nothing about the MT already queued (and might send it again).
+            acted = f"queued it as MT {result.mt_id}" if state == QUEUED else f"answered: {result.detail}"
+            raise StoreError(
+                f"the gateway {acted} (command {command.id}, {command.text}), but the store could not record "
+                f"it ({exc}); do not send it again: it stays 'confirmed' until the store is writable, then "
+                "becomes delivery_unknown for drs mt resolve"
+            ) from None
 
     def _unknown(self, command_id: int, capsule: str) -> Command:
         """The command an operator may resolve: this capsule's, and still of unknown delivery."""
@@ -454,7 +613,11 @@ class CommandLifecycle:
                 command = self._deliver(command, delivering, _caveat(command, unresolved))
                 changed.append(command)
             if command.state == PROBABLY_DELIVERED:
-                updated = self._check_effects(command, reports, _caveat(command, unresolved))
+                updated = self._check_effects(command, reports, commands, _caveat(command, unresolved))
+                if updated is not None:
+                    changed.append(updated)
+            elif command.state == EFFECT_CONFIRMED:
+                updated = self._recheck_effects(command, reports, commands)
                 if updated is not None:
                     changed.append(updated)
         return changed
@@ -474,6 +637,12 @@ class CommandLifecycle:
             for c in commands
             if c.state == PROBABLY_DELIVERED and c.delivered_report_id is not None
         ]
+        delivered += [
+            c.delivered_report_id
+            for c in commands
+            if c.state == EFFECT_CONFIRMED and c.delivered_report_id is not None
+            and self._reports_after(c.delivered_report_id) <= RECHECK_REPORTS
+        ]  # fmt: skip
         if not queued and not delivered:
             return []
         return self.observe(reports.tail(imei, min(queued, default=None), delivered), imei)
@@ -494,11 +663,44 @@ class CommandLifecycle:
             )
         return self._set(command, PROBABLY_DELIVERED, note, delivered_report_id=report.id)
 
-    def _check_effects(self, command: Command, reports: list[StoredReport], caveat: str) -> Command | None:
-        index = next((i for i, r in enumerate(reports) if r.id == command.delivered_report_id), None)
-        if index is None:
+    def _reports_after(self, report_id: int) -> int:
+        """How many reports of the same modem sort after this one."""
+        rows = self.store.query(
+            "SELECT COUNT(*) AS n FROM mo_report AS r JOIN mo_report AS d ON d.id = ? "
+            "WHERE r.imei = d.imei AND (r.sort_utc, r.id) > (d.sort_utc, d.id)",
+            (report_id,),
+        )
+        return int(rows[0]["n"]) if rows else 0
+
+    def _recheck_effects(
+        self, command: Command, reports: list[StoredReport], commands: list[Command]
+    ) -> Command | None:
+        """Re-open a confirmed effect that later reports contradict (``RECHECK_REPORTS``)."""
+        after = _effect_reports(command, reports, commands)
+        if after is None:
             return None
-        after = [r for r in reports[index + 1 :] if r.report is not None]
+        after = after[:RECHECK_REPORTS]
+        effects = dict(command.effects)
+        for text, state in command.effects.items():
+            found = read_text(text)
+            if state == SEEN and found is not None and found[0].confirm is not None:
+                effects[text] = found[0].confirm(found[1], after)
+        if NOT_SEEN not in effects.values():
+            return None
+        summary = "; ".join(f"{text}: {state}" for text, state in effects.items())
+        return self._set(
+            command,
+            TIMED_OUT,
+            f"effect once confirmed, now contradicted by later reports (re-opened): {summary}",
+            effects=json.dumps(effects),
+        )
+
+    def _check_effects(
+        self, command: Command, reports: list[StoredReport], commands: list[Command], caveat: str
+    ) -> Command | None:
+        after = _effect_reports(command, reports, commands)
+        if after is None:
+            return None
         effects = dict(command.effects)
         for text in effects:
             if effects[text] != PENDING:

@@ -15,6 +15,8 @@ from typing import Any
 from drs_link.iridium.firmware import NO_FIX_TIME
 
 MAX_MO_BYTES = 120
+ALTITUDE_RANGE_M = (-1_000, 60_000)
+"""Below the Dead Sea shore to above any balloon: 999,999 m, which the format allows, is a broken report."""
 _RB_PREFIX = re.compile(r"^RB(\d{7}),")
 _RB_SUFFIX = re.compile(r",RB(\d{7})$")
 _NO_FIX_FIELDS = (NO_FIX_TIME, "0.0", "0.0", "0", "0.0", "0", "0.0", "0")
@@ -161,11 +163,14 @@ def parse_payload(raw: bytes) -> ParseResult:
         lat, lon = float(values["lat"]), float(values["lon"])
         if not (-90 <= lat <= 90 and -180 <= lon <= 180):
             return _rejected(raw, f"position {lat},{lon} is outside the globe")
+        altitude = int(values["alt_m"])
+        if not ALTITUDE_RANGE_M[0] <= altitude <= ALTITUDE_RANGE_M[1]:
+            return _rejected(raw, f"altitude {altitude:,} m is beyond anywhere a capsule can be")
         fix = Fix(
             moment,
             lat,
             lon,
-            int(values["alt_m"]),
+            altitude,
             float(values["speed_ms"]),
             int(values["course_deg"]),
             float(values["hdop"]),

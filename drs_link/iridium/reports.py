@@ -124,8 +124,11 @@ def _opt_time(text: str | None) -> datetime | None:
 class ReportStore:
     """The MO reports of every capsule, in the shared durable store."""
 
-    def __init__(self, store: Store) -> None:
+    def __init__(self, store: Store, write_wait_s: float | None = None) -> None:
         self.store = store
+        self.write_wait_s = write_wait_s
+        """How long a write may wait for the store's lock (None: the store's default); the receiver's is
+        short, as the gateway gives up after 3 s and retries a 503 later."""
         store.ensure_schema(REPORTS_DDL)
 
     def add(self, delivery: Delivery) -> tuple[StoredReport, bool]:
@@ -135,7 +138,7 @@ class ReportStore:
         report = parsed.report
         fix = report.fix if report is not None else None
         stored = StoredReport(0, delivery, parsed)
-        with self.store.transaction() as conn:
+        with self.store.transaction(self.write_wait_s) as conn:
             cursor = conn.execute(
                 "INSERT OR IGNORE INTO mo_report (imei, momsn, serial, source, received_utc, transmit_utc, "
                 "sort_utc, iridium_lat, iridium_lon, iridium_cep_km, jwt_verified, raw_hex, raw_delivery, "
@@ -185,7 +188,7 @@ class ReportStore:
         once left the gateway with no answer at all; it is logged instead.
         """
         try:
-            with self.store.transaction() as conn:
+            with self.store.transaction(self.write_wait_s) as conn:
                 newest = conn.execute(
                     "INSERT INTO mo_delivery_rejected (received_utc, remote, reason, body) VALUES (?, ?, ?, ?)",
                     (iso_utc(received_utc), remote, reason, body[:REJECTED_BODY_CHARS]),

@@ -11,6 +11,8 @@ stated rules, on the full record.
 from __future__ import annotations
 
 import os
+import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -71,6 +73,9 @@ def export_track(reports: list[StoredReport], path: Path, who: str, overwrite: b
             f"no position fix stored for {who} ({len(reports)} report(s): {without_fix} without a fix, "
             f"{rejected} rejected); nothing written"
         )
+    if str(path) == "-":
+        _write_stdout(fixes)
+        return TrackExport(path, len(fixes), without_fix, rejected)
     if path.exists() and not overwrite:
         raise LinkError(f"--out {path}: the file exists; choose another name or add --force to replace it")
     if not path.parent.is_dir():
@@ -85,3 +90,13 @@ def export_track(reports: list[StoredReport], path: Path, who: str, overwrite: b
         temporary.unlink(missing_ok=True)
         raise LinkError(f"--out {path}: cannot write ({exc.strerror})") from None
     return TrackExport(path, len(fixes), without_fix, rejected)
+
+
+def _write_stdout(fixes: list[Fix]) -> None:
+    """``--out -``: the CSV on stdout, for a pipe (it once wrote a file named ``-``). Written through the
+    format's one writer, into a private temporary file first."""
+    with tempfile.TemporaryDirectory(prefix="drs-export-") as folder:
+        temporary = Path(folder) / "track.csv"
+        write_canonical_csv(fixes, temporary)
+        sys.stdout.write(temporary.read_text(encoding="utf-8"))
+        sys.stdout.flush()

@@ -20,6 +20,7 @@ import ipaddress
 import json
 import logging
 import queue
+import socket
 import threading
 import time
 from collections.abc import Callable
@@ -30,15 +31,24 @@ from typing import Any
 from urllib.parse import parse_qs
 
 import jwt
+from cryptography.hazmat.primitives import serialization
+from cryptography.hazmat.primitives.asymmetric import rsa
 
 from drs_link.config import MoConfig
 from drs_link.errors import ConfigError, StoreError
 from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
-from drs_link.store import utc_now
+from drs_link.store import parse_iso_utc, utc_now
 
 log = logging.getLogger(__name__)
 access_log = logging.getLogger(f"{__name__}.access")
 
+MAX_KEY_BYTES = 65_536
+HEALTH_PATH = "/health"
+HEALTH_WAIT_S = 0.5
+REQUEST_DEADLINE_S = 20.0
+"""A request must arrive and be answered within this, however slowly its bytes drip in: the socket's own
+timeout is per ``recv``, and one byte every few seconds once held a connection and its thread for ever.
+The gateway itself gives up after 3 s."""
 DRAIN_S = 10.0
 """How long ``stop`` waits for requests in progress: a handler's socket timeout, so only a client that
 trickles its body slower than that is cut off (it got no 200, so the gateway delivers again)."""
@@ -61,11 +71,24 @@ def load_public_key(path: Path | None) -> str | None:
     if path is None:
         return None
     try:
-        text = path.read_text(encoding="ascii")
+        with open(path, "rb") as file:
+            data = file.read(MAX_KEY_BYTES + 1)
+        text = data.decode("ascii")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"mo.jwt_public_key_file: cannot read {path}: {exc}") from None
-    if "PUBLIC KEY" not in text:
+    if len(data) > MAX_KEY_BYTES or "PUBLIC KEY" not in text:
         raise ConfigError(f"mo.jwt_public_key_file: {path} is not a PEM public key")
+    try:
+        key = serialization.load_pem_public_key(data)
+    except ValueError:
+        # Parsed here, at start: a key with garbage inside once let the receiver start and 401 every delivery.
+        raise ConfigError(
+            f"mo.jwt_public_key_file: {path} holds a PEM block that is not a valid public key"
+        ) from None
+    if not isinstance(key, rsa.RSAPublicKey):
+        raise ConfigError(
+            f"mo.jwt_public_key_file: {path} is not an RSA key (Ground Control signs with RS256)"
+        )
     return text
 
 
@@ -112,9 +135,23 @@ def _transmit_time(text: str | None) -> datetime | None:
         return None
 
 
-def _same_value(claim: object, delivered: str) -> bool:
-    """Equal as text, or as numbers: the gateway's claims format is not documented (drs_protocol.md
-    4.2), and ``46.5`` signed for a delivered ``46.5000`` must not refuse a real report forever."""
+_EXACT = frozenset(_MUST_BE_SIGNED)
+"""Claims compared as exact text: the report's identity and payload. As numbers, 17 significant digits,
+``_`` separators and leading zeros once let three altered ``data`` values be stored as verified."""
+RECEIVER_WRITE_WAIT_S = 2.0
+"""The longest a delivery waits for a store another process has locked before the answer is 503: the
+gateway waits 3 s for an answer, and retries a 503 (a report is never lost to a lock, only delayed)."""
+JWT_LEEWAY_S = 30
+"""Clock difference allowed between Ground Control and this machine on ``iat``/``exp`` (both keep NTP
+time; a token issued 1 s "in the future" was once refused with a 401 and the report lost to retries)."""
+
+
+def _same_value(name: str, claim: object, delivered: str) -> bool:
+    """``imei``, ``momsn`` and ``data`` equal as exact text (an integer claim as its decimal digits); the
+    other fields also as numbers: the gateway's claims format is not documented (drs_protocol.md 4.2),
+    and ``46.5`` signed for a delivered ``46.5000`` must not refuse a real report forever."""
+    if name in _EXACT:
+        return isinstance(claim, str | int) and not isinstance(claim, bool) and str(claim) == delivered
     if str(claim) == delivered:
         return True
     try:
@@ -134,6 +171,7 @@ class MoReceiver:
         clock: Callable[[], datetime] = utc_now,
     ) -> None:
         self.reports = reports
+        reports.write_wait_s = RECEIVER_WRITE_WAIT_S
         self.config = config
         self.public_key = load_public_key(config.jwt_public_key_file)
         if config.require_jwt and self.public_key is None:
@@ -165,7 +203,9 @@ class MoReceiver:
         if self.public_key is None:
             return fields, False
         try:
-            claims: dict[str, Any] = jwt.decode(token, self.public_key, algorithms=JWT_ALGORITHMS)
+            claims: dict[str, Any] = jwt.decode(
+                token, self.public_key, algorithms=JWT_ALGORITHMS, leeway=JWT_LEEWAY_S
+            )
         except jwt.PyJWTError as exc:
             raise DeliveryRejected(401, f"JWT rejected: {type(exc).__name__}") from None
         missing = [name for name in _MUST_BE_SIGNED if name not in claims]
@@ -173,12 +213,30 @@ class MoReceiver:
             raise DeliveryRejected(401, f"the JWT does not sign {', '.join(missing)}")
         delivered = {name: value for name, value in fields.items() if name != "JWT"}
         for name, value in delivered.items():
-            if name in claims and not _same_value(claims[name], value):
+            if name in claims and not _same_value(name, claims[name], value):
                 raise DeliveryRejected(401, f"JWT claim {name} does not match the delivered {name}")
         unsigned = sorted(set(delivered) - set(claims))
         if unsigned:
             log.warning("MO delivery: fields the JWT does not sign were not stored: %s", ", ".join(unsigned))
         return {name: value for name, value in delivered.items() if name in claims}, True
+
+    def health(self) -> tuple[int, str]:
+        """What an unattended ground station's monitor asks (``GET /health``): can deliveries be stored,
+        and how long since the last one came. No secret, no position: 200 when the store is writable."""
+        writable, problem = True, None
+        try:
+            with self.reports.store.transaction(HEALTH_WAIT_S):
+                pass
+        except StoreError as exc:
+            writable, problem = False, str(exc)
+        rows = self.reports.store.query("SELECT MAX(received_utc) AS last FROM mo_report")
+        last = rows[0]["last"] if rows else None
+        age = None if last is None else round((self.clock() - parse_iso_utc(last)).total_seconds(), 1)
+        answer = {"status": "ok" if writable else "store not writable", "store_writable": writable,
+                  "last_delivery_age_s": age, "jwt_required": self.config.require_jwt}  # fmt: skip
+        if problem:
+            answer["problem"] = problem
+        return (200 if writable else 503), json.dumps(answer)
 
     def handle(self, content_type: str, body: bytes, remote: str) -> tuple[int, str, StoredReport | None]:
         """Check and store one delivery; returns (HTTP status, reply text, the stored report if new)."""
@@ -239,6 +297,16 @@ class _Handler(BaseHTTPRequestHandler):
     def setup(self) -> None:
         super().setup()
         self._started = time.monotonic()
+        self._unsent: str | None = None
+
+    def handle_one_request(self) -> None:
+        """One request under ``REQUEST_DEADLINE_S`` (the server's watchdog cuts the connection after it)."""
+        self._started = time.monotonic()
+        self.server.deadlines.watch(self.connection, REQUEST_DEADLINE_S)
+        try:
+            super().handle_one_request()
+        finally:
+            self.server.deadlines.forget(self.connection)
 
     def client(self) -> tuple[str, dict[str, str]]:
         """Who sent the request as the audit records it, and the access log's fields saying how that was decided."""
@@ -261,23 +329,39 @@ class _Handler(BaseHTTPRequestHandler):
             "method": getattr(self, "command", None) or "-",
             "path": path or "-",
             "status": int(code) if str(code).isdigit() else code,
+            **({"unsent": self._unsent} if getattr(self, "_unsent", None) else {}),
             "request_bytes": self.headers.get("Content-Length", "-") if getattr(self, "headers", None) else "-",
             "ms": round(1000 * (time.monotonic() - self._started), 1),
         }
-        access_log.info("%s %s %s", fields["method"], fields["path"], fields["status"], extra=fields)
+        shown = f"{fields['status']} NOT SENT ({self._unsent})" if fields.get("unsent") else fields["status"]
+        access_log.info("%s %s %s", fields["method"], fields["path"], shown, extra=fields)
 
     def log_message(self, format: str, *args: object) -> None:  # noqa: A002 - the stdlib's signature
         log.warning(format % args, extra=self.client()[1])
 
-    def _answer(self, status: int, text: str) -> None:
+    def _answer(self, status: int, text: str, content_type: str = "text/plain; charset=utf-8") -> None:
+        """Answer, then log it: the stdlib logs before writing, and a 200 the client never got (a broken
+        pipe) was once in the access log as a 200."""
         encoded = (text + "\n").encode("utf-8")
-        self.send_response(status)
-        self.send_header("Content-Type", "text/plain; charset=utf-8")
+        self.send_response_only(status)
+        self.send_header("Server", self.version_string())
+        self.send_header("Date", self.date_time_string())
+        self.send_header("Content-Type", content_type)
         self.send_header("Content-Length", str(len(encoded)))
-        self.end_headers()
-        self.wfile.write(encoded)
+        try:
+            self.end_headers()
+            self.wfile.write(encoded)
+            self.wfile.flush()
+        except OSError as exc:
+            self._unsent = f"client gone: {type(exc).__name__}"
+            self.close_connection = True
+        self.log_request(status)
 
     def do_GET(self) -> None:  # noqa: N802 - the stdlib's name
+        if self.path.split("?")[0] == HEALTH_PATH:
+            status, text = self.server.receiver.health()
+            self._answer(status, text, "application/json")
+            return
         self._answer(405, "POST the gateway's MO deliveries here")
 
     def do_POST(self) -> None:  # noqa: N802 - the stdlib's name
@@ -308,6 +392,40 @@ class _Handler(BaseHTTPRequestHandler):
             self.server.after_answer.put(stored)
 
 
+class _Deadlines:
+    """One watchdog for every connection's request deadline (a timer thread each would double the threads)."""
+
+    def __init__(self) -> None:
+        self._due: dict[socket.socket, float] = {}
+        self._lock = threading.Lock()
+        self._stopped = threading.Event()
+
+    def watch(self, connection: socket.socket, seconds: float) -> None:
+        with self._lock:
+            self._due[connection] = time.monotonic() + seconds
+
+    def forget(self, connection: socket.socket) -> None:
+        with self._lock:
+            self._due.pop(connection, None)
+
+    def stop(self) -> None:
+        self._stopped.set()
+
+    def run(self) -> None:
+        while not self._stopped.wait(0.25):
+            now = time.monotonic()
+            with self._lock:
+                late = [connection for connection, due in self._due.items() if due <= now]
+                for connection in late:
+                    del self._due[connection]
+            for connection in late:
+                try:
+                    connection.shutdown(socket.SHUT_RDWR)  # its thread's read or write ends at once
+                except OSError:
+                    pass
+                log.warning("a request took longer than %.0f s and was cut off", REQUEST_DEADLINE_S)
+
+
 class MoHttpServer(ThreadingHTTPServer):
     daemon_threads = True
     block_on_close = False
@@ -318,6 +436,7 @@ class MoHttpServer(ThreadingHTTPServer):
     def __init__(self, receiver: MoReceiver) -> None:
         super().__init__((receiver.config.listen_host, receiver.config.listen_port), _Handler)
         self.receiver = receiver
+        self.deadlines = _Deadlines()
         self.trusted_proxy = _address(receiver.config.trusted_proxy) if receiver.config.trusted_proxy else None
         self.after_answer: queue.Queue[StoredReport | None] = queue.Queue()
         self._service_threads: list[threading.Thread] = []
@@ -368,6 +487,7 @@ class MoHttpServer(ThreadingHTTPServer):
         self._service_threads = [
             threading.Thread(target=self.serve_forever, args=(0.05,), name="mo-http", daemon=True),
             threading.Thread(target=self._work, name="mo-after-answer", daemon=True),
+            threading.Thread(target=self.deadlines.run, name="mo-deadlines", daemon=True),
         ]
         for thread in self._service_threads:
             thread.start()
@@ -388,6 +508,7 @@ class MoHttpServer(ThreadingHTTPServer):
         if cut_off:
             log.warning("stopped with requests unanswered; their senders retry", extra={"unanswered": cut_off})
         self.after_answer.put(None)
+        self.deadlines.stop()
         for thread in self._service_threads:
             thread.join(timeout=5)
         return cut_off

@@ -3,8 +3,8 @@
 The stock log (``DRS_serial_log.txt``) is raw serial bytes with no timestamps, often cut mid-line
 by the 1 s read timeout, so garbage is normal: every sentence that does not parse or fails its
 checksum is counted and skipped, and nothing in this module raises on input. Only GGA and RMC
-matter (the firmware disables the rest); both GP (flight configuration) and GN (bench units whose
-GNSS configuration was not saved) talkers are accepted.
+matter (the firmware disables the rest); GP (flight configuration), GN (bench units whose GNSS
+configuration was not saved) and IN (integrated navigation) talkers are accepted.
 """
 
 from __future__ import annotations
@@ -13,7 +13,13 @@ from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from datetime import UTC, date, datetime, time, timedelta
 
-TALKERS = ("GP", "GN")
+TALKERS = ("GP", "GN", "IN")
+"""GP: GPS only (flight configuration); GN: several constellations; IN: an integrated (GNSS + inertial)
+receiver, which some u-blox units report as; the sentences are the same."""
+ALTITUDE_RANGE_M = (-1_000.0, 60_000.0)
+"""Below the Dead Sea shore to above any balloon (a u-blox in airborne mode stops at 50 km)."""
+MAX_SATELLITES = 64
+"""More than every GNSS satellite a receiver can track at once; ``28000`` is a broken sentence."""
 FIX_QUALITY_NAMES = {
     0: "no fix",
     1: "GPS fix",
@@ -253,15 +259,20 @@ def _parse_gga(talker: str, fields: list[str]) -> GgaSentence:
     if len(fields) < 15:
         raise _Malformed
     quality = _int(fields[6])
+    satellites, altitude = _int(fields[7]), _float(fields[9])
+    if satellites is not None and satellites > MAX_SATELLITES:
+        raise _Malformed
+    if altitude is not None and not ALTITUDE_RANGE_M[0] <= altitude <= ALTITUDE_RANGE_M[1]:
+        raise _Malformed
     return GgaSentence(
         talker=talker,
         time_utc=_time(fields[1]),
         latitude=_coordinate(fields[2], fields[3], 2),
         longitude=_coordinate(fields[4], fields[5], 3),
         fix_quality=quality if quality is not None else 0,
-        satellites=_int(fields[7]),
+        satellites=satellites,
         hdop=_float(fields[8]),
-        altitude_m=_float(fields[9]),
+        altitude_m=altitude,
     )
 
 

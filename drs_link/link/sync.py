@@ -56,6 +56,8 @@ class SyncStatus:
     up_to_date: tuple[str, ...]
     bytes_pending: int
     last_sync_utc: datetime | None
+    left_out: tuple[str, ...] = ()
+    """Entries of the source that are not uploaded, each ``path (why)``: links, FIFOs, unreadable folders."""
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -64,6 +66,7 @@ class SyncStatus:
             "up_to_date": len(self.up_to_date),
             "bytes_pending": self.bytes_pending,
             "last_sync_utc": iso_utc(self.last_sync_utc) if self.last_sync_utc else None,
+            "left_out": list(self.left_out),
         }
 
 
@@ -72,6 +75,8 @@ class SyncReport:
     uploaded: tuple[str, ...]
     skipped: tuple[str, ...]
     bytes_sent: int
+    left_out: tuple[str, ...] = ()
+    """As ``SyncStatus.left_out``: said by count and name, never dropped without a word."""
 
 
 def sha256_file(path: Path) -> str:
@@ -83,20 +88,50 @@ def sha256_file(path: Path) -> str:
 
 
 def local_files(source: Path) -> list[LocalFile]:
+    return scan_source(source)[0]
+
+
+def scan_source(source: Path) -> tuple[list[LocalFile], list[str]]:
+    """The regular files under ``source``, and every entry left out with the reason (``path (why)``).
+
+    Why links are not followed: the RAID is dropped from the balloon, and a file link's target (anything
+    on this laptop) was uploaded in its place; directory links, loops, FIFOs and sockets were skipped
+    without a word ("2 files uploaded" while 6 entries were left out).
+    """
     if not source.is_dir():
         raise LinkError(f"{source} is not a directory")
-    files = []
-    for dirpath, dirnames, filenames in os.walk(source):
+    files: list[LocalFile] = []
+    left_out: list[str] = []
+
+    def unreadable(exc: OSError) -> None:
+        where = Path(exc.filename).relative_to(source).as_posix() if exc.filename else "?"
+        left_out.append(f"{where}/ (cannot be read: {exc.strerror or exc})")
+
+    for dirpath, dirnames, filenames in os.walk(source, onerror=unreadable):
+        folder = Path(dirpath)
+        for name in sorted(dirnames):
+            if (folder / name).is_symlink():
+                dirnames.remove(name)
+                link = (folder / name).relative_to(source).as_posix()
+                left_out.append(f"{link}/ (a directory link, not followed)")
         dirnames.sort()
         for name in sorted(filenames):
-            path = Path(dirpath) / name
-            if name.endswith(PARTIAL_SUFFIX) or not path.is_file():
+            path = folder / name
+            relative = path.relative_to(source).as_posix()
+            try:
+                info = path.lstat()
+            except OSError as exc:
+                left_out.append(f"{relative} (cannot be read: {exc.strerror or exc})")
                 continue
-            info = path.stat()
-            files.append(
-                LocalFile(path.relative_to(source).as_posix(), path, info.st_size, int(info.st_mtime))
-            )
-    return files
+            if name.endswith(PARTIAL_SUFFIX):
+                left_out.append(f"{relative} (a partial upload's name)")
+            elif stat.S_ISLNK(info.st_mode):
+                left_out.append(f"{relative} (a link, not followed: its target would be uploaded)")
+            elif not stat.S_ISREG(info.st_mode):
+                left_out.append(f"{relative} (not a regular file: a FIFO, socket or device)")
+            else:
+                files.append(LocalFile(relative, path, info.st_size, int(info.st_mtime)))
+    return files, left_out
 
 
 def _remote_tree(
@@ -133,7 +168,7 @@ class Syncer:
 
     def status(self, source: Path, with_hash: bool = False) -> SyncStatus:
         """Missing and changed files by size+mtime; ``with_hash`` also compares sha256 computed on the Pi."""
-        files = local_files(source)
+        files, left_out = scan_source(source)
         sftp = self.link.sftp()
         try:
             remote_files = _remote_tree(sftp, self.mount)
@@ -161,7 +196,7 @@ class Syncer:
             "SELECT MAX(verified_at) AS last FROM sync_files WHERE capsule = ?", (self.capsule,)
         )
         last = parse_iso_utc(rows[0]["last"]) if rows and rows[0]["last"] else None
-        return SyncStatus(tuple(missing), tuple(changed), tuple(current), pending, last)
+        return SyncStatus(tuple(missing), tuple(changed), tuple(current), pending, last, tuple(left_out))
 
     def sync(
         self,
@@ -187,7 +222,7 @@ class Syncer:
             uploaded.append(item.relative)
             if on_verified is not None:
                 on_verified(item.relative)
-        return SyncReport(tuple(uploaded), tuple(status.up_to_date), sent)
+        return SyncReport(tuple(uploaded), tuple(status.up_to_date), sent, status.left_out)
 
     def _upload(self, item: LocalFile, on_progress: Callable[[str, int, int], None] | None) -> int:
         final = self._remote_path(item.relative)
@@ -195,6 +230,7 @@ class Syncer:
         digest = sha256_file(item.path)
         sftp = self.link.sftp()
         try:
+            self._refuse_links(sftp, item.relative)
             self._make_dirs(sftp, posixpath.dirname(item.relative))
             sent = self._send(sftp, item, partial, on_progress)
             verified = self._remote_sha256(partial)
@@ -245,6 +281,34 @@ class Syncer:
             )
         return LinkError(f"{self.capsule}: cannot write {item.relative} on the Pi: {exc}")
 
+    def _refuse_links(self, sftp: paramiko.SFTPClient, relative: str) -> None:
+        """No write goes through a link on the Pi: a planted ``x.drs-partial`` link or directory link once
+        had the upload write outside the mount. A stale partial link is removed (the link, not its target);
+        a link among the folders is refused, as the operator must see who planted it."""
+        path = self.mount
+        for part in [p for p in posixpath.dirname(relative).split("/") if p]:
+            path = posixpath.join(path, part)
+            mode = self._lmode(sftp, path)
+            if mode is not None and stat.S_ISLNK(mode):
+                raise LinkError(
+                    f"{self.capsule}: {path} on the Pi is a link; refusing to write {relative} through it"
+                )
+        partial = self._remote_path(relative) + PARTIAL_SUFFIX
+        mode = self._lmode(sftp, partial)
+        if mode is not None and stat.S_ISLNK(mode):
+            sftp.remove(partial)
+        elif mode is not None and not stat.S_ISREG(mode):
+            raise LinkError(
+                f"{self.capsule}: {partial} on the Pi is not a file; remove it to upload {relative}"
+            )
+
+    @staticmethod
+    def _lmode(sftp: paramiko.SFTPClient, path: str) -> int | None:
+        try:
+            return sftp.lstat(path).st_mode
+        except FileNotFoundError:
+            return None
+
     def _make_dirs(self, sftp: paramiko.SFTPClient, relative_dir: str) -> None:
         """Create the file's directories below the mount (the mount itself must already exist)."""
         path = self.mount
@@ -264,7 +328,7 @@ class Syncer:
     ) -> int:
         """Append to the partial file from where it stopped; returns the bytes sent now."""
         try:
-            offset = sftp.stat(partial).st_size or 0
+            offset = sftp.lstat(partial).st_size or 0
         except FileNotFoundError:
             offset = 0
         if offset > item.size:

@@ -95,5 +95,10 @@ def authorize_mt(
         if not people:
             raise refuse("overriding the landed check needs a second operator or a logged single-operator waiver")
         details["override_landed"] = override
+    elif not evidence.verified and not people:
+        raise refuse(
+            f"the landed evidence rests on reports without a verified JWT ({evidence.summary}); anyone "
+            "who can reach the receiver could have posted them: a second operator must confirm"
+        )
     store.append_audit(operator, capsule, "mt.parachute", "authorised", details)
     return details

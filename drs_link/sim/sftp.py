@@ -101,7 +101,14 @@ class SimSftpServer(paramiko.SFTPServerInterface):
         except OSError as exc:
             return paramiko.SFTPServer.convert_errno(exc.errno)
 
-    lstat = stat
+    def lstat(self, path: str) -> paramiko.SFTPAttributes | int:
+        """The entry itself, a link included, as OpenSSH's sftp-server answers (``stat`` follows it)."""
+        try:
+            return paramiko.SFTPAttributes.from_stat(os.lstat(self._guard(path)))
+        except PermissionError:
+            return SFTP_PERMISSION_DENIED
+        except OSError as exc:
+            return paramiko.SFTPServer.convert_errno(exc.errno)
 
     def open(self, path: str, flags: int, attr: paramiko.SFTPAttributes) -> _Handle | int:
         try:

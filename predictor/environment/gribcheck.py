@@ -9,8 +9,10 @@ Counts are of fields: a multi-field message (GFS packs u and v together) counts 
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
+from datetime import datetime
 from pathlib import Path
 
 import predictor.environment.native_libs  # noqa: F401  (PROJ before eccodes, see there)
@@ -20,6 +22,13 @@ import eccodes
 import gribapi.errors
 
 from predictor.errors import WeatherError
+
+MAX_GRID_POINTS = 10_000_000
+"""More points than any weather product the predictor reads holds in one field (ECMWF's 0.1° globe has
+6.5 million, GFS 0.25° 1.04 million); one such field decodes to 80 MB. A damaged Ni of 2,386,165,793
+once had the reader allocate 23 GB before anything looked at it."""
+YEARS = (1900, 2200)
+"""Reference and validity years a weather file can carry; outside, a header is damaged."""
 
 
 @dataclass(frozen=True)
@@ -41,6 +50,7 @@ def walk_grib_messages(path: str | Path, visit: Callable[[int], None], *, header
     eccodes.codes_grib_multi_support_on()
     try:
         with open(file, "rb") as stream:
+            size = os.fstat(stream.fileno()).st_size
             # eccodes keeps unread fields of a multi-field message across files unless told otherwise.
             eccodes.codes_grib_multi_support_reset_file(stream)
             while True:
@@ -55,9 +65,12 @@ def walk_grib_messages(path: str | Path, visit: Callable[[int], None], *, header
                     break
                 count += 1
                 try:
+                    check_header(file, count, handle, size)
                     visit(handle)
                 except gribapi.errors.GribInternalError as exc:
                     raise WeatherError(f"{file}: GRIB message {count} does not decode ({exc})") from exc
+                except (ValueError, OverflowError) as exc:  # a header value no check above foresaw
+                    raise WeatherError(f"{file}: GRIB message {count} is implausible ({exc})") from exc
                 finally:
                     eccodes.codes_release(handle)
     except OSError as exc:
@@ -65,6 +78,53 @@ def walk_grib_messages(path: str | Path, visit: Callable[[int], None], *, header
     if count == 0:
         raise WeatherError(f"{file} is not a GRIB file (no GRIB messages in it)")
     return count
+
+
+def _integer(handle: int, key: str) -> int | None:
+    """A header integer, or None where the message has no such key or says it is missing."""
+    if not eccodes.codes_is_defined(handle, key) or eccodes.codes_is_missing(handle, key):
+        return None
+    return int(eccodes.codes_get(handle, key, ktype=int))
+
+
+def check_header(file: Path, number: int, handle: int, file_size: int) -> None:
+    """Refuse a message whose header no real weather file has, before anything is allocated from it.
+
+    Why: every size and date below was once taken on trust, and a one-byte flip then cost 23 GB of
+    memory (the OOM killer may pick the receiver instead), or a ValueError traceback from a date, or a
+    minute of 250 read as 08:50. The checks are on the header alone (``headers_only`` scans pass them).
+    """
+    where = f"{file}: GRIB message {number}"
+    length = _integer(handle, "totalLength")
+    if length is not None and length > file_size:
+        raise WeatherError(f"{where} says it is {length:,} bytes long but the file has {file_size:,}")
+    points = _integer(handle, "numberOfDataPoints")
+    ni, nj = _integer(handle, "Ni"), _integer(handle, "Nj")
+    if ni is not None and nj is not None:
+        if ni * nj > MAX_GRID_POINTS:
+            raise WeatherError(f"{where}: a grid of {ni:,}×{nj:,} points is implausible "
+                               f"(more than {MAX_GRID_POINTS:,}); the header is damaged")  # fmt: skip
+        if points is not None and points != ni * nj:
+            raise WeatherError(
+                f"{where} holds {points:,} points on a {ni:,}×{nj:,} grid; the header is damaged"
+            )
+    if points is not None and points > MAX_GRID_POINTS:
+        raise WeatherError(f"{where}: {points:,} points is implausible (more than {MAX_GRID_POINTS:,})")
+    values = _integer(handle, "numberOfValues")
+    if values is not None and points is not None and values > points:
+        raise WeatherError(f"{where} packs {values:,} values for {points:,} points; the header is damaged")
+    parts = [_integer(handle, key) for key in ("year", "month", "day", "hour", "minute", "second")]
+    if all(part is not None for part in parts[:5]):
+        year, month, day, hour, minute, second = (part or 0 for part in parts)
+        try:
+            datetime(year, month, day, hour, minute, second)
+        except ValueError:
+            raise WeatherError(
+                f"{where}: reference time {year:04d}-{month:02d}-{day:02d} "
+                f"{hour:02d}:{minute:02d}:{second:02d} is not a date; the header is damaged"
+            ) from None
+        if not YEARS[0] <= year <= YEARS[1]:
+            raise WeatherError(f"{where}: reference year {year} is implausible; the header is damaged")
 
 
 def scan_grib_file(path: str | Path, *, decode: bool = False) -> GribScan:

@@ -26,7 +26,7 @@ import eccodes
 import numpy as np
 
 from predictor.environment.cube import STANDARD_GRAVITY
-from predictor.environment.gribcheck import walk_grib_messages
+from predictor.environment.gribcheck import YEARS, walk_grib_messages
 from predictor.errors import WeatherError
 
 VARIABLES = ("u", "v", "t", "gh")
@@ -165,8 +165,12 @@ def _take_message(
         raise WeatherError(f"{file} mixes several grids; use one product per file")
     if eccodes.codes_is_defined(handle, "generatingProcessIdentifier"):
         processes.add(int(eccodes.codes_get(handle, "generatingProcessIdentifier")))
-    cycle = _timestamp(eccodes.codes_get(handle, "dataDate"), eccodes.codes_get(handle, "dataTime"))
-    valid = _timestamp(eccodes.codes_get(handle, "validityDate"), eccodes.codes_get(handle, "validityTime"))
+    cycle = _timestamp(
+        file, "reference", eccodes.codes_get(handle, "dataDate"), eccodes.codes_get(handle, "dataTime")
+    )
+    valid = _timestamp(
+        file, "validity", eccodes.codes_get(handle, "validityDate"), eccodes.codes_get(handle, "validityTime")
+    )
     level = float(eccodes.codes_get(handle, "level"))
     by_level = planes.setdefault((cycle, valid), {}).setdefault(name, {})
     if level in by_level:
@@ -174,7 +178,11 @@ def _take_message(
             f"{file} holds several {name} fields at {level:g} hPa for one time (ensemble members?); "
             "pass one member per file"
         )
-    values = eccodes.codes_get_values(handle).reshape(grid.shape)
+    values = eccodes.codes_get_values(handle)
+    if values.size != grid.shape[0] * grid.shape[1]:
+        raise WeatherError(f"{file}: {name} at {level:g} hPa has {values.size:,} values for a "
+                           f"{grid.shape[1]}×{grid.shape[0]} grid; the file is damaged")  # fmt: skip
+    values = values.reshape(grid.shape)
     if eccodes.codes_get(handle, "bitmapPresent"):
         values = np.where(values == eccodes.codes_get(handle, "missingValue"), np.nan, values)
     cropped = values[np.ix_(grid.lat_index, grid.lon_index)]
@@ -206,8 +214,19 @@ _PLAUSIBLE = {
 """Bounds no real atmosphere leaves; a value outside means a broken file, not weather."""
 
 
-def _timestamp(date: int, hhmm: int) -> np.datetime64:
-    moment = datetime.strptime(f"{int(date):08d}{int(hhmm):04d}", "%Y%m%d%H%M")
+def _timestamp(file: Path, what: str, date: int, hhmm: int) -> np.datetime64:
+    """A GRIB date and HHMM time; a WeatherError naming the file when they are not a plausible moment."""
+    date, hhmm = int(date), int(hhmm)
+    try:
+        if not 0 <= hhmm < 2400 or hhmm % 100 >= 60:
+            raise ValueError
+        moment = datetime(date // 10_000, date // 100 % 100, date % 100, hhmm // 100, hhmm % 100)
+    except ValueError:
+        raise WeatherError(
+            f"{file}: the {what} time {date} {hhmm:04d} is not a date; the file is damaged"
+        ) from None
+    if not YEARS[0] <= moment.year <= YEARS[1]:
+        raise WeatherError(f"{file}: the {what} year {moment.year} is implausible; the file is damaged")
     return np.datetime64(moment, "s")
 
 
@@ -217,6 +236,10 @@ def _grid_of(file: Path, signature: tuple, box: BBox | None) -> _Grid:
         raise WeatherError(f"{file}: the grid is {ni}×{nj}; a region of at least 2×2 points is needed")
     if i_negative:
         raise WeatherError(f"{file}: longitudes run westward; only eastward-scanned grids are supported")
+    if not (-90.0 <= lat_first <= 90.0 and -90.0 <= lat_last <= 90.0):
+        raise WeatherError(
+            f"{file}: the grid's latitudes {lat_first:g}…{lat_last:g} leave the globe; the file is damaged"
+        )
     dlat = (lat_last - lat_first) / (nj - 1)
     dlon = ((lon_last - lon_first) % 360.0) / (ni - 1)
     if dlon == 0.0:  # a global grid whose last column repeats the first

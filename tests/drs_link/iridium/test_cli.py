@@ -383,3 +383,20 @@ def test_mt_resolve_without_an_operator_name_is_refused(
     config.write_text(config.read_text().replace('name = "alice"', 'name = ""'))
     assert run(config, "mt", "resolve", "DRS1", "1", "--not-sent") == 1
     assert "drs: error: operator.name: set [operator] name" in capsys.readouterr().err
+
+
+def test_a_retry_over_a_command_of_unknown_delivery_warns_that_it_may_be_sent_twice(
+    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("DRS_TEST_RB", "pw-123")
+    config = write_config(tmp_path, gateway.url)
+    gateway.script(Scripted("slow", delay_s=5.0))  # past the config's 2 s timeout: delivery unknown
+    argv = ["mt", "send", "DRS1", "--interval", "5", "--confirm", "DRS1"]
+    assert run(config, *argv) == 1
+    assert "delivery_unknown" in capsys.readouterr().out
+    assert run(config, *argv) == 0
+    out = capsys.readouterr().out
+    assert out.count("warning: MT 1 [INTERVAL=5] is delivery_unknown: if the gateway did queue it") == 1
+    store = Store.open(tmp_path / "data" / "drs.sqlite")
+    requested = [r.detail for r in store.audit() if r.action == "mt.requested"]
+    assert requested[-1]["retry_over_unresolved"] == [1]  # type: ignore[index]

@@ -209,7 +209,7 @@ def test_an_interval_is_pending_until_the_spacing_shows_it(rig: Rig) -> None:
         "Interval: 5 min — probably delivered at the 10:06Z report; "
         "pending (takes effect from the cycle after next): measured spacing 2.0 min"
     )
-    rig.fly(alarm, 2)
+    rig.fly(alarm, 3)  # two spacings at the new value (one could be lost sessions of the old)
     assert rig.settings().interval.line == (
         "Interval: 5 min — commanded 10:05Z, confirmed by the spacing of later reports; "
         "measured spacing 5.0 min"
@@ -230,7 +230,7 @@ def test_an_interval_the_spacing_never_shows_is_called_not_seen(rig: Rig) -> Non
 def test_an_interval_seen_in_the_same_mt_vouches_for_the_sounder_sent_with_it(rig: Rig) -> None:
     alarm = rig.fly(T0, 2)
     rig.send(MtComposer().add("INTERVAL", 5).add("SOUNDER", False).build(), at(3))
-    rig.fly(rig.fly(alarm, 1), 2)
+    rig.fly(rig.fly(alarm, 1), 3)
     assert rig.settings().sounder.line == (
         "Sounder: OFF — probably delivered at the 10:04Z report; the change sent with it showed, "
         "so it did go down; cannot be confirmed by telemetry"

@@ -14,14 +14,14 @@ from pathlib import Path
 import pytest
 
 from drs_link.config import CapsuleConfig
-from drs_link.errors import RefusedError
+from drs_link.errors import RefusedError, StoreError
 from drs_link.iridium import lifecycle as lc
 from drs_link.iridium import reports as report_module
 from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
 from drs_link.sim.rockblock import Scripted, SimulatedCapsule, SimulatedRockblock
-from drs_link.store import Store, utc_now
+from drs_link.store import Store
 from tests.clock import ManualClock
 
 from .helpers import IMEI, T0, fly
@@ -63,6 +63,8 @@ def test_interval_command_runs_from_request_to_effect_confirmed(rig) -> None:
     assert changed.state == lc.PROBABLY_DELIVERED and "MOMSN 3" in changed.detail
     assert capsule.interval_min == 5
     fly(capsule, gateway, reports, next_alarm + timedelta(minutes=2), 2)
+    assert life.observe(reports.for_imei(IMEI), IMEI) == [], "one spacing at 5 min is not yet the new interval"
+    fly(capsule, gateway, reports, next_alarm + timedelta(minutes=12), 1)
     [changed] = life.observe(reports.for_imei(IMEI), IMEI)
     assert changed.state == lc.EFFECT_CONFIRMED
     actions = [record.action for record in store.audit(capsule="DRS1")]
@@ -207,35 +209,39 @@ import sys
 from drs_link.config import CapsuleConfig
 from drs_link.iridium import lifecycle as lc
 from drs_link.iridium.gateway import RockblockGateway
+from drs_link.iridium.mt import MtComposer
 from drs_link.store import Store
+capsule = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=sys.argv[3], rockblock_serial=11800)
 life = lc.CommandLifecycle(Store.open(sys.argv[1]), "alice")
-life.send(int(sys.argv[2]), "DRS1", RockblockGateway(sys.argv[3], "ops", "pw", timeout_s=60, retry_delay_s=0.0))
+command = life.request(capsule, MtComposer().add("INTERVAL", 30).build())
+life.send(command.id, "DRS1", RockblockGateway(sys.argv[2], "ops", "pw", timeout_s=60, retry_delay_s=0.0))
 """
 
 
-def test_a_send_killed_after_the_gateway_took_it_becomes_delivery_unknown_and_can_be_resolved(rig) -> None:
-    """kill -9 once left the command 'confirmed' forever, which ``drs mt resolve`` refused to settle."""
+@pytest.mark.parametrize("stop", [signal.SIGKILL, signal.SIGTERM])
+def test_a_send_stopped_after_the_gateway_took_it_is_delivery_unknown_at_once_and_can_be_resolved(
+    rig, stop: signal.Signals
+) -> None:
+    """kill -9 or SIGTERM once left the command 'confirmed' for 15 minutes, which ``drs mt resolve`` refused
+    to settle: the sender's lock dies with it, so the next look settles it."""
     store, _, gateway, _, _ = rig
-    life = lc.CommandLifecycle(store, "alice")
-    command = life.request(CAPSULE, MtComposer().add("INTERVAL", 30).build())
+    lc.CommandLifecycle(store, "bob")  # the table exists before the child writes its row
     gateway.script(Scripted("slow", delay_s=30.0))
-    child = subprocess.Popen([sys.executable, "-c", SEND_IN_A_CHILD, str(store.path), str(command.id), gateway.url])
+    child = subprocess.Popen([sys.executable, "-c", SEND_IN_A_CHILD, str(store.path), gateway.url, IMEI])
     try:
         deadline = time.monotonic() + 60
         while not gateway.requests and time.monotonic() < deadline:
             time.sleep(0.05)
-        assert gateway.requests and life.get(command.id).state == lc.CONFIRMED
+        [command] = lc.CommandLifecycle(store, "bob").for_imei(IMEI)
+        assert gateway.requests and command.state == lc.CONFIRMED, "a live sender is left alone"
     finally:
-        child.send_signal(signal.SIGKILL)
-        child.wait()
-    right_after = lc.CommandLifecycle(store, "bob")
-    assert right_after.get(command.id).state == lc.CONFIRMED  # it might still be in flight elsewhere
-    with pytest.raises(RefusedError, match="only a command in delivery_unknown"):
-        right_after.resolve_not_sent(command.id, "DRS1")
-    later = ManualClock(utc_now() + lc.INTERRUPTED_AFTER + timedelta(seconds=1))
-    recovered = lc.CommandLifecycle(store, "bob", later).get(command.id)
+        child.send_signal(stop)
+        child.wait(timeout=30)
+    recovered = lc.CommandLifecycle(store, "bob").get(command.id)
     assert recovered.state == lc.DELIVERY_UNKNOWN and "stopped before the gateway answered" in recovered.detail
-    resolved = lc.CommandLifecycle(store, "bob", later).resolve_not_sent(command.id, "DRS1", "gateway shows nothing")
+    if stop == signal.SIGTERM:
+        assert child.returncode == 128 + signal.SIGTERM and "(SIGTERM)" in recovered.detail
+    resolved = lc.CommandLifecycle(store, "bob").resolve_not_sent(command.id, "DRS1", "gateway shows nothing")
     assert resolved.state == lc.NOT_SENT
 
 
@@ -247,27 +253,27 @@ from drs_link.iridium.mt import MtComposer
 from drs_link.store import Store
 capsule = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=sys.argv[2], rockblock_serial=11800)
 lc.CommandLifecycle(Store.open(sys.argv[1]), "alice").request(capsule, MtComposer().add("INTERVAL", 30).build())
+print("requested", flush=True)
 threading.Event().wait()  # stopped between the request and the send
 """
 
 
 def test_a_process_killed_between_request_and_send_leaves_a_command_closed_as_never_sent(rig) -> None:
-    """The step before the send: nothing left the machine, so after the interrupted-send time it is closed
-    as not sent (it once stayed 'requested' for good) and the same command can be requested again."""
+    """The step before the send: nothing left the machine, so once its process is gone it is closed as not
+    sent (it once stayed 'requested' for good) and the same command can be requested again."""
     store, _, gateway, client, _ = rig
     lc.CommandLifecycle(store, "bob")  # the table exists before the child writes its row
-    child = subprocess.Popen([sys.executable, "-c", REQUEST_IN_A_CHILD, str(store.path), IMEI])
+    child = subprocess.Popen(
+        [sys.executable, "-c", REQUEST_IN_A_CHILD, str(store.path), IMEI], stdout=subprocess.PIPE, text=True
+    )
     try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and not store.query("SELECT id FROM mt_command"):
-            time.sleep(0.05)
+        assert child.stdout is not None and child.stdout.readline() == "requested\n"
+        [command] = lc.CommandLifecycle(store, "bob").for_imei(IMEI)
+        assert command.state == lc.REQUESTED, "its process is alive: it may still send it"
     finally:
         child.send_signal(signal.SIGKILL)
         child.wait()
-    [command] = lc.CommandLifecycle(store, "bob").for_imei(IMEI)
-    assert command.state == lc.REQUESTED  # it might still be about to send elsewhere
-    later = ManualClock(utc_now() + lc.INTERRUPTED_AFTER + timedelta(seconds=1))
-    life = lc.CommandLifecycle(store, "bob", later)
+    life = lc.CommandLifecycle(store, "bob")
     closed = life.get(command.id)
     assert closed.state == lc.NOT_SENT and "never reached the gateway" in closed.detail
     with pytest.raises(RefusedError, match="never sent twice"):
@@ -324,7 +330,79 @@ def test_the_work_after_each_post_is_the_open_commands_reports_not_the_flight(
     clock.now = next_alarm + timedelta(minutes=1, seconds=30)
     command = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 5).build()).id, "DRS1", client)
     outcomes = [post_then_observe(next_alarm + timedelta(minutes=2 * (i + 1))) for i in range(2)]
-    outcomes.append(post_then_observe(next_alarm + timedelta(minutes=9)))
-    outcomes.append(post_then_observe(next_alarm + timedelta(minutes=14)))
-    assert outcomes == [[lc.PROBABLY_DELIVERED, 1], [2], [lc.EFFECT_CONFIRMED, 3], [0]]
+    outcomes += [post_then_observe(next_alarm + timedelta(minutes=4 + 5 * i)) for i in range(1, 4)]
+    assert outcomes == [[lc.PROBABLY_DELIVERED, 1], [2], [3], [lc.EFFECT_CONFIRMED, 4], [5]]
+    # A confirmed effect stays open to contradiction for RECHECK_REPORTS reports, then nothing is read.
+    last = next_alarm + timedelta(minutes=19)
+    rest = [post_then_observe(last + timedelta(minutes=5 * i)) for i in range(1, lc.RECHECK_REPORTS - 2)]
+    assert rest == [[1 + after] for after in range(5, lc.RECHECK_REPORTS + 1)] + [[0]], (
+        "the delivering report and those after it, until more than RECHECK_REPORTS follow it"
+    )
     assert life.get(command.id).state == lc.EFFECT_CONFIRMED
+
+
+def test_an_interval_is_not_confirmed_by_lost_sessions_and_later_contradicting_spacings_reopen_it(rig) -> None:
+    """#24 item 3: [INTERVAL=30] was called confirmed from one 30-min gap of lost sessions while the capsule
+    stayed at 2 min. Here it never takes the command (the download is garbage): one gap of lost sessions is
+    not enough, two are (a coincidence no rule can tell), and the 2-min spacing that follows re-opens it."""
+    store, reports, gateway, client, clock = rig
+    capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
+    alarm = fly(capsule, gateway, reports, T0, 3)
+    life = lc.CommandLifecycle(store, "alice", clock)
+    clock.now = alarm - timedelta(seconds=30)
+    command = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 30).build()).id, "DRS1", client)
+    gateway.queues[IMEI].clear()
+    gateway.queues[IMEI].append(b"[interval=30]")  # not a command the firmware reads: it stays at 2 min
+
+    def state_after(*minutes_from_alarm: float) -> str:
+        for minutes in minutes_from_alarm:
+            fly(capsule, gateway, reports, alarm + timedelta(minutes=minutes), 1)
+        life.observe(reports.for_imei(IMEI), IMEI)
+        return life.get(command.id).state
+
+    assert state_after(0, 2) == lc.PROBABLY_DELIVERED
+    assert state_after(32) == lc.PROBABLY_DELIVERED, "one 30-min gap: sessions lost at 2 min, or the new value"
+    assert state_after(62) == lc.EFFECT_CONFIRMED, "two adjacent 30-min spacings and nothing against them"
+    assert state_after(64) == lc.TIMED_OUT
+    reopened = life.get(command.id)
+    assert "now contradicted by later reports (re-opened)" in reopened.detail
+    assert reopened.effects == {"[INTERVAL=30]": "not seen"}
+
+
+def test_a_single_gap_of_lost_sessions_then_the_old_spacing_is_not_seen(rig) -> None:
+    store, reports, gateway, client, clock = rig
+    capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
+    alarm = fly(capsule, gateway, reports, T0, 3)
+    life = lc.CommandLifecycle(store, "alice", clock)
+    clock.now = alarm - timedelta(seconds=30)
+    command = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 30).build()).id, "DRS1", client)
+    gateway.queues[IMEI].clear()
+    gateway.queues[IMEI].append(b"[interval=30]")
+    for minutes in (0, 2, 32, 34):
+        fly(capsule, gateway, reports, alarm + timedelta(minutes=minutes), 1)
+    life.observe(reports.for_imei(IMEI), IMEI)
+    final = life.get(command.id)
+    assert final.state == lc.TIMED_OUT and "[INTERVAL=30]: not seen" in final.detail
+
+
+def test_a_store_failure_after_the_gateway_queued_says_so_with_the_mt_id(rig, monkeypatch: pytest.MonkeyPatch) -> None:
+    """#24 item 12: the operator read only the store's error, nothing of the MT the gateway had queued."""
+    store, _, gateway, client, clock = rig
+    life = lc.CommandLifecycle(store, "alice", clock)
+    command = life.request(CAPSULE, MtComposer().add("INTERVAL", 9).build())
+    apply = lc.CommandLifecycle._apply
+
+    def full_disk_at_queued(self: lc.CommandLifecycle, changes: list) -> None:  # type: ignore[type-arg]
+        if any(change.state == lc.QUEUED for change in changes):
+            raise StoreError("the store drs.sqlite cannot be written: database or disk is full")
+        apply(self, changes)
+
+    monkeypatch.setattr(lc.CommandLifecycle, "_apply", full_disk_at_queued)
+    with pytest.raises(StoreError) as failed:
+        life.send(command.id, "DRS1", client)
+    message = str(failed.value)
+    assert message.startswith("the gateway queued it as MT 4114652 (command"), message
+    assert "do not send it again" in message and "[INTERVAL=9]" in message and len(gateway.requests) == 1
+    monkeypatch.undo()
+    settled = lc.CommandLifecycle(store, "bob", clock).get(command.id)
+    assert settled.state == lc.DELIVERY_UNKNOWN, "the sender is gone: settled once the store takes writes"

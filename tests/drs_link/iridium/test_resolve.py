@@ -63,8 +63,8 @@ def unknown_but_queued(rig: Rig) -> tuple[lc.CommandLifecycle, SimulatedCapsule,
     clock.now += timedelta(seconds=10)
     interval = send(life, MtComposer().add("INTERVAL", 5), client)
     assert interval.state == lc.QUEUED
-    fly(capsule, gateway, reports, next_alarm, 4)
-    clock.now = T0 + timedelta(minutes=20)
+    fly(capsule, gateway, reports, next_alarm, 5)
+    clock.now = T0 + timedelta(minutes=25)
     return life, capsule, unknown, interval
 
 

@@ -128,3 +128,24 @@ def test_a_real_flight_received_and_exported_cleans_like_its_gateway_log(
     assert exported.usable and original.usable
     assert key_fixes(exported) == key_fixes(original)
     assert [(f.time, f.alt_m) for f in exported.descent] == [(f.time, f.alt_m) for f in original.descent]
+
+
+def test_out_dash_writes_the_csv_to_stdout_and_the_summary_to_stderr(reports: ReportStore, tmp_path: Path) -> None:
+    """#24 item 12: `drs mo export --out -` wrote a file named `-`."""
+    import os
+    import subprocess
+    import sys
+
+    record_descent(reports)
+    config = tmp_path / "drs.toml"
+    config.write_text(f'[data]\ndir = "{tmp_path}"\n[[capsule]]\nname = "DRS1"\nhost = "x"\nimei = "{IMEI}"\n')
+    repo = Path(__file__).resolve().parents[3]
+    done = subprocess.run(
+        [sys.executable, "-m", "console.commands.main", "--config", str(config), "mo", "export", "DRS1", "--out", "-"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=60, env={**os.environ, "PYTHONPATH": str(repo)},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert not (tmp_path / "-").exists()
+    assert done.stdout.startswith("time,lat,lon,alt_m") and "fixes of DRS1" in done.stderr
+    (tmp_path / "piped.csv").write_text(done.stdout)
+    assert len(read_track(tmp_path / "piped.csv").fixes) == done.stdout.count("\n") - 1

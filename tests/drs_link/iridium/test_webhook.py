@@ -18,7 +18,7 @@ import pytest
 from drs_link.config import MoConfig
 from drs_link.errors import ConfigError
 from drs_link.iridium.firmware import format_mo
-from drs_link.iridium.importer import import_files
+from drs_link.iridium.importer import NAMES_ACCEPTED, import_files
 from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.iridium.webhook import MoHttpServer, MoReceiver
 from drs_link.sim.rockblock import MoDelivery, generate_test_keys, post_mo
@@ -246,7 +246,7 @@ def test_email_attachments_import_once_and_bad_files_are_reported(store: Store, 
     reports = ReportStore(store)
     outcomes = import_files([good, garbage, badly_named, huge, missing, good], reports)
     assert [o.status for o in outcomes] == ["new", "rejected", "error", "error", "error", "duplicate"]
-    assert "name is not <imei>-<momsn>.bin or .sbd (RockBLOCK) or YY-MM-DD_hh-mm-ss_<imei>_<momsn>.sbd" in outcomes[2].message
+    assert outcomes[2].message == f"name is not {NAMES_ACCEPTED}" and "<imei>_<momsn>.sbd (RockBLOCK)" in NAMES_ACCEPTED
     assert [r.delivery.momsn for r in reports.for_imei(IMEI)] == [13, 12] or [
         r.delivery.momsn for r in reports.for_imei(IMEI)
     ] == [12, 13]
@@ -257,6 +257,7 @@ def test_email_attachments_import_once_and_bad_files_are_reported(store: Store, 
     [
         (f"{IMEI}-000123.bin", 123, None),
         (f"{IMEI}-00000.sbd", 0, None),
+        (f"{IMEI}_125.sbd", 125, None),
         (f"19-04-07_09-59-59_{IMEI}_000124.sbd", 124, datetime(2019, 4, 7, 9, 59, 59, tzinfo=UTC)),
     ],
 )
@@ -422,3 +423,35 @@ def test_the_oldest_rejected_deliveries_make_room_for_new_ones(store: Store, mon
     kept = book.rejected_deliveries()
     assert [reason for reason, _ in kept] == [f"garbage {n}" for n in range(7, 12)]
     assert all(len(body) == reports.REJECTED_BODY_CHARS for _, body in kept)
+
+
+@pytest.mark.parametrize(
+    ("field", "altered"),
+    [("data", "31323334353637383931"), ("data", "3132_3334_3536_3738_3930"), ("data", "0031323334353637383930"),
+     ("momsn", "09"), ("momsn", "9.0"), ("imei", "0300234010753370")],
+)  # fmt: skip
+def test_identity_and_payload_claims_are_compared_as_exact_text_not_as_numbers(
+    store: Store, require_signed: MoConfig, gateway_keys: tuple[str, str], field: str, altered: str
+) -> None:
+    """#24 item 5: a signed data of 20 digits matched a delivered one differing in the 20th digit (equal as
+    floats), with ``_`` separators or with leading zeros, and was stored as verified."""
+    fields = {**delivery(9).fields(), "data": "31323334353637383930"}
+    claims: dict[str, object] = {**fields, "momsn": 9}
+    body = json.dumps({**fields, field: altered, "JWT": _signed(gateway_keys[0], claims)}).encode()
+    assert _post_json_once(store, require_signed, body) == 401
+    assert ReportStore(store).for_imei(IMEI) == [] and ReportStore(store).for_imei("0300234010753370") == []
+    assert [reason for reason, _ in ReportStore(store).rejected_deliveries()] == [
+        f"JWT claim {field} does not match the delivered {field}"
+    ]
+
+
+def test_a_token_issued_a_second_ahead_of_this_clock_is_accepted_within_the_leeway(
+    store: Store, require_signed: MoConfig, gateway_keys: tuple[str, str]
+) -> None:
+    import time
+
+    fields = delivery(10).fields()
+    ahead = _signed(gateway_keys[0], {**fields, "iat": int(time.time()) + 2})
+    assert _post_json_once(store, require_signed, json.dumps({**fields, "JWT": ahead}).encode()) == 200
+    far = _signed(gateway_keys[0], {**fields, "momsn": "11", "iat": int(time.time()) + 600})
+    assert _post_json_once(store, require_signed, json.dumps({**fields, "momsn": "11", "JWT": far}).encode()) == 401

@@ -196,3 +196,18 @@ def test_any_single_character_corruption_is_rejected(position: int, char: str) -
     mutated = REAL_GGA[:position] + char + REAL_GGA[position + 1 :]
     if mutated != REAL_GGA:
         assert parse_sentence(mutated) in ("malformed", "bad_checksum")
+
+
+def test_the_in_talker_is_read_like_gp_and_gn() -> None:
+    """#25 item 9: an integrated-navigation receiver's $INGGA/$INRMC were ignored, so no fix was shown."""
+    gga = parse_sentence(format_gga(NOW, 10.5, -20.25, 1, 7, 1.2, 100.0, talker="IN"))
+    rmc = parse_sentence(format_rmc(NOW, 10.5, -20.25, talker="IN"))
+    assert isinstance(gga, GgaSentence) and gga.talker == "IN" and gga.altitude_m == 100.0
+    assert isinstance(rmc, RmcSentence) and rmc.talker == "IN" and rmc.valid
+
+
+@pytest.mark.parametrize(("satellites", "altitude"), [(7, "1e308"), (28000, "100.0"), (7, "999999.0"), (7, "-5000.0")])
+def test_impossible_altitudes_and_satellite_counts_are_malformed(satellites: int, altitude: str) -> None:
+    """#24 item 12: GGA altitudes of 1e308 and 28,000 satellites were shown as the capsule's fix."""
+    body = f"GPGGA,092750.000,5321.6802,N,00630.3372,W,1,{satellites},1.03,{altitude},M,55.2,M,,"
+    assert parse_sentence(f"${body}*{nmea_checksum(body):02X}") == "malformed"

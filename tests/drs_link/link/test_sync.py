@@ -185,3 +185,51 @@ def test_missing_source_directory_is_a_clear_error(
     syncer, _ = _syncer(tmp_path, sim_config(make_sim()))
     with pytest.raises(LinkError, match="is not a directory"):
         syncer.status(tmp_path / "nope")
+
+
+def test_links_fifos_and_loops_in_the_source_are_left_out_by_name_and_never_followed(
+    make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig], tmp_path: Path
+) -> None:
+    """#24 item 11: a file link's target (anything on the laptop) was uploaded to the RAID dropped from the
+    balloon, and directory links, loops and FIFOs were skipped without a word."""
+    sim = make_sim()
+    source = _source(tmp_path, {"frames.bin": 2000})
+    secret = tmp_path / "laptop-secret.txt"
+    secret.write_text("not for the capsule")
+    (source / "secret-link.txt").symlink_to(secret)
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "elsewhere" / "inside.bin").write_bytes(b"x" * 10)
+    (source / "folder-link").symlink_to(tmp_path / "elsewhere")
+    (source / "loop").symlink_to(source / "loop")
+    os.mkfifo(source / "pipe")
+    syncer, link = _syncer(tmp_path, sim_config(sim))
+    report = syncer.sync(source)
+    assert report.uploaded == ("frames.bin",)
+    assert sorted(entry.split(" (")[0] for entry in report.left_out) == [
+        "folder-link/", "loop", "pipe", "secret-link.txt"
+    ]
+    assert all("(" in entry and entry.endswith(")") for entry in report.left_out)
+    on_pi = sorted(p.relative_to(sim.storage_dir).as_posix() for p in sim.storage_dir.rglob("*"))
+    assert on_pi == ["frames.bin"]
+    assert not any(b"not for the capsule" in p.read_bytes() for p in sim.storage_dir.rglob("*") if p.is_file())
+    link.close()
+
+
+def test_a_planted_partial_link_or_directory_link_on_the_pi_never_writes_outside_the_mount(
+    make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig], tmp_path: Path
+) -> None:
+    sim = make_sim()
+    outside = tmp_path / "outside-the-mount"
+    outside.mkdir()
+    victim = outside / "victim.bin"
+    victim.write_bytes(b"keep me")
+    (sim.storage_dir / f"a.bin{PARTIAL_SUFFIX}").symlink_to(victim)
+    (sim.storage_dir / "maps").symlink_to(outside)
+    source = _source(tmp_path, {"a.bin": 3000, "maps/b.bin": 1000})
+    syncer, link = _syncer(tmp_path, sim_config(sim))
+    with pytest.raises(LinkError, match=r"maps on the Pi is a link; refusing to write maps/b.bin through it"):
+        syncer.sync(source)
+    assert victim.read_bytes() == b"keep me" and sorted(p.name for p in outside.iterdir()) == ["victim.bin"]
+    assert _digest(sim.storage_dir / "a.bin") == _digest(source / "a.bin")
+    assert not (sim.storage_dir / "a.bin").is_symlink()
+    link.close()
