@@ -27,7 +27,7 @@ from textual.screen import ModalScreen, Screen
 from textual.worker import Worker, WorkerState
 
 from console.context import ConsoleContext, ConsoleSetup
-from console.messages import OperatorNotice, TelemetryArrived
+from console.messages import OperatorNotice, RecoveryRead, RecoveryWanted, TelemetryArrived
 from console.screens import ConfirmModal, FleetScreen
 from drs_link.errors import LinkError
 from drs_link.ops import (
@@ -46,6 +46,7 @@ from drs_link.ops import (
     TelemetryRecord,
     record_loss,
     record_start,
+    recovery_view,
     unprotected_ssh_warning,
 )
 from drs_link.store import Store
@@ -91,6 +92,8 @@ class DrsConsole(App[int]):
         self._store_version = 0
         self._audit_seen = 0
         """The newest audit row this console has shown or written: what another console wrote comes after."""
+        self._recovery_reading: set[str] = set()
+        self._recovery_stale: set[str] = set()
 
     # The context's state and calls, as the app's own code (and its tests) name them ------------
 
@@ -217,6 +220,7 @@ class DrsConsole(App[int]):
                             timeout=8)  # fmt: skip
         if self.ops is not None:
             self.poll_reports()
+        self.read_views()
         self.refresh_screen()
 
     def tick(self) -> None:
@@ -331,7 +335,46 @@ class DrsConsole(App[int]):
                 self.ops.recorder.append(record)
         self.post_message(TelemetryArrived(records))
 
+    def read_views(self, capsules: Iterable[str] | None = None) -> None:
+        """Read afresh the recovery of each capsule a screen in the stack shows (of ``capsules``, or all)."""
+        shown = {getattr(screen, "recovery_of", None) for screen in self.screen_stack} - {None}
+        for capsule in shown if capsules is None else shown & set(capsules):
+            self.read_recovery(str(capsule))
+
+    def read_recovery(self, capsule: str) -> None:
+        """One read at a time per capsule; a change while it runs reads once more when it ends."""
+        if capsule in self._recovery_reading:
+            self._recovery_stale.add(capsule)
+            return
+        self._recovery_reading.add(capsule)
+        self._read_recovery(capsule)
+
+    @work(thread=True, exit_on_error=False, group="views")
+    def _read_recovery(self, capsule: str) -> None:
+        try:
+            if self.ops is not None:
+                live = self.setup.predictions.live if self.setup.predictions is not None else None
+                self.post_message(RecoveryRead(recovery_view(self.ops, capsule, live)))
+        finally:
+            self.call_from_thread(self._recovery_done, capsule)
+
+    def _recovery_done(self, capsule: str) -> None:
+        self._recovery_reading.discard(capsule)
+        if capsule in self._recovery_stale:
+            self._recovery_stale.discard(capsule)
+            self.read_recovery(capsule)
+
     # Messages ---------------------------------------------------------------------------------
+
+    @on(RecoveryWanted)
+    def want_recovery(self, message: RecoveryWanted) -> None:
+        self.read_recovery(message.capsule)
+
+    @on(RecoveryRead)
+    def show_recovery(self, message: RecoveryRead) -> None:
+        for screen in self.screen_stack:
+            if getattr(screen, "recovery_of", None) == message.view.capsule:
+                screen.post_message(RecoveryRead(message.view))
 
     @on(TelemetryArrived)
     def fold(self, message: TelemetryArrived) -> None:
@@ -348,6 +391,7 @@ class DrsConsole(App[int]):
                     arming.link_lost()
                 else:
                     arming.observe(self.gonogo(name))
+        self.read_views({r.capsule for r in message.records if r.capsule})
         if self.setup.predictions is not None and any(isinstance(r.data, BalloonSample | GnssSample) for r in message.records):
             self.first_predictions()  # a first position: predict now, not at the next tick
         self.refresh_screen()

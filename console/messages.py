@@ -9,7 +9,7 @@ from __future__ import annotations
 from textual.message import Message
 from textual.notifications import SeverityLevel
 
-from drs_link.ops import TelemetryRecord
+from drs_link.ops import RecoveryView, TelemetryRecord
 
 
 class TelemetryArrived(Message):
@@ -27,3 +27,21 @@ class OperatorNotice(Message):
         super().__init__()
         self.text = text
         self.severity = severity
+
+
+class RecoveryWanted(Message):
+    """A screen shows this capsule's recovery: the app reads it in a worker now and whenever the store
+    or the capsule's telemetry changes (the screen never reads the store itself)."""
+
+    def __init__(self, capsule: str) -> None:
+        super().__init__()
+        self.capsule = capsule
+
+
+class RecoveryRead(Message, bubble=False):
+    """A capsule's recovery as the store had it: to the app, which hands it on to the screens that show it
+    (not bubbling, so a screen's copy never comes back to the app)."""
+
+    def __init__(self, view: RecoveryView) -> None:
+        super().__init__()
+        self.view = view

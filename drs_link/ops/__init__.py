@@ -4,7 +4,8 @@
 ``gonogo`` the poll before ARM; ``checklist`` and ``procedure`` the procedures as data; ``approval`` the
 second operator and ``identity`` which login is another person; ``authorize`` the PARACHUTE gate,
 ``override`` what stays on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and
-``origin`` what is known of each capsule and how old it is; ``session`` a console that ends without
+``origin`` what is known of each capsule and how old it is; ``recovery`` where a dropped capsule is
+and is going; ``session`` a console that ends without
 quitting; and ``operations`` the console's engine without a screen.
 """
 
@@ -25,11 +26,15 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Checklist": "checklist",
         "ChecklistRun": "checklist",
         "Contour": "telemetry",
+        "Descent": "recovery",
+        "DropView": "recovery",
         "FleetState": "fleet",
         "Freshness": "staleness",
         "GnssSample": "telemetry",
         "GoNoGoReport": "gonogo",
         "LinkSample": "telemetry",
+        "LiveSource": "recovery",
+        "LiveView": "recovery",
         "Login": "approval",
         "MISSING_TEXT": "staleness",
         "Operations": "operations",
@@ -41,6 +46,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Reading": "staleness",
         "SECOND_LOGIN_HOWTO": "arming",
         "SecondOperator": "operations",
+        "RecoveryView": "recovery",
         "ReleaseOrigin": "origin",
         "ReleaseSample": "telemetry",
         "ReleaseState": "capsule",
@@ -59,6 +65,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "WAIVER_REASON_MAX": "gonogo",
         "approved": "approval",
         "authorize_mt": "authorize",
+        "capsule_descent": "recovery",
         "carries_parachute": "authorize",
         "cli_holder": "operations",
         "complete_command": "checklist",
@@ -67,6 +74,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "drop_schedule": "override",
         "after_drop": "override",
         "evaluate": "gonogo",
+        "follow_descent": "recovery",
         "format_age": "staleness",
         "hazard_of": "authorize",
         "load_checklists": "checklist",
@@ -76,6 +84,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "record_as_dict": "capsule",
         "record_loss": "session",
         "record_start": "session",
+        "recovery_view": "recovery",
         "release_origin": "origin",
         "report_position": "operations",
         "take_over_outcome": "capsule",

@@ -1,7 +1,7 @@
 """After a PARACHUTE override in flight the console stays loud: a banner on the fleet, release and
 recovery screens, no tick on "Landing confirmed", and Recovery says when release B opens (issue #23).
 
-The override goes through the real gate (``authorize_mt``) and the MT through the real lifecycle to
+The override goes through the real gate (``Operations.send_mt``) and the MT through the real lifecycle to
 the simulated RockBLOCK on loopback, as `drs mt send --override-landed` from another terminal does.
 """
 
@@ -22,8 +22,7 @@ from drs_link.config import RockblockConfig
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.ops.authorize import authorize_mt
-from drs_link.ops.operations import Operations
+from drs_link.ops.operations import Operations, SecondOperator
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store
 from tests.console.conftest import T0, offline_config, wait_for
@@ -63,17 +62,9 @@ def overridden_app(tmp_path: Path, gateway: SimulatedRockblock, override: bool =
         )
     if override:
         message = MtComposer().add("PARACHUTE", (12, 0)).build()
-        authorize_mt(
-            store,
-            "DRS1",
-            "EL",
-            message,
-            operations.stored_reports("DRS1"),
-            single_operator_waiver="alone",
-            require_second_operator=False,
-            override_landed="chase sees it down",
+        operations.send_mt(
+            "DRS1", message, "DRS1", SecondOperator(waiver="alone"), override_landed="chase sees it down"
         )
-        operations.send_mt("DRS1", message, "DRS1")
     setup = ConsoleSetup(
         mode="live",
         capsules=["DRS1", "DRS2", "DRS3"],

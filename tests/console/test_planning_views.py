@@ -93,21 +93,19 @@ async def test_the_recovery_view_re_predicts_a_descending_capsule_from_its_repor
         await pilot.press("v")
         screen = app.screen
         assert isinstance(screen, RecoveryScreen) and screen.capsule == "DRS1"
-        await wait_for(
-            pilot, lambda: screen.live is not None and screen.live["legs_used"] >= 1
-        )
+        await wait_for(pilot, lambda: screen.live is not None and screen.live.legs_used >= 1)
         live = screen.live
         assert live is not None and screen.landing is None
-        assert live["measured_rate_factor"] is not None and 0.3 < live["measured_rate_factor"] < 3.0
-        assert live["report"]["alt_m"] < 31500.0 and live["remaining_drift_km"] > 0.0
+        assert live.measured_rate_factor is not None and 0.3 < live.measured_rate_factor < 3.0
+        assert live.report_alt_m < 31500.0 and live.remaining_drift_km > 0.0
         screen.refresh_view()
         text = str(screen.query_one("#recovery-text").render())
         assert "Live re-prediction from the" in text
-        assert f"{live['landing']['lat']:.4f}, {live['landing']['lon']:.4f}" in text
+        assert f"{live.landing_lat:.4f}, {live.landing_lon:.4f} at {live.landing_time:%H:%M:%S}Z" in text
         assert "measured rate factor" in text and "correction:" in text
         layers = screen.query_one("#recovery-map", LandingMap).layers
-        assert layers.ahead == [tuple(p) for p in live["path"]] and layers.ahead[0] != layers.ahead[-1]
-        assert layers.ellipse == [tuple(p) for p in live["outline_2sigma"]], "the live ring, not the release one"
+        assert layers.ahead == list(live.path) and layers.ahead[0] != layers.ahead[-1]
+        assert layers.ellipse == list(live.outline_2sigma), "the live ring, not the release one"
         assert "⠿ predicted" in str(screen.query_one("#recovery-map").render())
 
 
