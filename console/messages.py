@@ -9,7 +9,7 @@ from __future__ import annotations
 from textual.message import Message
 from textual.notifications import SeverityLevel
 
-from drs_link.ops import RecoveryView, TelemetryRecord
+from drs_link.ops import IridiumHealthView, RecoveryView, TelemetryRecord
 
 
 class TelemetryArrived(Message):
@@ -29,19 +29,20 @@ class OperatorNotice(Message):
         self.severity = severity
 
 
-class RecoveryWanted(Message):
-    """A screen shows this capsule's recovery: the app reads it in a worker now and whenever the store
-    or the capsule's telemetry changes (the screen never reads the store itself)."""
+class ViewWanted(Message):
+    """A screen shows this view (``"recovery"`` or ``"iridium"``) of a capsule: the app reads it in a worker
+    now and whenever the store or the capsule's telemetry changes (the screen never reads the store)."""
 
-    def __init__(self, capsule: str) -> None:
+    def __init__(self, kind: str, capsule: str) -> None:
         super().__init__()
+        self.kind = kind
         self.capsule = capsule
 
 
-class RecoveryRead(Message, bubble=False):
-    """A capsule's recovery as the store had it: to the app, which hands it on to the screens that show it
-    (not bubbling, so a screen's copy never comes back to the app)."""
+class ViewRead(Message, bubble=False):
+    """A capsule's view as the store (or the replay) had it: to the app, which hands it on to the screens
+    that show it (not bubbling, so a screen's copy never comes back to the app)."""
 
-    def __init__(self, view: RecoveryView) -> None:
+    def __init__(self, view: RecoveryView | IridiumHealthView) -> None:
         super().__init__()
         self.view = view

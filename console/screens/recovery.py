@@ -24,7 +24,7 @@ from textual.containers import Horizontal
 from textual.widgets import Static
 
 from console.context import ConsoleContext
-from console.messages import RecoveryRead, RecoveryWanted
+from console.messages import ViewRead, ViewWanted
 from console.screens.commanding import CommandingScreen, command_bindings
 from console.screens.iridium import IridiumScreen
 from console.widgets import LandingMap, MapLayers, set_content
@@ -66,8 +66,8 @@ class RecoveryScreen(CommandingScreen):
     def __init__(self, context: ConsoleContext, capsule: str) -> None:
         super().__init__(context)
         self.capsule = capsule
-        self.recovery_of = capsule
-        """The capsule whose ``RecoveryView`` the app delivers to this screen."""
+        self.shows = ("recovery", capsule)
+        """The view the app delivers to this screen (``console.messages.ViewRead``)."""
         self.view: RecoveryView | None = None
 
     @property
@@ -107,12 +107,13 @@ class RecoveryScreen(CommandingScreen):
 
     def ask_for_view(self) -> None:
         """Ask the app for this capsule's recovery now (it also re-reads it whenever the store changes)."""
-        self.post_message(RecoveryWanted(self.capsule))
+        self.post_message(ViewWanted(*self.shows))
 
-    @on(RecoveryRead)
-    def show_view(self, message: RecoveryRead) -> None:
-        self.view = message.view
-        self.refresh_view()
+    @on(ViewRead)
+    def show_view(self, message: ViewRead) -> None:
+        if isinstance(message.view, RecoveryView):
+            self.view = message.view
+            self.refresh_view()
 
     def drop_lines(self, landing_time: datetime | None) -> list[str]:
         """The override's drop, as the firmware does it, and what the descent becomes after it."""

@@ -5,7 +5,7 @@
 second operator and ``identity`` which login is another person; ``authorize`` the PARACHUTE gate,
 ``override`` what stays on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and
 ``origin`` what is known of each capsule and how old it is; ``recovery`` where a dropped capsule is
-and is going; ``session`` a console that ends without
+and is going, ``views`` what the per-capsule screens show, from the store or a replay; ``session`` a console that ends without
 quitting; and ``operations`` the console's engine without a screen.
 """
 
@@ -30,6 +30,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "DropView": "recovery",
         "FleetState": "fleet",
         "Freshness": "staleness",
+        "IridiumHealthView": "views",
         "GnssSample": "telemetry",
         "GoNoGoReport": "gonogo",
         "LinkSample": "telemetry",
@@ -47,20 +48,24 @@ __getattr__, __dir__, __all__ = lazy_door(
         "SECOND_LOGIN_HOWTO": "arming",
         "SecondOperator": "operations",
         "RecoveryView": "recovery",
+        "RecordedViews": "views",
         "ReleaseOrigin": "origin",
         "ReleaseSample": "telemetry",
         "ReleaseState": "capsule",
         "ReleaseStateMachine": "capsule",
+        "ReportRow": "views",
         "ReportSample": "telemetry",
         "STALE_GLYPH": "staleness",
         "Sample": "telemetry",
         "StepKind": "checklist",
         "StepState": "checklist",
         "StorageSample": "telemetry",
+        "StoreViews": "views",
         "SyncSample": "telemetry",
         "TelemetryRecord": "telemetry",
         "TelemetryRecorder": "telemetry",
         "Verdict": "gonogo",
+        "ViewSource": "views",
         "WAIVABLE": "gonogo",
         "WAIVER_REASON_MAX": "gonogo",
         "approved": "approval",
@@ -74,6 +79,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "drop_schedule": "override",
         "after_drop": "override",
         "evaluate": "gonogo",
+        "descent_along": "recovery",
         "follow_descent": "recovery",
         "format_age": "staleness",
         "hazard_of": "authorize",

@@ -122,7 +122,11 @@ class RecoveryView:
 
 def follow_descent(reports: Sequence[StoredReport], capsule: str, live: LiveSource | None) -> Descent:
     """Reports → track → landing → live re-prediction (only while descending, and only with weather)."""
-    track = tuple(track_from_reports(list(reports)))
+    return descent_along(tuple(track_from_reports(list(reports))), capsule, live)
+
+
+def descent_along(track: tuple[TrackPoint, ...], capsule: str, live: LiveSource | None) -> Descent:
+    """Track → landing → live re-prediction: a replay's track comes from its recorded reports."""
     landing = detect_landing(list(track))
     if landing is not None or not track or live is None:
         return Descent(track, landing)
