@@ -1,4 +1,5 @@
-"""A replay shows Recovery and Iridium health from the reports it has played.
+"""A replay shows Recovery and Iridium health from the reports it has played; a live console shows a store
+change on them when the store changes, not by the screens polling it.
 
 Both screens read the store from their render method before, so a replay (no store behind it, no
 operations) showed "No GNSS fix received yet" and "no Iridium reports" for a capsule whose descent
@@ -7,6 +8,7 @@ and landing were in the recording. Now the app hands both screens their views fr
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from datetime import timedelta
 from pathlib import Path
 
@@ -18,7 +20,7 @@ from console.screens.iridium import IridiumScreen
 from console.screens.recovery import RecoveryScreen
 from drs_link.ops import ReportSample, TelemetryRecord
 from drs_link.store import Store
-from tests.console.conftest import T0, wait_for
+from tests.console.conftest import T0, offline_config, seed_reports, wait_for
 
 pytestmark = pytest.mark.asyncio
 ALTITUDES = (19_900.0, 18_000.0, 16_100.0, 500.0, 500.0, 500.0, 500.0)
@@ -63,3 +65,25 @@ async def test_a_replay_shows_the_landing_and_the_reports_it_played(tmp_path: Pa
         table = iridium.query_one("#reports", DataTable)
         assert table.row_count == len(ALTITUDES)
         assert [str(c) for c in table.get_row_at(0)[:2]] == ["46", f"{T0 - timedelta(minutes=2):%H:%M:%S}Z"]
+
+
+async def test_the_recovery_screen_shows_what_another_console_stored_when_the_store_changes_not_by_polling(
+    canned_app: Callable[..., DrsConsole], tmp_path: Path
+) -> None:
+    app = canned_app()
+    config = offline_config(tmp_path)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("v")
+        recovery = app.screen
+        assert isinstance(recovery, RecoveryScreen) and recovery.capsule == "DRS1"
+        await wait_for(pilot, lambda: recovery.view is not None)
+        other = Store.open(config.store_path)  # another connection: the webhook, or a second console
+        seed_reports(other, config.capsules[0].imei or "", T0 - timedelta(minutes=30), 8)
+        other.close()
+        recovery.refresh_view()  # rendering alone reads nothing
+        await pilot.pause(0.2)
+        text = str(recovery.query_one("#recovery-text").render())
+        assert recovery.track == () and "No GNSS fix received yet" in text
+        app.watch_store()
+        await wait_for(pilot, lambda: recovery.landing is not None)
+        assert "Landed " in str(recovery.query_one("#recovery-text").render()) and len(recovery.track) == 8
