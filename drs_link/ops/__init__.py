@@ -5,7 +5,7 @@
 second operator and ``identity`` which login is another person; ``authorize`` the PARACHUTE gate,
 ``override`` what stays on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and
 ``origin`` what is known of each capsule and how old it is; ``recovery`` where a dropped capsule is
-and is going, ``views`` what the per-capsule screens show, from the store or a replay; ``session`` a console that ends without
+and is going, ``views`` what the per-capsule screens show, from the store or a replay; ``release_window`` the sweep; ``session`` a console that ends without
 quitting; and ``operations`` the console's engine without a screen.
 """
 
@@ -49,10 +49,12 @@ __getattr__, __dir__, __all__ = lazy_door(
         "SecondOperator": "operations",
         "RecoveryView": "recovery",
         "RecordedViews": "views",
+        "ReleaseCandidate": "release_window",
         "ReleaseOrigin": "origin",
         "ReleaseSample": "telemetry",
         "ReleaseState": "capsule",
         "ReleaseStateMachine": "capsule",
+        "ReleaseWindow": "release_window",
         "ReportRow": "views",
         "ReportSample": "telemetry",
         "STALE_GLYPH": "staleness",
