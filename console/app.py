@@ -27,7 +27,7 @@ from textual.screen import ModalScreen, Screen
 from textual.worker import Worker, WorkerState
 
 from console.context import ConsoleContext, ConsoleSetup
-from console.messages import OperatorNotice, TelemetryArrived
+from console.messages import OperatorNotice, TelemetryArrived, ViewRead, ViewWanted
 from console.screens import ConfirmModal, FleetScreen
 from drs_link.errors import LinkError
 from drs_link.ops import (
@@ -39,11 +39,16 @@ from drs_link.ops import (
     GnssSample,
     GoNoGoReport,
     LinkSample,
+    LiveSource,
     Operations,
     PredictionSample,
     PredictionStatus,
+    RecordedViews,
+    RecoveryView,
     ReleaseOrigin,
+    StoreViews,
     TelemetryRecord,
+    ViewSource,
     record_loss,
     record_start,
     unprotected_ssh_warning,
@@ -91,6 +96,12 @@ class DrsConsole(App[int]):
         self._store_version = 0
         self._audit_seen = 0
         """The newest audit row this console has shown or written: what another console wrote comes after."""
+        self.views: ViewSource = (
+            StoreViews(setup.operations, self._live) if setup.operations is not None else RecordedViews()
+        )
+        """Where the per-capsule screens' views come from: the store, or in a replay the recording."""
+        self._views_reading: set[tuple[str, str]] = set()
+        self._views_stale: set[tuple[str, str]] = set()
 
     # The context's state and calls, as the app's own code (and its tests) name them ------------
 
@@ -217,6 +228,7 @@ class DrsConsole(App[int]):
                             timeout=8)  # fmt: skip
         if self.ops is not None:
             self.poll_reports()
+        self.read_views()
         self.refresh_screen()
 
     def tick(self) -> None:
@@ -331,12 +343,59 @@ class DrsConsole(App[int]):
                 self.ops.recorder.append(record)
         self.post_message(TelemetryArrived(records))
 
+    def read_views(self, capsules: Iterable[str] | None = None) -> None:
+        """Read afresh each view a screen in the stack shows (of ``capsules``, or all)."""
+        for screen in self.screen_stack:
+            shows = getattr(screen, "shows", None)
+            if shows is not None and (capsules is None or shows[1] in capsules):
+                self.read_view(*shows)
+
+    def read_view(self, kind: str, capsule: str) -> None:
+        """One read at a time per view; a change while it runs reads once more when it ends."""
+        key = (kind, capsule)
+        if key in self._views_reading:
+            self._views_stale.add(key)
+            return
+        self._views_reading.add(key)
+        self._read_view(kind, capsule)
+
+    @work(thread=True, exit_on_error=False, group="views")
+    def _read_view(self, kind: str, capsule: str) -> None:
+        try:
+            view = self.views.recovery(capsule) if kind == "recovery" else self.views.iridium(capsule)
+            self.post_message(ViewRead(view))
+        finally:
+            self.call_from_thread(self._view_done, (kind, capsule))
+
+    def _view_done(self, key: tuple[str, str]) -> None:
+        self._views_reading.discard(key)
+        if key in self._views_stale:
+            self._views_stale.discard(key)
+            self.read_view(*key)
+
+    def _live(self) -> LiveSource | None:
+        """The live re-prediction, once the prediction service (the weather) is there."""
+        service = self.setup.predictions
+        return service.live if service is not None else None
+
     # Messages ---------------------------------------------------------------------------------
+
+    @on(ViewWanted)
+    def want_view(self, message: ViewWanted) -> None:
+        self.read_view(message.kind, message.capsule)
+
+    @on(ViewRead)
+    def show_view(self, message: ViewRead) -> None:
+        key = ("recovery" if isinstance(message.view, RecoveryView) else "iridium", message.view.capsule)
+        for screen in self.screen_stack:
+            if getattr(screen, "shows", None) == key:
+                screen.post_message(ViewRead(message.view))
 
     @on(TelemetryArrived)
     def fold(self, message: TelemetryArrived) -> None:
         for record in message.records:
             self.fleet.apply(record)
+        self.views.observe(message.records)
         if self.ops is not None:
             touched = {r.capsule for r in message.records if r.capsule}
             for name in touched & set(self.setup.capsules):
@@ -348,6 +407,7 @@ class DrsConsole(App[int]):
                     arming.link_lost()
                 else:
                     arming.observe(self.gonogo(name))
+        self.read_views({r.capsule for r in message.records if r.capsule})
         if self.setup.predictions is not None and any(isinstance(r.data, BalloonSample | GnssSample) for r in message.records):
             self.first_predictions()  # a first position: predict now, not at the next tick
         self.refresh_screen()

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 from drs_link.config import Config
 from drs_link.feeds import ChaseFeed, ChaseSender, ChaseStore, chase_kml_path, chase_points
-from drs_link.iridium import detect_landing, track_from_reports
+from drs_link.ops import capsule_descent
 from predictor.errors import PredictorError
 
 if TYPE_CHECKING:
@@ -46,15 +46,13 @@ class LandingKeeper:
         service, ops = self.setup.predictions, self.setup.operations
         if service is None:
             return None
-        track = track_from_reports(ops.stored_reports(capsule)) if ops is not None else []
-        if not track:
+        descent = capsule_descent(ops, capsule, service.live) if ops is not None else None
+        if descent is None or not descent.track:
             return (service.latest[capsule], RELEASE_NOW) if capsule in service.latest else None
-        if detect_landing(track) is not None:
+        if descent.landing is not None:
             return None
-        try:
-            service.live(capsule, track)
-        except PredictorError as exc:
-            log.warning("chase feed: no live prediction for %s: %s", capsule, exc)
+        if descent.live_error is not None:
+            log.warning("chase feed: no live prediction for %s: %s", capsule, descent.live_error)
         return (service.live_latest[capsule], LIVE) if capsule in service.live_latest else None
 
     def keep_all(self) -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 from textual.message import Message
 from textual.notifications import SeverityLevel
 
-from drs_link.ops import TelemetryRecord
+from drs_link.ops import IridiumHealthView, RecoveryView, TelemetryRecord
 
 
 class TelemetryArrived(Message):
@@ -27,3 +27,22 @@ class OperatorNotice(Message):
         super().__init__()
         self.text = text
         self.severity = severity
+
+
+class ViewWanted(Message):
+    """A screen shows this view (``"recovery"`` or ``"iridium"``) of a capsule: the app reads it in a worker
+    now and whenever the store or the capsule's telemetry changes (the screen never reads the store)."""
+
+    def __init__(self, kind: str, capsule: str) -> None:
+        super().__init__()
+        self.kind = kind
+        self.capsule = capsule
+
+
+class ViewRead(Message, bubble=False):
+    """A capsule's view as the store (or the replay) had it: to the app, which hands it on to the screens
+    that show it (not bubbling, so a screen's copy never comes back to the app)."""
+
+    def __init__(self, view: RecoveryView | IridiumHealthView) -> None:
+        super().__init__()
+        self.view = view

@@ -16,8 +16,7 @@ from textual.widgets import DataTable, Static
 from console.screens.base import ConsoleScreen
 from console.screens.modals import ConfirmModal, TextPromptModal
 from console.widgets import fill_rows, set_content
-from drs_link.errors import LinkError
-from drs_link.ops import ACTIONS, ApprovalBook, current_login
+from drs_link.ops import ACTIONS, Approval, ApprovalBook, current_login
 
 COLUMNS = ("#", "Capsule", "Command", "Requested by", "Expires")
 HELP = (
@@ -104,10 +103,14 @@ class ApprovalScreen(ConsoleScreen):
         self.app.push_screen(TextPromptModal(f"Reject #{approval}", "Why (the requester is told):"), reason)
 
     def _decide(self, approval: int, approve: bool, reason: str) -> None:
-        try:
-            decided = self.book.decide(approval, self.context.operator, current_login(), approve, reason)
-        except LinkError as exc:
-            self.app.notify(str(exc), severity="error", timeout=12)
-            return
-        self.app.notify(f"#{decided.id} {decided.state}")
-        self.refresh_view()
+        operator, book = self.context.operator, self.book
+
+        def shown(decided: Approval) -> None:
+            self.app.notify(f"#{decided.id} {decided.state}")
+            self.refresh_view()
+
+        self.write_off_ui(
+            lambda: book.decide(approval, operator, current_login(), approve, reason),
+            shown,
+            lambda exc: self.app.notify(str(exc), severity="error", timeout=12),
+        )

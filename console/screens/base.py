@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TypeVar
+
 from textual.app import ComposeResult
 from textual.css.query import NoMatches
 from textual.screen import Screen
@@ -9,6 +12,9 @@ from textual.widgets import Footer
 
 from console.context import ConsoleContext
 from console.widgets import ModeBanner, OverrideBanner
+from drs_link.errors import LinkError
+
+T = TypeVar("T")
 
 FOOTER_ROOM = 100
 """Below this many columns the footer drops its "^p palette" hint (console.tcss): at 80 the hint,
@@ -52,3 +58,19 @@ class ConsoleScreen(Screen[None]):
 
     def update_view(self) -> None:
         """What the screen shows beyond the banner."""
+
+    def write_off_ui(
+        self, write: Callable[[], T], shown: Callable[[T], None], refused: Callable[[LinkError], None]
+    ) -> None:
+        """A key's store write in a worker thread: a shared store held by another console's write must
+        never freeze the screen. Its result, or its refusal, comes back on the UI thread."""
+
+        def run() -> None:
+            try:
+                result = write()
+            except LinkError as exc:
+                self.app.call_from_thread(refused, exc)
+                return
+            self.app.call_from_thread(shown, result)
+
+        self.run_worker(run, thread=True, group="store-write", exit_on_error=False)

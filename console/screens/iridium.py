@@ -3,26 +3,25 @@
 Every send names the capsule (the command lifecycle refuses otherwise) and shows the exact ASCII
 and hex first; PARACHUTE also goes through the two-person rule. The window helper computes the
 HH:MM from the report history; a time the capsule would reject is refused before anything is sent.
-That flow is ``console.screens.commanding``, shared with the recovery screen.
+That flow is ``console.screens.commanding``, shared with the recovery screen. What it lists comes as
+one ``IridiumHealthView`` from the app's worker (``drs_link.ops.views``), from the store or a replay.
 """
 
 from __future__ import annotations
 
-import time
-
 from rich.text import Text
-from textual import work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical
 from textual.widgets import DataTable, Label, Static
 
 from console.context import ConsoleContext
+from console.messages import ViewRead, ViewWanted
 from console.screens.commanding import CommandingScreen, command_bindings
-from drs_link.iridium import Command, assess
-from drs_link.ops import report_position
+from drs_link.iridium import Command
+from drs_link.ops import IridiumHealthView
 
-RELOAD_S = 2.0
 COMMAND_COLUMNS = ("#", "Text", "State", "Updated", "Detail")
 LIFECYCLE_WORDS = {
     "queued": "queued at gateway",
@@ -48,7 +47,9 @@ class IridiumScreen(CommandingScreen):
     def __init__(self, context: ConsoleContext, capsule: str) -> None:
         super().__init__(context)
         self.capsule = capsule
-        self.loaded_at = time.monotonic()
+        self.shows = ("iridium", capsule)
+        """The view the app delivers to this screen (``console.messages.ViewRead``)."""
+        self.view: IridiumHealthView | None = None
 
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
@@ -67,41 +68,30 @@ class IridiumScreen(CommandingScreen):
         )
         self.action_reload()
 
-    @work(thread=True, exit_on_error=False, group="iridium-read")
     def action_reload(self) -> None:
-        ops = self.context.ops
-        if ops is None:
-            return
-        reports = ops.stored_reports(self.capsule)
-        commands = ops.commands(self.capsule)
-        self.app.call_from_thread(self.show, reports, commands)
+        """Ask the app for this capsule's Iridium view now (it re-reads it whenever the store changes too)."""
+        self.post_message(ViewWanted(*self.shows))
 
-    def update_view(self) -> None:
-        """Re-read the store every few seconds: reports and command states change underneath."""
-        if time.monotonic() - self.loaded_at >= RELOAD_S:
-            self.loaded_at = time.monotonic()
-            self.action_reload()
+    @on(ViewRead)
+    def show_view(self, message: ViewRead) -> None:
+        if isinstance(message.view, IridiumHealthView):
+            self.show(message.view)
 
-    def show(self, reports: list, commands: list) -> None:  # type: ignore[type-arg]
-        health = assess(reports, commands) if reports else None
-        if health is None:
-            text = f"{self.capsule}: no Iridium reports yet"
-        else:
-            flags = "; ".join(f"{f.kind}: {f.message}" for f in health.findings[-4:]) or "no health flags"
-            vbat = f"{health.last_vbat:.2f} V" if health.last_vbat is not None else "?"
-            text = f"{self.capsule}: {health.reports} reports, battery {vbat}. {flags}"
-        self.query_one("#health", Static).update(text)
-        self.show_commands(commands)
+    def show(self, view: IridiumHealthView) -> None:
+        self.view = view
+        self.query_one("#health", Static).update(view.summary)
+        self.show_commands(list(view.commands))
         table = self.query_one("#reports", DataTable)
         table.clear()
-        for r in reversed(reports[-50:]):
-            fix = r.report.fix if r.report else None
-            position = report_position(r)
-            where = f"{position[0]:.4f},{position[1]:.4f} ({position[3]})" if position else "—"
+        for row in view.rows:
+            position = row.position
+            where = f"{position[0]:.4f},{position[1]:.4f} ({position[2]})" if position else "—"
             table.add_row(
-                str(r.delivery.momsn), f"{fix.time:%H:%M:%S}Z" if fix else "NO FIX", where,
-                f"{fix.alt_m} m" if fix else "—", f"{r.report.vbat:.2f}" if r.report else "?",
-                str(r.report.iteration) if r.report else "?",
+                "?" if row.momsn is None else str(row.momsn),
+                f"{row.fix_time:%H:%M:%S}Z" if row.fix_time else "NO FIX", where,
+                f"{row.alt_m} m" if row.fix_time and row.alt_m is not None else "—",
+                f"{row.vbat:.2f}" if row.vbat is not None else "?",
+                str(row.iteration) if row.iteration is not None else "?",
             )  # fmt: skip
 
     def show_commands(self, commands: list[Command]) -> None:

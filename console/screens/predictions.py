@@ -4,7 +4,6 @@ and the release-window timeline (when to drop), recomputed in a worker whenever 
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any
 
 from textual import work
 from textual.app import ComposeResult
@@ -18,7 +17,7 @@ from console.predictions import ReleaseOrigin
 from console.screens.base import ConsoleScreen
 from console.widgets import LandingMap, MapLayers, default_cursor, render_timeline
 from drs_link.errors import LinkError
-from drs_link.ops import STALE_GLYPH, PredictionSample, PredictionStatus, format_age
+from drs_link.ops import STALE_GLYPH, PredictionSample, PredictionStatus, ReleaseWindow, format_age
 from predictor.errors import PredictorError
 
 NEEDS_POSITION = "needs a fresh position: capsule GNSS or balloon feed"
@@ -71,7 +70,7 @@ class PredictionScreen(ConsoleScreen):
         super().__init__(context)
         self.capsule = capsule
         self.lead_min = 10
-        self.window: dict[str, Any] | None = None
+        self.window: ReleaseWindow | None = None
         self.window_basis: datetime | None = None
         """The "release now" prediction the window was computed after: a new one triggers a new sweep."""
         self.window_running = False
@@ -139,7 +138,7 @@ class PredictionScreen(ConsoleScreen):
             if self.window is None
             else "computed "
             + format_age(
-                (self.context.now() - datetime.fromisoformat(self.window["computed_at"])).total_seconds()
+                (self.context.now() - self.window.computed_at).total_seconds()
             )
             + " ago"
         )
@@ -154,21 +153,22 @@ class PredictionScreen(ConsoleScreen):
         zones_file = ops.config.console.exclusion_zones_file if ops else None
         window = self.window
         try:
-            window = self.context.setup.predictions.release_window(origin, zones_file, capsule=self.capsule)
+            sweep = self.context.setup.predictions.release_window(origin, zones_file, capsule=self.capsule)
+            window = ReleaseWindow.from_sweep(sweep)
         except PredictorError as exc:
             self.app.post_message(OperatorNotice(f"release window failed: {exc}", "warning"))
         finally:
             self.app.call_from_thread(self.show_window, window)
 
-    def show_window(self, window: dict[str, Any] | None) -> None:
+    def show_window(self, window: ReleaseWindow | None) -> None:
         self.window, self.window_running = window, False
         self.refresh_view()
 
     def action_cursor(self, step: int) -> None:
-        if self.window is None or not self.window["candidates"]:
+        if self.window is None or not self.window.candidates:
             return
         start = self.cursor if self.cursor is not None else default_cursor(self.window)
-        self.cursor = max(0, min(len(self.window["candidates"]) - 1, start + step))
+        self.cursor = max(0, min(len(self.window.candidates) - 1, start + step))
         self.refresh_view()
 
     def action_lead(self, step: int) -> None:

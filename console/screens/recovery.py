@@ -1,8 +1,9 @@
 """Recovery of one capsule: where it landed and how sure, how far from the team, the phone line, exports.
 
 While it is still descending (fixes arriving, no landing detected) it also shows the live
-re-prediction from the latest fix (``predictor.prediction.live``, computed in the same worker that reads the
-reports), so the team drives towards where it is going now, not where it was predicted at release.
+re-prediction from the latest fix, so the team drives towards where it is going now, not where it was
+predicted at release. All of it comes from the store as one ``RecoveryView`` (``drs_link.ops.recovery``),
+read by the app's worker when the store or the capsule's telemetry changes; the screen only shows it.
 
 The team also needs, on this one screen, what the sounder, the report interval and the parachute
 release were commanded to and how far each command got (``drs_link.iridium.commanded``: the unit
@@ -13,18 +14,17 @@ here with the Iridium screen's own confirmation flow (``console.screens.commandi
 from __future__ import annotations
 
 import math
-import time
 from datetime import datetime
-from typing import Any
 
 from rich.text import Text
-from textual import work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
 from textual.widgets import Static
 
 from console.context import ConsoleContext
+from console.messages import ViewRead, ViewWanted
 from console.screens.commanding import CommandingScreen, command_bindings
 from console.screens.iridium import IridiumScreen
 from console.widgets import LandingMap, MapLayers, set_content
@@ -32,27 +32,22 @@ from drs_link.iridium import (
     CommandedSettings,
     LandingEstimate,
     TrackPoint,
-    commanded_settings,
-    detect_landing,
     distance_bearing,
     phone_summary,
-    track_from_reports,
     write_gpx,
     write_kml,
 )
 from drs_link.ops import (
-    ParachuteOverride,
+    Descent,
+    DropView,
+    LiveView,
     PredictionSample,
+    RecoveryView,
     ReportSample,
     after_drop,
-    drop_schedule,
     format_age,
-    parachute_override,
 )
 from predictor.errors import PredictorError
-
-RELOAD_S = 2.0
-
 
 HELP = """\
 `e` export GPX + KML · `n` INTERVAL · `o`/`O` sounder off/on · `c`/`C` parachute
@@ -71,14 +66,33 @@ class RecoveryScreen(CommandingScreen):
     def __init__(self, context: ConsoleContext, capsule: str) -> None:
         super().__init__(context)
         self.capsule = capsule
-        self.track: list[TrackPoint] = []
-        self.landing: LandingEstimate | None = None
-        self.live: dict[str, Any] | None = None
-        self.live_error: str | None = None
-        self.settings: CommandedSettings | None = None
-        self.drop: tuple[ParachuteOverride, datetime | None, str] | None = None
-        """A PARACHUTE queued without landed evidence, when release B opens, and that in words."""
-        self.loaded_at = time.monotonic()
+        self.shows = ("recovery", capsule)
+        """The view the app delivers to this screen (``console.messages.ViewRead``)."""
+        self.view: RecoveryView | None = None
+
+    @property
+    def descent(self) -> Descent:
+        return self.view.descent if self.view is not None else Descent()
+
+    @property
+    def track(self) -> tuple[TrackPoint, ...]:
+        return self.descent.track
+
+    @property
+    def landing(self) -> LandingEstimate | None:
+        return self.descent.landing
+
+    @property
+    def live(self) -> LiveView | None:
+        return self.descent.live
+
+    @property
+    def settings(self) -> CommandedSettings | None:
+        return self.view.settings if self.view is not None else None
+
+    @property
+    def drop(self) -> DropView | None:
+        return self.view.drop if self.view is not None else None
 
     def compose(self) -> ComposeResult:
         yield from self.compose_banner()
@@ -89,53 +103,30 @@ class RecoveryScreen(CommandingScreen):
 
     def on_mount(self) -> None:
         self.ready = True
-        self.load()
+        self.ask_for_view()
 
-    @work(thread=True, exit_on_error=False, group="recovery-read")
-    def load(self) -> None:
-        ops = self.context.ops
-        reports = ops.stored_reports(self.capsule) if ops else []
-        commands = ops.commands(self.capsule) if ops else []
-        settings = commanded_settings(commands, reports) if ops else None
-        parachutes = self.context.store.audit(self.capsule, action="mt.parachute")
-        override = parachute_override(self.capsule, parachutes, commands)
-        drop = (override, *drop_schedule(override, reports)) if override is not None else None
-        track = track_from_reports(reports)
-        landing = detect_landing(track)
-        live, error = None, None
-        service = self.context.setup.predictions
-        if landing is None and track and service is not None:
-            try:
-                live = service.live(self.capsule, track)
-            except PredictorError as exc:
-                error = str(exc)
-        self.app.call_from_thread(self.show, track, landing, live, error, settings, drop)
+    def ask_for_view(self) -> None:
+        """Ask the app for this capsule's recovery now (it also re-reads it whenever the store changes)."""
+        self.post_message(ViewWanted(*self.shows))
 
-    def show(
-        self,
-        track: list[TrackPoint],
-        landing: LandingEstimate | None,
-        live: dict[str, Any] | None,
-        error: str | None,
-        settings: CommandedSettings | None,
-        drop: tuple[ParachuteOverride, datetime | None, str] | None = None,
-    ) -> None:
-        self.track, self.landing, self.live, self.live_error = track, landing, live, error
-        self.settings, self.drop = settings, drop
-        self.refresh_view()
+    @on(ViewRead)
+    def show_view(self, message: ViewRead) -> None:
+        if isinstance(message.view, RecoveryView):
+            self.view = message.view
+            self.refresh_view()
 
     def drop_lines(self, landing_time: datetime | None) -> list[str]:
         """The override's drop, as the firmware does it, and what the descent becomes after it."""
         if self.drop is None:
             return []
-        override, drop, words = self.drop
+        drop = self.drop
         return [
-            f"⚠ {override.text} queued WITHOUT landed evidence: {words}",
-            f"  {after_drop(drop, landing_time)}",
+            f"⚠ {drop.override.text} queued WITHOUT landed evidence: {drop.words}",
+            f"  {after_drop(drop.opens_at, landing_time)}",
         ]
 
     def reload_after_send(self) -> None:
-        self.load()
+        self.ask_for_view()
 
     def settings_lines(self) -> list[Text]:
         """Setting and value in bold: what a team in the field looks for first (is the sounder ON?)."""
@@ -150,36 +141,34 @@ class RecoveryScreen(CommandingScreen):
         return lines
 
     def live_lines(self) -> list[str]:
-        if self.landing is not None or not self.track:
+        if not self.descent.descending:
             return []
-        if self.live_error is not None:
-            return [f"Live re-prediction failed: {self.live_error}"]
-        if self.live is None:
+        if self.descent.live_error is not None:
+            return [f"Live re-prediction failed: {self.descent.live_error}"]
+        live = self.live
+        if live is None:
             return ["Live re-prediction: computing"]
-        live, landing, ellipse = self.live, self.live["landing"], self.live["ellipse"]
-        report_time = datetime.fromisoformat(live["report"]["time"])
-        age = format_age((self.context.now() - report_time).total_seconds())
-        rate = live["measured_rate_factor"]
+        age = format_age((self.context.now() - live.report_time).total_seconds())
+        rate = live.measured_rate_factor
         measured = "— (needs two fixes)" if rate is None else f"{rate:.2f}"
+        legs = f"{live.legs_used} leg{'' if live.legs_used == 1 else 's'}"
         lines = [
-            f"Live re-prediction from the {report_time:%H:%M:%S}Z fix ({age} ago) at {live['report']['alt_m']:.0f} m:",
-            f"  landing {landing['lat']:.4f}, {landing['lon']:.4f} at {landing['time'][11:19]}Z,"
-            f" {live['remaining_drift_km']:.1f} km to go",
-            f"  σ∥ {ellipse['sigma_parallel_km']:.2f} km  σ⊥ {ellipse['sigma_perpendicular_km']:.2f} km",
-            f"  measured rate factor {measured} from {live['legs_used']} leg{'' if live['legs_used'] == 1 else 's'}",
-            f"  correction: {live['correction']}",
-            *self.drop_lines(datetime.fromisoformat(landing["time"])),
+            f"Live re-prediction from the {live.report_time:%H:%M:%S}Z fix ({age} ago)"
+            f" at {live.report_alt_m:.0f} m:",
+            f"  landing {live.landing_lat:.4f}, {live.landing_lon:.4f} at {live.landing_time:%H:%M:%S}Z,"
+            f" {live.remaining_drift_km:.1f} km to go",
+            f"  σ∥ {live.sigma_parallel_km:.2f} km  σ⊥ {live.sigma_perpendicular_km:.2f} km",
+            f"  measured rate factor {measured} from {legs}",
+            f"  correction: {live.correction}",
+            *self.drop_lines(live.landing_time),
         ]
         team = self.context.setup.team_position
         if team is not None:
-            distance, bearing = distance_bearing(team[0], team[1], landing["lat"], landing["lon"])
+            distance, bearing = distance_bearing(team[0], team[1], live.landing_lat, live.landing_lon)
             lines.append(f"  from the team: {distance / 1000:.2f} km at {bearing:.0f}°")
         return lines
 
     def update_view(self) -> None:
-        if time.monotonic() - self.loaded_at >= RELOAD_S:
-            self.loaded_at = time.monotonic()
-            self.load()
         team = self.context.setup.team_position
         last = self.track[-1] if self.track else None
         lines: list[str | Text] = [f"{self.capsule} recovery", ""]
@@ -215,11 +204,11 @@ class RecoveryScreen(CommandingScreen):
             Text("\n").join(Text(line) if isinstance(line, str) else line for line in lines),
         )
         prediction = self.context.fleet.capsules[self.capsule].reading(PredictionSample).value
-        descending = self.live if self.landing is None and self.track else None
-        outline = descending["outline_2sigma"] if descending else prediction.outline_2sigma if prediction else ()
+        descending = self.live if self.descent.descending else None
+        outline = descending.outline_2sigma if descending else prediction.outline_2sigma if prediction else ()
         self.query_one("#recovery-map", LandingMap).layers = MapLayers(
             path=[(p.lon, p.lat) for p in self.track],
-            ahead=[tuple(p) for p in descending["path"]] if descending else (),
+            ahead=list(descending.path) if descending else (),
             ellipse=[tuple(p) for p in outline],
             landing=self.map_landing(),
             team=(team[1], team[0]) if team else None,
@@ -231,7 +220,7 @@ class RecoveryScreen(CommandingScreen):
         if self.landing is not None:
             return self.landing.lon, self.landing.lat
         if self.live is not None and self.track:
-            return self.live["landing"]["lon"], self.live["landing"]["lat"]
+            return self.live.landing_lon, self.live.landing_lat
         return None
 
     def action_iridium(self) -> None:
@@ -247,8 +236,8 @@ class RecoveryScreen(CommandingScreen):
         kml = directory / f"{self.capsule}-recovery-{stamp}.kml"
         try:
             demo = prediction is not None and prediction.is_demo
-            write_gpx(gpx, self.capsule, self.track, predicted, self.landing, predicted_is_demo=demo)
-            write_kml(kml, self.capsule, self.track, predicted, self.landing, predicted_is_demo=demo)
+            write_gpx(gpx, self.capsule, list(self.track), predicted, self.landing, predicted_is_demo=demo)
+            write_kml(kml, self.capsule, list(self.track), predicted, self.landing, predicted_is_demo=demo)
         except (OSError, PredictorError) as exc:
             self.app.notify(f"export failed: {exc}", severity="error")
             return

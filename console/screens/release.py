@@ -387,11 +387,16 @@ class ReleaseScreen(ConsoleScreen):
         def done(reason: str | None) -> None:
             if reason is None:
                 return
-            try:
-                self.ops.ops(self.capsule).waivers.grant(item, self.context.operator, reason)  # type: ignore[union-attr]
-            except LinkError as exc:
+            waivers = self.ops.ops(self.capsule).waivers  # type: ignore[union-attr]
+            operator = self.context.operator
+
+            def refused(exc: LinkError) -> None:
                 self._refused(exc)
-            self.refresh_view()
+                self.refresh_view()
+
+            self.write_off_ui(
+                lambda: waivers.grant(item, operator, reason), lambda _: self.refresh_view(), refused
+            )
 
         self.app.push_screen(
             TextPromptModal(f"Waive '{item}'", "Reason (logged with your name; only GNSS and sync can be waived):"),

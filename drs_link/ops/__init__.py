@@ -4,9 +4,11 @@
 ``gonogo`` the poll before ARM; ``checklist`` and ``procedure`` the procedures as data; ``approval`` the
 second operator and ``identity`` which login is another person; ``authorize`` the PARACHUTE gate,
 ``override`` what stays on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and
-``origin`` what is known of each capsule and how old it is; ``session`` a console that ends without
-quitting; and ``operations`` the console's engine without a screen; ``face_types`` the values below it that
-the faces show and compose, so that they import this door alone.
+``origin`` what is known of each capsule and how old it is; ``recovery`` where a dropped capsule is
+and is going, ``views`` what the per-capsule screens show, from the store or a replay; ``release_window``
+the sweep; ``session`` a console that ends without quitting; ``operations`` the console's engine
+without a screen; and ``face_types`` the values below it that the faces show and compose, so that
+they import this door alone.
 """
 
 from predictor.lazy_door import lazy_door
@@ -43,11 +45,16 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Checklist": "checklist",
         "ChecklistRun": "checklist",
         "Contour": "telemetry",
+        "Descent": "recovery",
+        "DropView": "recovery",
         "FleetState": "fleet",
         "Freshness": "staleness",
+        "IridiumHealthView": "views",
         "GnssSample": "telemetry",
         "GoNoGoReport": "gonogo",
         "LinkSample": "telemetry",
+        "LiveSource": "recovery",
+        "LiveView": "recovery",
         "Login": "approval",
         "MISSING_TEXT": "staleness",
         "Operations": "operations",
@@ -59,24 +66,32 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Reading": "staleness",
         "SECOND_LOGIN_HOWTO": "arming",
         "SecondOperator": "operations",
+        "RecoveryView": "recovery",
+        "RecordedViews": "views",
+        "ReleaseCandidate": "release_window",
         "ReleaseOrigin": "origin",
         "ReleaseSample": "telemetry",
         "ReleaseState": "capsule",
         "ReleaseStateMachine": "capsule",
+        "ReleaseWindow": "release_window",
+        "ReportRow": "views",
         "ReportSample": "telemetry",
         "STALE_GLYPH": "staleness",
         "Sample": "telemetry",
         "StepKind": "checklist",
         "StepState": "checklist",
         "StorageSample": "telemetry",
+        "StoreViews": "views",
         "SyncSample": "telemetry",
         "TelemetryRecord": "telemetry",
         "TelemetryRecorder": "telemetry",
         "Verdict": "gonogo",
+        "ViewSource": "views",
         "WAIVABLE": "gonogo",
         "WAIVER_REASON_MAX": "gonogo",
         "approved": "approval",
         "authorize_mt": "authorize",
+        "capsule_descent": "recovery",
         "carries_parachute": "authorize",
         "cli_holder": "operations",
         "complete_command": "checklist",
@@ -85,6 +100,8 @@ __getattr__, __dir__, __all__ = lazy_door(
         "drop_schedule": "override",
         "after_drop": "override",
         "evaluate": "gonogo",
+        "descent_along": "recovery",
+        "follow_descent": "recovery",
         "format_age": "staleness",
         "hazard_of": "authorize",
         "load_checklists": "checklist",
@@ -94,6 +111,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "record_as_dict": "capsule",
         "record_loss": "session",
         "record_start": "session",
+        "recovery_view": "recovery",
         "release_origin": "origin",
         "report_position": "operations",
         "take_over_outcome": "capsule",

@@ -2,7 +2,8 @@
 recovery screens, no tick on "Landing confirmed", and Recovery says when release B opens (issue #23).
 
 The override goes through the real gate (``authorize_mt``, inside ``Operations.send_mt``) and the MT
-through the real lifecycle to the simulated RockBLOCK on loopback, as `drs mt send --override-landed` from another terminal does.
+through the real lifecycle to the simulated RockBLOCK on loopback, as `drs mt send --override-landed`
+from another terminal does.
 """
 
 from __future__ import annotations

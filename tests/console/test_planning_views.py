@@ -16,6 +16,7 @@ from console.screens.recovery import RecoveryScreen
 from console.widgets.landing_map import LandingMap
 from console.widgets.release_timeline import GO, NO_GO, NO_LANDING, default_cursor, render_timeline
 from drs_link.iridium.recovery import TrackPoint
+from drs_link.ops import ReleaseWindow
 from predictor.calibration import CalibratedModel
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError
@@ -35,19 +36,17 @@ async def test_the_predictions_screen_shows_the_release_window_with_a_recommende
         await wait_for(pilot, lambda: screen.window is not None)
         window = screen.window
         assert window is not None
-        candidates = window["candidates"]
+        candidates = window.candidates
         assert len(candidates) == 25  # 2 h at 5-minute steps, both ends included
-        first = datetime.fromisoformat(candidates[0]["time"])
-        assert abs((first - world.clock()).total_seconds()) < 600
-        recommended = window["recommended"]
-        assert recommended is not None and candidates[recommended]["go"]
+        assert abs((candidates[0].time - world.clock()).total_seconds()) < 600
+        recommended = window.recommended
+        assert recommended is not None and candidates[recommended].go
         screen.refresh_view()
         text = str(screen.query_one("#release-timeline").render())
-        best = datetime.fromisoformat(candidates[recommended]["time"])
-        assert f"recommended {best:%H:%M}Z" in text
+        assert f"recommended {candidates[recommended].time:%H:%M}Z" in text
         glyph_row = text.splitlines()[1].strip()
         assert len(glyph_row) == 25 and set(glyph_row) <= {GO, NO_GO, NO_LANDING}
-        assert glyph_row.count(GO) == sum(c["go"] for c in candidates)
+        assert glyph_row.count(GO) == sum(c.go for c in candidates)
         before = screen.cursor if screen.cursor is not None else default_cursor(window)
         await pilot.press("right")
         assert screen.cursor == min(before + 1, 24)
@@ -55,14 +54,14 @@ async def test_the_predictions_screen_shows_the_release_window_with_a_recommende
 
 def test_the_timeline_gives_the_reasons_of_the_first_no_go() -> None:
     at = datetime(2026, 9, 1, 12, 0)
-    window = {
+    window = ReleaseWindow.from_sweep({
         "computed_at": at.isoformat(), "every_minutes": 5.0, "recommended": 2,
         "candidates": [
             {"time": (at + timedelta(minutes=5 * i)).isoformat(), "go": i >= 2, "landed": i != 0,
              "reasons": [] if i >= 2 else ["P(zone) 0.31 > 0.05 (Kiruna town)"]}
             for i in range(4)
         ],
-    }  # fmt: skip
+    })  # fmt: skip
     text = render_timeline(window, default_cursor(window), "computed 1 s ago")
     lines = text.splitlines()
     assert lines[1].strip() == f"{NO_LANDING}{NO_GO}{GO}{GO}"
@@ -73,10 +72,10 @@ def test_the_timeline_gives_the_reasons_of_the_first_no_go() -> None:
 
 def test_an_empty_window_says_no_go_and_marks_nothing_recommended() -> None:
     at = datetime(2026, 9, 1, 12, 0)
-    window = {
+    window = ReleaseWindow.from_sweep({
         "computed_at": at.isoformat(), "every_minutes": 5.0, "recommended": None,
         "candidates": [{"time": at.isoformat(), "go": False, "landed": True, "reasons": ["sigma too large"]}],
-    }  # fmt: skip
+    })  # fmt: skip
     text = render_timeline(window, default_cursor(window), "computed 1 s ago")
     assert "NO-GO window" in text and "▲" not in text.splitlines()[2] and "sigma too large" in text
 
@@ -95,21 +94,19 @@ async def test_the_recovery_view_re_predicts_a_descending_capsule_from_its_repor
         await pilot.press("v")
         screen = app.screen
         assert isinstance(screen, RecoveryScreen) and screen.capsule == "DRS1"
-        await wait_for(
-            pilot, lambda: screen.live is not None and screen.live["legs_used"] >= 1
-        )
+        await wait_for(pilot, lambda: screen.live is not None and screen.live.legs_used >= 1)
         live = screen.live
         assert live is not None and screen.landing is None
-        assert live["measured_rate_factor"] is not None and 0.3 < live["measured_rate_factor"] < 3.0
-        assert live["report"]["alt_m"] < 31500.0 and live["remaining_drift_km"] > 0.0
+        assert live.measured_rate_factor is not None and 0.3 < live.measured_rate_factor < 3.0
+        assert live.report_alt_m < 31500.0 and live.remaining_drift_km > 0.0
         screen.refresh_view()
         text = str(screen.query_one("#recovery-text").render())
         assert "Live re-prediction from the" in text
-        assert f"{live['landing']['lat']:.4f}, {live['landing']['lon']:.4f}" in text
+        assert f"{live.landing_lat:.4f}, {live.landing_lon:.4f} at {live.landing_time:%H:%M:%S}Z" in text
         assert "measured rate factor" in text and "correction:" in text
         layers = screen.query_one("#recovery-map", LandingMap).layers
-        assert layers.ahead == [tuple(p) for p in live["path"]] and layers.ahead[0] != layers.ahead[-1]
-        assert layers.ellipse == [tuple(p) for p in live["outline_2sigma"]], "the live ring, not the release one"
+        assert layers.ahead == list(live.path) and layers.ahead[0] != layers.ahead[-1]
+        assert layers.ellipse == list(live.outline_2sigma), "the live ring, not the release one"
         assert "⠿ predicted" in str(screen.query_one("#recovery-map").render())
 
 
@@ -120,8 +117,10 @@ def test_a_zone_over_every_landing_makes_the_whole_window_no_go_with_its_reason(
     zones = tmp_path / "zones.geojson"
     zones.write_text(json.dumps({"type": "Feature", "properties": {"name": "Everywhere east"},
                                  "geometry": {"type": "Polygon", "coordinates": [ring]}}))  # fmt: skip
-    window = prediction_service.release_window(ReleaseOrigin(SITE[0], SITE[1], 31500.0, "test"), zones)
-    assert window["recommended"] is None and not any(c["go"] for c in window["candidates"])
+    window = ReleaseWindow.from_sweep(
+        prediction_service.release_window(ReleaseOrigin(SITE[0], SITE[1], 31500.0, "test"), zones)
+    )
+    assert window.recommended is None and not any(c.go for c in window.candidates)
     text = render_timeline(window, default_cursor(window), "computed 0 s ago")
     assert "NO-GO window" in text and "(mostly Everywhere east)" in text
     open_sky = prediction_service.release_window(ReleaseOrigin(SITE[0], SITE[1], 31500.0, "test"), None)

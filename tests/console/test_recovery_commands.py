@@ -102,7 +102,7 @@ async def test_the_sounder_goes_from_unknown_to_on_with_its_lifecycle_state(
         capsule = SimulatedCapsule(imei=imei or "", rb_source=17002, momsn=8, iteration=8, sounder_on=False)
         deliver_next_report(app, gateway, capsule, T0 + timedelta(minutes=1))
         assert capsule.sounder_on, "the simulated firmware switched it on"
-        screen.load()
+        screen.ask_for_view()  # the report reached the store through this test, not the app's poll
         delivered = "Sounder: ON — probably delivered at the 12:01Z report; cannot be confirmed by telemetry"
         await wait_for(pilot, lambda: delivered in shown(screen))
 
