@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from predictor.calibration.effects import parameter_limits
 from predictor.descent import EFFECTS, DescentRateScale, Model, Payload, RatePrior, Term, payload_profile
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, UsageError
@@ -265,6 +264,9 @@ def _payload(raw: Any, refuse: Any) -> Payload:
 def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
     if not isinstance(raw, list):
         raise refuse("terms", "must be a list (empty when calibration selected nothing)")
+    # Imported here: the fitting library behind the limits costs a plain `drs predict` 0.3 s of scipy.
+    from predictor.calibration.effects import parameter_limits
+
     terms = []
     limits = parameter_limits()
     for index, item in enumerate(raw):
