@@ -377,7 +377,7 @@ def _score_kernel(
 
 
 @njit(cache=True)
-def _mean_squared_time_error(
+def _times_at_fixes(
     t: np.ndarray,
     z: np.ndarray,
     tl: float,
@@ -385,14 +385,15 @@ def _mean_squared_time_error(
     fix_z: np.ndarray,
     fix_t: np.ndarray,
     touchdown: float,
-) -> float:
-    """Mean of (predicted − measured time at each fix's altitude)² over the fixes with an altitude
-    (NaN: none); the landing fix is measured at the estimated touchdown."""
-    total = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """(predicted, measured) seconds at each fix that has an altitude, the predicted ones read off the
+    falling track at the fix's altitude; the landing fix is measured at the estimated touchdown."""
+    n = fix_t.shape[0]
+    predicted = np.empty(n)
+    measured = np.empty(n)
     count = 0
     k = 0
-    last = fix_t.shape[0] - 1
-    for j in range(fix_t.shape[0]):
+    for j in range(n):
         zj = fix_z[j]
         if not np.isfinite(zj):
             continue
@@ -406,10 +407,28 @@ def _mean_squared_time_error(
             while z[k + 1] >= zj:
                 k += 1
             tj = t[k] + (zj - z[k]) / (z[k + 1] - z[k]) * (t[k + 1] - t[k])
-        measured = touchdown if j == last else fix_t[j]
-        total += (tj - measured) ** 2
+        predicted[count] = tj
+        measured[count] = touchdown if j == n - 1 else fix_t[j]
         count += 1
-    return total / count if count else np.nan
+    return predicted[:count], measured[:count]
+
+
+@njit(cache=True)
+def _mean_squared_time_error(
+    t: np.ndarray,
+    z: np.ndarray,
+    tl: float,
+    zl: float,
+    fix_z: np.ndarray,
+    fix_t: np.ndarray,
+    touchdown: float,
+) -> float:
+    """Mean of (predicted − measured time at each fix's altitude)² over the fixes with an altitude
+    (NaN: none)."""
+    predicted, measured = _times_at_fixes(t, z, tl, zl, fix_z, fix_t, touchdown)
+    if predicted.shape[0] == 0:
+        return np.nan
+    return float(np.mean((predicted - measured) ** 2))
 
 
 @njit(cache=True)
@@ -432,40 +451,13 @@ def _profiled(
     answer, which is what a flight's λ means to its time at each altitude.
     """
     lo, hi = RATE_FACTOR_BOUNDS
-    pp = 0.0
-    pm = 0.0
-    count = 0
-    k = 0
-    last = fix_t.shape[0] - 1
-    predicted = np.empty(fix_t.shape[0])
-    measured = np.empty(fix_t.shape[0])
-    for j in range(fix_t.shape[0]):
-        zj = fix_z[j]
-        if not np.isfinite(zj):
-            continue
-        if zj <= zl:
-            tj = tl
-        elif zj >= z[0]:
-            tj = 0.0
-        else:
-            while k > 0 and z[k] < zj:
-                k -= 1
-            while z[k + 1] >= zj:
-                k += 1
-            tj = t[k] + (zj - z[k]) / (z[k + 1] - z[k]) * (t[k + 1] - t[k])
-        mj = touchdown if j == last else fix_t[j]
-        predicted[count] = tj
-        measured[count] = mj
-        pp += tj * tj
-        pm += tj * mj
-        count += 1
-    if count == 0 or pp <= 0.0 or pm <= 0.0:
+    predicted, measured = _times_at_fixes(t, z, tl, zl, fix_z, fix_t, touchdown)
+    pp = float(np.sum(predicted * predicted))
+    pm = float(np.sum(predicted * measured))
+    if predicted.shape[0] == 0 or pp <= 0.0 or pm <= 0.0:
         return np.nan, np.nan
     inverse = min(max(pm / pp, 1.0 / hi), 1.0 / lo)
-    total = 0.0
-    for j in range(count):
-        total += (inverse * predicted[j] - measured[j]) ** 2
-    return total / count, 1.0 / inverse
+    return float(np.mean((inverse * predicted - measured) ** 2)), 1.0 / inverse
 
 
 # ---------------------------------------------------------------- residuals of one prediction
