@@ -153,12 +153,17 @@ class CommandingScreen(ConsoleScreen):
                 self.send_worker(message, answer.typed_name, answer, plan.queue_by)
 
         def countdown() -> str:
+            """The deadline, and the landed evidence as it is now when a report has changed it since the
+            dialog opened (#23: the evidence was frozen at opening while the operator typed)."""
             left = (plan.queue_by - self.context.now()).total_seconds()
             if left <= 0:
-                return (
-                    f"queue-before {plan.queue_by:%H:%M:%S}Z has PASSED: sending will be refused; plan again"
-                )
-            return f"queue before {plan.queue_by:%H:%M:%S}Z — {left:.0f} s left"
+                deadline = f"queue-before {plan.queue_by:%H:%M:%S}Z has PASSED: sending will be refused; plan again"
+            else:
+                deadline = f"queue before {plan.queue_by:%H:%M:%S}Z — {left:.0f} s left"
+            now = ops.landed(self.capsule)
+            if now.summary == evidence.summary:
+                return deadline
+            return f"{deadline}\nevidence NOW ({'landed' if now.on_ground else 'NOT landed'}): {now.summary}"
 
         self.app.push_screen(
             HazardModal(self.capsule, "PARACHUTE", text, second, override, countdown), confirmed

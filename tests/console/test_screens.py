@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from datetime import timedelta
+from datetime import datetime, timedelta
 from pathlib import Path
 
 import gpxpy
@@ -86,6 +86,35 @@ async def test_parachute_in_flight_shows_no_landed_evidence_and_is_refused_with_
         await wait_for(pilot, lambda: any("no landed evidence" in n.message for n in app._notifications))
         assert app.ops is not None and app.ops.commands("DRS3") == []
         assert [a.result for a in app.store.audit() if a.action == "mt.parachute"] == ["refused"]
+
+
+async def test_the_parachute_dialog_shows_the_landed_evidence_as_new_reports_change_it(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    """#23: the evidence was frozen at opening; a report that lands the capsule while the operator types
+    shows in the dialog's live line (and the gate at submit reads it again)."""
+    app = canned_app(now=T0)
+    imei = app.ops.config.capsules[2].imei if app.ops else None
+    assert imei is not None
+    reports = ReportStore(app.store)
+
+    def report(n: int, at: datetime, alt_m: float, speed: float) -> None:
+        fix = GnssFix(at, 67.7, 21.6, alt_m, speed, 90.0, 0.9, 9)
+        reports.add(Delivery(imei, n, format_mo(fix, 8.7, n).hex(), "webhook", at + timedelta(seconds=20),
+                             transmit_utc=at + timedelta(seconds=15)))  # fmt: skip
+
+    for n in range(5):
+        report(n, T0 - timedelta(minutes=20 - 2 * n), 27_000.0 - 2_400.0 * n, 19.0)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("down", "down", "i")
+        await app.workers.wait_for_complete()
+        await pilot.press("c")
+        await wait_for(pilot, lambda: type(app.screen).__name__ == "HazardModal")
+        live = app.screen.query_one("#countdown")
+        assert "evidence NOW" not in str(live.render())
+        for n, minutes in enumerate((-8, -6, -4), start=5):
+            report(n, T0 + timedelta(minutes=minutes), 400.0, 0.2)
+        await wait_for(pilot, lambda: "evidence NOW (landed): landed" in str(live.render()))
 
 
 async def test_replay_shows_a_banner_and_cannot_command(canned_app: Callable[..., DrsConsole]) -> None:
