@@ -401,14 +401,17 @@ class DrsConsole(App[int]):
             for name in touched & set(self.setup.capsules):
                 arming = self.context.arming(name)
                 link_down = any(
-                    r.capsule == name and isinstance(r.data, LinkSample) and not r.data.up for r in message.records
+                    r.capsule == name and isinstance(r.data, LinkSample) and not r.data.up
+                    for r in message.records
                 )
                 if link_down:
                     arming.link_lost()
                 else:
                     arming.observe(self.gonogo(name))
         self.read_views({r.capsule for r in message.records if r.capsule})
-        if self.setup.predictions is not None and any(isinstance(r.data, BalloonSample | GnssSample) for r in message.records):
+        if self.setup.predictions is not None and any(
+            isinstance(r.data, BalloonSample | GnssSample) for r in message.records
+        ):
             self.first_predictions()  # a first position: predict now, not at the next tick
         self.refresh_screen()
 

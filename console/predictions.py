@@ -55,7 +55,9 @@ def map_geometry(prediction: Prediction) -> tuple[Points, Points]:
     return outline, path
 
 
-def prediction_sample(prediction: Prediction, release_in_min: int, source: str, model: str) -> PredictionSample:
+def prediction_sample(
+    prediction: Prediction, release_in_min: int, source: str, model: str
+) -> PredictionSample:
     ellipse = prediction.ellipse
     outline, path = map_geometry(prediction)
     return PredictionSample(
@@ -131,7 +133,9 @@ class PredictionService:
             )  # fmt: skip
             if minutes == 0:
                 self.latest[capsule] = result
-            records.append(TelemetryRecord(now, capsule, prediction_sample(result, minutes, origin.source, label)))
+            records.append(
+                TelemetryRecord(now, capsule, prediction_sample(result, minutes, origin.source, label))
+            )
         return records
 
     def _flown(self, capsule: str | None) -> tuple[dict[str, Any], str]:

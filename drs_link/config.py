@@ -52,7 +52,9 @@ def _current_or_legacy(directory: Path, legacy: Path, name: str) -> Path:
     if current != old and not current.exists() and old.exists():
         if old not in _warned_legacy:
             _warned_legacy.add(old)
-            log.warning("using %s from its old place; the default is now %s (move it, or keep it there)", old, current)
+            log.warning(
+                "using %s from its old place; the default is now %s (move it, or keep it there)", old, current
+            )
         return old
     return current
 
@@ -73,6 +75,7 @@ def default_known_hosts() -> Path:
 def config_help() -> str:
     """``--config``'s help, naming the real default on this machine."""
     return f"configuration TOML (default: ${CONFIG_ENV}, else {platformdirs.user_config_path('drs') / CONFIG_NAME})"
+
 
 CAPSULE_NAME_RE = re.compile(r"\A[A-Za-z0-9_-]{1,32}\Z")
 IMEI_RE = re.compile(r"\A[0-9]{15}\Z")
@@ -248,7 +251,9 @@ def _coerce(key: str, annotation: Any, value: Any) -> Any:
         try:
             return _expand(Path(value))
         except RuntimeError:  # "~name" for a user this machine does not have
-            raise ConfigError(f"{key}: {value!r} names the home of a user this machine does not have") from None
+            raise ConfigError(
+                f"{key}: {value!r} names the home of a user this machine does not have"
+            ) from None
     if annotation is bool:
         if not isinstance(value, bool):
             raise ConfigError(f"{key}: expected true or false, got {value!r}")
@@ -312,7 +317,9 @@ def _check_capsule(capsule: CapsuleConfig, key: str) -> None:
     if not 1 <= capsule.port <= 65535:
         raise ConfigError(f"{key}.port: {capsule.port} is not a TCP port (1-65535)")
     if capsule.backend not in backend_names():
-        names = ", ".join(repr(name) for name in sorted(backend_names(), key=lambda name: name != DEFAULT_BACKEND))
+        names = ", ".join(
+            repr(name) for name in sorted(backend_names(), key=lambda name: name != DEFAULT_BACKEND)
+        )
         raise ConfigError(f"{key}.backend: {capsule.backend!r} is not one of {names}")
     if capsule.imei is not None and not IMEI_RE.match(capsule.imei):
         raise ConfigError(f"{key}.imei: {capsule.imei!r} must be the modem's 15-digit IMEI")
@@ -344,7 +351,9 @@ def _check_sections(sections: dict[str, Any]) -> None:
     """Values that pass their type but reach arithmetic, a socket, a URL path or a shell."""
     operator: OperatorConfig | None = sections.get("operator")
     if operator is not None and (len(operator.name) > 64 or not operator.name.isprintable()):
-        raise ConfigError("operator.name: at most 64 printable characters (it is written to every audit record)")
+        raise ConfigError(
+            "operator.name: at most 64 printable characters (it is written to every audit record)"
+        )
     data: DataConfig | None = sections.get("data")
     if data is not None and not data.dir.is_absolute():
         raise ConfigError(
@@ -353,7 +362,9 @@ def _check_sections(sections: dict[str, Any]) -> None:
         )
     rockblock: RockblockConfig | None = sections.get("rockblock")
     if rockblock is not None:
-        _check_range("rockblock.timeout_s", rockblock.timeout_s, 0.5, 600.0, "the gateway answers within seconds")
+        _check_range(
+            "rockblock.timeout_s", rockblock.timeout_s, 0.5, 600.0, "the gateway answers within seconds"
+        )
         if rockblock.password_env and not PASSWORD_ENV_RE.match(rockblock.password_env):
             raise ConfigError(
                 "rockblock.password_env: must be the NAME of an environment variable in capitals "

@@ -456,7 +456,9 @@ class Store:
             clauses.append("action = ?")
             params.append(action)
         if text:
-            clauses.append("(action || ' ' || result || ' ' || COALESCE(detail, '') || ' ' || operator) LIKE ?")
+            clauses.append(
+                "(action || ' ' || result || ' ' || COALESCE(detail, '') || ' ' || operator) LIKE ?"
+            )
             params.append(f"%{text}%")
         sql = f"SELECT * FROM audit WHERE {' AND '.join(clauses)} ORDER BY id"
         if limit is not None:

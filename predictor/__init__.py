@@ -32,5 +32,6 @@ __getattr__, __dir__, __all__ = lazy_door(
         "LAUNCH": "prediction.uncertainty",
         "Ellipse": "prediction.uncertainty",
         "ErrorModel": "prediction.uncertainty",
-    "load_weather": "environment.weather",    },
+        "load_weather": "environment.weather",
+    },
 )

@@ -223,7 +223,9 @@ def _to_degrees(lat0: float, d_north_m: float, d_east_m: float, z_m: float = 0.0
     s2 = math.sin(math.radians(lat0)) ** 2
     w = math.sqrt(1.0 - WGS84_E2 * s2)
     meridional, normal = WGS84_A * (1.0 - WGS84_E2) / w**3 + z_m, WGS84_A / w + z_m
-    return math.degrees(d_north_m / meridional), math.degrees(d_east_m / (normal * math.cos(math.radians(lat0))))
+    return math.degrees(d_north_m / meridional), math.degrees(
+        d_east_m / (normal * math.cos(math.radians(lat0)))
+    )
 
 
 def _velocity(
@@ -236,8 +238,10 @@ def _velocity(
     if descending:
         eu, ev = effects.extra_wind(z)
         u, v = u + eu, v + ev
-        through_air = rate_factor * effects.rate_factor(z) * math.sqrt(
-            2.0 * MASS_KG * gravity(z, lat) / (density(z, lat) * CDA_M2)
+        through_air = (
+            rate_factor
+            * effects.rate_factor(z)
+            * math.sqrt(2.0 * MASS_KG * gravity(z, lat) / (density(z, lat) * CDA_M2))
         )
         dz = -(through_air - effects.air_rising(z))
     else:
@@ -253,7 +257,9 @@ def _rk4(
     def f(s: tuple[float, float, float], t: float) -> tuple[float, float, float]:
         return _velocity(s, t / 3600.0, descending, rate_factor, effects, ascent_ms)
 
-    def ahead(s: tuple[float, float, float], k: tuple[float, float, float], h: float) -> tuple[float, float, float]:
+    def ahead(
+        s: tuple[float, float, float], k: tuple[float, float, float], h: float
+    ) -> tuple[float, float, float]:
         return s[0] + h * k[0], s[1] + h * k[1], s[2] + h * k[2]
 
     k1 = f(state, t_s)
@@ -292,9 +298,7 @@ def fly(
     return np.array(rows), burst_s, t
 
 
-def _log(
-    path: Path, truth: np.ndarray, cadence_s: float, noise_m: float, rng: np.random.Generator
-) -> None:
+def _log(path: Path, truth: np.ndarray, cadence_s: float, noise_m: float, rng: np.random.Generator) -> None:
     """Sample the truth every ``cadence_s`` from a random phase, 10 min on the ground either side, with
     GNSS noise (altitude 1.5× the horizontal), the pressure of the true altitude with 0.3 % noise."""
     t0, t1 = truth[0, 0] - 600.0, truth[-1, 0] + 600.0

@@ -88,7 +88,9 @@ def test_a_door_names_only_what_its_room_defines_once() -> None:
         folder = ROOT / room.replace(".", "/")
         for name in getattr(door, "__all__", ()):
             assert getattr(door, name) is not None, f"{room}.{name}"
-            homes = [p.stem for p in folder.glob("*.py") if p.name != "__init__.py" and name in _defined_at_top(p)]
+            homes = [
+                p.stem for p in folder.glob("*.py") if p.name != "__init__.py" and name in _defined_at_top(p)
+            ]
             assert len(homes) <= 1, f"{room}.{name} is defined in {homes}: import the module instead"
 
 

@@ -36,7 +36,9 @@ class Terminal:
     def __init__(self, command: str, log: Path) -> None:
         self.session = f"drs-bytes-{uuid.uuid4().hex[:8]}"
         self.log = log
-        subprocess.run(["tmux", "new-session", "-d", "-s", self.session, "-x", "120", "-y", "40", command], check=True)
+        subprocess.run(
+            ["tmux", "new-session", "-d", "-s", self.session, "-x", "120", "-y", "40", command], check=True
+        )
         subprocess.run(["tmux", "pipe-pane", "-o", "-t", self.session, f"cat >> {log}"], check=True)
 
     def screen(self) -> str:

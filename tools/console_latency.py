@@ -31,7 +31,9 @@ def screen(session: str) -> str:
 def one_run() -> tuple[float, float]:
     session = f"drs-latency-{uuid.uuid4().hex[:8]}"
     start = time.monotonic()
-    subprocess.run(["tmux", "new-session", "-d", "-s", session, "-x", "120", "-y", "40", f"{DRS} demo"], check=True)
+    subprocess.run(
+        ["tmux", "new-session", "-d", "-s", session, "-x", "120", "-y", "40", f"{DRS} demo"], check=True
+    )
     try:
         first_screen = first_prediction = None
         while time.monotonic() - start < TIMEOUT_S:
@@ -63,10 +65,14 @@ def main() -> int:
         subprocess.run(["tmux", "kill-session", "-t", keeper], check=False)
     screens, predictions = zip(*runs, strict=True)
     print(f"drs demo, warm, 120×40, {RUNS} runs:")
-    print(f"  launch → first screen:              median {statistics.median(screens):.2f} s "
-          f"(min {min(screens):.2f}, max {max(screens):.2f})")
-    print(f"  first screen → first prediction:    median {statistics.median(predictions):.2f} s "
-          f"(min {min(predictions):.2f}, max {max(predictions):.2f})")
+    print(
+        f"  launch → first screen:              median {statistics.median(screens):.2f} s "
+        f"(min {min(screens):.2f}, max {max(screens):.2f})"
+    )
+    print(
+        f"  first screen → first prediction:    median {statistics.median(predictions):.2f} s "
+        f"(min {min(predictions):.2f}, max {max(predictions):.2f})"
+    )
     return 0
 
 

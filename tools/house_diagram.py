@@ -44,7 +44,9 @@ def room_edges() -> set[tuple[str, str]]:
             importer_package, imported_package = importer_room.split(".")[0], imported_room.split(".")[0]
             if importer_package != imported_package:
                 edges.add((importer_package, imported_package))
-            elif imported_room != imported_package and not (importer_room + ".").startswith(imported_room + "."):
+            elif imported_room != imported_package and not (importer_room + ".").startswith(
+                imported_room + "."
+            ):
                 edges.add((importer_room, imported_room))
     return edges
 

@@ -50,8 +50,10 @@ async def measure(folder: Path) -> list[float]:
 def main() -> int:
     with tempfile.TemporaryDirectory() as folder:
         latencies = asyncio.run(measure(Path(folder)))
-    print(f"a second process's write shown on the console: median {statistics.median(latencies):.2f} s, "
-          f"max {max(latencies):.2f} s over {len(latencies)} writes")
+    print(
+        f"a second process's write shown on the console: median {statistics.median(latencies):.2f} s, "
+        f"max {max(latencies):.2f} s over {len(latencies)} writes"
+    )
     return 0
 
 

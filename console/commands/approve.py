@@ -54,6 +54,8 @@ def run_approve(args: argparse.Namespace) -> int:
         raise ConfigError("operator.name: set [operator] name; every approval is audited with it")
     if args.reject and not args.reason.strip():
         raise UsageError("--reject needs --reason: the requester is told why")
-    decided = book.decide(args.approval_id, config.operator.name, current_login(), not args.reject, args.reason)
+    decided = book.decide(
+        args.approval_id, config.operator.name, current_login(), not args.reject, args.reason
+    )
     print(decided.describe(book.clock()))
     return 0

@@ -60,7 +60,9 @@ class DrsArgumentParser(argparse.ArgumentParser):
 
             message = f"unrecognized option {unknown}"
             close = difflib.get_close_matches(unknown, self._long_options(), n=1, cutoff=0.6)
-            if self._root is not None and (unknown in self._root._option_string_actions or self._root._short_with_value(unknown)):
+            if self._root is not None and (
+                unknown in self._root._option_string_actions or self._root._short_with_value(unknown)
+            ):
                 message += f" here: it is an option of drs itself, given before the command (drs {unknown} …)"
             elif close:
                 message += f" (did you mean {close[0]}?)"
@@ -93,7 +95,11 @@ class DrsArgumentParser(argparse.ArgumentParser):
 
     def _abbreviates(self, name: str) -> bool:
         """``--lat`` for ``--latitude``: argparse accepts a unique prefix (and says itself when it is not unique)."""
-        return self.allow_abbrev and name.startswith("--") and any(o.startswith(name) for o in self._long_options())
+        return (
+            self.allow_abbrev
+            and name.startswith("--")
+            and any(o.startswith(name) for o in self._long_options())
+        )
 
     def _short_with_value(self, word: str) -> bool:
         """``-n5`` or ``-vv``: a known short option with its value or repeats attached."""
@@ -188,7 +194,9 @@ _stdin_taken: list[str] = []
 def _read_stdin(option: str) -> bytes:
     if _stdin_taken:
         taken = _stdin_taken[0]
-        raise argparse.ArgumentTypeError(f"standard input is already read for {taken}: only one input can be -")
+        raise argparse.ArgumentTypeError(
+            f"standard input is already read for {taken}: only one input can be -"
+        )
     _stdin_taken.append(option)
     return sys.stdin.buffer.read()
 

@@ -32,7 +32,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=30.0,
         help="fail if no fix arrives for this many seconds (30)",
     )
-    watch.add_argument("--json", action="store_true", help="one JSON object per line: fixes, rejections, the source")
+    watch.add_argument(
+        "--json", action="store_true", help="one JSON object per line: fixes, rejections, the source"
+    )
     watch.set_defaults(func=cmd_watch)
 
 
@@ -57,7 +59,14 @@ def cmd_watch(args: argparse.Namespace) -> int:
                 say({"event": "fix", "time_utc": iso_utc(outcome.time), "lat": outcome.lat, "lon": outcome.lon,
                      "alt_m": outcome.alt_m, "format": outcome.format, "callsign": outcome.callsign})  # fmt: skip
             else:
-                say({"event": "rejected", "reason": outcome.reason, "detail": outcome.detail, "line": outcome.line})
+                say(
+                    {
+                        "event": "rejected",
+                        "reason": outcome.reason,
+                        "detail": outcome.detail,
+                        "line": outcome.line,
+                    }
+                )
     finally:
         feed.stop()
     status = feed.status()
@@ -76,9 +85,7 @@ def _text_line(event: dict[str, Any]) -> None:
     if kind == "watching":
         text = f"watching the balloon feed from {event['source']}"
     elif kind == "fix":
-        text = (
-            f"{event['time_utc']}  {event['lat']:9.5f} {event['lon']:10.5f}  {event['alt_m']:7.0f} m  {event['format']}"
-        )
+        text = f"{event['time_utc']}  {event['lat']:9.5f} {event['lon']:10.5f}  {event['alt_m']:7.0f} m  {event['format']}"
     elif kind == "rejected":
         text = f"rejected: {event['detail']}  [{event['line']}]"
     else:

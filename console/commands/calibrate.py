@@ -82,11 +82,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _inputs(parser: argparse.ArgumentParser, required: bool) -> None:
     parser.add_argument(
-        "--tracks", nargs="+", metavar="FILE", type=input_file("--tracks"), required=required,
+        "--tracks",
+        nargs="+",
+        metavar="FILE",
+        type=input_file("--tracks"),
+        required=required,
         help="flight track files; - reads one from standard input",
     )
     parser.add_argument(
-        "--date", type=iso_date, metavar="YYYY-MM-DD", help="UTC date of the first fix, for logs with times of day only (V4)"
+        "--date",
+        type=iso_date,
+        metavar="YYYY-MM-DD",
+        help="UTC date of the first fix, for logs with times of day only (V4)",
     )
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files covering every descent")

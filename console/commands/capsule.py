@@ -71,7 +71,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     go.add_argument("name")
     go.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name to confirm")
     _poll_options(go)
-    go.add_argument("--second-operator", metavar="NAME", help="a second person from [console] crew (rule off)")
+    go.add_argument(
+        "--second-operator", metavar="NAME", help="a second person from [console] crew (rule off)"
+    )
     go.add_argument(
         "--single-operator-waiver", metavar="REASON", help="why one person fires alone (rule off; logged)"
     )
@@ -87,7 +89,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     reset.set_defaults(func=cmd_reset)
 
     released = actions.add_parser(
-        "released", help="settle an unverified Go as released, on evidence (the Pi is down, the reports show the fall)"
+        "released",
+        help="settle an unverified Go as released, on evidence (the Pi is down, the reports show the fall)",
     )
     released.add_argument("name")
     released.add_argument("--evidence", metavar="TEXT", required=True, help="what shows it left (audit log)")
@@ -145,7 +148,10 @@ def _poll_options(parser: argparse.ArgumentParser) -> None:
         "the same to arm and go",
     )  # fmt: skip
     parser.add_argument(
-        "--weather", type=Path, nargs="+", metavar="GRIB2",
+        "--weather",
+        type=Path,
+        nargs="+",
+        metavar="GRIB2",
         help="GFS files for the landing prediction go/no-go checks (without: 'Prediction fresh: no data')",
     )
 
@@ -155,7 +161,9 @@ def _waivers(texts: list[str]) -> list[tuple[str, str]]:
     for text in texts:
         item, _, reason = text.partition("=")
         if not item.strip() or not reason.strip():
-            raise UsageError(f"--waive {text!r}: write ITEM=REASON, e.g. --waive gnss='no fix, dropping anyway'")
+            raise UsageError(
+                f"--waive {text!r}: write ITEM=REASON, e.g. --waive gnss='no fix, dropping anyway'"
+            )
         waivers.append((item.strip(), reason.strip()))
     return waivers
 
@@ -468,7 +476,11 @@ def cmd_sync(args: argparse.Namespace) -> int:
                 )
             return 0 if not (status.missing or status.changed) else 1
         with Progress(
-            TextColumn("{task.description}"), BarColumn(), DownloadColumn(), TransferSpeedColumn(), transient=True
+            TextColumn("{task.description}"),
+            BarColumn(),
+            DownloadColumn(),
+            TransferSpeedColumn(),
+            transient=True,
         ) as progress:
             tasks: dict[str, TaskID] = {}
 

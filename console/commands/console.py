@@ -201,8 +201,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def demo_setup(
-    world: DemoWorld, config: Config, export_dir: Path, recorder: TelemetryRecorder | None = None,
-    poll_period_s: float | None = None, prediction_period_s: float | None = None,
+    world: DemoWorld,
+    config: Config,
+    export_dir: Path,
+    recorder: TelemetryRecorder | None = None,
+    poll_period_s: float | None = None,
+    prediction_period_s: float | None = None,
 ) -> ConsoleSetup:
     """The console wired to a started demo world as ``drs demo`` runs it; tests and screenshots change the pace."""
     from console.context import ConsoleSetup

@@ -101,8 +101,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     importer.set_defaults(func=_mo_import)
     bench = mo_actions.add_parser("bench", help="measure webhook store+answer latency and parser speed")
     bench.add_argument("--posts", type=int, default=200, help="deliveries POSTed one at a time (default 200)")
-    bench.add_argument("--clients", type=int, default=20, help="clients POSTing at once in the burst (default 20)")
-    bench.add_argument("--per-client", type=int, default=50, help="deliveries each burst client POSTs (default 50)")
+    bench.add_argument(
+        "--clients", type=int, default=20, help="clients POSTing at once in the burst (default 20)"
+    )
+    bench.add_argument(
+        "--per-client", type=int, default=50, help="deliveries each burst client POSTs (default 50)"
+    )
     bench.set_defaults(func=_mo_bench)
     health = mo_actions.add_parser("health", help="battery, resets, gaps and spacing from the reports")
     health.add_argument("name")
@@ -127,10 +131,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--kml", type=Path, metavar="OUT", help="write KML of the landings and tracks; - for stdout"
     )
     recovery.add_argument(
-        "--predicted", type=lambda text: Path(input_file("--predicted")(text)), metavar="GEOJSON",
+        "--predicted",
+        type=lambda text: Path(input_file("--predicted")(text)),
+        metavar="GEOJSON",
         help="a predicted track (LineString); - reads standard input",
     )
-    recovery.add_argument("--json", action="store_true", help="print JSON (the summary line is one of its fields)")
+    recovery.add_argument(
+        "--json", action="store_true", help="print JSON (the summary line is one of its fields)"
+    )
     recovery.set_defaults(func=_recovery)
 
 
@@ -248,7 +256,9 @@ def _mt_resolve(args: argparse.Namespace) -> int:
         raise ConfigError("operator.name: set [operator] name; every resolution is audited with it")
     ops.reports_of(args.name)  # an unknown capsule or one without an IMEI is refused first
     try:
-        commands = ops.resolve_mt(args.name, args.command_id, None if args.not_sent else args.queued, args.note)
+        commands = ops.resolve_mt(
+            args.name, args.command_id, None if args.not_sent else args.queued, args.note
+        )
     finally:
         ops.close()
     for command in commands:
@@ -284,7 +294,9 @@ def _mo_serve(args: argparse.Namespace) -> int:
     from drs_link.iridium import MoHttpServer, MoReceiver, ReportStore
     from drs_link.iridium import lifecycle as lc
 
-    config = load_config(args.config)  # not Operations: the webhook must start whatever the console's files say
+    config = load_config(
+        args.config
+    )  # not Operations: the webhook must start whatever the console's files say
     store = Store.open(config.store_path)
     mo_config = config.mo
     if args.host is not None or args.port is not None:
@@ -317,7 +329,10 @@ def _mo_serve(args: argparse.Namespace) -> int:
             raise LinkError(
                 f"cannot listen on {mo_config.listen_host}:{mo_config.listen_port}: {exc.strerror}"
             ) from None
-        print(f"listening on {server.url} (Ctrl-C or SIGTERM stops it, after answering what has arrived)", flush=True)
+        print(
+            f"listening on {server.url} (Ctrl-C or SIGTERM stops it, after answering what has arrived)",
+            flush=True,
+        )
         log.info("listening", extra={"url": server.url, "trusted_proxy": mo_config.trusted_proxy or "none"})
         log.info("stopping", extra={"signal": wait_for_stop()})
         unanswered = server.stop()
@@ -534,7 +549,15 @@ def _recovery_json(
         },
         "from": None if team is None else {"lat": team[0], "lon": team[1]},
     }  # fmt: skip
-    best = (landing.lat, landing.lon) if landing else (last.lat, last.lon) if last else coarse[:2] if coarse else None
+    best = (
+        (landing.lat, landing.lon)
+        if landing
+        else (last.lat, last.lon)
+        if last
+        else coarse[:2]
+        if coarse
+        else None
+    )
     if team is not None and best is not None:
         distance, bearing = distance_bearing(team[0], team[1], best[0], best[1])
         document["distance_m"], document["bearing_deg"] = distance, bearing

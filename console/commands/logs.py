@@ -17,13 +17,19 @@ import time
 
 LEVELS = ("debug", "info", "warning", "error")
 OUR_PACKAGES = ("console", "drs_link", "predictor")
-_STANDARD = frozenset(logging.LogRecord("", 0, "", 0, "", (), None).__dict__) | {"message", "asctime", "taskName"}
+_STANDARD = frozenset(logging.LogRecord("", 0, "", 0, "", (), None).__dict__) | {
+    "message",
+    "asctime",
+    "taskName",
+}
 
 
 def _value(value: object) -> str:
     text = str(value)
     if not text or any(c in text for c in ' "=\\') or not text.isprintable():
-        return json.dumps(text, ensure_ascii=False)  # quoted, with newlines and quotes escaped: one record, one line
+        return json.dumps(
+            text, ensure_ascii=False
+        )  # quoted, with newlines and quotes escaped: one record, one line
     return text
 
 

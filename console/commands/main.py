@@ -86,7 +86,9 @@ class _VersionAction(argparse.Action):
     when asked for."""
 
     def __init__(self, option_strings: Sequence[str], dest: str, help: str | None = None) -> None:  # noqa: A002
-        super().__init__(option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, nargs=0, help=help)
+        super().__init__(
+            option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, nargs=0, help=help
+        )
 
     def __call__(self, parser: argparse.ArgumentParser, *_: object) -> None:
         import importlib.metadata
@@ -111,7 +113,9 @@ def _config_help() -> str:
     importing the configuration module and the link backends it names."""
     import platformdirs
 
-    return f"configuration TOML (default: $DRS_CONFIG, else {platformdirs.user_config_path('drs') / 'drs.toml'})"
+    return (
+        f"configuration TOML (default: $DRS_CONFIG, else {platformdirs.user_config_path('drs') / 'drs.toml'})"
+    )
 
 
 def build_parser(command: str | None = None, *, every_module: bool = False) -> argparse.ArgumentParser:
@@ -167,6 +171,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # interpreter's final flush does not raise again, and end quietly as other Unix tools do.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+
 
 if __name__ == "__main__":
     sys.exit(main())

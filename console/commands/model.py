@@ -7,7 +7,9 @@ import json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    model = subparsers.add_parser("model", help="calibrated model files written by drs calibrate --save-model")
+    model = subparsers.add_parser(
+        "model", help="calibrated model files written by drs calibrate --save-model"
+    )
     actions = model.add_subparsers(dest="model_command", metavar="ACTION", required=True)
     show = actions.add_parser("show", help="print what a model holds and where it came from")
     show.add_argument("path", help="the model file")
@@ -41,25 +43,37 @@ def run_show(args: argparse.Namespace) -> int:
         )
     stability = prov.get("selection_stability")
     if isinstance(stability, dict) and stability:
-        lines.append("stability " + ", ".join(f"{name} chosen in {share:.0%} of folds" for name, share in stability.items()))
+        lines.append(
+            "stability "
+            + ", ".join(f"{name} chosen in {share:.0%} of folds" for name, share in stability.items())
+        )
     if model.ellipse is not None:
         e = model.ellipse
-        lines.append(f"ellipse   σ0 {e.sigma0_km:.3g} km, h {e.h:.3g}, k {e.k_km2_per_h2:.3g} km²/h², q {e.q:.3g}")
+        lines.append(
+            f"ellipse   σ0 {e.sigma0_km:.3g} km, h {e.h:.3g}, k {e.k_km2_per_h2:.3g} km²/h², q {e.q:.3g}"
+        )
     else:
         lines.append("ellipse   none (too few flights): predictions use the paper's launch model")
     if model.live is not None:
         sigma = model.live.error_model
-        lines.append("live      " + ("; ".join(b.describe() for b in model.live.correction.bands) or "plain re-prediction"))
+        lines.append(
+            "live      "
+            + ("; ".join(b.describe() for b in model.live.correction.bands) or "plain re-prediction")
+        )
         lines.append(
             "live 1σ   "
             + ", ".join(
                 f"{h:g} km {a:.2f}×{c:.2f} km"
-                for h, a, c in zip(sigma.heights_km, sigma.sigma_parallel_km, sigma.sigma_perpendicular_km, strict=True)
+                for h, a, c in zip(
+                    sigma.heights_km, sigma.sigma_parallel_km, sigma.sigma_perpendicular_km, strict=True
+                )
             )
         )
     else:
-        lines.append("live      not evaluated with this law: drs live flies its shape with each flight's own λ update and "
-                     "the default ellipse, and says so (drs live evaluate --save-model)")
+        lines.append(
+            "live      not evaluated with this law: drs live flies its shape with each flight's own λ update and "
+            "the default ellipse, and says so (drs live evaluate --save-model)"
+        )
     flights = prov.get("flights") or []
     lines.append(f"flights   {len(flights)}: {', '.join(flights[:8])}{' …' if len(flights) > 8 else ''}")
     lines.append(f"weather   {prov.get('weather', 'unknown')}")

@@ -44,11 +44,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     plan.add_argument("--altitude-plan", metavar="T=M,...", help="balloon altitude plan: ISO=metres,...")
     plan.add_argument(
-        "--zones", metavar="FILE", type=input_file("--zones"),
+        "--zones",
+        metavar="FILE",
+        type=input_file("--zones"),
         help="GeoJSON exclusion zones (Polygon/MultiPolygon); - reads standard input",
     )
     plan.add_argument(
-        "--targets", metavar="FILE", type=input_file("--targets"),
+        "--targets",
+        metavar="FILE",
+        type=input_file("--targets"),
         help="GeoJSON targets (points/lines: roads, recovery points); - reads standard input",
     )
     plan.add_argument(
@@ -66,8 +70,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     plan.add_argument(
         "--payload", choices=sorted(PROFILES), help="payload profile (default drs; not with --model)"
     )
-    plan.add_argument("--mass", type=float, metavar="KG", help="override the profile's mass (not with --model)")
-    plan.add_argument("--cda", type=float, metavar="M2", help="override the profile's Cd·A (not with --model)")
+    plan.add_argument(
+        "--mass", type=float, metavar="KG", help="override the profile's mass (not with --model)"
+    )
+    plan.add_argument(
+        "--cda", type=float, metavar="M2", help="override the profile's Cd·A (not with --model)"
+    )
     plan.add_argument(
         "--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model): its payload, terms and "
         "ellipse replace --payload",
@@ -93,7 +101,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                       help="GFS GRIB2 files (evaluate: for every flight, instead of each one's ascent winds)")  # fmt: skip
     live.add_argument("--ascent-winds", action="store_true", help="use the track's own ascent as the weather")
     live.add_argument(
-        "--track", metavar="FILE", type=input_file("--track"),
+        "--track",
+        metavar="FILE",
+        type=input_file("--track"),
         help="the descent's track (any format `drs tracks` reads); - reads standard input",
     )
     live.add_argument("--date", help="UTC date of the first fix, for logs with times of day only (V4)")
@@ -204,9 +214,11 @@ def plan_summary(plan: object) -> str:
             + f", 1σ {c.sigma_major_km:.1f} km"
         )
     if plan.windows:
-        first = "the nearest expected target distance (to 0.1 km)" if any(
-            c.expected_target_km is not None for c in plan.candidates
-        ) else "the lowest zone probability (to 0.1 %)"
+        first = (
+            "the nearest expected target distance (to 0.1 km)"
+            if any(c.expected_target_km is not None for c in plan.candidates)
+            else "the lowest zone probability (to 0.1 %)"
+        )
         lines.append(f"best = {first}, then the smallest 1σ ellipse, then the window's middle")
     lines.append("timeline (+ go, - no-go, x no landing):")
     marks = "".join("+" if c.go else ("x" if c.status else "-") for c in plan.candidates)
@@ -371,7 +383,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
     if not args.tracks:
         raise UsageError("drs live evaluate needs track files")
     if args.save_model and args.model is None:
-        raise UsageError("drs live evaluate --save-model needs --model: live settings belong to a model's law")
+        raise UsageError(
+            "drs live evaluate --save-model needs --model: live settings belong to a model's law"
+        )
     started = time.perf_counter()
     # Two laws are compared: the model's, and the textbook law of the same payload (its profile
     # without calibrated terms), so the difference is the law and not the mass or Cd·A.
@@ -388,7 +402,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
     flown = f" --model {args.model}" if args.model is not None else ""
     flown += f" --weather <{len(args.weather)} GRIB files>" if args.weather else ""
     flown += f" --dem {args.dem}" if args.dem else ""
-    command = f"drs live evaluate <{len(args.tracks)} track files in {', '.join(names)}>{flown} --out {args.out}"
+    command = (
+        f"drs live evaluate <{len(args.tracks)} track files in {', '.join(names)}>{flown} --out {args.out}"
+    )
     md = live_evaluation.write_report(result, args.out, command)
     if args.save_model:
         saved = save_model(live_settings(model, result, command), args.save_model)

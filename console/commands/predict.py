@@ -108,7 +108,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     bench.add_argument("--ensemble-repeats", type=int, default=10, help="bench: ensembles timed (default 10)")
     bench.add_argument(
-        "--bench-members", type=int, default=1000, help=f"bench: ensemble size (default 1000, at most {MAX_MEMBERS:,})"
+        "--bench-members",
+        type=int,
+        default=1000,
+        help=f"bench: ensemble size (default 1000, at most {MAX_MEMBERS:,})",
     )
     bench.add_argument(
         "--skip-compile", action="store_true", help="bench: do not time a fresh-process compile"
@@ -345,7 +348,12 @@ def _print_whole_process(files: Sequence[Path], cache_dir: Path) -> None:
     for label, argv, reference, name in (
         ("drs --help", ["--help"], argparse_s, "import argparse"),
         ("drs predict --help", ["predict", "--help"], argparse_s, "import argparse"),
-        ("drs predict (cached weather, warm numba cache)", predict_argv, science_s, "import numpy, scipy.optimize"),
+        (
+            "drs predict (cached weather, warm numba cache)",
+            predict_argv,
+            science_s,
+            "import numpy, scipy.optimize",
+        ),
     ):
         times = _whole_process_seconds(argv)
         print(
@@ -360,7 +368,9 @@ def _print_whole_process(files: Sequence[Path], cache_dir: Path) -> None:
 
 def run_bench(args: argparse.Namespace) -> int:
     if not 1 <= args.bench_members <= MAX_MEMBERS:
-        raise UsageError(f"--bench-members {args.bench_members}: give 1 to {MAX_MEMBERS:,} (memory grows with it)")
+        raise UsageError(
+            f"--bench-members {args.bench_members}: give 1 to {MAX_MEMBERS:,} (memory grows with it)"
+        )
     import numba
 
     from predictor.environment import GFS_LEVELS_HPA, Terrain, demo_weather_files, load_weather

@@ -25,7 +25,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="per flight: fixes kept and dropped (with reasons), launch, peak, descent start, landing, drift",
     )
     summary.add_argument(
-        "files", nargs="+", metavar="FILE", type=input_file("FILE"),
+        "files",
+        nargs="+",
+        metavar="FILE",
+        type=input_file("FILE"),
         help="track files (canonical CSV, GPX, SuperBIT log, V4); - reads standard input",
     )
     summary.add_argument("--json", action="store_true", help="print JSON instead of text")

@@ -86,7 +86,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     prune_parser.add_argument(
-        "--keep-days", type=at_least_zero("days", 36500), default=None, metavar="N",
+        "--keep-days",
+        type=at_least_zero("days", 36500),
+        default=None,
+        metavar="N",
         help="remove cycles older than N days",
     )
     prune_parser.add_argument(
@@ -111,7 +114,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     info = commands.add_parser("info", help="what a set of GRIB files holds once loaded as one cube")
     info.add_argument(
-        "files", nargs="+", type=lambda text: Path(input_file("FILE")(text)),
+        "files",
+        nargs="+",
+        type=lambda text: Path(input_file("FILE")(text)),
         help="GRIB files; - reads standard input",
     )
     info.add_argument("--json", action="store_true", help="print JSON")

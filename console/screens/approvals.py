@@ -64,8 +64,15 @@ class ApprovalScreen(ConsoleScreen):
         ]  # fmt: skip
         fill_rows(self.query_one("#approvals", DataTable), rows)
         you = f"You are {self.you}: the requester's own login cannot approve."
-        text = "Nothing waits for approval." if not requests else "Enter approves the highlighted request, x rejects it."
-        set_content(self.query_one("#approval-detail", Static), f"{text}\n{you}\n{len(requests)} waiting at {now:%H:%M:%S}Z")
+        text = (
+            "Nothing waits for approval."
+            if not requests
+            else "Enter approves the highlighted request, x rejects it."
+        )
+        set_content(
+            self.query_one("#approval-detail", Static),
+            f"{text}\n{you}\n{len(requests)} waiting at {now:%H:%M:%S}Z",
+        )
 
     def selected(self) -> int | None:
         table = self.query_one("#approvals", DataTable)

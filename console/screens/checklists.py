@@ -82,9 +82,21 @@ class ChecklistsScreen(ConsoleScreen):
                 unfinished = [s for s in statuses if not s.finished]
                 not_met = sum(s.state is StepState.NOT_MET for s in statuses)
                 key = f"{capsule}/{checklist.id}"
-                rows.append((key, (capsule, checklist.title, f"{len(statuses) - len(unfinished)}/{len(statuses)}",
-                                   str(not_met) if not_met else "", unfinished[0].step.id if unfinished else COMPLETE)))
-                steps = [f"  {STATE_GLYPH[s.state]:<10} {s.step.text}" for s in unfinished] or ["  every step finished"]
+                rows.append(
+                    (
+                        key,
+                        (
+                            capsule,
+                            checklist.title,
+                            f"{len(statuses) - len(unfinished)}/{len(statuses)}",
+                            str(not_met) if not_met else "",
+                            unfinished[0].step.id if unfinished else COMPLETE,
+                        ),
+                    )
+                )
+                steps = [f"  {STATE_GLYPH[s.state]:<10} {s.step.text}" for s in unfinished] or [
+                    "  every step finished"
+                ]
                 self.open_steps[key] = "\n".join([f"▸ {capsule} · {checklist.title}", *steps])  # fmt: skip
         fill_rows(self.query_one("#checklists", DataTable), rows)
         self.show_detail()

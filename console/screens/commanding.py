@@ -157,7 +157,9 @@ class CommandingScreen(ConsoleScreen):
             dialog opened (#23: the evidence was frozen at opening while the operator typed)."""
             left = (plan.queue_by - self.context.now()).total_seconds()
             if left <= 0:
-                deadline = f"queue-before {plan.queue_by:%H:%M:%S}Z has PASSED: sending will be refused; plan again"
+                deadline = (
+                    f"queue-before {plan.queue_by:%H:%M:%S}Z has PASSED: sending will be refused; plan again"
+                )
             else:
                 deadline = f"queue before {plan.queue_by:%H:%M:%S}Z — {left:.0f} s left"
             now = ops.landed(self.capsule)

@@ -13,7 +13,9 @@ from console.widgets import CapsuleDetail, FleetTable, balloon_lines, set_conten
 
 class FleetScreen(ConsoleScreen):
     BINDINGS = [
-        Binding(entry.key, f"open({entry.title!r})", entry.footer or entry.title, show=entry.footer is not None)
+        Binding(
+            entry.key, f"open({entry.title!r})", entry.footer or entry.title, show=entry.footer is not None
+        )
         for entry in SCREENS
     ]
     """A key for every screen in the registry (``console.screens.registry``), in its order."""

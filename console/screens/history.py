@@ -76,7 +76,9 @@ class HistoryScreen(ConsoleScreen):
         entry's detail is also shown whole below the table when it is highlighted.
         """
         table = self.query_one("#audit", DataTable)
-        self.records = {r.id: r for r in reversed(self.context.store.audit(text=text or None, limit=HISTORY_ROWS))}
+        self.records = {
+            r.id: r for r in reversed(self.context.store.audit(text=text or None, limit=HISTORY_ROWS))
+        }
         rows = [
             (f"{r.time_utc:%m-%d %H:%M:%S}", r.operator, r.capsule or "", r.action, r.result)
             for r in self.records.values()

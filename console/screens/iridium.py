@@ -105,7 +105,9 @@ class IridiumScreen(CommandingScreen):
              c.detail)
             for c in reversed(commands)
         ]  # fmt: skip
-        widths = [max([len(title), *(len(row[i]) for row in rows)]) for i, title in enumerate(COMMAND_COLUMNS[:-1])]
+        widths = [
+            max([len(title), *(len(row[i]) for row in rows)]) for i, title in enumerate(COMMAND_COLUMNS[:-1])
+        ]
         padding = 2 * table.cell_padding * len(COMMAND_COLUMNS) + table.styles.scrollbar_size_vertical
         widths.append(max(20, table.size.width - sum(widths) - padding))
         table.clear(columns=True)

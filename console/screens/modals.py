@@ -143,7 +143,11 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
                 yield Input(id="override", placeholder="override reason (logged with the evidence)")
             with Horizontal(classes="dialog-buttons"):
                 yield Button("Cancel", id="cancel", variant="primary")
-                yield Button("Ask another login", id="approval", tooltip="the second operator approves with drs approve")
+                yield Button(
+                    "Ask another login",
+                    id="approval",
+                    tooltip="the second operator approves with drs approve",
+                )
                 yield Button(self.action_name, id="confirm", variant="error")
 
     def on_mount(self) -> None:

@@ -137,9 +137,7 @@ class PredictionScreen(ConsoleScreen):
             "computing"
             if self.window is None
             else "computed "
-            + format_age(
-                (self.context.now() - self.window.computed_at).total_seconds()
-            )
+            + format_age((self.context.now() - self.window.computed_at).total_seconds())
             + " ago"
         )
         cursor = self.cursor if self.cursor is not None else default_cursor(self.window) if self.window else 0

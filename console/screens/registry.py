@@ -73,11 +73,13 @@ def screen_entry(title: str) -> ScreenEntry:
     return next(entry for entry in SCREENS if entry.title == title)
 
 
-def palette_commands(context: ConsoleContext, push: Callable[[Screen[None]], object]) -> Iterator[SystemCommand]:
+def palette_commands(
+    context: ConsoleContext, push: Callable[[Screen[None]], object]
+) -> Iterator[SystemCommand]:
     """Every screen for every capsule, reachable by typing its name in the palette (Ctrl+P)."""
     for entry in SCREENS:
         if entry.about is not None and (context.commanding or not entry.commanding_only):
-            yield SystemCommand(entry.title, entry.about, lambda entry=entry: push(entry.build(context, '')))
+            yield SystemCommand(entry.title, entry.about, lambda entry=entry: push(entry.build(context, "")))
     for name in context.setup.capsules:
         for entry in SCREENS:
             if entry.about is None:

@@ -113,7 +113,9 @@ class ReleaseScreen(ConsoleScreen):
                 yield Static(id="step-detail", markup=False)
             with Vertical(id="gonogo-pane"):
                 yield Static(id="arm-status", markup=False)
-                yield Label(f"Go/no-go: {self.capsule}", id="gonogo-title", classes="pane-title", markup=False)
+                yield Label(
+                    f"Go/no-go: {self.capsule}", id="gonogo-title", classes="pane-title", markup=False
+                )
                 yield Static(id="gonogo-hint", markup=False)
                 yield DataTable(id="gonogo", cursor_type="row")
         yield from self.compose_footer()
@@ -149,7 +151,9 @@ class ReleaseScreen(ConsoleScreen):
         self.step_texts.clear()
         rows = []
         for status, who in zip(statuses, whos, strict=True):
-            kind = {StepKind.MANUAL: "", StepKind.AUTO: "(auto) ", StepKind.COMMAND: "(cmd) "}[status.step.kind]
+            kind = {StepKind.MANUAL: "", StepKind.AUTO: "(auto) ", StepKind.COMMAND: "(cmd) "}[
+                status.step.kind
+            ]
             step = Text(f"{kind}{status.step.text}", no_wrap=True, overflow="ellipsis")
             by = Text(who, no_wrap=True, overflow="ellipsis")
             rows.append((status.step.id, (Text(STATE_GLYPH[status.state]), step, by)))
@@ -279,7 +283,10 @@ class ReleaseScreen(ConsoleScreen):
 
     def released(self) -> bool:
         armed = self.context.arming(self.capsule).status().state if self.context.commanding else None
-        return self.context.fleet.capsules[self.capsule].released or armed in (ArmState.FIRING, ArmState.FIRED)
+        return self.context.fleet.capsules[self.capsule].released or armed in (
+            ArmState.FIRING,
+            ArmState.FIRED,
+        )
 
     # Actions ----------------------------------------------------------------------------------
 
@@ -399,7 +406,9 @@ class ReleaseScreen(ConsoleScreen):
             )
 
         self.app.push_screen(
-            TextPromptModal(f"Waive '{item}'", "Reason (logged with your name; only GNSS and sync can be waived):"),
+            TextPromptModal(
+                f"Waive '{item}'", "Reason (logged with your name; only GNSS and sync can be waived):"
+            ),
             done,
         )
 
@@ -488,6 +497,7 @@ class ReleaseScreen(ConsoleScreen):
             lambda request: self.context.warn(f"{self.capsule}: {pending_text(request)}"),
         )  # fmt: skip
         try:
+
             def poll() -> GoNoGoReport:
                 return self.app.call_from_thread(self.context.gonogo, self.capsule)
 

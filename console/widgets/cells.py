@@ -88,7 +88,9 @@ def short_age(seconds: float) -> str:
 
 def long_age(seconds: float) -> str:
     """The age in words; a negative one means a clock is wrong, which the operator should hear about."""
-    return f"{format_age(age_shown(seconds))} ago" if seconds >= 0 else "timestamped in the future (clock skew?)"
+    return (
+        f"{format_age(age_shown(seconds))} ago" if seconds >= 0 else "timestamped in the future (clock skew?)"
+    )
 
 
 def _compact(x: float) -> str:
@@ -130,7 +132,12 @@ def _link_level(v: LinkSample) -> Level:
 
 # Release ----------------------------------------------------------------------------------------
 
-_RELEASE_SHORT = {"idle": "IDLE", "power-on-unknown": "PWR ?", "go-sent-unverified": "GO SENT?", "released": "RELEASED"}
+_RELEASE_SHORT = {
+    "idle": "IDLE",
+    "power-on-unknown": "PWR ?",
+    "go-sent-unverified": "GO SENT?",
+    "released": "RELEASED",
+}
 _RELEASE_LONG = {
     "idle": "idle, not powered",
     "go-sent-unverified": "Go sent, release not yet confirmed",
@@ -280,7 +287,9 @@ def _prediction_short(v: PredictionSample) -> str:
 
 
 def _prediction_long(v: PredictionSample) -> str:
-    where = f"landing {v.landing_lat:.3f}, {v.landing_lon:.3f}, {v.distance_km:.1f} km at {v.bearing_deg:.0f}°"
+    where = (
+        f"landing {v.landing_lat:.3f}, {v.landing_lon:.3f}, {v.distance_km:.1f} km at {v.bearing_deg:.0f}°"
+    )
     origin = f"; position from {v.origin_source}" if v.origin_source else ""
     model = f"; model {v.model}" if v.model else ""
     return f"{where} from release, σ∥ {v.sigma_par_km:.2f} σ⊥ {v.sigma_perp_km:.2f} km{origin}{model}"
@@ -361,7 +370,9 @@ class Field(Generic[S]):
         text, error, level = self._described(reading.value, self.long)
         age = long_age(reading.age_s(now) or 0.0)
         if t.released and self.after_release == "history":
-            return Cell(f"{error or text} — {age}; history: the Pi shut down at Go", "bad" if error else "none")
+            return Cell(
+                f"{error or text} — {age}; history: the Pi shut down at Go", "bad" if error else "none"
+            )
         if t.released and self.after_release == "final":
             return Cell(f"{error or text} — {age}", "bad" if error else level)
         if state is Freshness.STALE:
@@ -371,14 +382,39 @@ class Field(Generic[S]):
 
 FIELDS: tuple[Field[Any], ...] = (
     Field(LinkSample, "Link", "Link", 4, _link_short, _link_long, _link_level, after_release="history"),
-    Field(ReleaseSample, "Release", "Release", 10, _release_short, _release_long, _release_level,
-          after_release="final"),  # fmt: skip
+    Field(
+        ReleaseSample,
+        "Release",
+        "Release",
+        10,
+        _release_short,
+        _release_long,
+        _release_level,
+        after_release="final",
+    ),  # fmt: skip
     Field(GnssSample, "GNSS", "GNSS", 10, _gnss_short, _gnss_long, _gnss_level, after_release="history"),
-    Field(StorageSample, "Storage", "Storage", 10, _storage_short, _storage_long, _storage_level, after_release="history"),
+    Field(
+        StorageSample,
+        "Storage",
+        "Storage",
+        10,
+        _storage_short,
+        _storage_long,
+        _storage_level,
+        after_release="history",
+    ),
     Field(SyncSample, "Sync", "Sync", 4, _sync_short, _sync_long, _sync_level, after_release="history"),
     Field(ReportSample, "Battery/last MO", "Battery/MO", 12, _report_short, _report_long, _report_level),
-    Field(PredictionSample, "Prediction", "Prediction", 10, _prediction_short, _prediction_long, _always_ok,
-          pending_status=True),  # fmt: skip
+    Field(
+        PredictionSample,
+        "Prediction",
+        "Prediction",
+        10,
+        _prediction_short,
+        _prediction_long,
+        _always_ok,
+        pending_status=True,
+    ),  # fmt: skip
 )
 """Every field of a capsule, in the fleet table's priority order (the first ones stay at 80 columns)."""
 
@@ -406,4 +442,3 @@ def balloon_lines(reading: Reading[BalloonSample], feed: FeedStatus | None, now:
     if feed.last_error:
         health += f"; {feed.last_error}"
     return [*lines, health]
-

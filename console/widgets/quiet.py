@@ -28,7 +28,11 @@ _SHOWN = "_quiet_shown"
 def _key(content: str | Text) -> Hashable:
     """What decides whether two contents draw alike: the text and, for rich text, its styles."""
     if isinstance(content, Text):
-        return (content.plain, tuple((s.start, s.end, str(s.style)) for s in content.spans), str(content.style))
+        return (
+            content.plain,
+            tuple((s.start, s.end, str(s.style)) for s in content.spans),
+            str(content.style),
+        )
     return content
 
 
@@ -96,7 +100,9 @@ def set_cell(table: DataTable, row_key: str, column_key: ColumnKey | str, value:
     table.refresh_coordinate(Coordinate(row_index, column_index))
 
 
-def fill_rows(table: DataTable, rows: Sequence[tuple[str, Sequence[str | Text]]], auto_height: bool = False) -> bool:
+def fill_rows(
+    table: DataTable, rows: Sequence[tuple[str, Sequence[str | Text]]], auto_height: bool = False
+) -> bool:
     """Show ``rows`` (key, cells) in ``table``; True when the table had to be refilled.
 
     With the same row keys in the same order only the changed cells are repainted (``set_cell``);
@@ -157,7 +163,9 @@ class LineQuietStatic(Widget):
         if self.shows(key):
             return False
         rendered = _rendered(self, content)
-        lines = None if rendered is None else [tuple((s.text, str(s.style)) for s in line) for line in rendered]
+        lines = (
+            None if rendered is None else [tuple((s.text, str(s.style)) for s in line) for line in rendered]
+        )
         previous, self._content, self._key = self._lines, content, key
         self._lines = lines
         if previous is None or lines is None or len(previous) != len(lines):

@@ -80,7 +80,9 @@ class BalloonFix:
 
     def record(self, source: str, received_at: datetime) -> TelemetryRecord:
         """The console's balloon record: timed by the fix, so a late line ages as it should."""
-        sample = BalloonSample(self.lat, self.lon, self.alt_m, self.format, source, received_at, self.callsign)
+        sample = BalloonSample(
+            self.lat, self.lon, self.alt_m, self.format, source, received_at, self.callsign
+        )
         return TelemetryRecord(self.time, None, sample)
 
 

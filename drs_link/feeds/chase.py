@@ -172,7 +172,10 @@ class ChaseStore:
     def record(self, landing: KeptLanding) -> None:
         """Remember the landing, and move its marker to it (a new callsign) if it has gone too far."""
         marker = self.markers().get(landing.capsule)
-        moved = marker is None or surface_distance_m(marker.lat, marker.lon, landing.lat, landing.lon) > MARKER_MOVE_M
+        moved = (
+            marker is None
+            or surface_distance_m(marker.lat, marker.lon, landing.lat, landing.lon) > MARKER_MOVE_M
+        )
         with self.store.transaction() as conn:
             conn.execute(
                 "INSERT OR REPLACE INTO chase_landing VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
@@ -191,7 +194,11 @@ class ChaseStore:
         rows = self.store.query("SELECT * FROM chase_marker")
         return {
             row["capsule"]: LandingMarker(
-                row["capsule"], row["number"], parse_iso_utc(row["marked_utc"]), row["lat"], row["lon"],
+                row["capsule"],
+                row["number"],
+                parse_iso_utc(row["marked_utc"]),
+                row["lat"],
+                row["lon"],
                 row["alt_m"],
             )  # fmt: skip
             for row in rows
@@ -230,7 +237,11 @@ def chase_points(config: Config, store: Store, now: datetime) -> list[ChasePoint
                 float(fix.course_deg), f"{OWN_COMMENT} capsule {capsule.name}, Iridium fix",
             ))  # fmt: skip
         land, marker = landings.get(capsule.name), markers.get(capsule.name)
-        if land is not None and marker is not None and now - land.predicted_at <= timedelta(seconds=LIVE_LANDING_S):
+        if (
+            land is not None
+            and marker is not None
+            and now - land.predicted_at <= timedelta(seconds=LIVE_LANDING_S)
+        ):
             demo = " DEMO weather, not a forecast" if land.is_demo else ""
             points.append(ChasePoint(
                 marker.callsign, marker.marked_at, marker.lat, marker.lon, marker.alt_m, None, None,

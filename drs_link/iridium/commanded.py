@@ -76,9 +76,7 @@ def _queue_key(command: lc.Command) -> tuple[datetime, int]:
 
 def _live(commands: Sequence[lc.Command], kind: MtCommand) -> list[lc.Command]:
     """Commands carrying ``kind`` that may have reached the unit, in gateway queue order."""
-    found = [
-        c for c in commands if c.state not in NEVER_LEFT and any(is_command(t, kind) for t in c.effects)
-    ]
+    found = [c for c in commands if c.state not in NEVER_LEFT and any(is_command(t, kind) for t in c.effects)]
     return sorted(found, key=_queue_key)
 
 

@@ -185,7 +185,9 @@ def _interval_seen(minutes: int, after: Sequence[StoredReport]) -> str:
 def _encode_serial(name: str) -> Callable[[int], str]:
     def encode(serial: int) -> str:
         if not _whole(serial) or not 0 <= serial <= MAX_RB_SERIAL:
-            raise MtRefusedError(f"{name} must be a RockBLOCK serial 0-{MAX_RB_SERIAL} (0 = off), got {serial!r}")
+            raise MtRefusedError(
+                f"{name} must be a RockBLOCK serial 0-{MAX_RB_SERIAL} (0 = off), got {serial!r}"
+            )
         return f"[{name}={serial}]"
 
     return encode
@@ -298,7 +300,11 @@ INTERVAL = MtCommand(
     firmware=_firmware_interval,
     flag="--interval",
     doc=f"`[INTERVAL=n]`: minutes between reports, {INTERVAL_MIN}–{INTERVAL_MAX}; from the cycle after next",
-    option={"type": int, "metavar": "N", "help": f"reporting interval, {INTERVAL_MIN}-{INTERVAL_MAX} minutes"},
+    option={
+        "type": int,
+        "metavar": "N",
+        "help": f"reporting interval, {INTERVAL_MIN}-{INTERVAL_MAX} minutes",
+    },
     confirm=_interval_seen,
     read=_read_interval,
     prompt=Prompt("INTERVAL", f"Minutes between reports ({INTERVAL_MIN}-{INTERVAL_MAX}):", "2"),
@@ -308,7 +314,10 @@ INTERVAL = MtCommand(
     checklist_step=lambda minutes: "mt-interval",
 )
 RBSOURCE = _serial(
-    "RBSOURCE", "--rb-source", "`[RBSOURCE=n]`: the unit's own RockBLOCK serial, 0–9999999", "the unit's own RockBLOCK serial"
+    "RBSOURCE",
+    "--rb-source",
+    "`[RBSOURCE=n]`: the unit's own RockBLOCK serial, 0–9999999",
+    "the unit's own RockBLOCK serial",
 )
 RBDESTINATION = _serial(
     "RBDESTINATION",
@@ -407,7 +416,9 @@ def apply_mt(payload: bytes, fix: GnssFix | None, catalogue: Sequence[MtCommand]
     """Parse one downloaded MT the way ``start_9603`` does; invalid parts are silently ignored."""
     effect = MtEffect()
     if len(payload) > MT_BUFFER_BYTES:
-        effect.discarded = f"{len(payload)} bytes overflow the {MT_BUFFER_BYTES}-byte buffer (ISBD_RX_OVERFLOW)"
+        effect.discarded = (
+            f"{len(payload)} bytes overflow the {MT_BUFFER_BYTES}-byte buffer (ISBD_RX_OVERFLOW)"
+        )
         return effect
     if len(payload) == MT_BUFFER_BYTES:
         effect.discarded = "100 bytes: the terminating NUL is written past the buffer (undefined)"

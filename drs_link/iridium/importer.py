@@ -63,7 +63,9 @@ def import_file(path: Path, reports: ReportStore, now: datetime) -> ImportOutcom
         return ImportOutcome(path, "error", f"cannot read: {exc.strerror or exc}")
     if len(payload) > MAX_ATTACHMENT_BYTES:
         return ImportOutcome(path, "error", f"over {MAX_ATTACHMENT_BYTES} bytes: not an SBD MO attachment")
-    stored, new = reports.add(Delivery(imei, momsn, payload.hex(), "email-file", now, transmit_utc=transmitted))
+    stored, new = reports.add(
+        Delivery(imei, momsn, payload.hex(), "email-file", now, transmit_utc=transmitted)
+    )
     if not new:
         return ImportOutcome(path, "duplicate", "already stored", stored)
     if not stored.parsed.accepted:

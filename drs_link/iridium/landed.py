@@ -158,7 +158,9 @@ def _evidence(track: list[TrackPoint], ground_m: float | None) -> LandedEvidence
             seconds = (last.time - before.time).total_seconds()
             if seconds > 0:
                 rate = (last.alt_m - before.alt_m) / seconds
-                trend = f", {'falling' if rate < 0 else 'climbing'} {abs(rate):.1f} m/s since the report before"
+                trend = (
+                    f", {'falling' if rate < 0 else 'climbing'} {abs(rate):.1f} m/s since the report before"
+                )
         return LandedEvidence(False, f"NOT LANDED: last fix {_describe(last)}{trend}", last)
     if landing.moved_at is not None:
         return LandedEvidence(

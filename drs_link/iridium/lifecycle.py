@@ -371,7 +371,8 @@ class CommandLifecycle:
                 sql = ", ".join(f"{name} = ?" for name in assignments)
                 if change.expected is None:
                     conn.execute(
-                        f"UPDATE mt_command SET {sql} WHERE id = ?", (*assignments.values(), change.command.id)
+                        f"UPDATE mt_command SET {sql} WHERE id = ?",
+                        (*assignments.values(), change.command.id),
                     )
                     continue
                 updated = conn.execute(
@@ -460,7 +461,11 @@ class CommandLifecycle:
                 {"command_id": command_id, "reason": "confirmation does not name the capsule"},
                 when=self.clock(),
             )
-            self._set(command, NOT_SENT, f"refused: the confirmation {confirmation!r} does not name {command.capsule!r}")
+            self._set(
+                command,
+                NOT_SENT,
+                f"refused: the confirmation {confirmation!r} does not name {command.capsule!r}",
+            )
             raise RefusedError(
                 f"refused: to send {command.text} the confirmation must name the capsule {command.capsule!r}"
             )

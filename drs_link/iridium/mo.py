@@ -119,7 +119,9 @@ def _short_reason(fields: list[str]) -> str:
     calling it truncated sends an operator looking for a radio fault that is not there.
     """
     complete = fields[:-1]
-    if complete and all(re.fullmatch(pattern, value) for value, (_, pattern) in zip(complete, _FIELDS, strict=False)):
+    if complete and all(
+        re.fullmatch(pattern, value) for value, (_, pattern) in zip(complete, _FIELDS, strict=False)
+    ):
         return f"truncated: {len(fields)} fields, a DRS report has {len(_FIELDS)}"
     return f"not a DRS report: {len(fields)} comma-separated field(s), not the firmware's {len(_FIELDS)}"
 

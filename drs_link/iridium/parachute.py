@@ -138,7 +138,8 @@ def _covered(p_minute: int, accepted_sets: list[frozenset[int]]) -> int:
 def _slack(p_minute: int, cycle: CycleForecast) -> int:
     """Minutes to spare before the fix minute that is furthest from ``p_minute`` leaves its window."""
     return min(
-        PARACHUTE_REACH_MIN - min(abs(p_minute - g), MINUTES_PER_DAY - abs(p_minute - g)) for g in cycle.minutes_of_day()
+        PARACHUTE_REACH_MIN - min(abs(p_minute - g), MINUTES_PER_DAY - abs(p_minute - g))
+        for g in cycle.minutes_of_day()
     )
 
 

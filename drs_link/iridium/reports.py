@@ -59,6 +59,7 @@ CREATE TABLE IF NOT EXISTS mo_delivery_rejected (
 REJECTED_KEPT = 1000
 REJECTED_BODY_CHARS = 4096
 
+
 @dataclass(frozen=True)
 class Delivery:
     """One MO as it arrived, before parsing."""
@@ -193,7 +194,9 @@ class ReportStore:
                     "INSERT INTO mo_delivery_rejected (received_utc, remote, reason, body) VALUES (?, ?, ?, ?)",
                     (iso_utc(received_utc), remote, reason, body[:REJECTED_BODY_CHARS]),
                 ).lastrowid
-                conn.execute("DELETE FROM mo_delivery_rejected WHERE id <= ?", ((newest or 0) - REJECTED_KEPT,))
+                conn.execute(
+                    "DELETE FROM mo_delivery_rejected WHERE id <= ?", ((newest or 0) - REJECTED_KEPT,)
+                )
         except StoreError as exc:
             log.error("rejected MO delivery from %s (%s) not kept: %s", remote, reason, exc)
 

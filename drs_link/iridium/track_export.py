@@ -83,7 +83,9 @@ def export_track(reports: list[StoredReport], path: Path, who: str, overwrite: b
     temporary = path.with_name(f".{path.name}.part")
     try:
         temporary.unlink(missing_ok=True)
-        os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, EXPORT_MODE))  # before any fix is in it
+        os.close(
+            os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, EXPORT_MODE)
+        )  # before any fix is in it
         write_canonical_csv(fixes, temporary)
         os.replace(temporary, path)
     except OSError as exc:

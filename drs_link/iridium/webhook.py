@@ -316,7 +316,9 @@ class _Handler(BaseHTTPRequestHandler):
             return peer, {"client": peer}
         if self.server.trusted_proxy is None or _address(peer) != self.server.trusted_proxy:
             return peer, {"client": peer, "forwarded_ignored": forwarded}
-        client = _address(forwarded.split(",")[-1])  # the one the proxy appended: earlier ones are the client's say
+        client = _address(
+            forwarded.split(",")[-1]
+        )  # the one the proxy appended: earlier ones are the client's say
         if client is None:
             return peer, {"client": peer, "forwarded_unreadable": forwarded}
         return f"{client} via {peer}", {"client": str(client), "proxy": peer}
@@ -330,7 +332,9 @@ class _Handler(BaseHTTPRequestHandler):
             "path": path or "-",
             "status": int(code) if str(code).isdigit() else code,
             **({"unsent": self._unsent} if getattr(self, "_unsent", None) else {}),
-            "request_bytes": self.headers.get("Content-Length", "-") if getattr(self, "headers", None) else "-",
+            "request_bytes": self.headers.get("Content-Length", "-")
+            if getattr(self, "headers", None)
+            else "-",
             "ms": round(1000 * (time.monotonic() - self._started), 1),
         }
         shown = f"{fields['status']} NOT SENT ({self._unsent})" if fields.get("unsent") else fields["status"]
@@ -378,7 +382,9 @@ class _Handler(BaseHTTPRequestHandler):
         length = int(length_text)
         if length > receiver.config.max_body_bytes:
             self.close_connection = True
-            receiver.reports.reject_delivery(receiver.clock(), remote, f"body of {length} bytes over the limit", "")
+            receiver.reports.reject_delivery(
+                receiver.clock(), remote, f"body of {length} bytes over the limit", ""
+            )
             self._answer(413, f"body over {receiver.config.max_body_bytes} bytes")
             return
         body = self.rfile.read(length)
@@ -437,7 +443,9 @@ class MoHttpServer(ThreadingHTTPServer):
         super().__init__((receiver.config.listen_host, receiver.config.listen_port), _Handler)
         self.receiver = receiver
         self.deadlines = _Deadlines()
-        self.trusted_proxy = _address(receiver.config.trusted_proxy) if receiver.config.trusted_proxy else None
+        self.trusted_proxy = (
+            _address(receiver.config.trusted_proxy) if receiver.config.trusted_proxy else None
+        )
         self.after_answer: queue.Queue[StoredReport | None] = queue.Queue()
         self._service_threads: list[threading.Thread] = []
         self._in_flight = 0
@@ -506,7 +514,9 @@ class MoHttpServer(ThreadingHTTPServer):
             self._idle.wait_for(lambda: self._in_flight == 0, timeout=drain_s)
             cut_off = self._in_flight
         if cut_off:
-            log.warning("stopped with requests unanswered; their senders retry", extra={"unanswered": cut_off})
+            log.warning(
+                "stopped with requests unanswered; their senders retry", extra={"unanswered": cut_off}
+            )
         self.after_answer.put(None)
         self.deadlines.stop()
         for thread in self._service_threads:

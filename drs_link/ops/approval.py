@@ -167,8 +167,17 @@ class ApprovalBook:
         return cls(Store.open(store_path))
 
     def request(
-        self, capsule: str, action: str, summary: str, operator: str, login: Login, ttl_s: float = APPROVAL_TTL_S,
-        *, command: str | None = None, window_id: int | None = None, deadline: datetime | None = None,
+        self,
+        capsule: str,
+        action: str,
+        summary: str,
+        operator: str,
+        login: Login,
+        ttl_s: float = APPROVAL_TTL_S,
+        *,
+        command: str | None = None,
+        window_id: int | None = None,
+        deadline: datetime | None = None,
         capsule_state: str | None = None,
     ) -> Approval:
         """A pending request another login must approve before ``expires`` (the TTL or the action's own
@@ -217,14 +226,18 @@ class ApprovalBook:
         rows = self.store.query(f"SELECT id FROM approval WHERE id = ? AND {USABLE}", (request.id, now, now))
         return bool(rows)
 
-    def _end(self, where: str, params: tuple[object, ...], state: str, reason: str, operator: str) -> list[int]:
+    def _end(
+        self, where: str, params: tuple[object, ...], state: str, reason: str, operator: str
+    ) -> list[int]:
         """Move every matching pending/approved request to ``state`` (void, cancelled); audited each."""
         with self.store.transaction() as conn:
             rows = conn.execute(
                 f"SELECT id, capsule FROM approval WHERE state IN ('pending', 'approved') AND {where}", params
             ).fetchall()
             for row in rows:
-                conn.execute("UPDATE approval SET state = ?, reason = ? WHERE id = ?", (state, reason, row["id"]))
+                conn.execute(
+                    "UPDATE approval SET state = ?, reason = ? WHERE id = ?", (state, reason, row["id"])
+                )
         for row in rows:
             self.store.append_audit(operator, str(row["capsule"]), f"approval.{state}", state,
                                     {"approval": int(row["id"]), "reason": reason})  # fmt: skip
@@ -250,7 +263,9 @@ class ApprovalBook:
             raise RefusedError(f"approval #{approval_id} is {now}: nothing to cancel")
         return self.get(approval_id)
 
-    def decide(self, approval_id: int, operator: str, login: Login, approve: bool, reason: str = "") -> Approval:
+    def decide(
+        self, approval_id: int, operator: str, login: Login, approve: bool, reason: str = ""
+    ) -> Approval:
         """Approve or reject a pending request from a login that is not the requester's."""
         request = self.get(approval_id)
         now, operator = self.clock(), login.person or operator
@@ -288,7 +303,11 @@ class ApprovalBook:
 
     def why_not(self, request: Approval, now: datetime) -> str:
         """A request's state as a refusal says it, naming a closed ARM window as the reason."""
-        if request.state in ("pending", "approved") and request.window_id is not None and not self.usable(request):
+        if (
+            request.state in ("pending", "approved")
+            and request.window_id is not None
+            and not self.usable(request)
+        ):
             return f"void (ARM window #{request.window_id} closed)"
         if request.state in ("void", "cancelled") and request.reason:
             return f"{request.state} ({request.reason})"
@@ -303,7 +322,12 @@ class ApprovalBook:
             time.sleep(poll_s)
 
     def use(
-        self, approval_id: int, capsule: str, action: str, login: Login, command: str | None = None,
+        self,
+        approval_id: int,
+        capsule: str,
+        action: str,
+        login: Login,
+        command: str | None = None,
         capsule_state: str | None = None,
     ) -> dict[str, str]:
         """Spend an approval on the command it was given for, once; what to audit with the command.
@@ -319,7 +343,9 @@ class ApprovalBook:
                 f"not {capsule} {ACTIONS.get(action)}"
             )
         if not request.requester.same_person(login):
-            raise RefusedError(f"approval #{approval_id} was requested by {request.requester}, not by {login}")
+            raise RefusedError(
+                f"approval #{approval_id} was requested by {request.requester}, not by {login}"
+            )
         if request.command is None:  # a request from before the binding: it could fire any window
             raise RefusedError(
                 f"approval #{approval_id} is bound to no command (asked for before approvals were bound to "
@@ -327,8 +353,14 @@ class ApprovalBook:
             )
         if command is not None and request.command != command:
             raise RefusedError(f"approval #{approval_id} was given for {request.command}, not {command}")
-        if request.capsule_state is not None and capsule_state is not None and request.capsule_state != capsule_state:
-            self.void_capsule(capsule, f"capsule state changed: {request.capsule_state} → {capsule_state}", "drs")
+        if (
+            request.capsule_state is not None
+            and capsule_state is not None
+            and request.capsule_state != capsule_state
+        ):
+            self.void_capsule(
+                capsule, f"capsule state changed: {request.capsule_state} → {capsule_state}", "drs"
+            )
             raise RefusedError(
                 f"approval #{approval_id} was given while {capsule} was {request.capsule_state}; "
                 f"it is now {capsule_state}"

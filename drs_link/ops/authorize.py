@@ -86,7 +86,11 @@ def authorize_mt(
     try:
         if approval is not None:
             people = ApprovalBook(store).use(
-                approval, capsule, "parachute", login or current_login(), approval_command(message, override_landed)
+                approval,
+                capsule,
+                "parachute",
+                login or current_login(),
+                approval_command(message, override_landed),
             )
         else:
             people = check_second_operator(
@@ -103,7 +107,9 @@ def authorize_mt(
                 "give a reason and a second operator (or a logged single-operator waiver)"
             )
         if not people:
-            raise refuse("overriding the landed check needs a second operator or a logged single-operator waiver")
+            raise refuse(
+                "overriding the landed check needs a second operator or a logged single-operator waiver"
+            )
         details["override_landed"] = override
     elif not evidence.verified and not people:
         raise refuse(

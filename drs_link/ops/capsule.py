@@ -285,7 +285,11 @@ class ReleaseStateMachine:
             self._audit("power-on", "outcome unknown", {"error": str(exc)})
             raise LinkError(f"{exc}; {POWER_ON_UNKNOWN_NOTE}") from None
         record = replace(
-            attempt, state=ReleaseState.POWERED, log_offset=result.log_offset, powered_at=self.clock(), note=None
+            attempt,
+            state=ReleaseState.POWERED,
+            log_offset=result.log_offset,
+            powered_at=self.clock(),
+            note=None,
         )
         try:
             self._swap(attempt, record)
@@ -481,13 +485,18 @@ class ReleaseStateMachine:
         if typed_name != self.name:
             raise self._refuse("released", f"the confirmation {typed_name!r} does not name {self.name!r}")
         if self.operator == "unknown":
-            raise self._refuse("released", "no operator name: set [operator] name; this ends a release on the record")
+            raise self._refuse(
+                "released", "no operator name: set [operator] name; this ends a release on the record"
+            )
         if not evidence.strip() or not evidence.isprintable():
-            raise self._refuse("released", "give the evidence as one line of text (what shows it was released)")
+            raise self._refuse(
+                "released", "give the evidence as one line of text (what shows it was released)"
+            )
         seen = self.record()
         if seen.state is not ReleaseState.GO_SENT:
             raise self._refuse(
-                "released", f"the capsule is {seen.state.value}: only an unverified Go can be settled as released"
+                "released",
+                f"the capsule is {seen.state.value}: only an unverified Go can be settled as released",
             )
         released = replace(
             seen, state=ReleaseState.RELEASED, released_at=seen.go_at,

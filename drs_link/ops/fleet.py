@@ -149,7 +149,9 @@ class FleetState:
 
     @classmethod
     def for_capsules(cls, names: list[str], poll_period_s: float = 0.0) -> FleetState:
-        return cls({name: CapsuleTelemetry(name, poll_period_s) for name in names}, poll_period_s=poll_period_s)
+        return cls(
+            {name: CapsuleTelemetry(name, poll_period_s) for name in names}, poll_period_s=poll_period_s
+        )
 
     def apply(self, record: TelemetryRecord) -> None:
         sample = record.data
@@ -162,5 +164,7 @@ class FleetState:
                 for capsule in self.capsules.values():
                     capsule.apply(record)
             return
-        capsule = self.capsules.setdefault(record.capsule, CapsuleTelemetry(record.capsule, self.poll_period_s))
+        capsule = self.capsules.setdefault(
+            record.capsule, CapsuleTelemetry(record.capsule, self.poll_period_s)
+        )
         capsule.apply(record)

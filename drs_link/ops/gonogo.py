@@ -149,7 +149,10 @@ def _prediction_item(inputs: GoNoGoInputs, now: datetime) -> GoNoGoItem:
     hits = [zone.name for zone in inputs.exclusion_zones if zone.polygon().intersects(ellipse)]
     if hits:
         return GoNoGoItem(
-            "prediction", "Prediction fresh", Verdict.NO_GO, f"2σ ellipse touches exclusion zone {', '.join(hits)}"
+            "prediction",
+            "Prediction fresh",
+            Verdict.NO_GO,
+            f"2σ ellipse touches exclusion zone {', '.join(hits)}",
         )
     zones = len(inputs.exclusion_zones)
     return GoNoGoItem(
@@ -194,7 +197,11 @@ def evaluate(
         _sync_item(inputs.sync_fraction, now),
         _prediction_item(inputs, now),
         _fresh_true(
-            "gateway", "Gateway configured", inputs.gateway_credentials, now, "not verified",
+            "gateway",
+            "Gateway configured",
+            inputs.gateway_credentials,
+            now,
+            "not verified",
             "invalid or missing",
         ),
     ]
@@ -203,7 +210,10 @@ def evaluate(
         waiver = by_item.get(item.key)
         if waiver is not None and item.blocking:
             items[index] = GoNoGoItem(
-                item.key, item.title, Verdict.WAIVED, f"{item.detail}; waived by {waiver.operator}: {waiver.reason}"
+                item.key,
+                item.title,
+                Verdict.WAIVED,
+                f"{item.detail}; waived by {waiver.operator}: {waiver.reason}",
             )
     return GoNoGoReport(capsule, tuple(items), _fingerprint(items), now)
 

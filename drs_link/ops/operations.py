@@ -292,7 +292,9 @@ class Operations:
         return self.capsules[name]
 
     def _release_record(self, name: str, record: ReleaseRecord) -> TelemetryRecord:
-        sample = ReleaseSample(record.state.value, record.nmea_seen_at is not None, record.note, record.released_at)
+        sample = ReleaseSample(
+            record.state.value, record.nmea_seen_at is not None, record.note, record.released_at
+        )
         return TelemetryRecord(self.clock(), name, sample)
 
     def poll(self, name: str) -> list[TelemetryRecord]:
@@ -357,20 +359,26 @@ class Operations:
             raise ConfigError(f"capsule {name}: sync_source is not configured")
         return chosen
 
-    def sync(self, name: str, source: Path | None = None, on_progress: SyncProgress | None = None) -> SyncReport:
+    def sync(
+        self, name: str, source: Path | None = None, on_progress: SyncProgress | None = None
+    ) -> SyncReport:
         """Upload ``source`` (default: the capsule's ``sync_source``) to its storage, each file verified by
         sha256 on the Pi; every verified file, the outcome and a failure are audited, whichever face asked."""
         ops = self.ops(name)
         chosen = self._sync_source(name, source)
 
         def verified(relative: str) -> None:
-            self.store.append_audit(self.operator, name, "sync-file", "verified", {"path": relative}, when=self.clock())
+            self.store.append_audit(
+                self.operator, name, "sync-file", "verified", {"path": relative}, when=self.clock()
+            )
 
         with ops.lock:
             try:
                 report = ops.syncer.sync(chosen, on_progress=on_progress, on_verified=verified)
             except LinkError as exc:
-                self.store.append_audit(self.operator, name, "sync", "failed", {"error": str(exc)}, when=self.clock())
+                self.store.append_audit(
+                    self.operator, name, "sync", "failed", {"error": str(exc)}, when=self.clock()
+                )
                 raise
         detail = {"uploaded": len(report.uploaded), "bytes": report.bytes_sent}
         self.store.append_audit(self.operator, name, "sync", "ok", detail, when=self.clock())
@@ -475,7 +483,9 @@ class Operations:
             state = ops.machine.record().state
             if state is not ReleaseState.GO_SENT:
                 why = f"only an unverified Go (go-sent-unverified) is finished; {name} is {state.value}"
-                self.store.append_audit(self.operator, name, "go", "refused", {"reason": why}, when=self.clock())
+                self.store.append_audit(
+                    self.operator, name, "go", "refused", {"reason": why}, when=self.clock()
+                )
                 raise RefusedError(f"{name}: finish refused: {why}")
             detail = {"state": ReleaseState.GO_SENT.value}
             self.store.append_audit(self.operator, name, "go", "finishing", detail, when=self.clock())
@@ -486,7 +496,11 @@ class Operations:
         return self._emit([self._release_record(name, record)])
 
     def take_over(
-        self, name: str, seen: AuthorityStatus, typed_name: str, reason: str,
+        self,
+        name: str,
+        seen: AuthorityStatus,
+        typed_name: str,
+        reason: str,
         second: SecondOperator = SecondOperator(),
     ) -> AuthorityStatus:
         """Take over the capsule's release authority from what the operator was shown (``seen``).
@@ -505,7 +519,9 @@ class Operations:
                     self.approvals, name, "authority", command, self.operator, self.login,
                     second.on_pending or (lambda request: None), command=command, capsule_state=state,
                 )  # fmt: skip
-                people = self.approvals.use(approval, name, "authority", self.login, command, self.release_state(name).value)
+                people = self.approvals.use(
+                    approval, name, "authority", self.login, command, self.release_state(name).value
+                )
             else:
                 people = check_second_operator(
                     self.operator, second.name, second.waiver, self.config.console.require_second_operator,
@@ -513,10 +529,14 @@ class Operations:
                 )  # fmt: skip
         except RefusedError as exc:
             detail = {"reason": reason.strip(), "refusal": str(exc)}
-            self.store.append_audit(self.operator, name, "authority-take-over", "refused", detail, when=self.clock())
+            self.store.append_audit(
+                self.operator, name, "authority-take-over", "refused", detail, when=self.clock()
+            )
             raise RefusedError(f"{name}: take-over refused: {exc}") from None
         if people:
-            self.store.append_audit(self.operator, name, "authority-take-over", "approved", people, when=self.clock())
+            self.store.append_audit(
+                self.operator, name, "authority-take-over", "approved", people, when=self.clock()
+            )
         with ops.lock:
             try:
                 return ops.machine.take_over(seen, typed_name, reason)
@@ -536,10 +556,15 @@ class Operations:
             try:
                 ops.link.connect()
                 report["link"] = {"up": True}
-                report["storage"] = read_storage(ops.link, ops.config.storage_mount, ops.config.raid_device).as_dict()
+                report["storage"] = read_storage(
+                    ops.link, ops.config.storage_mount, ops.config.raid_device
+                ).as_dict()
                 if record.state is ReleaseState.POWERED:
                     mcu = ops.machine.check_microcontroller()
-                    report["microcontroller"] = {"waiting_for_go": mcu.waiting_for_go, "diagnosis": mcu.diagnosis}
+                    report["microcontroller"] = {
+                        "waiting_for_go": mcu.waiting_for_go,
+                        "diagnosis": mcu.diagnosis,
+                    }
                     report["gnss"] = mcu.gnss.as_dict()
             except HostKeyError:
                 raise
@@ -572,16 +597,24 @@ class Operations:
         """The host key the Pi offers now (``drs capsule enrol``), before anything is trusted."""
         capsule = self.ops(name).config
         if capsule.jump_host:
-            raise LinkError(f"{capsule.name}: enrol through a jump host is not supported; add the key by hand")
+            raise LinkError(
+                f"{capsule.name}: enrol through a jump host is not supported; add the key by hand"
+            )
         key = scan_host_key(capsule.host, capsule.port, capsule.connect_timeout_s)
-        return HostKeyOffer(known_hosts_name(capsule.host, capsule.port), key.get_name(), fingerprint(key), key)
+        return HostKeyOffer(
+            known_hosts_name(capsule.host, capsule.port), key.get_name(), fingerprint(key), key
+        )
 
     def enrol(self, name: str, offer: HostKeyOffer, read_on_pi: str) -> Path:
         """Trust ``offer`` only if it is the fingerprint the operator read on the Pi itself; audited."""
         capsule = self.ops(name).config
         if read_on_pi != offer.fingerprint:
-            raise RefusedError(f"{capsule.name}: enrol refused: the Pi offers {offer.fingerprint}, not {read_on_pi}")
-        self.store.append_audit(self.operator, capsule.name, "enrol", "ok", {"fingerprint": offer.fingerprint})
+            raise RefusedError(
+                f"{capsule.name}: enrol refused: the Pi offers {offer.fingerprint}, not {read_on_pi}"
+            )
+        self.store.append_audit(
+            self.operator, capsule.name, "enrol", "ok", {"fingerprint": offer.fingerprint}
+        )
         enrol_host_key(capsule.known_hosts, capsule.host, capsule.port, offer.key)
         return capsule.known_hosts
 
@@ -647,7 +680,9 @@ class Operations:
         """The capsule's Iridium reports in time order; refused when it has no IMEI to key them by."""
         imei = self.ops(name).config.imei
         if not imei:
-            raise ConfigError(f"capsule {name}: imei is not configured; reports and commands are keyed by IMEI")
+            raise ConfigError(
+                f"capsule {name}: imei is not configured; reports and commands are keyed by IMEI"
+            )
         return self.reports.for_imei(imei)
 
     def mt_status(self, name: str) -> list[Command]:
@@ -662,7 +697,9 @@ class Operations:
     ) -> ParachutePlan:
         """When a PARACHUTE can fire (``requested`` HH:MM, or the next cycle): the reports, the MTs known
         (read-only: ``mt_status`` moves them on first) and the queue-before deadline ``send_mt`` re-checks."""
-        return plan_parachute(self.reports_of(name), self.clock(), self.commands(name), requested, accept_midnight)
+        return plan_parachute(
+            self.reports_of(name), self.clock(), self.commands(name), requested, accept_midnight
+        )
 
     def landed(self, name: str) -> LandedEvidence:
         """The landed evidence the PARACHUTE gate will judge, for the operator to read before sending."""

@@ -46,7 +46,14 @@ def complete_mt_steps(
         if name is None:
             continue
         completed = complete_command(
-            store, checklists, command.capsule, name, operator, f"{text} queued (MT {command.id})", facts, clock
+            store,
+            checklists,
+            command.capsule,
+            name,
+            operator,
+            f"{text} queued (MT {command.id})",
+            facts,
+            clock,
         )
         if completed is not None:
             done.append(completed[1])

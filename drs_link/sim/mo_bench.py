@@ -129,7 +129,9 @@ def run_bench(posts: int = 200, clients: int = 20, burst_per_client: int = 50) -
             sequential = [_timed_post(server.url, body) for body in bodies]
             if None in sequential:
                 raise RuntimeError("a bench POST got no 200 with one client")
-            with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as gateway:
+            with ProcessPoolExecutor(
+                max_workers=1, mp_context=multiprocessing.get_context("spawn")
+            ) as gateway:
                 burst = gateway.submit(_burst, server.url, private_key, clients, burst_per_client).result()
         finally:
             server.stop()
@@ -137,7 +139,9 @@ def run_bench(posts: int = 200, clients: int = 20, burst_per_client: int = 50) -
         store.close()
     keys = [(r.delivery.imei, r.delivery.momsn) for r in kept]
     answered = [t for times in burst for t in times if t is not None]
-    acknowledged = {(_imei(c), m) for c, times in enumerate(burst, 1) for m, t in enumerate(times) if t is not None}
+    acknowledged = {
+        (_imei(c), m) for c, times in enumerate(burst, 1) for m, t in enumerate(times) if t is not None
+    }
     hexes = [_delivery(0, momsn).payload.hex() for momsn in range(posts)]
     began = time.perf_counter()
     rounds = max(1, 20000 // posts)

@@ -233,11 +233,15 @@ def post_mo(
     return post_body(receiver_url, *mo_body(delivery, as_json, jwt_private_key), timeout_s=timeout_s)
 
 
-def mo_body(delivery: MoDelivery, as_json: bool = False, jwt_private_key: str | None = None) -> tuple[bytes, str]:
+def mo_body(
+    delivery: MoDelivery, as_json: bool = False, jwt_private_key: str | None = None
+) -> tuple[bytes, str]:
     """The body and Content-Type the gateway would POST for ``delivery``, signed when a key is given."""
     fields: dict[str, str] = delivery.fields()
     if jwt_private_key is not None:
-        fields["JWT"] = jwt.encode({"iss": "Rock 7", **fields}, _signing_key(jwt_private_key), algorithm="RS256")
+        fields["JWT"] = jwt.encode(
+            {"iss": "Rock 7", **fields}, _signing_key(jwt_private_key), algorithm="RS256"
+        )
     if as_json:
         return json.dumps(fields).encode(), "application/json"
     return urlencode(fields).encode(), "application/x-www-form-urlencoded"

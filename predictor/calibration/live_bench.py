@@ -39,7 +39,9 @@ def resampled(path: str | Path, cadence_s: float = 1.0) -> list[Fix]:
     start = flight.fixes[0].time
     logged = np.array([(f.time - start).total_seconds() for f in flight.fixes])
     at = np.arange(0.0, logged[-1] + GROUND_S, cadence_s)
-    lat, lon, alt = (np.interp(at, logged, [getattr(f, k) for f in flight.fixes]) for k in ("lat", "lon", "alt_m"))
+    lat, lon, alt = (
+        np.interp(at, logged, [getattr(f, k) for f in flight.fixes]) for k in ("lat", "lon", "alt_m")
+    )
     return [
         Fix(start + timedelta(seconds=float(t)), float(a), float(b), float(c))
         for t, a, b, c in zip(at, lat, lon, alt, strict=True)

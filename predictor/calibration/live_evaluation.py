@@ -252,7 +252,10 @@ class _Flight:
 
 
 def _usable(
-    paths: Sequence[str | Path], day: date | None, skipped: list[str], weather: WeatherCube | None,
+    paths: Sequence[str | Path],
+    day: date | None,
+    skipped: list[str],
+    weather: WeatherCube | None,
     terrain: Terrain | None,
 ) -> list[_Flight]:
     """The flights that can be replayed; every other one goes to ``skipped`` with the reason."""
@@ -278,7 +281,15 @@ def _usable(
             continue
         ground = terrain if terrain is not None else LevelGround(flight.landing.alt_m)
         flights.append(
-            _Flight(flight.name, descent, flight.landing, cube, ground, checkpoints, flight_case(flight, cube, terrain))
+            _Flight(
+                flight.name,
+                descent,
+                flight.landing,
+                cube,
+                ground,
+                checkpoints,
+                flight_case(flight, cube, terrain),
+            )
         )
     return flights
 
@@ -401,7 +412,9 @@ def rate_law(survey: _Survey, leave_out: str | None = None) -> tuple[RatePrior |
         noise = np.array([p[1] ** 2 for p in pairs if math.isfinite(p[1])])
         heights.append(km)
         bias.append(round(float(d.mean()), 5))
-        spread.append(round(math.sqrt(max(float(d.var(ddof=1)) - float(noise.mean() if noise.size else 0.0), 0.0)), 5))
+        spread.append(
+            round(math.sqrt(max(float(d.var(ddof=1)) - float(noise.mean() if noise.size else 0.0), 0.0)), 5)
+        )
     discrepancy = RateDiscrepancy(tuple(heights), tuple(bias), tuple(spread)) if heights else NO_DISCREPANCY
     return prior, discrepancy
 
@@ -749,7 +762,8 @@ def _rate_law_text(name: str, law: tuple[RatePrior | None, RateDiscrepancy]) -> 
     prior, discrepancy = law
     text = (
         f"median λ {prior.median:.4f}, σ(ln λ) {prior.log_sigma:.4f} over {prior.flights} flights"
-        if prior is not None else "no prior (fewer than 3 whole-descent fits)"
+        if prior is not None
+        else "no prior (fewer than 3 whole-descent fits)"
     )
     rows = ", ".join(
         f"{h:g} km {100 * b:+.1f} % ± {100 * s:.1f} %"
@@ -834,8 +848,11 @@ def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
         "Ratio of the mean error of *model + held-out live* to each baseline's, with its 95 % interval "
         f"({BOOTSTRAP_RESAMPLES} paired bootstrap draws of the flights). Below 1: the model does better.",
         "",
-        "| height km | " + " | ".join(f"time ÷ {label}" for _, label in BASELINES) + " | "
-        + " | ".join(f"landing ÷ {label}" for _, label in BASELINES) + " |",
+        "| height km | "
+        + " | ".join(f"time ÷ {label}" for _, label in BASELINES)
+        + " | "
+        + " | ".join(f"landing ÷ {label}" for _, label in BASELINES)
+        + " |",
         "|---|" + "---|" * (2 * len(BASELINES)),
     ]
     for km in kms:

@@ -72,13 +72,17 @@ class CalibratedModel:
     """The spread of each calibration flight's own rate factor λ around the shared law (None: the
     calibration did not fit λ per flight)."""
 
-    def live_predictor(self, cube: WeatherCube, terrain: Terrain | None = None, corrected: bool = True) -> LivePredictor:
+    def live_predictor(
+        self, cube: WeatherCube, terrain: Terrain | None = None, corrected: bool = True
+    ) -> LivePredictor:
         """A live predictor flying this model's law with its own λ prior and live settings (``corrected``:
         its bands; otherwise the plain restart from each report). Without live settings of its own it
         flies its shape with this flight's own λ update, and every prediction says what is not its own."""
         notes = []
         if self.live is None:
-            notes.append("no live settings of its own: its shape with this flight's own λ update, no wind correction")
+            notes.append(
+                "no live settings of its own: its shape with this flight's own λ update, no wind correction"
+            )
             notes.append(DEFAULT_ELLIPSE_NOTE)
             settings = LiveSettings(OWN_RATE, LIVE_ERROR_MODEL)
         else:
@@ -177,7 +181,9 @@ def _live_to_dict(live: LiveSettings) -> dict[str, Any]:
         "bands": [band(b) for b in live.correction.bands],
         "wind_window_m": live.correction.wind_window_m,
         "discrepancy": {
-            "heights_km": list(d.heights_km), "log_bias": list(d.log_bias), "log_sigma": list(d.log_sigma),
+            "heights_km": list(d.heights_km),
+            "log_bias": list(d.log_bias),
+            "log_sigma": list(d.log_sigma),
         },
         **({"prior": live.prior.to_dict()} if live.prior is not None else {}),
         "error_model": {
@@ -210,7 +216,9 @@ def load_model(path: str | Path) -> CalibratedModel:
     source = Path(path)
 
     def refuse(where: str, problem: str) -> ModelFileError:
-        return ModelFileError(f"model file {source}: {where}: {problem}" if where else f"model file {source}: {problem}")
+        return ModelFileError(
+            f"model file {source}: {where}: {problem}" if where else f"model file {source}: {problem}"
+        )
 
     try:
         raw = json.loads(source.read_text(encoding="utf-8"))
@@ -226,7 +234,9 @@ def load_model(path: str | Path) -> CalibratedModel:
     if not isinstance(schema, int) or isinstance(schema, bool) or schema < 1:
         raise refuse("schema", f"must be a whole number ≥ 1, got {schema!r}")
     if schema > SCHEMA_VERSION:
-        raise refuse("schema", f"version {schema} is newer than this drs reads ({SCHEMA_VERSION}); update drs")
+        raise refuse(
+            "schema", f"version {schema} is newer than this drs reads ({SCHEMA_VERSION}); update drs"
+        )
     payload = _payload(raw.get("payload"), refuse)
     terms = _terms(raw.get("terms"), refuse)
     ellipse = _ellipse(raw.get("ellipse"), refuse)
@@ -256,7 +266,9 @@ def _payload(raw: Any, refuse: Any) -> Payload:
     for key, value in (("mass_kg", mass), ("cda_m2", cda)):
         low, high = PAYLOAD_LIMITS[key]
         if not low <= value <= high:
-            raise refuse(f"payload.{key}", f"{value:g} is outside the payloads drs calibrates ({low:g}–{high:g})")
+            raise refuse(
+                f"payload.{key}", f"{value:g} is outside the payloads drs calibrates ({low:g}–{high:g})"
+            )
     name = str(raw.get("name", "calibrated"))
     return Payload(mass, cda, name=name, source=str(raw.get("source", "calibrated model file")))
 
@@ -275,7 +287,10 @@ def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
             raise refuse(where, "must be an object with effect and parameters")
         kind = EFFECTS.get(str(item.get("effect")))
         if kind is None:
-            raise refuse(f"{where}.effect", f"{item.get('effect')!r} is not a known effect (known: {', '.join(EFFECTS)})")
+            raise refuse(
+                f"{where}.effect",
+                f"{item.get('effect')!r} is not a known effect (known: {', '.join(EFFECTS)})",
+            )
         parameters = item.get("parameters", {})
         if not isinstance(parameters, dict):
             raise refuse(f"{where}.parameters", "must be an object")
@@ -283,9 +298,13 @@ def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
         values: dict[str, Any] = {}
         for key, value in parameters.items():
             if key not in known:
-                raise refuse(f"{where}.parameters.{key}", f"is not a parameter of {kind.name} ({', '.join(known)})")
+                raise refuse(
+                    f"{where}.parameters.{key}", f"is not a parameter of {kind.name} ({', '.join(known)})"
+                )
             if isinstance(value, list):
-                values[key] = tuple(_number(v, f"{where}.parameters.{key}[{i}]", refuse) for i, v in enumerate(value))
+                values[key] = tuple(
+                    _number(v, f"{where}.parameters.{key}[{i}]", refuse) for i, v in enumerate(value)
+                )
             else:
                 values[key] = _number(value, f"{where}.parameters.{key}", refuse)
             _within(values[key], limits.get((kind.name, key)), f"{where}.parameters.{key}", refuse)
@@ -298,7 +317,9 @@ def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
     return tuple(terms)
 
 
-def _within(value: float | tuple[float, ...], limits: tuple[float, float] | None, where: str, refuse: Any) -> None:
+def _within(
+    value: float | tuple[float, ...], limits: tuple[float, float] | None, where: str, refuse: Any
+) -> None:
     """Refuse a value outside the calibration's own bounds (``effects.parameter_limits``)."""
     if limits is None:
         return
@@ -313,7 +334,9 @@ def _ellipse(raw: Any, refuse: Any) -> ErrorModel | None:
         return None
     if not isinstance(raw, dict):
         raise refuse("ellipse", "must be an object or null")
-    values = [_number(raw.get(key), f"ellipse.{key}", refuse) for key in ("sigma0_km", "h", "k_km2_per_h2", "q")]
+    values = [
+        _number(raw.get(key), f"ellipse.{key}", refuse) for key in ("sigma0_km", "h", "k_km2_per_h2", "q")
+    ]
     try:
         return ErrorModel(*values, name="calibrated")
     except PredictorError as exc:
@@ -363,7 +386,9 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
     for i, item in enumerate(raw["bands"]):
         where = f"live.bands[{i}]"
         if not isinstance(item, dict) or not isinstance(item.get("use_rate"), bool):
-            raise refuse(where, "must be an object with lower_m, upper_m, use_rate (true/false) and wind_decay_m")
+            raise refuse(
+                where, "must be an object with lower_m, upper_m, use_rate (true/false) and wind_decay_m"
+            )
         lower = _optional(item.get("lower_m"), f"{where}.lower_m", refuse, -math.inf)
         upper = _optional(item.get("upper_m"), f"{where}.upper_m", refuse, math.inf)
         if lower >= upper:
@@ -406,6 +431,10 @@ def flown_model(
     so both together are refused rather than one silently winning."""
     if model_path is not None:
         if profile is not None or mass_kg is not None or cda_m2 is not None:
-            raise UsageError("give --model or --payload/--mass/--cda, not both: the model carries its payload")
+            raise UsageError(
+                "give --model or --payload/--mass/--cda, not both: the model carries its payload"
+            )
         return load_model(model_path)
-    return CalibratedModel(payload_profile(profile or "drs").overridden(mass_kg=mass_kg, cda_m2=cda_m2), (), None)
+    return CalibratedModel(
+        payload_profile(profile or "drs").overridden(mass_kg=mass_kg, cda_m2=cda_m2), (), None
+    )

@@ -140,7 +140,8 @@ def rate_sentence(cal: Calibration) -> str:
     )
     if cal.unstable:
         text += (
-            " FLAG: " + ", ".join(f"`{n}` was chosen in only {cal.stability.get(n, 0.0):.0%}" for n in cal.unstable)
+            " FLAG: "
+            + ", ".join(f"`{n}` was chosen in only {cal.stability.get(n, 0.0):.0%}" for n in cal.unstable)
             + " of the leave-one-flight-out folds of the decision (fewer than two thirds): it rests on one or"
             " two flights."
         )
@@ -258,7 +259,9 @@ def result_json(
         "library_explains_residual": not cal.unexplained,
         "rate_prior": {
             **cal.rate_prior.to_dict(),
-            "per_flight": {name: round(float(x), 4) for name, x in zip(cal.names, cal.rate_factors, strict=True)},
+            "per_flight": {
+                name: round(float(x), 4) for name, x in zip(cal.names, cal.rate_factors, strict=True)
+            },
         },
         "rate_only": _error_block(cal.rate_only),
         "selection_stability": {name: round(share, 3) for name, share in cal.stability.items()},
@@ -313,7 +316,8 @@ def landing_change(cal: Calibration, seed: int = 0) -> dict[str, Any]:
     return {
         "mean_change_km": stat(change.mean(), change[picks].mean(axis=1)),
         "median_shift_km": stat(
-            np.median(after) - np.median(before), np.median(after[picks], axis=1) - np.median(before[picks], axis=1)
+            np.median(after) - np.median(before),
+            np.median(after[picks], axis=1) - np.median(before[picks], axis=1),
         ),
         "median_of_changes_km": stat(np.median(change), np.median(change[picks], axis=1)),
         "landing_closer": int((change < 0.0).sum()),
@@ -528,7 +532,9 @@ def write_report(
     return pngs
 
 
-def speed_ratio_by_altitude(cal: Calibration, edges_m: Sequence[float], seed: int = 0) -> list[dict[str, Any]]:
+def speed_ratio_by_altitude(
+    cal: Calibration, edges_m: Sequence[float], seed: int = 0
+) -> list[dict[str, Any]]:
     """The plain law's measured/predicted descent speed per altitude bin, from crossing times, with each
     flight's own λ taken out (the shape's residual).
 
@@ -554,7 +560,9 @@ def speed_ratio_by_altitude(cal: Calibration, edges_m: Sequence[float], seed: in
         low = high = ratio
         if p.size >= 3:
             picks = rng.integers(0, p.size, (BOOTSTRAP_SAMPLES, p.size))
-            low, high = (float(x) for x in np.quantile(p[picks].sum(axis=1) / m[picks].sum(axis=1), (0.025, 0.975)))
+            low, high = (
+                float(x) for x in np.quantile(p[picks].sum(axis=1) / m[picks].sum(axis=1), (0.025, 0.975))
+            )
         agreed = p.size >= 3 and (low > 1.0 or high < 1.0)
         rows.append({
             "bottom_m": lo, "top_m": hi, "flights": int(p.size), "measured_s": round(float(m.sum()), 1),

@@ -252,7 +252,9 @@ def run_vertical(args: argparse.Namespace) -> int:
     if args.report:
         vertical_check.write_report(args.report, checks, model, command)
     if args.json:
-        write_text(args.json, json.dumps(vertical_check.to_json(checks, model, command), indent=2) + "\n", "JSON")
+        write_text(
+            args.json, json.dumps(vertical_check.to_json(checks, model, command), indent=2) + "\n", "JSON"
+        )
     said = sys.stderr if is_stdout(args.json) else sys.stdout
     for check in checks:
         for law in check.scores:

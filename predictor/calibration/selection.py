@@ -335,7 +335,11 @@ class Calibration:
     @property
     def unstable(self) -> tuple[str, ...]:
         """Selected terms chosen in fewer than ``STABLE_SHARE`` of the folds: shipped with a visible flag."""
-        return tuple(f.candidate.name for f in self.selected if self.stability.get(f.candidate.name, 0.0) < STABLE_SHARE)
+        return tuple(
+            f.candidate.name
+            for f in self.selected
+            if self.stability.get(f.candidate.name, 0.0) < STABLE_SHARE
+        )
 
     def terms(self) -> tuple[Term, ...]:
         """What a pre-flight prediction flies: λ (the prior's median), the shape, the binned parts that passed."""
@@ -417,7 +421,9 @@ def calibrate(
     baseline = batch.heldout([[]] * n)
     baseline_residuals = tuple(residuals(cases[i], batch.runs(i, [[]])) for i in range(n))
     baseline_replayed = tuple(residuals(cases[i], batch.runs(i, [[]], replay=True)) for i in range(n))
-    rounds, references, selected_folds, selected_full = _forward(batch, baseline, candidates, max_effects, alpha, seed)
+    rounds, references, selected_folds, selected_full = _forward(
+        batch, baseline, candidates, max_effects, alpha, seed
+    )
     reference = references[-1]
     if len(selected_full) > 1:
         _refit_jointly(batch, selected_folds, selected_full)
@@ -452,8 +458,10 @@ def calibrate(
         baseline_replayed=baseline_replayed,
         after_residuals=after_residuals,
         after_replayed=after_replayed,
-        baseline_budgets=tuple(_whole_bins(cases[i], bin_budget(cases[i], batch.runs(i, [[]]), 0, np.asarray(BIN_EDGES_M)))
-                               for i in range(n)),  # fmt: skip
+        baseline_budgets=tuple(
+            _whole_bins(cases[i], bin_budget(cases[i], batch.runs(i, [[]]), 0, np.asarray(BIN_EDGES_M)))
+            for i in range(n)
+        ),  # fmt: skip
         predicted_drift_km=np.array([r.predicted_drift_km for r in after_residuals]),
         t_future_h=np.array([_t_future(c) for c in cases]),
         rate_prior=prior,
@@ -470,7 +478,12 @@ def calibrate(
 
 
 def _forward(
-    batch: FlightBatch, baseline: HeldOut, candidates: Sequence[Candidate], max_effects: int, alpha: float, seed: int
+    batch: FlightBatch,
+    baseline: HeldOut,
+    candidates: Sequence[Candidate],
+    max_effects: int,
+    alpha: float,
+    seed: int,
 ) -> tuple[list[tuple[CandidateResult, ...]], list[HeldOut], list[list[Fit]], list[Fit]]:
     """The forward selection: (every round's results, the reference of each round and the last one's
     best, the selected fits per fold, the selected fits on all flights)."""
@@ -484,7 +497,8 @@ def _forward(
     while remaining and len(selected_full) < max_effects:
         share = alpha / len(remaining)
         results = tuple(
-            _try(batch, c, selected_folds, selected_full, reference, share, seed, len(rounds) + 1) for c in remaining
+            _try(batch, c, selected_folds, selected_full, reference, share, seed, len(rounds) + 1)
+            for c in remaining
         )
         rounds.append(results)
         passing = [r for r in results if r.passed]
@@ -524,7 +538,9 @@ def _whole_bins(case: FlightCase, budget: BinBudget) -> BinBudget:
     to a fix interval, minutes at 2–5 min cadence), which no descent law should be asked to explain."""
     top = np.asarray(BIN_EDGES_M[1:]) > case.start_alt_m
     return dataclasses.replace(
-        budget, measured_s=np.where(top, 0.0, budget.measured_s), predicted_s=np.where(top, 0.0, budget.predicted_s)
+        budget,
+        measured_s=np.where(top, 0.0, budget.measured_s),
+        predicted_s=np.where(top, 0.0, budget.predicted_s),
     )
 
 
@@ -791,7 +807,9 @@ def refit_without_each(
     binned_parts = {t.name for t in terms if t.name not in known}
     unknown = binned_parts - {BinnedDescentRate.name, BinnedWind.name}
     if unknown:
-        raise PredictorError(f"cannot refit {', '.join(sorted(unknown))}: not a library effect or binned correction")
+        raise PredictorError(
+            f"cannot refit {', '.join(sorted(unknown))}: not a library effect or binned correction"
+        )
     n = len(cases)
     if n < 3:
         raise PredictorError(f"leave-one-flight-out needs at least 3 usable flights, got {n}")

@@ -78,7 +78,9 @@ def _library_fits(model: CalibratedModel) -> list[Fit]:
             continue
         candidate = known.get(term.name)
         if candidate is None or candidate.variants != ({},):
-            raise PredictorError(f"the vertical check flies library effects with one variant; the model has {term.name}")
+            raise PredictorError(
+                f"the vertical check flies library effects with one variant; the model has {term.name}"
+            )
         if candidate.family != "vertical":
             continue
         fits.append(Fit(candidate, 0, float(term.parameters()[candidate.parameter])))
@@ -98,12 +100,16 @@ def _score(batch: FlightBatch, fits: list[Fit], law: str) -> LawScore:
     )
 
 
-def check_flight(case: FlightCase, model: CalibratedModel, landed: bool, step_m: float = 200.0) -> FlightCheck:
+def check_flight(
+    case: FlightCase, model: CalibratedModel, landed: bool, step_m: float = 200.0
+) -> FlightCheck:
     """Four laws on one flight: ρ^-½ as the payload gives it, then ρ^-½, the model's law and the model's
     law refitted here, each with λ fitted on this flight. Refused for a flight the model was calibrated
     on: there its law is not held out (``drs live evaluate`` refits it without the flight)."""
     if case.name in (model.provenance.get("flights") or ()):
-        raise PredictorError(f"{case.name}: the model was calibrated on this flight, so its law is not held out here")
+        raise PredictorError(
+            f"{case.name}: the model was calibrated on this flight, so its law is not held out here"
+        )
     law = _library_fits(model)
     batch = FlightBatch([case], model.payload, step_m)
 

@@ -473,7 +473,13 @@ def _note_failure(failed_at: np.ndarray, i: int, lat: float, lon: float, z: floa
 @_cached_with_model
 @njit(cache=True)
 def _descend_range(
-    lo: int, hi: int, weather: PackedWeather, stepping: Stepping, chain: Chain, release: Release, record: Record
+    lo: int,
+    hi: int,
+    weather: PackedWeather,
+    stepping: Stepping,
+    chain: Chain,
+    release: Release,
+    record: Record,
 ) -> None:
     """Trajectories lo…hi−1 stepped together: each phase of a step runs for all of them before the next.
 

@@ -148,7 +148,9 @@ class TerminalVelocity(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         vel[VEL_DOWN] += math.sqrt(2.0 * p[p_off] * env[ENV_G] / (env[ENV_RHO] * p[p_off + 1]))
 
 
@@ -169,7 +171,9 @@ class SeaLevelRate(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         vel[VEL_DOWN] += p[p_off] * math.sqrt(p[p_off + 1] / env[ENV_RHO])
 
 
@@ -206,7 +210,9 @@ class MeasuredDescentRate(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         n_bins = int(p[p_off])
         b = int(math.floor((env[ENV_Z] - p[p_off + 1]) / p[p_off + 2]))
         vel[VEL_DOWN] += p[p_off + 3 + min(max(b, 0), n_bins - 1)]
@@ -222,7 +228,9 @@ class Wind(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         vel[VEL_EAST] += env[ENV_U_WIND]
         vel[VEL_NORTH] += env[ENV_V_WIND]
 
@@ -240,7 +248,9 @@ class DescentRateScale(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         vel[VEL_DOWN] += (p[p_off] - 1.0) * vel[VEL_DOWN]
 
 
@@ -259,7 +269,9 @@ class DragDensityExponent(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         factor = (env[ENV_RHO] / p[p_off + 1]) ** (-p[p_off])
         vel[VEL_DOWN] += (factor - 1.0) * vel[VEL_DOWN]
 
@@ -283,7 +295,9 @@ class VerticalAirMotion(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         vel[VEL_DOWN] -= p[p_off]
 
 
@@ -302,7 +316,9 @@ class DeploymentDelay(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         fast_left = p[p_off] - env[ENV_T_START]
         if fast_left <= 0.0:
             return
@@ -334,7 +350,9 @@ class TwoRegimeRate(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         height = p[p_off]
         factor = p[p_off + 1]
         top = env[ENV_Z] + 0.5 * env[ENV_DZ]
@@ -365,7 +383,9 @@ class BinnedDescentRate(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         n_bins = int(p[p_off])
         b = _bin_of(p, p_off + 1, n_bins, env[ENV_Z])
         if b >= 0:
@@ -385,7 +405,9 @@ class WindScale(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         vel[VEL_EAST] += (p[p_off] - 1.0) * vel[VEL_EAST]
         vel[VEL_NORTH] += (p[p_off] - 1.0) * vel[VEL_NORTH]
 
@@ -400,7 +422,9 @@ class WindRotation(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         a = math.radians(p[p_off])
         east = vel[VEL_EAST]
         north = vel[VEL_NORTH]
@@ -420,7 +444,9 @@ class WindBandScale(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         if p[p_off] <= env[ENV_Z] < p[p_off + 1]:
             vel[VEL_EAST] += (p[p_off + 2] - 1.0) * vel[VEL_EAST]
             vel[VEL_NORTH] += (p[p_off + 2] - 1.0) * vel[VEL_NORTH]
@@ -437,7 +463,9 @@ class WindOffset(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         vel[VEL_EAST] += p[p_off]
         vel[VEL_NORTH] += p[p_off + 1]
 
@@ -465,7 +493,9 @@ class BinnedWind(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         n_bins = int(p[p_off])
         b = _bin_of(p, p_off + 1, n_bins, env[ENV_Z])
         if b >= 0:
@@ -493,7 +523,9 @@ class WindLag(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         if math.isnan(state[s_off]):
             state[s_off] = vel[VEL_EAST]
             state[s_off + 1] = vel[VEL_NORTH]
@@ -521,7 +553,9 @@ class WeatherTimeOffset(Term):
 
     @staticmethod
     @njit(cache=True)
-    def kernel(p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray) -> None:
+    def kernel(
+        p: np.ndarray, p_off: int, s_off: int, env: np.ndarray, vel: np.ndarray, state: np.ndarray
+    ) -> None:
         env[ENV_TIME_SHIFT] += p[p_off]
 
 
@@ -636,7 +670,9 @@ class Chain(NamedTuple):
 
     def rows(self, lo: int, hi: int) -> Chain:
         """Trajectories lo…hi−1 alone, contiguous as the kernel needs them."""
-        return Chain(self.table, np.ascontiguousarray(self.params[lo:hi]), np.ascontiguousarray(self.state[lo:hi]))
+        return Chain(
+            self.table, np.ascontiguousarray(self.params[lo:hi]), np.ascontiguousarray(self.state[lo:hi])
+        )
 
 
 @dataclass(frozen=True)

@@ -57,7 +57,9 @@ class WeatherCube:
         shape = (len(self.times), len(self.levels_hpa), len(self.lats), len(self.lons))
         for name in ("z_m", "u", "v", "temperature_k", "density"):
             if getattr(self, name).shape != shape:
-                raise ValueError(f"WeatherCube.{name} has shape {getattr(self, name).shape}, expected {shape}")
+                raise ValueError(
+                    f"WeatherCube.{name} has shape {getattr(self, name).shape}, expected {shape}"
+                )
         if len(self.lead_h) != len(self.times):
             raise ValueError("WeatherCube.lead_h must have one entry per valid time")
 

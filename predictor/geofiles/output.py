@@ -44,7 +44,9 @@ def write_text(path: str | Path, text: str, what: str) -> Path:
         sys.stdout.flush()
         return out
     try:
-        with os.fdopen(os.open(out, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, EXPORT_MODE), "w", encoding="utf-8") as f:
+        with os.fdopen(
+            os.open(out, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, EXPORT_MODE), "w", encoding="utf-8"
+        ) as f:
             f.write(text)
     except OSError as exc:
         raise PredictorError(f"cannot write the {what} file {out}: {exc.strerror or exc}") from None

@@ -390,7 +390,11 @@ def predict(
         cube, time, lat, lon, alt_m, drift_minutes, time_tolerance_s
     )
     release = Release(
-        np.array([rel_t]), np.array([rel_lat]), np.array([rel_lon]), np.array([alt_m]), np.array([since_release_s])
+        np.array([rel_t]),
+        np.array([rel_lat]),
+        np.array([rel_lon]),
+        np.array([alt_m]),
+        np.array([since_release_s]),
     )
     paths = _integrate(cube, chain, release, step_m, time_tolerance_s)
     land = _find_landings(paths, terrain)

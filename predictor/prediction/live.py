@@ -151,7 +151,9 @@ class Band:
         if self.decay_m is None:
             wind = "off"
         else:
-            wind = "L = ∞ (constant)" if self.decay_m >= CONSTANT_WIND_M else f"L = {self.decay_m / 1000:g} km"
+            wind = (
+                "L = ∞ (constant)" if self.decay_m >= CONSTANT_WIND_M else f"L = {self.decay_m / 1000:g} km"
+            )
         return f"{lower}–{upper}: {rate}, wind {wind}"
 
 
@@ -198,9 +200,7 @@ class LiveSettings:
     model's calibration gave it none of its own."""
 
 
-DEFAULT_ELLIPSE_NOTE = (
-    "live ellipse: the default (measured with the SuperBIT model, not this one; drs live evaluate --save-model)"
-)
+DEFAULT_ELLIPSE_NOTE = "live ellipse: the default (measured with the SuperBIT model, not this one; drs live evaluate --save-model)"
 
 
 @dataclass(frozen=True)
@@ -273,7 +273,9 @@ def fit_rate(observed_s: np.ndarray, model_s: np.ndarray) -> RateFit | None:
                    _log_sigma(design, weights, residual, scale, float(coef[0])))  # fmt: skip
 
 
-def _log_sigma(design: np.ndarray, weights: np.ndarray, residual: np.ndarray, scale: float, slope: float) -> float:
+def _log_sigma(
+    design: np.ndarray, weights: np.ndarray, residual: np.ndarray, scale: float, slope: float
+) -> float:
     """σ of ln λ = σ(slope) / slope, with the weighted least-squares variance of the slope times
     (1 + ρ) / (1 − ρ), ρ the correlation of consecutive residuals.
 
@@ -318,12 +320,15 @@ class RateEstimate:
         record = f"record {self.measured:.3f} on {self.fixes} fixes" if self.measured else "no record yet"
         prior = (
             f"prior {self.prior.median:.3f} ± {100 * self.prior.log_sigma:.1f} % ({self.prior.flights} flights)"
-            if self.prior else "no prior: from this descent alone"
+            if self.prior
+            else "no prior: from this descent alone"
         )
         return f"λ {self.factor:.3f}{sigma} ({record}; {prior})"
 
 
-def update_rate(prior: RatePrior | None, fit: RateFit | None, log_bias: float, log_spread: float) -> RateEstimate:
+def update_rate(
+    prior: RatePrior | None, fit: RateFit | None, log_bias: float, log_spread: float
+) -> RateEstimate:
     """The posterior of ln λ: the prior's normal times the record's, in closed form (both are normal in ln λ).
 
     The record measures ln λ + ``log_bias`` with variance σ_fit² + ``log_spread``²; without a prior

@@ -380,11 +380,15 @@ class PredictorService:
         """Tawhiri's ``warnings`` (``{name: {count, description}}``): which descent, and what was changed."""
         request = flight.request
         if request.descent == TAWHIRI_DESCENT:
-            said = (f"Descent flown as Tawhiri's: descent_rate {request.descent_rate:g} m/s at sea level, "
-                    f"faster in thinner air. For a DRS capsule's own model ask {CAPSULE_PATH}<CAPSULE>/.")
+            said = (
+                f"Descent flown as Tawhiri's: descent_rate {request.descent_rate:g} m/s at sea level, "
+                f"faster in thinner air. For a DRS capsule's own model ask {CAPSULE_PATH}<CAPSULE>/."
+            )
         else:
-            said = (f"Descent flown with the DRS capsule model ({self.flown.label()}) for "
-                    f"{request.capsule or 'a DRS capsule'}: descent_rate is not used.")
+            said = (
+                f"Descent flown with the DRS capsule model ({self.flown.label()}) for "
+                f"{request.capsule or 'a DRS capsule'}: descent_rate is not used."
+            )
         warnings = {"drs_descent": {"count": 1, "description": said}}
         for name in request.clipped:
             warnings[f"drs_{name}_raised"] = {
@@ -496,7 +500,9 @@ Answer = tuple[int, str, str, dict[str, str]]
 
 
 def answer(
-    service: PredictorService, query: Mapping[str, Sequence[str]], descent: str = TAWHIRI_DESCENT,
+    service: PredictorService,
+    query: Mapping[str, Sequence[str]],
+    descent: str = TAWHIRI_DESCENT,
     capsule: str | None = None,
 ) -> Answer:
     """One request answered; every failure in Tawhiri's error shape."""

@@ -41,7 +41,9 @@ def test_a_capsule_with_a_model_key_predicts_with_it_and_names_it(tmp_path: Path
 def test_a_bad_model_file_names_the_capsule_key(tmp_path: Path) -> None:
     broken = tmp_path / "broken.json"
     broken.write_text("{")
-    with pytest.raises(PredictorError, match=r"capsule\[1\]\.model \(DRS2\): model file .*broken\.json: is not valid JSON"):
+    with pytest.raises(
+        PredictorError, match=r"capsule\[1\]\.model \(DRS2\): model file .*broken\.json: is not valid JSON"
+    ):
         capsule_models([("DRS1", None), ("DRS2", broken)])
 
 

@@ -172,11 +172,16 @@ def test_a_feed_that_rejects_lines_or_fails_says_so_under_the_position() -> None
 def test_after_release_what_came_from_the_pi_is_history_not_an_alarm() -> None:
     # Go shuts the Pi down: a link down and NMEA minutes old are what Go leaves, not faults.
     capsule = telemetry("link", {"up": False, "note": "released: the Pi shut down"}, 150)
-    capsule.apply(TelemetryRecord(T0 - timedelta(seconds=400), "DRS1", SAMPLES["gnss"](has_fix=True, sats=9, hdop=0.9)))
+    capsule.apply(
+        TelemetryRecord(T0 - timedelta(seconds=400), "DRS1", SAMPLES["gnss"](has_fix=True, sats=9, hdop=0.9))
+    )
     before = BY_KIND["link"].cell(capsule, T0)
     assert before.text == f"{STALE_GLYPH}DOWN 2m" and before.level == "stale"
     capsule.apply(TelemetryRecord(T0 - timedelta(seconds=150), "DRS1", SAMPLES["release"](state="released")))
     link, gnss = BY_KIND["link"].cell(capsule, T0), BY_KIND["gnss"].cell(capsule, T0)
-    assert (link.text, link.level) == ("DOWN 2m", "none") and (gnss.text, gnss.level) == ("9sv H0.9 6m", "none")
+    assert (link.text, link.level) == ("DOWN 2m", "none") and (gnss.text, gnss.level) == (
+        "9sv H0.9 6m",
+        "none",
+    )
     assert BY_KIND["gnss"].line(capsule, T0).text.endswith("6m40s ago; history: the Pi shut down at Go")
     assert BY_KIND["release"].cell(capsule, T0).level == "ok", "the release itself is news"

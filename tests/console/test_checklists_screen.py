@@ -17,7 +17,9 @@ pytestmark = pytest.mark.asyncio
 def finished(app: DrsConsole, capsule: str, checklist_id: str) -> tuple[int, int, str]:
     """What the release screen's statuses say of one checklist: finished, total, the next open step."""
     checklist = next(c for c in app.checklists if c.id == checklist_id)
-    statuses = app.context.checklist_run(capsule, checklist).statuses(app.fleet.capsules[capsule].facts(app.now()))
+    statuses = app.context.checklist_run(capsule, checklist).statuses(
+        app.fleet.capsules[capsule].facts(app.now())
+    )
     open_steps = [s.step.id for s in statuses if not s.finished]
     return len(statuses) - len(open_steps), len(statuses), open_steps[0]
 
@@ -38,7 +40,9 @@ async def test_c_shows_every_capsules_checklists_with_their_progress_and_next_st
         assert table.virtual_size.width <= table.scrollable_content_region.width, "a column is off screen"
 
 
-async def test_a_step_ticked_by_another_console_shows_without_a_key(canned_app: Callable[..., DrsConsole]) -> None:
+async def test_a_step_ticked_by_another_console_shows_without_a_key(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
     """The overview is read-only and follows the store: the app redraws it when the store changes."""
     app = canned_app()
     async with app.run_test(size=(120, 40)) as pilot:
@@ -51,7 +55,9 @@ async def test_a_step_ticked_by_another_console_shows_without_a_key(canned_app: 
         checklist = next(c for c in app.checklists if c.id == "preflight")
         assert str(table.get_row("DRS1/preflight")[2]) == f"{done}/{total}"
         shown = str(detail.render())
-        assert f"▸ DRS1 · {checklist.title}" in shown and checklist.step(next_step).text in shown, "the first row is highlighted"
+        assert f"▸ DRS1 · {checklist.title}" in shown and checklist.step(next_step).text in shown, (
+            "the first row is highlighted"
+        )
         audit = len(app.store.audit())
         await pilot.press("space", "x", "enter")
         assert app.screen is screen and len(app.store.audit()) == audit, "a key changed a checklist"

@@ -35,18 +35,33 @@ def test_a_mistyped_option_is_named_with_the_close_real_one() -> None:
     """It once said "argument action: invalid choice: '67.89' (choose from 'bench')"."""
     done = drs("predict", "--lattitude", "67.89")
     assert done.returncode == 2 and "invalid choice" not in done.stderr
-    assert done.stderr.splitlines()[-1] == "drs predict: error: unrecognized option --lattitude (did you mean --lat?)"
+    assert (
+        done.stderr.splitlines()[-1]
+        == "drs predict: error: unrecognized option --lattitude (did you mean --lat?)"
+    )
 
 
 @pytest.mark.parametrize(
     ("argv", "last_line"),
     [
-        (["mo", "health", "DRS1", "--jsn"], "drs mo health: error: unrecognized option --jsn (did you mean --json?)"),
-        (["mt", "status", "DRS1", "--json=yes", "--xyzzy"], "drs mt status: error: unrecognized option --xyzzy"),
-        (["--confg", "x.toml", "mo", "health"], "drs: error: unrecognized option --confg (did you mean --config?)"),
+        (
+            ["mo", "health", "DRS1", "--jsn"],
+            "drs mo health: error: unrecognized option --jsn (did you mean --json?)",
+        ),
+        (
+            ["mt", "status", "DRS1", "--json=yes", "--xyzzy"],
+            "drs mt status: error: unrecognized option --xyzzy",
+        ),
+        (
+            ["--confg", "x.toml", "mo", "health"],
+            "drs: error: unrecognized option --confg (did you mean --config?)",
+        ),
         (["predict", "--lat", "-12.5", "--bogus=4"], "drs predict: error: unrecognized option --bogus"),
-        (["mo", "serve", "-vv"], "drs mo serve: error: unrecognized option -vv here: it is an option of drs itself, "
-                                 "given before the command (drs -vv …)"),
+        (
+            ["mo", "serve", "-vv"],
+            "drs mo serve: error: unrecognized option -vv here: it is an option of drs itself, "
+            "given before the command (drs -vv …)",
+        ),
     ],
 )
 def test_an_unknown_option_is_named_wherever_it_is(
@@ -66,7 +81,9 @@ def test_a_usage_error_exits_2_and_an_operational_failure_1(tmp_path: Path) -> N
     assert refused.stderr == f"drs: error: no capsule named 'DRS1' in {config} (known: none configured)\n"
     meaningless = drs("--config", str(config), "mo", "export", "--out", str(tmp_path / "t.csv"))
     assert meaningless.returncode == 2
-    assert meaningless.stderr == "drs: error: give either a capsule NAME or --imei IMEI, not both or neither\n"
+    assert (
+        meaningless.stderr == "drs: error: give either a capsule NAME or --imei IMEI, not both or neither\n"
+    )
     assert drs("--config", str(config), "mo", "health").returncode == 2  # argparse: NAME is missing
 
 
@@ -81,7 +98,10 @@ def test_log_level_and_verbose_choose_what_reaches_stderr(tmp_path: Path) -> Non
     shown = drs("mo", "health", "DRS1", env=env)
     assert shown.returncode == 0 and shown.stdout.startswith("DRS1: 0 reports")
     [warning] = shown.stderr.splitlines()
-    assert " WARNING drs_link.config: using " in warning and str(tmp_path / "xdg" / "drs" / "drs.toml") in warning
+    assert (
+        " WARNING drs_link.config: using " in warning
+        and str(tmp_path / "xdg" / "drs" / "drs.toml") in warning
+    )
     assert drs("--log-level", "error", "mo", "health", "DRS1", env=env).stderr == ""
     debug = drs("-vv", "mo", "health", "DRS1", env=env).stderr
     assert " WARNING drs_link.config: " in debug
@@ -97,9 +117,13 @@ def test_records_are_one_line_with_fields_and_libraries_speak_only_at_debug(
     try:
         configure_logging(logging.WARNING)
         logging.getLogger("paramiko.transport").error("Socket exception: Connection reset by peer (104)")
-        logging.getLogger("drs_link.test").warning("refused", extra={"client": "192.0.2.7", "reason": 'a "b"\nc'})
+        logging.getLogger("drs_link.test").warning(
+            "refused", extra={"client": "192.0.2.7", "reason": 'a "b"\nc'}
+        )
         [line] = capsys.readouterr().err.splitlines()
-        assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z WARNING drs_link\.test: refused .*", line)
+        assert re.fullmatch(
+            r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z WARNING drs_link\.test: refused .*", line
+        )
         assert line.endswith(' client=192.0.2.7 reason="a \\"b\\"\\nc"')
         configure_logging(logging.DEBUG)
         logging.getLogger("paramiko.transport").error("Socket exception")

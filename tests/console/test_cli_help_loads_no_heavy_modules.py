@@ -26,6 +26,7 @@ except SystemExit:
 print(json.dumps(sorted(m for m in {heavy!r} if m in sys.modules)))
 """
 
+
 def loaded_by(*argv: str) -> list[str]:
     done = subprocess.run(
         [sys.executable, "-c", PROBE.format(heavy=HEAVY), *argv],

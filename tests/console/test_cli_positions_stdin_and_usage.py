@@ -36,7 +36,9 @@ POSITIONS = [
 POSITION_TYPES = (latitude, longitude, position_or_gpsd)
 
 
-def drs(*argv: str, stdin: str | bytes = b"", env: dict[str, str] | None = None) -> subprocess.CompletedProcess[bytes]:
+def drs(
+    *argv: str, stdin: str | bytes = b"", env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess[bytes]:
     data = stdin.encode() if isinstance(stdin, str) else stdin
     return subprocess.run(
         [sys.executable, "-m", "console.commands.main", *argv], cwd=REPO, capture_output=True, input=data,
@@ -105,7 +107,10 @@ def _config(tmp_path: Path, chase: str = "") -> Path:
         (["chase", "--udp", "127.0.0.1:99999", "--once"], "'99999' in '127.0.0.1:99999' is not a UDP port"),
         (["chase", "--once"], "drs chase needs --udp HOST:PORT or [chase] udp"),
         (["weather", "prune"], "say what to prune"),
-        (["weather", "prune", "--keep-days", "-1"], "argument --keep-days: -1 is not between 0 and 36500 days"),
+        (
+            ["weather", "prune", "--keep-days", "-1"],
+            "argument --keep-days: -1 is not between 0 and 36500 days",
+        ),
         (["weather", "prune", "--max-gb", "0"], "argument --max-gb: 0 is not a positive number of gigabytes"),
         (["recovery", "DRS1", "--from", "91,0"], "argument --from: 91 is not a latitude"),
         (["recovery", "DRS1", "--from", "-44.7"], "is not LAT,LON"),
@@ -146,7 +151,10 @@ def test_tracks_summary_reads_standard_input(tmp_path: Path) -> None:
 def test_mo_parse_reads_the_hex_from_standard_input() -> None:
     fix = GnssFix(datetime(2024, 5, 1, 6, 0, tzinfo=UTC), -44.7, 169.1, 1200.0, 3.0, 90.0, 1.0, 9)
     hex_text = format_mo(fix, 8.9, 1).hex()
-    given, piped = drs("mo", "parse", "--json", hex_text), drs("mo", "parse", "--json", "-", stdin=hex_text + "\n")
+    given, piped = (
+        drs("mo", "parse", "--json", hex_text),
+        drs("mo", "parse", "--json", "-", stdin=hex_text + "\n"),
+    )
     assert given.returncode == piped.returncode == 0 and given.stdout == piped.stdout
     assert json.loads(piped.stdout)["report"]["fix"]["lat"] == pytest.approx(-44.7, abs=1e-4)
 
@@ -159,7 +167,9 @@ def test_recovery_reads_the_predicted_track_from_standard_input(tmp_path: Path) 
     done = drs("--config", str(config), "recovery", "DRS1", "--predicted", "-", "--gpx", str(gpx),
                stdin=json.dumps(predicted))  # fmt: skip
     assert done.returncode == 0, done.stderr
-    assert 'lat="-44.810000" lon="169.250000"' in gpx.read_text(), "the predicted path from stdin is in the GPX"
+    assert 'lat="-44.810000" lon="169.250000"' in gpx.read_text(), (
+        "the predicted path from stdin is in the GPX"
+    )
     bad = drs("--config", str(config), "recovery", "DRS1", "--predicted", "-", stdin="not json")
     assert bad.returncode == 1 and b"cannot read GeoJSON" in bad.stderr
 

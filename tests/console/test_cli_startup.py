@@ -68,7 +68,11 @@ def test_the_command_word_is_found_after_the_global_options(argv: list[str], com
 
 def test_a_mistyped_command_lists_the_real_ones() -> None:
     done = subprocess.run(
-        [sys.executable, "-m", "console.commands.main", "predcit"], cwd=REPO, capture_output=True, text=True, timeout=120
+        [sys.executable, "-m", "console.commands.main", "predcit"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert done.returncode == 2
     assert "invalid choice: 'predcit'" in done.stderr and "predict" in done.stderr
@@ -85,7 +89,9 @@ def test_a_closed_pipe_ends_quietly_without_a_traceback(tmp_path: Path) -> None:
             "import os, sys; r, w = os.pipe(); os.close(r); os.dup2(w, 1); "
             f"from console.commands.main import main; sys.exit(main({argv!r}))"
         )
-        done = subprocess.run([sys.executable, "-c", probe], cwd=REPO, capture_output=True, text=True, timeout=120)
+        done = subprocess.run(
+            [sys.executable, "-c", probe], cwd=REPO, capture_output=True, text=True, timeout=120
+        )
         assert (done.returncode, done.stderr) == (status, ""), argv
 
 

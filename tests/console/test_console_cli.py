@@ -69,9 +69,15 @@ def test_a_computed_prediction_round_trips_through_a_recording(
     [
         ("not json", "t.jsonl:2: not JSON"),
         ('{"v": 2, "t": "2026-09-01T12:00:00Z", "capsule": "DRS1", "kind": "link", "data": {}}', "version 2"),
-        ('{"v": 1, "t": "2026-09-01T12:00:00Z", "capsule": "DRS1", "kind": "weather", "data": {}}', "kind 'weather'"),
+        (
+            '{"v": 1, "t": "2026-09-01T12:00:00Z", "capsule": "DRS1", "kind": "weather", "data": {}}',
+            "kind 'weather'",
+        ),
         ('{"v": 1, "t": "noon", "capsule": "DRS1", "kind": "link", "data": {}}', "t 'noon'"),
-        ('{"v": 1, "t": "2026-09-01T12:00:00Z", "capsule": "DRS1", "kind": "link", "data": []}', "data must be"),
+        (
+            '{"v": 1, "t": "2026-09-01T12:00:00Z", "capsule": "DRS1", "kind": "link", "data": []}',
+            "data must be",
+        ),
     ],
 )
 def test_a_bad_line_in_a_recording_is_named_by_file_and_line(tmp_path: Path, line: str, message: str) -> None:
@@ -108,7 +114,9 @@ def test_a_bad_exclusion_zone_file_is_refused_naming_the_key(tmp_path: Path) -> 
 
     path = tmp_path / "zones.geojson"
     path.write_text('{"type": "FeatureCollection", "features": [{"geometry": {"type": "Point"}}]}')
-    with pytest.raises(ConfigError, match=r"console.exclusion_zones_file: .* feature 0 \(#0\): geometry type 'Point'"):
+    with pytest.raises(
+        ConfigError, match=r"console.exclusion_zones_file: .* feature 0 \(#0\): geometry type 'Point'"
+    ):
         load_exclusion_zones(path)
     path.write_text("{")
     with pytest.raises(ConfigError, match="console.exclusion_zones_file: zone file .*: not JSON"):

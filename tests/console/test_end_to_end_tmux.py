@@ -98,7 +98,9 @@ def queue_parachute(terminal: Terminal, attempts: int = 6) -> str:
 def terminal(tmp_path: Path, tmux_server: None) -> Iterator[Terminal]:
     session = f"drs-e2e-{uuid.uuid4().hex[:8]}"
     log = tmp_path / "after-exit.txt"
-    command = f"cd {REPO} && TMPDIR={tmp_path} .venv/bin/drs demo --speed 60; echo EXITED $? > {log}; sleep 30"
+    command = (
+        f"cd {REPO} && TMPDIR={tmp_path} .venv/bin/drs demo --speed 60; echo EXITED $? > {log}; sleep 30"
+    )
     subprocess.run([TMUX, "new-session", "-d", "-s", session, "-x", "120", "-y", "40", command], check=True)
     try:
         yield Terminal(session)

@@ -34,7 +34,9 @@ def refreshes(monkeypatch: pytest.MonkeyPatch) -> list[str]:
 
 
 @pytest.mark.asyncio
-@pytest.mark.parametrize("keys", [(), ("enter",), ("enter", "a"), ("v",)], ids=["fleet", "release", "armed", "recovery"])
+@pytest.mark.parametrize(
+    "keys", [(), ("enter",), ("enter", "a"), ("v",)], ids=["fleet", "release", "armed", "recovery"]
+)
 async def test_a_refresh_with_nothing_new_repaints_nothing(
     canned_app: Callable[..., DrsConsole], refreshes: list[str], keys: tuple[str, ...]
 ) -> None:

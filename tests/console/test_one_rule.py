@@ -274,7 +274,9 @@ class Face:
     """One front end's way to ARM and FIRE: ``drs`` (main(), or a child process) or the console's call
     path (``Operations`` fed by its own polls into a fleet, as ``console.app`` feeds it)."""
 
-    def __init__(self, kind: str, config: Path, weather: list[Path], capsys: pytest.CaptureFixture[str]) -> None:
+    def __init__(
+        self, kind: str, config: Path, weather: list[Path], capsys: pytest.CaptureFixture[str]
+    ) -> None:
         self.kind, self.config, self.weather, self.capsys = kind, config, weather, capsys
         self.ops: Operations | None = None
 
@@ -338,7 +340,9 @@ class Face:
 
 
 @pytest.fixture
-def powered(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[..., tuple[CapsuleSimulator, Path, Store]]]:
+def powered(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> Iterator[Callable[..., tuple[CapsuleSimulator, Path, Store]]]:
     """A powered simulated capsule waiting for Go, and a config for it (extra [console] lines given)."""
     monkeypatch.setenv("DRS_GO_RB", GO_PASSWORD)
     key = tmp_path / "keys" / "id_ed25519"
@@ -371,7 +375,8 @@ def fire_results(store: Store) -> list[str]:
 
 @pytest.mark.slow
 def test_go_without_arm_is_refused_in_the_same_words_from_both_faces_and_nothing_reaches_the_pi(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
+    weather: list[Path],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """#22: `drs capsule go` ran no go/no-go poll, no ARM window and no two-person rule."""
@@ -388,7 +393,8 @@ def test_go_without_arm_is_refused_in_the_same_words_from_both_faces_and_nothing
 
 @pytest.mark.slow
 def test_a_failing_go_no_go_item_refuses_arm_in_the_consoles_words_and_then_go(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
+    weather: list[Path],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """Nothing syncs in this setup: "Storage sync complete: no data" is NO-GO until it is waived."""
@@ -407,8 +413,10 @@ def test_a_failing_go_no_go_item_refuses_arm_in_the_consoles_words_and_then_go(
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["cli", "console"])
 def test_go_with_the_failing_item_waived_releases_and_the_waiver_is_in_the_audit(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
-    capsys: pytest.CaptureFixture[str], kind: str,
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
+    weather: list[Path],
+    capsys: pytest.CaptureFixture[str],
+    kind: str,
 ) -> None:
     sim, config, store = powered()
     face = Face(kind, config, weather, capsys)
@@ -426,7 +434,8 @@ def test_go_with_the_failing_item_waived_releases_and_the_waiver_is_in_the_audit
 
 @pytest.mark.slow
 def test_a_waiver_given_to_arm_but_not_to_go_disarms_and_finish_go_is_no_back_door(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
+    weather: list[Path],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """Waivers live in one process: `drs capsule go` without the waiver `arm` had sees the NO-GO, and the
@@ -435,7 +444,9 @@ def test_a_waiver_given_to_arm_but_not_to_go_disarms_and_finish_go_is_no_back_do
     face = Face("cli", config, weather, capsys)
     assert face.arm("--waive", f"sync={SYNC_WAIVER}") is None
     refusal = face.go()
-    assert refusal is not None and refusal.startswith("DRS1: FIRE refused and disarmed: no longer GO: NO-GO: "), refusal
+    assert refusal is not None and refusal.startswith(
+        "DRS1: FIRE refused and disarmed: no longer GO: NO-GO: "
+    ), refusal
     assert "Storage sync complete" in refusal
     assert face.go("--waive", f"sync={SYNC_WAIVER}") == "DRS1: FIRE refused: not armed: no longer GO: " + refusal.split(
         "no longer GO: ", 1)[1]  # fmt: skip
@@ -450,7 +461,8 @@ def test_a_waiver_given_to_arm_but_not_to_go_disarms_and_finish_go_is_no_back_do
 
 @pytest.mark.slow
 def test_go_after_the_arm_window_expired_is_refused_the_same_from_both_faces(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
+    weather: list[Path],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     sim, config, store = powered("arm_window_s = 5.0")
@@ -469,7 +481,8 @@ def test_go_after_the_arm_window_expired_is_refused_the_same_from_both_faces(
 
 @pytest.mark.slow
 def test_with_the_rule_required_go_needs_another_logins_approval_from_both_faces(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
+    weather: list[Path],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """#23: a typed `--second-operator` satisfied the two-person rule with require_second_operator on."""
@@ -486,7 +499,9 @@ def test_with_the_rule_required_go_needs_another_logins_approval_from_both_faces
     assert same_words(alone).startswith(
         "DRS1: FIRE refused: require_second_operator is on: a second login's approval is needed; ask another login"
     )
-    assert "typed second operator is not accepted" in same_words(typed) and "drs approve ID" in same_words(typed)
+    assert "typed second operator is not accepted" in same_words(typed) and "drs approve ID" in same_words(
+        typed
+    )
     assert sim.firmware.go_at is None
     assert fire_results(store) == ["refused"] * 4
 
@@ -515,13 +530,16 @@ def drs_child(config: Path, *argv: str, env: dict[str, str] | None = None) -> su
 
 @pytest.mark.slow
 def test_one_arm_per_capsule_across_processes_and_the_refusal_names_who_holds_it(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path],
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
+    weather: list[Path],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """#23: two consoles were both ARMED on one capsule. A `drs capsule arm` process holds the window;
     this process, arming and firing as the console does, is refused and told who holds it."""
     sim, config, store = powered()
-    child = drs_child(config, "capsule", "arm", "DRS1", "--weather", *map(str, weather), "--waive", f"sync={SYNC_WAIVER}")
+    child = drs_child(
+        config, "capsule", "arm", "DRS1", "--weather", *map(str, weather), "--waive", f"sync={SYNC_WAIVER}"
+    )
     out, err = child.communicate(timeout=120)
     assert child.returncode == 0, err
     console = Face("console", config, weather, capsys)
@@ -536,12 +554,16 @@ def test_one_arm_per_capsule_across_processes_and_the_refusal_names_who_holds_it
     console.close()
     assert sim.firmware.go_at is None
     armed = [a for a in store.audit("DRS1") if a.action == "arm"]
-    assert [a.result for a in armed] == ["armed", "refused"] and armed[0].session == holder.removeprefix("EL at ")
+    assert [a.result for a in armed] == ["armed", "refused"] and armed[0].session == holder.removeprefix(
+        "EL at "
+    )
 
 
 @pytest.mark.slow
 def test_an_approval_that_waited_past_its_arm_window_can_never_fire_in_a_later_one(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path], two_people: Callable[[Path], tuple[dict[str, str], dict[str, str]]],
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
+    weather: list[Path],
+    two_people: Callable[[Path], tuple[dict[str, str], dict[str, str]]],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """#23: ARM, FIRE, ask another login, let the window expire, ARM again, approve: the capsule RELEASED."""
@@ -568,7 +590,11 @@ def test_an_approval_that_waited_past_its_arm_window_can_never_fire_in_a_later_o
     assert approver.returncode == 1 and "approval #1 refused: it is void (ARM window #1 closed" in refused
     assert sim.firmware.go_at is None
     approvals = [(a.action, a.result) for a in store.audit("DRS1") if a.action.startswith("approval.")]
-    assert approvals == [("approval.requested", "pending"), ("approval.void", "void"), ("approval.approved", "refused")]
+    assert approvals == [
+        ("approval.requested", "pending"),
+        ("approval.void", "void"),
+        ("approval.approved", "refused"),
+    ]
     assert not [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
 
 
@@ -596,8 +622,11 @@ def parachute_refusal(config: Path, front_end: str, capsys: pytest.CaptureFixtur
 
 @pytest.mark.parametrize("front_end", ["cli", "operations"])
 def test_parachute_in_flight_is_refused_through_any_caller_and_nothing_reaches_the_gateway(
-    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch,
-    capsys: pytest.CaptureFixture[str], front_end: str,
+    tmp_path: Path,
+    gateway: SimulatedRockblock,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    front_end: str,
 ) -> None:
     """#22: `Operations.send_mt` never gated; only the screen called the landed gate before it."""
     monkeypatch.setenv("DRS_ONE_RULE_RB", PASSWORD)
@@ -615,8 +644,11 @@ def test_parachute_in_flight_is_refused_through_any_caller_and_nothing_reaches_t
 
 @pytest.mark.parametrize("front_end", ["cli", "operations"])
 def test_with_the_rule_on_a_typed_second_operator_cannot_override_the_landed_gate(
-    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch,
-    capsys: pytest.CaptureFixture[str], front_end: str,
+    tmp_path: Path,
+    gateway: SimulatedRockblock,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    front_end: str,
 ) -> None:
     """#23: `--override-landed "…" --second-operator Bob` queued PARACHUTE while it fell at 16 m/s."""
     monkeypatch.setenv("DRS_ONE_RULE_RB", PASSWORD)
@@ -638,7 +670,9 @@ def test_with_the_rule_on_a_typed_second_operator_cannot_override_the_landed_gat
 
 @pytest.mark.slow
 def test_with_the_rule_required_drs_capsule_go_fires_once_another_login_approves(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]], weather: list[Path], two_people: Callable[[Path], tuple[dict[str, str], dict[str, str]]],
+    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
+    weather: list[Path],
+    two_people: Callable[[Path], tuple[dict[str, str], dict[str, str]]],
 ) -> None:
     """The way through: `drs capsule go --await-approval`, then `drs approve ID` from another key."""
     sim, config, store = powered("arm_window_s = 120.0\nrequire_second_operator = true")
@@ -652,7 +686,9 @@ def test_with_the_rule_required_drs_capsule_go_fires_once_another_login_approves
         next(line for line in go.stdout if line.startswith("approval #1: waiting"))
         assert sim.firmware.go_at is None, "nothing is sent while it waits"
         listed = drs_child(config, "approve", env=bob).communicate(timeout=60)[0]
-        assert listed.startswith("#1 DRS1 Go (release): Go: release DRS1 in ARM window #1 — requested by alice")
+        assert listed.startswith(
+            "#1 DRS1 Go (release): Go: release DRS1 in ARM window #1 — requested by alice"
+        )
         approver = drs_child(config, "approve", "1", env=bob)
         assert approver.wait(timeout=60) == 0
         out, err = go.communicate(timeout=120)
@@ -663,5 +699,7 @@ def test_with_the_rule_required_drs_capsule_go_fires_once_another_login_approves
     [fire] = [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
     assert fire.detail is not None and fire.detail["approval"] == "1" and fire.detail["window"] == 1
     assert [a.result for a in store.audit("DRS1") if a.action.startswith("approval.")] == [
-        "pending", "approved", "used"
+        "pending",
+        "approved",
+        "used",
     ]

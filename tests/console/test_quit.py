@@ -53,7 +53,9 @@ async def test_no_quitting_while_go_is_being_sent(canned_app: Callable[..., DrsC
     async with app.run_test(size=(120, 40)) as pilot:
         arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
         now = arming.clock()  # the worker is inside fire(): the modal's flow cannot hold it here
-        window, _ = arming.windows.open("DRS1", arming.holder, arming.session, "EL", now, now + timedelta(minutes=1), "")
+        window, _ = arming.windows.open(
+            "DRS1", arming.holder, arming.session, "EL", now, now + timedelta(minutes=1), ""
+        )
         assert window is not None and arming.windows.start_firing(window.id, arming.holder, now)
         await pilot.press("q")
         await pilot.pause()

@@ -54,7 +54,6 @@ def commanding_app(tmp_path: Path, gateway: SimulatedRockblock) -> DrsConsole:
     return DrsConsole(setup, live_timers=False)
 
 
-
 async def open_recovery(pilot: Pilot[int], app: DrsConsole) -> RecoveryScreen:
     await pilot.press("down", "v")
     screen = app.screen

@@ -23,7 +23,6 @@ from tests.console.conftest import wait_for
 pytestmark = pytest.mark.asyncio
 
 
-
 async def open_release_go(pilot: Pilot[int], app: DrsConsole) -> ReleaseScreen:
     """Fleet → release screen of DRS1, sync its data, power it on, wait until the poll is GO."""
     await wait_for(pilot, lambda: app.fleet.capsules["DRS1"].facts(app.now())["link_up"] is True)
@@ -230,7 +229,9 @@ async def test_a_waiting_approval_is_a_live_line_with_its_countdown_and_c_cancel
             book.decide(request.id, "JM", Login("jm-on-the-other-console"), approve=True)
         await pilot.pause(0.5)
         assert world.sims[0].firmware.go_at is None
-        assert [a.result for a in app.store.audit("DRS1") if a.action == "approval.cancelled"] == ["cancelled"]
+        assert [a.result for a in app.store.audit("DRS1") if a.action == "approval.cancelled"] == [
+            "cancelled"
+        ]
 
 
 async def test_a_window_another_console_holds_is_shown_as_theirs_and_fire_stays_off(

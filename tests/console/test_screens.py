@@ -81,7 +81,9 @@ async def test_parachute_in_flight_shows_no_landed_evidence_and_is_refused_with_
         await pilot.press("c")
         await wait_for(pilot, lambda: type(app.screen).__name__ == "HazardModal")
         body = " ".join(str(w.render()) for w in app.screen.query(".dialog-body"))
-        assert "NO LANDED EVIDENCE: NOT LANDED: last fix" in body, "the evidence shows before any name is typed"
+        assert "NO LANDED EVIDENCE: NOT LANDED: last fix" in body, (
+            "the evidence shows before any name is typed"
+        )
         await pilot.press(*"DRS3", "enter", "enter", *"alone", "enter", "enter")
         await wait_for(pilot, lambda: any("no landed evidence" in n.message for n in app._notifications))
         assert app.ops is not None and app.ops.commands("DRS3") == []
@@ -264,7 +266,9 @@ async def test_help_scrolls_to_its_last_line_at_80x24(canned_app: Callable[..., 
         pane = screen.query_one("#help")
         last = list(screen.query_one(Markdown).children)[-1]
         assert "REPLAY sessions cannot command" in str(last.render())
-        assert not pane.region.contains_region(last.region), "the help fits: this test no longer tests scrolling"
+        assert not pane.region.contains_region(last.region), (
+            "the help fits: this test no longer tests scrolling"
+        )
         await pilot.press("end")
         await wait_for(pilot, lambda: pane.region.contains_region(last.region))
 
@@ -274,7 +278,9 @@ async def test_typing_on_entering_history_searches_and_fires_no_key(
 ) -> None:
     """The trial typed "alone" on entry: its `e` wrote an export. Typing must search, nothing else."""
     app = canned_app()
-    app.store.append_audit("EL", "DRS1", "waiver", "granted", {"item": "sync", "reason": "alone on the ridge"})
+    app.store.append_audit(
+        "EL", "DRS1", "waiver", "granted", {"item": "sync", "reason": "alone on the ridge"}
+    )
     async with app.run_test(size=(80, 24)) as pilot:
         await pilot.press("h")
         screen = app.screen
@@ -293,7 +299,9 @@ async def test_history_shows_the_highlighted_entrys_reason(canned_app: Callable[
     app = canned_app()
     reason = "no fix over the lake; dropping blind as the flown procedure allows it, decided with the PI"
     app.store.append_audit("EL", "DRS1", "waiver", "granted", {"item": "gnss", "reason": reason})
-    app.store.append_audit("EL", "DRS1", "fire", "refused", {"reason": "not armed: ARM window expired at 11:59:00Z"})
+    app.store.append_audit(
+        "EL", "DRS1", "fire", "refused", {"reason": "not armed: ARM window expired at 11:59:00Z"}
+    )
     async with app.run_test(size=(80, 24)) as pilot:
         await pilot.press("h", "enter")
         screen = app.screen

@@ -50,8 +50,12 @@ async def test_sigterm_during_go_lets_the_go_finish_before_the_console_ends(
     async with app.run_test(size=(120, 40)) as pilot:
         arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
         now = arming.clock()
-        window, _ = arming.windows.open("DRS1", arming.holder, arming.session, "EL", now, now + timedelta(minutes=1), "")
-        assert window is not None and arming.windows.start_firing(window.id, arming.holder, now)  # Go is being sent
+        window, _ = arming.windows.open(
+            "DRS1", arming.holder, arming.session, "EL", now, now + timedelta(minutes=1), ""
+        )
+        assert window is not None and arming.windows.start_firing(
+            window.id, arming.holder, now
+        )  # Go is being sent
         assert arming.status().state is ArmState.FIRING
         app.session_lost(signal.SIGTERM)
         await pilot.pause(0.6)
@@ -79,7 +83,9 @@ async def test_the_next_console_shows_how_the_last_session_ended(tmp_path: Path)
     record_loss(store, "EL", "SIGHUP", {}, go_in_flight=[])
     app = live_console(tmp_path)
     async with app.run_test(size=(120, 40)) as pilot:
-        await wait_for(pilot, lambda: any("last console: session lost at" in n.message for n in app._notifications))
+        await wait_for(
+            pilot, lambda: any("last console: session lost at" in n.message for n in app._notifications)
+        )
         await pilot.press("q", "tab", "enter")
     assert [a.action for a in store.audit() if a.action.startswith("session.")][-1] == "session.started"
 
@@ -97,7 +103,9 @@ async def test_what_another_console_does_to_the_store_shows_here_with_who_did_it
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.pause(0.5)
         subprocess.run([sys.executable, "-c", other_console, str(config)], check=True)
-        await wait_for(pilot, lambda: any("DRS2: waiver granted — JM" in n.message for n in app._notifications))
+        await wait_for(
+            pilot, lambda: any("DRS2: waiver granted — JM" in n.message for n in app._notifications)
+        )
         [note] = [n.message for n in app._notifications if "waiver granted" in n.message]
         assert app.store.session not in note and " pid " in note, "the other process is named"
         await pilot.press("q", "tab", "enter")

@@ -35,7 +35,10 @@ async def settle(pilot: Pilot[int]) -> None:
 @pytest.mark.parametrize("size", [(80, 24), (160, 48)], ids=["80x24", "160x48"])
 @pytest.mark.parametrize("screen", list(SCREENS))
 def test_screen_snapshot(
-    snap_compare: Callable[..., bool], canned_app: Callable[..., DrsConsole], screen: str, size: tuple[int, int]
+    snap_compare: Callable[..., bool],
+    canned_app: Callable[..., DrsConsole],
+    screen: str,
+    size: tuple[int, int],
 ) -> None:
     async def open_screen(pilot: Pilot[int]) -> None:
         await pilot.press(*SCREENS[screen])

@@ -36,7 +36,9 @@ def test_a_banner_that_cannot_fit_is_cut_at_its_end_with_an_ellipsis() -> None:
 
 
 @pytest.mark.asyncio
-async def test_the_demo_banner_shows_the_operator_at_80_columns(canned_app: Callable[..., DrsConsole]) -> None:
+async def test_the_demo_banner_shows_the_operator_at_80_columns(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
     """The demo's line ran past 80 columns, and the terminal cut the operator's name."""
     app = canned_app(mode="demo")
     async with app.run_test(size=(80, 24)) as pilot:
@@ -84,7 +86,9 @@ async def test_the_mt_detail_is_shown_whole_at_120x40(canned_app: Callable[..., 
     ids=["fleet", "release", "predictions", "iridium", "recovery", "history"],
 )
 @pytest.mark.asyncio
-async def test_every_footer_key_is_whole_at_80x24(canned_app: Callable[..., DrsConsole], keys: list[str]) -> None:
+async def test_every_footer_key_is_whole_at_80x24(
+    canned_app: Callable[..., DrsConsole], keys: list[str]
+) -> None:
     """The palette hint, docked right, covered "q Quit" on release and Iridium, "Help" on recovery."""
     app = canned_app()
     async with app.run_test(size=(80, 24)) as pilot:

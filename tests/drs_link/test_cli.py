@@ -99,7 +99,9 @@ def test_status_json_before_power_on(
 
 
 def test_full_release_from_the_command_line(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], weather: list[Path],
+    setup: tuple[CapsuleSimulator, Path],
+    capsys: pytest.CaptureFixture[str],
+    weather: list[Path],
 ) -> None:
     sim, config = setup
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
@@ -119,7 +121,9 @@ def test_full_release_from_the_command_line(
 
 
 def test_go_says_each_step_as_it_starts(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+    setup: tuple[CapsuleSimulator, Path],
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
     weather: list[Path],
 ) -> None:
     """Go takes about 12 s; the trial saw nothing until it ended. What was printed before Go left counts."""
@@ -142,7 +146,9 @@ def test_go_says_each_step_as_it_starts(
 
 
 def test_go_with_a_confirmation_naming_another_capsule_is_refused(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], weather: list[Path],
+    setup: tuple[CapsuleSimulator, Path],
+    capsys: pytest.CaptureFixture[str],
+    weather: list[Path],
 ) -> None:
     sim, config = setup
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
@@ -153,7 +159,9 @@ def test_go_with_a_confirmation_naming_another_capsule_is_refused(
 
 
 def test_go_before_power_on_is_refused(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], weather: list[Path],
+    setup: tuple[CapsuleSimulator, Path],
+    capsys: pytest.CaptureFixture[str],
+    weather: list[Path],
 ) -> None:
     sim, config = setup
     assert drs(config, "capsule", "arm", "DRS1", *release_args(weather)) == 1
@@ -310,7 +318,9 @@ def _done_steps(store: Store) -> dict[str, str | None]:
 
 
 def test_power_on_go_and_reset_tick_their_steps_from_the_cli_as_from_the_console(
-    make_sim: Callable[..., CapsuleSimulator], client_key: tuple[Path, paramiko.PKey], tmp_path: Path,
+    make_sim: Callable[..., CapsuleSimulator],
+    client_key: tuple[Path, paramiko.PKey],
+    tmp_path: Path,
     weather: list[Path],
 ) -> None:
     """One rule (drs_link.ops.checklist.complete_command): the CLI used to tick nothing."""
@@ -334,7 +344,8 @@ def test_power_on_go_and_reset_tick_their_steps_from_the_cli_as_from_the_console
         operations.close()
     console_steps = _done_steps(console_store)
     assert {k: console_steps[k] for k in ("power-on", "reset-state")} == {
-        "power-on": "relay latched", "reset-state": "release state reset"
+        "power-on": "relay latched",
+        "reset-state": "release state reset",
     }
 
 
@@ -363,7 +374,10 @@ def _kill_when(
 
 
 def test_go_killed_while_the_pi_runs_it_stays_unverified_and_reset_is_refused(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path, weather: list[Path],
+    setup: tuple[CapsuleSimulator, Path],
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    weather: list[Path],
 ) -> None:
     sim, config = setup
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
@@ -395,7 +409,9 @@ def _go_killed_after_gogogo(sim: CapsuleSimulator, config: Path, store: Store, w
 
 
 def test_go_killed_after_the_pi_wrote_gogogo_is_finished_by_a_retry_that_keeps_the_first_go_time(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path,
+    setup: tuple[CapsuleSimulator, Path],
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
     weather: list[Path],
 ) -> None:
     sim, config = setup
@@ -408,7 +424,9 @@ def test_go_killed_after_the_pi_wrote_gogogo_is_finished_by_a_retry_that_keeps_t
 
 
 def test_go_killed_with_a_pi_that_then_halted_is_settled_released_by_the_operator_with_evidence(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path,
+    setup: tuple[CapsuleSimulator, Path],
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
     weather: list[Path],
 ) -> None:
     """With the Pi halted no Go retry can confirm the release and reset is refused: that left no way out.
@@ -437,7 +455,10 @@ def _status(config: Path, capsys: pytest.CaptureFixture[str]) -> dict[str, Any]:
 
 
 def test_power_on_killed_before_the_pi_ran_it_is_outcome_unknown_and_reset_settles_it(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path, weather: list[Path],
+    setup: tuple[CapsuleSimulator, Path],
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    weather: list[Path],
 ) -> None:
     """Killed after the attempt was recorded and before the Pi ran the script: the console cannot know
     which, so it says so; Go is refused until the operator, having found the relay off, resets."""
@@ -447,7 +468,10 @@ def test_power_on_killed_before_the_pi_ran_it_is_outcome_unknown_and_reset_settl
     _kill_when(config, ["capsule", "power-on", "DRS1", "--yes"], store, "power-on-unknown")
     sim.faults.response_delay_s = 0.0
     release = _status(config, capsys)["release"]
-    assert release["state"] == "power-on-unknown" and "power-on outcome unknown: check the relay" in release["note"]
+    assert (
+        release["state"] == "power-on-unknown"
+        and "power-on outcome unknown: check the relay" in release["note"]
+    )
     assert not sim.gpio.relay_latched
     assert drs(config, "capsule", "arm", "DRS1", *release_args(weather)) == 1
     assert "Power-on done: power-on has not succeeded" in _one_line_error(capsys)
@@ -456,7 +480,10 @@ def test_power_on_killed_before_the_pi_ran_it_is_outcome_unknown_and_reset_settl
 
 
 def test_power_on_killed_after_the_pi_latched_the_relay_is_outcome_unknown_and_power_on_again_settles_it(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path, weather: list[Path],
+    setup: tuple[CapsuleSimulator, Path],
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    weather: list[Path],
 ) -> None:
     """The Pi ran the script (the relay is latched) and the console died before it heard: this once left
     'idle' over a latched relay. Power-on again (a second SET pulse changes nothing) gives the session Go needs."""
@@ -464,7 +491,11 @@ def test_power_on_killed_after_the_pi_latched_the_relay_is_outcome_unknown_and_p
     sim.faults.answer_delay_s = 20.0
     store = Store.open(tmp_path / "data" / "drs.sqlite")
     _kill_when(
-        config, ["capsule", "power-on", "DRS1", "--yes"], store, "power-on-unknown", lambda: sim.gpio.relay_latched
+        config,
+        ["capsule", "power-on", "DRS1", "--yes"],
+        store,
+        "power-on-unknown",
+        lambda: sim.gpio.relay_latched,
     )
     sim.faults.answer_delay_s = 0.0
     assert _status(config, capsys)["release"]["state"] == "power-on-unknown"
@@ -475,7 +506,10 @@ def test_power_on_killed_after_the_pi_latched_the_relay_is_outcome_unknown_and_p
 
 
 def test_power_on_killed_while_waiting_for_the_microcontroller_is_kept_and_go_proceeds(
-    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path, weather: list[Path],
+    setup: tuple[CapsuleSimulator, Path],
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    weather: list[Path],
 ) -> None:
     sim, config = setup
     store = Store.open(tmp_path / "data" / "drs.sqlite")

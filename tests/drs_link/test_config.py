@@ -110,7 +110,10 @@ def test_drs_config_names_the_file_and_config_wins_over_it(
     assert "no capsule named 'DRS7'" in capsys.readouterr().err
     monkeypatch.setenv("DRS_CONFIG", str(xdg / "typo.toml"))
     assert main(["mo", "health", "DRS7"]) == 1
-    assert capsys.readouterr().err == f"drs: error: DRS_CONFIG: configuration file {xdg / 'typo.toml'} does not exist\n"
+    assert (
+        capsys.readouterr().err
+        == f"drs: error: DRS_CONFIG: configuration file {xdg / 'typo.toml'} does not exist\n"
+    )
 
 
 def test_files_in_the_pre_xdg_places_keep_working(xdg: Path, caplog: pytest.LogCaptureFixture) -> None:
@@ -124,7 +127,9 @@ def test_files_in_the_pre_xdg_places_keep_working(xdg: Path, caplog: pytest.LogC
     (old_data / "drs.sqlite").write_bytes(b"")
     config = load_config()
     assert (config.source, config.operator.name, config.store_path) == (
-        old_config / "drs.toml", "EL", old_data / "drs.sqlite"
+        old_config / "drs.toml",
+        "EL",
+        old_data / "drs.sqlite",
     )
     assert [c.known_hosts for c in config.capsules] == [old_config / "known_hosts"] * 2
     moved = [r.getMessage() for r in caplog.records if "from its old place" in r.getMessage()]
@@ -241,15 +246,19 @@ def test_any_scalar_in_any_capsule_key_parses_or_names_the_key(key: str, value: 
         ({"mo": {"path": "no-slash"}}, r"mo\.path: 'no-slash' must start with /"),
         ({"mo": {"listen_port": 70000}}, r"mo\.listen_port: 70000 is outside 0–65535"),
         ({"rockblock": {"timeout_s": -1}}, r"rockblock\.timeout_s: -1 is outside 0\.5–600"),
-        ({"capsule": [{"name": "DRS1", "host": "h", "authority_lease_s": 1e19}]},
-         r"capsule\[0\]\.authority_lease_s: 1e\+19 is outside 1–86400 \(the Pi's shell arithmetic"),
+        (
+            {"capsule": [{"name": "DRS1", "host": "h", "authority_lease_s": 1e19}]},
+            r"capsule\[0\]\.authority_lease_s: 1e\+19 is outside 1–86400 \(the Pi's shell arithmetic",
+        ),
         ({"data": {"dir": "relative/dir"}}, r"data\.dir: 'relative/dir' is relative"),
         ({"operator": {"name": "EL\x1b[2J" + "x" * 70}}, r"operator\.name: at most 64 printable characters"),
         ({"console": {"arm_window_s": 0.5}}, r"console\.arm_window_s: 0\.5 is outside 5–3600"),
     ],
     ids=["body-bytes", "path", "port", "timeout", "lease", "relative-dir", "operator-name", "arm-window"],
 )
-def test_values_that_reach_arithmetic_a_socket_or_a_shell_are_range_checked(document: dict, message: str) -> None:
+def test_values_that_reach_arithmetic_a_socket_or_a_shell_are_range_checked(
+    document: dict, message: str
+) -> None:
     with pytest.raises(ConfigError, match=message):
         parse_config(document)
 
@@ -287,7 +296,9 @@ def test_a_path_in_the_home_of_an_unknown_user_is_named_not_a_traceback() -> Non
          "identity-dev-zero", "known-hosts-dev-zero", "jump-port-99999", "jump-nul", "host-nul", "team-nan",
          "team-inf"],
 )  # fmt: skip
-def test_values_that_pass_their_type_and_then_break_things_are_refused_at_load(document: dict, key: str) -> None:
+def test_values_that_pass_their_type_and_then_break_things_are_refused_at_load(
+    document: dict, key: str
+) -> None:
     """#24 item 9: each once loaded and then 404'd every delivery, matched no report, ran out of memory, or
     failed at connect. Refused now at load, in one line naming the field."""
     with pytest.raises(ConfigError) as refused:
@@ -296,11 +307,15 @@ def test_values_that_pass_their_type_and_then_break_things_are_refused_at_load(d
     assert message.startswith(f"{key}: ") and "\n" not in message
 
 
-def test_a_pem_key_with_garbage_inside_stops_the_receiver_at_start(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_pem_key_with_garbage_inside_stops_the_receiver_at_start(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     key = tmp_path / "rock7.pem"
     key.write_text("-----BEGIN PUBLIC KEY-----\nbm90IGEga2V5IGF0IGFsbA==\n-----END PUBLIC KEY-----\n")
     config = tmp_path / "drs.toml"
-    config.write_text(f'[data]\ndir = "{tmp_path / "data"}"\n[mo]\nlisten_port = 0\njwt_public_key_file = "{key}"\n')
+    config.write_text(
+        f'[data]\ndir = "{tmp_path / "data"}"\n[mo]\nlisten_port = 0\njwt_public_key_file = "{key}"\n'
+    )
     assert main(["--config", str(config), "mo", "serve"]) != 0
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "mo.jwt_public_key_file:" in err and "not a valid public key" in err

@@ -123,7 +123,10 @@ def test_every_output_of_a_real_run_is_free_of_the_password_in_each_echoed_encod
     env = {**os.environ, "PYTHONPATH": str(REPO), "DRS_TEST_RB": PASSWORD}
     outputs = []
     try:
-        for argv in (["mt", "send", "DRS1", "--interval", "5", "--confirm", "DRS1"], ["mt", "status", "DRS1", "--json"]):
+        for argv in (
+            ["mt", "send", "DRS1", "--interval", "5", "--confirm", "DRS1"],
+            ["mt", "status", "DRS1", "--json"],
+        ):
             done = subprocess.run([sys.executable, "-m", "console.commands.main", "--config", str(config), *argv],
                                   cwd=REPO, capture_output=True, text=True, timeout=60, env=env)  # fmt: skip
             outputs += [done.stdout, done.stderr]
@@ -134,7 +137,11 @@ def test_every_output_of_a_real_run_is_free_of_the_password_in_each_echoed_encod
     store = tmp_path / "data" / "drs.sqlite"
     rows = sqlite3.connect(store).execute("SELECT detail FROM mt_command UNION ALL SELECT detail FROM audit")
     outputs += [str(row[0]) for row in rows]
-    outputs += [path.read_bytes().decode("utf-8", "replace") for path in (tmp_path / "data").iterdir() if path.is_file()]
+    outputs += [
+        path.read_bytes().decode("utf-8", "replace")
+        for path in (tmp_path / "data").iterdir()
+        if path.is_file()
+    ]
     [body] = EchoingEveryWay.bodies
     leaks = [(name, index) for form, name in six_encodings(PASSWORD, body) + [(PASSWORD, "raw")]
              for index, text in enumerate(outputs) if form in text]  # fmt: skip

@@ -31,7 +31,9 @@ def test_every_audit_row_names_the_process_that_wrote_it(tmp_path: Path) -> None
     theirs, ours = mine.audit("DRS1")
     assert ours.session == mine.session == session_name()
     assert theirs.session is not None and theirs.session != ours.session
-    assert theirs.session.split(" pid ")[0] == ours.session.split(" pid ")[0], "same account and host, other process"
+    assert theirs.session.split(" pid ")[0] == ours.session.split(" pid ")[0], (
+        "same account and host, other process"
+    )
 
 
 def test_a_store_made_before_the_session_column_gets_it_and_keeps_its_rows(tmp_path: Path) -> None:

@@ -82,13 +82,13 @@ def wait_for(condition: Callable[[], bool], what: str, timeout_s: float = 15.0) 
         time.sleep(0.01)
 
 
-
-
 @pytest.fixture
 def feeds() -> Iterator[Callable[..., BalloonFeed]]:
     started: list[BalloonFeed] = []
 
-    def start(config: BalloonFeedConfig, clock: ManualClock, listener: FeedListener | None = None) -> BalloonFeed:
+    def start(
+        config: BalloonFeedConfig, clock: ManualClock, listener: FeedListener | None = None
+    ) -> BalloonFeed:
         feed = BalloonFeed(config, clock, listener)
         feed.start()
         started.append(feed)
@@ -147,7 +147,10 @@ def test_horus_payload_summary_keeps_the_callsign() -> None:
 def test_horus_payload_telemetry_is_a_fix_timed_by_its_time_string_as_chasemapper_reads_it(
     times: dict[str, object], expected: datetime
 ) -> None:
-    packet = {k: v for k, v in AUTO_RX_SUMMARY.items() if k != "time"} | {"type": "PAYLOAD_TELEMETRY", **times}
+    packet = {k: v for k, v in AUTO_RX_SUMMARY.items() if k != "time"} | {
+        "type": "PAYLOAD_TELEMETRY",
+        **times,
+    }
     fix = parse_feed_line(json.dumps(packet), NOW)
     assert fix == BalloonFix(expected, 55.6, 12.3, 24117.0, "horus", "R3330018")
 
@@ -541,9 +544,7 @@ def test_tcp_client_survives_drops_mid_line_refusal_and_a_restarted_server(
     finally:
         station.close()
     record = feed.latest()
-    assert (
-        record is not None and record.data.lat == 68.0 and record.data.source == f"tcp 127.0.0.1:{port}"
-    )
+    assert record is not None and record.data.lat == 68.0 and record.data.source == f"tcp 127.0.0.1:{port}"
     assert [o.reason if isinstance(o, Rejection) else o.format for o in outcomes] == [
         "ozimux",
         PARTIAL,

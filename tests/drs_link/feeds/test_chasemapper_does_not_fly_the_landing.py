@@ -114,7 +114,16 @@ def test_the_old_form_a_moving_landing_under_one_callsign_would_be_flown() -> No
     now = START.timestamp()
     for minute, lon in enumerate((-0.30, -0.29)):
         moment = START + timedelta(minutes=minute)
-        packet = {"type": "PAYLOAD_SUMMARY", "callsign": "DRS1_LAND", "latitude": 51.45, "longitude": lon,
-                  "altitude": 40.0, "speed": -1, "heading": -1, "time": f"{moment:%H:%M:%S}", "comment": ""}
+        packet = {
+            "type": "PAYLOAD_SUMMARY",
+            "callsign": "DRS1_LAND",
+            "latitude": 51.45,
+            "longitude": lon,
+            "altitude": 40.0,
+            "speed": -1,
+            "heading": -1,
+            "time": f"{moment:%H:%M:%S}",
+            "comment": "",
+        }
         mapper.handle_udp_packet(json.dumps(packet).encode(), now + 60 * minute)
     assert mapper.flown(now + 60) == {"DRS1_LAND"}

@@ -118,7 +118,10 @@ def test_mo_parse_prints_fields_json_and_rejections(
     out = capsys.readouterr().out
     assert "fix: 2026-07-01 10:00:07Z 46.500000,6.600000" in out and "forwarding: to RockBLOCK 16366" in out
     assert run(config, "mo", "parse", "5B49", "--json") == 1
-    assert '"reason": "not a DRS report: 1 comma-separated field(s), not the firmware\'s 12"' in capsys.readouterr().out
+    assert (
+        '"reason": "not a DRS report: 1 comma-separated field(s), not the firmware\'s 12"'
+        in capsys.readouterr().out
+    )
     assert run(config, "mo", "parse", "zz") == 1
     assert capsys.readouterr().err == "drs: error: not a DRS report: data is not valid hex\n"
 
@@ -167,12 +170,21 @@ def test_health_status_and_recovery_report_as_json_with_the_numbers_the_text_sho
 
     assert run(config, "mo", "health", "DRS1", "--json") == 0
     health = json.loads(capsys.readouterr().out)
-    assert (health["capsule"], health["imei"], health["reports"], health["last_vbat"]) == ("DRS1", IMEI, 5, 8.9)
+    assert (health["capsule"], health["imei"], health["reports"], health["last_vbat"]) == (
+        "DRS1",
+        IMEI,
+        5,
+        8.9,
+    )
     assert health["last_report_utc"].endswith("Z") and health["findings"] == []
 
     assert run(config, "mt", "status", "DRS1", "--json") == 0
     [command] = json.loads(capsys.readouterr().out)["commands"]
-    assert (command["text"], command["state"], command["operator"]) == ("[INTERVAL=5]", "effect_confirmed", "alice")
+    assert (command["text"], command["state"], command["operator"]) == (
+        "[INTERVAL=5]",
+        "effect_confirmed",
+        "alice",
+    )
     assert command["gateway_id"] is not None and command["delivered_report_id"] is not None
 
     gpx = tmp_path / "out.gpx"
@@ -386,7 +398,10 @@ def test_mt_resolve_without_an_operator_name_is_refused(
 
 
 def test_a_retry_over_a_command_of_unknown_delivery_warns_that_it_may_be_sent_twice(
-    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path,
+    gateway: SimulatedRockblock,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     monkeypatch.setenv("DRS_TEST_RB", "pw-123")
     config = write_config(tmp_path, gateway.url)

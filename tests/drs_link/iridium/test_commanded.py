@@ -30,7 +30,6 @@ from .helpers import IMEI, T0, fix_at, fly, to_delivery
 CAPSULE = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=IMEI, rockblock_serial=11800)
 
 
-
 class Rig:
     """A capsule on its 2-minute grid, its gateway, the store, and the console's lifecycle."""
 

@@ -53,7 +53,9 @@ def _options(parser: argparse.ArgumentParser) -> list[str]:
 
 def test_the_firmware_commands_are_the_catalogue_in_its_processing_order() -> None:
     assert [c.name for c in CATALOGUE] == ["INTERVAL", "RBSOURCE", "RBDESTINATION", "PARACHUTE", "SOUNDER"]
-    assert sorted(LISTED, key=CATALOGUE.index) == list(CATALOGUE) and len({c.name for c in LISTED}) == len(LISTED)
+    assert sorted(LISTED, key=CATALOGUE.index) == list(CATALOGUE) and len({c.name for c in LISTED}) == len(
+        LISTED
+    )
 
 
 def test_the_cli_offers_exactly_the_catalogue() -> None:
@@ -122,4 +124,3 @@ def test_a_command_added_to_a_copy_of_the_catalogue_reaches_everything(
     config.write_text('[[capsule]]\nname = "DRS1"\nhost = "127.0.0.1"\nimei = "300234010753370"\n')
     assert entry.main(["--config", str(config), "mt", "send", "DRS1", "--example", "7", "--dry-run"]) == 0
     assert "text: [EXAMPLE=7]" in capsys.readouterr().out
-

@@ -27,7 +27,6 @@ def client(url: str, timeout_s: float = 2.0, **kwargs: object) -> RockblockGatew
     return RockblockGateway(url, "ops", SECRET, timeout_s=timeout_s, retry_delay_s=0.0, **kwargs)  # type: ignore[arg-type]
 
 
-
 def test_ok_reply_gives_the_mt_id_and_credentials_travel_only_in_the_body(
     rockblock: SimulatedRockblock,
 ) -> None:

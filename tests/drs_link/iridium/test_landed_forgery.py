@@ -131,7 +131,9 @@ def test_landed_evidence_from_unverified_reports_is_said_and_needs_a_second_oper
     try:
         with pytest.raises(RefusedError, match="without a verified JWT.*a second operator must confirm"):
             authorize_mt(store, "DRS1", "alice", message, reports, require_second_operator=False)
-        details = authorize_mt(store, "DRS1", "alice", message, reports, second_operator="bob", crew=("alice", "bob"))
+        details = authorize_mt(
+            store, "DRS1", "alice", message, reports, second_operator="bob", crew=("alice", "bob")
+        )
         assert details["landed"]["verified"] is False and details["second_operator"] == "bob"
     finally:
         store.close()

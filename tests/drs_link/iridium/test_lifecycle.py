@@ -29,9 +29,10 @@ from .helpers import IMEI, T0, fly
 CAPSULE = CapsuleConfig(name="DRS1", host="127.0.0.1", imei=IMEI, rockblock_serial=11800)
 
 
-
 @pytest.fixture
-def rig(tmp_path: Path) -> Iterator[tuple[Store, ReportStore, SimulatedRockblock, RockblockGateway, ManualClock]]:
+def rig(
+    tmp_path: Path,
+) -> Iterator[tuple[Store, ReportStore, SimulatedRockblock, RockblockGateway, ManualClock]]:
     store = Store.open(tmp_path / "drs.sqlite")
     with SimulatedRockblock(username="ops", password="pw", imeis=(IMEI,)) as gateway:
         client = RockblockGateway(gateway.url, "ops", "pw", timeout_s=0.5, retry_delay_s=0.0)
@@ -63,7 +64,9 @@ def test_interval_command_runs_from_request_to_effect_confirmed(rig) -> None:
     assert changed.state == lc.PROBABLY_DELIVERED and "MOMSN 3" in changed.detail
     assert capsule.interval_min == 5
     fly(capsule, gateway, reports, next_alarm + timedelta(minutes=2), 2)
-    assert life.observe(reports.for_imei(IMEI), IMEI) == [], "one spacing at 5 min is not yet the new interval"
+    assert life.observe(reports.for_imei(IMEI), IMEI) == [], (
+        "one spacing at 5 min is not yet the new interval"
+    )
     fly(capsule, gateway, reports, next_alarm + timedelta(minutes=12), 1)
     [changed] = life.observe(reports.for_imei(IMEI), IMEI)
     assert changed.state == lc.EFFECT_CONFIRMED
@@ -123,7 +126,9 @@ def test_flush_marks_older_queued_commands_flushed(rig) -> None:
     store, _reports, gateway, client, clock = rig
     life = lc.CommandLifecycle(store, "alice", clock)
     older = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 3).build()).id, "DRS1", client)
-    newer = life.send(life.request(CAPSULE, MtComposer().add("INTERVAL", 4).build(), flush=True).id, "DRS1", client)
+    newer = life.send(
+        life.request(CAPSULE, MtComposer().add("INTERVAL", 4).build(), flush=True).id, "DRS1", client
+    )
     assert life.get(older.id).state == lc.FLUSHED
     assert newer.state == lc.QUEUED
     assert list(gateway.queues[IMEI]) == [b"[INTERVAL=4]"]
@@ -172,7 +177,9 @@ def test_every_audit_record_carries_the_lifecycle_clock_not_the_wall_clock(rig) 
     assert {r.time_utc for r in records} == {clock()}
 
 
-def _race(store: Store, command_id: int, client: RockblockGateway, clock: ManualClock, senders: int) -> list[str]:
+def _race(
+    store: Store, command_id: int, client: RockblockGateway, clock: ManualClock, senders: int
+) -> list[str]:
     """``senders`` threads, each with its own connection to the store, send one command at once."""
     start = threading.Barrier(senders)
     outcomes: list[str] = []
@@ -238,7 +245,9 @@ def test_a_send_stopped_after_the_gateway_took_it_is_delivery_unknown_at_once_an
         child.send_signal(stop)
         child.wait(timeout=30)
     recovered = lc.CommandLifecycle(store, "bob").get(command.id)
-    assert recovered.state == lc.DELIVERY_UNKNOWN and "stopped before the gateway answered" in recovered.detail
+    assert (
+        recovered.state == lc.DELIVERY_UNKNOWN and "stopped before the gateway answered" in recovered.detail
+    )
     if stop == signal.SIGTERM:
         assert child.returncode == 128 + signal.SIGTERM and "(SIGTERM)" in recovered.detail
     resolved = lc.CommandLifecycle(store, "bob").resolve_not_sent(command.id, "DRS1", "gateway shows nothing")
@@ -297,7 +306,10 @@ def test_a_send_that_raises_is_recorded_as_delivery_unknown_not_left_confirmed(r
 
 
 def _commands_of(store: Store) -> list[tuple[object, ...]]:
-    return [(c.id, c.state, c.detail, c.delivered_report_id, c.effects) for c in lc.CommandLifecycle(store, "x").for_imei(IMEI)]
+    return [
+        (c.id, c.state, c.detail, c.delivered_report_id, c.effects)
+        for c in lc.CommandLifecycle(store, "x").for_imei(IMEI)
+    ]
 
 
 @pytest.mark.parametrize("history", [3, 150])
@@ -341,7 +353,9 @@ def test_the_work_after_each_post_is_the_open_commands_reports_not_the_flight(
     assert life.get(command.id).state == lc.EFFECT_CONFIRMED
 
 
-def test_an_interval_is_not_confirmed_by_lost_sessions_and_later_contradicting_spacings_reopen_it(rig) -> None:
+def test_an_interval_is_not_confirmed_by_lost_sessions_and_later_contradicting_spacings_reopen_it(
+    rig,
+) -> None:
     """#24 item 3: [INTERVAL=30] was called confirmed from one 30-min gap of lost sessions while the capsule
     stayed at 2 min. Here it never takes the command (the download is garbage): one gap of lost sessions is
     not enough, two are (a coincidence no rule can tell), and the 2-min spacing that follows re-opens it."""
@@ -361,7 +375,9 @@ def test_an_interval_is_not_confirmed_by_lost_sessions_and_later_contradicting_s
         return life.get(command.id).state
 
     assert state_after(0, 2) == lc.PROBABLY_DELIVERED
-    assert state_after(32) == lc.PROBABLY_DELIVERED, "one 30-min gap: sessions lost at 2 min, or the new value"
+    assert state_after(32) == lc.PROBABLY_DELIVERED, (
+        "one 30-min gap: sessions lost at 2 min, or the new value"
+    )
     assert state_after(62) == lc.EFFECT_CONFIRMED, "two adjacent 30-min spacings and nothing against them"
     assert state_after(64) == lc.TIMED_OUT
     reopened = life.get(command.id)
@@ -385,7 +401,9 @@ def test_a_single_gap_of_lost_sessions_then_the_old_spacing_is_not_seen(rig) -> 
     assert final.state == lc.TIMED_OUT and "[INTERVAL=30]: not seen" in final.detail
 
 
-def test_a_store_failure_after_the_gateway_queued_says_so_with_the_mt_id(rig, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_store_failure_after_the_gateway_queued_says_so_with_the_mt_id(
+    rig, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """#24 item 12: the operator read only the store's error, nothing of the MT the gateway had queued."""
     store, _, gateway, client, clock = rig
     life = lc.CommandLifecycle(store, "alice", clock)

@@ -131,5 +131,11 @@ def test_every_firmware_report_parses_back_to_its_values(
 @pytest.mark.parametrize("altitude", ["999999", "-99999", "60001"])
 def test_an_altitude_no_capsule_can_have_is_rejected_naming_it(altitude: str) -> None:
     """#24 item 12: the format's six digits let 999,999 m through as the capsule's fix."""
-    result = parse_payload(f"20190922143005,47.492120,-80.561200,{altitude},12.3,47,1.1,9,0,0.0,8.71,17".encode())
-    assert not result.accepted and result.reason is not None and "m is beyond anywhere a capsule can be" in result.reason
+    result = parse_payload(
+        f"20190922143005,47.492120,-80.561200,{altitude},12.3,47,1.1,9,0,0.0,8.71,17".encode()
+    )
+    assert (
+        not result.accepted
+        and result.reason is not None
+        and "m is beyond anywhere a capsule can be" in result.reason
+    )

@@ -28,7 +28,13 @@ def test_protocol_examples_are_byte_exact(composer: MtComposer, hex_text: str) -
 
 def test_several_commands_go_into_one_message_in_firmware_order() -> None:
     message = (
-        MtComposer().add("SOUNDER", True).add("PARACHUTE", (0, 7)).add("INTERVAL", 1440).add("RBDESTINATION", 0).add("RBSOURCE", 11800).build()
+        MtComposer()
+        .add("SOUNDER", True)
+        .add("PARACHUTE", (0, 7))
+        .add("INTERVAL", 1440)
+        .add("RBDESTINATION", 0)
+        .add("RBSOURCE", 11800)
+        .build()
     )
     assert message.text == "[INTERVAL=1440][RBSOURCE=11800][RBDESTINATION=0][PARACHUTE=00:07][SOUNDER_ON]"
 

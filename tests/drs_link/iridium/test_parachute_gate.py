@@ -49,7 +49,9 @@ def landed(start: datetime) -> list[StoredReport]:
 def test_a_falling_capsule_has_no_landed_evidence_and_the_reason_names_the_last_fix() -> None:
     evidence = landed_evidence(falling(T0))
     assert not evidence.on_ground
-    assert evidence.summary.startswith("NOT LANDED: last fix 10:08:07Z at 17,400 m, 19.0 m/s, falling 20.0 m/s")
+    assert evidence.summary.startswith(
+        "NOT LANDED: last fix 10:08:07Z at 17,400 m, 19.0 m/s, falling 20.0 m/s"
+    )
     assert evidence.audit()["last_fix"]["alt_m"] == 17_400.0
 
 
@@ -86,7 +88,9 @@ def test_the_verdict_after_each_report_is_landed_evidence_on_the_reports_up_to_i
     for reports in [*real_flights(shared_data), [*landed(T0), away, *back], carried]:
         fed = LandedVerdicts()
         verdicts += [fed.add(report) for report in reports]
-        assert verdicts[-len(reports) :] == [landed_evidence(reports[: i + 1]).on_ground for i in range(len(reports))]
+        assert verdicts[-len(reports) :] == [
+            landed_evidence(reports[: i + 1]).on_ground for i in range(len(reports))
+        ]
     assert 0 < sum(verdicts) < len(verdicts)
 
 
@@ -128,7 +132,9 @@ def test_the_console_reads_each_report_once_and_runs_the_landing_rule_once_per_f
         done = dict(work)
         everything = ReportStore(store).for_imei(IMEI)
         fixes = sum(r.report is not None and r.report.fix is not None for r in everything)
-        assert done == ({"fixes": fixes, "parsed": 1 + len(everything)} if read_again else {"fixes": 1, "parsed": 1})
+        assert done == (
+            {"fixes": fixes, "parsed": 1 + len(everything)} if read_again else {"fixes": 1, "parsed": 1}
+        )
         upto = [r.delivery.momsn for r in everything].index(added.delivery.momsn) + 1
         assert record.data.landed == landed_evidence(everything[:upto]).on_ground  # type: ignore[union-attr]
 
@@ -155,7 +161,10 @@ def recent(minutes_ago: float) -> datetime:
 
 
 def test_cli_refuses_parachute_in_flight_and_nothing_reaches_the_gateway(
-    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path,
+    gateway: SimulatedRockblock,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     monkeypatch.setenv("DRS_TEST_RB", "pw")
     config = write_config(tmp_path, gateway.url)
@@ -168,15 +177,22 @@ def test_cli_refuses_parachute_in_flight_and_nothing_reaches_the_gateway(
     assert gateway.requests == []
     [refused] = audit_of(store, "mt.parachute")
     assert refused["result"] == "refused" and refused["landed"]["last_fix"]["alt_m"] == 17_400.0
-    assert store.query("SELECT COUNT(*) AS n FROM mt_command")[0]["n"] == 0, "a refused PARACHUTE leaves no row"
+    assert store.query("SELECT COUNT(*) AS n FROM mt_command")[0]["n"] == 0, (
+        "a refused PARACHUTE leaves no row"
+    )
 
 
 def test_cli_override_needs_a_reason_and_a_second_operator_and_is_audited_with_the_evidence(
-    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path,
+    gateway: SimulatedRockblock,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     monkeypatch.setenv("DRS_TEST_RB", "pw")
     config = write_config(tmp_path, gateway.url)
-    config.write_text(config.read_text().replace("[[capsule]]", '[console]\ncrew = ["alice", "bob"]\n[[capsule]]'))
+    config.write_text(
+        config.read_text().replace("[[capsule]]", '[console]\ncrew = ["alice", "bob"]\n[[capsule]]')
+    )
     store = seed(tmp_path, falling(recent(9)))
     argv = ["mt", "send", "DRS1", "--parachute", "next", "--accept-midnight", "--confirm", "DRS1",
             "--override-landed", "capsule seen on the ground by the chase team; GNSS frozen"]  # fmt: skip
@@ -191,11 +207,16 @@ def test_cli_override_needs_a_reason_and_a_second_operator_and_is_audited_with_t
     authorised = audit_of(store, "mt.parachute")[-1]
     assert authorised["result"] == "authorised" and authorised["second_operator"] == "bob"
     assert authorised["override_landed"].startswith("capsule seen on the ground")
-    assert authorised["landed"]["on_ground"] is False and authorised["landed"]["last_fix"]["alt_m"] == 17_400.0
+    assert (
+        authorised["landed"]["on_ground"] is False and authorised["landed"]["last_fix"]["alt_m"] == 17_400.0
+    )
 
 
 def test_cli_queues_parachute_once_the_reports_show_the_landing(
-    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path,
+    gateway: SimulatedRockblock,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     monkeypatch.setenv("DRS_TEST_RB", "pw")
     config = write_config(tmp_path, gateway.url)
@@ -208,7 +229,10 @@ def test_cli_queues_parachute_once_the_reports_show_the_landing(
 
 
 def test_a_send_refused_for_the_wrong_name_is_recorded_as_not_sent_not_left_requested(
-    tmp_path: Path, gateway: SimulatedRockblock, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path,
+    gateway: SimulatedRockblock,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     monkeypatch.setenv("DRS_TEST_RB", "pw")
     config = write_config(tmp_path, gateway.url)
@@ -219,7 +243,9 @@ def test_a_send_refused_for_the_wrong_name_is_recorded_as_not_sent_not_left_requ
     assert command.state == NOT_SENT and "refused" in command.detail and gateway.requests == []
 
 
-def test_a_queue_before_deadline_that_passed_while_a_dialog_was_open_is_refused_at_submit(tmp_path: Path) -> None:
+def test_a_queue_before_deadline_that_passed_while_a_dialog_was_open_is_refused_at_submit(
+    tmp_path: Path,
+) -> None:
     store = Store.open(tmp_path / "drs.sqlite")
     message = MtComposer().add("PARACHUTE", (10, 20)).build()
     deadline = T0 + timedelta(minutes=12)

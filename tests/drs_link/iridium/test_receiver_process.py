@@ -82,7 +82,9 @@ class Receiver:
     def rejected(self) -> list[tuple[str, str]]:
         store = Store.open(self.store_path)
         try:
-            return [(row["remote"], row["reason"]) for row in store.query("SELECT * FROM mo_delivery_rejected")]
+            return [
+                (row["remote"], row["reason"]) for row in store.query("SELECT * FROM mo_delivery_rejected")
+            ]
         finally:
             store.close()
 
@@ -141,7 +143,9 @@ def test_sigterm_mid_burst_drains_and_loses_no_acknowledged_report(
     threads = [threading.Thread(target=client, args=(1000 * i,)) for i in range(1, 9)]
     for thread in threads:
         thread.start()
-    slow, rest = _half_sent_post(receiver.url, 42)  # a delivery whose body is still arriving when SIGTERM comes
+    slow, rest = _half_sent_post(
+        receiver.url, 42
+    )  # a delivery whose body is still arriving when SIGTERM comes
     deadline = time.monotonic() + 20
     while sum(status == 200 for status in list(answers.values())) < 100 and time.monotonic() < deadline:
         time.sleep(0.005)
@@ -157,7 +161,9 @@ def test_sigterm_mid_burst_drains_and_loses_no_acknowledged_report(
     acknowledged = {momsn for momsn, status in answers.items() if status == 200} | {42}
     assert len(acknowledged) > 100 and acknowledged <= receiver.stored_momsns()
     refused = [status for status in answers.values() if status != 200]
-    assert refused and all(isinstance(status, str) for status in refused), refused  # no 4xx/5xx, only closed doors
+    assert refused and all(isinstance(status, str) for status in refused), (
+        refused
+    )  # no 4xx/5xx, only closed doors
     assert " INFO console.commands.iridium: stopping signal=SIGTERM" in err
     assert " INFO drs_link.iridium.webhook: draining in_flight=" in err
     assert " INFO console.commands.iridium: stopped unanswered=0" in err
@@ -183,7 +189,11 @@ def _post_from(url: str, body: bytes, forwarded: str | None) -> int:
     [
         ('trusted_proxy = "127.0.0.1"\n', "203.0.113.9 via 127.0.0.1", "client=203.0.113.9 proxy=127.0.0.1"),
         ("", "127.0.0.1", 'client=127.0.0.1 forwarded_ignored="198.51.100.1, 203.0.113.9"'),
-        ('trusted_proxy = "192.0.2.1"\n', "127.0.0.1", 'client=127.0.0.1 forwarded_ignored="198.51.100.1, 203.0.113.9"'),
+        (
+            'trusted_proxy = "192.0.2.1"\n',
+            "127.0.0.1",
+            'client=127.0.0.1 forwarded_ignored="198.51.100.1, 203.0.113.9"',
+        ),
     ],
     ids=["from-the-trusted-proxy", "no-proxy-trusted", "from-another-address"],
 )
@@ -220,5 +230,9 @@ def test_the_documented_server_configuration_is_one_the_receiver_takes() -> None
     text = (REPO / "docs" / "iridium.md").read_text(encoding="utf-8")
     start = text.index("```toml\n", text.index("### Configuration on the server")) + len("```toml\n")
     config = parse_config(tomllib.loads(text[start : text.index("```", start)]))
-    assert (config.mo.listen_host, config.mo.trusted_proxy, config.mo.require_jwt) == ("127.0.0.1", "127.0.0.1", True)
+    assert (config.mo.listen_host, config.mo.trusted_proxy, config.mo.require_jwt) == (
+        "127.0.0.1",
+        "127.0.0.1",
+        True,
+    )
     assert config.store_path == Path("/var/lib/drs/drs.sqlite")

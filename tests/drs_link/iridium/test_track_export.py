@@ -130,7 +130,9 @@ def test_a_real_flight_received_and_exported_cleans_like_its_gateway_log(
     assert [(f.time, f.alt_m) for f in exported.descent] == [(f.time, f.alt_m) for f in original.descent]
 
 
-def test_out_dash_writes_the_csv_to_stdout_and_the_summary_to_stderr(reports: ReportStore, tmp_path: Path) -> None:
+def test_out_dash_writes_the_csv_to_stdout_and_the_summary_to_stderr(
+    reports: ReportStore, tmp_path: Path
+) -> None:
     """#24 item 12: `drs mo export --out -` wrote a file named `-`."""
     import os
     import subprocess
@@ -138,7 +140,9 @@ def test_out_dash_writes_the_csv_to_stdout_and_the_summary_to_stderr(reports: Re
 
     record_descent(reports)
     config = tmp_path / "drs.toml"
-    config.write_text(f'[data]\ndir = "{tmp_path}"\n[[capsule]]\nname = "DRS1"\nhost = "x"\nimei = "{IMEI}"\n')
+    config.write_text(
+        f'[data]\ndir = "{tmp_path}"\n[[capsule]]\nname = "DRS1"\nhost = "x"\nimei = "{IMEI}"\n'
+    )
     repo = Path(__file__).resolve().parents[3]
     done = subprocess.run(
         [sys.executable, "-m", "console.commands.main", "--config", str(config), "mo", "export", "DRS1", "--out", "-"],

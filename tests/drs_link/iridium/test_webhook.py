@@ -198,7 +198,9 @@ def test_a_jwt_that_does_not_sign_the_data_is_refused(
     fields = delivery(6).fields()
     token = _signed(gateway_keys[0], {k: v for k, v in fields.items() if k != "data"})
     assert _post_json_once(store, require_signed, json.dumps({**fields, "JWT": token}).encode()) == 401
-    assert [reason for reason, _ in ReportStore(store).rejected_deliveries()] == ["the JWT does not sign data"]
+    assert [reason for reason, _ in ReportStore(store).rejected_deliveries()] == [
+        "the JWT does not sign data"
+    ]
 
 
 def test_signed_numbers_match_by_value_and_unsigned_fields_are_not_stored(
@@ -208,7 +210,9 @@ def test_signed_numbers_match_by_value_and_unsigned_fields_are_not_stored(
     fields = delivery(9).fields()
     claims: dict[str, object] = {**fields, "iridium_latitude": 46.51, "momsn": 9}
     del claims["iridium_cep"]
-    body = json.dumps({**fields, "iridium_latitude": "46.5100", "JWT": _signed(gateway_keys[0], claims)}).encode()
+    body = json.dumps(
+        {**fields, "iridium_latitude": "46.5100", "JWT": _signed(gateway_keys[0], claims)}
+    ).encode()
     assert _post_json_once(store, require_signed, body) == 200
     [report] = ReportStore(store).for_imei(IMEI)
     assert report.delivery.jwt_verified and report.delivery.iridium_lat == pytest.approx(46.51)
@@ -246,7 +250,10 @@ def test_email_attachments_import_once_and_bad_files_are_reported(store: Store, 
     reports = ReportStore(store)
     outcomes = import_files([good, garbage, badly_named, huge, missing, good], reports)
     assert [o.status for o in outcomes] == ["new", "rejected", "error", "error", "error", "duplicate"]
-    assert outcomes[2].message == f"name is not {NAMES_ACCEPTED}" and "<imei>_<momsn>.sbd (RockBLOCK)" in NAMES_ACCEPTED
+    assert (
+        outcomes[2].message == f"name is not {NAMES_ACCEPTED}"
+        and "<imei>_<momsn>.sbd (RockBLOCK)" in NAMES_ACCEPTED
+    )
     assert [r.delivery.momsn for r in reports.for_imei(IMEI)] == [13, 12] or [
         r.delivery.momsn for r in reports.for_imei(IMEI)
     ] == [12, 13]
@@ -271,7 +278,10 @@ def test_rockblock_iridium_direct_and_zero_padded_names_are_imported(
     assert outcome.stored.delivery.momsn == momsn and outcome.stored.delivery.transmit_utc == transmitted
 
 
-@pytest.mark.parametrize("name", [f"{IMEI}-٣.bin", f"{IMEI[:-1]}５-3.bin", f"{IMEI}-65536.bin", "19-13-40_25-00-00_" + IMEI + "_1.sbd"])
+@pytest.mark.parametrize(
+    "name",
+    [f"{IMEI}-٣.bin", f"{IMEI[:-1]}５-3.bin", f"{IMEI}-65536.bin", "19-13-40_25-00-00_" + IMEI + "_1.sbd"],
+)
 def test_non_ascii_digits_out_of_range_momsns_and_impossible_times_are_refused(
     store: Store, tmp_path: Path, name: str
 ) -> None:
@@ -299,7 +309,8 @@ def _raw_post(url: str, head_length: int, body: bytes) -> bytes:
     with socket.create_connection((parts.hostname, parts.port), timeout=5) as conn:
         conn.sendall(
             f"POST {parts.path} HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-www-form-urlencoded\r\n"
-            f"Content-Length: {head_length}\r\n\r\n".encode() + body
+            f"Content-Length: {head_length}\r\n\r\n".encode()
+            + body
         )
         conn.shutdown(socket.SHUT_WR)
         reply = b""
@@ -322,8 +333,11 @@ def test_a_body_shorter_than_its_content_length_is_refused_not_stored_cut(store:
 
 @pytest.mark.parametrize(
     "body",
-    [b"imei=300234010753370&momsn=%C2%B2&data=00", "imei=30023401075337５&momsn=1&data=00".encode(),
-     "imei=300234010753370&momsn=٣&data=00".encode()],  # fmt: skip
+    [
+        b"imei=300234010753370&momsn=%C2%B2&data=00",
+        "imei=30023401075337５&momsn=1&data=00".encode(),
+        "imei=300234010753370&momsn=٣&data=00".encode(),
+    ],  # fmt: skip
     ids=["superscript-momsn", "fullwidth-imei", "arabic-indic-momsn"],
 )
 def test_digits_other_than_ascii_are_refused_with_400(store: Store, body: bytes) -> None:
@@ -413,7 +427,9 @@ def test_a_store_that_cannot_be_written_still_answers_every_post_over_http(
     assert ReportStore(store).for_imei(IMEI) == [] and ReportStore(store).rejected_deliveries() == []
 
 
-def test_the_oldest_rejected_deliveries_make_room_for_new_ones(store: Store, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_oldest_rejected_deliveries_make_room_for_new_ones(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
     import drs_link.iridium.reports as reports
 
     monkeypatch.setattr(reports, "REJECTED_KEPT", 5)
@@ -454,4 +470,7 @@ def test_a_token_issued_a_second_ahead_of_this_clock_is_accepted_within_the_leew
     ahead = _signed(gateway_keys[0], {**fields, "iat": int(time.time()) + 2})
     assert _post_json_once(store, require_signed, json.dumps({**fields, "JWT": ahead}).encode()) == 200
     far = _signed(gateway_keys[0], {**fields, "momsn": "11", "iat": int(time.time()) + 600})
-    assert _post_json_once(store, require_signed, json.dumps({**fields, "momsn": "11", "JWT": far}).encode()) == 401
+    assert (
+        _post_json_once(store, require_signed, json.dumps({**fields, "momsn": "11", "JWT": far}).encode())
+        == 401
+    )

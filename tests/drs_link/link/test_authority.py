@@ -454,9 +454,7 @@ def test_cli_take_over_in_a_terminal_asks_for_the_capsules_name(
 ) -> None:
     sim, config = cli
     _other_console(tmp_path, config, sim)
-    runner = (
-        "import sys, console.commands.main as c; sys.exit(c.main(sys.argv[1:]))"
-    )
+    runner = "import sys, console.commands.main as c; sys.exit(c.main(sys.argv[1:]))"
     argv = [
         "--config",
         str(config),
@@ -494,9 +492,7 @@ def test_cli_power_on_prompt_takes_end_of_input_as_no_and_says_so_in_one_line(
     cli: tuple[CapsuleSimulator, Path],
 ) -> None:
     sim, config = cli
-    runner = (
-        "import sys, console.commands.main as c; sys.exit(c.main(sys.argv[1:]))"
-    )
+    runner = "import sys, console.commands.main as c; sys.exit(c.main(sys.argv[1:]))"
     master, slave = pty.openpty()
     proc = subprocess.Popen(
         [sys.executable, "-c", runner, "--config", str(config), "capsule", "power-on", "DRS1"],
@@ -558,8 +554,11 @@ def test_cli_take_over_waits_for_another_login_to_approve(
      "accepted"), (("--single-operator-waiver", "alone"), "a single-operator waiver is not accepted")],
 )  # fmt: skip
 def test_with_the_rule_required_a_take_over_needs_another_logins_approval(
-    cli: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path,
-    given: tuple[str, ...], words: str,
+    cli: tuple[CapsuleSimulator, Path],
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    given: tuple[str, ...],
+    words: str,
 ) -> None:
     """#23: with require_second_operator, a take-over went ahead on a typed name or a waiver."""
     sim, config = cli

@@ -206,7 +206,9 @@ def test_the_in_talker_is_read_like_gp_and_gn() -> None:
     assert isinstance(rmc, RmcSentence) and rmc.talker == "IN" and rmc.valid
 
 
-@pytest.mark.parametrize(("satellites", "altitude"), [(7, "1e308"), (28000, "100.0"), (7, "999999.0"), (7, "-5000.0")])
+@pytest.mark.parametrize(
+    ("satellites", "altitude"), [(7, "1e308"), (28000, "100.0"), (7, "999999.0"), (7, "-5000.0")]
+)
 def test_impossible_altitudes_and_satellite_counts_are_malformed(satellites: int, altitude: str) -> None:
     """#24 item 12: GGA altitudes of 1e308 and 28,000 satellites were shown as the capsule's fix."""
     body = f"GPGGA,092750.000,5321.6802,N,00630.3372,W,1,{satellites},1.03,{altitude},M,55.2,M,,"

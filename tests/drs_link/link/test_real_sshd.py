@@ -71,7 +71,6 @@ class RealSshd:
     known_hosts: Path
 
 
-
 def _wait_for_banner(port: int, proc: subprocess.Popen[bytes], log: Path) -> bool:
     deadline = time.monotonic() + 10
     while time.monotonic() < deadline:

@@ -206,12 +206,17 @@ def test_links_fifos_and_loops_in_the_source_are_left_out_by_name_and_never_foll
     report = syncer.sync(source)
     assert report.uploaded == ("frames.bin",)
     assert sorted(entry.split(" (")[0] for entry in report.left_out) == [
-        "folder-link/", "loop", "pipe", "secret-link.txt"
+        "folder-link/",
+        "loop",
+        "pipe",
+        "secret-link.txt",
     ]
     assert all("(" in entry and entry.endswith(")") for entry in report.left_out)
     on_pi = sorted(p.relative_to(sim.storage_dir).as_posix() for p in sim.storage_dir.rglob("*"))
     assert on_pi == ["frames.bin"]
-    assert not any(b"not for the capsule" in p.read_bytes() for p in sim.storage_dir.rglob("*") if p.is_file())
+    assert not any(
+        b"not for the capsule" in p.read_bytes() for p in sim.storage_dir.rglob("*") if p.is_file()
+    )
     link.close()
 
 

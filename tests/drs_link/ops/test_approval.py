@@ -80,8 +80,9 @@ def test_a_request_and_an_approval_expire(book: ApprovalBook) -> None:
     assert book.open_requests() == []
     with pytest.raises(RefusedError, match=r"it is pending, expired .*, not pending"):
         book.decide(late.id, "bob", ALICE_B, approve=True)
-    unused = book.request("DRS1", "parachute", "[PARACHUTE=01:21]", "alice", ALICE_A, ttl_s=60.0,
-                          command="[PARACHUTE=01:21]")
+    unused = book.request(
+        "DRS1", "parachute", "[PARACHUTE=01:21]", "alice", ALICE_A, ttl_s=60.0, command="[PARACHUTE=01:21]"
+    )
     book.decide(unused.id, "bob", ALICE_B, approve=True)
     clock.advance(61.0)
     with pytest.raises(RefusedError, match=r"is approved, expired"):
@@ -131,15 +132,20 @@ def test_drs_mt_send_waits_for_drs_approve_from_another_key(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
-    with SimulatedRockblock(username="ops", password="pw") as gateway, \
-            ssh_agent(tmp_path / "a", alice) as alice_sock, ssh_agent(tmp_path / "b", bob) as bob_sock:
+    with (
+        SimulatedRockblock(username="ops", password="pw") as gateway,
+        ssh_agent(tmp_path / "a", alice) as alice_sock,
+        ssh_agent(tmp_path / "b", bob) as bob_sock,
+    ):
         config = write_config(tmp_path, gateway.url)
         config.write_text(config.read_text() + approver_tables(alice=alice, bob=bob))
         store = seed(tmp_path, landed(recent(10.5)))
         env = {**os.environ, "DRS_TEST_RB": "pw", "SSH_AUTH_SOCK": alice_sock}
         argv = ["--config", str(config), "mt", "send", "DRS1", "--parachute", "next", "--accept-midnight",
                 "--confirm", "DRS1", "--await-approval"]  # fmt: skip
-        sender = subprocess.Popen([sys.executable, "-c", CHILD, *argv], env=env, stdout=subprocess.PIPE, text=True)
+        sender = subprocess.Popen(
+            [sys.executable, "-c", CHILD, *argv], env=env, stdout=subprocess.PIPE, text=True
+        )
         try:
             assert sender.stdout is not None
             waiting = next(line for line in sender.stdout if line.startswith("approval #"))
@@ -160,14 +166,20 @@ def test_drs_mt_send_waits_for_drs_approve_from_another_key(
     authorised = audit_of(store, "mt.parachute")[-1]
     assert authorised["approved_by"].startswith("bob (") and authorised["approval"] == "1"
     assert [r.result for r in store.audit("DRS1") if r.action.startswith("approval.")] == [
-        "pending", "refused", "approved", "used"
+        "pending",
+        "refused",
+        "approved",
+        "used",
     ]
 
 
 def test_a_rejected_request_sends_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
-    with SimulatedRockblock(username="ops", password="pw") as gateway, \
-            ssh_agent(tmp_path / "a", alice) as alice_sock, ssh_agent(tmp_path / "b", bob) as bob_sock:
+    with (
+        SimulatedRockblock(username="ops", password="pw") as gateway,
+        ssh_agent(tmp_path / "a", alice) as alice_sock,
+        ssh_agent(tmp_path / "b", bob) as bob_sock,
+    ):
         config = write_config(tmp_path, gateway.url)
         config.write_text(config.read_text() + approver_tables(alice=alice, bob=bob))
         seed(tmp_path, landed(recent(10.5)))
@@ -185,7 +197,10 @@ def test_a_rejected_request_sends_nothing(tmp_path: Path, monkeypatch: pytest.Mo
             _, err = sender.communicate(timeout=60)
         finally:
             sender.kill()
-        assert sender.returncode == 1 and "approval #1 rejected (still swinging in the tree): nothing sent" in err
+        assert (
+            sender.returncode == 1
+            and "approval #1 rejected (still swinging in the tree): nothing sent" in err
+        )
         assert gateway.requests == []
 
 
@@ -208,7 +223,9 @@ def test_an_approval_is_void_once_the_capsules_state_changed_and_its_requester_m
     with pytest.raises(RefusedError, match="was given while DRS1 was powered; it is now released"):
         book.use(request.id, "DRS1", "authority", ALICE_A, take_over, "released")
     assert book.get(request.id).state == "void" and book.open_requests() == []
-    second = book.request("DRS1", "parachute", "[PARACHUTE=01:19]", "alice", ALICE_A, command="[PARACHUTE=01:19]")
+    second = book.request(
+        "DRS1", "parachute", "[PARACHUTE=01:19]", "alice", ALICE_A, command="[PARACHUTE=01:19]"
+    )
     with pytest.raises(RefusedError, match="only they can cancel it"):
         book.cancel(second.id, "bob", ALICE_B)
     assert book.cancel(second.id, "alice", ALICE_A).state == "cancelled"
@@ -228,12 +245,16 @@ def test_an_approval_of_the_parachute_text_never_stands_for_an_in_flight_overrid
     plain = book.request("DRS1", "parachute", message.text, "alice", ALICE_A, command=message.text)
     book.decide(plain.id, "bob", ALICE_B, approve=True)
     override = "the chase team sees it on the ground"
-    with pytest.raises(RefusedError, match=r"was given for \[PARACHUTE=01:19\], not .*OVERRIDE of the landed gate"):
+    with pytest.raises(
+        RefusedError, match=r"was given for \[PARACHUTE=01:19\], not .*OVERRIDE of the landed gate"
+    ):
         authorize_mt(store, "DRS1", "alice", message, reports, approval=plain.id, login=ALICE_A,
                      override_landed=override)  # fmt: skip
     bound = approval_command(message, override)
     told = book.request("DRS1", "parachute", bound, "alice", ALICE_A, command=bound)
-    assert "OVERRIDE of the landed gate: the chase team" in told.describe(utc_now()), "what the approver reads"
+    assert "OVERRIDE of the landed gate: the chase team" in told.describe(utc_now()), (
+        "what the approver reads"
+    )
     book.decide(told.id, "bob", ALICE_B, approve=True)
     people = authorize_mt(store, "DRS1", "alice", message, reports, approval=told.id, login=ALICE_A,
                           override_landed=override)  # fmt: skip
@@ -245,7 +266,9 @@ def test_an_approval_for_one_parachute_time_never_sends_another(tmp_path: Path) 
     reports = ReportStore(store).for_imei(IMEI)
     book = ApprovalBook(store)
     approved_text = MtComposer().add("PARACHUTE", (1, 19)).build()
-    request = book.request("DRS1", "parachute", approved_text.text, "alice", ALICE_A, command=approved_text.text)
+    request = book.request(
+        "DRS1", "parachute", approved_text.text, "alice", ALICE_A, command=approved_text.text
+    )
     book.decide(request.id, "bob", ALICE_B, approve=True)
     other = MtComposer().add("PARACHUTE", (1, 21)).build()
     with pytest.raises(RefusedError, match=r"was given for \[PARACHUTE=01:19\], not \[PARACHUTE=01:21\]"):

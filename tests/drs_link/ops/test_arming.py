@@ -25,7 +25,6 @@ from tests.clock import ManualClock
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 
 
-
 def inputs(now: datetime, **changes: object) -> GoNoGoInputs:
     ring = ((-64.1, -31.1), (-63.9, -31.1), (-63.9, -30.9), (-64.1, -30.9))
     base = GoNoGoInputs(
@@ -186,7 +185,10 @@ def test_fire_spends_only_an_approval_another_login_gave_for_go(store: Store) ->
 @pytest.mark.slow
 @pytest.mark.parametrize("second", ["waiver", "approval"])
 def test_armed_fire_releases_the_simulated_capsule_through_the_state_machine_tokens(
-    make_sim: Callable[..., CapsuleSimulator], sim_config: Callable[..., CapsuleConfig], store: Store, second: str
+    make_sim: Callable[..., CapsuleSimulator],
+    sim_config: Callable[..., CapsuleConfig],
+    store: Store,
+    second: str,
 ) -> None:
     sim = make_sim()
     config = sim_config(sim)
@@ -239,7 +241,9 @@ def test_a_late_approval_never_fires_in_a_later_arm_window(store: Store) -> None
     assert book.open_requests() == [], "drs approve lists only what can still be used"
     with pytest.raises(RefusedError, match=r"it is void \(ARM window #1 closed: ARM window expired at"):
         book.decide(request.id, "JM", Login("jm"), approve=True)
-    with pytest.raises(RefusedError, match="FIRE refused: approval #1 was given for ARM window #1, not ARM window #2"):
+    with pytest.raises(
+        RefusedError, match="FIRE refused: approval #1 was given for ARM window #1, not ARM window #2"
+    ):
         arming.fire("DRS1", go_report(clock), approval=request.id, login=Login("el"))
     assert arming.status().armed, "the refusal leaves the new window as it was"
     actions = [(a.action, a.result) for a in store.audit("DRS1")]
@@ -267,7 +271,9 @@ def test_one_arm_per_capsule_the_second_holder_is_refused_and_told_who_holds_it(
     console1 = controller(store, clock, holder="el@laptop1 pid 1")
     console2 = controller(store, clock, holder="jm@laptop2 pid 2")
     console1.arm(go_report(clock))
-    with pytest.raises(RefusedError, match=r"ARM window #1 is held by EL at .* until 12:01:00Z; one ARM per capsule"):
+    with pytest.raises(
+        RefusedError, match=r"ARM window #1 is held by EL at .* until 12:01:00Z; one ARM per capsule"
+    ):
         console2.arm(go_report(clock))
     assert console2.status().armed and not console2.status().mine
     with pytest.raises(RefusedError, match="the ARM window is held by EL at .*, not this console"):
@@ -297,7 +303,9 @@ def test_an_approval_bound_to_no_window_never_fires(store: Store) -> None:
     arming = controller(store, clock, require_second_operator=True)
     unbound = approved_go(store, clock, None)
     arming.arm(go_report(clock))
-    with pytest.raises(RefusedError, match=r"FIRE refused: approval #1 is bound to no command .* ask for a new one"):
+    with pytest.raises(
+        RefusedError, match=r"FIRE refused: approval #1 is bound to no command .* ask for a new one"
+    ):
         arming.fire("DRS1", go_report(clock), approval=unbound, login=Login("el"))
     assert arming.status().armed and ApprovalBook(store, clock).get(unbound).state == "approved"
 
@@ -333,7 +341,9 @@ def test_the_window_is_checked_again_at_submit_after_the_approval_is_spent(
         return people
 
     monkeypatch.setattr(ApprovalBook, "use", slow_use)
-    with pytest.raises(RefusedError, match=r"FIRE refused: ARM window #1 closed: ARM window expired at 12:00:30Z"):
+    with pytest.raises(
+        RefusedError, match=r"FIRE refused: ARM window #1 closed: ARM window expired at 12:00:30Z"
+    ):
         arming.fire("DRS1", go_report(clock), approval=approval, login=Login("el"))
     assert arming.status().state is ArmState.DISARMED
     assert not [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
@@ -390,7 +400,9 @@ def test_a_new_process_given_a_dead_consoles_pid_cannot_fire_in_its_window(store
     store.write("UPDATE arm_window SET holder = ? WHERE id = ?", (f"{window.session} #deadbeef", window.id))
     reborn = controller(store, clock)  # same account, host and pid as the window's session
     assert reborn.session == window.session and not reborn.status().mine
-    with pytest.raises(RefusedError, match="FIRE refused: the ARM window is held by EL at .*, not this console"):
+    with pytest.raises(
+        RefusedError, match="FIRE refused: the ARM window is held by EL at .*, not this console"
+    ):
         reborn.fire("DRS1", go_report(clock), single_operator_waiver="alone")
 
 
@@ -456,7 +468,9 @@ def test_four_processes_arming_at_the_same_moment_open_one_window(tmp_path: Path
     Store.open(path)
     start = time.time() + 3.0  # after every child has imported and opened the store
     children = [
-        subprocess.Popen([sys.executable, "-c", ARM_IN_A_CHILD, str(start), str(path)], stdout=subprocess.PIPE, text=True)
+        subprocess.Popen(
+            [sys.executable, "-c", ARM_IN_A_CHILD, str(start), str(path)], stdout=subprocess.PIPE, text=True
+        )
         for _ in range(4)
     ]
     outcomes = [child.communicate(timeout=60)[0].strip() for child in children]

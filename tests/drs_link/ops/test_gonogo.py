@@ -109,7 +109,10 @@ def test_the_fingerprint_follows_the_verdicts_not_ages_or_small_moves(tmp_path: 
     assert evaluate("DRS1", no_fix, T0).fingerprint != base
     book = WaiverBook(Store.open(tmp_path / "drs.sqlite"), "DRS1", clock=lambda: T0)
     book.grant("gnss", "EL", "drop without a fix")
-    assert evaluate("DRS1", no_fix, T0, book.waivers).fingerprint not in (base, evaluate("DRS1", no_fix, T0).fingerprint)
+    assert evaluate("DRS1", no_fix, T0, book.waivers).fingerprint not in (
+        base,
+        evaluate("DRS1", no_fix, T0).fingerprint,
+    )
 
 
 def test_after_release_the_poll_says_released_and_greys_every_pre_release_check() -> None:
@@ -117,7 +120,9 @@ def test_after_release_the_poll_says_released_and_greys_every_pre_release_check(
     now = datetime(2026, 9, 1, 12, 5, tzinfo=UTC)
     fleet = FleetState.for_capsules(["DRS1"], 10.0)
     released_at = datetime(2026, 9, 1, 12, 3, 41, tzinfo=UTC)
-    fleet.apply(TelemetryRecord(now, "DRS1", ReleaseSample("released", nmea_seen=True, released_at=released_at)))
+    fleet.apply(
+        TelemetryRecord(now, "DRS1", ReleaseSample("released", nmea_seen=True, released_at=released_at))
+    )
     fleet.apply(TelemetryRecord(now, "DRS1", GnssSample(has_fix=True)))
     report = evaluate("DRS1", fleet.capsules["DRS1"].gonogo_inputs(now, ()), now)
     assert not report.go and report.summary() == "NO-GO: Released: released 12:03Z, Pi shut down"

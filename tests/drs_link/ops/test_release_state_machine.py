@@ -19,7 +19,6 @@ from tests.clock import ManualClock
 START = datetime(2026, 6, 1, 12, 0, 0, tzinfo=UTC)
 
 
-
 @dataclass
 class InProcessPi:
     """The stock scripts' observable results, without SSH: what the state machine reacts to."""
@@ -244,10 +243,16 @@ def test_a_power_on_whose_link_fails_is_outcome_unknown_until_reset_or_power_on_
     record over a latched relay): the outcome is recorded unknown, Go is refused, and the operator
     settles it by resetting (relay found off) or by powering on again."""
     pi.power_on_error = LinkError("DRS1: the link dropped during power-on")
-    with pytest.raises(LinkError, match="the link dropped during power-on; power-on outcome unknown: check the relay"):
+    with pytest.raises(
+        LinkError, match="the link dropped during power-on; power-on outcome unknown: check the relay"
+    ):
         machine.power_on(confirmed=True)
     record = machine.record()
-    assert record.state is ReleaseState.POWER_ON_UNKNOWN and record.note is not None and "check the relay" in record.note
+    assert (
+        record.state is ReleaseState.POWER_ON_UNKNOWN
+        and record.note is not None
+        and "check the relay" in record.note
+    )
     assert [a.result for a in machine.store.audit("DRS1")] == ["started", "outcome unknown"]
     with pytest.raises(RefusedError, match="power-on has not succeeded"):
         machine.confirm("DRS1")
@@ -326,7 +331,9 @@ def test_a_store_failure_after_the_pi_powered_on_says_the_relay_is_latched(
         return powered_on(holder, lease_s)
 
     pi.power_on = the_store_stops_writing_while_the_pi_powers_on  # type: ignore[method-assign]
-    with pytest.raises(StoreError, match=r"power-on ran on the Pi \(the relay is latched\) but was not recorded"):
+    with pytest.raises(
+        StoreError, match=r"power-on ran on the Pi \(the relay is latched\) but was not recorded"
+    ):
         machine.power_on(confirmed=True)
     assert pi.calls == ["power_on"]
 
@@ -360,7 +367,9 @@ def test_an_unverified_go_is_settled_as_released_only_by_a_named_operator_with_e
             machine.record_released(typed, evidence)
         assert machine.record().state is ReleaseState.GO_SENT
     record = machine.record_released("DRS1", "Iridium reports from 27 km down to 400 m")
-    assert record.state is ReleaseState.RELEASED and record.released_at == go_at == machine.record().released_at
+    assert (
+        record.state is ReleaseState.RELEASED and record.released_at == go_at == machine.record().released_at
+    )
     assert machine.store.audit("DRS1")[-1].detail == {"evidence": "Iridium reports from 27 km down to 400 m"}
     assert machine.reset("DRS1").state is ReleaseState.IDLE
 

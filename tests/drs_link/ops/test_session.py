@@ -30,4 +30,8 @@ def test_a_go_in_flight_is_named_and_left_to_its_worker(tmp_path: Path) -> None:
     loss = record_loss(store, "EL", "SIGTERM", {}, go_in_flight=["DRS3"])
     assert loss.describe().endswith("(SIGTERM); with Go in flight to DRS3: see its record in History")
     [row] = [a for a in store.audit() if a.action == "session.lost"]
-    assert row.result == "recorded" and row.detail == {"signal": "SIGTERM", "disarmed": [], "go_in_flight": ["DRS3"]}
+    assert row.result == "recorded" and row.detail == {
+        "signal": "SIGTERM",
+        "disarmed": [],
+        "go_in_flight": ["DRS3"],
+    }

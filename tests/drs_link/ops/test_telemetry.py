@@ -86,7 +86,9 @@ def test_a_malformed_field_is_named_by_file_line_kind_and_field(
     tmp_path: Path, kind: str, data: str, message: str
 ) -> None:
     path = tmp_path / "t.jsonl"
-    path.write_text(f'{{"v": 1, "t": "2026-09-01T12:00:00Z", "capsule": "DRS1", "kind": "{kind}", "data": {data}}}\n')
+    path.write_text(
+        f'{{"v": 1, "t": "2026-09-01T12:00:00Z", "capsule": "DRS1", "kind": "{kind}", "data": {data}}}\n'
+    )
     with pytest.raises(TelemetryFormatError, match=message.replace(".", r"\.")):
         read_recording(path)
 
@@ -94,7 +96,9 @@ def test_a_malformed_field_is_named_by_file_line_kind_and_field(
 def test_a_malformed_part_of_a_prediction_is_named_down_to_the_item(tmp_path: Path) -> None:
     line = TelemetryRecord(T0, "DRS1", prediction()).to_json().replace("[22.3, 67.93]", '[22.3, "north"]')
     (tmp_path / "t.jsonl").write_text(line + "\n")
-    with pytest.raises(TelemetryFormatError, match=r"t\.jsonl:1: prediction\.outline_2sigma\[1\]\[1\]: expected a"):
+    with pytest.raises(
+        TelemetryFormatError, match=r"t\.jsonl:1: prediction\.outline_2sigma\[1\]\[1\]: expected a"
+    ):
         read_recording(tmp_path / "t.jsonl")
 
 

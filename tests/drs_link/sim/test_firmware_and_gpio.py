@@ -16,7 +16,6 @@ def at(seconds: float) -> datetime:
     return T0 + timedelta(seconds=seconds)
 
 
-
 def _pulse(gpio: FakeGpio, clock: ManualClock, order: list[tuple[int, int]], hold_s: float) -> None:
     for pin, level in order:
         gpio.output(pin, level)

@@ -278,7 +278,11 @@ def test_missing_known_hosts_file_is_refused(
 
 @pytest.mark.parametrize(
     "damage",
-    [b"drs1 ssh-ed25519 AAAA!!notbase64\n", b"drs1 ssh-rsa AAAAB3NzaC1yc2EAAAADAQABAAAB\n", b"\x00\xff\xfe\n"],
+    [
+        b"drs1 ssh-ed25519 AAAA!!notbase64\n",
+        b"drs1 ssh-rsa AAAAB3NzaC1yc2EAAAADAQABAAAB\n",
+        b"\x00\xff\xfe\n",
+    ],
     ids=["bad-base64", "truncated-rsa-key", "not-text"],
 )
 def test_a_damaged_known_hosts_file_is_refused_in_one_line(

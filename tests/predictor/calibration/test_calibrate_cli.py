@@ -48,14 +48,20 @@ def test_calibrating_real_flights_writes_the_json_and_the_report(
     binned = [name for name, record in (("binned_descent_rate", "vertical"), ("binned_wind", "horizontal"))
               if record in passed]  # fmt: skip
     # λ first (the rate prior's median), then the shape, then the binned parts that passed.
-    assert [t.name for t in model.terms] == ["descent_rate_scale", *(f["effect"] for f in data["selected"]), *binned]
+    assert [t.name for t in model.terms] == [
+        "descent_rate_scale",
+        *(f["effect"] for f in data["selected"]),
+        *binned,
+    ]
     assert model.rate_prior is not None and model.rate_prior.to_dict() == {
         k: data["rate_prior"][k] for k in ("median", "log_sigma", "flights")
     }
     assert model.terms[0].parameters()["scale"] == model.rate_prior.median
     assert model.provenance["held_out_before"] == data["baseline"]
     assert model.ellipse is not None
-    assert model.ellipse.sigma0_km == pytest.approx(data["uncertainty_model"]["sigma0_km"], abs=1e-3)  # rounded there
+    assert model.ellipse.sigma0_km == pytest.approx(
+        data["uncertainty_model"]["sigma0_km"], abs=1e-3
+    )  # rounded there
     assert data["flights"] == list(FLIGHTS)
     assert data["excluded"][0]["name"] == "ascent-only" and data["excluded"][0]["reason"].startswith(
         "cleaning:"

@@ -53,7 +53,9 @@ def test_the_fit_recovers_known_parameters(fits: list[EllipseFit]) -> None:
     for fit in fits:
         for name, truth in zip(("sigma0_km", "h", "k_km2_per_h2", "q"), TRUE, strict=True):
             z = (getattr(fit, name) - truth) / fit.stderr[name]
-            assert abs(z) < 4.0, f"{name}: {getattr(fit, name):.4g} vs true {truth} ({z:+.1f} standard errors)"
+            assert abs(z) < 4.0, (
+                f"{name}: {getattr(fit, name):.4g} vs true {truth} ({z:+.1f} standard errors)"
+            )
         assert fit.k_identifiable
         assert set(fit.paper) == {"launch", "hindsight", PAPER_OBJECTIVE}
 

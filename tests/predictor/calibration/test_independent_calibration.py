@@ -55,7 +55,9 @@ def weather(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[Path], Weath
     return files, load_weather(files, cache_dir=root / "cache")
 
 
-def _cases(directory: Path, effects: Effects, seed: int, flights: int, weather: tuple[list[Path], WeatherCube]) -> list[FlightCase]:
+def _cases(
+    directory: Path, effects: Effects, seed: int, flights: int, weather: tuple[list[Path], WeatherCube]
+) -> list[FlightCase]:
     files, cube = weather
     world = make_world(directory, effects, flights=flights, seed=seed, weather=files)
     return [flight_case(clean(read_track(path)), cube) for path in world.tracks]
@@ -106,7 +108,9 @@ def test_an_effect_outside_the_library_gets_its_family_and_cuts_the_error_on_uns
     assert families <= {family} and passed_binned <= {family}, (families, passed_binned)
     plain = _flown(unseen, ())
     # λ alone: the plain law × the median of the training flights' own λ under the plain law.
-    rate_only = _flown(unseen, (DescentRateScale(scale=float(np.exp(np.median(np.log(cal.baseline.rate_factor))))),))
+    rate_only = _flown(
+        unseen, (DescentRateScale(scale=float(np.exp(np.median(np.log(cal.baseline.rate_factor))))),)
+    )
     model = _flown(unseen, cal.terms())
     assert model[0].mean() <= 1.1 * rate_only[0].mean() + 10.0, "pre-flight: never worse than λ alone"
     if effects is TWO_REGIME:

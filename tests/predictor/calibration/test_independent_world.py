@@ -47,7 +47,9 @@ def test_a_true_descent_is_the_integral_of_the_drag_law(world_dir: Path) -> None
     """The RK4 path's descent time equals the quadrature of dz / v(z) (no wind in the vertical)."""
     path, burst_s, land_s = fly(0.0, 45.5, 5.0, 28_000.0, 1.0, NOISE_ONLY)
     z = np.linspace(GROUND_M, 28_000.0, 200_001)
-    speed = np.array([math.sqrt(2 * MASS_KG * gravity(h, 45.5) / (density(h, 45.5) * CDA_M2)) for h in z[::100]])
+    speed = np.array(
+        [math.sqrt(2 * MASS_KG * gravity(h, 45.5) / (density(h, 45.5) * CDA_M2)) for h in z[::100]]
+    )
     quadrature = float(np.trapezoid(1.0 / np.interp(z, z[::100], speed), z))
     # The latitude changes a little during the fall (gravity and density follow it): well under a second.
     assert land_s - burst_s == pytest.approx(quadrature, abs=1.0)

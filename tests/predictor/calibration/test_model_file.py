@@ -102,7 +102,10 @@ def test_a_model_with_an_unstable_term_says_so_wherever_it_is_named(
                                            "selection_stability": {"drag_density_exponent": 0.6}},
                     rate_prior=RatePrior(1.04, 0.08, 30))  # fmt: skip
     path = save_model(model, tmp_path / "m.json")
-    assert "[FLAG: drag_density_exponent chosen in under 2/3 of the selection's folds]" in load_model(path).label()
+    assert (
+        "[FLAG: drag_density_exponent chosen in under 2/3 of the selection's folds]"
+        in load_model(path).label()
+    )
     files = demo_weather_files(46.5, 6.6, WHEN, cache_dir=tmp_path / "wx")
     assert main(["predict", "--weather", *map(str, files), "--cache-dir", str(tmp_path / "c"), *RELEASE,
                  "--model", str(path)]) == 0  # fmt: skip
@@ -139,28 +142,70 @@ def _with(change: dict) -> dict:
     [
         ("{not json", r"bad\.json: is not valid JSON \(Expecting property name"),
         ({"kind": "something else"}, r"bad\.json: kind: not a calibrated model"),
-        (_with({"schema": SCHEMA_VERSION + 1}), rf"schema: version {SCHEMA_VERSION + 1} is newer than this drs"),
+        (
+            _with({"schema": SCHEMA_VERSION + 1}),
+            rf"schema: version {SCHEMA_VERSION + 1} is newer than this drs",
+        ),
         (_with({"schema": "1"}), r"schema: must be a whole number"),
         (_with({"payload.mass_kg": -1.0}), r"payload\.mass_kg: must be a positive number of kg, got -1"),
         (_with({"payload.cda_m2": "big"}), r"payload\.cda_m2: must be a finite number, got 'big'"),
         (_with({"terms.0.effect": "gremlins"}), r"terms\[0\]\.effect: 'gremlins' is not a known effect"),
-        (_with({"terms.1.parameters": {"scale": 1.0, "speed": 2}}), r"terms\[1\]\.parameters\.speed: is not a parameter"),
-        (_with({"terms.1.parameters": {"scale": float("nan")}}), r"terms\[1\]\.parameters\.scale: must be a finite"),
-        (_with({"terms.2.parameters.factors": [1.0]}), r"terms\[2\]: binned_descent_rate: need one value per bin"),
-        (_with({"ellipse.q": 0.0}), r"ellipse: error model 'calibrated': sigma0, h and k must be ≥ 0 and q > 0"),
+        (
+            _with({"terms.1.parameters": {"scale": 1.0, "speed": 2}}),
+            r"terms\[1\]\.parameters\.speed: is not a parameter",
+        ),
+        (
+            _with({"terms.1.parameters": {"scale": float("nan")}}),
+            r"terms\[1\]\.parameters\.scale: must be a finite",
+        ),
+        (
+            _with({"terms.2.parameters.factors": [1.0]}),
+            r"terms\[2\]: binned_descent_rate: need one value per bin",
+        ),
+        (
+            _with({"ellipse.q": 0.0}),
+            r"ellipse: error model 'calibrated': sigma0, h and k must be ≥ 0 and q > 0",
+        ),
         (_with({"terms": {"a": 1}}), r"terms: must be a list"),
         (_with({"live": []}), r"live: must be an object with bands"),
-        (_with({"live.bands.0.use_rate": "yes"}), r"live\.bands\[0\]: must be an object with .* use_rate \(true/false\)"),
+        (
+            _with({"live.bands.0.use_rate": "yes"}),
+            r"live\.bands\[0\]: must be an object with .* use_rate \(true/false\)",
+        ),
         (_with({"live.bands.0.upper_m": -1.0}), r"live\.bands\[0\]: lower_m 0 must be below upper_m -1"),
-        (_with({"live.bands.1.wind_decay_m": 0.0}), r"live\.bands\[1\]: wind_decay_m must be a positive length"),
-        (_with({"live.discrepancy.log_sigma": [0.02, -0.05]}),
-         r"live\.discrepancy\.log_sigma: must not be negative, got -0\.05"),
-        (_with({"live.error_model.sigma_parallel_km": [3.9]}),
-         r"live\.error_model: heights_km, sigma_parallel_km, sigma_perpendicular_km must be as long"),
+        (
+            _with({"live.bands.1.wind_decay_m": 0.0}),
+            r"live\.bands\[1\]: wind_decay_m must be a positive length",
+        ),
+        (
+            _with({"live.discrepancy.log_sigma": [0.02, -0.05]}),
+            r"live\.discrepancy\.log_sigma: must not be negative, got -0\.05",
+        ),
+        (
+            _with({"live.error_model.sigma_parallel_km": [3.9]}),
+            r"live\.error_model: heights_km, sigma_parallel_km, sigma_perpendicular_km must be as long",
+        ),
     ],
-    ids=["corrupt", "kind", "future-schema", "schema-type", "negative-mass", "cda-text", "unknown-effect",
-         "unknown-parameter", "nan", "bins", "ellipse", "terms-type", "live-type", "live-use-rate", "live-band-order",
-         "live-decay", "live-discrepancy", "live-sigma"],  # fmt: skip
+    ids=[
+        "corrupt",
+        "kind",
+        "future-schema",
+        "schema-type",
+        "negative-mass",
+        "cda-text",
+        "unknown-effect",
+        "unknown-parameter",
+        "nan",
+        "bins",
+        "ellipse",
+        "terms-type",
+        "live-type",
+        "live-use-rate",
+        "live-band-order",
+        "live-decay",
+        "live-discrepancy",
+        "live-sigma",
+    ],  # fmt: skip
 )
 def test_a_bad_model_file_is_refused_naming_the_file_and_the_field(
     tmp_path: Path, document: object, message: str
@@ -169,7 +214,9 @@ def test_a_bad_model_file_is_refused_naming_the_file_and_the_field(
         load_model(_write(tmp_path, document))
 
 
-def test_a_missing_model_file_is_one_line_from_the_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_missing_model_file_is_one_line_from_the_cli(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     assert main(["predict", "--demo-weather", *RELEASE, "--model", str(tmp_path / "none.json")]) == 1
     err = capsys.readouterr().err
     assert err == f"drs: error: model file {tmp_path / 'none.json'} does not exist\n"
@@ -184,26 +231,58 @@ def _one_term(effect: str, parameters: dict) -> dict:
 @pytest.mark.parametrize(
     ("document", "message"),
     [
-        (_one_term("drag_density_exponent", {"exponent": 5.0}),
-         r"terms\[0\]\.parameters\.exponent: 5 is outside the calibration's bounds -0\.5…0\.5"),
-        (_one_term("descent_rate_scale", {"scale": 10.0}), r"terms\[0\]\.parameters\.scale: 10 is outside .* 0\.5…2"),
+        (
+            _one_term("drag_density_exponent", {"exponent": 5.0}),
+            r"terms\[0\]\.parameters\.exponent: 5 is outside the calibration's bounds -0\.5…0\.5",
+        ),
+        (
+            _one_term("descent_rate_scale", {"scale": 10.0}),
+            r"terms\[0\]\.parameters\.scale: 10 is outside .* 0\.5…2",
+        ),
         (_one_term("wind_scale", {"scale": -1.0}), r"terms\[0\]\.parameters\.scale: -1 is outside .* 0\.3…2"),
-        (_one_term("deployment_delay", {"delay_s": -5.0}), r"terms\[0\]\.parameters\.delay_s: -5 is outside .* 0…240"),
-        (_one_term("deployment_delay", {"delay_s": 30.0, "speed_factor": 0.1}),
-         r"terms\[0\]\.parameters\.speed_factor: 0\.1 is outside .* 1…10"),
-        (_one_term("two_regime_rate", {"height_m": 20000.0, "factor": 3.0}),
-         r"terms\[0\]\.parameters\.factor: 3 is outside .* 0\.5…2"),
-        (_one_term("two_regime_rate", {"height_m": 1e6, "factor": 1.2}),
-         r"terms\[0\]\.parameters\.height_m: 1e\+06 is outside .* -500…50000"),
-        (_one_term("binned_descent_rate", {"edges_m": [0.0, 5000.0], "factors": [4.0]}),
-         r"terms\[0\]\.parameters\.factors: 4 is outside .* 0\.5…2"),
-        (_one_term("wind_band_scale", {"bottom_m": 9000.0, "top_m": 3000.0, "scale": 1.2}),
-         r"terms\[0\]\.parameters: wind_band_scale: bottom_m must be below top_m"),
-        (_with({"payload.mass_kg": 1e6}), r"payload\.mass_kg: 1e\+06 is outside the payloads drs calibrates \(0\.05–50\)"),
+        (
+            _one_term("deployment_delay", {"delay_s": -5.0}),
+            r"terms\[0\]\.parameters\.delay_s: -5 is outside .* 0…240",
+        ),
+        (
+            _one_term("deployment_delay", {"delay_s": 30.0, "speed_factor": 0.1}),
+            r"terms\[0\]\.parameters\.speed_factor: 0\.1 is outside .* 1…10",
+        ),
+        (
+            _one_term("two_regime_rate", {"height_m": 20000.0, "factor": 3.0}),
+            r"terms\[0\]\.parameters\.factor: 3 is outside .* 0\.5…2",
+        ),
+        (
+            _one_term("two_regime_rate", {"height_m": 1e6, "factor": 1.2}),
+            r"terms\[0\]\.parameters\.height_m: 1e\+06 is outside .* -500…50000",
+        ),
+        (
+            _one_term("binned_descent_rate", {"edges_m": [0.0, 5000.0], "factors": [4.0]}),
+            r"terms\[0\]\.parameters\.factors: 4 is outside .* 0\.5…2",
+        ),
+        (
+            _one_term("wind_band_scale", {"bottom_m": 9000.0, "top_m": 3000.0, "scale": 1.2}),
+            r"terms\[0\]\.parameters: wind_band_scale: bottom_m must be below top_m",
+        ),
+        (
+            _with({"payload.mass_kg": 1e6}),
+            r"payload\.mass_kg: 1e\+06 is outside the payloads drs calibrates \(0\.05–50\)",
+        ),
         (_with({"payload.cda_m2": 1e-4}), r"payload\.cda_m2: 0\.0001 is outside the payloads drs calibrates"),
     ],
-    ids=["exponent", "rate-scale", "negative-wind-scale", "negative-delay", "fast-fall-factor", "two-regime-factor",
-         "two-regime-height", "binned-factor", "band-order", "mass", "cda"],  # fmt: skip
+    ids=[
+        "exponent",
+        "rate-scale",
+        "negative-wind-scale",
+        "negative-delay",
+        "fast-fall-factor",
+        "two-regime-factor",
+        "two-regime-height",
+        "binned-factor",
+        "band-order",
+        "mass",
+        "cda",
+    ],  # fmt: skip
 )
 def test_an_impossible_value_is_refused_in_one_line_naming_the_file_and_the_field(
     tmp_path: Path, document: dict, message: str, capsys: pytest.CaptureFixture[str]
@@ -235,6 +314,10 @@ def test_the_shape_is_the_terms_without_the_priors_median() -> None:
     from predictor.descent.rate_prior import RatePrior
 
     shape = (DragDensityExponent(exponent=0.07),)
-    with_prior = replace(example(), terms=(DescentRateScale(scale=0.96), *shape), rate_prior=RatePrior(0.96, 0.13, 30))
+    with_prior = replace(
+        example(), terms=(DescentRateScale(scale=0.96), *shape), rate_prior=RatePrior(0.96, 0.13, 30)
+    )
     assert with_prior.shape_terms() == shape
-    assert replace(with_prior, rate_prior=None).shape_terms() == with_prior.terms, "no prior: λ is a term like any"
+    assert replace(with_prior, rate_prior=None).shape_terms() == with_prior.terms, (
+        "no prior: λ is a term like any"
+    )

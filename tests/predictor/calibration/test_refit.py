@@ -25,7 +25,9 @@ def test_each_fold_is_the_fit_on_the_other_flights_alone(cases: list[FlightCase]
     full, folds = refit_without_each(cases, PAYLOAD, (DragDensityExponent(exponent=0.1),))
     exponents = [terms[0].exponent for terms in folds]
     for i, terms in enumerate(folds):
-        alone, _ = refit_without_each(cases[:i] + cases[i + 1 :], PAYLOAD, (DragDensityExponent(exponent=0.1),))
+        alone, _ = refit_without_each(
+            cases[:i] + cases[i + 1 :], PAYLOAD, (DragDensityExponent(exponent=0.1),)
+        )
         # A fold's losses are the other flights' only; the one thing all the flights set is where the
         # fine grid lies (around the all-flights optimum, ``selection._fit``), which moves the spline's
         # optimum a little: 2e-4 here, against 0.02–0.05 from one fold to the next.
@@ -41,7 +43,9 @@ def test_the_binned_parts_a_model_keeps_are_refitted_per_fold_too(cases: list[Fl
     full, folds = refit_without_each(cases, PAYLOAD, model)
     assert [t.name for t in full] == ["drag_density_exponent", "binned_descent_rate"]
     assert all([t.name for t in terms] == [t.name for t in full] for terms in folds)
-    assert len({terms[1].factors for terms in folds}) == len(cases), "each fold's bins come from its own flights"
+    assert len({terms[1].factors for terms in folds}) == len(cases), (
+        "each fold's bins come from its own flights"
+    )
 
 
 def test_a_term_the_calibration_cannot_fit_is_refused(cases: list[FlightCase]) -> None:

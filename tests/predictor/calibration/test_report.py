@@ -50,7 +50,9 @@ def test_the_json_has_the_keys_the_issue_names(calibrated: Calibration) -> None:
             assert set(block[metric]) >= {"mean", "median"}
     assert [c["effect"] for c in data["candidates"]] == ["drag_density_exponent", "wind_rotation"]
     assert set(data["rate_prior"]) == {"median", "log_sigma", "flights", "per_flight"}
-    assert data["rate_prior"]["flights"] == 5 and set(data["rate_prior"]["per_flight"]) == set(data["flights"])
+    assert data["rate_prior"]["flights"] == 5 and set(data["rate_prior"]["per_flight"]) == set(
+        data["flights"]
+    )
     assert data["unstable"] == [] and set(data["rate_only"]) == set(data["baseline"])
     assert {c["family"] for c in data["candidates"]} == {"vertical", "horizontal"}
     assert all(isinstance(c["parameters"], dict) for c in data["candidates"])
@@ -79,7 +81,10 @@ def test_the_markdown_report_states_its_verdict_and_links_real_plots(
     assert "## Horizontal family (scored on the horizontal record)" in text
     assert "| drag_density_exponent | reference_density = 1.225, exponent = " in text
     assert "paper (launch), same errors" in text
-    assert "| plain law × median λ of the other flights (λ alone) |" in text and "the rate prior is median λ" in text
+    assert (
+        "| plain law × median λ of the other flights (λ alone) |" in text
+        and "the rate prior is median λ" in text
+    )
 
 
 def test_a_preface_stands_under_the_title_and_survives_regeneration(
@@ -92,7 +97,9 @@ def test_a_preface_stands_under_the_title_and_survives_regeneration(
     for _ in range(2):
         write_report(out, calibrated, ellipse, [], "Synthetic", "drs calibrate ...", data, preface)
     text = out.read_text(encoding="utf-8")
-    assert text.startswith("# Synthetic\n\n## Summary in plain words\n\nThe capsule fell slower near the ground.\n\n")
+    assert text.startswith(
+        "# Synthetic\n\n## Summary in plain words\n\nThe capsule fell slower near the ground.\n\n"
+    )
     assert text.count("Summary in plain words") == 1
     assert text.index("Summary in plain words") < text.index("## What the data showed")
 
@@ -100,7 +107,11 @@ def test_a_preface_stands_under_the_title_and_survives_regeneration(
 def test_the_landing_change_is_paired_flight_by_flight_and_split_by_what_the_descent_time_did(
     synthetic_cases: Callable[..., list[FlightCase]], tmp_path: Path
 ) -> None:
-    cal = calibrate(synthetic_cases((DragDensityExponent(exponent=0.15),), n=4), PAYLOAD, library(["drag_density_exponent"]))
+    cal = calibrate(
+        synthetic_cases((DragDensityExponent(exponent=0.15),), n=4),
+        PAYLOAD,
+        library(["drag_density_exponent"]),
+    )
     change = landing_change(cal)
     d = cal.after.landing_error_km - cal.baseline.landing_error_km
     assert change["mean_change_km"]["value"] == pytest.approx(d.mean(), abs=1e-4)
@@ -111,7 +122,11 @@ def test_the_landing_change_is_paired_flight_by_flight_and_split_by_what_the_des
     closer, further = change["descent_time_closer"], change["descent_time_further"]
     assert closer["flights"] + further["flights"] == 4 and change["landing_closer"] == int((d < 0).sum())
     # The exponent the flights carry fixes every descent time, and with it the landings.
-    assert closer == {"flights": 4, "landing_closer": 4, "median_change_km": pytest.approx(np.median(d), abs=1e-4)}
+    assert closer == {
+        "flights": 4,
+        "landing_closer": 4,
+        "median_change_km": pytest.approx(np.median(d), abs=1e-4),
+    }
     assert change["median_of_changes_km"]["high"] < 0.0
     data = result_json(cal, None, [], PAYLOAD.to_dict(), "synthetic")
     write_report(tmp_path / "r.md", cal, None, [], "Synthetic", "drs calibrate ...", data)
@@ -126,7 +141,9 @@ def test_a_noise_only_1_hz_flight_reads_no_systematic_difference(
 ) -> None:
     """At 1 Hz the height between two fixes is the GNSS noise; per-interval ratios that dropped the rising
     ones read a noise-only flight as "160 % faster". Crossing times of 3 km bins do not."""
-    cal = calibrate(synthetic_cases((), n=3, cadence_s=1.0, noise_m=noise_m, seed=7), PAYLOAD, library(["wind_scale"]))
+    cal = calibrate(
+        synthetic_cases((), n=3, cadence_s=1.0, noise_m=noise_m, seed=7), PAYLOAD, library(["wind_scale"])
+    )
     assert "shows no systematic difference" in speed_finding(cal)
     assert all(abs(r["ratio"] - 1.0) < 0.01 for r in speed_ratio_by_altitude(cal, BIN_EDGES_M))
 

@@ -115,7 +115,9 @@ def test_a_term_that_passes_on_the_knife_edge_of_the_floor_is_chosen_in_half_the
     before = np.full(10, 60.0)
     edge = _result("drag_density_exponent", before, np.array([19.0] * 5 + [1.0] * 5))
     assert edge.passed
-    assert decision_stability(((edge,),), (_heldout(before), edge.heldout), 0.05, 0) == {"drag_density_exponent": 0.5}
+    assert decision_stability(((edge,),), (_heldout(before), edge.heldout), 0.05, 0) == {
+        "drag_density_exponent": 0.5
+    }
     assert 0.5 < STABLE_SHARE
     solid = _result("two_regime_rate", before, np.full(10, 20.0))
     shares = decision_stability(((edge, solid),), (_heldout(before), solid.heldout), 0.05, 0)

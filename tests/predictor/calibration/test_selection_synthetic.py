@@ -84,7 +84,9 @@ def test_a_deployment_delay_is_found_in_a_1_hz_log(synthetic_cases: Cases) -> No
 
 
 @pytest.mark.parametrize("scale", [0.8, 1.2])
-def test_a_factor_on_every_flights_rate_is_the_rate_prior_not_a_shape(synthetic_cases: Cases, scale: float) -> None:
+def test_a_factor_on_every_flights_rate_is_the_rate_prior_not_a_shape(
+    synthetic_cases: Cases, scale: float
+) -> None:
     """Among the whole library nothing is selected (the shape is the drag law's), and the pre-flight
     prediction flies the prior's median λ: the held-out track error falls to a tenth."""
     cal = calibrate(synthetic_cases((DescentRateScale(scale=scale),), n=4), PAYLOAD, LIBRARY)

@@ -44,7 +44,9 @@ def test_a_record_that_ends_in_the_air_is_scored_to_its_last_fix() -> None:
     assert not flight.usable and flight.landing is None
     case = vertical_case(flight, cube)
     assert case.landing_alt_m == flight.descent[-1].alt_m > 1500.0
-    assert case.descent_time_s == pytest.approx((flight.descent[-1].time - flight.descent_start.time).total_seconds(), abs=30.0)
+    assert case.descent_time_s == pytest.approx(
+        (flight.descent[-1].time - flight.descent_start.time).total_seconds(), abs=30.0
+    )
 
 
 def test_the_law_the_flight_carries_beats_rho_to_the_minus_half_whatever_its_payload() -> None:

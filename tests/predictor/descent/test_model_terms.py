@@ -132,7 +132,9 @@ def test_two_regime_rate_is_the_fall_faster_above_its_height_whatever_the_step(s
     above, _ = quad(seconds_per_metre, height, 30000.0, limit=200)
     res = descent(CALM, TwoRegimeRate(height_m=height, factor=factor), step_m=step_m)
     assert res.descent_s == pytest.approx(below + above / factor, rel=1e-4)
-    assert descent(CALM, TwoRegimeRate(height_m=height, factor=1.0)).descent_s == pytest.approx(descent().descent_s)
+    assert descent(CALM, TwoRegimeRate(height_m=height, factor=1.0)).descent_s == pytest.approx(
+        descent().descent_s
+    )
 
 
 def test_wind_scale_scales_the_drift() -> None:
@@ -256,7 +258,11 @@ def test_sea_level_rate_matches_its_closed_form() -> None:
 
 def test_every_registered_term_has_its_own_kind_kernel_and_name() -> None:
     table = Model.for_payload(PAYLOAD, DescentRateScale()).table()
-    assert table[:, 1].tolist() == [TERMS.index(TerminalVelocity), TERMS.index(Wind), TERMS.index(DescentRateScale)]
+    assert table[:, 1].tolist() == [
+        TERMS.index(TerminalVelocity),
+        TERMS.index(Wind),
+        TERMS.index(DescentRateScale),
+    ]
     assert len({cls.name for cls in TERMS}) == len(TERMS)
     assert all(callable(cls.kernel) and cls.family in FAMILIES for cls in TERMS)
     assert set(EFFECTS.values()) == {cls for cls in TERMS if cls.stage != BASE_STAGE}
@@ -276,4 +282,14 @@ def test_the_compiled_dispatch_refuses_an_unknown_kind() -> None:
     table = np.array([[FAMILY_VERTICAL, len(TERMS), 0, 0]], dtype=np.int64)
     rows = np.zeros((1, 4))
     with pytest.raises(PredictorError, match="not in predictor.descent.model.TERMS"):
-        apply_family(table, FAMILY_VERTICAL, rows, np.zeros((1, ENV_SIZE)), np.zeros((1, 3)), rows, np.ones(1, bool), 0, 1)
+        apply_family(
+            table,
+            FAMILY_VERTICAL,
+            rows,
+            np.zeros((1, ENV_SIZE)),
+            np.zeros((1, 3)),
+            rows,
+            np.ones(1, bool),
+            0,
+            1,
+        )

@@ -80,8 +80,14 @@ def _per_metre(lat: float, z: float) -> tuple[float, float]:
 
 
 def rk4_landing(
-    wind: Callable[[float, float, float, float], tuple[float, float]], rho: Callable[[float], float],
-    payload: Payload, lat: float, lon: float, z: float, t_s: float, dt: float,
+    wind: Callable[[float, float, float, float], tuple[float, float]],
+    rho: Callable[[float], float],
+    payload: Payload,
+    lat: float,
+    lon: float,
+    z: float,
+    t_s: float,
+    dt: float,
 ) -> tuple[float, float]:
     """(lat, lon) where a payload at terminal velocity reaches sea level: classical RK4 in time."""
 
@@ -89,7 +95,9 @@ def rk4_landing(
         g = G0 * (R_GRAVITY / (R_GRAVITY + y[2])) ** 2
         u, v = wind(t, y[0], y[1], y[2])
         north, east = _per_metre(y[0], y[2])
-        return np.array([v * north, u * east, -math.sqrt(2 * payload.mass_kg * g / (rho(y[2]) * payload.cda_m2))])
+        return np.array(
+            [v * north, u * east, -math.sqrt(2 * payload.mass_kg * g / (rho(y[2]) * payload.cda_m2))]
+        )
 
     y = np.array([lat, lon, z])
     while True:
@@ -129,7 +137,9 @@ def cube_sampler(cube: WeatherCube) -> tuple[Callable[..., tuple[float, float]],
 
 
 @pytest.fixture(scope="module", params=[True, False], ids=["moving jet", "steady jet"])
-def world(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> tuple[bool, WeatherCube]:
+def world(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> tuple[bool, WeatherCube]:
     folder = tmp_path_factory.mktemp("world")
     return request.param, load_weather(write_world(folder, request.param), cache_dir=folder / "cache")
 

@@ -88,9 +88,13 @@ def test_demo_weather_anywhere_on_earth(tmp_path: Path, lat: float, lon: float) 
 def test_the_demo_atmosphere_is_one_field_whatever_region_or_span_a_call_writes(tmp_path: Path) -> None:
     """`drs serve predictor` and `drs predict` once wrote differently centred files over different spans,
     and the air differed with them (their landings were 857 m apart)."""
-    a = load_weather(demo_weather_files(52.2, -0.4, START, tmp_path / "a", hours=12), cache_dir=tmp_path / "ca")
+    a = load_weather(
+        demo_weather_files(52.2, -0.4, START, tmp_path / "a", hours=12), cache_dir=tmp_path / "ca"
+    )
     b = load_weather(
-        demo_weather_files(50.0, 3.0, START + timedelta(hours=5), tmp_path / "b", hours=3, half_width_deg=6.0),
+        demo_weather_files(
+            50.0, 3.0, START + timedelta(hours=5), tmp_path / "b", hours=3, half_width_deg=6.0
+        ),
         cache_dir=tmp_path / "cb",
     )
     times = np.intersect1d(a.times, b.times)
@@ -105,9 +109,15 @@ def test_the_demo_atmosphere_is_one_field_whatever_region_or_span_a_call_writes(
         np.testing.assert_array_equal(part(a, getattr(a, name)), part(b, getattr(b, name)), err_msg=name)
 
 
-@pytest.mark.parametrize(("lat", "lon"), [(-89.7, 10.0), (89.7, -120.0), (-78.0, 166.7), (-85.0, 30.0), (-90.0, 0.0)])
+@pytest.mark.parametrize(
+    ("lat", "lon"), [(-89.7, 10.0), (89.7, -120.0), (-78.0, 166.7), (-85.0, 30.0), (-90.0, 0.0)]
+)
 def test_releases_near_the_poles_predict_on_demo_weather(
-    lat: float, lon: float, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+    lat: float,
+    lon: float,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    tmp_path: Path,
 ) -> None:
     """A 16°-wide box once left the descent at ±89.7°: near a pole the weather covers every longitude."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))

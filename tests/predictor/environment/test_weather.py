@@ -335,7 +335,9 @@ def test_missing_variable_is_named_with_its_file(tmp_path: Path, cache: Path) ->
 
 def test_file_with_several_ensemble_members_is_refused(shared_data: Path, cache: Path) -> None:
     era5 = shared_data / "weather/cfgrib_sample_data/era5-levels-members.grib"  # GRIB1, 10 members
-    with pytest.raises(WeatherError, match=r"era5-levels-members\.grib holds several (gh|t) fields at 500 hPa"):
+    with pytest.raises(
+        WeatherError, match=r"era5-levels-members\.grib holds several (gh|t) fields at 500 hPa"
+    ):
         load_weather([era5], cache_dir=cache)
 
 
@@ -354,7 +356,9 @@ def test_file_without_isobaric_levels_is_refused(tmp_path: Path, cache: Path) ->
         eccodes.codes_set(handle, "typeOfLevel", "surface")
         eccodes.codes_write(handle, out)
         eccodes.codes_release(handle)
-    with pytest.raises(WeatherError, match=r"surface\.grib2 has no u, v, t or gh \(or ECMWF z\) on isobaric \(hPa\) levels"):
+    with pytest.raises(
+        WeatherError, match=r"surface\.grib2 has no u, v, t or gh \(or ECMWF z\) on isobaric \(hPa\) levels"
+    ):
         load_weather([surface], cache_dir=cache)
 
 
@@ -403,12 +407,16 @@ def test_non_physical_values_are_refused_naming_the_file(tmp_path: Path, cache: 
     )  # fmt: skip
     with pytest.raises(WeatherError, match=r"zero_kelvin\.grib2: t = 0 K at 1000 hPa is outside 100…400 K"):
         load_weather([zero_kelvin], cache_dir=cache)
-    heights = np.broadcast_to(np.array([5.0e6, 6.0e6])[:, None, None], shape)  # rising, so only the range sees it
+    heights = np.broadcast_to(
+        np.array([5.0e6, 6.0e6])[:, None, None], shape
+    )  # rising, so only the range sees it
     in_space = write_gfs_grib2(
         tmp_path / "in_space.grib2", CYCLE, 0, [1000.0, 500.0], [45.0, 46.0], [6.0, 7.0],
         np.zeros(shape), np.zeros(shape), np.full(shape, 250.0), heights,
     )  # fmt: skip
-    with pytest.raises(WeatherError, match=r"in_space\.grib2: gh = 5e\+06 gpm at 1000 hPa is outside -2000…100000 gpm"):
+    with pytest.raises(
+        WeatherError, match=r"in_space\.grib2: gh = 5e\+06 gpm at 1000 hPa is outside -2000…100000 gpm"
+    ):
         load_weather([in_space], cache_dir=cache)
 
 

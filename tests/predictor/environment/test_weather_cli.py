@@ -66,7 +66,9 @@ def test_fetch_downloads_the_available_cycle_and_prints_the_paths(
     assert "lead times (h): 9, 12, 15" in capsys.readouterr().out
     assert main(["weather", "info", "--json", *map(str, paths)]) == 0
     info = json.loads(capsys.readouterr().out)
-    assert info["lead_h"] == [9.0, 12.0, 15.0] and info["levels_hpa"] == sorted(info["levels_hpa"], reverse=True)
+    assert info["lead_h"] == [9.0, 12.0, 15.0] and info["levels_hpa"] == sorted(
+        info["levels_hpa"], reverse=True
+    )
     assert info["valid_times_utc"] == ["2024-05-01T03:00:00Z", "2024-05-01T06:00:00Z", "2024-05-01T09:00:00Z"]
     assert info["region"] == {"lat_min": 46.0, "lat_max": 47.0, "lon_min": 6.0, "lon_max": 7.0}
     assert info["global"] is False and info["top_altitude_m"] > 40_000

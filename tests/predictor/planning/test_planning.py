@@ -167,7 +167,10 @@ def test_altitude_plan_text_is_parsed_and_bad_plans_are_refused() -> None:
         ({"hours": -1.0}, "sweep length"),
         ({"every_minutes": 0.0}, "sweep step"),
         ({"members": 2}, "at least 3 members"),
-        ({"members": 10_000_000}, r"7 candidates × 10000000 members is 70,000,000 member descents, over the 2,000,000"),
+        (
+            {"members": 10_000_000},
+            r"7 candidates × 10000000 members is 70,000,000 member descents, over the 2,000,000",
+        ),
         ({"thresholds": Thresholds(max_target_km=10.0)}, "needs a targets file"),
         ({"start": RELEASE.replace(tzinfo=None)}, "timezone-aware"),
         ({"alt_m": -3.0}, "positive number of metres"),

@@ -156,7 +156,12 @@ def test_terrain_directory_from_the_cli(
     ],
 )
 def test_bad_input_is_one_line_with_its_exit_status(
-    grib_files: list[Path], cache: str, capsys: pytest.CaptureFixture[str], change: dict, message: str, status: int
+    grib_files: list[Path],
+    cache: str,
+    capsys: pytest.CaptureFixture[str],
+    change: dict,
+    message: str,
+    status: int,
 ) -> None:
     """A command line that cannot mean anything exits 2; one the weather cannot answer failed, 1."""
     args = base_args(grib_files, cache)

@@ -46,7 +46,12 @@ from tests.independent_world import (
     write_weather,
 )
 
-WORLDS = {"noise only": NOISE_ONLY, "two-regime canopy": TWO_REGIME, "wind ramp": WIND_RAMP, "updraft": UPDRAFT}
+WORLDS = {
+    "noise only": NOISE_ONLY,
+    "two-regime canopy": TWO_REGIME,
+    "wind ramp": WIND_RAMP,
+    "updraft": UPDRAFT,
+}
 CHECKPOINTS_M = (20_000.0, 10_000.0)
 UNSEEN_CADENCE_S = 10.0
 """The unseen flights log every 10 s, so their measured touchdown (the first fix on the ground) is
@@ -71,7 +76,10 @@ def calibrated(directory: Path, effects: Effects, weather: tuple[Path, ...]) -> 
 
 
 def remaining_errors(
-    model: CalibratedModel, effects: Effects, directory: Path, weather: tuple[Path, ...],
+    model: CalibratedModel,
+    effects: Effects,
+    directory: Path,
+    weather: tuple[Path, ...],
     cadence_s: float = UNSEEN_CADENCE_S,
 ) -> dict[float, tuple[list[float], list[float]]]:
     """Per checkpoint: (model live, plain restart) remaining-time errors (s) on six unseen flights."""
@@ -112,10 +120,14 @@ def test_on_unseen_flights_live_with_the_model_is_never_much_worse_than_the_plai
     for km, (with_model, restart) in errors.items():
         assert len(with_model) == 6, (name, km)
         model_s, restart_s = float(np.mean(np.abs(with_model))), float(np.mean(np.abs(restart)))
-        assert model_s <= 1.1 * restart_s + 10.0, f"{name} from {km / 1000:g} km: {model_s:.0f} s vs {restart_s:.0f} s"
+        assert model_s <= 1.1 * restart_s + 10.0, (
+            f"{name} from {km / 1000:g} km: {model_s:.0f} s vs {restart_s:.0f} s"
+        )
 
 
-def test_the_two_regime_canopy_floor_holds_on_1hz_records_too(weather: tuple[Path, ...], tmp_path: Path) -> None:
+def test_the_two_regime_canopy_floor_holds_on_1hz_records_too(
+    weather: tuple[Path, ...], tmp_path: Path
+) -> None:
     # The live λ must not depend on how densely the unseen flights are logged. Measured with the same
     # model on 1 Hz records (the touchdown exact to a second): 94 / 4 s against 124 / 81 s for the plain
     # restart from 20 / 10 km (floors 146 / 99 s). With the discrepancy taken at the calibration
@@ -125,4 +137,6 @@ def test_the_two_regime_canopy_floor_holds_on_1hz_records_too(weather: tuple[Pat
     for km, (with_model, restart) in errors.items():
         assert len(with_model) == 6, km
         model_s, restart_s = float(np.mean(np.abs(with_model))), float(np.mean(np.abs(restart)))
-        assert model_s <= 1.1 * restart_s + 10.0, f"from {km / 1000:g} km: {model_s:.0f} s vs {restart_s:.0f} s"
+        assert model_s <= 1.1 * restart_s + 10.0, (
+            f"from {km / 1000:g} km: {model_s:.0f} s vs {restart_s:.0f} s"
+        )

@@ -138,15 +138,24 @@ def test_a_departure_every_flight_shares_is_taken_out_and_its_spread_leans_on_th
     # showed 20 % more than their whole descents at this height, nothing of it is this flight's own:
     # λ comes back to 1.
     fixes, _ = descent(120.0, 3.0)
-    live = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,),
-                         discrepancy=RateDiscrepancy((5.0, 25.0), (math.log(TRUE_RATE),) * 2, (0.0, 0.0)))
+    live = LivePredictor(
+        isothermal_cube(u=10.0, v=2.0),
+        PAYLOAD,
+        effects=(LAW,),
+        discrepancy=RateDiscrepancy((5.0, 25.0), (math.log(TRUE_RATE),) * 2, (0.0, 0.0)),
+    )
     report = fed_to(live, fixes)
     assert live.rate(report).factor == pytest.approx(1.0, abs=0.01)
     assert live.rate(report).measured == pytest.approx(TRUE_RATE, rel=0.01)
     # A record whose departure spreads widely across flights says little: λ stays near the prior.
     prior = RatePrior(median=1.0, log_sigma=0.05, flights=20)
-    vague = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,), prior=prior,
-                          discrepancy=RateDiscrepancy((5.0, 25.0), (0.0, 0.0), (0.5, 0.5)))
+    vague = LivePredictor(
+        isothermal_cube(u=10.0, v=2.0),
+        PAYLOAD,
+        effects=(LAW,),
+        prior=prior,
+        discrepancy=RateDiscrepancy((5.0, 25.0), (0.0, 0.0), (0.5, 0.5)),
+    )
     sharp = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,), prior=prior)
     fed_to(vague, fixes)
     fed_to(sharp, fixes)
@@ -210,7 +219,10 @@ def test_a_model_without_live_settings_flies_its_shape_with_its_own_lambda_and_s
     bare = CalibratedModel(PAYLOAD, (LAW,), None).live_predictor(cube)
     assert bare.correction == OWN_RATE and bare.discrepancy == NO_DISCREPANCY and bare.prior is None
     assert any(n.startswith("no live settings of its own") for n in bare.notes)
-    assert DEFAULT_ELLIPSE_NOTE in bare.notes and "no λ prior in the model: λ from this descent alone" in bare.notes
+    assert (
+        DEFAULT_ELLIPSE_NOTE in bare.notes
+        and "no λ prior in the model: λ from this descent alone" in bare.notes
+    )
     # The calibration's convention: the prior's median flies as a descent_rate_scale among the terms, so
     # the live update (a factor on those terms) starts from 1 with the prior's spread.
     prior = RatePrior(median=0.95, log_sigma=0.1, flights=9)

@@ -90,7 +90,9 @@ def test_each_flight_flies_the_law_refitted_without_it(result: Evaluation) -> No
     assert max(exponents) - min(exponents) > 0.01
 
 
-def test_the_live_choices_hardly_depend_on_the_other_flights_laws(shared_data: Path, result: Evaluation) -> None:
+def test_the_live_choices_hardly_depend_on_the_other_flights_laws(
+    shared_data: Path, result: Evaluation
+) -> None:
     # A flight's live choices are made on the other flights' held-out predictions, each flown with its
     # own fold's law, which did see this flight. How much that can matter, measured: with every flight
     # flown with the model's one law instead (the whole fold-to-fold spread of the exponent), the
@@ -102,11 +104,14 @@ def test_the_live_choices_hardly_depend_on_the_other_flights_laws(shared_data: P
     assert not one_law.held_out_laws
     pairs = [(km, f) for km in result.rate_choice for f in result.rate_choice[km]]
     same = sum(
-        (result.rate_choice[km][f], result.wind_choice[km][f]) == (one_law.rate_choice[km][f], one_law.wind_choice[km][f])
+        (result.rate_choice[km][f], result.wind_choice[km][f])
+        == (one_law.rate_choice[km][f], one_law.wind_choice[km][f])
         for km, f in pairs
     )
     assert same >= 0.95 * len(pairs)
-    assert mean_time_s(one_law, 20.0, HELD_OUT_LIVE) == pytest.approx(mean_time_s(result, 20.0, HELD_OUT_LIVE), abs=8.0)
+    assert mean_time_s(one_law, 20.0, HELD_OUT_LIVE) == pytest.approx(
+        mean_time_s(result, 20.0, HELD_OUT_LIVE), abs=8.0
+    )
 
 
 def test_a_law_that_cannot_be_held_out_is_refused(shared_data: Path) -> None:
@@ -114,7 +119,9 @@ def test_a_law_that_cannot_be_held_out_is_refused(shared_data: Path) -> None:
     flights = _usable([folder / n for n in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")], None, [], None, None)
     names = [f.name for f in flights]
     committed = load_model(MODEL)
-    with pytest.raises(PredictorError, match=r"cannot be held out: it was calibrated on flights not given \(18-10-28"):
+    with pytest.raises(
+        PredictorError, match=r"cannot be held out: it was calibrated on flights not given \(18-10-28"
+    ):
         held_out_laws(committed, flights)
     on_three = dataclasses.replace(committed, provenance={"flights": names})
     with pytest.raises(PredictorError, match="refitted on its 3 flights it gives descent_rate_scale scale"):
@@ -143,7 +150,9 @@ def test_the_correction_is_kept_only_where_held_out_flights_gained(result: Evalu
             )
 
 
-def test_the_model_is_no_worse_than_the_textbook_law_with_the_same_lambda_estimator(result: Evaluation) -> None:
+def test_the_model_is_no_worse_than_the_textbook_law_with_the_same_lambda_estimator(
+    result: Evaluation,
+) -> None:
     # The issue's floor against the textbook law: the same λ update (prior and discrepancy from the
     # other flights, on its own law). Measured 193.8 s against 194.2 s from 20 km (1.00) and 128 s
     # against 152 s from 10 km (0.84); deterministic (no draw), so it fails only if the estimator or the
@@ -189,7 +198,9 @@ def test_the_shipped_live_ellipse_is_the_measured_one(result: Evaluation) -> Non
     assert fit_live_sigma(result) == LIVE_ERROR_MODEL
 
 
-def test_the_committed_model_carries_the_live_settings_its_evaluation_kept(result: Evaluation, tmp_path: Path) -> None:
+def test_the_committed_model_carries_the_live_settings_its_evaluation_kept(
+    result: Evaluation, tmp_path: Path
+) -> None:
     # `drs live evaluate --model M --save-model M` wrote them; drs live and the console fly them.
     committed = load_model(MODEL)
     assert committed.live is not None
@@ -203,7 +214,10 @@ def test_drs_live_flies_the_live_settings_of_its_model(
 ) -> None:
     track = str(shared_data / "tracks" / "pyballoon_superbit" / "19-7-28.csv")
     committed = load_model(MODEL)
-    plain = save_model(dataclasses.replace(committed, live=LiveSettings(NO_CORRECTION, LIVE_ERROR_MODEL)), tmp_path / "p.json")
+    plain = save_model(
+        dataclasses.replace(committed, live=LiveSettings(NO_CORRECTION, LIVE_ERROR_MODEL)),
+        tmp_path / "p.json",
+    )
 
     def documents(model: Path) -> list[dict]:
         assert main(["live", "--track", track, "--ascent-winds", "--model", str(model), "--json"]) == 0
@@ -236,9 +250,14 @@ def test_live_cli_re_predicts_a_real_descent_from_each_fix(
     lines = capsys.readouterr().out.strip().splitlines()
     assert lines[-1].startswith("measured landing 2019-07-28T20:46:00Z")
     assert lines[0] == "drs live: superbit-test profile"
-    assert any(line.startswith("  note: live ellipse: the default (measured with the SuperBIT model") for line in lines[1:4])
+    assert any(
+        line.startswith("  note: live ellipse: the default (measured with the SuperBIT model")
+        for line in lines[1:4]
+    )
     predictions = [line for line in lines[:-1] if not line.startswith(("drs live:", "  note:"))]
-    assert len(predictions) > 10 and all("→" in line and " (in " in line and " λ " in line for line in predictions)
+    assert len(predictions) > 10 and all(
+        "→" in line and " (in " in line and " λ " in line for line in predictions
+    )
 
 
 def test_live_cli_json_gives_the_landing_time_the_remaining_time_and_the_fixes_fitted(
@@ -266,7 +285,8 @@ def test_live_cli_flies_a_calibrated_model_or_mass_and_cda_and_refuses_both(
     plain = first_landing("--payload", "superbit-test")
     heavier = first_landing("--payload", "superbit-test", "--mass", "3.0")
     model = save_model(
-        CalibratedModel(PROFILES["superbit-test"], (DragDensityExponent(exponent=0.2),), None), tmp_path / "m.json"
+        CalibratedModel(PROFILES["superbit-test"], (DragDensityExponent(exponent=0.2),), None),
+        tmp_path / "m.json",
     )
     calibrated = first_landing("--model", str(model))
     assert heavier["time"] < plain["time"], "a heavier payload falls faster"

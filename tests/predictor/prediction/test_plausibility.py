@@ -53,7 +53,9 @@ def test_drs_predict_warns_of_an_altitude_typed_in_km(
 
 
 def test_drs_plan_warns_of_a_zones_file_with_swapped_coordinates(
-    grib_files: list[Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]  # noqa: F811
+    grib_files: list[Path],  # noqa: F811
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     swapped = geojson_file(
         tmp_path / "z.geojson",

@@ -197,14 +197,18 @@ def test_csv_is_tawhiris_table_and_kml_holds_the_whole_flight(server: ApiServer)
 
 def test_by_default_the_descent_is_tawhiris_with_the_requested_sea_level_rate(server: ApiServer) -> None:
     """chasemapper has one URL for the balloon, radiosondes and the capsules: /api/v1/ flies Tawhiri."""
-    documents = {rate: json.loads(get(server, chasemapper_query(descent_rate=rate))[2]) for rate in (5.0, 10.0)}
+    documents = {
+        rate: json.loads(get(server, chasemapper_query(descent_rate=rate))[2]) for rate in (5.0, 10.0)
+    }
     for rate, document in documents.items():
         descent = document["prediction"][1]["trajectory"]
         assert "Tawhiri" in document["warnings"]["drs_descent"]["description"]
         assert document["drs"] == {"descent": "tawhiri", "descent_rate_used": True,
                                    "weather": document["drs"]["weather"], "is_demo": True}  # fmt: skip
         last, before = descent[-1], descent[-2]
-        seconds = (datetime.fromisoformat(last["datetime"]) - datetime.fromisoformat(before["datetime"])).total_seconds()
+        seconds = (
+            datetime.fromisoformat(last["datetime"]) - datetime.fromisoformat(before["datetime"])
+        ).total_seconds()
         near_ground = (before["altitude"] - last["altitude"]) / seconds
         assert near_ground == pytest.approx(rate, rel=0.06), "the requested rate is the rate near sea level"
         assert last["altitude"] == 0.0
@@ -329,7 +333,10 @@ def test_stalled_connections_are_bounded_and_dropped_and_the_server_still_answer
     thread = threading.Thread(target=served.serve_forever, daemon=True)
     thread.start()
     threads_before = threading.active_count()
-    stalled = [socket.create_connection(served.server_address[:2], timeout=5) for _ in range(api.MAX_CONNECTIONS + 20)]
+    stalled = [
+        socket.create_connection(served.server_address[:2], timeout=5)
+        for _ in range(api.MAX_CONNECTIONS + 20)
+    ]
     try:
         for sock in stalled[:3]:
             sock.sendall(b"GET /api/v1/?laun")  # drip-fed: half a request line, then nothing
@@ -345,7 +352,9 @@ def test_stalled_connections_are_bounded_and_dropped_and_the_server_still_answer
         assert b"ServiceUnavailable" in busy[0]
         assert threading.active_count() - threads_before <= 2 * api.MAX_CONNECTIONS
         status, _, body = get(served, chasemapper_query())
-        assert status == 200 and json.loads(body)["prediction"], "the stalled clients are gone: answered again"
+        assert status == 200 and json.loads(body)["prediction"], (
+            "the stalled clients are gone: answered again"
+        )
     finally:
         for sock in stalled:
             sock.close()
@@ -384,7 +393,9 @@ def test_serve_demo_weather_and_predict_demo_weather_see_the_same_air(
 
 
 @pytest.mark.parametrize(("method", "status"), [("OPTIONS", 405), ("BREW", 501)])
-def test_other_methods_are_refused_in_tawhiris_error_shape(server: ApiServer, method: str, status: int) -> None:
+def test_other_methods_are_refused_in_tawhiris_error_shape(
+    server: ApiServer, method: str, status: int
+) -> None:
     request = urllib.request.Request(server.url, method=method)
     with pytest.raises(urllib.error.HTTPError) as refused:
         urllib.request.urlopen(request, timeout=10)

@@ -123,7 +123,9 @@ def _ring(value: Any, where: str, found: list[str], exterior: bool) -> None:
 def _not_across_the_antimeridian(points: list[list[float]], where: str, found: list[str]) -> None:
     for index, (a, b) in enumerate(zip(points, points[1:], strict=False)):
         if abs(b[0] - a[0]) > 180.0:
-            found.append(f"{where}[{index}]: a step of {b[0] - a[0]:.1f}° of longitude: cut it at ±180° (§3.1.9)")
+            found.append(
+                f"{where}[{index}]: a step of {b[0] - a[0]:.1f}° of longitude: cut it at ±180° (§3.1.9)"
+            )
             return
 
 

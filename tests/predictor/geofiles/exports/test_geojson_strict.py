@@ -46,7 +46,10 @@ def test_feature_lat_and_lon_properties_keep_the_coordinates_six_decimals(
 @pytest.mark.parametrize(
     ("document", "says"),
     [
-        ({"type": "FeatureCollection", "features": [], "properties": {}}, "must not have 'properties' (§7.1)"),
+        (
+            {"type": "FeatureCollection", "features": [], "properties": {}},
+            "must not have 'properties' (§7.1)",
+        ),
         ({"type": "Feature", "geometry": None}, "needs 'geometry' and 'properties'"),
         ({"type": "Feature", "properties": {}, "geometry": {"type": "Point", "coordinates": [190, 0]}}, "§4"),
         ({"type": "LineString", "coordinates": [[179.5, 0], [-179.5, 0]]}, "cut it at ±180°"),
@@ -70,12 +73,16 @@ def test_a_gpx_track_across_180_is_one_segment_per_side() -> None:
     sides = [[p.longitude for p in segment.points] for segment in track.segments]
     assert sides == [[179.2, 179.6, 179.95], [-179.7, -179.3, -179.8], [179.9, 179.5]]
     for segment in track.segments:
-        steps = [abs(b.longitude - a.longitude) for a, b in zip(segment.points, segment.points[1:], strict=False)]
+        steps = [
+            abs(b.longitude - a.longitude) for a, b in zip(segment.points, segment.points[1:], strict=False)
+        ]
         assert max(steps, default=0.0) < 1.0, "no segment draws a line across the map"
 
 
 @pytest.mark.parametrize("product", GPX_ACROSS)
-def test_every_gpx_track_written_across_180_is_split_there(products: dict[str, Written], product: str) -> None:
+def test_every_gpx_track_written_across_180_is_split_there(
+    products: dict[str, Written], product: str
+) -> None:
     assert products[product].gpx is not None
     parsed = gpxpy.parse(products[product].gpx)
     segments = [s for t in parsed.tracks for s in t.segments]
