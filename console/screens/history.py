@@ -104,9 +104,16 @@ class HistoryScreen(ConsoleScreen):
             return
         row_key = table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value
         record = self.records[int(str(row_key))]
+        # Another console's entry names that console (account@host pid): two consoles once ARMED one
+        # capsule and History could not tell their entries apart (#23).
+        elsewhere = (
+            f" · from another console: {record.session}"
+            if record.session and record.session != self.context.store.session
+            else ""
+        )
         self.query_one("#audit-detail", Static).update(
             f"▸ {record.time_utc:%Y-%m-%d %H:%M:%S}Z {record.operator} {record.capsule or '—'} {record.action} "
-            f"{record.result}\n  {detail_words(record.detail)}"
+            f"{record.result}{elsewhere}\n  {detail_words(record.detail)}"
         )
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:

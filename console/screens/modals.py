@@ -136,11 +136,15 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
             yield Label(f"Second operator ({need}; a different person):", markup=False)
             yield Input(id="second", placeholder="name")
             yield Label("…or single-operator waiver (why you are alone):", markup=False)
-            yield Input(id="waiver", placeholder="reason (logged)")
+            yield Input(id="waiver", placeholder="reason (logged)", max_length=WAIVER_REASON_MAX)
             if self.override_prompt is not None:
                 # A Static wraps; the Label it was ran to 161 columns and scrolled sideways.
                 yield Static(self.override_prompt, markup=False, classes="dialog-warning")
-                yield Input(id="override", placeholder="override reason (logged with the evidence)")
+                yield Input(
+                    id="override",
+                    placeholder="override reason (logged with the evidence)",
+                    max_length=WAIVER_REASON_MAX,
+                )
             with Horizontal(classes="dialog-buttons"):
                 yield Button("Cancel", id="cancel", variant="primary")
                 yield Button(

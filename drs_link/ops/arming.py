@@ -36,7 +36,7 @@ from drs_link.ops.arm_window import (
     process_holder,
 )
 from drs_link.ops.capsule import ConfirmationToken, ReleaseRecord, ReleaseState
-from drs_link.ops.gonogo import GoNoGoReport
+from drs_link.ops.gonogo import WAIVER_REASON_MAX, GoNoGoReport
 from drs_link.store import Store, session_name, utc_now
 
 DEFAULT_ARM_WINDOW_S = 60.0
@@ -112,6 +112,11 @@ def check_second_operator(
     first_name = first.strip()
     second_name = (second or "").strip()
     waiver = (single_operator_waiver or "").strip()
+    if len(waiver) > WAIVER_REASON_MAX:
+        raise RefusedError(
+            f"a single-operator waiver is at most {WAIVER_REASON_MAX} characters (this one has {len(waiver)}): "
+            "it is read on the screen and in History, so say why in a sentence"
+        )
     if required:
         typed = "a typed second operator" if second_name else "a single-operator waiver" if waiver else ""
         if typed:

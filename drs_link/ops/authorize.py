@@ -19,6 +19,7 @@ from drs_link.errors import RefusedError
 from drs_link.iridium import Hazard, MtCommand, MtMessage, StoredReport, landed_evidence, read_text
 from drs_link.ops.approval import ApprovalBook, Login, current_login
 from drs_link.ops.arming import check_second_operator
+from drs_link.ops.gonogo import WAIVER_REASON_MAX
 from drs_link.store import Store
 
 
@@ -101,6 +102,10 @@ def authorize_mt(
     details: dict[str, Any] = {"text": message.text, "landed": evidence.audit(), **people}
     if not evidence.on_ground:
         override = (override_landed or "").strip()
+        if len(override) > WAIVER_REASON_MAX:
+            raise refuse(
+                f"an override reason is at most {WAIVER_REASON_MAX} characters (this one has {len(override)})"
+            )
         if not override:
             raise refuse(
                 f"no landed evidence ({evidence.summary}); it would drop the parachute in flight. To override, "

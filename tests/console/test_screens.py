@@ -21,6 +21,7 @@ from console.screens.release import ReleaseScreen
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.ops.telemetry import BalloonSample, TelemetryRecord
+from drs_link.store import Store
 from tests.console.conftest import T0, wait_for
 
 pytestmark = pytest.mark.asyncio
@@ -292,6 +293,28 @@ async def test_typing_on_entering_history_searches_and_fires_no_key(
         await pilot.press("down", "e")
         exported = list((tmp_path / "exports").glob("audit-*.jsonl"))
         assert len(exported) == 1 and "alone on the ridge" in exported[0].read_text()
+
+
+async def test_history_names_the_console_an_entry_came_from_when_it_is_another(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    """#23: two consoles were both ARMED on one capsule and History could not tell their entries apart."""
+    app = canned_app()
+    other = Store.open(app.store.path)
+    other.session = "jm@laptop2 pid 7"
+    other.append_audit("JM", "DRS1", "arm", "armed", {"window": 1})
+    app.store.append_audit("EL", "DRS1", "arm", "refused", {"reason": "held by JM"})
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("h", "enter")
+        detail = app.screen.query_one("#audit-detail", Static)
+
+        def shown() -> str:
+            return " ".join(str(detail.render()).split())
+
+        await wait_for(pilot, lambda: "arm refused" in shown())
+        assert "from another console" not in shown(), "this console's own entry"
+        await pilot.press("down")
+        await wait_for(pilot, lambda: "arm armed · from another console: jm@laptop2 pid 7" in shown())
 
 
 async def test_history_shows_the_highlighted_entrys_reason(canned_app: Callable[..., DrsConsole]) -> None:

@@ -256,3 +256,14 @@ def test_a_queue_before_deadline_that_passed_while_a_dialog_was_open_is_refused_
                            queue_by=deadline, now=deadline - timedelta(seconds=1))  # fmt: skip
     assert details["landed"]["on_ground"] is True
     assert [a.result for a in store.audit() if a.action == "mt.parachute"] == ["refused", "authorised"]
+
+
+def test_an_override_reason_longer_than_the_stated_cap_is_refused(tmp_path: Path) -> None:
+    """#23: reasons are capped at a stated length wherever an operator types one."""
+    reports = falling(recent(10))
+    store = seed(tmp_path, reports)
+    message = MtComposer().add("PARACHUTE", (12, 0)).build()
+    with pytest.raises(RefusedError, match=r"override reason is at most 200 characters \(this one has 201\)"):
+        authorize_mt(
+            store, "DRS1", "EL", message, reports, single_operator_waiver="alone", override_landed="y" * 201
+        )

@@ -16,7 +16,14 @@ from drs_link.link.ssh import CapsuleLink
 from drs_link.ops.approval import ApprovalBook, Login, window_command
 from drs_link.ops.arming import FIRING_STALE_S, ArmingController, ArmState, check_second_operator
 from drs_link.ops.capsule import ReleaseState, ReleaseStateMachine
-from drs_link.ops.gonogo import GoNoGoInputs, GoNoGoReport, PredictionCheck, WaiverBook, evaluate
+from drs_link.ops.gonogo import (
+    WAIVER_REASON_MAX,
+    GoNoGoInputs,
+    GoNoGoReport,
+    PredictionCheck,
+    WaiverBook,
+    evaluate,
+)
 from drs_link.ops.staleness import Reading
 from drs_link.sim import CapsuleSimulator
 from drs_link.store import Store
@@ -130,6 +137,13 @@ def test_a_wrong_capsule_name_is_refused_and_nothing_is_sent(store: Store) -> No
         arming.fire("DRS2", go_report(clock))
     assert arming.status().armed
     assert store.audit("DRS1")[-1].detail == {"reason": "wrong capsule name typed", "typed": "DRS2"}
+
+
+def test_a_single_operator_waiver_longer_than_the_stated_cap_is_refused_with_its_length() -> None:
+    """#23: a 3,000-character reason pushed go/no-go and the checklist off the screen."""
+    assert check_second_operator("EL", None, "x" * WAIVER_REASON_MAX, required=False)
+    with pytest.raises(RefusedError, match=rf"at most {WAIVER_REASON_MAX} characters \(this one has 3000\)"):
+        check_second_operator("EL", None, "x" * 3000, required=False)
 
 
 def test_without_the_rule_a_typed_second_operator_must_be_another_person_on_the_crew_list() -> None:
