@@ -470,6 +470,13 @@ class ReleaseStateMachine:
                 raise
             self._audit("go", f"{note} (already recorded released)", detail)
             return changed.current
+        except StoreError as exc:
+            # The Pi has acted: an operator told only "cannot update the store" might Go again (#24).
+            raise StoreError(
+                f"{self.name}: Go reached the Pi ({note}) but was not recorded: {exc}; the capsule IS "
+                "released, do not Go again; the store says go-sent-unverified: once it can be written, "
+                f"settle it with `drs capsule released {self.name} --confirm {self.name} --evidence …`"
+            ) from None
         self._audit("go", note, detail)
         return released
 

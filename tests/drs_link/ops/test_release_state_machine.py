@@ -338,6 +338,27 @@ def test_a_store_failure_after_the_pi_powered_on_says_the_relay_is_latched(
     assert pi.calls == ["power_on"]
 
 
+def test_a_store_failure_after_the_pi_released_says_the_capsule_is_released_and_not_to_go_again(
+    machine: ReleaseStateMachine, pi: InProcessPi
+) -> None:
+    """#24: after a store failure Go did not say that the Pi had already acted."""
+    _ready(machine)
+    go = pi.go
+
+    def the_store_stops_writing_while_the_pi_releases(holder: str) -> GoResult:
+        machine.store.conn.execute("PRAGMA query_only = ON")
+        return go(holder)
+
+    pi.go = the_store_stops_writing_while_the_pi_releases  # type: ignore[method-assign]
+    with pytest.raises(
+        StoreError,
+        match=r"Go reached the Pi \(released, .*\) but was not recorded.*IS released, do not Go again",
+    ):
+        machine.go(machine.confirm("DRS1"))
+    machine.store.conn.execute("PRAGMA query_only = OFF")
+    assert pi.calls.count("go") == 1 and machine.record().state is ReleaseState.GO_SENT
+
+
 def test_reset_is_refused_while_a_go_is_unverified(machine: ReleaseStateMachine, pi: InProcessPi) -> None:
     _ready(machine)
     pi.go_outcome = GoResult(False, True, False, None, "")
