@@ -255,7 +255,8 @@ class ChaseSender:
 
     def __init__(self, target: str, key: str = "--udp") -> None:
         self.host, self.port = host_port(target, key)
-        self.target = f"{self.host}:{self.port}"
+        # An IPv6 address in brackets, as a person writes it back (::1:55683 reads as one address).
+        self.target = f"[{self.host}]:{self.port}" if ":" in self.host else f"{self.host}:{self.port}"
         try:
             family, kind, proto, _, self.address = socket.getaddrinfo(
                 self.host, self.port, type=socket.SOCK_DGRAM

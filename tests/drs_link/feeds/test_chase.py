@@ -167,3 +167,14 @@ def test_our_own_balloon_feed_on_the_same_port_does_not_take_a_capsule_for_the_b
     assert (status.accepted, status.ignored, status.rejected) == (1, 1, 0)
     record = feed.latest()
     assert record is not None and record.time == NOW
+
+
+def test_an_ipv6_target_is_written_back_in_brackets() -> None:
+    """#25: `drs chase` printed "::1:55683", which reads as one address."""
+    v6 = ChaseSender("[::1]:55683")
+    v4 = ChaseSender("127.0.0.1:55683")
+    try:
+        assert (v6.target, v4.target) == ("[::1]:55683", "127.0.0.1:55683")
+    finally:
+        v6.close()
+        v4.close()
