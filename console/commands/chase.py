@@ -10,10 +10,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from datetime import UTC, datetime
 
 from console.commands.argparser import udp_target
+from console.commands.stopping import stop_signals
 from drs_link.config import load_config
 from predictor.errors import UsageError
 
@@ -52,16 +52,22 @@ def cmd_chase(args: argparse.Namespace) -> int:
         flush=True,
     )
     try:
-        while True:
-            points = chase_points(config, store, datetime.now(UTC))
-            sender.send(points)
-            for point in points:
-                print(json.dumps(point.packet()), flush=True)
-            if not points:
-                print("drs chase: no capsule has a position in the store yet", file=sys.stderr, flush=True)
-            if args.once:
-                return 0
-            time.sleep(CHASE_PERIOD_S)
+        with stop_signals() as wait_for_stop:
+            while True:
+                points = chase_points(config, store, datetime.now(UTC))
+                sender.send(points)
+                for point in points:
+                    print(json.dumps(point.packet()), flush=True)
+                if not points:
+                    print(
+                        "drs chase: no capsule has a position in the store yet", file=sys.stderr, flush=True
+                    )
+                if args.once:
+                    return 0
+                stop = wait_for_stop(CHASE_PERIOD_S)  # the round is sent whole; a stop ends the wait
+                if stop is not None:
+                    print(f"drs chase: {stop}: stopped between rounds", file=sys.stderr, flush=True)
+                    return 0
     finally:
         sender.close()
         store.close()

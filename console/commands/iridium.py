@@ -7,20 +7,18 @@ turns refusals into one-line errors (console/commands/main.py prints LinkError a
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import logging
 import math
 import re
-import signal
 import sys
-from collections.abc import Callable, Iterator
 from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from console.commands.argparser import input_file, position_or_gpsd, text_or_stdin
+from console.commands.stopping import stop_signals
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
 from drs_link.iridium import CATALOGUE, LISTED, PARACHUTE  # drs_link.ops's copies load pyproj
@@ -322,7 +320,7 @@ def _mo_serve(args: argparse.Namespace) -> int:
         for command in life.observe_store(reports, stored.delivery.imei):
             print(f"MT {command.id} {command.text}: {command.state}", flush=True)
 
-    with _stop_signals() as wait_for_stop:
+    with stop_signals() as wait_for_stop:
         try:
             server = MoHttpServer(MoReceiver(reports, mo_config, after_answer)).start()
         except OSError as exc:
@@ -334,29 +332,10 @@ def _mo_serve(args: argparse.Namespace) -> int:
             flush=True,
         )
         log.info("listening", extra={"url": server.url, "trusted_proxy": mo_config.trusted_proxy or "none"})
-        log.info("stopping", extra={"signal": wait_for_stop()})
+        log.info("stopping", extra={"signal": wait_for_stop(None)})
         unanswered = server.stop()
     log.info("stopped", extra={"unanswered": unanswered})
     return 0
-
-
-_STOP_SIGNALS = {signal.SIGTERM, signal.SIGINT}
-
-
-@contextlib.contextmanager
-def _stop_signals() -> Iterator[Callable[[], str]]:
-    """A wait for SIGTERM (systemd's stop) or SIGINT (Ctrl-C) that returns its name, so the server drains.
-
-    Python's default for SIGTERM ends the process at once, with whatever was in flight unanswered. The
-    signals are blocked before any server thread starts (threads inherit the mask) and taken with
-    ``sigwait``: no handler runs at an arbitrary moment, where setting an Event could deadlock on a lock
-    the interrupted code holds.
-    """
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
-    try:
-        yield lambda: signal.Signals(signal.sigwait(_STOP_SIGNALS)).name
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _mo_import(args: argparse.Namespace) -> int:

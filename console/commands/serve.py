@@ -11,10 +11,14 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from console.commands.stopping import stop_signals
 from predictor.errors import PredictorError, UsageError
+
+log = logging.getLogger(__name__)
 
 if TYPE_CHECKING:  # the server loads the descent engine (numba): only when it is started
     from predictor.tawhiri import ApiServer
@@ -59,15 +63,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     server = build_server(args)
     demo = " with DEMO weather (not a forecast)" if args.demo_weather else ""
-    print(
-        f"drs serve predictor: Tawhiri v1 API at {server.url}{demo}; Ctrl-C stops it",
-        file=sys.stderr,
-        flush=True,
-    )
-    try:
-        server.serve_forever()
-    finally:
-        server.server_close()
+    with stop_signals() as wait_for_stop:
+        threading.Thread(target=server.serve_forever, name="drs-serve-predictor", daemon=True).start()
+        print(
+            f"drs serve predictor: Tawhiri v1 API at {server.url}{demo}; Ctrl-C or SIGTERM stops it, "
+            "after answering what has arrived",
+            file=sys.stderr,
+            flush=True,
+        )
+        log.info("stopping", extra={"signal": wait_for_stop(None)})
+        unanswered = server.drain()
+    log.info("stopped", extra={"unanswered": unanswered})
     return 0
 
 

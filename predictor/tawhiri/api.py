@@ -644,6 +644,9 @@ class _Handler(BaseHTTPRequestHandler):
         log.debug(format, *args)
 
 
+DRAIN_S = 20.0
+"""How long a stopping server waits for the predictions in flight (one takes seconds at most)."""
+
 BUSY = (
     b"HTTP/1.0 503 Service Unavailable\r\nContent-Type: application/json\r\nRetry-After: 5\r\n"
     b"Connection: close\r\n\r\n"
@@ -685,6 +688,19 @@ class ApiServer(ThreadingHTTPServer):
             super().process_request_thread(request, client_address)
         finally:
             self._slots.release()
+
+    def drain(self, timeout_s: float = DRAIN_S) -> int:
+        """Stop accepting and wait up to ``timeout_s`` for the requests in flight to be answered (SIGTERM
+        once cut them off); how many were still running. Call it from another thread than the server's."""
+        self.shutdown()
+        deadline = time.monotonic() + timeout_s
+        finished = 0
+        while finished < MAX_CONNECTIONS and self._slots.acquire(
+            timeout=max(0.0, deadline - time.monotonic())
+        ):
+            finished += 1
+        self.server_close()
+        return MAX_CONNECTIONS - finished
 
     @property
     def url(self) -> str:
