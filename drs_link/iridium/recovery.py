@@ -16,13 +16,11 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
-from pyproj import Geod
-
 from drs_link.errors import LinkError
 from drs_link.iridium.reports import StoredReport
 from predictor.geofiles import DEMO_LABEL, write_text
+from predictor.prediction import GEOD
 
-GEOD = Geod(ellps="WGS84")
 MIN_DESCENT_M = 500.0
 """A landing must come after the capsule has fallen at least this far from its peak."""
 STEADY_VERTICAL_MS = 1.5

@@ -26,10 +26,6 @@ class DiskUsage:
     available_bytes: int
     mount: str
 
-    @property
-    def used_fraction(self) -> float:
-        return self.used_bytes / self.total_bytes if self.total_bytes else 1.0
-
 
 @dataclass(frozen=True)
 class RaidArray:

@@ -38,7 +38,6 @@ FACTS: dict[str, type] = {
     "sync_fraction": float,
     "raid_healthy": bool,
     "storage_free_fraction": float,
-    "armed": bool,
     "released": bool,
     "reports_received": int,
     "landed": bool,
@@ -277,18 +276,6 @@ class ChecklistRun:
         if step.kind is not StepKind.COMMAND:
             raise RefusedError(f"{step.id}: not a command step")
         self._record(step, StepState.DONE, operator, result)
-
-    def untick(self, step_id: str, operator: str) -> None:
-        step = self.checklist.step(step_id)
-        with self.store.transaction() as conn:
-            conn.execute(
-                "DELETE FROM checklist_step WHERE capsule = ? AND checklist = ? AND step = ?",
-                (self.capsule, self.checklist.id, step.id),
-            )
-        self.store.append_audit(
-            operator or "unknown", self.capsule, "checklist.untick", f"{self.checklist.id}/{step.id}",
-            when=self.clock(),
-        )  # fmt: skip
 
     def statuses(self, facts: Mapping[str, object]) -> list[StepStatus]:
         rows = self.store.query(

@@ -33,15 +33,13 @@ from dataclasses import dataclass
 from datetime import timedelta
 
 import numpy as np
-from pyproj import Geod
 
 from predictor.environment import WeatherCube
 from predictor.errors import WeatherError
+from predictor.prediction import GEOD
 from predictor.tracks.cleaning import Flight
 from predictor.tracks.reading import Fix
 from predictor.tracks.standard_atmosphere import G0, R_DRY_AIR, pressure_temperature
-
-WGS84 = Geod(ellps="WGS84")
 
 DEFAULT_LAYER_M = 500.0
 DEFAULT_MARGIN_DEG = 2.0
@@ -89,7 +87,7 @@ def ascent_wind_profile(flight: Flight, layer_m: float = DEFAULT_LAYER_M) -> Win
     lon = np.array([f.lon for f in fixes])
     alt = np.array([f.alt_m for f in fixes])
     t = np.array([f.time.timestamp() for f in fixes])
-    az12, az21, dist = WGS84.inv(lon[:-1], lat[:-1], lon[1:], lat[1:])
+    az12, az21, dist = GEOD.inv(lon[:-1], lat[:-1], lon[1:], lat[1:])
     heading = np.radians(_mean_heading(np.asarray(az12), np.asarray(az21) + 180.0))
     east = np.asarray(dist) * np.sin(heading)
     north = np.asarray(dist) * np.cos(heading)

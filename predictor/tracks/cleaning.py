@@ -53,13 +53,11 @@ from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 
 import numpy as np
-from pyproj import Geod
 
 from predictor.environment import SEA_LEVEL_SOURCE, Terrain
+from predictor.prediction import GEOD
 from predictor.tracks.reading import Fix, Track
 from predictor.tracks.standard_atmosphere import pressure_temperature
-
-WGS84 = Geod(ellps="WGS84")
 
 EARLIEST_VALID_TIME = datetime(2000, 1, 1, tzinfo=UTC)
 MIN_ALT_M = -500.0
@@ -158,7 +156,7 @@ class Flight:
 
 
 def distance_m(a: Fix, b: Fix) -> float:
-    return float(WGS84.inv(a.lon, a.lat, b.lon, b.lat)[2])
+    return float(GEOD.inv(a.lon, a.lat, b.lon, b.lat)[2])
 
 
 def clean(track: Track, terrain: Terrain | None = None) -> Flight:

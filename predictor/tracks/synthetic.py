@@ -19,15 +19,13 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 
 import numpy as np
-from pyproj import Geod
 
 from predictor.descent import Payload, Term
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError
-from predictor.prediction import predict
+from predictor.prediction import GEOD, predict
 from predictor.tracks.reading import Fix, Track
 
-WGS84 = Geod(ellps="WGS84")
 ASCENT_STEP_S = 2.0
 VERTICAL_NOISE_FACTOR = 1.5
 """GNSS altitude is about 1.5 times noisier than horizontal position."""
@@ -135,7 +133,7 @@ def _ascend(
     for k in range(n):
         u, v = _wind_at(cube, t[k] + 0.5 * ASCENT_STEP_S, lats[k], lons[k], 0.5 * (alt[k] + alt[k + 1]))
         dt = t[k + 1] - t[k]
-        lo, la, _ = WGS84.fwd(lons[k], lats[k], math.degrees(math.atan2(u, v)), math.hypot(u, v) * dt)
+        lo, la, _ = GEOD.fwd(lons[k], lats[k], math.degrees(math.atan2(u, v)), math.hypot(u, v) * dt)
         lats[k + 1] = la
         lons[k + 1] = _continuous(lons[k], np.array([lo]))[0]
     return TruePath(t=t, lat=lats, lon=lons, alt_m=alt)
@@ -150,7 +148,7 @@ def _sample(
     alt = np.interp(times, truth.t, truth.alt_m)
     east, north = rng.normal(0.0, noise_m, (2, len(times))) if noise_m else np.zeros((2, len(times)))
     up = rng.normal(0.0, VERTICAL_NOISE_FACTOR * noise_m, len(times)) if noise_m else np.zeros(len(times))
-    noisy_lon, noisy_lat, _ = WGS84.fwd(lon, lat, np.degrees(np.arctan2(east, north)), np.hypot(east, north))
+    noisy_lon, noisy_lat, _ = GEOD.fwd(lon, lat, np.degrees(np.arctan2(east, north)), np.hypot(east, north))
     speed = _ground_speed(truth, times)
     fixes = []
     for i, when in enumerate(times):
@@ -171,7 +169,7 @@ def _sample(
 
 def _ground_speed(truth: TruePath, times: np.ndarray) -> np.ndarray:
     """The receiver's ground speed: the true path's speed in the segment around each time (0 outside it)."""
-    _, _, dist = WGS84.inv(truth.lon[:-1], truth.lat[:-1], truth.lon[1:], truth.lat[1:])
+    _, _, dist = GEOD.inv(truth.lon[:-1], truth.lat[:-1], truth.lon[1:], truth.lat[1:])
     seg_speed = np.asarray(dist) / np.diff(truth.t)
     k = np.searchsorted(truth.t, times, side="right") - 1
     inside = (k >= 0) & (k < len(seg_speed))

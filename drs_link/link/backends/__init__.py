@@ -90,10 +90,6 @@ class AuthorityStatus:
         return datetime.fromtimestamp(self.lease_end_s, UTC) if self.holder is not None else None
 
     @property
-    def pi_time(self) -> datetime:
-        return datetime.fromtimestamp(self.pi_time_s, UTC)
-
-    @property
     def seconds_left(self) -> int:
         return max(self.lease_end_s - self.pi_time_s, 0) if self.holder is not None else 0
 
