@@ -9,7 +9,21 @@ at the model's rate prior's ±1σ of λ (its descent-time interval); ``vertical_
 law on flights it never saw, on the vertical record alone (``drs calibrate vertical``).
 """
 
+from typing import TYPE_CHECKING
+
 from predictor.lazy_door import lazy_door
+
+if TYPE_CHECKING:
+    from .live_bench import bench as bench
+    from .live_evaluation import live_settings as live_settings
+    from .model_file import CalibratedModel as CalibratedModel
+    from .model_file import flown_model as flown_model
+    from .model_file import load_model as load_model
+    from .model_file import save_model as save_model
+    from .prior_spread import descent_spread as descent_spread
+    from .run import run_bench as run_bench
+    from .run import run_calibrate as run_calibrate
+    from .run import run_vertical as run_vertical
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
