@@ -59,6 +59,31 @@ def test_code_outside_a_room_enters_it_only_by_its_door() -> None:
     assert side_doors == []
 
 
+def test_a_module_taken_from_behind_a_door_is_one_the_door_lists() -> None:
+    """``from drs_link.iridium import lifecycle`` passes the door's text but takes a module behind it whole:
+    a side door, unless the door lists the module (mapped to itself) as something it hands out."""
+    rooms = _rooms()
+    side_doors = []
+    for package in PACKAGES:
+        for path in (ROOT / package).rglob("*.py"):
+            importer = _module_name(path)
+            for node in ast.walk(ast.parse(path.read_text())):
+                if not (isinstance(node, ast.ImportFrom) and node.level == 0 and node.module in rooms):
+                    continue
+                room = node.module
+                if importer == room or importer.startswith(room + "."):
+                    continue
+                folder = ROOT / room.replace(".", "/")
+                door = (folder / "__init__.py").read_text()
+                listed = _door_map(ast.parse(door)) if "lazy_door(" in door else {}
+                for alias in node.names:
+                    if (folder / f"{alias.name}.py").exists() and listed.get(alias.name) != alias.name:
+                        side_doors.append(
+                            f"{path.relative_to(ROOT)}:{node.lineno} takes module {room}.{alias.name}"
+                        )
+    assert side_doors == []
+
+
 @pytest.mark.parametrize("room", _rooms())
 def test_every_room_says_what_it_holds(room: str) -> None:
     door = ROOT / room.replace(".", "/") / "__init__.py"
@@ -155,11 +180,12 @@ def _type_checking_map(tree: ast.Module) -> dict[str, str]:
     for node in tree.body:
         if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
             for statement in node.body:
-                if not (isinstance(statement, ast.ImportFrom) and statement.level == 1 and statement.module):
+                if not (isinstance(statement, ast.ImportFrom) and statement.level == 1):
                     continue  # an annotation of the door's own code, not a name it opens
                 for alias in statement.names:
                     assert alias.asname in (None, alias.name), f"{alias.name} renamed to {alias.asname}"
-                    found[alias.name] = statement.module
+                    # ``from . import gpx`` is a module the door hands out whole, mapped to itself
+                    found[alias.name] = statement.module or alias.name
     return found
 
 

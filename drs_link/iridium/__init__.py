@@ -8,6 +8,9 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
+    from . import commanded as commanded
+    from . import commands as commands
+    from . import lifecycle as lifecycle
     from .commanded import CommandedSettings as CommandedSettings
     from .commanded import commanded_settings as commanded_settings
     from .commands import CATALOGUE as CATALOGUE
@@ -57,6 +60,9 @@ if TYPE_CHECKING:
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
+        "commanded": "commanded",
+        "commands": "commands",
+        "lifecycle": "lifecycle",
         "CATALOGUE": "commands",
         "Command": "lifecycle",
         "CommandLifecycle": "lifecycle",

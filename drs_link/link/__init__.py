@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
+    from . import remote as remote
     from .nmea import GgaSentence as GgaSentence
     from .nmea import GnssStatus as GnssStatus
     from .nmea import find_sentence as find_sentence
@@ -32,6 +33,7 @@ if TYPE_CHECKING:
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
+        "remote": "remote",
         "CapsuleLink": "ssh",
         "GgaSentence": "nmea",
         "GnssStatus": "nmea",

@@ -10,6 +10,8 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
+    from . import capsule_bench as capsule_bench
+    from . import mo_bench as mo_bench
     from .capsule_pi import CapsuleSimulator as CapsuleSimulator
     from .capsule_pi import Faults as Faults
     from .capsule_pi import SimClock as SimClock
@@ -24,6 +26,8 @@ if TYPE_CHECKING:
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
+        "capsule_bench": "capsule_bench",
+        "mo_bench": "mo_bench",
         "CapsuleSimulator": "capsule_pi",
         "Faults": "capsule_pi",
         "Firmware": "firmware",

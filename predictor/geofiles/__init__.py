@@ -10,6 +10,9 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
+    from . import geojson as geojson
+    from . import gpx as gpx
+    from . import kml as kml
     from .geometry import line_parts as line_parts
     from .geometry import polygon_parts as polygon_parts
     from .geometry import position as position
@@ -23,6 +26,9 @@ DEMO_LABEL = "DEMO WEATHER, NOT A FORECAST"
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
+        "geojson": "geojson",
+        "gpx": "gpx",
+        "kml": "kml",
         "EXPORT_MODE": "output",
         "is_stdout": "output",
         "line_parts": "geometry",
