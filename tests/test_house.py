@@ -206,3 +206,17 @@ def test_no_door_exports_a_private_name() -> None:
         if name.startswith("_")
     ]
     assert private == []
+
+
+def test_a_module_a_door_lists_is_handed_out_whole() -> None:
+    import importlib
+
+    listed = [
+        (_module_name(door.parent / "__init__.py"), name)
+        for door in _lazy_doors()
+        for name, module in _door_map(ast.parse(door.read_text())).items()
+        if name == module
+    ]
+    assert listed, "no door lists a module: this test would pass on nothing"
+    for room, name in listed:
+        assert getattr(importlib.import_module(room), name) is importlib.import_module(f"{room}.{name}")
