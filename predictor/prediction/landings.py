@@ -232,6 +232,8 @@ def _region(cube: WeatherCube) -> str:
 def coverage_error(
     cube: WeatherCube, code: int, phase: str, t: float, lat: float, lon: float, z: float
 ) -> PredictorError:
+    """The one wording of a flight that left the weather or terrain, shared with Tawhiri's ascent so both
+    stages tell an operator alike what to load."""
     where = f"{lat:.4f}, {float(wrap_lon(lon)):.4f} at {z:.0f} m, {iso_z(_from_epoch(t))}"
     if code == STATUS_OUTSIDE_REGION and phase == "release point":
         return OutOfCoverageError(
