@@ -17,13 +17,18 @@ def lazy_door(
     package: str, exports: Mapping[str, str]
 ) -> tuple[Callable[[str], Any], Callable[[], list[str]], list[str]]:
     """``__getattr__``, ``__dir__`` and ``__all__`` for ``package``, whose ``exports`` map each public
-    name to the module (relative to the package) that defines it."""
+    name to the module (relative to the package) that defines it.
+
+    A name mapped to itself is a module the door hands out whole (``"lifecycle": "lifecycle"``): a
+    module whose functions share names with another's (each bench's ``run_bench``) is opened as one.
+    """
 
     def __getattr__(name: str) -> Any:
         module = exports.get(name)
         if module is None:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
-        return getattr(importlib.import_module(f"{package}.{module}"), name)
+        opened = importlib.import_module(f"{package}.{module}")
+        return opened if module == name else getattr(opened, name)
 
     def __dir__() -> list[str]:
         return sorted({*vars(importlib.import_module(package)), *exports})

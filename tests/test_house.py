@@ -59,6 +59,31 @@ def test_code_outside_a_room_enters_it_only_by_its_door() -> None:
     assert side_doors == []
 
 
+def test_a_module_taken_from_behind_a_door_is_one_the_door_lists() -> None:
+    """``from drs_link.iridium import lifecycle`` passes the door's text but takes a module behind it whole:
+    a side door, unless the door lists the module (mapped to itself) as something it hands out."""
+    rooms = _rooms()
+    side_doors = []
+    for package in PACKAGES:
+        for path in (ROOT / package).rglob("*.py"):
+            importer = _module_name(path)
+            for node in ast.walk(ast.parse(path.read_text())):
+                if not (isinstance(node, ast.ImportFrom) and node.level == 0 and node.module in rooms):
+                    continue
+                room = node.module
+                if importer == room or importer.startswith(room + "."):
+                    continue
+                folder = ROOT / room.replace(".", "/")
+                door = (folder / "__init__.py").read_text()
+                listed = _door_map(ast.parse(door)) if "lazy_door(" in door else {}
+                for alias in node.names:
+                    if (folder / f"{alias.name}.py").exists() and listed.get(alias.name) != alias.name:
+                        side_doors.append(
+                            f"{path.relative_to(ROOT)}:{node.lineno} takes module {room}.{alias.name}"
+                        )
+    assert side_doors == []
+
+
 @pytest.mark.parametrize("room", _rooms())
 def test_every_room_says_what_it_holds(room: str) -> None:
     door = ROOT / room.replace(".", "/") / "__init__.py"
@@ -123,3 +148,75 @@ def test_the_tests_live_in_the_room_they_pin() -> None:
         if folder.is_dir() and not folder.name.startswith("__") and f"{package}.{folder.name}" not in rooms
     ]
     assert strays == []
+
+
+def _lazy_doors() -> list[Path]:
+    return sorted(
+        path
+        for package in PACKAGES
+        for path in (ROOT / package).rglob("__init__.py")
+        if "lazy_door(" in path.read_text()
+    )
+
+
+def _door_map(tree: ast.Module) -> dict[str, str]:
+    """The names a lazy door opens, each with the module (relative to the door) that defines it."""
+    call = next(
+        node
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "lazy_door"
+    )
+    exports = call.args[1]
+    assert isinstance(exports, ast.Dict)
+    return {
+        ast.literal_eval(key): ast.literal_eval(value)
+        for key, value in zip(exports.keys, exports.values, strict=True)
+    }
+
+
+def _type_checking_map(tree: ast.Module) -> dict[str, str]:
+    """The names the door's ``if TYPE_CHECKING:`` block imports from its own modules, each with its module."""
+    found: dict[str, str] = {}
+    for node in tree.body:
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            for statement in node.body:
+                if not (isinstance(statement, ast.ImportFrom) and statement.level == 1):
+                    continue  # an annotation of the door's own code, not a name it opens
+                for alias in statement.names:
+                    assert alias.asname in (None, alias.name), f"{alias.name} renamed to {alias.asname}"
+                    # ``from . import gpx`` is a module the door hands out whole, mapped to itself
+                    found[alias.name] = statement.module or alias.name
+    return found
+
+
+@pytest.mark.parametrize("door", _lazy_doors(), ids=lambda door: str(door.relative_to(ROOT).parent))
+def test_a_lazy_doors_type_checking_imports_are_its_map(door: Path) -> None:
+    """A type checker and an editor read the ``TYPE_CHECKING`` imports; the program runs the lazy map. The
+    two must name the same things from the same modules, or a type would describe a name that is not there.
+    """
+    tree = ast.parse(door.read_text())
+    assert _type_checking_map(tree) == _door_map(tree)
+
+
+def test_no_door_exports_a_private_name() -> None:
+    private = [
+        f"{door.relative_to(ROOT)}: {name}"
+        for door in _lazy_doors()
+        for name in _door_map(ast.parse(door.read_text()))
+        if name.startswith("_")
+    ]
+    assert private == []
+
+
+def test_a_module_a_door_lists_is_handed_out_whole() -> None:
+    import importlib
+
+    listed = [
+        (_module_name(door.parent / "__init__.py"), name)
+        for door in _lazy_doors()
+        for name, module in _door_map(ast.parse(door.read_text())).items()
+        if name == module
+    ]
+    assert listed, "no door lists a module: this test would pass on nothing"
+    for room, name in listed:
+        assert getattr(importlib.import_module(room), name) is importlib.import_module(f"{room}.{name}")

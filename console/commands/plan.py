@@ -377,7 +377,7 @@ def run_live(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from predictor.calibration import flown_model, live_evaluation, live_settings, save_model
+    from predictor.calibration import evaluate_live, flown_model, live_settings, save_model, write_live_report
     from predictor.environment import Terrain, load_weather
 
     if not args.tracks:
@@ -392,7 +392,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     profile = args.payload if args.model is not None or args.payload is not None else "superbit-test"
     model = flown_model(args.model, profile, args.mass, args.cda)
     weather = load_weather(args.weather, cache_dir=args.cache_dir) if args.weather else None
-    result = live_evaluation.evaluate(
+    result = evaluate_live(
         args.tracks, model=model if args.model is not None else None, profile=model.payload, day=_day(args.date),
         weather=weather, terrain=Terrain.from_dir(args.dem) if args.dem else None,
     )  # fmt: skip
@@ -405,7 +405,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     command = (
         f"drs live evaluate <{len(args.tracks)} track files in {', '.join(names)}>{flown} --out {args.out}"
     )
-    md = live_evaluation.write_report(result, args.out, command)
+    md = write_live_report(result, args.out, command)
     if args.save_model:
         saved = save_model(live_settings(model, result, command), args.save_model)
         print(f"{saved}: the model with its live settings", file=sys.stderr)

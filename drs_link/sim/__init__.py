@@ -5,11 +5,29 @@ its microcontroller, ``rockblock`` the RockBLOCK gateway; ``capsule_bench`` and 
 the link and the receiver against them.
 """
 
+from typing import TYPE_CHECKING
+
 from predictor.lazy_door import lazy_door
+
+if TYPE_CHECKING:
+    from . import capsule_bench as capsule_bench
+    from . import mo_bench as mo_bench
+    from .capsule_pi import CapsuleSimulator as CapsuleSimulator
+    from .capsule_pi import Faults as Faults
+    from .capsule_pi import SimClock as SimClock
+    from .firmware import Firmware as Firmware
+    from .firmware import GnssSky as GnssSky
+    from .keys import write_ed25519 as write_ed25519
+    from .rockblock import SimulatedCapsule as SimulatedCapsule
+    from .rockblock import SimulatedRockblock as SimulatedRockblock
+    from .rockblock import generate_test_keys as generate_test_keys
+    from .rockblock import post_mo as post_mo
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
+        "capsule_bench": "capsule_bench",
+        "mo_bench": "mo_bench",
         "CapsuleSimulator": "capsule_pi",
         "Faults": "capsule_pi",
         "Firmware": "firmware",

@@ -9,7 +9,23 @@ at the model's rate prior's ±1σ of λ (its descent-time interval); ``vertical_
 law on flights it never saw, on the vertical record alone (``drs calibrate vertical``).
 """
 
+from typing import TYPE_CHECKING
+
 from predictor.lazy_door import lazy_door
+
+if TYPE_CHECKING:
+    from .live_bench import bench as bench
+    from .live_evaluation import evaluate_live as evaluate_live
+    from .live_evaluation import live_settings as live_settings
+    from .live_evaluation import write_live_report as write_live_report
+    from .model_file import CalibratedModel as CalibratedModel
+    from .model_file import flown_model as flown_model
+    from .model_file import load_model as load_model
+    from .model_file import save_model as save_model
+    from .prior_spread import descent_spread as descent_spread
+    from .run import run_bench as run_bench
+    from .run import run_calibrate as run_calibrate
+    from .run import run_vertical as run_vertical
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
@@ -20,9 +36,11 @@ __getattr__, __dir__, __all__ = lazy_door(
         "live_settings": "live_evaluation",
         "load_model": "model_file",
         "descent_spread": "prior_spread",
+        "evaluate_live": "live_evaluation",
         "run_bench": "run",
         "run_calibrate": "run",
         "run_vertical": "run",
         "save_model": "model_file",
+        "write_live_report": "live_evaluation",
     },
 )

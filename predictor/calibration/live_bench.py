@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from predictor.calibration.live_evaluation import evaluate, write_report
+from predictor.calibration.live_evaluation import evaluate_live, write_live_report
 from predictor.calibration.model_file import CalibratedModel
 from predictor.errors import PredictorError
 from predictor.tracks import Fix, clean, read_track, write_canonical_csv
@@ -49,7 +49,7 @@ def resampled(path: str | Path, cadence_s: float = 1.0) -> list[Fix]:
 
 
 def bench(paths: Sequence[str | Path], model: CalibratedModel | None) -> str:
-    """Re-sample every track to 1 Hz in a temporary directory, then time ``evaluate`` + ``write_report``.
+    """Re-sample every track to 1 Hz in a temporary directory, then time ``evaluate_live`` + ``write_live_report``.
 
     The report goes to the temporary directory too and is thrown away: its errors are those of
     straight lines drawn between 3-minute fixes (a touchdown moved to the first fix on the ground, a
@@ -63,8 +63,8 @@ def bench(paths: Sequence[str | Path], model: CalibratedModel | None) -> str:
             files.append(target)
         fixes = sum(sum(1 for _ in f.open(encoding="utf-8")) - 1 for f in files)
         started, cpu = time.perf_counter(), time.process_time()
-        result = evaluate(files, model=model)
-        write_report(result, tmp, f"drs live bench <{len(files)} tracks re-sampled to 1 Hz>")
+        result = evaluate_live(files, model=model)
+        write_live_report(result, tmp, f"drs live bench <{len(files)} tracks re-sampled to 1 Hz>")
         wall, used = time.perf_counter() - started, time.process_time() - cpu
     return (
         f"drs live evaluate on {len(files)} flights re-sampled to 1 Hz: {fixes} fixes in the files, "

@@ -419,7 +419,7 @@ def rate_law(survey: _Survey, leave_out: str | None = None) -> tuple[RatePrior |
     return prior, discrepancy
 
 
-def evaluate(
+def evaluate_live(
     paths: Sequence[str | Path],
     model: CalibratedModel | None = None,
     profile: Payload | None = None,
@@ -781,7 +781,7 @@ def _sigma_coverage(result: Evaluation, km: float, name: str) -> str:
     return f"{np.median([c.time_sigma_s[name] for c in cases]):.0f} s / {100 * inside:.0f} %"
 
 
-def write_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
+def write_live_report(result: Evaluation, out_dir: str | Path, command: str) -> Path:
     """docs/planning/live-reprediction.md and its PNG plot."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -370,7 +370,7 @@ def _flight(h: HeldOut, i: int) -> dict[str, float]:
     }
 
 
-def write_report(
+def write_calibration_report(
     path: Path, cal: Calibration, ellipse: EllipseFit | None, excluded: Sequence[Exclusion], title: str,
     command: str, data: dict[str, Any], preface: str = "",
 ) -> list[Path]:  # fmt: skip

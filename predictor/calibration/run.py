@@ -24,7 +24,7 @@ import numpy as np
 from predictor.calibration.effects import LIBRARY, library
 from predictor.calibration.ellipse_fit import MIN_FLIGHTS, EllipseFit, fit_ellipse
 from predictor.calibration.model_file import CalibratedModel, load_model, save_model
-from predictor.calibration.report import Exclusion, result_json, verdict, write_report
+from predictor.calibration.report import Exclusion, result_json, verdict, write_calibration_report
 from predictor.calibration.residuals import FlightCase, flight_case, run, score
 from predictor.calibration.selection import Calibration, calibrate
 from predictor.descent import Payload, payload_profile
@@ -117,7 +117,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
             args.json.parent.mkdir(parents=True, exist_ok=True)
         write_text(args.json, json.dumps(data, indent=2) + "\n", "JSON")
     if args.report:
-        write_report(
+        write_calibration_report(
             args.report,
             cal,
             ellipse,
@@ -250,7 +250,7 @@ def run_vertical(args: argparse.Namespace) -> int:
     parts += ["--json", str(args.json)] if args.json else []
     command = shlex.join(parts)
     if args.report:
-        vertical_check.write_report(args.report, checks, model, command)
+        vertical_check.write_vertical_report(args.report, checks, model, command)
     if args.json:
         write_text(
             args.json, json.dumps(vertical_check.to_json(checks, model, command), indent=2) + "\n", "JSON"

@@ -142,7 +142,9 @@ def to_json(checks: Sequence[FlightCheck], model: CalibratedModel, command: str)
     }
 
 
-def write_report(path: Path, checks: Sequence[FlightCheck], model: CalibratedModel, command: str) -> None:
+def write_vertical_report(
+    path: Path, checks: Sequence[FlightCheck], model: CalibratedModel, command: str
+) -> None:
     """The before/after of the vertical family on each flight, as Markdown."""
     lines = [
         f"# The vertical family on flights the model never saw: {', '.join(c.name for c in checks)}",

@@ -5,13 +5,30 @@ those files open correctly elsewhere (the antimeridian, ring direction, schema o
 for handhelds, ``-`` for stdout) live here so that no exporter can get one of them wrong alone.
 """
 
+from typing import TYPE_CHECKING
+
 from predictor.lazy_door import lazy_door
+
+if TYPE_CHECKING:
+    from . import geojson as geojson
+    from . import gpx as gpx
+    from . import kml as kml
+    from .geometry import line_parts as line_parts
+    from .geometry import polygon_parts as polygon_parts
+    from .geometry import position as position
+    from .output import EXPORT_MODE as EXPORT_MODE
+    from .output import is_stdout as is_stdout
+    from .output import piped as piped
+    from .output import write_text as write_text
 
 DEMO_LABEL = "DEMO WEATHER, NOT A FORECAST"
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
+        "geojson": "geojson",
+        "gpx": "gpx",
+        "kml": "kml",
         "EXPORT_MODE": "output",
         "is_stdout": "output",
         "line_parts": "geometry",

@@ -229,9 +229,11 @@ def _region(cube: WeatherCube) -> str:
     return f"lat {cube.lats[0]:g}…{cube.lats[-1]:g}, lon {cube.lons[0]:g}…{cube.lons[-1]:g} °E"
 
 
-def _coverage_error(
+def coverage_error(
     cube: WeatherCube, code: int, phase: str, t: float, lat: float, lon: float, z: float
 ) -> PredictorError:
+    """The one wording of a flight that left the weather or terrain, shared with Tawhiri's ascent so both
+    stages tell an operator alike what to load."""
     where = f"{lat:.4f}, {float(wrap_lon(lon)):.4f} at {z:.0f} m, {iso_z(_from_epoch(t))}"
     if code == STATUS_OUTSIDE_REGION and phase == "release point":
         return OutOfCoverageError(
@@ -281,7 +283,7 @@ def _integrate(
     if bad.size:
         lat, lon, z, t, k = paths.failed_at[int(bad[0])]
         phase = "release point" if k == 0 else "descent"
-        raise _coverage_error(cube, int(paths.status[bad[0]]), phase, t, lat, lon, z)
+        raise coverage_error(cube, int(paths.status[bad[0]]), phase, t, lat, lon, z)
     return paths
 
 
@@ -338,7 +340,7 @@ def _release_state(
         la, lo, np.array([alt_m]), tt, drift_minutes * 60.0, DRIFT_STEP_S, status,
     )  # fmt: skip
     if status[0] != STATUS_OK:
-        raise _coverage_error(cube, int(status[0]), "drift before release", tt[0], la[0], lo[0], alt_m)
+        raise coverage_error(cube, int(status[0]), "drift before release", tt[0], la[0], lo[0], alt_m)
     decision = Point(time=time.astimezone(UTC), lat=lat, lon=float(wrap_lon(lon)), alt_m=alt_m)
     return float(la[0]), float(lo[0]), float(tt[0]), decision
 

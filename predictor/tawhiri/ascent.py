@@ -26,7 +26,7 @@ from predictor.descent import (
 )
 from predictor.environment import WeatherCube
 from predictor.errors import PredictorError
-from predictor.prediction import Point, _coverage_error
+from predictor.prediction import Point, coverage_error
 
 ASCENT_STEP_S = 60.0
 
@@ -66,7 +66,7 @@ def wind_sampler(cube: WeatherCube, time_tolerance_s: float, stage: str) -> Wind
         code = sample_weather(w.t_s, w.lats, w.lons, w.columns, time_tolerance_s, t, la, lo, z, sample, hint,
                               no_memo, scratch)  # fmt: skip
         if code != STATUS_OK:
-            raise _coverage_error(cube, code, stage, t, la, lo, z)
+            raise coverage_error(cube, code, stage, t, la, lo, z)
         return float(sample[0]), float(sample[1])
 
     return wind

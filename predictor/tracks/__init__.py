@@ -6,7 +6,20 @@ turns a flight's own ascent into a ``WeatherCube``, ``standard_atmosphere`` fill
 was logged, and ``synthetic`` flies flights with a known truth for tests.
 """
 
+from typing import TYPE_CHECKING
+
 from predictor.lazy_door import lazy_door
+
+if TYPE_CHECKING:
+    from .ascent_winds import MIN_ASCENT_FIXES as MIN_ASCENT_FIXES
+    from .ascent_winds import ascent_weather_cube as ascent_weather_cube
+    from .cleaning import Flight as Flight
+    from .cleaning import clean as clean
+    from .reading import Fix as Fix
+    from .reading import TrackError as TrackError
+    from .reading import read_track as read_track
+    from .reading import write_canonical_csv as write_canonical_csv
+    from .standard_atmosphere import pressure_temperature as pressure_temperature
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

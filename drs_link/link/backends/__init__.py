@@ -26,6 +26,8 @@ from predictor.lazy_door import lazy_door
 if TYPE_CHECKING:
     from drs_link.link.ssh import CommandResult
 
+    from .registry import build_backend as build_backend
+
 SUPPORT_MODULES = frozenset({"authority", "pi_agent", "registry"})
 """The modules of this package that are not backends: the shared authority lock, the agent's Pi
 script and the registry. A module missing here and from the backends fails the registry's test."""

@@ -16,7 +16,7 @@ from predictor.calibration.report import (
     result_json,
     speed_finding,
     speed_ratio_by_altitude,
-    write_report,
+    write_calibration_report,
 )
 from predictor.calibration.residuals import FlightCase
 from predictor.calibration.selection import Calibration, calibrate
@@ -69,7 +69,7 @@ def test_the_markdown_report_states_its_verdict_and_links_real_plots(
     ellipse = _ellipse(calibrated)
     data = result_json(calibrated, ellipse, [], PAYLOAD.to_dict(), "synthetic")
     out = tmp_path / "cal" / "report.md"
-    pngs = write_report(out, calibrated, ellipse, [], "Synthetic", "drs calibrate ...", data)
+    pngs = write_calibration_report(out, calibrated, ellipse, [], "Synthetic", "drs calibrate ...", data)
     text = out.read_text(encoding="utf-8")
     assert text.startswith("# Synthetic\n\n## What the data showed\n\nVertical: nothing beat the model")
     assert "No library effect beat the plain model" in text
@@ -95,7 +95,9 @@ def test_a_preface_stands_under_the_title_and_survives_regeneration(
     out = tmp_path / "report.md"
     preface = "## Summary in plain words\n\nThe capsule fell slower near the ground.\n"
     for _ in range(2):
-        write_report(out, calibrated, ellipse, [], "Synthetic", "drs calibrate ...", data, preface)
+        write_calibration_report(
+            out, calibrated, ellipse, [], "Synthetic", "drs calibrate ...", data, preface
+        )
     text = out.read_text(encoding="utf-8")
     assert text.startswith(
         "# Synthetic\n\n## Summary in plain words\n\nThe capsule fell slower near the ground.\n\n"
@@ -129,7 +131,7 @@ def test_the_landing_change_is_paired_flight_by_flight_and_split_by_what_the_des
     }
     assert change["median_of_changes_km"]["high"] < 0.0
     data = result_json(cal, None, [], PAYLOAD.to_dict(), "synthetic")
-    write_report(tmp_path / "r.md", cal, None, [], "Synthetic", "drs calibrate ...", data)
+    write_calibration_report(tmp_path / "r.md", cal, None, [], "Synthetic", "drs calibrate ...", data)
     text = (tmp_path / "r.md").read_text(encoding="utf-8")
     assert "## Landing error: before and after, flight by flight (held out)" in text
     assert "Flights whose descent time came closer to the measured one: 4 of 4 land closer" in text

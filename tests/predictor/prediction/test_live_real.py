@@ -19,7 +19,7 @@ from predictor.calibration.live_evaluation import (
     TEXTBOOK_RATE,
     Evaluation,
     _usable,
-    evaluate,
+    evaluate_live,
     fit_live_sigma,
     held_out,
     held_out_laws,
@@ -28,7 +28,7 @@ from predictor.calibration.live_evaluation import (
     ratio_interval,
     shipped_correction,
     wind_helps,
-    write_report,
+    write_live_report,
 )
 from predictor.calibration.model_file import CalibratedModel, load_model, save_model
 from predictor.descent.model import DragDensityExponent
@@ -57,7 +57,7 @@ COMMAND = (
 def result(shared_data: Path) -> Evaluation:
     files = sorted((shared_data / "tracks" / "pyballoon_superbit").glob("*-*.csv"))
     assert len(files) == 30
-    return evaluate(files, model=load_model(MODEL))
+    return evaluate_live(files, model=load_model(MODEL))
 
 
 def exponent(terms: tuple) -> float:
@@ -100,7 +100,7 @@ def test_the_live_choices_hardly_depend_on_the_other_flights_laws(
     committed = load_model(MODEL)
     unseen = dataclasses.replace(committed, provenance={"created_utc": committed.provenance["created_utc"]})
     files = sorted((shared_data / "tracks" / "pyballoon_superbit").glob("*-*.csv"))
-    one_law = evaluate(files, model=unseen)
+    one_law = evaluate_live(files, model=unseen)
     assert not one_law.held_out_laws
     pairs = [(km, f) for km in result.rate_choice for f in result.rate_choice[km]]
     same = sum(
@@ -237,7 +237,7 @@ def test_live_settings_are_saved_only_into_a_model(
 
 
 def test_the_committed_report_is_what_the_evaluation_writes(result: Evaluation, tmp_path: Path) -> None:
-    written = write_report(result, tmp_path, COMMAND)
+    written = write_live_report(result, tmp_path, COMMAND)
     assert written.read_text(encoding="utf-8") == REPORT.read_text(encoding="utf-8")
     assert (tmp_path / "live-reprediction.png").stat().st_size > 10_000
 
@@ -351,7 +351,7 @@ def test_a_model_without_terms_is_not_said_to_be_uncalibrated_on_these_flights(
     shared_data: Path, tmp_path: Path
 ) -> None:
     folder = shared_data / "tracks" / "pyballoon_superbit"
-    three = evaluate([folder / n for n in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")])
-    text = write_report(three, tmp_path, "drs live evaluate <3 tracks>").read_text(encoding="utf-8")
+    three = evaluate_live([folder / n for n in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")])
+    text = write_live_report(three, tmp_path, "drs live evaluate <3 tracks>").read_text(encoding="utf-8")
     assert "The model has no calibrated terms: its law is the payload's drag law" in text
     assert "not calibrated on these flights" not in text
