@@ -266,7 +266,7 @@ def _mt_resolve(args: argparse.Namespace) -> int:
 
 
 def _mo_parse(args: argparse.Namespace) -> int:
-    from drs_link.iridium import parse_hex
+    from drs_link.iridium import parse_hex  # not drs_link.ops: one hex string, no store, 5x lighter
 
     result = parse_hex(args.hex)
     if args.json:
@@ -359,7 +359,7 @@ def _stop_signals() -> Iterator[Callable[[], str]]:
 
 
 def _mo_import(args: argparse.Namespace) -> int:
-    from drs_link.iridium import ReportStore, import_files
+    from drs_link.iridium import ReportStore, import_files  # not Operations: as `mo serve`
 
     store = Store.open(load_config(args.config).store_path)
     outcomes = import_files(args.files, ReportStore(store))
