@@ -18,7 +18,6 @@ from typing import Any
 from drs_link.config import load_config
 from drs_link.errors import LinkError
 from drs_link.feeds import BalloonFeed, BalloonFix, FeedStatus, Rejection
-from drs_link.store import iso_utc
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -39,6 +38,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def cmd_watch(args: argparse.Namespace) -> int:
+    from drs_link.ops import (
+        iso_utc,  # here, not at the top: drs_link.ops's values load pyproj, not for --help
+    )
+
     config = load_config(args.config)
     outcomes: queue.Queue[BalloonFix | Rejection] = queue.Queue()
     feed = BalloonFeed(config.balloon_feed, clock=lambda: datetime.now(UTC), listener=outcomes.put)

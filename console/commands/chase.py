@@ -37,7 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def cmd_chase(args: argparse.Namespace) -> int:
     from drs_link.feeds import CHASE_PERIOD_S, ChaseSender, chase_points
-    from drs_link.store import Store
+    from drs_link.store import Store  # not Operations: it reads positions, no zone/checklist files or links
 
     config = load_config(args.config)
     target = args.udp or config.chase.udp

@@ -72,7 +72,7 @@ def _require_terminal() -> None:
 
 
 def _team(config: Config) -> tuple[float, float] | None:
-    from drs_link.iridium import parse_position
+    from drs_link.ops import parse_position
 
     text = config.console.team_position.strip()
     if not text:

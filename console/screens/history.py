@@ -17,7 +17,7 @@ from textual.widgets import DataTable, Input, Static
 
 from console.context import ConsoleContext
 from console.screens.base import ConsoleScreen
-from drs_link.store import AuditRecord, iso_utc
+from drs_link.ops import AuditRecord, iso_utc
 
 HISTORY_ROWS = 500
 COLUMNS = ("Time (UTC)", "Operator", "Capsule", "Action", "Result")

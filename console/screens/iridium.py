@@ -19,8 +19,7 @@ from textual.widgets import DataTable, Label, Static
 from console.context import ConsoleContext
 from console.messages import ViewRead, ViewWanted
 from console.screens.commanding import CommandingScreen, command_bindings
-from drs_link.iridium import Command
-from drs_link.ops import IridiumHealthView
+from drs_link.ops import Command, IridiumHealthView
 
 COMMAND_COLUMNS = ("#", "Text", "State", "Updated", "Detail")
 LIFECYCLE_WORDS = {

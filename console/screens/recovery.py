@@ -28,24 +28,22 @@ from console.messages import ViewRead, ViewWanted
 from console.screens.commanding import CommandingScreen, command_bindings
 from console.screens.iridium import IridiumScreen
 from console.widgets import LandingMap, MapLayers, set_content
-from drs_link.iridium import (
-    CommandedSettings,
-    LandingEstimate,
-    TrackPoint,
-    distance_bearing,
-    phone_summary,
-    write_gpx,
-    write_kml,
-)
 from drs_link.ops import (
+    CommandedSettings,
     Descent,
     DropView,
+    LandingEstimate,
     LiveView,
     PredictionSample,
     RecoveryView,
     ReportSample,
+    TrackPoint,
     after_drop,
+    distance_bearing,
     format_age,
+    phone_summary,
+    write_gpx,
+    write_kml,
 )
 from predictor.errors import PredictorError
 

@@ -3,6 +3,8 @@
 Why: the console and the ``drs`` commands import ``drs_link.ops`` and nothing below it (#22, the wall), yet
 an operator composes an MT from the catalogue, reads a command's state and a report's time. These are
 values, not actions: every action on them (send, plan, resolve, store) is a method of ``Operations``.
+The recovery helpers (a track from the reports, its landing, the phone line, the GPX/KML files, the
+Iridium health) are pure functions of reports a face already holds, so they are handed on here too.
 """
 
 from drs_link.iridium import (
@@ -11,18 +13,31 @@ from drs_link.iridium import (
     LISTED,
     PARACHUTE,
     Command,
+    CommandedSettings,
     Hazard,
     LandedEvidence,
+    LandingEstimate,
     MtCommand,
     MtComposer,
     MtMessage,
     ParachutePlan,
     StoredReport,
+    TrackPoint,
+    assess,
     by_name,
+    detect_landing,
+    distance_bearing,
+    export_track,
     parse_hhmm,
+    parse_position,
+    phone_summary,
+    read_gpsd_position,
+    track_from_reports,
+    write_gpx,
+    write_kml,
 )
 from drs_link.iridium import lifecycle as lc
-from drs_link.store import iso_utc
+from drs_link.store import AuditRecord, iso_utc
 
 QUEUED = lc.QUEUED
 """An MT the gateway accepted: what ``drs mt send`` exits 0 on."""
@@ -36,15 +51,29 @@ __all__ = [
     "PARACHUTE",
     "QUEUED",
     "RETRY_WARNING",
+    "AuditRecord",
     "Command",
+    "CommandedSettings",
     "Hazard",
     "LandedEvidence",
+    "LandingEstimate",
     "MtCommand",
     "MtComposer",
     "MtMessage",
     "ParachutePlan",
     "StoredReport",
+    "TrackPoint",
+    "assess",
     "by_name",
+    "detect_landing",
+    "distance_bearing",
+    "export_track",
     "iso_utc",
     "parse_hhmm",
+    "parse_position",
+    "phone_summary",
+    "read_gpsd_position",
+    "track_from_reports",
+    "write_gpx",
+    "write_kml",
 ]
