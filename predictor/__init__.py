@@ -10,29 +10,31 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from .descent.model import EFFECTS as EFFECTS
-    from .descent.model import Model as Model
-    from .descent.model import Term as Term
-    from .descent.payload import PROFILES as PROFILES
-    from .descent.payload import Payload as Payload
-    from .descent.payload import payload_profile as payload_profile
+    from .descent.model import EFFECTS as EFFECTS, Model as Model, Term as Term
+    from .descent.payload import PROFILES as PROFILES, Payload as Payload, payload_profile as payload_profile
     from .environment.cube import WeatherCube as WeatherCube
     from .environment.terrain import Terrain as Terrain
     from .environment.weather import load_weather as load_weather
-    from .errors import OutOfCoverageError as OutOfCoverageError
-    from .errors import PredictorError as PredictorError
-    from .errors import TerrainError as TerrainError
-    from .errors import WeatherError as WeatherError
-    from .prediction.landings import EnsemblePrediction as EnsemblePrediction
-    from .prediction.landings import LandingSet as LandingSet
-    from .prediction.landings import Prediction as Prediction
-    from .prediction.landings import predict as predict
-    from .prediction.landings import predict_ensemble as predict_ensemble
-    from .prediction.landings import predict_landings as predict_landings
-    from .prediction.uncertainty import HINDSIGHT as HINDSIGHT
-    from .prediction.uncertainty import LAUNCH as LAUNCH
-    from .prediction.uncertainty import Ellipse as Ellipse
-    from .prediction.uncertainty import ErrorModel as ErrorModel
+    from .errors import (
+        OutOfCoverageError as OutOfCoverageError,
+        PredictorError as PredictorError,
+        TerrainError as TerrainError,
+        WeatherError as WeatherError,
+    )
+    from .prediction.landings import (
+        EnsemblePrediction as EnsemblePrediction,
+        LandingSet as LandingSet,
+        Prediction as Prediction,
+        predict as predict,
+        predict_ensemble as predict_ensemble,
+        predict_landings as predict_landings,
+    )
+    from .prediction.uncertainty import (
+        HINDSIGHT as HINDSIGHT,
+        LAUNCH as LAUNCH,
+        Ellipse as Ellipse,
+        ErrorModel as ErrorModel,
+    )
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

@@ -288,8 +288,7 @@ def _mo_parse(args: argparse.Namespace) -> int:
 
 
 def _mo_serve(args: argparse.Namespace) -> int:
-    from drs_link.iridium import MoHttpServer, MoReceiver, ReportStore
-    from drs_link.iridium import lifecycle as lc
+    from drs_link.iridium import MoHttpServer, MoReceiver, ReportStore, lifecycle as lc
 
     config = load_config(
         args.config

@@ -5,17 +5,13 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from .banner import ModeBanner as ModeBanner
-    from .banner import OverrideBanner as OverrideBanner
+    from .banner import ModeBanner as ModeBanner, OverrideBanner as OverrideBanner
     from .capsule_detail import CapsuleDetail as CapsuleDetail
     from .cells import balloon_lines as balloon_lines
     from .fleet_table import FleetTable as FleetTable
-    from .landing_map import LandingMap as LandingMap
-    from .landing_map import MapLayers as MapLayers
-    from .quiet import fill_rows as fill_rows
-    from .quiet import set_content as set_content
-    from .release_timeline import default_cursor as default_cursor
-    from .release_timeline import render_timeline as render_timeline
+    from .landing_map import LandingMap as LandingMap, MapLayers as MapLayers
+    from .quiet import fill_rows as fill_rows, set_content as set_content
+    from .release_timeline import default_cursor as default_cursor, render_timeline as render_timeline
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

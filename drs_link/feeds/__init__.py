@@ -9,18 +9,22 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from .balloon_feed import BalloonFeed as BalloonFeed
-    from .balloon_feed import BalloonFix as BalloonFix
-    from .balloon_feed import FeedStatus as FeedStatus
-    from .balloon_feed import Rejection as Rejection
-    from .balloon_feed import format_ozimux as format_ozimux
-    from .chase import CHASE_PERIOD_S as CHASE_PERIOD_S
-    from .chase import ChaseFeed as ChaseFeed
-    from .chase import ChasePoint as ChasePoint
-    from .chase import ChaseSender as ChaseSender
-    from .chase import ChaseStore as ChaseStore
-    from .chase import chase_kml_path as chase_kml_path
-    from .chase import chase_points as chase_points
+    from .balloon_feed import (
+        BalloonFeed as BalloonFeed,
+        BalloonFix as BalloonFix,
+        FeedStatus as FeedStatus,
+        Rejection as Rejection,
+        format_ozimux as format_ozimux,
+    )
+    from .chase import (
+        CHASE_PERIOD_S as CHASE_PERIOD_S,
+        ChaseFeed as ChaseFeed,
+        ChasePoint as ChasePoint,
+        ChaseSender as ChaseSender,
+        ChaseStore as ChaseStore,
+        chase_kml_path as chase_kml_path,
+        chase_points as chase_points,
+    )
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

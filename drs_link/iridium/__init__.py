@@ -8,54 +8,50 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from . import commanded as commanded
-    from . import commands as commands
-    from . import lifecycle as lifecycle
-    from .commanded import CommandedSettings as CommandedSettings
-    from .commanded import commanded_settings as commanded_settings
-    from .commands import CATALOGUE as CATALOGUE
-    from .commands import LISTED as LISTED
-    from .commands import PARACHUTE as PARACHUTE
-    from .commands import Hazard as Hazard
-    from .commands import MtCommand as MtCommand
-    from .commands import MtEffect as MtEffect
-    from .commands import apply_mt as apply_mt
-    from .commands import by_name as by_name
-    from .commands import is_command as is_command
-    from .commands import parse_hhmm as parse_hhmm
-    from .commands import read_text as read_text
-    from .firmware import GnssFix as GnssFix
-    from .firmware import format_mo as format_mo
-    from .gateway import FLUSH_WARNING as FLUSH_WARNING
-    from .gateway import RockblockGateway as RockblockGateway
+    from . import commanded as commanded, commands as commands, lifecycle as lifecycle
+    from .commanded import CommandedSettings as CommandedSettings, commanded_settings as commanded_settings
+    from .commands import (
+        CATALOGUE as CATALOGUE,
+        LISTED as LISTED,
+        PARACHUTE as PARACHUTE,
+        Hazard as Hazard,
+        MtCommand as MtCommand,
+        MtEffect as MtEffect,
+        apply_mt as apply_mt,
+        by_name as by_name,
+        is_command as is_command,
+        parse_hhmm as parse_hhmm,
+        read_text as read_text,
+    )
+    from .firmware import GnssFix as GnssFix, format_mo as format_mo
+    from .gateway import FLUSH_WARNING as FLUSH_WARNING, RockblockGateway as RockblockGateway
     from .health import assess as assess
     from .importer import import_files as import_files
     from .interval import interval_track as interval_track
-    from .landed import LandedEvidence as LandedEvidence
-    from .landed import LandedVerdicts as LandedVerdicts
-    from .landed import landed_evidence as landed_evidence
-    from .lifecycle import Command as Command
-    from .lifecycle import CommandLifecycle as CommandLifecycle
+    from .landed import (
+        LandedEvidence as LandedEvidence,
+        LandedVerdicts as LandedVerdicts,
+        landed_evidence as landed_evidence,
+    )
+    from .lifecycle import Command as Command, CommandLifecycle as CommandLifecycle
     from .mo import parse_hex as parse_hex
-    from .mt import MtComposer as MtComposer
-    from .mt import MtMessage as MtMessage
-    from .parachute import ParachutePlan as ParachutePlan
-    from .parachute import plan_parachute as plan_parachute
-    from .recovery import LandingEstimate as LandingEstimate
-    from .recovery import TrackPoint as TrackPoint
-    from .recovery import detect_landing as detect_landing
-    from .recovery import distance_bearing as distance_bearing
-    from .recovery import parse_position as parse_position
-    from .recovery import phone_summary as phone_summary
-    from .recovery import read_gpsd_position as read_gpsd_position
-    from .recovery import track_from_reports as track_from_reports
-    from .recovery import write_gpx as write_gpx
-    from .recovery import write_kml as write_kml
-    from .reports import ReportStore as ReportStore
-    from .reports import StoredReport as StoredReport
+    from .mt import MtComposer as MtComposer, MtMessage as MtMessage
+    from .parachute import ParachutePlan as ParachutePlan, plan_parachute as plan_parachute
+    from .recovery import (
+        LandingEstimate as LandingEstimate,
+        TrackPoint as TrackPoint,
+        detect_landing as detect_landing,
+        distance_bearing as distance_bearing,
+        parse_position as parse_position,
+        phone_summary as phone_summary,
+        read_gpsd_position as read_gpsd_position,
+        track_from_reports as track_from_reports,
+        write_gpx as write_gpx,
+        write_kml as write_kml,
+    )
+    from .reports import ReportStore as ReportStore, StoredReport as StoredReport
     from .track_export import export_track as export_track
-    from .webhook import MoHttpServer as MoHttpServer
-    from .webhook import MoReceiver as MoReceiver
+    from .webhook import MoHttpServer as MoHttpServer, MoReceiver as MoReceiver
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

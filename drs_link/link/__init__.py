@@ -11,24 +11,26 @@ from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
     from . import remote as remote
-    from .nmea import GgaSentence as GgaSentence
-    from .nmea import GnssStatus as GnssStatus
-    from .nmea import find_sentence as find_sentence
-    from .nmea import format_gga as format_gga
-    from .nmea import format_rmc as format_rmc
-    from .nmea import nearest_datetime as nearest_datetime
-    from .nmea import parse_sentence as parse_sentence
-    from .nmea import summarise as summarise
-    from .ssh import CapsuleLink as CapsuleLink
-    from .ssh import HostKeyError as HostKeyError
-    from .ssh import enrol_host_key as enrol_host_key
-    from .ssh import fingerprint as fingerprint
-    from .ssh import known_hosts_name as known_hosts_name
-    from .ssh import scan_host_key as scan_host_key
+    from .nmea import (
+        GgaSentence as GgaSentence,
+        GnssStatus as GnssStatus,
+        find_sentence as find_sentence,
+        format_gga as format_gga,
+        format_rmc as format_rmc,
+        nearest_datetime as nearest_datetime,
+        parse_sentence as parse_sentence,
+        summarise as summarise,
+    )
+    from .ssh import (
+        CapsuleLink as CapsuleLink,
+        HostKeyError as HostKeyError,
+        enrol_host_key as enrol_host_key,
+        fingerprint as fingerprint,
+        known_hosts_name as known_hosts_name,
+        scan_host_key as scan_host_key,
+    )
     from .storage import read_storage as read_storage
-    from .sync import Syncer as Syncer
-    from .sync import SyncReport as SyncReport
-    from .sync import SyncStatus as SyncStatus
+    from .sync import Syncer as Syncer, SyncReport as SyncReport, SyncStatus as SyncStatus
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

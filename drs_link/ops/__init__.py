@@ -16,106 +16,145 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from .approval import ACTIONS as ACTIONS
-    from .approval import Approval as Approval
-    from .approval import ApprovalBook as ApprovalBook
-    from .approval import Login as Login
-    from .approval import approved as approved
-    from .approval import current_login as current_login
-    from .approval import pending_text as pending_text
+    from .approval import (
+        ACTIONS as ACTIONS,
+        Approval as Approval,
+        ApprovalBook as ApprovalBook,
+        Login as Login,
+        approved as approved,
+        current_login as current_login,
+        pending_text as pending_text,
+    )
     from .arm_window import ArmWindow as ArmWindow
-    from .arming import SECOND_LOGIN_HOWTO as SECOND_LOGIN_HOWTO
-    from .arming import ArmingController as ArmingController
-    from .arming import ArmState as ArmState
-    from .arming import ArmStatus as ArmStatus
-    from .authorize import authorize_mt as authorize_mt
-    from .authorize import carries_parachute as carries_parachute
-    from .authorize import hazard_of as hazard_of
-    from .capsule import ReleaseState as ReleaseState
-    from .capsule import ReleaseStateMachine as ReleaseStateMachine
-    from .capsule import record_as_dict as record_as_dict
-    from .capsule import take_over_outcome as take_over_outcome
-    from .checklist import PROCEDURE_DIR as PROCEDURE_DIR
-    from .checklist import Checklist as Checklist
-    from .checklist import ChecklistRun as ChecklistRun
-    from .checklist import StepKind as StepKind
-    from .checklist import StepState as StepState
-    from .checklist import complete_command as complete_command
-    from .checklist import load_checklists as load_checklists
-    from .face_types import CATALOGUE as CATALOGUE
-    from .face_types import FLUSH_WARNING as FLUSH_WARNING
-    from .face_types import LISTED as LISTED
-    from .face_types import PARACHUTE as PARACHUTE
-    from .face_types import QUEUED as QUEUED
-    from .face_types import RETRY_WARNING as RETRY_WARNING
-    from .face_types import Command as Command
-    from .face_types import Hazard as Hazard
-    from .face_types import LandedEvidence as LandedEvidence
-    from .face_types import MtCommand as MtCommand
-    from .face_types import MtComposer as MtComposer
-    from .face_types import MtMessage as MtMessage
-    from .face_types import ParachutePlan as ParachutePlan
-    from .face_types import StoredReport as StoredReport
-    from .face_types import by_name as by_name
-    from .face_types import iso_utc as iso_utc
-    from .face_types import parse_hhmm as parse_hhmm
-    from .fleet import CapsuleTelemetry as CapsuleTelemetry
-    from .fleet import FleetState as FleetState
-    from .gonogo import WAIVABLE as WAIVABLE
-    from .gonogo import WAIVER_REASON_MAX as WAIVER_REASON_MAX
-    from .gonogo import GoNoGoReport as GoNoGoReport
-    from .gonogo import Verdict as Verdict
-    from .gonogo import evaluate as evaluate
-    from .operations import Operations as Operations
-    from .operations import Predict as Predict
-    from .operations import SecondOperator as SecondOperator
-    from .operations import cli_holder as cli_holder
-    from .operations import report_position as report_position
-    from .origin import ReleaseOrigin as ReleaseOrigin
-    from .origin import release_origin as release_origin
-    from .override import ParachuteOverride as ParachuteOverride
-    from .override import after_drop as after_drop
-    from .override import drop_schedule as drop_schedule
-    from .override import parachute_override as parachute_override
+    from .arming import (
+        SECOND_LOGIN_HOWTO as SECOND_LOGIN_HOWTO,
+        ArmingController as ArmingController,
+        ArmState as ArmState,
+        ArmStatus as ArmStatus,
+    )
+    from .authorize import (
+        authorize_mt as authorize_mt,
+        carries_parachute as carries_parachute,
+        hazard_of as hazard_of,
+    )
+    from .capsule import (
+        ReleaseState as ReleaseState,
+        ReleaseStateMachine as ReleaseStateMachine,
+        record_as_dict as record_as_dict,
+        take_over_outcome as take_over_outcome,
+    )
+    from .checklist import (
+        PROCEDURE_DIR as PROCEDURE_DIR,
+        Checklist as Checklist,
+        ChecklistRun as ChecklistRun,
+        StepKind as StepKind,
+        StepState as StepState,
+        complete_command as complete_command,
+        load_checklists as load_checklists,
+    )
+    from .face_types import (
+        CATALOGUE as CATALOGUE,
+        FLUSH_WARNING as FLUSH_WARNING,
+        LISTED as LISTED,
+        PARACHUTE as PARACHUTE,
+        QUEUED as QUEUED,
+        RETRY_WARNING as RETRY_WARNING,
+        AuditRecord as AuditRecord,
+        Command as Command,
+        CommandedSettings as CommandedSettings,
+        Hazard as Hazard,
+        LandedEvidence as LandedEvidence,
+        LandingEstimate as LandingEstimate,
+        MtCommand as MtCommand,
+        MtComposer as MtComposer,
+        MtMessage as MtMessage,
+        ParachutePlan as ParachutePlan,
+        StoredReport as StoredReport,
+        TrackPoint as TrackPoint,
+        assess as assess,
+        by_name as by_name,
+        detect_landing as detect_landing,
+        distance_bearing as distance_bearing,
+        export_track as export_track,
+        iso_utc as iso_utc,
+        parse_hhmm as parse_hhmm,
+        parse_position as parse_position,
+        phone_summary as phone_summary,
+        read_gpsd_position as read_gpsd_position,
+        track_from_reports as track_from_reports,
+        write_gpx as write_gpx,
+        write_kml as write_kml,
+    )
+    from .fleet import CapsuleTelemetry as CapsuleTelemetry, FleetState as FleetState
+    from .gonogo import (
+        WAIVABLE as WAIVABLE,
+        WAIVER_REASON_MAX as WAIVER_REASON_MAX,
+        GoNoGoReport as GoNoGoReport,
+        Verdict as Verdict,
+        evaluate as evaluate,
+    )
+    from .operations import (
+        Operations as Operations,
+        Predict as Predict,
+        SecondOperator as SecondOperator,
+        cli_holder as cli_holder,
+        report_position as report_position,
+    )
+    from .origin import ReleaseOrigin as ReleaseOrigin, release_origin as release_origin
+    from .override import (
+        ParachuteOverride as ParachuteOverride,
+        after_drop as after_drop,
+        drop_schedule as drop_schedule,
+        parachute_override as parachute_override,
+    )
     from .procedure import complete_mt_steps as complete_mt_steps
-    from .recovery import Descent as Descent
-    from .recovery import DropView as DropView
-    from .recovery import LiveSource as LiveSource
-    from .recovery import LiveView as LiveView
-    from .recovery import RecoveryView as RecoveryView
-    from .recovery import capsule_descent as capsule_descent
-    from .recovery import descent_along as descent_along
-    from .recovery import follow_descent as follow_descent
-    from .recovery import recovery_view as recovery_view
-    from .release_window import ReleaseCandidate as ReleaseCandidate
-    from .release_window import ReleaseWindow as ReleaseWindow
-    from .session import record_loss as record_loss
-    from .session import record_start as record_start
-    from .session import unprotected_ssh_warning as unprotected_ssh_warning
-    from .staleness import MISSING_TEXT as MISSING_TEXT
-    from .staleness import STALE_GLYPH as STALE_GLYPH
-    from .staleness import Freshness as Freshness
-    from .staleness import Reading as Reading
-    from .staleness import format_age as format_age
-    from .telemetry import BalloonSample as BalloonSample
-    from .telemetry import Contour as Contour
-    from .telemetry import GnssSample as GnssSample
-    from .telemetry import LinkSample as LinkSample
-    from .telemetry import PredictionSample as PredictionSample
-    from .telemetry import PredictionStatus as PredictionStatus
-    from .telemetry import ReleaseSample as ReleaseSample
-    from .telemetry import ReportSample as ReportSample
-    from .telemetry import Sample as Sample
-    from .telemetry import StorageSample as StorageSample
-    from .telemetry import SyncSample as SyncSample
-    from .telemetry import TelemetryRecord as TelemetryRecord
-    from .telemetry import TelemetryRecorder as TelemetryRecorder
-    from .telemetry import read_recording as read_recording
-    from .views import IridiumHealthView as IridiumHealthView
-    from .views import RecordedViews as RecordedViews
-    from .views import ReportRow as ReportRow
-    from .views import StoreViews as StoreViews
-    from .views import ViewSource as ViewSource
+    from .recovery import (
+        Descent as Descent,
+        DropView as DropView,
+        LiveSource as LiveSource,
+        LiveView as LiveView,
+        RecoveryView as RecoveryView,
+        capsule_descent as capsule_descent,
+        descent_along as descent_along,
+        follow_descent as follow_descent,
+        recovery_view as recovery_view,
+    )
+    from .release_window import ReleaseCandidate as ReleaseCandidate, ReleaseWindow as ReleaseWindow
+    from .session import (
+        record_loss as record_loss,
+        record_start as record_start,
+        unprotected_ssh_warning as unprotected_ssh_warning,
+    )
+    from .staleness import (
+        MISSING_TEXT as MISSING_TEXT,
+        STALE_GLYPH as STALE_GLYPH,
+        Freshness as Freshness,
+        Reading as Reading,
+        format_age as format_age,
+    )
+    from .telemetry import (
+        BalloonSample as BalloonSample,
+        Contour as Contour,
+        GnssSample as GnssSample,
+        LinkSample as LinkSample,
+        PredictionSample as PredictionSample,
+        PredictionStatus as PredictionStatus,
+        ReleaseSample as ReleaseSample,
+        ReportSample as ReportSample,
+        Sample as Sample,
+        StorageSample as StorageSample,
+        SyncSample as SyncSample,
+        TelemetryRecord as TelemetryRecord,
+        TelemetryRecorder as TelemetryRecorder,
+        read_recording as read_recording,
+    )
+    from .views import (
+        IridiumHealthView as IridiumHealthView,
+        RecordedViews as RecordedViews,
+        ReportRow as ReportRow,
+        StoreViews as StoreViews,
+        ViewSource as ViewSource,
+    )
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

@@ -30,8 +30,7 @@ from pathlib import Path
 
 from drs_link.config import approvers_in_use
 from drs_link.errors import RefusedError
-from drs_link.ops.arm_window import ARMED
-from drs_link.ops.arm_window import DDL as ARM_WINDOW_DDL
+from drs_link.ops.arm_window import ARMED, DDL as ARM_WINDOW_DDL
 from drs_link.ops.identity import account_name, prove_agent_key
 from drs_link.store import Store, iso_utc, parse_iso_utc
 

@@ -28,6 +28,7 @@ from drs_link.iridium import (
     detect_landing,
     distance_bearing,
     export_track,
+    lifecycle as lc,
     parse_hhmm,
     parse_position,
     phone_summary,
@@ -36,7 +37,6 @@ from drs_link.iridium import (
     write_gpx,
     write_kml,
 )
-from drs_link.iridium import lifecycle as lc
 from drs_link.store import AuditRecord, iso_utc
 
 QUEUED = lc.QUEUED

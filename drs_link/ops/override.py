@@ -18,10 +18,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 
-from drs_link.iridium import PARACHUTE, StoredReport, is_command
-from drs_link.iridium import commanded as mt_commanded
-from drs_link.iridium import commands as mt_commands
-from drs_link.iridium import lifecycle as lc
+from drs_link.iridium import (
+    PARACHUTE,
+    StoredReport,
+    commanded as mt_commanded,
+    commands as mt_commands,
+    is_command,
+    lifecycle as lc,
+)
 from drs_link.store import AuditRecord
 
 GONE_MODE_SPACING = timedelta(minutes=2)

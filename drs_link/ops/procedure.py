@@ -13,8 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from datetime import datetime
 
-from drs_link.iridium import StoredReport, landed_evidence, read_text
-from drs_link.iridium import lifecycle as lc
+from drs_link.iridium import StoredReport, landed_evidence, lifecycle as lc, read_text
 from drs_link.ops.checklist import Checklist, Step, complete_command
 from drs_link.store import Store, utc_now
 

@@ -10,18 +10,16 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from . import capsule_bench as capsule_bench
-    from . import mo_bench as mo_bench
-    from .capsule_pi import CapsuleSimulator as CapsuleSimulator
-    from .capsule_pi import Faults as Faults
-    from .capsule_pi import SimClock as SimClock
-    from .firmware import Firmware as Firmware
-    from .firmware import GnssSky as GnssSky
+    from . import capsule_bench as capsule_bench, mo_bench as mo_bench
+    from .capsule_pi import CapsuleSimulator as CapsuleSimulator, Faults as Faults, SimClock as SimClock
+    from .firmware import Firmware as Firmware, GnssSky as GnssSky
     from .keys import write_ed25519 as write_ed25519
-    from .rockblock import SimulatedCapsule as SimulatedCapsule
-    from .rockblock import SimulatedRockblock as SimulatedRockblock
-    from .rockblock import generate_test_keys as generate_test_keys
-    from .rockblock import post_mo as post_mo
+    from .rockblock import (
+        SimulatedCapsule as SimulatedCapsule,
+        SimulatedRockblock as SimulatedRockblock,
+        generate_test_keys as generate_test_keys,
+        post_mo as post_mo,
+    )
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

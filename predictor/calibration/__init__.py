@@ -15,17 +15,19 @@ from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
     from .live_bench import bench as bench
-    from .live_evaluation import evaluate_live as evaluate_live
-    from .live_evaluation import live_settings as live_settings
-    from .live_evaluation import write_live_report as write_live_report
-    from .model_file import CalibratedModel as CalibratedModel
-    from .model_file import flown_model as flown_model
-    from .model_file import load_model as load_model
-    from .model_file import save_model as save_model
+    from .live_evaluation import (
+        evaluate_live as evaluate_live,
+        live_settings as live_settings,
+        write_live_report as write_live_report,
+    )
+    from .model_file import (
+        CalibratedModel as CalibratedModel,
+        flown_model as flown_model,
+        load_model as load_model,
+        save_model as save_model,
+    )
     from .prior_spread import descent_spread as descent_spread
-    from .run import run_bench as run_bench
-    from .run import run_calibrate as run_calibrate
-    from .run import run_vertical as run_vertical
+    from .run import run_bench as run_bench, run_calibrate as run_calibrate, run_vertical as run_vertical
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

@@ -10,39 +10,43 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from .integrate import COMPILE_NOTICE as COMPILE_NOTICE
-    from .integrate import DEFAULT_TIME_TOLERANCE_S as DEFAULT_TIME_TOLERANCE_S
-    from .integrate import STATUS_ABOVE_TOP as STATUS_ABOVE_TOP
-    from .integrate import STATUS_NOT_DESCENDING as STATUS_NOT_DESCENDING
-    from .integrate import STATUS_OK as STATUS_OK
-    from .integrate import STATUS_OUTSIDE_REGION as STATUS_OUTSIDE_REGION
-    from .integrate import STATUS_OUTSIDE_TIME as STATUS_OUTSIDE_TIME
-    from .integrate import TOP_TOLERANCE_M as TOP_TOLERANCE_M
-    from .integrate import Record as Record
-    from .integrate import Release as Release
-    from .integrate import Stepping as Stepping
-    from .integrate import degrees_per_metre as degrees_per_metre
-    from .integrate import descend as descend
-    from .integrate import drift_at_float as drift_at_float
-    from .integrate import kernels_compiled as kernels_compiled
-    from .integrate import packed as packed
-    from .integrate import sample_weather as sample_weather
-    from .landing import HIGHEST_GROUND_M as HIGHEST_GROUND_M
-    from .landing import LOWEST_GROUND_M as LOWEST_GROUND_M
-    from .landing import ground_crossings as ground_crossings
-    from .landing import wrap_lon as wrap_lon
-    from .model import EFFECTS as EFFECTS
-    from .model import BinnedDescentRate as BinnedDescentRate
-    from .model import BinnedWind as BinnedWind
-    from .model import DescentRateScale as DescentRateScale
-    from .model import MeasuredDescentRate as MeasuredDescentRate
-    from .model import Model as Model
-    from .model import Term as Term
-    from .model import Wind as Wind
-    from .model import WindOffset as WindOffset
-    from .payload import PROFILES as PROFILES
-    from .payload import Payload as Payload
-    from .payload import payload_profile as payload_profile
+    from .integrate import (
+        COMPILE_NOTICE as COMPILE_NOTICE,
+        DEFAULT_TIME_TOLERANCE_S as DEFAULT_TIME_TOLERANCE_S,
+        STATUS_ABOVE_TOP as STATUS_ABOVE_TOP,
+        STATUS_NOT_DESCENDING as STATUS_NOT_DESCENDING,
+        STATUS_OK as STATUS_OK,
+        STATUS_OUTSIDE_REGION as STATUS_OUTSIDE_REGION,
+        STATUS_OUTSIDE_TIME as STATUS_OUTSIDE_TIME,
+        TOP_TOLERANCE_M as TOP_TOLERANCE_M,
+        Record as Record,
+        Release as Release,
+        Stepping as Stepping,
+        degrees_per_metre as degrees_per_metre,
+        descend as descend,
+        drift_at_float as drift_at_float,
+        kernels_compiled as kernels_compiled,
+        packed as packed,
+        sample_weather as sample_weather,
+    )
+    from .landing import (
+        HIGHEST_GROUND_M as HIGHEST_GROUND_M,
+        LOWEST_GROUND_M as LOWEST_GROUND_M,
+        ground_crossings as ground_crossings,
+        wrap_lon as wrap_lon,
+    )
+    from .model import (
+        EFFECTS as EFFECTS,
+        BinnedDescentRate as BinnedDescentRate,
+        BinnedWind as BinnedWind,
+        DescentRateScale as DescentRateScale,
+        MeasuredDescentRate as MeasuredDescentRate,
+        Model as Model,
+        Term as Term,
+        Wind as Wind,
+        WindOffset as WindOffset,
+    )
+    from .payload import PROFILES as PROFILES, Payload as Payload, payload_profile as payload_profile
     from .rate_prior import RatePrior as RatePrior
 
 __getattr__, __dir__, __all__ = lazy_door(

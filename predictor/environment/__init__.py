@@ -13,25 +13,29 @@ from predictor.lazy_door import lazy_door
 if TYPE_CHECKING:
     from .cube import WeatherCube as WeatherCube
     from .demo_weather import demo_weather_files as demo_weather_files
-    from .gfs_cache import SIZE_ONLY_KEEP as SIZE_ONLY_KEEP
-    from .gfs_cache import PruneResult as PruneResult
-    from .gfs_cache import free_space_warning as free_space_warning
-    from .gfs_cache import prune as prune
-    from .gfs_fetch import AVAILABILITY_DELAY as AVAILABILITY_DELAY
-    from .gfs_fetch import DEFAULT_URL_TEMPLATE as DEFAULT_URL_TEMPLATE
-    from .gfs_fetch import RESOLUTIONS as RESOLUTIONS
-    from .gfs_fetch import URL_TEMPLATE_ENV as URL_TEMPLATE_ENV
-    from .gfs_fetch import Downloader as Downloader
-    from .gfs_fetch import Region as Region
-    from .gfs_fetch import plan_forecast_files as plan_forecast_files
-    from .gribwrite import GFS_LEVELS_HPA as GFS_LEVELS_HPA
-    from .gribwrite import gfs_file_name as gfs_file_name
-    from .gribwrite import write_gfs_grib2 as write_gfs_grib2
+    from .gfs_cache import (
+        SIZE_ONLY_KEEP as SIZE_ONLY_KEEP,
+        PruneResult as PruneResult,
+        free_space_warning as free_space_warning,
+        prune as prune,
+    )
+    from .gfs_fetch import (
+        AVAILABILITY_DELAY as AVAILABILITY_DELAY,
+        DEFAULT_URL_TEMPLATE as DEFAULT_URL_TEMPLATE,
+        RESOLUTIONS as RESOLUTIONS,
+        URL_TEMPLATE_ENV as URL_TEMPLATE_ENV,
+        Downloader as Downloader,
+        Region as Region,
+        plan_forecast_files as plan_forecast_files,
+    )
+    from .gribwrite import (
+        GFS_LEVELS_HPA as GFS_LEVELS_HPA,
+        gfs_file_name as gfs_file_name,
+        write_gfs_grib2 as write_gfs_grib2,
+    )
     from .region import weather_bbox as weather_bbox
-    from .terrain import SEA_LEVEL_SOURCE as SEA_LEVEL_SOURCE
-    from .terrain import Terrain as Terrain
-    from .weather import default_cache_dir as default_cache_dir
-    from .weather import load_weather as load_weather
+    from .terrain import SEA_LEVEL_SOURCE as SEA_LEVEL_SOURCE, Terrain as Terrain
+    from .weather import default_cache_dir as default_cache_dir, load_weather as load_weather
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

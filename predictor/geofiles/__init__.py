@@ -10,16 +10,14 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from . import geojson as geojson
-    from . import gpx as gpx
-    from . import kml as kml
-    from .geometry import line_parts as line_parts
-    from .geometry import polygon_parts as polygon_parts
-    from .geometry import position as position
-    from .output import EXPORT_MODE as EXPORT_MODE
-    from .output import is_stdout as is_stdout
-    from .output import piped as piped
-    from .output import write_text as write_text
+    from . import geojson as geojson, gpx as gpx, kml as kml
+    from .geometry import line_parts as line_parts, polygon_parts as polygon_parts, position as position
+    from .output import (
+        EXPORT_MODE as EXPORT_MODE,
+        is_stdout as is_stdout,
+        piped as piped,
+        write_text as write_text,
+    )
 
 DEMO_LABEL = "DEMO WEATHER, NOT A FORECAST"
 

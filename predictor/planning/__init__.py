@@ -14,11 +14,8 @@ from predictor.lazy_door import lazy_door
 if TYPE_CHECKING:
     from .balloon import AltitudePlan as AltitudePlan
     from .limits import MAX_MEMBER_DESCENTS as MAX_MEMBER_DESCENTS
-    from .strip import write_geojson as write_geojson
-    from .strip import write_kml as write_kml
-    from .sweep import ReleasePlan as ReleasePlan
-    from .sweep import Thresholds as Thresholds
-    from .sweep import plan_release as plan_release
+    from .strip import write_geojson as write_geojson, write_kml as write_kml
+    from .sweep import ReleasePlan as ReleasePlan, Thresholds as Thresholds, plan_release as plan_release
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

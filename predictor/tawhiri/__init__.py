@@ -8,9 +8,11 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from .api import ApiServer as ApiServer
-    from .api import PredictorService as PredictorService
-    from .api import WeatherSource as WeatherSource
+    from .api import (
+        ApiServer as ApiServer,
+        PredictorService as PredictorService,
+        WeatherSource as WeatherSource,
+    )
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,

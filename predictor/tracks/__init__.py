@@ -11,14 +11,14 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from .ascent_winds import MIN_ASCENT_FIXES as MIN_ASCENT_FIXES
-    from .ascent_winds import ascent_weather_cube as ascent_weather_cube
-    from .cleaning import Flight as Flight
-    from .cleaning import clean as clean
-    from .reading import Fix as Fix
-    from .reading import TrackError as TrackError
-    from .reading import read_track as read_track
-    from .reading import write_canonical_csv as write_canonical_csv
+    from .ascent_winds import MIN_ASCENT_FIXES as MIN_ASCENT_FIXES, ascent_weather_cube as ascent_weather_cube
+    from .cleaning import Flight as Flight, clean as clean
+    from .reading import (
+        Fix as Fix,
+        TrackError as TrackError,
+        read_track as read_track,
+        write_canonical_csv as write_canonical_csv,
+    )
     from .standard_atmosphere import pressure_temperature as pressure_temperature
 
 __getattr__, __dir__, __all__ = lazy_door(

@@ -15,8 +15,7 @@ import pytest
 
 from drs_link.config import CapsuleConfig
 from drs_link.errors import RefusedError, StoreError
-from drs_link.iridium import lifecycle as lc
-from drs_link.iridium import reports as report_module
+from drs_link.iridium import lifecycle as lc, reports as report_module
 from drs_link.iridium.gateway import RockblockGateway
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore

@@ -5,8 +5,7 @@ from __future__ import annotations
 from datetime import UTC, datetime
 
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.mo import parse_hex, parse_payload

@@ -5,8 +5,7 @@ from __future__ import annotations
 from datetime import UTC, datetime
 
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 from drs_link.errors import RefusedError
 from drs_link.iridium.commands import apply_mt, parse_hhmm

@@ -13,8 +13,7 @@ import pytest
 
 from drs_link.config import parse_config
 from drs_link.errors import RefusedError
-from drs_link.iridium import recovery
-from drs_link.iridium import reports as report_module
+from drs_link.iridium import recovery, reports as report_module
 from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.landed import LandedVerdicts, landed_evidence
 from drs_link.iridium.lifecycle import NOT_SENT, CommandLifecycle

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import shlex
 
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from drs_link.link import remote
 from drs_link.link.storage import parse_df, parse_mdstat

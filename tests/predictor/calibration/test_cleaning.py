@@ -8,8 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from predictor.environment.terrain import Terrain, tile_name
 from predictor.tracks.cleaning import TERRAIN_LANDING_TOLERANCE_M, Flight, clean, distance_m
