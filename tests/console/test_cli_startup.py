@@ -12,8 +12,21 @@ import pytest
 from console.commands.main import COMMAND_MODULES, _command_in
 
 REPO = Path(__file__).resolve().parents[2]
-HEAVY = ("numba", "xarray", "pandas", "eccodes", "gribapi", "matplotlib", "textual")
-"""Each costs 0.1–0.5 s to import; together they made `drs --help` take 2.9 s."""
+HEAVY = (
+    "numba",
+    "xarray",
+    "pandas",
+    "eccodes",
+    "gribapi",
+    "matplotlib",
+    "textual",
+    "numpy",
+    "pyproj",
+    "paramiko",
+    "jwt",
+)
+"""Each costs 0.1–0.5 s to import; the first seven made `drs --help` take 2.9 s, and the last four
+kept it at 22× a bare Python start (#25 item 11)."""
 
 PROBE = """
 import json, sys
