@@ -10,7 +10,6 @@ import sys
 import threading
 import time
 import tomllib
-from collections.abc import Iterator
 from pathlib import Path
 from urllib.parse import urlsplit
 
@@ -87,16 +86,6 @@ class Receiver:
             ]
         finally:
             store.close()
-
-
-@pytest.fixture
-def receivers() -> Iterator[list[Receiver]]:
-    started: list[Receiver] = []
-    yield started
-    for receiver in started:
-        if receiver.process.poll() is None:
-            receiver.process.kill()
-            receiver.process.wait(timeout=10)
 
 
 def _half_sent_post(url: str, momsn: int) -> tuple[socket.socket, bytes]:

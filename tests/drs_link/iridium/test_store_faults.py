@@ -32,16 +32,6 @@ from .test_cli import write_config
 from .test_receiver_process import DRS, REPO, Receiver
 
 
-@pytest.fixture
-def receivers() -> Iterator[list[Receiver]]:
-    started: list[Receiver] = []
-    yield started
-    for receiver in started:
-        if receiver.process.poll() is None:
-            receiver.process.kill()
-            receiver.process.wait(timeout=10)
-
-
 def drs(
     config: Path, *argv: str, wrap: list[str] | None = None, **env: str
 ) -> subprocess.CompletedProcess[str]:
