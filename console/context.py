@@ -1,8 +1,7 @@
 """What the screens work on, typed: the session's setup, the fleet state, and the calls into ``drs_link``.
 
-Screens used to be handed the app itself, typed ``Any`` (the app imports the screens, so the screens
-could not import it back without a circle) and reached through it (``console.ops.ops(name).arming``).
-The app now builds one ``ConsoleContext`` and hands it to each screen it opens; the screens read
+The app builds one ``ConsoleContext`` and hands it to each screen it opens, instead of itself: the app
+imports the screens, so a screen that took the app could only type it ``Any``. The screens read
 the fleet, the clock and the settings from it and ask it for go/no-go, arming, checklists and
 approvals. Nothing here imports Textual: it is the plain-Python side of the console.
 """

@@ -8,6 +8,7 @@ it holds, and that no module imports itself back through others at run time.
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import grimp
@@ -148,6 +149,63 @@ def test_the_tests_live_in_the_room_they_pin() -> None:
         if folder.is_dir() and not folder.name.startswith("__") and f"{package}.{folder.name}" not in rooms
     ]
     assert strays == []
+
+
+ROOM_IMPORT_EXCEPTIONS = {
+    "tests/console/test_end_to_end_tmux.py": "drives the installed `drs demo` in a terminal (tmux) and reads "
+    "the screen: it pins the whole console as an operator runs it, and imports none of it",
+}
+"""Test files that pin their room without reaching it as the rule below counts, each with the reason."""
+
+MODULE_NAME = re.compile(rf"(?:{'|'.join(PACKAGES)})(?:\.\w+)+")
+
+
+def _reached(path: Path, *, through_helpers: bool = True) -> set[str]:
+    """The product modules a test file reaches: those it imports anywhere in the file, a name taken from a
+    package's own door counted as the module that door maps it to (``from predictor import predict`` reaches
+    ``predictor.prediction.landings``); those it runs as a program (a string that is exactly a module's
+    dotted name, as ``python -m`` takes it); and what a helper module in its own folder reaches, when it
+    imports that helper (``tests/predictor/geofiles/exports/conftest.py``)."""
+    reached: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            reached |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            if node.level == 1:
+                helper = path.parent / f"{node.module}.py"
+            else:
+                helper = ROOT / f"{node.module.replace('.', '/')}.py"
+                reached.add(node.module)
+                if node.module in PACKAGES:
+                    door = (ROOT / node.module / "__init__.py").read_text()
+                    listed = _door_map(ast.parse(door)) if "lazy_door(" in door else {}
+                    reached |= {f"{node.module}.{listed.get(alias.name, alias.name)}" for alias in node.names}
+            if through_helpers and helper.parent == path.parent and helper.exists() and helper != path:
+                reached |= _reached(helper, through_helpers=False)
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            reached |= {node.value} if MODULE_NAME.fullmatch(node.value) else set()
+    return reached
+
+
+def _room_named_by(test_file: Path) -> str:
+    package, *folders = test_file.relative_to(ROOT / "tests").parts[:-1]
+    return f"{package}.{folders[0]}" if folders else package
+
+
+def test_a_test_folders_files_reach_the_room_it_is_named_for() -> None:
+    """Each ``tests/<package>/<room>/…/test_*.py`` reaches ``<package>.<room>`` (the room's door or a module
+    in it), and each ``tests/<package>/test_*.py`` reaches ``<package>``, as ``_reached`` counts. A file
+    that reaches only other rooms pins them, and sits in their folder (or, a command line's test, in
+    ``tests/console/commands``). Reaching the room is needed, not enough: a CLI test that imports the
+    domain to compare against still belongs with the commands. Helpers (conftest, helpers) are not tests."""
+    strays = []
+    for package in PACKAGES:
+        for path in sorted((ROOT / "tests" / package).rglob("test_*.py")):
+            room = _room_named_by(path)
+            if not any(module == room or module.startswith(room + ".") for module in _reached(path)):
+                strays.append(str(path.relative_to(ROOT)))
+    # an exception that no longer strays is struck from the list, so the list stays the truth
+    assert sorted(strays) == sorted(ROOM_IMPORT_EXCEPTIONS)
 
 
 def _lazy_doors() -> list[Path]:

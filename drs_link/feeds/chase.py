@@ -1,4 +1,4 @@
-"""The capsules on the chase team's map: Horus UDP ``PAYLOAD_SUMMARY`` packets for chasemapper (issue #14).
+"""The capsules on the chase team's map: Horus UDP ``PAYLOAD_SUMMARY`` packets for chasemapper.
 
 A chase car runs chasemapper fed by Horus UDP (horus-gui on 55672, auto_rx on 55673). Each capsule
 with a position (its newest Iridium fix in the store) is sent under its own name with the fields

@@ -1,8 +1,8 @@
 """Who is at this keyboard, as only the kernel or a signature can say: the login the two-person rule counts.
 
-Why: the approver used to be told apart by the key named in ``$SSH_USER_AUTH``, a file any shell can
-name, so one person approved their own PARACHUTE override by pointing the variable at a second key.
-A login is now made of two things a process cannot choose for itself:
+Why: anything a process can set for itself, such as the key file ``$SSH_USER_AUTH`` names, would let
+one person approve their own PARACHUTE override by pointing it at a second key. So a login is made of
+two things a process cannot choose for itself:
 
 - the OS account of the kernel's real uid (``os.getuid()``), which only login, sshd, su or sudo set;
 - an SSH key *proven here*: a fresh random challenge is signed by ``ssh-agent`` (``$SSH_AUTH_SOCK``)
