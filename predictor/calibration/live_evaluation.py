@@ -367,22 +367,29 @@ class _Survey:
 
 
 def _rate_survey(flights: Sequence[_Flight], payload: Payload, terms: Sequence[Term]) -> _Survey:
-    """At every fix of every flight, the record's λ as live re-prediction measures it and the λ of the
-    descent that was still to come (the law's remaining seconds against the measured ones, to the
-    touchdown the evaluation scores against)."""
+    """At each flight's fix nearest each of ``SURVEY_HEIGHTS_KM`` (what ``rate_law`` uses), the record's λ
+    as live re-prediction measures it and the λ of the descent that was still to come (the law's
+    remaining seconds against the measured ones, to the touchdown the evaluation scores against).
+
+    Only those fixes are fitted, not every one: a 1 Hz record has thousands, and each fit is a pass over
+    its window."""
     whole, samples = {}, []
     for flight in flights:
         record = DescentRecord(LivePredictor(flight.cube, payload, flight.ground, effects=terms).law)
         touchdown_s = _touchdown_s(flight.descent, flight.landing.alt_m)
-        for fix in flight.descent[:-1]:
+        heights = np.array([fix.alt_m - flight.landing.alt_m for fix in flight.descent[:-1]])
+        wanted = {int(np.argmin(np.abs(heights - 1000.0 * km))) for km in SURVEY_HEIGHTS_KM}
+        for i, fix in enumerate(flight.descent[:-1]):
             record.add(fix)
+            if i not in wanted:
+                continue
             fit = record.rate_fit(fix.alt_m)
             law_s = record.remaining_model_s(fix.alt_m)
             measured_s = touchdown_s - (fix.time - flight.descent[0].time).total_seconds()
             if fit is None or law_s is None or law_s <= 0.0 or measured_s <= 0.0:
                 continue
-            samples.append(_Sample(flight.name, fix.alt_m - flight.landing.alt_m, math.log(fit.factor),
-                                   fit.log_sigma, math.log(law_s / measured_s)))  # fmt: skip
+            samples.append(_Sample(flight.name, float(heights[i]), math.log(fit.factor), fit.log_sigma,
+                                   math.log(law_s / measured_s)))  # fmt: skip
         fit = record.rate_fit(flight.descent[-2].alt_m, window_m=math.inf)
         if fit is not None:
             whole[flight.name] = math.log(fit.factor)

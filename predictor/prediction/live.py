@@ -95,7 +95,7 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.043, 3.706, 3.348, 3.771, 2.193, 1.598),
+    sigma_parallel_km=(4.043, 3.706, 3.347, 3.771, 2.193, 1.598),
     sigma_perpendicular_km=(3.602, 3.83, 3.877, 3.332, 1.625, 0.789),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,
