@@ -80,7 +80,8 @@ def prove_agent_key(
     conn.settimeout(5.0)
     try:
         conn.connect(path)
-        agent._connect(conn)
+        # _connect/_close are paramiko's own way to give AgentSSH a socket; private, so not in its stubs
+        agent._connect(conn)  # type: ignore[attr-defined]
         for key in agent.get_keys():
             person = listed.get(key.asbytes())
             if person is not None and _signs(key, key.asbytes()):
@@ -88,7 +89,7 @@ def prove_agent_key(
     except (OSError, paramiko.SSHException):
         return None
     finally:
-        agent._close()
+        agent._close()  # type: ignore[attr-defined]  # private, as _connect above
         conn.close()
     return None
 

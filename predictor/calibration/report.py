@@ -67,7 +67,7 @@ def _family_sentence(family: FamilyResult) -> str:
     )
     if family.selected:
         names = ", ".join(
-            f"`{f.candidate.name}` ({_params(f.describe()['parameters'])})" for f in family.selected
+            f"`{f.candidate.name}` ({_params(f.parameters())})" for f in family.selected
         )
         return f"{family.family.capitalize()}: selected {names}; held out, {own}{timing}, {landing} (means)."
     return (
