@@ -137,7 +137,12 @@ class CapsuleLink:
         return client
 
     def _open(
-        self, client: paramiko.SSHClient, host: str, port: int, user: str, sock: paramiko.Channel | None = None
+        self,
+        client: paramiko.SSHClient,
+        host: str,
+        port: int,
+        user: str,
+        sock: paramiko.Channel | None = None,
     ) -> None:
         c = self.capsule
         key_file = str(c.identity_file) if c.identity_file else None
