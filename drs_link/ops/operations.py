@@ -262,8 +262,7 @@ class Operations:
         for capsule in config.capsules:
             link = CapsuleLink(capsule)
             backend = build_backend(capsule, link)
-            kwargs = {"sleep": sleep} if sleep is not None else {}
-            machine = ReleaseStateMachine(store, capsule, backend, self.operator, clock=clock, **kwargs)  # type: ignore[arg-type]
+            machine = ReleaseStateMachine(store, capsule, backend, self.operator, clock=clock, sleep=sleep)
             arming = ArmingController(
                 store, machine, self.operator, clock, config.console.arm_window_s,
                 config.console.require_second_operator, holder, config.console.crew,
