@@ -48,7 +48,7 @@ landing observed, fewer than 3 descent fixes.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 
@@ -313,7 +313,7 @@ def clean(track: Track, terrain: Terrain | None = None) -> Flight:
 
 
 def _drop_invalid(fixes: list[Fix], removals: list[Removal]) -> list[Fix]:
-    rules = (
+    rules: tuple[tuple[str, str, Callable[[Fix], bool]], ...] = (
         (
             "invalid-date",
             "date before 2000: the receiver's default date before a fix",
