@@ -150,7 +150,14 @@ def run_fetch(args: argparse.Namespace) -> int:
     if low_space:
         print(f"warning: {low_space}", file=sys.stderr)
     from rich.console import Console
-    from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
+    from rich.progress import (
+        BarColumn,
+        DownloadColumn,
+        Progress,
+        TaskID,
+        TextColumn,
+        TransferSpeedColumn,
+    )
 
     with Progress(
         TextColumn("{task.description}"),
@@ -159,7 +166,7 @@ def run_fetch(args: argparse.Namespace) -> int:
         TransferSpeedColumn(),
         console=Console(stderr=True),  # stdout carries only the file paths
     ) as bar:
-        tasks: dict[str, int] = {}
+        tasks: dict[str, TaskID] = {}
 
         def show(name: str, done: int, total: int | None) -> None:
             if name not in tasks:

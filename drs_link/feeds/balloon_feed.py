@@ -120,6 +120,7 @@ def parse_feed_line(line: str, now: datetime) -> BalloonFix | Rejection | None:
     text = line.strip()
     if len(line) > MAX_LINE_BYTES:
         return _too_long(line)
+    fix: BalloonFix | None
     try:
         if not text:
             return None

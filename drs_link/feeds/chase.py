@@ -253,6 +253,9 @@ def chase_points(config: Config, store: Store, now: datetime) -> list[ChasePoint
 class ChaseSender:
     """One UDP socket to the chase LAN; a broadcast address is allowed (chasemapper listens on any)."""
 
+    address: tuple[str, int] | tuple[str, int, int, int] | tuple[int, bytes]
+    """Where the datagrams go, as ``getaddrinfo`` gives it for IPv4 or IPv6."""
+
     def __init__(self, target: str, key: str = "--udp") -> None:
         self.host, self.port = host_port(target, key)
         # An IPv6 address in brackets, as a person writes it back (::1:55683 reads as one address).

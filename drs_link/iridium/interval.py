@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from datetime import datetime
 
 from drs_link.iridium import lifecycle as lc
-from drs_link.iridium.commands import INTERVAL
+from drs_link.iridium.commands import INTERVAL, PENDING, SEEN
 from drs_link.iridium.reports import StoredReport
 
 DEFAULT_INTERVAL_MIN = 2
@@ -111,9 +111,9 @@ def interval_track(reports: Sequence[StoredReport], commands: Sequence[lc.Comman
         spacing_after[stored.id] = flash
         for command, text, minutes in changes.get(i, []):
             effect = command.effects.get(text)
-            if effect == lc.SEEN:
+            if effect == SEEN:
                 flash = frozenset({minutes})
-            elif effect == lc.PENDING:
+            elif effect == PENDING:
                 flash = flash | {minutes}
     basis = "commanded" if changes else "spacing" if base is not None else "default"
     return IntervalTrack(spacing_after, reports[-1].id if reports else None, flash, basis)

@@ -66,9 +66,7 @@ def _family_sentence(family: FamilyResult) -> str:
         else ""
     )
     if family.selected:
-        names = ", ".join(
-            f"`{f.candidate.name}` ({_params(f.describe()['parameters'])})" for f in family.selected
-        )
+        names = ", ".join(f"`{f.candidate.name}` ({_params(f.parameters())})" for f in family.selected)
         return f"{family.family.capitalize()}: selected {names}; held out, {own}{timing}, {landing} (means)."
     return (
         f"{family.family.capitalize()}: nothing beat the model by more than the margin on "
