@@ -19,7 +19,7 @@ from typing import Any
 
 from drs_link.ops import Contour, PredictionSample, ReleaseOrigin, TelemetryRecord
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
-from predictor.calibration import CalibratedModel, load_model
+from predictor.prediction import CalibratedModel, load_model
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError
 from predictor.planning import plan_release

@@ -145,7 +145,7 @@ def run_plan(args: argparse.Namespace) -> int:
     missing = [flag for flag, value in required.items() if value is None]
     if missing:
         raise UsageError(f"drs plan needs {', '.join(missing)}")
-    from predictor.calibration import flown_model
+    from predictor.prediction import flown_model
     from predictor.environment import Terrain, load_weather, weather_bbox
     from predictor.geofiles import piped
     from predictor.planning import AltitudePlan, Thresholds, plan_release, write_geojson, write_kml
@@ -310,7 +310,7 @@ def _day(text: str | None) -> date | None:
 
 
 def run_live(args: argparse.Namespace) -> int:
-    from predictor.calibration import flown_model
+    from predictor.prediction import flown_model
     from predictor.environment import Terrain
     from predictor.prediction import iso_z
     from predictor.tracks import ascent_weather_cube, clean, read_track
@@ -377,7 +377,8 @@ def run_live(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from predictor.calibration import evaluate_live, flown_model, live_settings, save_model, write_live_report
+    from predictor.calibration import evaluate_live, live_settings, write_live_report
+    from predictor.prediction import flown_model, save_model
     from predictor.environment import Terrain, load_weather
 
     if not args.tracks:
@@ -419,7 +420,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
 
 def run_live_bench(args: argparse.Namespace) -> int:
-    from predictor.calibration import bench, load_model
+    from predictor.calibration import bench
+    from predictor.prediction import load_model
 
     if not args.tracks:
         raise UsageError("drs live bench needs track files")

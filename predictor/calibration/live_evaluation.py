@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from predictor.calibration.model_file import CalibratedModel
+from predictor.prediction import CalibratedModel
 from predictor.calibration.residuals import FlightCase, flight_case
 from predictor.calibration.selection import refit_without_each
 from predictor.descent import PROFILES, Payload, RatePrior, Term

@@ -20,7 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from predictor.calibration.model_file import CalibratedModel
+from predictor.prediction import CalibratedModel
 from predictor.descent import DescentRateScale, Term
 from predictor.prediction import GEOD, Prediction
 

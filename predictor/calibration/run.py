@@ -23,7 +23,7 @@ import numpy as np
 
 from predictor.calibration.effects import LIBRARY, library
 from predictor.calibration.ellipse_fit import MIN_FLIGHTS, EllipseFit, fit_ellipse
-from predictor.calibration.model_file import CalibratedModel, load_model, save_model
+from predictor.prediction import CalibratedModel, load_model, save_model
 from predictor.calibration.report import Exclusion, result_json, verdict, write_calibration_report
 from predictor.calibration.residuals import FlightCase, flight_case, run, score
 from predictor.calibration.selection import Calibration, calibrate

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from predictor.calibration.effects import LIBRARY
-from predictor.calibration.model_file import CalibratedModel
+from predictor.prediction import CalibratedModel
 from predictor.calibration.residuals import FlightCase, flight_case
 from predictor.calibration.selection import Fit, FlightBatch, fit_candidate
 from predictor.environment import WeatherCube

@@ -401,8 +401,9 @@ def _cached_with_model(dispatcher: Any) -> Any:
     return dispatcher
 
 
-class Release(NamedTuple):
-    """Where and when each trajectory is let go, one value per trajectory."""
+class Starts(NamedTuple):
+    """Where and when each trajectory starts, one value per trajectory: the compiled engine's side of a
+    ``Release`` (which may first drift, or be many members or candidates)."""
 
     time: np.ndarray
     """Epoch seconds."""
@@ -413,9 +414,9 @@ class Release(NamedTuple):
     """Seconds already fallen at this start (a live report mid-descent), which time-since-release terms
     count from; None: 0, a start at the release itself."""
 
-    def rows(self, lo: int, hi: int) -> Release:
+    def rows(self, lo: int, hi: int) -> Starts:
         """Trajectories lo…hi−1 alone, contiguous as the kernel needs them."""
-        return Release(*(None if a is None else np.ascontiguousarray(a[lo:hi]) for a in self))
+        return Starts(*(None if a is None else np.ascontiguousarray(a[lo:hi]) for a in self))
 
 
 class Stepping(NamedTuple):
@@ -478,7 +479,7 @@ def _descend_range(
     weather: PackedWeather,
     stepping: Stepping,
     chain: Chain,
-    release: Release,
+    release: Starts,
     record: Record,
 ) -> None:
     """Trajectories lo…hi−1 stepped together: each phase of a step runs for all of them before the next.
@@ -637,7 +638,7 @@ def _descend_range(
 @_cached_with_model
 @njit(cache=True, parallel=True)
 def _descend_parallel(
-    weather: PackedWeather, stepping: Stepping, chain: Chain, release: Release, record: Record, blocks: int
+    weather: PackedWeather, stepping: Stepping, chain: Chain, release: Starts, record: Record, blocks: int
 ) -> None:
     """One contiguous range of trajectories per thread."""
     n = release[0].shape[0]
@@ -662,7 +663,7 @@ def kernels_compiled() -> bool:
 def descend(
     weather: PackedWeather,
     chain: Chain,
-    release: Release,
+    release: Starts,
     stepping: Stepping,
     record_below_m: float = math.inf,
     fill: float | None = None,

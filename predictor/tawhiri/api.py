@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
-from predictor.calibration import CalibratedModel
+from predictor.prediction import CalibratedModel
 from predictor.environment import Terrain, WeatherCube, demo_weather_files, load_weather, weather_bbox
 from predictor.errors import OutOfCoverageError, PredictorError, WeatherError
 from predictor.prediction import Prediction, predict

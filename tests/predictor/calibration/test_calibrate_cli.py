@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from console.commands.main import main
-from predictor.calibration.model_file import load_model
+from predictor.prediction import load_model
 from predictor.descent.model import DescentRateScale
 from predictor.descent.payload import PROFILES
 from predictor.environment.gribwrite import GFS_LEVELS_HPA, gfs_file_name, write_gfs_grib2

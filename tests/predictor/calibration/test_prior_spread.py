@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from console.commands.main import main
-from predictor.calibration.model_file import CalibratedModel, save_model
+from predictor.prediction import CalibratedModel, save_model
 from predictor.descent.model import DescentRateScale, DragDensityExponent
 from predictor.descent.payload import Payload
 from predictor.descent.rate_prior import RatePrior

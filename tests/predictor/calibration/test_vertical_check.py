@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from console.commands.main import main
-from predictor.calibration.model_file import CalibratedModel
+from predictor.prediction import CalibratedModel
 from predictor.calibration.vertical_check import check_flight, vertical_case
 from predictor.descent.model import DescentRateScale, DragDensityExponent
 from predictor.descent.payload import PROFILES

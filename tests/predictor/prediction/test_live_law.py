@@ -17,7 +17,7 @@ from datetime import timedelta
 import numpy as np
 import pytest
 
-from predictor.calibration.model_file import CalibratedModel
+from predictor.prediction import CalibratedModel
 from predictor.descent import RatePrior
 from predictor.descent.model import DeploymentDelay, DescentRateScale, DragDensityExponent
 from predictor.descent.payload import PROFILES

@@ -18,6 +18,7 @@ import json
 import math
 import os
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,20 +26,20 @@ from typing import Any
 from predictor.descent import EFFECTS, DescentRateScale, Model, Payload, RatePrior, Term, payload_profile
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, UsageError
-from predictor.prediction import (
+from predictor.prediction.live import (
     DEFAULT_ELLIPSE_NOTE,
-    ERROR_MODELS,
     LIVE_ERROR_MODEL,
     NO_CORRECTION,
     OWN_RATE,
     Band,
-    ErrorModel,
     LiveCorrection,
     LiveErrorModel,
     LivePredictor,
     LiveSettings,
     RateDiscrepancy,
 )
+from predictor.prediction.setup import FlightSetup
+from predictor.prediction.uncertainty import ERROR_MODELS, ErrorModel
 
 PAYLOAD_LIMITS = {"mass_kg": (0.05, 50.0), "cda_m2": (0.02, 50.0)}
 """A balloon payload under a parachute: 50 g to 50 kg, Cd·A 0.02–50 m² (a 1 kg capsule under a 4 ft
@@ -117,6 +118,24 @@ class CalibratedModel:
         if self.rate_prior is not None and self.terms and self.terms[0].name == "descent_rate_scale":
             return self.terms[1:]
         return self.terms
+
+    def flight_setup(
+        self,
+        terrain: Terrain,
+        step_m: float = 100.0,
+        error_model: str | None = None,
+        probabilities: Sequence[float] = (),
+    ) -> FlightSetup:
+        """This model flown over ``terrain``: its payload and terms, and the ellipse ``chosen_ellipse``
+        picks, so every command and the console fly a model file alike."""
+        return FlightSetup(
+            payload=self.payload,
+            effects=self.terms,
+            terrain=terrain,
+            step_m=step_m,
+            error_model=self.chosen_ellipse(error_model),
+            probabilities=tuple(probabilities),
+        )
 
     def chosen_ellipse(self, name: str | None) -> ErrorModel:
         """The ellipse a prediction carries: ``name`` (``--error-model``) when given, else this model's

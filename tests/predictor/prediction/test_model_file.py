@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from console.commands.main import main
-from predictor.calibration.model_file import (
+from predictor.prediction.model_file import (
     SCHEMA_VERSION,
     CalibratedModel,
     ModelFileError,
