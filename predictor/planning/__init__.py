@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from .balloon import AltitudePlan as AltitudePlan, Sweep as Sweep, balloon_path as balloon_path
+    from .balloon import AltitudePlan as AltitudePlan, Sweep as Sweep
     from .limits import MAX_MEMBER_DESCENTS as MAX_MEMBER_DESCENTS
     from .strip import write_geojson as write_geojson, write_kml as write_kml
     from .sweep import (
@@ -31,7 +31,6 @@ __getattr__, __dir__, __all__ = lazy_door(
         "ReleasePlan": "sweep",
         "Sweep": "balloon",
         "Thresholds": "sweep",
-        "balloon_path": "balloon",
         "plan_release": "sweep",
         "write_geojson": "strip",
         "write_kml": "strip",

@@ -3,8 +3,8 @@
 The balloon is carried by the wind at its altitude: at float altitude, or along an altitude plan
 (times and altitudes, linear between them, held beyond the ends) when it is still climbing or being
 ballasted. Each leg between candidates is integrated by the same compiled midpoint stepper that
-``predict(drift_minutes=...)`` uses, in 60 s steps, so a candidate at whole minutes is exactly where a
-single prediction with that drift would release.
+a prediction's ``Release.drift_minutes`` uses, in 60 s steps, so a candidate at whole minutes is exactly
+where a single prediction with that drift would release.
 
 Uncertainty: the wind at float altitude is wrong by an unknown amount that is, over an hour or two,
 nearly constant (forecast errors are correlated in time). A constant error of σ_w per component moves

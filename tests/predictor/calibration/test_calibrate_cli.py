@@ -17,7 +17,7 @@ from predictor.environment.gribwrite import GFS_LEVELS_HPA, gfs_file_name, write
 from predictor.environment.weather import load_weather
 from predictor.tracks.reading import write_canonical_csv
 from predictor.tracks.standard_atmosphere import pressure_temperature
-from predictor.tracks.synthetic import synthetic_flight
+from tests.predictor.synthetic_flights import synthetic_flight
 
 PAYLOAD = PROFILES["superbit-test"]
 

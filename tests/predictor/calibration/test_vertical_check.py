@@ -15,7 +15,7 @@ from predictor.descent.model import DescentRateScale, DragDensityExponent
 from predictor.descent.payload import PROFILES
 from predictor.errors import PredictorError
 from predictor.tracks.cleaning import clean
-from predictor.tracks.synthetic import synthetic_flight
+from tests.predictor.synthetic_flights import synthetic_flight
 from tests.conftest import REPO_ROOT
 from tests.predictor.calibration.conftest import LAUNCH, jet_cube
 

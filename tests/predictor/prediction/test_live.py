@@ -22,7 +22,7 @@ from predictor.prediction.live import (
 from predictor.prediction.uncertainty import GEOD
 from predictor.tracks.cleaning import clean
 from predictor.tracks.reading import Fix
-from predictor.tracks.synthetic import synthetic_flight
+from tests.predictor.synthetic_flights import synthetic_flight
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
 PAYLOAD = PROFILES["drs"]

@@ -34,7 +34,7 @@ from predictor.prediction.live import (
 )
 from predictor.tracks.cleaning import clean
 from predictor.tracks.reading import Fix
-from predictor.tracks.synthetic import synthetic_flight
+from tests.predictor.synthetic_flights import synthetic_flight
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
 PAYLOAD = PROFILES["drs"]
