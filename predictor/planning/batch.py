@@ -27,7 +27,7 @@ from predictor.descent import (
     STATUS_OK,
     Model,
     Record,
-    Release,
+    Starts,
     Stepping,
     descend,
     ground_crossings,
@@ -81,7 +81,7 @@ def descend_batch(
         finite = np.isfinite(lat0[lo:hi]) & np.isfinite(lon0[lo:hi]) & np.isfinite(z0[lo:hi])
         # Rows without a start (the balloon left the weather before them) get a harmless start and are
         # marked afterwards; the kernel needs finite numbers.
-        release = Release(
+        starts = Starts(
             np.ascontiguousarray(t0[lo:hi]),
             np.where(finite, lat0[lo:hi], 0.0),
             np.where(finite, lon0[lo:hi], 0.0),
@@ -90,7 +90,7 @@ def descend_batch(
         # Unless the lead is wanted, only the part near and below the highest ground is recorded (as
         # predict does for members).
         record = descend(
-            w, chain.rows(lo, hi), release, stepping,
+            w, chain.rows(lo, hi), starts, stepping,
             record_below_m=math.inf if with_lead else HIGHEST_GROUND_M, blocks=min(hi - lo, threads),
         )  # fmt: skip
         code = record.status

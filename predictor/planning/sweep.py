@@ -314,7 +314,7 @@ def plan_release(
             f"over the {MAX_MEMBER_DESCENTS:,} one sweep may run (memory grows with them): fewer members, "
             "a shorter sweep or a wider step"
         )
-    base = Model.for_payload(setup.payload, *setup.effects)
+    base = setup.chain()
     rel_lat, rel_lon, rel_z, rel_t = balloon.lat, balloon.lon, balloon.alt_m, balloon.t_s
     central = descend_batch(
         cube, base, rel_lat, rel_lon, rel_z, rel_t.astype(float), setup.terrain, step_m, True,

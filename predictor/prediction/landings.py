@@ -366,7 +366,7 @@ def predict(
     cube = _cube_of(wx)
     setup = setup or FlightSetup()
     _check_question(release, setup.step_m)
-    chain = Model.for_payload(setup.payload, *setup.effects)
+    chain = setup.chain()
     rel_lat, rel_lon, rel_t, decision = _release_state(cube, release, setup.time_tolerance_s)
     starts = Starts(
         np.array([rel_t]),
@@ -538,7 +538,7 @@ def predict_ensemble(
     ):
         raise PredictorError("ensemble spreads must be finite and ≥ 0")
     central = predict(cubes[0], release, setup)
-    base = Model.for_payload(setup.payload, *setup.effects)
+    base = setup.chain()
     if len(cubes) == 1:
         rng = np.random.default_rng(seed)
         rate = np.exp(rng.normal(0.0, rate_sigma, members))

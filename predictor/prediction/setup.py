@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from predictor.descent import DEFAULT_TIME_TOLERANCE_S, PROFILES, Payload, Term
+from predictor.descent import DEFAULT_TIME_TOLERANCE_S, PROFILES, Model, Payload, Term
 from predictor.environment import Terrain
 from predictor.prediction.uncertainty import LAUNCH, ErrorModel
 
@@ -31,6 +31,9 @@ class FlightSetup:
     payload: Payload = field(default_factory=_drs_profile)
     effects: tuple[Term, ...] = ()
     """Terms after the payload's drag law and the wind (a calibrated model's selected effects)."""
+    model: Model | None = None
+    """A whole chain instead of the payload's (a closed-form law in a test); the payload is then only
+    reported."""
     terrain: Terrain = field(default_factory=Terrain.sea_level)
     step_m: float = 100.0
     """Altitude step of the stepper."""
@@ -39,6 +42,11 @@ class FlightSetup:
     """Extra ellipse levels to report beside 1σ/2σ/3σ."""
     time_tolerance_s: float = DEFAULT_TIME_TOLERANCE_S
     """How far beyond the weather's first/last time it is held constant."""
+
+
+    def chain(self) -> Model:
+        """The model chain flown: ``model``, else the payload's drag law, the wind and ``effects``."""
+        return self.model or Model.for_payload(self.payload, *self.effects)
 
 
 @dataclass(frozen=True)

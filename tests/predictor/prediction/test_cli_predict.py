@@ -13,7 +13,9 @@ import pytest
 
 from console.commands.main import main
 from predictor import Terrain, load_weather, payload_profile, predict
+from predictor.descent import Release
 from predictor.environment.gribwrite import gfs_file_name, write_gfs_grib2
+from predictor.prediction import FlightSetup
 from tests.predictor.predict_helpers import H_ISO, LEVELS_HPA, P0_HPA, T_ISO
 
 CYCLE = datetime(2024, 5, 1, 0, tzinfo=UTC)
@@ -54,7 +56,9 @@ def test_json_output_matches_the_python_api_on_the_same_files(
     doc = json.loads(capsys.readouterr().out)
     wx = load_weather(grib_files, cache_dir=cache)
     res = predict(
-        wx, datetime(2024, 5, 1, 2, tzinfo=UTC), 51.0, -0.3, 28000.0, payload=payload_profile("drs")
+        wx,
+        Release(datetime(2024, 5, 1, 2, tzinfo=UTC), 51.0, -0.3, 28000.0),
+        FlightSetup(payload_profile("drs")),
     )
     assert doc["landing"]["lat"] == pytest.approx(res.landing.lat, abs=1e-9)
     assert doc["landing"]["lon"] == pytest.approx(res.landing.lon, abs=1e-9)

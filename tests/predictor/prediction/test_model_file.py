@@ -9,6 +9,14 @@ from pathlib import Path
 import pytest
 
 from console.commands.main import main
+from predictor.descent import Release
+from predictor.descent.model import BinnedDescentRate, DescentRateScale, DragDensityExponent
+from predictor.descent.payload import Payload
+from predictor.environment.demo_weather import demo_weather_files
+from predictor.environment.weather import load_weather
+from predictor.prediction import FlightSetup
+from predictor.prediction.landings import predict
+from predictor.prediction.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, RateDiscrepancy
 from predictor.prediction.model_file import (
     SCHEMA_VERSION,
     CalibratedModel,
@@ -16,12 +24,6 @@ from predictor.prediction.model_file import (
     load_model,
     save_model,
 )
-from predictor.descent.model import BinnedDescentRate, DescentRateScale, DragDensityExponent
-from predictor.descent.payload import Payload
-from predictor.environment.demo_weather import demo_weather_files
-from predictor.environment.weather import load_weather
-from predictor.prediction.landings import predict
-from predictor.prediction.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, RateDiscrepancy
 from predictor.prediction.uncertainty import ErrorModel
 
 WHEN = datetime(2026, 11, 22, 12, tzinfo=UTC)
@@ -61,8 +63,11 @@ def test_drs_predict_with_the_model_equals_the_same_terms_by_hand(
     argv = ["predict", "--weather", *map(str, files), "--cache-dir", str(tmp_path / "c"), *RELEASE, "--json"]
     assert main([*argv, "--model", str(path)]) == 0
     flown = json.loads(capsys.readouterr().out)
-    by_hand = predict(load_weather(files, cache_dir=tmp_path / "c"), WHEN, 46.5, 6.6, 28000.0,
-                      payload=example().payload, effects=example().terms, error_model=example().ellipse)  # fmt: skip
+    by_hand = predict(
+        load_weather(files, cache_dir=tmp_path / "c"),
+        Release(WHEN, 46.5, 6.6, 28000.0),
+        FlightSetup(example().payload, effects=example().terms, error_model=example().ellipse),
+    )  # fmt: skip
     assert flown["landing"]["lat"] == pytest.approx(by_hand.landing.lat, abs=1e-9)
     assert flown["landing"]["lon"] == pytest.approx(by_hand.landing.lon, abs=1e-9)
     assert flown["descent_s"] == pytest.approx(by_hand.descent_s)
