@@ -46,6 +46,7 @@ if TYPE_CHECKING:
         Report as Report,
     )
     from .model_file import (
+        PARAMETER_LIMITS as PARAMETER_LIMITS,
         CalibratedModel as CalibratedModel,
         flown_model as flown_model,
         load_model as load_model,
@@ -116,6 +117,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "NO_CORRECTION": "live",
         "NO_DISCREPANCY": "live",
         "OWN_RATE": "live",
+        "PARAMETER_LIMITS": "model_file",
         "Point": "landings",
         "Prediction": "landings",
         "Report": "live",

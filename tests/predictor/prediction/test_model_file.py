@@ -304,10 +304,9 @@ def test_every_parameter_of_every_effect_has_the_calibrations_bounds() -> None:
     """A term added to the registry without bounds would let any value of it fly."""
     import dataclasses
 
-    from predictor.calibration.effects import parameter_limits
     from predictor.descent.model import EFFECTS
+    from predictor.prediction.model_file import PARAMETER_LIMITS as limits
 
-    limits = parameter_limits()
     missing = [(name, f.name) for name, cls in EFFECTS.items() for f in dataclasses.fields(cls)
                if (name, f.name) not in limits]  # fmt: skip
     assert missing == []
