@@ -494,7 +494,8 @@ class LivePredictor:
     def _predict(self, report: Report, terms: Sequence[Term], error_model: ErrorModel = LAUNCH) -> Prediction:
         start = Release(report.time, report.lat, report.lon, report.alt_m,
                         since_release_s=self.record.since_top_s(report))  # fmt: skip
-        setup = FlightSetup(self.payload, tuple(terms), self.terrain, self.step_m, error_model)
+        setup = FlightSetup(self.payload, tuple(terms), terrain=self.terrain, step_m=self.step_m,
+                            error_model=error_model)  # fmt: skip
         return predict(self.cube, start, setup)
 
     def law(self, report: Report) -> Track:

@@ -31,9 +31,6 @@ class FlightSetup:
     payload: Payload = field(default_factory=_drs_profile)
     effects: tuple[Term, ...] = ()
     """Terms after the payload's drag law and the wind (a calibrated model's selected effects)."""
-    model: Model | None = None
-    """A whole chain instead of the payload's (a closed-form law in a test); the payload is then only
-    reported."""
     terrain: Terrain = field(default_factory=Terrain.sea_level)
     step_m: float = 100.0
     """Altitude step of the stepper."""
@@ -42,6 +39,9 @@ class FlightSetup:
     """Extra ellipse levels to report beside 1σ/2σ/3σ."""
     time_tolerance_s: float = DEFAULT_TIME_TOLERANCE_S
     """How far beyond the weather's first/last time it is held constant."""
+    model: Model | None = None
+    """A whole chain instead of the payload's (a closed-form law in a test); the payload is then only
+    reported."""
 
 
     def chain(self) -> Model:

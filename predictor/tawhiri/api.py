@@ -332,7 +332,7 @@ class PredictorService:
                 descent = descend(cube, self.terrain, burst.time, burst.lat, burst.lon, burst.alt_m,
                                   request.descent_rate)  # fmt: skip
             else:
-                setup = FlightSetup(self.flown.payload, self.flown.terms, self.terrain,
+                setup = FlightSetup(self.flown.payload, self.flown.terms, terrain=self.terrain,
                                     error_model=self.error_model)  # fmt: skip
                 descent = predict(cube, Release(burst.time, burst.lat, burst.lon, burst.alt_m), setup)
         answered = {

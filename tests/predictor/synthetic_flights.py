@@ -88,7 +88,7 @@ def synthetic_flight(
     ascent = _ascend(cube, t0, lat, lon, launch_alt, burst_alt_m, ascent_rate_ms)
     burst_time = datetime.fromtimestamp(float(ascent.t[-1]), UTC)
     burst = Release(burst_time, float(ascent.lat[-1]), float(ascent.lon[-1]), burst_alt_m)
-    descent = predict(cube, burst, FlightSetup(payload, tuple(effects), terrain))
+    descent = predict(cube, burst, FlightSetup(payload, tuple(effects), terrain=terrain))
     track = descent.track
     truth = TruePath(
         t=np.concatenate((ascent.t, ascent.t[-1] + track.t_s[1:])),
