@@ -208,7 +208,7 @@ class PredictionService:
                 # A capsule without a model flies the default payload's law the same way, and says so.
                 flown = model if model is not None else CalibratedModel(PROFILES["drs"], (), None)
                 live = self._live[capsule] = flown.live_predictor(cube, terrain)
-            fresh = []
+            fresh: list[Report] = []
             for (
                 report
             ) in reports:  # strictly later than the last one fed: a repeated fix is skipped, not refused

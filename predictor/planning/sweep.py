@@ -438,7 +438,8 @@ def _candidates(
     stats: dict[int, dict[str, Any]] = {}
     centers = np.zeros((rows.size, 2))
     covs = np.zeros((rows.size, 2, 2))
-    for j, i in enumerate(rows):
+    for j, row in enumerate(rows):
+        i = int(row)
         azimuth, _, distance_m = GEOD.inv(rel_lon[i], balloon.lat[i], central.lon[i], central.lat[i])
         bearing = float(azimuth % 360.0)
         drift_km = float(distance_m / 1000.0)
@@ -478,6 +479,8 @@ def _candidates(
         any_zone, per_zone = hits.any_zone, hits.per_zone
     else:
         any_zone, per_zone = np.zeros(rows.size), np.zeros((rows.size, 0))
+    expected: np.ndarray | None
+    at_center: np.ndarray | None
     if target_xy and rows.size:
         expected = expected_distance_km(target_xy, centers, covs)
         at_center = distance_at_center_km(target_xy, centers)
@@ -485,17 +488,20 @@ def _candidates(
         expected = at_center = None
     out = []
     for i in range(n_c):
-        release = dict(
+        text = None
+        if not ok[i]:
+            text = STATUS_TEXT.get(int(central.status[i]), f"descent failed (status {central.status[i]})")
+        release = Candidate(
             index=i,
             release_time=_from_epoch(balloon.t_s[i]),
             release_lat=float(balloon.lat[i]),
             release_lon=float(rel_lon[i]),
             release_alt_m=float(balloon.alt_m[i]),
             balloon_sigma_km=float(balloon.sigma_km[i]),
+            status=text,
         )
-        if not ok[i]:
-            text = STATUS_TEXT.get(int(central.status[i]), f"descent failed (status {central.status[i]})")
-            out.append(Candidate(**release, status=text, go=False, reasons=(text,)))
+        if text is not None:
+            out.append(replace(release, go=False, reasons=(text,)))
             continue
         j = int(np.searchsorted(rows, i))
         s = stats[i]
@@ -515,9 +521,8 @@ def _candidates(
         if thresholds.max_sigma_km is not None and s["major"] > thresholds.max_sigma_km:
             reasons.append(f"1σ {s['major']:.2f} km > {thresholds.max_sigma_km:g} km")
         out.append(
-            Candidate(
-                **release,
-                status=None,
+            replace(
+                release,
                 landing_time=_from_epoch(central.t_s[i]),
                 landing_lat=float(central.lat[i]),
                 landing_lon=float(central.lon[i]),

@@ -383,11 +383,11 @@ def _ellipse(raw: Any, refuse: Any) -> ErrorModel | None:
         return None
     if not isinstance(raw, dict):
         raise refuse("ellipse", "must be an object or null")
-    values = [
+    sigma0_km, h, k_km2_per_h2, q = (
         _number(raw.get(key), f"ellipse.{key}", refuse) for key in ("sigma0_km", "h", "k_km2_per_h2", "q")
-    ]
+    )
     try:
-        return ErrorModel(*values, name="calibrated")
+        return ErrorModel(sigma0_km, h, k_km2_per_h2, q, name="calibrated")
     except PredictorError as exc:
         raise refuse("ellipse", str(exc)) from None
 
