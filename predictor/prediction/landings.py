@@ -354,14 +354,13 @@ def _cube_of(wx: WeatherCube | Sequence[WeatherCube]) -> WeatherCube:
     raise PredictorError("predict needs one WeatherCube (use predict_ensemble for one member per cube)")
 
 
-def predict(
-    wx: WeatherCube, release: Release, setup: FlightSetup | None = None
-) -> Prediction:
+def predict(wx: WeatherCube, release: Release, setup: FlightSetup | None = None) -> Prediction:
     """One descent from ``release`` to the ground, with the paper's parametric error ellipse.
 
-    The chain is the setup's payload drag law, the wind, and its ``effects``; a release with
-    ``drift_minutes`` first drifts at float, and one with ``since_release_s`` (a live report mid-descent)
-    keeps counting time-since-release terms from the real release.
+    The chain is the setup's (``FlightSetup.chain``: the payload's drag law, the wind and ``effects``, or
+    a whole ``model``); a release with ``drift_minutes`` first drifts at float, and one with
+    ``since_release_s`` (a live report mid-descent) keeps counting time-since-release terms from the real
+    release.
     """
     cube = _cube_of(wx)
     setup = setup or FlightSetup()
