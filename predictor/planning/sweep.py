@@ -32,6 +32,7 @@ from predictor.descent import (
     DescentRateScale,
     Model,
     Release,
+    Starts,
     WindOffset,
     degrees_per_metre,
     wrap_lon,
@@ -315,11 +316,8 @@ def plan_release(
             "a shorter sweep or a wider step"
         )
     base = setup.chain()
-    rel_lat, rel_lon, rel_z, rel_t = balloon.lat, balloon.lon, balloon.alt_m, balloon.t_s
-    central = descend_batch(
-        cube, base, rel_lat, rel_lon, rel_z, rel_t.astype(float), setup.terrain, step_m, True,
-        setup.time_tolerance_s,
-    )  # fmt: skip
+    starts = Starts(balloon.t_s.astype(float), balloon.lat, balloon.lon, balloon.alt_m)
+    central = descend_batch(cube, base, starts, setup, with_lead=True)
     member_lat = member_lon = member_ok = None
     if spread is not None and members:
         member_lat, member_lon, member_ok = _ensemble(
@@ -405,11 +403,10 @@ def _ensemble(
         DescentRateScale(scale=np.tile(rate, n_c)),
         WindOffset(east_ms=np.tile(d_east, n_c), north_ms=np.tile(d_north, n_c)),
     )
-    land = descend_batch(
-        cube, model, lat0, lon0, np.repeat(balloon.alt_m, members),
-        np.repeat(balloon.t_s, members).astype(float),
-        setup.terrain, setup.step_m, False, setup.time_tolerance_s,
-    )  # fmt: skip
+    starts = Starts(
+        np.repeat(balloon.t_s, members).astype(float), lat0, lon0, np.repeat(balloon.alt_m, members)
+    )
+    land = descend_batch(cube, model, starts, setup)
     shape = (n_c, members)
     return land.lat.reshape(shape), land.lon.reshape(shape), (land.status == 0).reshape(shape)
 
