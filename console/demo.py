@@ -36,7 +36,7 @@ from drs_link.sim import (
     write_ed25519,
 )
 from drs_link.store import Store
-from predictor import Terrain, load_weather, predict
+from predictor import FlightSetup, Release, Terrain, load_weather, predict
 from predictor.environment import demo_weather_files
 
 SITE = (67.8887, 21.0856)
@@ -264,7 +264,8 @@ class DemoWorld:
             self._cube = load_weather(self.weather_files)
             self._terrain = self.terrain()
         lat, lon, alt = self.balloon
-        result = predict(self._cube, release, lat, lon, alt, terrain=self._terrain)
+        setup = FlightSetup(terrain=self._terrain or Terrain.sea_level())
+        result = predict(self._cube, Release(release, lat, lon, alt), setup)
         track = result.track
         error = (self.rng.gauss(0.0, WIND_ERROR_MS), self.rng.gauss(0.0, WIND_ERROR_MS))
         return Descent(

@@ -15,19 +15,20 @@ import threading
 from collections.abc import Callable, Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
-from typing import Any
 
 from drs_link.ops import Contour, PredictionSample, ReleaseOrigin, TelemetryRecord
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
-from predictor.calibration import CalibratedModel, load_model
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError
-from predictor.planning import plan_release
+from predictor.planning import Criteria, Sweep, plan_release
 from predictor.prediction import (
+    CalibratedModel,
     Feature,
+    FlightSetup,
     LivePrediction,
     LivePredictor,
     Report,
+    load_model,
     load_zones,
     write_geojson,
     write_gpx,
@@ -125,12 +126,9 @@ class PredictionService:
         cube, terrain = self._inputs()
         now = self.clock()
         records = []
-        flown, label = self._flown(capsule)
+        setup, label = self._flown(capsule, terrain)
         for minutes in release_in:
-            result = predict(
-                cube, now, origin.lat, origin.lon, origin.alt_m, terrain=terrain, drift_minutes=float(minutes),
-                **flown,
-            )  # fmt: skip
+            result = predict(cube, origin.release(now, drift_minutes=float(minutes)), setup)
             if minutes == 0:
                 self.latest[capsule] = result
             records.append(
@@ -138,16 +136,13 @@ class PredictionService:
             )
         return records
 
-    def _flown(self, capsule: str | None) -> tuple[dict[str, Any], str]:
+    def _flown(self, capsule: str | None, terrain: Terrain) -> tuple[FlightSetup, str]:
         """What a capsule's predictions and sweeps fly (its model's payload, terms and ellipse, or the
         default profile) and how they name it: one rule for the release prediction and the window."""
         model = self.models.get(capsule) if capsule is not None else None
         if model is None:
-            return {}, "drs profile"
-        flown: dict[str, Any] = {"payload": model.payload, "effects": model.terms}
-        if model.ellipse is not None:
-            flown["error_model"] = model.ellipse
-        return flown, model.label()
+            return FlightSetup(terrain=terrain), "drs profile"
+        return model.flight_setup(terrain), model.label()
 
     def export(self, capsule: str, directory: Path) -> list[Path]:
         prediction = self.latest.get(capsule)
@@ -171,20 +166,11 @@ class PredictionService:
         """The sweep from now as plain data: one entry per candidate, the verdict, the recommended one.
         It flies ``capsule``'s model as its release prediction does (the go/no-go depends on it)."""
         cube, terrain = self._inputs()
-        flown, label = self._flown(capsule)
+        setup, label = self._flown(capsule, terrain)
         zones: tuple[Feature, ...] = load_zones(zones_file) if zones_file is not None else ()
         now = self.clock()
         plan = plan_release(
-            cube,
-            now,
-            origin.lat,
-            origin.lon,
-            origin.alt_m,
-            hours,
-            every_minutes,
-            zones=zones,
-            terrain=terrain,
-            **flown,
+            cube, origin.release(now), Sweep(hours, every_minutes), setup, criteria=Criteria(zones)
         )
         recommended = plan.windows[0].recommended if plan.windows else None
         return {
@@ -222,7 +208,7 @@ class PredictionService:
                 # A capsule without a model flies the default payload's law the same way, and says so.
                 flown = model if model is not None else CalibratedModel(PROFILES["drs"], (), None)
                 live = self._live[capsule] = flown.live_predictor(cube, terrain)
-            fresh = []
+            fresh: list[Report] = []
             for (
                 report
             ) in reports:  # strictly later than the last one fed: a repeated fix is skipped, not refused

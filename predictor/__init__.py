@@ -12,6 +12,7 @@ from predictor.lazy_door import lazy_door
 if TYPE_CHECKING:
     from .descent.model import EFFECTS as EFFECTS, Model as Model, Term as Term
     from .descent.payload import PROFILES as PROFILES, Payload as Payload, payload_profile as payload_profile
+    from .descent.release import Release as Release
     from .environment.cube import WeatherCube as WeatherCube
     from .environment.terrain import Terrain as Terrain
     from .environment.weather import load_weather as load_weather
@@ -29,6 +30,7 @@ if TYPE_CHECKING:
         predict_ensemble as predict_ensemble,
         predict_landings as predict_landings,
     )
+    from .prediction.setup import EnsembleSpread as EnsembleSpread, FlightSetup as FlightSetup
     from .prediction.uncertainty import (
         HINDSIGHT as HINDSIGHT,
         LAUNCH as LAUNCH,
@@ -50,6 +52,9 @@ __getattr__, __dir__, __all__ = lazy_door(
         "PROFILES": "descent.payload",
         "Payload": "descent.payload",
         "payload_profile": "descent.payload",
+        "Release": "descent.release",
+        "EnsembleSpread": "prediction.setup",
+        "FlightSetup": "prediction.setup",
         "EnsemblePrediction": "prediction.landings",
         "LandingSet": "prediction.landings",
         "Prediction": "prediction.landings",

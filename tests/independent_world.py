@@ -1,6 +1,6 @@
 """An independent world: descents flown by physics, weather and an integrator the project never wrote.
 
-Why: the calibration loop's own synthetic flights (``predictor.tracks.synthetic``) are flown by the
+Why: the calibration loop's own synthetic flights (``tests/predictor/synthetic_flights.py``) are flown by the
 project's engine, with the library's own terms, in the very weather cube the calibration reads. A loop
 that only ever meets its own engine can be right for the wrong reason. Here everything that makes the
 truth is separate code:

@@ -18,7 +18,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run_show(args: argparse.Namespace) -> int:
-    from predictor.calibration import load_model
+    from predictor.prediction import load_model
 
     model = load_model(args.path)
     if args.json:

@@ -15,7 +15,6 @@ import sys
 import time
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
 
 from console.commands.argparser import UtcDate, UtcTime, input_file, latitude, longitude, positive
 from predictor.descent import PROFILES
@@ -145,13 +144,23 @@ def run_plan(args: argparse.Namespace) -> int:
     missing = [flag for flag, value in required.items() if value is None]
     if missing:
         raise UsageError(f"drs plan needs {', '.join(missing)}")
-    from predictor.calibration import flown_model
+    from predictor.descent import Release
     from predictor.environment import Terrain, load_weather, weather_bbox
     from predictor.geofiles import piped
-    from predictor.planning import AltitudePlan, Thresholds, plan_release, write_geojson, write_kml
+    from predictor.planning import (
+        AltitudePlan,
+        Criteria,
+        Sweep,
+        Thresholds,
+        plan_release,
+        write_geojson,
+        write_kml,
+    )
     from predictor.prediction import (
+        EnsembleSpread,
         emit,
         far_features_warning,
+        flown_model,
         load_targets,
         load_zones,
         release_altitude_warning,
@@ -160,9 +169,6 @@ def run_plan(args: argparse.Namespace) -> int:
     summary_to = sys.stderr if piped(kml=args.kml, geojson=args.geojson, json=args.json) else sys.stdout
     start: datetime = args.start
     model = flown_model(args.model, args.payload, args.mass, args.cda)
-    flown: dict[str, Any] = {"payload": model.payload, "effects": model.terms}
-    if model.ellipse is not None:
-        flown["error_model"] = model.ellipse
     if args.model is not None:
         print(f"model     {model.label()}", file=sys.stderr)
     thresholds = Thresholds(args.max_zone_probability, args.max_target_km, args.max_sigma_km)
@@ -180,10 +186,13 @@ def run_plan(args: argparse.Namespace) -> int:
         args.weather, bbox=weather_bbox(args.lat, args.lon, max(hours, 0.0) * 60.0), cache_dir=args.cache_dir
     )
     plan = plan_release(
-        wx, start, args.lat, args.lon, args.alt, args.hours, args.every_minutes, zones, targets, thresholds,
-        members=args.members, seed=args.seed, terrain=terrain, **flown,
-        altitude_plan=altitude_plan, float_wind_sigma_ms=args.float_wind_sigma,
-    )  # fmt: skip
+        wx,
+        Release(start, args.lat, args.lon, args.alt),
+        Sweep(args.hours, args.every_minutes, altitude_plan, args.float_wind_sigma),
+        model.flight_setup(terrain),
+        EnsembleSpread(args.members, args.seed),
+        Criteria(zones, targets, thresholds),
+    )
     if args.kml:
         write_kml(plan, args.kml)
     if args.geojson:
@@ -244,9 +253,10 @@ def run_bench(args: argparse.Namespace) -> int:
     import numpy as np
     import shapely
 
+    from predictor.descent import Release
     from predictor.environment import demo_weather_files, load_weather
-    from predictor.planning import plan_release
-    from predictor.prediction import Feature
+    from predictor.planning import Criteria, Sweep, plan_release
+    from predictor.prediction import EnsembleSpread, Feature, FlightSetup
 
     members, hours, every = 200, 2.0, 1.0
     print(
@@ -260,12 +270,14 @@ def run_bench(args: argparse.Namespace) -> int:
         Feature("town", shapely.Point(7.5, 46.25).buffer(0.1)),
     )
     targets = (Feature("road", shapely.LineString([(6.0, 45.9), (8.0, 46.5)])),)
-    common = dict(zones=zones, targets=targets, members=members, payload=PROFILES["drs"])
-    plan_release(wx, BENCH_START, 46.0, 6.0, 30000.0, hours, every, **common)
+    release, sweep = Release(BENCH_START, 46.0, 6.0, 30000.0), Sweep(hours, every)
+    setup, criteria = FlightSetup(PROFILES["drs"]), Criteria(zones, targets)
+    spread = EnsembleSpread(members)
+    plan_release(wx, release, sweep, setup, spread, criteria)
     times, cpu = [], []
     for _ in range(max(args.repeats, 1)):
         t0, c0 = time.perf_counter(), time.process_time()
-        plan = plan_release(wx, BENCH_START, 46.0, 6.0, 30000.0, hours, every, **common)
+        plan = plan_release(wx, release, sweep, setup, spread, criteria)
         times.append(time.perf_counter() - t0)
         cpu.append(time.process_time() - c0)
     n_c = len(plan.candidates)
@@ -281,10 +293,10 @@ def run_bench(args: argparse.Namespace) -> int:
         f"wall ≈ CPU / {numba.get_num_threads()} threads when the cores are free"
     )
     t0 = time.perf_counter()
-    parametric = plan_release(wx, BENCH_START, 46.0, 6.0, 30000.0, hours, every, zones=zones, targets=targets)
+    parametric = plan_release(wx, release, sweep, setup, criteria=criteria)
     print(f"same sweep without members (parametric ellipses only): {time.perf_counter() - t0:.3f} s")
-    fine = plan_release(wx, BENCH_START, 46.0, 6.0, 30000.0, 0.0, every, member_step_m=100.0, **common)
-    coarse = plan_release(wx, BENCH_START, 46.0, 6.0, 30000.0, 0.0, every, **common)
+    fine = plan_release(wx, release, Sweep(0.0, every, member_step_m=100.0), setup, spread, criteria)
+    coarse = plan_release(wx, release, Sweep(0.0, every), setup, spread, criteria)
     from predictor.prediction import GEOD
 
     a, b = fine.candidates[0], coarse.candidates[0]
@@ -301,9 +313,8 @@ def run_bench(args: argparse.Namespace) -> int:
 
 
 def run_live(args: argparse.Namespace) -> int:
-    from predictor.calibration import flown_model
     from predictor.environment import Terrain
-    from predictor.prediction import iso_z
+    from predictor.prediction import flown_model, iso_z
     from predictor.tracks import ascent_weather_cube, clean, read_track
 
     if args.action == "evaluate":
@@ -368,8 +379,9 @@ def run_live(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from predictor.calibration import evaluate_live, flown_model, live_settings, save_model, write_live_report
+    from predictor.calibration import evaluate_live, live_settings, write_live_report
     from predictor.environment import Terrain, load_weather
+    from predictor.prediction import flown_model, save_model
 
     if not args.tracks:
         raise UsageError("drs live evaluate needs track files")
@@ -410,7 +422,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
 
 def run_live_bench(args: argparse.Namespace) -> int:
-    from predictor.calibration import bench, load_model
+    from predictor.calibration import bench
+    from predictor.prediction import load_model
 
     if not args.tracks:
         raise UsageError("drs live bench needs track files")

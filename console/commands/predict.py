@@ -17,9 +17,10 @@ import tempfile
 import textwrap
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from console.commands.argparser import UtcTime, latitude, longitude
 from predictor.descent import PROFILES
@@ -147,11 +148,12 @@ def run(args: argparse.Namespace) -> int:
     summary_to = (
         sys.stderr if piped(kml=args.kml, geojson=args.geojson, gpx=args.gpx, json=args.json) else sys.stdout
     )
-    from predictor.calibration import descent_spread, flown_model
-    from predictor.descent import COMPILE_NOTICE, kernels_compiled
+    from predictor.descent import COMPILE_NOTICE, Release, kernels_compiled
     from predictor.environment import Terrain, demo_weather_files, load_weather
     from predictor.prediction import (
         EnsemblePrediction,
+        EnsembleSpread,
+        flown_model,
         predict,
         predict_ensemble,
         to_json,
@@ -163,36 +165,29 @@ def run(args: argparse.Namespace) -> int:
     when: datetime = args.time
     files = demo_weather_files(args.lat, args.lon, when) if args.demo_weather else args.weather
     flown = flown_model(args.model, args.payload, args.mass, args.cda)
-    payload = flown.payload
-    error_model = flown.chosen_ellipse(args.error_model)
     calibrated = flown if args.model is not None else None
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
     wx = load_weather(
         files, bbox=weather_bbox(args.lat, args.lon, args.drift_minutes), cache_dir=args.cache_dir
     )
-    common: dict[str, Any] = {
-        "payload": payload,
-        "terrain": terrain,
-        "step_m": args.step,
-        "drift_minutes": args.drift_minutes,
-        "error_model": error_model,
-        "effects": flown.terms,
-        "probabilities": tuple(args.probability),
-    }
+    release = Release(when, args.lat, args.lon, args.alt, drift_minutes=args.drift_minutes)
+    setup = flown.flight_setup(terrain, args.step, args.error_model, args.probability)
     if not kernels_compiled():
         print(f"drs: {COMPILE_NOTICE}", file=sys.stderr, flush=True)
     result: Prediction | EnsemblePrediction
     if args.members is not None:
-        result = predict_ensemble(
-            wx, when, args.lat, args.lon, args.alt, members=args.members, seed=args.seed, **common
-        )
+        result = predict_ensemble(wx, release, setup, EnsembleSpread(args.members, args.seed))
     else:
-        result = predict(wx, when, args.lat, args.lon, args.alt, **common)
+        result = predict(wx, release, setup)
     central = result.central if isinstance(result, EnsemblePrediction) else result
     spread = None
     if calibrated is not None:
-        release = (wx, when, args.lat, args.lon, args.alt)
-        spread = descent_spread(calibrated, central, lambda t: predict(*release, **{**common, "effects": t}))
+        # Only a model file has a rate prior to spread; a plain prediction never enters calibration.
+        from predictor.calibration import descent_spread
+
+        spread = descent_spread(
+            calibrated, central, lambda terms: predict(wx, release, replace(setup, effects=terms))
+        )
     if args.kml:
         write_kml(result, args.kml)
     if args.geojson:
@@ -290,7 +285,7 @@ _COMPILE_PROBE = textwrap.dedent(
     start = time.perf_counter()
     from datetime import datetime, timezone
     import numpy as np
-    from predictor import predict, WeatherCube
+    from predictor import predict, Release, WeatherCube
     levels = np.array([1000.0, 500.0, 100.0, 10.0])
     z = np.array([100.0, 5500.0, 16000.0, 31000.0])[None, :, None, None] * np.ones((2, 4, 3, 3))
     cube = WeatherCube(
@@ -299,7 +294,7 @@ _COMPILE_PROBE = textwrap.dedent(
         lons=np.array([5.0, 6.0, 7.0]), z_m=z,
         u=np.zeros_like(z), v=np.zeros_like(z), temperature_k=np.full_like(z, 250.0),
         density=1.2 * np.exp(-z / 7300.0), source="compile probe")
-    predict(cube, datetime(2024, 5, 1, 3, tzinfo=timezone.utc), 46.0, 6.0, 30000.0)
+    predict(cube, Release(datetime(2024, 5, 1, 3, tzinfo=timezone.utc), 46.0, 6.0, 30000.0))
     print(time.perf_counter() - start)
     """
 )
@@ -367,8 +362,9 @@ def run_bench(args: argparse.Namespace) -> int:
         )
     import numba
 
+    from predictor.descent import Release
     from predictor.environment import GFS_LEVELS_HPA, Terrain, demo_weather_files, load_weather
-    from predictor.prediction import predict, predict_ensemble
+    from predictor.prediction import EnsembleSpread, FlightSetup, predict, predict_ensemble
 
     print(
         f"drs predict bench: {os.cpu_count()} CPUs, numba {numba.__version__} with "
@@ -400,23 +396,21 @@ def run_bench(args: argparse.Namespace) -> int:
             )
         _print_whole_process(files, root / "cache")
     when = BENCH_CYCLE + timedelta(hours=4)
-    payload = PROFILES["drs"]
-    sea = Terrain.sea_level()
-    first = predict(wx, when, 46.0, 6.0, 30000.0, payload=payload, terrain=sea)
+    release = Release(when, 46.0, 6.0, 30000.0)
+    setup = FlightSetup(PROFILES["drs"], terrain=Terrain.sea_level())
+    first = predict(wx, release, setup)
     steps = math.ceil(30500.0 / 100.0)
-    singles = _timed(
-        lambda: predict(wx, when, 46.0, 6.0, 30000.0, payload=payload, terrain=sea), args.repeats
-    )
+    singles = _timed(lambda: predict(wx, release, setup), args.repeats)
     print(
         f"one prediction, drs payload, 30 km → sea level, Δz 100 m ({steps} steps, drift "
         f"{first.drift_km:.1f} km, {first.descent_s / 60:.1f} min), whole predict() call: "
         f"{_figure(singles, 1e3, 'ms')}   [floor 2 ms]"
     )
     n = args.bench_members
-    predict_ensemble(wx, when, 46.0, 6.0, 30000.0, payload=payload, terrain=sea, members=n)
+    predict_ensemble(wx, release, setup, EnsembleSpread(n))
     cpu: list[float] = []
     ensembles = _timed(
-        lambda: predict_ensemble(wx, when, 46.0, 6.0, 30000.0, payload=payload, terrain=sea, members=n),
+        lambda: predict_ensemble(wx, release, setup, EnsembleSpread(n)),
         args.ensemble_repeats,
         cpu,
     )

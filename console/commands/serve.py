@@ -83,8 +83,8 @@ def build_server(args: argparse.Namespace) -> ApiServer:
         raise UsageError(f"--port {args.port} is not a TCP port (0-65535)")
     if args.weather_dir is not None and not args.weather_dir.is_dir():
         raise PredictorError(f"--weather-dir {args.weather_dir} is not a directory")
-    from predictor.calibration import flown_model
     from predictor.environment import Terrain
+    from predictor.prediction import flown_model
     from predictor.tawhiri import ApiServer, PredictorService, WeatherSource
 
     source = WeatherSource(

@@ -13,6 +13,7 @@ from datetime import datetime
 
 from drs_link.ops.fleet import FleetState
 from drs_link.ops.telemetry import GnssSample
+from predictor.descent import Release
 
 GNSS_ALT_UNKNOWN_M = 30000.0
 """Release height when the capsule's fix carries no altitude: a float altitude of the flights flown."""
@@ -26,6 +27,10 @@ class ReleaseOrigin:
     lon: float
     alt_m: float
     source: str
+
+    def release(self, time: datetime, drift_minutes: float = 0.0) -> Release:
+        """A release from here at ``time`` (after ``drift_minutes`` at float): what the prediction flies."""
+        return Release(time, self.lat, self.lon, self.alt_m, drift_minutes=drift_minutes)
 
 
 def release_origin(fleet: FleetState, capsule: str, now: datetime) -> ReleaseOrigin | None:

@@ -36,12 +36,13 @@ from scipy.optimize import minimize, minimize_scalar
 from predictor.calibration.residuals import BinBudget
 from predictor.descent import EFFECTS, BinnedDescentRate, BinnedWind, Term
 from predictor.errors import PredictorError
+from predictor.prediction import PARAMETER_LIMITS
 
 BIN_EDGES_M = tuple(float(z) for z in range(0, 39_000, 3000))
 """Altitude bins of the binned correction: 3 km, coarse enough for 2–5 min fixes (1–4 km apart)."""
 MIN_BIN_SECONDS = 60.0
 """A bin measured for less than this over all training flights keeps factor 1 and no added wind."""
-BINNED_FACTOR_BOUNDS = (0.5, 2.0)
+BINNED_FACTOR_BOUNDS = PARAMETER_LIMITS[("binned_descent_rate", "factors")]
 
 
 REFINED_FACTORS = 5
@@ -51,13 +52,13 @@ half the coarse spacing apart): the table is heights × these, every row a traje
 
 @dataclass(frozen=True)
 class Candidate:
-    """One effect to try: the term, its fitted parameter (grid and bounds), what is held fixed."""
+    """One effect to try: the term, its fitted parameter (grid; its bounds are the model file's limits), what
+    is held fixed."""
 
     name: str
     family: str
     parameter: str
     grid: tuple[float, ...]
-    bounds: tuple[float, float]
     neutral: float
     """The value at which the effect does nothing (the baseline)."""
     fixed: Mapping[str, float] = field(default_factory=dict)
@@ -67,6 +68,12 @@ class Candidate:
     refined: str = ""
     """A variant key that is a continuous quantity (a height), refined by the fine pass jointly with
     ``parameter`` (``fine``, ``fit_refined``); "" for variants that are truly discrete."""
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        """The fitted parameter's range: the model file's own limit for it, so a calibration can never save
+        a value that loading its file would refuse."""
+        return PARAMETER_LIMITS[(self.name, self.parameter)]
 
     def points(self) -> list[tuple[int, float]]:
         """(variant index, value) of every grid point, variant-major."""
@@ -183,7 +190,6 @@ LIBRARY: tuple[Candidate, ...] = (
         "vertical",
         "scale",
         tuple(np.linspace(0.6, 1.6, 11)),
-        (0.5, 2.0),
         1.0,
         why="λ, the paper's one number: Cd·A or mass wrong by a constant factor",
     ),
@@ -192,7 +198,6 @@ LIBRARY: tuple[Candidate, ...] = (
         "vertical",
         "exponent",
         tuple(np.linspace(-0.4, 0.4, 9)),
-        (-0.5, 0.5),
         0.0,
         fixed={"reference_density": 1.225},
         why="drag that changes with density (Reynolds number): fast or slow high up, not near the ground",
@@ -202,7 +207,6 @@ LIBRARY: tuple[Candidate, ...] = (
         "vertical",
         "delay_s",
         tuple(np.linspace(0.0, 180.0, 10)),
-        (0.0, 240.0),
         0.0,
         fixed={"speed_factor": 3.0},
         why="the canopy opens late: 3× faster fall until then (the factor trades off with the delay)",
@@ -212,7 +216,6 @@ LIBRARY: tuple[Candidate, ...] = (
         "vertical",
         "factor",
         tuple(np.linspace(0.7, 1.7, 6)),
-        (0.5, 2.0),
         1.0,
         variants=_heights(),
         why="a canopy that opens further below a height: a factor on the rate above it (heights every 3 km)",
@@ -223,7 +226,6 @@ LIBRARY: tuple[Candidate, ...] = (
         "horizontal",
         "scale",
         tuple(np.linspace(0.5, 1.5, 11)),
-        (0.3, 2.0),
         1.0,
         why="the forecast wind speed wrong by a constant factor",
     ),
@@ -232,7 +234,6 @@ LIBRARY: tuple[Candidate, ...] = (
         "horizontal",
         "angle_deg",
         tuple(np.linspace(-40.0, 40.0, 9)),
-        (-60.0, 60.0),
         0.0,
         why="the forecast wind direction off by a constant angle",
     ),
@@ -241,7 +242,6 @@ LIBRARY: tuple[Candidate, ...] = (
         "horizontal",
         "scale",
         tuple(np.linspace(0.2, 2.0, 7)),
-        (0.0, 2.5),
         1.0,
         variants=_bands(),
         why="the wind wrong by a factor only in a 6 km band (bands every 3 km from the ground to 30 km)",
@@ -251,7 +251,6 @@ LIBRARY: tuple[Candidate, ...] = (
         "horizontal",
         "time_constant_s",
         (0.0, 15.0, 30.0, 60.0, 120.0, 240.0, 480.0),
-        (0.0, 600.0),
         0.0,
         why="the payload's horizontal inertia: its velocity relaxes to the air's with a time constant",
     ),
@@ -260,44 +259,11 @@ LIBRARY: tuple[Candidate, ...] = (
         "timing",
         "offset_s",
         tuple(np.linspace(-10800.0, 10800.0, 9)),
-        (-14400.0, 14400.0),
         0.0,
         why="the weather happens earlier or later than forecast (invisible in time-constant weather)",
     ),
 )
 """Every library candidate; ``selection`` tries them all unless given a subset."""
-
-
-ALTITUDE_LIMITS_M = (-500.0, 50_000.0)
-WIND_LIMITS_MS = (-60.0, 60.0)
-FIXED_LIMITS: dict[tuple[str, str], tuple[float, float]] = {
-    ("drag_density_exponent", "reference_density"): (0.5, 2.0),
-    ("deployment_delay", "speed_factor"): (1.0, 10.0),
-    ("two_regime_rate", "height_m"): ALTITUDE_LIMITS_M,
-    ("wind_band_scale", "bottom_m"): ALTITUDE_LIMITS_M,
-    ("wind_band_scale", "top_m"): ALTITUDE_LIMITS_M,
-    ("vertical_air_motion", "speed_ms"): (-5.0, 5.0),
-    ("wind_offset", "east_ms"): WIND_LIMITS_MS,
-    ("wind_offset", "north_ms"): WIND_LIMITS_MS,
-    ("binned_descent_rate", "edges_m"): ALTITUDE_LIMITS_M,
-    ("binned_descent_rate", "factors"): BINNED_FACTOR_BOUNDS,
-    ("binned_wind", "edges_m"): ALTITUDE_LIMITS_M,
-    ("binned_wind", "east_ms"): WIND_LIMITS_MS,
-    ("binned_wind", "north_ms"): WIND_LIMITS_MS,
-}
-"""What the calibration never fits but may hold fixed or get from the binned fit: the range a model file
-may carry (a reference density of sea-level air give or take, a fast fall at most 10× the canopy's,
-heights inside the weather, ±60 m/s of added wind, the binned fit's own factor bounds)."""
-
-
-def parameter_limits() -> dict[tuple[str, str], tuple[float, float]]:
-    """(effect, parameter) → the calibration's own (low, high): a fitted parameter's candidate bounds, the
-    rest from ``FIXED_LIMITS``. A model file with a value outside them was not made by a calibration
-    and is refused (an exponent of 5 is an 8-minute fall from 28 km, a wind scale of −1 blows backwards)."""
-    limits = dict(FIXED_LIMITS)
-    for c in LIBRARY:
-        limits[(c.name, c.parameter)] = c.bounds
-    return limits
 
 
 def library(names: Sequence[str] | None = None) -> tuple[Candidate, ...]:

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from predictor.calibration.live_evaluation import evaluate_live, write_live_report
-from predictor.calibration.model_file import CalibratedModel
 from predictor.errors import PredictorError
+from predictor.prediction import CalibratedModel
 from predictor.tracks import Fix, clean, read_track, write_canonical_csv
 
 GROUND_S = 300.0

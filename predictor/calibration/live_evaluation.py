@@ -45,7 +45,6 @@ from pathlib import Path
 
 import numpy as np
 
-from predictor.calibration.model_file import CalibratedModel
 from predictor.calibration.residuals import FlightCase, flight_case
 from predictor.calibration.selection import refit_without_each
 from predictor.descent import PROFILES, Payload, RatePrior, Term
@@ -58,6 +57,7 @@ from predictor.prediction import (
     NO_DISCREPANCY,
     OWN_RATE,
     Band,
+    CalibratedModel,
     DescentRecord,
     LiveCorrection,
     LiveErrorModel,

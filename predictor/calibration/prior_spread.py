@@ -20,9 +20,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from predictor.calibration.model_file import CalibratedModel
 from predictor.descent import DescentRateScale, Term
-from predictor.prediction import GEOD, Prediction
+from predictor.prediction import GEOD, CalibratedModel, Prediction
 
 
 @dataclass(frozen=True)

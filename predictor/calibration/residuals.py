@@ -39,7 +39,7 @@ from predictor.descent import (
     MeasuredDescentRate,
     Model,
     Payload,
-    Release,
+    Starts,
     Stepping,
     Term,
     Wind,
@@ -259,7 +259,7 @@ def run(
     floor = LOWEST_GROUND_M if case.terrain is not None else case.landing_alt_m - 2.0 * step_m
     t0 = case.start_time.timestamp()
     ones = np.ones(n)
-    release = Release(ones * t0, ones * case.start_lat, ones * case.start_lon, ones * case.start_alt_m)
+    release = Starts(ones * t0, ones * case.start_lat, ones * case.start_lon, ones * case.start_alt_m)
     record = descend(
         packed(case.cube),
         model.chain(n),

@@ -23,7 +23,6 @@ import numpy as np
 
 from predictor.calibration.effects import LIBRARY, library
 from predictor.calibration.ellipse_fit import MIN_FLIGHTS, EllipseFit, fit_ellipse
-from predictor.calibration.model_file import CalibratedModel, load_model, save_model
 from predictor.calibration.report import Exclusion, result_json, verdict, write_calibration_report
 from predictor.calibration.residuals import FlightCase, flight_case, run, score
 from predictor.calibration.selection import Calibration, calibrate
@@ -31,6 +30,7 @@ from predictor.descent import Payload, payload_profile
 from predictor.environment import Terrain, WeatherCube, load_weather
 from predictor.errors import PredictorError, WeatherError
 from predictor.geofiles import is_stdout, write_text
+from predictor.prediction import CalibratedModel, load_model, save_model
 from predictor.tracks import ascent_weather_cube, clean, read_track
 
 

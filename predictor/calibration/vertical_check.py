@@ -26,11 +26,11 @@ from pathlib import Path
 from typing import Any
 
 from predictor.calibration.effects import LIBRARY
-from predictor.calibration.model_file import CalibratedModel
 from predictor.calibration.residuals import FlightCase, flight_case
 from predictor.calibration.selection import Fit, FlightBatch, fit_candidate
 from predictor.environment import WeatherCube
 from predictor.errors import PredictorError
+from predictor.prediction import CalibratedModel
 from predictor.tracks import Flight
 
 SCALE = next(c for c in LIBRARY if c.name == "descent_rate_scale")

@@ -2,7 +2,8 @@
 
 ``model`` holds every physical effect as a registered term, ``payload`` the two numbers the drag law
 needs, ``integrate`` the stepper that knows no physics (``descend``), ``landing`` where a path
-meets the ground, and ``rate_prior`` what a flight's own rate factor is expected to be.
+meets the ground, ``rate_prior`` what a flight's own rate factor is expected to be, and ``release`` where
+and when a flight starts.
 """
 
 from typing import TYPE_CHECKING
@@ -20,7 +21,7 @@ if TYPE_CHECKING:
         STATUS_OUTSIDE_TIME as STATUS_OUTSIDE_TIME,
         TOP_TOLERANCE_M as TOP_TOLERANCE_M,
         Record as Record,
-        Release as Release,
+        Starts as Starts,
         Stepping as Stepping,
         degrees_per_metre as degrees_per_metre,
         descend as descend,
@@ -48,6 +49,7 @@ if TYPE_CHECKING:
     )
     from .payload import PROFILES as PROFILES, Payload as Payload, payload_profile as payload_profile
     from .rate_prior import RatePrior as RatePrior
+    from .release import Release as Release
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
@@ -66,12 +68,13 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Payload": "payload",
         "RatePrior": "rate_prior",
         "Record": "integrate",
-        "Release": "integrate",
+        "Release": "release",
         "STATUS_ABOVE_TOP": "integrate",
         "STATUS_NOT_DESCENDING": "integrate",
         "STATUS_OK": "integrate",
         "STATUS_OUTSIDE_REGION": "integrate",
         "STATUS_OUTSIDE_TIME": "integrate",
+        "Starts": "integrate",
         "Stepping": "integrate",
         "TOP_TOLERANCE_M": "integrate",
         "Term": "model",

@@ -401,8 +401,9 @@ def _cached_with_model(dispatcher: Any) -> Any:
     return dispatcher
 
 
-class Release(NamedTuple):
-    """Where and when each trajectory is let go, one value per trajectory."""
+class Starts(NamedTuple):
+    """Where and when each trajectory starts, one value per trajectory: the compiled engine's side of a
+    ``Release`` (which may first drift, or be many members or candidates)."""
 
     time: np.ndarray
     """Epoch seconds."""
@@ -413,9 +414,9 @@ class Release(NamedTuple):
     """Seconds already fallen at this start (a live report mid-descent), which time-since-release terms
     count from; None: 0, a start at the release itself."""
 
-    def rows(self, lo: int, hi: int) -> Release:
-        """Trajectories lo…hi−1 alone, contiguous as the kernel needs them."""
-        return Release(*(None if a is None else np.ascontiguousarray(a[lo:hi]) for a in self))
+
+StartArrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""``Starts`` as the kernels receive it: a plain tuple, with ``since_release_s`` filled in."""
 
 
 class Stepping(NamedTuple):
@@ -453,8 +454,11 @@ class Record(NamedTuple):
     @classmethod
     def empty(cls, skip: np.ndarray, columns: int, fill: float | None = None) -> Record:
         n = skip.shape[0]
-        paths = (np.empty((n, columns)) if fill is None else np.full((n, columns), fill) for _ in range(5))
-        return cls(*paths, skip, np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n), np.zeros((n, 5)))
+        lat, lon, z, t, path = (
+            np.empty((n, columns)) if fill is None else np.full((n, columns), fill) for _ in range(5)
+        )
+        status = np.zeros(n, np.int64)
+        return cls(lat, lon, z, t, path, skip, np.zeros(n, np.int64), status, np.zeros(n), np.zeros((n, 5)))
 
     def recorded(self) -> np.ndarray:
         """(n, columns): True where a point was recorded."""
@@ -478,7 +482,7 @@ def _descend_range(
     weather: PackedWeather,
     stepping: Stepping,
     chain: Chain,
-    release: Release,
+    release: StartArrays,
     record: Record,
 ) -> None:
     """Trajectories lo…hi−1 stepped together: each phase of a step runs for all of them before the next.
@@ -637,7 +641,12 @@ def _descend_range(
 @_cached_with_model
 @njit(cache=True, parallel=True)
 def _descend_parallel(
-    weather: PackedWeather, stepping: Stepping, chain: Chain, release: Release, record: Record, blocks: int
+    weather: PackedWeather,
+    stepping: Stepping,
+    chain: Chain,
+    release: StartArrays,
+    record: Record,
+    blocks: int,
 ) -> None:
     """One contiguous range of trajectories per thread."""
     n = release[0].shape[0]
@@ -662,7 +671,7 @@ def kernels_compiled() -> bool:
 def descend(
     weather: PackedWeather,
     chain: Chain,
-    release: Release,
+    release: Starts,
     stepping: Stepping,
     record_below_m: float = math.inf,
     fill: float | None = None,

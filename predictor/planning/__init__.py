@@ -12,17 +12,24 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from .balloon import AltitudePlan as AltitudePlan
+    from .balloon import AltitudePlan as AltitudePlan, Sweep as Sweep
     from .limits import MAX_MEMBER_DESCENTS as MAX_MEMBER_DESCENTS
     from .strip import write_geojson as write_geojson, write_kml as write_kml
-    from .sweep import ReleasePlan as ReleasePlan, Thresholds as Thresholds, plan_release as plan_release
+    from .sweep import (
+        Criteria as Criteria,
+        ReleasePlan as ReleasePlan,
+        Thresholds as Thresholds,
+        plan_release as plan_release,
+    )
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
         "AltitudePlan": "balloon",
+        "Criteria": "sweep",
         "MAX_MEMBER_DESCENTS": "limits",
         "ReleasePlan": "sweep",
+        "Sweep": "balloon",
         "Thresholds": "sweep",
         "plan_release": "sweep",
         "write_geojson": "strip",

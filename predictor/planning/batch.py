@@ -21,13 +21,12 @@ import numpy as np
 from numba import get_num_threads
 
 from predictor.descent import (
-    DEFAULT_TIME_TOLERANCE_S,
     HIGHEST_GROUND_M,
     LOWEST_GROUND_M,
     STATUS_OK,
     Model,
     Record,
-    Release,
+    Starts,
     Stepping,
     descend,
     ground_crossings,
@@ -35,6 +34,7 @@ from predictor.descent import (
     wrap_lon,
 )
 from predictor.environment import Terrain, WeatherCube
+from predictor.prediction import FlightSetup
 
 CHUNK = 4096
 STATUS_RELEASE_UNDERGROUND = 101
@@ -57,22 +57,17 @@ class BatchLandings:
 
 
 def descend_batch(
-    cube: WeatherCube,
-    model: Model,
-    lat0: np.ndarray,
-    lon0: np.ndarray,
-    z0: np.ndarray,
-    t0: np.ndarray,
-    terrain: Terrain,
-    step_m: float = 100.0,
-    with_lead: bool = False,
-    time_tolerance_s: float = DEFAULT_TIME_TOLERANCE_S,
+    cube: WeatherCube, model: Model, starts: Starts, setup: FlightSetup, with_lead: bool = False
 ) -> BatchLandings:
-    """Land every trajectory; the model's per-trajectory parameters have one value per row of lat0."""
+    """Land every trajectory over the setup's terrain, in its steps; the model's per-trajectory parameters
+    have one value per start. A start with a NaN position or altitude is a candidate the balloon never
+    reached: it gets status -1 and no landing."""
+    t0, lat0, lon0, z0 = starts.time, starts.lat, starts.lon, starts.alt_m
+    terrain = setup.terrain
     n = lat0.size
     w = packed(cube)
     chain = model.chain(n)
-    stepping = Stepping(step_m, LOWEST_GROUND_M, time_tolerance_s)
+    stepping = Stepping(setup.step_m, LOWEST_GROUND_M, setup.time_tolerance_s)
     out = {name: np.full(n, np.nan) for name in ("lat", "lon", "alt_m", "t_s", "path_m", "lead")}
     status = np.zeros(n, dtype=np.int64)
     threads = get_num_threads()
@@ -81,7 +76,7 @@ def descend_batch(
         finite = np.isfinite(lat0[lo:hi]) & np.isfinite(lon0[lo:hi]) & np.isfinite(z0[lo:hi])
         # Rows without a start (the balloon left the weather before them) get a harmless start and are
         # marked afterwards; the kernel needs finite numbers.
-        release = Release(
+        starts = Starts(
             np.ascontiguousarray(t0[lo:hi]),
             np.where(finite, lat0[lo:hi], 0.0),
             np.where(finite, lon0[lo:hi], 0.0),
@@ -90,7 +85,7 @@ def descend_batch(
         # Unless the lead is wanted, only the part near and below the highest ground is recorded (as
         # predict does for members).
         record = descend(
-            w, chain.rows(lo, hi), release, stepping,
+            w, chain.rows(lo, hi), starts, stepping,
             record_below_m=math.inf if with_lead else HIGHEST_GROUND_M, blocks=min(hi - lo, threads),
         )  # fmt: skip
         code = record.status

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
@@ -25,23 +25,21 @@ import numpy as np
 from shapely.geometry.base import BaseGeometry
 
 from predictor.descent import (
-    DEFAULT_TIME_TOLERANCE_S,
-    PROFILES,
     STATUS_ABOVE_TOP,
     STATUS_NOT_DESCENDING,
     STATUS_OUTSIDE_REGION,
     STATUS_OUTSIDE_TIME,
     DescentRateScale,
     Model,
-    Payload,
-    Term,
+    Release,
+    Starts,
     WindOffset,
     degrees_per_metre,
     wrap_lon,
 )
-from predictor.environment import Terrain, WeatherCube
+from predictor.environment import WeatherCube
 from predictor.errors import PredictorError
-from predictor.planning.balloon import DEFAULT_FLOAT_WIND_SIGMA_MS, AltitudePlan, BalloonPath, balloon_path
+from predictor.planning.balloon import BalloonPath, Sweep, balloon_path
 from predictor.planning.batch import (
     STATUS_NO_GROUND,
     STATUS_RELEASE_UNDERGROUND,
@@ -50,13 +48,12 @@ from predictor.planning.batch import (
 )
 from predictor.planning.limits import MAX_MEMBER_DESCENTS
 from predictor.prediction import (
-    DEFAULT_RATE_SIGMA,
-    DEFAULT_WIND_SIGMA_MS,
     GEOD,
-    LAUNCH,
     Ellipse,
+    EnsembleSpread,
     ErrorModel,
     Feature,
+    FlightSetup,
     LocalPlane,
     distance_at_center_km,
     ellipse_covariance,
@@ -103,6 +100,16 @@ class Thresholds:
             "max_target_km": self.max_target_km,
             "max_sigma_km": self.max_sigma_km,
         }
+
+
+@dataclass(frozen=True)
+class Criteria:
+    """What each candidate is judged against: the exclusion zones, the targets to land near, and the
+    thresholds that make it go."""
+
+    zones: Sequence[Feature] = ()
+    targets: Sequence[Feature] = ()
+    thresholds: Thresholds = field(default_factory=Thresholds)
 
 
 @dataclass(frozen=True)
@@ -276,81 +283,51 @@ class ReleasePlan:
 
 def plan_release(
     cube: WeatherCube,
-    start: datetime,
-    lat: float,
-    lon: float,
-    alt_m: float,
-    hours: float,
-    every_minutes: float,
-    zones: Sequence[Feature] = (),
-    targets: Sequence[Feature] = (),
-    thresholds: Thresholds | None = None,
-    members: int = 0,
-    seed: int = 0,
-    payload: Payload | None = None,
-    terrain: Terrain | None = None,
-    step_m: float = 100.0,
-    member_step_m: float | None = None,
-    effects: Sequence[Term] = (),
-    error_model: ErrorModel = LAUNCH,
-    altitude_plan: AltitudePlan | None = None,
-    float_wind_sigma_ms: float = DEFAULT_FLOAT_WIND_SIGMA_MS,
-    rate_sigma: float = DEFAULT_RATE_SIGMA,
-    wind_sigma_ms: float = DEFAULT_WIND_SIGMA_MS,
-    time_tolerance_s: float = DEFAULT_TIME_TOLERANCE_S,
+    release: Release,
+    sweep: Sweep,
+    setup: FlightSetup | None = None,
+    spread: EnsembleSpread | None = None,
+    criteria: Criteria | None = None,
 ) -> ReleasePlan:
-    """Every candidate release from ``start`` to ``start + hours`` every ``every_minutes``.
+    """Every candidate release of ``sweep`` from ``release``, judged by ``criteria``.
 
-    ``member_step_m`` (default 2 × ``step_m``) is the altitude step of the ensemble members: they only
-    shape the ellipse, and the midpoint stepper at 200 m lands within ~1 m of 100 m (``drs plan
-    bench`` measures it), at half the cost. The central descents use ``step_m``, so they are exactly
-    what ``predict`` gives.
+    With ``spread`` (and at least 3 members) each candidate also flies that many members, stepped at the
+    sweep's member step. The central descents use the setup's step, so they are exactly what ``predict``
+    gives.
     """
-    thresholds = thresholds or Thresholds()
-    payload = payload or PROFILES["drs"]
-    terrain = terrain or Terrain.sea_level()
+    setup = setup or FlightSetup()
+    criteria = criteria or Criteria()
+    zones, targets, thresholds = criteria.zones, criteria.targets, criteria.thresholds
+    members = spread.members if spread is not None else 0
+    step_m = setup.step_m
     if members != 0 and not (isinstance(members, int) and members >= 3):
         raise PredictorError(f"an ensemble needs at least 3 members (or 0 for none), got {members!r}")
     if thresholds.max_target_km is not None and not targets:
         raise PredictorError("a maximum target distance needs a targets file")
-    member_step_m = 2.0 * step_m if member_step_m is None else member_step_m
+    member_step_m = 2.0 * step_m if sweep.member_step_m is None else sweep.member_step_m
     for name, value in (("altitude step", step_m), ("member altitude step", member_step_m)):
         if not (math.isfinite(value) and 0.1 <= value <= 2000.0):
             raise PredictorError(f"{name} must be between 0.1 and 2000 m, got {value!r}")
-    balloon = balloon_path(
-        cube,
-        start,
-        lat,
-        lon,
-        alt_m,
-        hours,
-        every_minutes,
-        altitude_plan,
-        float_wind_sigma_ms,
-        time_tolerance_s,
-    )
+    balloon = balloon_path(cube, release, sweep, setup.time_tolerance_s)
     if members * balloon.t_s.size > MAX_MEMBER_DESCENTS:
         raise PredictorError(
             f"{balloon.t_s.size} candidates × {members} members is {members * balloon.t_s.size:,} member descents, "
             f"over the {MAX_MEMBER_DESCENTS:,} one sweep may run (memory grows with them): fewer members, "
             "a shorter sweep or a wider step"
         )
-    base = Model.for_payload(payload, *effects)
-    rel_lat, rel_lon, rel_z, rel_t = balloon.lat, balloon.lon, balloon.alt_m, balloon.t_s
-    central = descend_batch(
-        cube, base, rel_lat, rel_lon, rel_z, rel_t.astype(float), terrain, step_m, True, time_tolerance_s
-    )
+    base = setup.chain()
+    starts = Starts(balloon.t_s.astype(float), balloon.lat, balloon.lon, balloon.alt_m)
+    central = descend_batch(cube, base, starts, setup, with_lead=True)
     member_lat = member_lon = member_ok = None
-    if members:
+    if spread is not None and members:
         member_lat, member_lon, member_ok = _ensemble(
-            cube, base, balloon, members, seed, terrain, member_step_m, float_wind_sigma_ms, rate_sigma,
-            wind_sigma_ms, time_tolerance_s,
-        )  # fmt: skip
-    plane = LocalPlane(float(lat), float(lon))
+            cube, base, balloon, spread, replace(setup, step_m=member_step_m), sweep.float_wind_sigma_ms
+        )
+    plane = LocalPlane(float(release.lat), float(release.lon))
     zone_xy = [plane.project(z.geometry) for z in zones]
     target_xy = [plane.project(t.geometry) for t in targets]
     candidates = _candidates(
-        balloon, central, error_model, plane, zone_xy, [z.name for z in zones], target_xy, thresholds,
+        balloon, central, setup.error_model, plane, zone_xy, [z.name for z in zones], target_xy, thresholds,
         member_lat, member_lon, member_ok,
     )  # fmt: skip
     score_kind = (
@@ -399,20 +376,16 @@ def _ensemble(
     cube: WeatherCube,
     base: Model,
     balloon: BalloonPath,
-    members: int,
-    seed: int,
-    terrain: Terrain,
-    step_m: float,
+    spread: EnsembleSpread,
+    setup: FlightSetup,
     float_wind_sigma_ms: float,
-    rate_sigma: float,
-    wind_sigma_ms: float,
-    time_tolerance_s: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Member landings, shape (candidates, members): each member releases from the balloon moved by its
     own float-wind error × time since the start, and descends with its own rate and wind errors."""
     n_c = balloon.t_s.size
+    members = spread.members
     rate, d_east, d_north, f_east, f_north = ensemble_draws(
-        members, seed, rate_sigma, wind_sigma_ms, float_wind_sigma_ms
+        members, spread.seed, spread.rate_sigma, spread.wind_sigma_ms, float_wind_sigma_ms
     )
     elapsed = balloon.t_s - balloon.t_s[0]
     lat0 = np.repeat(balloon.lat, members)
@@ -430,11 +403,10 @@ def _ensemble(
         DescentRateScale(scale=np.tile(rate, n_c)),
         WindOffset(east_ms=np.tile(d_east, n_c), north_ms=np.tile(d_north, n_c)),
     )
-    land = descend_batch(
-        cube, model, lat0, lon0, np.repeat(balloon.alt_m, members),
-        np.repeat(balloon.t_s, members).astype(float),
-        terrain, step_m, False, time_tolerance_s,
-    )  # fmt: skip
+    starts = Starts(
+        np.repeat(balloon.t_s, members).astype(float), lat0, lon0, np.repeat(balloon.alt_m, members)
+    )
+    land = descend_batch(cube, model, starts, setup)
     shape = (n_c, members)
     return land.lat.reshape(shape), land.lon.reshape(shape), (land.status == 0).reshape(shape)
 
@@ -463,7 +435,8 @@ def _candidates(
     stats: dict[int, dict[str, Any]] = {}
     centers = np.zeros((rows.size, 2))
     covs = np.zeros((rows.size, 2, 2))
-    for j, i in enumerate(rows):
+    for j, row in enumerate(rows):
+        i = int(row)
         azimuth, _, distance_m = GEOD.inv(rel_lon[i], balloon.lat[i], central.lon[i], central.lat[i])
         bearing = float(azimuth % 360.0)
         drift_km = float(distance_m / 1000.0)
@@ -503,6 +476,8 @@ def _candidates(
         any_zone, per_zone = hits.any_zone, hits.per_zone
     else:
         any_zone, per_zone = np.zeros(rows.size), np.zeros((rows.size, 0))
+    expected: np.ndarray | None
+    at_center: np.ndarray | None
     if target_xy and rows.size:
         expected = expected_distance_km(target_xy, centers, covs)
         at_center = distance_at_center_km(target_xy, centers)
@@ -510,17 +485,20 @@ def _candidates(
         expected = at_center = None
     out = []
     for i in range(n_c):
-        release = dict(
+        text = None
+        if not ok[i]:
+            text = STATUS_TEXT.get(int(central.status[i]), f"descent failed (status {central.status[i]})")
+        release = Candidate(
             index=i,
             release_time=_from_epoch(balloon.t_s[i]),
             release_lat=float(balloon.lat[i]),
             release_lon=float(rel_lon[i]),
             release_alt_m=float(balloon.alt_m[i]),
             balloon_sigma_km=float(balloon.sigma_km[i]),
+            status=text,
         )
-        if not ok[i]:
-            text = STATUS_TEXT.get(int(central.status[i]), f"descent failed (status {central.status[i]})")
-            out.append(Candidate(**release, status=text, go=False, reasons=(text,)))
+        if text is not None:
+            out.append(replace(release, go=False, reasons=(text,)))
             continue
         j = int(np.searchsorted(rows, i))
         s = stats[i]
@@ -540,9 +518,8 @@ def _candidates(
         if thresholds.max_sigma_km is not None and s["major"] > thresholds.max_sigma_km:
             reasons.append(f"1σ {s['major']:.2f} km > {thresholds.max_sigma_km:g} km")
         out.append(
-            Candidate(
-                **release,
-                status=None,
+            replace(
+                release,
                 landing_time=_from_epoch(central.t_s[i]),
                 landing_lat=float(central.lat[i]),
                 landing_lon=float(central.lon[i]),

@@ -1,8 +1,9 @@
 """Landing predictions and how sure they are, as an operator and other tools receive them.
 
-``landings`` runs one descent or an ensemble, ``uncertainty`` gives the ellipse, ``zones`` says what it
-touches, ``live`` re-predicts from each position report during the descent, ``plausibility`` flags
-inputs an operator probably did not mean, and ``export`` writes the results as files.
+``landings`` runs one descent or an ensemble (asked with the ``setup`` values), ``uncertainty`` gives
+the ellipse, ``zones`` says what it touches, ``live`` re-predicts from each position report during the descent, ``plausibility`` flags
+inputs an operator probably did not mean, ``export`` writes the results as files, and ``model_file`` is
+the model a prediction flies: a calibrated model file or a payload profile (``flown_model``).
 """
 
 from typing import TYPE_CHECKING
@@ -18,8 +19,6 @@ if TYPE_CHECKING:
         write_kml as write_kml,
     )
     from .landings import (
-        DEFAULT_RATE_SIGMA as DEFAULT_RATE_SIGMA,
-        DEFAULT_WIND_SIGMA_MS as DEFAULT_WIND_SIGMA_MS,
         EnsemblePrediction as EnsemblePrediction,
         Point as Point,
         Prediction as Prediction,
@@ -46,11 +45,24 @@ if TYPE_CHECKING:
         RateEstimate as RateEstimate,
         Report as Report,
     )
+    from .model_file import (
+        PARAMETER_LIMITS as PARAMETER_LIMITS,
+        CalibratedModel as CalibratedModel,
+        flown_model as flown_model,
+        load_model as load_model,
+        save_model as save_model,
+    )
     from .plausibility import (
         emit as emit,
         far_features_warning as far_features_warning,
         far_team_warning as far_team_warning,
         release_altitude_warning as release_altitude_warning,
+    )
+    from .setup import (
+        DEFAULT_RATE_SIGMA as DEFAULT_RATE_SIGMA,
+        DEFAULT_WIND_SIGMA_MS as DEFAULT_WIND_SIGMA_MS,
+        EnsembleSpread as EnsembleSpread,
+        FlightSetup as FlightSetup,
     )
     from .uncertainty import (
         ERROR_MODELS as ERROR_MODELS,
@@ -79,16 +91,19 @@ __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
         "Band": "live",
+        "CalibratedModel": "model_file",
         "CONSTANT_WIND_M": "live",
         "DEFAULT_ELLIPSE_NOTE": "live",
-        "DEFAULT_RATE_SIGMA": "landings",
-        "DEFAULT_WIND_SIGMA_MS": "landings",
+        "DEFAULT_RATE_SIGMA": "setup",
+        "DEFAULT_WIND_SIGMA_MS": "setup",
         "DescentRecord": "live",
         "ERROR_MODELS": "uncertainty",
         "Ellipse": "uncertainty",
         "EnsemblePrediction": "landings",
+        "EnsembleSpread": "setup",
         "ErrorModel": "uncertainty",
         "Feature": "zones",
+        "FlightSetup": "setup",
         "GEOD": "uncertainty",
         "HINDSIGHT": "uncertainty",
         "LAUNCH": "uncertainty",
@@ -102,6 +117,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "NO_CORRECTION": "live",
         "NO_DISCREPANCY": "live",
         "OWN_RATE": "live",
+        "PARAMETER_LIMITS": "model_file",
         "Point": "landings",
         "Prediction": "landings",
         "Report": "live",
@@ -116,14 +132,17 @@ __getattr__, __dir__, __all__ = lazy_door(
         "expected_distance_km": "zones",
         "far_features_warning": "plausibility",
         "far_team_warning": "plausibility",
+        "flown_model": "model_file",
         "inside_any": "zones",
         "iso_z": "landings",
+        "load_model": "model_file",
         "load_targets": "zones",
         "load_zones": "zones",
         "parametric_ellipse": "uncertainty",
         "predict": "landings",
         "predict_ensemble": "landings",
         "release_altitude_warning": "plausibility",
+        "save_model": "model_file",
         "to_json": "export",
         "to_kml": "export",
         "write_geojson": "export",

@@ -52,7 +52,7 @@ def _contour_label(ellipse: Ellipse, index: int) -> str:
 
 
 def _ellipses(result: Prediction | EnsemblePrediction) -> list[tuple[Ellipse, tuple[str, ...]]]:
-    ellipses = [(_central(result).ellipse, _ELLIPSE_COLOURS)]
+    ellipses: list[tuple[Ellipse, tuple[str, ...]]] = [(_central(result).ellipse, _ELLIPSE_COLOURS)]
     if isinstance(result, EnsemblePrediction):
         ellipses.append((result.empirical, (_EMPIRICAL_COLOUR,)))
     return ellipses

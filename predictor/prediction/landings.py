@@ -23,7 +23,6 @@ from predictor.descent import (
     DEFAULT_TIME_TOLERANCE_S,
     HIGHEST_GROUND_M,
     LOWEST_GROUND_M,
-    PROFILES,
     STATUS_ABOVE_TOP,
     STATUS_NOT_DESCENDING,
     STATUS_OK,
@@ -35,8 +34,8 @@ from predictor.descent import (
     Payload,
     Record,
     Release,
+    Starts,
     Stepping,
-    Term,
     WindOffset,
     descend,
     drift_at_float,
@@ -46,9 +45,9 @@ from predictor.descent import (
 )
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import OutOfCoverageError, PredictorError
+from predictor.prediction.setup import EnsembleSpread, FlightSetup
 from predictor.prediction.uncertainty import (
     GEOD,
-    LAUNCH,
     Ellipse,
     ErrorModel,
     empirical_ellipse,
@@ -58,8 +57,6 @@ from predictor.prediction.uncertainty import (
 DRIFT_STEP_S = 60.0
 CHUNKS_PER_THREAD = 4
 """Trajectory blocks per numba thread: smaller blocks even out a thread that other work slows down."""
-DEFAULT_RATE_SIGMA = 0.07
-DEFAULT_WIND_SIGMA_MS = 1.5
 
 
 def iso_z(t: datetime) -> str:
@@ -200,9 +197,9 @@ class _Landings:
     """Index of the first recorded point below the ground, per trajectory."""
 
 
-def _check_question(
-    time: datetime, lat: float, lon: float, alt_m: float, step_m: float, drift_minutes: float
-) -> None:
+def _check_question(release: Release, step_m: float) -> None:
+    time, lat, lon, alt_m = release.time, release.lat, release.lon, release.alt_m
+    drift_minutes = release.drift_minutes
     if not isinstance(time, datetime) or time.tzinfo is None:
         raise PredictorError(
             "the release time must be a timezone-aware datetime (UTC), e.g. 2024-05-01T06:00Z"
@@ -264,17 +261,17 @@ def coverage_error(
 def _integrate(
     cube: WeatherCube,
     model: Model,
-    release: Release,
+    starts: Starts,
     step_m: float,
     time_tolerance_s: float,
     whole_track: bool = True,
 ) -> Record:
     """Run the stepper; without ``whole_track`` only the part near and below the highest ground is kept."""
-    n = release.time.size
+    n = starts.time.size
     paths = descend(
         packed(cube),
         model.chain(n),
-        release,
+        starts,
         Stepping(step_m, LOWEST_GROUND_M, time_tolerance_s),
         record_below_m=math.inf if whole_track else HIGHEST_GROUND_M,
         blocks=min(n, CHUNKS_PER_THREAD * get_num_threads()),
@@ -320,15 +317,12 @@ def _find_landings(paths: Record, terrain: Terrain) -> _Landings:
 
 
 def _release_state(
-    cube: WeatherCube,
-    time: datetime,
-    lat: float,
-    lon: float,
-    alt_m: float,
-    drift_minutes: float,
-    time_tolerance_s: float,
+    cube: WeatherCube, release: Release, time_tolerance_s: float
 ) -> tuple[float, float, float, Point | None]:
     """(lat, lon, epoch seconds) of the release, after the balloon's drift at float altitude."""
+    time, lat, lon, alt_m, drift_minutes = (
+        release.time, release.lat, release.lon, release.alt_m, release.drift_minutes
+    )
     t0 = _epoch(time)
     if drift_minutes <= 0.0:
         return lat, lon, t0, None
@@ -360,49 +354,29 @@ def _cube_of(wx: WeatherCube | Sequence[WeatherCube]) -> WeatherCube:
     raise PredictorError("predict needs one WeatherCube (use predict_ensemble for one member per cube)")
 
 
-def predict(
-    wx: WeatherCube,
-    time: datetime,
-    lat: float,
-    lon: float,
-    alt_m: float,
-    payload: Payload | None = None,
-    terrain: Terrain | None = None,
-    step_m: float = 100.0,
-    drift_minutes: float = 0.0,
-    effects: Sequence[Term] = (),
-    model: Model | None = None,
-    error_model: ErrorModel = LAUNCH,
-    probabilities: Sequence[float] = (),
-    time_tolerance_s: float = DEFAULT_TIME_TOLERANCE_S,
-    since_release_s: float = 0.0,
-) -> Prediction:
-    """One descent from release to the ground, with the paper's parametric error ellipse.
+def predict(wx: WeatherCube, release: Release, setup: FlightSetup | None = None) -> Prediction:
+    """One descent from ``release`` to the ground, with the paper's parametric error ellipse.
 
-    ``model`` replaces the whole chain (the payload is then only reported); otherwise the chain is
-    the payload's drag law, the wind, and ``effects``. ``since_release_s``: a start mid-descent (a live
-    report) that long after the real release, from which time-since-release terms keep counting.
+    The chain is the setup's (``FlightSetup.chain``: the payload's drag law, the wind and ``effects``, or
+    a whole ``model``); a release with ``drift_minutes`` first drifts at float, and one with
+    ``since_release_s`` (a live report mid-descent) keeps counting time-since-release terms from the real
+    release.
     """
     cube = _cube_of(wx)
-    payload = payload or PROFILES["drs"]
-    terrain = terrain or Terrain.sea_level()
-    _check_question(time, lat, lon, alt_m, step_m, drift_minutes)
-    chain = model or Model.for_payload(payload, *effects)
-    rel_lat, rel_lon, rel_t, decision = _release_state(
-        cube, time, lat, lon, alt_m, drift_minutes, time_tolerance_s
-    )
-    release = Release(
+    setup = setup or FlightSetup()
+    _check_question(release, setup.step_m)
+    chain = setup.chain()
+    rel_lat, rel_lon, rel_t, decision = _release_state(cube, release, setup.time_tolerance_s)
+    starts = Starts(
         np.array([rel_t]),
         np.array([rel_lat]),
         np.array([rel_lon]),
-        np.array([alt_m]),
-        np.array([since_release_s]),
+        np.array([release.alt_m]),
+        np.array([release.since_release_s]),
     )
-    paths = _integrate(cube, chain, release, step_m, time_tolerance_s)
-    land = _find_landings(paths, terrain)
-    return _build_prediction(
-        cube, paths, land, 0, terrain, payload, chain, step_m, error_model, probabilities, decision
-    )
+    paths = _integrate(cube, chain, starts, setup.step_m, setup.time_tolerance_s)
+    land = _find_landings(paths, setup.terrain)
+    return _build_prediction(cube, paths, land, 0, setup, chain, decision)
 
 
 def _build_prediction(
@@ -410,14 +384,11 @@ def _build_prediction(
     paths: Record,
     land: _Landings,
     row: int,
-    terrain: Terrain,
-    payload: Payload,
+    setup: FlightSetup,
     model: Model,
-    step_m: float,
-    error_model: ErrorModel,
-    probabilities: Sequence[float],
     decision: Point | None,
 ) -> Prediction:
+    terrain, error_model = setup.terrain, setup.error_model
     k = int(land.index[row])
     t_path = np.append(paths.t[row, :k], land.t_s[row])
     lat_path = np.append(paths.lat[row, :k], land.lat[row])
@@ -429,7 +400,9 @@ def _build_prediction(
     bearing = float(azimuth % 360.0)
     drift_km = float(distance_m / 1000.0)
     t_future = _t_future_mean(cube, t_path)
-    ellipse = parametric_ellipse(error_model, drift_km, t_future, bearing, end_lat, end_lon, probabilities)
+    ellipse = parametric_ellipse(
+        error_model, drift_km, t_future, bearing, end_lat, end_lon, setup.probabilities
+    )
     terrain_source = terrain.source_at(end_lat, end_lon)
     warnings = list(cube.warnings)
     if cube.is_demo:
@@ -457,9 +430,9 @@ def _build_prediction(
         weather_source=cube.source,
         is_demo=cube.is_demo,
         terrain_source=terrain_source,
-        payload=payload,
+        payload=setup.payload,
         model=model.describe(),
-        step_m=step_m,
+        step_m=setup.step_m,
         error_model=error_model,
         decision=decision,
     )
@@ -516,8 +489,8 @@ def predict_landings(
         raise PredictorError("every longitude must be a finite number of degrees")
     if not np.all(np.isfinite(z0) & (z0 > 0.0)):
         raise PredictorError("every release altitude must be a positive number of metres")
-    _check_question(_from_epoch(t0[0]), float(la[0]), float(lo[0]), float(z0[0]), step_m, 0.0)
-    paths = _integrate(wx, model, Release(t0, la, lo, z0), step_m, time_tolerance_s, whole_track=False)
+    _check_question(Release(_from_epoch(t0[0]), float(la[0]), float(lo[0]), float(z0[0])), step_m)
+    paths = _integrate(wx, model, Starts(t0, la, lo, z0), step_m, time_tolerance_s, whole_track=False)
     land = _find_landings(paths, terrain)
     azimuth, _, distance_m = GEOD.inv(wrap_lon(lo), la, wrap_lon(land.lon), land.lat)
     return LandingSet(
@@ -534,34 +507,21 @@ def predict_landings(
 
 def predict_ensemble(
     wx: WeatherCube | Sequence[WeatherCube],
-    time: datetime,
-    lat: float,
-    lon: float,
-    alt_m: float,
-    payload: Payload | None = None,
-    terrain: Terrain | None = None,
-    step_m: float = 100.0,
-    drift_minutes: float = 0.0,
-    members: int = 1000,
-    seed: int = 0,
-    rate_sigma: float = DEFAULT_RATE_SIGMA,
-    wind_sigma_ms: float = DEFAULT_WIND_SIGMA_MS,
-    effects: Sequence[Term] = (),
-    error_model: ErrorModel = LAUNCH,
-    probabilities: Sequence[float] = (),
-    time_tolerance_s: float = DEFAULT_TIME_TOLERANCE_S,
+    release: Release,
+    setup: FlightSetup | None = None,
+    spread: EnsembleSpread | None = None,
 ) -> EnsemblePrediction:
     """Many descents at once: perturbed members of one cube, or one member per cube (GEFS).
 
-    With one cube each member draws a descent-rate factor from a log-normal (median 1, σ of the
-    log = ``rate_sigma``: Cd·A, mass and density errors together) and a constant wind error from a
-    normal of ``wind_sigma_ms`` per component; both are held for the whole descent, which is how
-    forecast errors behave over the ~40 min of a descent (correlated, not white noise). With several
-    cubes (an ensemble forecast) each cube is one member and nothing is perturbed.
+    With one cube each member draws its errors as ``spread`` says; both are held for the whole descent,
+    which is how forecast errors behave over the ~40 min of a descent (correlated, not white noise). With
+    several cubes (an ensemble forecast) each cube is one member and nothing is perturbed.
     """
-    payload = payload or PROFILES["drs"]
-    terrain = terrain or Terrain.sea_level()
-    _check_question(time, lat, lon, alt_m, step_m, drift_minutes)
+    setup = setup or FlightSetup()
+    spread = spread or EnsembleSpread()
+    members, seed = spread.members, spread.seed
+    rate_sigma, wind_sigma_ms = spread.rate_sigma, spread.wind_sigma_ms
+    _check_question(release, setup.step_m)
     cubes = [wx] if isinstance(wx, WeatherCube) else list(wx)
     if not cubes or not all(isinstance(c, WeatherCube) for c in cubes):
         raise PredictorError("predict_ensemble needs a WeatherCube or a non-empty list of them")
@@ -576,24 +536,21 @@ def predict_ensemble(
         and wind_sigma_ms >= 0.0
     ):
         raise PredictorError("ensemble spreads must be finite and ≥ 0")
-    central = predict(
-        cubes[0], time, lat, lon, alt_m, payload, terrain, step_m, drift_minutes, effects,
-        error_model=error_model, probabilities=probabilities, time_tolerance_s=time_tolerance_s,
-    )  # fmt: skip
-    base = Model.for_payload(payload, *effects)
+    central = predict(cubes[0], release, setup)
+    base = setup.chain()
     if len(cubes) == 1:
         rng = np.random.default_rng(seed)
         rate = np.exp(rng.normal(0.0, rate_sigma, members))
         d_east = rng.normal(0.0, wind_sigma_ms, members)
         d_north = rng.normal(0.0, wind_sigma_ms, members)
         model = base.with_terms(DescentRateScale(scale=rate), WindOffset(east_ms=d_east, north_ms=d_north))
-        rel_lat, rel_lon, rel_t, _ = _release_state(
-            cubes[0], time, lat, lon, alt_m, drift_minutes, time_tolerance_s
-        )
+        rel_lat, rel_lon, rel_t, _ = _release_state(cubes[0], release, setup.time_tolerance_s)
         ones = np.ones(members)
-        release = Release(ones * rel_t, ones * rel_lat, ones * rel_lon, ones * alt_m)
-        paths = _integrate(cubes[0], model, release, step_m, time_tolerance_s)
-        land = _find_landings(paths, terrain)
+        starts = Starts(
+            ones * rel_t, ones * rel_lat, ones * rel_lon, ones * release.alt_m, ones * release.since_release_s
+        )
+        paths = _integrate(cubes[0], model, starts, setup.step_m, setup.time_tolerance_s)
+        land = _find_landings(paths, setup.terrain)
         landings = (land.lat, land.lon, land.alt_m, land.t_s - rel_t)
         perturbations: dict[str, Any] = {
             "kind": "perturbed",
@@ -607,15 +564,14 @@ def predict_ensemble(
     else:
         rows: list[tuple[float, float, float, float]] = []
         for cube in cubes:
-            member = predict(
-                cube, time, lat, lon, alt_m, payload, terrain, step_m, drift_minutes, effects,
-                error_model=error_model, time_tolerance_s=time_tolerance_s,
-            )  # fmt: skip
+            member = predict(cube, release, setup)
             rows.append((member.landing.lat, member.landing.lon, member.landing.alt_m, member.descent_s))
         arr = np.array(rows)
         landings = (arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3])
         perturbations = {"kind": "one member per weather cube", "sources": [c.source for c in cubes]}
-    empirical = empirical_ellipse(landings[0], wrap_lon(landings[1]), central.bearing_deg, probabilities)
+    empirical = empirical_ellipse(
+        landings[0], wrap_lon(landings[1]), central.bearing_deg, setup.probabilities
+    )
     return EnsemblePrediction(
         central=central,
         member_lat=np.asarray(landings[0]),

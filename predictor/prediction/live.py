@@ -40,11 +40,12 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from predictor.descent import PROFILES, BinnedWind, DescentRateScale, Payload, RatePrior, Term
+from predictor.descent import PROFILES, BinnedWind, DescentRateScale, Payload, RatePrior, Release, Term
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError
 from predictor.prediction.landings import Prediction, Track, iso_z, predict
-from predictor.prediction.uncertainty import GEOD, ErrorModel
+from predictor.prediction.setup import FlightSetup
+from predictor.prediction.uncertainty import GEOD, LAUNCH, ErrorModel
 
 WIND_BIN_M = 250.0
 RATE_FACTOR_LIMITS = (0.5, 2.0)
@@ -534,11 +535,12 @@ class LivePredictor:
         self._leg_start: Report | None = None
         self.record = DescentRecord(self.law)
 
-    def _predict(self, report: Report, terms: Sequence[Term], **kwargs: Any) -> Prediction:
-        return predict(
-            self.cube, report.time, report.lat, report.lon, report.alt_m, self.payload, self.terrain,
-            self.step_m, effects=tuple(terms), since_release_s=self.record.since_top_s(report), **kwargs,
-        )  # fmt: skip
+    def _predict(self, report: Report, terms: Sequence[Term], error_model: ErrorModel = LAUNCH) -> Prediction:
+        start = Release(report.time, report.lat, report.lon, report.alt_m,
+                        since_release_s=self.record.since_top_s(report))  # fmt: skip
+        setup = FlightSetup(self.payload, tuple(terms), terrain=self.terrain, step_m=self.step_m,
+                            error_model=error_model)  # fmt: skip
+        return predict(self.cube, start, setup)
 
     def law(self, report: Report) -> Track:
         """The flown model's track from ``report``, with no live correction: the law a rate is fitted on."""

@@ -96,7 +96,8 @@ def _ring(raw: Any, where: str) -> np.ndarray:
     return ring
 
 
-def _polygon(rings: Any, where: str) -> shapely.Polygon:
+def _polygon(rings: Any, where: str) -> BaseGeometry:
+    """The polygon, made valid when it is not (a self-touching ring): then it may be a multi-part shape."""
     if not isinstance(rings, list) or not rings:
         raise ZoneFileError(f"{where}: a Polygon needs a list of rings")
     shell = _ring(rings[0], f"{where} ring 0")
@@ -107,9 +108,7 @@ def _polygon(rings: Any, where: str) -> shapely.Polygon:
         hole[:, 0] += 360.0 * np.round((shell[0, 0] - hole[0, 0]) / 360.0)
         holes.append(hole)
     polygon = shapely.Polygon(shell, holes)
-    if not polygon.is_valid:
-        polygon = shapely.make_valid(polygon)
-    return polygon
+    return polygon if polygon.is_valid else shapely.make_valid(polygon)
 
 
 def _geometry(geom: Any, where: str, allowed: Sequence[str]) -> BaseGeometry:
@@ -126,7 +125,10 @@ def _geometry(geom: Any, where: str, allowed: Sequence[str]) -> BaseGeometry:
     if kind == "MultiPolygon":
         if not isinstance(coords, list) or not coords:
             raise ZoneFileError(f"{where}: a MultiPolygon needs a list of polygons")
-        return shapely.MultiPolygon([_polygon(p, f"{where} polygon {i}") for i, p in enumerate(coords)])
+        parts = [_polygon(p, f"{where} polygon {i}") for i, p in enumerate(coords)]
+        polygons = [p for p in parts if isinstance(p, shapely.Polygon)]
+        # A self-touching part comes back from make_valid as several: the zone is then their union.
+        return shapely.MultiPolygon(polygons) if len(polygons) == len(parts) else shapely.union_all(parts)
     if kind == "Point":
         return shapely.Point(_positions([coords], where)[0])
     if kind == "MultiPoint":

@@ -41,10 +41,10 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
-from predictor.calibration import CalibratedModel
+from predictor.descent import Release
 from predictor.environment import Terrain, WeatherCube, demo_weather_files, load_weather, weather_bbox
 from predictor.errors import OutOfCoverageError, PredictorError, WeatherError
-from predictor.prediction import Prediction, predict
+from predictor.prediction import CalibratedModel, FlightSetup, Prediction, predict
 from predictor.tawhiri.ascent import Ascent, ascend
 from predictor.tawhiri.descent import descend, nasa_density
 
@@ -332,10 +332,9 @@ class PredictorService:
                 descent = descend(cube, self.terrain, burst.time, burst.lat, burst.lon, burst.alt_m,
                                   request.descent_rate)  # fmt: skip
             else:
-                descent = predict(
-                    cube, burst.time, burst.lat, burst.lon, burst.alt_m, payload=self.flown.payload,
-                    terrain=self.terrain, effects=self.flown.terms, error_model=self.error_model,
-                )  # fmt: skip
+                setup = FlightSetup(self.flown.payload, self.flown.terms, terrain=self.terrain,
+                                    error_model=self.error_model)  # fmt: skip
+                descent = predict(cube, Release(burst.time, burst.lat, burst.lon, burst.alt_m), setup)
         answered = {
             "profile": STANDARD_PROFILE,
             "launch_latitude": request.launch_latitude,

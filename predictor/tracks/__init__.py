@@ -2,8 +2,8 @@
 
 ``reading`` reads every track format into one ``Track`` of ``Fix`` es, ``cleaning`` turns a track into a
 ``Flight`` by stated rules (ascent, descent, landing, and why anything was dropped), ``ascent_winds``
-turns a flight's own ascent into a ``WeatherCube``, ``standard_atmosphere`` fills pressure where none
-was logged, and ``synthetic`` flies flights with a known truth for tests.
+turns a flight's own ascent into a ``WeatherCube``, and ``standard_atmosphere`` fills pressure where none
+was logged.
 """
 
 from typing import TYPE_CHECKING

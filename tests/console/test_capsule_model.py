@@ -10,11 +10,11 @@ from console.predictions import PredictionService, ReleaseOrigin, capsule_models
 from drs_link.config import parse_config
 from drs_link.errors import ConfigError
 from predictor import Terrain
-from predictor.calibration.model_file import CalibratedModel, save_model
 from predictor.descent.model import DragDensityExponent
 from predictor.descent.payload import Payload
 from predictor.environment.demo_weather import demo_weather_files
 from predictor.errors import PredictorError
+from predictor.prediction import CalibratedModel, save_model
 from tests.console.conftest import SITE, T0, offline_config
 
 

@@ -17,9 +17,9 @@ from console.widgets.landing_map import LandingMap
 from console.widgets.release_timeline import GO, NO_GO, NO_LANDING, default_cursor, render_timeline
 from drs_link.iridium.recovery import TrackPoint
 from drs_link.ops import ReleaseWindow
-from predictor.calibration import CalibratedModel
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError
+from predictor.prediction import CalibratedModel
 from tests.console.conftest import SITE, T0, wait_for
 
 

@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 from console.commands.main import main
-from predictor.calibration.model_file import load_model
 from predictor.descent.model import DescentRateScale
 from predictor.descent.payload import PROFILES
 from predictor.environment.gribwrite import GFS_LEVELS_HPA, gfs_file_name, write_gfs_grib2
 from predictor.environment.weather import load_weather
+from predictor.prediction import load_model
 from predictor.tracks.reading import write_canonical_csv
 from predictor.tracks.standard_atmosphere import pressure_temperature
-from predictor.tracks.synthetic import synthetic_flight
+from tests.predictor.synthetic_flights import synthetic_flight
 
 PAYLOAD = PROFILES["superbit-test"]
 

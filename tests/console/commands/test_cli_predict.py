@@ -13,7 +13,9 @@ import pytest
 
 from console.commands.main import main
 from predictor import Terrain, load_weather, payload_profile, predict
+from predictor.descent import Release
 from predictor.environment.gribwrite import gfs_file_name, write_gfs_grib2
+from predictor.prediction import FlightSetup
 from tests.predictor.predict_helpers import H_ISO, LEVELS_HPA, P0_HPA, T_ISO
 
 CYCLE = datetime(2024, 5, 1, 0, tzinfo=UTC)
@@ -54,7 +56,9 @@ def test_json_output_matches_the_python_api_on_the_same_files(
     doc = json.loads(capsys.readouterr().out)
     wx = load_weather(grib_files, cache_dir=cache)
     res = predict(
-        wx, datetime(2024, 5, 1, 2, tzinfo=UTC), 51.0, -0.3, 28000.0, payload=payload_profile("drs")
+        wx,
+        Release(datetime(2024, 5, 1, 2, tzinfo=UTC), 51.0, -0.3, 28000.0),
+        FlightSetup(payload_profile("drs")),
     )
     assert doc["landing"]["lat"] == pytest.approx(res.landing.lat, abs=1e-9)
     assert doc["landing"]["lon"] == pytest.approx(res.landing.lon, abs=1e-9)
@@ -278,3 +282,37 @@ def test_weather_and_demo_weather_together_is_refused(
 ) -> None:
     assert main([*base_args(grib_files, cache), "--demo-weather"]) == 2
     assert "give either --weather or --demo-weather, not both" in capsys.readouterr().err
+
+
+CALIBRATION_PROBE = """
+import json, sys
+from console.commands.main import main
+status = main(sys.argv[1:])
+print(json.dumps([status, sorted(m for m in sys.modules if m.startswith("predictor.calibration"))]))
+"""
+
+
+def _calibration_modules_loaded_by(argv: list[str]) -> tuple[int, list[str]]:
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-c", CALIBRATION_PROBE, *argv],
+        cwd=Path(__file__).resolve().parents[3], capture_output=True, text=True, timeout=300, check=True,
+    )  # fmt: skip
+    status, modules = json.loads(done.stdout.strip().splitlines()[-1])
+    return status, modules
+
+
+def test_a_plain_prediction_never_enters_the_calibration_room(
+    grib_files: list[Path], cache: str, tmp_path: Path
+) -> None:
+    """The model a prediction flies lives with the predictions (``model_file``); only a model file's rate
+    prior (``descent_spread``) is calibration's. The second run shows the probe sees the room when it is
+    entered."""
+    from predictor.prediction import CalibratedModel, save_model
+
+    assert _calibration_modules_loaded_by([*base_args(grib_files, cache), "--json"]) == (0, [])
+    model = save_model(CalibratedModel(payload_profile("drs"), (), None), tmp_path / "m.json")
+    status, modules = _calibration_modules_loaded_by([*base_args(grib_files, cache), "--model", str(model)])
+    assert status == 0 and "predictor.calibration.prior_spread" in modules

@@ -93,8 +93,8 @@ def test_a_mistyped_command_lists_the_real_ones() -> None:
 
 def test_a_closed_pipe_ends_quietly_without_a_traceback(tmp_path: Path) -> None:
     """`drs … | head`: the reader leaves early; no BrokenPipeError reaches the operator."""
-    from predictor.calibration.model_file import CalibratedModel, save_model
     from predictor.descent.payload import PROFILES
+    from predictor.prediction import CalibratedModel, save_model
 
     model = save_model(CalibratedModel(PROFILES["drs"], (), None), tmp_path / "m.json")
     for argv, status in ((["model", "show", str(model)], 141), (["predict", "--help"], 0)):

@@ -20,7 +20,7 @@ from predictor.descent.payload import PROFILES
 from predictor.environment.cube import WeatherCube
 from predictor.tracks.cleaning import clean
 from predictor.tracks.standard_atmosphere import R_DRY_AIR, pressure_temperature
-from predictor.tracks.synthetic import synthetic_flight
+from tests.predictor.synthetic_flights import synthetic_flight
 
 LAUNCH = datetime(2024, 5, 1, 8, 0, 0, tzinfo=UTC)
 PAYLOAD = PROFILES["superbit-test"]

@@ -29,9 +29,9 @@ import pytest
 
 from console.commands.main import main
 from predictor.calibration.live_evaluation import LevelGround
-from predictor.calibration.model_file import CalibratedModel, load_model
 from predictor.descent.payload import Payload
 from predictor.environment.weather import load_weather
+from predictor.prediction import CalibratedModel, load_model
 from predictor.tracks import clean, read_track
 from tests.independent_world import (
     CDA_M2,

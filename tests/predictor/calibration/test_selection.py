@@ -83,7 +83,7 @@ def test_each_family_has_its_record_and_floor() -> None:
 
 
 def test_an_unknown_family_is_refused(plain_cases: list[FlightCase]) -> None:
-    odd = Candidate("wind_scale", "sideways", "scale", (0.9, 1.0, 1.1), (0.5, 1.5), 1.0)
+    odd = Candidate("wind_scale", "sideways", "scale", (0.9, 1.0, 1.1), 1.0)
     with pytest.raises(PredictorError, match="unknown effect family sideways"):
         calibrate(plain_cases, PROFILES["superbit-test"], (odd,))
 

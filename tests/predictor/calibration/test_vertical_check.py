@@ -9,15 +9,15 @@ from pathlib import Path
 import pytest
 
 from console.commands.main import main
-from predictor.calibration.model_file import CalibratedModel
 from predictor.calibration.vertical_check import check_flight, vertical_case
 from predictor.descent.model import DescentRateScale, DragDensityExponent
 from predictor.descent.payload import PROFILES
 from predictor.errors import PredictorError
+from predictor.prediction import CalibratedModel
 from predictor.tracks.cleaning import clean
-from predictor.tracks.synthetic import synthetic_flight
 from tests.conftest import REPO_ROOT
 from tests.predictor.calibration.conftest import LAUNCH, jet_cube
+from tests.predictor.synthetic_flights import synthetic_flight
 
 PAYLOAD = PROFILES["superbit-test"]
 REPORT = REPO_ROOT / "docs" / "calibration" / "v4-vertical.md"

@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 
 from predictor import Model, WeatherCube, predict
+from predictor.descent import Release
 from predictor.descent.model import SeaLevelRate, Wind
+from predictor.prediction import FlightSetup
 
 LEVELS_HPA = np.array([*range(1000, 99, -25), 70, 50, 30, 20, 10, 7, 5, 3, 2, 1], dtype=float)
 R_AIR = 287.053
@@ -84,7 +86,11 @@ def test_levels_reproduce_the_published_heights() -> None:
 
 def test_synthetic_jet_case_agrees_with_tawhiri_within_0_2_percent_of_the_drift() -> None:
     model = Model((SeaLevelRate(rate_ms=5.0), Wind()))
-    res = predict(tawhiri_field(), datetime(2024, 1, 1, 6, tzinfo=UTC), 52.0, 0.5, 30000.0, model=model)
+    res = predict(
+        tawhiri_field(),
+        Release(datetime(2024, 1, 1, 6, tzinfo=UTC), 52.0, 0.5, 30000.0),
+        FlightSetup(model=model),
+    )
     # Tawhiri's drift east/north are its angles times its radius; ours are our angles times the
     # WGS84 radii of curvature at the mean latitude (each model's own metres on the ground).
     phi = math.radians((52.0 + res.landing.lat) / 2.0)

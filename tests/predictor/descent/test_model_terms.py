@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from predictor import EFFECTS, Model, Payload, PredictorError, Term, predict
+from predictor.descent import Release
 from predictor.descent.model import (
     BASE_STAGE,
     ENV_SIZE,
@@ -34,6 +35,7 @@ from predictor.descent.model import (
     WindScale,
     apply_family,
 )
+from predictor.prediction import FlightSetup
 from tests.predictor.predict_helpers import (
     G0,
     H_ISO,
@@ -50,7 +52,7 @@ WINDY = isothermal_cube(u=10.0)
 
 
 def descent(cube=CALM, *effects, **kw):  # type: ignore[no-untyped-def]
-    return predict(cube, RELEASE, 46.0, 4.0, 30000.0, payload=PAYLOAD, effects=effects, **kw)
+    return predict(cube, Release(RELEASE, 46.0, 4.0, 30000.0), FlightSetup(PAYLOAD, effects, **kw))
 
 
 def test_the_library_has_every_effect_the_calibration_needs() -> None:
@@ -251,7 +253,11 @@ def test_isothermal_helper_is_self_consistent() -> None:
 def test_sea_level_rate_matches_its_closed_form() -> None:
     # v = r·sqrt(ρ_ref/ρ) with ρ = ρ0·e^(−z/H): t = 2H·(1 − e^(−Z/2H)) / (r·sqrt(ρ_ref/ρ0)).
     rate, z_top = 5.0, 30000.0
-    res = predict(CALM, RELEASE, 46.0, 4.0, z_top, model=Model((SeaLevelRate(rate_ms=rate), Wind())))
+    res = predict(
+        CALM,
+        Release(RELEASE, 46.0, 4.0, z_top),
+        FlightSetup(model=Model((SeaLevelRate(rate_ms=rate), Wind()))),
+    )
     expected = 2 * H_ISO * (1 - math.exp(-z_top / (2 * H_ISO))) / (rate * math.sqrt(1.1045**2 / RHO0))
     assert res.descent_s == pytest.approx(expected, rel=1e-5)
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from predictor import payload_profile, predict
+from predictor.descent import Release
 from predictor.environment.cube import WeatherCube
+from predictor.prediction import FlightSetup
 from predictor.tracks.standard_atmosphere import R_DRY_AIR, pressure_temperature
 from tests.predictor.predict_helpers import LEVELS_HPA, RELEASE
 
@@ -33,7 +35,9 @@ def standard_atmosphere_cube() -> WeatherCube:
 
 def test_the_drs_capsule_falls_from_30_km_in_about_37_minutes_as_measured_in_2019() -> None:
     """Sirks et al. 2020 (JINST 15 P05014): two DRS drops, ~37 min from ~30 km."""
-    result = predict(standard_atmosphere_cube(), RELEASE, 46.0, 6.0, 30_000.0, payload=payload_profile("drs"))
+    result = predict(
+        standard_atmosphere_cube(), Release(RELEASE, 46.0, 6.0, 30_000.0), FlightSetup(payload_profile("drs"))
+    )
     assert 36.0 <= result.descent_s / 60.0 <= 38.0, result.descent_s / 60.0
 
 

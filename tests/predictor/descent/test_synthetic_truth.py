@@ -20,8 +20,10 @@ import pytest
 from pyproj import Geod
 
 from predictor import Payload, WeatherCube, predict
+from predictor.descent import Release
 from predictor.environment import load_weather
 from predictor.environment.gribwrite import GFS_LEVELS_HPA, gfs_file_name, write_gfs_grib2
+from predictor.prediction import FlightSetup
 
 R_D, T_AIR, G0, P0 = 287.05, 240.0, 9.80665, 101325.0
 SCALE_HEIGHT = R_D * T_AIR / G0
@@ -160,7 +162,9 @@ def test_landing_within_0_45_percent_of_the_drift_and_no_worse_than_a_plain_rk4(
     wind, rho = cube_sampler(cube)
     plain = rk4_landing(lambda t, la, lo, z: wind(t + epoch, la, lo, z), rho, payload, 46.0, 4.0, 30000.0,
                         start, dt=2.0)  # fmt: skip
-    ours = predict(cube, CYCLE + timedelta(hours=release_h), 46.0, 4.0, 30000.0, payload=payload).landing
+    ours = predict(
+        cube, Release(CYCLE + timedelta(hours=release_h), 46.0, 4.0, 30000.0), FlightSetup(payload)
+    ).landing
     drift = GEOD.inv(4.0, 46.0, truth[1], truth[0])[2]
     miss = GEOD.inv(ours.lon, ours.lat, truth[1], truth[0])[2]
     plain_miss = GEOD.inv(plain[1], plain[0], truth[1], truth[0])[2]

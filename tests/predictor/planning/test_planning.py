@@ -11,11 +11,14 @@ import numpy as np
 import pytest
 import shapely
 
+from predictor.descent import Release
 from predictor.environment.cube import WeatherCube
 from predictor.errors import PredictorError
+from predictor.planning import Criteria, Sweep
 from predictor.planning.balloon import AltitudePlan, balloon_path
 from predictor.planning.strip import to_geojson, to_kml, write_geojson, write_kml
 from predictor.planning.sweep import Candidate, Thresholds, plan_release, rank_windows
+from predictor.prediction import EnsembleSpread, FlightSetup
 from predictor.prediction.landings import predict, predict_ensemble
 from predictor.prediction.zones import Feature, load_zones
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
@@ -33,10 +36,10 @@ def sheared_cube(is_demo: bool = False, hours: tuple[float, ...] = (-6.0, 18.0))
 
 def test_sweep_landings_equal_single_predictions_with_the_same_drift() -> None:
     cube = sheared_cube()
-    plan = plan_release(cube, RELEASE, 46.0, 6.0, 30000.0, hours=1.0, every_minutes=10.0)
+    plan = plan_release(cube, Release(RELEASE, 46.0, 6.0, 30000.0), Sweep(1.0, 10.0))
     assert len(plan.candidates) == 7
     for c in plan.candidates:
-        single = predict(cube, RELEASE, 46.0, 6.0, 30000.0, drift_minutes=10.0 * c.index)
+        single = predict(cube, Release(RELEASE, 46.0, 6.0, 30000.0, drift_minutes=10.0 * c.index))
         assert c.release_time == single.release.time
         assert c.release_lat == pytest.approx(single.release.lat, abs=1e-10)
         assert c.landing_lat == pytest.approx(single.landing.lat, abs=1e-10)
@@ -54,17 +57,13 @@ def test_first_candidate_members_equal_predict_ensemble_with_the_same_seed() -> 
     cube = sheared_cube()
     plan = plan_release(
         cube,
-        RELEASE,
-        46.0,
-        6.0,
-        30000.0,
-        hours=0.5,
-        every_minutes=15.0,
-        members=40,
-        seed=7,
-        member_step_m=100.0,
+        Release(RELEASE, 46.0, 6.0, 30000.0),
+        Sweep(0.5, 15.0, member_step_m=100.0),
+        spread=EnsembleSpread(members=40, seed=7),
     )
-    ensemble = predict_ensemble(cube, RELEASE, 46.0, 6.0, 30000.0, members=40, seed=7)
+    ensemble = predict_ensemble(
+        cube, Release(RELEASE, 46.0, 6.0, 30000.0), spread=EnsembleSpread(members=40, seed=7)
+    )
     first = plan.candidates[0]
     assert first.member_lat is not None and first.member_lon is not None
     np.testing.assert_allclose(first.member_lat, ensemble.member_lat, atol=1e-10)
@@ -77,7 +76,9 @@ def test_first_candidate_members_equal_predict_ensemble_with_the_same_seed() -> 
 def test_every_candidate_no_go_is_reported_as_an_empty_window() -> None:
     cube = sheared_cube()
     everywhere = Feature("sea", shapely.box(0.0, 40.0, 13.0, 53.0))
-    plan = plan_release(cube, RELEASE, 46.0, 6.0, 30000.0, 1.0, 20.0, zones=[everywhere])
+    plan = plan_release(
+        cube, Release(RELEASE, 46.0, 6.0, 30000.0), Sweep(1.0, 20.0), criteria=Criteria(zones=[everywhere])
+    )
     assert plan.windows == ()
     assert plan.go_count == 0
     assert plan.verdict.startswith("NO-GO: none of the 4 candidate release times")
@@ -88,13 +89,18 @@ def test_every_candidate_no_go_is_reported_as_an_empty_window() -> None:
 
 def test_windows_are_runs_of_go_candidates_and_the_best_is_recommended() -> None:
     cube = sheared_cube()
-    free = plan_release(cube, RELEASE, 46.0, 6.0, 30000.0, 2.0, 10.0)
+    free = plan_release(cube, Release(RELEASE, 46.0, 6.0, 30000.0), Sweep(2.0, 10.0))
     lons = [c.landing_lon for c in free.candidates]
     # A town over the landings of the middle of the sweep splits it into two windows.
     mid = free.candidates[6]
     town = Feature("town", shapely.Point(mid.landing_lon, mid.landing_lat).buffer(0.25))
     road = Feature("road", shapely.LineString([(lons[10], 40.0), (lons[10], 53.0)]))
-    plan = plan_release(cube, RELEASE, 46.0, 6.0, 30000.0, 2.0, 10.0, zones=[town], targets=[road])
+    plan = plan_release(
+        cube,
+        Release(RELEASE, 46.0, 6.0, 30000.0),
+        Sweep(2.0, 10.0),
+        criteria=Criteria(zones=[town], targets=[road]),
+    )
     go = [c.go for c in plan.candidates]
     assert not go[6] and go[0] and go[-1]
     windows = plan.windows
@@ -115,8 +121,13 @@ def test_thresholds_on_target_distance_and_sigma_make_candidates_no_go() -> None
     cube = sheared_cube()
     far = Feature("recovery point", shapely.Point(12.5, 52.5))
     plan = plan_release(
-        cube, RELEASE, 46.0, 6.0, 30000.0, 0.5, 10.0, targets=[far],
-        thresholds=Thresholds(max_zone_probability=0.05, max_target_km=50.0, max_sigma_km=0.5),
+        cube,
+        Release(RELEASE, 46.0, 6.0, 30000.0),
+        Sweep(0.5, 10.0),
+        criteria=Criteria(
+            targets=[far],
+            thresholds=Thresholds(max_zone_probability=0.05, max_target_km=50.0, max_sigma_km=0.5),
+        ),
     )  # fmt: skip
     for c in plan.candidates:
         assert not c.go
@@ -127,7 +138,9 @@ def test_thresholds_on_target_distance_and_sigma_make_candidates_no_go() -> None
 
 def test_candidates_beyond_the_weather_are_no_go_and_the_rest_still_plan() -> None:
     cube = sheared_cube(hours=(-6.0, 2.0))
-    plan = plan_release(cube, RELEASE, 46.0, 6.0, 30000.0, 3.0, 30.0, time_tolerance_s=0.0)
+    plan = plan_release(
+        cube, Release(RELEASE, 46.0, 6.0, 30000.0), Sweep(3.0, 30.0), FlightSetup(time_tolerance_s=0.0)
+    )
     statuses = [c.status for c in plan.candidates]
     assert statuses[0] is None and statuses[1] is None
     assert statuses[-1] is not None and not plan.candidates[-1].go
@@ -137,9 +150,9 @@ def test_candidates_beyond_the_weather_are_no_go_and_the_rest_still_plan() -> No
 
 def test_balloon_follows_the_wind_at_the_planned_altitude_and_its_sigma_grows() -> None:
     cube = isothermal_cube(u=lambda t, z, y, x: z / 1000.0, v=0.0)
-    at_float = balloon_path(cube, RELEASE, 46.0, 6.0, 30000.0, 1.0, 30.0)
+    at_float = balloon_path(cube, Release(RELEASE, 46.0, 6.0, 30000.0), Sweep(1.0, 30.0))
     plan = AltitudePlan((RELEASE,), (20000.0,))
-    planned = balloon_path(cube, RELEASE, 46.0, 6.0, 30000.0, 1.0, 30.0, altitude_plan=plan)
+    planned = balloon_path(cube, Release(RELEASE, 46.0, 6.0, 30000.0), Sweep(1.0, 30.0, altitude_plan=plan))
     km_per_deg = 111.32 * math.cos(math.radians(46.0))
     assert (at_float.lon[-1] - 6.0) * km_per_deg == pytest.approx(30.0 * 3.6, rel=0.01)
     assert (planned.lon[-1] - 6.0) * km_per_deg == pytest.approx(20.0 * 3.6, rel=0.01)
@@ -172,18 +185,22 @@ def test_altitude_plan_text_is_parsed_and_bad_plans_are_refused() -> None:
             r"7 candidates × 10000000 members is 70,000,000 member descents, over the 2,000,000",
         ),
         ({"thresholds": Thresholds(max_target_km=10.0)}, "needs a targets file"),
-        ({"start": RELEASE.replace(tzinfo=None)}, "timezone-aware"),
+        ({"time": RELEASE.replace(tzinfo=None)}, "timezone-aware"),
         ({"alt_m": -3.0}, "positive number of metres"),
         ({"member_step_m": 0.0, "members": 5}, "member altitude step"),
         ({"lat": 60.0}, "outside the weather region"),
-        ({"start": RELEASE + timedelta(days=2)}, "but the weather covers"),
+        ({"time": RELEASE + timedelta(days=2)}, "but the weather covers"),
+        ({"drift_minutes": 10.0}, "a sweep starts where the balloon is now"),
     ],
 )
 def test_bad_sweep_questions_are_refused_with_a_specific_message(kwargs: dict, message: str) -> None:
-    args = {"start": RELEASE, "lat": 46.0, "lon": 6.0, "alt_m": 30000.0, "hours": 1.0, "every_minutes": 10.0}
+    args = {"time": RELEASE, "lat": 46.0, "lon": 6.0, "alt_m": 30000.0, "hours": 1.0, "every_minutes": 10.0}
     args.update(kwargs)
+    sweep = Sweep(args.pop("hours"), args.pop("every_minutes"), member_step_m=args.pop("member_step_m", None))
+    spread = EnsembleSpread(args.pop("members")) if "members" in args else None
+    criteria = Criteria(thresholds=args.pop("thresholds", Thresholds()))
     with pytest.raises(PredictorError, match=message):
-        plan_release(sheared_cube(), **args)
+        plan_release(sheared_cube(), Release(**args), sweep, spread=spread, criteria=criteria)
 
 
 def test_bad_thresholds_are_refused() -> None:
@@ -194,7 +211,7 @@ def test_bad_thresholds_are_refused() -> None:
 
 
 def test_landing_strip_files_carry_every_candidate_and_say_demo(tmp_path: Path) -> None:
-    plan = plan_release(sheared_cube(is_demo=True), RELEASE, 46.0, 6.0, 30000.0, 1.0, 15.0)
+    plan = plan_release(sheared_cube(is_demo=True), Release(RELEASE, 46.0, 6.0, 30000.0), Sweep(1.0, 15.0))
     doc = to_geojson(plan)
     kinds = [f["properties"]["kind"] for f in doc["features"]]
     assert kinds.count("candidate landing") == len(plan.candidates) == 5
@@ -218,14 +235,19 @@ def test_a_sweep_across_the_antimeridian_sees_a_zone_written_across_it(tmp_path:
     cube = isothermal_cube(
         lats=np.arange(-50.0, -39.0, 1.0), lons=np.arange(170.0, 191.0, 1.0), u=12.0, v=0.0
     )
-    free = plan_release(cube, RELEASE, -45.0, 179.4, 30000.0, 1.0, 20.0)
+    free = plan_release(cube, Release(RELEASE, -45.0, 179.4, 30000.0), Sweep(1.0, 20.0))
     lons = [c.landing_lon for c in free.candidates]
     assert lons[1] > 179.8 and -180.0 < lons[2] < -179.8, "landings 1 and 2 straddle 180°"
     # A strait from 179.85° E to 179.85° W, written as GeoJSON the short way across the antimeridian.
     ring = [[179.85, -45.2], [-179.85, -45.2], [-179.85, -44.8], [179.85, -44.8], [179.85, -45.2]]
     path = tmp_path / "strait.geojson"
     path.write_text(json.dumps({"type": "Polygon", "coordinates": [ring]}))
-    plan = plan_release(cube, RELEASE, -45.0, 179.4, 30000.0, 1.0, 20.0, zones=load_zones(path))
+    plan = plan_release(
+        cube,
+        Release(RELEASE, -45.0, 179.4, 30000.0),
+        Sweep(1.0, 20.0),
+        criteria=Criteria(zones=load_zones(path)),
+    )
     p = [c.zone_probability for c in plan.candidates]
     # Both landings next to 180° are mostly in the strait; the first (8 km west of it) much less.
     assert p[1] > 0.3 and p[2] > 0.3
@@ -235,11 +257,17 @@ def test_a_sweep_across_the_antimeridian_sees_a_zone_written_across_it(tmp_path:
 
 def test_ensemble_zone_probability_agrees_with_counting_its_members() -> None:
     cube = sheared_cube()
-    probe = plan_release(cube, RELEASE, 46.0, 6.0, 30000.0, 0.0, 10.0)
+    probe = plan_release(cube, Release(RELEASE, 46.0, 6.0, 30000.0), Sweep(0.0, 10.0))
     c = probe.candidates[0]
     # A zone over the eastern half of the landing ellipse.
     zone = Feature("half", shapely.box(c.landing_lon, 40.0, 13.0, 53.0))
-    plan = plan_release(cube, RELEASE, 46.0, 6.0, 30000.0, 0.0, 10.0, zones=[zone], members=400, seed=2)
+    plan = plan_release(
+        cube,
+        Release(RELEASE, 46.0, 6.0, 30000.0),
+        Sweep(0.0, 10.0),
+        spread=EnsembleSpread(members=400, seed=2),
+        criteria=Criteria(zones=[zone]),
+    )
     member = plan.candidates[0]
     assert member.members_in_zones is not None
     assert 0.3 < member.zone_probability < 0.7

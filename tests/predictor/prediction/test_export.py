@@ -14,6 +14,8 @@ import gpxpy
 import pytest
 
 from predictor import EnsemblePrediction, Payload, Prediction, PredictorError, predict, predict_ensemble
+from predictor.descent import Release
+from predictor.prediction import EnsembleSpread, FlightSetup
 from predictor.prediction.export import to_geojson, to_json, write_geojson, write_gpx, write_json, write_kml
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
@@ -23,13 +25,15 @@ PAYLOAD = Payload(mass_kg=1.029, cda_m2=1.13)
 
 @pytest.fixture(scope="module")
 def prediction() -> Prediction:
-    return predict(isothermal_cube(u=8.0, v=3.0), RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD)
+    return predict(isothermal_cube(u=8.0, v=3.0), Release(RELEASE, 46.0, 5.0, 30000.0), FlightSetup(PAYLOAD))
 
 
 @pytest.fixture(scope="module")
 def demo_ensemble() -> EnsemblePrediction:
     cube = isothermal_cube(u=8.0, is_demo=True)
-    return predict_ensemble(cube, RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD, members=20, seed=0)
+    return predict_ensemble(
+        cube, Release(RELEASE, 46.0, 5.0, 30000.0), FlightSetup(PAYLOAD), EnsembleSpread(members=20, seed=0)
+    )
 
 
 def test_json_parses_back_to_the_result_document(prediction: Prediction) -> None:

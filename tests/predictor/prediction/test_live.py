@@ -22,8 +22,8 @@ from predictor.prediction.live import (
 from predictor.prediction.uncertainty import GEOD
 from predictor.tracks.cleaning import clean
 from predictor.tracks.reading import Fix
-from predictor.tracks.synthetic import synthetic_flight
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
+from tests.predictor.synthetic_flights import synthetic_flight
 
 PAYLOAD = PROFILES["drs"]
 BAND = (15000.0, 20000.0)

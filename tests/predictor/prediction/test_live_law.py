@@ -17,10 +17,10 @@ from datetime import timedelta
 import numpy as np
 import pytest
 
-from predictor.calibration.model_file import CalibratedModel
-from predictor.descent import RatePrior
+from predictor.descent import RatePrior, Release
 from predictor.descent.model import DeploymentDelay, DescentRateScale, DragDensityExponent, TwoRegimeRate
 from predictor.descent.payload import PROFILES
+from predictor.prediction import CalibratedModel, FlightSetup
 from predictor.prediction.landings import predict
 from predictor.prediction.live import (
     DEFAULT_ELLIPSE_NOTE,
@@ -35,8 +35,8 @@ from predictor.prediction.live import (
 )
 from predictor.tracks.cleaning import clean
 from predictor.tracks.reading import Fix
-from predictor.tracks.synthetic import synthetic_flight
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
+from tests.predictor.synthetic_flights import synthetic_flight
 
 PAYLOAD = PROFILES["drs"]
 LAW = DragDensityExponent(exponent=0.1)
@@ -258,7 +258,9 @@ def test_a_canopy_delay_counts_from_the_release_not_from_the_report() -> None:
             break
     truth_s = (flown.landing.time - fix.time).total_seconds()
     live_s = live.predict_from(fix).prediction.descent_s
-    restarted_s = predict(cube, fix.time, fix.lat, fix.lon, fix.alt_m, PAYLOAD, effects=(delay,)).descent_s
+    restarted_s = predict(
+        cube, Release(fix.time, fix.lat, fix.lon, fix.alt_m), FlightSetup(PAYLOAD, effects=(delay,))
+    ).descent_s
     assert abs(live_s - truth_s) < 15.0
     assert truth_s - restarted_s > 40.0, "the delay re-applied at the report must show, or this shows nothing"
 

@@ -30,10 +30,10 @@ from predictor.calibration.live_evaluation import (
     wind_helps,
     write_live_report,
 )
-from predictor.calibration.model_file import CalibratedModel, load_model, save_model
 from predictor.descent.model import DragDensityExponent
 from predictor.descent.payload import PROFILES
 from predictor.errors import PredictorError
+from predictor.prediction import CalibratedModel, load_model, save_model
 from predictor.prediction.live import (
     LIVE_ERROR_MODEL,
     NO_CORRECTION,

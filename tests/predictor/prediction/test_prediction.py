@@ -13,6 +13,8 @@ import pytest
 import xarray as xr
 
 from predictor import PROFILES, Payload, PredictorError, Terrain, payload_profile, predict
+from predictor.descent import Release
+from predictor.prediction import FlightSetup
 from tests.predictor.predict_helpers import RELEASE, closed_form_fall_time, isothermal_cube
 
 PAYLOAD = Payload(mass_kg=1.029, cda_m2=1.13)
@@ -39,7 +41,9 @@ def plateau(tmp_path: Path) -> Terrain:
 
 
 def test_landing_on_a_plateau_stops_at_its_height_with_the_closed_form_time(plateau: Terrain) -> None:
-    res = predict(isothermal_cube(), RELEASE, 46.0, 6.0, 30000.0, payload=PAYLOAD, terrain=plateau)
+    res = predict(
+        isothermal_cube(), Release(RELEASE, 46.0, 6.0, 30000.0), FlightSetup(PAYLOAD, terrain=plateau)
+    )
     assert res.landing.alt_m == pytest.approx(1000.0, abs=1e-6)
     expected = closed_form_fall_time(PAYLOAD.mass_kg, PAYLOAD.cda_m2, 30000.0, 1000.0)
     assert res.descent_s == pytest.approx(expected, rel=1e-5)
@@ -54,7 +58,9 @@ def test_crossing_a_sloping_ground_is_interpolated_inside_the_last_step(tmp_path
     lats, lons = np.arange(40.0, 53.0, 0.1), np.arange(0.0, 13.0, 0.1)
     heights = np.clip((lons - 5.3) * 2000.0, 0.0, None)[None, :].repeat(lats.size, axis=0)
     terrain = Terrain.from_netcdf(write_dem(tmp_path / "slope.nc", lats, lons, heights))
-    res = predict(isothermal_cube(u=10.0), RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD, terrain=terrain)
+    res = predict(
+        isothermal_cube(u=10.0), Release(RELEASE, 46.0, 5.0, 30000.0), FlightSetup(PAYLOAD, terrain=terrain)
+    )
     ground_there = float(terrain.elevation(res.landing.lat, res.landing.lon))
     assert res.landing.alt_m == pytest.approx(ground_there, abs=2.0)
     assert res.landing.alt_m > 100.0
@@ -63,7 +69,9 @@ def test_crossing_a_sloping_ground_is_interpolated_inside_the_last_step(tmp_path
 
 def test_landing_at_sea_is_at_zero_metres_and_says_so() -> None:
     res = predict(
-        isothermal_cube(u=5.0), RELEASE, 46.0, 6.0, 30000.0, payload=PAYLOAD, terrain=Terrain.sea_level()
+        isothermal_cube(u=5.0),
+        Release(RELEASE, 46.0, 6.0, 30000.0),
+        FlightSetup(PAYLOAD, terrain=Terrain.sea_level()),
     )
     assert res.landing.alt_m == pytest.approx(0.0, abs=1e-9)
     assert any("sea level" in w for w in res.warnings)
@@ -73,8 +81,8 @@ def test_landing_on_the_real_srtm_tile_uses_its_heights(shared_data: Path, tmp_p
     shutil.copy(shared_data / "dem/srtm3_N47E009_hgt-elevation/137.hgt", tmp_path / "N47E009.hgt")
     terrain = Terrain.from_dir(tmp_path)
     cube = isothermal_cube(u=4.0)
-    res = predict(cube, RELEASE, 47.3, 9.2, 30000.0, payload=PAYLOAD, terrain=terrain)
-    sea = predict(cube, RELEASE, 47.3, 9.2, 30000.0, payload=PAYLOAD)
+    res = predict(cube, Release(RELEASE, 47.3, 9.2, 30000.0), FlightSetup(PAYLOAD, terrain=terrain))
+    sea = predict(cube, Release(RELEASE, 47.3, 9.2, 30000.0), FlightSetup(PAYLOAD))
     assert res.terrain_source == "SRTM3 N47E009"
     assert 300.0 < res.landing.alt_m < 3000.0
     assert res.landing.alt_m == pytest.approx(
@@ -85,14 +93,16 @@ def test_landing_on_the_real_srtm_tile_uses_its_heights(shared_data: Path, tmp_p
 
 def test_release_below_the_ground_is_an_error(plateau: Terrain) -> None:
     with pytest.raises(PredictorError, match="release altitude 900 m is at or below the ground"):
-        predict(isothermal_cube(), RELEASE, 46.0, 6.0, 900.0, payload=PAYLOAD, terrain=plateau)
+        predict(isothermal_cube(), Release(RELEASE, 46.0, 6.0, 900.0), FlightSetup(PAYLOAD, terrain=plateau))
 
 
 def test_drift_before_release_moves_the_release_point_with_the_float_wind() -> None:
     cube = isothermal_cube(u=10.0)
-    res = predict(cube, RELEASE, 46.0, 4.0, 30000.0, payload=PAYLOAD, drift_minutes=30.0)
+    res = predict(cube, Release(RELEASE, 46.0, 4.0, 30000.0, drift_minutes=30.0), FlightSetup(PAYLOAD))
     now = predict(
-        cube, RELEASE + timedelta(minutes=30), res.release.lat, res.release.lon, 30000.0, payload=PAYLOAD
+        cube,
+        Release(RELEASE + timedelta(minutes=30), res.release.lat, res.release.lon, 30000.0),
+        FlightSetup(PAYLOAD),
     )
     assert res.decision is not None and res.decision.lon == pytest.approx(4.0)
     assert res.release.time == RELEASE + timedelta(minutes=30)
@@ -105,19 +115,21 @@ def test_drift_before_release_moves_the_release_point_with_the_float_wind() -> N
 
 
 def test_a_drift_not_a_multiple_of_the_step_still_ends() -> None:
-    res = predict(isothermal_cube(u=10.0), RELEASE, 46.0, 4.0, 30000.0, payload=PAYLOAD, drift_minutes=7.3)
+    res = predict(
+        isothermal_cube(u=10.0), Release(RELEASE, 46.0, 4.0, 30000.0, drift_minutes=7.3), FlightSetup(PAYLOAD)
+    )
     assert (res.release.time - RELEASE).total_seconds() == pytest.approx(438.0, abs=1e-3)
 
 
 def test_t_future_is_the_time_mean_of_the_lead_along_the_path() -> None:
     cube = isothermal_cube(hours=(-3.0, 3.0), lead_h=(9.0, 15.0))
-    res = predict(cube, RELEASE, 46.0, 6.0, 30000.0, payload=PAYLOAD)
+    res = predict(cube, Release(RELEASE, 46.0, 6.0, 30000.0), FlightSetup(PAYLOAD))
     # Lead grows 1 h per hour of valid time: its mean over the descent is the lead at mid-descent.
     assert res.t_future_mean_h == pytest.approx(12.0 + res.descent_s / 2 / 3600, abs=1e-3)
 
 
 def test_demo_weather_is_marked_in_warnings_and_document() -> None:
-    res = predict(isothermal_cube(is_demo=True), RELEASE, 46.0, 6.0, 30000.0, payload=PAYLOAD)
+    res = predict(isothermal_cube(is_demo=True), Release(RELEASE, 46.0, 6.0, 30000.0), FlightSetup(PAYLOAD))
     assert res.warnings[0].startswith("DEMO WEATHER")
     doc = res.to_dict()
     assert doc["is_demo"] is True and doc["weather"]["is_demo"] is True
@@ -125,7 +137,9 @@ def test_demo_weather_is_marked_in_warnings_and_document() -> None:
 
 def test_result_document_has_the_issue_keys_and_utc_times() -> None:
     res = predict(
-        isothermal_cube(u=7.0), RELEASE, 46.0, 6.0, 28000.0, payload=PAYLOAD, probabilities=(0.5, 0.95)
+        isothermal_cube(u=7.0),
+        Release(RELEASE, 46.0, 6.0, 28000.0),
+        FlightSetup(PAYLOAD, probabilities=(0.5, 0.95)),
     )
     doc = json.loads(json.dumps(res.to_dict(track=True)))
     for key in (
@@ -167,10 +181,10 @@ def test_result_document_has_the_issue_keys_and_utc_times() -> None:
     ],
 )
 def test_bad_questions_are_refused_with_a_specific_message(kwargs: dict, message: str) -> None:
-    args = {"time": RELEASE, "lat": 46.0, "lon": 6.0, "alt_m": 30000.0, "step_m": 100.0, "drift_minutes": 0.0}
-    args.update(kwargs)
+    args = {"time": RELEASE, "lat": 46.0, "lon": 6.0, "alt_m": 30000.0, "drift_minutes": 0.0, **kwargs}
+    step_m = args.pop("step_m", 100.0)
     with pytest.raises(PredictorError, match=message):
-        predict(isothermal_cube(), payload=PAYLOAD, **args)
+        predict(isothermal_cube(), Release(**args), FlightSetup(PAYLOAD, step_m=step_m))
 
 
 def test_payload_profiles_and_overrides() -> None:
@@ -188,6 +202,6 @@ def test_payload_profiles_and_overrides() -> None:
 
 
 def test_heavier_payload_falls_faster_by_the_square_root_of_mass() -> None:
-    light = predict(isothermal_cube(), RELEASE, 46.0, 6.0, 30000.0, payload=Payload(1.0, 1.0))
-    heavy = predict(isothermal_cube(), RELEASE, 46.0, 6.0, 30000.0, payload=Payload(4.0, 1.0))
+    light = predict(isothermal_cube(), Release(RELEASE, 46.0, 6.0, 30000.0), FlightSetup(Payload(1.0, 1.0)))
+    heavy = predict(isothermal_cube(), Release(RELEASE, 46.0, 6.0, 30000.0), FlightSetup(Payload(4.0, 1.0)))
     assert light.descent_s / heavy.descent_s == pytest.approx(2.0, rel=1e-9)

@@ -16,7 +16,9 @@ from predictor import (
     predict_ensemble,
     predict_landings,
 )
+from predictor.descent import Release
 from predictor.descent.model import DescentRateScale
+from predictor.prediction import EnsembleSpread, FlightSetup
 from predictor.prediction.uncertainty import GEOD
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
@@ -29,8 +31,10 @@ def test_member_spread_matches_the_perturbations_closed_form() -> None:
     u, sigma_w, sigma_r = 10.0, 1.0, 0.05
     cube = isothermal_cube(u=u)
     ens = predict_ensemble(
-        cube, RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD, members=2000, seed=3,
-        rate_sigma=sigma_r, wind_sigma_ms=sigma_w,
+        cube,
+        Release(RELEASE, 46.0, 5.0, 30000.0),
+        FlightSetup(PAYLOAD),
+        EnsembleSpread(members=2000, seed=3, rate_sigma=sigma_r, wind_sigma_ms=sigma_w),
     )  # fmt: skip
     fall_km = ens.central.descent_s / 1000.0
     expected_along = np.hypot(sigma_w * fall_km, u * fall_km * sigma_r)
@@ -44,7 +48,10 @@ def test_member_spread_matches_the_perturbations_closed_form() -> None:
 
 def test_ensemble_mean_lands_near_the_central_prediction_and_beside_the_parametric_ellipse() -> None:
     ens = predict_ensemble(
-        isothermal_cube(u=10.0), RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD, members=500, seed=1
+        isothermal_cube(u=10.0),
+        Release(RELEASE, 46.0, 5.0, 30000.0),
+        FlightSetup(PAYLOAD),
+        EnsembleSpread(members=500, seed=1),
     )
     _, _, gap = GEOD.inv(
         ens.central.landing.lon, ens.central.landing.lat, ens.empirical.center_lon, ens.empirical.center_lat
@@ -61,19 +68,25 @@ def test_ensemble_mean_lands_near_the_central_prediction_and_beside_the_parametr
 
 def test_same_seed_same_members_and_another_seed_differs() -> None:
     cube = isothermal_cube(u=10.0)
-    a = predict_ensemble(cube, RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD, members=50, seed=7)
-    b = predict_ensemble(cube, RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD, members=50, seed=7)
-    c = predict_ensemble(cube, RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD, members=50, seed=8)
+    a = predict_ensemble(
+        cube, Release(RELEASE, 46.0, 5.0, 30000.0), FlightSetup(PAYLOAD), EnsembleSpread(members=50, seed=7)
+    )
+    b = predict_ensemble(
+        cube, Release(RELEASE, 46.0, 5.0, 30000.0), FlightSetup(PAYLOAD), EnsembleSpread(members=50, seed=7)
+    )
+    c = predict_ensemble(
+        cube, Release(RELEASE, 46.0, 5.0, 30000.0), FlightSetup(PAYLOAD), EnsembleSpread(members=50, seed=8)
+    )
     assert np.array_equal(a.member_lon, b.member_lon)
     assert not np.array_equal(a.member_lon, c.member_lon)
 
 
 def test_one_member_per_weather_cube_reproduces_each_cubes_own_prediction() -> None:
     cubes = [isothermal_cube(u=u, v=v) for u, v in ((5.0, 0.0), (8.0, 2.0), (11.0, -3.0), (6.0, 1.0))]
-    ens = predict_ensemble(cubes, RELEASE, 46.0, 4.0, 30000.0, payload=PAYLOAD)
+    ens = predict_ensemble(cubes, Release(RELEASE, 46.0, 4.0, 30000.0), FlightSetup(PAYLOAD))
     assert ens.members == 4
     for cube, lat, lon in zip(cubes, ens.member_lat, ens.member_lon, strict=True):
-        single = predict(cube, RELEASE, 46.0, 4.0, 30000.0, payload=PAYLOAD)
+        single = predict(cube, Release(RELEASE, 46.0, 4.0, 30000.0), FlightSetup(PAYLOAD))
         assert (lat, lon) == pytest.approx((single.landing.lat, single.landing.lon), abs=1e-12)
     assert ens.perturbations["kind"] == "one member per weather cube"
 
@@ -88,12 +101,19 @@ def test_one_member_per_weather_cube_reproduces_each_cubes_own_prediction() -> N
 )
 def test_bad_ensemble_requests_are_refused(kwargs: dict, message: str) -> None:
     with pytest.raises(PredictorError, match=message):
-        predict_ensemble(isothermal_cube(), RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD, **kwargs)
+        predict_ensemble(
+            isothermal_cube(),
+            Release(RELEASE, 46.0, 5.0, 30000.0),
+            FlightSetup(PAYLOAD),
+            EnsembleSpread(**kwargs),
+        )
 
 
 def test_two_weather_cubes_are_too_few_for_an_ensemble() -> None:
     with pytest.raises(PredictorError, match="at least 3 of them"):
-        predict_ensemble([isothermal_cube(), isothermal_cube()], RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD)
+        predict_ensemble(
+            [isothermal_cube(), isothermal_cube()], Release(RELEASE, 46.0, 5.0, 30000.0), FlightSetup(PAYLOAD)
+        )
 
 
 def test_vectorised_sweep_gives_the_same_landings_as_single_predictions() -> None:
@@ -106,7 +126,9 @@ def test_vectorised_sweep_gives_the_same_landings_as_single_predictions() -> Non
     sweep = predict_landings(cube, times, 46.0, 5.0, 30000.0, model=model)
     for i in range(0, 200, 13):
         single = predict(
-            cube, times[i], 46.0, 5.0, 30000.0, payload=PAYLOAD, effects=(DescentRateScale(scale=rates[i]),)
+            cube,
+            Release(times[i], 46.0, 5.0, 30000.0),
+            FlightSetup(PAYLOAD, effects=(DescentRateScale(scale=rates[i]),)),
         )
         assert sweep.lat[i] == pytest.approx(single.landing.lat, abs=1e-12)
         assert sweep.lon[i] == pytest.approx(single.landing.lon, abs=1e-12)
@@ -130,4 +152,9 @@ def test_members_leaving_the_region_name_where_they_left() -> None:
     with pytest.raises(
         OutOfCoverageError, match=r"descent leaves the weather region \(lat 45…47, lon 5…7 °E\) at"
     ):
-        predict_ensemble(cube, RELEASE, 46.0, 6.0, 30000.0, payload=PAYLOAD, members=50, wind_sigma_ms=20.0)
+        predict_ensemble(
+            cube,
+            Release(RELEASE, 46.0, 6.0, 30000.0),
+            FlightSetup(PAYLOAD),
+            EnsembleSpread(members=50, wind_sigma_ms=20.0),
+        )

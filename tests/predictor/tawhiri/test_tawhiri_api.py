@@ -25,10 +25,10 @@ import pytest
 
 from console.commands.main import build_parser, main
 from console.commands.serve import build_server
-from predictor.calibration.model_file import CalibratedModel, save_model
 from predictor.descent.model import DescentRateScale
 from predictor.descent.payload import Payload
 from predictor.environment.demo_weather import demo_weather_files
+from predictor.prediction import CalibratedModel, save_model
 from predictor.prediction.uncertainty import ErrorModel
 from predictor.tawhiri.api import ApiServer
 

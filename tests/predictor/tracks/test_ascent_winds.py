@@ -13,9 +13,11 @@ import numpy as np
 import pytest
 from pyproj import Geod
 
+from predictor.descent import Release
 from predictor.descent.payload import PROFILES
 from predictor.environment.cube import WeatherCube
 from predictor.errors import WeatherError
+from predictor.prediction import FlightSetup
 from predictor.prediction.landings import predict
 from predictor.tracks.ascent_winds import ascent_weather_cube, ascent_wind_profile
 from predictor.tracks.cleaning import Flight, clean
@@ -265,8 +267,11 @@ def test_the_predictor_flies_real_descents_through_ascent_cubes_to_near_the_real
         flight = clean(read_track(folder / f"{name}.csv"))
         start, landing = flight.descent_start, flight.landing
         assert start is not None and landing is not None and flight.drift_km is not None
-        path = predict(ascent_weather_cube(flight), start.time, start.lat, start.lon, start.alt_m,
-                       payload=PROFILES["superbit-test"]).track  # fmt: skip
+        path = predict(
+            ascent_weather_cube(flight),
+            Release(start.time, start.lat, start.lon, start.alt_m),
+            FlightSetup(PROFILES["superbit-test"]),
+        ).track  # fmt: skip
         k = min(int(np.searchsorted(-path.alt_m, -landing.alt_m)), len(path.alt_m) - 1)
         errors.append(GEOD.inv(path.lon[k], path.lat[k], landing.lon, landing.lat)[2] / 1000.0)
         drifts.append(flight.drift_km)

@@ -14,7 +14,7 @@ from predictor.errors import PredictorError
 from predictor.tracks.ascent_winds import ascent_wind_profile
 from predictor.tracks.cleaning import clean, distance_m
 from predictor.tracks.standard_atmosphere import R_DRY_AIR, pressure_temperature
-from predictor.tracks.synthetic import synthetic_flight
+from tests.predictor.synthetic_flights import synthetic_flight
 
 LAUNCH = datetime(2024, 5, 1, 8, 0, 0, tzinfo=UTC)
 PAYLOAD = PROFILES["superbit-test"]

@@ -15,10 +15,11 @@ import pytest
 
 from drs_link.iridium import recovery
 from predictor import EnsemblePrediction, Payload, Prediction, WeatherCube, predict, predict_ensemble
+from predictor.descent import Release
 from predictor.geofiles.geojson import dumps
-from predictor.planning import strip
+from predictor.planning import Sweep, strip
 from predictor.planning.sweep import plan_release
-from predictor.prediction import export as prediction_files
+from predictor.prediction import EnsembleSpread, FlightSetup, export as prediction_files
 from tests.drs_link.iridium.flight_logs import flight_reports
 from tests.predictor.predict_helpers import RELEASE, isothermal_cube
 
@@ -61,21 +62,28 @@ def products(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Written]:
     out: dict[str, Written] = {}
     alps = isothermal_cube(u=8.0, v=3.0)
     out["predict single"] = _prediction_files(
-        predict(alps, RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD), False, False
+        predict(alps, Release(RELEASE, 46.0, 5.0, 30000.0), FlightSetup(PAYLOAD)), False, False
     )
     demo = isothermal_cube(u=8.0, is_demo=True)
-    ensemble = predict_ensemble(demo, RELEASE, 46.0, 5.0, 30000.0, payload=PAYLOAD, members=20, seed=0)
+    ensemble = predict_ensemble(
+        demo, Release(RELEASE, 46.0, 5.0, 30000.0), FlightSetup(PAYLOAD), EnsembleSpread(members=20, seed=0)
+    )
     out["predict ensemble DEMO"] = _prediction_files(ensemble, False, True)
     wanaka = _antimeridian_cube(is_demo=True)
-    single = predict(wanaka, RELEASE, -44.7, 179.64, 28000.0, payload=PAYLOAD)
+    single = predict(wanaka, Release(RELEASE, -44.7, 179.64, 28000.0), FlightSetup(PAYLOAD))
     out["predict single across 180"] = _prediction_files(single, True, True)
-    members = predict_ensemble(wanaka, RELEASE, -44.7, 179.64, 28000.0, payload=PAYLOAD, members=30, seed=1)
+    members = predict_ensemble(
+        wanaka,
+        Release(RELEASE, -44.7, 179.64, 28000.0),
+        FlightSetup(PAYLOAD),
+        EnsembleSpread(members=30, seed=1),
+    )
     out["predict ensemble across 180"] = _prediction_files(members, True, True)
     for name, cube, lat, lon, crosses in (
         ("plan DEMO", isothermal_cube(u=8.0, v=2.0, hours=(-6.0, 18.0), is_demo=True), 46.0, 6.0, False),
         ("plan across 180", _antimeridian_cube(), -45.0, 179.4, True),
     ):
-        plan = plan_release(cube, RELEASE, lat, lon, 30000.0, 1.0, 20.0)
+        plan = plan_release(cube, Release(RELEASE, lat, lon, 30000.0), Sweep(1.0, 20.0))
         out[name] = Written(strip.to_kml(plan), None, dumps(strip.to_geojson(plan)), crosses, plan.is_demo)
     track = recovery.track_from_reports(flight_reports(shared / "tracks" / "pyballoon_superbit" / FLIGHT))
     for name, shift in (("recovery 18-8-3", 0.0), ("recovery 18-8-3 moved across 180", 228.5)):

@@ -1,4 +1,4 @@
-"""Synthetic flights: a known truth, flown and then logged the way real trackers log it.
+"""Synthetic flights for the tests: a known truth, flown and then logged the way real trackers log it.
 
 The calibration loop must be shown to find an effect that is really there and to leave alone one
 that is not. Real flights cannot show that (nobody knows their truth), so this module builds
@@ -20,10 +20,10 @@ from datetime import UTC, datetime
 
 import numpy as np
 
-from predictor.descent import Payload, Term
+from predictor.descent import Payload, Release, Term
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError
-from predictor.prediction import GEOD, predict
+from predictor.prediction import GEOD, FlightSetup, predict
 from predictor.tracks.reading import Fix, Track
 
 ASCENT_STEP_S = 2.0
@@ -87,10 +87,8 @@ def synthetic_flight(
     t0 = launch_time.astimezone(UTC).timestamp()
     ascent = _ascend(cube, t0, lat, lon, launch_alt, burst_alt_m, ascent_rate_ms)
     burst_time = datetime.fromtimestamp(float(ascent.t[-1]), UTC)
-    descent = predict(
-        cube, burst_time, float(ascent.lat[-1]), float(ascent.lon[-1]), burst_alt_m,
-        payload=payload, terrain=terrain, effects=tuple(effects),
-    )  # fmt: skip
+    burst = Release(burst_time, float(ascent.lat[-1]), float(ascent.lon[-1]), burst_alt_m)
+    descent = predict(cube, burst, FlightSetup(payload, tuple(effects), terrain=terrain))
     track = descent.track
     truth = TruePath(
         t=np.concatenate((ascent.t, ascent.t[-1] + track.t_s[1:])),

@@ -15,11 +15,11 @@ from pathlib import Path
 import pytest
 
 from console.commands.main import main
-from predictor.calibration.model_file import CalibratedModel, save_model
 from predictor.descent.model import DescentRateScale, DragDensityExponent
 from predictor.descent.payload import Payload
 from predictor.descent.rate_prior import RatePrior
 from predictor.environment.demo_weather import demo_weather_files
+from predictor.prediction import CalibratedModel, save_model
 
 WHEN = datetime(2026, 11, 22, 12, tzinfo=UTC)
 RELEASE = ("--lat", "46.5", "--lon", "6.6", "--alt", "28000", "--time", "2026-11-22T12:00Z")

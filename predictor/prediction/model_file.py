@@ -18,6 +18,7 @@ import json
 import math
 import os
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,24 +26,57 @@ from typing import Any
 from predictor.descent import EFFECTS, DescentRateScale, Model, Payload, RatePrior, Term, payload_profile
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, UsageError
-from predictor.prediction import (
+from predictor.prediction.live import (
     DEFAULT_ELLIPSE_NOTE,
-    ERROR_MODELS,
     LIVE_ERROR_MODEL,
     NO_CORRECTION,
     OWN_RATE,
     Band,
-    ErrorModel,
     LiveCorrection,
     LiveErrorModel,
     LivePredictor,
     LiveSettings,
     RateDiscrepancy,
 )
+from predictor.prediction.setup import FlightSetup
+from predictor.prediction.uncertainty import ERROR_MODELS, ErrorModel
 
 PAYLOAD_LIMITS = {"mass_kg": (0.05, 50.0), "cda_m2": (0.02, 50.0)}
 """A balloon payload under a parachute: 50 g to 50 kg, Cd·A 0.02–50 m² (a 1 kg capsule under a 4 ft
 canopy is 0.43 m²). Outside them no calibration was run; a 10⁶ kg payload falls as a stone."""
+
+ALTITUDE_LIMITS_M = (-500.0, 50_000.0)
+WIND_LIMITS_MS = (-60.0, 60.0)
+PARAMETER_LIMITS: dict[tuple[str, str], tuple[float, float]] = {
+    ("descent_rate_scale", "scale"): (0.5, 2.0),
+    ("drag_density_exponent", "exponent"): (-0.5, 0.5),
+    ("deployment_delay", "delay_s"): (0.0, 240.0),
+    ("two_regime_rate", "factor"): (0.5, 2.0),
+    ("wind_scale", "scale"): (0.3, 2.0),
+    ("wind_rotation", "angle_deg"): (-60.0, 60.0),
+    ("wind_band_scale", "scale"): (0.0, 2.5),
+    ("wind_lag", "time_constant_s"): (0.0, 600.0),
+    ("weather_time_offset", "offset_s"): (-14400.0, 14400.0),
+    ("drag_density_exponent", "reference_density"): (0.5, 2.0),
+    ("deployment_delay", "speed_factor"): (1.0, 10.0),
+    ("two_regime_rate", "height_m"): ALTITUDE_LIMITS_M,
+    ("wind_band_scale", "bottom_m"): ALTITUDE_LIMITS_M,
+    ("wind_band_scale", "top_m"): ALTITUDE_LIMITS_M,
+    ("vertical_air_motion", "speed_ms"): (-5.0, 5.0),
+    ("wind_offset", "east_ms"): WIND_LIMITS_MS,
+    ("wind_offset", "north_ms"): WIND_LIMITS_MS,
+    ("binned_descent_rate", "edges_m"): ALTITUDE_LIMITS_M,
+    ("binned_descent_rate", "factors"): (0.5, 2.0),
+    ("binned_wind", "edges_m"): ALTITUDE_LIMITS_M,
+    ("binned_wind", "east_ms"): WIND_LIMITS_MS,
+    ("binned_wind", "north_ms"): WIND_LIMITS_MS,
+}
+"""(effect, parameter) → the (low, high) a model file may carry: the first nine are the ranges the
+calibration fits within (``calibration.effects.Candidate.bounds`` reads them here), the rest what it
+never fits but may hold fixed or get from the binned fit (a reference density of sea-level air give or
+take, a fast fall at most 10× the canopy's, heights inside the weather, ±60 m/s of added wind, the binned
+fit's own factor bounds). A model file with a value outside them was not made by a calibration and is
+refused (an exponent of 5 is an 8-minute fall from 28 km, a wind scale of −1 blows backwards)."""
 
 SCHEMA_VERSION = 3
 """2 added the optional ``live`` section, 3 the optional ``rate_prior``: a drs that reads an older
@@ -117,6 +151,24 @@ class CalibratedModel:
         if self.rate_prior is not None and self.terms and self.terms[0].name == "descent_rate_scale":
             return self.terms[1:]
         return self.terms
+
+    def flight_setup(
+        self,
+        terrain: Terrain,
+        step_m: float = 100.0,
+        error_model: str | None = None,
+        probabilities: Sequence[float] = (),
+    ) -> FlightSetup:
+        """This model flown over ``terrain``: its payload and terms, and the ellipse ``chosen_ellipse``
+        picks, so every command and the console fly a model file alike."""
+        return FlightSetup(
+            payload=self.payload,
+            effects=self.terms,
+            terrain=terrain,
+            step_m=step_m,
+            error_model=self.chosen_ellipse(error_model),
+            probabilities=tuple(probabilities),
+        )
 
     def chosen_ellipse(self, name: str | None) -> ErrorModel:
         """The ellipse a prediction carries: ``name`` (``--error-model``) when given, else this model's
@@ -285,11 +337,8 @@ def _payload(raw: Any, refuse: Any) -> Payload:
 def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
     if not isinstance(raw, list):
         raise refuse("terms", "must be a list (empty when calibration selected nothing)")
-    # Imported here: the fitting library behind the limits costs a plain `drs predict` 0.3 s of scipy.
-    from predictor.calibration.effects import parameter_limits
-
     terms = []
-    limits = parameter_limits()
+    limits = PARAMETER_LIMITS
     for index, item in enumerate(raw):
         where = f"terms[{index}]"
         if not isinstance(item, dict):
@@ -329,7 +378,7 @@ def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
 def _within(
     value: float | tuple[float, ...], limits: tuple[float, float] | None, where: str, refuse: Any
 ) -> None:
-    """Refuse a value outside the calibration's own bounds (``effects.parameter_limits``)."""
+    """Refuse a value outside the calibration's own bounds (``PARAMETER_LIMITS``)."""
     if limits is None:
         return
     low, high = limits
@@ -421,13 +470,13 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
 def _discrepancy(raw: Any, refuse: Any) -> RateDiscrepancy:
     """The record-to-remaining table; the remaining-descent prior columns are absent from a model
     evaluated before they were measured (it then flies its whole-descent prior)."""
-    columns = _table(raw, "live.discrepancy", ("heights_km", "log_bias", "log_sigma"), refuse)
+    heights, bias, spread = _table(raw, "live.discrepancy", ("heights_km", "log_bias", "log_sigma"), refuse)
     if "remaining_log_mean" not in raw:
-        return RateDiscrepancy(*columns)
+        return RateDiscrepancy(heights, bias, spread)
     where = "live.discrepancy"
     prior = [_numbers(raw.get(k), f"{where}.{k}", refuse, positive=False)
              for k in ("remaining_log_mean", "remaining_log_sigma", "remaining_flights")]  # fmt: skip
-    if any(len(c) != len(columns[0]) for c in prior):
+    if any(len(c) != len(heights) for c in prior):
         raise refuse(where, "the remaining_* columns must be as long as heights_km")
     if not all(0.0 <= v <= 1.0 for v in prior[1]):
         raise refuse(f"{where}.remaining_log_sigma", "must be within 0–1")
@@ -435,7 +484,7 @@ def _discrepancy(raw: Any, refuse: Any) -> RateDiscrepancy:
         raise refuse(f"{where}.remaining_flights", "must be whole numbers ≥ 1")
     if not all(abs(v) <= math.log(5.0) for v in prior[0]):
         raise refuse(f"{where}.remaining_log_mean", "must be within ±ln 5 (λ 0.2–5)")
-    return RateDiscrepancy(*columns, tuple(prior[0]), tuple(prior[1]), tuple(int(v) for v in prior[2]))
+    return RateDiscrepancy(heights, bias, spread, prior[0], prior[1], tuple(int(v) for v in prior[2]))
 
 
 def _table(raw: Any, where: str, keys: tuple[str, str, str], refuse: Any) -> list[tuple[float, ...]]:

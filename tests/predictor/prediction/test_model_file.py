@@ -9,19 +9,21 @@ from pathlib import Path
 import pytest
 
 from console.commands.main import main
-from predictor.calibration.model_file import (
+from predictor.descent import Release
+from predictor.descent.model import BinnedDescentRate, DescentRateScale, DragDensityExponent
+from predictor.descent.payload import Payload
+from predictor.environment.demo_weather import demo_weather_files
+from predictor.environment.weather import load_weather
+from predictor.prediction import FlightSetup
+from predictor.prediction.landings import predict
+from predictor.prediction.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, RateDiscrepancy
+from predictor.prediction.model_file import (
     SCHEMA_VERSION,
     CalibratedModel,
     ModelFileError,
     load_model,
     save_model,
 )
-from predictor.descent.model import BinnedDescentRate, DescentRateScale, DragDensityExponent
-from predictor.descent.payload import Payload
-from predictor.environment.demo_weather import demo_weather_files
-from predictor.environment.weather import load_weather
-from predictor.prediction.landings import predict
-from predictor.prediction.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, RateDiscrepancy
 from predictor.prediction.uncertainty import ErrorModel
 
 WHEN = datetime(2026, 11, 22, 12, tzinfo=UTC)
@@ -61,8 +63,11 @@ def test_drs_predict_with_the_model_equals_the_same_terms_by_hand(
     argv = ["predict", "--weather", *map(str, files), "--cache-dir", str(tmp_path / "c"), *RELEASE, "--json"]
     assert main([*argv, "--model", str(path)]) == 0
     flown = json.loads(capsys.readouterr().out)
-    by_hand = predict(load_weather(files, cache_dir=tmp_path / "c"), WHEN, 46.5, 6.6, 28000.0,
-                      payload=example().payload, effects=example().terms, error_model=example().ellipse)  # fmt: skip
+    by_hand = predict(
+        load_weather(files, cache_dir=tmp_path / "c"),
+        Release(WHEN, 46.5, 6.6, 28000.0),
+        FlightSetup(example().payload, effects=example().terms, error_model=example().ellipse),
+    )  # fmt: skip
     assert flown["landing"]["lat"] == pytest.approx(by_hand.landing.lat, abs=1e-9)
     assert flown["landing"]["lon"] == pytest.approx(by_hand.landing.lon, abs=1e-9)
     assert flown["descent_s"] == pytest.approx(by_hand.descent_s)
@@ -314,10 +319,9 @@ def test_every_parameter_of_every_effect_has_the_calibrations_bounds() -> None:
     """A term added to the registry without bounds would let any value of it fly."""
     import dataclasses
 
-    from predictor.calibration.effects import parameter_limits
     from predictor.descent.model import EFFECTS
+    from predictor.prediction.model_file import PARAMETER_LIMITS as limits
 
-    limits = parameter_limits()
     missing = [(name, f.name) for name, cls in EFFECTS.items() for f in dataclasses.fields(cls)
                if (name, f.name) not in limits]  # fmt: skip
     assert missing == []
