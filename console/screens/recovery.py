@@ -129,7 +129,7 @@ class RecoveryScreen(CommandingScreen):
     def settings_lines(self) -> list[Text]:
         """Setting and value in bold: what a team in the field looks for first (is the sounder ON?)."""
         if self.settings is None:
-            state = "reading" if self.context.ops else "not known in replay"
+            state = "reading" if self.context.commanding else "not known in replay"
             return [Text(f"Sounder, interval, parachute: {state}")]
         lines = []
         for status in self.settings.statuses():
