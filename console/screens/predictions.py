@@ -110,7 +110,7 @@ class PredictionScreen(ConsoleScreen):
         value = now_pred.value if now_pred else None
         zones = [z.ring for z in context.zones]
         balloon = context.fleet.balloon.value
-        self.query_one("#prediction-map", LandingMap).layers = MapLayers(
+        self.query_one("#prediction-map", LandingMap).map_layers = MapLayers(
             path=list(value.path) if value else (),
             ellipse=list(value.outline_2sigma) if value else (),
             zones=zones,

@@ -175,7 +175,7 @@ class ReleaseScreen(ConsoleScreen):
         arm = self.arm_text(report.go) + (f"\n{approval}" if approval else "")
         set_content(self.query_one("#arm-status", Static), arm)
         self.show_waive_hint()
-        keys = tuple(self.check_action(b.action, ()) for b in self.BINDINGS)
+        keys = tuple(self.check_action(b.action, ()) for b in self.BINDINGS if isinstance(b, Binding))
         if keys != self.binding_states:  # the footer recomposes on each call: only when a key comes or goes
             self.binding_states = keys
             self.refresh_bindings()
