@@ -356,7 +356,8 @@ class DrsConsole(App[int]):
             self._views_stale.add(key)
             return
         if kind == "window":
-            origin, basis, service = self.prediction_origin(capsule), self.window_basis(capsule), self.setup.predictions
+            origin, basis = self.prediction_origin(capsule), self.window_basis(capsule)
+            service = self.setup.predictions
             if basis is None or origin is None or service is None:
                 return
             if capsule in self._windows and self._windows[capsule][0] == basis:
@@ -382,7 +383,9 @@ class DrsConsole(App[int]):
             self.call_from_thread(self._view_done, (kind, capsule))
 
     @work(thread=True, exit_on_error=False, group="release-window")
-    def _sweep(self, service: PredictionService, capsule: str, origin: ReleaseOrigin, basis: datetime) -> None:
+    def _sweep(
+        self, service: PredictionService, capsule: str, origin: ReleaseOrigin, basis: datetime
+    ) -> None:
         """The release window from ``origin`` (``drs_link.ops.ReleaseWindow``), for the predictions screen."""
         try:
             window = ReleaseWindow.from_sweep(

@@ -201,7 +201,11 @@ class CommandingContext(ConsoleContext):
     commanding = True
 
     def __init__(
-        self, setup: ConsoleSetup, warn: Callable[[str], None], ops: Operations, live: Callable[[], LiveSource | None]
+        self,
+        setup: ConsoleSetup,
+        warn: Callable[[str], None],
+        ops: Operations,
+        live: Callable[[], LiveSource | None],
     ) -> None:
         super().__init__(setup, warn, 2.0 * setup.poll_period_s * setup.time_scale)
         self.ops = ops

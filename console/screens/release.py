@@ -411,7 +411,7 @@ class ReleaseScreen(ConsoleScreen):
         self._arm()
 
     def _arm(self) -> None:
-        """The poll is taken here, on the UI thread, as the screen shows it; the ARM itself is a store write."""
+        """The poll is taken here, on the UI thread, as the screen shows it; the ARM is a store write."""
         context, capsule, report = self.context, self.capsule, self.context.gonogo(self.capsule)
         self._write(lambda: context.arming(capsule).arm(report))
 

@@ -7,8 +7,8 @@ second operator and ``identity`` which login is another person; ``authorize`` th
 ``origin`` what is known of each capsule and how old it is; ``recovery`` where a dropped capsule is
 and is going, ``views`` what the per-capsule screens show, from the store or a replay; ``release_window``
 the sweep; ``audit_log`` the audit as History reads it; ``session`` a console that ends without quitting;
-``operations`` the console's engine without a screen; and ``face_types`` the values below it that the faces show and compose, so that
-they import this door alone.
+``operations`` the console's engine without a screen; and ``face_types`` the values below it that the
+faces show and compose, so that they import this door alone.
 """
 
 from typing import TYPE_CHECKING

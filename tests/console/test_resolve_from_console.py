@@ -56,7 +56,8 @@ async def test_u_records_what_the_portal_shows_and_the_audit_names_the_operator(
     assert app.ops is not None and app.ops.lifecycle.get(command_id).state == "delivery_unknown"
     async with app.run_test(size=(120, 40)) as pilot:
         await _resolve(app, pilot, "not sent")
-        await wait_for(pilot, lambda: app.ops is not None and app.ops.lifecycle.get(command_id).state == "not_sent")
+        lifecycle = app.ops.lifecycle
+        await wait_for(pilot, lambda: lifecycle.get(command_id).state == "not_sent")
         [row] = app.store.audit("DRS2", action="mt.resolved")
         assert row.operator == "EL" and "never reached the gateway" in str(row.detail)
         await wait_for(pilot, lambda: any("not_sent" in n.message for n in app._notifications))
