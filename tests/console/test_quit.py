@@ -11,6 +11,7 @@ from console.app import DrsConsole
 from console.screens.fleet import FleetScreen
 from console.screens.modals import ConfirmModal
 from drs_link.ops.arming import ArmState
+from tests.console.conftest import wait_for
 
 pytestmark = pytest.mark.asyncio
 
@@ -38,7 +39,7 @@ async def test_quitting_while_armed_says_so_and_disarms_on_the_record(
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("enter", "a")
         arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
-        assert arming.status().armed
+        await wait_for(pilot, lambda: arming.status().armed)  # the ARM is written off the UI thread
         await pilot.press("q")
         body = str(app.screen.query_one(".dialog-body").render())
         assert "ARMED, will be disarmed: DRS1." in body and "Powered on and waiting for Go: DRS1." in body
