@@ -494,11 +494,17 @@ class DrsConsole(App[int]):
         if powered:
             lines.append(f"Powered on and waiting for Go: {', '.join(powered)}.")
 
-        def confirmed(yes: bool | None) -> None:
-            if yes:
+        def disarm_and_exit() -> None:
+            """In a worker: the disarms are store writes, and the console ends only once they are recorded."""
+            try:
                 for name in armed:
                     arming[name].disarm("console closed")
-                self.exit(0)
+            finally:
+                self.call_from_thread(self.exit, 0)
+
+        def confirmed(yes: bool | None) -> None:
+            if yes:
+                self.run_worker(disarm_and_exit, thread=True, group="store-write", exit_on_error=False)
 
         self.push_screen(ConfirmModal("Quit the DRS console?", "\n".join(lines), "Quit"), confirmed)
 

@@ -23,6 +23,7 @@ from drs_link.feeds import BalloonFeed
 from drs_link.ops import (
     PROCEDURE_DIR,
     Approval,
+    ApprovalBook,
     ArmingController,
     AuditLog,
     Checklist,
@@ -175,6 +176,10 @@ class ConsoleContext:
                  "live": "LIVE"}  # fmt: skip
         text = words.get(self.mode, self.mode.upper())
         return f"{text} {self.setup.banner_note}".strip()
+
+    def approval_book(self) -> ApprovalBook:
+        """Every login's requests for a second operator, on the store all consoles share."""
+        return ApprovalBook(self.store, self.now)
 
     def checklist_run(self, capsule: str, checklist: Checklist) -> ChecklistRun:
         return ChecklistRun(self.store, checklist, capsule, self.now)

@@ -28,8 +28,8 @@ async def test_q_asks_before_quitting_and_escape_keeps_the_console_running(
         await pilot.press("q", "escape")
         assert app.is_running and isinstance(app.screen, FleetScreen)
         await pilot.press("q", "tab", "enter")
-        await pilot.pause()
-        assert app.return_value == 0 and not app.is_running
+        await wait_for(pilot, lambda: not app.is_running)
+        assert app.return_value == 0
 
 
 async def test_quitting_while_armed_says_so_and_disarms_on_the_record(
@@ -44,7 +44,7 @@ async def test_quitting_while_armed_says_so_and_disarms_on_the_record(
         body = str(app.screen.query_one(".dialog-body").render())
         assert "ARMED, will be disarmed: DRS1." in body and "Powered on and waiting for Go: DRS1." in body
         await pilot.press("tab", "enter")
-        await pilot.pause()
+        await wait_for(pilot, lambda: not app.is_running)  # it ends once the disarm is on the record
         assert arming.status().state is ArmState.DISARMED
         assert ("disarm", "console closed") in [(a.action, a.result) for a in app.store.audit("DRS1")]
 
