@@ -1,12 +1,13 @@
 """What the screens work on, typed: the session's setup, the fleet state, and the calls into ``drs_link``.
 
-The app builds one context for its mode (``context_for``) and hands it to each screen it opens; the
-screens read the fleet, the clock and the settings from it and ask it for go/no-go, arming,
-checklists, approvals and the audit log. A live or demo console gets a ``CommandingContext``, with
-the ``Operations`` behind it; a replay gets a ``ReplayContext``, which has no commanding side at all:
-asked for one, it refuses with ``REPLAY_REFUSAL`` (its keys are disabled too, so that is a last
-guard, not a path a screen takes). Nothing here imports Textual: it is the plain-Python side of the
-console.
+The app builds one context for its mode (``context_for``) and hands it to each screen it opens,
+instead of itself: the app imports the screens, so a screen that took the app could only type it
+``Any``. The screens read the fleet, the clock and the settings from it and ask it for go/no-go,
+arming, checklists, approvals and the audit log. A live or demo console gets a
+``CommandingContext``, with the ``Operations`` behind it; a replay gets a ``ReplayContext``, which
+has no commanding side at all: asked for one, it refuses with ``REPLAY_REFUSAL`` (its keys are
+disabled too, so that is a last guard, not a path a screen takes). Nothing here imports Textual: it
+is the plain-Python side of the console.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ import socket
 import sqlite3
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
@@ -423,18 +423,19 @@ class Store:
         capsule: str | None,
         action: str,
         result: str,
-        detail: dict[str, Any] | None = None,
+        detail: Mapping[str, object] | None = None,
         when: datetime | None = None,
     ) -> AuditRecord:
         """Record one step durably; only after this returns may anyone be told it happened."""
         moment = when or self.clock()
-        detail_json = json.dumps(detail, sort_keys=True, default=str) if detail is not None else None
+        record_detail = dict(detail) if detail is not None else None  # json writes a dict, not any Mapping
+        detail_json = json.dumps(record_detail, sort_keys=True, default=str) if detail is not None else None
         row_id = self.write(
             "INSERT INTO audit (time_utc, operator, capsule, action, result, detail, session) "
             "VALUES (?, ?, ?, ?, ?, ?, ?)",
             (iso_utc(moment), operator, capsule, action, result, detail_json, self.session),
         )
-        return AuditRecord(row_id, moment, operator, capsule, action, result, detail, self.session)
+        return AuditRecord(row_id, moment, operator, capsule, action, result, record_detail, self.session)
 
     def audit(
         self,

@@ -8,6 +8,7 @@ it holds, and that no module imports itself back through others at run time.
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import grimp
@@ -74,8 +75,7 @@ def test_a_module_taken_from_behind_a_door_is_one_the_door_lists() -> None:
                 if importer == room or importer.startswith(room + "."):
                     continue
                 folder = ROOT / room.replace(".", "/")
-                door = (folder / "__init__.py").read_text()
-                listed = _door_map(ast.parse(door)) if "lazy_door(" in door else {}
+                listed = _door_exports(folder / "__init__.py")
                 for alias in node.names:
                     if (folder / f"{alias.name}.py").exists() and listed.get(alias.name) != alias.name:
                         side_doors.append(
@@ -150,6 +150,63 @@ def test_the_tests_live_in_the_room_they_pin() -> None:
     assert strays == []
 
 
+ROOM_IMPORT_EXCEPTIONS = {
+    "tests/console/test_end_to_end_tmux.py": "drives the installed `drs demo` in a terminal (tmux) and reads "
+    "the screen: it pins the whole console as an operator runs it, and imports none of it",
+}
+"""Test files that pin their room without reaching it as the rule below counts, each with the reason."""
+
+MODULE_NAME = re.compile(rf"(?:{'|'.join(PACKAGES)})(?:\.\w+)+")
+
+
+def _reached(path: Path, *, through_helpers: bool = True) -> set[str]:
+    """The product modules a test file reaches: those it imports anywhere in the file, a name taken from a
+    package's own door counted as the module that door maps it to (``from predictor import predict`` reaches
+    ``predictor.prediction.landings``); those it runs as a program (a string that is exactly a module's
+    dotted name, as ``python -m`` takes it); and what a helper module in its own folder reaches, when it
+    imports that helper (``tests/predictor/geofiles/exports/conftest.py``)."""
+    reached: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            reached |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            if node.level == 1:
+                helper = path.parent / f"{node.module}.py"
+            else:
+                helper = ROOT / f"{node.module.replace('.', '/')}.py"
+                reached.add(node.module)
+                if node.module in PACKAGES:
+                    door = (ROOT / node.module / "__init__.py").read_text()
+                    listed = _door_map(ast.parse(door)) if "lazy_door(" in door else {}
+                    reached |= {f"{node.module}.{listed.get(alias.name, alias.name)}" for alias in node.names}
+            if through_helpers and helper.parent == path.parent and helper.exists() and helper != path:
+                reached |= _reached(helper, through_helpers=False)
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            reached |= {node.value} if MODULE_NAME.fullmatch(node.value) else set()
+    return reached
+
+
+def _room_named_by(test_file: Path) -> str:
+    package, *folders = test_file.relative_to(ROOT / "tests").parts[:-1]
+    return f"{package}.{folders[0]}" if folders else package
+
+
+def test_a_test_folders_files_reach_the_room_it_is_named_for() -> None:
+    """Each ``tests/<package>/<room>/…/test_*.py`` reaches ``<package>.<room>`` (the room's door or a module
+    in it), and each ``tests/<package>/test_*.py`` reaches ``<package>``, as ``_reached`` counts. A file
+    that reaches only other rooms pins them, and sits in their folder (or, a command line's test, in
+    ``tests/console/commands``). Reaching the room is needed, not enough: a CLI test that imports the
+    domain to compare against still belongs with the commands. Helpers (conftest, helpers) are not tests."""
+    strays = []
+    for package in PACKAGES:
+        for path in sorted((ROOT / "tests" / package).rglob("test_*.py")):
+            room = _room_named_by(path)
+            if not any(module == room or module.startswith(room + ".") for module in _reached(path)):
+                strays.append(str(path.relative_to(ROOT)))
+    # an exception that no longer strays is struck from the list, so the list stays the truth
+    assert sorted(strays) == sorted(ROOM_IMPORT_EXCEPTIONS)
+
+
 def _lazy_doors() -> list[Path]:
     return sorted(
         path
@@ -172,6 +229,22 @@ def _door_map(tree: ast.Module) -> dict[str, str]:
         ast.literal_eval(key): ast.literal_eval(value)
         for key, value in zip(exports.keys, exports.values, strict=True)
     }
+
+
+def _plain_door_map(tree: ast.Module) -> dict[str, str]:
+    """The names a plain door imports from its own modules at run time, each with its module."""
+    return {
+        alias.asname or alias.name: statement.module or alias.name
+        for statement in tree.body
+        if isinstance(statement, ast.ImportFrom) and statement.level == 1
+        for alias in statement.names
+    }
+
+
+def _door_exports(door: Path) -> dict[str, str]:
+    """What a door, lazy or plain, hands out: each name with the module (relative to the door) behind it."""
+    text = door.read_text()
+    return (_door_map if "lazy_door(" in text else _plain_door_map)(ast.parse(text))
 
 
 def _type_checking_map(tree: ast.Module) -> dict[str, str]:
@@ -198,25 +271,15 @@ def test_a_lazy_doors_type_checking_imports_are_its_map(door: Path) -> None:
     assert _type_checking_map(tree) == _door_map(tree)
 
 
+def _doors() -> list[Path]:
+    return [ROOT / room.replace(".", "/") / "__init__.py" for room in _rooms()]
+
+
 def test_no_door_exports_a_private_name() -> None:
     private = [
         f"{door.relative_to(ROOT)}: {name}"
-        for door in _lazy_doors()
-        for name in _door_map(ast.parse(door.read_text()))
+        for door in _doors()
+        for name in _door_exports(door)
         if name.startswith("_")
     ]
     assert private == []
-
-
-def test_a_module_a_door_lists_is_handed_out_whole() -> None:
-    import importlib
-
-    listed = [
-        (_module_name(door.parent / "__init__.py"), name)
-        for door in _lazy_doors()
-        for name, module in _door_map(ast.parse(door.read_text())).items()
-        if name == module
-    ]
-    assert listed, "no door lists a module: this test would pass on nothing"
-    for room, name in listed:
-        assert getattr(importlib.import_module(room), name) is importlib.import_module(f"{room}.{name}")

@@ -20,7 +20,10 @@ import os
 import re
 import sys
 from collections.abc import Callable, Sequence
+from datetime import UTC, date, datetime
 from typing import Any, NoReturn
+
+from predictor.errors import UsageError
 
 VALUE_WITH_MINUS = re.compile(r"^-\.?\d")
 """``-44.7``, ``-44.7,169.1``, ``-.5``: what argparse consults to tell a value from an option."""
@@ -182,6 +185,53 @@ def at_least_zero(unit: str, most: float) -> Callable[[str], float]:
         return value
 
     return check
+
+
+# Times and dates: every command's time option (``drs predict --time``, ``drs weather fetch --time``,
+# ``drs plan --from``) and flight date (``--date``) is read by the one rule below, so a form one command
+# takes works in all of them. A bad one is refused while the command line is read, as one line that
+# names the option (a UsageError, exit status 2), before any weather is loaded or any file written.
+
+
+class UtcTime:
+    """An instant: ISO 8601 with its zone (``2024-05-01T06:30Z``, ``2024-05-01 08:30+02:00``), or ``now``;
+    given back in UTC.
+
+    A time without a zone is refused, not guessed: read as the laptop's local time or as UTC by mistake,
+    a release time is off by hours, and so is the weather the capsule is flown through. A lowercase
+    ``z`` is taken as ``Z`` (RFC 3339 allows it; Python's reader does not).
+    """
+
+    def __init__(self, option: str) -> None:
+        self.option = option
+
+    def __call__(self, text: str) -> datetime:
+        typed = text.strip()
+        if typed.lower() == "now":
+            return datetime.now(UTC)
+        try:
+            moment = datetime.fromisoformat(typed[:-1] + "Z" if typed.endswith("z") else typed)
+        except ValueError:
+            raise UsageError(
+                f"{self.option} {text!r} is not an ISO 8601 time such as 2024-05-01T06:30Z, or now"
+            ) from None
+        if moment.tzinfo is None:
+            suggestion = moment.isoformat() + "Z"  # valid even when only a date was typed
+            raise UsageError(f"{self.option} {text!r} has no time zone; give UTC explicitly, e.g. {suggestion}")
+        return moment.astimezone(UTC)
+
+
+class UtcDate:
+    """A UTC day, ``YYYY-MM-DD``: the day of a log that records only times of day (the V4 logger)."""
+
+    def __init__(self, option: str) -> None:
+        self.option = option
+
+    def __call__(self, text: str) -> date:
+        try:
+            return date.fromisoformat(text.strip())
+        except ValueError:
+            raise UsageError(f"{self.option} {text!r} is not a date YYYY-MM-DD such as 2021-06-01") from None
 
 
 # Standard input for inputs, as ``-`` is standard output for outputs (``drs predict --geojson - |

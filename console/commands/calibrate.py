@@ -7,8 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from console.commands.argparser import input_file
-from console.commands.tracks import iso_date
+from console.commands.argparser import UtcDate, input_file
 
 DEFAULT_STEP_M = 200.0
 """Altitude step of every calibration run: 150 steps from 30 km. The step's truncation error is the
@@ -91,7 +90,7 @@ def _inputs(parser: argparse.ArgumentParser, required: bool) -> None:
     )
     parser.add_argument(
         "--date",
-        type=iso_date,
+        type=UtcDate("--date"),
         metavar="YYYY-MM-DD",
         help="UTC date of the first fix, for logs with times of day only (V4)",
     )

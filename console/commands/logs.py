@@ -36,7 +36,7 @@ def _value(value: object) -> str:
 class LogfmtFormatter(logging.Formatter):
     """``2026-11-25T06:30:00.123Z INFO drs_link.iridium.webhook: POST … client=… status=200``."""
 
-    converter = time.gmtime
+    converter = staticmethod(time.gmtime)
 
     def format(self, record: logging.LogRecord) -> str:
         moment = self.formatTime(record, "%Y-%m-%dT%H:%M:%S") + f".{int(record.msecs):03d}Z"
@@ -56,7 +56,7 @@ class _DrsHandler(logging.StreamHandler):
     stream fixed at the run's start may since have been closed (a test's capture) or replaced.
     """
 
-    @property  # type: ignore[override]
+    @property
     def stream(self) -> object:
         return sys.stderr
 

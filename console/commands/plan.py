@@ -13,11 +13,11 @@ import os
 import statistics
 import sys
 import time
-from datetime import UTC, date, datetime
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from console.commands.argparser import input_file, latitude, longitude, positive
+from console.commands.argparser import UtcDate, UtcTime, input_file, latitude, longitude, positive
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError, UsageError
 from predictor.planning import MAX_MEMBER_DESCENTS
@@ -37,7 +37,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     plan.add_argument("--lat", type=latitude, help="balloon latitude now, degrees north")
     plan.add_argument("--lon", type=longitude, help="balloon longitude now, degrees east")
     plan.add_argument("--alt", type=float, help="balloon (float) altitude, m above mean sea level")
-    plan.add_argument("--from", dest="start", metavar="ISO", help="first candidate release time, UTC")
+    plan.add_argument(
+        "--from",
+        dest="start",
+        metavar="ISO",
+        type=UtcTime("--from"),
+        help="first candidate release time, ISO 8601 UTC, or now",
+    )
     plan.add_argument("--hours", type=float, default=2.0, help="length of the sweep (default 2 h)")
     plan.add_argument(
         "--every-minutes", type=positive("minutes"), default=5.0, help="candidate spacing (default 5 min)"
@@ -106,7 +112,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         type=input_file("--track"),
         help="the descent's track (any format `drs tracks` reads); - reads standard input",
     )
-    live.add_argument("--date", help="UTC date of the first fix, for logs with times of day only (V4)")
+    live.add_argument(
+        "--date",
+        type=UtcDate("--date"),
+        help="UTC date of the first fix, for logs with times of day only (V4)",
+    )
     live.add_argument("--dem", metavar="DIR",
                       help="terrain directory (evaluate: instead of level ground at each measured landing)")  # fmt: skip
     live.add_argument(
@@ -125,16 +135,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     live.add_argument("--cache-dir", metavar="DIR", help="weather cache (default ~/.cache/drs/weather)")
     live.set_defaults(func=run_live)
-
-
-def _parse_time(text: str, flag: str) -> datetime:
-    try:
-        when = datetime.fromisoformat(text.strip().replace("Z", "+00:00"))
-    except ValueError:
-        raise UsageError(f"{flag} {text!r} is not an ISO 8601 time such as 2024-05-01T06:30Z") from None
-    if when.tzinfo is None:
-        raise UsageError(f"{flag} {text!r} has no time zone; give UTC explicitly, e.g. {text}Z")
-    return when.astimezone(UTC)
 
 
 def run_plan(args: argparse.Namespace) -> int:
@@ -158,7 +158,7 @@ def run_plan(args: argparse.Namespace) -> int:
     )
 
     summary_to = sys.stderr if piped(kml=args.kml, geojson=args.geojson, json=args.json) else sys.stdout
-    start = _parse_time(args.start, "--from")
+    start: datetime = args.start
     model = flown_model(args.model, args.payload, args.mass, args.cda)
     flown: dict[str, Any] = {"payload": model.payload, "effects": model.terms}
     if model.ellipse is not None:
@@ -300,15 +300,6 @@ def run_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-def _day(text: str | None) -> date | None:
-    if text is None:
-        return None
-    try:
-        return datetime.strptime(text, "%Y-%m-%d").date()
-    except ValueError:
-        raise UsageError(f"--date {text!r} is not a date such as 2019-07-28") from None
-
-
 def run_live(args: argparse.Namespace) -> int:
     from predictor.calibration import flown_model
     from predictor.environment import Terrain
@@ -323,7 +314,7 @@ def run_live(args: argparse.Namespace) -> int:
         raise UsageError("drs live needs --track FILE")
     if not args.weather and not args.ascent_winds:
         raise UsageError("drs live needs --weather FILE... or --ascent-winds")
-    flight = clean(read_track(args.track, day=_day(args.date)))
+    flight = clean(read_track(args.track, day=args.date))
     if flight.descent_start is None or not flight.descent:
         reason = "; ".join(flight.exclusions) or "no descent found"
         raise PredictorError(f"{args.track}: no descent to re-predict ({reason})")
@@ -393,7 +384,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     model = flown_model(args.model, profile, args.mass, args.cda)
     weather = load_weather(args.weather, cache_dir=args.cache_dir) if args.weather else None
     result = evaluate_live(
-        args.tracks, model=model if args.model is not None else None, profile=model.payload, day=_day(args.date),
+        args.tracks, model=model if args.model is not None else None, profile=model.payload, day=args.date,
         weather=weather, terrain=Terrain.from_dir(args.dem) if args.dem else None,
     )  # fmt: skip
     if not result.flights:

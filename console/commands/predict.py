@@ -21,7 +21,7 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from console.commands.argparser import latitude, longitude
+from console.commands.argparser import UtcTime, latitude, longitude
 from predictor.descent import PROFILES
 from predictor.environment import weather_bbox
 from predictor.errors import PredictorError, UsageError
@@ -61,7 +61,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--lat", type=latitude, help="release latitude, degrees north")
     parser.add_argument("--lon", type=longitude, help="release longitude, degrees east")
     parser.add_argument("--alt", type=float, help="release altitude, m above mean sea level")
-    parser.add_argument("--time", help="release (or drift start) time, ISO 8601 UTC, e.g. 2024-05-01T06:30Z")
+    parser.add_argument(
+        "--time",
+        type=UtcTime("--time"),
+        help="release (or drift start) time, ISO 8601 UTC, e.g. 2024-05-01T06:30Z, or now",
+    )
     parser.add_argument(
         "--payload", choices=sorted(PROFILES), help="payload profile (default drs; not with --model)"
     )
@@ -156,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
         write_kml,
     )
 
-    when = parse_time(args.time)
+    when: datetime = args.time
     files = demo_weather_files(args.lat, args.lon, when) if args.demo_weather else args.weather
     flown = flown_model(args.model, args.payload, args.mass, args.cda)
     payload = flown.payload
@@ -208,16 +212,6 @@ def run(args: argparse.Namespace) -> int:
             text += f"\nmodel     {calibrated.label()}" + (f"\n{spread.line()}" if spread is not None else "")
         print(text, file=summary_to)
     return 0
-
-
-def parse_time(text: str) -> datetime:
-    try:
-        when = datetime.fromisoformat(text.strip())
-    except ValueError:
-        raise UsageError(f"--time {text!r} is not an ISO 8601 time such as 2024-05-01T06:30Z") from None
-    if when.tzinfo is None:
-        raise UsageError(f"--time {text!r} has no time zone; give UTC explicitly, e.g. {text}Z")
-    return when.astimezone(UTC)
 
 
 def summary(result: Prediction | EnsemblePrediction) -> str:

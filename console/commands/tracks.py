@@ -7,10 +7,9 @@ import json
 import math
 import sys
 import time
-from datetime import date
 from typing import TYPE_CHECKING, Any
 
-from console.commands.argparser import input_file
+from console.commands.argparser import UtcDate, input_file
 from predictor.tracks import Fix, TrackError, read_track
 
 if TYPE_CHECKING:  # cleaning loads numpy and pyproj: `drs tracks --help` does not wait for them
@@ -34,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     summary.add_argument("--json", action="store_true", help="print JSON instead of text")
     summary.add_argument(
         "--date",
-        type=iso_date,
+        type=UtcDate("--date"),
         default=None,
         metavar="YYYY-MM-DD",
         help="UTC date of the first fix, for logs that record only times of day (the V4 logger)",
@@ -52,7 +51,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     bench.add_argument(
         "--repeat", type=int, default=5, metavar="N", help="runs; the best is reported (default 5)"
     )
-    bench.add_argument("--date", type=iso_date, default=None, metavar="YYYY-MM-DD")
+    bench.add_argument("--date", type=UtcDate("--date"), default=None, metavar="YYYY-MM-DD")
     bench.set_defaults(func=run_bench)
 
 
@@ -196,10 +195,3 @@ def _line_list(lines: tuple[int, ...]) -> str:
             start = prev = line
     return ", ".join(runs)
 
-
-def iso_date(text: str) -> date:
-    """``--date``: the UTC day of a log that records only times of day (one parser for every command)."""
-    try:
-        return date.fromisoformat(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a date YYYY-MM-DD") from None

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import platformdirs
 
-from console.commands.argparser import at_least_zero, input_file, latitude, longitude, positive
+from console.commands.argparser import UtcTime, at_least_zero, input_file, latitude, longitude, positive
 from predictor.environment import (
     AVAILABILITY_DELAY,
     DEFAULT_URL_TEMPLATE,
@@ -48,7 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     fetch.add_argument(
-        "--time", required=True, help="ISO 8601 release time, e.g. 2024-05-01T06:30Z, or 'now'"
+        "--time", type=UtcTime("--time"), required=True, help="ISO 8601 release time, e.g. 2024-05-01T06:30Z, or 'now'"
     )
     fetch.add_argument("--lat", type=latitude, required=True, help="latitude of the release point, degrees")
     fetch.add_argument(
@@ -133,18 +133,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     bench.set_defaults(func=run_bench)
 
 
-def parse_time(text: str) -> datetime:
-    if text.strip().lower() == "now":
-        return datetime.now(UTC)
-    try:
-        moment = datetime.fromisoformat(text.strip())
-    except ValueError as exc:
-        raise UsageError(f"--time {text!r} is not an ISO 8601 time such as 2024-05-01T06:30Z") from exc
-    if moment.tzinfo is None:
-        raise UsageError(f"--time {text!r} has no time zone; add Z for UTC (e.g. {text}Z)")
-    return moment.astimezone(UTC)
-
-
 def default_gfs_dir() -> Path:
     return platformdirs.user_cache_path("drs") / "gfs"
 
@@ -152,7 +140,7 @@ def default_gfs_dir() -> Path:
 def run_fetch(args: argparse.Namespace) -> int:
     if not -90.0 <= args.lat <= 90.0:
         raise UsageError(f"--lat {args.lat:g} is not a latitude")
-    start = parse_time(args.time)
+    start: datetime = args.time
     grid = 0.5 if args.resolution == "0p50" else 0.25
     region = Region.around(args.lat, args.lon, args.radius_km, grid)
     plan = plan_forecast_files(start, args.hours, hindsight=args.hindsight)
@@ -162,7 +150,14 @@ def run_fetch(args: argparse.Namespace) -> int:
     if low_space:
         print(f"warning: {low_space}", file=sys.stderr)
     from rich.console import Console
-    from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
+    from rich.progress import (
+        BarColumn,
+        DownloadColumn,
+        Progress,
+        TaskID,
+        TextColumn,
+        TransferSpeedColumn,
+    )
 
     with Progress(
         TextColumn("{task.description}"),
@@ -171,7 +166,7 @@ def run_fetch(args: argparse.Namespace) -> int:
         TransferSpeedColumn(),
         console=Console(stderr=True),  # stdout carries only the file paths
     ) as bar:
-        tasks: dict[str, int] = {}
+        tasks: dict[str, TaskID] = {}
 
         def show(name: str, done: int, total: int | None) -> None:
             if name not in tasks:

@@ -1,9 +1,8 @@
 """Every screen the fleet opens, in one place: its key, its palette entry, its help, how it is built.
 
 The fleet screen's key bindings, the command palette (Ctrl+P) and the help screen are all made from
-``SCREENS``. Each of the three used to keep its own list, so a new screen meant edits in the fleet
-screen, the palette, the help text and the screens package besides its own module; now it is its
-module and one line here (and its test).
+``SCREENS``, so a new screen is its own module and one line here (and its test), and the three cannot
+disagree about which screens exist.
 """
 
 from __future__ import annotations

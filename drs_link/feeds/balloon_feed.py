@@ -1,4 +1,4 @@
-"""The balloon's position from a ground station on the LAN (issue #5), before any capsule's GNSS is on.
+"""The balloon's position from a ground station on the LAN, before any capsule's GNSS is on.
 
 A capsule's own GNSS exists only minutes before a drop, but "release now" needs the balloon's
 position all flight. Flight teams get it from the launch provider's or their own ground station,
@@ -120,6 +120,7 @@ def parse_feed_line(line: str, now: datetime) -> BalloonFix | Rejection | None:
     text = line.strip()
     if len(line) > MAX_LINE_BYTES:
         return _too_long(line)
+    fix: BalloonFix | None
     try:
         if not text:
             return None

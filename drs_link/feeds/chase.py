@@ -1,4 +1,4 @@
-"""The capsules on the chase team's map: Horus UDP ``PAYLOAD_SUMMARY`` packets for chasemapper (issue #14).
+"""The capsules on the chase team's map: Horus UDP ``PAYLOAD_SUMMARY`` packets for chasemapper.
 
 A chase car runs chasemapper fed by Horus UDP (horus-gui on 55672, auto_rx on 55673). Each capsule
 with a position (its newest Iridium fix in the store) is sent under its own name with the fields
@@ -252,6 +252,9 @@ def chase_points(config: Config, store: Store, now: datetime) -> list[ChasePoint
 
 class ChaseSender:
     """One UDP socket to the chase LAN; a broadcast address is allowed (chasemapper listens on any)."""
+
+    address: tuple[str, int] | tuple[str, int, int, int] | tuple[int, bytes]
+    """Where the datagrams go, as ``getaddrinfo`` gives it for IPv4 or IPv6."""
 
     def __init__(self, target: str, key: str = "--udp") -> None:
         self.host, self.port = host_port(target, key)

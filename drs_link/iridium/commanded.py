@@ -18,8 +18,10 @@ from datetime import datetime
 from drs_link.iridium import lifecycle as lc
 from drs_link.iridium.commands import (
     INTERVAL,
+    NOT_SEEN,
     PARACHUTE,
     PARACHUTE_REACH_MIN,
+    SEEN,
     SOUNDER,
     MtCommand,
     is_command,
@@ -114,9 +116,9 @@ def _progress(command: lc.Command, commands: Sequence[lc.Command], by_id: dict[i
 def _companion_evidence(command: lc.Command, kind: MtCommand) -> str:
     """What the other commands of the same MT showed: a change that showed proves the whole MT went down."""
     others = [effect for text, effect in command.effects.items() if not is_command(text, kind)]
-    if lc.SEEN in others:
+    if SEEN in others:
         return "; the change sent with it showed, so it did go down"
-    if lc.NOT_SEEN in others:
+    if NOT_SEEN in others:
         return "; the change sent with it never showed, so it may not have gone down"
     return ""
 
@@ -165,9 +167,9 @@ def interval_status(
     value = f"{INTERVAL.decode(text)} min"
     effect = latest.effects[text]
     progress = _progress(latest, commands, by_id)
-    if effect == lc.SEEN:
+    if effect == SEEN:
         detail = f"commanded {_hhmm(_sent_at(latest))}, confirmed by the spacing of later reports; {measured}"
-    elif effect == lc.NOT_SEEN:
+    elif effect == NOT_SEEN:
         detail = f"{progress}, but NOT seen in the spacing since: rejected, or not downloaded; {measured}"
     elif latest.delivered_report_id is not None:
         detail = f"{progress}; pending (takes effect from the cycle after next): {measured}"

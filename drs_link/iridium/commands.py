@@ -1,9 +1,9 @@
 """The one catalogue of MT commands the DRS firmware reads (drs_protocol.md 3.8, 6.2): add a command here.
 
-Why one catalogue: each command used to be spelt out wherever it was touched, as string prefixes and
-three INTERVAL parsers across the composer, the lifecycle, the checklist hook, the two-person gate,
-the status lines, the firmware model, the CLI and the console, so a new command meant about 14 files
-and a missed copy drifted silently. Each ``MtCommand`` holds everything any of them needs: the
+Why one catalogue: the composer, the lifecycle, the checklist hook, the two-person gate, the status
+lines, the firmware model, the CLI and the console all read a command from here, so adding one is one
+entry and no second copy (a string prefix, an INTERVAL parser of its own) can drift from it unnoticed.
+Each ``MtCommand`` holds everything any of them needs: the
 name, the byte-exact text the composer writes (refusing what the firmware would misread or ignore),
 reading our own text back, the firmware's own rule for a whole downloaded MT (substring search,
 ``String.toInt``, the limits), how its effect shows in later reports, the ``drs mt send`` option,

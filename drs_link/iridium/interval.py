@@ -1,9 +1,9 @@
 """Which report interval a capsule runs at each cycle, from the INTERVAL commands and the firmware's switch-over.
 
 Health (is this spacing a missed cycle?), staleness (is the last report overdue?) and the PARACHUTE
-planner (when is the next cycle?) all need this. Each had its own guess before (the firmware default,
-the last *confirmed* command, the spacing seen), so after ``[INTERVAL=5]`` one screen said "1 cycle
-missed" and another called a 5-minute-old report stale. They now share this one rule.
+planner (when is the next cycle?) all need this, and all take it from this one rule: a guess of their
+own (the firmware default, the last *confirmed* command, the spacing seen) would, after ``[INTERVAL=5]``,
+let one screen say "1 cycle missed" while another calls a 5-minute-old report stale.
 
 The switch-over (drs_protocol.md 3.8, the ``[INTERVAL=n]`` row: "The alarm already armed keeps the
 old spacing, so the new interval takes effect from the following cycle"; 3.5 "Reporting interval":
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from datetime import datetime
 
 from drs_link.iridium import lifecycle as lc
-from drs_link.iridium.commands import INTERVAL
+from drs_link.iridium.commands import INTERVAL, PENDING, SEEN
 from drs_link.iridium.reports import StoredReport
 
 DEFAULT_INTERVAL_MIN = 2
@@ -111,9 +111,9 @@ def interval_track(reports: Sequence[StoredReport], commands: Sequence[lc.Comman
         spacing_after[stored.id] = flash
         for command, text, minutes in changes.get(i, []):
             effect = command.effects.get(text)
-            if effect == lc.SEEN:
+            if effect == SEEN:
                 flash = frozenset({minutes})
-            elif effect == lc.PENDING:
+            elif effect == PENDING:
                 flash = flash | {minutes}
     basis = "commanded" if changes else "spacing" if base is not None else "default"
     return IntervalTrack(spacing_after, reports[-1].id if reports else None, flash, basis)

@@ -13,7 +13,7 @@ place: ``recovery.detect_landing``), plus two checks that the landing still hold
 * the capsule has not moved away from that landing site since (more than 300 m);
 * where the terrain height is known (a DEM), the landing is within ``GROUND_TOLERANCE_M`` of it.
 
-Which reports are evidence at all (issue #24: three forged unsigned POSTs once passed the gate):
+Which reports are evidence at all (anyone who can reach the receiver can POST an unsigned report):
 
 * when any report of the capsule carries a verified Ground Control JWT, only JWT-verified reports
   count: with ``mo.require_jwt = false`` anyone who can reach the receiver can post a report, and a

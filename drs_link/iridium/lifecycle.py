@@ -711,9 +711,11 @@ class CommandLifecycle:
             if effects[text] != PENDING:
                 continue
             found = read_text(text)
-            if found is None or found[0].confirm is None:
+            if found is None:
                 continue
             command_kind, value = found
+            if command_kind.confirm is None:
+                continue
             effects[text] = command_kind.confirm(value, after)
         if effects == command.effects:
             return None

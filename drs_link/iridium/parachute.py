@@ -102,17 +102,19 @@ class ParachutePlan:
 def _residuals(reports: list[StoredReport], track: IntervalTrack) -> list[timedelta]:
     """How far each recent fix fell from the alarm grid through the last one, walking back while the
     spacing is known (a pending INTERVAL leaves it open); missed cycles keep the INTERVAL."""
-    fixed = [r for r in reports if r.report is not None and r.report.fix is not None][-HISTORY:]
-    anchor = fixed[-1].report.fix.time  # type: ignore[union-attr]
+    timed = [(r, r.report.fix.time) for r in reports if r.report is not None and r.report.fix is not None]
+    fixed = timed[-HISTORY:]
+    anchor = fixed[-1][1]
     residuals, grid = [timedelta(0)], timedelta(0)
-    for earlier, later in zip(reversed(fixed[:-1]), reversed(fixed[1:]), strict=True):
+    steps_back = zip(reversed(fixed[:-1]), reversed(fixed[1:]), strict=True)
+    for (earlier, earlier_time), (_, later_time) in steps_back:
         spacing = track.after(earlier)
         if len(spacing) != 1:
             break
         step = timedelta(minutes=next(iter(spacing)))
-        gap = later.report.fix.time - earlier.report.fix.time  # type: ignore[union-attr]
+        gap = later_time - earlier_time
         grid -= max(1, round(gap / step)) * step
-        residuals.append(earlier.report.fix.time - anchor - grid)  # type: ignore[union-attr]
+        residuals.append(earlier_time - anchor - grid)
     return residuals
 
 

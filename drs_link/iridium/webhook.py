@@ -477,6 +477,7 @@ class MoHttpServer(ThreadingHTTPServer):
     @property
     def url(self) -> str:
         host, port = self.server_address[:2]
+        assert isinstance(host, str), "an IP socket's own address names its host as text, never bytes"
         return f"http://{host}:{port}{self.receiver.config.path}"
 
     def _work(self) -> None:

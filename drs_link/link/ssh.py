@@ -136,7 +136,14 @@ class CapsuleLink:
         client.set_missing_host_key_policy(_RefuseUnknownHost())
         return client
 
-    def _open(self, client: paramiko.SSHClient, host: str, port: int, user: str, sock: object = None) -> None:
+    def _open(
+        self,
+        client: paramiko.SSHClient,
+        host: str,
+        port: int,
+        user: str,
+        sock: paramiko.Channel | None = None,
+    ) -> None:
         c = self.capsule
         key_file = str(c.identity_file) if c.identity_file else None
         timeout = c.connect_timeout_s

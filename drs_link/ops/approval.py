@@ -22,6 +22,7 @@ when its ARM window closes or the capsule's release state changes, and its reque
 from __future__ import annotations
 
 import os
+import sqlite3
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -377,7 +378,7 @@ class ApprovalBook:
         return {"approved_by": f"{request.decided_by} ({request.decider})", "approval": str(approval_id)}
 
 
-def _approval(row: Mapping[str, object]) -> Approval:
+def _approval(row: sqlite3.Row) -> Approval:
     decider = Login(str(row["decider_user"]), _text(row["decider_key"])) if row["decider_user"] else None
     return Approval(
         id=int(str(row["id"])),

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 import secrets
-from collections.abc import Mapping
+import sqlite3
 from dataclasses import dataclass
 from datetime import datetime
 
@@ -159,7 +159,7 @@ def expired_reason(window: ArmWindow) -> str:
     return f"ARM window expired at {window.until_utc:%H:%M:%S}Z"
 
 
-def _window(row: Mapping[str, object]) -> ArmWindow:
+def _window(row: sqlite3.Row) -> ArmWindow:
     return ArmWindow(
         id=int(str(row["id"])),
         capsule=str(row["capsule"]),

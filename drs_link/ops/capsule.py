@@ -15,7 +15,7 @@ import secrets
 import socket
 import sqlite3
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from datetime import datetime
 from enum import StrEnum
@@ -234,7 +234,7 @@ class ReleaseStateMachine:
             raise _StateChanged(current)
         self._save(conn, new)
 
-    def _audit(self, action: str, result: str, detail: dict[str, object] | None = None) -> None:
+    def _audit(self, action: str, result: str, detail: Mapping[str, object] | None = None) -> None:
         self.store.append_audit(self.operator, self.name, action, result, detail, when=self.clock())
 
     def _refuse(self, action: str, reason: str) -> RefusedError:

@@ -1,7 +1,8 @@
 """The values and catalogue the faces show and compose, handed on from the rooms behind the operations layer.
 
-Why: the console and the ``drs`` commands import ``drs_link.ops`` and nothing below it (#22, the wall), yet
-an operator composes an MT from the catalogue, reads a command's state and a report's time. These are
+Why: the console and the ``drs`` commands import ``drs_link.ops`` and nothing below it (the wall in
+docs/architecture.md), yet an operator composes an MT from the catalogue, reads a command's state and a
+report's time. These are
 values, not actions: every action on them (send, plan, resolve, store) is a method of ``Operations``.
 The recovery helpers (a track from the reports, its landing, the phone line, the GPX/KML files, the
 Iridium health) are pure functions of reports a face already holds, so they are handed on here too.

@@ -1,8 +1,8 @@
 """Who is at this keyboard, as only the kernel or a signature can say: the login the two-person rule counts.
 
-Why: the approver used to be told apart by the key named in ``$SSH_USER_AUTH``, a file any shell can
-name, so one person approved their own PARACHUTE override by pointing the variable at a second key.
-A login is now made of two things a process cannot choose for itself:
+Why: anything a process can set for itself, such as the key file ``$SSH_USER_AUTH`` names, would let
+one person approve their own PARACHUTE override by pointing it at a second key. So a login is made of
+two things a process cannot choose for itself:
 
 - the OS account of the kernel's real uid (``os.getuid()``), which only login, sshd, su or sudo set;
 - an SSH key *proven here*: a fresh random challenge is signed by ``ssh-agent`` (``$SSH_AUTH_SOCK``)
@@ -24,6 +24,10 @@ import secrets
 import socket
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # paramiko is imported only when there is an agent to ask
+    from paramiko.agent import AgentKey
 
 CHALLENGE_PREFIX = b"drs-console approval login v1\0"
 """Domain separation: a signature made here cannot be replayed as an SSH authentication, and one made
@@ -80,7 +84,8 @@ def prove_agent_key(
     conn.settimeout(5.0)
     try:
         conn.connect(path)
-        agent._connect(conn)
+        # _connect/_close are paramiko's own way to give AgentSSH a socket; private, so not in its stubs
+        agent._connect(conn)  # type: ignore[attr-defined]
         for key in agent.get_keys():
             person = listed.get(key.asbytes())
             if person is not None and _signs(key, key.asbytes()):
@@ -88,12 +93,12 @@ def prove_agent_key(
     except (OSError, paramiko.SSHException):
         return None
     finally:
-        agent._close()
+        agent._close()  # type: ignore[attr-defined]  # private, as _connect above
         conn.close()
     return None
 
 
-def _signs(agent_key: object, blob: bytes) -> bool:
+def _signs(agent_key: AgentKey, blob: bytes) -> bool:
     """Whether the agent's key signs a new challenge that verifies with the public key we were given."""
     import paramiko
 
@@ -101,7 +106,8 @@ def _signs(agent_key: object, blob: bytes) -> bool:
     try:
         public = paramiko.PKey.from_type_string(paramiko.Message(blob).get_text(), blob)
         algorithm = "rsa-sha2-256" if public.get_name() == "ssh-rsa" else None
-        signature = agent_key.sign_ssh_data(challenge, algorithm)  # type: ignore[attr-defined]
-        return bool(public.verify_ssh_sig(challenge, paramiko.Message(signature)))
+        signature = agent_key.sign_ssh_data(challenge, algorithm)
+        # An AgentKey's signature is the agent's bytes; types-paramiko gives it PKey's Message instead
+        return bool(public.verify_ssh_sig(challenge, paramiko.Message(signature)))  # type: ignore[arg-type]
     except (paramiko.SSHException, OSError, ValueError, TypeError):
         return False

@@ -12,7 +12,7 @@ import os
 import pwd
 import socket
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
@@ -143,9 +143,14 @@ def load_exclusion_zones(path: Path | None) -> tuple[ExclusionZone, ...]:
     for feature in features:
         for part in getattr(feature.geometry, "geoms", (feature.geometry,)):
             if isinstance(part, Polygon):
-                holes = tuple(tuple(ring.coords) for ring in part.interiors)
-                zones.append(ExclusionZone(feature.name, tuple(part.exterior.coords), holes))
+                holes = tuple(_lon_lat(ring.coords) for ring in part.interiors)
+                zones.append(ExclusionZone(feature.name, _lon_lat(part.exterior.coords), holes))
     return tuple(zones)
+
+
+def _lon_lat(coords: Iterable[tuple[float, ...]]) -> tuple[tuple[float, float], ...]:
+    """A ring's (lon, lat) points: go/no-go tests where a landing falls on the map, not its height."""
+    return tuple((c[0], c[1]) for c in coords)
 
 
 @dataclass
@@ -257,8 +262,7 @@ class Operations:
         for capsule in config.capsules:
             link = CapsuleLink(capsule)
             backend = build_backend(capsule, link)
-            kwargs = {"sleep": sleep} if sleep is not None else {}
-            machine = ReleaseStateMachine(store, capsule, backend, self.operator, clock=clock, **kwargs)  # type: ignore[arg-type]
+            machine = ReleaseStateMachine(store, capsule, backend, self.operator, clock=clock, sleep=sleep)
             arming = ArmingController(
                 store, machine, self.operator, clock, config.console.arm_window_s,
                 config.console.require_second_operator, holder, config.console.crew,

@@ -1,11 +1,11 @@
 """Which checklist step a queued MT completes: one rule for `drs mt send` and the console.
 
-The console used to tick steps itself after a send (by how the MT text started, so a combined
-``[INTERVAL=5][SOUNDER_OFF]`` ticked only the first) and the CLI never did; a SOUNDER_OFF sent
-during the descent ticked "Sounder off once the capsule is in hand". Now both front ends call
-``complete_mt_steps`` after a send: every command the MT carries completes the step the catalogue
-names for it (``MtCommand.checklist_step``; SOUNDER_ON completes none) by the procedure's own rule (``drs_link.ops.checklist.complete_command``), judged on facts read from the
-capsule's reports the same way for both (landed = ``drs_link.iridium.landed``, the PARACHUTE gate's rule).
+Both front ends call ``complete_mt_steps`` after a send: every command the MT carries (all of a
+combined ``[INTERVAL=5][SOUNDER_OFF]``, not just how its text starts) completes the step the catalogue
+names for it (``MtCommand.checklist_step``; SOUNDER_ON completes none) by the procedure's own rule
+(``drs_link.ops.checklist.complete_command``), judged on facts read from the capsule's reports the same
+way for both (landed = ``drs_link.iridium.landed``, the PARACHUTE gate's rule), so a SOUNDER_OFF sent
+during the descent does not tick "Sounder off once the capsule is in hand".
 """
 
 from __future__ import annotations

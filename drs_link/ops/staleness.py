@@ -14,7 +14,7 @@ from datetime import datetime
 from enum import StrEnum
 from typing import Generic, TypeVar
 
-T = TypeVar("T")
+T = TypeVar("T", covariant=True)
 U = TypeVar("U")
 
 DEFAULT_TOLERANCE = 2.0
@@ -61,8 +61,10 @@ class Reading(Generic[T]):
     def missing(cls, expected_period_s: float, tolerance: float = DEFAULT_TOLERANCE) -> Reading[T]:
         return cls(None, None, expected_period_s, tolerance)
 
-    def map(self, part: Callable[[T], U]) -> Reading[U]:
-        """One part of the value, as old as the whole: go/no-go judges each part with its own age."""
+    def map(self, part: Callable[[T], U | None]) -> Reading[U]:
+        """One part of the value, as old as the whole: go/no-go judges each part with its own age.
+
+        A part that is None (a sample that has no such value) reads as missing, like a missing whole."""
         value = None if self.value is None else part(self.value)
         return Reading(value, self.received_at, self.expected_period_s, self.tolerance)
 

@@ -259,10 +259,10 @@ def _decode(hint: Any, value: object, where: str) -> Any:
         return tuple(
             _decode(h, v, f"{where}[{i}]") for i, (h, v) in enumerate(zip(items, value, strict=True))
         )
-    if is_dataclass(hint):
+    if isinstance(hint, type) and is_dataclass(hint):
         if not isinstance(value, dict):
             raise TelemetryFormatError(f"{where}: expected an object, got {value!r}")
-        return _from_dict(hint, value, where)  # type: ignore[arg-type]
+        return _from_dict(hint, value, where)
     if hint is datetime:
         if isinstance(value, str):
             try:

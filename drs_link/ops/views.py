@@ -1,11 +1,11 @@
 """What the per-capsule screens show, from one source: the store in a live console, the recording in a replay.
 
-The recovery and Iridium screens used to read the store themselves from their render method every
-two seconds, so a replay (no store behind it) could show neither. Now a ``ViewSource`` answers with
-frozen values (``RecoveryView``, ``IridiumHealthView``) that the console's workers hand to the
-screens; ``StoreViews`` reads the store through ``Operations``, ``RecordedViews`` rebuilds the same
-values from the report records a replay has played so far (no commands, no health flags: the
-recording does not hold the data they are judged on, and the views say so).
+The recovery and Iridium screens read no store themselves, so a replay (no store behind it) shows them
+too: a ``ViewSource`` answers with frozen values (``RecoveryView``, ``IridiumHealthView``) that the
+console's workers hand to the screens; ``StoreViews`` reads the store through ``Operations``,
+``RecordedViews`` rebuilds the same values from the report records a replay has played so far (no
+commands, no health flags: the recording does not hold the data they are judged on, and the views
+say so).
 """
 
 from __future__ import annotations

@@ -24,6 +24,12 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import paramiko
+from paramiko.common import (
+    AUTH_FAILED,
+    AUTH_SUCCESSFUL,
+    OPEN_FAILED_ADMINISTRATIVELY_PROHIBITED,
+    OPEN_SUCCEEDED,
+)
 
 from drs_link.link import remote
 from drs_link.sim.firmware import Firmware, GnssSky
@@ -138,7 +144,8 @@ class _SimTransport(paramiko.Transport):
 
     _CHANNEL_REPLY = (99, 100)  # SSH_MSG_CHANNEL_SUCCESS, SSH_MSG_CHANNEL_FAILURE
 
-    def __init__(self, sock: object) -> None:
+    def __init__(self, sock: _FaultySocket) -> None:
+        # paramiko drives any object with send/recv/settimeout/close; its stubs name only socket and Channel
         super().__init__(sock)  # type: ignore[arg-type]
         self.replied: dict[int, threading.Event] = {}
         self._replied_lock = threading.Lock()
@@ -148,7 +155,7 @@ class _SimTransport(paramiko.Transport):
             return self.replied.setdefault(remote_chanid, threading.Event())
 
     def _send_user_message(self, data: paramiko.Message) -> None:
-        super()._send_user_message(data)
+        super()._send_user_message(data)  # type: ignore[misc]  # private to paramiko, so not in its stubs
         raw = data.asbytes()
         if len(raw) >= 5 and raw[0] in self._CHANNEL_REPLY:
             self.reply_event(struct.unpack(">I", raw[1:5])[0]).set()
@@ -164,19 +171,19 @@ class _Server(paramiko.ServerInterface):
 
     def check_auth_publickey(self, username: str, key: paramiko.PKey) -> int:
         if username == self.sim.user and any(key == k for k in self.sim.authorized_keys):
-            return paramiko.AUTH_SUCCESSFUL
-        return paramiko.AUTH_FAILED
+            return AUTH_SUCCESSFUL
+        return AUTH_FAILED
 
     def check_channel_request(self, kind: str, chanid: int) -> int:
         if kind == "session":
-            return paramiko.OPEN_SUCCEEDED
-        return paramiko.OPEN_FAILED_ADMINISTRATIVELY_PROHIBITED
+            return OPEN_SUCCEEDED
+        return OPEN_FAILED_ADMINISTRATIVELY_PROHIBITED
 
     def check_channel_direct_tcpip_request(self, chanid: int, origin: tuple, destination: tuple) -> int:
         if destination[0] not in ("127.0.0.1", "localhost"):
-            return paramiko.OPEN_FAILED_ADMINISTRATIVELY_PROHIBITED
+            return OPEN_FAILED_ADMINISTRATIVELY_PROHIBITED
         self.forwards[chanid] = ("127.0.0.1", int(destination[1]))
-        return paramiko.OPEN_SUCCEEDED
+        return OPEN_SUCCEEDED
 
     def check_channel_exec_request(self, channel: paramiko.Channel, command: bytes) -> bool:
         threading.Thread(
@@ -328,7 +335,12 @@ class CapsuleSimulator:
     def _serve_connection(self, conn: socket.socket) -> None:
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         holder: list[paramiko.Transport] = []
-        sock = _FaultySocket(conn, self.faults, lambda: [t.close() for t in holder])
+
+        def drop() -> None:
+            for t in holder:
+                t.close()
+
+        sock = _FaultySocket(conn, self.faults, drop)
         transport = _SimTransport(sock)
         holder.append(transport)
         transport.add_server_key(self.host_key)
@@ -747,7 +759,8 @@ def _forward(channel: paramiko.Channel, destination: tuple[str, int]) -> None:
         return
     try:
         while True:
-            readable, _, _ = select.select([channel, upstream], [], [], 0.5)
+            watched: list[paramiko.Channel | socket.socket] = [channel, upstream]
+            readable, _, _ = select.select(watched, [], [], 0.5)
             if channel in readable:
                 data = channel.recv(32768)
                 if not data:

@@ -9,37 +9,50 @@ from __future__ import annotations
 
 import os
 import posixpath
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING
 
 import paramiko
 from paramiko.sftp import SFTP_FAILURE, SFTP_NO_SUCH_FILE, SFTP_OK, SFTP_PERMISSION_DENIED
 
 if TYPE_CHECKING:
+    from typing_extensions import Buffer
+
     from drs_link.sim.capsule_pi import CapsuleSimulator
 
 
+def _status(exc: OSError) -> int:
+    """The SFTP status for a failed call (an OSError without an errno is a plain failure)."""
+    return paramiko.SFTPServer.convert_errno(exc.errno if exc.errno is not None else 0)
+
+
 class _Handle(paramiko.SFTPHandle):
+    readfile: IO[bytes]
+    writefile: IO[bytes]
+    """The open file paramiko's own read and write use, once ``open`` sets them."""
+
     def __init__(self, flags: int, sim: CapsuleSimulator, real: Path) -> None:
         super().__init__(flags)
         self.sim = sim
         self.real = real
 
-    def write(self, offset: int, data: bytes) -> int:
+    def write(self, offset: int, data: Buffer) -> int:
+        chunk = bytes(data)
         current = self.real.stat().st_size
-        growth = max(0, offset + len(data) - current)
+        growth = max(0, offset + len(chunk) - current)
         if growth and self.sim.storage_used() + growth > self.sim.capacity_bytes:
             return SFTP_FAILURE
-        if offset == 0 and data and self.sim.faults.corrupt_writes > 0:
+        if offset == 0 and chunk and self.sim.faults.corrupt_writes > 0:
             self.sim.faults.corrupt_writes -= 1
-            data = bytes([data[0] ^ 0xFF]) + data[1:]
-        return super().write(offset, data)
+            chunk = bytes([chunk[0] ^ 0xFF]) + chunk[1:]
+        return super().write(offset, chunk)
 
     def stat(self) -> paramiko.SFTPAttributes | int:
         try:
             return paramiko.SFTPAttributes.from_stat(os.stat(self.real))
         except OSError as exc:
-            return paramiko.SFTPServer.convert_errno(exc.errno)
+            return _status(exc)
 
     def chattr(self, attr: paramiko.SFTPAttributes) -> int:
         return _apply_attr(self.real, attr)
@@ -52,7 +65,7 @@ def _apply_attr(real: Path, attr: paramiko.SFTPAttributes) -> int:
         if attr.st_mode is not None:
             os.chmod(real, attr.st_mode & 0o7777)
     except OSError as exc:
-        return paramiko.SFTPServer.convert_errno(exc.errno)
+        return _status(exc)
     return SFTP_OK
 
 
@@ -91,7 +104,7 @@ class SimSftpServer(paramiko.SFTPServerInterface):
         except PermissionError:
             return SFTP_PERMISSION_DENIED
         except OSError as exc:
-            return paramiko.SFTPServer.convert_errno(exc.errno)
+            return _status(exc)
 
     def stat(self, path: str) -> paramiko.SFTPAttributes | int:
         try:
@@ -99,7 +112,7 @@ class SimSftpServer(paramiko.SFTPServerInterface):
         except PermissionError:
             return SFTP_PERMISSION_DENIED
         except OSError as exc:
-            return paramiko.SFTPServer.convert_errno(exc.errno)
+            return _status(exc)
 
     def lstat(self, path: str) -> paramiko.SFTPAttributes | int:
         """The entry itself, a link included, as OpenSSH's sftp-server answers (``stat`` follows it)."""
@@ -108,7 +121,7 @@ class SimSftpServer(paramiko.SFTPServerInterface):
         except PermissionError:
             return SFTP_PERMISSION_DENIED
         except OSError as exc:
-            return paramiko.SFTPServer.convert_errno(exc.errno)
+            return _status(exc)
 
     def open(self, path: str, flags: int, attr: paramiko.SFTPAttributes) -> _Handle | int:
         try:
@@ -117,7 +130,7 @@ class SimSftpServer(paramiko.SFTPServerInterface):
         except PermissionError:
             return SFTP_PERMISSION_DENIED
         except OSError as exc:
-            return paramiko.SFTPServer.convert_errno(exc.errno)
+            return _status(exc)
         if flags & os.O_WRONLY:
             mode = "ab" if flags & os.O_APPEND else "wb"
         elif flags & os.O_RDWR:
@@ -125,7 +138,7 @@ class SimSftpServer(paramiko.SFTPServerInterface):
         else:
             mode = "rb"
         handle = _Handle(flags, self.sim, real)
-        file: Any = os.fdopen(fd, mode)
+        file = os.fdopen(fd, mode)
         handle.readfile = file
         handle.writefile = file
         return handle
@@ -158,7 +171,7 @@ class SimSftpServer(paramiko.SFTPServerInterface):
             return SFTP_PERMISSION_DENIED
 
     @staticmethod
-    def _call(action: Any) -> int:
+    def _call(action: Callable[[], object]) -> int:
         try:
             action()
         except PermissionError:
@@ -166,5 +179,5 @@ class SimSftpServer(paramiko.SFTPServerInterface):
         except FileNotFoundError:
             return SFTP_NO_SUCH_FILE
         except OSError as exc:
-            return paramiko.SFTPServer.convert_errno(exc.errno)
+            return _status(exc)
         return SFTP_OK

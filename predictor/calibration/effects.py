@@ -156,7 +156,7 @@ class Candidate:
         if np.ptp(table) <= 1e-12 * max(1.0, float(np.min(table))):
             # The data cannot see this effect (e.g. a time offset in weather constant in time).
             return 0, self.neutral, float(table.min())
-        variant, k = np.unravel_index(int(np.argmin(table)), table.shape)
+        variant, k = (int(i) for i in np.unravel_index(int(np.argmin(table)), table.shape))
         row = table[variant]
         grid = np.asarray(self.grid)
         lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]

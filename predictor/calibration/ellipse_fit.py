@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TypedDict
 
 import numpy as np
 from scipy.optimize import minimize
@@ -35,6 +36,23 @@ BOOTSTRAP_SAMPLES = 200
 PAPER_OBJECTIVE = "paper_objective_refitted"
 """Key of the fit made here with the paper's criterion (its coverage held out, like ours)."""
 MIN_FLIGHTS = 4
+
+
+class EllipseFitRecord(TypedDict):
+    """``EllipseFit`` as the calibration result and its report write it, rounded for reading."""
+
+    sigma0_km: float
+    h: float
+    k_km2_per_h2: float
+    q: float
+    coverage_1sigma: float
+    coverage_2sigma: float
+    expected_1sigma: float
+    expected_2sigma: float
+    k_identifiable: bool
+    stderr: dict[str, float]
+    flights: int
+    paper: dict[str, dict[str, float]]
 
 
 @dataclass(frozen=True)
@@ -57,7 +75,7 @@ class EllipseFit:
     def model(self) -> ErrorModel:
         return ErrorModel(self.sigma0_km, self.h, self.k_km2_per_h2, self.q, name="calibrated")
 
-    def to_dict(self) -> dict[str, object]:
+    def to_dict(self) -> EllipseFitRecord:
         return {
             "sigma0_km": round(self.sigma0_km, 4),
             "h": float(f"{self.h:.4g}"),
@@ -170,14 +188,17 @@ def fit_ellipse(
         draws.append(fit_parameters(along[idx], cross[idx], d[idx], t[idx])[0])
     spread = np.std(np.array(draws), axis=0)
     inside = _held_out_coverage(lambda *a: fit_parameters(*a)[0], along, cross, d, t)
-    paper = {}
+    paper: dict[str, dict[str, float]] = {}
     for model in (LAUNCH, HINDSIGHT):
         pm = np.array([model.sigma0_km, model.h, model.k_km2_per_h2, model.q])
         hits = np.array(
             [[_inside(pm, along[i], cross[i], d[i], t[i], s) for s in (1.0, 2.0)] for i in range(n)]
         )
         paper[model.name] = {
-            **{key: value for key, value in model.to_dict().items() if key != "name"},
+            "sigma0_km": model.sigma0_km,
+            "h": model.h,
+            "k_km2_per_h2": model.k_km2_per_h2,
+            "q": model.q,
             "coverage_1sigma": round(float(hits[:, 0].mean()), 4),
             "coverage_2sigma": round(float(hits[:, 1].mean()), 4),
         }

@@ -16,8 +16,8 @@ and with these live corrections on top of each law:
 * ``plain``: restarted from the report, nothing learned (``drs live --no-correction``);
 * ``λ``: this flight's own rate factor on the law, the Bayesian update of a prior with the descent so
   far (``predictor.prediction.live.update_rate``). The same estimator on both laws: the prior is the
-  spread of the OTHER flights' whole-descent λ on that law, and the discrepancy (how a record's λ down
-  to a height departs from its flight's whole-descent λ) is measured on the OTHER flights with that
+  spread of the OTHER flights' remaining-descent λ at that height on that law, and the discrepancy
+  (how a record's λ departs from the remaining descent's) is measured on the OTHER flights with that
   law, so the textbook law with λ is the fair baseline of the model with λ;
 * ``wind L`` / ``λ + wind L``: plus the measured wind error, decaying below the capsule with L.
 
@@ -338,85 +338,97 @@ def held_out_laws(model: CalibratedModel, flights: Sequence[_Flight]) -> dict[st
     return {f.name: dataclasses.replace(model, terms=terms) for f, terms in zip(seen, folds, strict=True)}
 
 
+SURVEY_HEIGHTS_KM = tuple(1.0 + 2.5 * k for k in range(12))
+"""Heights (km above the ground) at which a law's λ prior and discrepancy are tabulated: 1 to 28.5 km."""
+SURVEY_BAND_M = 3000.0
+"""A flight counts at a table height through its fix nearest to it, if within this far."""
+
+
+@dataclass(frozen=True)
+class _Sample:
+    """One fix of one flight: what its record said there, and what the rest of its descent did."""
+
+    flight: str
+    height_m: float
+    record_log: float
+    """ln λ the record measured down to this fix (``DescentRecord.rate_fit``)."""
+    record_sigma: float
+    remaining_log: float
+    """ln(law's seconds from here to the ground / measured seconds): the λ the next prediction needed."""
+
+
 @dataclass(frozen=True)
 class _Survey:
-    """Every flight's λ on one law: of its whole descent, and of its record down to each checkpoint."""
+    """Every flight's λ on one law: of its whole descent, and at each fix of its record."""
 
     whole: dict[str, float]
-    """Flight → ln λ of the whole descent (the record down to the last airborne fix)."""
-    record: dict[tuple[str, float], tuple[float, float]]
-    """(flight, checkpoint km) → (ln λ of the record down to it, that fit's own σ of ln λ)."""
+    """Flight → ln λ of the whole descent (the record from its top down to the last airborne fix)."""
+    samples: list[_Sample]
 
 
 def _rate_survey(flights: Sequence[_Flight], payload: Payload, terms: Sequence[Term]) -> _Survey:
-    """Each record's λ at the checkpoint HEIGHT, not at the checkpoint's report.
+    """At each flight's fix nearest each of ``SURVEY_HEIGHTS_KM`` (what ``rate_law`` uses), the record's λ
+    as live re-prediction measures it and the λ of the descent that was still to come (the law's
+    remaining seconds against the measured ones, to the touchdown the evaluation scores against).
 
-    Why: the first report at or below a checkpoint can be minutes of fall below it (4–5 min between
-    SuperBIT fixes, up to 40 % of its height), and a record down to 17 km says something else than one
-    down to 20 km when the law's shape is off near there; a live record of 10 s fixes stops within
-    metres of the height at which its discrepancy is looked up. So the record's ln λ is taken at the
-    report above the checkpoint and at the one below, and interpolated in height to the checkpoint:
-    a dense record gives the same as before, a sparse one no longer labels a lower record as this height.
-    """
-    whole, record_fits = {}, {}
+    Only those fixes are fitted, not every one: a 1 Hz record has thousands, and each fit is a pass over
+    its window."""
+    whole, samples = {}, []
     for flight in flights:
         record = DescentRecord(LivePredictor(flight.cube, payload, flight.ground, effects=terms).law)
-        ground_m = flight.landing.alt_m
-        above = {id(flight.descent[i - 1]): km for km, at in flight.checkpoints.items() if at is not None
-                 for i in range(1, len(flight.descent)) if flight.descent[i] is at}  # fmt: skip
-        fits_above: dict[float, tuple[float, float, float]] = {}
-        for fix in flight.descent[:-1]:
+        touchdown_s = _touchdown_s(flight.descent, flight.landing.alt_m)
+        heights = np.array([fix.alt_m - flight.landing.alt_m for fix in flight.descent[:-1]])
+        wanted = {int(np.argmin(np.abs(heights - 1000.0 * km))) for km in SURVEY_HEIGHTS_KM}
+        for i, fix in enumerate(flight.descent[:-1]):
             record.add(fix)
-            if id(fix) in above:
-                fit = record.rate_fit(fix.alt_m)
-                if fit is not None:
-                    fits_above[above[id(fix)]] = (fix.alt_m - ground_m, math.log(fit.factor), fit.log_sigma)
-            for km, at in flight.checkpoints.items():
-                fit = record.rate_fit(fix.alt_m) if at is fix else None
-                if fit is None:
-                    continue
-                value, sigma = math.log(fit.factor), fit.log_sigma
-                if km in fits_above:
-                    top_height, top_value, top_sigma = fits_above[km]
-                    share = (top_height - 1000.0 * km) / max(top_height - (fix.alt_m - ground_m), 1e-9)
-                    value = share * value + (1.0 - share) * top_value
-                    sigma = share * sigma + (1.0 - share) * top_sigma
-                record_fits[(flight.name, km)] = (value, sigma)
-        fit = record.rate_fit(flight.descent[-2].alt_m)
+            if i not in wanted:
+                continue
+            fit = record.rate_fit(fix.alt_m)
+            law_s = record.remaining_model_s(fix.alt_m)
+            measured_s = touchdown_s - (fix.time - flight.descent[0].time).total_seconds()
+            if fit is None or law_s is None or law_s <= 0.0 or measured_s <= 0.0:
+                continue
+            samples.append(_Sample(flight.name, float(heights[i]), math.log(fit.factor), fit.log_sigma,
+                                   math.log(law_s / measured_s)))  # fmt: skip
+        fit = record.rate_fit(flight.descent[-2].alt_m, window_m=math.inf)
         if fit is not None:
             whole[flight.name] = math.log(fit.factor)
-    return _Survey(whole, record_fits)
+    return _Survey(whole, samples)
 
 
 def rate_law(survey: _Survey, leave_out: str | None = None) -> tuple[RatePrior | None, RateDiscrepancy]:
     """The λ prior and discrepancy of the surveyed flights (without ``leave_out``).
 
-    Prior: the median and spread of their whole-descent ln λ. Discrepancy at each checkpoint: the mean
-    of ln(record λ / whole-descent λ), and its spread across flights less the fits' own noise (which
-    the update adds back per record), so that it is not counted twice.
+    Prior: the median and spread of their whole-descent ln λ (what a pre-flight prediction and a model
+    without a table fly). Table, at each of ``SURVEY_HEIGHTS_KM`` with at least three flights there (each
+    through its fix nearest the height): the remaining descent's ln λ (mean, standard deviation), and
+    ln(record λ / remaining λ) (median, 1.4826 × MAD: robust to the flight whose canopy misbehaves).
     """
     logs = np.array([v for name, v in survey.whole.items() if name != leave_out])
     prior = None
     if logs.size >= 3:
         prior = RatePrior(float(np.exp(logs.mean())), min(float(logs.std(ddof=1)), 1.0), int(logs.size))
-    heights, bias, spread = [], [], []
-    for km in CHECKPOINTS_KM:
-        pairs = [
-            (value - survey.whole[name], sigma)
-            for (name, k), (value, sigma) in survey.record.items()
-            if k == km and name != leave_out and name in survey.whole
-        ]
-        if len(pairs) < 3:
+    columns: list[tuple[float, float, float, float, float, int]] = []
+    for km in SURVEY_HEIGHTS_KM:
+        nearest: dict[str, _Sample] = {}
+        for sample in survey.samples:
+            distance = abs(sample.height_m - 1000.0 * km)
+            if sample.flight == leave_out or distance >= SURVEY_BAND_M:
+                continue
+            if sample.flight not in nearest or distance < abs(nearest[sample.flight].height_m - 1000.0 * km):
+                nearest[sample.flight] = sample
+        if len(nearest) < 3:
             continue
-        d = np.array([p[0] for p in pairs])
-        noise = np.array([p[1] ** 2 for p in pairs if math.isfinite(p[1])])
-        heights.append(km)
-        bias.append(round(float(d.mean()), 5))
-        spread.append(
-            round(math.sqrt(max(float(d.var(ddof=1)) - float(noise.mean() if noise.size else 0.0), 0.0)), 5)
-        )
-    discrepancy = RateDiscrepancy(tuple(heights), tuple(bias), tuple(spread)) if heights else NO_DISCREPANCY
-    return prior, discrepancy
+        remaining = np.array([s.remaining_log for s in nearest.values()])
+        departure = np.array([s.record_log for s in nearest.values()]) - remaining
+        bias = float(np.median(departure))
+        columns.append((km, round(bias, 5), round(1.4826 * float(np.median(np.abs(departure - bias))), 5),
+                        round(float(remaining.mean()), 5), round(min(float(remaining.std(ddof=1)), 1.0), 5),
+                        len(nearest)))  # fmt: skip
+    if not columns:
+        return prior, NO_DISCREPANCY
+    heights, bias_, spread, mean, sigma, count = zip(*columns, strict=True)
+    return prior, RateDiscrepancy(heights, bias_, spread, mean, sigma, count)
 
 
 def evaluate_live(
@@ -765,11 +777,16 @@ def _rate_law_text(name: str, law: tuple[RatePrior | None, RateDiscrepancy]) -> 
         if prior is not None
         else "no prior (fewer than 3 whole-descent fits)"
     )
+    d = discrepancy
     rows = ", ".join(
-        f"{h:g} km {100 * b:+.1f} % ± {100 * s:.1f} %"
-        for h, b, s in zip(discrepancy.heights_km, discrepancy.log_bias, discrepancy.log_sigma, strict=True)
+        f"{h:g} km {math.exp(m):.3f} ± {100 * sd:.1f} % / {100 * b:+.1f} % ± {100 * s:.1f} %"
+        for h, m, sd, b, s in zip(d.heights_km, d.remaining_log_mean, d.remaining_log_sigma, d.log_bias,
+                                  d.log_sigma, strict=True)
+    )  # fmt: skip
+    return (
+        f"**{name}**: whole descent {text}; by height, the remaining descent's λ (mean ± σ of ln λ) / the "
+        f"record's λ against it (median ± 1.4826 MAD of the log ratio): {rows}"
     )
-    return f"**{name}**: {text}; record λ against whole-descent λ (mean ± spread of the log ratio): {rows}"
 
 
 def _sigma_coverage(result: Evaluation, km: float, name: str) -> str:
@@ -806,13 +823,14 @@ def write_live_report(result: Evaluation, out_dir: str | Path, command: str) -> 
         f"Two laws: **textbook** = payload `{result.profile_label}` and its drag law (v ∝ ρ^-½, no terms); "
         f"**model** = {result.model_label}. Live corrections: **plain** = restarted from the report, "
         "nothing learned (`drs live --no-correction`; on the textbook law this is *the plain restart*); "
-        "**λ** = this flight's own factor on the law's descent rate, a Bayesian update of a log-normal "
-        "prior with the descent so far: the record's time-at-altitude against the law from its top (Huber "
-        "fit with a free time offset, its variance widened by (1+ρ)/(1−ρ) for correlated residuals) less "
-        "the discrepancy a record shows at that height, with that discrepancy's spread added to its "
-        "variance. On each law the prior (the whole-descent λ of the OTHER flights) and the discrepancy "
-        "(measured on the OTHER flights) are that law's own, so *textbook + λ* is the same estimator on "
-        "the textbook law. **wind L** = the measured wind error, decaying below the capsule with L in "
+        "**λ** = this flight's own factor on the law's descent rate for the descent still to come, a "
+        "Bayesian update of a log-normal prior with the descent so far: the record's time-at-altitude "
+        "against the law from its top over its last 6 km of fall (Huber fit with a free time offset, its "
+        "variance widened by (1+ρ)/(1−ρ) for correlated residuals) less the median departure of such a "
+        "record from the remaining descent's λ at that height, with that departure's spread (1.4826 MAD) "
+        "added to its variance. On each law the prior (the remaining-descent λ of the OTHER flights at "
+        "that height) and the departure (measured on the OTHER flights) are that law's own, so *textbook "
+        "+ λ* is the same estimator on the textbook law. **wind L** = the measured wind error, decaying below the capsule with L in "
         f"{', '.join('∞' if math.isinf(d) else f'{d / 1000:g} km' for d in DECAYS_M)}. "
         "**model + held-out live**: for each flight λ on or off (by the mean |remaining-time error| of "
         "the OTHER flights) and then the wind (by their mean landing error) that the other flights "
@@ -825,7 +843,7 @@ def write_live_report(result: Evaluation, out_dir: str | Path, command: str) -> 
         "",
     ]
 
-    def table(title: str, cell: Callable[[np.ndarray, np.ndarray], str]) -> None:
+    def table(title: str, cell: Callable[[list[float], list[float]], str]) -> None:
         """One row per checkpoint, one ``cell(landing errors, time errors)`` per configuration."""
         lines.extend([f"## {title}", "", header, rule])
         for km in kms:

@@ -184,6 +184,15 @@ def _live_to_dict(live: LiveSettings) -> dict[str, Any]:
             "heights_km": list(d.heights_km),
             "log_bias": list(d.log_bias),
             "log_sigma": list(d.log_sigma),
+            **(
+                {
+                    "remaining_log_mean": list(d.remaining_log_mean),
+                    "remaining_log_sigma": list(d.remaining_log_sigma),
+                    "remaining_flights": list(d.remaining_flights),
+                }
+                if d.remaining_log_mean
+                else {}
+            ),
         },
         **({"prior": live.prior.to_dict()} if live.prior is not None else {}),
         "error_model": {
@@ -334,11 +343,11 @@ def _ellipse(raw: Any, refuse: Any) -> ErrorModel | None:
         return None
     if not isinstance(raw, dict):
         raise refuse("ellipse", "must be an object or null")
-    values = [
+    sigma0_km, h, k_km2_per_h2, q = (
         _number(raw.get(key), f"ellipse.{key}", refuse) for key in ("sigma0_km", "h", "k_km2_per_h2", "q")
-    ]
+    )
     try:
-        return ErrorModel(*values, name="calibrated")
+        return ErrorModel(sigma0_km, h, k_km2_per_h2, q, name="calibrated")
     except PredictorError as exc:
         raise refuse("ellipse", str(exc)) from None
 
@@ -403,11 +412,30 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
         LiveCorrection(tuple(bands), wind_window),
         LiveErrorModel(*_table(raw.get("error_model"), "live.error_model",
                                ("heights_km", "sigma_parallel_km", "sigma_perpendicular_km"), refuse)),
-        RateDiscrepancy(*_table(raw.get("discrepancy"), "live.discrepancy",
-                                ("heights_km", "log_bias", "log_sigma"), refuse)),
+        _discrepancy(raw.get("discrepancy"), refuse),
         _rate_prior(raw["prior"], lambda field, problem: refuse(field.replace("rate_prior", "live.prior"), problem))
         if "prior" in raw else None,
     )  # fmt: skip
+
+
+def _discrepancy(raw: Any, refuse: Any) -> RateDiscrepancy:
+    """The record-to-remaining table; the remaining-descent prior columns are absent from a model
+    evaluated before they were measured (it then flies its whole-descent prior)."""
+    columns = _table(raw, "live.discrepancy", ("heights_km", "log_bias", "log_sigma"), refuse)
+    if "remaining_log_mean" not in raw:
+        return RateDiscrepancy(*columns)
+    where = "live.discrepancy"
+    prior = [_numbers(raw.get(k), f"{where}.{k}", refuse, positive=False)
+             for k in ("remaining_log_mean", "remaining_log_sigma", "remaining_flights")]  # fmt: skip
+    if any(len(c) != len(columns[0]) for c in prior):
+        raise refuse(where, "the remaining_* columns must be as long as heights_km")
+    if not all(0.0 <= v <= 1.0 for v in prior[1]):
+        raise refuse(f"{where}.remaining_log_sigma", "must be within 0–1")
+    if not all(v >= 1 and float(v).is_integer() for v in prior[2]):
+        raise refuse(f"{where}.remaining_flights", "must be whole numbers ≥ 1")
+    if not all(abs(v) <= math.log(5.0) for v in prior[0]):
+        raise refuse(f"{where}.remaining_log_mean", "must be within ±ln 5 (λ 0.2–5)")
+    return RateDiscrepancy(*columns, tuple(prior[0]), tuple(prior[1]), tuple(int(v) for v in prior[2]))
 
 
 def _table(raw: Any, where: str, keys: tuple[str, str, str], refuse: Any) -> list[tuple[float, ...]]:

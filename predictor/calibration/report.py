@@ -1,6 +1,6 @@
 """The calibration's results for people (Markdown with PNG plots) and for programs (JSON).
 
-The JSON has exactly the keys the calibration issue names (flights, excluded, baseline, candidates,
+The JSON has a fixed set of keys that programs read (flights, excluded, baseline, candidates,
 selected, after, uncertainty_model) plus extra ones (every round of the selection, the binned
 correction, the verdict). The Markdown starts with the verdict in plain words, because the reader's
 first question is "did the data show an effect, and how much did it help on flights it never saw".
@@ -66,9 +66,7 @@ def _family_sentence(family: FamilyResult) -> str:
         else ""
     )
     if family.selected:
-        names = ", ".join(
-            f"`{f.candidate.name}` ({_params(f.describe()['parameters'])})" for f in family.selected
-        )
+        names = ", ".join(f"`{f.candidate.name}` ({_params(f.parameters())})" for f in family.selected)
         return f"{family.family.capitalize()}: selected {names}; held out, {own}{timing}, {landing} (means)."
     return (
         f"{family.family.capitalize()}: nothing beat the model by more than the margin on "

@@ -117,14 +117,17 @@ class Fit:
     def term(self) -> Term:
         return self.candidate.term(self.variant, self.value, self.refined)
 
+    def parameters(self) -> dict[str, float]:
+        """The candidate's parameters as this fit flies them."""
+        return self.candidate.parameters(self.variant, self.value, self.refined)
+
     def place(self) -> float:
         """The value of the candidate's ``refined`` key this fit flies."""
-        return self.candidate.parameters(self.variant, self.value, self.refined)[self.candidate.refined]
+        return self.parameters()[self.candidate.refined]
 
     def describe(self) -> dict[str, object]:
         c = self.candidate
-        parameters = c.parameters(self.variant, self.value, self.refined)
-        return {"effect": c.name, "family": c.family, "parameters": parameters}
+        return {"effect": c.name, "family": c.family, "parameters": self.parameters()}
 
 
 @dataclass(frozen=True)

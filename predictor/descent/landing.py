@@ -64,7 +64,7 @@ def ground_crossings(
         ground[low] = terrain.elevation(lat[low], wrap_lon(lon[low]))
     below = valid & (z <= ground)
     index = below.argmax(axis=1)
-    found = below.any(axis=1)
+    found = np.asarray(below.any(axis=1))  # one flag per path; numpy's stubs allow a lone bool here
     rows = np.arange(z.shape[0])
     ground_m = np.where(found, ground[rows, index], np.nan)
     fraction = np.full(z.shape[0], np.nan)

@@ -41,6 +41,7 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 from numba import njit
+from numba.core.dispatcher import Dispatcher
 
 from predictor.descent.payload import Payload
 from predictor.errors import PredictorError
@@ -94,7 +95,8 @@ class Term:
     family: ClassVar[str] = ""
     stage: ClassVar[int] = 1
     n_state: ClassVar[int] = 0
-    kernel: ClassVar[Kernel]
+    kernel: ClassVar[Dispatcher[Kernel]]
+    """Compiled, because the dispatch (``apply_term``) is compiled and numba calls only compiled code."""
 
     def columns(self) -> list[float | np.ndarray]:
         """One entry per parameter slot: a float, or an array with one value per trajectory."""
@@ -602,7 +604,7 @@ def kind_of(term: Term) -> int:
     return kind
 
 
-def _dispatch(kernels: Sequence[Kernel]) -> Any:
+def _dispatch(kernels: Sequence[Dispatcher[Kernel]]) -> Any:
     """The compiled ``apply_term``: one branch per registered kernel, its kind being its index.
 
     Written as source from the registry (as ``dataclasses`` writes ``__init__``) because numba can only

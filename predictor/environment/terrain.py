@@ -18,7 +18,7 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, overload
 
 import numpy as np
 
@@ -51,6 +51,10 @@ def tile_corner_of(lat: float, lon: float) -> tuple[int, int]:
     return math.floor(lat), math.floor(_wrap_lon(lon))
 
 
+@overload
+def _wrap_lon(lon: float) -> float: ...
+@overload
+def _wrap_lon(lon: np.ndarray) -> np.ndarray: ...
 def _wrap_lon(lon: float | np.ndarray) -> float | np.ndarray:
     """Longitude in [-180, 180), the range SRTM tile names use."""
     return (np.asarray(lon, dtype=np.float64) + 180.0) % 360.0 - 180.0

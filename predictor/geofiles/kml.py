@@ -61,7 +61,8 @@ def line(
 ) -> features.Placemark:
     """A path from geometry.line_parts: one LineString, or several when it crosses ±180°."""
     shapes: list[geometry.KMLGeometryType] = [
-        geometry.LineString(geometry=geo.LineString(part), altitude_mode=_mode(absolute)) for part in parts
+        geometry.LineString(geometry=geo.LineString(_points(part)), altitude_mode=_mode(absolute))
+        for part in parts
     ]
     return _placemark(name, _one_or_many(shapes), style_id, description)
 
@@ -73,8 +74,17 @@ def polygon(
     description: str | None = None,
 ) -> features.Placemark:
     """A ring from geometry.polygon_parts: one Polygon, or several when it crosses ±180°."""
-    shapes: list[geometry.KMLGeometryType] = [geometry.Polygon(geometry=geo.Polygon(part)) for part in parts]
+    shapes: list[geometry.KMLGeometryType] = [
+        geometry.Polygon(geometry=geo.Polygon(_points(part))) for part in parts
+    ]
     return _placemark(name, _one_or_many(shapes), style_id, description)
+
+
+def _points(part: Sequence[Coordinate]) -> list[tuple[float, float]] | list[tuple[float, float, float]]:
+    """The points as pygeoif takes them: all (lon, lat), or all (lon, lat, altitude), as a part's are."""
+    if all(len(c) == 2 for c in part):
+        return [(c[0], c[1]) for c in part]
+    return [(c[0], c[1], c[2]) for c in part]
 
 
 def point(

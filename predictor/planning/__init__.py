@@ -1,4 +1,4 @@
-"""Release planning: where the balloon goes next, and which release times land well (issue 7).
+"""Release planning: where the balloon goes next, and which release times land well.
 
 ``balloon`` carries the balloon forward at float altitude (or along an altitude plan), ``batch`` runs
 thousands of descents from different times and places in one compiled call, ``sweep`` turns them into

@@ -1,7 +1,7 @@
 """Bounds on the planner's user-sized work, in a module light enough for ``drs plan --help`` to state them.
 
 Why bounds: ``drs predict --members 10000000`` once grew to 24 GB and was killed by the kernel, which on
-an operations laptop could as well have picked the MO receiver or the console (#16 finding 5).
+an operations laptop could as well have picked the MO receiver or the console.
 """
 
 MAX_MEMBER_DESCENTS = 2_000_000

@@ -6,13 +6,15 @@ altitude and time), and the reports so far measure two things the forecast got w
 
 * the **descent rate**: this flight's own factor λ on the flown model's descent law (its shape: the
   drag law with the terms a calibrated model carries). Payload, canopy, rigging and mass differ from
-  flight to flight, so λ does too, while the shape is shared (``predictor.descent.RatePrior``). λ is
-  a Bayesian update of the model's prior with the descent so far (``update_rate``): the record's
-  time-at-altitude against the law from its top gives a measurement of ln λ (a Huber fit with a free
-  time offset, its variance widened for the correlated swing of a 1 Hz record), less the departure of
-  such a record from a flight's whole-descent λ that the model's evaluation measured at this height
-  (``RateDiscrepancy``, with its spread). The posterior λ multiplies the law below the capsule
-  (``DescentRateScale``) and its σ is stated beside the prediction;
+  flight to flight, so λ does too, while the shape is shared (``predictor.descent.RatePrior``). What
+  the next prediction needs is λ of the descent still to come, so that is what is estimated: a
+  Bayesian update (``update_rate``) of the prior for the rest of the descent at this height (how the
+  evaluation flights' remaining λ spread there) with the record's own measurement. The record is its
+  time-at-altitude against the law from its top over the last ``RECORD_WINDOW_M`` (a Huber fit with a
+  free time offset, its variance widened for the correlated swing of a 1 Hz record), less how such a
+  record's λ departs from the remaining descent's at this height, with that departure's spread
+  (``RateDiscrepancy``, median and MAD over the evaluation flights). The posterior λ multiplies the
+  law below the capsule (``DescentRateScale``) and its σ is stated beside the prediction;
 * the **wind**: the measured mean velocity between two reports minus the forecast's mean velocity
   over the same altitudes. An error at altitude does not simply continue to the ground (the jet and
   the stratosphere are different air), so the recent error is applied below the capsule with a weight
@@ -54,6 +56,13 @@ MIN_PAIR_DROP_M = 200.0
 HUBER_K = 1.345
 """Huber's constant: 95 % efficiency on Gaussian residuals, bounded influence of a swing or a bad fix."""
 FIT_ITERATIONS = 8
+RECORD_WINDOW_M = 6000.0
+"""λ is measured on the record's last 6 km of fall (at least its last two fixes), not from its top.
+
+Why: a flight's departure from the law is not one number; on the SuperBIT flights it grows or shrinks
+with height, so the recent fall says more about the rest than the whole record does. Chosen on those
+30 flights, leave-one-flight-out, against the record from the top (held-out remaining-time error from
+20 km 155 s against 170 s) and a 3 km window (149 s, but 10 km worse); docs/planning/live-reprediction.md."""
 MAX_LAG1_CORRELATION = 0.98
 """The correlation of consecutive residuals is capped here: a record that is one smooth swing still
 counts as at least 1 % of its fixes."""
@@ -86,8 +95,8 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.043, 3.961, 3.588, 3.856, 2.238, 1.677),
-    sigma_perpendicular_km=(3.602, 3.829, 3.876, 3.085, 1.625, 0.789),
+    sigma_parallel_km=(4.043, 3.706, 3.347, 3.771, 2.193, 1.598),
+    sigma_perpendicular_km=(3.602, 3.83, 3.877, 3.332, 1.625, 0.789),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,
 ``DEFAULT_ELLIPSE_NOTE``): measured by ``drs live evaluate`` on the 30 SuperBIT test flights with the
@@ -95,38 +104,63 @@ LIVE_ERROR_MODEL = LiveErrorModel(
 
 
 class Report(Protocol):
-    """A position report (a calibration ``Fix``, an Iridium position, a GNSS sample)."""
+    """A position report (a calibration ``Fix``, an Iridium position, a GNSS sample); read-only, so
+    frozen dataclasses qualify."""
 
-    time: datetime
-    lat: float
-    lon: float
-    alt_m: float
+    @property
+    def time(self) -> datetime: ...
+    @property
+    def lat(self) -> float: ...
+    @property
+    def lon(self) -> float: ...
+    @property
+    def alt_m(self) -> float: ...
 
 
 @dataclass(frozen=True)
 class RateDiscrepancy:
-    """How far the λ a descent record measures from its top down to a height is from the flight's own
-    whole-descent λ, across the model's evaluation flights: mean and spread of the log ratio by height.
+    """What a descent record down to a height says about the λ of the descent still to come, measured
+    by height across the model's evaluation flights.
 
-    Why: a law's shape is never exact, and the top of a record falls a little faster or slower than the
-    law in much the same way on most flights (on the SuperBIT flights with the 2019 law, faster high
-    up). Taken as the flight's λ, that shared departure would be carried to the ground; its mean is
-    taken off the measurement, and its flight-to-flight spread widens the measurement's variance, so
-    that the update leans on the prior where the record says little about the rest of the descent.
-    Measured by ``drs live evaluate`` with the model's own law (without the measurement noise, which
-    the update adds per record); linear in height between the checkpoints, held beyond them.
+    * ``log_bias``/``log_sigma``: median and spread (1.4826 × MAD) of ln(record λ / remaining λ). A
+      law's shape is never exact, and a record falls a little faster or slower than the rest of the
+      descent in much the same way on most flights; that shared departure is taken off the
+      measurement, and its flight-to-flight spread widens the measurement's variance. Median and MAD,
+      not mean and standard deviation: the few flights whose canopy misbehaves would otherwise make
+      every record look untrustworthy, and the update would cling to the prior exactly when a flight
+      is unlike the others.
+    * ``remaining_log_mean``/``remaining_log_sigma``/``remaining_flights``: the prior for the rest of
+      the descent at this height (mean and standard deviation of the remaining λ across the flights).
+      Empty in a model evaluated before they were measured: the model's whole-descent prior stands in.
+
+    Measured by ``drs live evaluate`` with the model's own law; linear in height between the table's
+    heights, held beyond them.
     """
 
     heights_km: tuple[float, ...]
     log_bias: tuple[float, ...]
     log_sigma: tuple[float, ...]
+    remaining_log_mean: tuple[float, ...] = ()
+    remaining_log_sigma: tuple[float, ...] = ()
+    remaining_flights: tuple[int, ...] = ()
+
+    def _interp(self, height_km: float, column: tuple[float, ...]) -> float:
+        order = np.argsort(self.heights_km)
+        return float(np.interp(height_km, np.asarray(self.heights_km)[order], np.asarray(column)[order]))
 
     def at(self, height_km: float) -> tuple[float, float]:
-        """(mean, standard deviation) of ln(record λ / flight λ) at this height above the ground."""
-        order = np.argsort(self.heights_km)
-        heights = np.asarray(self.heights_km)[order]
-        bias = float(np.interp(height_km, heights, np.asarray(self.log_bias)[order]))
-        return bias, float(np.interp(height_km, heights, np.asarray(self.log_sigma)[order]))
+        """(median, spread) of ln(record λ / remaining λ) at this height above the ground."""
+        return self._interp(height_km, self.log_bias), self._interp(height_km, self.log_sigma)
+
+    def remaining_prior(self, height_km: float) -> RatePrior | None:
+        """The prior of the remaining descent's λ at this height (None: not measured)."""
+        if not self.remaining_log_mean:
+            return None
+        return RatePrior(
+            math.exp(self._interp(height_km, self.remaining_log_mean)),
+            self._interp(height_km, self.remaining_log_sigma),
+            min(self.remaining_flights),
+        )
 
 
 NO_DISCREPANCY = RateDiscrepancy((0.0,), (0.0,), (0.0,))
@@ -373,12 +407,20 @@ class DescentRecord:
         self._t.append((report.time - self.top.time).total_seconds())
         self._z.append(report.alt_m)
 
+    def remaining_model_s(self, alt_m: float) -> float | None:
+        """The law's seconds from ``alt_m`` to the ground, as flown from the record's top (None: no law yet)."""
+        if self._model is None:
+            return None
+        z_up, model_up = self._model
+        return float(model_up[0] - np.interp(alt_m, z_up, model_up))
+
     def since_top_s(self, report: Report) -> float:
         """Seconds from the record's top (the release, as far as the reports know) to ``report``."""
         return 0.0 if self.top is None else max((report.time - self.top.time).total_seconds(), 0.0)
 
-    def rate_fit(self, alt_m: float) -> RateFit | None:
-        """λ on the law from the record's fixes down to ``alt_m`` (None: too little)."""
+    def rate_fit(self, alt_m: float, window_m: float = RECORD_WINDOW_M) -> RateFit | None:
+        """λ on the law from the record's fixes down to ``alt_m``, those within ``window_m`` above it
+        (at least the last two; None: too little)."""
         if self.top is None or self.top.alt_m - alt_m < MIN_PAIR_DROP_M:
             return None
         if self._model is None:
@@ -386,8 +428,10 @@ class DescentRecord:
             self._model = track.alt_m[::-1].copy(), track.t_s[::-1] - track.t_s[0]
         z_up, model_up = self._model
         z = np.asarray(self._z)
-        keep = z >= z_up[0]
-        if not keep.any() or float(np.ptp(z[keep])) < MIN_PAIR_DROP_M:
+        keep = (z >= z_up[0]) & (z <= alt_m + window_m)
+        if keep.sum() < 2:
+            keep[np.flatnonzero(z >= z_up[0])[-2:]] = True
+        if keep.sum() < 2 or float(np.ptp(z[keep])) < MIN_PAIR_DROP_M:
             return None
         return fit_rate(np.asarray(self._t)[keep], np.interp(z[keep], z_up, model_up))
 
@@ -547,7 +591,8 @@ class LivePredictor:
         """This flight's λ from the prior and the record down to ``report`` (the update, not flown)."""
         height_km = (report.alt_m - float(self.terrain.elevation(report.lat, report.lon))) / 1000.0
         bias, spread = self.discrepancy.at(height_km)
-        return update_rate(self.prior, self.record.rate_fit(report.alt_m), bias, spread)
+        prior = self.discrepancy.remaining_prior(height_km) or self.prior
+        return update_rate(prior, self.record.rate_fit(report.alt_m), bias, spread)
 
     def _wind_error(self, alt_m: float, c: LiveCorrection) -> tuple[tuple[float, float], float]:
         """The wind error of recent legs: those whose lower end is within the window above ``alt_m``

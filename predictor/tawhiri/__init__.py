@@ -1,24 +1,9 @@
 """Our predictor behind Tawhiri's v1 API, so chase software asks it as it asks SondeHub.
 
 ``api`` answers the requests; ``ascent`` is Tawhiri's standard ascent profile, which that API needs.
+A plain door: only ``drs serve`` enters this room, and it runs the API, so there is nothing to defer.
 """
 
-from typing import TYPE_CHECKING
+from .api import ApiServer, PredictorService, WeatherSource
 
-from predictor.lazy_door import lazy_door
-
-if TYPE_CHECKING:
-    from .api import (
-        ApiServer as ApiServer,
-        PredictorService as PredictorService,
-        WeatherSource as WeatherSource,
-    )
-
-__getattr__, __dir__, __all__ = lazy_door(
-    __name__,
-    {
-        "ApiServer": "api",
-        "PredictorService": "api",
-        "WeatherSource": "api",
-    },
-)
+__all__ = ["ApiServer", "PredictorService", "WeatherSource"]

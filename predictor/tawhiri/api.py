@@ -33,7 +33,7 @@ import socket
 import threading
 import time
 import xml.etree.ElementTree as ET
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -415,7 +415,7 @@ def dataset_time(cube: WeatherCube) -> datetime:
 
 
 def _points(
-    t_s: Sequence[float], lat: Sequence[float], lon: Sequence[float], alt: Sequence[float]
+    t_s: Iterable[float], lat: Iterable[float], lon: Iterable[float], alt: Iterable[float]
 ) -> list[dict[str, Any]]:
     return [
         {"datetime": iso(datetime.fromtimestamp(round(float(t), 3), UTC)), "latitude": float(la),
@@ -705,4 +705,5 @@ class ApiServer(ThreadingHTTPServer):
     @property
     def url(self) -> str:
         host, port = self.server_address[:2]
+        assert isinstance(host, str), "an IP socket's own address names its host as text, never bytes"
         return f"http://{host}:{port}{API_PATH}"

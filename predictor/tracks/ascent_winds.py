@@ -225,22 +225,24 @@ def _mean_heading(a_deg: np.ndarray, b_deg: np.ndarray) -> np.ndarray:
 
 def trusted_pressure_fixes(fixes: tuple[Fix, ...]) -> list[Fix]:
     """Ascent fixes, upward, whose pressures agree with a physically possible air temperature."""
-    measured = sorted((f for f in fixes if f.pressure_pa is not None), key=lambda f: f.alt_m)
+    measured = sorted(
+        ((f, f.pressure_pa) for f in fixes if f.pressure_pa is not None), key=lambda pair: pair[0].alt_m
+    )
     trusted = measured[:1]
-    for fix in measured[1:]:
-        below = trusted[-1]
+    for fix, pressure_pa in measured[1:]:
+        below, below_pa = trusted[-1]
         dz = fix.alt_m - below.alt_m
         if dz < PRESSURE_STEP_M:
             continue
-        ratio = fix.pressure_pa / below.pressure_pa  # type: ignore[operator]
+        ratio = pressure_pa / below_pa
         if ratio >= 1.0:
             break
         implied_k = -G0 * dz / (R_DRY_AIR * np.log(ratio))
         warmest = UPPER_AIR_MAX_K if below.alt_m >= UPPER_AIR_FROM_M else PLAUSIBLE_AIR_K[1]
         if not PLAUSIBLE_AIR_K[0] <= implied_k <= warmest:
             break
-        trusted.append(fix)
-    return trusted
+        trusted.append((fix, pressure_pa))
+    return [f for f, _ in trusted]
 
 
 def _measured_pressure(trusted: list[Fix], z: np.ndarray, std_p: np.ndarray) -> np.ndarray:

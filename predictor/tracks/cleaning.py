@@ -48,7 +48,7 @@ landing observed, fewer than 3 descent fixes.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 
@@ -169,25 +169,35 @@ def clean(track: Track, terrain: Terrain | None = None) -> Flight:
     fixes = _drop_impossible_jumps(fixes, removals)
     session = _flight_session(fixes, removals)
 
-    def result(**kwargs: object) -> Flight:
-        fields: dict[str, object] = {
-            "name": track.name,
-            "source": track.source,
-            "n_read": len(track.fixes),
-            "fixes": tuple(session),
-            "removals": tuple(removals),
-            "notes": tuple(notes),
-            "launch": None,
-            "peak": None,
-            "descent_start": None,
-            "landing": None,
-            "ascent": (),
-            "descent": (),
-            "flags": (),
-            "exclusions": (),
-        }
-        fields.update(kwargs)
-        return Flight(**fields)  # type: ignore[arg-type]
+    def result(
+        *,
+        fixes: tuple[Fix, ...] | None = None,
+        launch: Fix | None = None,
+        peak: Fix | None = None,
+        descent_start: Fix | None = None,
+        landing: Fix | None = None,
+        ascent: tuple[Fix, ...] = (),
+        descent: tuple[Fix, ...] = (),
+        flags: tuple[Flag, ...] = (),
+        exclusions: tuple[str, ...] = (),
+    ) -> Flight:
+        """The flight as far as it was found; the whole session's fixes unless told which were kept."""
+        return Flight(
+            name=track.name,
+            source=track.source,
+            n_read=len(track.fixes),
+            fixes=tuple(session) if fixes is None else fixes,
+            removals=tuple(removals),
+            notes=tuple(notes),
+            launch=launch,
+            peak=peak,
+            descent_start=descent_start,
+            landing=landing,
+            ascent=ascent,
+            descent=descent,
+            flags=flags,
+            exclusions=exclusions,
+        )
 
     if len(session) < 2 or _altitude_range(session) < MIN_FLIGHT_RANGE_M:
         return result(
@@ -303,7 +313,7 @@ def clean(track: Track, terrain: Terrain | None = None) -> Flight:
 
 
 def _drop_invalid(fixes: list[Fix], removals: list[Removal]) -> list[Fix]:
-    rules = (
+    rules: tuple[tuple[str, str, Callable[[Fix], bool]], ...] = (
         (
             "invalid-date",
             "date before 2000: the receiver's default date before a fix",

@@ -281,7 +281,7 @@ class _GpxHandler(xml.sax.handler.ContentHandler):
         self._locator = locator
 
     def _line(self) -> int:
-        return self._locator.getLineNumber() if self._locator else 0
+        return (self._locator.getLineNumber() or 0) if self._locator else 0
 
     def startElementNS(
         self, name: tuple[str | None, str], qname: str | None, attrs: AttributesNSImpl

@@ -20,6 +20,10 @@ import subprocess
 import sys
 import time
 from datetime import UTC, datetime
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # imported where the port is opened: the other commands run without pyserial
+    import serial
 
 SERIAL_LOG = "DRS_serial_log.txt"
 AGENT_LOG = "drs_agent_nmea.log"
@@ -114,7 +118,7 @@ def start_logger(serial_device: str) -> None:
         pidfile.write(f"{process.pid}\n")
 
 
-def _open_port(serial_device: str):  # noqa: ANN202 - pyserial's type, imported lazily
+def _open_port(serial_device: str) -> serial.Serial:
     import serial
 
     return serial.Serial(serial_device, 9600, timeout=1)

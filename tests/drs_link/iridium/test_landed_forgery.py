@@ -26,9 +26,9 @@ from drs_link.iridium.reports import Delivery, StoredReport
 from drs_link.ops.authorize import authorize_mt
 from drs_link.sim.rockblock import MoDelivery, SimulatedRockblock, generate_test_keys, post_mo
 from drs_link.store import Store, utc_now
+from tests.console.commands.test_cli_iridium import write_config
 
 from .helpers import IMEI, fix_at
-from .test_cli import write_config
 from .test_receiver_process import DRS, REPO, Receiver
 
 

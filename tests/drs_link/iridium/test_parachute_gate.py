@@ -24,9 +24,9 @@ from drs_link.ops.authorize import authorize_mt
 from drs_link.ops.operations import Operations
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
+from tests.console.commands.test_cli_iridium import run, write_config
 from tests.drs_link.iridium.flight_logs import flight_reports
 from tests.drs_link.iridium.helpers import IMEI, T0, fix_at
-from tests.drs_link.iridium.test_cli import run, write_config
 
 
 def stored(index: int, moment: datetime, alt: float, speed: float, lat: float = 46.5) -> StoredReport:

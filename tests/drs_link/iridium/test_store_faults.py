@@ -26,9 +26,9 @@ from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.reports import ReportStore
 from drs_link.sim.rockblock import MoDelivery, SimulatedRockblock, mo_body, post_mo
 from drs_link.store import Store, utc_now
+from tests.console.commands.test_cli_iridium import write_config
 
 from .helpers import IMEI, fix_at, to_delivery
-from .test_cli import write_config
 from .test_receiver_process import DRS, REPO, Receiver
 
 

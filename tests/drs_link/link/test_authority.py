@@ -29,7 +29,7 @@ from drs_link.ops.approval import ApprovalBook, Login
 from drs_link.ops.capsule import ReleaseState, ReleaseStateMachine, default_holder
 from drs_link.sim import CapsuleSimulator
 from drs_link.store import Store, iso_utc
-from tests.drs_link.test_cli import _one_line_error, _write_config, arm_and_go, drs
+from tests.console.commands.test_cli_capsule import _one_line_error, _write_config, arm_and_go, drs
 from tests.release_helpers import ROCKBLOCK_PASSWORD_ENV, write_weather
 
 TOOLS = "/home/pi/DRS_Python_Tools"

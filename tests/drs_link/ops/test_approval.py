@@ -24,8 +24,8 @@ from drs_link.ops.authorize import approval_command, authorize_mt
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
 from tests.clock import ManualClock
+from tests.console.commands.test_cli_iridium import run, write_config
 from tests.drs_link.iridium.helpers import IMEI
-from tests.drs_link.iridium.test_cli import run, write_config
 from tests.drs_link.iridium.test_parachute_gate import audit_of, falling, landed, recent, seed
 from tests.drs_link.ops.agents import approver_tables, ssh_agent, ssh_key
 

@@ -38,7 +38,7 @@ def example() -> CalibratedModel:
         live=LiveSettings(
             LiveCorrection((Band(0.0, 5000.0, True, None), Band(5000.0, float("inf"), True, 2000.0))),
             LiveErrorModel((20.0, 2.0), (3.9, 1.6), (3.8, 0.8)),
-            RateDiscrepancy((5.0, 20.0), (0.0, 0.04), (0.02, 0.05)),
+            RateDiscrepancy((5.0, 20.0), (0.0, 0.04), (0.02, 0.05), (0.01, -0.02), (0.12, 0.15), (28, 27)),
         ),
     )  # fmt: skip
 
@@ -182,6 +182,18 @@ def _with(change: dict) -> dict:
             r"live\.discrepancy\.log_sigma: must not be negative, got -0\.05",
         ),
         (
+            _with({"live.discrepancy.remaining_log_sigma": [0.12, 1.5]}),
+            r"live\.discrepancy\.remaining_log_sigma: must be within 0–1",
+        ),
+        (
+            _with({"live.discrepancy.remaining_flights": [28]}),
+            r"live\.discrepancy: the remaining_\* columns must be as long as heights_km",
+        ),
+        (
+            _with({"live.discrepancy.remaining_log_mean": [0.01, 3.0]}),
+            r"live\.discrepancy\.remaining_log_mean: must be within ±ln 5",
+        ),
+        (
             _with({"live.error_model.sigma_parallel_km": [3.9]}),
             r"live\.error_model: heights_km, sigma_parallel_km, sigma_perpendicular_km must be as long",
         ),
@@ -204,6 +216,9 @@ def _with(change: dict) -> dict:
         "live-band-order",
         "live-decay",
         "live-discrepancy",
+        "live-remaining-sigma",
+        "live-remaining-length",
+        "live-remaining-mean",
         "live-sigma",
     ],  # fmt: skip
 )

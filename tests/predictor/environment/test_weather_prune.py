@@ -24,8 +24,8 @@ from predictor.environment.gfs_fetch import Downloader, ForecastFile, Region
 from predictor.environment.gribwrite import GFS_LEVELS_HPA, write_gfs_grib2
 from predictor.environment.weather import load_weather
 from predictor.errors import WeatherError
+from tests.console.commands.test_cli_weather import serve_cycle
 from tests.predictor.environment.grib_server import GribServer
-from tests.predictor.environment.test_weather_cli import serve_cycle
 
 NOW = datetime(2024, 6, 1, 12, tzinfo=UTC)
 REGION = Region(45.0, 46.0, 6.0, 7.0)

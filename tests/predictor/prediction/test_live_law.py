@@ -19,13 +19,14 @@ import pytest
 
 from predictor.calibration.model_file import CalibratedModel
 from predictor.descent import RatePrior
-from predictor.descent.model import DeploymentDelay, DescentRateScale, DragDensityExponent
+from predictor.descent.model import DeploymentDelay, DescentRateScale, DragDensityExponent, TwoRegimeRate
 from predictor.descent.payload import PROFILES
 from predictor.prediction.landings import predict
 from predictor.prediction.live import (
     DEFAULT_ELLIPSE_NOTE,
     NO_DISCREPANCY,
     OWN_RATE,
+    RECORD_WINDOW_M,
     LiveCorrection,
     LivePredictor,
     RateDiscrepancy,
@@ -87,17 +88,20 @@ def test_with_the_model_law_the_remaining_time_error_shrinks(cadence_s: float, n
     assert fit.factor == pytest.approx(TRUE_RATE, rel=0.01)
 
 
-def test_every_fix_of_the_record_is_fitted() -> None:
+def test_every_fix_of_the_record_within_its_window_is_fitted() -> None:
     fixes, _ = descent(1.0, 10.0)
     live = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,))
     report = fed_to(live, fixes)
-    whole = live.record.rate_fit(report.alt_m)
-    assert whole is not None
     # The record starts at the highest report (GNSS noise can put it a few fixes after the first).
     top = int(np.argmax([f.alt_m for f in live.reports]))
-    assert whole.fixes == len(live.reports) - top
+    record = live.reports[top:]
+    whole = live.record.rate_fit(report.alt_m, window_m=math.inf)
+    assert whole is not None and whole.fixes == len(record)
+    recent = live.record.rate_fit(report.alt_m)
+    in_window = sum(f.alt_m <= report.alt_m + RECORD_WINDOW_M for f in record)
+    assert recent is not None and recent.fixes == in_window < len(record)
     rate = live.predict_from(report, WHOLE_DESCENT_RATE).rate
-    assert rate is not None and rate.fixes == whole.fixes
+    assert rate is not None and rate.fixes == recent.fixes
 
 
 def test_the_rate_fit_shrugs_off_swinging_and_wild_fixes_that_pull_least_squares() -> None:
@@ -162,6 +166,51 @@ def test_a_departure_every_flight_shares_is_taken_out_and_its_spread_leans_on_th
     assert vague.rate(report).factor < 1.01
     assert sharp.rate(report).factor == pytest.approx(TRUE_RATE, rel=0.02)
     assert sharp.rate(report).log_sigma < prior.log_sigma
+
+
+def test_the_prior_is_the_remaining_descents_at_the_reports_height_when_the_model_measured_it() -> None:
+    # The evaluation flights' remaining descent at 5 km fell 1.3× the law, at 25 km 0.9×, while their
+    # whole descents spread around 1.0: a report with no record yet starts from the height's own prior.
+    fixes, _ = descent(120.0, 3.0)
+    table = RateDiscrepancy(
+        (5.0, 25.0), (0.0, 0.0), (0.05, 0.05), (math.log(1.3), math.log(0.9)), (0.04, 0.2), (25, 9)
+    )
+    whole = RatePrior(median=1.0, log_sigma=0.05, flights=30)
+    live = LivePredictor(
+        isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,), prior=whole, discrepancy=table
+    )
+    live.observe(fixes[0])
+    height_km = fixes[0].alt_m / 1000.0
+    expected = math.exp(np.interp(height_km, (5.0, 25.0), (math.log(1.3), math.log(0.9))))
+    start = live.rate(fixes[0])
+    assert start.measured is None
+    assert start.factor == pytest.approx(expected, rel=1e-6)
+    assert start.prior is not None and start.prior.flights == 9 and start.prior.median != whole.median
+    # Without the table the whole-descent prior stands in.
+    plain = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,), prior=whole)
+    plain.observe(fixes[0])
+    assert plain.rate(fixes[0]).factor == pytest.approx(1.0)
+
+
+def test_the_window_follows_a_canopy_whose_rate_changes_with_height() -> None:
+    # 1.0× the law above 20 km, 1.3× below (a canopy that opens further lower down): from 12 km the
+    # last 6 km of the record say 1.3, the record from its top a blend (1.22 here) that would carry too
+    # slow a fall to the ground.
+    flown = synthetic_flight(
+        isothermal_cube(u=10.0, v=2.0), launch_time=RELEASE - timedelta(hours=2), lat=46.0, lon=6.0,
+        payload=PAYLOAD, effects=[LAW, DescentRateScale(scale=1.3), TwoRegimeRate(height_m=20000.0, factor=1 / 1.3)], cadence_s=60.0,
+        noise_m=3.0, ground_fixes=3, seed=5,
+    )  # fmt: skip
+    live = LivePredictor(isothermal_cube(u=10.0, v=2.0), PAYLOAD, effects=(LAW,))
+    for report in clean(flown.track).descent:
+        live.observe(report)
+        if report.alt_m <= 12000.0:
+            break
+    recent = live.record.rate_fit(report.alt_m)
+    whole = live.record.rate_fit(report.alt_m, window_m=math.inf)
+    assert recent is not None and whole is not None
+    assert recent.factor == pytest.approx(1.3, rel=0.03)
+    assert abs(whole.factor - 1.3) > 2.0 * abs(recent.factor - 1.3)
 
 
 def test_the_update_is_the_product_of_two_normals_in_ln_lambda() -> None:

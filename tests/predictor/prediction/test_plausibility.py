@@ -10,7 +10,7 @@ import shapely
 
 from console.commands.main import main
 from predictor.prediction.plausibility import far_features_warning, far_team_warning, release_altitude_warning
-from tests.predictor.planning.test_planning_cli import args as plan_args, geojson_file, grib_files  # noqa: F401  (the fixture)
+from tests.console.commands.test_cli_plan import args as plan_args, geojson_file, grib_files  # noqa: F401  (the fixture)
 
 
 @pytest.mark.parametrize(("alt", "warned"), [(31.5, True), (1.0, True), (59.9, True), (0.0, False),

@@ -22,7 +22,7 @@ from drs_link.ops.telemetry import (
     read_recording,
 )
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 
 

@@ -26,9 +26,8 @@ from drs_link.ops.operations import Operations
 from drs_link.sim import CapsuleSimulator
 from drs_link.sim.keys import generate_ed25519
 from drs_link.store import Store
+from tests.drs_link.conftest import capsule_table
 from tests.release_helpers import ROCKBLOCK_PASSWORD_ENV, ROCKBLOCK_TOML, release_args, write_weather
-
-from .conftest import capsule_table
 
 pytestmark = pytest.mark.slow
 

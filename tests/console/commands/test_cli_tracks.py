@@ -96,12 +96,6 @@ def test_the_v4_file_needs_and_takes_a_date(shared_data: Path, capsys: pytest.Ca
     assert "EXCLUDED: no landing observed" in out
 
 
-def test_a_malformed_date_option_is_refused_by_the_parser(capsys: pytest.CaptureFixture[str]) -> None:
-    with pytest.raises(SystemExit):
-        run(["tracks", "summary", "--date", "01/06/2021", "x.csv"])
-    assert "'01/06/2021' is not a date YYYY-MM-DD" in capsys.readouterr().err
-
-
 def test_bench_reports_each_stage_and_refuses_zero_runs(
     shared_data: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

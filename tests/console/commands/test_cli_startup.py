@@ -11,7 +11,7 @@ import pytest
 
 from console.commands.main import COMMAND_MODULES, _command_in
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 HEAVY = (
     "numba",
     "xarray",

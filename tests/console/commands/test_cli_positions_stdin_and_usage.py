@@ -18,7 +18,7 @@ from console.commands.argparser import latitude, longitude, position_or_gpsd
 from console.commands.main import build_parser, main
 from drs_link.iridium.firmware import GnssFix, format_mo
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 IMEI = "300234010753370"
 
 # (argv, the parsed attribute, its value): each position option, once south, once west.

@@ -100,22 +100,6 @@ def test_fetch_of_an_unpublished_cycle_is_a_one_line_error_without_secrets(
     assert "SECRET42" not in err and "Traceback" not in err
 
 
-@pytest.mark.parametrize(
-    ("time_text", "message"),
-    [
-        ("2024-05-01T04:00", "has no time zone; add Z for UTC"),
-        ("yesterday", "is not an ISO 8601 time"),
-    ],
-)
-def test_fetch_with_a_bad_time_is_refused(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], time_text: str, message: str
-) -> None:
-    argv = ["weather", "fetch", "--time", time_text, "--lat", "46.5", "--lon", "6.6", "--dir", str(tmp_path)]
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("drs: error: --time") and message in err and err.count("\n") == 1
-
-
 def test_info_on_a_truncated_file_names_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cut = tmp_path / "gfs.t06z.pgrb2.0p50.f000"
     levels = [1000.0, 500.0]

@@ -18,8 +18,7 @@ from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.sim.rockblock import MoDelivery, Scripted, SimulatedCapsule, SimulatedRockblock, post_mo
 from drs_link.store import Store, utc_now
-
-from .helpers import IMEI, T0, fix_at, fly
+from tests.drs_link.iridium.helpers import IMEI, T0, fix_at, fly
 
 REPO = Path(__file__).resolve().parents[3]
 DRS = "import sys, console.commands.main as c; sys.exit(c.main())"

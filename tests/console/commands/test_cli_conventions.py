@@ -16,7 +16,7 @@ import pytest
 from console.commands.logs import configure_logging
 from console.commands.main import main
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 
 
 def drs(*argv: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
