@@ -26,8 +26,9 @@ from textual.notifications import SeverityLevel
 from textual.screen import ModalScreen, Screen
 from textual.worker import Worker, WorkerState
 
-from console.context import ConsoleContext, ConsoleSetup
+from console.context import ConsoleContext, ConsoleSetup, context_for
 from console.messages import OperatorNotice, TelemetryArrived, ViewRead, ViewWanted
+from console.predictions import PredictionService
 from console.screens import ConfirmModal, FleetScreen
 from drs_link.errors import LinkError
 from drs_link.ops import (
@@ -43,10 +44,8 @@ from drs_link.ops import (
     Operations,
     PredictionSample,
     PredictionStatus,
-    RecordedViews,
-    RecoveryView,
     ReleaseOrigin,
-    StoreViews,
+    ReleaseWindow,
     TelemetryRecord,
     ViewSource,
     record_loss,
@@ -85,8 +84,9 @@ class DrsConsole(App[int]):
 
     def __init__(self, setup: ConsoleSetup, live_timers: bool = True) -> None:
         super().__init__()
-        self.context = ConsoleContext(setup, lambda text: self.post_message(OperatorNotice(text, "warning")))
-        """What the screens work on (``console.context``): each screen the app opens is handed it."""
+        self.context: ConsoleContext = context_for(setup, self._warn, self._live)
+        """What the screens work on (``console.context``), commanding or a replay's: each screen the app
+        opens is handed it."""
         self.live_timers = live_timers
         self.predicting: set[str] = set()
         """Capsules with a prediction running: one at a time each, so a slow first one never piles up."""
@@ -96,12 +96,10 @@ class DrsConsole(App[int]):
         self._store_version = 0
         self._audit_seen = 0
         """The newest audit row this console has shown or written: what another console wrote comes after."""
-        self.views: ViewSource = (
-            StoreViews(setup.operations, self._live) if setup.operations is not None else RecordedViews()
-        )
-        """Where the per-capsule screens' views come from: the store, or in a replay the recording."""
         self._views_reading: set[tuple[str, str]] = set()
         self._views_stale: set[tuple[str, str]] = set()
+        self._windows: dict[str, tuple[datetime, ReleaseWindow | None]] = {}
+        """Each capsule's release window and the "release now" time it was swept after."""
 
     # The context's state and calls, as the app's own code (and its tests) name them ------------
 
@@ -127,7 +125,12 @@ class DrsConsole(App[int]):
 
     @property
     def ops(self) -> Operations | None:
-        return self.context.ops
+        """The operations layer behind the session, if any (the tests' way in; the app asks the context)."""
+        return self.setup.operations
+
+    @property
+    def views(self) -> ViewSource:
+        return self.context.views
 
     @property
     def store(self) -> Store:
@@ -160,7 +163,6 @@ class DrsConsole(App[int]):
             return
         if self.commanding:
             self._start_session()
-        if self.ops is not None:
             self.gateway_check()
             self.set_interval(max(1.0, GATEWAY_CHECK_S / self.setup.time_scale), self.gateway_check)
             for name in self.setup.capsules:
@@ -195,7 +197,6 @@ class DrsConsole(App[int]):
     def session_lost(self, sig: signal.Signals) -> None:
         """SIGHUP (the SSH session dropped) or SIGTERM: disarm on the record, let a Go in flight finish
         and be recorded by its worker, then end (``drs_link.ops.session``)."""
-        assert self.ops is not None
         arming = {name: self.context.arming(name) for name in self.setup.capsules}
         firing = [name for name, a in arming.items() if a.status().state is ArmState.FIRING]
         record_loss(self.store, self.operator, sig.name, arming, firing)
@@ -226,14 +227,14 @@ class DrsConsole(App[int]):
                 hint = " (A on the fleet: approvals)" if row.action == "approval.requested" else ""
                 self.notify(f"{about}{row.action} {row.result} — {row.operator}, {row.session or 'another console'}{hint}",
                             timeout=8)  # fmt: skip
-        if self.ops is not None:
+        if self.commanding:
             self.poll_reports()
         self.read_views()
         self.refresh_screen()
 
     def tick(self) -> None:
         """Once a second: ages grow, ARM windows run out, first predictions start, the screen shows all."""
-        if self.ops is not None:
+        if self.commanding:
             for name in self.setup.capsules:
                 arming = self.context.arming(name)
                 if arming.status().armed:
@@ -259,15 +260,13 @@ class DrsConsole(App[int]):
 
     @work(thread=True, exit_on_error=False, group="gateway")
     def gateway_check(self) -> None:
-        assert self.ops is not None
-        self.post_message(TelemetryArrived(self.ops.gateway_check()))
+        self.post_message(TelemetryArrived(self.context.operations().gateway_check()))
 
     @work(thread=True, exit_on_error=False, description="poll")
     def poll_capsule(self, name: str) -> None:
         """One poll; the next one is scheduled only after this one ends, so polls never pile up."""
-        assert self.ops is not None
         try:
-            self.post_message(TelemetryArrived(self.ops.poll(name)))
+            self.post_message(TelemetryArrived(self.context.operations().poll(name)))
         except LinkError as exc:
             self.post_message(OperatorNotice(str(exc), "warning"))
         finally:
@@ -280,8 +279,8 @@ class DrsConsole(App[int]):
 
     @work(thread=True, exit_on_error=False, group="reports")
     def poll_reports(self) -> None:
-        assert self.ops is not None
-        records = [r for name in self.setup.capsules for r in self.ops.new_reports(name)]
+        ops = self.context.operations()
+        records = [r for name in self.setup.capsules for r in ops.new_reports(name)]
         if records:
             self.post_message(TelemetryArrived(records))
 
@@ -338,9 +337,7 @@ class DrsConsole(App[int]):
             return
         finally:
             self.predicting.discard(name)  # one atomic set operation: safe from this worker thread
-        if self.ops is not None and self.ops.recorder is not None:
-            for record in records:
-                self.ops.recorder.append(record)
+        self.context.record(records)
         self.post_message(TelemetryArrived(records))
 
     def read_views(self, capsules: Iterable[str] | None = None) -> None:
@@ -351,27 +348,66 @@ class DrsConsole(App[int]):
                 self.read_view(*shows)
 
     def read_view(self, kind: str, capsule: str) -> None:
-        """One read at a time per view; a change while it runs reads once more when it ends."""
+        """One read at a time per view; a change while it runs reads once more when it ends.
+
+        The release window is swept again only after a new "release now" prediction (its basis)."""
         key = (kind, capsule)
         if key in self._views_reading:
             self._views_stale.add(key)
             return
+        if kind == "window":
+            origin, basis = self.prediction_origin(capsule), self.window_basis(capsule)
+            service = self.setup.predictions
+            if basis is None or origin is None or service is None:
+                return
+            if capsule in self._windows and self._windows[capsule][0] == basis:
+                return
+            self._windows[capsule] = (basis, self._windows.get(capsule, (basis, None))[1])
+            self._views_reading.add(key)
+            self._sweep(service, capsule, origin, basis)
+            return
         self._views_reading.add(key)
         self._read_view(kind, capsule)
+
+    def window_basis(self, capsule: str) -> datetime | None:
+        """The "release now" prediction a release window is swept after (its release time)."""
+        reading = self.fleet.capsules[capsule].predictions.get(0)
+        return reading.value.release_time if reading is not None and reading.value is not None else None
 
     @work(thread=True, exit_on_error=False, group="views")
     def _read_view(self, kind: str, capsule: str) -> None:
         try:
             view = self.views.recovery(capsule) if kind == "recovery" else self.views.iridium(capsule)
-            self.post_message(ViewRead(view))
+            self.post_message(ViewRead(kind, capsule, view))
         finally:
             self.call_from_thread(self._view_done, (kind, capsule))
+
+    @work(thread=True, exit_on_error=False, group="release-window")
+    def _sweep(
+        self, service: PredictionService, capsule: str, origin: ReleaseOrigin, basis: datetime
+    ) -> None:
+        """The release window from ``origin`` (``drs_link.ops.ReleaseWindow``), for the predictions screen."""
+        try:
+            window = ReleaseWindow.from_sweep(
+                service.release_window(origin, self.context.zones_file, capsule=capsule)
+            )
+        except PredictorError as exc:
+            self.post_message(OperatorNotice(f"release window failed: {exc}", "warning"))
+        else:
+            self.call_from_thread(self._windows.__setitem__, capsule, (basis, window))
+            self.post_message(ViewRead("window", capsule, window))
+        finally:
+            self.call_from_thread(self._view_done, ("window", capsule))
 
     def _view_done(self, key: tuple[str, str]) -> None:
         self._views_reading.discard(key)
         if key in self._views_stale:
             self._views_stale.discard(key)
             self.read_view(*key)
+
+    def _warn(self, text: str) -> None:
+        """Tell the operator something, from any thread."""
+        self.post_message(OperatorNotice(text, "warning"))
 
     def _live(self) -> LiveSource | None:
         """The live re-prediction, once the prediction service (the weather) is there."""
@@ -382,21 +418,23 @@ class DrsConsole(App[int]):
 
     @on(ViewWanted)
     def want_view(self, message: ViewWanted) -> None:
+        window = self._windows.get(message.capsule, (None, None))[1] if message.kind == "window" else None
+        if window is not None:  # a screen opened again on the window already swept: show it now
+            self.show_view(ViewRead("window", message.capsule, window))
         self.read_view(message.kind, message.capsule)
 
     @on(ViewRead)
     def show_view(self, message: ViewRead) -> None:
-        key = ("recovery" if isinstance(message.view, RecoveryView) else "iridium", message.view.capsule)
         for screen in self.screen_stack:
-            if getattr(screen, "shows", None) == key:
-                screen.post_message(ViewRead(message.view))
+            if getattr(screen, "shows", None) == (message.kind, message.capsule):
+                screen.post_message(ViewRead(message.kind, message.capsule, message.view))
 
     @on(TelemetryArrived)
     def fold(self, message: TelemetryArrived) -> None:
         for record in message.records:
             self.fleet.apply(record)
         self.views.observe(message.records)
-        if self.ops is not None:
+        if self.commanding:
             touched = {r.capsule for r in message.records if r.capsule}
             for name in touched & set(self.setup.capsules):
                 arming = self.context.arming(name)
@@ -456,11 +494,17 @@ class DrsConsole(App[int]):
         if powered:
             lines.append(f"Powered on and waiting for Go: {', '.join(powered)}.")
 
-        def confirmed(yes: bool | None) -> None:
-            if yes:
+        def disarm_and_exit() -> None:
+            """In a worker: the disarms are store writes, and the console ends only once they are recorded."""
+            try:
                 for name in armed:
                     arming[name].disarm("console closed")
-                self.exit(0)
+            finally:
+                self.call_from_thread(self.exit, 0)
+
+        def confirmed(yes: bool | None) -> None:
+            if yes:
+                self.run_worker(disarm_and_exit, thread=True, group="store-write", exit_on_error=False)
 
         self.push_screen(ConfirmModal("Quit the DRS console?", "\n".join(lines), "Quit"), confirmed)
 
@@ -490,5 +534,4 @@ class DrsConsole(App[int]):
             loop = asyncio.get_running_loop()
             for sig in LOST_SIGNALS:
                 loop.remove_signal_handler(sig)
-        if self.ops is not None:
-            self.ops.close()
+        self.context.close()

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 from drs_link.config import Config
 from drs_link.feeds import ChaseFeed, ChaseSender, ChaseStore, chase_kml_path, chase_points
-from drs_link.ops import capsule_descent
+from drs_link.ops import Operations, capsule_descent
 from predictor.errors import PredictorError
 
 if TYPE_CHECKING:
@@ -34,20 +34,21 @@ RELEASE_NOW = "release now"
 class LandingKeeper:
     """Keeps each capsule's newest prediction for the chase feed (once per prediction)."""
 
-    def __init__(self, config: Config, setup: ConsoleSetup) -> None:
+    def __init__(self, config: Config, setup: ConsoleSetup, operations: Operations) -> None:
         self.config = config
         self.setup = setup
+        self.operations = operations
         self.store = ChaseStore(setup.store)
         self._kept: dict[str, Prediction] = {}
 
     def current(self, capsule: str) -> tuple[Prediction, str] | None:
         """The live re-prediction while the capsule descends; before its first fix, the release-now one;
         nothing once it has landed (its fixes then say where it is)."""
-        service, ops = self.setup.predictions, self.setup.operations
+        service = self.setup.predictions
         if service is None:
             return None
-        descent = capsule_descent(ops, capsule, service.live) if ops is not None else None
-        if descent is None or not descent.track:
+        descent = capsule_descent(self.operations, capsule, service.live)
+        if not descent.track:
             return (service.latest[capsule], RELEASE_NOW) if capsule in service.latest else None
         if descent.landing is not None:
             return None
@@ -75,7 +76,10 @@ class LandingKeeper:
 
 
 def started_chase_feed(config: Config, setup: ConsoleSetup) -> ChaseFeed | None:
-    """The feed to ``[chase] udp``, sending; None when the configuration sets no chase feed."""
-    if not config.chase.udp:
+    """The feed to ``[chase] udp``, sending; None when the configuration sets no chase feed, or the session
+    has no operations behind it (a replay sends nothing to the chase cars)."""
+    operations = setup.operations
+    if not config.chase.udp or operations is None:
         return None
-    return ChaseFeed(ChaseSender(config.chase.udp, "chase.udp"), LandingKeeper(config, setup).points).start()
+    keeper = LandingKeeper(config, setup, operations)
+    return ChaseFeed(ChaseSender(config.chase.udp, "chase.udp"), keeper.points).start()

@@ -1,9 +1,13 @@
 """What the screens work on, typed: the session's setup, the fleet state, and the calls into ``drs_link``.
 
-The app builds one ``ConsoleContext`` and hands it to each screen it opens, instead of itself: the app
-imports the screens, so a screen that took the app could only type it ``Any``. The screens read
-the fleet, the clock and the settings from it and ask it for go/no-go, arming, checklists and
-approvals. Nothing here imports Textual: it is the plain-Python side of the console.
+The app builds one context for its mode (``context_for``) and hands it to each screen it opens,
+instead of itself: the app imports the screens, so a screen that took the app could only type it
+``Any``. The screens read the fleet, the clock and the settings from it and ask it for go/no-go,
+arming, checklists, approvals and the audit log. A live or demo console gets a
+``CommandingContext``, with the ``Operations`` behind it; a replay gets a ``ReplayContext``, which
+has no commanding side at all: asked for one, it refuses with ``REPLAY_REFUSAL`` (its keys are
+disabled too, so that is a last guard, not a path a screen takes). Nothing here imports Textual: it
+is the plain-Python side of the console.
 """
 
 from __future__ import annotations
@@ -15,18 +19,28 @@ from datetime import datetime, timedelta
 from pathlib import Path
 
 from console.predictions import PredictionService
+from drs_link.errors import LinkError
 from drs_link.feeds import BalloonFeed
 from drs_link.ops import (
     PROCEDURE_DIR,
+    Approval,
+    ApprovalBook,
     ArmingController,
+    AuditLog,
     Checklist,
     ChecklistRun,
+    ExclusionZone,
     FleetState,
     GoNoGoReport,
+    LiveSource,
     Operations,
     ParachuteOverride,
+    RecordedViews,
     ReleaseOrigin,
+    StoreViews,
     TelemetryRecord,
+    ViewSource,
+    Waiver,
     evaluate,
     load_checklists,
     parachute_override,
@@ -72,33 +86,34 @@ class ConsoleSetup:
             self.balloon_feed.stop()
 
 
-class ConsoleContext:
-    """The session's state and the domain calls a screen makes; one per app, shared by its screens."""
+REPLAY_REFUSAL = "a replay cannot command: there is no link behind a recording"
 
-    def __init__(self, setup: ConsoleSetup, warn: Callable[[str], None]) -> None:
+
+class ConsoleContext:
+    """The session's state and the calls every console makes, commanding or not; one per app.
+
+    ``operations`` and ``arming`` are the commanding side: only ``CommandingContext`` has one, and
+    here they refuse (``LinkError``), so a screen calls them inside the ``try`` that shows a refusal.
+    """
+
+    commanding = False
+    """Whether this console can command (a live or demo console): the screens dim their keys without."""
+
+    def __init__(self, setup: ConsoleSetup, warn: Callable[[str], None], poll_period_s: float = 0.0) -> None:
         self.setup = setup
-        poll_period = 2.0 * setup.poll_period_s * setup.time_scale
-        self.fleet = FleetState.for_capsules(setup.capsules, poll_period if setup.operations else 0.0)
-        self.checklists: list[Checklist] = (
-            setup.operations.checklists if setup.operations else load_checklists(PROCEDURE_DIR)
-        )
+        self.fleet = FleetState.for_capsules(setup.capsules, poll_period_s)
+        self.checklists: list[Checklist] = load_checklists(PROCEDURE_DIR)
         """The procedure the operations layer ticks, so the screen shows the steps it completes."""
         self.warn = warn
         """Tells the operator something from any thread (the app posts it as a notice)."""
-        self._overrides: tuple[float, list[ParachuteOverride]] = (-OVERRIDE_READ_S, [])
+        self.history = AuditLog(setup.store)
+        """The audit log as History reads and exports it (this machine's, in a replay too)."""
+        self.views: ViewSource = RecordedViews()
+        """Where the per-capsule screens' views come from: the recording here, the store when commanding."""
 
     @property
     def mode(self) -> str:
         return self.setup.mode
-
-    @property
-    def commanding(self) -> bool:
-        """Replay can never command: there is no Operations behind it, and the keys are disabled."""
-        return self.setup.operations is not None and self.setup.mode != "replay"
-
-    @property
-    def ops(self) -> Operations | None:
-        return self.setup.operations
 
     @property
     def store(self) -> Store:
@@ -106,7 +121,45 @@ class ConsoleContext:
 
     @property
     def operator(self) -> str:
-        return self.ops.operator if self.ops else "replay"
+        return "replay"
+
+    @property
+    def zones(self) -> tuple[ExclusionZone, ...]:
+        """The exclusion zones go/no-go and the maps use (none known without the configuration)."""
+        return ()
+
+    @property
+    def zones_file(self) -> Path | None:
+        return None
+
+    @property
+    def require_second_operator(self) -> bool:
+        return False
+
+    def operations(self) -> Operations:
+        """The operations layer behind a commanding console; a replay refuses (``REPLAY_REFUSAL``)."""
+        raise LinkError(REPLAY_REFUSAL)
+
+    def arming(self, capsule: str) -> ArmingController:
+        """The capsule's ARM/FIRE controller; a replay refuses (``REPLAY_REFUSAL``)."""
+        raise LinkError(REPLAY_REFUSAL)
+
+    def waiting_approvals(self, capsule: str) -> list[Approval]:
+        """This login's requests for ``capsule`` that wait for another login."""
+        return []
+
+    def parachute_overrides(self) -> list[ParachuteOverride]:
+        """Each capsule's PARACHUTE queued without landed evidence (none known in a replay)."""
+        return []
+
+    def waivers(self, capsule: str) -> list[Waiver]:
+        return []
+
+    def record(self, records: list[TelemetryRecord]) -> None:
+        """Keep ``records`` in the session's recording; a replay records nothing."""
+
+    def close(self) -> None:
+        """What the context opened, closed with the app."""
 
     def now(self) -> datetime:
         return self.setup.clock()
@@ -125,16 +178,80 @@ class ConsoleContext:
         text = words.get(self.mode, self.mode.upper())
         return f"{text} {self.setup.banner_note}".strip()
 
+    def approval_book(self) -> ApprovalBook:
+        """Every login's requests for a second operator, on the store all consoles share."""
+        return ApprovalBook(self.store, self.now)
+
+    def checklist_run(self, capsule: str, checklist: Checklist) -> ChecklistRun:
+        return ChecklistRun(self.store, checklist, capsule, self.now)
+
+    def gonogo(self, capsule: str) -> GoNoGoReport:
+        telemetry = self.fleet.capsules[capsule]
+        now = self.now()
+        return evaluate(capsule, telemetry.gonogo_inputs(now, self.zones), now, self.waivers(capsule))
+
+    def prediction_origin(self, capsule: str) -> ReleaseOrigin | None:
+        """Where a release would start (the rule is ``drs_link.ops.origin.release_origin``)."""
+        return release_origin(self.fleet, capsule, self.now())
+
+
+class ReplayContext(ConsoleContext):
+    """A console with no link: a replayed recording (or a session started without ``Operations``).
+
+    It shows what was recorded through the same views; the commanding side does not exist."""
+
+
+class CommandingContext(ConsoleContext):
+    """A live or demo console: the same views, and the commanding side through ``Operations``."""
+
+    commanding = True
+
+    def __init__(
+        self,
+        setup: ConsoleSetup,
+        warn: Callable[[str], None],
+        ops: Operations,
+        live: Callable[[], LiveSource | None],
+    ) -> None:
+        super().__init__(setup, warn, 2.0 * setup.poll_period_s * setup.time_scale)
+        self.ops = ops
+        self.checklists = ops.checklists
+        self.views = StoreViews(ops, live)
+        self._overrides: tuple[float, list[ParachuteOverride]] = (-OVERRIDE_READ_S, [])
+
+    @property
+    def operator(self) -> str:
+        return self.ops.operator
+
+    @property
+    def zones(self) -> tuple[ExclusionZone, ...]:
+        return self.ops.zones
+
+    @property
+    def zones_file(self) -> Path | None:
+        return self.ops.config.console.exclusion_zones_file
+
+    @property
+    def require_second_operator(self) -> bool:
+        return self.ops.config.console.require_second_operator
+
+    def operations(self) -> Operations:
+        return self.ops
+
     def arming(self, capsule: str) -> ArmingController:
-        """The capsule's ARM/FIRE controller; only a commanding console has one (check ``commanding``)."""
-        assert self.ops is not None
         return self.ops.ops(capsule).arming
+
+    def waiting_approvals(self, capsule: str) -> list[Approval]:
+        return self.ops.waiting_approvals(capsule)
+
+    def waivers(self, capsule: str) -> list[Waiver]:
+        return self.ops.ops(capsule).waivers.waivers
 
     def parachute_overrides(self) -> list[ParachuteOverride]:
         """Each capsule's PARACHUTE queued without landed evidence (``drs_link.ops.override``), from any
         console on the store; read at most once per ``OVERRIDE_READ_S``."""
         read_at, found = self._overrides
-        if self.ops is None or time.monotonic() - read_at < OVERRIDE_READ_S:
+        if time.monotonic() - read_at < OVERRIDE_READ_S:
             return found
         found = []
         for capsule in self.setup.capsules:
@@ -145,15 +262,20 @@ class ConsoleContext:
         self._overrides = (time.monotonic(), found)
         return found
 
-    def checklist_run(self, capsule: str, checklist: Checklist) -> ChecklistRun:
-        return ChecklistRun(self.store, checklist, capsule, self.now)
+    def record(self, records: list[TelemetryRecord]) -> None:
+        if self.ops.recorder is not None:
+            for record in records:
+                self.ops.recorder.append(record)
 
-    def gonogo(self, capsule: str) -> GoNoGoReport:
-        telemetry = self.fleet.capsules[capsule]
-        zones = self.ops.zones if self.ops else ()
-        waivers = self.ops.ops(capsule).waivers.waivers if self.ops else []
-        return evaluate(capsule, telemetry.gonogo_inputs(self.now(), zones), self.now(), waivers)
+    def close(self) -> None:
+        """The operations layer closes the store with it."""
+        self.ops.close()
 
-    def prediction_origin(self, capsule: str) -> ReleaseOrigin | None:
-        """Where a release would start (the rule is ``drs_link.ops.origin.release_origin``)."""
-        return release_origin(self.fleet, capsule, self.now())
+
+def context_for(
+    setup: ConsoleSetup, warn: Callable[[str], None], live: Callable[[], LiveSource | None]
+) -> ConsoleContext:
+    """The context of the session's mode: commanding with ``Operations`` behind it, else a replay's."""
+    if setup.operations is None or setup.mode == "replay":
+        return ReplayContext(setup, warn)
+    return CommandingContext(setup, warn, setup.operations, live)

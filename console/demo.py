@@ -36,7 +36,7 @@ from drs_link.sim import (
     write_ed25519,
 )
 from drs_link.store import Store
-from predictor import FlightSetup, Release, Terrain, load_weather, predict
+from predictor import FlightSetup, Release, Terrain, WeatherCube, load_weather, predict
 from predictor.environment import demo_weather_files
 
 SITE = (67.8887, 21.0856)
@@ -151,7 +151,7 @@ class DemoWorld:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._last_step: datetime | None = None
-        self._cube = None
+        self._cube: WeatherCube | None = None
         self._terrain: Terrain | None = None
         self._ground_station = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.ground_station_port = _free_udp_port()

@@ -9,7 +9,7 @@ from __future__ import annotations
 from textual.message import Message
 from textual.notifications import SeverityLevel
 
-from drs_link.ops import IridiumHealthView, RecoveryView, TelemetryRecord
+from drs_link.ops import IridiumHealthView, RecoveryView, ReleaseWindow, TelemetryRecord
 
 
 class TelemetryArrived(Message):
@@ -29,9 +29,14 @@ class OperatorNotice(Message):
         self.severity = severity
 
 
+View = RecoveryView | IridiumHealthView | ReleaseWindow
+"""What the app's workers deliver to the screens, each of one capsule."""
+
+
 class ViewWanted(Message):
-    """A screen shows this view (``"recovery"`` or ``"iridium"``) of a capsule: the app reads it in a worker
-    now and whenever the store or the capsule's telemetry changes (the screen never reads the store)."""
+    """A screen shows this view of a capsule (``"recovery"``, ``"iridium"`` or ``"window"``, the release
+    window): the app reads it in a worker now and whenever the store or the capsule's telemetry changes
+    (the screen never reads the store, nor starts the work itself)."""
 
     def __init__(self, kind: str, capsule: str) -> None:
         super().__init__()
@@ -40,9 +45,11 @@ class ViewWanted(Message):
 
 
 class ViewRead(Message, bubble=False):
-    """A capsule's view as the store (or the replay) had it: to the app, which hands it on to the screens
-    that show it (not bubbling, so a screen's copy never comes back to the app)."""
+    """A capsule's view as the store (or the replay, or the planner) had it: to the app, which hands it on
+    to the screens that show it (not bubbling, so a screen's copy never comes back to the app)."""
 
-    def __init__(self, view: RecoveryView | IridiumHealthView) -> None:
+    def __init__(self, kind: str, capsule: str, view: View) -> None:
         super().__init__()
+        self.kind = kind
+        self.capsule = capsule
         self.view = view

@@ -52,7 +52,7 @@ class ApprovalScreen(ConsoleScreen):
 
     @property
     def book(self) -> ApprovalBook:
-        return ApprovalBook(self.context.store, self.context.now)
+        return self.context.approval_book()
 
     def update_view(self) -> None:
         now = self.context.now()

@@ -121,24 +121,21 @@ class CommandingScreen(ConsoleScreen):
         self._send_after_name(message, command.note)
 
     def _plan(self, requested: tuple[int, int] | None) -> ParachutePlan | None:
-        ops = self.context.ops
-        assert ops is not None  # the keys that send are disabled without one (check_action)
         try:
-            return ops.plan_parachute(self.capsule, requested)
+            return self.context.operations().plan_parachute(self.capsule, requested)
         except LinkError as exc:
             self.app.notify(f"PARACHUTE refused: {exc}", severity="error", timeout=12)
             return None
 
     def _confirm_parachute(self, plan: ParachutePlan) -> None:
         message = MtComposer().add("PARACHUTE", (plan.hour, plan.minute)).build()
-        ops = self.context.ops
-        assert ops is not None  # the keys that send are disabled without one (check_action)
+        ops = self.context.operations()  # a plan was made: this console commands
         evidence = ops.landed(self.capsule)
         verdict = "Landed evidence" if evidence.on_ground else "NO LANDED EVIDENCE"
         text = "\n".join(
             [f"{verdict}: {evidence.summary}", plan.window_text(), *(f"! {w}" for w in plan.warnings)]
         )
-        second = ops.config.console.require_second_operator
+        second = self.context.require_second_operator
         override = (
             None
             if evidence.on_ground
@@ -179,14 +176,12 @@ class CommandingScreen(ConsoleScreen):
         hazard: HazardConfirmation | None,
         queue_by: datetime | None = None,
     ) -> None:
-        ops = self.context.ops
-        assert ops is not None  # the keys that send are disabled without one (check_action)
         second = SecondOperator(
             hazard.second_operator or None, hazard.single_operator_waiver or None, hazard.await_approval,
             lambda request: self.context.warn(f"{self.capsule}: {pending_text(request)}"),
         ) if hazard is not None else SecondOperator()  # fmt: skip
         try:
-            command = ops.send_mt(
+            command = self.context.operations().send_mt(
                 self.capsule, message, confirmation, second,
                 override_landed=hazard.override_reason if hazard else None, queue_by=queue_by,
             ).command  # fmt: skip

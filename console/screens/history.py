@@ -3,7 +3,8 @@
 The search box has the focus on entry, so whatever the operator types searches: a stray letter
 must never fire a key (typing "alone" once wrote an export through its ``e``). ``↓``, ``Enter``
 or ``Tab`` move to the entries, where ``e`` exports; the highlighted entry's detail (a waiver's
-reason, a refusal's reason) is shown in full below them.
+reason, a refusal's reason) is shown in full below them. The entries and their export come from the
+operations layer (``drs_link.ops.AuditLog``), never from the store itself.
 """
 
 from __future__ import annotations
@@ -17,9 +18,8 @@ from textual.widgets import DataTable, Input, Static
 
 from console.context import ConsoleContext
 from console.screens.base import ConsoleScreen
-from drs_link.ops import AuditRecord, iso_utc
+from drs_link.ops import AuditRecord
 
-HISTORY_ROWS = 500
 COLUMNS = ("Time (UTC)", "Operator", "Capsule", "Action", "Result")
 DETAIL_MIN_WIDTH = 12
 """Narrower than this, the table has no detail column: the pane below the table shows it in full."""
@@ -76,9 +76,7 @@ class HistoryScreen(ConsoleScreen):
         entry's detail is also shown whole below the table when it is highlighted.
         """
         table = self.query_one("#audit", DataTable)
-        self.records = {
-            r.id: r for r in reversed(self.context.store.audit(text=text or None, limit=HISTORY_ROWS))
-        }
+        self.records = {r.id: r for r in self.context.history.newest(text)}
         rows = [
             (f"{r.time_utc:%m-%d %H:%M:%S}", r.operator, r.capsule or "", r.action, r.result)
             for r in self.records.values()
@@ -106,11 +104,8 @@ class HistoryScreen(ConsoleScreen):
         record = self.records[int(str(row_key))]
         # Another console's entry names that console (account@host pid): two consoles once ARMED one
         # capsule and History could not tell their entries apart (#23).
-        elsewhere = (
-            f" · from another console: {record.session}"
-            if record.session and record.session != self.context.store.session
-            else ""
-        )
+        session = self.context.history.elsewhere(record)
+        elsewhere = f" · from another console: {session}" if session else ""
         self.query_one("#audit-detail", Static).update(
             f"▸ {record.time_utc:%Y-%m-%d %H:%M:%S}Z {record.operator} {record.capsule or '—'} {record.action} "
             f"{record.result}{elsewhere}\n  {detail_words(record.detail)}"
@@ -131,11 +126,10 @@ class HistoryScreen(ConsoleScreen):
 
     def action_export(self) -> None:
         text = self.query_one("#search", Input).value or None
-        directory = self.context.setup.export_dir
-        directory.mkdir(parents=True, exist_ok=True)
-        path = directory / f"audit-{self.context.now():%Y%m%dT%H%M%SZ}.jsonl"
-        with path.open("w", encoding="utf-8") as out:
-            for r in self.context.store.audit(text=text):
-                out.write(json.dumps({"time_utc": iso_utc(r.time_utc), "operator": r.operator, "capsule": r.capsule,
-                                      "action": r.action, "result": r.result, "detail": r.detail}) + "\n")  # fmt: skip
+        path = self.context.setup.export_dir / f"audit-{self.context.now():%Y%m%dT%H%M%SZ}.jsonl"
+        try:
+            self.context.history.export(path, text)
+        except OSError as exc:
+            self.app.notify(f"audit export failed: {exc}", severity="error")
+            return
         self.app.notify(f"audit exported to {path}")

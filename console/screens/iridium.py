@@ -19,6 +19,8 @@ from textual.widgets import DataTable, Label, Static
 from console.context import ConsoleContext
 from console.messages import ViewRead, ViewWanted
 from console.screens.commanding import CommandingScreen, command_bindings
+from console.screens.modals import TextPromptModal
+from drs_link.errors import LinkError
 from drs_link.ops import Command, IridiumHealthView
 
 COMMAND_COLUMNS = ("#", "Text", "State", "Updated", "Detail")
@@ -32,7 +34,8 @@ LIFECYCLE_WORDS = {
 
 HELP = """\
 `n` INTERVAL · `o`/`O` sounder off/on · `c` parachute (helper picks HH:MM) ·
-`C` parachute at a time you type (checked against the window) · `R` refresh"""
+`C` parachute at a time you type (checked against the window) · `R` refresh ·
+`u` resolve the highlighted command of unknown delivery from the RockBLOCK portal (its id, or `not sent`)"""
 """The keys, as the help screen lists them (``console.screens.registry``)."""
 
 
@@ -41,6 +44,7 @@ class IridiumScreen(CommandingScreen):
         Binding("escape", "app.pop_screen", "Back"),
         *command_bindings(paired=True),
         Binding("R", "reload", "Refresh"),
+        Binding("u", "resolve", "Resolve", show=False),
     ]
 
     def __init__(self, context: ConsoleContext, capsule: str) -> None:
@@ -113,7 +117,46 @@ class IridiumScreen(CommandingScreen):
         for title, width in zip(COMMAND_COLUMNS, widths, strict=True):
             table.add_column(title, width=width)
         for row in rows:
-            table.add_row(*row[:-1], Text(row[-1]), height=None)
+            table.add_row(*row[:-1], Text(row[-1]), height=None, key=row[0])
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        if action == "resolve" and not self.context.commanding:
+            return None
+        return super().check_action(action, parameters)
+
+    def action_resolve(self) -> None:
+        """What the portal shows for the highlighted command whose delivery is unknown (``drs mt resolve``):
+        the lifecycle refuses any other command, and audits the answer with the operator's name."""
+        table = self.query_one("#commands", DataTable)
+        if not table.row_count:
+            return
+        command_id = int(str(table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value))
+        context, capsule = self.context, self.capsule
+
+        def answered(answer: str | None) -> None:
+            text = (answer or "").strip().lower()
+            if not text:
+                return
+            if text not in ("not sent", "not-sent") and not text.isdigit():
+                self.app.notify(f"MT {command_id}: type the portal's MT id or 'not sent'", severity="error")
+                return
+            gateway_id = int(text) if text.isdigit() else None
+
+            def resolve() -> list[Command]:
+                return context.operations().resolve_mt(capsule, command_id, gateway_id, "console")
+
+            self.write_off_ui(resolve, shown, refused)
+
+        def refused(exc: LinkError) -> None:
+            self.app.notify(str(exc), severity="error", timeout=10)
+
+        def shown(commands: list[Command]) -> None:
+            for command in commands[:1]:
+                self.app.notify(f"MT {command.id} {command.text}: {command.state}: {command.detail}")
+            self.action_reload()
+
+        question = "What does the RockBLOCK portal show? Its MT id if queued, or 'not sent' (logged):"
+        self.app.push_screen(TextPromptModal(f"Resolve MT {command_id} of {capsule}", question), answered)
 
     def reload_after_send(self) -> None:
         self.action_reload()

@@ -1,19 +1,18 @@
 """Predictions for one capsule: release now and in N minutes, the ellipse in numbers, a map, export,
-and the release-window timeline (when to drop), recomputed in a worker whenever a new prediction lands."""
+and the release-window timeline (when to drop), which the app sweeps in its worker whenever a new
+"release now" prediction lands and hands to this screen (``console.messages.ViewRead``)."""
 
 from __future__ import annotations
 
-from datetime import datetime
-
-from textual import work
+from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
 from textual.widgets import Static
 
 from console.context import ConsoleContext
-from console.messages import OperatorNotice, TelemetryArrived
-from console.predictions import ReleaseOrigin
+from console.messages import OperatorNotice, TelemetryArrived, ViewRead, ViewWanted
+from console.predictions import PredictionService, ReleaseOrigin
 from console.screens.base import ConsoleScreen
 from console.widgets import LandingMap, MapLayers, default_cursor, render_timeline
 from drs_link.errors import LinkError
@@ -70,10 +69,9 @@ class PredictionScreen(ConsoleScreen):
         super().__init__(context)
         self.capsule = capsule
         self.lead_min = 10
+        self.shows = ("window", capsule)
+        """The view the app delivers to this screen: the release window."""
         self.window: ReleaseWindow | None = None
-        self.window_basis: datetime | None = None
-        """The "release now" prediction the window was computed after: a new one triggers a new sweep."""
-        self.window_running = False
         self.cursor: int | None = None
 
     def compose(self) -> ComposeResult:
@@ -86,7 +84,14 @@ class PredictionScreen(ConsoleScreen):
 
     def on_mount(self) -> None:
         self.ready = True
+        self.post_message(ViewWanted(*self.shows))
         self.refresh_view()
+
+    @on(ViewRead)
+    def show_window(self, message: ViewRead) -> None:
+        if isinstance(message.view, ReleaseWindow):
+            self.window = message.view
+            self.refresh_view()
 
     def update_view(self) -> None:
         context = self.context
@@ -103,9 +108,9 @@ class PredictionScreen(ConsoleScreen):
         self.query_one("#prediction-numbers", Static).update(f"{self.capsule}\n\n" + "\n\n".join(texts))
         now_pred = telemetry.predictions.get(0)
         value = now_pred.value if now_pred else None
-        zones = [z.ring for z in context.ops.zones] if context.ops else []
+        zones = [z.ring for z in context.zones]
         balloon = context.fleet.balloon.value
-        self.query_one("#prediction-map", LandingMap).layers = MapLayers(
+        self.query_one("#prediction-map", LandingMap).map_layers = MapLayers(
             path=list(value.path) if value else (),
             ellipse=list(value.outline_2sigma) if value else (),
             zones=zones,
@@ -127,12 +132,6 @@ class PredictionScreen(ConsoleScreen):
         return status.text if status is not None and status.text else NEEDS_POSITION
 
     def update_timeline(self, now_prediction: PredictionSample | None, pending: str) -> None:
-        basis = now_prediction.release_time if now_prediction else None
-        if basis is not None and basis != self.window_basis and not self.window_running:
-            origin = self.context.prediction_origin(self.capsule)
-            if origin is not None and self.context.setup.predictions is not None:
-                self.window_basis, self.window_running = basis, True
-                self.sweep(origin)
         age = (
             "computing"
             if self.window is None
@@ -145,23 +144,6 @@ class PredictionScreen(ConsoleScreen):
         timeline = render_timeline(self.window, cursor, age, missing=missing)
         self.query_one("#release-timeline", Static).update(timeline)
 
-    @work(thread=True, exit_on_error=False, group="release-window")
-    def sweep(self, origin: ReleaseOrigin) -> None:
-        ops = self.context.ops
-        zones_file = ops.config.console.exclusion_zones_file if ops else None
-        window = self.window
-        try:
-            sweep = self.context.setup.predictions.release_window(origin, zones_file, capsule=self.capsule)
-            window = ReleaseWindow.from_sweep(sweep)
-        except PredictorError as exc:
-            self.app.post_message(OperatorNotice(f"release window failed: {exc}", "warning"))
-        finally:
-            self.app.call_from_thread(self.show_window, window)
-
-    def show_window(self, window: ReleaseWindow | None) -> None:
-        self.window, self.window_running = window, False
-        self.refresh_view()
-
     def action_cursor(self, step: int) -> None:
         if self.window is None or not self.window.candidates:
             return
@@ -171,17 +153,15 @@ class PredictionScreen(ConsoleScreen):
 
     def action_lead(self, step: int) -> None:
         self.lead_min = max(5, min(120, self.lead_min + step))
-        origin = self.context.prediction_origin(self.capsule)
-        if origin is not None and self.context.setup.predictions is not None:
-            self.predict_lead(origin)
+        origin, service = self.context.prediction_origin(self.capsule), self.context.setup.predictions
+        if origin is not None and service is not None:
+            self.predict_lead(service, origin)
         self.refresh_view()
 
     @work(thread=True, exit_on_error=False, group="predictions")
-    def predict_lead(self, origin: ReleaseOrigin) -> None:
+    def predict_lead(self, service: PredictionService, origin: ReleaseOrigin) -> None:
         try:
-            records = self.context.setup.predictions.predict(
-                self.capsule, origin, release_in=(self.lead_min,)
-            )
+            records = service.predict(self.capsule, origin, release_in=(self.lead_min,))
         except PredictorError as exc:
             self.app.post_message(OperatorNotice(f"prediction failed: {exc}", "warning"))
             return

@@ -129,7 +129,7 @@ class RecoveryScreen(CommandingScreen):
     def settings_lines(self) -> list[Text]:
         """Setting and value in bold: what a team in the field looks for first (is the sounder ON?)."""
         if self.settings is None:
-            state = "reading" if self.context.ops else "not known in replay"
+            state = "reading" if self.context.commanding else "not known in replay"
             return [Text(f"Sounder, interval, parachute: {state}")]
         lines = []
         for status in self.settings.statuses():
@@ -204,10 +204,10 @@ class RecoveryScreen(CommandingScreen):
         prediction = self.context.fleet.capsules[self.capsule].reading(PredictionSample).value
         descending = self.live if self.descent.descending else None
         outline = descending.outline_2sigma if descending else prediction.outline_2sigma if prediction else ()
-        self.query_one("#recovery-map", LandingMap).layers = MapLayers(
+        self.query_one("#recovery-map", LandingMap).map_layers = MapLayers(
             path=[(p.lon, p.lat) for p in self.track],
             ahead=list(descending.path) if descending else (),
-            ellipse=[tuple(p) for p in outline],
+            ellipse=list(outline),
             landing=self.map_landing(),
             team=(team[1], team[0]) if team else None,
             scatter=[(p.lon, p.lat) for p in self.track[-10:]] if self.landing else [],

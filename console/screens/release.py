@@ -7,6 +7,7 @@ arming controller re-checks everything when the worker calls ``fire``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from rich.text import Text
@@ -24,9 +25,9 @@ from console.widgets import fill_rows, set_content
 from drs_link.errors import LinkError
 from drs_link.ops import (
     WAIVABLE,
+    Approval,
     ArmState,
     GoNoGoReport,
-    Operations,
     SecondOperator,
     StepKind,
     StepState,
@@ -128,10 +129,6 @@ class ReleaseScreen(ConsoleScreen):
         checklist.focus()
         self.refresh_view()
 
-    @property
-    def ops(self) -> Operations | None:
-        return self.context.ops
-
     # Rendering --------------------------------------------------------------------------------
 
     def update_view(self) -> None:
@@ -178,7 +175,7 @@ class ReleaseScreen(ConsoleScreen):
         arm = self.arm_text(report.go) + (f"\n{approval}" if approval else "")
         set_content(self.query_one("#arm-status", Static), arm)
         self.show_waive_hint()
-        keys = tuple(self.check_action(b.action, ()) for b in self.BINDINGS)
+        keys = tuple(self.check_action(b.action, ()) for b in self.BINDINGS if isinstance(b, Binding))
         if keys != self.binding_states:  # the footer recomposes on each call: only when a key comes or goes
             self.binding_states = keys
             self.refresh_bindings()
@@ -259,18 +256,16 @@ class ReleaseScreen(ConsoleScreen):
 
     def approval_text(self) -> str:
         """A request this login made that waits for another login: a live line with its own countdown."""
-        if not self.context.commanding or self.ops is None:
-            return ""
         now = self.context.now()
         return " ".join(
             f"⧗ approval #{r.id} ({r.summary}) waits for another login: drs approve {r.id} — "
             f"{max(0.0, (r.expires_utc - now).total_seconds()):.0f} s left · c cancels"
-            for r in self.ops.waiting_approvals(self.capsule)
+            for r in self.context.waiting_approvals(self.capsule)
         )
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action == "cancel_approval":
-            return bool(self.context.commanding and self.ops and self.ops.waiting_approvals(self.capsule))
+            return bool(self.context.waiting_approvals(self.capsule))
         commanding = ("power_on", "sync", "waive", "arm", "disarm", "fire", "tick", "skip", "reset")
         if action in commanding and not self.context.commanding:
             return None
@@ -304,16 +299,22 @@ class ReleaseScreen(ConsoleScreen):
     def _refused(self, exc: Exception) -> None:
         self.app.notify(str(exc), severity="error", timeout=10)
 
+    def _write(self, write: Callable[[], object]) -> None:
+        """A key's store write off the UI thread (``write_off_ui``); the screen shows what it left."""
+
+        def refused(exc: LinkError) -> None:
+            self._refused(exc)
+            self.refresh_view()
+
+        self.write_off_ui(write, lambda _: self.refresh_view(), refused)
+
     def action_tick(self) -> None:
         step = self._selected_step()
         if step is None:
             return
         run = self.context.checklist_run(self.capsule, self.context.checklists[self.checklist_index])
-        try:
-            run.tick(step, self.context.operator)
-        except LinkError as exc:
-            self._refused(exc)
-        self.refresh_view()
+        operator = self.context.operator
+        self._write(lambda: run.tick(step, operator))
 
     def action_skip(self) -> None:
         step = self._selected_step()
@@ -324,11 +325,8 @@ class ReleaseScreen(ConsoleScreen):
             if reason is None:
                 return
             run = self.context.checklist_run(self.capsule, self.context.checklists[self.checklist_index])
-            try:
-                run.skip(step, self.context.operator, reason)
-            except LinkError as exc:
-                self._refused(exc)
-            self.refresh_view()
+            operator = self.context.operator
+            self._write(lambda: run.skip(step, operator, reason))
 
         self.app.push_screen(TextPromptModal("Skip step", f"Why skip {step}? (logged)"), done)
 
@@ -341,9 +339,8 @@ class ReleaseScreen(ConsoleScreen):
 
     @work(thread=True, exit_on_error=False, group="release")
     def power_on_worker(self) -> None:
-        assert self.ops is not None
         try:
-            records = self.ops.power_on(self.capsule)
+            records = self.context.operations().power_on(self.capsule)
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return
@@ -352,11 +349,11 @@ class ReleaseScreen(ConsoleScreen):
 
     @work(thread=True, exit_on_error=False, group="release")
     def action_sync(self) -> None:
-        assert self.ops is not None
         try:
+            ops = self.context.operations()
             self.app.post_message(OperatorNotice(f"{self.capsule}: syncing data…"))
-            self.ops.sync(self.capsule)
-            self.app.post_message(TelemetryArrived(self.ops.poll(self.capsule)))
+            ops.sync(self.capsule)
+            self.app.post_message(TelemetryArrived(ops.poll(self.capsule)))
             self.app.post_message(OperatorNotice(f"{self.capsule}: sync finished and verified"))
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
@@ -394,16 +391,8 @@ class ReleaseScreen(ConsoleScreen):
         def done(reason: str | None) -> None:
             if reason is None:
                 return
-            waivers = self.ops.ops(self.capsule).waivers  # type: ignore[union-attr]
-            operator = self.context.operator
-
-            def refused(exc: LinkError) -> None:
-                self._refused(exc)
-                self.refresh_view()
-
-            self.write_off_ui(
-                lambda: waivers.grant(item, operator, reason), lambda _: self.refresh_view(), refused
-            )
+            context, capsule = self.context, self.capsule
+            self._write(lambda: context.operations().waive(capsule, item, reason))
 
         self.app.push_screen(
             TextPromptModal(
@@ -413,7 +402,6 @@ class ReleaseScreen(ConsoleScreen):
         )
 
     def action_arm(self) -> None:
-        assert self.ops is not None
         status = self.context.arming(self.capsule).status()
         if status.armed and status.mine:  # `a` again once silently restarted the window: ask first
             body = f"{self.capsule} is ARMED, {status.remaining_s:.0f} s left. ARM again starts a new window."
@@ -423,30 +411,26 @@ class ReleaseScreen(ConsoleScreen):
         self._arm()
 
     def _arm(self) -> None:
-        try:
-            self.context.arming(self.capsule).arm(self.context.gonogo(self.capsule))
-        except LinkError as exc:
-            self._refused(exc)
-        self.refresh_view()
+        """The poll is taken here, on the UI thread, as the screen shows it; the ARM is a store write."""
+        context, capsule, report = self.context, self.capsule, self.context.gonogo(self.capsule)
+        self._write(lambda: context.arming(capsule).arm(report))
 
     def action_disarm(self) -> None:
-        self.context.arming(self.capsule).disarm("operator disarmed", any_holder=True)
-        self.refresh_view()
+        context, capsule = self.context, self.capsule
+        self._write(lambda: context.arming(capsule).disarm("operator disarmed", any_holder=True))
 
     def action_cancel_approval(self) -> None:
-        assert self.ops is not None
-        try:
-            cancelled = self.ops.cancel_approvals(self.capsule)
-        except LinkError as exc:
-            self._refused(exc)
-            return
-        for request in cancelled:
-            self.app.notify(f"{self.capsule}: approval #{request.id} cancelled: nothing will be sent on it")
-        self.refresh_view()
+        context, capsule = self.context, self.capsule
+
+        def shown(cancelled: list[Approval]) -> None:
+            for request in cancelled:
+                self.app.notify(f"{capsule}: approval #{request.id} cancelled: nothing will be sent on it")
+            self.refresh_view()
+
+        self.write_off_ui(lambda: context.operations().cancel_approvals(capsule), shown, self._refused)
 
     def action_fire(self) -> None:
-        assert self.ops is not None
-        second = self.ops.config.console.require_second_operator
+        second = self.context.require_second_operator
 
         def confirmed(answer: HazardConfirmation | None) -> None:
             if answer is not None:
@@ -480,9 +464,8 @@ class ReleaseScreen(ConsoleScreen):
 
     @work(thread=True, exit_on_error=False, group="release")
     def reset_worker(self, typed_name: str) -> None:
-        assert self.ops is not None
         try:
-            records = self.ops.reset(self.capsule, typed_name)
+            records = self.context.operations().reset(self.capsule, typed_name)
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return
@@ -491,7 +474,6 @@ class ReleaseScreen(ConsoleScreen):
 
     @work(thread=True, exit_on_error=False, group="release")
     def fire_worker(self, answer: HazardConfirmation) -> None:
-        assert self.ops is not None
         second = SecondOperator(
             answer.second_operator or None, answer.single_operator_waiver or None, answer.await_approval,
             lambda request: self.context.warn(f"{self.capsule}: {pending_text(request)}"),
@@ -501,7 +483,7 @@ class ReleaseScreen(ConsoleScreen):
             def poll() -> GoNoGoReport:
                 return self.app.call_from_thread(self.context.gonogo, self.capsule)
 
-            records = self.ops.fire(self.capsule, answer.typed_name, poll, second)
+            records = self.context.operations().fire(self.capsule, answer.typed_name, poll, second)
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return

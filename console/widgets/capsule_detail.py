@@ -16,7 +16,7 @@ from drs_link.ops import CapsuleTelemetry
 
 
 class CapsuleDetail(LineQuietStatic):
-    COMPONENT_CLASSES = LEVEL_CLASSES | {"capsule-detail--label"}
+    COMPONENT_CLASSES = set(LEVEL_CLASSES) | {"capsule-detail--label"}
 
     def show(self, telemetry: CapsuleTelemetry, now: datetime) -> None:
         """A label column and a wrapping value column, so a long line wraps under its value."""

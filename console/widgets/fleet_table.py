@@ -38,7 +38,7 @@ def fitting_fields(available: int, name_width: int, cell_padding: int) -> tuple[
 class FleetTable(DataTable[Text | str]):
     """Rows keyed by capsule name and columns by telemetry kind, so cells are addressed by meaning."""
 
-    COMPONENT_CLASSES = LEVEL_CLASSES
+    COMPONENT_CLASSES = set(LEVEL_CLASSES)
 
     def __init__(self, capsules: Sequence[str], *, id: str | None = None) -> None:
         super().__init__(id=id, cursor_type="row", zebra_stripes=True)

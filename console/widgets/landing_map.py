@@ -255,9 +255,9 @@ def render_map(layers: MapLayers, width: int, height: int) -> Text:
 class LandingMap(Widget):
     """The map as a widget that redraws at its own size, so a resize never shows a map drawn for another."""
 
-    layers: reactive[MapLayers] = reactive(MapLayers)
+    map_layers: reactive[MapLayers] = reactive(MapLayers)
     """Redrawn when the layers change (or the size), not on every assignment: the screens assign
     them on every refresh, and an unchanged map repainted was half the recovery screen's output."""
 
     def render(self) -> Text:
-        return render_map(self.layers, self.size.width, self.size.height)
+        return render_map(self.map_layers, self.size.width, self.size.height)

@@ -20,7 +20,7 @@ from textual.coordinate import Coordinate
 from textual.geometry import Region
 from textual.widget import Widget
 from textual.widgets import DataTable, Label, Static
-from textual.widgets.data_table import ColumnKey
+from textual.widgets.data_table import ColumnKey, RowKey
 
 _SHOWN = "_quiet_shown"
 
@@ -86,14 +86,15 @@ def set_cell(table: DataTable, row_key: str, column_key: ColumnKey | str, value:
     second that was most of the fleet screen's output. The table's caches are keyed by its update
     count, which this bumps as ``update_cell`` does (textual is pinned in pyproject.toml).
     """
-    row = table.rows[row_key] if row_key in table.rows else None
+    row = table.rows.get(RowKey(row_key))
     if row is None:
         table.update_cell(row_key, column_key, value)
         return
     current = table.get_cell(row_key, column_key)
     if _key(current) == _key(value):
         return
-    table._data[row.key][table.columns[column_key].key] = value  # noqa: SLF001 - see the docstring
+    column = table.columns[ColumnKey(column_key) if isinstance(column_key, str) else column_key]
+    table._data[row.key][column.key] = value  # noqa: SLF001 - see the docstring
     table._update_count += 1  # noqa: SLF001
     row_index = table.get_row_index(row_key)
     column_index = table.get_column_index(column_key)

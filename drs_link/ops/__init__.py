@@ -6,9 +6,9 @@ second operator and ``identity`` which login is another person; ``authorize`` th
 ``override`` what stays on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and
 ``origin`` what is known of each capsule and how old it is; ``recovery`` where a dropped capsule is
 and is going, ``views`` what the per-capsule screens show, from the store or a replay; ``release_window``
-the sweep; ``session`` a console that ends without quitting; ``operations`` the console's engine
-without a screen; and ``face_types`` the values below it that the faces show and compose, so that
-they import this door alone.
+the sweep; ``audit_log`` the audit as History reads it; ``session`` a console that ends without quitting;
+``operations`` the console's engine without a screen; and ``face_types`` the values below it that the
+faces show and compose, so that they import this door alone.
 """
 
 from typing import TYPE_CHECKING
@@ -32,6 +32,7 @@ if TYPE_CHECKING:
         ArmState as ArmState,
         ArmStatus as ArmStatus,
     )
+    from .audit_log import AuditLog as AuditLog
     from .authorize import (
         authorize_mt as authorize_mt,
         carries_parachute as carries_parachute,
@@ -89,8 +90,10 @@ if TYPE_CHECKING:
     from .gonogo import (
         WAIVABLE as WAIVABLE,
         WAIVER_REASON_MAX as WAIVER_REASON_MAX,
+        ExclusionZone as ExclusionZone,
         GoNoGoReport as GoNoGoReport,
         Verdict as Verdict,
+        Waiver as Waiver,
         evaluate as evaluate,
     )
     from .operations import (
@@ -197,6 +200,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "ArmStatus": "arming",
         "ArmWindow": "arm_window",
         "ArmingController": "arming",
+        "AuditLog": "audit_log",
         "BalloonSample": "telemetry",
         "CapsuleTelemetry": "fleet",
         "Checklist": "checklist",
@@ -204,6 +208,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Contour": "telemetry",
         "Descent": "recovery",
         "DropView": "recovery",
+        "ExclusionZone": "gonogo",
         "FleetState": "fleet",
         "Freshness": "staleness",
         "IridiumHealthView": "views",
@@ -245,6 +250,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Verdict": "gonogo",
         "ViewSource": "views",
         "WAIVABLE": "gonogo",
+        "Waiver": "gonogo",
         "WAIVER_REASON_MAX": "gonogo",
         "approved": "approval",
         "authorize_mt": "authorize",

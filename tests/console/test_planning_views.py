@@ -104,7 +104,7 @@ async def test_the_recovery_view_re_predicts_a_descending_capsule_from_its_repor
         assert "Live re-prediction from the" in text
         assert f"{live.landing_lat:.4f}, {live.landing_lon:.4f} at {live.landing_time:%H:%M:%S}Z" in text
         assert "measured rate factor" in text and "correction:" in text
-        layers = screen.query_one("#recovery-map", LandingMap).layers
+        layers = screen.query_one("#recovery-map", LandingMap).map_layers
         assert layers.ahead == list(live.path) and layers.ahead[0] != layers.ahead[-1]
         assert layers.ellipse == list(live.outline_2sigma), "the live ring, not the release one"
         assert "⠿ predicted" in str(screen.query_one("#recovery-map").render())

@@ -11,6 +11,7 @@ from console.app import DrsConsole
 from console.screens.fleet import FleetScreen
 from console.screens.modals import ConfirmModal
 from drs_link.ops.arming import ArmState
+from tests.console.conftest import wait_for
 
 pytestmark = pytest.mark.asyncio
 
@@ -27,8 +28,8 @@ async def test_q_asks_before_quitting_and_escape_keeps_the_console_running(
         await pilot.press("q", "escape")
         assert app.is_running and isinstance(app.screen, FleetScreen)
         await pilot.press("q", "tab", "enter")
-        await pilot.pause()
-        assert app.return_value == 0 and not app.is_running
+        await wait_for(pilot, lambda: not app.is_running)
+        assert app.return_value == 0
 
 
 async def test_quitting_while_armed_says_so_and_disarms_on_the_record(
@@ -38,12 +39,12 @@ async def test_quitting_while_armed_says_so_and_disarms_on_the_record(
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("enter", "a")
         arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
-        assert arming.status().armed
+        await wait_for(pilot, lambda: arming.status().armed)  # the ARM is written off the UI thread
         await pilot.press("q")
         body = str(app.screen.query_one(".dialog-body").render())
         assert "ARMED, will be disarmed: DRS1." in body and "Powered on and waiting for Go: DRS1." in body
         await pilot.press("tab", "enter")
-        await pilot.pause()
+        await wait_for(pilot, lambda: not app.is_running)  # it ends once the disarm is on the record
         assert arming.status().state is ArmState.DISARMED
         assert ("disarm", "console closed") in [(a.action, a.result) for a in app.store.audit("DRS1")]
 

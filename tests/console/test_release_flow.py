@@ -62,7 +62,7 @@ async def test_a_complete_release_by_keys_sends_go_to_the_simulated_capsule(
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await open_release_go(pilot, app)
         arming = polls_never_disarm(app, monkeypatch)
-        await pilot.press("a")
+        await arm(pilot, app)
         assert arming.status().armed and screen.check_action("fire", ()) is True
         await pilot.press("f")
         assert isinstance(app.screen, HazardModal)
@@ -76,6 +76,12 @@ async def test_a_complete_release_by_keys_sends_go_to_the_simulated_capsule(
             assert screen.check_action(action, ()) is False, f"{action} after release: not in the footer"
         assert screen.check_action("reset", ()) is True
         await wait_for(pilot, lambda: app.gonogo("DRS1").summary().startswith("NO-GO: Released: released "))
+
+
+async def arm(pilot: Pilot[int], app: DrsConsole) -> None:
+    """``a``: the ARM is a store write off the UI thread; FIRE is offered once it is on the record."""
+    await pilot.press("a")
+    await wait_for(pilot, lambda: app.context.arming("DRS1").status().armed)
 
 
 def polls_never_disarm(app: DrsConsole, monkeypatch: pytest.MonkeyPatch) -> ArmingController:
@@ -98,7 +104,8 @@ async def test_a_wrong_capsule_name_is_refused_and_nothing_is_sent(
     async with app.run_test(size=(120, 40)) as pilot:
         await open_release_go(pilot, app)
         polls_never_disarm(app, monkeypatch)
-        await pilot.press("a", "f", *"DRS2", "enter", "enter", *"alone", "enter")
+        await arm(pilot, app)
+        await pilot.press("f", *"DRS2", "enter", "enter", *"alone", "enter")
         await wait_for(pilot, lambda: any(a.action == "fire" for a in app.store.audit("DRS1")))
         await pilot.pause(0.5)
         assert world.sims[0].firmware.go_at is None
@@ -109,7 +116,7 @@ async def test_link_loss_disarms(demo: tuple[DemoWorld, DrsConsole]) -> None:
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
         await open_release_go(pilot, app)
-        await pilot.press("a")
+        await arm(pilot, app)
         arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
         assert arming.status().armed
         app.post_message(TelemetryArrived([TelemetryRecord(app.now(), "DRS1", LinkSample(up=False))]))
@@ -127,6 +134,7 @@ async def test_stale_data_blocks_arm(canned_app: Callable[..., DrsConsole]) -> N
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("enter", "a")
         assert app.ops is not None
+        await wait_for(pilot, lambda: app.store.audit("DRS1", action="arm") != [])  # written off the UI thread
         status = app.ops.ops("DRS1").arming.status()
         assert status.state is ArmState.DISARMED
         refusal = app.store.audit("DRS1")[-1]
@@ -158,7 +166,7 @@ async def test_time_runs_behind_the_fire_dialog_and_fire_after_the_arm_window_is
     async with app.run_test(size=(80, 24)) as pilot:
         screen = await open_release_go(pilot, app)
         arming = polls_never_disarm(app, monkeypatch)
-        await pilot.press("a")
+        await arm(pilot, app)
         assert arming.status().armed
         await pilot.press("f")
         modal = app.screen
@@ -184,7 +192,8 @@ async def test_fire_waits_for_another_login_to_approve_then_releases(
     async with app.run_test(size=(120, 40)) as pilot:
         await open_release_go(pilot, app)
         arming = polls_never_disarm(app, monkeypatch)
-        await pilot.press("a", "f", *"DRS1")
+        await arm(pilot, app)
+        await pilot.press("f", *"DRS1")
         await pilot.click("#approval")
         book = ApprovalBook(app.store)
         await wait_for(pilot, lambda: bool(book.open_requests("DRS1")))
@@ -210,7 +219,8 @@ async def test_a_waiting_approval_is_a_live_line_with_its_countdown_and_c_cancel
         screen = await open_release_go(pilot, app)
         polls_never_disarm(app, monkeypatch)
         assert screen.check_action("cancel_approval", ()) is False, "nothing waits: no cancel key"
-        await pilot.press("a", "f", *"DRS1")
+        await arm(pilot, app)
+        await pilot.press("f", *"DRS1")
         await pilot.click("#approval")
         book = ApprovalBook(app.store)
         await wait_for(pilot, lambda: bool(book.open_requests("DRS1")))

@@ -16,8 +16,11 @@ import pytest
 from textual.widgets import DataTable
 
 from console.app import ConsoleSetup, DrsConsole
+from console.context import REPLAY_REFUSAL, ReplayContext
 from console.screens.iridium import IridiumScreen
 from console.screens.recovery import RecoveryScreen
+from console.screens.release import ReleaseScreen
+from drs_link.errors import LinkError
 from drs_link.ops import ReportSample, TelemetryRecord
 from drs_link.store import Store
 from tests.console.conftest import T0, offline_config, seed_reports, wait_for
@@ -87,3 +90,25 @@ async def test_the_recovery_screen_shows_what_another_console_stored_when_the_st
         app.watch_store()
         await wait_for(pilot, lambda: recovery.landing is not None)
         assert "Landed " in str(recovery.query_one("#recovery-text").render()) and len(recovery.track) == 8
+
+
+async def test_a_replay_has_no_commanding_side_it_refuses_in_one_sentence_and_dims_keys(tmp_path: Path) -> None:
+    """Replay was ``operations=None`` with asserts behind it; now its context has no commanding side."""
+    store = Store.open(tmp_path / "drs.sqlite")
+    setup = ConsoleSetup(mode="replay", capsules=["DRS1"], store=store, clock=lambda: T0)
+    app = DrsConsole(setup, live_timers=False)
+    context = app.context
+    assert isinstance(context, ReplayContext) and not context.commanding
+    for call in (context.operations, lambda: context.arming("DRS1")):
+        with pytest.raises(LinkError, match=f"^{REPLAY_REFUSAL}$"):
+            call()
+    assert context.waiting_approvals("DRS1") == [] and context.parachute_overrides() == []
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("enter")
+        release = app.screen
+        assert isinstance(release, ReleaseScreen)
+        keys = ("arm", "fire", "power_on", "tick", "waive", "disarm", "cancel_approval")
+        assert [key for key in keys if release.check_action(key, ())] == []
+        await pilot.press("a", "o", "space")  # dimmed keys: nothing happens, nothing is written
+        await pilot.pause()
+        assert app.store.audit() == [] and app.is_running

@@ -22,7 +22,7 @@ from drs_link.ops.operations import Operations
 from drs_link.ops.session import LOST, record_loss
 from drs_link.store import Store
 from tests.console.conftest import offline_config, wait_for
-from tests.console.test_release_flow import open_release_go, polls_never_disarm
+from tests.console.test_release_flow import arm, open_release_go, polls_never_disarm
 
 pytestmark = pytest.mark.asyncio
 
@@ -34,7 +34,7 @@ async def test_sighup_while_armed_disarms_on_the_record_and_ends_the_console(
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("enter", "a")
         arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
-        assert arming.status().armed
+        await wait_for(pilot, lambda: arming.status().armed)  # the ARM is written off the UI thread
         app.session_lost(signal.SIGHUP)
         await wait_for(pilot, lambda: not app.is_running)
     assert app.return_value == 128 + signal.SIGHUP
@@ -119,7 +119,8 @@ async def test_sighup_during_a_real_go_lets_it_finish_and_records_it_once(
         await open_release_go(pilot, app)
         arming = polls_never_disarm(app, monkeypatch)
         world.sims[0].faults.answer_delay_s = 3.0  # the Pi has acted; the console hears it 3 s later
-        await pilot.press("a", "f", *"DRS1", "enter", "enter", *"alone", "enter")
+        await arm(pilot, app)
+        await pilot.press("f", *"DRS1", "enter", "enter", *"alone", "enter")
         await wait_for(pilot, lambda: arming.status().state is ArmState.FIRING)
         app.session_lost(signal.SIGHUP)
         await pilot.pause(0.5)
