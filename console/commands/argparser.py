@@ -217,7 +217,9 @@ class UtcTime:
             ) from None
         if moment.tzinfo is None:
             suggestion = moment.isoformat() + "Z"  # valid even when only a date was typed
-            raise UsageError(f"{self.option} {text!r} has no time zone; give UTC explicitly, e.g. {suggestion}")
+            raise UsageError(
+                f"{self.option} {text!r} has no time zone; give UTC explicitly, e.g. {suggestion}"
+            )
         return moment.astimezone(UTC)
 
 

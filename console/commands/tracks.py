@@ -194,4 +194,3 @@ def _line_list(lines: tuple[int, ...]) -> str:
         if line is not None:
             start = prev = line
     return ", ".join(runs)
-

@@ -48,7 +48,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     fetch.add_argument(
-        "--time", type=UtcTime("--time"), required=True, help="ISO 8601 release time, e.g. 2024-05-01T06:30Z, or 'now'"
+        "--time",
+        type=UtcTime("--time"),
+        required=True,
+        help="ISO 8601 release time, e.g. 2024-05-01T06:30Z, or 'now'",
     )
     fetch.add_argument("--lat", type=latitude, required=True, help="latitude of the release point, degrees")
     fetch.add_argument(

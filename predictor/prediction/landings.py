@@ -321,7 +321,11 @@ def _release_state(
 ) -> tuple[float, float, float, Point | None]:
     """(lat, lon, epoch seconds) of the release, after the balloon's drift at float altitude."""
     time, lat, lon, alt_m, drift_minutes = (
-        release.time, release.lat, release.lon, release.alt_m, release.drift_minutes
+        release.time,
+        release.lat,
+        release.lon,
+        release.alt_m,
+        release.drift_minutes,
     )
     t0 = _epoch(time)
     if drift_minutes <= 0.0:

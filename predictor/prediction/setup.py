@@ -43,7 +43,6 @@ class FlightSetup:
     """A whole chain instead of the payload's (a closed-form law in a test); the payload is then only
     reported."""
 
-
     def chain(self) -> Model:
         """The model chain flown: ``model``, else the payload's drag law, the wind and ``effects``."""
         return self.model or Model.for_payload(self.payload, *self.effects)

@@ -134,7 +134,9 @@ async def test_stale_data_blocks_arm(canned_app: Callable[..., DrsConsole]) -> N
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("enter", "a")
         assert app.ops is not None
-        await wait_for(pilot, lambda: app.store.audit("DRS1", action="arm") != [])  # written off the UI thread
+        await wait_for(
+            pilot, lambda: app.store.audit("DRS1", action="arm") != []
+        )  # written off the UI thread
         status = app.ops.ops("DRS1").arming.status()
         assert status.state is ArmState.DISARMED
         refusal = app.store.audit("DRS1")[-1]

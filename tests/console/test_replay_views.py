@@ -92,7 +92,9 @@ async def test_the_recovery_screen_shows_what_another_console_stored_when_the_st
         assert "Landed " in str(recovery.query_one("#recovery-text").render()) and len(recovery.track) == 8
 
 
-async def test_a_replay_has_no_commanding_side_it_refuses_in_one_sentence_and_dims_keys(tmp_path: Path) -> None:
+async def test_a_replay_has_no_commanding_side_it_refuses_in_one_sentence_and_dims_keys(
+    tmp_path: Path,
+) -> None:
     """Replay was ``operations=None`` with asserts behind it; now its context has no commanding side."""
     store = Store.open(tmp_path / "drs.sqlite")
     setup = ConsoleSetup(mode="replay", capsules=["DRS1"], store=store, clock=lambda: T0)

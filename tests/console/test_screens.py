@@ -138,7 +138,9 @@ async def test_a_manual_tick_is_recorded_with_the_operator(canned_app: Callable[
     app = canned_app()
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("enter", "space")
-        await wait_for(pilot, lambda: app.store.audit("DRS1", action="checklist.done") != [])  # off the UI thread
+        await wait_for(
+            pilot, lambda: app.store.audit("DRS1", action="checklist.done") != []
+        )  # off the UI thread
         ticked = app.store.audit("DRS1")[-1]
         assert (ticked.operator, ticked.action, ticked.result) == (
             "EL",

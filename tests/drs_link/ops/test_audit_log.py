@@ -36,11 +36,17 @@ def test_the_export_holds_every_matching_entry_oldest_first_with_its_detail(tmp_
     path = tmp_path / "exports" / "audit.jsonl"
     assert log.export(path) == 3
     rows = [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines()]
-    assert [(r["capsule"], r["action"]) for r in rows] == [("DRS1", "power-on"), ("DRS1", "waiver"), ("DRS2", "arm")]
+    assert [(r["capsule"], r["action"]) for r in rows] == [
+        ("DRS1", "power-on"),
+        ("DRS1", "waiver"),
+        ("DRS2", "arm"),
+    ]
     assert rows[1]["detail"] == {"item": "gnss", "reason": "no fix, dropping anyway"}
     assert rows[0]["time_utc"].startswith("2026-06-20T12:00:00")
     assert log.export(path, "dropping") == 1
-    assert [json.loads(line)["action"] for line in path.read_text(encoding="utf-8").splitlines()] == ["waiver"]
+    assert [json.loads(line)["action"] for line in path.read_text(encoding="utf-8").splitlines()] == [
+        "waiver"
+    ]
 
 
 def test_an_entry_of_another_console_names_it_and_one_of_this_console_does_not(tmp_path: Path) -> None:

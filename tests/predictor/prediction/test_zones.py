@@ -156,10 +156,14 @@ def test_a_bow_tie_part_of_a_multipolygon_is_its_two_triangles(tmp_path: Path) -
     """A self-crossing part is made valid as two triangles (it once stopped the file with a ValueError)."""
     bow_tie = [[[0, 0], [1, 1], [1, 0], [0, 1], [0, 0]]]
     square = [[[5, 5], [6, 5], [6, 6], [5, 6], [5, 5]]]
-    path = write_geojson(tmp_path / "bow.geojson", [{"type": "MultiPolygon", "coordinates": [bow_tie, square]}])
+    path = write_geojson(
+        tmp_path / "bow.geojson", [{"type": "MultiPolygon", "coordinates": [bow_tie, square]}]
+    )
     (zone,) = load_zones(path)
     assert zone.geometry.area == pytest.approx(0.5 + 1.0)
-    assert zone.geometry.contains(shapely.Point(0.2, 0.5)) and not zone.geometry.contains(shapely.Point(0.5, 0.2))
+    assert zone.geometry.contains(shapely.Point(0.2, 0.5)) and not zone.geometry.contains(
+        shapely.Point(0.5, 0.2)
+    )
 
 
 def test_expected_distance_to_a_road_matches_monte_carlo(tmp_path: Path) -> None:
