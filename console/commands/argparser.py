@@ -290,3 +290,23 @@ def text_or_stdin(option: str) -> Callable[[str], str]:
             raise argparse.ArgumentTypeError("standard input is not UTF-8 text") from None
 
     return check
+
+
+def add_two_person_options(parser: argparse.ArgumentParser, when: str, waiting_for: str) -> None:
+    """The two-person rule's three ways through, the same on every hazardous command (Go, authority
+    take-over, a PARACHUTE MT): a second person from ``[console] crew``, a logged waiver, or another
+    login's approval. ``when`` says which use of the command they are for ("" when it is every use)."""
+    prefix = f"{when}: " if when else ""
+    parser.add_argument(
+        "--second-operator",
+        metavar="NAME",
+        help=f"{prefix}a second person from [console] crew, not the operator",
+    )
+    parser.add_argument(
+        "--single-operator-waiver", metavar="REASON", help=f"{prefix}why one person does it alone (logged)"
+    )
+    parser.add_argument(
+        "--await-approval",
+        action="store_true",
+        help=f"{prefix}wait until another login approves it (drs approve ID){waiting_for}",
+    )

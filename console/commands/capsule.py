@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from console.commands.argparser import add_two_person_options
 from drs_link.config import load_config
 from drs_link.errors import ConfigError, RefusedError
 from predictor.errors import UsageError
@@ -71,16 +72,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     go.add_argument("name")
     go.add_argument("--confirm", metavar="NAME", required=True, help="repeat the capsule's name to confirm")
     _poll_options(go)
-    go.add_argument(
-        "--second-operator", metavar="NAME", help="a second person from [console] crew (rule off)"
-    )
-    go.add_argument(
-        "--single-operator-waiver", metavar="REASON", help="why one person fires alone (rule off; logged)"
-    )
-    go.add_argument(
-        "--await-approval", action="store_true",
-        help="wait until another login approves this Go (drs approve ID); the approval ends with the window",
-    )  # fmt: skip
+    add_two_person_options(go, "", "; the approval ends with the ARM window")
     go.set_defaults(func=cmd_go)
 
     reset = actions.add_parser("reset", help="after recovery: allow a new release of this capsule")
@@ -109,16 +101,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     authority.add_argument(
         "--confirm", metavar="NAME", help="with --take-over: the capsule's name, instead of typing it"
     )
-    authority.add_argument(
-        "--await-approval", action="store_true",
-        help="with --take-over: wait until another login approves it (drs approve ID)",
-    )  # fmt: skip
-    authority.add_argument(
-        "--second-operator", metavar="NAME", help="with --take-over: a crew member (rule off)"
-    )
-    authority.add_argument(
-        "--single-operator-waiver", metavar="REASON", help="with --take-over: why alone (rule off; logged)"
-    )
+    add_two_person_options(authority, "with --take-over", "")
     authority.set_defaults(func=cmd_authority)
 
     enrol = actions.add_parser("enrol", help="show the Pi's host key fingerprint; save it once compared")

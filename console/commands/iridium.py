@@ -17,7 +17,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from console.commands.argparser import input_file, position_or_gpsd, text_or_stdin
+from console.commands.argparser import add_two_person_options, input_file, position_or_gpsd, text_or_stdin
 from console.commands.stopping import stop_signals
 from drs_link.config import CapsuleConfig, Config, load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
@@ -44,16 +44,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     send.add_argument("--flush", action="store_true", help="empty the gateway's MT queue first (hazardous)")
     send.add_argument("--dry-run", action="store_true", help="print the exact text and hex; send nothing")
     send.add_argument("--confirm", metavar="NAME", help="the capsule's name again: required for a real send")
-    send.add_argument(
-        "--second-operator", metavar="NAME", help="PARACHUTE: a second person, not the operator"
-    )
-    send.add_argument(
-        "--single-operator-waiver", metavar="REASON", help="PARACHUTE: why one person sends it alone (logged)"
-    )
-    send.add_argument(
-        "--await-approval", action="store_true",
-        help="PARACHUTE: wait for another login to approve it (drs approve ID) instead of naming a second operator",
-    )  # fmt: skip
+    add_two_person_options(send, "PARACHUTE", "")
     send.add_argument(
         "--override-landed",
         metavar="REASON",
