@@ -445,7 +445,8 @@ class Store:
         after_id: int = 0,
         action: str | None = None,
     ) -> list[AuditRecord]:
-        """Audit records oldest first, optionally for one capsule, containing ``text``, newer than
+        """Audit records oldest first, optionally for one capsule, containing ``text`` (in the capsule's
+        name, the action, the result, the detail or the operator: History's search box), newer than
         ``after_id``, or of one ``action`` (an exact match: what a screen asks every second must not scan
         every detail)."""
         clauses: list[str] = ["id > ?"]
@@ -458,7 +459,8 @@ class Store:
             params.append(action)
         if text:
             clauses.append(
-                "(action || ' ' || result || ' ' || COALESCE(detail, '') || ' ' || operator) LIKE ?"
+                "(COALESCE(capsule, '') || ' ' || action || ' ' || result || ' ' || COALESCE(detail, '') || ' ' "
+                "|| operator) LIKE ?"
             )
             params.append(f"%{text}%")
         sql = f"SELECT * FROM audit WHERE {' AND '.join(clauses)} ORDER BY id"

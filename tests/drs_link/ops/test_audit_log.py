@@ -29,6 +29,7 @@ def test_newest_first_searched_and_cut_to_the_limit(tmp_path: Path) -> None:
     assert [r.action for r in log.newest(limit=2)] == ["arm", "waiver"]
     assert [r.action for r in log.newest("dropping")] == ["waiver"]
     assert [r.action for r in log.newest("")] == ["arm", "waiver", "power-on"]
+    assert [r.action for r in log.newest("DRS2")] == ["arm"], "a capsule's name finds its entries"
 
 
 def test_the_export_holds_every_matching_entry_oldest_first_with_its_detail(tmp_path: Path) -> None:
