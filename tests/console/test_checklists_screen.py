@@ -60,6 +60,8 @@ async def test_a_step_ticked_by_another_console_shows_without_a_key(
         )
         audit = len(app.store.audit())
         await pilot.press("space", "x", "enter")
+        await app.workers.wait_for_complete()  # a key's write runs in a worker (write_off_ui)
+        await pilot.pause()
         assert app.screen is screen and len(app.store.audit()) == audit, "a key changed a checklist"
         app.context.checklist_run("DRS1", checklist).tick(next_step, "JR")
         app.watch_store()
