@@ -199,12 +199,19 @@ class DrsConsole(App[int]):
         and be recorded by its worker, then end (``drs_link.ops.session``)."""
         arming = {name: self.context.arming(name) for name in self.setup.capsules}
         firing = [name for name, a in arming.items() if a.status().state is ArmState.FIRING]
-        record_loss(self.store, self.operator, sig.name, arming, firing)
-        self.run_worker(self._end_after_go(list(arming.values()), 128 + sig.value), group="session-lost")
+        self.run_worker(self._end_after_go(arming, firing, sig), group="session-lost")
 
-    async def _end_after_go(self, arming: list[ArmingController], code: int) -> None:
+    async def _end_after_go(
+        self, arming: dict[str, ArmingController], firing: list[str], sig: signal.Signals
+    ) -> None:
+        # The loss is on the record before anything else, in a thread: a shared store held by another
+        # console's write must not freeze the event loop that is ending the session.
+        await asyncio.to_thread(record_loss, self.store, self.operator, sig.name, arming, firing)
+        code = 128 + sig.value
         deadline = time.monotonic() + GO_FINISH_S
-        while any(a.status().state is ArmState.FIRING for a in arming) and time.monotonic() < deadline:
+        while (
+            any(a.status().state is ArmState.FIRING for a in arming.values()) and time.monotonic() < deadline
+        ):
             await asyncio.sleep(0.2)
         if not self.is_headless:
             # With the terminal hung up, Textual's shutdown can block for good flushing output nobody
@@ -235,13 +242,32 @@ class DrsConsole(App[int]):
     def tick(self) -> None:
         """Once a second: ages grow, ARM windows run out, first predictions start, the screen shows all."""
         if self.commanding:
-            for name in self.setup.capsules:
-                arming = self.context.arming(name)
-                if arming.status().armed:
-                    arming.observe(self.gonogo(name))
+            polls = {
+                name: self.gonogo(name)
+                for name in self.setup.capsules
+                if self.context.arming(name).status().armed
+            }
+            if polls:
+                self.watch_arming(polls, {})
         if self.setup.predictions is not None:
             self.first_predictions()
         self.refresh_screen()
+
+    def watch_arming(self, polls: dict[str, GoNoGoReport], links_lost: dict[str, bool]) -> None:
+        """Feed the open ARM windows their new polls (a NO-GO or a lost link disarms, on the record) in
+        a worker thread, like every store write: the controllers lock their own state, and FIRE checks
+        the window again at submit, so a disarm a moment later never lets a Go through."""
+
+        def observe() -> None:
+            closed = False
+            for name, poll in polls.items():
+                arming = self.context.arming(name)
+                status = arming.link_lost() if links_lost.get(name) else arming.observe(poll)
+                closed = closed or not status.armed
+            if closed:
+                self.call_from_thread(self.refresh_screen)
+
+        self.run_worker(observe, thread=True, group="arming-watch", exit_on_error=False)
 
     def refresh_screen(self) -> None:
         """Every screen in sight: the top one and, under a dialog, the screens it shows: time must not
@@ -435,17 +461,17 @@ class DrsConsole(App[int]):
             self.fleet.apply(record)
         self.views.observe(message.records)
         if self.commanding:
-            touched = {r.capsule for r in message.records if r.capsule}
-            for name in touched & set(self.setup.capsules):
-                arming = self.context.arming(name)
-                link_down = any(
+            touched = sorted({r.capsule for r in message.records if r.capsule} & set(self.setup.capsules))
+            links_lost = {
+                name: any(
                     r.capsule == name and isinstance(r.data, LinkSample) and not r.data.up
                     for r in message.records
                 )
-                if link_down:
-                    arming.link_lost()
-                else:
-                    arming.observe(self.gonogo(name))
+                for name in touched
+            }
+            armed = [name for name in touched if self.context.arming(name).status().armed]
+            if armed:
+                self.watch_arming({name: self.gonogo(name) for name in armed}, links_lost)
         self.read_views({r.capsule for r in message.records if r.capsule})
         if self.setup.predictions is not None and any(
             isinstance(r.data, BalloonSample | GnssSample) for r in message.records
