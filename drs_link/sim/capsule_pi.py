@@ -10,6 +10,7 @@ clock so a test walks through the 23 s boot and the Go script's 9 s in a fractio
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import select
@@ -777,4 +778,7 @@ def _forward(channel: paramiko.Channel, destination: tuple[str, int]) -> None:
         pass
     finally:
         upstream.close()
-        channel.close()
+        # The client may have dropped the whole connection first: closing a channel on a dead transport
+        # raises EOFError from paramiko's packetizer, and there is nothing left to tell.
+        with contextlib.suppress(EOFError, OSError):
+            channel.close()
