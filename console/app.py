@@ -242,27 +242,24 @@ class DrsConsole(App[int]):
     def tick(self) -> None:
         """Once a second: ages grow, ARM windows run out, first predictions start, the screen shows all."""
         if self.commanding:
-            polls = {
-                name: self.gonogo(name)
-                for name in self.setup.capsules
-                if self.context.arming(name).status().armed
-            }
-            if polls:
-                self.watch_arming(polls, {})
+            self.watch_arming(self.setup.capsules, set())
         if self.setup.predictions is not None:
             self.first_predictions()
         self.refresh_screen()
 
-    def watch_arming(self, polls: dict[str, GoNoGoReport], links_lost: dict[str, bool]) -> None:
-        """Feed the open ARM windows their new polls (a NO-GO or a lost link disarms, on the record) in
-        a worker thread, like every store write: the controllers lock their own state, and FIRE checks
-        the window again at submit, so a disarm a moment later never lets a Go through."""
+    def watch_arming(self, capsules: Iterable[str], links_lost: set[str]) -> None:
+        """Feed the open ARM windows of ``capsules`` their new polls (a NO-GO or a lost link disarms, on
+        the record) in a worker thread, like every store write: the controllers lock their own state,
+        and FIRE checks the window again at submit, so a disarm a moment later never lets a Go through."""
+        polls = {name: self.gonogo(name) for name in capsules if self.context.arming(name).status().armed}
+        if not polls:
+            return
 
         def observe() -> None:
             closed = False
             for name, poll in polls.items():
                 arming = self.context.arming(name)
-                status = arming.link_lost() if links_lost.get(name) else arming.observe(poll)
+                status = arming.link_lost() if name in links_lost else arming.observe(poll)
                 closed = closed or not status.armed
             if closed:
                 self.call_from_thread(self.refresh_screen)
@@ -463,15 +460,11 @@ class DrsConsole(App[int]):
         if self.commanding:
             touched = sorted({r.capsule for r in message.records if r.capsule} & set(self.setup.capsules))
             links_lost = {
-                name: any(
-                    r.capsule == name and isinstance(r.data, LinkSample) and not r.data.up
-                    for r in message.records
-                )
-                for name in touched
+                r.capsule
+                for r in message.records
+                if isinstance(r.data, LinkSample) and not r.data.up and r.capsule
             }
-            armed = [name for name in touched if self.context.arming(name).status().armed]
-            if armed:
-                self.watch_arming({name: self.gonogo(name) for name in armed}, links_lost)
+            self.watch_arming(touched, links_lost)
         self.read_views({r.capsule for r in message.records if r.capsule})
         if self.setup.predictions is not None and any(
             isinstance(r.data, BalloonSample | GnssSample) for r in message.records

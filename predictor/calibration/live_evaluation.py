@@ -352,7 +352,6 @@ class _Sample:
     height_m: float
     record_log: float
     """ln λ the record measured down to this fix (``DescentRecord.rate_fit``)."""
-    record_sigma: float
     remaining_log: float
     """ln(law's seconds from here to the ground / measured seconds): the λ the next prediction needed."""
 
@@ -388,8 +387,9 @@ def _rate_survey(flights: Sequence[_Flight], payload: Payload, terms: Sequence[T
             measured_s = touchdown_s - (fix.time - flight.descent[0].time).total_seconds()
             if fit is None or law_s is None or law_s <= 0.0 or measured_s <= 0.0:
                 continue
-            samples.append(_Sample(flight.name, float(heights[i]), math.log(fit.factor), fit.log_sigma,
-                                   math.log(law_s / measured_s)))  # fmt: skip
+            samples.append(
+                _Sample(flight.name, float(heights[i]), math.log(fit.factor), math.log(law_s / measured_s))
+            )
         fit = record.rate_fit(flight.descent[-2].alt_m, window_m=math.inf)
         if fit is not None:
             whole[flight.name] = math.log(fit.factor)

@@ -69,6 +69,12 @@ MAX_LAG1_CORRELATION = 0.98
 counts as at least 1 % of its fixes."""
 
 
+def by_height(height_km: float, heights_km: Sequence[float], column: Sequence[float]) -> float:
+    """A table measured at a few heights, read at any: linear between them, held beyond them."""
+    order = np.argsort(heights_km)
+    return float(np.interp(height_km, np.asarray(heights_km)[order], np.asarray(column)[order]))
+
+
 @dataclass(frozen=True)
 class LiveErrorModel:
     """σ∥ and σ⊥ (km, along and across the report→landing bearing) against height above the ground.
@@ -85,10 +91,8 @@ class LiveErrorModel:
 
     def at(self, height_km: float) -> ErrorModel:
         """The ``ErrorModel`` that ``predict`` uses for a report at this height (no drift or lead term)."""
-        order = np.argsort(self.heights_km)
-        heights = np.asarray(self.heights_km)[order]
-        parallel = float(np.interp(height_km, heights, np.asarray(self.sigma_parallel_km)[order]))
-        perpendicular = float(np.interp(height_km, heights, np.asarray(self.sigma_perpendicular_km)[order]))
+        parallel = by_height(height_km, self.heights_km, self.sigma_parallel_km)
+        perpendicular = by_height(height_km, self.heights_km, self.sigma_perpendicular_km)
         return ErrorModel(
             sigma0_km=parallel, h=0.0, k_km2_per_h2=0.0, q=parallel / perpendicular, name="live"
         )
@@ -145,21 +149,19 @@ class RateDiscrepancy:
     remaining_log_sigma: tuple[float, ...] = ()
     remaining_flights: tuple[int, ...] = ()
 
-    def _interp(self, height_km: float, column: tuple[float, ...]) -> float:
-        order = np.argsort(self.heights_km)
-        return float(np.interp(height_km, np.asarray(self.heights_km)[order], np.asarray(column)[order]))
-
     def at(self, height_km: float) -> tuple[float, float]:
         """(median, spread) of ln(record λ / remaining λ) at this height above the ground."""
-        return self._interp(height_km, self.log_bias), self._interp(height_km, self.log_sigma)
+        return by_height(height_km, self.heights_km, self.log_bias), by_height(
+            height_km, self.heights_km, self.log_sigma
+        )
 
     def remaining_prior(self, height_km: float) -> RatePrior | None:
         """The prior of the remaining descent's λ at this height (None: not measured)."""
         if not self.remaining_log_mean:
             return None
         return RatePrior(
-            math.exp(self._interp(height_km, self.remaining_log_mean)),
-            self._interp(height_km, self.remaining_log_sigma),
+            math.exp(by_height(height_km, self.heights_km, self.remaining_log_mean)),
+            by_height(height_km, self.heights_km, self.remaining_log_sigma),
             min(self.remaining_flights),
         )
 
