@@ -44,6 +44,7 @@ from predictor.prediction.live import (
 from predictor.tracks.ascent_winds import ascent_weather_cube
 from predictor.tracks.cleaning import clean
 from predictor.tracks.reading import read_track
+from tests.approx import assert_close, assert_text_close
 from tests.conftest import REPO_ROOT
 
 REPORT = REPO_ROOT / "docs" / "planning" / "live-reprediction.md"
@@ -196,7 +197,8 @@ def test_the_stated_sigma_of_the_remaining_time_is_honest_high_up(result: Evalua
 
 
 def test_the_shipped_live_ellipse_is_the_measured_one(result: Evaluation) -> None:
-    assert fit_live_sigma(result) == LIVE_ERROR_MODEL
+    # Within one unit of the 3rd decimal fit_live_sigma rounds to (tests/approx.py says why).
+    assert_close(fit_live_sigma(result), LIVE_ERROR_MODEL)
 
 
 def test_the_committed_model_carries_the_live_settings_its_evaluation_kept(
@@ -205,7 +207,9 @@ def test_the_committed_model_carries_the_live_settings_its_evaluation_kept(
     # `drs live evaluate --model M --save-model M` wrote them; drs live and the console fly them.
     committed = load_model(MODEL)
     assert committed.live is not None
-    assert committed.live == live_settings(committed, result, COMMAND).live
+    # Regenerated on this machine: its floats within 1e-9 relative or one unit of their last written
+    # digit of what was committed on another (tests/approx.py: the last bits differ between CPUs).
+    assert_close(live_settings(committed, result, COMMAND).live, committed.live)
     assert committed.live.prior is not None and committed.live.prior.flights == 30
     assert committed.provenance["live"]["flights"] == result.flights
 
@@ -239,7 +243,8 @@ def test_live_settings_are_saved_only_into_a_model(
 
 def test_the_committed_report_is_what_the_evaluation_writes(result: Evaluation, tmp_path: Path) -> None:
     written = write_live_report(result, tmp_path, COMMAND)
-    assert written.read_text(encoding="utf-8") == REPORT.read_text(encoding="utf-8")
+    # The words exactly, each number within one unit of its last printed digit (tests/approx.py).
+    assert_text_close(written.read_text(encoding="utf-8"), REPORT.read_text(encoding="utf-8"))
     assert (tmp_path / "live-reprediction.png").stat().st_size > 10_000
 
 
