@@ -29,12 +29,17 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/drs demo
 
+# Test files run in parallel (pytest-xdist), one file to a worker at a time (--dist loadfile): a file's
+# module fixtures are built once and its tests keep their order. Four workers on two cores: most of the
+# suite's time is spent waiting on sshd, tmux, sockets and child processes, not computing.
+TEST_WORKERS ?= 4
+
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports
 	$(BIN)/mypy
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

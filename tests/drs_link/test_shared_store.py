@@ -17,6 +17,7 @@ import stat
 import subprocess
 import sys
 import tempfile
+import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -39,7 +40,7 @@ pytestmark = pytest.mark.skipif(
 @pytest.fixture
 def accounts() -> Iterator[tuple[str, str, str]]:
     """Two new accounts (alice, bob) in a new group of operators; removed afterwards."""
-    tag = f"{os.getpid() % 100000}"
+    tag = f"{os.getpid() % 100000}{uuid.uuid4().hex[:4]}"  # unique per worker and run, within 32 chars
     group, alice, bob = f"drsops{tag}", f"drsalice{tag}", f"drsbob{tag}"
     subprocess.run(["groupadd", group], check=True)
     try:
