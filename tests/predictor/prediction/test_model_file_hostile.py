@@ -36,7 +36,10 @@ def _mutants(tmp_path: Path) -> dict[str, tuple[Path, str]]:
     return {
         "deep-nesting": (_edited(tmp_path, "deep.json", deep), "nests 50001 levels deep"),
         "5000-digits": (_edited(tmp_path, "digits.json", digits), "holds a number of 5,000 characters"),
-        "nan": (_edited(tmp_path, "nan.json", json.dumps(good).replace("1.608", "NaN")), "payload.mass_kg: must be a finite number, got nan"),
+        "nan": (
+            _edited(tmp_path, "nan.json", json.dumps(good).replace("1.608", "NaN")),
+            "payload.mass_kg: must be a finite number, got nan",
+        ),
         "dev-zero": (Path("/dev/zero"), "is not a regular file"),
         "dev-urandom": (Path("/dev/urandom"), "is not a regular file"),
         "fifo": (fifo, "is not a regular file"),
