@@ -31,7 +31,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="For every candidate release time: landing, ellipse, P(exclusion zone), target distance.",
     )
     plan.add_argument("action", nargs="?", choices=("bench",), help="bench: measure the sweep's speed")
-    plan.add_argument("--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files")
+    plan.add_argument("--weather", nargs="+", metavar="FILE", type=input_file("--weather"),
+                      help="GFS GRIB2 files; - reads one from standard input")  # fmt: skip
     plan.add_argument("--dem", metavar="DIR", help="terrain: directory of SRTM .hgt tiles and/or NetCDF DEMs")
     plan.add_argument("--lat", type=latitude, help="balloon latitude now, degrees north")
     plan.add_argument("--lon", type=longitude, help="balloon longitude now, degrees east")
@@ -82,7 +83,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--cda", type=float, metavar="M2", help="override the profile's Cd·A (not with --model)"
     )
     plan.add_argument(
-        "--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model): its payload, terms and "
+        "--model", metavar="PATH", type=input_file("--model"),
+        help="a calibrated model (drs calibrate --save-model; - reads standard input): its payload, terms and "
         "ellipse replace --payload",
     )  # fmt: skip
     plan.add_argument("--json", action="store_true", help="print the plan document")
@@ -101,8 +103,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     live.add_argument("action", nargs="?", choices=("evaluate", "bench"),
                       help="evaluate: the leave-one-flight-out report on real tracks; bench: time evaluate "
                       "on the tracks re-sampled to 1 Hz")  # fmt: skip
-    live.add_argument("tracks", nargs="*", metavar="TRACK", help="evaluate/bench: track files")
-    live.add_argument("--weather", nargs="+", metavar="FILE",
+    live.add_argument("tracks", nargs="*", metavar="TRACK", type=input_file("TRACK"),
+                      help="evaluate/bench: track files; - reads one from standard input")  # fmt: skip
+    live.add_argument("--weather", nargs="+", metavar="FILE", type=input_file("--weather"),
                       help="GFS GRIB2 files (evaluate: for every flight, instead of each one's ascent winds)")  # fmt: skip
     live.add_argument("--ascent-winds", action="store_true", help="use the track's own ascent as the weather")
     live.add_argument(
@@ -123,7 +126,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     live.add_argument("--mass", type=float, metavar="KG", help="override the profile's mass")
     live.add_argument("--cda", type=float, metavar="M2", help="override the profile's Cd·A")
-    live.add_argument("--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model)")
+    live.add_argument("--model", metavar="PATH", type=input_file("--model"),
+                      help="a calibrated model (drs calibrate --save-model); - reads standard input")  # fmt: skip
     live.add_argument("--no-correction", action="store_true", help="plain re-prediction from each report")
     live.add_argument("--json", action="store_true", help="print one JSON document per report")
     live.add_argument("--out", metavar="DIR", default="docs/planning", help="evaluate: report directory")

@@ -15,6 +15,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from console.commands.argparser import input_file
 from console.commands.stopping import stop_signals
 from predictor.errors import PredictorError, UsageError
 
@@ -36,7 +37,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "with the wind, then our descent from the burst, with our ellipse and model under 'drs'.",
     )
     weather = parser.add_mutually_exclusive_group(required=True)
-    weather.add_argument("--weather", nargs="+", type=Path, metavar="FILE", help="GFS GRIB2 files")
+    weather.add_argument("--weather", nargs="+", type=lambda text: Path(input_file("--weather")(text)),
+                         metavar="FILE", help="GFS GRIB2 files; - reads one from standard input")  # fmt: skip
     weather.add_argument(
         "--weather-dir",
         type=Path,
@@ -50,7 +52,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--dem", metavar="DIR", help="terrain: SRTM .hgt tiles and/or NetCDF DEMs (default sea level)"
     )
     parser.add_argument(
-        "--model", type=Path, metavar="PATH", help="a calibrated model (drs calibrate --save-model)"
+        "--model",
+        type=lambda text: Path(input_file("--model")(text)),
+        metavar="PATH",
+        help="a calibrated model (drs calibrate --save-model); - reads standard input",
     )
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (0.0.0.0 for the LAN)")
     parser.add_argument(

@@ -179,9 +179,10 @@ def cube_cache_entries(cache_dir: str | Path) -> list[CubeCacheEntry]:
 
 
 def _build_cube(files: Sequence[Path], box: BBox | None) -> WeatherCube:
-    from predictor.environment.gribread import VARIABLES, assemble_fields, merge_planes, read_grib_planes
+    from predictor.environment.gribread import VARIABLES, assemble_fields, merge_planes
+    from predictor.environment.gribsandbox import read_planes
 
-    parts = [read_grib_planes(file, box) for file in files]
+    parts = read_planes(files, box)
     demo_files = sum(DEMO_GENERATING_PROCESS in part.processes for part in parts)
     fields = [item for part in parts if part.complete for item in assemble_fields(part)]
     partial = [part for part in parts if not part.complete]
