@@ -1,9 +1,27 @@
 """Our predictor behind Tawhiri's v1 API, so chase software asks it as it asks SondeHub.
 
-``api`` answers the requests; ``ascent`` is Tawhiri's standard ascent profile, which that API needs.
-A plain door: only ``drs serve`` enters this room, and it runs the API, so there is nothing to defer.
+``request`` reads and checks a question before any weather; ``capsules`` tells a DRS capsule's request
+from any other payload's; ``ascent`` and ``descent`` are Tawhiri's motions (and the float and reverse
+flights); ``api`` answers a question; ``server`` is the HTTP server. A lazy door: the chase feed reads
+``capsules`` (no numpy) without loading the descent engine.
 """
 
-from .api import ApiServer, PredictorService, WeatherSource
+from typing import TYPE_CHECKING
 
-__all__ = ["ApiServer", "PredictorService", "WeatherSource"]
+from predictor.lazy_door import lazy_door
+
+if TYPE_CHECKING:
+    from .api import PredictorService as PredictorService, WeatherSource as WeatherSource
+    from .capsules import CapsuleFix as CapsuleFix, FixSource as FixSource
+    from .server import ApiServer as ApiServer
+
+__getattr__, __dir__, __all__ = lazy_door(
+    __name__,
+    {
+        "ApiServer": "server",
+        "CapsuleFix": "capsules",
+        "FixSource": "capsules",
+        "PredictorService": "api",
+        "WeatherSource": "api",
+    },
+)
