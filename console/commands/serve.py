@@ -93,8 +93,7 @@ def build_server(args: argparse.Namespace) -> ApiServer:
     from drs_link.config import load_config
     from predictor.environment import Terrain
     from predictor.prediction import flown_model
-    from predictor.tawhiri import ApiServer, PredictorService, WeatherSource
-    from predictor.tawhiri.api import FlownModel
+    from predictor.tawhiri import ApiServer, FlownModel, PredictorService, WeatherSource
 
     config = load_config(getattr(args, "config", None))
     known = [capsule for capsule in config.capsules if capsule.imei]

@@ -43,10 +43,10 @@ from drs_link.errors import LinkError
 from drs_link.feeds.balloon_feed import OWN_COMMENT
 from drs_link.iridium import ReportStore
 from drs_link.store import Store, iso_utc, parse_iso_utc
-from predictor.tawhiri.capsules import FIXES_PER_CAPSULE, CapsuleFix, surface_distance_m
+from predictor.tawhiri import FIXES_PER_CAPSULE, CapsuleFix, surface_distance_m
 
 if TYPE_CHECKING:  # the predictor (numba) loads only where a prediction is kept
-    from drs_link.iridium.mo import Fix
+    from drs_link.iridium import Fix
     from predictor.prediction import Prediction
 
 log = logging.getLogger(__name__)

@@ -11,8 +11,17 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
-    from .api import PredictorService as PredictorService, WeatherSource as WeatherSource
-    from .capsules import CapsuleFix as CapsuleFix, FixSource as FixSource
+    from .api import (
+        FlownModel as FlownModel,
+        PredictorService as PredictorService,
+        WeatherSource as WeatherSource,
+    )
+    from .capsules import (
+        FIXES_PER_CAPSULE as FIXES_PER_CAPSULE,
+        CapsuleFix as CapsuleFix,
+        FixSource as FixSource,
+        surface_distance_m as surface_distance_m,
+    )
     from .server import ApiServer as ApiServer
 
 __getattr__, __dir__, __all__ = lazy_door(
@@ -20,8 +29,11 @@ __getattr__, __dir__, __all__ = lazy_door(
     {
         "ApiServer": "server",
         "CapsuleFix": "capsules",
+        "FIXES_PER_CAPSULE": "capsules",
         "FixSource": "capsules",
+        "FlownModel": "api",
         "PredictorService": "api",
         "WeatherSource": "api",
+        "surface_distance_m": "capsules",
     },
 )
