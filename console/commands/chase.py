@@ -46,13 +46,13 @@ def cmd_chase(args: argparse.Namespace) -> int:
     sender = ChaseSender(target, "--udp" if args.udp else "chase.udp")
     store = Store.open(config.store_path)
     every = "once" if args.once else f"every {CHASE_PERIOD_S:g} s"
-    print(
-        f"drs chase: sending to udp {sender.target} {every} from {config.store_path}",
-        file=sys.stderr,
-        flush=True,
-    )
     try:
         with stop_signals() as wait_for_stop:
+            print(  # said once SIGTERM is handled: a supervisor may stop it as soon as it reads this
+                f"drs chase: sending to udp {sender.target} {every} from {config.store_path}",
+                file=sys.stderr,
+                flush=True,
+            )
             while True:
                 points = chase_points(config, store, datetime.now(UTC))
                 sender.send(points)
