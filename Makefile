@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 
 UV_VERSION := 0.13.9
 
-.PHONY: demo test lint house bench bench-console bench-bytes bench-consoles venv screenshots lock
+.PHONY: demo test lint house bench bench-console bench-serve bench-bytes bench-consoles venv screenshots lock
 
 # The exact, hash-checked versions of requirements.lock: every machine installs what the suite was
 # last green with. pyproject.toml keeps ranges for people who install the package as a library.
@@ -56,6 +56,9 @@ house: $(STAMP)
 
 bench-console: $(STAMP)
 	$(BIN)/python tools/console_latency.py
+
+bench-serve: $(STAMP)
+	$(BIN)/python tools/serve_first_answer.py
 
 bench-bytes: $(STAMP)
 	$(BIN)/python tools/console_bytes.py
