@@ -11,30 +11,14 @@ from __future__ import annotations
 
 import json
 import math
-import threading
-from collections.abc import Iterator
 from datetime import datetime, timedelta
-from pathlib import Path
 from typing import Any
 
 import pytest
 
-from console.commands.main import build_parser
-from console.commands.serve import build_server
 from predictor.tawhiri import ApiServer, surface_distance_m
 from tests.predictor.tawhiri.conftest import LAUNCH, LAUNCH_LAT, LAUNCH_LON
 from tests.predictor.tawhiri.test_tawhiri_api import get
-
-
-@pytest.fixture(scope="module")
-def server(weather: list[Path], cache: str) -> Iterator[ApiServer]:
-    argv = ["serve", "predictor", "--port", "0", "--weather", *map(str, weather), "--cache-dir", cache]
-    api = build_server(build_parser("serve").parse_args(argv))
-    thread = threading.Thread(target=api.serve_forever, daemon=True)
-    thread.start()
-    yield api
-    api.shutdown()
-    api.server_close()
 
 
 def float_query(**changes: Any) -> dict[str, Any]:

@@ -21,7 +21,6 @@ import time
 import urllib.error
 import urllib.parse
 import urllib.request
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -34,35 +33,23 @@ from tests.ports import free_port
 from tests.predictor.tawhiri.test_tawhiri_api import chasemapper_query, get, get_with_headers
 
 
-@pytest.fixture(scope="module")
-def served(weather: list[Path], cache: str) -> Iterator[ApiServer]:
-    argv = ["serve", "predictor", "--port", "0", "--weather", *map(str, weather), "--cache-dir", cache]
-    api = build_server(build_parser("serve").parse_args(argv))
-    thread = threading.Thread(target=api.serve_forever, daemon=True)
-    thread.start()
-    yield api
-    api.shutdown()
-    api.server_close()
-    thread.join(timeout=5)
-
-
 @pytest.mark.parametrize(
     "text",
     ["5_0", "٥", "５", "5\u00a0", " 5", "inf", "nan", "0x10", "5.0.0", "1e999", "+", ".", "9" * 5000],
 )
-def test_a_number_outside_a_urls_grammar_is_refused(served: ApiServer, text: str) -> None:
+def test_a_number_outside_a_urls_grammar_is_refused(server: ApiServer, text: str) -> None:
     """Python's float reads 5_0 as 50, ٥ and ５ as 5, and strips spaces; a URL's number is ASCII digits,
     a sign, a point and an exponent. A 5,000-digit number is refused before Python converts it."""
-    status, _, body = get(served, chasemapper_query(ascent_rate=text))
+    status, _, body = get(server, chasemapper_query(ascent_rate=text))
     error = json.loads(body)["error"]
     assert status == 400 and error["type"] == "RequestException", body
     assert "'ascent_rate'" in error["description"] and len(error["description"]) < 300
 
 
 @pytest.mark.parametrize("text", ["5", "+5", "5.", ".5e1", "5E0", "0.5e+1", "50e-1"])
-def test_a_number_in_the_grammar_is_read(served: ApiServer, text: str) -> None:
+def test_a_number_in_the_grammar_is_read(server: ApiServer, text: str) -> None:
     status, _, body = get(
-        served, chasemapper_query(ascent_rate=text, launch_altitude=12000, burst_altitude=12001)
+        server, chasemapper_query(ascent_rate=text, launch_altitude=12000, burst_altitude=12001)
     )
     assert status == 200 and json.loads(body)["request"]["ascent_rate"] == 5.0
 
@@ -107,8 +94,8 @@ def test_a_rate_altitude_or_time_no_flight_has_is_refused_before_any_weather_is_
     assert sorted(p for p in tmp_path.rglob("*") if p.is_file()) == made, "no weather was made for it"
 
 
-def test_health_says_the_weather_is_loaded_the_code_warm_and_the_version(served: ApiServer) -> None:
-    with urllib.request.urlopen(served.url.replace("/api/v1/", "/health"), timeout=10) as response:
+def test_health_says_the_weather_is_loaded_the_code_warm_and_the_version(server: ApiServer) -> None:
+    with urllib.request.urlopen(server.url.replace("/api/v1/", "/health"), timeout=10) as response:
         assert response.status == 200 and response.headers["Content-Type"] == "application/json"
         health = json.loads(response.read())
     assert health["status"] == "ok" and health["warm"] is True and health["warmed_in_s"] > 0
@@ -118,9 +105,9 @@ def test_health_says_the_weather_is_loaded_the_code_warm_and_the_version(served:
     assert weather["dataset"] == "2024-05-01T06:00:00Z" and weather["valid_from"] <= weather["valid_to"]
 
 
-def test_head_answers_as_get_without_a_body(served: ApiServer) -> None:
-    status, kind, body, headers = get_with_headers(served, chasemapper_query())
-    host, port = served.server_address[:2]
+def test_head_answers_as_get_without_a_body(server: ApiServer) -> None:
+    status, kind, body, headers = get_with_headers(server, chasemapper_query())
+    host, port = server.server_address[:2]
     for path, expected in (
         (f"/api/v1/?{urllib.parse.urlencode(chasemapper_query())}", (status, kind, len(body))),
         ("/health", None),
@@ -140,12 +127,12 @@ def test_head_answers_as_get_without_a_body(served: ApiServer) -> None:
 
 
 def test_idle_sockets_cannot_lock_another_client_out(
-    served: ApiServer, monkeypatch: pytest.MonkeyPatch
+    server: ApiServer, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """40 idle connections from one address hold at most MAX_PER_CLIENT threads; a client at another
     address (the chase car's laptop) is answered while they idle, and the idle ones are closed after
     REQUEST_READ_S."""
-    host, port = served.server_address[:2]
+    host, port = server.server_address[:2]
     idle = [socket.create_connection((str(host), int(port)), timeout=30) for _ in range(40)]
     try:
         time.sleep(0.5)  # every one accepted and holding its slot (or told 503)
@@ -273,8 +260,8 @@ def test_a_bad_grib_file_in_the_weather_dir_is_refused_and_the_others_served(
     assert log.count("weather file refused") == 3, log
 
 
-def test_post_to_health_is_refused(served: ApiServer) -> None:
-    request = urllib.request.Request(served.url.replace("/api/v1/", "/health"), data=b"x", method="POST")
+def test_post_to_health_is_refused(server: ApiServer) -> None:
+    request = urllib.request.Request(server.url.replace("/api/v1/", "/health"), data=b"x", method="POST")
     with pytest.raises(urllib.error.HTTPError) as refused:
         urllib.request.urlopen(request, timeout=10)
     assert refused.value.code == 405 and refused.value.headers["Allow"] == "GET, HEAD"

@@ -16,7 +16,6 @@ import urllib.error
 import urllib.parse
 import urllib.request
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator
 from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -31,18 +30,6 @@ from predictor.prediction import CalibratedModel, save_model
 from predictor.prediction.uncertainty import ErrorModel
 from predictor.tawhiri import ApiServer
 from tests.predictor.tawhiri.conftest import LAUNCH, LAUNCH_LAT, LAUNCH_LON
-
-
-@pytest.fixture(scope="module")
-def server(weather: list[Path], cache: str) -> Iterator[ApiServer]:
-    argv = ["serve", "predictor", "--port", "0", "--weather", *map(str, weather), "--cache-dir", cache]
-    api = build_server(build_parser("serve").parse_args(argv))
-    thread = threading.Thread(target=api.serve_forever, daemon=True)
-    thread.start()
-    yield api
-    api.shutdown()
-    api.server_close()
-    thread.join(timeout=5)
 
 
 def chasemapper_query(**changes: Any) -> dict[str, Any]:
