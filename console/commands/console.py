@@ -229,6 +229,13 @@ def demo_setup(
     )  # fmt: skip
 
 
+def replay_command(recording: Path) -> str:
+    """The demo's last line: the replay command as a fresh shell runs it (`drs` is often not on its PATH)."""
+    from console.commands.invocation import drs_command
+
+    return f"{drs_command()} console --replay {recording}"
+
+
 def run_demo(speed: float, low_bandwidth: bool = False) -> int:
     from console.demo import DemoWorld
 
@@ -246,7 +253,7 @@ def run_demo(speed: float, low_bandwidth: bool = False) -> int:
     finally:
         world.stop()
     try:
-        print(f"drs demo: session kept in {root}; replay it with: drs console --replay {recorder.path}")
+        print(f"drs demo: session kept in {root}; replay it with: {replay_command(recorder.path)}")
     except OSError:
         pass  # the terminal hung up (the session was lost): the store and recording say it all
     return result
