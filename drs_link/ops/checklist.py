@@ -302,7 +302,9 @@ class ChecklistRun:
         return all(s.finished for s in self.statuses(facts))
 
 
-def start_new_flight(store: Store, capsule: str, operator: str, clock: Callable[[], datetime] = utc_now) -> int:
+def start_new_flight(
+    store: Store, capsule: str, operator: str, clock: Callable[[], datetime] = utc_now
+) -> int:
     """Forget the capsule's ticks, skips and command completions: a reset after a recovered release
     starts the next flight, whose checklists begin empty (the last flight's FIRE once stayed ticked).
     The audit log keeps every one of them; returns how many were cleared."""

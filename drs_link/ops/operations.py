@@ -122,7 +122,9 @@ class SentMt:
     authorised: dict[str, object]
 
 
-NO_SYNC_SOURCE = "sync_source is not configured (set it in the capsule's [[capsule]] table: the payload data to upload)"
+NO_SYNC_SOURCE = (
+    "sync_source is not configured (set it in the capsule's [[capsule]] table: the payload data to upload)"
+)
 """What go/no-go's sync item and ``drs sync`` say when the capsule has no directory to upload."""
 GNSS_UERE_M = 5.0
 """Metres of position error per unit of HDOP (a typical user range error), for the fix's uncertainty."""
@@ -466,7 +468,9 @@ class Operations:
         report = poll()  # before the lock: a poll of the capsule (drs capsule go) takes it itself
         with ops.lock:
             login = self.login if approval is not None else None
-            record = ops.arming.fire(typed_name, report, second.name, second.waiver, approval, login, on_sending)
+            record = ops.arming.fire(
+                typed_name, report, second.name, second.waiver, approval, login, on_sending
+            )
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
         self.approvals.void_capsule(name, "capsule state changed: released", self.operator)

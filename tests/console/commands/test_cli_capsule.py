@@ -292,7 +292,9 @@ def test_sync_without_a_directory_uploads_the_capsules_sync_source(
     configured it says which key to set."""
     sim, config = setup
     assert drs(config, "sync", "DRS1") == 1
-    assert "sync_source is not configured (set it in the capsule's [[capsule]] table" in _one_line_error(capsys)
+    assert "sync_source is not configured (set it in the capsule's [[capsule]] table" in _one_line_error(
+        capsys
+    )
     source = tmp_path / "payload"
     source.mkdir()
     (source / "frame.bin").write_bytes(b"f" * 1000)
