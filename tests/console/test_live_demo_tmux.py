@@ -1,0 +1,54 @@
+"""`drs demo --live` in a real terminal (tmux), started from another directory as a newcomer would: the LIVE
+console from the file it wrote, through ARM, FIRE and the first Iridium report of the descent."""
+
+from __future__ import annotations
+
+import subprocess
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.console.test_end_to_end_tmux import REPO, TMUX, Terminal
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture
+def terminal(tmp_path: Path, tmux_server: None) -> Iterator[Terminal]:
+    session = f"drs-live-{uuid.uuid4().hex[:8]}"
+    command = f"cd {tmp_path} && TMPDIR={tmp_path} {REPO / '.venv' / 'bin' / 'drs'} demo --live; sleep 30"
+    subprocess.run([TMUX, "new-session", "-d", "-s", session, "-x", "120", "-y", "40", command], check=True)
+    try:
+        yield Terminal(session)
+    finally:
+        subprocess.run([TMUX, "kill-session", "-t", session], check=False)
+
+
+def test_a_newcomer_rehearses_arm_fire_and_sees_the_descents_reports(
+    terminal: Terminal, tmp_path: Path
+) -> None:
+    shown = terminal.wait_for("DRS3", timeout_s=180)
+    assert "LIVE" in shown and "DEMO" not in shown
+    terminal.wait_for("UP ")
+    terminal.keys("Enter")
+    terminal.wait_for("Power-on done")
+    terminal.keys("s")
+    terminal.wait_for_match(r"✔ GO +Storage sync complete")
+    terminal.keys("o")
+    terminal.wait_for("Software CANNOT switch it off")
+    terminal.keys("Tab", "Enter")
+    terminal.wait_for("Poll: GO", timeout_s=180)
+    terminal.keys("a")
+    terminal.wait_for("ARMED —")
+    terminal.keys("f")
+    terminal.wait_for("Type the capsule's name (DRS1)")
+    terminal.keys("DRS1", "Enter", "Enter", "rehearsal, one operator", "Enter")
+    terminal.wait_for("FIRED: Go sent", timeout_s=60)
+    terminal.back_to_fleet()
+    terminal.keys("v")
+    terminal.wait_for("DRS1 recovery")
+    terminal.wait_for_match(r"Last report: .*VBAT", timeout_s=240)  # the first report of the descent
+    [config] = tmp_path.glob("drs-live-demo-*/drs.toml")
+    assert str(config.parent) in config.read_text()
