@@ -213,22 +213,11 @@ def draw_recovery_map(
         centre = plane.km(picture.predicted.lat, picture.predicted.lon)
         ring_1sigma = ellipse_ring(centre, picture.predicted, 1.0)
         axes.fill(ring_2sigma[:, 0], ring_2sigma[:, 1], color=ELLIPSE_2SIGMA, alpha=0.18, zorder=2)
-        axes.plot(
-            ring_2sigma[:, 0],
-            ring_2sigma[:, 1],
-            color=ELLIPSE_2SIGMA,
-            linewidth=3,
-            label="2σ (86.5 %)",
-            zorder=2,
-        )
-        axes.plot(
-            ring_1sigma[:, 0],
-            ring_1sigma[:, 1],
-            color=ELLIPSE_1SIGMA,
-            linewidth=3,
-            label="1σ (39.3 %)",
-            zorder=2,
-        )
+        for ring, colour, label in (
+            (ring_2sigma, ELLIPSE_2SIGMA, "2σ (86.5 %)"),
+            (ring_1sigma, ELLIPSE_1SIGMA, "1σ (39.3 %)"),
+        ):
+            axes.plot(ring[:, 0], ring[:, 1], color=colour, linewidth=3, label=label, zorder=2)
         axes.plot(
             *centre,
             "X",

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.console.test_end_to_end_tmux import REPO, TMUX, Terminal
+from tests.console.test_end_to_end_tmux import REPO, TMUX, Terminal, arm_drs1
 
 pytestmark = pytest.mark.slow
 
@@ -29,19 +29,8 @@ def terminal(tmp_path: Path, tmux_server: None) -> Iterator[Terminal]:
 def test_a_newcomer_rehearses_arm_fire_and_sees_the_descents_reports(
     terminal: Terminal, tmp_path: Path
 ) -> None:
-    shown = terminal.wait_for("DRS3", timeout_s=180)
-    assert "LIVE" in shown and "DEMO" not in shown
-    terminal.wait_for("UP ")
-    terminal.keys("Enter")
-    terminal.wait_for("Power-on done")
-    terminal.keys("s")
-    terminal.wait_for_match(r"✔ GO +Storage sync complete")
-    terminal.keys("o")
-    terminal.wait_for("Software CANNOT switch it off")
-    terminal.keys("Tab", "Enter")
-    terminal.wait_for("Poll: GO", timeout_s=180)
-    terminal.keys("a")
-    terminal.wait_for("ARMED —")
+    arm_drs1(terminal, mode="LIVE")
+    assert "DEMO" not in terminal.screen()
     terminal.keys("f")
     terminal.wait_for("Type the capsule's name (DRS1)")
     terminal.keys("DRS1", "Enter", "Enter", "rehearsal, one operator", "Enter")

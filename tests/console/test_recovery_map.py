@@ -28,6 +28,7 @@ from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.store import Store, utc_now
 from predictor import Terrain
+from tests.console.commands.test_cli_iridium import write_config
 from tests.drs_link.iridium.helpers import IMEI, fix_at
 from tests.release_helpers import write_weather
 
@@ -118,11 +119,7 @@ def test_drs_recovery_map_draws_the_live_prediction_from_the_stored_reports(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Through the real command: stored Iridium reports of a descent, the weather, the chase position."""
-    config = tmp_path / "drs.toml"
-    config.write_text(
-        f'[operator]\nname = "alice"\n[data]\ndir = "{tmp_path / "data"}"\n'
-        f'[[capsule]]\nname = "DRS1"\nhost = "127.0.0.1"\nimei = "{IMEI}"\nrockblock_serial = 11800\n'
-    )
+    config = write_config(tmp_path)
     reports = ReportStore(Store.open(tmp_path / "data" / "drs.sqlite"))
     start = utc_now().replace(microsecond=0) - timedelta(minutes=10)
     for i in range(4):
