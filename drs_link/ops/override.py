@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 
 from drs_link.iridium import (
+    DEFAULT_SESSION_DELAY,
     PARACHUTE,
     StoredReport,
     commanded as mt_commanded,
@@ -26,7 +27,6 @@ from drs_link.iridium import (
     is_command,
     lifecycle as lc,
 )
-from drs_link.iridium.parachute import DEFAULT_SESSION_DELAY
 from drs_link.store import AuditRecord
 
 GONE_MODE_SPACING = timedelta(minutes=2)

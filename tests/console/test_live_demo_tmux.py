@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from console.live_demo import PASSWORD_FILE
 from tests.console.test_end_to_end_tmux import REPO, TMUX, Terminal, arm_drs1
 
 pytestmark = pytest.mark.slow
@@ -40,4 +41,4 @@ def test_a_newcomer_rehearses_arm_fire_and_sees_the_descents_reports(
     terminal.wait_for("DRS1 recovery")
     terminal.wait_for_match(r"Last report: .*VBAT", timeout_s=240)  # the first report of the descent
     [config] = tmp_path.glob("drs-live-demo-*/drs.toml")
-    assert str(config.parent) in config.read_text()
+    assert str(config.parent) in config.read_text() and (config.parent / PASSWORD_FILE).exists()
