@@ -17,9 +17,12 @@ DEFAULT_MAX_EFFECTS = 3
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
+    from console.commands.progress import progress
     from predictor.calibration import run_calibrate as run
 
-    return run(args)
+    with progress(quiet=bool(getattr(args, "json", None))) as tell:
+        args.progress = tell
+        return run(args)
 
 
 def run_bench(args: argparse.Namespace) -> int:

@@ -116,7 +116,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     sync = subparsers.add_parser("sync", help="upload a directory to a capsule's storage mount (verified)")
     sync.add_argument("name")
-    sync.add_argument("source", type=Path, metavar="SOURCE_DIR")
+    sync.add_argument(
+        "source", type=Path, metavar="SOURCE_DIR", nargs="?", help="default: the capsule's sync_source"
+    )
     sync.add_argument("--status", action="store_true", help="only report what is missing or changed")
     sync.add_argument("--hash", action="store_true", help="with --status: also compare sha256")
     sync.add_argument("--json", action="store_true", help="with --status: machine-readable output")
@@ -318,14 +320,16 @@ def cmd_go(args: argparse.Namespace) -> int:
         _step(f"{args.name}: polling go/no-go again: FIRE needs the verdicts ARM saw")
         report = ops.poll_gonogo(args.name, predict)
         _print_poll(report)
+        return report
+
+    def sending() -> None:
         _step(
             f"{args.name}: sending Go over SSH (the Go script writes GoGoGo, then shuts the Pi down; "
             "about 10 s)…"
         )
-        return report
 
     try:
-        records = ops.fire(args.name, args.confirm, poll, second)
+        records = ops.fire(args.name, args.confirm, poll, second, sending)
     finally:
         ops.close()
     return _released(args.name, records)

@@ -127,6 +127,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     recovery.add_argument(
         "--json", action="store_true", help="print JSON (the summary line is one of its fields)"
     )
+    recovery.add_argument(
+        "--map", type=Path, metavar="OUT.png",
+        help="draw the track, the live predicted landing with its 1σ/2σ ellipses, the last fix and the chase",
+    )  # fmt: skip
+    recovery.add_argument(
+        "--chase",
+        type=position_or_gpsd,
+        metavar="LAT,LON|gpsd",
+        help="the chase car on the map (default: --from)",
+    )
+    recovery.add_argument(
+        "--weather",
+        type=Path,
+        nargs="+",
+        metavar="GRIB",
+        help="GFS GRIB2 files: the map's live re-prediction",
+    )
+    recovery.add_argument(
+        "--dem", type=Path, metavar="DIR", help="terrain: the map's shading and the prediction's ground"
+    )
     recovery.set_defaults(func=_recovery)
 
 
@@ -478,9 +498,44 @@ def _recovery(args: argparse.Namespace) -> int:
     if args.kml:
         write_kml(args.kml, capsule.name, track, predicted, landing, predicted_is_demo=predicted_is_demo)
         print(f"wrote {args.kml}", file=said)
+    if args.map:
+        chase = (
+            team
+            if args.chase is None
+            else read_gpsd_position()
+            if args.chase == "gpsd"
+            else parse_position(args.chase)
+        )
+        _draw_map(args, ops, capsule.name, reports, chase)
+        print(f"wrote {args.map}", file=said)
     if args.json:
         print(json.dumps(_recovery_json(capsule.name, summary, landing, track, team, coarse), indent=2))
     return 0
+
+
+def _draw_map(
+    args: argparse.Namespace,
+    ops: Operations,
+    name: str,
+    reports: list[StoredReport],
+    chase: tuple[float, float] | None,
+) -> None:
+    """The recovery picture: the live re-prediction needs the weather (and flies the capsule's model)."""
+    from console.predictions import PredictionService, capsule_models
+    from console.recovery_map import draw_recovery_map, recovery_picture
+    from drs_link.ops import follow_descent
+    from predictor import Terrain
+
+    terrain = Terrain.from_dir(args.dem) if args.dem else None
+    live = None
+    if args.weather:
+        files = list(args.weather)
+        models = capsule_models([(c.name, c.model) for c in ops.config.capsules])
+        ground = terrain or Terrain.sea_level()
+        live = PredictionService(lambda: files, lambda: ground, ops.clock, models).live
+    descent = follow_descent(reports, name, live)
+    picture = recovery_picture(name, descent, chase, weather=bool(args.weather))
+    draw_recovery_map(picture, args.map, terrain)
 
 
 def _recovery_json(

@@ -17,6 +17,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from console.commands.argparser import UtcDate, UtcTime, input_file, latitude, longitude, positive
+from console.commands.progress import progress, while_saying
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError, UsageError
 from predictor.planning import MAX_MEMBER_DESCENTS
@@ -186,17 +187,18 @@ def run_plan(args: argparse.Namespace) -> int:
     altitude_plan = AltitudePlan.parse(args.altitude_plan) if args.altitude_plan else None
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
     hours = args.hours if math.isfinite(args.hours) else 0.0
-    wx = load_weather(
-        args.weather, bbox=weather_bbox(args.lat, args.lon, max(hours, 0.0) * 60.0), cache_dir=args.cache_dir
-    )
-    plan = plan_release(
-        wx,
-        Release(start, args.lat, args.lon, args.alt),
-        Sweep(args.hours, args.every_minutes, altitude_plan, args.float_wind_sigma),
-        model.flight_setup(terrain),
-        EnsembleSpread(args.members, args.seed),
-        Criteria(zones, targets, thresholds),
-    )
+    with progress(quiet=bool(args.json)) as tell:
+        wx = while_saying(tell, f"loading weather ({len(args.weather)} files)", lambda: load_weather(
+            args.weather, bbox=weather_bbox(args.lat, args.lon, max(hours, 0.0) * 60.0), cache_dir=args.cache_dir
+        ))  # fmt: skip
+        plan = while_saying(tell, "sweeping the release times", lambda: plan_release(
+            wx,
+            Release(start, args.lat, args.lon, args.alt),
+            Sweep(args.hours, args.every_minutes, altitude_plan, args.float_wind_sigma),
+            model.flight_setup(terrain),
+            EnsembleSpread(args.members, args.seed),
+            Criteria(zones, targets, thresholds),
+        ))  # fmt: skip
     if args.kml:
         write_kml(plan, args.kml)
     if args.geojson:
@@ -398,11 +400,18 @@ def run_evaluate(args: argparse.Namespace) -> int:
     # without calibrated terms), so the difference is the law and not the mass or Cd·A.
     profile = args.payload if args.model is not None or args.payload is not None else "superbit-test"
     model = flown_model(args.model, profile, args.mass, args.cda)
-    weather = load_weather(args.weather, cache_dir=args.cache_dir) if args.weather else None
-    result = evaluate_live(
-        args.tracks, model=model if args.model is not None else None, profile=model.payload, day=args.date,
-        weather=weather, terrain=Terrain.from_dir(args.dem) if args.dem else None,
-    )  # fmt: skip
+    with progress() as tell:
+        weather = (
+            while_saying(
+                tell, "loading weather", lambda: load_weather(args.weather, cache_dir=args.cache_dir)
+            )
+            if args.weather
+            else None
+        )
+        result = evaluate_live(
+            args.tracks, model=model if args.model is not None else None, profile=model.payload, day=args.date,
+            weather=weather, terrain=Terrain.from_dir(args.dem) if args.dem else None, progress=tell,
+        )  # fmt: skip
     if not result.flights:
         raise PredictorError(f"no usable flight among the tracks given: {'; '.join(result.skipped)}")
     names = sorted({Path(t).parent.name for t in args.tracks})

@@ -321,11 +321,14 @@ class ArmingController:
         single_operator_waiver: str | None = None,
         approval: int | None = None,
         login: Login | None = None,
+        on_sending: Callable[[], None] | None = None,
     ) -> ReleaseRecord:
         """Release; blocking (SSH), so call it from a worker thread. Refused unless every rule holds.
 
         ``approval``: a Go request another login approved for this very window
         (``drs_link.ops.approval``), spent here once in place of a typed second operator.
+        ``on_sending``: told once every rule here held, just before the Go goes to the state machine (a
+        "sending Go…" line printed earlier stood above each refusal).
         """
         with self._lock:
             status = self._fireable(typed_name)
@@ -354,6 +357,8 @@ class ArmingController:
             self._audit("fire", "authorised", {"window": window.id, "inputs": report.fingerprint, **people})
         try:
             token = self.machine.confirm(typed_name)
+            if on_sending is not None:
+                on_sending()
             record = self.machine.go(token)
         except Exception:
             with self._lock:

@@ -438,6 +438,7 @@ def evaluate_live(
     day: date | None = None,
     weather: WeatherCube | None = None,
     terrain: Terrain | None = None,
+    progress: Callable[[str, int, int | None], None] | None = None,
 ) -> Evaluation:
     """Every checkpoint of every usable flight under every configuration.
 
@@ -447,6 +448,7 @@ def evaluate_live(
     flight (default: each flight's ascent winds); ``terrain`` a DEM (default: level ground at each
     measured landing). Each flight the model was calibrated on flies the model's law refitted without
     it, and on both laws its λ prior and discrepancy come from the OTHER flights, so all is held out.
+    ``progress(stage, done, total)`` is told once per flight (a run takes minutes).
     """
     profile = profile or PROFILES["superbit-test"]
     model = model or CalibratedModel(profile, (), None)
@@ -470,7 +472,9 @@ def evaluate_live(
     profile_survey = _rate_survey(flights, profile, ())
     result.rate_laws = {"model": rate_law(model_survey), "profile": rate_law(profile_survey)}
     configs = configurations()
-    for flight in flights:
+    for done, flight in enumerate(flights):
+        if progress is not None:
+            progress("live re-prediction of every checkpoint (flights)", done, len(flights))
         law = laws.get(flight.name, model)
         # The other flights' λ on this flight's own fold's law (a flight the model never saw flies the
         # model's own law, whose survey is already made).

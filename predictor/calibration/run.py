@@ -97,7 +97,7 @@ def analyse(inputs: Inputs, args: argparse.Namespace) -> tuple[Calibration, Elli
     cal = calibrate(
         inputs.cases, inputs.payload, library(args.effects) if args.effects else LIBRARY,
         step_m=args.step, max_effects=args.max_effects, seed=args.seed,
-        nested=getattr(args, "nested_stability", False),
+        nested=getattr(args, "nested_stability", False), progress=getattr(args, "progress", None),
     )  # fmt: skip
     ellipse = None
     if len(inputs.cases) >= MIN_FLIGHTS:

@@ -29,7 +29,7 @@ from console.commands.main import main
 from drs_link.config import load_config
 from drs_link.errors import StoreError
 from drs_link.ops.approval import ApprovalBook, Login, current_login
-from drs_link.store import Store
+from drs_link.store import Store, share_directory
 
 pytestmark = pytest.mark.skipif(
     os.geteuid() != 0 or shutil.which("useradd") is None,
@@ -148,3 +148,31 @@ def test_a_group_that_does_not_exist_is_named_with_how_to_make_it(tmp_path: Path
         from drs_link.store import share_directory
 
         share_directory(tmp_path / "data", "no-such-drs-group")
+
+
+def test_an_account_outside_the_stores_group_is_told_to_ask_the_admin_not_to_share_it(
+    accounts: tuple[str, str, str], place: Path
+) -> None:
+    alice, _, group = accounts
+    store_dir = place / "store"
+    share_directory(store_dir, group)
+    Store.open(store_dir / "drs.sqlite").close()
+    outsider = f"drscarol{os.getpid() % 100000}"
+    subprocess.run(["useradd", "-M", "-N", "-s", "/usr/sbin/nologin", outsider], check=True)
+    try:
+
+        def open_store() -> int:
+            try:
+                Store.open(store_dir / "drs.sqlite")
+            except StoreError as exc:
+                print(exc)
+                return 1
+            return 0
+
+        code, said = as_account(outsider, open_store)
+    finally:
+        subprocess.run(["userdel", outsider], check=False, capture_output=True)
+    assert code == 1, said
+    assert f"the account {outsider} is not in group {group}" in said
+    assert f"usermod -aG {group} {outsider}" in said
+    assert "shared-store" not in said and "cannot create" not in said
