@@ -197,3 +197,11 @@ def test_a_weather_error_is_what_a_server_catches(bases: dict[str, bytes], tmp_p
         caught.value.fault
         == "GRIB message 1: section 5 says it is 0 bytes long, shorter than its fixed 11; damaged"
     )
+
+
+def test_a_device_or_fifo_given_as_weather_is_refused_before_anything_reads_it(tmp_path: Path) -> None:
+    fifo = tmp_path / "weather.fifo"
+    os.mkfifo(fifo)
+    for path in (Path("/dev/zero"), fifo):
+        with pytest.raises(WeatherFileError, match=r"not a regular file"):
+            load_weather([path], cache_dir=tmp_path / "cache")
