@@ -70,7 +70,9 @@ def load_weather(
     for file in files:
         if not file.is_file():
             if file.exists():
-                raise WeatherFileError(file, "not a regular file (a device, FIFO or directory); give a GRIB file")
+                raise WeatherFileError(
+                    file, "not a regular file (a device, FIFO or directory); give a GRIB file"
+                )
             raise WeatherError(f"weather file {file} does not exist")
     box = _normalise_bbox(bbox) if bbox is not None else None
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
