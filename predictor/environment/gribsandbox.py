@@ -164,7 +164,7 @@ def _load(file: Path, stored: Path, box: Any) -> Any:
 
 
 def _store(target: Path, planes: Any) -> None:
-    arrays: dict[str, np.ndarray] = {}
+    arrays: dict[str, Any] = {}
     entries = []
     for (cycle, valid), by_name in planes.planes.items():
         for name, by_level in by_name.items():
@@ -177,7 +177,8 @@ def _store(target: Path, planes: Any) -> None:
         "planes": entries,
         "processes": sorted(planes.processes),
     }
-    np.savez(target, meta=np.array(json.dumps(meta)), **arrays)
+    arrays["meta"] = np.array(json.dumps(meta))
+    np.savez(target, **arrays)
 
 
 def _say(item: dict[str, Any]) -> None:

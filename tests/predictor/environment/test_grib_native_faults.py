@@ -21,6 +21,7 @@ import pytest
 from predictor.environment import gribsandbox
 from predictor.environment.weather import load_weather
 from predictor.errors import WeatherError, WeatherFileError
+from tests.predictor.environment.grib_mutation import CAP_BYTES, CHILD
 from tests.predictor.environment.grib_packing_mutation import fuzz_mutants, issue_mutants, write_bases
 
 REPO = Path(__file__).resolve().parents[3]
@@ -160,27 +161,11 @@ def test_files_written_here_are_decoded_here_and_others_in_one_child(
 
 FUZZ_SEED = 31
 FUZZ_COUNT = 120
-CHILD = """
-import json, sys, tempfile
-from pathlib import Path
-from predictor.environment.weather import load_weather
-from predictor.errors import WeatherError
-cache = tempfile.mkdtemp()
-for file in sorted(Path(sys.argv[1]).glob("*.grib2")):
-    try:
-        load_weather([file], cache_dir=cache)
-        answer = {"file": file.name, "outcome": "read"}
-    except WeatherError as exc:
-        answer = {"file": file.name, "outcome": "refused", "message": str(exc)}
-    except BaseException as exc:
-        answer = {"file": file.name, "outcome": "crashed", "message": f"{type(exc).__name__}: {exc}"}
-    print(json.dumps(answer), flush=True)
-"""
 
 
 def test_seeded_fuzz_mutants_never_crash_hang_or_traceback(bases: dict[str, bytes], tmp_path: Path) -> None:
     """120 new mutants from seed 31 (section lengths, bits per value, header bytes at the edges), each loaded
-    by ``load_weather`` in one caller process: it must answer for every file, read or refused in one line
+    by ``load_weather`` in one caller process capped at 1.5 GiB: it must answer for every file, read or refused in one line
     naming it. Run time: 61 s on this 2-core machine under the other helpers' load (pytest --durations)."""
     folder = tmp_path / "fuzz"
     folder.mkdir()
@@ -188,7 +173,7 @@ def test_seeded_fuzz_mutants_never_crash_hang_or_traceback(bases: dict[str, byte
     for name, data in mutants.items():
         (folder / f"{name}.grib2").write_bytes(data)
     done = subprocess.run(
-        [sys.executable, "-c", CHILD, str(folder)], cwd=REPO, capture_output=True, text=True, timeout=600,
+        [sys.executable, "-c", CHILD, str(CAP_BYTES), str(folder)], cwd=REPO, capture_output=True, text=True, timeout=600,
         env={**os.environ, "HOME": str(tmp_path)},
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
@@ -212,3 +197,11 @@ def test_a_weather_error_is_what_a_server_catches(bases: dict[str, bytes], tmp_p
         caught.value.fault
         == "GRIB message 1: section 5 says it is 0 bytes long, shorter than its fixed 11; damaged"
     )
+
+
+def test_a_device_or_fifo_given_as_weather_is_refused_before_anything_reads_it(tmp_path: Path) -> None:
+    fifo = tmp_path / "weather.fifo"
+    os.mkfifo(fifo)
+    for path in (Path("/dev/zero"), fifo):
+        with pytest.raises(WeatherFileError, match=r"not a regular file"):
+            load_weather([path], cache_dir=tmp_path / "cache")
