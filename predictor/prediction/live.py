@@ -167,7 +167,22 @@ class RateDiscrepancy:
 
 
 NO_DISCREPANCY = RateDiscrepancy((0.0,), (0.0,), (0.0,))
-"""A law whose record is taken at its word: no departure measured (a model not evaluated live)."""
+"""A record taken at its word: no departure. Only for tests and the evaluation's own laws before they
+are measured; a model without live settings flies ``DEFAULT_DISCREPANCY``, never this."""
+
+DEFAULT_DISCREPANCY = RateDiscrepancy(
+    heights_km=(1.0, 3.5, 6.0, 8.5, 11.0, 13.5, 16.0, 18.5, 21.0, 23.5, 26.0),
+    log_bias=(0.0,) * 11,
+    log_sigma=(0.092, 0.076, 0.086, 0.081, 0.097, 0.115, 0.139, 0.153, 0.161, 0.104, 0.119),
+)
+"""How far a record's λ may be from the remaining descent's, for a model without live settings of its
+own: conservative, so that a dense record (1 Hz: its fit σ is a fraction of a percent) never overwhelms
+the prior. At each height the larger, over the model and textbook laws of the 30 SuperBIT flights, of
+the root-mean-square log departure (√(median² + spread²), ``conservative_discrepancy``): a law's own
+median departure is its shape error, unknown for a law not evaluated live, so it is counted as spread
+and not taken off. Measured by ``drs live evaluate`` (docs/planning/live-reprediction.md); the zero
+spread it replaces let a 1 Hz record's last 6 km decide λ alone, 1.45× the plain restart's landing
+error from 10 km on another team's flights (issue #30)."""
 
 
 @dataclass(frozen=True)

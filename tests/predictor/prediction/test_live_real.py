@@ -117,7 +117,9 @@ def test_the_live_choices_hardly_depend_on_the_other_flights_laws(
 
 def test_a_law_that_cannot_be_held_out_is_refused(shared_data: Path) -> None:
     folder = shared_data / "tracks" / "pyballoon_superbit"
-    flights = _usable([folder / n for n in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")], None, [], None, None)
+    flights = _usable(
+        [folder / n for n in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")], None, [], None, None, None
+    )
     names = [f.name for f in flights]
     committed = load_model(MODEL)
     with pytest.raises(
