@@ -64,6 +64,8 @@ Why: a flight's departure from the law is not one number; on the SuperBIT flight
 with height, so the recent fall says more about the rest than the whole record does. Chosen on those
 30 flights, leave-one-flight-out, against the record from the top (held-out remaining-time error from
 20 km 155 s against 170 s) and a 3 km window (149 s, but 10 km worse); docs/planning/live-reprediction.md."""
+CHECK_DROPS_M = (1500.0, 3000.0)
+"""How far above a report the flight's own evidence asks each candidate to predict the fall to it."""
 MAX_LAG1_CORRELATION = 0.98
 """The correlation of consecutive residuals is capped here: a record that is one smooth swing still
 counts as at least 1 % of its fixes."""
@@ -432,13 +434,31 @@ class DescentRecord:
         z_up, model_up = self._model
         return float(model_up[0] - np.interp(alt_m, z_up, model_up))
 
+    def elapsed_s(self, alt_m: float) -> float | None:
+        """Seconds from the record's top to where it first reached ``alt_m`` (None: not yet)."""
+        z = np.asarray(self._z)
+        below = np.flatnonzero(z <= alt_m)
+        if below.size == 0 or below[0] == 0:
+            return None
+        i = int(below[0])
+        z0, z1, t0, t1 = self._z[i - 1], self._z[i], self._t[i - 1], self._t[i]
+        return t1 if z0 == z1 else t0 + (t1 - t0) * (z0 - alt_m) / (z0 - z1)
+
+    def law_s(self, top_m: float, bottom_m: float) -> float | None:
+        """The law's seconds from ``top_m`` down to ``bottom_m``, as flown from the record's top."""
+        high, low = self.remaining_model_s(top_m), self.remaining_model_s(bottom_m)
+        return None if high is None or low is None else high - low
+
     def since_top_s(self, report: Report) -> float:
         """Seconds from the record's top (the release, as far as the reports know) to ``report``."""
         return 0.0 if self.top is None else max((report.time - self.top.time).total_seconds(), 0.0)
 
-    def rate_fit(self, alt_m: float, window_m: float = RECORD_WINDOW_M) -> RateFit | None:
+    def rate_fit(
+        self, alt_m: float, window_m: float = RECORD_WINDOW_M, earlier: bool = False
+    ) -> RateFit | None:
         """λ on the law from the record's fixes down to ``alt_m``, those within ``window_m`` above it
-        (at least the last two; None: too little)."""
+        (at least the last two; None: too little). ``earlier``: only the fixes up to the first one at
+        or below ``alt_m``, what the record said when the capsule was there (``self_check``)."""
         if self.top is None or self.top.alt_m - alt_m < MIN_PAIR_DROP_M:
             return None
         if self._model is None:
@@ -446,9 +466,13 @@ class DescentRecord:
             self._model = track.alt_m[::-1].copy(), track.t_s[::-1] - track.t_s[0]
         z_up, model_up = self._model
         z = np.asarray(self._z)
-        keep = (z >= z_up[0]) & (z <= alt_m + window_m)
+        flown = z >= z_up[0]
+        if earlier:
+            reached = np.flatnonzero(z <= alt_m)
+            flown &= np.arange(z.size) <= (int(reached[0]) if reached.size else z.size - 1)
+        keep = flown & (z <= alt_m + window_m)
         if keep.sum() < 2:
-            keep[np.flatnonzero(z >= z_up[0])[-2:]] = True
+            keep[np.flatnonzero(flown)[-2:]] = True
         if keep.sum() < 2 or float(np.ptp(z[keep])) < MIN_PAIR_DROP_M:
             return None
         return fit_rate(np.asarray(self._t)[keep], np.interp(z[keep], z_up, model_up))
@@ -612,6 +636,34 @@ class LivePredictor:
         bias, spread = self.discrepancy.at(height_km)
         prior = self.discrepancy.remaining_prior(height_km) or self.prior
         return update_rate(prior, self.record.rate_fit(report.alt_m), bias, spread)
+
+    def self_check(self, report: Report) -> dict[str, float] | None:
+        """This flight's own evidence for its λ: how well each candidate, asked when the capsule was
+        ``CHECK_DROPS_M`` higher, would have predicted the time it then took to fall to ``report``.
+
+        Mean of the squared log ratio of predicted to measured fall time over those checks, for
+        ``plain`` (the law as it stands) and ``λ`` (the update the record then allowed). None: the
+        record does not reach the lowest check yet. (Requiring every check was tried: 2019 → 2018 from
+        20 km 1.05× the plain restart's time against 0.97×; dropped.) Cheap: one fit per check on the record already kept.
+        """
+        now_s = self.record.since_top_s(report)
+        ground_m = float(self.terrain.elevation(report.lat, report.lon))
+        errors: dict[str, list[float]] = {"plain": [], "λ": []}
+        for drop in CHECK_DROPS_M:
+            top_m = report.alt_m + drop
+            fit = self.record.rate_fit(top_m, earlier=True)
+            then_s, law_s = self.record.elapsed_s(top_m), self.record.law_s(top_m, report.alt_m)
+            if then_s is None or law_s is None or law_s <= 0.0 or now_s - then_s <= 0.0:
+                continue
+            height_km = (top_m - ground_m) / 1000.0
+            bias, spread = self.discrepancy.at(height_km)
+            prior = self.discrepancy.remaining_prior(height_km) or self.prior
+            then = update_rate(prior, fit, bias, spread)
+            errors["plain"].append(math.log(law_s / (now_s - then_s)) ** 2)
+            errors["λ"].append(math.log(law_s / then.factor / (now_s - then_s)) ** 2)
+        if not errors["plain"]:
+            return None
+        return {name: float(np.mean(values)) for name, values in errors.items()}
 
     def _wind_error(self, alt_m: float, c: LiveCorrection) -> tuple[tuple[float, float], float]:
         """The wind error of recent legs: those whose lower end is within the window above ``alt_m``
