@@ -90,7 +90,7 @@ def test_cleaning_finds_the_descent_from_the_peak_to_the_stop(path: Path) -> Non
     assert flight.peak is not None and flight.descent_start is not None
     assert flight.peak.alt_m == max(f.alt_m for f in flight.fixes)
     assert flight.descent_start.time > flight.peak.time
-    assert flight.peak.alt_m > 25_000.0
+    assert flight.peak.alt_m > 20_000.0
     assert not any(r.rule == "before-launch" for r in flight.removals), "the ascent top is airborne"
     if flight.ascent:
         assert flight.has_flag("starts-in-air")
