@@ -65,8 +65,12 @@ def test_every_row_is_a_fix_in_utc_metres_and_time_order(path: Path) -> None:
 def test_local_times_become_the_utc_of_the_aprs_packets() -> None:
     """The archive's raw packets carry their UTC time: ``/140230h...`` on EOSS-291's first row, 08:02:30
     local (July, MDT) and ``/150645h...`` on EOSS-296's first row, 08:06:45 local (November, MST)."""
-    assert read_track(EOSS / "eoss-291_descent.csv").fixes[0].time == datetime(2019, 7, 13, 14, 2, 30, tzinfo=UTC)
-    assert read_track(EOSS / "eoss-296_descent.csv").fixes[0].time == datetime(2019, 11, 9, 15, 6, 45, tzinfo=UTC)
+    assert read_track(EOSS / "eoss-291_descent.csv").fixes[0].time == datetime(
+        2019, 7, 13, 14, 2, 30, tzinfo=UTC
+    )
+    assert read_track(EOSS / "eoss-296_descent.csv").fixes[0].time == datetime(
+        2019, 11, 9, 15, 6, 45, tzinfo=UTC
+    )
 
 
 @pytest.mark.parametrize("path", descent_files(), ids=lambda p: p.stem)
@@ -104,7 +108,9 @@ def test_cleaning_finds_the_descent_from_the_peak_to_the_stop(path: Path) -> Non
     if flight.has_flag("landing-at-last-fix"):  # the archive ends at touchdown: the receiver had stopped
         assert flight.landing.speed_ms is not None and flight.landing.speed_ms < 0.5
     else:  # rows on the ground follow: the altitude held still for a minute
-        assert flight.landing is not flight.fixes[-1] or flight.landing.alt_m == min(f.alt_m for f in flight.descent)
+        assert flight.landing is not flight.fixes[-1] or flight.landing.alt_m == min(
+            f.alt_m for f in flight.descent
+        )
     minutes = flight.descent_time_s / 60.0  # type: ignore[operator]
     assert 20.0 < minutes < 60.0, "a parachute descent from ~30 km"
     rates = [
