@@ -225,11 +225,7 @@ def read_superbit_log(path: str | Path) -> Track:
 def read_v4_csv(path: str | Path, day: date) -> Track:
     """The 1 Hz logger CSV. Times are times of day; a step back of more than 12 h is a new UTC day."""
     path = Path(path)
-    rows = _csv_rows(path)
-    try:
-        line_no, header = next(rows)
-    except StopIteration:
-        raise TrackError(f"{path}: empty file") from None
+    line_no, header, rows = _header_and_rows(path)
     if tuple(h.strip() for h in header) != V4_HEADER:
         raise TrackError(f"{path}:{line_no}: header must be {','.join(V4_HEADER)!r}")
     fixes: list[Fix] = []
@@ -270,11 +266,7 @@ def read_eoss_csv(path: str | Path) -> Track:
     second (``duplicate-time``). The APRS ground speed lets ``cleaning`` see that the train stopped.
     """
     path = Path(path)
-    rows = _csv_rows(path)
-    try:
-        line_no, header = next(rows)
-    except StopIteration:
-        raise TrackError(f"{path}: empty file") from None
+    line_no, header, rows = _header_and_rows(path)
     names = [h.strip().lower() for h in header]
     missing = [name for name in EOSS_COLUMNS if name not in names]
     if missing:
@@ -393,6 +385,16 @@ def _track(path: Path, fmt: str, fixes: list[Fix]) -> Track:
     if not fixes:
         raise TrackError(f"{path}: no fixes in the file")
     return Track(name=path.stem, source=str(path), format=fmt, fixes=tuple(fixes))
+
+
+def _header_and_rows(path: Path) -> tuple[int, list[str], Iterator[tuple[int, list[str]]]]:
+    """The first line's number and fields, and the lines after it; an empty file is a TrackError."""
+    rows = _csv_rows(path)
+    try:
+        line_no, header = next(rows)
+    except StopIteration:
+        raise TrackError(f"{path}: empty file") from None
+    return line_no, header, rows
 
 
 def _is_eoss_header(line: str) -> bool:
