@@ -148,3 +148,24 @@ def test_a_refit_disagreement_names_the_weather_when_it_differs(shared_data: Pat
     assert refit_causes(recorded, "each flight's own ascent winds (`ascent_weather_cube`)", 200.0).startswith(
         "the weather, ground, step and flights are the calibration's own"
     )
+
+
+def test_the_committed_cross_season_report_is_what_the_evaluation_writes(
+    shared_data: Path, tmp_path: Path
+) -> None:
+    # docs/planning/live-2018-to-2019.md, regenerated with the command it names (docs/planning.md).
+    folder = shared_data / "tracks" / "pyballoon_superbit"
+    planning = Path(__file__).parents[3] / "docs" / "planning"
+    result = evaluate_live(
+        sorted(folder.glob("19-*.csv")),
+        model=load_model(planning / "superbit-2018-model.json"),
+        train=sorted(folder.glob("18-*.csv")),
+    )
+    command = (
+        "drs live evaluate --train <15 track files 18-* in pyballoon_superbit> --score <15 track files 19-* "
+        "in pyballoon_superbit> --model docs/planning/superbit-2018-model.json --name live-2018-to-2019 "
+        "--out docs/planning"
+    )
+    written = write_live_report(result, tmp_path, command, "live-2018-to-2019")
+    committed = planning / "live-2018-to-2019.md"
+    assert written.read_text(encoding="utf-8") == committed.read_text(encoding="utf-8")
