@@ -106,6 +106,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                       "on the tracks re-sampled to 1 Hz")  # fmt: skip
     live.add_argument("tracks", nargs="*", metavar="TRACK", type=input_file("TRACK"),
                       help="evaluate/bench: track files; - reads one from standard input")  # fmt: skip
+    live.add_argument(
+        "--train", nargs="+", metavar="TRACK", type=input_file("--train"),
+        help="evaluate: the flights every choice is learned on (with --score; instead of leave-one-out)",
+    )  # fmt: skip
+    live.add_argument(
+        "--score", nargs="+", metavar="TRACK", type=input_file("--score"),
+        help="evaluate: the flights scored, held out whole (a season, a payload, a team)",
+    )  # fmt: skip
+    live.add_argument(
+        "--name", default="live-reprediction", metavar="NAME",
+        help="evaluate: the report's file name, NAME.md and NAME.png in --out (default live-reprediction)",
+    )  # fmt: skip
     live.add_argument("--weather", nargs="+", metavar="FILE", type=input_file("--weather"),
                       help="GFS GRIB2 files (evaluate: for every flight, instead of each one's ascent winds)")  # fmt: skip
     live.add_argument("--ascent-winds", action="store_true", help="use the track's own ascent as the weather")
@@ -389,8 +401,14 @@ def run_evaluate(args: argparse.Namespace) -> int:
     from predictor.environment import Terrain, load_weather
     from predictor.prediction import flown_model, save_model
 
-    if not args.tracks:
-        raise UsageError("drs live evaluate needs track files")
+    if (args.train is None) != (args.score is None):
+        raise UsageError("drs live evaluate --train and --score go together")
+    if args.train is not None and args.tracks:
+        raise UsageError("drs live evaluate takes track files or --train/--score, not both")
+    if not args.tracks and args.score is None:
+        raise UsageError("drs live evaluate needs track files (or --train FILE... --score FILE...)")
+    if not args.name or "/" in args.name:
+        raise UsageError(f"drs live evaluate --name must be a file name without '/', got {args.name!r}")
     if args.save_model and args.model is None:
         raise UsageError(
             "drs live evaluate --save-model needs --model: live settings belong to a model's law"
@@ -409,21 +427,25 @@ def run_evaluate(args: argparse.Namespace) -> int:
             else None
         )
         result = evaluate_live(
-            args.tracks, model=model if args.model is not None else None, profile=model.payload, day=args.date,
-            weather=weather, terrain=Terrain.from_dir(args.dem) if args.dem else None, progress=tell,
+            args.score or args.tracks, model=model if args.model is not None else None, profile=model.payload,
+            day=args.date, weather=weather, terrain=Terrain.from_dir(args.dem) if args.dem else None,
+            train=args.train, progress=tell,
         )  # fmt: skip
     if not result.flights:
         raise PredictorError(f"no usable flight among the tracks given: {'; '.join(result.skipped)}")
-    names = sorted({Path(t).parent.name for t in args.tracks})
     flown = f" --model {args.model}" if args.model is not None else ""
     flown += f" --weather <{len(args.weather)} GRIB files>" if args.weather else ""
     flown += f" --dem {args.dem}" if args.dem else ""
-    command = (
-        f"drs live evaluate <{len(args.tracks)} track files in {', '.join(names)}>{flown} --out {args.out}"
-    )
-    md = write_live_report(result, args.out, command)
+    flown += f" --name {args.name}" if args.name != "live-reprediction" else ""
+    if args.train is not None:
+        tracks = f"--train {_tracks_said(args.train)} --score {_tracks_said(args.score)}"
+    else:
+        tracks = _tracks_said(args.tracks)
+    command = f"drs live evaluate {tracks}{flown} --out {args.out}"
+    md = write_live_report(result, args.out, command, args.name)
     if args.save_model:
-        saved = save_model(live_settings(model, result, command), args.save_model)
+        # Train → score: the model flies what its training flights measured, never the scored ones.
+        saved = save_model(live_settings(model, result.training or result, command), args.save_model)
         print(f"{saved}: the model with its live settings", file=sys.stderr)
     print(
         f"{md}: {len(result.flights)} flights, {result.fixes_used} descent fixes (all used), "
@@ -432,6 +454,16 @@ def run_evaluate(args: argparse.Namespace) -> int:
     )
     print(md.read_text(encoding="utf-8"))
     return 0
+
+
+def _tracks_said(tracks: list[str]) -> str:
+    """Track files as a report's command line names them: how many, in which folders, and which names
+    when they are a subset (a season) rather than the whole folder."""
+    folders = sorted({Path(t).parent.name for t in tracks})
+    stems = sorted(Path(t).stem for t in tracks)
+    prefixes = sorted({stem.split("-")[0] for stem in stems})
+    which = f" {prefixes[0]}-*" if len(prefixes) == 1 and len(stems) > 1 else ""
+    return f"<{len(tracks)} track files{which} in {', '.join(folders)}>"
 
 
 def run_live_bench(args: argparse.Namespace) -> int:

@@ -29,6 +29,7 @@ from predictor.descent import EFFECTS, DescentRateScale, Model, Payload, RatePri
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, UsageError
 from predictor.prediction.live import (
+    DEFAULT_DISCREPANCY,
     DEFAULT_ELLIPSE_NOTE,
     LIVE_ERROR_MODEL,
     NO_CORRECTION,
@@ -127,10 +128,10 @@ class CalibratedModel:
         notes = []
         if self.live is None:
             notes.append(
-                "no live settings of its own: its shape with this flight's own λ update, no wind correction"
+                "no live settings of its own: its shape with this flight's own λ update (the conservative default discrepancy, measured on SuperBIT), no wind correction"
             )
             notes.append(DEFAULT_ELLIPSE_NOTE)
-            settings = LiveSettings(OWN_RATE, LIVE_ERROR_MODEL)
+            settings = LiveSettings(OWN_RATE, LIVE_ERROR_MODEL, DEFAULT_DISCREPANCY)
         else:
             settings = self.live
         prior = self._prior_on_terms() or settings.prior

@@ -19,6 +19,7 @@ from predictor.calibration.live_evaluation import (
     TEXTBOOK_RATE,
     Evaluation,
     _usable,
+    conservative_discrepancy,
     evaluate_live,
     fit_live_sigma,
     held_out,
@@ -35,6 +36,7 @@ from predictor.descent.payload import PROFILES
 from predictor.errors import PredictorError
 from predictor.prediction import CalibratedModel, load_model, save_model
 from predictor.prediction.live import (
+    DEFAULT_DISCREPANCY,
     LIVE_ERROR_MODEL,
     NO_CORRECTION,
     RECORD_WINDOW_M,
@@ -118,7 +120,9 @@ def test_the_live_choices_hardly_depend_on_the_other_flights_laws(
 
 def test_a_law_that_cannot_be_held_out_is_refused(shared_data: Path) -> None:
     folder = shared_data / "tracks" / "pyballoon_superbit"
-    flights = _usable([folder / n for n in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")], None, [], None, None)
+    flights = _usable(
+        [folder / n for n in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")], None, [], None, None, None
+    )
     names = [f.name for f in flights]
     committed = load_model(MODEL)
     with pytest.raises(
@@ -363,3 +367,21 @@ def test_a_model_without_terms_is_not_said_to_be_uncalibrated_on_these_flights(
     text = write_live_report(three, tmp_path, "drs live evaluate <3 tracks>").read_text(encoding="utf-8")
     assert "The model has no calibrated terms: its law is the payload's drag law" in text
     assert "not calibrated on these flights" not in text
+
+
+def test_a_model_without_live_settings_flies_the_measured_conservative_discrepancy(
+    result: Evaluation, shared_data: Path
+) -> None:
+    # Never a zero spread: at each height the larger root-mean-square record-to-remaining departure of
+    # the model and textbook laws on these 30 flights, the median counted as spread.
+    measured = conservative_discrepancy([result.rate_laws["model"][1], result.rate_laws["profile"][1]])
+    assert measured.heights_km == DEFAULT_DISCREPANCY.heights_km
+    assert measured.log_bias == DEFAULT_DISCREPANCY.log_bias
+    assert np.allclose(measured.log_sigma, DEFAULT_DISCREPANCY.log_sigma, atol=0.002)
+    assert min(DEFAULT_DISCREPANCY.log_sigma) > 0.05
+    bare = dataclasses.replace(load_model(MODEL), live=None)
+    track = shared_data / "tracks" / "pyballoon_superbit" / "19-7-28.csv"
+    cube = ascent_weather_cube(clean(read_track(track)))
+    live = bare.live_predictor(cube)
+    assert live.discrepancy == DEFAULT_DISCREPANCY
+    assert any("conservative default discrepancy" in note for note in live.notes)
