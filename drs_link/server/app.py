@@ -123,6 +123,8 @@ class OperationsServer:
         self.busy = 0
         self.last_active = time.monotonic()
         self.stopping = asyncio.Event()
+        self.held: dict[int, tuple[Peer, Approval]] = {}
+        """Requests a connection waits on: withdrawn if it drops, or when the server stops."""
 
     # Plumbing ------------------------------------------------------------------------------------
 
@@ -194,6 +196,7 @@ class OperationsServer:
 
         def on_pending(approval: Approval) -> None:
             waiting.append(approval)
+            self.held[approval.id] = (peer, approval)
             self.approvals.requested(peer, approval)
             text = (f"approval #{approval.id}: waiting for another account to run `drs approve {approval.id}` "
                     f"(expires {approval.expires_utc:%H:%M:%S}Z)")  # fmt: skip
@@ -214,9 +217,7 @@ class OperationsServer:
                 step = await asyncio.wait_for(steps.get(), timeout=0.25)
             except TimeoutError:
                 if request.transport is None or request.transport.is_closing():
-                    for approval in waiting:  # nobody waits for it any more
-                        with contextlib.suppress(RefusedError):
-                            self.approvals.book.cancel(approval.id, peer.operator, approval.requester)
+                    await self.blocking(lambda: self.withdraw(waiting))  # nobody waits for them any more
                     await job
                     return response
                 continue
@@ -225,9 +226,21 @@ class OperationsServer:
             if isinstance(step, Done | Failure):
                 break
         await job
+        for approval in waiting:
+            self.held.pop(approval.id, None)
         with contextlib.suppress(ConnectionError):
             await response.write_eof()
         return response
+
+    def withdraw(self, requests: list[Approval]) -> None:
+        """Cancel requests whose requester is gone (its connection, or the server): the action waiting
+        on each is then refused and sends nothing."""
+        for approval in requests:
+            peer = self.held.pop(approval.id, (None, None))[0]
+            with contextlib.suppress(RefusedError):
+                self.approvals.book.cancel(
+                    approval.id, peer.operator if peer else "drs server", approval.requester
+                )
 
     # Routes ---------------------------------------------------------------------------------------
 
@@ -358,6 +371,7 @@ class OperationsServer:
                         ready(f"drs server: idle for {self.idle_exit_s:.0f} s: exiting")
                         break
         finally:
+            await self.blocking(lambda: self.withdraw([a for _, a in list(self.held.values())]))
             await runner.cleanup()
             with contextlib.suppress(FileNotFoundError):
                 self.socket_path.unlink()

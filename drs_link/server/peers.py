@@ -97,7 +97,7 @@ def check_own_file(path: Path, what: str = "configuration") -> None:
     if info.st_uid not in (me, 0):
         raise ConfigError(
             f"{path}: the server's {what} belongs to {account_of(info.st_uid)}; it must belong to "
-            f"{account_of(me)} or root (chown {account_of(me)} {path})"
+            f"{'root' if me == 0 else account_of(me) + ' or root'} (chown {account_of(me)} {path})"
         )
     if stat.S_IMODE(info.st_mode) & (stat.S_IWGRP | stat.S_IWOTH):
         raise ConfigError(
