@@ -154,9 +154,10 @@ def _waivers(texts: list[str]) -> list[tuple[str, str]]:
 
 def _client(args: argparse.Namespace) -> Client:
     """The operations server of this account's configuration (``drs_link.server``): it acts, not this process."""
+    from console.commands.server import predictor_for
     from drs_link.server import Client
 
-    return Client.for_config(load_config(args.config))
+    return Client.for_config(load_config(args.config), predictor_for)
 
 
 def cmd_arm(args: argparse.Namespace) -> int:

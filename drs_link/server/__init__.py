@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 from predictor.lazy_door import lazy_door
 
 if TYPE_CHECKING:
+    from . import iridium as iridium
     from .app import OperationsServer as OperationsServer
     from .client import Client as Client, raise_failure as raise_failure
     from .desks import PredictorFor as PredictorFor
@@ -54,6 +55,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Roster": "peers",
         "Second": "protocol",
         "account_of": "peers",
+        "iridium": "iridium",
         "check_own_file": "peers",
         "ensure_private_server": "private",
         "peer_uid": "peers",

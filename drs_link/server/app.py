@@ -21,6 +21,7 @@ import logging
 import os
 import signal
 import socket
+import threading
 import time
 from collections.abc import Awaitable, Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -356,8 +357,9 @@ class OperationsServer:
             os.chown(self.socket_path, -1, grp.getgrnam(self.group).gr_gid)
         self.socket_path.chmod(0o600 if self.mode == "private" else 0o660)
         loop = asyncio.get_running_loop()
-        for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
-            loop.add_signal_handler(sig, self.stopping.set)
+        if threading.current_thread() is threading.main_thread():  # a private server in a thread has none
+            for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+                loop.add_signal_handler(sig, self.stopping.set)
         who = ", ".join(f"{o.account} as {o.name}" for o in self.config.operators) or self.roster.own_name
         ready(
             f"drs server ({self.mode}, protocol {PROTOCOL}): listening on {self.socket_path}; operators: {who}"

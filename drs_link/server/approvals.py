@@ -8,6 +8,7 @@ written to the audit beside the book's own rows (``approval.peer``).
 
 from __future__ import annotations
 
+from drs_link.errors import ConfigError
 from drs_link.ops import Approval, ApprovalBook, Login
 from drs_link.server.peers import Peer
 from drs_link.server.protocol import ApprovalView
@@ -39,6 +40,8 @@ class ApprovalService:
         self._audit(peer, request, "requester")
 
     def decide(self, peer: Peer, approval_id: int, approve: bool, reason: str) -> ApprovalView:
+        if not peer.operator:
+            raise ConfigError("operator.name: set [operator] name; every approval is audited with it")
         if not approve and not reason.strip():
             raise UsageError("--reject needs --reason: the requester is told why")
         decided = self.book.decide(approval_id, peer.operator, login_of(peer), approve, reason)

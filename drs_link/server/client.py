@@ -19,7 +19,7 @@ import socket
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import msgspec
 
@@ -47,6 +47,9 @@ from drs_link.server.protocol import (
     encode,
 )
 from predictor.errors import UsageError
+
+if TYPE_CHECKING:
+    from drs_link.server.desks import PredictorFor
 
 T = TypeVar("T")
 Say = Callable[[str], None]
@@ -89,13 +92,14 @@ class Client:
         self.approvals = Approvals(self)
 
     @classmethod
-    def for_config(cls, config: Config) -> Client:
-        """The team's server (``[server] socket``), else this account's private one (started if need be)."""
+    def for_config(cls, config: Config, predictor_for: PredictorFor | None = None) -> Client:
+        """The team's server (``[server] socket``), else this account's private one (started if need be;
+        ``predictor_for`` only reaches one run in this process, ``private.IN_PROCESS_ENV``)."""
         if config.server.socket:
             return cls(Path(config.server.socket).expanduser())
         from drs_link.server.private import ensure_private_server
 
-        return cls(ensure_private_server(config))
+        return cls(ensure_private_server(config, predictor_for))
 
     def close(self) -> None:
         self._conn.close()

@@ -16,11 +16,16 @@ import socket
 import stat
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from drs_link.config import Config
 from drs_link.errors import ConfigError, LinkError
+
+if TYPE_CHECKING:
+    from drs_link.server.desks import PredictorFor
 
 IDLE_EXIT_S = 300.0
 """A private server with no request for this long exits (``$DRS_SERVER_IDLE_S`` overrides it)."""
@@ -67,8 +72,16 @@ def _listening(path: Path) -> bool:
     return True
 
 
-def ensure_private_server(config: Config) -> Path:
+IN_PROCESS_ENV = "DRS_PRIVATE_SERVER"
+"""``thread``: run the private server in a thread of this process instead of its own process (tests that
+watch or patch the operations layer from the test's process; a killed ``drs`` then kills its server)."""
+_threads: dict[Path, Path] = {}
+
+
+def ensure_private_server(config: Config, predictor_for: PredictorFor | None = None) -> Path:
     """The private server's socket, its server started first when none listens."""
+    if os.environ.get(IN_PROCESS_ENV) == "thread":
+        return _thread_server(config, predictor_for)
     path = private_socket(config)
     if _listening(path):
         return path
@@ -95,3 +108,34 @@ def ensure_private_server(config: Config) -> Path:
     tail = log_path.read_text(errors="replace").strip().splitlines()[-1:] if log_path.exists() else []
     said = tail[0].removeprefix("drs: error: ") if tail else "no output"
     raise LinkError(f"the private operations server did not start: {said} (log: {log_path})")
+
+
+def _thread_server(config: Config, predictor_for: PredictorFor | None) -> Path:
+    """The private server in a daemon thread of this process: the same server, socket and identity check."""
+    path = private_socket(config).with_name(f"server-{os.getpid()}-{len(_threads)}.sock")
+    key = config.source.resolve() if config.source is not None else Path("(defaults)")
+    if key in _threads and _listening(_threads[key]):
+        return _threads[key]
+    import asyncio
+
+    from drs_link.server.app import OperationsServer
+
+    server = OperationsServer(config, "private", path, predictor_for=predictor_for)
+    failed: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            asyncio.run(server.run(lambda line: None))
+        except BaseException as exc:  # noqa: BLE001 - said by the caller below
+            failed.append(exc)
+
+    threading.Thread(target=run, daemon=True, name="drs-private-server").start()
+    deadline = time.monotonic() + START_WAIT_S
+    while not _listening(path):
+        if failed or time.monotonic() > deadline:
+            raise LinkError(
+                f"the private operations server did not start: {failed[0] if failed else 'timeout'}"
+            )
+        time.sleep(0.01)
+    _threads[key] = path
+    return path
