@@ -193,12 +193,13 @@ def _sharing_hint(path: Path) -> str:
     if owner == os.geteuid():
         return ""
     return (
-        f" (it belongs to {_account(owner)}; to share one store between accounts, run "
+        f" (it belongs to {account_of(owner)}; to share one store between accounts, run "
         f"`drs setup shared-store {path.parent} --group GROUP` as its owner or root: docs/console.md)"
     )
 
 
-def _account(uid: int) -> str:
+def account_of(uid: int) -> str:
+    """The account of a uid, or ``uid N`` when it has none (a deleted account still owns its files)."""
     try:
         return pwd.getpwuid(uid).pw_name
     except KeyError:

@@ -11,7 +11,6 @@ a client says about itself, count for nothing.
 from __future__ import annotations
 
 import os
-import pwd
 import socket
 import stat
 import struct
@@ -21,6 +20,7 @@ from typing import Literal
 
 from drs_link.config import Config
 from drs_link.errors import ConfigError, RefusedError
+from drs_link.store import account_of
 
 Mode = Literal["private", "shared"]
 _CREDENTIALS = struct.Struct("3i")
@@ -40,13 +40,6 @@ def peer_uid(connection: socket.socket) -> int:
     """The uid of the process at the other end of a Unix stream socket, from the kernel."""
     raw = connection.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, _CREDENTIALS.size)
     return int(_CREDENTIALS.unpack(raw)[1])
-
-
-def account_of(uid: int) -> str:
-    try:
-        return pwd.getpwuid(uid).pw_name
-    except KeyError:
-        return f"uid {uid}"
 
 
 class Roster:

@@ -11,13 +11,11 @@ store, the uid as the login) is the same in a fork.
 from __future__ import annotations
 
 import os
-import pwd
 import shutil
 import stat
 import subprocess
-import sys
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -29,6 +27,7 @@ from drs_link.config import load_config
 from drs_link.errors import StoreError
 from drs_link.ops.approval import ApprovalBook, Login, current_login
 from drs_link.store import Store
+from tests.drs_link.server.team import as_account
 
 pytestmark = pytest.mark.skipif(
     os.geteuid() != 0 or shutil.which("useradd") is None,
@@ -59,33 +58,6 @@ def place() -> Iterator[Path]:
     path.chmod(0o1777)
     yield path
     shutil.rmtree(path, ignore_errors=True)
-
-
-def as_account(user: str, work: Callable[[], int]) -> tuple[int, str]:
-    """Run ``work`` in a child process with ``user``'s uid, gid and groups; its exit code and output."""
-    read_end, write_end = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # the child: never returns into pytest
-        code = 70
-        try:
-            os.close(read_end)
-            out = os.fdopen(write_end, "w", buffering=1)
-            sys.stdout = sys.stderr = out
-            account = pwd.getpwnam(user)
-            os.setgroups(os.getgrouplist(user, account.pw_gid))
-            os.setgid(account.pw_gid)
-            os.setuid(account.pw_uid)
-            code = work()
-            out.flush()
-        except BaseException as exc:  # noqa: BLE001 - reported to the parent, which fails the test
-            print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
-        finally:
-            os._exit(code)
-    os.close(write_end)
-    with os.fdopen(read_end) as pipe:
-        output = pipe.read()
-    _, status = os.waitpid(pid, 0)
-    return os.waitstatus_to_exitcode(status), output
 
 
 def config_for(place: Path, operator: str, store: Path) -> Path:
