@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import pwd
+import signal
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -100,3 +102,44 @@ def test_fire_needs_a_second_accounts_live_approval_and_releases_once(
     uids = [a.detail["uid"] for a in store.audit("DRS1") if a.action == "approval.peer" and a.detail]
     assert uids == [pwd.getpwnam(team.alice).pw_uid, pwd.getpwnam(team.bob).pw_uid]
     assert [a.result for a in store.audit("DRS1") if a.action == "go"][-1] == "released, Pi shut down"
+
+
+def test_the_server_killed_mid_fire_sends_one_go_and_says_so_after_restart(
+    powered: tuple[CapsuleSimulator, Server], place: Path, team: Team
+) -> None:
+    """SIGKILL of the server once the Pi wrote GoGoGo: the store says go-sent-unverified (written before
+    Go left), the restarted server tells the requester so, and finishing keeps the first Go's time."""
+    sim, server = powered
+    weather = place / "gfs"
+    weather.mkdir()
+    args = release_args(write_weather(weather))
+    alice, bob = client_config(place, team.alice), client_config(place, team.bob)
+    assert drs(team.alice, alice, "capsule", "arm", "DRS1", *args)[0] == 0
+    waiting = drs_waiting(
+        team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args
+    )
+    while not waiting.readline().startswith("approval #"):
+        pass
+    assert drs(team.bob, bob, "approve", "1")[0] == 0
+    deadline = time.monotonic() + 60.0
+    while sim.firmware.go_at is None:
+        assert time.monotonic() < deadline, "Go never reached the Pi"
+        time.sleep(0.01)
+    server.process.send_signal(signal.SIGKILL)
+    server.process.wait(timeout=10)
+    code, out = waiting.result()
+    assert code == 1 and "the operations server ended the answer before the action did" in out, out
+    first_go = sim.firmware.go_at
+    store = Store.open(place / "state" / "drs.sqlite")
+    [row] = store.query("SELECT state, go_at FROM release_state WHERE capsule = 'DRS1'")
+    assert row["state"] in ("go-sent-unverified", "released"), "the Go was recorded before it left"
+    restarted = Server(place / "server.toml", place, team.group, {ROCKBLOCK_PASSWORD_ENV: "pw"})
+    try:
+        code, out = drs(team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", *args)
+    finally:
+        restarted.stop()
+    if row["state"] == "go-sent-unverified":
+        assert code == 0 and "Go was sent and never verified: finishing it" in out, out
+    [after] = store.query("SELECT state, go_at FROM release_state WHERE capsule = 'DRS1'")
+    assert after["state"] == "released" and after["go_at"] == row["go_at"]
+    assert sim.firmware.go_at == first_go, "one Go: the microcontroller's countdown was not restarted"
