@@ -12,6 +12,7 @@ import pytest
 
 from console.commands.main import main
 from drs_link.config import load_config
+from drs_link.server.client import Client
 from drs_link.server.private import private_socket
 from drs_link.store import account_of
 from tests.drs_link.server.team import listening
@@ -46,3 +47,18 @@ def test_a_private_server_starts_on_demand_says_it_cannot_meet_the_rule_and_exit
         assert time.monotonic() < deadline, "the idle private server did not exit"
         time.sleep(0.2)
     assert not socket_path.exists()
+
+
+def test_the_event_stream_pushes_each_capsules_release_and_arm_state(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("DRS_PRIVATE_SERVER", "thread")
+    config = tmp_path / "drs.toml"
+    config.write_text(
+        f'[operator]\nname = "EL"\n[data]\ndir = "{tmp_path / "data"}"\n'
+        '[[capsule]]\nname = "DRS1"\nhost = "127.0.0.1"\nport = 9\n'
+    )
+    assert main(["--config", str(config), "capsule", "disarm", "DRS1"]) == 0
+    with Client.for_config(load_config(config)) as client:
+        event = next(iter(client.events()))
+    assert event.release == {"DRS1": "idle"} and event.armed == {"DRS1": "none"} and event.approvals == ()
