@@ -61,7 +61,7 @@ def private_socket(config: Config) -> Path:
     return runtime_directory() / f"server-{hashlib.sha256(where.encode()).hexdigest()[:12]}.sock"
 
 
-def _listening(path: Path) -> bool:
+def listening(path: Path) -> bool:
     probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     try:
         probe.connect(str(path))
@@ -83,12 +83,12 @@ def ensure_private_server(config: Config, predictor_for: PredictorFor | None = N
     if os.environ.get(IN_PROCESS_ENV) == "thread":
         return _thread_server(config, predictor_for)
     path = private_socket(config)
-    if _listening(path):
+    if listening(path):
         return path
     log_path = path.with_suffix(".log")
     with open(path.with_suffix(".lock"), "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # one starter at a time; the others find it listening
-        if _listening(path):
+        if listening(path):
             return path
         idle = os.environ.get("DRS_SERVER_IDLE_S", str(IDLE_EXIT_S))
         argv = [sys.executable, "-m", SERVER_MODULE]
@@ -100,7 +100,7 @@ def ensure_private_server(config: Config, predictor_for: PredictorFor | None = N
                                        start_new_session=True)  # fmt: skip
         deadline = time.monotonic() + START_WAIT_S
         while time.monotonic() < deadline:
-            if _listening(path):
+            if listening(path):
                 return path
             if process.poll() is not None:
                 break
@@ -114,7 +114,7 @@ def _thread_server(config: Config, predictor_for: PredictorFor | None) -> Path:
     """The private server in a daemon thread of this process: the same server, socket and identity check."""
     path = private_socket(config).with_name(f"server-{os.getpid()}-{len(_threads)}.sock")
     key = config.source.resolve() if config.source is not None else Path("(defaults)")
-    if key in _threads and _listening(_threads[key]):
+    if key in _threads and listening(_threads[key]):
         return _threads[key]
     import asyncio
 
@@ -131,7 +131,7 @@ def _thread_server(config: Config, predictor_for: PredictorFor | None) -> Path:
 
     threading.Thread(target=run, daemon=True, name="drs-private-server").start()
     deadline = time.monotonic() + START_WAIT_S
-    while not _listening(path):
+    while not listening(path):
         if failed or time.monotonic() > deadline:
             raise LinkError(
                 f"the private operations server did not start: {failed[0] if failed else 'timeout'}"

@@ -13,7 +13,6 @@ from __future__ import annotations
 import os
 import pwd
 import shutil
-import socket
 import subprocess
 import sys
 import time
@@ -30,6 +29,7 @@ import drs_link.server.client  # noqa: F401
 import drs_link.server.private  # noqa: F401
 from console.commands.main import main
 from drs_link.server.client import Client
+from drs_link.server.private import listening
 
 needs_root = pytest.mark.skipif(
     os.geteuid() != 0 or shutil.which("useradd") is None,
@@ -97,17 +97,6 @@ class Server:
         if self.process.poll() is None:
             self.process.terminate()
             self.process.wait(timeout=30)
-
-
-def listening(path: Path) -> bool:
-    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    try:
-        probe.connect(str(path))
-    except OSError:
-        return False
-    finally:
-        probe.close()
-    return True
 
 
 def as_account(user: str, work: Callable[[], int]) -> tuple[int, str]:

@@ -13,9 +13,8 @@ import pytest
 from console.commands.main import main
 from drs_link.config import load_config
 from drs_link.server.client import Client
-from drs_link.server.private import private_socket
+from drs_link.server.private import listening, private_socket
 from drs_link.store import account_of
-from tests.drs_link.server.team import listening
 
 
 def test_a_private_server_starts_on_demand_says_it_cannot_meet_the_rule_and_exits_when_idle(
