@@ -197,7 +197,7 @@ def _sharing_hint(path: Path) -> str:
     if owner == os.geteuid():
         return ""
     return (
-        f" (it belongs to {_account(owner)}; to share one store between accounts, run "
+        f" (it belongs to {account_of(owner)}; to share one store between accounts, run "
         f"`drs setup shared-store {path.parent} --group GROUP` as its owner or root: docs/console.md)"
     )
 
@@ -217,14 +217,15 @@ def _outside_group(directory: Path) -> str | None:
         group = grp.getgrgid(gid).gr_name
     except KeyError:
         group = f"gid {gid}"
-    me = _account(os.geteuid())
+    me = account_of(os.geteuid())
     return (
         f"the account {me} is not in group {group}, which shares {directory}: ask the machine's "
         f"administrator to add it (`usermod -aG {group} {me}`), then log in again"
     )
 
 
-def _account(uid: int) -> str:
+def account_of(uid: int) -> str:
+    """The account of a uid, or ``uid N`` when it has none (a deleted account still owns its files)."""
     try:
         return pwd.getpwuid(uid).pw_name
     except KeyError:

@@ -32,6 +32,13 @@ from tests.release_helpers import ROCKBLOCK_PASSWORD_ENV, ROCKBLOCK_TOML, releas
 pytestmark = pytest.mark.slow
 
 
+@pytest.fixture(autouse=True)
+def _private_server_in_this_process(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`drs` acts through its private operations server; here in a thread of this process, so what these
+    tests watch or patch in the operations layer is what the server runs (drs_link.server.private)."""
+    monkeypatch.setenv("DRS_PRIVATE_SERVER", "thread")
+
+
 def _toml(value: Any) -> str:
     if isinstance(value, str):
         return json.dumps(value)
