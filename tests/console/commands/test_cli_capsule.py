@@ -140,7 +140,13 @@ def test_go_says_each_step_as_it_starts(
     go = ReleaseStateMachine.go
 
     def watched_go(machine: ReleaseStateMachine, token: ConfirmationToken) -> ReleaseRecord:
-        printed_before_go.append(capsys.readouterr().out)
+        # The server says each step before it takes it; the client prints what streams back a moment
+        # later, so what was said before Go left is read until it is there (5 s bound), not at one instant.
+        out, deadline = "", time.monotonic() + 5.0
+        while "sending Go" not in out and time.monotonic() < deadline:
+            out += capsys.readouterr().out
+            time.sleep(0.02)
+        printed_before_go.append(out)
         return go(machine, token)
 
     monkeypatch.setattr(ReleaseStateMachine, "go", watched_go)
