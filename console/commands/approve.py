@@ -44,9 +44,10 @@ def run_approve(args: argparse.Namespace) -> int:
                 print(json.dumps({"id": request.id, "capsule": request.capsule, "action": request.action,
                                   "summary": request.summary, "requested_by": request.requested_by,
                                   "login": str(request.requester), "command": request.command,
-                                  "expires_utc": request.expires_utc.isoformat()}))  # fmt: skip
+                                  "expires_utc": request.expires_utc.isoformat(),
+                                  "brief": request.for_approver(book.clock())[1:]}))  # fmt: skip
             else:
-                print(request.describe(book.clock()))
+                print("\n".join(request.for_approver(book.clock())))
         if not requests and not args.json:
             print("nothing waits for approval")
         return 0

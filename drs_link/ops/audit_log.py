@@ -8,8 +8,11 @@ the store, the same in a live console and a replay (which shows this machine's l
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
+from drs_link.ops.typed_text import shown
 from drs_link.store import AuditRecord, Store, iso_utc
 
 HISTORY_ROWS = 500
@@ -23,8 +26,10 @@ class AuditLog:
         self.store = store
 
     def newest(self, text: str | None = None, limit: int = HISTORY_ROWS) -> list[AuditRecord]:
-        """The newest ``limit`` entries containing ``text`` (all when empty), newest first."""
-        return list(reversed(self.store.audit(text=text or None, limit=limit)))
+        """The newest ``limit`` entries containing ``text`` (all when empty), newest first, every text in
+        them as it may reach a terminal (``shown``): a reason stored before the typed-text rule, or written
+        into the store by hand, cannot rewrite History's screen."""
+        return [_shown(r) for r in reversed(self.store.audit(text=text or None, limit=limit))]
 
     def elsewhere(self, record: AuditRecord) -> str | None:
         """The console that wrote ``record`` when it is not this one (account@host pid), else None."""
@@ -40,3 +45,23 @@ class AuditLog:
                        "action": r.action, "result": r.result, "detail": r.detail}  # fmt: skip
                 out.write(json.dumps(row) + "\n")
         return len(records)
+
+
+def _shown(record: AuditRecord) -> AuditRecord:
+    return replace(
+        record, operator=shown(record.operator), capsule=None if record.capsule is None else shown(record.capsule),
+        action=shown(record.action), result=shown(record.result),
+        detail=None if record.detail is None else _shown_value(record.detail),
+        session=None if record.session is None else shown(record.session),
+    )  # fmt: skip
+
+
+def _shown_value(value: Any) -> Any:
+    """Every string in a detail, keys too, through ``shown``; numbers and the rest as they are."""
+    if isinstance(value, str):
+        return shown(value)
+    if isinstance(value, dict):
+        return {shown(k): _shown_value(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_shown_value(v) for v in value]
+    return value
