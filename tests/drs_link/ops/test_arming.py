@@ -359,7 +359,9 @@ def test_a_window_that_runs_out_between_the_checks_and_the_submit_leaves_the_app
     monkeypatch.setattr(ApprovalBook, "check", slow_check)
     with pytest.raises(RefusedError, match=r"FIRE refused: approval #1 is void \(ARM window #1 closed\)"):
         arming.fire("DRS1", go_report(clock), approval=approval, login=Login("el"))
-    assert not [a for a in store.audit("DRS1") if a.action in ("approval.used", "fire") and a.result != "refused"]
+    assert not [
+        a for a in store.audit("DRS1") if a.action in ("approval.used", "fire") and a.result != "refused"
+    ]
     assert arming.status().state is ArmState.DISARMED
 
 

@@ -7,9 +7,8 @@ rules, so the drop time said here is checked against what the unit model did (``
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 from collections.abc import Iterator
+from dataclasses import replace
 from datetime import timedelta
 from pathlib import Path
 
