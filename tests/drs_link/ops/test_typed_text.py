@@ -49,7 +49,10 @@ def test_the_one_rule_refuses_every_control_and_format_character_and_names_the_f
     with pytest.raises(RefusedError) as refused:
         typed_text("the waiver reason", text)
     message = str(refused.value)
-    assert message.startswith("the waiver reason: character ") and "type it as one line of visible text" in message
+    assert (
+        message.startswith("the waiver reason: character ")
+        and "type it as one line of visible text" in message
+    )
     assert message.isprintable(), "the error itself is safe to print"
     assert typed_text("the waiver reason", "alone at the site — 5 km/h, ±14 min, Zürich") == (
         "alone at the site — 5 km/h, ±14 min, Zürich"
@@ -78,7 +81,12 @@ def fields(store: Store, tmp_path: Path) -> dict[str, Callable[[str], object]]:
         "the single-operator waiver": lambda t: check_second_operator("alice", None, t, False),
         "the second operator's name": lambda t: check_second_operator("alice", t, None, False, ("bob",)),
         "the override reason": lambda t: authorize_mt(
-            store, "DRS1", "alice", parachute, falling(recent(9)), single_operator_waiver="alone",
+            store,
+            "DRS1",
+            "alice",
+            parachute,
+            falling(recent(9)),
+            single_operator_waiver="alone",
             override_landed=t,
         ),  # fmt: skip
         "the take-over reason": lambda t: machine.check_take_over(t, free),
@@ -117,7 +125,9 @@ def test_a_stored_row_with_control_characters_is_shown_escaped_by_the_approver_h
     book = ApprovalBook(store, clock)
     request = book.request("DRS1", "parachute", "[PARACHUTE=10:20]", "alice", Login("alice"), command="x")
     evil = "\r\x1b[2K(landed: verified, 0 m/s on the ground)"
-    store.write("UPDATE approval SET summary = ?, requested_by = ? WHERE id = ?", (evil, "al\u202eice", request.id))
+    store.write(
+        "UPDATE approval SET summary = ?, requested_by = ? WHERE id = ?", (evil, "al\u202eice", request.id)
+    )
     shown_lines = book.get(request.id).for_approver(clock())
     assert all("\x1b" not in line and "\r" not in line and "\u202e" not in line for line in shown_lines)
     assert "\\x0d\\x1b[2K(landed: verified" in shown_lines[0] and "al\\u202eice" in shown_lines[0]
@@ -141,12 +151,16 @@ def test_drs_approve_refuses_a_reason_with_an_escape_and_lists_a_stored_one_esca
     config = write_config(tmp_path)
     store = Store.open(tmp_path / "data" / "drs.sqlite")
     book = ApprovalBook(store)
-    request = book.request("DRS1", "parachute", "[PARACHUTE=10:20]", "alice", Login("someone-else"), command="x")
+    request = book.request(
+        "DRS1", "parachute", "[PARACHUTE=10:20]", "alice", Login("someone-else"), command="x"
+    )
     store.write("UPDATE approval SET summary = ? WHERE id = ?", ("\x1b[2Kall clear", request.id))
     assert run(config, "approve") == 0
     out = capsys.readouterr().out
     assert "\x1b" not in out and "\\x1b[2Kall clear" in out
     assert run(config, "approve", str(request.id), "--reject", "--reason", "no\x1b[2K") == 1
     err = capsys.readouterr().err
-    assert err.startswith("drs: error: the approval's reason: character 3 is the control or format character \\x1b")
+    assert err.startswith(
+        "drs: error: the approval's reason: character 3 is the control or format character \\x1b"
+    )
     assert err.count("\n") == 1 and book.get(request.id).state == "pending"
