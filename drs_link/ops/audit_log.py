@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from drs_link.ops.typed_text import shown
-from drs_link.store import AuditRecord, Store, iso_utc
+from drs_link.store import AuditRecord, Store, data_directory, iso_utc
 
 HISTORY_ROWS = 500
 """The newest entries History lists; the export has them all."""
@@ -38,7 +38,7 @@ class AuditLog:
     def export(self, path: Path, text: str | None = None) -> int:
         """Every entry containing ``text``, oldest first, one JSON object a line; how many were written."""
         records = self.store.audit(text=text or None)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        data_directory(path.parent)
         with path.open("w", encoding="utf-8") as out:
             for r in records:
                 row = {"time_utc": iso_utc(r.time_utc), "operator": r.operator, "capsule": r.capsule,
