@@ -555,7 +555,8 @@ class ReleaseStateMachine:
     ) -> None:
         """Refuse (audited) a take-over that can never be right, before the Pi is asked, an approval is
         spent, or (``typed_name`` None) the name typed."""
-        typed_text("the take-over reason", reason)
+        if reason.strip():
+            typed_text("the take-over reason", reason)
         if typed_name is not None:
             typed_text("the typed capsule name", typed_name)
             if typed_name != self.name:

@@ -26,6 +26,13 @@ def _escape(char: str) -> str:
     return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}"
 
 
+def _kind(char: str) -> str:
+    """What the character is, for the error: its Unicode name, or its category for the unnamed controls."""
+    names = {"Cc": "a control character", "Cf": "a format character", "Zl": "a line separator",
+             "Zp": "a paragraph separator"}  # fmt: skip
+    return unicodedata.name(char, names[unicodedata.category(char)])
+
+
 def _hidden(char: str) -> bool:
     return unicodedata.category(char) in REFUSED_CATEGORIES
 
@@ -37,7 +44,7 @@ def typed_text(field: str, value: str) -> str:
         if _hidden(char):
             raise RefusedError(
                 f"{field}: character {position} is the control or format character {_escape(char)} "
-                f"({unicodedata.name(char, 'unnamed')}); type it as one line of visible text"
+                f"({_kind(char)}); type it as one line of visible text"
             )
     return value
 
