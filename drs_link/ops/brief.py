@@ -21,7 +21,7 @@ from drs_link.ops.typed_text import shown
 
 
 @dataclass(frozen=True)
-class Verdict:
+class VerdictShown:
     """One go/no-go item as it was judged: title, verdict (GO, NO-GO, WAIVED), detail."""
 
     title: str
@@ -42,7 +42,7 @@ class WaiverShown:
 class ApprovalBrief:
     command: str
     """The exact command: the MT text, the ARM window, the take-over and its reason."""
-    verdicts: tuple[Verdict, ...] = ()
+    verdicts: tuple[VerdictShown, ...] = ()
     waivers: tuple[WaiverShown, ...] = ()
     landed: str | None = None
     """PARACHUTE: the landed evidence the gate judged (its summary says UNVERIFIED when it is)."""
@@ -86,7 +86,7 @@ class ApprovalBrief:
             raw: dict[str, Any] = json.loads(text)
             return cls(
                 str(raw["command"]),
-                tuple(Verdict(str(t), str(v), str(d)) for t, v, d in raw.get("verdicts", [])),
+                tuple(VerdictShown(str(t), str(v), str(d)) for t, v, d in raw.get("verdicts", [])),
                 tuple(WaiverShown(str(i), str(r), str(a)) for i, r, a in raw.get("waivers", [])),
                 None if raw.get("landed") is None else str(raw["landed"]),
                 None if raw.get("override") is None else str(raw["override"]),
@@ -109,6 +109,6 @@ def report_json(report: GoNoGoReport, waivers: Sequence[Waiver]) -> str:
     waived = {item.key for item in report.items if item.verdict.value == "WAIVED"}
     return ApprovalBrief(
         f"ARM on {report.capsule}",
-        tuple(Verdict(i.title, i.verdict.value, i.detail) for i in report.items),
+        tuple(VerdictShown(i.title, i.verdict.value, i.detail) for i in report.items),
         tuple(WaiverShown(w.item, w.reason, w.operator) for w in waivers if w.item in waived),
     ).to_json()

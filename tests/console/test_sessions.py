@@ -167,15 +167,15 @@ async def test_the_approvals_screen_shows_the_highlighted_requests_brief_as_drs_
 ) -> None:
     """Issue #29 Why-6: the approver reads the command, the verdicts and the waivers before Enter, and
     the confirmation says it again; both are ``Approval.for_approver``, the text `drs approve` prints."""
-    from drs_link.ops.brief import ApprovalBrief, Verdict, WaiverShown
+    from drs_link.ops.brief import ApprovalBrief, VerdictShown, WaiverShown
 
     app = canned_app()
     book = ApprovalBook(app.store)
     brief = ApprovalBrief(
         "Go: release DRS1 in ARM window #4",
         (
-            Verdict("SSH link up", "GO", "up, 2 s old"),
-            Verdict("GNSS fix fresh", "WAIVED", "no fix; waived by JM: shade"),
+            VerdictShown("SSH link up", "GO", "up, 2 s old"),
+            VerdictShown("GNSS fix fresh", "WAIVED", "no fix; waived by JM: shade"),
         ),
         (WaiverShown("gnss", "shade", "JM"),),
     )
