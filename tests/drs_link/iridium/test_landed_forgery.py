@@ -55,6 +55,18 @@ def gateway() -> Iterator[SimulatedRockblock]:
         yield simulated
 
 
+def waived_parachute(tmp_path: Path, gateway: SimulatedRockblock) -> subprocess.CompletedProcess[str]:
+    """`drs mt send DRS1 --parachute next --single-operator-waiver …` as its own process, on the data dir
+    the receiver wrote (the operator's config)."""
+    config = write_config(tmp_path, gateway.url)
+    return subprocess.run(
+        [sys.executable, "-c", DRS, "--config", str(config), "mt", "send", "DRS1", "--parachute", "next",
+         "--accept-midnight", "--confirm", "DRS1", "--single-operator-waiver", "alone at the site"],
+        cwd=REPO, capture_output=True, text=True, timeout=60,
+        env={**os.environ, "PYTHONPATH": str(REPO), "DRS_TEST_RB": "pw"},
+    )  # fmt: skip
+
+
 def test_forged_unsigned_still_fixes_after_a_signed_fall_do_not_queue_parachute(
     tmp_path: Path, gateway: SimulatedRockblock
 ) -> None:
@@ -70,13 +82,7 @@ def test_forged_unsigned_still_fixes_after_a_signed_fall_do_not_queue_parachute(
             assert post_mo(receiver.url, mo(momsn, moment, alt, speed)) == 200, "stored, as unverified"
     finally:
         receiver.stop()
-    config = write_config(tmp_path, gateway.url)  # the same data dir, the operator's config
-    sent = subprocess.run(
-        [sys.executable, "-c", DRS, "--config", str(config), "mt", "send", "DRS1", "--parachute", "next",
-         "--accept-midnight", "--confirm", "DRS1", "--single-operator-waiver", "alone at the site"],
-        cwd=REPO, capture_output=True, text=True, timeout=60,
-        env={**os.environ, "PYTHONPATH": str(REPO), "DRS_TEST_RB": "pw"},
-    )  # fmt: skip
+    sent = waived_parachute(tmp_path, gateway)
     assert sent.returncode == 1, sent.stdout + sent.stderr
     assert "NOT LANDED: last fix" in sent.stderr and "at 15,100 m" in sent.stderr
     assert "3 report(s) without a verified JWT ignored" in sent.stderr
@@ -175,13 +181,7 @@ def test_thirty_one_forged_unsigned_past_dated_fixes_and_a_waiver_never_queue_pa
             assert post_mo(receiver.url, mo(momsn, moment, alt, speed)) == 200
     finally:
         receiver.stop()
-    config = write_config(tmp_path, gateway.url)
-    sent = subprocess.run(
-        [sys.executable, "-c", DRS, "--config", str(config), "mt", "send", "DRS1", "--parachute", "next",
-         "--accept-midnight", "--confirm", "DRS1", "--single-operator-waiver", "alone at the site"],
-        cwd=REPO, capture_output=True, text=True, timeout=60,
-        env={**os.environ, "PYTHONPATH": str(REPO), "DRS_TEST_RB": "pw"},
-    )  # fmt: skip
+    sent = waived_parachute(tmp_path, gateway)
     assert sent.returncode == 1, sent.stdout + sent.stderr
     assert "UNVERIFIED: from 31 report(s)" in sent.stderr and "another login must approve it" in sent.stderr
     assert gateway.requests == [], "nothing reached the gateway"
