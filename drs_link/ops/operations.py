@@ -806,7 +806,6 @@ class Operations:
                 second.on_pending or (lambda request: None), command=bound, deadline=queue_by,
                 brief=ApprovalBrief(message.text, landed=evidence.summary, override=override or None),
             )  # fmt: skip
-        gateway = RockblockGateway.from_config(self.config.rockblock, self.environ)
         authorised = authorize_mt(
             self.store, name, self.operator, message, reports, second_operator=second.name,
             single_operator_waiver=second.waiver,
@@ -815,6 +814,7 @@ class Operations:
             override_landed=override_landed, queue_by=queue_by, now=self.clock(), approval=approval,
             login=self.login if approval is not None else None, spend=False,
         )  # fmt: skip
+        gateway = RockblockGateway.from_config(self.config.rockblock, self.environ)  # before it is spent
         if approval is None:
             command = self.lifecycle.request(capsule, message, flush=flush)
         else:
