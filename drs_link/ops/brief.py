@@ -14,10 +14,12 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from drs_link.ops.gonogo import GoNoGoReport, Waiver
 from drs_link.ops.typed_text import shown
+
+if TYPE_CHECKING:  # the go/no-go loads shapely and numpy: `drs approve --help` must not
+    from drs_link.ops.gonogo import GoNoGoReport, Waiver
 
 
 @dataclass(frozen=True)
