@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 
 UV_VERSION := 0.13.9
 
-.PHONY: demo test lint house bench bench-console bench-bytes bench-consoles venv screenshots lock
+.PHONY: demo test lint house bench bench-console bench-serve bench-bytes bench-consoles venv screenshots lock
 
 # The exact, hash-checked versions of requirements.lock: every machine installs what the suite was
 # last green with. pyproject.toml keeps ranges for people who install the package as a library.
@@ -29,12 +29,17 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/drs demo
 
+# Test files run in parallel (pytest-xdist), one file to a worker at a time (--dist loadfile): a file's
+# module fixtures are built once and its tests keep their order. Four workers on two cores: most of the
+# suite's time is spent waiting on sshd, tmux, sockets and child processes, not computing.
+TEST_WORKERS ?= 4
+
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports
 	$(BIN)/mypy
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
@@ -51,6 +56,9 @@ house: $(STAMP)
 
 bench-console: $(STAMP)
 	$(BIN)/python tools/console_latency.py
+
+bench-serve: $(STAMP)
+	$(BIN)/python tools/serve_first_answer.py
 
 bench-bytes: $(STAMP)
 	$(BIN)/python tools/console_bytes.py

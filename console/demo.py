@@ -153,6 +153,7 @@ class DemoWorld:
         self._last_step: datetime | None = None
         self._cube: WeatherCube | None = None
         self._terrain: Terrain | None = None
+        self.config_table: dict[str, object] = {}
         self._ground_station = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.ground_station_port = _free_udp_port()
         """Where the demo's ground station sends the balloon's position (OziMux), as a real one would."""
@@ -196,7 +197,7 @@ class DemoWorld:
         write_demo_terrain(self.terrain_file)
         zones = write_exclusion_zones(self.root / "exclusion-zones.geojson")
         self.weather_files = demo_weather_files(SITE[0], SITE[1], self.clock(), hours=18)
-        config = parse_config({
+        self.config_table = {
             "operator": {"name": "demo-operator"},
             "data": {"dir": str(data_dir)},
             "rockblock": {"mt_url": self.gateway.url, "username": "drs-demo"},
@@ -207,7 +208,9 @@ class DemoWorld:
                 "prediction_period_s": 60.0,
             },
             "capsule": capsules,
-        })  # fmt: skip
+        }  # fmt: skip
+        """The configuration as TOML tables, every path absolute (``drs demo --live`` writes it to a file)."""
+        config = parse_config(self.config_table)
         self._thread = threading.Thread(target=self._run, name="demo-world", daemon=True)
         self._thread.start()
         return config

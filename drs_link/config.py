@@ -94,6 +94,23 @@ class OperatorConfig:
 
 
 @dataclass(frozen=True)
+class OperatorAccount:
+    """One ``[[operator]]`` of an operations server's own configuration: the OS account the kernel names
+    for a connection, and the operator name it acts and is audited under (``drs_link.server``)."""
+
+    account: str
+    name: str
+
+
+@dataclass(frozen=True)
+class ServerConfig:
+    """Where this account's ``drs`` finds the team's operations server (``drs setup server``): its Unix
+    socket. Empty: a private server of this account, started on demand."""
+
+    socket: str = ""
+
+
+@dataclass(frozen=True)
 class DataConfig:
     dir: Path = field(default_factory=default_data_dir)
 
@@ -213,6 +230,9 @@ class Config:
     chase: ChaseConfig = field(default_factory=ChaseConfig)
     capsules: tuple[CapsuleConfig, ...] = ()
     approvers: tuple[ApproverConfig, ...] = ()
+    server: ServerConfig = field(default_factory=ServerConfig)
+    operators: tuple[OperatorAccount, ...] = ()
+    """A server's ``[[operator]]`` list (its own configuration only; a client's says ``[operator] name``)."""
     source: Path | None = None
 
     def capsule(self, name: str) -> CapsuleConfig:
@@ -503,7 +523,10 @@ def parse_config(document: dict[str, Any], source: Path | None = None) -> Config
         "console": ConsoleConfig,
         "balloon_feed": BalloonFeedConfig,
         "chase": ChaseConfig,
+        "server": ServerConfig,
     }
+    document = dict(document)
+    operators = _operators(document.pop("operator")) if isinstance(document.get("operator"), list) else ()
     unknown = sorted(set(document) - set(sections) - {"capsule", "approver"})
     if unknown:
         allowed = ", ".join(sorted([*sections, "capsule", "approver"]))
@@ -528,7 +551,23 @@ def parse_config(document: dict[str, Any], source: Path | None = None) -> Config
     if duplicates:
         raise ConfigError(f"capsule.name: {duplicates[0]!r} is used by more than one capsule")
     return Config(**kwargs, capsules=tuple(capsules), approvers=_approvers(document.get("approver", [])),
-                  source=source)  # fmt: skip
+                  operators=operators, source=source)  # fmt: skip
+
+
+def _operators(tables: list[Any]) -> tuple[OperatorAccount, ...]:
+    """``[[operator]]``: each account once, each name printable and once (an audit names them)."""
+    operators = []
+    for index, table in enumerate(tables):
+        operator = _build(OperatorAccount, table, f"operator[{index}]")
+        if not operator.account.strip() or not operator.name.strip() or not operator.name.isprintable():
+            raise ConfigError(f"operator[{index}]: give the account and a printable operator name")
+        operators.append(operator)
+    for what in ("account", "name"):
+        values = [getattr(o, what).casefold() for o in operators]
+        twice = sorted({v for v in values if values.count(v) > 1})
+        if twice:
+            raise ConfigError(f"operator.{what}: {twice[0]!r} is listed twice in [[operator]]")
+    return tuple(operators)
 
 
 def _approvers(tables: Any) -> tuple[ApproverConfig, ...]:

@@ -194,7 +194,11 @@ def _protect(path: Path) -> None:
         if info.st_uid == os.geteuid() and info.st_mode & 0o777 != mode:
             path.chmod(mode)
     except OSError as exc:
+        if (outside := _outside_group(path.parent)) is not None:
+            raise StoreError(f"cannot use the store {path}: {outside}") from None
         raise StoreError(f"cannot create the store {path}: {exc}{_sharing_hint(path)}") from None
+    if (outside := _outside_group(path.parent)) is not None and not os.access(path, os.R_OK | os.W_OK):
+        raise StoreError(f"cannot use the store {path}: {outside}")
     if not os.access(path, os.R_OK | os.W_OK):
         raise StoreError(f"cannot use the store {path}: permission denied{_sharing_hint(path)}")
 
@@ -213,12 +217,35 @@ def _sharing_hint(path: Path) -> str:
     if owner == os.geteuid():
         return ""
     return (
-        f" (it belongs to {_account(owner)}; to share one store between accounts, run "
+        f" (it belongs to {account_of(owner)}; to share one store between accounts, run "
         f"`drs setup shared-store {path.parent} --group GROUP` as its owner or root: docs/console.md)"
     )
 
 
-def _account(uid: int) -> str:
+def _outside_group(directory: Path) -> str | None:
+    """What to say when ``directory`` is a shared store and this account is not in its group: sharing it
+    again (``drs setup shared-store``) is not this operator's to do; joining the group is the admin's."""
+    if not shared_directory(directory):
+        return None
+    try:
+        gid = directory.stat().st_gid
+    except OSError:
+        return None
+    if gid == os.getegid() or gid in os.getgroups():
+        return None
+    try:
+        group = grp.getgrgid(gid).gr_name
+    except KeyError:
+        group = f"gid {gid}"
+    me = account_of(os.geteuid())
+    return (
+        f"the account {me} is not in group {group}, which shares {directory}: ask the machine's "
+        f"administrator to add it (`usermod -aG {group} {me}`), then log in again"
+    )
+
+
+def account_of(uid: int) -> str:
+    """The account of a uid, or ``uid N`` when it has none (a deleted account still owns its files)."""
     try:
         return pwd.getpwuid(uid).pw_name
     except KeyError:

@@ -20,3 +20,17 @@ class OutOfCoverageError(WeatherError):
 class UsageError(PredictorError):
     """A command line argparse accepted but that cannot mean anything (options that exclude each other,
     a count out of range): exit status 2 like argparse's own, so a script can tell a typo from a failure."""
+
+
+class WeatherFileError(WeatherError):
+    """One weather file is unusable: damaged, hostile, or it made the GRIB decoder fail or die.
+
+    The one type a caller that serves others (``drs serve predictor``, the console) catches to refuse the
+    file and keep running; ``path`` is the file, ``fault`` what is wrong with it, ``str()`` both in one line.
+    """
+
+    def __init__(self, path: object, fault: str, said: str | None = None) -> None:
+        """``said``: the whole line when a reader already worded it with the file's name in it."""
+        self.path = str(path)
+        self.fault = " ".join(fault.split())
+        super().__init__(" ".join(said.split()) if said else f"{self.path}: {self.fault}")

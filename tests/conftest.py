@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pyproj  # noqa: F401  (before any test imports eccodes: see predictor/environment/native_libs.py)
 import pytest
 
+os.environ.setdefault("DRS_SERVER_IDLE_S", "20")
+"""The private operations servers that `drs` commands start in tests exit 20 s after their last request."""
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO_ROOT.parent / "shared" / "data"
 

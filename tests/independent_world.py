@@ -19,6 +19,13 @@ truth is separate code:
   effects the project's library does not have in that form: a canopy that opens further below a
   height (two regimes), a wind bias that ramps with altitude, an updraft in a band of heights, or
   nothing but GNSS noise;
+* what makes real flights hard (issue #30) can be switched on (``HARD``): a wider per-flight λ scatter
+  (σ ln λ = 0.10, real payloads show 0.06–0.13); forecast winds that differ from the winds flown by a
+  random field correlated in height, space and time (``ForecastError``: a few m/s, kilometres in the
+  vertical, ~100 km and ~2 h), so the winds the ascent measured — tens of kilometres and one to two
+  hours away from the descent at the same height — are not the winds the descent meets; and effects
+  whose form no library term has: a rate that drifts with time since release, a drag coefficient
+  that follows the Reynolds number (with the air's viscosity, so not a function of density alone);
 * the tracks come out as canonical CSV files (``time,lat,lon,alt_m,pressure_pa,speed_mps``), written
   here, with ground fixes before launch and after landing, a random logging phase and Gaussian noise,
   and go through ``predictor.tracks``' reader and cleaning like a real file.
@@ -29,7 +36,7 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
@@ -163,10 +170,16 @@ class Effects:
     updraft_ms: float = 0.0
     """Rising air (m/s) between the band's altitudes: the fall over the ground is slower by that much."""
 
-    def rate_factor(self, z_m: float) -> float:
-        if self.faster_above_m is not None and z_m > self.faster_above_m:
-            return self.faster_factor
-        return 1.0
+    rate_drift_per_hour: float = 0.0
+    """The rate through the air grows by this fraction per hour since release (a canopy whose fabric
+    stretches and vents, a payload icing then shedding: the law's factor is 1 + drift·t, t in hours)."""
+    reynolds_exponent: float = 0.0
+    """Cd ∝ (Re/Re_ref)^(−k): a drag coefficient that rises as the Reynolds number falls. Re = ρ·v·D/μ
+    with Sutherland's viscosity μ(T), so the change depends on temperature as well as density."""
+
+    def rate_factor(self, z_m: float, since_release_s: float = 0.0) -> float:
+        regime = self.faster_factor if self.faster_above_m is not None and z_m > self.faster_above_m else 1.0
+        return regime * (1.0 + self.rate_drift_per_hour * since_release_s / 3600.0)
 
     def air_rising(self, z_m: float) -> float:
         bottom, top = self.updraft_band_m
@@ -176,14 +189,88 @@ class Effects:
         k = max(z_m - GROUND_M, 0.0) / 1000.0
         return self.wind_ramp_ms_per_km[0] * k, self.wind_ramp_ms_per_km[1] * k
 
+    def through_air(self, v_law_ms: float, z_m: float, lat_deg: float) -> float:
+        """The fall through the air when the law alone gives ``v_law_ms`` (Cd at the reference Re):
+        solving v = v_law·(Re(v)/Re_ref)^(k/2) for v in closed form."""
+        k = self.reynolds_exponent
+        if k == 0.0:
+            return v_law_ms
+        t, _ = temperature_pressure(geopotential_height(z_m, lat_deg))
+        per_speed = density(z_m, lat_deg) * CANOPY_DIAMETER_M / viscosity(t) / REYNOLDS_REF
+        return (v_law_ms * per_speed ** (k / 2.0)) ** (1.0 / (1.0 - k / 2.0))
+
+
+CANOPY_DIAMETER_M = 1.3
+"""The length in the payload's Reynolds number (a ~1.3 m canopy: Cd·A 1.4 m² at Cd 1.05)."""
+REYNOLDS_REF = 4.0e5
+"""Where Cd is the law's own: the Reynolds number near the ground (ρ 1.2, v 5 m/s, D 1.3 m)."""
+
+
+def viscosity(t_k: float) -> float:
+    """Sutherland's law for air, Pa·s."""
+    return 1.458e-6 * t_k**1.5 / (t_k + 110.4)
+
 
 NOISE_ONLY = Effects()
 TWO_REGIME = Effects(faster_above_m=20_000.0, faster_factor=1.3)
-"""Issue #21's canopy: 1.3× faster above 20 km, normal below."""
+"""Issue #21's canopy: 1.3× faster above 20 km, normal below. A RECOGNITION CHECK ONLY: its form is
+exactly the library's ``two_regime_rate``, so a model that fits it shows the library can recognise its
+own term, not that the loop generalises; issue #30's floors are not asserted on it."""
+RATE_DRIFT = Effects(rate_drift_per_hour=0.25)
+"""The fall speeds up 25 % per hour since release (≈ +12 % by the end of a 30 min descent): a
+function of time since release, which no library term is (``deployment_delay`` is a step)."""
+REYNOLDS_DRAG = Effects(reynolds_exponent=0.25)
+"""Cd ∝ Re^−0.25: at 28 km (Re ~8·10⁴, cold air) the fall is ~20 % slower than ρ^−½ says."""
 WIND_RAMP = Effects(wind_ramp_ms_per_km=(0.35, -0.2))
 """0.35 m/s east and −0.2 m/s north per km of height: 10 m/s east at 30 km."""
 UPDRAFT = Effects(updraft_band_m=(1500.0, 5000.0), updraft_ms=1.5)
 """1.5 m/s rising air from 1.5 to 5 km (a convective boundary layer and lee wave, say)."""
+
+
+# ---------------------------------------------------------------- the forecast's error
+
+
+@dataclass(frozen=True)
+class ForecastError:
+    """The winds flown minus the forecast's: for each component an independent Gaussian random field
+    with a Gaussian covariance of the given scales in height, horizontal distance and time, drawn as
+    ``modes`` random Fourier features (Rahimi & Recht): √(2/M)·Σ cos(k·x + φ) with k ~ N(0, 1/L²), so
+    its variance is ``rms_ms``² and its correlation exp(−Δ²/2L²) in each coordinate."""
+
+    rms_ms: float = 3.0
+    vertical_m: float = 2500.0
+    horizontal_m: float = 100_000.0
+    hours: float = 2.0
+    modes: int = 48
+    seed: int = 0
+
+    def field(self) -> WindError:
+        rng = np.random.default_rng(self.seed + 7919)
+        scales = np.array([self.vertical_m, self.horizontal_m, self.horizontal_m, self.hours * 3600.0])
+        k = rng.normal(0.0, 1.0, (2, self.modes, 4)) / scales
+        phase = rng.uniform(0.0, 2.0 * math.pi, (2, self.modes))
+        return WindError(k, phase, self.rms_ms * math.sqrt(2.0 / self.modes))
+
+
+@dataclass(frozen=True)
+class WindError:
+    """A drawn ``ForecastError``: evaluated exactly at any (altitude, place, time), no grid."""
+
+    k: np.ndarray
+    """(component, mode, [z, east, north, t]) wavenumbers, rad per m or per s."""
+    phase: np.ndarray
+    amplitude: float
+
+    def at(self, z_m: float, lat_deg: float, lon_deg: float, t_s: float) -> tuple[float, float]:
+        d_north, d_east = _from_degrees(lat_deg - LAUNCH_LAT, lon_deg - LAUNCH_LON)
+        x = np.array([z_m, d_east, d_north, t_s])
+        waves = np.cos(self.k @ x + self.phase)
+        return float(self.amplitude * waves[0].sum()), float(self.amplitude * waves[1].sum())
+
+
+HARD = {"rate_log_sigma": 0.10, "forecast_error": ForecastError()}
+"""``make_world`` keywords for what makes real flights hard: the λ scatter of real payloads and
+forecast winds that are not the winds flown (3 m/s rms per component)."""
 
 
 # ---------------------------------------------------------------- flying
@@ -228,34 +315,52 @@ def _to_degrees(lat0: float, d_north_m: float, d_east_m: float, z_m: float = 0.0
     )
 
 
+def _from_degrees(d_lat: float, d_lon: float) -> tuple[float, float]:
+    """(north, east) metres of a small move in degrees near the launch (a local flat frame)."""
+    return math.radians(d_lat) * WGS84_A, math.radians(d_lon) * WGS84_A * math.cos(math.radians(LAUNCH_LAT))
+
+
+@dataclass(frozen=True)
+class _Sky:
+    """Everything the truth of one flight is flown in."""
+
+    rate_factor: float
+    effects: Effects
+    ascent_ms: float
+    release_s: float = math.inf
+    error: WindError | None = None
+
+
 def _velocity(
-    state: tuple[float, float, float], t_h: float, descending: bool, rate_factor: float, effects: Effects,
-    ascent_ms: float,
-) -> tuple[float, float, float]:  # fmt: skip
+    state: tuple[float, float, float], t_s: float, descending: bool, sky: _Sky
+) -> tuple[float, float, float]:
     """(dz/dt, dlat/dt, dlon/dt) in m/s and degrees/s at a state (z, lat, lon)."""
     z, lat, lon = state
-    u, v = wind(z, t_h, lat, lon)
+    u, v = wind(z, t_s / 3600.0, lat, lon)
+    if sky.error is not None:
+        eu, ev = sky.error.at(z, lat, lon, t_s)
+        u, v = u + eu, v + ev
+    effects = sky.effects
     if descending:
         eu, ev = effects.extra_wind(z)
         u, v = u + eu, v + ev
-        through_air = (
-            rate_factor
-            * effects.rate_factor(z)
+        law = (
+            sky.rate_factor
+            * effects.rate_factor(z, t_s - sky.release_s)
             * math.sqrt(2.0 * MASS_KG * gravity(z, lat) / (density(z, lat) * CDA_M2))
         )
-        dz = -(through_air - effects.air_rising(z))
+        dz = -(effects.through_air(law, z, lat) - effects.air_rising(z))
     else:
-        dz = ascent_ms
+        dz = sky.ascent_ms
     d_lat, d_lon = _to_degrees(lat, v, u, z)
     return dz, d_lat, d_lon
 
 
 def _rk4(
-    state: tuple[float, float, float], t_s: float, dt: float, descending: bool, rate_factor: float,
-    effects: Effects, ascent_ms: float,
-) -> tuple[float, float, float]:  # fmt: skip
+    state: tuple[float, float, float], t_s: float, dt: float, descending: bool, sky: _Sky
+) -> tuple[float, float, float]:
     def f(s: tuple[float, float, float], t: float) -> tuple[float, float, float]:
-        return _velocity(s, t / 3600.0, descending, rate_factor, effects, ascent_ms)
+        return _velocity(s, t, descending, sky)
 
     def ahead(
         s: tuple[float, float, float], k: tuple[float, float, float], h: float
@@ -271,21 +376,24 @@ def _rk4(
 
 def fly(
     launch_s: float, lat: float, lon: float, burst_alt_m: float, rate_factor: float, effects: Effects,
-    ascent_ms: float = 5.0,
+    ascent_ms: float = 5.0, error: WindError | None = None,
 ) -> tuple[np.ndarray, float, float]:  # fmt: skip
     """The true path from launch to touchdown: rows (seconds since the cycle, lat, lon, alt m), and the
-    burst and touchdown times. The last step is cut at the ground by linear interpolation."""
+    burst and touchdown times. The last step is cut at the ground by linear interpolation. ``error``:
+    the forecast's wind error, flown on the way up and down alike (the forecast files never carry it)."""
     rows = [(launch_s, lat, lon, GROUND_M)]
     state = (GROUND_M, lat, lon)
     t = launch_s
+    sky = _Sky(rate_factor, effects, ascent_ms, error=error)
     while state[0] < burst_alt_m:
         dt = min(5.0, (burst_alt_m - state[0]) / ascent_ms)
-        state = _rk4(state, t, dt, False, rate_factor, effects, ascent_ms)
+        state = _rk4(state, t, dt, False, sky)
         t += dt
         rows.append((t, *state[1:], state[0]))
     burst_s = t
+    sky = _Sky(rate_factor, effects, ascent_ms, release_s=burst_s, error=error)
     while state[0] > GROUND_M:
-        new = _rk4(state, t, STEP_S, True, rate_factor, effects, ascent_ms)
+        new = _rk4(state, t, STEP_S, True, sky)
         if new[0] <= GROUND_M:
             w = (state[0] - GROUND_M) / (state[0] - new[0])
             state = tuple(a + w * (b - a) for a, b in zip(state, new, strict=True))  # type: ignore[assignment]
@@ -347,13 +455,18 @@ def write_weather(directory: Path) -> tuple[Path, ...]:
 def make_world(
     directory: Path, effects: Effects, *, flights: int = 6, seed: int = 0, cadence_s: float = 120.0,
     noise_m: float = 4.0, rate_log_sigma: float = 0.06, rate_median: float = 1.0,
-    weather: Sequence[Path] | None = None,
+    weather: Sequence[Path] | None = None, forecast_error: ForecastError | None = None,
 ) -> World:  # fmt: skip
     """``flights`` flights launched 40 min apart from 06 UTC, bursting at 26–30 km, each with its own
     λᵢ = rate_median·exp(N(0, rate_log_sigma)), logged every ``cadence_s`` s with ``noise_m`` of noise.
-    ``weather``: GRIB files already written by ``write_weather`` (they do not depend on the effects)."""
+    ``weather``: GRIB files already written by ``write_weather`` (they do not depend on the effects).
+    ``forecast_error``: the winds flown differ from the files' by this field, drawn from the world's
+    own seed (calibration and unseen worlds of different seeds meet different forecast errors)."""
     directory.mkdir(parents=True, exist_ok=True)
     files = tuple(weather) if weather is not None else write_weather(directory / "gfs")
+    error = (
+        None if forecast_error is None else replace(forecast_error, seed=forecast_error.seed + seed).field()
+    )
     rng = np.random.default_rng(seed)
     out = []
     for k in range(flights):
@@ -362,7 +475,7 @@ def make_world(
         launch_s = 6 * 3600.0 + 2400.0 * k
         lat = LAUNCH_LAT + float(rng.uniform(-0.3, 0.3))
         lon = LAUNCH_LON + float(rng.uniform(-0.3, 0.3))
-        truth, burst_s, land_s = fly(launch_s, lat, lon, burst, rate_factor, effects)
+        truth, burst_s, land_s = fly(launch_s, lat, lon, burst, rate_factor, effects, error=error)
         path = directory / f"world-{seed}-{k}.csv"
         _log(path, truth, cadence_s, noise_m, rng)
         out.append(TrueFlight(path.stem, path, rate_factor, burst, land_s - burst_s,

@@ -3,7 +3,8 @@
 A hazardous command sent with ``--await-approval`` waits as pending; the second operator lists what
 waits and approves or rejects it here, in their own session. Only what can still be used is listed: a
 request whose ARM window closed, whose capsule changed state or whose requester cancelled it is void.
-The login (OS account, SSH key) decides who they are, not a name typed next to the requester's.
+The operations server decides who they are from the kernel (the socket's peer uid), never a name typed
+next to the requester's, a config file or an SSH key this process could choose.
 """
 
 from __future__ import annotations
@@ -11,8 +12,6 @@ from __future__ import annotations
 import argparse
 import json
 
-from drs_link.errors import ConfigError
-from drs_link.ops import ApprovalBook
 from predictor.errors import UsageError
 
 
@@ -21,8 +20,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "approve",
         help="list hazardous commands waiting for a second operator, or approve/reject one",
         description="Without ID: the requests waiting for approval. With ID: approve it (or --reject it). "
-        "The approver must be another login than the requester: another OS account, or another "
-        "person's key of the [[approver]] list, proven by a signature from ssh-agent ($SSH_AUTH_SOCK).",
+        "Asked of the operations server, which knows the approver's account from the kernel: the approver "
+        "must be another account than the requester's (a private server is reached by one account only: "
+        "the team's shared server is needed, drs setup server).",
     )
     approve.add_argument("approval_id", nargs="?", type=int, metavar="ID", help="the request to decide")
     approve.add_argument("--reject", action="store_true", help="reject instead of approving")
@@ -32,31 +32,29 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run_approve(args: argparse.Namespace) -> int:
+    """Through the operations server: it knows this account from the kernel, never from this process."""
     from drs_link.config import load_config
-    from drs_link.ops import current_login
+    from drs_link.server import Client
 
-    config = load_config(args.config)
-    book = ApprovalBook.open(config.store_path)
-    if args.approval_id is None:
-        requests = book.open_requests()
-        for request in requests:
-            if args.json:
-                print(json.dumps({"id": request.id, "capsule": request.capsule, "action": request.action,
-                                  "summary": request.summary, "requested_by": request.requested_by,
-                                  "login": str(request.requester), "command": request.command,
-                                  "expires_utc": request.expires_utc.isoformat(),
-                                  "brief": request.for_approver(book.clock())[1:]}))  # fmt: skip
-            else:
-                print("\n".join(request.for_approver(book.clock())))
-        if not requests and not args.json:
-            print("nothing waits for approval")
-        return 0
-    if not config.operator.name:
-        raise ConfigError("operator.name: set [operator] name; every approval is audited with it")
-    if args.reject and not args.reason.strip():
+    if args.approval_id is not None and args.reject and not args.reason.strip():
         raise UsageError("--reject needs --reason: the requester is told why")
-    decided = book.decide(
-        args.approval_id, config.operator.name, current_login(), not args.reject, args.reason
-    )
-    print(decided.describe(book.clock()))
+    with Client.for_config(load_config(args.config)) as client:
+        if args.approval_id is None:
+            requests = client.approvals.waiting()
+            for request in requests:
+                if args.json:
+                    print(json.dumps({"id": request.id, "capsule": request.capsule, "action": request.action,
+                                      "summary": request.summary, "requested_by": request.requested_by,
+                                      "login": request.requester_account, "command": request.command,
+                                      "expires_utc": request.expires_utc}))  # fmt: skip
+                else:
+                    print(request.described)
+            if not requests and not args.json:
+                print("nothing waits for approval")
+            return 0
+        if args.reject:
+            decided = client.approvals.reject(args.approval_id, args.reason)
+        else:
+            decided = client.approvals.approve(args.approval_id)
+    print(decided.described)
     return 0

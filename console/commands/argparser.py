@@ -240,23 +240,33 @@ class UtcDate:
 # drs recovery DRS1 --predicted -``). Standard input can be read once: a second ``-`` is refused.
 
 STDIN = "-"
+MAX_STDIN_BYTES = 2 * 10**9
+"""The most standard input spooled for one ``-``: a whole 0.25° GFS file is about 0.5 GB; a pipe that
+sends more (``drs predict --weather - < /dev/zero``) is refused rather than filling the disk. Each reader
+then applies its own limits to the spooled regular file (a model file at most 1 MB)."""
+_CHUNK = 1 << 20
 _stdin_taken: list[str] = []
 
 
-def _read_stdin(option: str) -> bytes:
+def _claim_stdin(option: str) -> None:
     if _stdin_taken:
-        taken = _stdin_taken[0]
         raise argparse.ArgumentTypeError(
-            f"standard input is already read for {taken}: only one input can be -"
+            f"standard input is already read for {_stdin_taken[0]}: only one input can be -"
         )
     _stdin_taken.append(option)
+
+
+def _read_stdin(option: str) -> bytes:
+    _claim_stdin(option)
     return sys.stdin.buffer.read()
 
 
 def input_file(option: str) -> Callable[[str], str]:
     """A path to read, or ``-``: standard input, kept in a private temporary file for the readers that
-    want a path (removed at exit). Its name says its kind, for the readers that go by the suffix: ``.gpx``
-    for XML, ``.json`` for JSON, none otherwise (CSV and logs are told apart by their first line)."""
+    want a path (removed at exit), so every input is read by the same reader with the same checks and
+    limits whether it came from a file or a pipe. Its name says its kind, for the readers that go by the
+    suffix: ``.gpx`` for XML, ``.json`` for JSON, none otherwise (CSV, logs and GRIB are told apart by
+    their first bytes)."""
 
     def check(text: str) -> str:
         if text != STDIN:
@@ -265,15 +275,24 @@ def input_file(option: str) -> Callable[[str], str]:
         import shutil
         import tempfile
 
-        data = _read_stdin(option)
-        start = data.lstrip()[:1]
-        suffix = ".gpx" if start == b"<" else ".json" if start in (b"{", b"[") else ""
+        _claim_stdin(option)
         folder = tempfile.mkdtemp(prefix="drs-stdin-")
         atexit.register(shutil.rmtree, folder, ignore_errors=True)
-        path = os.path.join(folder, "stdin" + suffix)
-        with open(path, "wb") as spool:
-            spool.write(data)
-        return path
+        spool = os.path.join(folder, "stdin")
+        size = 0
+        first = b""
+        with open(spool, "wb") as out:
+            while chunk := sys.stdin.buffer.read(_CHUNK):
+                size += len(chunk)
+                if size > MAX_STDIN_BYTES:
+                    raise argparse.ArgumentTypeError(
+                        f"standard input is over {MAX_STDIN_BYTES:,} bytes; give a file instead"
+                    )
+                first = first or chunk.lstrip()[:1]
+                out.write(chunk)
+        suffix = ".gpx" if first == b"<" else ".json" if first in (b"{", b"[") else ""
+        os.replace(spool, spool + suffix)
+        return spool + suffix
 
     return check
 

@@ -17,9 +17,12 @@ DEFAULT_MAX_EFFECTS = 3
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
+    from console.commands.progress import progress
     from predictor.calibration import run_calibrate as run
 
-    return run(args)
+    with progress(quiet=bool(getattr(args, "json", None))) as tell:
+        args.progress = tell
+        return run(args)
 
 
 def run_bench(args: argparse.Namespace) -> int:
@@ -73,7 +76,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(no landing needed: a record that ends in the air is scored to its last fix)",
     )
     _inputs(vertical, required=True)
-    vertical.add_argument("--model", type=Path, required=True, metavar="PATH", help="the calibrated model")
+    vertical.add_argument("--model", type=lambda text: Path(input_file("--model")(text)), required=True,
+                          metavar="PATH", help="the calibrated model; - reads standard input")  # fmt: skip
     vertical.add_argument("--json", type=Path, metavar="OUT", help="write the results as JSON; - for stdout")
     vertical.add_argument("--report", type=Path, metavar="OUT.md", help="write a Markdown report")
     vertical.set_defaults(func=run_vertical)
@@ -95,7 +99,8 @@ def _inputs(parser: argparse.ArgumentParser, required: bool) -> None:
         help="UTC date of the first fix, for logs with times of day only (V4)",
     )
     source = parser.add_mutually_exclusive_group()
-    source.add_argument("--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files covering every descent")
+    source.add_argument("--weather", nargs="+", metavar="FILE", type=input_file("--weather"),
+                        help="GFS GRIB2 files covering every descent; - reads one from standard input")  # fmt: skip
     source.add_argument(
         "--winds", choices=("ascent",), help="'ascent': each flight's own ascent as its weather"
     )

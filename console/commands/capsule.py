@@ -18,7 +18,8 @@ from drs_link.errors import ConfigError, RefusedError
 from predictor.errors import UsageError
 
 if TYPE_CHECKING:  # the operations layer loads the SSH link (paramiko) and shapely (numpy): not for --help
-    from drs_link.ops import GoNoGoReport, Operations, Predict, TelemetryRecord
+    from drs_link.ops import Operations
+    from drs_link.server import Client
 
 EXIT_MICROCONTROLLER_SILENT = 3
 EXIT_LINK_DOWN = 4
@@ -116,7 +117,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     sync = subparsers.add_parser("sync", help="upload a directory to a capsule's storage mount (verified)")
     sync.add_argument("name")
-    sync.add_argument("source", type=Path, metavar="SOURCE_DIR")
+    sync.add_argument(
+        "source", type=Path, metavar="SOURCE_DIR", nargs="?", help="default: the capsule's sync_source"
+    )
     sync.add_argument("--status", action="store_true", help="only report what is missing or changed")
     sync.add_argument("--hash", action="store_true", help="with --status: also compare sha256")
     sync.add_argument("--json", action="store_true", help="with --status: machine-readable output")
@@ -151,50 +154,31 @@ def _waivers(texts: list[str]) -> list[tuple[str, str]]:
     return waivers
 
 
-def _release_ops(args: argparse.Namespace) -> tuple[Operations, Predict | None]:
-    """The console's engine for one release command: the same rules, held by this account (``cli_holder``)."""
-    waivers = _waivers(args.waive)
-    ops = _operations(args, need_operator=True)
-    for item, reason in waivers:
-        ops.waive(args.name, item, reason)
-    if not args.weather:
-        return ops, None
-    from console.predictions import PredictionService, capsule_models
-    from predictor import Terrain
+def _client(args: argparse.Namespace) -> Client:
+    """The operations server of this account's configuration (``drs_link.server``): it acts, not this process."""
+    from console.commands.server import predictor_for
+    from drs_link.server import Client
 
-    files = list(args.weather)
-    models = capsule_models([(c.name, c.model) for c in ops.config.capsules])
-    service = PredictionService(lambda: files, Terrain.sea_level, ops.clock, models)
-    return ops, lambda name, origin: service.predict(name, origin, release_in=(0,))
-
-
-def _print_poll(report: GoNoGoReport) -> None:
-    for item in report.items:
-        print(f"  {item.verdict.value:7} {item.title}: {item.detail}")
+    return Client.for_config(load_config(args.config), predictor_for)
 
 
 def cmd_arm(args: argparse.Namespace) -> int:
-    ops, predict = _release_ops(args)
-    try:
-        _step(f"{args.name}: polling go/no-go (link, microcontroller, GNSS, sync, prediction, gateway)…")
-        report = ops.poll_gonogo(args.name, predict)
-        _print_poll(report)
-        status = ops.arm(args.name, report)
-    finally:
-        ops.close()
-    assert status.window is not None
+    """ARM through the server (``Operations.arm`` there): the console's go/no-go and one window per capsule."""
+    waivers = tuple(_waivers(args.waive))
+    with _client(args) as client:
+        state = client.capsule(args.name).arm(waivers, tuple(map(str, args.weather or ())), _step)
     print(
-        f"{args.name}: ARMED (window #{status.window.id}) until {status.window.until_utc:%H:%M:%S}Z, "
-        f"{status.remaining_s:.0f} s: run `drs capsule go {args.name} --confirm {args.name}` within it"
+        f"{args.name}: ARMED (window #{state.window}) until {state.until_utc}, "
+        f"{state.remaining_s:.0f} s: run `drs capsule go {args.name} --confirm {args.name}` within it"
     )
     return 0
 
 
 def cmd_disarm(args: argparse.Namespace) -> int:
-    ops = _operations(args, need_operator=False)
-    status = ops.ops(args.name).arming.disarm("operator disarmed (drs capsule disarm)", any_holder=True)
-    reason = f" ({status.last_disarm_reason})" if status.last_disarm_reason else ""
-    print(f"{args.name}: {status.state.value}{reason}")
+    with _client(args) as client:
+        state = client.capsule(args.name).disarm()
+    reason = f" ({state.reason})" if state.reason else ""
+    print(f"{args.name}: {state.state}{reason}")
     return 0
 
 
@@ -297,45 +281,18 @@ def _step(line: str) -> None:
 
 
 def cmd_go(args: argparse.Namespace) -> int:
-    """FIRE as the console fires (``Operations.fire``): inside the ARM window, on a poll that still says
-    GO with the values ARM saw, with the typed name and the two-person rule; else nothing reaches the Pi."""
-    from drs_link.ops import ReleaseState, SecondOperator, pending_text
+    """FIRE through the server (``Operations.fire`` there): inside the ARM window, on a poll that still says
+    GO with the values ARM saw, with the typed name and the two-person rule; else nothing reaches the Pi.
+    An unverified Go is finished instead (``Operations.finish_go``)."""
+    from drs_link.server import Second
 
-    ops, predict = _release_ops(args)
-    if ops.release_state(args.name) is ReleaseState.GO_SENT:
-        _step(f"{args.name}: Go was sent and never verified: finishing it (the first Go's time is kept)…")
-        try:
-            records = ops.finish_go(args.name, args.confirm)
-        finally:
-            ops.close()
-        return _released(args.name, records)
-    second = SecondOperator(
-        args.second_operator, args.single_operator_waiver, args.await_approval,
-        lambda request: print(pending_text(request), flush=True),
-    )  # fmt: skip
-
-    def poll() -> GoNoGoReport:
-        _step(f"{args.name}: polling go/no-go again: FIRE needs the verdicts ARM saw")
-        report = ops.poll_gonogo(args.name, predict)
-        _print_poll(report)
-        _step(
-            f"{args.name}: sending Go over SSH (the Go script writes GoGoGo, then shuts the Pi down; "
-            "about 10 s)…"
+    second = Second(args.second_operator, args.single_operator_waiver, args.await_approval)
+    with _client(args) as client:
+        done = client.capsule(args.name).fire(
+            args.confirm, tuple(_waivers(args.waive)), tuple(map(str, args.weather or ())), second, _step
         )
-        return report
-
-    try:
-        records = ops.fire(args.name, args.confirm, poll, second)
-    finally:
-        ops.close()
-    return _released(args.name, records)
-
-
-def _released(name: str, records: list[TelemetryRecord]) -> int:
-    from drs_link.ops import ReleaseSample
-
-    note = next((r.data.note for r in records if isinstance(r.data, ReleaseSample)), None) or "Go sent"
-    print(f"{name}: {note}; release A opens about 32 s after Go")
+    for line in done.lines:
+        print(line)
     return 0
 
 

@@ -46,13 +46,15 @@ def cmd_chase(args: argparse.Namespace) -> int:
     sender = ChaseSender(target, "--udp" if args.udp else "chase.udp")
     store = Store.open(config.store_path)
     every = "once" if args.once else f"every {CHASE_PERIOD_S:g} s"
-    print(
-        f"drs chase: sending to udp {sender.target} {every} from {config.store_path}",
-        file=sys.stderr,
-        flush=True,
-    )
     try:
         with stop_signals() as wait_for_stop:
+            # Said only once SIGTERM is blocked for sigwait: a supervisor (or a test) that stops the
+            # process as soon as it reads this line finds it stopping between rounds, never killed.
+            print(
+                f"drs chase: sending to udp {sender.target} {every} from {config.store_path}",
+                file=sys.stderr,
+                flush=True,
+            )
             while True:
                 points = chase_points(config, store, datetime.now(UTC))
                 sender.send(points)

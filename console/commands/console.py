@@ -65,6 +65,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--speed", type=float, default=None, help="simulated seconds per real second (default 4)"
     )
     demo.add_argument("--low-bandwidth", action="store_true", help=LOW_BANDWIDTH_HELP)
+    demo.add_argument(
+        "--live", action="store_true",
+        help="rehearse the real release: the demo world behind the LIVE console, configured from a drs.toml "
+        "it writes (absolute paths), at the real pace",
+    )  # fmt: skip
     demo.set_defaults(func=cmd_demo, demo=True, replay=None, weather=None, terrain=None)
 
 
@@ -203,8 +208,47 @@ def cmd_console(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    if args.live and args.speed not in (None, 1.0):
+        raise ConfigError(
+            "--live runs at the real pace (the live console reads the wall clock): drop --speed"
+        )
     _require_terminal()
+    if args.live:
+        return run_live_demo(args.low_bandwidth)
     return run_demo(args.speed or 4.0, args.low_bandwidth)
+
+
+def run_live_demo(low_bandwidth: bool = False) -> int:
+    """``drs demo --live``: the world in this process, the console in live mode from the file it wrote."""
+    from console.chase import started_chase_feed
+    from console.commands.invocation import drs_command
+    from console.live_demo import rehearsal_lines, start_live_demo
+
+    root = Path(tempfile.mkdtemp(prefix="drs-live-demo-"))
+    print(f"drs demo --live: starting simulated capsules, gateway and weather in {root} …", flush=True)
+    world, path, _ = start_live_demo(root)
+    said = rehearsal_lines(drs_command(), path, world)
+    try:
+        print("\n".join(said), flush=True)
+        config = load_config(str(path))  # read back from the file, as a launch-day console does
+        setup = replace(
+            live_setup(config, world.weather_files, world.terrain_file.parent), low_bandwidth=low_bandwidth
+        )
+        chase = started_chase_feed(config, setup)
+        try:
+            result = run_console(setup)
+        finally:
+            if chase is not None:
+                chase.stop()
+    finally:
+        world.stop()
+    try:
+        print(
+            "\n".join([*said[:2], f"drs demo --live: session kept in {root} (the simulators have stopped)"])
+        )
+    except OSError:
+        pass  # the terminal hung up
+    return result
 
 
 def demo_setup(
@@ -236,6 +280,13 @@ def demo_setup(
     )  # fmt: skip
 
 
+def replay_command(recording: Path) -> str:
+    """The demo's last line: the replay command as a fresh shell runs it (`drs` is often not on its PATH)."""
+    from console.commands.invocation import drs_command
+
+    return f"{drs_command()} console --replay {recording}"
+
+
 def run_demo(speed: float, low_bandwidth: bool = False) -> int:
     from console.demo import DemoWorld
 
@@ -253,7 +304,7 @@ def run_demo(speed: float, low_bandwidth: bool = False) -> int:
     finally:
         world.stop()
     try:
-        print(f"drs demo: session kept in {root}; replay it with: drs console --replay {recorder.path}")
+        print(f"drs demo: session kept in {root}; replay it with: {replay_command(recorder.path)}")
     except OSError:
         pass  # the terminal hung up (the session was lost): the store and recording say it all
     return result

@@ -20,14 +20,14 @@ from typing import TYPE_CHECKING
 from console.commands.argparser import add_two_person_options, input_file, position_or_gpsd, text_or_stdin
 from console.commands.stopping import stop_signals
 from drs_link.config import CapsuleConfig, Config, load_config
-from drs_link.errors import ConfigError, LinkError, RefusedError
-from drs_link.iridium import CATALOGUE, LISTED, PARACHUTE  # drs_link.ops's copies load pyproj
+from drs_link.errors import ConfigError, LinkError
+from drs_link.iridium import LISTED  # drs_link.ops's copies load pyproj
 from drs_link.store import Store
 from predictor.errors import UsageError
 from predictor.geofiles import piped
 
 if TYPE_CHECKING:  # the webhook loads jwt, the recovery pipeline pyproj, ops paramiko: not for --help
-    from drs_link.ops import Command, LandingEstimate, MtMessage, Operations, StoredReport, TrackPoint
+    from drs_link.ops import Command, LandingEstimate, Operations, StoredReport, TrackPoint
 
 _IMEI_RE = re.compile(r"\d{15}")
 log = logging.getLogger(__name__)
@@ -127,6 +127,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     recovery.add_argument(
         "--json", action="store_true", help="print JSON (the summary line is one of its fields)"
     )
+    recovery.add_argument(
+        "--map", type=Path, metavar="OUT.png",
+        help="draw the track, the live predicted landing with its 1σ/2σ ellipses, the last fix and the chase",
+    )  # fmt: skip
+    recovery.add_argument(
+        "--chase",
+        type=position_or_gpsd,
+        metavar="LAT,LON|gpsd",
+        help="the chase car on the map (default: --from)",
+    )
+    recovery.add_argument(
+        "--weather",
+        type=Path,
+        nargs="+",
+        metavar="GRIB",
+        help="GFS GRIB2 files: the map's live re-prediction",
+    )
+    recovery.add_argument(
+        "--dem", type=Path, metavar="DIR", help="terrain: the map's shading and the prediction's ground"
+    )
     recovery.set_defaults(func=_recovery)
 
 
@@ -141,73 +161,21 @@ def _capsule_reports(ops: Operations, name: str) -> tuple[CapsuleConfig, list[St
     return ops.config.capsule(name), ops.reports_of(name)
 
 
-def _compose(args: argparse.Namespace, ops: Operations) -> tuple[MtMessage, datetime | None]:
-    """The message, and the PARACHUTE plan's queue-before deadline when it carries one."""
-    from drs_link.ops import MtComposer, parse_hhmm
-
-    composer = MtComposer(CATALOGUE)
-    queue_by = None
-    for command in sorted(LISTED, key=lambda c: c is PARACHUTE):  # plan only once the rest is accepted
-        given = getattr(args, command.dest)
-        if given is None:
-            continue
-        if command is not PARACHUTE:
-            composer.add(command.name, command.from_option(given))
-            continue
-        requested = None if given == "next" else parse_hhmm(given)
-        ops.mt_status(args.name)  # the reports move the MTs on first, as the console's report poll does
-        plan = ops.plan_parachute(args.name, requested, args.accept_midnight)
-        print(f"window: {plan.window_text()}")
-        for warning in plan.warnings:
-            print(f"warning: {warning}")
-        composer.add(command.name, (plan.hour, plan.minute))
-        queue_by = plan.queue_by
-    return composer.build(), queue_by
-
-
 def _mt_send(args: argparse.Namespace) -> int:
-    """Compose and show; the gate, the approval, the send and the checklist are ``Operations.send_mt``'s."""
-    from drs_link.ops import FLUSH_WARNING, QUEUED, RETRY_WARNING, SecondOperator, hazard_of, pending_text
+    """Through the operations server, which alone holds the gateway's password: it composes, shows, gates
+    (``Operations.send_mt``: the landed gate, the two-person rule, the approval) and queues."""
+    from drs_link.server import PROTOCOL, Client, MtSendRequest, Second
 
-    config, ops = _open(args)
-    capsule = config.capsule(args.name)
-    message, queue_by = _compose(args, ops)
-    print(f"text: {message.text}")
-    print(f"hex:  {message.hex} ({len(message.payload)} bytes)")
-    if args.flush:
-        print(f"warning: {FLUSH_WARNING}")
-    hazardous = hazard_of(message) is not None
-    if hazardous:
-        print(f"landed: {ops.landed(args.name).summary}")
-    if args.dry_run:
-        print("dry run: nothing sent")
-        return 0
-    if args.confirm is None:
-        raise RefusedError(f"a real send needs --confirm {capsule.name} (or --dry-run to only look)")
-    if not config.operator.name:
-        raise ConfigError("operator.name: set [operator] name; every command is audited with it")
-    if args.await_approval and not hazardous:
-        raise UsageError("--await-approval is for PARACHUTE, the command the two-person rule covers")
-    second = SecondOperator(
-        args.second_operator, args.single_operator_waiver, args.await_approval,
-        lambda request: print(pending_text(request), flush=True),
+    options = {c.dest: getattr(args, c.dest) for c in LISTED if getattr(args, c.dest) is not None}
+    request = MtSendRequest(
+        PROTOCOL, options, args.confirm, args.dry_run, args.flush, args.accept_midnight, args.override_landed,
+        Second(args.second_operator, args.single_operator_waiver, args.await_approval),
     )  # fmt: skip
-    for older in ops.unresolved_like(capsule.name, message):
-        print(f"warning: MT {older.id} {older.text} is delivery_unknown: {RETRY_WARNING}")
-    try:
-        sent = ops.send_mt(
-            capsule.name, message, args.confirm, second, override_landed=args.override_landed,
-            queue_by=queue_by, flush=args.flush,
-        )  # fmt: skip
-    finally:
-        ops.close()
-    if "approval" in sent.authorised:
-        print(f"approval #{sent.authorised['approval']}: approved by {sent.authorised['approved_by']}")
-    command = sent.command
-    print(f"MT {command.id}: {command.state}: {command.detail}")
-    for step in sent.steps:
-        print(f"checklist: done: {step.text}")
-    return 0 if command.state == QUEUED else 1
+    with Client.for_config(load_config(args.config)) as client:
+        done = client.iridium.send_mt(args.name, request, lambda line: print(line, flush=True))
+    for line in done.lines:
+        print(line)
+    return 0 if done.ok else 1
 
 
 def _mt_status(args: argparse.Namespace) -> int:
@@ -478,9 +446,44 @@ def _recovery(args: argparse.Namespace) -> int:
     if args.kml:
         write_kml(args.kml, capsule.name, track, predicted, landing, predicted_is_demo=predicted_is_demo)
         print(f"wrote {args.kml}", file=said)
+    if args.map:
+        chase = (
+            team
+            if args.chase is None
+            else read_gpsd_position()
+            if args.chase == "gpsd"
+            else parse_position(args.chase)
+        )
+        _draw_map(args, ops, capsule.name, reports, chase)
+        print(f"wrote {args.map}", file=said)
     if args.json:
         print(json.dumps(_recovery_json(capsule.name, summary, landing, track, team, coarse), indent=2))
     return 0
+
+
+def _draw_map(
+    args: argparse.Namespace,
+    ops: Operations,
+    name: str,
+    reports: list[StoredReport],
+    chase: tuple[float, float] | None,
+) -> None:
+    """The recovery picture: the live re-prediction needs the weather (and flies the capsule's model)."""
+    from console.predictions import PredictionService, capsule_models
+    from console.recovery_map import draw_recovery_map, recovery_picture
+    from drs_link.ops import follow_descent
+    from predictor import Terrain
+
+    terrain = Terrain.from_dir(args.dem) if args.dem else None
+    live = None
+    if args.weather:
+        files = list(args.weather)
+        models = capsule_models([(c.name, c.model) for c in ops.config.capsules])
+        ground = terrain or Terrain.sea_level()
+        live = PredictionService(lambda: files, lambda: ground, ops.clock, models).live
+    descent = follow_descent(reports, name, live)
+    picture = recovery_picture(name, descent, chase, weather=bool(args.weather))
+    draw_recovery_map(picture, args.map, terrain)
 
 
 def _recovery_json(

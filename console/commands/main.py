@@ -45,6 +45,7 @@ COMMAND_MODULES: dict[str, str] = {
     "setup": "console.commands.setup",
     "chase": "console.commands.chase",
     "serve": "console.commands.serve",
+    "server": "console.commands.server",
     "console": "console.commands.console",
     "demo": "console.commands.console",
 }
@@ -69,6 +70,7 @@ COMMAND_HELP: dict[str, str] = {
     "setup": "prepare this machine for operations (a shared store)",
     "chase": "send the capsules (and their predicted landings) to chasemapper as Horus UDP",
     "serve": "serve predictions over HTTP (a Tawhiri v1 API)",
+    "server": "the operations server: holds the store, the capsule links and the gateway credentials",
     "console": "the operator console (full-screen terminal app)",
     "demo": "the console with everything simulated (= drs console --demo)",
 }

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from console.commands.argparser import input_file
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     model = subparsers.add_parser(
@@ -12,7 +14,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     actions = model.add_subparsers(dest="model_command", metavar="ACTION", required=True)
     show = actions.add_parser("show", help="print what a model holds and where it came from")
-    show.add_argument("path", help="the model file")
+    show.add_argument("path", type=input_file("PATH"), help="the model file; - reads standard input")
     show.add_argument("--json", action="store_true", help="print the file's content, validated")
     show.set_defaults(func=run_show)
 

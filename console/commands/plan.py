@@ -17,6 +17,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from console.commands.argparser import UtcDate, UtcTime, input_file, latitude, longitude, positive
+from console.commands.progress import progress, while_saying
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError, UsageError
 from predictor.planning import MAX_MEMBER_DESCENTS
@@ -31,7 +32,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="For every candidate release time: landing, ellipse, P(exclusion zone), target distance.",
     )
     plan.add_argument("action", nargs="?", choices=("bench",), help="bench: measure the sweep's speed")
-    plan.add_argument("--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files")
+    plan.add_argument("--weather", nargs="+", metavar="FILE", type=input_file("--weather"),
+                      help="GFS GRIB2 files; - reads one from standard input")  # fmt: skip
     plan.add_argument("--dem", metavar="DIR", help="terrain: directory of SRTM .hgt tiles and/or NetCDF DEMs")
     plan.add_argument("--lat", type=latitude, help="balloon latitude now, degrees north")
     plan.add_argument("--lon", type=longitude, help="balloon longitude now, degrees east")
@@ -82,7 +84,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--cda", type=float, metavar="M2", help="override the profile's Cd·A (not with --model)"
     )
     plan.add_argument(
-        "--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model): its payload, terms and "
+        "--model", metavar="PATH", type=input_file("--model"),
+        help="a calibrated model (drs calibrate --save-model; - reads standard input): its payload, terms and "
         "ellipse replace --payload",
     )  # fmt: skip
     plan.add_argument("--json", action="store_true", help="print the plan document")
@@ -101,8 +104,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     live.add_argument("action", nargs="?", choices=("evaluate", "bench"),
                       help="evaluate: the leave-one-flight-out report on real tracks; bench: time evaluate "
                       "on the tracks re-sampled to 1 Hz")  # fmt: skip
-    live.add_argument("tracks", nargs="*", metavar="TRACK", help="evaluate/bench: track files")
-    live.add_argument("--weather", nargs="+", metavar="FILE",
+    live.add_argument("tracks", nargs="*", metavar="TRACK", type=input_file("TRACK"),
+                      help="evaluate/bench: track files; - reads one from standard input")  # fmt: skip
+    live.add_argument(
+        "--train", nargs="+", metavar="TRACK", type=input_file("--train"),
+        help="evaluate: the flights every choice is learned on (with --score; instead of leave-one-out)",
+    )  # fmt: skip
+    live.add_argument(
+        "--score", nargs="+", metavar="TRACK", type=input_file("--score"),
+        help="evaluate: the flights scored, held out whole (a season, a payload, a team)",
+    )  # fmt: skip
+    live.add_argument(
+        "--name", default="live-reprediction", metavar="NAME",
+        help="evaluate: the report's file name, NAME.md and NAME.png in --out (default live-reprediction)",
+    )  # fmt: skip
+    live.add_argument("--weather", nargs="+", metavar="FILE", type=input_file("--weather"),
                       help="GFS GRIB2 files (evaluate: for every flight, instead of each one's ascent winds)")  # fmt: skip
     live.add_argument("--ascent-winds", action="store_true", help="use the track's own ascent as the weather")
     live.add_argument(
@@ -123,7 +139,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     live.add_argument("--mass", type=float, metavar="KG", help="override the profile's mass")
     live.add_argument("--cda", type=float, metavar="M2", help="override the profile's Cd·A")
-    live.add_argument("--model", metavar="PATH", help="a calibrated model (drs calibrate --save-model)")
+    live.add_argument("--model", metavar="PATH", type=input_file("--model"),
+                      help="a calibrated model (drs calibrate --save-model); - reads standard input")  # fmt: skip
     live.add_argument("--no-correction", action="store_true", help="plain re-prediction from each report")
     live.add_argument("--json", action="store_true", help="print one JSON document per report")
     live.add_argument("--out", metavar="DIR", default="docs/planning", help="evaluate: report directory")
@@ -182,17 +199,18 @@ def run_plan(args: argparse.Namespace) -> int:
     altitude_plan = AltitudePlan.parse(args.altitude_plan) if args.altitude_plan else None
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
     hours = args.hours if math.isfinite(args.hours) else 0.0
-    wx = load_weather(
-        args.weather, bbox=weather_bbox(args.lat, args.lon, max(hours, 0.0) * 60.0), cache_dir=args.cache_dir
-    )
-    plan = plan_release(
-        wx,
-        Release(start, args.lat, args.lon, args.alt),
-        Sweep(args.hours, args.every_minutes, altitude_plan, args.float_wind_sigma),
-        model.flight_setup(terrain),
-        EnsembleSpread(args.members, args.seed),
-        Criteria(zones, targets, thresholds),
-    )
+    with progress(quiet=bool(args.json)) as tell:
+        wx = while_saying(tell, f"loading weather ({len(args.weather)} files)", lambda: load_weather(
+            args.weather, bbox=weather_bbox(args.lat, args.lon, max(hours, 0.0) * 60.0), cache_dir=args.cache_dir
+        ))  # fmt: skip
+        plan = while_saying(tell, "sweeping the release times", lambda: plan_release(
+            wx,
+            Release(start, args.lat, args.lon, args.alt),
+            Sweep(args.hours, args.every_minutes, altitude_plan, args.float_wind_sigma),
+            model.flight_setup(terrain),
+            EnsembleSpread(args.members, args.seed),
+            Criteria(zones, targets, thresholds),
+        ))  # fmt: skip
     if args.kml:
         write_kml(plan, args.kml)
     if args.geojson:
@@ -383,8 +401,14 @@ def run_evaluate(args: argparse.Namespace) -> int:
     from predictor.environment import Terrain, load_weather
     from predictor.prediction import flown_model, save_model
 
-    if not args.tracks:
-        raise UsageError("drs live evaluate needs track files")
+    if (args.train is None) != (args.score is None):
+        raise UsageError("drs live evaluate --train and --score go together")
+    if args.train is not None and args.tracks:
+        raise UsageError("drs live evaluate takes track files or --train/--score, not both")
+    if not args.tracks and args.score is None:
+        raise UsageError("drs live evaluate needs track files (or --train FILE... --score FILE...)")
+    if not args.name or "/" in args.name:
+        raise UsageError(f"drs live evaluate --name must be a file name without '/', got {args.name!r}")
     if args.save_model and args.model is None:
         raise UsageError(
             "drs live evaluate --save-model needs --model: live settings belong to a model's law"
@@ -394,23 +418,34 @@ def run_evaluate(args: argparse.Namespace) -> int:
     # without calibrated terms), so the difference is the law and not the mass or Cd·A.
     profile = args.payload if args.model is not None or args.payload is not None else "superbit-test"
     model = flown_model(args.model, profile, args.mass, args.cda)
-    weather = load_weather(args.weather, cache_dir=args.cache_dir) if args.weather else None
-    result = evaluate_live(
-        args.tracks, model=model if args.model is not None else None, profile=model.payload, day=args.date,
-        weather=weather, terrain=Terrain.from_dir(args.dem) if args.dem else None,
-    )  # fmt: skip
+    with progress() as tell:
+        weather = (
+            while_saying(
+                tell, "loading weather", lambda: load_weather(args.weather, cache_dir=args.cache_dir)
+            )
+            if args.weather
+            else None
+        )
+        result = evaluate_live(
+            args.score or args.tracks, model=model if args.model is not None else None, profile=model.payload,
+            day=args.date, weather=weather, terrain=Terrain.from_dir(args.dem) if args.dem else None,
+            train=args.train, progress=tell,
+        )  # fmt: skip
     if not result.flights:
         raise PredictorError(f"no usable flight among the tracks given: {'; '.join(result.skipped)}")
-    names = sorted({Path(t).parent.name for t in args.tracks})
     flown = f" --model {args.model}" if args.model is not None else ""
     flown += f" --weather <{len(args.weather)} GRIB files>" if args.weather else ""
     flown += f" --dem {args.dem}" if args.dem else ""
-    command = (
-        f"drs live evaluate <{len(args.tracks)} track files in {', '.join(names)}>{flown} --out {args.out}"
-    )
-    md = write_live_report(result, args.out, command)
+    flown += f" --name {args.name}" if args.name != "live-reprediction" else ""
+    if args.train is not None:
+        tracks = f"--train {_tracks_said(args.train)} --score {_tracks_said(args.score)}"
+    else:
+        tracks = _tracks_said(args.tracks)
+    command = f"drs live evaluate {tracks}{flown} --out {args.out}"
+    md = write_live_report(result, args.out, command, args.name)
     if args.save_model:
-        saved = save_model(live_settings(model, result, command), args.save_model)
+        # Train → score: the model flies what its training flights measured, never the scored ones.
+        saved = save_model(live_settings(model, result.training or result, command), args.save_model)
         print(f"{saved}: the model with its live settings", file=sys.stderr)
     print(
         f"{md}: {len(result.flights)} flights, {result.fixes_used} descent fixes (all used), "
@@ -419,6 +454,16 @@ def run_evaluate(args: argparse.Namespace) -> int:
     )
     print(md.read_text(encoding="utf-8"))
     return 0
+
+
+def _tracks_said(tracks: list[str]) -> str:
+    """Track files as a report's command line names them: how many, in which folders, and which names
+    when they are a subset (a season) rather than the whole folder."""
+    folders = sorted({Path(t).parent.name for t in tracks})
+    stems = sorted(Path(t).stem for t in tracks)
+    prefixes = sorted({stem.split("-")[0] for stem in stems})
+    which = f" {prefixes[0]}-*" if len(prefixes) == 1 and len(stems) > 1 else ""
+    return f"<{len(tracks)} track files{which} in {', '.join(folders)}>"
 
 
 def run_live_bench(args: argparse.Namespace) -> int:

@@ -22,7 +22,7 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from console.commands.argparser import UtcTime, latitude, longitude
+from console.commands.argparser import UtcTime, input_file, latitude, longitude
 from predictor.descent import PROFILES
 from predictor.environment import weather_bbox
 from predictor.errors import PredictorError, UsageError
@@ -51,7 +51,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "action", nargs="?", choices=("bench",), help="bench: measure and print the speed figures"
     )
     parser.add_argument(
-        "--weather", nargs="+", metavar="FILE", help="GFS GRIB2 files (forecast steps, cycles)"
+        "--weather",
+        nargs="+",
+        metavar="FILE",
+        type=input_file("--weather"),
+        help="GFS GRIB2 files (forecast steps, cycles); - reads one from standard input",
     )
     parser.add_argument(
         "--demo-weather", action="store_true", help="use the generated DEMO atmosphere instead of --weather"
@@ -71,7 +75,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--payload", choices=sorted(PROFILES), help="payload profile (default drs; not with --model)"
     )
     parser.add_argument(
-        "--model", metavar="PATH", help="a calibrated model from drs calibrate --save-model: its payload, terms "
+        "--model", metavar="PATH", type=input_file("--model"),
+        help="a calibrated model from drs calibrate --save-model (- reads standard input): its payload, terms "
         "and ellipse (not with --payload, --mass, --cda)",
     )  # fmt: skip
     parser.add_argument("--mass", type=float, metavar="KG", help="override the profile's mass")

@@ -15,6 +15,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from console.commands.argparser import input_file
 from console.commands.stopping import stop_signals
 from predictor.errors import PredictorError, UsageError
 
@@ -31,12 +32,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     services = serve.add_subparsers(dest="service", metavar="SERVICE", required=True)
     parser = services.add_parser(
         "predictor",
-        help="answer GET /api/v1/ as Tawhiri does, with our descent (chasemapper, SondeHub predictor)",
-        description="Answer Tawhiri v1 API requests (standard_profile): a constant-rate ascent drifting "
+        help="answer GET /api/v1/ as Tawhiri does, a DRS capsule with its model (chasemapper, SondeHub predictor)",
+        description="Answer Tawhiri v1 API requests (standard, float and reverse profiles): a constant-rate ascent drifting "
         "with the wind, then our descent from the burst, with our ellipse and model under 'drs'.",
     )
     weather = parser.add_mutually_exclusive_group(required=True)
-    weather.add_argument("--weather", nargs="+", type=Path, metavar="FILE", help="GFS GRIB2 files")
+    weather.add_argument("--weather", nargs="+", type=lambda text: Path(input_file("--weather")(text)),
+                         metavar="FILE", help="GFS GRIB2 files; - reads one from standard input")  # fmt: skip
     weather.add_argument(
         "--weather-dir",
         type=Path,
@@ -50,7 +52,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--dem", metavar="DIR", help="terrain: SRTM .hgt tiles and/or NetCDF DEMs (default sea level)"
     )
     parser.add_argument(
-        "--model", type=Path, metavar="PATH", help="a calibrated model (drs calibrate --save-model)"
+        "--model",
+        type=lambda text: Path(input_file("--model")(text)),
+        metavar="PATH",
+        help="a calibrated model (drs calibrate --save-model); - reads standard input",
     )
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (0.0.0.0 for the LAN)")
     parser.add_argument(
@@ -63,11 +68,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     server = build_server(args)
     demo = " with DEMO weather (not a forecast)" if args.demo_weather else ""
+    health = server.service.health()
+    warm = (
+        f"weather loaded and compiled code warm in {health['warmed_in_s']:g} s"
+        if health["status"] == "ok"
+        else f"NOT READY: {health['weather'].get('error', 'the warm-up flight failed')} (see /health)"
+    )
     with stop_signals() as wait_for_stop:
         threading.Thread(target=server.serve_forever, name="drs-serve-predictor", daemon=True).start()
         print(
-            f"drs serve predictor: Tawhiri v1 API at {server.url}{demo}; Ctrl-C or SIGTERM stops it, "
-            "after answering what has arrived",
+            f"drs serve predictor: Tawhiri v1 API at {server.url}{demo} ({warm}); Ctrl-C or SIGTERM stops "
+            "it, after answering what has arrived",
             file=sys.stderr,
             flush=True,
         )
@@ -78,22 +89,39 @@ def run(args: argparse.Namespace) -> int:
 
 
 def build_server(args: argparse.Namespace) -> ApiServer:
-    """The server the command line asks for, listening but not yet serving."""
+    """The server the command line asks for: its weather loaded and its compiled code warm, then
+    listening but not yet serving (so the first request after the ready line is answered at once)."""
     if not 0 <= args.port <= 65535:
         raise UsageError(f"--port {args.port} is not a TCP port (0-65535)")
     if args.weather_dir is not None and not args.weather_dir.is_dir():
         raise PredictorError(f"--weather-dir {args.weather_dir} is not a directory")
+    from drs_link.config import load_config
     from predictor.environment import Terrain
     from predictor.prediction import flown_model
-    from predictor.tawhiri import ApiServer, PredictorService, WeatherSource
+    from predictor.tawhiri import ApiServer, FlownModel, PredictorService, WeatherSource
 
+    config = load_config(getattr(args, "config", None))
+    known = [capsule for capsule in config.capsules if capsule.imei]
+    fixes = None
+    if known:
+        from drs_link.feeds import StoredFixes
+
+        fixes = StoredFixes(config)
+    default = flown_model(args.model, None, None, None)
+    models = {
+        capsule.name: FlownModel(flown_model(capsule.model, None, None, None), capsule.model)
+        if capsule.model is not None
+        else FlownModel(default, args.model)
+        for capsule in known
+    }
     source = WeatherSource(
         files=tuple(args.weather or ()), directory=args.weather_dir, demo=args.demo_weather
     )
     terrain = Terrain.from_dir(args.dem) if args.dem else Terrain.sea_level()
-    service = PredictorService(
-        source, terrain, flown_model(args.model, None, None, None), args.model, args.cache_dir
-    )
+    service = PredictorService(source, terrain, default, args.model, args.cache_dir, fixes, models)
+    service.warm()
+    if args.weather is not None and service.health()["weather"]["loaded"] is False:
+        raise PredictorError(f"--weather: {service.health()['weather'].get('error', 'no weather')}")
     try:
         return ApiServer(service, args.host, args.port)
     except OSError as exc:

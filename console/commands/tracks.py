@@ -47,7 +47,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     bench = actions.add_parser(
         "bench", help="time reading, cleaning and ascent-wind cubes for the given files (best of N runs)"
     )
-    bench.add_argument("files", nargs="+", metavar="FILE")
+    bench.add_argument("files", nargs="+", metavar="FILE", type=input_file("FILE"),
+                       help="track files; - reads one from standard input")  # fmt: skip
     bench.add_argument(
         "--repeat", type=int, default=5, metavar="N", help="runs; the best is reported (default 5)"
     )

@@ -90,8 +90,18 @@ class HazardConfirmation:
     """Ask another login to approve (``drs approve``) instead of a typed second name."""
 
 
+SECOND_LOGIN_ONLY = (
+    "Second operator: another login must approve (require_second_operator): Enter or Ask another login "
+    "files the request; they approve with drs approve or the Approvals screen."
+)
+
+
 class HazardModal(ModalScreen[HazardConfirmation | None]):
-    """FIRE or PARACHUTE: type the capsule's name; a second operator or a single-operator waiver."""
+    """FIRE or PARACHUTE: type the capsule's name; a second operator or a single-operator waiver.
+
+    With ``second_required`` (``[console] require_second_operator``) only another login's approval counts,
+    so the dialog offers only that: the typed name and waiver fields, always refused there, are not shown,
+    and submitting asks another login."""
 
     BINDINGS = [
         Binding("escape", "cancel", "Cancel"),
@@ -133,10 +143,13 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
             yield Static(self.consequence, classes="dialog-body", markup=False)
             yield Label(f"Type the capsule's name ({self.capsule}) to confirm:", markup=False)
             yield Input(id="typed", placeholder="capsule name")
-            yield Label(f"Second operator ({need}; a different person):", markup=False)
-            yield Input(id="second", placeholder="name")
-            yield Label("…or single-operator waiver (why you are alone):", markup=False)
-            yield Input(id="waiver", placeholder="reason (logged)", max_length=WAIVER_REASON_MAX)
+            if self.second_required:
+                yield Static(SECOND_LOGIN_ONLY, classes="dialog-body", markup=False)
+            else:
+                yield Label(f"Second operator ({need}; a different person):", markup=False)
+                yield Input(id="second", placeholder="name")
+                yield Label("…or single-operator waiver (why you are alone):", markup=False)
+                yield Input(id="waiver", placeholder="reason (logged)", max_length=WAIVER_REASON_MAX)
             if self.override_prompt is not None:
                 # A Static wraps; the Label it was ran to 161 columns and scrolled sideways.
                 yield Static(self.override_prompt, markup=False, classes="dialog-warning")
@@ -152,7 +165,8 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
                     id="approval",
                     tooltip="the second operator approves with drs approve",
                 )
-                yield Button(self.action_name, id="confirm", variant="error")
+                if not self.second_required:
+                    yield Button(self.action_name, id="confirm", variant="error")
 
     def on_mount(self) -> None:
         self.query_one("#typed", Input).focus()
@@ -163,17 +177,20 @@ class HazardModal(ModalScreen[HazardConfirmation | None]):
         if self.countdown is not None:
             self.query_one("#countdown", Label).update(self.countdown())
 
+    def _field(self, field_id: str) -> str:
+        found = self.query(f"#{field_id}")
+        return found.first(Input).value.strip() if found else ""
+
     def _answer(self) -> HazardConfirmation:
-        override = self.query("#override")
         return HazardConfirmation(
-            self.query_one("#typed", Input).value.strip(),
-            self.query_one("#second", Input).value.strip(),
-            self.query_one("#waiver", Input).value.strip(),
-            override.first(Input).value.strip() if override else "",
-        )
+            self._field("typed"), self._field("second"), self._field("waiver"), self._field("override"),
+            await_approval=self.second_required,
+        )  # fmt: skip
 
     def _last_field(self) -> str:
-        return "override" if self.override_prompt is not None else "waiver"
+        if self.override_prompt is not None:
+            return "override"
+        return "typed" if self.second_required else "waiver"
 
     def action_next_field(self) -> None:
         """On the last field (or a button) Enter goes on to the widget: the last field's Submitted

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from datetime import datetime
+from pathlib import Path
 
 from rich.text import Text
 from textual import on
@@ -25,6 +26,7 @@ from textual.widgets import Static
 
 from console.context import ConsoleContext
 from console.messages import ViewRead, ViewWanted
+from console.recovery_map import draw_recovery_map, recovery_picture
 from console.screens.commanding import CommandingScreen, command_bindings
 from console.screens.iridium import IridiumScreen
 from console.widgets import LandingMap, MapLayers, set_content
@@ -241,3 +243,20 @@ class RecoveryScreen(CommandingScreen):
             self.app.notify(f"export failed: {exc}", severity="error")
             return
         self.app.notify(f"exported {gpx.name} and {kml.name}")
+        if self.track:
+            self.export_map(directory / f"{self.capsule}-recovery-{stamp}.png")
+
+    def export_map(self, png: Path) -> None:
+        """The recovery picture (as `drs recovery --map`), drawn in a worker: matplotlib takes a moment."""
+        weather = self.context.setup.predictions is not None
+        picture = recovery_picture(self.capsule, self.descent, self.context.setup.team_position, weather)
+
+        def draw() -> None:
+            try:
+                draw_recovery_map(picture, png)
+            except (OSError, PredictorError) as exc:
+                self.app.call_from_thread(self.app.notify, f"map export failed: {exc}", severity="error")
+                return
+            self.app.call_from_thread(self.app.notify, f"exported {png.name}")
+
+        self.run_worker(draw, thread=True, group="export-map", exit_on_error=False)

@@ -22,6 +22,7 @@ if TYPE_CHECKING:
         ChasePoint as ChasePoint,
         ChaseSender as ChaseSender,
         ChaseStore as ChaseStore,
+        StoredFixes as StoredFixes,
         chase_kml_path as chase_kml_path,
         chase_points as chase_points,
     )
@@ -38,6 +39,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "ChaseStore": "chase",
         "FeedStatus": "balloon_feed",
         "Rejection": "balloon_feed",
+        "StoredFixes": "chase",
         "chase_kml_path": "chase",
         "chase_points": "chase",
         "format_ozimux": "balloon_feed",

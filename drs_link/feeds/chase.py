@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import os
 import socket
 import threading
@@ -44,8 +43,10 @@ from drs_link.errors import LinkError
 from drs_link.feeds.balloon_feed import OWN_COMMENT
 from drs_link.iridium import ReportStore
 from drs_link.store import Store, data_directory, iso_utc, parse_iso_utc
+from predictor.tawhiri import FIXES_PER_CAPSULE, CapsuleFix, surface_distance_m
 
 if TYPE_CHECKING:  # the predictor (numba) loads only where a prediction is kept
+    from drs_link.iridium import Fix
     from predictor.prediction import Prediction
 
 log = logging.getLogger(__name__)
@@ -135,14 +136,6 @@ class LandingMarker:
         return self.capsule + LANDING_SUFFIX + ("" if self.number == 1 else str(self.number))
 
 
-def surface_distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
-    """Great-circle distance on a 6371 km sphere (haversine): a marker's move, not navigation."""
-    p1, p2 = math.radians(lat1), math.radians(lat2)
-    dp, dl = p2 - p1, math.radians(lon2 - lon1)
-    h = math.sin(dp / 2) ** 2 + math.cos(p1) * math.cos(p2) * math.sin(dl / 2) ** 2
-    return 2 * 6_371_000.0 * math.asin(min(1.0, math.sqrt(h)))
-
-
 def chase_kml_path(data_dir: Path, capsule: str) -> Path:
     """Where a capsule's latest prediction is kept: one fixed path for chasemapper's ``overlay_N_path``."""
     return data_dir / "chase" / f"{capsule}.kml"
@@ -221,6 +214,38 @@ class ChaseStore:
         }
 
 
+def newest_fixes(reports: ReportStore, imei: str | None, count: int) -> list[Fix]:
+    """The capsule's ``count`` newest position fixes, oldest first (a report without a fix is skipped)."""
+    stored = reports.for_imei(imei) if imei else []
+    fixes = [r.report.fix for r in stored if r.report is not None and r.report.fix is not None]
+    return fixes[-count:]
+
+
+def capsule_fixes(config: Config, store: Store) -> list[CapsuleFix]:
+    """Every configured capsule's newest fixes, for the predictor server to know a capsule's request
+    from any other payload's (``predictor.tawhiri.capsules``)."""
+    reports = ReportStore(store)
+    return [
+        CapsuleFix(capsule.name, fix.time, fix.lat, fix.lon, float(fix.alt_m))
+        for capsule in config.capsules
+        for fix in newest_fixes(reports, capsule.imei, FIXES_PER_CAPSULE)
+    ]
+
+
+class StoredFixes:
+    """The capsules' newest fixes read from the store at each call: ``drs serve predictor``'s fix source.
+
+    It opens the store the configuration names (without Operations: it only reads positions); SQLite
+    gives each request thread its own connection."""
+
+    def __init__(self, config: Config) -> None:
+        self.config = config
+        self.store = Store.open(config.store_path)
+
+    def __call__(self) -> list[CapsuleFix]:
+        return capsule_fixes(self.config, self.store)
+
+
 def chase_points(config: Config, store: Store, now: datetime) -> list[ChasePoint]:
     """Each configured capsule's newest fix, and its landing if one was predicted in the last minutes."""
     reports = ReportStore(store)
@@ -228,10 +253,9 @@ def chase_points(config: Config, store: Store, now: datetime) -> list[ChasePoint
     landings, markers = chase.landings(), chase.markers()
     points = []
     for capsule in config.capsules:
-        stored = reports.for_imei(capsule.imei) if capsule.imei else []
-        fixes = [r.report.fix for r in stored if r.report is not None]
-        fix = next((f for f in reversed(fixes) if f is not None), None)
-        if fix is not None:
+        newest = newest_fixes(reports, capsule.imei, 1)
+        if newest:
+            fix = newest[0]
             points.append(ChasePoint(
                 capsule.name, fix.time, fix.lat, fix.lon, float(fix.alt_m), fix.speed_ms * 3.6,
                 float(fix.course_deg), f"{OWN_COMMENT} capsule {capsule.name}, Iridium fix",

@@ -34,9 +34,13 @@ if TYPE_CHECKING:
         landed_evidence as landed_evidence,
     )
     from .lifecycle import Command as Command, CommandLifecycle as CommandLifecycle
-    from .mo import parse_hex as parse_hex
+    from .mo import Fix as Fix, parse_hex as parse_hex
     from .mt import MtComposer as MtComposer, MtMessage as MtMessage
-    from .parachute import ParachutePlan as ParachutePlan, plan_parachute as plan_parachute
+    from .parachute import (
+        DEFAULT_SESSION_DELAY as DEFAULT_SESSION_DELAY,
+        ParachutePlan as ParachutePlan,
+        plan_parachute as plan_parachute,
+    )
     from .recovery import (
         LandingEstimate as LandingEstimate,
         TrackPoint as TrackPoint,
@@ -78,6 +82,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "MtMessage": "mt",
         "PARACHUTE": "commands",
         "ParachutePlan": "parachute",
+        "DEFAULT_SESSION_DELAY": "parachute",
         "ReportStore": "reports",
         "RockblockGateway": "gateway",
         "StoredReport": "reports",
@@ -95,6 +100,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "is_command": "commands",
         "landed_evidence": "landed",
         "parse_hex": "mo",
+        "Fix": "mo",
         "parse_hhmm": "commands",
         "parse_position": "recovery",
         "phone_summary": "recovery",

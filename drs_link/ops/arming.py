@@ -328,6 +328,7 @@ class ArmingController:
         single_operator_waiver: str | None = None,
         approval: int | None = None,
         login: Login | None = None,
+        on_sending: Callable[[], None] | None = None,
     ) -> ReleaseRecord:
         """Release; blocking (SSH), so call it from a worker thread. Refused unless every rule holds.
 
@@ -338,6 +339,8 @@ class ArmingController:
 
         A Go that may have left (the state machine says ``go-sent-unverified``) keeps its window FIRING and
         its approval as it is: only its holder may finish it, briefly (``Operations.finish_go``).
+        ``on_sending``: told once every rule here held, just before the Go goes to the state machine (a
+        "sending Go…" line printed earlier stood above each refusal).
         """
         with self._lock:
             status = self._fireable(typed_name)
@@ -371,6 +374,8 @@ class ArmingController:
             self._audit("fire", "authorised", {"window": window.id, "inputs": report.fingerprint, **people})
         try:
             token = self.machine.confirm(typed_name)
+            if on_sending is not None:
+                on_sending()
             record = self.machine.go(token)
         except Exception:
             with self._lock:

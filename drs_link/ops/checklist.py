@@ -304,6 +304,22 @@ class ChecklistRun:
         return all(s.finished for s in self.statuses(facts))
 
 
+def start_new_flight(
+    store: Store, capsule: str, operator: str, clock: Callable[[], datetime] = utc_now
+) -> int:
+    """Forget the capsule's ticks, skips and command completions: a reset after a recovered release
+    starts the next flight, whose checklists begin empty (the last flight's FIRE once stayed ticked).
+    The audit log keeps every one of them; returns how many were cleared."""
+    store.ensure_schema(_DDL)
+    now = clock()
+    with store.transaction() as conn:
+        cleared = conn.execute("DELETE FROM checklist_step WHERE capsule = ?", (capsule,)).rowcount
+    store.append_audit(
+        operator, capsule, "checklist.new-flight", "cleared", {"steps": cleared}, when=now
+    )  # fmt: skip
+    return int(cleared)
+
+
 def complete_command(
     store: Store,
     checklists: Sequence[Checklist],

@@ -136,6 +136,7 @@ class CapsuleTelemetry:
             exclusion_zones=zones,
             released=release.after_release() if release else None,
             prediction_pending=self.reading(PredictionStatus).map(lambda status: status.text).value,
+            sync_pending=self.reading(SyncSample).map(lambda s: s.unknown or None).value,
         )
 
 

@@ -74,6 +74,8 @@ class GoNoGoInputs:
     """After Go: what the release record says ("released 12:03Z, Pi shut down"); None before."""
     prediction_pending: str | None = None
     """Why there is no prediction yet, when the console said ("no weather loaded: …"), for "no data"."""
+    sync_pending: str | None = None
+    """Why there is no sync fraction (no ``sync_source`` configured), for "no data"."""
 
 
 @dataclass(frozen=True)
@@ -161,10 +163,10 @@ def _prediction_item(inputs: GoNoGoInputs, now: datetime) -> GoNoGoItem:
     )
 
 
-def _sync_item(reading: Reading[float], now: datetime) -> GoNoGoItem:
+def _sync_item(reading: Reading[float], now: datetime, pending: str | None = None) -> GoNoGoItem:
     state = reading.freshness(now)
     if state is Freshness.MISSING or reading.value is None:
-        return GoNoGoItem("sync", "Storage sync complete", Verdict.NO_GO, "no data")
+        return GoNoGoItem("sync", "Storage sync complete", Verdict.NO_GO, pending or "no data")
     if state is Freshness.STALE:
         return GoNoGoItem("sync", "Storage sync complete", Verdict.NO_GO, f"STALE: {_age(reading, now)}")
     if reading.value >= 1.0:
@@ -195,7 +197,7 @@ def evaluate(
             "no NMEA since power-on",
         ),
         _fresh_true("gnss", "GNSS fix fresh", inputs.gnss_fix, now, "fix", "no fix"),
-        _sync_item(inputs.sync_fraction, now),
+        _sync_item(inputs.sync_fraction, now, inputs.sync_pending),
         _prediction_item(inputs, now),
         _fresh_true(
             "gateway",

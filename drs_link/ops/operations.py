@@ -55,7 +55,7 @@ from drs_link.ops.arming import ArmingController, ArmStatus, check_second_operat
 from drs_link.ops.authorize import approval_command, authorize_mt, hazard_of
 from drs_link.ops.brief import ApprovalBrief, go_brief
 from drs_link.ops.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine, record_as_dict
-from drs_link.ops.checklist import PROCEDURE_DIR, Step, complete_command, load_checklists
+from drs_link.ops.checklist import PROCEDURE_DIR, Step, complete_command, load_checklists, start_new_flight
 from drs_link.ops.fleet import CapsuleTelemetry, FleetState
 from drs_link.ops.gonogo import ExclusionZone, GoNoGoReport, Waiver, WaiverBook, evaluate
 from drs_link.ops.origin import ReleaseOrigin, release_origin
@@ -130,6 +130,10 @@ FINISH_GO_S = 60.0
 fresh ARM: long enough to see the link drop and send it again, short enough that the go/no-go it was
 judged on still stands (issue #29)."""
 
+NO_SYNC_SOURCE = (
+    "sync_source is not configured (set it in the capsule's [[capsule]] table: the payload data to upload)"
+)
+"""What go/no-go's sync item and ``drs sync`` say when the capsule has no directory to upload."""
 GNSS_UERE_M = 5.0
 """Metres of position error per unit of HDOP (a typical user range error), for the fix's uncertainty."""
 
@@ -364,6 +368,8 @@ class Operations:
                         fraction=fraction, bytes_pending=status.bytes_pending,
                         files_pending=len(status.missing) + len(status.changed),
                     )))  # fmt: skip
+                else:
+                    out.append(TelemetryRecord(self.clock(), name, SyncSample(unknown=NO_SYNC_SOURCE)))
             except LinkError as exc:
                 out.append(TelemetryRecord(self.clock(), name, LinkSample(False, str(exc))))
             return self._emit(out)
@@ -371,7 +377,7 @@ class Operations:
     def _sync_source(self, name: str, source: Path | None) -> Path:
         chosen = source if source is not None else self.ops(name).config.sync_source
         if chosen is None:
-            raise ConfigError(f"capsule {name}: sync_source is not configured")
+            raise ConfigError(f"capsule {name}: {NO_SYNC_SOURCE}, and no directory was given")
         return chosen
 
     def sync(
@@ -455,6 +461,7 @@ class Operations:
         typed_name: str,
         poll: Callable[[], GoNoGoReport],
         second: SecondOperator = SecondOperator(),
+        on_sending: Callable[[], None] | None = None,
     ) -> list[TelemetryRecord]:
         """FIRE (Go) in this process's open ARM window: every rule of ``ArmingController.fire``.
 
@@ -475,7 +482,9 @@ class Operations:
         report = poll()  # before the lock: a poll of the capsule (drs capsule go) takes it itself
         with ops.lock:
             login = self.login if approval is not None else None
-            record = ops.arming.fire(typed_name, report, second.name, second.waiver, approval, login)
+            record = ops.arming.fire(
+                typed_name, report, second.name, second.waiver, approval, login, on_sending
+            )
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
         self.approvals.void_capsule(name, "capsule state changed: released", self.operator)
@@ -689,7 +698,10 @@ class Operations:
         """After recovery: the state machine checks the typed name; then ARM is possible again."""
         ops = self.ops(name)
         with ops.lock:
+            flown = ops.machine.record().state in (ReleaseState.GO_SENT, ReleaseState.RELEASED)
             record = ops.machine.reset(typed_name)
+            if flown:  # a new flight; a reset that settles an unknown power-on keeps this flight's ticks
+                start_new_flight(self.store, name, self.operator, self.clock)
             ops.arming.after_reset()
             ops.waivers.clear()
             self.approvals.void_capsule(name, "capsule state changed: reset after recovery", self.operator)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 
 from drs_link.iridium import (
+    DEFAULT_SESSION_DELAY,
     PARACHUTE,
     StoredReport,
     commanded as mt_commanded,
@@ -113,7 +114,13 @@ def drop_schedule(
         return fix.time, f"release B opened at the end of the {fix.time:%H:%M:%S}Z cycle (after its report)"
     if not reports:
         return None, f"no report yet: release B opens at the end of the first cycle within ±{reach} min"
-    expected = reports[-1].time + _spacing(reports)
+    spacing = _spacing(reports)
+    expected = reports[-1].time + spacing
+    queued = override.command.queued_utc
+    # The cycle that downloads it is the first whose session comes after it was queued, as the Iridium
+    # helper plans it: a cycle that passed (or whose session failed) before the queue cannot take it.
+    while queued is not None and expected + DEFAULT_SESSION_DELAY <= queued:
+        expected += spacing
     latest = hour * 60 + minute + reach
     last_minute = f"{latest // 60 % 24:02d}:{latest % 60:02d}"
     if not mt_commands.parachute_accepted(hour * 60 + minute, expected.hour * 60 + expected.minute):

@@ -9,6 +9,7 @@ passes it in as ``LiveSource``; this room never loads weather.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
@@ -57,11 +58,16 @@ class LiveView:
     outline_2sigma: Points
     """(lon, lat), what the map draws."""
     path: Points
+    sigma_major_km: float = math.nan
+    sigma_minor_km: float = math.nan
+    major_axis_bearing_deg: float = 0.0
+    """The ellipse's principal axes (1σ) and the major one's bearing, for the recovery picture's 1σ/2σ."""
 
     @classmethod
     def from_live(cls, data: Mapping[str, Any]) -> LiveView:
         """From ``PredictionService.live``'s answer: read once here, so no widget parses it."""
         report, landing, ellipse = data["report"], data["landing"], data["ellipse"]
+        one_sigma = next((c for c in ellipse.get("contours", ()) if round(c["n_sigma"]) == 1), None)
         return cls(
             report_time=_utc(report["time"]),
             report_alt_m=float(report["alt_m"]),
@@ -76,6 +82,9 @@ class LiveView:
             correction=str(data["correction"]),
             outline_2sigma=tuple((float(lon), float(lat)) for lon, lat in data["outline_2sigma"]),
             path=tuple((float(lon), float(lat)) for lon, lat in data["path"]),
+            sigma_major_km=float(one_sigma["semi_major_km"]) if one_sigma else math.nan,
+            sigma_minor_km=float(one_sigma["semi_minor_km"]) if one_sigma else math.nan,
+            major_axis_bearing_deg=float(ellipse.get("major_axis_bearing_deg", 0.0)),
         )
 
 

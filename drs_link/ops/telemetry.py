@@ -119,6 +119,8 @@ class SyncSample:
     fraction: float | None = None
     bytes_pending: int = 0
     files_pending: int = 0
+    unknown: str = ""
+    """Why there is no fraction (no ``sync_source`` configured), for go/no-go to say instead of "no data"."""
 
 
 @dataclass(frozen=True)

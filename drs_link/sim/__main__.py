@@ -48,9 +48,9 @@ def main(argv: list[str] | None = None) -> int:
         )
     args.known_hosts.parent.mkdir(parents=True, exist_ok=True)
     args.known_hosts.write_text("".join(lines))
-    print("simulators running; Ctrl-C stops them", flush=True)
     stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())  # before the ready line: a stop after it is clean
+    print("simulators running; Ctrl-C stops them", flush=True)
     try:
         stop.wait()
     except KeyboardInterrupt:

@@ -97,7 +97,7 @@ def analyse(inputs: Inputs, args: argparse.Namespace) -> tuple[Calibration, Elli
     cal = calibrate(
         inputs.cases, inputs.payload, library(args.effects) if args.effects else LIBRARY,
         step_m=args.step, max_effects=args.max_effects, seed=args.seed,
-        nested=getattr(args, "nested_stability", False),
+        nested=getattr(args, "nested_stability", False), progress=getattr(args, "progress", None),
     )  # fmt: skip
     ellipse = None
     if len(inputs.cases) >= MIN_FLIGHTS:
@@ -129,7 +129,9 @@ def run_calibrate(args: argparse.Namespace) -> int:
         )
     _print_summary(cal, inputs, data, said)
     if args.save_model:
-        saved = save_model(calibrated_model(cal, ellipse, inputs, data, _command(args)), args.save_model)
+        saved = save_model(
+            calibrated_model(cal, ellipse, inputs, data, _command(args), args.dem, args.step), args.save_model
+        )
         print(
             f"model saved: {saved} (use it with --model on drs predict, drs plan, or a capsule's model key)",
             file=said,
@@ -138,10 +140,17 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 
 def calibrated_model(
-    cal: Calibration, ellipse: EllipseFit | None, inputs: Inputs, data: dict[str, Any], command: str
+    cal: Calibration,
+    ellipse: EllipseFit | None,
+    inputs: Inputs,
+    data: dict[str, Any],
+    command: str,
+    dem: str | None = None,
+    step_m: float = 200.0,
 ) -> CalibratedModel:
     """What this calibration learned, as the model predictions fly: the selected terms, then the binned
-    correction's parts (rate factors, added wind) that beat them on held-out flights."""
+    correction's parts (rate factors, added wind) that beat them on held-out flights. The DEM and step
+    are recorded so that ``drs live evaluate`` refits the law as it was fitted, whatever its own --dem."""
     terms = cal.terms()
     provenance = {
         "created_utc": datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
@@ -150,6 +159,8 @@ def calibrated_model(
         "flights": [case.name for case in inputs.cases],
         "excluded": [{"flight": e.name, "reason": e.reason} for e in inputs.excluded],
         "weather": inputs.weather,
+        "dem": dem,
+        "step_m": step_m,
         "metric": (
             "per family: vertical shape_time_rms_s (time at altitude, each flight's own λ profiled out), "
             "horizontal horizontal_rms_km (replayed), timing both"

@@ -44,7 +44,7 @@ record; a part that still clears the margin means the library lacks something.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,6 +64,8 @@ from predictor.calibration.residuals import (
 from predictor.descent import BinnedDescentRate, BinnedWind, Payload, RatePrior, Term
 from predictor.errors import PredictorError
 
+Progress = Callable[[str, int, int | None], None]
+"""``progress(stage, done, total)``: told at a long run's outer loops (the command line draws a bar)."""
 ALPHA = 0.05
 BOOTSTRAP_SAMPLES = 4000
 DEFAULT_MAX_EFFECTS = 3
@@ -407,10 +409,12 @@ def calibrate(
     alpha: float = ALPHA,
     seed: int = 0,
     nested: bool = False,
+    progress: Progress | None = None,
 ) -> Calibration:
     """Forward selection over every candidate (each on its family's records, at most ``max_effects``),
     then the binned correction. ``nested``: the stability comes from the whole selection repeated
-    without each flight (``nested_stability``, n times the cost) instead of its decisions replayed."""
+    without each flight (``nested_stability``, n times the cost) instead of its decisions replayed.
+    ``progress(stage, done, total)`` is told at the outer loops (a run takes seconds to minutes)."""
     n = len(cases)
     if n < 3:
         raise PredictorError(f"leave-one-flight-out needs at least 3 usable flights, got {n}")
@@ -425,7 +429,7 @@ def calibrate(
     baseline_residuals = tuple(residuals(cases[i], batch.runs(i, [[]])) for i in range(n))
     baseline_replayed = tuple(residuals(cases[i], batch.runs(i, [[]], replay=True)) for i in range(n))
     rounds, references, selected_folds, selected_full = _forward(
-        batch, baseline, candidates, max_effects, alpha, seed
+        batch, baseline, candidates, max_effects, alpha, seed, progress
     )
     reference = references[-1]
     if len(selected_full) > 1:
@@ -472,7 +476,7 @@ def calibrate(
         rate_factors=factors,
         rate_only=rate_only,
         stability=(
-            nested_stability(cases, payload, candidates, step_m, max_effects, alpha, seed)
+            nested_stability(cases, payload, candidates, step_m, max_effects, alpha, seed, progress)
             if nested
             else decision_stability(rounds, references, alpha, seed)
         ),
@@ -487,6 +491,7 @@ def _forward(
     max_effects: int,
     alpha: float,
     seed: int,
+    progress: Progress | None = None,
 ) -> tuple[list[tuple[CandidateResult, ...]], list[HeldOut], list[list[Fit]], list[Fit]]:
     """The forward selection: (every round's results, the reference of each round and the last one's
     best, the selected fits per fold, the selected fits on all flights)."""
@@ -497,7 +502,10 @@ def _forward(
     selected_full: list[Fit] = []
     rounds: list[tuple[CandidateResult, ...]] = []
     remaining = list(candidates)
+    rounds_at_most = min(max_effects, len(candidates))
     while remaining and len(selected_full) < max_effects:
+        if progress is not None:
+            progress("forward selection (rounds)", len(rounds), rounds_at_most)
         share = alpha / len(remaining)
         results = tuple(
             _try(batch, c, selected_folds, selected_full, reference, share, seed, len(rounds) + 1)
@@ -519,7 +527,7 @@ def _forward(
 
 def nested_stability(
     cases: Sequence[FlightCase], payload: Payload, candidates: Sequence[Candidate], step_m: float,
-    max_effects: int, alpha: float, seed: int,
+    max_effects: int, alpha: float, seed: int, progress: Progress | None = None,
 ) -> dict[str, float]:  # fmt: skip
     """How often each candidate is selected when the WHOLE selection (every fit, every held-out score,
     every test) is repeated without each flight in turn: nested leave-one-flight-out. Returns, per
@@ -527,6 +535,8 @@ def nested_stability(
     n = len(cases)
     chosen: dict[str, int] = {}
     for k in range(n):
+        if progress is not None:
+            progress("nested stability (the selection without each flight)", k, n)
         batch = FlightBatch([c for i, c in enumerate(cases) if i != k], payload, step_m)
         baseline = batch.heldout([[]] * (n - 1))
         _, _, _, selected = _forward(batch, baseline, candidates, max_effects, alpha, seed)

@@ -21,12 +21,9 @@ import predictor.environment.native_libs  # noqa: F401  (PROJ before eccodes, se
 import eccodes
 import gribapi.errors
 
+from predictor.environment.gribframe import MAX_GRID_POINTS, check_grib_framing
 from predictor.errors import WeatherError
 
-MAX_GRID_POINTS = 10_000_000
-"""More points than any weather product the predictor reads holds in one field (ECMWF's 0.1° globe has
-6.5 million, GFS 0.25° 1.04 million); one such field decodes to 80 MB. A damaged Ni of 2,386,165,793
-once had the reader allocate 23 GB before anything looked at it."""
 YEARS = (1900, 2200)
 """Reference and validity years a weather file can carry; outside, a header is damaged."""
 
@@ -46,6 +43,7 @@ def walk_grib_messages(path: str | Path, visit: Callable[[int], None], *, header
     or no GRIB message at all. Multi-field support is on so that GFS's packed u/v count as two.
     """
     file = Path(path)
+    check_grib_framing(file)  # lengths and packing, in Python, before eccodes reads a byte of it
     count = 0
     eccodes.codes_grib_multi_support_on()
     try:

@@ -160,7 +160,7 @@ def _take_message(
         )
     signature = tuple(eccodes.codes_get(handle, key) for key in _GRID_KEYS)
     if grid is None:
-        grid = _grid_of(file, signature, box)
+        grid = grid_of(file, signature, box)
     elif signature != grid.signature:
         raise WeatherError(f"{file} mixes several grids; use one product per file")
     if eccodes.codes_is_defined(handle, "generatingProcessIdentifier"):
@@ -230,7 +230,8 @@ def _timestamp(file: Path, what: str, date: int, hhmm: int) -> np.datetime64:
     return np.datetime64(moment, "s")
 
 
-def _grid_of(file: Path, signature: tuple, box: BBox | None) -> _Grid:
+def grid_of(file: Path, signature: tuple, box: BBox | None) -> _Grid:
+    """The grid a header describes (``_GRID_KEYS``), cropped to ``box``; WeatherError when implausible."""
     ni, nj, lat_first, lon_first, lat_last, lon_last, i_negative = signature
     if ni < 2 or nj < 2:
         raise WeatherError(f"{file}: the grid is {ni}×{nj}; a region of at least 2×2 points is needed")

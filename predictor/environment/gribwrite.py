@@ -19,6 +19,23 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # numpy is loaded on first write: `drs weather --help` names GFS_LEVELS_HPA only
     import numpy as np
 
+_written: set[tuple[int, int, int, int]] = set()
+
+
+def _identity(path: Path) -> tuple[int, int, int, int]:
+    stat = path.stat()
+    return stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns
+
+
+def written_here(path: Path) -> bool:
+    """Whether this process wrote ``path`` in full and it is unchanged since (device, inode, size,
+    modification time): such a file is decoded in-process, every other in a child (``gribsandbox``)."""
+    try:
+        return _identity(path) in _written
+    except OSError:
+        return False
+
+
 GFS_GENERATING_PROCESS = 96
 """NCEP's generating-process number of the GFS model (ON388 table A), as real GFS files carry it."""
 
@@ -146,6 +163,7 @@ def write_gfs_grib2(
                     eccodes.codes_write(message, out)
     finally:
         eccodes.codes_release(message)
+    _written.add(_identity(target))
     return target
 
 

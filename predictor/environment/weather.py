@@ -38,7 +38,7 @@ import numpy as np
 import platformdirs
 
 from predictor.environment.cube import STANDARD_GRAVITY, WeatherCube
-from predictor.errors import WeatherError
+from predictor.errors import WeatherError, WeatherFileError
 
 if TYPE_CHECKING:  # the GRIB reader (eccodes) loads when files are decoded: a cached cube needs none of it
     from predictor.environment.gribread import BBox, GribField
@@ -69,6 +69,10 @@ def load_weather(
         raise WeatherError("no weather files given")
     for file in files:
         if not file.is_file():
+            if file.exists():
+                raise WeatherFileError(
+                    file, "not a regular file (a device, FIFO or directory); give a GRIB file"
+                )
             raise WeatherError(f"weather file {file} does not exist")
     box = _normalise_bbox(bbox) if bbox is not None else None
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
@@ -179,9 +183,10 @@ def cube_cache_entries(cache_dir: str | Path) -> list[CubeCacheEntry]:
 
 
 def _build_cube(files: Sequence[Path], box: BBox | None) -> WeatherCube:
-    from predictor.environment.gribread import VARIABLES, assemble_fields, merge_planes, read_grib_planes
+    from predictor.environment.gribread import VARIABLES, assemble_fields, merge_planes
+    from predictor.environment.gribsandbox import read_planes
 
-    parts = [read_grib_planes(file, box) for file in files]
+    parts = read_planes(files, box)
     demo_files = sum(DEMO_GENERATING_PROCESS in part.processes for part in parts)
     fields = [item for part in parts if part.complete for item in assemble_fields(part)]
     partial = [part for part in parts if not part.complete]

@@ -64,6 +64,9 @@ Why: a flight's departure from the law is not one number; on the SuperBIT flight
 with height, so the recent fall says more about the rest than the whole record does. Chosen on those
 30 flights, leave-one-flight-out, against the record from the top (held-out remaining-time error from
 20 km 155 s against 170 s) and a 3 km window (149 s, but 10 km worse); docs/planning/live-reprediction.md."""
+CHECK_DROPS_M = (1500.0, 3000.0)
+"""How far above a report the flight's own evidence asks each candidate to predict the fall to it."""
+CHECK_GRID_M = 250.0
 MAX_LAG1_CORRELATION = 0.98
 """The correlation of consecutive residuals is capped here: a record that is one smooth swing still
 counts as at least 1 % of its fixes."""
@@ -167,7 +170,22 @@ class RateDiscrepancy:
 
 
 NO_DISCREPANCY = RateDiscrepancy((0.0,), (0.0,), (0.0,))
-"""A law whose record is taken at its word: no departure measured (a model not evaluated live)."""
+"""A record taken at its word: no departure. Only for tests and the evaluation's own laws before they
+are measured; a model without live settings flies ``DEFAULT_DISCREPANCY``, never this."""
+
+DEFAULT_DISCREPANCY = RateDiscrepancy(
+    heights_km=(1.0, 3.5, 6.0, 8.5, 11.0, 13.5, 16.0, 18.5, 21.0, 23.5, 26.0),
+    log_bias=(0.0,) * 11,
+    log_sigma=(0.092, 0.076, 0.086, 0.081, 0.097, 0.115, 0.139, 0.153, 0.161, 0.104, 0.119),
+)
+"""How far a record's λ may be from the remaining descent's, for a model without live settings of its
+own: conservative, so that a dense record (1 Hz: its fit σ is a fraction of a percent) never overwhelms
+the prior. At each height the larger, over the model and textbook laws of the 30 SuperBIT flights, of
+the root-mean-square log departure (√(median² + spread²), ``conservative_discrepancy``): a law's own
+median departure is its shape error, unknown for a law not evaluated live, so it is counted as spread
+and not taken off. Measured by ``drs live evaluate`` (docs/planning/live-reprediction.md); the zero
+spread it replaces let a 1 Hz record's last 6 km decide λ alone, 1.45× the plain restart's landing
+error from 10 km on another team's flights (issue #30)."""
 
 
 @dataclass(frozen=True)
@@ -296,8 +314,7 @@ def fit_rate(observed_s: np.ndarray, model_s: np.ndarray) -> RateFit | None:
     coef = np.zeros(2)
     scale = 1.0
     for _ in range(FIT_ITERATIONS):
-        root = np.sqrt(weights)
-        coef, *_ = np.linalg.lstsq(design * root[:, None], observed_s * root, rcond=None)
+        coef = _weighted_line(model_s, observed_s, weights)
         residual = observed_s - design @ coef
         # A floor of 1 s, the resolution of a fix's time stamp: a near-perfect fit must not make
         # every fix an outlier.
@@ -308,6 +325,17 @@ def fit_rate(observed_s: np.ndarray, model_s: np.ndarray) -> RateFit | None:
         return None
     return RateFit(float(1.0 / coef[0]), float(coef[1]), int(observed_s.size), scale,
                    _log_sigma(design, weights, residual, scale, float(coef[0])))  # fmt: skip
+
+
+def _weighted_line(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(slope, intercept) of the weighted least-squares line, in closed form (the 2×2 normal equations
+    on centred sums: as exact as a QR solve here, and a fraction of its cost on a 10,000-fix record)."""
+    total = float(w.sum())
+    x_mean, y_mean = float(w @ x) / total, float(w @ y) / total
+    dx = x - x_mean
+    sxx = float(w @ (dx * dx))
+    slope = float(w @ (dx * (y - y_mean))) / sxx if sxx > 0.0 else 0.0
+    return np.array([slope, y_mean - slope * x_mean])
 
 
 def _log_sigma(
@@ -401,6 +429,7 @@ class DescentRecord:
         self._z: list[float] = []
         self._model: tuple[np.ndarray, np.ndarray] | None = None
         """(altitudes rising, the model's seconds from the top to each), once per record."""
+        self._earlier: dict[tuple[Report | None, float], RateFit | None] = {}
 
     def add(self, report: Report) -> None:
         if self.top is None or report.alt_m > self.top.alt_m:
@@ -417,13 +446,41 @@ class DescentRecord:
         z_up, model_up = self._model
         return float(model_up[0] - np.interp(alt_m, z_up, model_up))
 
+    def earlier_fit(self, alt_m: float) -> RateFit | None:
+        """``rate_fit(alt_m, earlier=True)``, kept once the record is below ``alt_m`` (it cannot change)."""
+        key = (self.top, alt_m)
+        if key not in self._earlier:
+            fit = self.rate_fit(alt_m, earlier=True)
+            if self._z and self._z[-1] > alt_m:
+                return fit
+            self._earlier[key] = fit
+        return self._earlier[key]
+
+    def elapsed_s(self, alt_m: float) -> float | None:
+        """Seconds from the record's top to where it first reached ``alt_m`` (None: not yet)."""
+        z = np.asarray(self._z)
+        below = np.flatnonzero(z <= alt_m)
+        if below.size == 0 or below[0] == 0:
+            return None
+        i = int(below[0])
+        z0, z1, t0, t1 = self._z[i - 1], self._z[i], self._t[i - 1], self._t[i]
+        return t1 if z0 == z1 else t0 + (t1 - t0) * (z0 - alt_m) / (z0 - z1)
+
+    def law_s(self, top_m: float, bottom_m: float) -> float | None:
+        """The law's seconds from ``top_m`` down to ``bottom_m``, as flown from the record's top."""
+        high, low = self.remaining_model_s(top_m), self.remaining_model_s(bottom_m)
+        return None if high is None or low is None else high - low
+
     def since_top_s(self, report: Report) -> float:
         """Seconds from the record's top (the release, as far as the reports know) to ``report``."""
         return 0.0 if self.top is None else max((report.time - self.top.time).total_seconds(), 0.0)
 
-    def rate_fit(self, alt_m: float, window_m: float = RECORD_WINDOW_M) -> RateFit | None:
+    def rate_fit(
+        self, alt_m: float, window_m: float = RECORD_WINDOW_M, earlier: bool = False
+    ) -> RateFit | None:
         """λ on the law from the record's fixes down to ``alt_m``, those within ``window_m`` above it
-        (at least the last two; None: too little)."""
+        (at least the last two; None: too little). ``earlier``: only the fixes up to the first one at
+        or below ``alt_m``, what the record said when the capsule was there (``self_check``)."""
         if self.top is None or self.top.alt_m - alt_m < MIN_PAIR_DROP_M:
             return None
         if self._model is None:
@@ -431,9 +488,13 @@ class DescentRecord:
             self._model = track.alt_m[::-1].copy(), track.t_s[::-1] - track.t_s[0]
         z_up, model_up = self._model
         z = np.asarray(self._z)
-        keep = (z >= z_up[0]) & (z <= alt_m + window_m)
+        flown = z >= z_up[0]
+        if earlier:
+            reached = np.flatnonzero(z <= alt_m)
+            flown &= np.arange(z.size) <= (int(reached[0]) if reached.size else z.size - 1)
+        keep = flown & (z <= alt_m + window_m)
         if keep.sum() < 2:
-            keep[np.flatnonzero(z >= z_up[0])[-2:]] = True
+            keep[np.flatnonzero(flown)[-2:]] = True
         if keep.sum() < 2 or float(np.ptp(z[keep])) < MIN_PAIR_DROP_M:
             return None
         return fit_rate(np.asarray(self._t)[keep], np.interp(z[keep], z_up, model_up))
@@ -597,6 +658,35 @@ class LivePredictor:
         bias, spread = self.discrepancy.at(height_km)
         prior = self.discrepancy.remaining_prior(height_km) or self.prior
         return update_rate(prior, self.record.rate_fit(report.alt_m), bias, spread)
+
+    def self_check(self, report: Report) -> dict[str, float] | None:
+        """This flight's own evidence for its λ: how well each candidate, asked when the capsule was
+        ``CHECK_DROPS_M`` higher, would have predicted the time it then took to fall to ``report``.
+
+        Mean of the squared log ratio of predicted to measured fall time over those checks, for
+        ``plain`` (the law as it stands) and ``λ`` (the update the record then allowed). None: the
+        record does not reach the lowest check yet. (Requiring every check was tried: 2019 → 2018 from
+        20 km 1.05× the plain restart's time against 0.97×; dropped.) Cheap: one fit per check on the record already kept.
+        """
+        now_s = self.record.since_top_s(report)
+        ground_m = float(self.terrain.elevation(report.lat, report.lon))
+        errors: dict[str, list[float]] = {"plain": [], "λ": []}
+        for drop in CHECK_DROPS_M:
+            # On a grid of CHECK_GRID_M, so that a 1 Hz record asks each height's fit once (cached).
+            top_m = math.ceil((report.alt_m + drop) / CHECK_GRID_M) * CHECK_GRID_M
+            fit = self.record.earlier_fit(top_m)
+            then_s, law_s = self.record.elapsed_s(top_m), self.record.law_s(top_m, report.alt_m)
+            if then_s is None or law_s is None or law_s <= 0.0 or now_s - then_s <= 0.0:
+                continue
+            height_km = (top_m - ground_m) / 1000.0
+            bias, spread = self.discrepancy.at(height_km)
+            prior = self.discrepancy.remaining_prior(height_km) or self.prior
+            then = update_rate(prior, fit, bias, spread)
+            errors["plain"].append(math.log(law_s / (now_s - then_s)) ** 2)
+            errors["λ"].append(math.log(law_s / then.factor / (now_s - then_s)) ** 2)
+        if not errors["plain"]:
+            return None
+        return {name: float(np.mean(values)) for name, values in errors.items()}
 
     def _wind_error(self, alt_m: float, c: LiveCorrection) -> tuple[tuple[float, float], float]:
         """The wind error of recent legs: those whose lower end is within the window above ``alt_m``

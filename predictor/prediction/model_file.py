@@ -17,6 +17,8 @@ import dataclasses
 import json
 import math
 import os
+import re
+import stat
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -27,6 +29,7 @@ from predictor.descent import EFFECTS, DescentRateScale, Model, Payload, RatePri
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, UsageError
 from predictor.prediction.live import (
+    DEFAULT_DISCREPANCY,
     DEFAULT_ELLIPSE_NOTE,
     LIVE_ERROR_MODEL,
     NO_CORRECTION,
@@ -83,6 +86,16 @@ SCHEMA_VERSION = 3
 schema refuses such a file rather than fly the model without what was measured for it."""
 FILE_KIND = "drs-calibrated-model"
 
+MAX_MODEL_BYTES = 1_000_000
+"""A calibrated model is about 10 kB (docs/planning/superbit-2018-2019-model.json); a provenance listing a
+thousand flights stays under 100 kB. A larger "model" is not one, and is refused before it is read."""
+MAX_NESTING = 16
+"""The model's deepest value is four levels down (live → discrepancy → heights_km → a number); provenance
+may nest a little more. Python's JSON reader recurses, and a few thousand brackets were a traceback."""
+MAX_NUMBER_CHARACTERS = 40
+"""Longer than any float repr (at most 24 characters) and any count a model holds; a 5,000-digit integer
+exceeded Python's int-string limit and was a ValueError traceback."""
+
 
 class ModelFileError(PredictorError):
     """A calibrated-model file cannot be used; the message names the file and the field."""
@@ -115,10 +128,10 @@ class CalibratedModel:
         notes = []
         if self.live is None:
             notes.append(
-                "no live settings of its own: its shape with this flight's own λ update, no wind correction"
+                "no live settings of its own: its shape with this flight's own λ update (the conservative default discrepancy, measured on SuperBIT), no wind correction"
             )
             notes.append(DEFAULT_ELLIPSE_NOTE)
-            settings = LiveSettings(OWN_RATE, LIVE_ERROR_MODEL)
+            settings = LiveSettings(OWN_RATE, LIVE_ERROR_MODEL, DEFAULT_DISCREPANCY)
         else:
             settings = self.live
         prior = self._prior_on_terms() or settings.prior
@@ -282,7 +295,7 @@ def load_model(path: str | Path) -> CalibratedModel:
         )
 
     try:
-        raw = json.loads(source.read_text(encoding="utf-8"))
+        raw = _parse(_bounded_text(source, refuse), refuse)
     except FileNotFoundError:
         raise ModelFileError(f"model file {source} does not exist") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -307,6 +320,44 @@ def load_model(path: str | Path) -> CalibratedModel:
     if not isinstance(provenance, dict):
         raise refuse("provenance", "must be an object")
     return CalibratedModel(payload, terms, ellipse, provenance, source, live, rate_prior)
+
+
+def _bounded_text(source: Path, refuse: Any) -> str:
+    """The file's text, read only when it is a regular file of at most ``MAX_MODEL_BYTES``: /dev/zero never
+    ends, /dev/urandom is not text, a FIFO blocks a reader for ever (opened without blocking here)."""
+    handle = os.open(source, os.O_RDONLY | os.O_NONBLOCK)
+    if not stat.S_ISREG(os.fstat(handle).st_mode):
+        os.close(handle)
+        raise refuse("", "is not a regular file (a device, FIFO or directory); give a model file")
+    with os.fdopen(handle, "rb") as stream:
+        data = stream.read(MAX_MODEL_BYTES + 1)
+    if len(data) > MAX_MODEL_BYTES:
+        raise refuse("", f"is over {MAX_MODEL_BYTES:,} bytes; a calibrated model is about 10 kB")
+    return data.decode("utf-8")
+
+
+_STRINGS = re.compile(r'"(?:[^"\\]|\\.)*"')
+_NOT_BRACKETS = re.compile(r"[^\[\]{}]")
+
+
+def _parse(text: str, refuse: Any) -> Any:
+    """JSON with its nesting and number lengths bounded before Python's reader sees them."""
+    depth = deepest = 0
+    for bracket in _NOT_BRACKETS.sub("", _STRINGS.sub("", text)):
+        depth += 1 if bracket in "[{" else -1
+        deepest = max(deepest, depth)
+    if deepest > MAX_NESTING:
+        raise refuse("", f"nests {deepest} levels deep; a model file nests at most {MAX_NESTING}")
+
+    def number(kind: type) -> Any:
+        def read(literal: str) -> Any:
+            if len(literal) > MAX_NUMBER_CHARACTERS:
+                raise refuse("", f"holds a number of {len(literal):,} characters ({literal[:12]}…); damaged")
+            return kind(literal)
+
+        return read
+
+    return json.loads(text, parse_int=number(int), parse_float=number(float))
 
 
 def _number(value: Any, where: str, refuse: Any) -> float:
@@ -359,10 +410,8 @@ def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
                 raise refuse(
                     f"{where}.parameters.{key}", f"is not a parameter of {kind.name} ({', '.join(known)})"
                 )
-            if isinstance(value, list):
-                values[key] = tuple(
-                    _number(v, f"{where}.parameters.{key}[{i}]", refuse) for i, v in enumerate(value)
-                )
+            if "tuple" in str(known[key].type):  # a list per altitude bin; every other parameter one number
+                values[key] = _numbers(value, f"{where}.parameters.{key}", refuse)
             else:
                 values[key] = _number(value, f"{where}.parameters.{key}", refuse)
             _within(values[key], limits.get((kind.name, key)), f"{where}.parameters.{key}", refuse)

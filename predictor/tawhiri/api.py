@@ -2,198 +2,93 @@
 
 chasemapper and the SondeHub predictor request ``GET /api/v1/?profile=standard_profile&launch_latitude=…``
 and read back Tawhiri's response: ``request`` (the question echoed, with the dataset's time),
-``prediction`` (an ``ascent`` and a ``descent`` stage of ``{datetime, latitude, longitude,
-altitude}`` points, longitudes in 0…360 as Tawhiri gives them) and ``metadata``. Errors come as
-Tawhiri's ``{"error": {"type", "description"}, "metadata"}`` with its status codes, so the clients'
-own error handling reads ours.
+``prediction`` (stages of ``{datetime, latitude, longitude, altitude}`` points, longitudes in 0…360 as
+Tawhiri gives them) and ``metadata``. Errors come as Tawhiri's ``{"error": {"type", "description"},
+"metadata"}`` with its status codes, so the clients' own error handling reads ours.
 
-Two descents, said in the response's Tawhiri-level ``warnings`` (``drs_descent``):
+Which descent a standard flight gets, said in the response's ``warnings`` (``drs_descent``):
 
-- ``GET /api/v1/`` flies Tawhiri's semantics, as SondeHub does for every payload chasemapper tracks:
-  ``descent_rate`` is the sea-level rate of a drag descent (``predictor.tawhiri.descent``);
-- ``GET /api/v1/drs/`` (or ``/api/v1/drs/<CAPSULE>/``, the name only labels the answer) flies the DRS
-  capsule: the project's drag law with the selected model, the same call as ``drs predict``;
-  ``descent_rate`` is echoed but not flown, and our extension under ``drs`` carries the landing
-  ellipse and the model.
+- at ``GET /api/v1/``, a flight that starts at one of a DRS capsule's latest position reports is that
+  capsule (``predictor.tawhiri.capsules``) and falls with its calibrated model; every other payload
+  falls with Tawhiri's law (``predictor.tawhiri.descent``), as SondeHub flies it;
+- ``GET /api/v1/drs/`` (or ``/api/v1/drs/<CAPSULE>/``) flies the capsule model whatever the flight.
 
-The ascent is Tawhiri's idea in both (``predictor.tawhiri.ascent``). Rates below 0.2 m/s are raised to
-0.2 as Tawhiri does (with a warning); rates no balloon or parachute has, and flights whose ascent or
-descent would last more than a day, are refused before any weather is read or made, so one request
-cannot fill the disk or hold the predictor. ``format=csv`` is Tawhiri's table and file name,
-``format=kml`` the whole flight. Connections are bounded (``MAX_CONNECTIONS``) and a request must
-arrive within ``REQUEST_READ_S``.
+The weather is loaded, and the compiled code warmed by one flight, before the server listens
+(``PredictorService.warm``), so the first question after the ready line is answered in milliseconds.
+A weather file that cannot be read is refused by name and the others are served.
 """
 
 from __future__ import annotations
 
+import importlib.metadata
 import json
 import logging
 import math
-import socket
 import threading
 import time
-import xml.etree.ElementTree as ET
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
-from datetime import UTC, datetime
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
 
 from predictor.descent import Release
 from predictor.environment import Terrain, WeatherCube, demo_weather_files, load_weather, weather_bbox
 from predictor.errors import OutOfCoverageError, PredictorError, WeatherError
 from predictor.prediction import CalibratedModel, FlightSetup, Prediction, predict
-from predictor.tawhiri.ascent import Ascent, ascend
+from predictor.tawhiri.ascent import Ascent, as_stage, ascend, drift
+from predictor.tawhiri.capsules import (
+    MATCH_ALTITUDE_M,
+    MATCH_DISTANCE_M,
+    MATCH_TIME_S,
+    CapsuleFix,
+    FixSource,
+    matching_fix,
+)
 from predictor.tawhiri.descent import descend, nasa_density
+from predictor.tawhiri.formats import (
+    DEMO_WARNING,
+    Stage,
+    dataset_time,
+    file_name,
+    iso,
+    stages,
+    to_csv,
+    to_kml,
+)
+from predictor.tawhiri.request import (
+    CAPSULE_DESCENT,
+    FLOAT_PROFILE,
+    MAX_FLIGHT_S,
+    MIN_RATE_MS,
+    REVERSE_PROFILE,
+    STANDARD_PROFILE,
+    TAWHIRI_DESCENT,
+    ApiError,
+    ApiRequest,
+    parse_request,
+    request_error,
+)
+from predictor.tawhiri.reverse import trace_back
 
 log = logging.getLogger(__name__)
 
 API_PATH = "/api/v1/"
 CAPSULE_PATH = "/api/v1/drs/"
+HEALTH_PATH = "/health"
 API_VERSION = 1
-STANDARD_PROFILE = "standard_profile"
-FLOAT_PROFILE = "float_profile"
-FORMATS = ("json", "csv", "kml")
 WEATHER_HOURS = 12
 """Demo weather generated for at least this long from the launch: long enough that a whole flight and a
 descent from where the payload is now use the same files (and the same cube)."""
 REGION_MINUTES = 240.0
-"""The weather region is sized for this long a drift (or the ascent's, if longer) around the launch: the
-same region for a whole flight and for a descent from where the payload is, so both reuse one cube."""
+"""The demo weather region is sized for this long a drift (or the flight's, if longer) around the launch:
+the same region for a whole flight and for a descent from where the payload is, so both reuse one cube."""
 WEATHER_HOURS_AFTER_BURST = 6
 """Demo weather generated past the burst: a descent from 40 km under a small canopy lasts ~1.5 h."""
-MIN_RATE_MS = 0.2
-"""Tawhiri raises slower ascent and descent rates to this (its ``rate_clip``); chasemapper sends 0.1."""
-MAX_ASCENT_RATE_MS = 50.0
-MAX_DESCENT_RATE_MS = 150.0
-"""Faster than any balloon rises or any payload falls at sea level: a typo or an attack."""
-MAX_STAGE_S = 24 * 3600.0
-"""An ascent or a descent longer than a day is refused: it would need days of weather (the demo
-writes files for all of it) and hold the one predictor for minutes."""
-MAX_CONNECTIONS = 32
-"""Connections served at once; more are answered 503 at once, so stalled clients cannot take every thread."""
-REQUEST_READ_S = 10.0
-"""A client must send its whole request (line and headers) within this; then the socket is closed."""
-TAWHIRI_DESCENT = "tawhiri"
-CAPSULE_DESCENT = "capsule"
-
-
-class ApiError(Exception):
-    """One of Tawhiri's error types, with its HTTP status."""
-
-    def __init__(self, kind: str, status: int, description: str) -> None:
-        super().__init__(description)
-        self.kind = kind
-        self.status = status
-        self.description = description
-
-
-def request_error(description: str) -> ApiError:
-    return ApiError("RequestException", 400, description)
-
-
-@dataclass(frozen=True)
-class ApiRequest:
-    """A standard-profile question, checked; ``launch_longitude`` in degrees east as given."""
-
-    launch_latitude: float
-    launch_longitude: float
-    launch_datetime: datetime
-    launch_altitude: float | None
-    ascent_rate: float
-    burst_altitude: float
-    descent_rate: float
-    dataset: datetime | None
-    format: str
-    descent: str = TAWHIRI_DESCENT
-    """``TAWHIRI_DESCENT`` or ``CAPSULE_DESCENT``, from the path."""
-    capsule: str | None = None
-    clipped: tuple[str, ...] = ()
-    """The rate parameters raised to ``MIN_RATE_MS``."""
-
-
-def _single(query: Mapping[str, Sequence[str]], name: str) -> str | None:
-    values = query.get(name)
-    if not values:
-        return None
-    if len(values) > 1:
-        raise request_error(f"Parameter '{name}' given {len(values)} times; give it once.")
-    return values[0]
-
-
-def _required(query: Mapping[str, Sequence[str]], name: str) -> str:
-    value = _single(query, name)
-    if value is None:
-        raise request_error(f"Parameter '{name}' not provided in request.")
-    return value
-
-
-def _number(name: str, text: str, check: Callable[[float], bool], rule: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise request_error(f"Unable to parse parameter '{name}': {text} (not a number).") from None
-    if not math.isfinite(value) or not check(value):
-        raise request_error(f"Invalid value for parameter '{name}': {text} ({rule}).")
-    return value
-
-
-def _rfc3339(name: str, text: str) -> datetime:
-    try:
-        moment = datetime.fromisoformat(text.strip().replace(" ", "+"))
-    except ValueError:
-        raise request_error(
-            f"Unable to parse parameter '{name}': {text} (an RFC 3339 time such as 2024-05-01T06:30:00Z)."
-        ) from None
-    if moment.tzinfo is None:
-        raise request_error(f"Invalid value for parameter '{name}': {text} (no time zone; end it with Z).")
-    return moment.astimezone(UTC)
-
-
-def parse_request(query: Mapping[str, Sequence[str]]) -> ApiRequest:
-    """The query string's parameters, checked one by one: the first bad one is named, as Tawhiri does."""
-    profile = _single(query, "profile") or STANDARD_PROFILE
-    if profile == FLOAT_PROFILE:
-        raise ApiError(
-            "NotYetImplementedException", 501,
-            "The float_profile is not served here: drs predicts a capsule's descent (use standard_profile).",
-        )  # fmt: skip
-    if profile != STANDARD_PROFILE:
-        raise request_error(f"Unknown profile '{profile}'.")
-    output = _single(query, "format") or "json"
-    if output not in FORMATS:
-        raise request_error(f"Invalid value for parameter 'format': {output} (one of {', '.join(FORMATS)}).")
-    lat = _number(
-        "launch_latitude", _required(query, "launch_latitude"), lambda x: -90 <= x <= 90, "-90 to 90"
-    )
-    lon = _number(
-        "launch_longitude", _required(query, "launch_longitude"), lambda x: -180 <= x < 360, "0 to 360, or -180 to 180"
-    )  # fmt: skip
-    when = _rfc3339("launch_datetime", _required(query, "launch_datetime"))
-    alt_text = _single(query, "launch_altitude")
-    alt = (
-        None if alt_text is None else _number("launch_altitude", alt_text, lambda x: -500 <= x < 60_000, "m")
-    )
-    rate = _number(
-        "ascent_rate", _required(query, "ascent_rate"), lambda x: 0 < x <= MAX_ASCENT_RATE_MS,
-        f"must be above 0 and at most {MAX_ASCENT_RATE_MS:g} m/s",
-    )  # fmt: skip
-    burst = _number(
-        "burst_altitude", _required(query, "burst_altitude"), lambda x: (alt is None or x > alt) and x < 60_000,
-        "must be above launch_altitude and below 60000 m",
-    )  # fmt: skip
-    descent = _number(
-        "descent_rate", _required(query, "descent_rate"), lambda x: 0 < x <= MAX_DESCENT_RATE_MS,
-        f"must be above 0 and at most {MAX_DESCENT_RATE_MS:g} m/s",
-    )  # fmt: skip
-    dataset_text = _single(query, "dataset")
-    dataset = None if dataset_text is None else _rfc3339("dataset", dataset_text)
-    rates = (("ascent_rate", rate), ("descent_rate", descent))
-    clipped = tuple(name for name, value in rates if value < MIN_RATE_MS)
-    return ApiRequest(lat, lon, when, alt, max(rate, MIN_RATE_MS), burst, max(descent, MIN_RATE_MS), dataset,
-                      output, clipped=clipped)  # fmt: skip
+CAPSULE_DESCENT_S = 3 * 3600.0
+"""Longest the capsule's own descent is budgeted (~40 min from 30 km) when sizing a flight."""
+WARM_DEMO_POINT = (52.0, 0.0)
+"""Where the DEMO weather is first generated to warm the compiled code (any place on Earth would do)."""
 
 
 def tawhiri_descent_s(burst_alt_m: float, sea_level_rate_ms: float, ground_m: float) -> float:
@@ -209,16 +104,41 @@ def tawhiri_descent_s(burst_alt_m: float, sea_level_rate_ms: float, ground_m: fl
 
 
 @dataclass(frozen=True)
+class FlownModel:
+    """A calibrated model a capsule falls with, and the file it came from (None: a payload profile)."""
+
+    model: CalibratedModel
+    path: Path | None = None
+
+    def setup(self, terrain: Terrain) -> FlightSetup:
+        return FlightSetup(self.model.payload, self.model.terms, terrain=terrain,
+                           error_model=self.model.chosen_ellipse(None))  # fmt: skip
+
+    def document(self) -> dict[str, Any]:
+        payload = self.model.payload.to_dict()
+        if self.path is None:
+            return {"label": self.model.label(), "payload": payload}
+        return {**self.model.document(self.path), "payload": payload}
+
+
+@dataclass(frozen=True)
 class Flight:
-    """One answered request: Tawhiri's two stages, and what the response says about them."""
+    """One answered request: Tawhiri's stages, and what the response says about them."""
 
     request: ApiRequest
-    ascent: Ascent
-    descent: Ascent | Prediction
-    """Tawhiri's drag descent, or the capsule's prediction (with its ellipse)."""
+    stages: tuple[Stage, ...]
     answered: dict[str, Any]
     is_demo: bool
     weather_source: str
+    flown: FlownModel | None = None
+    """The capsule model of a capsule descent."""
+    matched: CapsuleFix | None = None
+    """The capsule position report the request started from, when that chose the capsule's model."""
+
+    @property
+    def capsule_descent(self) -> Prediction | None:
+        last = self.stages[-1][1]
+        return last if isinstance(last, Prediction) else None
 
 
 @dataclass(frozen=True)
@@ -229,28 +149,45 @@ class WeatherSource:
     directory: Path | None = None
     demo: bool = False
 
-    def files_for(self, lat: float, lon: float, when: datetime, hours: int) -> list[Path]:
-        if self.demo:
-            return demo_weather_files(lat, lon, when, hours=hours)
-        if self.directory is not None:
-            found = sorted(
-                p for p in self.directory.iterdir()
-                if p.is_file() and not p.name.startswith(".") and not p.name.endswith(".partial")
-            )  # fmt: skip
-            if not found:
-                raise WeatherError(
-                    f"no weather files in {self.directory} (fetch some with drs weather fetch --dir)"
-                )
-            return found
-        return list(self.files)
+    @property
+    def kind(self) -> str:
+        return "demo" if self.demo else "directory" if self.directory is not None else "files"
+
+    def listed(self) -> list[Path]:
+        """The served files now (the directory listed again: a newer forecast is used without a restart)."""
+        if self.directory is None:
+            return list(self.files)
+        return sorted(
+            p for p in self.directory.iterdir()
+            if p.is_file() and not p.name.startswith(".") and not p.name.endswith(".partial")
+        )  # fmt: skip
+
+
+def _stamp(path: Path) -> tuple[str, int, int]:
+    try:
+        stat = path.stat()
+    except OSError:
+        return str(path), -1, -1
+    return str(path), stat.st_size, stat.st_mtime_ns
+
+
+@dataclass
+class _Served:
+    """The cube of the served (non-demo) files, and the files refused, keyed by the files' stamps."""
+
+    key: tuple[tuple[str, int, int], ...] = ()
+    cube: WeatherCube | None = None
+    refused: dict[tuple[str, int, int], str] = field(default_factory=dict)
+    error: str | None = None
 
 
 class PredictorService:
-    """Answers API requests with the selected weather, terrain and model; one prediction at a time.
+    """Answers API requests with the selected weather, terrain and models; one prediction at a time.
 
-    The cube of the last request is kept: chasemapper asks again every few seconds from nearly the
-    same place, and the weather region is centred on the launch point rounded to a whole degree,
-    so those requests reuse it (and the weather cache gets one entry per degree, not per request).
+    Served files are decoded whole, once (``drs weather fetch`` writes regional subsets), and every
+    request is flown on that cube until the files change. DEMO weather is generated around each launch
+    point rounded to a degree; the cube of the last one is kept, as chasemapper asks again every few
+    seconds from nearly the same place.
     """
 
     def __init__(
@@ -260,135 +197,273 @@ class PredictorService:
         flown: CalibratedModel,
         model_path: Path | None = None,
         cache_dir: str | None = None,
+        fixes: FixSource | None = None,
+        capsule_models: Mapping[str, FlownModel] | None = None,
     ) -> None:
         self.weather = weather
         self.terrain = terrain
-        self.flown = flown
-        self.model_path = model_path
-        self.error_model = flown.chosen_ellipse(None)
+        self.default = FlownModel(flown, model_path)
+        self.capsule_models = dict(capsule_models or {})
+        self.fixes = fixes
         self.cache_dir = cache_dir
         self._lock = threading.Lock()
-        self._cube_key: tuple[Any, ...] | None = None
-        self._cube: WeatherCube | None = None
+        self._demo_key: tuple[Any, ...] | None = None
+        self._demo_cube: WeatherCube | None = None
+        self._served = _Served()
+        self.warmed_s: float | None = None
+        """How long ``warm`` took; None until the compiled code has flown once."""
 
-    def _cube_for(
-        self, request: ApiRequest, ascent_s: float, after_burst_s: float, descent_minutes: float
+    # -- weather -------------------------------------------------------------------------------
+
+    def _served_cube(self) -> WeatherCube:
+        """The cube of the served files, loaded again when the listing or a file changed; a file that
+        cannot be read is refused (logged once, named on /health) and the others are served."""
+        files = self.weather.listed()
+        if not files:
+            raise WeatherError(
+                f"no weather files in {self.weather.directory} (fetch some with drs weather fetch --dir)"
+            )
+        key = tuple(_stamp(f) for f in files)
+        served = self._served
+        if key == served.key and served.cube is not None:
+            return served.cube
+        if key == served.key and served.error is not None:
+            raise WeatherError(served.error)
+        refused = {stamp: why for stamp, why in served.refused.items() if stamp in key}
+        usable = [f for f, stamp in zip(files, key, strict=True) if stamp not in refused]
+        cube: WeatherCube | None = None
+        error: str | None = None
+        try:
+            cube = load_weather(usable, bbox=None, cache_dir=self.cache_dir) if usable else None
+        except WeatherError as exc:
+            error = str(exc)
+            for file, stamp in zip(files, key, strict=True):
+                if stamp not in refused and file in usable and (why := self._unreadable(file)) is not None:
+                    refused[stamp] = why
+                    log.warning("weather file refused: %s", why)
+            usable = [f for f, stamp in zip(files, key, strict=True) if stamp not in refused]
+            cube = None
+            if usable and len(usable) < len(files):
+                try:
+                    cube = load_weather(usable, bbox=None, cache_dir=self.cache_dir)
+                    error = None
+                except WeatherError as again:
+                    error = str(again)
+        if cube is None and error is None:
+            error = f"every weather file was refused: {'; '.join(refused.values())}"
+        self._served = _Served(key, cube, refused, error)
+        if cube is None:
+            raise WeatherError(error or "no weather")
+        return cube
+
+    def _unreadable(self, file: Path) -> str | None:
+        """Why ``file`` alone cannot be read (one line naming it), or None when it can."""
+        try:
+            load_weather([file], bbox=None, cache_dir=self.cache_dir)
+        except WeatherError as exc:
+            text = str(exc)
+            return text if str(file) in text else f"{file}: {text}"
+        return None
+
+    def _demo_cube_for(
+        self, request: ApiRequest, start: datetime, flight_s: float, drift_minutes: float
     ) -> WeatherCube:
-        """The weather for ``after_burst_s`` past the burst, over the region a flight of the ascent and
-        ``descent_minutes`` can drift across."""
         lat0, lon0 = round(request.launch_latitude), round(request.launch_longitude)
-        hours = max(WEATHER_HOURS, math.ceil((ascent_s + after_burst_s) / 3600.0))
-        files = self.weather.files_for(lat0, lon0, request.launch_datetime, hours)
-        box = weather_bbox(lat0, lon0, max(REGION_MINUTES, ascent_s / 60.0 + descent_minutes))
-        key = (tuple((str(f), f.stat().st_mtime_ns) for f in files), box)
-        if key != self._cube_key:
-            self._cube = load_weather(files, bbox=box, cache_dir=self.cache_dir)
-            self._cube_key = key
-        assert self._cube is not None
-        return self._cube
+        hours = max(WEATHER_HOURS, math.ceil(flight_s / 3600.0))
+        files = demo_weather_files(lat0, lon0, start, hours=hours)
+        box = weather_bbox(lat0, lon0, max(REGION_MINUTES, drift_minutes))
+        key = (tuple(_stamp(f) for f in files), box)
+        if key != self._demo_key or self._demo_cube is None:
+            self._demo_cube = load_weather(files, bbox=box, cache_dir=self.cache_dir)
+            self._demo_key = key
+        return self._demo_cube
+
+    def _cube(self, request: ApiRequest, start: datetime, flight_s: float) -> WeatherCube:
+        if self.weather.demo:
+            return self._demo_cube_for(request, start, flight_s, flight_s / 60.0)
+        return self._served_cube()
+
+    # -- flights -------------------------------------------------------------------------------
 
     def predict(self, request: ApiRequest) -> Flight:
-        """The ascent, the descent from its burst, and the request as answered (Tawhiri's ``request``)."""
+        """The request's stages and the request as answered (Tawhiri's ``request``). Its length is
+        checked before any weather is read or made."""
         with self._lock:
             launch_alt = request.launch_altitude
             if launch_alt is None:
                 launch_alt = float(self.terrain.elevation(request.launch_latitude, request.launch_longitude))
-                if request.burst_altitude <= launch_alt:
-                    raise request_error(
-                        f"Invalid value for parameter 'burst_altitude': {request.burst_altitude:g} "
-                        f"(must be above the ground at launch, {launch_alt:.0f} m)."
-                    )
-            ascent_s = (request.burst_altitude - launch_alt) / request.ascent_rate
-            if ascent_s > MAX_STAGE_S:
+            if request.profile == REVERSE_PROFILE:
+                return self._reverse(request, launch_alt)
+            top = request.burst_altitude if request.profile == STANDARD_PROFILE else request.float_altitude
+            assert top is not None, "parse_request sets the top of a standard or float flight"
+            name = "burst_altitude" if request.profile == STANDARD_PROFILE else "float_altitude"
+            if top <= launch_alt:
                 raise request_error(
-                    f"Invalid value for parameter 'ascent_rate': {request.ascent_rate:g} (the ascent to "
-                    f"{request.burst_altitude:g} m would last {ascent_s / 3600:.0f} h; at most "
-                    f"{MAX_STAGE_S / 3600:.0f} h is flown)."
+                    f"Invalid value for parameter '{name}': {top:g} (must be above the ground at launch, "
+                    f"{launch_alt:.0f} m)."
                 )
-            after_burst_s = WEATHER_HOURS_AFTER_BURST * 3600.0
-            descent_minutes = 60.0  # the capsule's: ~40 min from 30 km, and the drift law is generous
+            ascent_s = (top - launch_alt) / request.ascent_rate
+            if request.profile == FLOAT_PROFILE:
+                assert request.stop_datetime is not None
+                flight_s = max(ascent_s, (request.stop_datetime - request.launch_datetime).total_seconds())
+                self._check_length("ascent_rate", request.ascent_rate, ascent_s, f"the ascent to {top:g} m")
+                return self._float(request, launch_alt, flight_s)
+            request, matched = self._which_descent(request, launch_alt)
             if request.descent == TAWHIRI_DESCENT:
-                ground = min(launch_alt, 0.0)
-                descent_s = tawhiri_descent_s(request.burst_altitude, request.descent_rate, ground)
-                if descent_s > MAX_STAGE_S:
-                    raise request_error(
-                        f"Invalid value for parameter 'descent_rate': {request.descent_rate:g} (the descent "
-                        f"would last {descent_s / 3600:.0f} h; at most {MAX_STAGE_S / 3600:.0f} h is flown)."
-                    )
-                after_burst_s = max(after_burst_s, descent_s + 3600.0)
-                descent_minutes = descent_s / 60.0 + 30.0
-            cube = self._cube_for(request, ascent_s, after_burst_s, descent_minutes)
-            if request.dataset is not None and request.dataset != dataset_time(cube):
-                raise ApiError(
-                    "InvalidDatasetException", 404,
-                    f"No matching dataset found: this server has {iso(dataset_time(cube))}, "
-                    f"not {iso(request.dataset)}.",
-                )  # fmt: skip
+                assert request.descent_rate is not None
+                descent_s = tawhiri_descent_s(top, request.descent_rate, min(launch_alt, 0.0))
+                self._check_length("descent_rate", request.descent_rate, descent_s, "the descent")
+            else:
+                descent_s = CAPSULE_DESCENT_S
+            self._check_length("ascent_rate", request.ascent_rate, ascent_s, f"the ascent to {top:g} m")
+            self._check_length("ascent_rate", request.ascent_rate, ascent_s + descent_s, "the flight")
+            cube = self._cube(request, request.launch_datetime, ascent_s + descent_s + 3600.0)
+            self._check_dataset(request, cube)
             ascent = ascend(cube, request.launch_datetime, request.launch_latitude, request.launch_longitude,
-                            launch_alt, request.ascent_rate, request.burst_altitude)  # fmt: skip
+                            launch_alt, request.ascent_rate, top)  # fmt: skip
             burst = ascent.burst
             descent: Ascent | Prediction
+            flown = None
             if request.descent == TAWHIRI_DESCENT:
+                assert request.descent_rate is not None
                 descent = descend(cube, self.terrain, burst.time, burst.lat, burst.lon, burst.alt_m,
                                   request.descent_rate)  # fmt: skip
             else:
-                setup = FlightSetup(self.flown.payload, self.flown.terms, terrain=self.terrain,
-                                    error_model=self.error_model)  # fmt: skip
-                descent = predict(cube, Release(burst.time, burst.lat, burst.lon, burst.alt_m), setup)
-        answered = {
-            "profile": STANDARD_PROFILE,
+                flown = self.capsule_models.get(request.capsule or "", self.default)
+                descent = predict(cube, Release(burst.time, burst.lat, burst.lon, burst.alt_m),
+                                  flown.setup(self.terrain))  # fmt: skip
+            answered = self._answered(request, launch_alt, cube)
+            answered |= {"burst_altitude": top, "descent_rate": request.descent_rate}
+            return Flight(request, (("ascent", ascent), ("descent", descent)), answered, cube.is_demo,
+                          cube.source, flown, matched)  # fmt: skip
+
+    def _which_descent(self, request: ApiRequest, launch_alt: float) -> tuple[ApiRequest, CapsuleFix | None]:
+        """At ``/api/v1/``, a flight from one of a capsule's latest position reports is that capsule's."""
+        if request.descent != TAWHIRI_DESCENT or self.fixes is None or request.launch_altitude is None:
+            return request, None
+        try:
+            fixes = self.fixes()
+        except Exception:  # the capsules' store unreadable: every payload still gets Tawhiri's answer
+            log.exception("cannot read the capsules' position reports; flying Tawhiri's descent")
+            return request, None
+        fix = matching_fix(fixes, request.launch_latitude, request.launch_longitude, launch_alt,
+                           request.launch_datetime)  # fmt: skip
+        if fix is None:
+            return request, None
+        return replace(request, descent=CAPSULE_DESCENT, capsule=fix.capsule), fix
+
+    def _float(self, request: ApiRequest, launch_alt: float, flight_s: float) -> Flight:
+        assert request.float_altitude is not None and request.stop_datetime is not None
+        cube = self._cube(request, request.launch_datetime, flight_s + 3600.0)
+        self._check_dataset(request, cube)
+        ascent = ascend(cube, request.launch_datetime, request.launch_latitude, request.launch_longitude,
+                        launch_alt, request.ascent_rate, request.float_altitude)  # fmt: skip
+        top = ascent.burst
+        floating = drift(cube, top.time, top.lat, top.lon, top.alt_m, request.stop_datetime)
+        answered = self._answered(request, launch_alt, cube)
+        answered |= {"float_altitude": request.float_altitude, "stop_datetime": iso(request.stop_datetime)}
+        return Flight(request, (("ascent", ascent), ("float", floating)), answered, cube.is_demo, cube.source)
+
+    def _reverse(self, request: ApiRequest, alt: float) -> Flight:
+        ground = float(self.terrain.elevation(request.launch_latitude, request.launch_longitude))
+        back_s = max(0.0, alt - min(ground, 0.0)) / request.ascent_rate
+        self._check_length(
+            "ascent_rate", request.ascent_rate, back_s, f"the ascent from the ground to {alt:g} m"
+        )
+        start = request.launch_datetime - timedelta(seconds=back_s + 3600.0)
+        cube = self._cube(request, start, back_s + 2 * 3600.0)
+        self._check_dataset(request, cube)
+        here = as_stage([(request.launch_datetime.timestamp(), request.launch_latitude,
+                          request.launch_longitude, alt)])  # fmt: skip
+        back = trace_back(cube, self.terrain, request.launch_datetime, request.launch_latitude,
+                          request.launch_longitude, alt, request.ascent_rate)  # fmt: skip
+        return Flight(request, (("ascent", here), ("descent", back)), self._answered(request, alt, cube),
+                      cube.is_demo, cube.source)  # fmt: skip
+
+    @staticmethod
+    def _check_length(name: str, value: float, seconds: float, what: str) -> None:
+        if seconds > MAX_FLIGHT_S:
+            raise request_error(
+                f"Invalid value for parameter '{name}': {value:g} ({what} would last {seconds / 3600:.0f} h; "
+                f"at most {MAX_FLIGHT_S / 3600:.0f} h is flown)."
+            )
+
+    @staticmethod
+    def _check_dataset(request: ApiRequest, cube: WeatherCube) -> None:
+        if request.dataset is not None and request.dataset != dataset_time(cube):
+            raise ApiError(
+                "InvalidDatasetException", 404,
+                f"No matching dataset found: this server has {iso(dataset_time(cube))}, not {iso(request.dataset)}.",
+            )  # fmt: skip
+
+    @staticmethod
+    def _answered(request: ApiRequest, launch_alt: float, cube: WeatherCube) -> dict[str, Any]:
+        return {
+            "profile": request.profile,
             "launch_latitude": request.launch_latitude,
             "launch_longitude": request.launch_longitude % 360.0,
             "launch_datetime": iso(request.launch_datetime),
             "launch_altitude": launch_alt,
             "ascent_rate": request.ascent_rate,
-            "burst_altitude": request.burst_altitude,
-            "descent_rate": request.descent_rate,
             "dataset": iso(dataset_time(cube)),
             "format": request.format,
             "version": API_VERSION,
         }
-        return Flight(request, ascent, descent, answered, cube.is_demo, cube.source)
+
+    # -- what the answer says ------------------------------------------------------------------
 
     def extension(self, flight: Flight) -> dict[str, Any]:
         """Ours, beside Tawhiri's fields: what a chase team needs to judge the landing point."""
-        descent = flight.descent
-        if not isinstance(descent, Prediction):
-            return {"descent": TAWHIRI_DESCENT, "descent_rate_used": True, "weather": flight.weather_source,
-                    "is_demo": flight.is_demo}  # fmt: skip
-        model: dict[str, Any] = {"label": self.flown.label(), "payload": self.flown.payload.to_dict()}
-        if self.model_path is not None:
-            model = {**self.flown.document(self.model_path), "payload": self.flown.payload.to_dict()}
+        descent = flight.capsule_descent
+        if descent is None:
+            return {"descent": TAWHIRI_DESCENT if flight.request.profile == STANDARD_PROFILE else None,
+                    "descent_rate_used": flight.request.profile == STANDARD_PROFILE,
+                    "weather": flight.weather_source, "is_demo": flight.is_demo}  # fmt: skip
+        assert flight.flown is not None
         document = descent.to_dict()
-        return {
+        ours = {
             "descent": CAPSULE_DESCENT,
             "capsule": flight.request.capsule,
             "landing": document["landing"],
             "burst": document["release"],
             "descent_s": document["descent_s"],
             "ellipse": document["ellipse"],
-            "model": model,
+            "model": flight.flown.document(),
             "descent_rate_used": False,
             "weather": document["weather"],
             "terrain_source": descent.terrain_source,
             "is_demo": descent.is_demo,
             "warnings": document["warnings"],
         }
+        if flight.matched is not None:
+            fix = flight.matched
+            ours["position_report"] = {"capsule": fix.capsule, "time": iso(fix.time), "lat": fix.lat,
+                                       "lon": fix.lon, "alt_m": fix.alt_m}  # fmt: skip
+        return ours
 
     def warnings(self, flight: Flight) -> dict[str, dict[str, Any]]:
         """Tawhiri's ``warnings`` (``{name: {count, description}}``): which descent, and what was changed."""
         request = flight.request
-        if request.descent == TAWHIRI_DESCENT:
+        said = None
+        if flight.matched is not None and flight.flown is not None:
+            fix = flight.matched
             said = (
-                f"Descent flown as Tawhiri's: descent_rate {request.descent_rate:g} m/s at sea level, "
-                f"faster in thinner air. For a DRS capsule's own model ask {CAPSULE_PATH}<CAPSULE>/."
+                f"Descent flown with {fix.capsule}'s DRS capsule model ({flight.flown.model.label()}): the "
+                f"launch point and time are its position report of {iso(fix.time)} (within "
+                f"{MATCH_DISTANCE_M:g} m, {MATCH_ALTITUDE_M:g} m up or down and {MATCH_TIME_S:g} s); "
+                "descent_rate is not used."
             )
-        else:
+        elif flight.flown is not None:
             said = (
-                f"Descent flown with the DRS capsule model ({self.flown.label()}) for "
+                f"Descent flown with the DRS capsule model ({flight.flown.model.label()}) for "
                 f"{request.capsule or 'a DRS capsule'}: descent_rate is not used."
             )
-        warnings = {"drs_descent": {"count": 1, "description": said}}
+        elif request.profile == STANDARD_PROFILE:
+            said = (
+                f"Descent flown as Tawhiri's: descent_rate {request.descent_rate:g} m/s at sea level, faster "
+                "in thinner air; no DRS capsule reported this launch point and time."
+            )
+        warnings = {} if said is None else {"drs_descent": {"count": 1, "description": said}}
         for name in request.clipped:
             warnings[f"drs_{name}_raised"] = {
                 "count": 1, "description": f"{name} below {MIN_RATE_MS:g} m/s was flown at {MIN_RATE_MS:g}.",
@@ -397,101 +472,64 @@ class PredictorService:
             warnings["drs_demo_weather"] = {"count": 1, "description": DEMO_WARNING}
         return warnings
 
+    # -- readiness -----------------------------------------------------------------------------
 
-DEMO_WARNING = "DEMO WEATHER: generated atmosphere, not a forecast. Do not use for operations."
+    def warm(self) -> float:
+        """Load the weather and fly once with every model, so the compiled code is ready before the
+        server listens; how long it took. Weather that cannot be read is said on /health, not fatal."""
+        began = time.monotonic()
+        with self._lock:
+            try:
+                if self.weather.demo:
+                    lat, lon = WARM_DEMO_POINT
+                    when = datetime.now(UTC).replace(minute=0, second=0, microsecond=0)
+                    probe = ApiRequest(STANDARD_PROFILE, lat, lon, when, 0.0, 5.0, None, "json")
+                    cube = self._demo_cube_for(probe, when, 3 * 3600.0, REGION_MINUTES)
+                else:
+                    cube = self._served_cube()
+            except WeatherError as exc:
+                log.warning("weather not loaded at start: %s", exc)
+                return time.monotonic() - began
+            lat = float(cube.lats[len(cube.lats) // 2])
+            lon = float(cube.lons[len(cube.lons) // 2])
+            when = datetime.fromtimestamp(int(cube.times[0].astype("datetime64[s]").astype(int)), UTC)
+            try:
+                ascent = ascend(cube, when, lat, lon, 0.0, 5.0, 1000.0)
+                top = ascent.burst
+                descend(cube, self.terrain, top.time, top.lat, top.lon, top.alt_m, 5.0)
+                drift(cube, top.time, top.lat, top.lon, top.alt_m, top.time + timedelta(minutes=2))
+                for flown in {id(m): m for m in (self.default, *self.capsule_models.values())}.values():
+                    predict(cube, Release(top.time, top.lat, top.lon, top.alt_m), flown.setup(self.terrain))
+            except PredictorError as exc:  # a region too small to fly in: served, said on /health
+                log.warning("the warm-up flight did not complete: %s", exc)
+                return time.monotonic() - began
+        self.warmed_s = time.monotonic() - began
+        return self.warmed_s
 
-
-def iso(moment: datetime) -> str:
-    """RFC 3339 UTC with a Z; milliseconds only when there are some (Tawhiri's own style)."""
-    text = moment.astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
-    return text.replace(".000Z", "Z")
-
-
-def dataset_time(cube: WeatherCube) -> datetime:
-    """The forecast cycle of the cube's first valid time (what Tawhiri reports as ``dataset``)."""
-    first = cube.times[0].astype("datetime64[s]").astype(int) - round(float(cube.lead_h[0]) * 3600.0)
-    return datetime.fromtimestamp(int(first), UTC)
-
-
-def _points(
-    t_s: Iterable[float], lat: Iterable[float], lon: Iterable[float], alt: Iterable[float]
-) -> list[dict[str, Any]]:
-    return [
-        {"datetime": iso(datetime.fromtimestamp(round(float(t), 3), UTC)), "latitude": float(la),
-         "longitude": float(lo) % 360.0, "altitude": float(z)}
-        for t, la, lo, z in zip(t_s, lat, lon, alt, strict=True)
-    ]  # fmt: skip
-
-
-def stages(ascent: Ascent, descent: Ascent | Prediction) -> list[dict[str, Any]]:
-    """Tawhiri's ``prediction``: the ascent, then the descent starting where the ascent ended."""
-    if isinstance(descent, Prediction):
-        track = descent.track
-        start = descent.release.time.timestamp()
-        path = _points(track.t_s + start, track.lat, track.lon, track.alt_m)
-    else:
-        path = _points(descent.t_s, descent.lat, descent.lon, descent.alt_m)
-    return [
-        {"stage": "ascent", "trajectory": _points(ascent.t_s, ascent.lat, ascent.lon, ascent.alt_m)},
-        {"stage": "descent", "trajectory": path},
-    ]
-
-
-def _lon180(lon: float) -> float:
-    return lon - 360.0 if lon > 180.0 else lon
-
-
-def file_name(answered: Mapping[str, Any], extension: str, is_demo: bool) -> str:
-    """Tawhiri's download name: launch time, place (as requested), profile, dataset; DEMO said in it."""
-    launch = datetime.fromisoformat(str(answered["launch_datetime"]))
-    dataset = datetime.fromisoformat(str(answered["dataset"]))
-    demo = "_DEMO-WEATHER" if is_demo else ""
-    return (f"{launch:%Y%m%d-%H%M%S}Z_{answered['launch_latitude']:.4f}_{answered['launch_longitude']:.4f}_"
-            f"{answered['profile']}_{dataset:%Y%m%d%H}Z{demo}.{extension}")  # fmt: skip
-
-
-def to_csv(prediction: list[dict[str, Any]]) -> str:
-    """Tawhiri's table: one header, then every point of both stages, longitudes in −180…180."""
-    lines = ["datetime,latitude,longitude,altitude"]
-    for stage in prediction:
-        for p in stage["trajectory"]:
-            lon = _lon180(p["longitude"])
-            lines.append(f"{p['datetime']},{p['latitude']:.5f},{lon:.5f},{p['altitude']:.1f}")
-    return "\n".join(lines) + "\n"
-
-
-def to_kml(flight: Flight, prediction: list[dict[str, Any]]) -> str:
-    """The whole flight as one line, with the launch, the burst and the landing marked (Tawhiri's layout)."""
-    kml = ET.Element("kml", xmlns="http://www.opengis.net/kml/2.2")
-    document = ET.SubElement(kml, "Document")
-    answered = flight.answered
-    demo = f" {DEMO_WARNING}" if flight.is_demo else ""
-    ET.SubElement(document, "name").text = f"Flight from {answered['launch_datetime']}{demo}"
-    ET.SubElement(document, "description").text = (
-        f"Ascent at {answered['ascent_rate']:g} m/s to {answered['burst_altitude']:g} m; "
-        f"{'DRS capsule descent' if isinstance(flight.descent, Prediction) else 'Tawhiri descent'}.{demo}"
-    )
-    points = [p for stage in prediction for p in stage["trajectory"]]
-
-    def coordinates(p: Mapping[str, Any]) -> str:
-        return f"{_lon180(p['longitude']):.6f},{p['latitude']:.6f},{p['altitude']:.1f}"
-
-    path = ET.SubElement(document, "Placemark")
-    ET.SubElement(path, "name").text = "Flight path"
-    line = ET.SubElement(path, "LineString")
-    ET.SubElement(line, "altitudeMode").text = "absolute"
-    ET.SubElement(line, "coordinates").text = " ".join(coordinates(p) for p in points)
-    marks = (("Launch", prediction[0]["trajectory"][0]), ("Burst", prediction[0]["trajectory"][-1]),
-             ("Landing", prediction[-1]["trajectory"][-1]))  # fmt: skip
-    for name, p in marks:
-        mark = ET.SubElement(document, "Placemark")
-        ET.SubElement(mark, "name").text = name
-        where = f"{p['latitude']:.5f},{_lon180(p['longitude']):.5f}"
-        ET.SubElement(mark, "description").text = f"{name} at {where}, {p['datetime']}."
-        point = ET.SubElement(mark, "Point")
-        ET.SubElement(point, "altitudeMode").text = "absolute"
-        ET.SubElement(point, "coordinates").text = coordinates(p)
-    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(kml, encoding="unicode")
+    def health(self) -> dict[str, Any]:
+        """What /health says: is the weather loaded, is the compiled code warm, which version serves."""
+        served = self._served
+        cube = self._demo_cube if self.weather.demo else served.cube
+        weather: dict[str, Any] = {"kind": self.weather.kind, "loaded": cube is not None}
+        if cube is not None:
+            weather |= {
+                "source": cube.source, "is_demo": cube.is_demo, "dataset": iso(dataset_time(cube)),
+                "valid_from": iso(datetime.fromtimestamp(int(cube.times[0].astype("datetime64[s]").astype(int)), UTC)),
+                "valid_to": iso(datetime.fromtimestamp(int(cube.times[-1].astype("datetime64[s]").astype(int)), UTC)),
+            }  # fmt: skip
+        if served.refused:
+            weather["refused"] = sorted(served.refused.values())
+        if served.error is not None and not self.weather.demo:
+            weather["error"] = served.error
+        ready = cube is not None and self.warmed_s is not None
+        return {
+            "status": "ok" if ready else "degraded",
+            "version": importlib.metadata.version("drs-console"),
+            "weather": weather,
+            "warm": self.warmed_s is not None,
+            "warmed_in_s": None if self.warmed_s is None else round(self.warmed_s, 2),
+            "capsules": sorted(self.capsule_models) if self.fixes is not None else [],
+        }
 
 
 Answer = tuple[int, str, str, dict[str, str]]
@@ -510,17 +548,23 @@ def answer(
         request = replace(parse_request(query), descent=descent, capsule=capsule)
         flight = service.predict(request)
     except ApiError as exc:
-        return _error(exc, started)
+        return error_answer(exc, started)
     except OutOfCoverageError as exc:
-        return _error(ApiError("PredictionException", 500, f"Prediction did not complete: {exc}"), started)
+        return error_answer(
+            ApiError("PredictionException", 500, f"Prediction did not complete: {exc}"), started
+        )
     except WeatherError as exc:
-        return _error(ApiError("InvalidDatasetException", 404, f"No matching dataset found: {exc}"), started)
+        return error_answer(
+            ApiError("InvalidDatasetException", 404, f"No matching dataset found: {exc}"), started
+        )
     except PredictorError as exc:
-        return _error(ApiError("PredictionException", 500, f"Prediction did not complete: {exc}"), started)
+        return error_answer(
+            ApiError("PredictionException", 500, f"Prediction did not complete: {exc}"), started
+        )
     except Exception:  # the client still gets Tawhiri's shape; the operator gets the traceback
         log.exception("prediction failed for %s", dict(query))
-        return _error(ApiError("InternalException", 500, "Internal exception experienced."), started)
-    prediction = stages(flight.ascent, flight.descent)
+        return error_answer(ApiError("InternalException", 500, "Internal exception experienced."), started)
+    prediction = stages(flight.stages)
     warnings = service.warnings(flight)
     headers = {}
     if flight.is_demo:
@@ -530,23 +574,34 @@ def answer(
         headers["Content-Disposition"] = f'attachment; filename="{name}"'
         if request.format == "csv":
             return 200, "text/csv; charset=utf-8", to_csv(prediction), headers
-        return 200, "application/vnd.google-earth.kml+xml", to_kml(flight, prediction), headers
-    document = {
+        said = warnings.get("drs_descent", {}).get("description", f"{request.profile} flight.")
+        return (
+            200,
+            "application/vnd.google-earth.kml+xml",
+            to_kml(flight.answered, said, prediction, flight.is_demo),
+            headers,
+        )
+    document: dict[str, Any] = {
         "request": flight.answered,
         "prediction": prediction,
-        "metadata": _metadata(started),
+        "metadata": metadata(started),
         "warnings": warnings,
         "drs": service.extension(flight),
     }
+    if request.profile == REVERSE_PROFILE:
+        launch = prediction[-1]["trajectory"][-1]
+        document["launch_estimate"] = {
+            key: launch[key] for key in ("latitude", "longitude", "altitude", "datetime")
+        }
     return 200, "application/json", json.dumps(document), headers
 
 
-def _metadata(started: datetime) -> dict[str, str]:
+def metadata(started: datetime) -> dict[str, str]:
     return {"start_datetime": iso(started), "complete_datetime": iso(datetime.now(UTC))}
 
 
-def _error(exc: ApiError, started: datetime) -> Answer:
-    body = {"error": {"type": exc.kind, "description": exc.description}, "metadata": _metadata(started)}
+def error_answer(exc: ApiError, started: datetime) -> Answer:
+    body = {"error": {"type": exc.kind, "description": exc.description}, "metadata": metadata(started)}
     return exc.status, "application/json", json.dumps(body), {}
 
 
@@ -558,151 +613,3 @@ def route(path: str) -> tuple[str, str | None] | None:
     if parts[:3] == ["api", "v1", "drs"] and len(parts) <= 4:
         return CAPSULE_DESCENT, parts[3] if len(parts) == 4 else None
     return None
-
-
-class _Handler(BaseHTTPRequestHandler):
-    server: ApiServer
-    timeout = REQUEST_READ_S
-    """Per read; the whole request is bounded by ``_deadline``."""
-
-    def setup(self) -> None:
-        super().setup()
-        self._deadline = threading.Timer(REQUEST_READ_S, self._hang_up)
-        self._deadline.daemon = True
-        self._deadline.start()
-
-    def _hang_up(self) -> None:
-        """A client that has not sent its whole request in time is disconnected: a drip-feed holds nothing."""
-        try:
-            self.connection.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
-
-    def parse_request(self) -> bool:
-        ok = super().parse_request()
-        self._deadline.cancel()  # the request is in: the prediction may take its time
-        return ok
-
-    def finish(self) -> None:
-        self._deadline.cancel()
-        super().finish()
-
-    def do_GET(self) -> None:  # noqa: N802 (http.server's name)
-        began = time.monotonic()
-        parts = urlsplit(self.path)
-        served = route(parts.path)
-        if served is None:
-            error = ApiError(
-                "RequestException", 404,
-                f"No endpoint {parts.path}: the API answers GET {API_PATH} and GET {CAPSULE_PATH}<CAPSULE>/.",
-            )  # fmt: skip
-            reply = _error(error, datetime.now(UTC))
-        else:
-            query = parse_qs(parts.query, keep_blank_values=True)
-            reply = answer(self.server.service, query, *served)
-        self._reply(reply)
-        log.info("%s %s → %d in %.0f ms", self.address_string(), self.path, reply[0],
-                 1000 * (time.monotonic() - began))  # fmt: skip
-
-    def _not_allowed(self) -> None:
-        said = f"The method {self.command} is not allowed: the API answers GET."
-        error = ApiError("MethodNotAllowed", 405, said)
-        status, kind, body, headers = _error(error, datetime.now(UTC))
-        self._reply((status, kind, body, {**headers, "Allow": "GET"}))
-
-    do_POST = do_PUT = do_DELETE = do_PATCH = do_OPTIONS = _not_allowed  # noqa: N815 (http.server's names)
-
-    def send_error(self, code: int, message: str | None = None, explain: str | None = None) -> None:
-        """http.server's own refusals (an unknown method, a malformed request line, a header too long)
-        in Tawhiri's error shape too, never its HTML page."""
-        said = message or self.responses.get(code, ("Error",))[0]
-        kind = "NotYetImplementedException" if code == 501 else "RequestException"
-        _, content, body, _ = _error(ApiError(kind, code, f"{said}."), datetime.now(UTC))
-        data = body.encode("utf-8")
-        self.send_response(code, said)
-        self.send_header("Content-Type", content)
-        self.send_header("Content-Length", str(len(data)))
-        self.send_header("Connection", "close")
-        self.end_headers()
-        if getattr(self, "command", None) != "HEAD":
-            self.wfile.write(data)
-
-    def _reply(self, reply: Answer) -> None:
-        status, kind, body, headers = reply
-        data = body.encode("utf-8")
-        self.send_response(status)
-        self.send_header("Content-Type", kind)
-        self.send_header("Content-Length", str(len(data)))
-        self.send_header("Access-Control-Allow-Origin", "*")  # the SondeHub predictor is a web page
-        for name, value in headers.items():
-            self.send_header(name, value)
-        self.end_headers()
-        self.wfile.write(data)
-
-    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 (http.server's signature)
-        log.debug(format, *args)
-
-
-DRAIN_S = 20.0
-"""How long a stopping server waits for the predictions in flight (one takes seconds at most)."""
-
-BUSY = (
-    b"HTTP/1.0 503 Service Unavailable\r\nContent-Type: application/json\r\nRetry-After: 5\r\n"
-    b"Connection: close\r\n\r\n"
-    b'{"error": {"type": "ServiceUnavailable", "description": "Too many connections; try again in 5 s."}}'
-)
-
-
-class ApiServer(ThreadingHTTPServer):
-    """The HTTP server; ``port`` 0 takes a free one (``server_address`` then says which).
-
-    At most ``MAX_CONNECTIONS`` connections are served at once; one more is answered 503 and closed
-    at once, so stalled clients cannot hold a thread each for ever."""
-
-    daemon_threads = True
-    request_queue_size = 128
-    """Connections waiting to be accepted: a burst is answered (or told 503) instead of left retrying SYNs."""
-
-    def __init__(self, service: PredictorService, host: str = "127.0.0.1", port: int = 0) -> None:
-        super().__init__((host, port), _Handler)
-        self.service = service
-        self._slots = threading.BoundedSemaphore(MAX_CONNECTIONS)
-
-    def process_request(self, request: Any, client_address: Any) -> None:
-        if not self._slots.acquire(blocking=False):
-            try:
-                request.sendall(BUSY)
-            except OSError:
-                pass
-            self.shutdown_request(request)
-            return
-        try:
-            super().process_request(request, client_address)
-        except BaseException:
-            self._slots.release()
-            raise
-
-    def process_request_thread(self, request: Any, client_address: Any) -> None:
-        try:
-            super().process_request_thread(request, client_address)
-        finally:
-            self._slots.release()
-
-    def drain(self, timeout_s: float = DRAIN_S) -> int:
-        """Stop accepting and wait up to ``timeout_s`` for the requests in flight to be answered (SIGTERM
-        once cut them off); how many were still running. Call it from another thread than the server's."""
-        self.shutdown()
-        deadline = time.monotonic() + timeout_s
-        finished = 0
-        while finished < MAX_CONNECTIONS and self._slots.acquire(
-            timeout=max(0.0, deadline - time.monotonic())
-        ):
-            finished += 1
-        self.server_close()
-        return MAX_CONNECTIONS - finished
-
-    @property
-    def url(self) -> str:
-        host, port = self.server_address[:2]
-        assert isinstance(host, str), "an IP socket's own address names its host as text, never bytes"
-        return f"http://{host}:{port}{API_PATH}"

@@ -98,14 +98,50 @@ def ascend(
     t, la, lo, z = time.timestamp(), float(lat), float(lon), float(alt_m)
     path = [(t, la, lo, z)]
     for k in range(1, steps + 1):
-        u, v = wind(t, la, lo, z)
-        dlat, dlon = degrees_per_metre(la, z)
-        la_mid, lo_mid, z_mid = la + 0.5 * h * v * dlat, lo + 0.5 * h * u * dlon, z + 0.5 * h * rate_ms
-        u, v = wind(t + 0.5 * h, la_mid, lo_mid, z_mid)
-        dlat, dlon = degrees_per_metre(la_mid, z_mid)
-        la, lo = la + h * v * dlat, lo + h * u * dlon
+        la, lo = midpoint_step(wind, t, la, lo, z, h, rate_ms)
         t, z = t + h, alt_m + k * h * rate_ms
         path.append((t, la, lo, z))
+    stage = as_stage(path)
+    stage.alt_m[-1] = burst_alt_m
+    return stage
+
+
+def drift(
+    cube: WeatherCube,
+    time: datetime,
+    lat: float,
+    lon: float,
+    alt_m: float,
+    until: datetime,
+    time_tolerance_s: float = DEFAULT_TIME_TOLERANCE_S,
+) -> Ascent:
+    """Tawhiri's float stage: carried by the wind at ``alt_m`` from ``time`` until ``until`` (the last
+    step shortened to end there); just the start when ``until`` is not after it."""
+    wind = wind_sampler(cube, time_tolerance_s, "float")
+    t, end, la, lo = time.timestamp(), until.timestamp(), float(lat), float(lon)
+    path = [(t, la, lo, float(alt_m))]
+    while t < end:
+        h = min(ASCENT_STEP_S, end - t)
+        la, lo = midpoint_step(wind, t, la, lo, alt_m, h, 0.0)
+        t += h
+        path.append((t, la, lo, float(alt_m)))
+    return as_stage(path)
+
+
+def midpoint_step(
+    wind: Wind, t: float, la: float, lo: float, z: float, h: float, rate_ms: float
+) -> tuple[float, float]:
+    """Where the wind carries (``la``, ``lo``) in ``h`` seconds (negative: back in time) while the
+    altitude changes at ``rate_ms``: one midpoint step."""
+    u, v = wind(t, la, lo, z)
+    dlat, dlon = degrees_per_metre(la, z)
+    la_mid, lo_mid, z_mid = la + 0.5 * h * v * dlat, lo + 0.5 * h * u * dlon, z + 0.5 * h * rate_ms
+    u, v = wind(t + 0.5 * h, la_mid, lo_mid, z_mid)
+    dlat, dlon = degrees_per_metre(la_mid, z_mid)
+    return la + h * v * dlat, lo + h * u * dlon
+
+
+def as_stage(path: list[tuple[float, float, float, float]]) -> Ascent:
+    """(epoch s, lat, lon, alt) rows as a stage, longitudes wrapped to [-180, 180)."""
     t_s, lats, lons, alts = (np.array(column) for column in zip(*path, strict=True))
-    alts[-1] = burst_alt_m
     return Ascent(t_s=t_s, lat=lats, lon=np.asarray(wrap_lon(lons)), alt_m=alts)

@@ -463,7 +463,11 @@ def _launch_index(times: np.ndarray, alts: np.ndarray, peak: int) -> int:
     ceiling = float(np.min(alts[:peak])) + LAUNCH_SEARCH_BAND_M
 
     def climbing(i: int) -> bool:
-        return bool(alts[i] > ceiling or _rate(times, alts, i) > ASCENT_MIN_RATE_MS)
+        """The climb up to the peak at most: a window reaching past the burst would see the fall (a
+        track that starts less than the search band below its peak has only this test)."""
+        j = _window_end(times, i)
+        end = peak if j is None or j > peak else j
+        return bool(alts[i] > ceiling or (alts[end] - alts[i]) / (times[end] - times[i]) > ASCENT_MIN_RATE_MS)
 
     ground = peak - 1
     while ground > 0 and climbing(ground):

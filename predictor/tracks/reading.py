@@ -9,7 +9,10 @@ Formats:
 - canonical CSV ``time,lat,lon,alt_m[,pressure_pa[,speed_mps]]`` with ISO 8601 UTC times (what we write);
 - GPX 1.1 (``trkpt`` with ``ele`` and ``time``), read with the standard library;
 - the 2018–2019 SuperBIT RockBLOCK gateway logs (no header; rows with and without ``RB`` serials);
-- the 1 Hz V4 logger CSV (times of day only, so the flight date must be given).
+- the 1 Hz V4 logger CSV (times of day only, so the flight date must be given);
+- the EOSS APRS flight table (Edge of Space Sciences, Colorado): columns ``packettime``, ``altitude``,
+  ``latitude``, ``longitude`` (and ``speed_mph``) found by name, local Denver times, feet and mph;
+  two or more beacons on one flight train interleaved (they ride the same load line: one track).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from dataclasses import dataclass
 from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
 from xml.sax.xmlreader import AttributesNSImpl, Locator
+from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 from predictor.errors import PredictorError
 
@@ -41,6 +45,17 @@ V4_HEADER: tuple[str, ...] = (
     "T2_degC",
     "RH_pct",
 )
+EOSS_COLUMNS: tuple[str, ...] = ("packettime", "altitude", "latitude", "longitude")
+"""The columns an EOSS flight table must have, found by name; the archive's others are not positions."""
+EOSS_SPEED_COLUMN = "speed_mph"
+"""Optional: the APRS ground speed, which shows the train has stopped at the last row."""
+EOSS_TIME_ZONE = "America/Denver"
+"""EOSS's ``packettime`` is local time where the team flies: its APRS packets carry the UTC time
+(``134545h``) and the table's time is 6 h earlier in July, 7 h in November (MDT/MST)."""
+FOOT_M = 0.3048
+"""The international foot, exactly; APRS and the EOSS tables give altitude in feet."""
+MPH_MS = 0.44704
+"""The international mile per hour in m/s, exactly (1609.344 m / 3600 s)."""
 SUPERBIT_DATA_FIELDS = 13
 """date, time, lat, lon, alt, speed, course, HDOP, sats, pressure, temperature, battery, sequence."""
 
@@ -100,10 +115,12 @@ def read_track(path: str | Path, *, day: date | None = None) -> Track:
         return read_v4_csv(path, day)
     if first.startswith("RB") or (first[:2].isdigit() and first[2:3] == "/"):
         return read_superbit_log(path)
+    if _is_eoss_header(first):
+        return read_eoss_csv(path)
     raise TrackError(
         f"{path}:1: unknown track format (expected a canonical CSV with header "
-        f"'time,lat,lon,alt_m[,pressure_pa[,speed_mps]]', a GPX file, a SuperBIT RockBLOCK log "
-        f"or a V4 logger CSV)"
+        f"'time,lat,lon,alt_m[,pressure_pa[,speed_mps]]', a GPX file, a SuperBIT RockBLOCK log, "
+        f"a V4 logger CSV or an EOSS flight table with 'packettime,altitude,latitude,longitude')"
     )
 
 
@@ -208,11 +225,7 @@ def read_superbit_log(path: str | Path) -> Track:
 def read_v4_csv(path: str | Path, day: date) -> Track:
     """The 1 Hz logger CSV. Times are times of day; a step back of more than 12 h is a new UTC day."""
     path = Path(path)
-    rows = _csv_rows(path)
-    try:
-        line_no, header = next(rows)
-    except StopIteration:
-        raise TrackError(f"{path}: empty file") from None
+    line_no, header, rows = _header_and_rows(path)
     if tuple(h.strip() for h in header) != V4_HEADER:
         raise TrackError(f"{path}:{line_no}: header must be {','.join(V4_HEADER)!r}")
     fixes: list[Fix] = []
@@ -242,6 +255,51 @@ def read_v4_csv(path: str | Path, day: date) -> Track:
             )
         )
     return _track(path, "v4-1hz", fixes)
+
+
+def read_eoss_csv(path: str | Path) -> Track:
+    """An EOSS flight table: local Denver times to UTC, feet to metres, mph to m/s; columns by name.
+
+    Both the archive's own tables (``flightid,callsign,receivetime,packettime,altitude,...``) and the
+    trimmed copies that keep only some columns read the same way. Every beacon's rows are kept: two
+    beacons on one load line are one track, and ``cleaning`` keeps the first of two fixes in the same
+    second (``duplicate-time``). The APRS ground speed lets ``cleaning`` see that the train stopped.
+    """
+    path = Path(path)
+    line_no, header, rows = _header_and_rows(path)
+    names = [h.strip().lower() for h in header]
+    missing = [name for name in EOSS_COLUMNS if name not in names]
+    if missing:
+        raise TrackError(f"{path}:{line_no}: an EOSS flight table needs the columns {', '.join(missing)}")
+    column = {name: names.index(name) for name in (*EOSS_COLUMNS, EOSS_SPEED_COLUMN) if name in names}
+    try:
+        local = ZoneInfo(EOSS_TIME_ZONE)
+    except ZoneInfoNotFoundError:
+        raise TrackError(f"{path}: the time zone {EOSS_TIME_ZONE} is not installed (tzdata)") from None
+    fixes = []
+    for line_no, row in rows:
+        if not any(cell.strip() for cell in row):
+            continue
+        where = f"{path}:{line_no}"
+        if len(row) != len(names):
+            raise TrackError(f"{where}: expected {len(names)} fields, got {len(row)}")
+        stamp = row[column["packettime"]].strip()
+        try:
+            when = datetime.strptime(stamp, "%Y-%m-%d %H:%M:%S")
+        except ValueError:
+            raise TrackError(f"{where}: packettime {stamp!r} is not 'YYYY-MM-DD HH:MM:SS'") from None
+        speed = row[column[EOSS_SPEED_COLUMN]].strip() if EOSS_SPEED_COLUMN in column else ""
+        fixes.append(
+            Fix(
+                time=when.replace(tzinfo=local).astimezone(UTC),
+                lat=_number(row[column["latitude"]], "latitude", where),
+                lon=_number(row[column["longitude"]], "longitude", where),
+                alt_m=_number(row[column["altitude"]], "altitude", where) * FOOT_M,
+                speed_ms=_number(speed, EOSS_SPEED_COLUMN, where) * MPH_MS if speed else None,
+                line=line_no,
+            )
+        )
+    return _track(path, "eoss-aprs", fixes)
 
 
 def read_gpx(path: str | Path) -> Track:
@@ -327,6 +385,21 @@ def _track(path: Path, fmt: str, fixes: list[Fix]) -> Track:
     if not fixes:
         raise TrackError(f"{path}: no fixes in the file")
     return Track(name=path.stem, source=str(path), format=fmt, fixes=tuple(fixes))
+
+
+def _header_and_rows(path: Path) -> tuple[int, list[str], Iterator[tuple[int, list[str]]]]:
+    """The first line's number and fields, and the lines after it; an empty file is a TrackError."""
+    rows = _csv_rows(path)
+    try:
+        line_no, header = next(rows)
+    except StopIteration:
+        raise TrackError(f"{path}: empty file") from None
+    return line_no, header, rows
+
+
+def _is_eoss_header(line: str) -> bool:
+    names = {name.strip().lower() for name in line.split(",")}
+    return all(name in names for name in EOSS_COLUMNS)
 
 
 def _first_line(path: Path) -> str:

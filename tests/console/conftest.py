@@ -3,8 +3,10 @@ demo weather and terrain), and a fixed-time console fed from telemetry records f
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
+import tempfile
 import time
 import uuid
 from collections.abc import Callable, Iterator
@@ -191,9 +193,22 @@ def tmux_server() -> Iterator[None]:
     tmux = shutil.which("tmux")
     if tmux is None:
         pytest.skip("tmux is not installed (.ci/run installs it)")
+    # This run's own tmux server (its socket in a directory of its own): parallel workers, a second
+    # suite at once or a developer's tmux never share a server, so none can end another's. TMUX is
+    # dropped too: inside tmux it would point every command at the developer's server.
+    saved = {name: os.environ.get(name) for name in ("TMUX_TMPDIR", "TMUX")}
+    socket_dir = tempfile.mkdtemp(prefix="drs-tmux-")
+    os.environ["TMUX_TMPDIR"] = socket_dir
+    os.environ.pop("TMUX", None)
     keeper = f"drs-keeper-{uuid.uuid4().hex[:8]}"
     subprocess.run([tmux, "new-session", "-d", "-s", keeper, "sleep 86400"], check=True)
     try:
         yield
     finally:
-        subprocess.run([tmux, "kill-session", "-t", keeper], check=False)
+        subprocess.run([tmux, "kill-server"], check=False)
+        shutil.rmtree(socket_dir, ignore_errors=True)
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value

@@ -108,10 +108,10 @@ def terminal(tmp_path: Path, tmux_server: None) -> Iterator[Terminal]:
         subprocess.run([TMUX, "kill-session", "-t", session], check=False)
 
 
-def arm_drs1(terminal: Terminal) -> None:
-    """From the start of the demo to DRS1's open ARM window, by keys."""
+def arm_drs1(terminal: Terminal, mode: str = "DEMO") -> None:
+    """From the start of the demo (``drs demo --live``: mode LIVE) to DRS1's open ARM window, by keys."""
     shown = terminal.wait_for("DRS3", timeout_s=180)
-    assert "DEMO" in shown
+    assert mode in shown
     terminal.wait_for("UP ")
     terminal.keys("Enter")
     terminal.wait_for("Release day (2/4) — DRS1")

@@ -40,7 +40,7 @@ class _Host(App[None]):
             "DRS1",
             "PARACHUTE",
             CONSEQUENCE,
-            True,
+            False,
             override_prompt=OVERRIDE,
             countdown=lambda: "queue before 12:20:00Z — 840 s left",
         )

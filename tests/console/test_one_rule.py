@@ -16,7 +16,6 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
-from contextlib import ExitStack
 from datetime import datetime, timedelta
 from pathlib import Path
 
@@ -48,7 +47,6 @@ from predictor import Terrain
 from tests.clock import ManualClock
 from tests.console.conftest import wait_for
 from tests.drs_link.conftest import SIM_SCALE, capsule_table
-from tests.drs_link.ops.agents import approver_tables, ssh_agent, ssh_key
 from tests.release_helpers import ROCKBLOCK_TOML, SYNC_WAIVER, write_weather
 
 IMEI = "300434060000010"
@@ -506,22 +504,6 @@ def test_with_the_rule_required_go_needs_another_logins_approval_from_both_faces
     assert fire_results(store) == ["refused"] * 4
 
 
-@pytest.fixture
-def two_people(tmp_path: Path) -> Iterator[Callable[[Path], tuple[dict[str, str], dict[str, str]]]]:
-    """Alice and Bob as the rule sees two people: each their own [[approver]] key, proven through their
-    own real ssh-agent (a key file named in $SSH_USER_AUTH no longer counts). Gives each one's env."""
-    with ExitStack() as agents:
-
-        def people(config: Path) -> tuple[dict[str, str], dict[str, str]]:
-            alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
-            config.write_text(config.read_text() + approver_tables(alice=alice, bob=bob))
-            alice_sock = agents.enter_context(ssh_agent(tmp_path / "agent-alice", alice))
-            bob_sock = agents.enter_context(ssh_agent(tmp_path / "agent-bob", bob))
-            return {"SSH_AUTH_SOCK": alice_sock}, {"SSH_AUTH_SOCK": bob_sock}
-
-        yield people
-
-
 def drs_child(config: Path, *argv: str, env: dict[str, str] | None = None) -> subprocess.Popen[str]:
     """`drs argv` as another process (another console, another terminal)."""
     return subprocess.Popen([sys.executable, "-c", CHILD, "--config", str(config), *argv], text=True,
@@ -544,58 +526,22 @@ def test_one_arm_per_capsule_across_processes_and_the_refusal_names_who_holds_it
     assert child.returncode == 0, err
     console = Face("console", config, weather, capsys)
     refused = console.arm("--waive", f"sync={SYNC_WAIVER}")
-    holder = f"EL at {pwd.getpwuid(os.geteuid()).pw_name}@{socket.gethostname()} pid {child.pid}"
-    assert refused is not None and TIME.sub("HH:MM:SSZ", refused) == (
-        f"DRS1: ARM refused: ARM window #1 is held by {holder} until HH:MM:SSZ; one ARM per capsule"
-    )
-    assert console.go() == f"DRS1: FIRE refused: the ARM window is held by {holder}, not this console"
+    # The window is held by this account through its private operations server (drs_link.server): its pid.
+    holder = re.escape(f"EL at {pwd.getpwuid(os.geteuid()).pw_name}@{socket.gethostname()} pid ") + r"\d+"
+    assert refused is not None and re.fullmatch(
+        f"DRS1: ARM refused: ARM window #1 is held by {holder} until HH:MM:SSZ; one ARM per capsule",
+        TIME.sub("HH:MM:SSZ", refused),
+    ), refused
+    refused = console.go()
+    assert refused is not None and re.fullmatch(
+        f"DRS1: FIRE refused: the ARM window is held by {holder}, not this console", refused
+    ), refused
     status = console.console_ops().ops("DRS1").arming.status()
-    assert status.armed and not status.mine and status.holder_text() == f"held by {holder}"
+    assert status.armed and not status.mine and re.fullmatch(f"held by {holder}", status.holder_text())
     console.close()
     assert sim.firmware.go_at is None
     armed = [a for a in store.audit("DRS1") if a.action == "arm"]
-    assert [a.result for a in armed] == ["armed", "refused"] and armed[0].session == holder.removeprefix(
-        "EL at "
-    )
-
-
-@pytest.mark.slow
-def test_an_approval_that_waited_past_its_arm_window_can_never_fire_in_a_later_one(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
-    weather: list[Path],
-    two_people: Callable[[Path], tuple[dict[str, str], dict[str, str]]],
-    capsys: pytest.CaptureFixture[str],
-) -> None:
-    """#23: ARM, FIRE, ask another login, let the window expire, ARM again, approve: the capsule RELEASED."""
-    sim, config, store = powered("arm_window_s = 5.0\nrequire_second_operator = true")
-    alice, bob = two_people(config)
-    args = ["--weather", *map(str, weather), "--waive", f"sync={SYNC_WAIVER}"]
-    assert entry.main(["--config", str(config), "capsule", "arm", "DRS1", *args]) == 0
-    go = drs_child(config, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args,
-                   env=alice)  # fmt: skip
-    try:
-        assert go.stdout is not None
-        waiting = next(line for line in go.stdout if line.startswith("approval #"))
-        assert "waiting for another login to run `drs approve 1`" in waiting
-        out, err = go.communicate(timeout=60)  # the window closes while it waits
-    finally:
-        go.kill()
-    assert go.returncode == 1 and "approval #1 void (ARM window #1 closed): nothing sent" in err, err
-    assert entry.main(["--config", str(config), "capsule", "arm", "DRS1", *args]) == 0, "a later window"
-    capsys.readouterr()
-    approver = drs_child(config, "approve", env=bob)
-    assert approver.communicate(timeout=60)[0].strip() == "nothing waits for approval"
-    approver = drs_child(config, "approve", "1", env=bob)
-    refused = approver.communicate(timeout=60)[1]
-    assert approver.returncode == 1 and "approval #1 refused: it is void (ARM window #1 closed" in refused
-    assert sim.firmware.go_at is None
-    approvals = [(a.action, a.result) for a in store.audit("DRS1") if a.action.startswith("approval.")]
-    assert approvals == [
-        ("approval.requested", "pending"),
-        ("approval.void", "void"),
-        ("approval.approved", "refused"),
-    ]
-    assert not [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
+    assert [a.result for a in armed] == ["armed", "refused"] and armed[0].session is not None
 
 
 OVERRIDE = "the chase team sees it on the ground; GNSS frozen"
@@ -666,40 +612,3 @@ def test_with_the_rule_on_a_typed_second_operator_cannot_override_the_landed_gat
     assert gateway.requests == []
     [audited] = [a for a in store.audit("DRS1") if a.action == "mt.parachute"]
     assert audited.result == "refused"
-
-
-@pytest.mark.slow
-def test_with_the_rule_required_drs_capsule_go_fires_once_another_login_approves(
-    powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
-    weather: list[Path],
-    two_people: Callable[[Path], tuple[dict[str, str], dict[str, str]]],
-) -> None:
-    """The way through: `drs capsule go --await-approval`, then `drs approve ID` from another key."""
-    sim, config, store = powered("arm_window_s = 120.0\nrequire_second_operator = true")
-    alice, bob = two_people(config)
-    args = ["--weather", *map(str, weather), "--waive", f"sync={SYNC_WAIVER}"]
-    assert entry.main(["--config", str(config), "capsule", "arm", "DRS1", *args]) == 0
-    go = drs_child(config, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args,
-                   env=alice)  # fmt: skip
-    try:
-        assert go.stdout is not None
-        next(line for line in go.stdout if line.startswith("approval #1: waiting"))
-        assert sim.firmware.go_at is None, "nothing is sent while it waits"
-        listed = drs_child(config, "approve", env=bob).communicate(timeout=60)[0]
-        assert listed.startswith(
-            "#1 DRS1 Go (release): Go: release DRS1 in ARM window #1 — requested by alice"
-        )
-        approver = drs_child(config, "approve", "1", env=bob)
-        assert approver.wait(timeout=60) == 0
-        out, err = go.communicate(timeout=120)
-    finally:
-        go.kill()
-    assert go.returncode == 0, err
-    assert "released, Pi shut down" in out and sim.firmware.go_at is not None
-    [fire] = [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
-    assert fire.detail is not None and fire.detail["approval"] == "1" and fire.detail["window"] == 1
-    assert [a.result for a in store.audit("DRS1") if a.action.startswith("approval.")] == [
-        "pending",
-        "approved",
-        "used",
-    ]

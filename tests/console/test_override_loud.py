@@ -123,3 +123,30 @@ async def test_the_checklist_does_not_tick_landing_confirmed_after_an_override(
     app = overridden_app(tmp_path, gateway)
     ticked = app.store.query("SELECT step, state FROM checklist_step WHERE capsule = 'DRS1'")
     assert [(row["step"], row["state"]) for row in ticked if row["step"] == "parachute"] == []
+
+
+def wrapped_rows(text: str, width: int) -> int:
+    """Rows ``text`` takes when wrapped at ``width`` columns, as a Static wraps it."""
+    from rich.console import Console
+    from rich.text import Text
+
+    return len(Text(text).wrap(Console(width=width), width))
+
+
+async def test_the_override_banner_is_whole_at_80x24_and_after_a_resize_during_a_screen_change(
+    tmp_path: Path, gateway: SimulatedRockblock
+) -> None:
+    """It was cut at 80×24, and once went blank after a resize during a screen change (an SSH drop and a
+    reattach from another terminal size) until the next switch."""
+    app = overridden_app(tmp_path, gateway)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await until_banner(pilot, app)
+        widget = app.screen.query_one("#override-banner")
+        assert widget.region.height == wrapped_rows(BANNER, widget.content_region.width) >= 2
+        await pilot.press("enter")
+        await pilot.resize_terminal(130, 30)
+        await pilot.resize_terminal(80, 24)
+        await until_banner(pilot, app)
+        await pilot.pause()
+        widget = app.screen.query_one("#override-banner")
+        assert widget.display and widget.region.height == wrapped_rows(BANNER, widget.content_region.width)

@@ -237,6 +237,22 @@ async def test_recovery_reads_the_landing_from_the_reports(canned_app: Callable[
         assert "Landed" in text and "from the team" in text and "Phone: DRS2 on ground" in text
 
 
+async def test_recovery_exports_the_recovery_picture_with_the_gpx_and_kml(
+    canned_app: Callable[..., DrsConsole], tmp_path: Path
+) -> None:
+    app = canned_app()
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("down", "v")
+        await app.workers.wait_for_complete()
+        await pilot.pause()
+        await pilot.press("e")
+        await wait_for(pilot, lambda: bool(list((tmp_path / "exports").glob("DRS2-recovery-*.png"))))
+        await app.workers.wait_for_complete()
+    [png] = (tmp_path / "exports").glob("DRS2-recovery-*.png")
+    assert png.read_bytes().startswith(b"\x89PNG") and png.stat().st_size > 10_000
+    assert len(list((tmp_path / "exports").glob("DRS2-recovery-*.gpx"))) == 1
+
+
 async def test_help_and_theme_keys_work(canned_app: Callable[..., DrsConsole]) -> None:
     app = canned_app()
     async with app.run_test(size=(80, 24)) as pilot:

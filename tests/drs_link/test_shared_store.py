@@ -11,13 +11,12 @@ store, the uid as the login) is the same in a fork.
 from __future__ import annotations
 
 import os
-import pwd
 import shutil
 import stat
 import subprocess
-import sys
 import tempfile
-from collections.abc import Callable, Iterator
+import uuid
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -28,7 +27,8 @@ from console.commands.main import main
 from drs_link.config import load_config
 from drs_link.errors import StoreError
 from drs_link.ops.approval import ApprovalBook, Login, current_login
-from drs_link.store import Store
+from drs_link.store import Store, share_directory
+from tests.drs_link.server.team import as_account
 
 pytestmark = pytest.mark.skipif(
     os.geteuid() != 0 or shutil.which("useradd") is None,
@@ -39,7 +39,7 @@ pytestmark = pytest.mark.skipif(
 @pytest.fixture
 def accounts() -> Iterator[tuple[str, str, str]]:
     """Two new accounts (alice, bob) in a new group of operators; removed afterwards."""
-    tag = f"{os.getpid() % 100000}"
+    tag = f"{os.getpid() % 100000}{uuid.uuid4().hex[:4]}"  # unique per worker and run, within 32 chars
     group, alice, bob = f"drsops{tag}", f"drsalice{tag}", f"drsbob{tag}"
     subprocess.run(["groupadd", group], check=True)
     try:
@@ -61,33 +61,6 @@ def place() -> Iterator[Path]:
     shutil.rmtree(path, ignore_errors=True)
 
 
-def as_account(user: str, work: Callable[[], int]) -> tuple[int, str]:
-    """Run ``work`` in a child process with ``user``'s uid, gid and groups; its exit code and output."""
-    read_end, write_end = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # the child: never returns into pytest
-        code = 70
-        try:
-            os.close(read_end)
-            out = os.fdopen(write_end, "w", buffering=1)
-            sys.stdout = sys.stderr = out
-            account = pwd.getpwnam(user)
-            os.setgroups(os.getgrouplist(user, account.pw_gid))
-            os.setgid(account.pw_gid)
-            os.setuid(account.pw_uid)
-            code = work()
-            out.flush()
-        except BaseException as exc:  # noqa: BLE001 - reported to the parent, which fails the test
-            print(f"{type(exc).__name__}: {exc}", file=sys.stderr)
-        finally:
-            os._exit(code)
-    os.close(write_end)
-    with os.fdopen(read_end) as pipe:
-        output = pipe.read()
-    _, status = os.waitpid(pid, 0)
-    return os.waitstatus_to_exitcode(status), output
-
-
 def config_for(place: Path, operator: str, store: Path) -> Path:
     path = place / f"{operator}.toml"
     path.write_text(f'[operator]\nname = "{operator}"\n[data]\ndir = "{store}"\n')
@@ -100,7 +73,7 @@ def test_one_accounts_request_is_approved_by_the_other_through_a_shared_store(
 ) -> None:
     alice, bob, group = accounts
     store_dir = place / "data"
-    alice_config, bob_config = config_for(place, alice, store_dir), config_for(place, bob, store_dir)
+    alice_config = config_for(place, alice, store_dir)
     # Once as root, so every module `drs approve` needs is imported before a fork drops root; then the
     # store goes again, for alice to make it as she would in the field.
     assert main(["--config", str(alice_config), "approve"]) == 0
@@ -116,8 +89,13 @@ def test_one_accounts_request_is_approved_by_the_other_through_a_shared_store(
     code, out = as_account(alice, request)
     assert code == 0 and f"request #1 by {alice}" in out, out
 
-    code, out = as_account(bob, lambda: main(["--config", str(bob_config), "approve", "1"]))
-    assert code == 1, out
+    def approve() -> int:  # the ops layer on the shared store (drs approve itself now asks the server)
+        decided = ApprovalBook(Store.open(store_dir / "drs.sqlite")).decide(1, bob, current_login(), True)
+        print(f"approved by {decided.decided_by} ({decided.decider})")
+        return 0
+
+    code, out = as_account(bob, approve)
+    assert code != 0, out
     assert f"it belongs to {alice}" in out and "drs setup shared-store" in out, (
         "the refusal says how to share"
     )
@@ -131,7 +109,7 @@ def test_one_accounts_request_is_approved_by_the_other_through_a_shared_store(
     assert stat.S_IMODE(store_dir.stat().st_mode) == 0o2770
     assert stat.S_IMODE((store_dir / "drs.sqlite").stat().st_mode) == 0o660
 
-    code, out = as_account(bob, lambda: main(["--config", str(bob_config), "approve", "1"]))
+    code, out = as_account(bob, approve)
     assert code == 0, out
     assert "approved by" in out and bob in out
 
@@ -155,6 +133,8 @@ def test_the_second_accounts_console_records_exports_and_keeps_chase_files_in_th
     """Issue #29 Why-5: the first console made ``recordings/`` 0755 under the 2770 data directory, so the
     second account's console could not start ("Permission denied"). Each console writes its own file;
     every directory made inside the shared one is the group's (2770), whoever made it, whatever the umask."""
+    from collections.abc import Callable
+
     from console.commands.console import _recorder
     from drs_link.ops.audit_log import AuditLog
     from drs_link.store import data_directory, share_directory
@@ -205,3 +185,31 @@ def test_a_directory_made_with_the_old_mode_is_put_right_by_its_owner(tmp_path: 
     private.chmod(0o700)
     made = data_directory(private / "exports" / "DRS1")
     assert stat.S_IMODE(made.stat().st_mode) & 0o2000 == 0, "a private data directory stays private"
+
+
+def test_an_account_outside_the_stores_group_is_told_to_ask_the_admin_not_to_share_it(
+    accounts: tuple[str, str, str], place: Path
+) -> None:
+    alice, _, group = accounts
+    store_dir = place / "store"
+    share_directory(store_dir, group)
+    Store.open(store_dir / "drs.sqlite").close()
+    outsider = f"drscarol{os.getpid() % 100000}"
+    subprocess.run(["useradd", "-M", "-N", "-s", "/usr/sbin/nologin", outsider], check=True)
+    try:
+
+        def open_store() -> int:
+            try:
+                Store.open(store_dir / "drs.sqlite")
+            except StoreError as exc:
+                print(exc)
+                return 1
+            return 0
+
+        code, said = as_account(outsider, open_store)
+    finally:
+        subprocess.run(["userdel", outsider], check=False, capture_output=True)
+    assert code == 1, said
+    assert f"the account {outsider} is not in group {group}" in said
+    assert f"usermod -aG {group} {outsider}" in said
+    assert "shared-store" not in said and "cannot create" not in said

@@ -32,6 +32,13 @@ from tests.release_helpers import ROCKBLOCK_PASSWORD_ENV, ROCKBLOCK_TOML, releas
 pytestmark = pytest.mark.slow
 
 
+@pytest.fixture(autouse=True)
+def _private_server_in_this_process(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`drs` acts through its private operations server; here in a thread of this process, so what these
+    tests watch or patch in the operations layer is what the server runs (drs_link.server.private)."""
+    monkeypatch.setenv("DRS_PRIVATE_SERVER", "thread")
+
+
 def _toml(value: Any) -> str:
     if isinstance(value, str):
         return json.dumps(value)
@@ -153,7 +160,9 @@ def test_go_with_a_confirmation_naming_another_capsule_is_refused(
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
     capsys.readouterr()
     assert arm_and_go(config, weather, confirm="DRS2") == 1
-    assert "does not name 'DRS1'" in _one_line_error(capsys)
+    said = capsys.readouterr()
+    assert "does not name 'DRS1'" in said.err
+    assert "sending Go" not in said.out  # said only once every rule held, never above a refusal
     assert sim.firmware.go_at is None
 
 
@@ -283,6 +292,36 @@ def test_the_consoles_sync_is_the_clis_path_with_progress_and_the_same_audit(
     assert audit == [("sync-file", "verified", "EL"), ("sync", "ok", "EL"), ("sync", "failed", "EL")]
 
 
+def test_sync_without_a_directory_uploads_the_capsules_sync_source(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """`drs sync NAME` asked for SOURCE_DIR although the capsule's sync_source names it; and without one
+    configured it says which key to set."""
+    sim, config = setup
+    assert drs(config, "sync", "DRS1") == 1
+    assert "sync_source is not configured (set it in the capsule's [[capsule]] table" in _one_line_error(
+        capsys
+    )
+    source = tmp_path / "payload"
+    source.mkdir()
+    (source / "frame.bin").write_bytes(b"f" * 1000)
+    config.write_text(config.read_text().replace('name = "DRS1"', f'name = "DRS1"\nsync_source = "{source}"'))
+    assert drs(config, "sync", "DRS1", "--status") == 1
+    assert drs(config, "sync", "DRS1") == 0
+    assert (sim.storage_dir / "frame.bin").read_bytes() == b"f" * 1000
+
+
+def test_arm_names_the_missing_sync_source_rather_than_no_data(
+    setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], weather: list[Path]
+) -> None:
+    _, config = setup
+    assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
+    capsys.readouterr()
+    assert drs(config, "capsule", "arm", "DRS1", "--weather", *map(str, weather)) == 1
+    [sync] = [line for line in capsys.readouterr().out.splitlines() if "Storage sync complete" in line]
+    assert "NO-GO" in sync and "sync_source is not configured" in sync and "no data" not in sync
+
+
 def test_sync_of_a_missing_directory_is_a_one_line_error(
     setup: tuple[CapsuleSimulator, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
@@ -331,7 +370,8 @@ def test_power_on_go_and_reset_tick_their_steps_from_the_cli_as_from_the_console
     cli_store = Store.open(tmp_path / "cli" / "data" / "drs.sqlite")
     assert _done_steps(cli_store) == {"power-on": "relay latched", "fire": "released, Pi shut down"}
     assert drs(cli_config, "capsule", "reset", "DRS1", "--confirm", "DRS1") == 0
-    assert _done_steps(cli_store)["reset-state"] == "release state reset"
+    # The reset starts the next flight: the last flight's power-on and FIRE are no longer ticked.
+    assert _done_steps(cli_store) == {"reset-state": "release state reset"}
 
     console_config = _write_config(tmp_path / "console", [make_sim()], client_key[0])
     console_store = Store.open(tmp_path / "console" / "data" / "drs.sqlite")

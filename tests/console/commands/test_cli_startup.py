@@ -24,6 +24,7 @@ HEAVY = (
     "pyproj",
     "paramiko",
     "jwt",
+    "aiohttp",
 )
 """Each costs 0.1–0.5 s to import; the first seven made `drs --help` take 2.9 s, and the last four
 kept it at 22× a bare Python start (#25 item 11)."""

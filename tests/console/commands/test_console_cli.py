@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shlex
 import subprocess
 import sys
 import time
@@ -10,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from console.commands.console import ReplayFeed, replay_setup
+from console.commands.console import ReplayFeed, replay_command, replay_setup
 from drs_link.config import parse_config
 from drs_link.errors import ConfigError
 from drs_link.ops.telemetry import (
@@ -129,3 +130,16 @@ def test_live_console_without_capsules_says_what_to_do(tmp_path: Path) -> None:
     config = parse_config({"data": {"dir": str(tmp_path)}})
     with pytest.raises(ConfigError, match=r"no \[\[capsule\]\].*drs demo"):
         live_setup(config, None, None)
+
+
+def test_the_demos_replay_line_works_in_a_fresh_shell_without_drs_on_its_path(tmp_path: Path) -> None:
+    """The demo's last line said `drs console --replay …`, and `drs` is not on a fresh shell's PATH
+    (make demo installs it into .venv): the printed command is run as printed, from another directory."""
+    line = replay_command(tmp_path / "telemetry.jsonl")
+    words = shlex.split(line)
+    assert words[-3:] == ["console", "--replay", str(tmp_path / "telemetry.jsonl")]
+    fresh_shell = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+    ran = subprocess.run(
+        [*words[:-3], "--version"], cwd=tmp_path, env=fresh_shell, capture_output=True, text=True, timeout=60
+    )
+    assert ran.returncode == 0 and ran.stdout.startswith("drs "), ran.stderr

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from tests.drs_link.feeds.test_chase import write_config
-from tests.ports import free_port
+from tests.ports import free_port, wait_until_accepted
 
 
 def drs(*argv: str) -> subprocess.Popen[str]:
@@ -33,7 +33,9 @@ def test_serve_predictor_answers_the_request_in_flight_before_it_stops_on_sigter
         assert re.search(rf"Tawhiri v1 API at http://127\.0\.0\.1:{port}/api/v1/", line), line
         with socket.create_connection(("127.0.0.1", port), timeout=30) as client:
             client.sendall(b"GET /api/v1/?launch_latitude=67.9&launch_longitude=21.1&launch_datetime=")
-            time.sleep(0.5)  # the request is in flight: its first half has arrived
+            # The request is in flight once the server has accepted it (a guessed 0.5 s was not enough
+            # on a loaded machine: SIGTERM came while it still waited in the backlog, and it was reset).
+            wait_until_accepted(port)
             server.send_signal(signal.SIGTERM)
             time.sleep(0.5)
             client.sendall(

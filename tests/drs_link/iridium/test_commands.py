@@ -30,10 +30,18 @@ from drs_link.iridium.commands import (
 )
 from drs_link.iridium.firmware import GnssFix, arduino_to_int, value_after
 from drs_link.iridium.mt import MtComposer
+from drs_link.server import iridium as server_iridium
 
 DOCS = Path(__file__).parents[3] / "docs" / "iridium.md"
 SAMPLES = {"INTERVAL": 5, "RBSOURCE": 11800, "RBDESTINATION": 16366, "PARACHUTE": (12, 5), "SOUNDER": False}
 FIX = GnssFix(datetime(2026, 1, 1, 12, 0, tzinfo=UTC), 0, 0, 0, 0, 0, 1, 5)
+
+
+@pytest.fixture(autouse=True)
+def _private_server_in_this_process(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`drs` acts through its private operations server; here in a thread of this process, so what these
+    tests watch or patch in the operations layer is what the server runs (drs_link.server.private)."""
+    monkeypatch.setenv("DRS_PRIVATE_SERVER", "thread")
 
 
 def _mt_send_parser() -> argparse.ArgumentParser:
@@ -117,8 +125,9 @@ def test_a_command_added_to_a_copy_of_the_catalogue_reaches_everything(
     listed = (*LISTED, EXAMPLE)
     assert [b.key for b in command_bindings(False, listed)] == ["n", "o", "O", "c", "C", "x"]
 
-    monkeypatch.setattr(iridium_cli, "CATALOGUE", extended)
-    monkeypatch.setattr(iridium_cli, "LISTED", listed)
+    monkeypatch.setattr(iridium_cli, "LISTED", listed)  # the options of `drs mt send`
+    monkeypatch.setattr(server_iridium, "CATALOGUE", extended)  # the server composes what they say
+    monkeypatch.setattr(server_iridium, "LISTED", listed)
     assert "--example N" in _mt_send_parser().format_help()
     config = tmp_path / "drs.toml"
     config.write_text('[[capsule]]\nname = "DRS1"\nhost = "127.0.0.1"\nimei = "300234010753370"\n')

@@ -32,6 +32,13 @@ from .helpers import IMEI, fix_at, to_delivery
 from .test_receiver_process import DRS, REPO, Receiver
 
 
+@pytest.fixture(autouse=True)
+def _private_server_in_this_process(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`drs` acts through its private operations server; here in a thread of this process, so what these
+    tests watch or patch in the operations layer is what the server runs (drs_link.server.private)."""
+    monkeypatch.setenv("DRS_PRIVATE_SERVER", "thread")
+
+
 def drs(
     config: Path, *argv: str, wrap: list[str] | None = None, **env: str
 ) -> subprocess.CompletedProcess[str]:

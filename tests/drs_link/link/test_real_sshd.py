@@ -72,10 +72,17 @@ class RealSshd:
 
 
 def _wait_for_banner(port: int, proc: subprocess.Popen[bytes], log: Path) -> bool:
-    deadline = time.monotonic() + 10
+    """Until OUR sshd says it listens on ``port`` and answers there. A banner alone could come from another
+    sshd (a parallel worker or a second suite) that took the same port between free_port() and our bind;
+    ours then fails to bind and exits, and the caller tries another port. The 30 s limit is a readiness
+    bound on a loaded machine; the wait ends as soon as sshd answers."""
+    deadline = time.monotonic() + 30
     while time.monotonic() < deadline:
         if proc.poll() is not None:
             return False
+        if f"Server listening on 127.0.0.1 port {port}." not in log.read_text(errors="replace"):
+            time.sleep(0.05)
+            continue
         try:
             with socket.create_connection(("127.0.0.1", port), timeout=1) as conn:
                 if conn.recv(64).startswith(b"SSH-2.0-"):

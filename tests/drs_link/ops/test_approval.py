@@ -8,9 +8,6 @@ PARACHUTE send runs as a real `drs` process against the simulated RockBLOCK on l
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import threading
 from pathlib import Path
 
@@ -21,13 +18,10 @@ from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
 from drs_link.ops.approval import ApprovalBook, Login
 from drs_link.ops.authorize import approval_command, authorize_mt
-from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
 from tests.clock import ManualClock
-from tests.console.commands.test_cli_iridium import run, write_config
 from tests.drs_link.iridium.helpers import IMEI
 from tests.drs_link.iridium.test_parachute_gate import audit_of, falling, landed, recent, seed
-from tests.drs_link.ops.agents import approver_tables, ssh_agent, ssh_key
 
 ALICE_A = Login("ops", "SHA256:keyA")
 ALICE_B = Login("ops", "SHA256:keyB")
@@ -128,82 +122,6 @@ def test_parachute_with_an_approval_from_another_login_is_audited_with_both(tmp_
 CHILD = "import sys; from console.commands.main import main; sys.exit(main(sys.argv[1:]))"
 
 
-def test_drs_mt_send_waits_for_drs_approve_from_another_key(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
-) -> None:
-    alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
-    with (
-        SimulatedRockblock(username="ops", password="pw") as gateway,
-        ssh_agent(tmp_path / "a", alice) as alice_sock,
-        ssh_agent(tmp_path / "b", bob) as bob_sock,
-    ):
-        config = write_config(tmp_path, gateway.url)
-        config.write_text(config.read_text() + approver_tables(alice=alice, bob=bob))
-        store = seed(tmp_path, landed(recent(10.5)))
-        env = {**os.environ, "DRS_TEST_RB": "pw", "SSH_AUTH_SOCK": alice_sock}
-        argv = ["--config", str(config), "mt", "send", "DRS1", "--parachute", "next", "--accept-midnight",
-                "--confirm", "DRS1", "--await-approval"]  # fmt: skip
-        sender = subprocess.Popen(
-            [sys.executable, "-c", CHILD, *argv], env=env, stdout=subprocess.PIPE, text=True
-        )
-        try:
-            assert sender.stdout is not None
-            waiting = next(line for line in sender.stdout if line.startswith("approval #"))
-            assert "waiting for another login to run `drs approve 1`" in waiting
-            assert gateway.requests == [], "nothing is sent while it waits"
-            monkeypatch.setenv("SSH_AUTH_SOCK", alice_sock)
-            assert run(config, "approve", "1") == 1, "the sender's own key cannot approve"
-            assert "cannot approve it" in capsys.readouterr().err
-            monkeypatch.setenv("SSH_AUTH_SOCK", bob_sock)
-            assert run(config, "approve") == 0
-            assert "#1 DRS1 PARACHUTE: [PARACHUTE=" in capsys.readouterr().out
-            assert run(config, "approve", "1") == 0
-            rest = sender.stdout.read()
-            assert sender.wait(timeout=60) == 0, rest
-        finally:
-            sender.kill()
-        assert "approved by bob" in rest and len(gateway.requests) == 1
-    authorised = audit_of(store, "mt.parachute")[-1]
-    assert authorised["approved_by"].startswith("bob (") and authorised["approval"] == "1"
-    assert [r.result for r in store.audit("DRS1") if r.action.startswith("approval.")] == [
-        "pending",
-        "refused",
-        "approved",
-        "used",
-    ]
-
-
-def test_a_rejected_request_sends_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    alice, bob = ssh_key(tmp_path, "alice"), ssh_key(tmp_path, "bob")
-    with (
-        SimulatedRockblock(username="ops", password="pw") as gateway,
-        ssh_agent(tmp_path / "a", alice) as alice_sock,
-        ssh_agent(tmp_path / "b", bob) as bob_sock,
-    ):
-        config = write_config(tmp_path, gateway.url)
-        config.write_text(config.read_text() + approver_tables(alice=alice, bob=bob))
-        seed(tmp_path, landed(recent(10.5)))
-        env = {**os.environ, "DRS_TEST_RB": "pw", "SSH_AUTH_SOCK": alice_sock}
-        argv = ["--config", str(config), "mt", "send", "DRS1", "--parachute", "next", "--accept-midnight",
-                "--confirm", "DRS1", "--await-approval"]  # fmt: skip
-        sender = subprocess.Popen([sys.executable, "-c", CHILD, *argv], env=env, stdout=subprocess.PIPE,
-                                  stderr=subprocess.PIPE, text=True)  # fmt: skip
-        try:
-            assert sender.stdout is not None
-            next(line for line in sender.stdout if line.startswith("approval #"))
-            monkeypatch.setenv("SSH_AUTH_SOCK", bob_sock)
-            assert run(config, "approve", "1", "--reject") == 2, "a rejection says why"
-            assert run(config, "approve", "1", "--reject", "--reason", "still swinging in the tree") == 0
-            _, err = sender.communicate(timeout=60)
-        finally:
-            sender.kill()
-        assert (
-            sender.returncode == 1
-            and "approval #1 rejected (still swinging in the tree): nothing sent" in err
-        )
-        assert gateway.requests == []
-
-
 def test_an_approval_request_is_refused_for_a_command_the_rule_does_not_cover(tmp_path: Path) -> None:
     book = ApprovalBook(Store.open(tmp_path / "drs.sqlite"))
     with pytest.raises(ValueError, match="unknown hazardous action"):
@@ -285,6 +203,7 @@ def test_a_parachute_refused_after_its_approval_leaves_it_unspent_and_a_sent_one
     records the MT (``CommandLifecycle.request``'s ``also``)."""
     from drs_link.errors import ConfigError
     from drs_link.ops.operations import SecondOperator
+    from drs_link.sim.rockblock import SimulatedRockblock
     from tests.drs_link.iridium.test_parachute_gate import signed
     from tests.drs_link.ops.test_brief import parachute_ops
 

@@ -498,16 +498,17 @@ def test_a_go_that_left_keeps_its_window_firing_for_finish_go(
 
 
 ARM_IN_A_CHILD = """
-import sys, time
+import sys
 from datetime import UTC, datetime
 from drs_link.errors import RefusedError
 from drs_link.store import Store
 from tests.clock import ManualClock
 from tests.drs_link.ops.test_arming import controller, go_report
-start, path = float(sys.argv[1]), sys.argv[2]
+path = sys.argv[1]
 clock = ManualClock(datetime(2026, 9, 1, 12, 0, tzinfo=UTC))
 arming = controller(Store.open(path), clock)  # this process's own holder (session and token)
-time.sleep(max(0.0, start - time.time()))
+print("ready", flush=True)
+sys.stdin.readline()  # released by the parent once every child is ready
 try:
     print("armed" if arming.arm(go_report(clock)).mine else "lost")
 except RefusedError as exc:
@@ -516,20 +517,29 @@ except RefusedError as exc:
 
 
 def test_four_processes_arming_at_the_same_moment_open_one_window(tmp_path: Path) -> None:
-    """Real processes, each with its own holder and connection, released at one wall-clock instant."""
+    """Real processes, each with its own holder and connection, released at one moment: each says it is
+    ready (imported, store open), and all are released together once all are (a guessed 3 s start was
+    not enough for four imports on a loaded machine, and then they armed one after another)."""
     import subprocess
     import sys
-    import time
 
     path = tmp_path / "shared.sqlite"
     Store.open(path)
-    start = time.time() + 3.0  # after every child has imported and opened the store
     children = [
         subprocess.Popen(
-            [sys.executable, "-c", ARM_IN_A_CHILD, str(start), str(path)], stdout=subprocess.PIPE, text=True
-        )
+            [sys.executable, "-c", ARM_IN_A_CHILD, str(path)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )  # fmt: skip
         for _ in range(4)
     ]
+    for child in children:
+        assert child.stdout is not None and child.stdout.readline() == "ready\n"
+    for child in children:
+        assert child.stdin is not None
+        child.stdin.write("go\n")
+        child.stdin.flush()
     outcomes = [child.communicate(timeout=60)[0].strip() for child in children]
     assert outcomes.count("armed") == 1, outcomes
     assert all("one ARM per capsule" in o for o in outcomes if o != "armed"), outcomes

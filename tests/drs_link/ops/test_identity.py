@@ -84,29 +84,6 @@ def test_a_forged_ssh_user_auth_is_not_another_login(tmp_path: Path, keys: dict[
     assert current_login(clean_env(SSH_USER_AUTH=str(forged["bob"]))) == Login(account_name())
 
 
-def test_a_listed_key_proven_by_a_real_ssh_agent_is_another_person(
-    tmp_path: Path, keys: dict[str, Path]
-) -> None:
-    approvers = approver_tables(EL=keys["el"], Bob=keys["bob"])
-    with (
-        ssh_agent(tmp_path / "el-agent", keys["el"]) as el_sock,
-        ssh_agent(tmp_path / "bob-agent", keys["bob"]) as bob_sock,
-    ):
-        request = request_as(config(tmp_path, "EL", approvers), clean_env(SSH_AUTH_SOCK=el_sock))
-        approving = drs_approve(
-            config(tmp_path, "bob-console", approvers), clean_env(SSH_AUTH_SOCK=bob_sock), str(request)
-        )
-    assert approving.returncode == 0, approving.stderr
-    book = ApprovalBook(Store.open(tmp_path / "data" / "drs.sqlite"))
-    decided = book.get(request)
-    assert decided.state == "approved"
-    assert decided.requested_by == "EL" and decided.requester.key_fingerprint == printed_fingerprint(
-        keys["el"]
-    )
-    assert decided.decided_by == "Bob", "the proven key's person, not the name typed in the approver's file"
-    assert decided.decider == Login(account_name(), printed_fingerprint(keys["bob"]))
-
-
 def test_the_same_uid_without_a_proven_key_is_not_a_second_login(
     tmp_path: Path, keys: dict[str, Path]
 ) -> None:
@@ -126,20 +103,6 @@ def test_the_same_uid_without_a_proven_key_is_not_a_second_login(
                 assert approving.returncode == 1, what
                 assert "that requested it cannot approve it" in approving.stderr, what
     assert ApprovalBook(Store.open(tmp_path / "data" / "drs.sqlite")).get(request).state == "pending"
-
-
-def test_a_person_with_two_listed_keys_cannot_approve_their_own_request(
-    tmp_path: Path, keys: dict[str, Path]
-) -> None:
-    """Two keys of one person are two logins but one name: refused because the names are equal."""
-    approvers = approver_tables(EL=keys["el"]) + approver_tables(EL=keys["bob"])
-    with ssh_agent(tmp_path / "a", keys["el"]) as first, ssh_agent(tmp_path / "b", keys["bob"]) as second:
-        request = request_as(config(tmp_path, "EL", approvers), clean_env(SSH_AUTH_SOCK=first))
-        approving = drs_approve(
-            config(tmp_path, "Someone", approvers), clean_env(SSH_AUTH_SOCK=second), str(request)
-        )
-    assert approving.returncode == 1
-    assert "EL requested it and cannot approve it too" in approving.stderr
 
 
 def test_the_agent_proof_checks_the_listed_key_and_the_signature(

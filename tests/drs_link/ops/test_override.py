@@ -16,6 +16,7 @@ import pytest
 
 from drs_link.iridium import lifecycle as lc
 from drs_link.iridium.mt import MtComposer
+from drs_link.iridium.parachute import plan_parachute
 from drs_link.ops.authorize import authorize_mt
 from drs_link.ops.checklist import PROCEDURE_DIR, load_checklists
 from drs_link.ops.override import ParachuteOverride, after_drop, drop_schedule, parachute_override
@@ -85,6 +86,27 @@ def test_the_banner_names_who_overrode_and_who_approved_until_the_drop(rig: Rig)
     assert override is not None, "the banner stays after the drop"
     drop, words = drop_schedule(override, rig.reports.for_imei(IMEI))
     assert drop == at(6) and words == "release B opened at the end of the 10:06:07Z cycle (after its report)"
+
+
+def test_recovery_and_the_iridium_helper_agree_on_the_cycle_after_a_missed_one(rig: Rig) -> None:
+    """The 10:06 session failed; at 10:06:12 the helper plans 10:21 for the 10:08 cycle and the MT is queued
+    at 10:07. Recovery said "the next cycle (expected 10:06Z) is outside ±14 min: it will be rejected",
+    counting from the last report instead of from when the MT was queued; the firmware model takes it."""
+    falling(rig)
+    plan = plan_parachute(rig.reports.for_imei(IMEI), at(6.2), rig.life.for_imei(IMEI), requested=(10, 21))
+    assert plan.cycles[0].fix_earliest < at(8.5) and plan.hhmm == "10:21"
+    message = MtComposer().add("PARACHUTE", (10, 21)).build()
+    authorize_mt(
+        rig.store, "DRS1", "alice", message, rig.reports.for_imei(IMEI), single_operator_waiver=WAIVER,
+        require_second_operator=False, override_landed=REASON,
+    )  # fmt: skip
+    rig.send(message, at(7))
+    override = override_now(rig)
+    assert override is not None
+    drop, words = drop_schedule(override, rig.reports.for_imei(IMEI))
+    assert drop == at(8) and "rejected" not in words, words
+    rig.cycle(at(8), alt=12_000.0)
+    assert rig.capsule.parachute_open, "the firmware model took it at the 10:08 cycle, as both now say"
 
 
 def test_a_parachute_outside_the_window_of_its_cycle_is_said_to_be_rejected_as_the_firmware_does(

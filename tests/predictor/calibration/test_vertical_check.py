@@ -15,6 +15,7 @@ from predictor.descent.payload import PROFILES
 from predictor.errors import PredictorError
 from predictor.prediction import CalibratedModel
 from predictor.tracks.cleaning import clean
+from tests.approx import assert_text_close
 from tests.conftest import REPO_ROOT
 from tests.predictor.calibration.conftest import LAUNCH, jet_cube
 from tests.predictor.synthetic_flights import synthetic_flight
@@ -90,7 +91,8 @@ def test_the_committed_v4_report_is_what_the_command_writes(
                  "--winds", "ascent", "--date", "2021-06-01", "--report", "docs/calibration/v4-vertical.md",
                  "--json", "docs/calibration/v4-vertical.json"]) == 0  # fmt: skip
     written = (tmp_path / "docs" / "calibration" / "v4-vertical.md").read_text(encoding="utf-8")
-    assert written.replace(str(v4), str(V4)) == REPORT.read_text(encoding="utf-8")
+    # The words exactly, each number within one unit of its last printed digit (tests/approx.py).
+    assert_text_close(written.replace(str(v4), str(V4)), REPORT.read_text(encoding="utf-8"))
     laws = json.loads((tmp_path / "docs" / "calibration" / "v4-vertical.json").read_text(encoding="utf-8"))
     assert [s["law"] for s in laws["flights"][0]["scores"]][:2] == ["ρ^-½, λ = 1", "ρ^-½, λ fitted here"]
     assert "V4_flight_1hz_DERIVED: ρ^-½, λ fitted here: time-at-altitude RMS" in capsys.readouterr().out

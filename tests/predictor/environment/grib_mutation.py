@@ -25,6 +25,28 @@ SECTION_AT = {0: 0, 1: 16, 3: 37, 4: 109, 5: 143, 6: 155, 7: 161}
 """Where each section of a base message starts, in bytes from the message's start."""
 
 
+CAP_BYTES = 1536 * 2**20
+CHILD = """
+import json, resource, sys, tempfile
+from pathlib import Path
+resource.setrlimit(resource.RLIMIT_AS, (int(sys.argv[1]), int(sys.argv[1])))
+from predictor.environment.weather import load_weather
+from predictor.errors import WeatherError
+cache = tempfile.mkdtemp()
+for file in sorted(Path(sys.argv[2]).glob("*.grib2")):
+    try:
+        load_weather([file], (45.5, 46.5, 6.5, 8.0), cache_dir=cache)
+        answer = {"file": file.name, "outcome": "read"}
+    except WeatherError as exc:
+        answer = {"file": file.name, "outcome": "refused", "message": str(exc)}
+    except BaseException as exc:
+        answer = {"file": file.name, "outcome": "crashed", "message": f"{type(exc).__name__}: {exc}"}
+    print(json.dumps(answer), flush=True)
+"""
+"""The caller every fuzz test loads its mutants in: `load_weather` on each file of a folder under an address-space
+cap of ``CAP_BYTES``, one JSON answer per file (read, refused with its message, or crashed)."""
+
+
 def write_base(path: Path) -> bytes:
     from predictor.environment.gribwrite import write_gfs_grib2
 

@@ -14,27 +14,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-from tests.predictor.environment.grib_mutation import FOLDER
+from tests.predictor.environment.grib_mutation import CAP_BYTES, CHILD, FOLDER
 
 REPO = Path(__file__).resolve().parents[3]
-CAP_BYTES = 1536 * 2**20
-CHILD = """
-import json, resource, sys, tempfile
-from pathlib import Path
-resource.setrlimit(resource.RLIMIT_AS, (int(sys.argv[1]), int(sys.argv[1])))
-from predictor.environment.weather import load_weather
-from predictor.errors import WeatherError
-cache = tempfile.mkdtemp()
-for file in sorted(Path(sys.argv[2]).glob("*.grib2")):
-    try:
-        load_weather([file], (45.5, 46.5, 6.5, 8.0), cache_dir=cache)
-        answer = {"file": file.name, "outcome": "read"}
-    except WeatherError as exc:
-        answer = {"file": file.name, "outcome": "refused", "message": str(exc)}
-    except BaseException as exc:
-        answer = {"file": file.name, "outcome": "crashed", "message": f"{type(exc).__name__}: {exc}"}
-    print(json.dumps(answer), flush=True)
-"""
 HEADER_DAMAGE = [
     "ni-2386165793", "ni-2386165793-every-message", "nj-4000000000-every-message", "ni-100000-nj-100000",
     "ni-0", "ni-7-every-message", "data-points-huge", "values-count-huge", "year-0", "year-65535", "month-13",

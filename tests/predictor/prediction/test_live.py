@@ -150,3 +150,24 @@ def test_live_cli_needs_a_track_and_weather(capsys: pytest.CaptureFixture[str], 
     assert "needs --weather FILE... or --ascent-winds" in capsys.readouterr().err
     assert main(["live", "evaluate"]) == 2
     assert "needs track files" in capsys.readouterr().err
+
+
+def test_the_flights_own_evidence_favours_its_lambda_when_it_falls_off_the_law() -> None:
+    # Asked 1.5 and 3 km higher up, the λ the record then allowed predicts the fall to the report far
+    # better than the law as it stands; on a flight that falls as the law says, neither is worse.
+    fast, _ = descent_of([DescentRateScale(scale=1.3)])
+    live, report = fed(fast, 12000.0)
+    evidence = live.self_check(report)
+    assert evidence is not None
+    assert evidence["λ"] < 0.05 * evidence["plain"]
+    assert evidence["plain"] == pytest.approx(0.0688, rel=0.2), "ln(1.3)² ≈ 0.069: the law's miss"
+    lawful, _ = descent_of([])
+    live, report = fed(lawful, 12000.0)
+    evidence = live.self_check(report)
+    assert evidence is not None and max(evidence.values()) < 0.002
+
+
+def test_no_evidence_before_the_record_reaches_the_first_check() -> None:
+    fixes, _ = descent_of([])
+    live, report = fed(fixes, fixes[0].alt_m - 1000.0)
+    assert live.self_check(report) is None

@@ -23,8 +23,8 @@ from predictor.descent.payload import PROFILES
 from predictor.prediction import CalibratedModel, FlightSetup
 from predictor.prediction.landings import predict
 from predictor.prediction.live import (
+    DEFAULT_DISCREPANCY,
     DEFAULT_ELLIPSE_NOTE,
-    NO_DISCREPANCY,
     OWN_RATE,
     RECORD_WINDOW_M,
     LiveCorrection,
@@ -268,7 +268,7 @@ def test_a_canopy_delay_counts_from_the_release_not_from_the_report() -> None:
 def test_a_model_without_live_settings_flies_its_shape_with_its_own_lambda_and_says_so() -> None:
     cube = isothermal_cube(u=10.0, v=2.0)
     bare = CalibratedModel(PAYLOAD, (LAW,), None).live_predictor(cube)
-    assert bare.correction == OWN_RATE and bare.discrepancy == NO_DISCREPANCY and bare.prior is None
+    assert bare.correction == OWN_RATE and bare.discrepancy == DEFAULT_DISCREPANCY and bare.prior is None
     assert any(n.startswith("no live settings of its own") for n in bare.notes)
     assert (
         DEFAULT_ELLIPSE_NOTE in bare.notes

@@ -1,0 +1,65 @@
+"""The operations server: one process holds the store, the capsule links and the gateway credentials,
+and every face acts through it (issue #29).
+
+``app`` is ``drs server`` (aiohttp on a Unix socket); ``peers`` who a connection is, from the kernel
+(``SO_PEERCRED``) and the server's own ``[[operator]]`` list; ``desks`` one ``drs_link.ops`` engine per
+operator; ``release``, ``iridium`` and ``approvals`` the thin services over them; ``protocol`` the typed,
+versioned messages; ``client`` the faces' one client with verbs; ``private`` an account's own server,
+started on demand.
+"""
+
+from typing import TYPE_CHECKING
+
+from predictor.lazy_door import lazy_door
+
+if TYPE_CHECKING:
+    from . import iridium as iridium
+    from .app import OperationsServer as OperationsServer
+    from .client import Client as Client, raise_failure as raise_failure
+    from .desks import PredictorFor as PredictorFor
+    from .peers import (
+        Peer as Peer,
+        Roster as Roster,
+        account_of as account_of,
+        check_own_file as check_own_file,
+        peer_uid as peer_uid,
+    )
+    from .private import ensure_private_server as ensure_private_server, private_socket as private_socket
+    from .protocol import (
+        MAX_BODY_BYTES as MAX_BODY_BYTES,
+        PROTOCOL as PROTOCOL,
+        ApprovalView as ApprovalView,
+        Done as Done,
+        Failure as Failure,
+        Hello as Hello,
+        MtSendRequest as MtSendRequest,
+        Second as Second,
+    )
+    from .release import PRIVATE_TWO_PERSON as PRIVATE_TWO_PERSON
+
+__getattr__, __dir__, __all__ = lazy_door(
+    __name__,
+    {
+        "ApprovalView": "protocol",
+        "Client": "client",
+        "Done": "protocol",
+        "Failure": "protocol",
+        "Hello": "protocol",
+        "MAX_BODY_BYTES": "protocol",
+        "MtSendRequest": "protocol",
+        "OperationsServer": "app",
+        "PRIVATE_TWO_PERSON": "release",
+        "PROTOCOL": "protocol",
+        "Peer": "peers",
+        "PredictorFor": "desks",
+        "Roster": "peers",
+        "Second": "protocol",
+        "account_of": "peers",
+        "iridium": "iridium",
+        "check_own_file": "peers",
+        "ensure_private_server": "private",
+        "peer_uid": "peers",
+        "private_socket": "private",
+        "raise_failure": "client",
+    },
+)

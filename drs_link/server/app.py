@@ -1,0 +1,404 @@
+"""``drs server``: the one process that holds the store, the capsule links and the gateway credentials.
+
+Why aiohttp: HTTP request/response for verbs and a WebSocket for pushed views, both on a Unix socket
+(``web.UnixSite``), from one well-kept library with an asyncio server; the kernel's peer credentials of
+each connection are read from its socket (``peers.peer_uid``). Each operator action runs in a worker
+thread over ``drs_link.ops`` (blocking SSH, SQLite, HTTP), and a long one (FIRE, an MT) answers with
+a stream of typed steps, so the requester's connection stays open while another account approves; when
+it drops, its waiting request is withdrawn.
+
+A request is read whole (at most ``MAX_BODY_BYTES``), decoded against its type, checked for the
+protocol version, and only then acted on; a malformed, oversized or unknown message gets one
+``Failure`` and changes nothing.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import grp
+import logging
+import os
+import signal
+import socket
+import threading
+import time
+from collections.abc import Awaitable, Callable
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any, TypeVar
+
+import msgspec
+from aiohttp import WSMsgType, web
+
+from drs_link.config import Config
+from drs_link.errors import ConfigError, LinkError, RefusedError, StoreError
+from drs_link.ops import Approval
+from drs_link.server.approvals import ApprovalService
+from drs_link.server.desks import Desks, PredictorFor
+from drs_link.server.iridium import IridiumService
+from drs_link.server.peers import Mode, Peer, Roster, check_own_file, check_state_directory, peer_uid
+from drs_link.server.protocol import (
+    MAX_BODY_BYTES,
+    PROTOCOL,
+    ROOT,
+    ArmRequest,
+    DecideRequest,
+    DisarmRequest,
+    Done,
+    Event,
+    Failure,
+    FireRequest,
+    Hello,
+    MtSendRequest,
+    Pending,
+    Request,
+    Said,
+    Step,
+    encode,
+)
+from drs_link.server.release import ReleaseService
+from drs_link.store import Store
+from predictor.errors import UsageError
+
+log = logging.getLogger(__name__)
+R = TypeVar("R", bound=Request)
+EVENT_PERIOD_S = 0.25
+"""How often the event stream looks for a change to push."""
+_STATUS = {
+    "refused": 409,
+    "config": 400,
+    "usage": 400,
+    "protocol": 400,
+    "identity": 403,
+    "link": 502,
+    "store": 500,
+}
+
+
+def failure(kind: str, error: str) -> web.Response:
+    body = encode(Failure(kind, error))  # type: ignore[arg-type]
+    return web.Response(status=_STATUS[kind], body=body, content_type="application/json")
+
+
+def failure_of(exc: BaseException) -> Failure:
+    kinds: list[tuple[type[BaseException], str]] = [
+        (RefusedError, "refused"), (ConfigError, "config"), (StoreError, "store"), (UsageError, "usage"),
+        (LinkError, "link"),
+    ]  # fmt: skip
+    for kind_of, kind in kinds:
+        if isinstance(exc, kind_of):
+            return Failure(kind, str(exc))  # type: ignore[arg-type]
+    log.exception("unexpected error", exc_info=exc)
+    return Failure("link", f"the server failed: {type(exc).__name__}: {exc}")
+
+
+class OperationsServer:
+    def __init__(
+        self,
+        config: Config,
+        mode: Mode,
+        socket_path: Path,
+        *,
+        group: str | None = None,
+        idle_exit_s: float | None = None,
+        predictor_for: PredictorFor | None = None,
+        environ: dict[str, str] | None = None,
+    ) -> None:
+        if config.source is not None:
+            check_own_file(config.source)
+        if mode == "shared":
+            check_state_directory(config.store_path.parent)
+        self.config = config
+        self.mode = mode
+        self.socket_path = socket_path
+        self.group = group
+        self.idle_exit_s = idle_exit_s
+        self.roster = Roster(config, mode)
+        self.store = Store.open(config.store_path)
+        self.desks = Desks(config, self.store, environ)
+        self.release = ReleaseService(self.desks, mode, predictor_for)
+        self.iridium = IridiumService(self.desks, mode)
+        self.approvals = ApprovalService(self.store)
+        self.pool = ThreadPoolExecutor(max_workers=32, thread_name_prefix="drs-server")
+        self.busy = 0
+        self.last_active = time.monotonic()
+        self.stopping = asyncio.Event()
+        self.held: dict[int, tuple[Peer, Approval]] = {}
+        """Requests a connection waits on: withdrawn if it drops, or when the server stops."""
+
+    # Plumbing ------------------------------------------------------------------------------------
+
+    async def blocking(self, work: Callable[[], Any]) -> Any:
+        return await asyncio.get_running_loop().run_in_executor(self.pool, work)
+
+    def peer(self, request: web.Request) -> Peer:
+        sock = request.transport.get_extra_info("socket") if request.transport else None
+        if sock is None:
+            raise RefusedError("no connection to read the caller from")
+        return self.roster.peer(peer_uid(sock))
+
+    async def body(self, request: web.Request, kind: type[R]) -> R:
+        raw = await request.read()
+        try:
+            decoded = msgspec.json.decode(raw, type=kind)
+        except msgspec.ValidationError as exc:
+            raise _ProtocolError(f"malformed {kind.__name__}: {exc}") from None
+        except msgspec.DecodeError as exc:
+            raise _ProtocolError(f"not JSON: {exc}") from None
+        if decoded.protocol != PROTOCOL:
+            raise _ProtocolError(
+                f"the client speaks protocol {decoded.protocol}, this server {PROTOCOL}: use one drs version"
+            )
+        return decoded
+
+    @web.middleware
+    async def guard(
+        self, request: web.Request, handler: Callable[[web.Request], Awaitable[web.StreamResponse]]
+    ) -> web.StreamResponse:
+        """Every request: who it is from (the kernel), then its errors as one typed ``Failure``."""
+        self.busy += 1
+        self.last_active = time.monotonic()
+        try:
+            if not request.path.startswith(ROOT + "/"):
+                return failure(
+                    "protocol", f"{request.path}: this server speaks protocol {PROTOCOL} ({ROOT}/…)"
+                )
+            try:
+                request["peer"] = self.peer(request)
+            except (RefusedError, ConfigError) as exc:
+                return failure("identity", str(exc))
+            return await handler(request)
+        except web.HTTPRequestEntityTooLarge:
+            return failure("protocol", f"the request is larger than {MAX_BODY_BYTES} bytes: refused unread")
+        except web.HTTPException as exc:
+            return failure("protocol", f"{request.method} {request.path}: {exc.reason}")
+        except _ProtocolError as exc:
+            return failure("protocol", str(exc))
+        except Exception as exc:  # noqa: BLE001 - every error reaches the operator as one line
+            found = failure_of(exc)
+            return failure(found.kind, found.error)
+        finally:
+            self.busy -= 1
+            self.last_active = time.monotonic()
+
+    async def stream(
+        self, request: web.Request, work: Callable[[Callable[[str], None], Callable[[Approval], None]], Done]
+    ) -> web.StreamResponse:
+        """Run ``work(say, on_pending)`` in a worker and stream its steps; a dropped client withdraws the
+        approval request it waited on (the action is then refused and nothing is sent)."""
+        peer: Peer = request["peer"]
+        loop = asyncio.get_running_loop()
+        steps: asyncio.Queue[Step | None] = asyncio.Queue()
+        waiting: list[Approval] = []
+
+        def say(line: str) -> None:
+            loop.call_soon_threadsafe(steps.put_nowait, Said(line))
+
+        def on_pending(approval: Approval) -> None:
+            waiting.append(approval)
+            self.held[approval.id] = (peer, approval)
+            self.approvals.requested(peer, approval)
+            text = (f"approval #{approval.id}: waiting for another account to run `drs approve {approval.id}` "
+                    f"(expires {approval.expires_utc:%H:%M:%S}Z)")  # fmt: skip
+            loop.call_soon_threadsafe(steps.put_nowait, Pending(approval.id, text))
+
+        def run() -> None:
+            try:
+                end: Step = work(say, on_pending)
+            except Exception as exc:  # noqa: BLE001 - the stream's last step says what went wrong
+                end = failure_of(exc)
+            loop.call_soon_threadsafe(steps.put_nowait, end)
+
+        response = web.StreamResponse(headers={"Content-Type": "application/x-ndjson"})
+        await response.prepare(request)
+        job = loop.run_in_executor(self.pool, run)
+        while True:
+            try:
+                step = await asyncio.wait_for(steps.get(), timeout=0.25)
+            except TimeoutError:
+                if request.transport is None or request.transport.is_closing():
+                    await self.blocking(lambda: self.withdraw(waiting))  # nobody waits for them any more
+                    await job
+                    return response
+                continue
+            with contextlib.suppress(ConnectionError):
+                await response.write(encode(step) + b"\n")
+            if isinstance(step, Done | Failure):
+                break
+        await job
+        for approval in waiting:
+            self.held.pop(approval.id, None)
+        with contextlib.suppress(ConnectionError):
+            await response.write_eof()
+        return response
+
+    def withdraw(self, requests: list[Approval]) -> None:
+        """Cancel requests whose requester is gone (its connection, or the server): the action waiting
+        on each is then refused and sends nothing."""
+        for approval in requests:
+            peer = self.held.pop(approval.id, (None, None))[0]
+            with contextlib.suppress(RefusedError):
+                self.approvals.book.cancel(
+                    approval.id, peer.operator if peer else "drs server", approval.requester
+                )
+
+    # Routes ---------------------------------------------------------------------------------------
+
+    async def hello(self, request: web.Request) -> web.Response:
+        peer: Peer = request["peer"]
+        hello = Hello(
+            PROTOCOL, self.mode, peer.uid, peer.account, peer.operator,
+            self.config.console.require_second_operator, tuple(c.name for c in self.config.capsules),
+        )  # fmt: skip
+        return json_response(hello)
+
+    async def arm(self, request: web.Request) -> web.StreamResponse:
+        body = await self.body(request, ArmRequest)
+        name = request.match_info["name"]
+        return await self.stream(
+            request, lambda say, _: Done((), True, self.release.arm(request["peer"], name, body, say))
+        )
+
+    async def disarm(self, request: web.Request) -> web.Response:
+        body = await self.body(request, DisarmRequest)
+        name = request.match_info["name"]
+        state = await self.blocking(lambda: self.release.disarm(request["peer"], name, body.reason))
+        return json_response(state)
+
+    async def fire(self, request: web.Request) -> web.StreamResponse:
+        body = await self.body(request, FireRequest)
+        name = request.match_info["name"]
+        return await self.stream(
+            request,
+            lambda say, pending: Done(tuple(self.release.fire(request["peer"], name, body, say, pending))),
+        )
+
+    async def send_mt(self, request: web.Request) -> web.StreamResponse:
+        body = await self.body(request, MtSendRequest)
+        name = request.match_info["name"]
+        return await self.stream(
+            request, lambda say, pending: self.iridium.send_mt(request["peer"], name, body, say, pending)
+        )
+
+    async def waiting(self, request: web.Request) -> web.Response:
+        return json_response(await self.blocking(self.approvals.waiting))
+
+    async def decide(self, request: web.Request) -> web.Response:
+        body = await self.body(request, DecideRequest)
+        try:
+            approval_id = int(request.match_info["approval"])
+        except ValueError:
+            raise _ProtocolError(f"{request.match_info['approval']!r} is not an approval number") from None
+        view = await self.blocking(
+            lambda: self.approvals.decide(request["peer"], approval_id, body.approve, body.reason)
+        )
+        return json_response(view)
+
+    async def events(self, request: web.Request) -> web.WebSocketResponse:
+        """Push an ``Event`` whenever what it shows changed; a client that sends anything is told this
+        stream is one-way and closed (nothing it sends is acted on)."""
+        ws = web.WebSocketResponse(heartbeat=10.0)
+        await ws.prepare(request)
+        last = b""
+        reader = asyncio.ensure_future(ws.receive())
+        try:
+            while not ws.closed:
+                event = encode(await self.blocking(self.event))
+                if event != last:
+                    await ws.send_bytes(event)
+                    last = event
+                done, _ = await asyncio.wait({reader}, timeout=EVENT_PERIOD_S)
+                if done:
+                    message = reader.result()
+                    if message.type in (WSMsgType.TEXT, WSMsgType.BINARY):
+                        await ws.send_bytes(encode(Failure("protocol", "the event stream takes no messages")))
+                    await ws.close()
+                    break
+                self.last_active = time.monotonic()
+        finally:
+            reader.cancel()
+        return ws
+
+    def event(self) -> Event:
+        ops = self.desks.any_desk()
+        release, armed = {}, {}
+        if ops is not None:
+            for name, capsule in ops.capsules.items():
+                release[name] = capsule.machine.record().state.value
+                window = capsule.arming.windows.latest(name)
+                armed[name] = window.state if window is not None else "none"
+        return Event(release, armed, tuple(self.approvals.waiting()))
+
+    # Running --------------------------------------------------------------------------------------
+
+    def application(self) -> web.Application:
+        app = web.Application(middlewares=[self.guard], client_max_size=MAX_BODY_BYTES)
+        app.router.add_get(f"{ROOT}/hello", self.hello)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/arm", self.arm)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/disarm", self.disarm)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/fire", self.fire)
+        app.router.add_post(f"{ROOT}/iridium/{{name}}/mt", self.send_mt)
+        app.router.add_get(f"{ROOT}/approvals", self.waiting)
+        app.router.add_post(f"{ROOT}/approvals/{{approval}}", self.decide)
+        app.router.add_get(f"{ROOT}/events", self.events)
+        return app
+
+    async def run(self, ready: Callable[[str], None] = print) -> None:
+        claim_socket(self.socket_path)
+        runner = web.AppRunner(self.application(), access_log=None, handle_signals=False)
+        await runner.setup()
+        old = os.umask(0o177 if self.mode == "private" else 0o117)
+        try:
+            await web.UnixSite(runner, str(self.socket_path)).start()
+        finally:
+            os.umask(old)
+        if self.group is not None:
+            os.chown(self.socket_path, -1, grp.getgrnam(self.group).gr_gid)
+        self.socket_path.chmod(0o600 if self.mode == "private" else 0o660)
+        loop = asyncio.get_running_loop()
+        if threading.current_thread() is threading.main_thread():  # a private server in a thread has none
+            for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+                loop.add_signal_handler(sig, self.stopping.set)
+        who = ", ".join(f"{o.account} as {o.name}" for o in self.config.operators) or self.roster.own_name
+        ready(
+            f"drs server ({self.mode}, protocol {PROTOCOL}): listening on {self.socket_path}; operators: {who}"
+        )
+        try:
+            while not self.stopping.is_set():
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(self.stopping.wait(), timeout=1.0)
+                if self.idle_exit_s is not None and self.busy == 0:
+                    if time.monotonic() - self.last_active > self.idle_exit_s:
+                        ready(f"drs server: idle for {self.idle_exit_s:.0f} s: exiting")
+                        break
+        finally:
+            await self.blocking(lambda: self.withdraw([a for _, a in list(self.held.values())]))
+            await runner.cleanup()
+            with contextlib.suppress(FileNotFoundError):
+                self.socket_path.unlink()
+            self.desks.close()
+            self.pool.shutdown(wait=False, cancel_futures=True)
+
+
+class _ProtocolError(Exception):
+    """A request that is not a valid message of this protocol: refused before it is acted on."""
+
+
+def json_response(value: object) -> web.Response:
+    return web.Response(body=encode(value), content_type="application/json")
+
+
+def claim_socket(path: Path) -> None:
+    """Take over a stale socket file (a server that died), never a live server's."""
+    if not path.exists():
+        return
+    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        probe.connect(str(path))
+    except OSError:
+        path.unlink()
+        return
+    finally:
+        probe.close()
+    raise LinkError(f"{path}: an operations server already listens there")

@@ -1,0 +1,266 @@
+"""The operations client: every face's one way to act, with verbs and typed values (as Yamcs' client).
+
+``Client.for_config(config)`` reaches the team's shared server (``[server] socket``) or, with none
+configured, this account's private server, started on demand (``private``). Verbs:
+``client.capsule("DRS1").arm(…)``, ``.fire(…)``, ``.disarm()``, ``client.iridium.send_mt(…)``,
+``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, and ``client.events()``
+for views.
+
+Why the standard library's ``http.client`` for the verbs: a ``drs`` command is one blocking request,
+and a plain socket keeps ``drs …`` from paying for an event loop and aiohttp's import (the CLI's
+start-up is measured); the WebSocket of ``events`` imports aiohttp only when a view subscribes. A
+refusal comes back as the same exception type the operations layer raised.
+"""
+
+from __future__ import annotations
+
+import http.client
+import socket
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, TypeVar
+
+import msgspec
+
+from drs_link.config import Config
+from drs_link.errors import ConfigError, LinkError, RefusedError, StoreError
+from drs_link.server.protocol import (
+    PROTOCOL,
+    ROOT,
+    ApprovalView,
+    ArmRequest,
+    ArmState,
+    DecideRequest,
+    DisarmRequest,
+    Done,
+    Event,
+    Failure,
+    FireRequest,
+    Hello,
+    MtSendRequest,
+    Pending,
+    Said,
+    Second,
+    Waive,
+    decode_step,
+    encode,
+)
+from predictor.errors import UsageError
+
+if TYPE_CHECKING:
+    from drs_link.server.desks import PredictorFor
+
+T = TypeVar("T")
+Say = Callable[[str], None]
+TIMEOUT_S = 600.0
+"""The longest a verb waits for its answer: a FIRE waiting for another account's approval (the
+request itself expires after ``APPROVAL_TTL_S``)."""
+_ERRORS: dict[str, type[Exception]] = {
+    "refused": RefusedError, "config": ConfigError, "store": StoreError, "usage": UsageError,
+    "link": LinkError, "protocol": LinkError, "identity": RefusedError,
+}  # fmt: skip
+
+
+def raise_failure(failure: Failure) -> None:
+    raise _ERRORS.get(failure.kind, LinkError)(failure.error)
+
+
+class _UnixConnection(http.client.HTTPConnection):
+    def __init__(self, path: Path, timeout: float) -> None:
+        super().__init__("drs-server", timeout=timeout)
+        self.path = path
+
+    def connect(self) -> None:
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        sock.settimeout(self.timeout)
+        try:
+            sock.connect(str(self.path))
+        except OSError:
+            sock.close()
+            raise
+        self.sock = sock
+
+
+class Client:
+    """One connection to an operations server (kept open between verbs)."""
+
+    def __init__(self, socket_path: Path, timeout_s: float = TIMEOUT_S) -> None:
+        self.socket_path = socket_path
+        self._conn = _UnixConnection(socket_path, timeout_s)
+        self.iridium = Iridium(self)
+        self.approvals = Approvals(self)
+
+    @classmethod
+    def for_config(cls, config: Config, predictor_for: PredictorFor | None = None) -> Client:
+        """The team's server (``[server] socket``), else this account's private one (started if need be;
+        ``predictor_for`` only reaches one run in this process, ``private.IN_PROCESS_ENV``)."""
+        if config.server.socket:
+            return cls(Path(config.server.socket).expanduser())
+        from drs_link.server.private import ensure_private_server
+
+        return cls(ensure_private_server(config, predictor_for))
+
+    def close(self) -> None:
+        self._conn.close()
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.close()
+
+    def capsule(self, name: str) -> Capsule:
+        return Capsule(self, name)
+
+    def hello(self) -> Hello:
+        return self.call("GET", "/hello", None, Hello)
+
+    # The wire ------------------------------------------------------------------------------------
+
+    def _send(self, method: str, path: str, body: object | None) -> http.client.HTTPResponse:
+        payload = None if body is None else encode(body)
+        headers = {"Content-Type": "application/json"} if payload is not None else {}
+        try:
+            self._conn.request(method, ROOT + path, body=payload, headers=headers)
+            return self._conn.getresponse()
+        except (ConnectionRefusedError, FileNotFoundError):
+            self._conn.close()
+            raise LinkError(
+                f"no operations server listens at {self.socket_path} (is drs-server running? "
+                "systemctl status drs-server)"
+            ) from None
+        except PermissionError:
+            self._conn.close()
+            raise LinkError(
+                f"{self.socket_path}: permission denied: this account is not in the server's group "
+                "(usermod -aG GROUP ACCOUNT, as root, then log in again)"
+            ) from None
+        except (OSError, http.client.HTTPException) as exc:
+            self._conn.close()
+            raise LinkError(f"the operations server at {self.socket_path} did not answer: {exc}") from None
+
+    def call(self, method: str, path: str, body: object | None, kind: type[T]) -> T:
+        response = self._send(method, path, body)
+        raw = response.read()
+        if response.status != 200:
+            raise_failure(_failure(raw))
+        return msgspec.json.decode(raw, type=kind)
+
+    def steps(self, path: str, body: object, say: Say) -> Done:
+        """A long action: print its steps as they come (``say``); its ``Done``, or its failure raised."""
+        response = self._send("POST", path, body)
+        if response.status != 200:
+            raise_failure(_failure(response.read()))
+        while True:
+            line = response.readline()
+            if not line:
+                self._conn.close()
+                raise LinkError("the operations server ended the answer before the action did (did it stop?)")
+            step = decode_step(line)
+            if isinstance(step, Said | Pending):
+                say(step.line)
+            elif isinstance(step, Failure):
+                response.read()
+                raise_failure(step)
+            else:
+                response.read()
+                return step
+
+    def events(self) -> Iterator[Event]:
+        """Each change of release state, ARM windows and waiting approvals, as the server pushes it."""
+        import asyncio
+        import queue
+        import threading
+
+        import aiohttp
+
+        found: queue.Queue[Event | BaseException | None] = queue.Queue()
+
+        async def listen() -> None:
+            connector = aiohttp.UnixConnector(path=str(self.socket_path))
+            async with aiohttp.ClientSession(connector=connector) as session:
+                async with session.ws_connect(f"http://drs-server{ROOT}/events") as ws:
+                    async for message in ws:
+                        if message.type is aiohttp.WSMsgType.BINARY:
+                            found.put(msgspec.json.decode(message.data, type=Event))
+            found.put(None)
+
+        def run() -> None:
+            try:
+                asyncio.run(listen())
+            except BaseException as exc:  # noqa: BLE001 - handed to the reader
+                found.put(exc)
+
+        threading.Thread(target=run, daemon=True, name="drs-events").start()
+        while True:
+            item = found.get()
+            if item is None:
+                return
+            if isinstance(item, BaseException):
+                raise LinkError(f"the event stream of {self.socket_path} failed: {item}")
+            yield item
+
+
+def _failure(raw: bytes) -> Failure:
+    try:
+        return msgspec.json.decode(raw, type=Failure)
+    except msgspec.MsgspecError:
+        return Failure("protocol", f"the server answered {raw[:200]!r}")
+
+
+@dataclass(frozen=True)
+class Capsule:
+    """One capsule's release verbs."""
+
+    client: Client
+    name: str
+
+    def arm(self, waivers: tuple[tuple[str, str], ...] = (), weather: tuple[str, ...] = (),
+            say: Say = print) -> ArmState:  # fmt: skip
+        request = ArmRequest(PROTOCOL, tuple(Waive(i, r) for i, r in waivers), weather)
+        done = self.client.steps(f"/capsules/{self.name}/arm", request, say)
+        assert done.arm is not None
+        return done.arm
+
+    def fire(
+        self,
+        typed_name: str,
+        waivers: tuple[tuple[str, str], ...] = (),
+        weather: tuple[str, ...] = (),
+        second: Second | None = None,
+        say: Say = print,
+    ) -> Done:
+        waived = tuple(Waive(i, r) for i, r in waivers)
+        request = FireRequest(PROTOCOL, typed_name, waived, weather, second or Second())
+        return self.client.steps(f"/capsules/{self.name}/fire", request, say)
+
+    def disarm(self, reason: str = "operator disarmed (drs capsule disarm)") -> ArmState:
+        return self.client.call(
+            "POST", f"/capsules/{self.name}/disarm", DisarmRequest(PROTOCOL, reason), ArmState
+        )
+
+
+@dataclass(frozen=True)
+class Iridium:
+    client: Client
+
+    def send_mt(self, name: str, request: MtSendRequest, say: Say = print) -> Done:
+        return self.client.steps(f"/iridium/{name}/mt", request, say)
+
+
+@dataclass(frozen=True)
+class Approvals:
+    client: Client
+
+    def waiting(self) -> list[ApprovalView]:
+        return self.client.call("GET", "/approvals", None, list[ApprovalView])
+
+    def approve(self, approval_id: int) -> ApprovalView:
+        return self.client.call(
+            "POST", f"/approvals/{approval_id}", DecideRequest(PROTOCOL, True), ApprovalView
+        )
+
+    def reject(self, approval_id: int, reason: str) -> ApprovalView:
+        request = DecideRequest(PROTOCOL, False, reason)
+        return self.client.call("POST", f"/approvals/{approval_id}", request, ApprovalView)

@@ -1,0 +1,105 @@
+"""The Iridium service: ``drs mt send`` composed, gated and queued by the server, which alone holds the
+RockBLOCK credentials. A thin service over ``Operations.plan_parachute``/``send_mt``: the landed gate
+and the two-person rule stay in ``drs_link.ops.authorize``."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from datetime import datetime
+
+from drs_link.errors import ConfigError, RefusedError
+from drs_link.ops import (
+    CATALOGUE,
+    FLUSH_WARNING,
+    LISTED,
+    PARACHUTE,
+    QUEUED,
+    RETRY_WARNING,
+    Approval,
+    MtComposer,
+    MtMessage,
+    Operations,
+    SecondOperator,
+    hazard_of,
+    parse_hhmm,
+)
+from drs_link.server.desks import Desks
+from drs_link.server.peers import Mode, Peer
+from drs_link.server.protocol import Done, MtSendRequest
+from drs_link.server.release import two_person_refusal
+from predictor.errors import UsageError
+
+Say = Callable[[str], None]
+
+
+def compose(
+    ops: Operations, name: str, request: MtSendRequest, say: Say
+) -> tuple[MtMessage, datetime | None]:
+    """The message from the options as typed, and the PARACHUTE plan's queue-before deadline."""
+    known = {command.dest: command for command in LISTED}
+    unknown = sorted(set(request.options) - set(known))
+    if unknown:
+        raise UsageError(f"mt send: no command option {unknown[0]!r} (known: {', '.join(sorted(known))})")
+    composer = MtComposer(CATALOGUE)
+    queue_by = None
+    for command in sorted(LISTED, key=lambda c: c is PARACHUTE):  # plan only once the rest is accepted
+        given = request.options.get(command.dest)
+        if given is None:
+            continue
+        if command is not PARACHUTE:
+            composer.add(command.name, command.from_option(given))
+            continue
+        requested = None if given == "next" else parse_hhmm(str(given))
+        ops.mt_status(name)  # the reports move the MTs on first, as the console's report poll does
+        plan = ops.plan_parachute(name, requested, request.accept_midnight)
+        say(f"window: {plan.window_text()}")
+        for warning in plan.warnings:
+            say(f"warning: {warning}")
+        composer.add(command.name, (plan.hour, plan.minute))
+        queue_by = plan.queue_by
+    return composer.build(), queue_by
+
+
+class IridiumService:
+    def __init__(self, desks: Desks, mode: Mode) -> None:
+        self.desks = desks
+        self.mode = mode
+
+    def send_mt(
+        self, peer: Peer, name: str, request: MtSendRequest, say: Say, on_pending: Callable[[Approval], None]
+    ) -> Done:
+        ops = self.desks.desk(peer)
+        capsule = ops.config.capsule(name)
+        message, queue_by = compose(ops, name, request, say)
+        say(f"text: {message.text}")
+        say(f"hex:  {message.hex} ({len(message.payload)} bytes)")
+        if request.flush:
+            say(f"warning: {FLUSH_WARNING}")
+        hazardous = hazard_of(message) is not None
+        if hazardous:
+            say(f"landed: {ops.landed(name).summary}")
+        if request.dry_run:
+            return Done(("dry run: nothing sent",))
+        if request.confirm is None:
+            raise RefusedError(f"a real send needs --confirm {capsule.name} (or --dry-run to only look)")
+        if not peer.operator:
+            raise ConfigError("operator.name: set [operator] name; every command is audited with it")
+        second = request.second
+        if second.await_approval and not hazardous:
+            raise UsageError("--await-approval is for PARACHUTE, the command the two-person rule covers")
+        two_person_refusal(self.mode, peer, second.await_approval)
+        for older in ops.unresolved_like(capsule.name, message):
+            say(f"warning: MT {older.id} {older.text} is delivery_unknown: {RETRY_WARNING}")
+        sent = ops.send_mt(
+            capsule.name, message, request.confirm,
+            SecondOperator(second.name, second.waiver, second.await_approval, on_pending),
+            override_landed=request.override_landed, queue_by=queue_by, flush=request.flush,
+        )  # fmt: skip
+        lines = []
+        if "approval" in sent.authorised:
+            lines.append(
+                f"approval #{sent.authorised['approval']}: approved by {sent.authorised['approved_by']}"
+            )
+        lines.append(f"MT {sent.command.id}: {sent.command.state}: {sent.command.detail}")
+        lines.extend(f"checklist: done: {step.text}" for step in sent.steps)
+        return Done(tuple(lines), sent.command.state == QUEUED)

@@ -1,0 +1,145 @@
+"""FIRE under `require_second_operator` through a real shared `drs server`: the capsule simulator behind a
+real sshd, two real accounts. One account alone is refused however it asks; with the second account's
+live approval the capsule is released once, and the audit holds both accounts' uids."""
+
+from __future__ import annotations
+
+import json
+import pwd
+import signal
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from console.commands.main import main
+from drs_link.sim import CapsuleSimulator
+from drs_link.sim.keys import write_ed25519
+from drs_link.store import Store
+from tests.drs_link.conftest import SIM_SCALE, capsule_table
+from tests.drs_link.server.team import (
+    Server,
+    Team,
+    client_config,
+    drs,
+    drs_waiting,
+    needs_root,
+    server_config,
+)
+from tests.release_helpers import ROCKBLOCK_PASSWORD_ENV, ROCKBLOCK_TOML, release_args, write_weather
+
+pytestmark = [needs_root, pytest.mark.slow]
+
+
+@pytest.fixture
+def powered(place: Path, team: Team) -> Iterator[tuple[CapsuleSimulator, Server]]:
+    """A powered capsule waiting for Go, and the team's server for it (the rule on, a 120 s window)."""
+    key = place / "keys" / "id_ed25519"
+    sim = CapsuleSimulator(authorized_keys=[write_ed25519(key)], clock_scale=SIM_SCALE)
+    sim.start()
+    try:
+        known_hosts = place / "known_hosts"
+        known_hosts.write_text(sim.known_hosts_line())
+        table = capsule_table(sim, key, known_hosts=str(known_hosts), python="python3")
+        capsule = "\n".join(f"{k} = {json.dumps(v)}" for k, v in table.items())
+        body = f"{ROCKBLOCK_TOML}[console]\nrequire_second_operator = true\narm_window_s = 120.0\n[[capsule]]\n{capsule}\n"
+        config = server_config(place, team, body)
+        setup = place / "root.toml"  # root powers the capsule on first (a step not converted yet)
+        setup.write_text(config.read_text().split("[[operator]]")[0].replace("[data]", '[operator]\nname = "EL"\n[data]')
+                         + body)  # fmt: skip
+        assert main(["--config", str(setup), "capsule", "power-on", "DRS1", "--yes"]) == 0
+        server = Server(config, place, team.group, {ROCKBLOCK_PASSWORD_ENV: "pw"})
+        try:
+            yield sim, server
+        finally:
+            server.stop()
+    finally:
+        sim.stop()
+
+
+def test_fire_needs_a_second_accounts_live_approval_and_releases_once(
+    powered: tuple[CapsuleSimulator, Server], place: Path, team: Team
+) -> None:
+    sim, server = powered
+    weather = place / "gfs"
+    weather.mkdir()
+    args = release_args(write_weather(weather))
+    alice, bob = client_config(place, team.alice), client_config(place, team.bob)
+    code, out = drs(team.alice, alice, "capsule", "arm", "DRS1", *args)
+    assert code == 0 and "DRS1: ARMED (window #1)" in out, out
+    code, out = drs(team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", *args)
+    assert code == 1 and "require_second_operator is on: a second login's approval is needed" in out, out
+    code, out = drs(
+        team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", "--second-operator", "JM", *args
+    )
+    assert code == 1 and "a typed second operator is not accepted" in out, out
+    waiting = drs_waiting(
+        team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args
+    )
+    while not (line := waiting.readline()).startswith("approval #"):
+        assert line, "the go ended before asking"
+    assert line.startswith("approval #1: waiting for another account")
+    code, out = drs(team.alice, alice, "approve", "1")
+    assert code == 1 and "cannot approve it" in out, out
+    assert sim.firmware.go_at is None, "nothing is sent while it waits"
+    code, out = drs(team.bob, bob, "approve")
+    assert code == 0 and out.startswith(
+        "#1 DRS1 Go (release): Go: release DRS1 in ARM window #1 — requested by EL"
+    ), out
+    code, out = drs(team.bob, bob, "approve", "1")
+    assert code == 0, out
+    code, out = waiting.result()
+    assert code == 0 and "released, Pi shut down" in out, out
+    assert sim.firmware.go_at is not None
+    store = Store.open(place / "state" / "drs.sqlite")
+    [fire] = [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
+    assert (
+        fire.detail is not None
+        and fire.detail["approval"] == "1"
+        and fire.detail["approved_by"].startswith(f"JM ({team.bob})")
+    )
+    uids = [a.detail["uid"] for a in store.audit("DRS1") if a.action == "approval.peer" and a.detail]
+    assert uids == [pwd.getpwnam(team.alice).pw_uid, pwd.getpwnam(team.bob).pw_uid]
+    assert [a.result for a in store.audit("DRS1") if a.action == "go"][-1] == "released, Pi shut down"
+
+
+def test_the_server_killed_mid_fire_sends_one_go_and_says_so_after_restart(
+    powered: tuple[CapsuleSimulator, Server], place: Path, team: Team
+) -> None:
+    """SIGKILL of the server once the Pi wrote GoGoGo: the store says go-sent-unverified (written before
+    Go left), the restarted server tells the requester so, and finishing keeps the first Go's time."""
+    sim, server = powered
+    weather = place / "gfs"
+    weather.mkdir()
+    args = release_args(write_weather(weather))
+    alice, bob = client_config(place, team.alice), client_config(place, team.bob)
+    assert drs(team.alice, alice, "capsule", "arm", "DRS1", *args)[0] == 0
+    waiting = drs_waiting(
+        team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args
+    )
+    while not waiting.readline().startswith("approval #"):
+        pass
+    assert drs(team.bob, bob, "approve", "1")[0] == 0
+    deadline = time.monotonic() + 60.0
+    while sim.firmware.go_at is None:
+        assert time.monotonic() < deadline, "Go never reached the Pi"
+        time.sleep(0.01)
+    server.process.send_signal(signal.SIGKILL)
+    server.process.wait(timeout=10)
+    code, out = waiting.result()
+    assert code == 1 and "the operations server ended the answer before the action did" in out, out
+    first_go = sim.firmware.go_at
+    store = Store.open(place / "state" / "drs.sqlite")
+    [row] = store.query("SELECT state, go_at FROM release_state WHERE capsule = 'DRS1'")
+    assert row["state"] in ("go-sent-unverified", "released"), "the Go was recorded before it left"
+    restarted = Server(place / "server.toml", place, team.group, {ROCKBLOCK_PASSWORD_ENV: "pw"})
+    try:
+        code, out = drs(team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", *args)
+    finally:
+        restarted.stop()
+    if row["state"] == "go-sent-unverified":
+        assert code == 0 and "Go was sent and never verified: finishing it" in out, out
+    [after] = store.query("SELECT state, go_at FROM release_state WHERE capsule = 'DRS1'")
+    assert after["state"] == "released" and after["go_at"] == row["go_at"]
+    assert sim.firmware.go_at == first_go, "one Go: the microcontroller's countdown was not restarted"
