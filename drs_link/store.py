@@ -128,6 +128,26 @@ def shared_directory(directory: Path) -> bool:
     return mode & SHARED_DIR_MODE == SHARED_DIR_MODE
 
 
+def data_directory(directory: Path) -> Path:
+    """``mkdir -p directory`` the way the shared store wants it: every level made inside a shared directory
+    (setgid 2770, ``drs setup shared-store``) is made 2770 too, whatever this account's umask, so the
+    next operator's console can write its own recording, export or chase file there.
+
+    Why: the first console made ``recordings/`` 0755 under the 2770 data directory and the second
+    account's console could not start ("Permission denied", issue #29). A level this account made
+    earlier with the old mode is put right; another account's is left as it is (only its owner may).
+    """
+    directory = Path(directory)
+    missing = [d for d in (directory, *directory.parents) if not d.exists()]
+    for level in [*reversed(missing), *([] if missing else [directory])]:
+        level.mkdir(exist_ok=True)
+        info = level.stat()
+        if shared_directory(level.parent) and info.st_uid == os.geteuid():
+            if info.st_mode & 0o7777 != SHARED_DIR_MODE:
+                level.chmod(SHARED_DIR_MODE)
+    return directory
+
+
 def share_directory(directory: Path, group: str, store_name: str = "drs.sqlite") -> list[str]:
     """Make ``directory`` a store several OS accounts use: owned by ``group``, mode 2770, and the store
     with its -wal and -shm group read-write (0660). Idempotent; what was done, one line each.

@@ -8,6 +8,8 @@ SSH stack are imported only when the console starts, so every other ``drs`` comm
 from __future__ import annotations
 
 import argparse
+import os
+import pwd
 import sys
 import tempfile
 import time
@@ -109,8 +111,13 @@ def run_console(setup: ConsoleSetup) -> int:
 
 
 def _recorder(config: Config) -> TelemetryRecorder:
+    """Each console its own file, named for its account and process: two operators' consoles started in the
+    same second once met at one file that only the first could write (issue #29)."""
     stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-    return TelemetryRecorder(config.data.dir / "recordings" / f"telemetry-{stamp}.jsonl")
+    account = pwd.getpwuid(os.geteuid()).pw_name
+    return TelemetryRecorder(
+        config.data.dir / "recordings" / f"telemetry-{stamp}-{account}-{os.getpid()}.jsonl"
+    )
 
 
 class ReplayFeed:

@@ -2,8 +2,10 @@
 
 The second operator of a hazardous command (Go, PARACHUTE, a take-over of release authority) is
 another login, not a name typed beside the first (``drs_link.ops.approval``). Another console on the same
-store shows the request as it arrives; here its operator reads what they are approving, then Enter
-approves and ``x`` rejects with a reason. The rule is below the screen: the requester's own login is
+store shows the request as it arrives; here its operator reads what they are approving (the highlighted
+request's brief, ``Approval.for_approver``, the same text `drs approve` prints: the command, the go/no-go
+verdicts, every waiver with its reason and author, the landed evidence or the override's reason), then
+Enter approves and ``x`` rejects with a reason. The rule is below the screen: the requester's own login is
 refused, whichever console it sits at.
 """
 
@@ -16,7 +18,7 @@ from textual.widgets import DataTable, Static
 from console.screens.base import ConsoleScreen
 from console.screens.modals import ConfirmModal, TextPromptModal
 from console.widgets import fill_rows, set_content
-from drs_link.ops import ACTIONS, Approval, ApprovalBook, current_login
+from drs_link.ops import ACTIONS, Approval, ApprovalBook, current_login, shown
 
 COLUMNS = ("#", "Capsule", "Command", "Requested by", "Expires")
 HELP = (
@@ -58,11 +60,13 @@ class ApprovalScreen(ConsoleScreen):
         now = self.context.now()
         requests = self.book.open_requests()
         rows = [
-            (str(r.id), (str(r.id), r.capsule, f"{ACTIONS[r.action]}: {r.summary}",
-                         f"{r.requested_by} ({r.requester})", f"{r.expires_utc:%H:%M:%S}Z"))
+            (str(r.id), (str(r.id), shown(r.capsule), f"{ACTIONS[r.action]}: {shown(r.summary)}",
+                         f"{shown(r.requested_by)} ({shown(r.requester)})", f"{r.expires_utc:%H:%M:%S}Z"))
             for r in requests
         ]  # fmt: skip
         fill_rows(self.query_one("#approvals", DataTable), rows)
+        chosen = self.selected()
+        brief = next((r.for_approver(now) for r in requests if r.id == chosen), [])
         you = f"You are {self.you}: the requester's own login cannot approve."
         text = (
             "Nothing waits for approval."
@@ -71,8 +75,13 @@ class ApprovalScreen(ConsoleScreen):
         )
         set_content(
             self.query_one("#approval-detail", Static),
-            f"{text}\n{you}\n{len(requests)} waiting at {now:%H:%M:%S}Z",
+            "\n".join([*brief, text, you, f"{len(requests)} waiting at {now:%H:%M:%S}Z"]),
         )
+
+    def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
+        """The highlighted request's brief, below the table, before Enter is pressed."""
+        if getattr(self, "ready", False):
+            self.refresh_view()
 
     def selected(self) -> int | None:
         table = self.query_one("#approvals", DataTable)
@@ -94,8 +103,7 @@ class ApprovalScreen(ConsoleScreen):
             if yes:
                 self._decide(approval, True, "")
 
-        body = (f"{request.capsule}: {ACTIONS[request.action]}: {request.summary}\n"
-                f"requested by {request.requested_by} ({request.requester})")  # fmt: skip
+        body = "\n".join(request.for_approver(self.context.now()))
         self.app.push_screen(ConfirmModal(f"Approve #{approval}?", body, "Approve"), confirmed)
 
     def action_reject(self) -> None:

@@ -16,7 +16,14 @@ from console.predictions import PredictionService, ReleaseOrigin
 from console.screens.base import ConsoleScreen
 from console.widgets import LandingMap, MapLayers, default_cursor, render_timeline
 from drs_link.errors import LinkError
-from drs_link.ops import STALE_GLYPH, PredictionSample, PredictionStatus, ReleaseWindow, format_age
+from drs_link.ops import (
+    STALE_GLYPH,
+    PredictionSample,
+    PredictionStatus,
+    ReleaseWindow,
+    data_directory,
+    format_age,
+)
 from predictor.errors import PredictorError
 
 NEEDS_POSITION = "needs a fresh position: capsule GNSS or balloon feed"
@@ -174,7 +181,7 @@ class PredictionScreen(ConsoleScreen):
             return
         directory = self.context.setup.export_dir
         try:
-            directory.mkdir(parents=True, exist_ok=True)
+            data_directory(directory)
             paths = service.export(self.capsule, directory)
         except (OSError, PredictorError, LinkError) as exc:
             self.app.notify(f"export failed: {exc}", severity="error")

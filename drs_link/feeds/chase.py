@@ -42,7 +42,7 @@ from drs_link.config import Config, host_port
 from drs_link.errors import LinkError
 from drs_link.feeds.balloon_feed import OWN_COMMENT
 from drs_link.iridium import ReportStore
-from drs_link.store import Store, iso_utc, parse_iso_utc
+from drs_link.store import Store, data_directory, iso_utc, parse_iso_utc
 from predictor.tawhiri import FIXES_PER_CAPSULE, CapsuleFix, surface_distance_m
 
 if TYPE_CHECKING:  # the predictor (numba) loads only where a prediction is kept
@@ -154,7 +154,7 @@ class ChaseStore:
         """Write the prediction's KML at its fixed path, then remember its landing for the feed."""
         from predictor.prediction import write_kml
 
-        kml.parent.mkdir(parents=True, exist_ok=True)
+        data_directory(kml.parent)
         partial = kml.with_name(kml.name + ".partial")
         write_kml(prediction, partial)
         os.replace(partial, kml)  # chasemapper may read the overlay at any moment: never half a file

@@ -20,6 +20,7 @@ import fcntl
 import json
 import os
 import signal
+import sqlite3
 import stat
 import threading
 from collections.abc import Callable, Iterator
@@ -398,8 +399,16 @@ class CommandLifecycle:
                 when=now,
             )
 
-    def request(self, capsule: CapsuleConfig, message: MtMessage, flush: bool = False) -> Command:
-        """Record what the operator asked for; nothing leaves the machine yet."""
+    def request(
+        self,
+        capsule: CapsuleConfig,
+        message: MtMessage,
+        flush: bool = False,
+        also: Callable[[sqlite3.Connection], None] | None = None,
+    ) -> Command:
+        """Record what the operator asked for; nothing leaves the machine yet. ``also`` runs in the same
+        transaction as the new row (a PARACHUTE's approval is marked used there) and may raise to refuse
+        both."""
         if not capsule.imei:
             raise RefusedError(
                 f"capsule {capsule.name} has no imei configured: the gateway needs the modem's IMEI"
@@ -423,6 +432,8 @@ class CommandLifecycle:
                     effects,
                 ),
             ).lastrowid
+            if also is not None:
+                also(conn)
             # Held before the row is committed, so no other process ever sees it without its sender.
             _hold(_sender_lock(self.store, int(command_id or 0)))
         detail: dict[str, Any] = {"command_id": command_id, "text": message.text, "flush": flush}

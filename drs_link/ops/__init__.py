@@ -7,7 +7,8 @@ second operator and ``identity`` which login is another person; ``authorize`` th
 ``origin`` what is known of each capsule and how old it is; ``recovery`` where a dropped capsule is
 and is going, ``views`` what the per-capsule screens show, from the store or a replay; ``release_window``
 the sweep; ``audit_log`` the audit as History reads it; ``session`` a console that ends without quitting;
-``operations`` the console's engine without a screen; and ``face_types`` the values below it that the
+``operations`` the console's engine without a screen; ``typed_text`` the one rule for text an operator types
+and ``shown`` for showing another person's; ``brief`` what an approver reads; and ``face_types`` the values below it that the
 faces show and compose, so that they import this door alone.
 """
 
@@ -74,6 +75,7 @@ if TYPE_CHECKING:
         TrackPoint as TrackPoint,
         assess as assess,
         by_name as by_name,
+        data_directory as data_directory,
         detect_landing as detect_landing,
         distance_bearing as distance_bearing,
         export_track as export_track,
@@ -151,6 +153,7 @@ if TYPE_CHECKING:
         TelemetryRecorder as TelemetryRecorder,
         read_recording as read_recording,
     )
+    from .typed_text import shown as shown, typed_text as typed_text
     from .views import (
         IridiumHealthView as IridiumHealthView,
         RecordedViews as RecordedViews,
@@ -179,6 +182,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "ParachutePlan": "face_types",
         "StoredReport": "face_types",
         "iso_utc": "face_types",
+        "data_directory": "face_types",
         "parse_hhmm": "face_types",
         "AuditRecord": "face_types",
         "CommandedSettings": "face_types",
@@ -279,5 +283,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "report_position": "operations",
         "take_over_outcome": "capsule",
         "unprotected_ssh_warning": "session",
+        "shown": "typed_text",
+        "typed_text": "typed_text",
     },
 )

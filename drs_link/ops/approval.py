@@ -32,7 +32,9 @@ from pathlib import Path
 from drs_link.config import approvers_in_use
 from drs_link.errors import RefusedError
 from drs_link.ops.arm_window import ARMED, DDL as ARM_WINDOW_DDL
+from drs_link.ops.brief import ApprovalBrief
 from drs_link.ops.identity import account_name, prove_agent_key
+from drs_link.ops.typed_text import shown, typed_text
 from drs_link.store import Store, iso_utc, parse_iso_utc
 
 APPROVAL_TTL_S = 300.0
@@ -60,8 +62,9 @@ CREATE TABLE IF NOT EXISTS approval (
 );
 CREATE INDEX IF NOT EXISTS approval_state ON approval (state, expires_utc);
 """
-_BINDING_COLUMNS = {"command": "TEXT", "window_id": "INTEGER", "capsule_state": "TEXT"}
-"""What one request is bound to; added in place to stores made before the binding (NULL for old rows)."""
+_BINDING_COLUMNS = {"command": "TEXT", "window_id": "INTEGER", "capsule_state": "TEXT", "brief": "TEXT"}
+"""What one request is bound to and what its approver is shown (``brief``); added in place to stores made
+before them (NULL for old rows)."""
 USABLE = (
     f"state IN ('pending', 'approved') AND expires_utc > ? AND (window_id IS NULL OR window_id IN "
     f"(SELECT id FROM arm_window WHERE state = '{ARMED}' AND until_utc > ?))"
@@ -126,9 +129,17 @@ class Approval:
     window_id: int | None = None
     capsule_state: str | None = None
     """The capsule's release state when it was asked for: any change voids it."""
+    brief: ApprovalBrief | None = None
+    """What the approver is shown (``drs_link.ops.brief``); None for a request from before it."""
 
     def expired(self, now: datetime) -> bool:
         return now >= self.expires_utc
+
+    def reason_text(self, now: datetime) -> str:
+        """Its state with why it ended, as a refusal says it."""
+        if self.state in ("void", "cancelled") and self.reason:
+            return f"{self.state} ({self.reason})"
+        return self.status(now)
 
     def status(self, now: datetime) -> str:
         if self.state in ("pending", "approved") and self.expired(now):
@@ -136,13 +147,22 @@ class Approval:
         return self.state
 
     def describe(self, now: datetime) -> str:
+        """One line; every text a person typed goes through ``shown`` (a stored row may predate the rule)."""
         left = (self.expires_utc - now).total_seconds()
         when = f"{left:.0f} s left" if left > 0 else "expired"
-        who = f" by {self.decided_by} ({self.decider})" if self.decided_by else ""
+        who = f" by {shown(self.decided_by)} ({shown(self.decider)})" if self.decided_by else ""
         return (
-            f"#{self.id} {self.capsule} {ACTIONS.get(self.action, self.action)}: {self.summary} — requested by "
-            f"{self.requested_by} ({self.requester}) — {self.status(now)}{who}{', ' + when if self.state in ('pending', 'approved') else ''}"
+            f"#{self.id} {shown(self.capsule)} {ACTIONS.get(self.action, shown(self.action))}: {shown(self.summary)} "
+            f"— requested by {shown(self.requested_by)} ({shown(self.requester)}) — {shown(self.status(now))}{who}"
+            f"{', ' + when if self.state in ('pending', 'approved') else ''}"
         )
+
+    def for_approver(self, now: datetime) -> list[str]:
+        """What the approver reads before deciding, the same in `drs approve` and the console: the
+        request's line, then the brief (the exact command, the go/no-go verdicts, every waiver with its
+        reason and author, the landed evidence or the override reason)."""
+        brief = self.brief or ApprovalBrief(self.command or "(bound to no command: asked for before briefs)")
+        return [self.describe(now), *brief.lines()]
 
 
 class ApprovalBook:
@@ -179,22 +199,25 @@ class ApprovalBook:
         window_id: int | None = None,
         deadline: datetime | None = None,
         capsule_state: str | None = None,
+        brief: ApprovalBrief | None = None,
     ) -> Approval:
         """A pending request another login must approve before ``expires`` (the TTL or the action's own
-        deadline, whichever is first), bound to ``command``/``window_id``/``capsule_state``; audited."""
+        deadline, whichever is first), bound to ``command``/``window_id``/``capsule_state``, with the
+        ``brief`` its approver reads (default: the command alone); audited."""
         if action not in ACTIONS:
             raise ValueError(f"unknown hazardous action {action!r}")
         now, operator = self.clock(), login.person or operator
         expires = now + timedelta(seconds=ttl_s)
         if deadline is not None:
             expires = min(expires, deadline)
+        brief = brief or ApprovalBrief(command or summary)
         with self.store.transaction() as conn:
             row_id = conn.execute(
                 "INSERT INTO approval (capsule, action, summary, requested_by, requester_user, requester_key, "
-                "requested_utc, expires_utc, state, command, window_id, capsule_state) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'pending', ?, ?, ?)",
+                "requested_utc, expires_utc, state, command, window_id, capsule_state, brief) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'pending', ?, ?, ?, ?)",
                 (capsule, action, summary, operator, login.user, login.key_fingerprint, iso_utc(now),
-                 iso_utc(expires), command, window_id, capsule_state),
+                 iso_utc(expires), command, window_id, capsule_state, brief.to_json()),
             ).lastrowid  # fmt: skip
         self.store.append_audit(operator, capsule, "approval.requested", "pending",
                                 {"approval": row_id, "action": action, "summary": summary, "login": str(login),
@@ -219,6 +242,16 @@ class ApprovalBook:
         if requested_by is not None:
             requests = [r for r in requests if r.requester.same_person(requested_by)]
         return requests
+
+    def spent_for_window(self, capsule: str, window_id: int) -> Approval | None:
+        """The Go approval used to FIRE in ARM window ``window_id`` (``Operations.finish_go`` asks whether it
+        is still valid), else None."""
+        rows = self.store.query(
+            "SELECT * FROM approval WHERE capsule = ? AND action = 'go' AND window_id = ? AND state = 'used' "
+            "ORDER BY id DESC LIMIT 1",
+            (capsule, window_id),
+        )
+        return _approval(rows[0]) if rows else None
 
     def usable(self, request: Approval) -> bool:
         """Whether a request can still be decided or spent (see ``USABLE``)."""
@@ -267,6 +300,7 @@ class ApprovalBook:
         self, approval_id: int, operator: str, login: Login, approve: bool, reason: str = ""
     ) -> Approval:
         """Approve or reject a pending request from a login that is not the requester's."""
+        typed_text("the approval's reason", reason)
         request = self.get(approval_id)
         now, operator = self.clock(), login.person or operator
         verdict = "approved" if approve else "rejected"
@@ -301,17 +335,23 @@ class ApprovalBook:
                                  "reason": reason.strip()})  # fmt: skip
         return self.get(approval_id)
 
-    def why_not(self, request: Approval, now: datetime) -> str:
-        """A request's state as a refusal says it, naming a closed ARM window as the reason."""
+    def why_not(self, request: Approval, now: datetime, conn: sqlite3.Connection | None = None) -> str:
+        """A request's state as a refusal says it, naming a closed ARM window as the reason; read through
+        ``conn`` inside a transaction that holds the store."""
+        if conn is not None:
+            request = _approval(conn.execute("SELECT * FROM approval WHERE id = ?", (request.id,)).fetchone())
+            usable = bool(conn.execute(f"SELECT id FROM approval WHERE id = ? AND {USABLE}",
+                                       (request.id, iso_utc(now), iso_utc(now))).fetchall())  # fmt: skip
+            if request.state in ("pending", "approved") and request.window_id is not None and not usable:
+                return f"void (ARM window #{request.window_id} closed)"
+            return request.reason_text(now)
         if (
             request.state in ("pending", "approved")
             and request.window_id is not None
             and not self.usable(request)
         ):
             return f"void (ARM window #{request.window_id} closed)"
-        if request.state in ("void", "cancelled") and request.reason:
-            return f"{request.state} ({request.reason})"
-        return request.status(now)
+        return request.reason_text(now)
 
     def wait(self, approval_id: int, poll_s: float = 0.25) -> Approval:
         """Block until the request is decided, expires, or can no longer be used (its window closed)."""
@@ -329,12 +369,39 @@ class ApprovalBook:
         login: Login,
         command: str | None = None,
         capsule_state: str | None = None,
+        also: Callable[[sqlite3.Connection], str | None] | None = None,
     ) -> dict[str, str]:
         """Spend an approval on the command it was given for, once; what to audit with the command.
 
         ``command`` and ``capsule_state`` are what is about to be sent and the capsule's state now: an
-        approval bound to another command, window or state is refused.
+        approval bound to another command, window or state is refused. ``also`` is the state change the
+        approval is spent on (an ARM window going FIRING): it runs in the same transaction as the mark
+        ``used`` and returns a refusal (or None); a refusal rolls both back. So every check comes first
+        and an approval is never spent on a command that was then refused (issue #29).
         """
+        request = self.check(approval_id, capsule, action, login, command, capsule_state)
+
+        def spend(conn: sqlite3.Connection) -> None:
+            self.spend_in(conn, request)
+            refusal = also(conn) if also is not None else None
+            if refusal is not None:
+                raise NotSpent(refusal)
+
+        with self.store.transaction() as conn:
+            spend(conn)
+        return self.spent(request, command)
+
+    def check(
+        self,
+        approval_id: int,
+        capsule: str,
+        action: str,
+        login: Login,
+        command: str | None = None,
+        capsule_state: str | None = None,
+    ) -> Approval:
+        """Everything ``use`` checks, spending nothing: the request, approved and usable now, for exactly
+        this capsule, action, requester, command and state; else RefusedError."""
         request = self.get(approval_id)
         now = self.clock()
         if request.capsule != capsule or request.action != action:
@@ -365,17 +432,27 @@ class ApprovalBook:
                 f"approval #{approval_id} was given while {capsule} was {request.capsule_state}; "
                 f"it is now {capsule_state}"
             )
-        with self.store.transaction() as conn:
-            changed = conn.execute(
-                f"UPDATE approval SET state = 'used' WHERE id = ? AND state = 'approved' AND {USABLE}",
-                (approval_id, iso_utc(now), iso_utc(now)),
-            ).rowcount
+        if request.state != "approved" or not self.usable(request):
+            raise RefusedError(f"approval #{approval_id} is {self.why_not(request, now)}, not approved")
+        return request
+
+    def spend_in(self, conn: sqlite3.Connection, request: Approval) -> None:
+        """Mark a checked request used inside the caller's transaction, the one that makes the state change
+        it is spent on (an MT row, a window going FIRING); NotSpent (rolling both back) if it is no longer
+        approved and usable."""
+        now = self.clock()
+        changed = conn.execute(
+            f"UPDATE approval SET state = 'used' WHERE id = ? AND state = 'approved' AND {USABLE}",
+            (request.id, iso_utc(now), iso_utc(now)),
+        ).rowcount
         if not changed:
-            why = self.why_not(self.get(approval_id), now)
-            raise RefusedError(f"approval #{approval_id} is {why}, not approved")
-        self.store.append_audit(request.requested_by, capsule, "approval.used", "used",
-                                {"approval": approval_id, "command": command or request.command})  # fmt: skip
-        return {"approved_by": f"{request.decided_by} ({request.decider})", "approval": str(approval_id)}
+            raise NotSpent(f"approval #{request.id} is {self.why_not(request, now, conn)}, not approved")
+
+    def spent(self, request: Approval, command: str | None = None) -> dict[str, str]:
+        """After the transaction that spent it: audited; what to audit with the command."""
+        self.store.append_audit(request.requested_by, request.capsule, "approval.used", "used",
+                                {"approval": request.id, "command": command or request.command})  # fmt: skip
+        return {"approved_by": f"{request.decided_by} ({request.decider})", "approval": str(request.id)}
 
 
 def _approval(row: sqlite3.Row) -> Approval:
@@ -396,7 +473,13 @@ def _approval(row: sqlite3.Row) -> Approval:
         command=_text(row["command"]),
         window_id=None if row["window_id"] is None else int(str(row["window_id"])),
         capsule_state=_text(row["capsule_state"]),
+        brief=ApprovalBrief.from_json(str(row["brief"])) if row["brief"] else None,
     )
+
+
+class NotSpent(RefusedError):
+    """Raised inside the transaction that spends an approval: the mark ``used`` and the state change it
+    was spent on roll back together, and the caller is refused."""
 
 
 def _text(value: object) -> str | None:
@@ -416,13 +499,14 @@ def approved(
     window_id: int | None = None,
     deadline: datetime | None = None,
     capsule_state: str | None = None,
+    brief: ApprovalBrief | None = None,
 ) -> int:
     """Ask another login to approve and wait (blocking: a worker thread or a CLI); the approval's id
     once approved, else RefusedError saying how the request ended. ``on_pending`` tells the operator
     which request to have approved; the rest is the binding (``ApprovalBook.request``)."""
     request = book.request(
         capsule, action, summary, operator, login,
-        command=command, window_id=window_id, deadline=deadline, capsule_state=capsule_state,
+        command=command, window_id=window_id, deadline=deadline, capsule_state=capsule_state, brief=brief,
     )  # fmt: skip
     on_pending(request)
     try:

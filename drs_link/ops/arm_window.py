@@ -34,6 +34,9 @@ CREATE TABLE IF NOT EXISTS arm_window (
 );
 CREATE INDEX IF NOT EXISTS arm_window_capsule ON arm_window (capsule, id);
 """
+_LATER_COLUMNS = {"report": "TEXT"}
+"""Added in place to stores made before them: the go/no-go poll ARM was granted on, with its waivers
+(``drs_link.ops.brief.report_json``), which a Go approval shows its approver."""
 ARMED, FIRING, FIRED, CLOSED = "armed", "firing", "fired", "closed"
 _TOKENS: dict[int, str] = {}
 
@@ -61,6 +64,8 @@ class ArmWindow:
     fingerprint: str
     state: str
     reason: str | None
+    report: str | None = None
+    """The poll ARM was granted on (JSON, ``drs_link.ops.brief``); None for windows from before it."""
 
     def open_at(self, now: datetime) -> bool:
         return self.state == ARMED and now < self.until_utc
@@ -75,6 +80,13 @@ class ArmWindows:
     def __init__(self, store: Store) -> None:
         self.store = store
         store.ensure_schema(DDL)
+        have = {str(row["name"]) for row in store.query("PRAGMA table_info(arm_window)")}
+        missing = [(name, kind) for name, kind in _LATER_COLUMNS.items() if name not in have]
+        if missing:
+            with store.transaction() as conn:
+                for name, kind in missing:
+                    if name not in {str(r["name"]) for r in conn.execute("PRAGMA table_info(arm_window)")}:
+                        conn.execute(f"ALTER TABLE arm_window ADD COLUMN {name} {kind}")
 
     def latest(self, capsule: str) -> ArmWindow | None:
         rows = self.store.query(
@@ -95,6 +107,7 @@ class ArmWindows:
         now: datetime,
         until: datetime,
         fingerprint: str,
+        report: str | None = None,
     ) -> tuple[ArmWindow | None, ArmWindow | None]:
         """Open a window unless another holder's is open or a FIRE is under way: (new window, None), or
         (None, the window in the way). The holder's own open window is closed ("re-armed") first."""
@@ -119,8 +132,18 @@ class ArmWindows:
                     )
             row_id = conn.execute(
                 "INSERT INTO arm_window (capsule, holder, session, operator, armed_utc, until_utc, fingerprint, "
-                "state) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                (capsule, holder, session, operator, iso_utc(now), iso_utc(until), fingerprint, ARMED),
+                "state, report) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (
+                    capsule,
+                    holder,
+                    session,
+                    operator,
+                    iso_utc(now),
+                    iso_utc(until),
+                    fingerprint,
+                    ARMED,
+                    report,
+                ),
             ).lastrowid
         return self.get(int(row_id or 0)), None
 
@@ -139,11 +162,7 @@ class ArmWindows:
     def start_firing(self, window_id: int, holder: str, now: datetime) -> bool:
         """ARMED → FIRING, only for the holder and only inside the window."""
         with self.store.transaction() as conn:
-            changed = conn.execute(
-                "UPDATE arm_window SET state = ? WHERE id = ? AND state = ? AND holder = ? AND until_utc > ?",
-                (FIRING, window_id, ARMED, holder, iso_utc(now)),
-            ).rowcount
-        return bool(changed)
+            return start_firing_in(conn, window_id, holder, now)
 
     def fired(self, window_id: int, now: datetime) -> None:
         """FIRING → FIRED: the Go this window authorised reached the Pi (or was finished later)."""
@@ -152,6 +171,16 @@ class ArmWindows:
                 "UPDATE arm_window SET state = ?, closed_utc = ? WHERE id = ? AND state = ?",
                 (FIRED, iso_utc(now), window_id, FIRING),
             )
+
+
+def start_firing_in(conn: sqlite3.Connection, window_id: int, holder: str, now: datetime) -> bool:
+    """``ArmWindows.start_firing`` inside a transaction the caller holds: a Go approval is marked used
+    in the same one (``ApprovalBook.use``), so neither happens without the other."""
+    changed = conn.execute(
+        "UPDATE arm_window SET state = ? WHERE id = ? AND state = ? AND holder = ? AND until_utc > ?",
+        (FIRING, window_id, ARMED, holder, iso_utc(now)),
+    ).rowcount
+    return bool(changed)
 
 
 def expired_reason(window: ArmWindow) -> str:
@@ -171,4 +200,5 @@ def _window(row: sqlite3.Row) -> ArmWindow:
         fingerprint=str(row["fingerprint"]),
         state=str(row["state"]),
         reason=None if row["reason"] is None else str(row["reason"]),
+        report=None if row["report"] is None else str(row["report"]),
     )

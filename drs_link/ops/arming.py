@@ -16,8 +16,9 @@ late approval can never fire the capsule in a later window.
 
 from __future__ import annotations
 
+import sqlite3
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from enum import StrEnum
@@ -34,9 +35,12 @@ from drs_link.ops.arm_window import (
     ArmWindows,
     expired_reason,
     process_holder,
+    start_firing_in,
 )
+from drs_link.ops.brief import report_json
 from drs_link.ops.capsule import ConfirmationToken, ReleaseRecord, ReleaseState
-from drs_link.ops.gonogo import WAIVER_REASON_MAX, GoNoGoReport
+from drs_link.ops.gonogo import WAIVER_REASON_MAX, GoNoGoReport, Waiver
+from drs_link.ops.typed_text import typed_optional, typed_text
 from drs_link.store import Store, session_name, utc_now
 
 DEFAULT_ARM_WINDOW_S = 60.0
@@ -110,8 +114,8 @@ def check_second_operator(
     person named in the configured crew list, and a team of one may waive the rule, saying why (audited).
     """
     first_name = first.strip()
-    second_name = (second or "").strip()
-    waiver = (single_operator_waiver or "").strip()
+    second_name = (typed_optional("the second operator's name", second) or "").strip()
+    waiver = (typed_optional("the single-operator waiver", single_operator_waiver) or "").strip()
     if len(waiver) > WAIVER_REASON_MAX:
         raise RefusedError(
             f"a single-operator waiver is at most {WAIVER_REASON_MAX} characters (this one has {len(waiver)}): "
@@ -219,7 +223,9 @@ class ArmingController:
                 self.capsule, window.id, f"ARM window #{window.id} closed: {reason}", self.operator
             )
 
-    def arm(self, report: GoNoGoReport) -> ArmStatus:
+    def arm(self, report: GoNoGoReport, waivers: Sequence[Waiver] = ()) -> ArmStatus:
+        """Open the window on a GO poll; the poll and the ``waivers`` of its WAIVED items are kept with
+        the window, for a Go approval to show its approver (``drs_link.ops.brief``)."""
         with self._lock:
             if report.capsule != self.capsule:
                 raise RefusedError(f"{self.capsule}: ARM refused: the poll is for {report.capsule!r}")
@@ -233,7 +239,7 @@ class ArmingController:
             before = self.windows.latest(self.capsule)
             window, in_way = self.windows.open(
                 self.capsule, self.holder, self.session, self.operator, now,
-                now + timedelta(seconds=self.arm_window_s), report.fingerprint,
+                now + timedelta(seconds=self.arm_window_s), report.fingerprint, report_json(report, waivers),
             )  # fmt: skip
             if window is None:
                 assert in_way is not None
@@ -306,6 +312,7 @@ class ArmingController:
             why = f"the ARM window is {status.holder_text()}, not this console"
             self._audit("fire", "refused", {"reason": why})
             raise RefusedError(f"{self.capsule}: FIRE refused: {why}")
+        typed_text("the typed capsule name", typed_name)
         if typed_name != self.capsule:
             self._audit("fire", "refused", {"reason": "wrong capsule name typed", "typed": typed_name})
             raise RefusedError(
@@ -326,7 +333,12 @@ class ArmingController:
         """Release; blocking (SSH), so call it from a worker thread. Refused unless every rule holds.
 
         ``approval``: a Go request another login approved for this very window
-        (``drs_link.ops.approval``), spent here once in place of a typed second operator.
+        (``drs_link.ops.approval``), spent here once in place of a typed second operator: marked used in
+        the same transaction that moves the window to FIRING, after every other check, so an approval is
+        never spent on a FIRE that was then refused.
+
+        A Go that may have left (the state machine says ``go-sent-unverified``) keeps its window FIRING and
+        its approval as it is: only its holder may finish it, briefly (``Operations.finish_go``).
         ``on_sending``: told once every rule here held, just before the Go goes to the state machine (a
         "sending Go…" line printed earlier stood above each refusal).
         """
@@ -337,23 +349,28 @@ class ArmingController:
             if not self.observe(report).armed:
                 why = self.status().last_disarm_reason
                 raise RefusedError(f"{self.capsule}: FIRE refused and disarmed: {why}")
+            now = self.clock()
+            closed = f"ARM window #{window.id} closed meanwhile (expired, disarmed or taken)"
+
+            def firing(conn: sqlite3.Connection) -> str | None:
+                return None if start_firing_in(conn, window.id, self.holder, self.clock()) else closed
+
             try:
                 if approval is not None:
                     people = ApprovalBook(self.store, self.clock).use(
-                        approval, self.capsule, "go", login or current_login(), window_command(window.id)
-                    )
+                        approval, self.capsule, "go", login or current_login(), window_command(window.id),
+                        also=firing,
+                    )  # fmt: skip
                 else:
                     people = check_second_operator(
                         self.operator, second_operator, single_operator_waiver, self.require_second_operator,
                         self.crew,
                     )  # fmt: skip
+                    if not self.windows.start_firing(window.id, self.holder, now):
+                        raise RefusedError(closed)
             except RefusedError as exc:
                 self._audit("fire", "refused", {"reason": str(exc)})
                 raise RefusedError(f"{self.capsule}: FIRE refused: {exc}") from None
-            if not self.windows.start_firing(window.id, self.holder, self.clock()):
-                why = f"ARM window #{window.id} closed: {self.status().last_disarm_reason or 'expired'}"
-                self._audit("fire", "refused", {"reason": why})
-                raise RefusedError(f"{self.capsule}: FIRE refused: {why}")
             self._audit("fire", "authorised", {"window": window.id, "inputs": report.fingerprint, **people})
         try:
             token = self.machine.confirm(typed_name)
@@ -362,7 +379,10 @@ class ArmingController:
             record = self.machine.go(token)
         except Exception:
             with self._lock:
-                self._close(window, "FIRE failed", (FIRING,))
+                if self.machine.record().state is ReleaseState.GO_SENT:
+                    self._audit("fire", "unverified", {"window": window.id})
+                else:
+                    self._close(window, "FIRE failed", (FIRING,))
             raise
         self.windows.fired(window.id, self.clock())
         return record

@@ -8,9 +8,12 @@ the store, the same in a live console and a replay (which shows this machine's l
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
-from drs_link.store import AuditRecord, Store, iso_utc
+from drs_link.ops.typed_text import shown
+from drs_link.store import AuditRecord, Store, data_directory, iso_utc
 
 HISTORY_ROWS = 500
 """The newest entries History lists; the export has them all."""
@@ -23,8 +26,10 @@ class AuditLog:
         self.store = store
 
     def newest(self, text: str | None = None, limit: int = HISTORY_ROWS) -> list[AuditRecord]:
-        """The newest ``limit`` entries containing ``text`` (all when empty), newest first."""
-        return list(reversed(self.store.audit(text=text or None, limit=limit)))
+        """The newest ``limit`` entries containing ``text`` (all when empty), newest first, every text in
+        them as it may reach a terminal (``shown``): a reason stored before the typed-text rule, or written
+        into the store by hand, cannot rewrite History's screen."""
+        return [_shown(r) for r in reversed(self.store.audit(text=text or None, limit=limit))]
 
     def elsewhere(self, record: AuditRecord) -> str | None:
         """The console that wrote ``record`` when it is not this one (account@host pid), else None."""
@@ -33,10 +38,30 @@ class AuditLog:
     def export(self, path: Path, text: str | None = None) -> int:
         """Every entry containing ``text``, oldest first, one JSON object a line; how many were written."""
         records = self.store.audit(text=text or None)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        data_directory(path.parent)
         with path.open("w", encoding="utf-8") as out:
             for r in records:
                 row = {"time_utc": iso_utc(r.time_utc), "operator": r.operator, "capsule": r.capsule,
                        "action": r.action, "result": r.result, "detail": r.detail}  # fmt: skip
                 out.write(json.dumps(row) + "\n")
         return len(records)
+
+
+def _shown(record: AuditRecord) -> AuditRecord:
+    return replace(
+        record, operator=shown(record.operator), capsule=None if record.capsule is None else shown(record.capsule),
+        action=shown(record.action), result=shown(record.result),
+        detail=None if record.detail is None else _shown_value(record.detail),
+        session=None if record.session is None else shown(record.session),
+    )  # fmt: skip
+
+
+def _shown_value(value: Any) -> Any:
+    """Every string in a detail, keys too, through ``shown``; numbers and the rest as they are."""
+    if isinstance(value, str):
+        return shown(value)
+    if isinstance(value, dict):
+        return {shown(k): _shown_value(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_shown_value(v) for v in value]
+    return value

@@ -24,6 +24,7 @@ from drs_link.config import CapsuleConfig
 from drs_link.errors import LinkError, RefusedError, StoreError
 from drs_link.link import GnssStatus, summarise
 from drs_link.link.backends import AuthorityStatus, CapsuleBackend, GoResult
+from drs_link.ops.typed_text import typed_text
 from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
 
 TOKEN_TTL_S = 60.0
@@ -51,6 +52,9 @@ CREATE TABLE IF NOT EXISTS release_tokens (
     used_at TEXT
 );
 """
+_LATER_COLUMNS = {"failed_go_at": "TEXT"}
+"""Added in place to stores made before them: the time of a Go that was never verified, kept beside the
+verified Go that finished it (``ReleaseRecord.failed_go_at``)."""
 
 SILENT_MICROCONTROLLER_CHECKS = (
     "no NMEA from the microcontroller since power-on; check: "
@@ -90,6 +94,9 @@ class ReleaseRecord:
     go_at: datetime | None
     released_at: datetime | None
     note: str | None
+    failed_go_at: datetime | None = None
+    """When a Go was sent and never verified, if a later Go finished it: ``go_at`` is then the verified
+    Go's time, the release time, and this the failed attempt's, kept beside it (issue #29)."""
 
 
 @dataclass(frozen=True)
@@ -167,6 +174,13 @@ class ReleaseStateMachine:
         self.token_ttl_s = token_ttl_s
         self.holder = holder or default_holder(self.operator)
         store.ensure_schema(_DDL)
+        have = {str(row["name"]) for row in store.query("PRAGMA table_info(release_state)")}
+        if any(name not in have for name in _LATER_COLUMNS):
+            with store.transaction() as conn:
+                have = {str(row["name"]) for row in conn.execute("PRAGMA table_info(release_state)")}
+                for name, kind in _LATER_COLUMNS.items():
+                    if name not in have:
+                        conn.execute(f"ALTER TABLE release_state ADD COLUMN {name} {kind}")
 
     @property
     def name(self) -> str:
@@ -190,6 +204,7 @@ class ReleaseStateMachine:
             go_at=_time(row["go_at"]),
             released_at=_time(row["released_at"]),
             note=row["note"],
+            failed_go_at=_time(row["failed_go_at"]),
         )
 
     def _save(self, conn: sqlite3.Connection, record: ReleaseRecord) -> None:
@@ -198,7 +213,7 @@ class ReleaseStateMachine:
 
         conn.execute(
             "INSERT OR REPLACE INTO release_state (capsule, state, session, holder, log_offset, powered_at,"
-            " nmea_seen_at, go_at, released_at, note, updated_at) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
+            " nmea_seen_at, go_at, released_at, note, updated_at, failed_go_at) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
             (
                 record.capsule,
                 record.state.value,
@@ -211,6 +226,7 @@ class ReleaseStateMachine:
                 iso(record.released_at),
                 record.note,
                 iso_utc(self.clock()),
+                iso(record.failed_go_at),
             ),
         )
 
@@ -360,6 +376,7 @@ class ReleaseStateMachine:
     def confirm(self, typed_name: str) -> ConfirmationToken:
         """Mint a Go token; the operator must type this capsule's name, not click through."""
         record = self.record()
+        typed_text("the typed capsule name", typed_name)
         if typed_name != self.name:
             raise self._refuse(
                 "go-confirmation", f"the confirmation {typed_name!r} does not name {self.name!r}"
@@ -405,8 +422,10 @@ class ReleaseStateMachine:
     def go(self, token: ConfirmationToken) -> ReleaseRecord:
         """Send Go once; the link dropping right after ``Shutting down...`` is the expected success.
 
-        A retry after an unverified Go keeps the first Go's time: that is when the capsule may have
-        left, and recovery counts the descent from it.
+        While a Go is unverified the record keeps the first Go's time: that is when the capsule may have
+        left. A retry that the Pi confirms (GoGoGo written) shows the Pi was still up to take it, so the
+        release time becomes the verified Go's and the failed attempt's is kept beside it
+        (``failed_go_at``, and in the audit).
         """
         record = self._check_go(token)
         now = self.clock()
@@ -443,14 +462,19 @@ class ReleaseStateMachine:
                 f"{self.name}: Go may or may not have reached the Pi ({exc}); check the capsule, "
                 "a repeated Go is harmless to the firmware"
             ) from None
-        return self._conclude(sending, result)
+        return self._conclude(sending, result, now if record.go_at else None)
 
-    def _conclude(self, sending: ReleaseRecord, result: GoResult) -> ReleaseRecord:
-        detail = {
+    def _conclude(
+        self, sending: ReleaseRecord, result: GoResult, retry_at: datetime | None = None
+    ) -> ReleaseRecord:
+        """``retry_at``: this Go finishes an unverified one (sent at ``sending.go_at``) and was sent then."""
+        detail: dict[str, object] = {
             "exit_status": result.exit_status,
             "link_dropped": result.link_dropped,
             "firmware_acknowledged": result.acknowledged,
         }
+        if retry_at is not None and sending.go_at is not None:
+            detail |= {"go_at": iso_utc(retry_at), "failed_go_at": iso_utc(sending.go_at)}
         if result.go_written and result.shutting_down:
             note = "released, Pi shut down" if result.link_dropped else "released, Pi shutting down"
         elif result.go_written:
@@ -463,6 +487,8 @@ class ReleaseStateMachine:
                 "reached the capsule (check it; a repeated Go is harmless to the firmware)"
             )
         released = replace(sending, state=ReleaseState.RELEASED, released_at=self.clock(), note=note)
+        if retry_at is not None:
+            released = replace(released, go_at=retry_at, failed_go_at=sending.go_at)
         try:
             self._swap(sending, released)
         except _StateChanged as changed:
@@ -489,12 +515,14 @@ class ReleaseStateMachine:
         fall, the balloon team saw it go) can end it: named, with the evidence in the audit log.
         The release time is the first Go's, when the capsule may have left.
         """
+        typed_text("the typed capsule name", typed_name)
         if typed_name != self.name:
             raise self._refuse("released", f"the confirmation {typed_name!r} does not name {self.name!r}")
         if self.operator == "unknown":
             raise self._refuse(
                 "released", "no operator name: set [operator] name; this ends a release on the record"
             )
+        typed_text("the release evidence", evidence)
         if not evidence.strip() or not evidence.isprintable():
             raise self._refuse(
                 "released", "give the evidence as one line of text (what shows it was released)"
@@ -522,8 +550,19 @@ class ReleaseStateMachine:
         """Who holds the release authority on the Pi now; reading it changes nothing, so it is not audited."""
         return self.backend.authority()
 
-    def check_take_over(self, reason: str, seen: AuthorityStatus | None = None) -> None:
-        """Refuse (audited) a take-over that can never be right, before the Pi is asked or the name typed."""
+    def check_take_over(
+        self, reason: str, seen: AuthorityStatus | None = None, typed_name: str | None = None
+    ) -> None:
+        """Refuse (audited) a take-over that can never be right, before the Pi is asked, an approval is
+        spent, or (``typed_name`` None) the name typed."""
+        if reason.strip():
+            typed_text("the take-over reason", reason)
+        if typed_name is not None:
+            typed_text("the typed capsule name", typed_name)
+            if typed_name != self.name:
+                raise self._refuse_take_over(
+                    f"the confirmation {typed_name!r} does not name {self.name!r}", reason, seen
+                )
         if self.record().state is ReleaseState.RELEASED:
             raise self._refuse_take_over("the capsule is already released", reason, seen)
         if not reason.strip():
@@ -554,6 +593,7 @@ class ReleaseStateMachine:
         silently overridden. Taking over from this console's own holder is a plain renewal.
         """
         self.check_take_over(reason, seen)
+        typed_text("the typed capsule name", typed_name)
         if typed_name != self.name:
             raise self._refuse_take_over(
                 f"the confirmation {typed_name!r} does not name {self.name!r}", reason, seen
@@ -578,6 +618,7 @@ class ReleaseStateMachine:
 
         Returns what was given up: this console's lease, or a free authority when it held none.
         """
+        typed_text("the reason for giving up release authority", reason)
         detail: dict[str, object] = {"holder": self.holder, "reason": reason.strip()}
         self._audit("authority-release", "started", detail)
         try:
@@ -600,6 +641,7 @@ class ReleaseStateMachine:
         Not while a Go is unverified: the capsule may be falling, and a reset would let the next
         power-on and Go be treated as the first. Not without a named operator: it ends a release.
         """
+        typed_text("the typed capsule name", typed_name)
         if typed_name != self.name:
             raise self._refuse("reset", f"the confirmation {typed_name!r} does not name {self.name!r}")
         if self.operator == "unknown":
@@ -634,5 +676,6 @@ def record_as_dict(record: ReleaseRecord) -> dict[str, object]:
         "nmea_seen_at": iso(record.nmea_seen_at),
         "go_at": iso(record.go_at),
         "released_at": iso(record.released_at),
+        "failed_go_at": iso(record.failed_go_at),
         "note": record.note,
     }

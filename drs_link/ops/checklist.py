@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from drs_link.errors import ConfigError, RefusedError
+from drs_link.ops.typed_text import typed_text
 from drs_link.store import Store, iso_utc, parse_iso_utc, utc_now
 
 FACTS: dict[str, type] = {
@@ -266,6 +267,7 @@ class ChecklistRun:
 
     def skip(self, step_id: str, operator: str, reason: str) -> None:
         step = self.checklist.step(step_id)
+        typed_text("the reason for skipping a step", reason)
         if not reason.strip():
             raise RefusedError(f"{step.id}: skipping a step needs a reason")
         self._record(step, StepState.SKIPPED, operator, reason.strip())

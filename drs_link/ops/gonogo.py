@@ -20,6 +20,7 @@ from shapely.geometry import Polygon
 
 from drs_link.errors import RefusedError
 from drs_link.ops.staleness import Freshness, Reading, format_age
+from drs_link.ops.typed_text import typed_text
 from drs_link.store import Store, utc_now
 
 WAIVABLE = ("gnss", "sync")
@@ -266,6 +267,7 @@ class WaiverBook:
                 operator or "unknown", self.capsule, "waiver", "refused", {"item": item}, when=self.clock()
             )
             raise RefusedError(f"{self.capsule}: {item!r} cannot be waived (only {', '.join(WAIVABLE)})")
+        typed_text("the waiver reason", reason)
         if not operator.strip() or not reason.strip():
             raise RefusedError(f"{self.capsule}: a waiver needs the operator's name and a reason")
         if len(reason.strip()) > WAIVER_REASON_MAX:

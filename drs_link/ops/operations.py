@@ -50,8 +50,10 @@ from drs_link.link import (
 )
 from drs_link.link.backends import AuthorityStatus, build_backend
 from drs_link.ops.approval import Approval, ApprovalBook, Login, approved, current_login, window_command
+from drs_link.ops.arm_window import FIRING
 from drs_link.ops.arming import ArmingController, ArmStatus, check_second_operator
 from drs_link.ops.authorize import approval_command, authorize_mt, hazard_of
+from drs_link.ops.brief import ApprovalBrief, go_brief
 from drs_link.ops.capsule import ReleaseRecord, ReleaseState, ReleaseStateMachine, record_as_dict
 from drs_link.ops.checklist import PROCEDURE_DIR, Step, complete_command, load_checklists, start_new_flight
 from drs_link.ops.fleet import CapsuleTelemetry, FleetState
@@ -69,6 +71,7 @@ from drs_link.ops.telemetry import (
     TelemetryRecord,
     TelemetryRecorder,
 )
+from drs_link.ops.typed_text import shown, typed_text
 from drs_link.store import Store, iso_utc, utc_now
 from predictor.prediction import ZoneFileError, load_zones
 
@@ -121,6 +124,11 @@ class SentMt:
     steps: list[Step]
     authorised: dict[str, object]
 
+
+FINISH_GO_S = 60.0
+"""How long after a Go that was never verified its ARM window's holder may still finish it without a
+fresh ARM: long enough to see the link drop and send it again, short enough that the go/no-go it was
+judged on still stands (issue #29)."""
 
 NO_SYNC_SOURCE = (
     "sync_source is not configured (set it in the capsule's [[capsule]] table: the payload data to upload)"
@@ -301,7 +309,10 @@ class Operations:
 
     def _release_record(self, name: str, record: ReleaseRecord) -> TelemetryRecord:
         sample = ReleaseSample(
-            record.state.value, record.nmea_seen_at is not None, record.note, record.released_at
+            record.state.value,
+            record.nmea_seen_at is not None,
+            None if record.note is None else shown(record.note),
+            record.released_at,
         )
         return TelemetryRecord(self.clock(), name, sample)
 
@@ -439,8 +450,10 @@ class Operations:
         return self.ops(name).waivers.grant(item, self.operator, reason)
 
     def arm(self, name: str, report: GoNoGoReport) -> ArmStatus:
-        """Open the capsule's ARM window on a GO poll (one per capsule across consoles); audited."""
-        return self.ops(name).arming.arm(report)
+        """Open the capsule's ARM window on a GO poll (one per capsule across consoles); audited. The poll
+        and this process's waivers are kept with the window: a Go approval shows them to its approver."""
+        ops = self.ops(name)
+        return ops.arming.arm(report, ops.waivers.waivers)
 
     def fire(
         self,
@@ -460,10 +473,11 @@ class Operations:
         approval = None
         if second.await_approval:
             window = ops.arming.window_for_approval(typed_name)
+            summary = f"Go: release {name} in ARM window #{window.id}"
             approval = approved(
-                self.approvals, name, "go", f"Go: release {name} in ARM window #{window.id}", self.operator,
+                self.approvals, name, "go", summary, self.operator,
                 self.login, second.on_pending or (lambda request: None), command=window_command(window.id),
-                window_id=window.id, deadline=window.until_utc,
+                window_id=window.id, deadline=window.until_utc, brief=go_brief(summary, window.report),
             )  # fmt: skip
         report = poll()  # before the lock: a poll of the capsule (drs capsule go) takes it itself
         with ops.lock:
@@ -488,25 +502,64 @@ class Operations:
         return [self.approvals.cancel(r.id, self.operator, self.login) for r in self.waiting_approvals(name)]
 
     def finish_go(self, name: str, typed_name: str) -> list[TelemetryRecord]:
-        """Finish a Go that left and was never verified (the process sending it died on the way): the
-        state machine retries it, keeping the first Go's time. Not a new release decision, so no ARM:
-        refused in every state but ``go-sent-unverified``, which only a FIRE under every rule reaches."""
+        """Finish a Go that left and was never verified (its link dropped before GoGoGo was confirmed):
+        the state machine retries it. Not a new release decision, so no new ARM, and therefore narrow
+        (issue #29): only the holder of the ARM window that authorised it, within ``FINISH_GO_S`` of the
+        failed attempt, and (with ``require_second_operator``) while the approval it was fired with is still
+        valid; otherwise refused, and only a fresh ARM and FIRE under every rule may send Go. The release
+        time recorded is the verified Go's, the failed attempt's kept beside it (``failed_go_at``)."""
         ops = self.ops(name)
+        typed_text("the typed capsule name", typed_name)
         with ops.lock:
-            state = ops.machine.record().state
-            if state is not ReleaseState.GO_SENT:
-                why = f"only an unverified Go (go-sent-unverified) is finished; {name} is {state.value}"
+            record, now = ops.machine.record(), self.clock()
+            why, detail = self._finish_refusal(name, ops, record, now)
+            if why:
                 self.store.append_audit(
-                    self.operator, name, "go", "refused", {"reason": why}, when=self.clock()
+                    self.operator, name, "go", "refused", {"reason": why, **detail}, when=now
                 )
                 raise RefusedError(f"{name}: finish refused: {why}")
-            detail = {"state": ReleaseState.GO_SENT.value}
-            self.store.append_audit(self.operator, name, "go", "finishing", detail, when=self.clock())
+            self.store.append_audit(self.operator, name, "go", "finishing", detail, when=now)
             record = ops.machine.go(ops.machine.confirm(typed_name))
             ops.arming.finished()
             ops.link.close()
             self._command_done(name, "fire", record.note or "Go sent")
         return self._emit([self._release_record(name, record)])
+
+    def _finish_refusal(
+        self, name: str, ops: CapsuleOps, record: ReleaseRecord, now: datetime
+    ) -> tuple[str | None, dict[str, object]]:
+        """Why ``finish_go`` is refused now (None: it may go ahead), and what to audit either way."""
+        if record.state is not ReleaseState.GO_SENT:
+            return (
+                f"only an unverified Go (go-sent-unverified) is finished; {name} is {record.state.value}",
+                {},
+            )
+        window = ops.arming.windows.latest(name)
+        failed = record.go_at
+        detail: dict[str, object] = {"state": record.state.value, "failed_go_at": iso_utc(failed) if failed else None,
+                                     "window": window.id if window else None}  # fmt: skip
+        fresh = "a fresh ARM and FIRE under every rule is needed"
+        if window is None or window.state != FIRING:
+            return f"no ARM window is firing for this Go; {fresh}", detail
+        if window.holder != ops.arming.holder:
+            return (
+                f"only the holder of ARM window #{window.id} ({window.who()}) may finish its Go; {fresh}",
+                detail,
+            )
+        age = (now - failed).total_seconds() if failed else FINISH_GO_S + 1
+        if age > FINISH_GO_S:
+            return (
+                f"the failed attempt was {age:.0f} s ago (limit {FINISH_GO_S:.0f} s); {fresh}, or, if the "
+                f"capsule fell, record it: drs capsule released {name} --evidence …"
+            ), detail
+        if self.config.console.require_second_operator:
+            spent = self.approvals.spent_for_window(name, window.id)
+            if spent is None:
+                return f"no approval was spent on ARM window #{window.id}; {fresh}", detail
+            detail["approval"] = spent.id
+            if spent.expired(now):
+                return f"its approval #{spent.id} expired at {spent.expires_utc:%H:%M:%S}Z; {fresh}", detail
+        return None, detail
 
     def take_over(
         self,
@@ -523,7 +576,7 @@ class Operations:
         without the rule an approval, a crew member's name or a waiver may still be given and is audited.
         """
         ops = self.ops(name)
-        ops.machine.check_take_over(reason, seen)
+        ops.machine.check_take_over(reason, seen, typed_name)
         command, state = f"release-authority take-over: {reason.strip()}", self.release_state(name).value
         people: dict[str, str] = {}
         try:
@@ -531,6 +584,7 @@ class Operations:
                 approval = approved(
                     self.approvals, name, "authority", command, self.operator, self.login,
                     second.on_pending or (lambda request: None), command=command, capsule_state=state,
+                    brief=ApprovalBrief(command, notes=(f"from {seen.holder or 'nobody'} ({seen.state.value})",)),
                 )  # fmt: skip
                 people = self.approvals.use(
                     approval, name, "authority", self.login, command, self.release_state(name).value
@@ -751,14 +805,18 @@ class Operations:
         """
         capsule = self.ops(name).config
         reports = self.stored_reports(name)
+        typed_text("the override reason", override_landed or "")
         approval = None
         if second.await_approval:
             if hazard_of(message) is None:
                 raise RefusedError(f"{name}: {message.text} needs no second operator: nothing to approve")
             bound = approval_command(message, override_landed)
+            evidence = landed_evidence(reports)
+            override = (override_landed or "").strip() if not evidence.on_ground else None
             approval = approved(
                 self.approvals, name, "parachute", bound, self.operator, self.login,
                 second.on_pending or (lambda request: None), command=bound, deadline=queue_by,
+                brief=ApprovalBrief(message.text, landed=evidence.summary, override=override or None),
             )  # fmt: skip
         authorised = authorize_mt(
             self.store, name, self.operator, message, reports, second_operator=second.name,
@@ -766,10 +824,24 @@ class Operations:
             require_second_operator=self.config.console.require_second_operator,
             crew=self.config.console.crew,
             override_landed=override_landed, queue_by=queue_by, now=self.clock(), approval=approval,
-            login=self.login if approval is not None else None,
+            login=self.login if approval is not None else None, spend=False,
         )  # fmt: skip
-        gateway = RockblockGateway.from_config(self.config.rockblock, self.environ)
-        command = self.lifecycle.request(capsule, message, flush=flush)
+        gateway = RockblockGateway.from_config(self.config.rockblock, self.environ)  # before it is spent
+        if approval is None:
+            command = self.lifecycle.request(capsule, message, flush=flush)
+        else:
+            request = self.approvals.get(approval)
+            try:
+                command = self.lifecycle.request(
+                    capsule, message, flush=flush, also=lambda conn: self.approvals.spend_in(conn, request)
+                )
+            except RefusedError as exc:
+                detail = {"text": message.text, "reason": str(exc)}
+                self.store.append_audit(
+                    self.operator, name, "mt.parachute", "refused", detail, when=self.clock()
+                )
+                raise RefusedError(f"{name}: PARACHUTE refused: {exc}") from None
+            self.approvals.spent(request)
         command = self.lifecycle.send(command.id, confirmation, gateway)
         steps = complete_mt_steps(
             self.store, self.checklists, self.operator, command, self.stored_reports(name), self.clock
@@ -780,6 +852,7 @@ class Operations:
         """Record what the RockBLOCK portal shows for an MT whose delivery is unknown: queued as
         ``gateway_id``, or (None) never sent; then the reports move it on. The resolved command first,
         then every other that changed; audited by the lifecycle."""
+        typed_text("the note", note)
         reports = self.stored_reports(name)
         if gateway_id is None:
             command = self.lifecycle.resolve_not_sent(command_id, name, note)

@@ -27,6 +27,7 @@ from drs_link.iridium import (
     is_command,
     lifecycle as lc,
 )
+from drs_link.ops.typed_text import shown
 from drs_link.store import AuditRecord
 
 GONE_MODE_SPACING = timedelta(minutes=2)
@@ -81,8 +82,10 @@ def parachute_override(
     command = max(carried, key=lambda c: c.id) if carried else None
     if command is None or command.state in mt_commanded.NEVER_LEFT:  # it never left: it cannot drop anything
         return None
-    reason = str(detail["override_landed"])
-    return ParachuteOverride(capsule, text, latest.operator, _approver(detail), reason, command)
+    reason = shown(detail["override_landed"])
+    return ParachuteOverride(
+        capsule, shown(text), shown(latest.operator), shown(_approver(detail)), reason, command
+    )
 
 
 def _spacing(reports: Sequence[StoredReport]) -> timedelta:

@@ -29,7 +29,7 @@ class ApprovalService:
         return ApprovalView(
             request.id, request.capsule, request.action, request.summary, request.command, request.requested_by,
             request.requester.user, request.state, iso_utc(request.expires_utc), request.decided_by,
-            request.decider.user if request.decider else None, request.describe(self.book.clock()),
+            request.decider.user if request.decider else None, "\n".join(request.for_approver(self.book.clock())),
         )  # fmt: skip
 
     def waiting(self) -> list[ApprovalView]:

@@ -160,3 +160,33 @@ async def test_a_second_console_approves_from_its_own_login_and_the_requester_ca
         await pilot.press("enter", "tab", "enter")  # this console's own request
         await wait_for(pilot, lambda: any("cannot approve it" in n.message for n in app._notifications))
         assert book.get(mine.id).state == "pending"
+
+
+async def test_the_approvals_screen_shows_the_highlighted_requests_brief_as_drs_approve_prints_it(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    """Issue #29 Why-6: the approver reads the command, the verdicts and the waivers before Enter, and
+    the confirmation says it again; both are ``Approval.for_approver``, the text `drs approve` prints."""
+    from drs_link.ops.brief import ApprovalBrief, VerdictShown, WaiverShown
+
+    app = canned_app()
+    book = ApprovalBook(app.store)
+    brief = ApprovalBrief(
+        "Go: release DRS1 in ARM window #4",
+        (
+            VerdictShown("SSH link up", "GO", "up, 2 s old"),
+            VerdictShown("GNSS fix fresh", "WAIVED", "no fix; waived by JM: shade"),
+        ),
+        (WaiverShown("gnss", "shade", "JM"),),
+    )
+    request = book.request("DRS1", "go", "Go: release DRS1", "JM", Login("jm-at-the-tent"), brief=brief)
+    async with app.run_test(size=(140, 50)) as pilot:
+        await pilot.press("A")
+        assert isinstance(app.screen, ApprovalScreen)
+        screen = app.screen
+        expected = book.get(request.id).for_approver(app.setup.clock())[1:]
+        detail = screen.query_one("#approval-detail")
+        await wait_for(pilot, lambda: all(line in str(detail.render()) for line in expected))
+        await pilot.press("enter")
+        assert isinstance(app.screen, ConfirmModal)
+        assert all(line in app.screen.body for line in expected)

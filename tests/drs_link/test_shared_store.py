@@ -127,6 +127,66 @@ def test_a_group_that_does_not_exist_is_named_with_how_to_make_it(tmp_path: Path
         share_directory(tmp_path / "data", "no-such-drs-group")
 
 
+def test_the_second_accounts_console_records_exports_and_keeps_chase_files_in_the_shared_data_dir(
+    accounts: tuple[str, str, str], place: Path
+) -> None:
+    """Issue #29 Why-5: the first console made ``recordings/`` 0755 under the 2770 data directory, so the
+    second account's console could not start ("Permission denied"). Each console writes its own file;
+    every directory made inside the shared one is the group's (2770), whoever made it, whatever the umask."""
+    from collections.abc import Callable
+
+    from console.commands.console import _recorder
+    from drs_link.ops.audit_log import AuditLog
+    from drs_link.store import data_directory, share_directory
+
+    alice, bob, group = accounts
+    store_dir = place / "data"
+    configs = {user: config_for(place, user, store_dir) for user in (alice, bob)}
+    share_directory(store_dir, group)
+    Store.open(store_dir / "drs.sqlite").close()
+    share_directory(store_dir, group)
+
+    def console_files(user: str) -> Callable[[], int]:
+        def work() -> int:
+            os.umask(0o022)  # a usual login's: it made recordings/ 0755
+            config = load_config(configs[user])
+            recorder = _recorder(config)
+            recorder.close()
+            AuditLog(Store.open(config.store_path)).export(
+                config.data.dir / "exports" / f"audit-{user}.jsonl"
+            )
+            kml = data_directory(config.data.dir / "chase") / f"DRS1-{user}.kml"
+            kml.write_text("<kml/>")
+            print(recorder.path.name)
+            return 0
+
+        return work
+
+    runs = {user: as_account(user, console_files(user)) for user in (alice, bob)}
+    assert [code for code, _ in runs.values()] == [0, 0], runs
+    for user, (_, out) in runs.items():
+        assert f"-{user}-" in out, "named for its account"
+    for name in ("recordings", "exports", "chase"):
+        info = (store_dir / name).stat()
+        assert stat.S_IMODE(info.st_mode) == 0o2770 and info.st_gid == store_dir.stat().st_gid, name
+    assert len(list((store_dir / "recordings").iterdir())) == 2
+
+
+def test_a_directory_made_with_the_old_mode_is_put_right_by_its_owner(tmp_path: Path) -> None:
+    from drs_link.store import SHARED_DIR_MODE, data_directory
+
+    tmp_path.chmod(SHARED_DIR_MODE)
+    old = tmp_path / "recordings"
+    old.mkdir(mode=0o755)
+    old.chmod(0o755)
+    assert data_directory(old) == old and stat.S_IMODE(old.stat().st_mode) == SHARED_DIR_MODE
+    private = tmp_path / "private"
+    private.mkdir()
+    private.chmod(0o700)
+    made = data_directory(private / "exports" / "DRS1")
+    assert stat.S_IMODE(made.stat().st_mode) & 0o2000 == 0, "a private data directory stays private"
+
+
 def test_an_account_outside_the_stores_group_is_told_to_ask_the_admin_not_to_share_it(
     accounts: tuple[str, str, str], place: Path
 ) -> None:

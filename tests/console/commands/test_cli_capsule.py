@@ -453,7 +453,7 @@ def _go_killed_after_gogogo(sim: CapsuleSimulator, config: Path, store: Store, w
     return str(row["go_at"])
 
 
-def test_go_killed_after_the_pi_wrote_gogogo_is_finished_by_a_retry_that_keeps_the_first_go_time(
+def test_go_killed_after_the_pi_wrote_gogogo_is_finished_by_its_holder_keeping_the_first_go_time_beside(
     setup: tuple[CapsuleSimulator, Path],
     capsys: pytest.CaptureFixture[str],
     tmp_path: Path,
@@ -464,8 +464,9 @@ def test_go_killed_after_the_pi_wrote_gogogo_is_finished_by_a_retry_that_keeps_t
     go_at = _go_killed_after_gogogo(sim, config, store, weather)
     assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
     assert "released, Pi shut down" in capsys.readouterr().out
-    [row] = store.query("SELECT state, go_at FROM release_state WHERE capsule = 'DRS1'")
-    assert (row["state"], row["go_at"]) == ("released", go_at)
+    [row] = store.query("SELECT state, go_at, failed_go_at FROM release_state WHERE capsule = 'DRS1'")
+    assert (row["state"], row["failed_go_at"]) == ("released", go_at), "the failed attempt's time kept beside"
+    assert row["go_at"] > go_at, "the release time is the verified Go's (issue #29)"
 
 
 def test_go_killed_with_a_pi_that_then_halted_is_settled_released_by_the_operator_with_evidence(

@@ -22,7 +22,8 @@ from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.landed import landed_evidence
 from drs_link.iridium.mo import parse_payload
 from drs_link.iridium.mt import MtComposer
-from drs_link.iridium.reports import Delivery, StoredReport
+from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
+from drs_link.ops.approval import ApprovalBook, Login
 from drs_link.ops.authorize import authorize_mt
 from drs_link.sim.rockblock import MoDelivery, SimulatedRockblock, generate_test_keys, post_mo
 from drs_link.store import Store, utc_now
@@ -54,6 +55,18 @@ def gateway() -> Iterator[SimulatedRockblock]:
         yield simulated
 
 
+def waived_parachute(tmp_path: Path, gateway: SimulatedRockblock) -> subprocess.CompletedProcess[str]:
+    """`drs mt send DRS1 --parachute next --single-operator-waiver …` as its own process, on the data dir
+    the receiver wrote (the operator's config)."""
+    config = write_config(tmp_path, gateway.url)
+    return subprocess.run(
+        [sys.executable, "-c", DRS, "--config", str(config), "mt", "send", "DRS1", "--parachute", "next",
+         "--accept-midnight", "--confirm", "DRS1", "--single-operator-waiver", "alone at the site"],
+        cwd=REPO, capture_output=True, text=True, timeout=60,
+        env={**os.environ, "PYTHONPATH": str(REPO), "DRS_TEST_RB": "pw"},
+    )  # fmt: skip
+
+
 def test_forged_unsigned_still_fixes_after_a_signed_fall_do_not_queue_parachute(
     tmp_path: Path, gateway: SimulatedRockblock
 ) -> None:
@@ -69,13 +82,7 @@ def test_forged_unsigned_still_fixes_after_a_signed_fall_do_not_queue_parachute(
             assert post_mo(receiver.url, mo(momsn, moment, alt, speed)) == 200, "stored, as unverified"
     finally:
         receiver.stop()
-    config = write_config(tmp_path, gateway.url)  # the same data dir, the operator's config
-    sent = subprocess.run(
-        [sys.executable, "-c", DRS, "--config", str(config), "mt", "send", "DRS1", "--parachute", "next",
-         "--accept-midnight", "--confirm", "DRS1", "--single-operator-waiver", "alone at the site"],
-        cwd=REPO, capture_output=True, text=True, timeout=60,
-        env={**os.environ, "PYTHONPATH": str(REPO), "DRS_TEST_RB": "pw"},
-    )  # fmt: skip
+    sent = waived_parachute(tmp_path, gateway)
     assert sent.returncode == 1, sent.stdout + sent.stderr
     assert "NOT LANDED: last fix" in sent.stderr and "at 15,100 m" in sent.stderr
     assert "3 report(s) without a verified JWT ignored" in sent.stderr
@@ -118,7 +125,9 @@ def test_a_drop_faster_than_any_fall_is_not_a_landing() -> None:
     assert "in 16 s" in evidence.summary
 
 
-def test_landed_evidence_from_unverified_reports_is_said_and_needs_a_second_operator(tmp_path: Path) -> None:
+def test_landed_evidence_from_unverified_reports_needs_another_logins_approval_never_a_name_or_waiver(
+    tmp_path: Path,
+) -> None:
     start = utc_now().replace(microsecond=0) - timedelta(minutes=20)
     moments = [start + timedelta(minutes=2 * i) for i in range(6)]
     alts = [9_000.0, 6_000.0, 3_000.0, 412.0, 412.0, 412.0]
@@ -129,12 +138,64 @@ def test_landed_evidence_from_unverified_reports_is_said_and_needs_a_second_oper
     message = MtComposer().add("PARACHUTE", (10, 20)).build()
     store = Store.open(tmp_path / "drs.sqlite")
     try:
-        with pytest.raises(RefusedError, match="without a verified JWT.*a second operator must confirm"):
+        refusal = "without a verified JWT.*another login must approve it"
+        with pytest.raises(RefusedError, match=refusal):
             authorize_mt(store, "DRS1", "alice", message, reports, require_second_operator=False)
-        details = authorize_mt(
-            store, "DRS1", "alice", message, reports, second_operator="bob", crew=("alice", "bob")
-        )
-        assert details["landed"]["verified"] is False and details["second_operator"] == "bob"
+        with pytest.raises(RefusedError, match=refusal):
+            authorize_mt(
+                store, "DRS1", "alice", message, reports, second_operator="bob", crew=("alice", "bob")
+            )
+        with pytest.raises(RefusedError, match=refusal):
+            authorize_mt(store, "DRS1", "alice", message, reports, single_operator_waiver="alone")
+        book, alice = ApprovalBook(store), Login("alice")
+        request = book.request("DRS1", "parachute", message.text, "alice", alice, command=message.text)
+        book.decide(request.id, "bob", Login("bob"), approve=True)
+        details = authorize_mt(store, "DRS1", "alice", message, reports, approval=request.id, login=alice)
+        assert details["landed"]["verified"] is False and details["approved_by"] == "bob (bob)"
+    finally:
+        store.close()
+
+
+def forged_past_landing(now: datetime, count: int = 31) -> list[tuple[datetime, float, float]]:
+    """Issue #31's attack: ``count`` unsigned fixes two minutes apart, dated in the past (so none is dated
+    after its arrival), a plausible fall from 9 km at 6 m/s then still at 412 m: a landing by every rule
+    but the JWT."""
+    first = now - timedelta(minutes=2 * count + 5)
+    out = []
+    for i in range(count):
+        alt = max(412.0, 9_000.0 - 720.0 * i)
+        out.append((first + timedelta(minutes=2 * i), alt, 6.0 if alt > 412.0 else 0.0))
+    return out
+
+
+def test_thirty_one_forged_unsigned_past_dated_fixes_and_a_waiver_never_queue_parachute(
+    tmp_path: Path, gateway: SimulatedRockblock
+) -> None:
+    """Issue #31 item 4, as deployed: a receiver with ``require_jwt = false`` takes 31 forged POSTs, then
+    `drs mt send --single-operator-waiver` (its own process) is refused and nothing reaches the gateway;
+    the same evidence with another login's approval is allowed."""
+    receiver = Receiver(tmp_path)
+    try:
+        now = utc_now().replace(microsecond=0)
+        for momsn, (moment, alt, speed) in enumerate(forged_past_landing(now), start=1):
+            assert post_mo(receiver.url, mo(momsn, moment, alt, speed)) == 200
+    finally:
+        receiver.stop()
+    sent = waived_parachute(tmp_path, gateway)
+    assert sent.returncode == 1, sent.stdout + sent.stderr
+    assert "UNVERIFIED: from 31 report(s)" in sent.stderr and "another login must approve it" in sent.stderr
+    assert gateway.requests == [], "nothing reached the gateway"
+    store = Store.open(tmp_path / "data" / "drs.sqlite")
+    try:
+        [refused] = [a for a in store.audit() if a.action == "mt.parachute"]
+        assert refused.result == "refused" and refused.detail["landed"]["on_ground"] is True  # type: ignore[index]
+        reports = ReportStore(store).for_imei(IMEI)
+        message = MtComposer().add("PARACHUTE", (10, 20)).build()
+        book, requester = ApprovalBook(store), Login("alice")
+        request = book.request("DRS1", "parachute", message.text, "alice", requester, command=message.text)
+        book.decide(request.id, "bob", Login("bob"), approve=True)
+        details = authorize_mt(store, "DRS1", "alice", message, reports, approval=request.id, login=requester)
+        assert details["approved_by"] == "bob (bob)" and details["landed"]["verified"] is False
     finally:
         store.close()
 

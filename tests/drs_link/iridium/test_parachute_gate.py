@@ -6,6 +6,7 @@ The CLI runs through `console.commands.main.main` against the simulated RockBLOC
 
 from __future__ import annotations
 
+from dataclasses import replace
 from datetime import datetime, timedelta
 from pathlib import Path
 
@@ -43,6 +44,12 @@ def landed(start: datetime) -> list[StoredReport]:
     """Falling, then three still reports at 412 m."""
     reports = [stored(i, start + timedelta(minutes=2 * i), 9_000.0 - 3_000.0 * i, 6.0) for i in range(3)]
     return reports + [stored(3 + i, start + timedelta(minutes=6 + 2 * i), 412.0, 0.2) for i in range(3)]
+
+
+def signed(reports: list[StoredReport]) -> list[StoredReport]:
+    """The same reports, each as a delivery with a verified Ground Control JWT: evidence one operator may
+    act on (UNVERIFIED evidence needs another login's approval, issue #31)."""
+    return [replace(r, delivery=replace(r.delivery, jwt_verified=True)) for r in reports]
 
 
 def test_a_falling_capsule_has_no_landed_evidence_and_the_reason_names_the_last_fix() -> None:
@@ -219,7 +226,7 @@ def test_cli_queues_parachute_once_the_reports_show_the_landing(
 ) -> None:
     monkeypatch.setenv("DRS_TEST_RB", "pw")
     config = write_config(tmp_path, gateway.url)
-    store = seed(tmp_path, landed(recent(10.5)))
+    store = seed(tmp_path, signed(landed(recent(10.5))))
     argv = ["mt", "send", "DRS1", "--parachute", "next", "--accept-midnight", "--confirm", "DRS1"]
     assert run(config, *argv, "--single-operator-waiver", "alone at the landing site") == 0
     out = capsys.readouterr().out
@@ -249,9 +256,9 @@ def test_a_queue_before_deadline_that_passed_while_a_dialog_was_open_is_refused_
     message = MtComposer().add("PARACHUTE", (10, 20)).build()
     deadline = T0 + timedelta(minutes=12)
     with pytest.raises(RefusedError, match=r"queue-before deadline 10:12:07Z passed \(30 s ago\)"):
-        authorize_mt(store, "DRS1", "alice", message, landed(T0), single_operator_waiver="alone",
+        authorize_mt(store, "DRS1", "alice", message, signed(landed(T0)), single_operator_waiver="alone",
                      queue_by=deadline, now=deadline + timedelta(seconds=30))  # fmt: skip
-    details = authorize_mt(store, "DRS1", "alice", message, landed(T0), single_operator_waiver="alone",
+    details = authorize_mt(store, "DRS1", "alice", message, signed(landed(T0)), single_operator_waiver="alone",
                            queue_by=deadline, now=deadline - timedelta(seconds=1))  # fmt: skip
     assert details["landed"]["on_ground"] is True
     assert [a.result for a in store.audit() if a.action == "mt.parachute"] == ["refused", "authorised"]

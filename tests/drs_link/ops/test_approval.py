@@ -193,3 +193,36 @@ def test_an_approval_for_one_parachute_time_never_sends_another(tmp_path: Path) 
         authorize_mt(store, "DRS1", "alice", other, reports, approval=request.id, login=ALICE_A)
     assert book.get(request.id).state == "approved", "still only good for 01:19"
     assert audit_of(store, "mt.parachute")[-1]["result"] == "refused"
+
+
+def test_a_parachute_refused_after_its_approval_leaves_it_unspent_and_a_sent_one_spends_it_with_its_row(
+    tmp_path: Path,
+) -> None:
+    """Issue #29: a refusal after ``approval.used`` must not be possible. The gateway's password is missing:
+    refused before the approval is spent. With it, the approval is marked used in the transaction that
+    records the MT (``CommandLifecycle.request``'s ``also``)."""
+    from drs_link.errors import ConfigError
+    from drs_link.ops.operations import SecondOperator
+    from drs_link.sim.rockblock import SimulatedRockblock
+    from tests.drs_link.iridium.test_parachute_gate import signed
+    from tests.drs_link.ops.test_brief import parachute_ops
+
+    with SimulatedRockblock(username="ops", password="pw", imeis=(IMEI,)) as gateway:
+        ops, store = parachute_ops(tmp_path, gateway)
+        for report in signed(landed(recent(10.5))):
+            ReportStore(store).add(report.delivery)
+        plan = ops.plan_parachute("DRS1", None, accept_midnight=True)
+        message = MtComposer().add("PARACHUTE", (plan.hour, plan.minute)).build()
+        book = ApprovalBook(store)
+        second = SecondOperator(
+            await_approval=True, on_pending=lambda r: book.decide(r.id, "JM", Login("jm"), approve=True)
+        )
+        ops.environ = {}
+        with pytest.raises(ConfigError):
+            ops.send_mt("DRS1", message, "DRS1", second, queue_by=plan.queue_by)
+        assert book.get(1).state == "approved" and gateway.requests == []
+        assert not [a for a in store.audit() if a.action == "approval.used"]
+        ops.environ = {"DRS_TEST_RB": "pw"}
+        ops.send_mt("DRS1", message, "DRS1", second, queue_by=plan.queue_by)
+        assert book.get(2).state == "used" and len(gateway.requests) == 1
+        assert [a.action for a in store.audit()].count("approval.used") == 1

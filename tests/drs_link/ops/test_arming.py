@@ -337,30 +337,73 @@ def test_an_approval_for_another_capsule_never_fires_this_one(store: Store) -> N
         arming.fire("DRS1", go_report(clock), approval=theirs, login=Login("el"))
 
 
-def test_the_window_is_checked_again_at_submit_after_the_approval_is_spent(
+def test_a_window_that_runs_out_between_the_checks_and_the_submit_leaves_the_approval_unspent(
     store: Store, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The window runs out between the checks before the approval and the FIRING compare-and-set (a slow
-    disk, a paused process): the compare-and-set reads the clock again and refuses."""
+    """The window runs out between the approval's checks and the submit (a slow disk, a paused process):
+    the transaction that marks the approval used and moves the window to FIRING reads the clock again and
+    refuses both, so the approval is not spent on a FIRE that was refused (issue #29: never a refusal
+    after ``approval.used``)."""
     clock = ManualClock(T0)
     arming = controller(store, clock, arm_window_s=30.0, require_second_operator=True)
     window = arming.arm(go_report(clock)).window
     assert window is not None
     approval = approved_go(store, clock, window.id)
-    spend = ApprovalBook.use
+    check = ApprovalBook.check
 
-    def slow_use(book: ApprovalBook, *args: object, **kwargs: object) -> dict[str, str]:
-        people = spend(book, *args, **kwargs)  # type: ignore[arg-type]
+    def slow_check(book: ApprovalBook, *args: object, **kwargs: object) -> object:
+        request = check(book, *args, **kwargs)  # type: ignore[arg-type]
         clock.advance(31)
-        return people
+        return request
 
-    monkeypatch.setattr(ApprovalBook, "use", slow_use)
-    with pytest.raises(
-        RefusedError, match=r"FIRE refused: ARM window #1 closed: ARM window expired at 12:00:30Z"
-    ):
+    monkeypatch.setattr(ApprovalBook, "check", slow_check)
+    with pytest.raises(RefusedError, match=r"FIRE refused: approval #1 is void \(ARM window #1 closed\)"):
         arming.fire("DRS1", go_report(clock), approval=approval, login=Login("el"))
+    assert not [
+        a for a in store.audit("DRS1") if a.action in ("approval.used", "fire") and a.result != "refused"
+    ]
     assert arming.status().state is ArmState.DISARMED
-    assert not [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
+
+
+def test_the_approval_is_marked_used_in_the_transaction_that_starts_firing_and_never_without_it(
+    store: Store, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The order, pinned: every check, then one transaction that marks the approval used and moves the window
+    to FIRING. When the window's compare-and-set loses (another process closed it inside that instant),
+    the mark used rolls back with it; when it wins, both are in the store before anything is audited."""
+    import drs_link.ops.arming as arming_module
+
+    clock = ManualClock(T0)
+    arming = controller(store, clock, require_second_operator=True)
+    window = arming.arm(go_report(clock)).window
+    assert window is not None
+    approval = approved_go(store, clock, window.id)
+    seen: list[str] = []
+    start = arming_module.start_firing_in
+
+    def lost(conn: object, *args: object) -> bool:
+        [row] = conn.execute("SELECT state FROM approval WHERE id = ?", (approval,)).fetchall()  # type: ignore[attr-defined]
+        seen.append(str(row["state"]))
+        return False
+
+    monkeypatch.setattr(arming_module, "start_firing_in", lost)
+    with pytest.raises(RefusedError, match=r"FIRE refused: ARM window #1 closed meanwhile"):
+        arming.fire("DRS1", go_report(clock), approval=approval, login=Login("el"))
+    assert seen == ["used"], "marked used first, inside the transaction"
+    assert ApprovalBook(store, clock).get(approval).state == "approved", "rolled back with the lost FIRING"
+    assert not [a for a in store.audit("DRS1") if a.action == "approval.used"]
+
+    def won(conn: object, *args: object) -> bool:
+        [row] = conn.execute("SELECT state FROM approval WHERE id = ?", (approval,)).fetchall()  # type: ignore[attr-defined]
+        seen.append(str(row["state"]))
+        return start(conn, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(arming_module, "start_firing_in", won)
+    with pytest.raises(RefusedError, match="power-on has not succeeded"):  # the offline machine: no Go
+        arming.fire("DRS1", go_report(clock), approval=approval, login=Login("el"))
+    assert seen[-1] == "used" and ApprovalBook(store, clock).get(approval).state == "used"
+    actions = [a.action for a in store.audit("DRS1")]
+    assert actions.index("approval.used") < actions.index("go-confirmation"), "spent, then the Go ran"
 
 
 def test_two_processes_arming_at_once_open_one_window(tmp_path: Path) -> None:

@@ -12,8 +12,14 @@ from drs_link.config import CapsuleConfig
 from drs_link.errors import LinkError, RefusedError, StoreError
 from drs_link.link.backends import GoResult, PowerOnResult
 from drs_link.link.nmea import format_gga
-from drs_link.ops.capsule import ConfirmationToken, ReleaseState, ReleaseStateMachine, default_holder
-from drs_link.store import Store
+from drs_link.ops.capsule import (
+    ConfirmationToken,
+    ReleaseState,
+    ReleaseStateMachine,
+    default_holder,
+    record_as_dict,
+)
+from drs_link.store import Store, iso_utc
 from tests.clock import ManualClock
 
 START = datetime(2026, 6, 1, 12, 0, 0, tzinfo=UTC)
@@ -303,10 +309,12 @@ def test_a_go_refused_while_another_console_released_the_capsule_leaves_it_relea
     assert first.record().state is ReleaseState.RELEASED and second.record().state is ReleaseState.RELEASED
 
 
-def test_a_go_retry_keeps_the_first_go_time(
+def test_a_verified_retry_records_its_own_go_time_and_keeps_the_failed_attempts_beside_it(
     machine: ReleaseStateMachine, pi: InProcessPi, clock: ManualClock
 ) -> None:
-    """The capsule may have left at the first Go: recovery counts the descent from it."""
+    """While unverified the record keeps the first Go's time (the capsule may have left then); a retry the
+    Pi confirms shows it was still up to take it, so the release time is the verified Go's and the failed
+    attempt's is kept beside it, in the store and the audit (issue #29)."""
     _ready(machine)
     pi.go_outcome = GoResult(False, True, False, None, "")
     with pytest.raises(LinkError, match="may or may not"):
@@ -316,7 +324,13 @@ def test_a_go_retry_keeps_the_first_go_time(
     clock.advance(40)
     pi.go_outcome = GoResult(True, True, True, None, "Dropping in 30 seconds!\nShutting down...\n")
     record = machine.go(machine.confirm("DRS1"))
-    assert record.state is ReleaseState.RELEASED and record.go_at == first_go
+    assert (
+        record.state is ReleaseState.RELEASED and record.go_at == clock() and record.failed_go_at == first_go
+    )
+    assert machine.record() == record, "as stored"
+    assert record_as_dict(record)["failed_go_at"] == iso_utc(first_go)
+    released = machine.store.audit("DRS1")[-1].detail or {}
+    assert (released["go_at"], released["failed_go_at"]) == (iso_utc(clock()), iso_utc(first_go))
 
 
 def test_a_store_failure_after_the_pi_powered_on_says_the_relay_is_latched(

@@ -108,7 +108,7 @@ def test_the_server_killed_mid_fire_sends_one_go_and_says_so_after_restart(
     powered: tuple[CapsuleSimulator, Server], place: Path, team: Team
 ) -> None:
     """SIGKILL of the server once the Pi wrote GoGoGo: the store says go-sent-unverified (written before
-    Go left), the restarted server tells the requester so, and finishing keeps the first Go's time."""
+    Go left), the restarted server tells the requester so, and finishing keeps the first Go's time beside the verified one's (issue #29)."""
     sim, server = powered
     weather = place / "gfs"
     weather.mkdir()
@@ -140,6 +140,10 @@ def test_the_server_killed_mid_fire_sends_one_go_and_says_so_after_restart(
         restarted.stop()
     if row["state"] == "go-sent-unverified":
         assert code == 0 and "Go was sent and never verified: finishing it" in out, out
-    [after] = store.query("SELECT state, go_at FROM release_state WHERE capsule = 'DRS1'")
-    assert after["state"] == "released" and after["go_at"] == row["go_at"]
+    [after] = store.query("SELECT state, go_at, failed_go_at FROM release_state WHERE capsule = 'DRS1'")
+    assert after["state"] == "released"
+    if row["state"] == "go-sent-unverified":  # finished: the verified Go's time, the failed one's beside it
+        assert after["failed_go_at"] == row["go_at"] and after["go_at"] >= row["go_at"]
+    else:
+        assert after["go_at"] == row["go_at"]
     assert sim.firmware.go_at == first_go, "one Go: the microcontroller's countdown was not restarted"
