@@ -395,14 +395,17 @@ def test_a_failing_go_no_go_item_refuses_arm_in_the_consoles_words_and_then_go(
     weather: list[Path],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    """Nothing syncs in this setup: "Storage sync complete: no data" is NO-GO until it is waived."""
+    """No sync_source in this setup: "Storage sync complete" is NO-GO, naming what is missing, until waived."""
     sim, config, store = powered()
     arms, goes = {}, {}
     for kind in ("cli", "console"):
         face = Face(kind, config, weather, capsys)
         arms[kind], goes[kind] = face.arm(), face.go()
         face.close()
-    assert same_words(arms) == "DRS1: ARM refused: NO-GO: Storage sync complete: no data"
+    assert same_words(arms) == (
+        "DRS1: ARM refused: NO-GO: Storage sync complete: sync_source is not configured "
+        "(set it in the capsule's [[capsule]] table: the payload data to upload)"
+    )
     assert same_words(goes) == "DRS1: FIRE refused: not armed"
     assert sim.firmware.go_at is None
     assert [a.result for a in store.audit("DRS1") if a.action == "arm"] == ["refused", "refused"]
