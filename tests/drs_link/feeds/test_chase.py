@@ -81,14 +81,17 @@ def add_fix(
 def test_drs_chase_once_sends_each_capsule_with_a_fix_and_its_live_landing(
     tmp_path: Path, listener: socket.socket, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    # `drs chase` reads the wall clock: the test's own now, taken when it runs, not when its module was
+    # imported (a parallel run collects every file first; 15 min later the landing is no longer live).
+    now = datetime.now(UTC).replace(microsecond=0)
     config_path = write_config(tmp_path)
     config = load_config(config_path)
     store = Store.open(config.store_path)
-    add_fix(store, NOW - timedelta(minutes=4), 51.40, -0.60, 9000, 20.0, 80)
-    add_fix(store, NOW - timedelta(minutes=2), 51.41, -0.55, 8000, 12.5, 95)
-    ReportStore(store).add(Delivery(IMEI, 7, b"not a DRS report".hex(), "test", NOW - timedelta(minutes=1)))
+    add_fix(store, now - timedelta(minutes=4), 51.40, -0.60, 9000, 20.0, 80)
+    add_fix(store, now - timedelta(minutes=2), 51.41, -0.55, 8000, 12.5, 95)
+    ReportStore(store).add(Delivery(IMEI, 7, b"not a DRS report".hex(), "test", now - timedelta(minutes=1)))
     ChaseStore(store).record(KeptLanding(
-        "DRS1", NOW - timedelta(minutes=1), NOW + timedelta(minutes=20), 51.45, -0.30, 35.0, "live re-prediction", True
+        "DRS1", now - timedelta(minutes=1), now + timedelta(minutes=20), 51.45, -0.30, 35.0, "live re-prediction", True
     ))  # fmt: skip
     store.close()
     port = listener.getsockname()[1]
@@ -97,7 +100,7 @@ def test_drs_chase_once_sends_each_capsule_with_a_fix_and_its_live_landing(
     assert capsule["callsign"] == "DRS1", "DRS2 has no position and is not sent"
     assert (capsule["latitude"], capsule["longitude"], capsule["altitude"]) == (51.41, -0.55, 8000.0)
     assert capsule["speed"] == pytest.approx(12.5 * 3.6) and capsule["heading"] == 95
-    assert capsule["time"] == f"{NOW - timedelta(minutes=2):%H:%M:%S}"
+    assert capsule["time"] == f"{now - timedelta(minutes=2):%H:%M:%S}"
     assert str(capsule["comment"]).startswith("drs-console")
     assert landing["callsign"] == "DRS1_LAND"
     assert (landing["latitude"], landing["longitude"], landing["altitude"]) == (51.45, -0.30, 35.0)

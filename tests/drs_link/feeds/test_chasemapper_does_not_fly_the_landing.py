@@ -30,7 +30,12 @@ from drs_link.feeds.chase import MARKER_MOVE_M, ChaseStore, KeptLanding, surface
 from drs_link.store import Store
 
 IMEI = "300234010753370"
-START = datetime.now(UTC).replace(microsecond=0) - timedelta(minutes=2)
+
+
+def start_now() -> datetime:
+    """Two minutes before the test runs: taken when it runs, never at import (collected at a parallel
+    run's start, a test could run 20 minutes later and find its "live" landings stale)."""
+    return datetime.now(UTC).replace(microsecond=0) - timedelta(minutes=2)
 
 
 class Chasemapper:
@@ -84,10 +89,11 @@ def test_landings_moving_with_each_re_prediction_are_shown_and_never_flown(
     mapper = Chasemapper()
     # Twenty minutes of live re-predictions, one a minute, the landing walking east 600 m each time
     # (a 36 km/h jump) with a 300 m north-south jitter: chasemapper heard each round twice.
+    start = start_now()
     landings = [(51.45 + 0.0027 * (-1) ** k, -0.30 + 0.0086 * k) for k in range(20)]
     shown: list[tuple[str, float, float]] = []
     for minute, (lat, lon) in enumerate(landings):
-        predicted = START + timedelta(minutes=minute)
+        predicted = start + timedelta(minutes=minute)
         store = Store.open(config.store_path)
         ChaseStore(store).record(KeptLanding(
             "DRS1", predicted, predicted + timedelta(minutes=30), lat, lon, 40.0, "live re-prediction", False
@@ -111,9 +117,10 @@ def test_landings_moving_with_each_re_prediction_are_shown_and_never_flown(
 def test_the_old_form_a_moving_landing_under_one_callsign_would_be_flown() -> None:
     """The gate above can fail: the packets sent before this change are flown at the second prediction."""
     mapper = Chasemapper()
-    now = START.timestamp()
+    start = start_now()
+    now = start.timestamp()
     for minute, lon in enumerate((-0.30, -0.29)):
-        moment = START + timedelta(minutes=minute)
+        moment = start + timedelta(minutes=minute)
         packet = {
             "type": "PAYLOAD_SUMMARY",
             "callsign": "DRS1_LAND",
