@@ -26,6 +26,8 @@ POSITIONS = [
     (["recovery", "DRS1", "--from", "-44.7,169.1"], "origin", "-44.7,169.1"),
     (["recovery", "DRS1", "--from", "51.5,-0.12"], "origin", "51.5,-0.12"),
     (["recovery", "DRS1", "--from", "-33.9,-70.6"], "origin", "-33.9,-70.6"),
+    (["recovery", "DRS1", "--chase", "-44.7,169.1"], "chase", "-44.7,169.1"),
+    (["recovery", "DRS1", "--chase", "51.5,-0.12"], "chase", "51.5,-0.12"),
     (["predict", "--lat", "-44.7", "--lon", "169.1"], "lat", -44.7),
     (["predict", "--lat", "51.5", "--lon", "-120.25"], "lon", -120.25),
     (["plan", "--lat", "-77.8", "--lon", "166.7"], "lat", -77.8),
@@ -77,7 +79,7 @@ def test_the_table_above_covers_every_position_option_with_a_south_and_a_west_ex
             if option.startswith("--") and value[:1] in "-0123456789":
                 kind = "south" if option != "--lon" and value.startswith("-") else ""
                 kind = "west" if option == "--lon" and value.startswith("-") else kind
-                if option == "--from" and value.split(",")[1].startswith("-"):
+                if option in ("--from", "--chase") and value.split(",")[1].startswith("-"):
                     kind = "west" if not value.startswith("-") else kind
                 tested.setdefault((argv[0], option), set()).add(kind)
     options = _position_options()
