@@ -122,7 +122,9 @@ class HistoryScreen(ConsoleScreen):
         self.action_entries()
 
     def action_entries(self) -> None:
-        self.query_one("#audit", DataTable).focus()
+        # Focus moves now, not after the keys already read: Widget.focus() is queued behind them, so a
+        # quick ↓ q typed together put the q in the search box (seen in the tmux test under load).
+        self.set_focus(self.query_one("#audit", DataTable))
 
     def action_export(self) -> None:
         text = self.query_one("#search", Input).value or None
