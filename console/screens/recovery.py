@@ -172,7 +172,14 @@ class RecoveryScreen(CommandingScreen):
     def update_view(self) -> None:
         team = self.context.setup.team_position
         last = self.track[-1] if self.track else None
-        lines: list[str | Text] = [f"{self.capsule} recovery", ""]
+        # The last report's age and battery come first: whether the capsule still talks is the first
+        # question, and below the live lines it fell off an 80×24 screen during the descent.
+        reading = self.context.fleet.capsules[self.capsule].reading(ReportSample)
+        lines: list[str | Text] = [
+            f"{self.capsule} recovery",
+            "Last report: " + reading.label(self.context.now(), lambda v: f"VBAT {v.vbat} V"),
+            "",
+        ]
         if self.landing is not None:
             landing = self.landing
             std = "?" if math.isnan(landing.std_m) else f"{landing.std_m:.0f}"
@@ -192,10 +199,8 @@ class RecoveryScreen(CommandingScreen):
                 lines += self.drop_lines(None)
         else:
             lines.append("No GNSS fix received yet")
-        reading = self.context.fleet.capsules[self.capsule].reading(ReportSample)
         lines += [
             "",
-            "Last report: " + reading.label(self.context.now(), lambda v: f"VBAT {v.vbat} V"),
             *self.settings_lines(),
             "",
             "Phone: " + phone_summary(self.capsule, self.landing, last, team),
