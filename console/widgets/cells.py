@@ -18,6 +18,7 @@ from rich.cells import cell_len
 from rich.text import Text
 from textual.widget import Widget
 
+from console.context import LOW_BANDWIDTH_AGE_STEP_S
 from drs_link.feeds import FeedStatus
 from drs_link.ops import (
     MISSING_TEXT,
@@ -74,6 +75,15 @@ def age_shown(seconds: float) -> float:
         if seconds < below:
             return seconds - seconds % step
     return seconds
+
+
+def reading_age(reading: Reading[Any], view_time: datetime) -> float:
+    """The age shown at the view time, which trails the clock by up to one step (``ConsoleContext.view_time``,
+    at most ``LOW_BANDWIDTH_AGE_STEP_S``). A reading taken since the last step is newer than the view, not
+    from the future: it is 0 s old. Only a time further ahead than a whole step means a wrong clock (the fleet showed "-2s" and "timestamped in the future" on every fresh reading of a
+    warm demo, issue #32)."""
+    age = reading.age_s(view_time) or 0.0
+    return max(age, 0.0) if age > -LOW_BANDWIDTH_AGE_STEP_S else age
 
 
 def short_age(seconds: float) -> str:
@@ -354,7 +364,7 @@ class Field(Generic[S]):
         if state is Freshness.MISSING or reading.value is None:
             return Cell(self.pending(t, "short") or MISSING_TEXT, "none")
         text, error, level = self._described(reading.value, self.short)
-        text = f"{text or 'BAD DATA'} {short_age(reading.age_s(now) or 0.0)}"
+        text = f"{text or 'BAD DATA'} {short_age(reading_age(reading, now))}"
         if t.released and self.after_release != "live":
             return Cell(text, "bad" if error else "none" if self.after_release == "history" else level)
         if state is Freshness.STALE:
@@ -368,7 +378,7 @@ class Field(Generic[S]):
         if state is Freshness.MISSING or reading.value is None:
             return Cell(f"{MISSING_TEXT} {self.pending(t) or 'nothing received yet'}", "none")
         text, error, level = self._described(reading.value, self.long)
-        age = long_age(reading.age_s(now) or 0.0)
+        age = long_age(reading_age(reading, now))
         if t.released and self.after_release == "history":
             return Cell(
                 f"{error or text} — {age}; history: the Pi shut down at Go", "bad" if error else "none"

@@ -185,3 +185,15 @@ def test_after_release_what_came_from_the_pi_is_history_not_an_alarm() -> None:
     )
     assert BY_KIND["gnss"].line(capsule, T0).text.endswith("6m40s ago; history: the Pi shut down at Go")
     assert BY_KIND["release"].cell(capsule, T0).level == "ok", "the release itself is news"
+
+
+@pytest.mark.parametrize("ahead_s", [0.5, 4.0, 9.0])
+def test_a_reading_newer_than_the_view_time_is_fresh_not_from_the_future(ahead_s: float) -> None:
+    """The view time trails the clock by up to one step, so a reading taken since reads as 0 s old."""
+    assert short("link", {"up": True}, -ahead_s) == "UP 0s"
+    assert long("link", {"up": True}, -ahead_s).endswith("— 0s ago")
+
+
+def test_a_reading_further_ahead_than_a_view_step_says_the_clock_is_wrong() -> None:
+    assert short("link", {"up": True}, -60.0) == "UP -1m"
+    assert long("link", {"up": True}, -60.0).endswith("timestamped in the future (clock skew?)")
