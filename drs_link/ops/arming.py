@@ -215,6 +215,14 @@ class ArmingController:
             if window is not None and window.state == FIRING:
                 self.windows.fired(window.id, self.clock())
 
+    def go_not_taken(self, reason: str) -> None:
+        """The unverified Go of the FIRING window never left (``ReleaseStateMachine.recheck_unverified_go``):
+        the window closes, with its approvals, so that only a fresh ARM and FIRE may send Go."""
+        with self._lock:
+            window = self.windows.latest(self.capsule)
+            if window is not None and window.state == FIRING:
+                self._close(window, reason, (FIRING,))
+
     def _close(self, window: ArmWindow, reason: str, states: tuple[str, ...] = (ARMED,)) -> None:
         """Close a window and void every approval given for it; audited by whichever process won."""
         if self.windows.close(window.id, reason, self.clock(), states):

@@ -506,6 +506,41 @@ class ReleaseStateMachine:
         self._audit("go", note, detail)
         return released
 
+    def recheck_unverified_go(self, after_s: float) -> ReleaseRecord:
+        """End an unverified Go that the Pi never took, so that a fresh ARM and FIRE under every rule can
+        release the capsule; nothing is sent to the Pi but the serial logger's read.
+
+        Why a Pi that answers proves it: the Go script shuts the Pi down within 6 s of writing GoGoGo,
+        and a capsule that drops pulls its power connector apart (drs_protocol.md §1 and §2.6). A Pi that
+        still runs its logger ``after_s`` after the attempt was neither shut down nor dropped, so the
+        capsule is still on the balloon: back to powered, the failed attempt's time kept beside it. A Pi
+        that does not answer leaves the Go unverified: the capsule may be falling (``record_released``).
+        """
+        record = self.record()
+        if record.state is not ReleaseState.GO_SENT or record.go_at is None:
+            return record
+        waited = (self.clock() - record.go_at).total_seconds()
+        if waited < after_s:
+            return record
+        try:
+            lines = self.backend.read_serial(record.log_offset)
+        except LinkError:
+            return record
+        now = self.clock()
+        gnss = summarise(lines, now)
+        note = f"Go of {record.go_at:%H:%M:%S}Z never taken: the Pi still answered {waited:.0f} s later"
+        back = replace(
+            record, state=ReleaseState.POWERED, go_at=None, failed_go_at=record.go_at,
+            nmea_seen_at=now if gnss.nmea_seen else None, note=note,
+        )  # fmt: skip
+        try:
+            self._swap(record, back)
+        except _StateChanged:
+            return self.record()
+        self._audit("go", "not taken", {"failed_go_at": iso_utc(record.go_at), "waited_s": round(waited),
+                                        "nmea_seen": gnss.nmea_seen})  # fmt: skip
+        return back
+
     def record_released(self, typed_name: str, evidence: str) -> ReleaseRecord:
         """Settle an unverified Go as released, on the operator's evidence.
 

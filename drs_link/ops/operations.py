@@ -321,6 +321,10 @@ class Operations:
         ops = self.ops(name)
         with ops.lock:
             record = ops.machine.record()
+            if record.state is ReleaseState.GO_SENT:
+                record = ops.machine.recheck_unverified_go(FINISH_GO_S)
+                if record.state is ReleaseState.POWERED:
+                    ops.arming.go_not_taken(record.note or "Go never taken")
             out = [self._release_record(name, record)]
             if record.state in (ReleaseState.RELEASED, ReleaseState.GO_SENT):
                 out.append(TelemetryRecord(self.clock(), name, LinkSample(False, "released")))
@@ -538,7 +542,10 @@ class Operations:
         failed = record.go_at
         detail: dict[str, object] = {"state": record.state.value, "failed_go_at": iso_utc(failed) if failed else None,
                                      "window": window.id if window else None}  # fmt: skip
-        fresh = "a fresh ARM and FIRE under every rule is needed"
+        fresh = (
+            "a fresh ARM and FIRE under every rule is needed, once a poll finds the Pi still up "
+            f"{FINISH_GO_S:.0f} s after the attempt (the console's, or drs capsule arm {name})"
+        )
         if window is None or window.state != FIRING:
             return f"no ARM window is firing for this Go; {fresh}", detail
         if window.holder != ops.arming.holder:

@@ -152,3 +152,61 @@ def test_under_the_rule_a_finish_within_the_approvals_life_goes_ahead(
     assert ops.release_state("DRS1") is ReleaseState.RELEASED
     finishing = [a.detail for a in store.audit("DRS1") if a.action == "go" and a.result == "finishing"]
     assert finishing[0] is not None and finishing[0]["approval"] == 1
+
+
+def test_after_a_refused_late_finish_a_poll_that_finds_the_pi_up_lets_a_fresh_arm_and_fire_release(
+    store: Store, clock: ManualClock, pi: InProcessPi
+) -> None:
+    """A Pi still answering 60 s after the failed attempt was neither shut down by the Go script nor
+    dropped with the capsule: the Go was never taken, the FIRING window closes, and only a fresh ARM and
+    FIRE releases (it was a dead end: ARM refused "the capsule is firing", go/no-go said released)."""
+    ops = operations(store, clock, pi)
+    alone = SecondOperator(waiver="alone at the launch site")
+    unverified_go(ops, clock, pi, alone)
+    failed_at = ops.ops("DRS1").machine.record().go_at
+    clock.advance(FINISH_GO_S + 1)
+    with pytest.raises(RefusedError, match="once a poll finds the Pi still up 60 s after the attempt"):
+        ops.finish_go("DRS1", "DRS1")
+    with pytest.raises(RefusedError, match="ARM refused: the capsule is firing"):
+        ops.arm("DRS1", go_report(clock))
+    ops.poll("DRS1")
+    record = ops.ops("DRS1").machine.record()
+    assert record.state is ReleaseState.POWERED and record.go_at is None and record.failed_go_at == failed_at
+    assert record.note == "Go of 12:00:23Z never taken: the Pi still answered 61 s later"
+    status = ops.ops("DRS1").arming.status()
+    assert status.state.value == "disarmed" and status.last_disarm_reason == record.note
+    assert [a.result for a in store.audit("DRS1") if a.action == "go"][-1] == "not taken"
+    with pytest.raises(RefusedError, match="FIRE refused: not armed"):
+        ops.fire("DRS1", "DRS1", lambda: go_report(clock), alone)
+    assert pi.calls.count("go") == 1
+    ops.arm("DRS1", go_report(clock))
+    pi.go_outcome = VERIFIED
+    ops.fire("DRS1", "DRS1", lambda: go_report(clock), alone)
+    record = ops.ops("DRS1").machine.record()
+    assert record.state is ReleaseState.RELEASED and pi.calls.count("go") == 2
+    assert record.go_at == clock() and record.failed_go_at == failed_at
+
+
+def test_a_pi_that_does_not_answer_leaves_the_go_unverified(
+    store: Store, clock: ManualClock, pi: InProcessPi
+) -> None:
+    ops = operations(store, clock, pi)
+    unverified_go(ops, clock, pi, SecondOperator(waiver="alone at the launch site"))
+    clock.advance(FINISH_GO_S + 30)
+    pi.serial_error = LinkError("DRS1: connection timed out")
+    ops.poll("DRS1")
+    assert ops.release_state("DRS1") is ReleaseState.GO_SENT
+    assert ops.ops("DRS1").arming.status().state.value == "firing"
+
+
+def test_within_the_finish_time_a_poll_leaves_the_unverified_go_to_its_holder(
+    store: Store, clock: ManualClock, pi: InProcessPi
+) -> None:
+    """The Go script shuts the Pi down only ~6 s after GoGoGo: a Pi that answers early proves nothing."""
+    ops = operations(store, clock, pi)
+    unverified_go(ops, clock, pi, SecondOperator(waiver="alone at the launch site"))
+    reads = pi.calls.count("read_serial 120")
+    clock.advance(FINISH_GO_S - 1)
+    ops.poll("DRS1")
+    assert ops.release_state("DRS1") is ReleaseState.GO_SENT
+    assert pi.calls.count("read_serial 120") == reads

@@ -37,6 +37,8 @@ class InProcessPi:
         )
     )
     power_on_error: LinkError | None = None
+    serial_error: LinkError | None = None
+    """Raised by ``read_serial``: a Pi that no longer answers (shut down, or dropped with the capsule)."""
     calls: list[str] = field(default_factory=list)
     powered_at: datetime | None = None
 
@@ -49,6 +51,8 @@ class InProcessPi:
 
     def read_serial(self, offset: int) -> list[str]:
         self.calls.append(f"read_serial {offset}")
+        if self.serial_error:
+            raise self.serial_error
         if self.powered_at is None or self.nmea_after_s is None:
             return []
         if (self.clock() - self.powered_at).total_seconds() < self.nmea_after_s:
