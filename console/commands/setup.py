@@ -103,6 +103,9 @@ RuntimeDirectory=drs
 RuntimeDirectoryMode=0750
 StateDirectory=drs-server
 StateDirectoryMode=0700
+CacheDirectory=drs-server
+CacheDirectoryMode=0700
+Environment=NUMBA_CACHE_DIR=/var/cache/drs-server
 UMask=0077
 NoNewPrivileges=yes
 ProtectSystem=strict
@@ -136,7 +139,9 @@ WantedBy=multi-user.target
 """
 """Hardened as the MO receiver's unit (docs/iridium.md), less what the server needs: SSH to the capsules
 and HTTPS to RockBLOCK (so no IPAddressDeny), numba's compiled predictions (no MemoryDenyWriteExecute),
-and the callers' real uids (no PrivateUsers: in a user namespace every operator would be "nobody")."""
+and the callers' real uids (no PrivateUsers: in a user namespace every operator would be "nobody").
+numba keeps the compiled predictor in the unit's own cache directory: the installation is read-only and the
+account has no home, and a cache in the private /tmp would be compiled again (tens of seconds) at each start."""
 
 
 def run_setup_server(args: argparse.Namespace) -> int:

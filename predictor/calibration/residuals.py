@@ -48,7 +48,10 @@ from predictor.descent import (
 )
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError
+from predictor.numba_cache import ensure_cache_dir
 from predictor.tracks import Fix, Flight
+
+ensure_cache_dir(__file__)  # before the first @njit(cache=True): predictor/numba_cache.py
 
 WGS84_A = 6378137.0
 WGS84_E2 = 6.69437999014e-3

@@ -45,6 +45,9 @@ from numba.core.dispatcher import Dispatcher
 
 from predictor.descent.payload import Payload
 from predictor.errors import PredictorError
+from predictor.numba_cache import ensure_cache_dir
+
+ensure_cache_dir(__file__)  # before the first @njit(cache=True): predictor/numba_cache.py
 
 ENV_Z = 0
 """Midpoint altitude of the step, m above mean sea level."""

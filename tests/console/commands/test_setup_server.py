@@ -20,6 +20,7 @@ def test_the_unit_runs_the_server_as_its_own_account_with_its_store_its_own(
     assert f"--socket /run/drs/drs.sock --group {group}" in unit and "User=drs-server" in unit
     assert "StateDirectoryMode=0700" in unit and "UMask=0077" in unit and "NoNewPrivileges=yes" in unit
     assert "PrivateUsers" not in unit, "in a user namespace every caller's uid would read as nobody"
+    assert "CacheDirectory=drs-server" in unit and "Environment=NUMBA_CACHE_DIR=/var/cache/drs-server" in unit
     out = capsys.readouterr().out
     assert "useradd --system" in out and "systemctl daemon-reload && systemctl enable --now drs-server" in out
 
