@@ -20,14 +20,14 @@ from typing import TYPE_CHECKING
 from console.commands.argparser import add_two_person_options, input_file, position_or_gpsd, text_or_stdin
 from console.commands.stopping import stop_signals
 from drs_link.config import CapsuleConfig, Config, load_config
-from drs_link.errors import ConfigError, LinkError
+from drs_link.errors import LinkError
 from drs_link.iridium import LISTED  # drs_link.ops's copies load pyproj
 from drs_link.store import Store
 from predictor.errors import UsageError
 from predictor.geofiles import piped
 
 if TYPE_CHECKING:  # the webhook loads jwt, the recovery pipeline pyproj, ops paramiko: not for --help
-    from drs_link.ops import Command, LandingEstimate, Operations, StoredReport, TrackPoint
+    from drs_link.ops import LandingEstimate, Operations, StoredReport, TrackPoint
 
 _IMEI_RE = re.compile(r"\d{15}")
 log = logging.getLogger(__name__)
@@ -179,44 +179,30 @@ def _mt_send(args: argparse.Namespace) -> int:
 
 
 def _mt_status(args: argparse.Namespace) -> int:
-    _, ops = _open(args)
-    capsule = ops.config.capsule(args.name)
-    commands = ops.mt_status(args.name)
+    """Asked of the operations server, which moves the MTs on from the reports it holds."""
+    import msgspec
+
+    from drs_link.server import Client
+
+    with Client.for_config(load_config(args.config)) as client:
+        status = client.iridium.mt_status(args.name)
     if args.json:
-        listed = [_command_json(command) for command in commands]
-        print(json.dumps({"capsule": capsule.name, "imei": capsule.imei, "commands": listed}, indent=2))
+        print(json.dumps(msgspec.to_builtins(status), indent=2))
         return 0
-    for command in commands:
-        print(
-            f"MT {command.id} {command.requested_utc:%Y-%m-%d %H:%M:%S}Z {command.text} {command.state}: "
-            f"{command.detail}"
-        )
+    for command in status.commands:
+        requested = command.requested_utc[:19].replace("T", " ")  # the store's ISO time, to the second
+        print(f"MT {command.id} {requested}Z {command.text} {command.state}: {command.detail}")
     return 0
 
 
-def _command_json(command: Command) -> dict[str, object]:
-    from drs_link.ops import iso_utc
-
-    return {
-        "id": command.id, "text": command.text, "state": command.state, "detail": command.detail,
-        "operator": command.operator, "flush": command.flush, "requested_utc": iso_utc(command.requested_utc),
-        "updated_utc": iso_utc(command.updated_utc),
-        "queued_utc": iso_utc(command.queued_utc) if command.queued_utc else None,
-        "gateway_id": command.mt_id, "delivered_report_id": command.delivered_report_id, "effects": command.effects,
-    }  # fmt: skip
-
-
 def _mt_resolve(args: argparse.Namespace) -> int:
-    config, ops = _open(args)
-    if not config.operator.name:
-        raise ConfigError("operator.name: set [operator] name; every resolution is audited with it")
-    ops.reports_of(args.name)  # an unknown capsule or one without an IMEI is refused first
-    try:
-        commands = ops.resolve_mt(
+    """Through the operations server, which audits the resolution under the caller's operator name."""
+    from drs_link.server import Client
+
+    with Client.for_config(load_config(args.config)) as client:
+        commands = client.iridium.resolve_mt(
             args.name, args.command_id, None if args.not_sent else args.queued, args.note
         )
-    finally:
-        ops.close()
     for command in commands:
         print(f"MT {command.id} {command.text}: {command.state}: {command.detail}")
     return 0

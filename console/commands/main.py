@@ -36,7 +36,7 @@ COMMAND_MODULES: dict[str, str] = {
     "calibrate": "console.commands.calibrate",
     "model": "console.commands.model",
     "capsule": "console.commands.capsule",
-    "sync": "console.commands.capsule",
+    "sync": "console.commands.sync",
     "mt": "console.commands.iridium",
     "mo": "console.commands.iridium",
     "recovery": "console.commands.iridium",

@@ -35,6 +35,7 @@ from drs_link.config import Config
 from drs_link.errors import ConfigError, LinkError, RefusedError, StoreError
 from drs_link.ops import Approval
 from drs_link.server.approvals import ApprovalService
+from drs_link.server.capsules import CapsuleService
 from drs_link.server.desks import Desks, PredictorFor
 from drs_link.server.iridium import IridiumService
 from drs_link.server.peers import Mode, Peer, Roster, check_own_file, check_state_directory, peer_uid
@@ -46,15 +47,22 @@ from drs_link.server.protocol import (
     DecideRequest,
     DisarmRequest,
     Done,
+    EnrolRequest,
     Event,
     Failure,
     FireRequest,
     Hello,
     MtSendRequest,
     Pending,
+    PowerOnRequest,
+    ReasonRequest,
+    ReleasedRequest,
     Request,
+    ResolveMtRequest,
     Said,
     Step,
+    TakeOverRequest,
+    TypedNameRequest,
     encode,
 )
 from drs_link.server.release import ReleaseService
@@ -119,6 +127,7 @@ class OperationsServer:
         self.desks = Desks(config, self.store, environ)
         self.release = ReleaseService(self.desks, mode, predictor_for)
         self.iridium = IridiumService(self.desks, mode)
+        self.capsules = CapsuleService(self.desks, mode)
         self.approvals = ApprovalService(self.store)
         self.pool = ThreadPoolExecutor(max_workers=32, thread_name_prefix="drs-server")
         self.busy = 0
@@ -281,6 +290,79 @@ class OperationsServer:
             request, lambda say, pending: self.iridium.send_mt(request["peer"], name, body, say, pending)
         )
 
+    async def mt_status(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.iridium.mt_status(request["peer"], name)))
+
+    async def resolve_mt(self, request: web.Request) -> web.Response:
+        body = await self.body(request, ResolveMtRequest)
+        name = request.match_info["name"]
+        return json_response(
+            await self.blocking(lambda: self.iridium.resolve_mt(request["peer"], name, body))
+        )
+
+    # The capsule's other steps (``capsules``): each one request, a power-on and a take-over streamed.
+
+    async def status(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.capsules.status(request["peer"], name)))
+
+    async def power_on(self, request: web.Request) -> web.StreamResponse:
+        body = await self.body(request, PowerOnRequest)
+        name = request.match_info["name"]
+        return await self.stream(
+            request, lambda say, _: self.capsules.power_on(request["peer"], name, body.confirmed, say)
+        )
+
+    async def reset(self, request: web.Request) -> web.Response:
+        body = await self.body(request, TypedNameRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(lambda: self.capsules.reset(request["peer"], name, body.typed_name))
+        return json_response(view)
+
+    async def released(self, request: web.Request) -> web.Response:
+        body = await self.body(request, ReleasedRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(
+            lambda: self.capsules.released(request["peer"], name, body.typed_name, body.evidence)
+        )
+        return json_response(view)
+
+    async def authority(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.capsules.authority(request["peer"], name)))
+
+    async def check_take_over(self, request: web.Request) -> web.Response:
+        body = await self.body(request, ReasonRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(lambda: self.capsules.check_take_over(request["peer"], name, body.reason))
+        return json_response(view)
+
+    async def take_over(self, request: web.Request) -> web.StreamResponse:
+        body = await self.body(request, TakeOverRequest)
+        name = request.match_info["name"]
+        return await self.stream(
+            request, lambda say, pending: self.capsules.take_over(request["peer"], name, body, say, pending)
+        )
+
+    async def release_authority(self, request: web.Request) -> web.Response:
+        body = await self.body(request, ReasonRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(
+            lambda: self.capsules.release_authority(request["peer"], name, body.reason)
+        )
+        return json_response(view)
+
+    async def host_key(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.capsules.host_key_offer(request["peer"], name)))
+
+    async def enrol(self, request: web.Request) -> web.Response:
+        body = await self.body(request, EnrolRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(lambda: self.capsules.enrol(request["peer"], name, body.fingerprint))
+        return json_response(view)
+
     async def waiting(self, request: web.Request) -> web.Response:
         return json_response(await self.blocking(self.approvals.waiting))
 
@@ -338,7 +420,19 @@ class OperationsServer:
         app.router.add_post(f"{ROOT}/capsules/{{name}}/arm", self.arm)
         app.router.add_post(f"{ROOT}/capsules/{{name}}/disarm", self.disarm)
         app.router.add_post(f"{ROOT}/capsules/{{name}}/fire", self.fire)
+        app.router.add_get(f"{ROOT}/capsules/{{name}}/status", self.status)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/power-on", self.power_on)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/reset", self.reset)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/released", self.released)
+        app.router.add_get(f"{ROOT}/capsules/{{name}}/authority", self.authority)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/authority/check-take-over", self.check_take_over)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/authority/take-over", self.take_over)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/authority/release", self.release_authority)
+        app.router.add_get(f"{ROOT}/capsules/{{name}}/host-key", self.host_key)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/host-key", self.enrol)
         app.router.add_post(f"{ROOT}/iridium/{{name}}/mt", self.send_mt)
+        app.router.add_get(f"{ROOT}/iridium/{{name}}/mt", self.mt_status)
+        app.router.add_post(f"{ROOT}/iridium/{{name}}/mt/resolve", self.resolve_mt)
         app.router.add_get(f"{ROOT}/approvals", self.waiting)
         app.router.add_post(f"{ROOT}/approvals/{{approval}}", self.decide)
         app.router.add_get(f"{ROOT}/events", self.events)

@@ -2,7 +2,10 @@
 
 ``Client.for_config(config)`` reaches the team's shared server (``[server] socket``) or, with none
 configured, this account's private server, started on demand (``private``). Verbs:
-``client.capsule("DRS1").arm(…)``, ``.fire(…)``, ``.disarm()``, ``client.iridium.send_mt(…)``,
+``client.capsule("DRS1").arm(…)``, ``.fire(…)``, ``.disarm()``, ``.status()``, ``.power_on()``,
+``.reset(name)``, ``.released(name, evidence)``, ``.authority()``, ``.take_over(…)``,
+``.release_authority(reason)``, ``.host_key()``/``.enrol(fingerprint)``, ``client.iridium.send_mt(…)``,
+``.mt_status(name)``, ``.resolve_mt(…)``,
 ``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, and ``client.events()``
 for views.
 
@@ -31,17 +34,31 @@ from drs_link.server.protocol import (
     ApprovalView,
     ArmRequest,
     ArmState,
+    AuthoritySeen,
+    AuthorityView,
+    CapsuleStatus,
     DecideRequest,
     DisarmRequest,
     Done,
+    EnrolRequest,
     Event,
     Failure,
     FireRequest,
     Hello,
+    HostKeyView,
     MtSendRequest,
+    MtStatus,
+    MtView,
     Pending,
+    PowerOnRequest,
+    ReasonRequest,
+    ReleasedRequest,
+    ReleaseView,
+    ResolveMtRequest,
     Said,
     Second,
+    TakeOverRequest,
+    TypedNameRequest,
     Waive,
     decode_step,
     encode,
@@ -240,6 +257,64 @@ class Capsule:
             "POST", f"/capsules/{self.name}/disarm", DisarmRequest(PROTOCOL, reason), ArmState
         )
 
+    def status(self) -> CapsuleStatus:
+        """Release record, link, storage, microcontroller and GNSS, read now (read-only)."""
+        return self.client.call("GET", f"/capsules/{self.name}/status", None, CapsuleStatus)
+
+    def power_on(self, confirmed: bool = True, say: Say = print) -> Done:
+        """Latch the battery relay (software cannot unlatch it: confirm first), then wait for the
+        microcontroller's NMEA; ``ok`` when it waits for Go. Not confirmed: refused and audited."""
+        request = PowerOnRequest(PROTOCOL, confirmed)
+        return self.client.steps(f"/capsules/{self.name}/power-on", request, say)
+
+    def reset(self, typed_name: str) -> ReleaseView:
+        """After recovery: ARM possible again (waivers and approvals void)."""
+        request = TypedNameRequest(PROTOCOL, typed_name)
+        return self.client.call("POST", f"/capsules/{self.name}/reset", request, ReleaseView)
+
+    def released(self, typed_name: str, evidence: str) -> ReleaseView:
+        """Settle an unverified Go as released on the operator's evidence (written to the audit)."""
+        request = ReleasedRequest(PROTOCOL, typed_name, evidence)
+        return self.client.call("POST", f"/capsules/{self.name}/released", request, ReleaseView)
+
+    def authority(self) -> AuthorityView:
+        """Who holds the release authority on the Pi now."""
+        return self.client.call("GET", f"/capsules/{self.name}/authority", None, AuthorityView)
+
+    def check_take_over(self, reason: str) -> AuthorityView:
+        """A take-over that can never be right is refused now, before the name is asked; else who holds
+        the authority, to show the operator (and hand back as ``seen``)."""
+        request = ReasonRequest(PROTOCOL, reason)
+        return self.client.call(
+            "POST", f"/capsules/{self.name}/authority/check-take-over", request, AuthorityView
+        )
+
+    def take_over(
+        self,
+        seen: AuthoritySeen,
+        typed_name: str,
+        reason: str,
+        second: Second | None = None,
+        say: Say = print,
+    ) -> Done:
+        """Take over from what the operator was shown (``seen``); the two-person rule as FIRE meets it."""
+        request = TakeOverRequest(PROTOCOL, seen, typed_name, reason, second or Second())
+        return self.client.steps(f"/capsules/{self.name}/authority/take-over", request, say)
+
+    def release_authority(self, reason: str = "") -> AuthorityView:
+        """Give up this operator's release authority; what was given up (free if it held none)."""
+        request = ReasonRequest(PROTOCOL, reason)
+        return self.client.call("POST", f"/capsules/{self.name}/authority/release", request, AuthorityView)
+
+    def host_key(self) -> HostKeyView:
+        """The host key the Pi offers now, for the operator to compare with the one read on the Pi."""
+        return self.client.call("GET", f"/capsules/{self.name}/host-key", None, HostKeyView)
+
+    def enrol(self, fingerprint: str) -> HostKeyView:
+        """Trust the Pi's key if it is ``fingerprint`` (read on the Pi itself); the server saves it."""
+        request = EnrolRequest(PROTOCOL, fingerprint)
+        return self.client.call("POST", f"/capsules/{self.name}/host-key", request, HostKeyView)
+
 
 @dataclass(frozen=True)
 class Iridium:
@@ -247,6 +322,16 @@ class Iridium:
 
     def send_mt(self, name: str, request: MtSendRequest, say: Say = print) -> Done:
         return self.client.steps(f"/iridium/{name}/mt", request, say)
+
+    def mt_status(self, name: str) -> MtStatus:
+        """The capsule's MTs, once the reports moved them on (delivered, applied), oldest first."""
+        return self.client.call("GET", f"/iridium/{name}/mt", None, MtStatus)
+
+    def resolve_mt(self, name: str, command_id: int, gateway_id: int | None, note: str = "") -> list[MtView]:
+        """Record what the RockBLOCK portal shows for an MT whose delivery is unknown: queued as
+        ``gateway_id``, or (None) never sent. The resolved MT first, then every other that changed."""
+        request = ResolveMtRequest(PROTOCOL, command_id, gateway_id, note)
+        return self.client.call("POST", f"/iridium/{name}/mt/resolve", request, list[MtView])
 
 
 @dataclass(frozen=True)

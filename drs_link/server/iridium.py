@@ -16,16 +16,18 @@ from drs_link.ops import (
     QUEUED,
     RETRY_WARNING,
     Approval,
+    Command,
     MtComposer,
     MtMessage,
     Operations,
     SecondOperator,
     hazard_of,
+    iso_utc,
     parse_hhmm,
 )
 from drs_link.server.desks import Desks
 from drs_link.server.peers import Mode, Peer
-from drs_link.server.protocol import Done, MtSendRequest
+from drs_link.server.protocol import Done, MtSendRequest, MtStatus, MtView, ResolveMtRequest
 from drs_link.server.release import two_person_refusal
 from predictor.errors import UsageError
 
@@ -58,6 +60,17 @@ def compose(
         composer.add(command.name, (plan.hour, plan.minute))
         queue_by = plan.queue_by
     return composer.build(), queue_by
+
+
+def mt_view(command: Command) -> MtView:
+    def iso(moment: datetime | None) -> str | None:
+        return iso_utc(moment) if moment else None
+
+    return MtView(
+        command.id, command.text, command.state, command.detail, command.operator, command.flush,
+        iso_utc(command.requested_utc), iso_utc(command.updated_utc), iso(command.queued_utc), command.mt_id,
+        command.delivered_report_id, dict(command.effects),
+    )  # fmt: skip
 
 
 class IridiumService:
@@ -103,3 +116,18 @@ class IridiumService:
         lines.append(f"MT {sent.command.id}: {sent.command.state}: {sent.command.detail}")
         lines.extend(f"checklist: done: {step.text}" for step in sent.steps)
         return Done(tuple(lines), sent.command.state == QUEUED)
+
+    def mt_status(self, peer: Peer, name: str) -> MtStatus:
+        """The capsule's MTs after the reports moved them on (delivered, applied), oldest first."""
+        ops = self.desks.desk(peer)
+        capsule = ops.config.capsule(name)
+        return MtStatus(capsule.name, capsule.imei, tuple(mt_view(c) for c in ops.mt_status(name)))
+
+    def resolve_mt(self, peer: Peer, name: str, request: ResolveMtRequest) -> tuple[MtView, ...]:
+        """``Operations.resolve_mt``: the resolved MT first, then every other the reports moved on."""
+        ops = self.desks.desk(peer)
+        if not peer.operator:
+            raise ConfigError("operator.name: set [operator] name; every resolution is audited with it")
+        ops.reports_of(name)  # an unknown capsule or one without an IMEI is refused first
+        resolved = ops.resolve_mt(name, request.command_id, request.gateway_id, request.note)
+        return tuple(mt_view(c) for c in resolved)

@@ -80,6 +80,59 @@ class DecideRequest(Request, frozen=True):
     reason: str = ""
 
 
+class PowerOnRequest(Request, frozen=True):
+    confirmed: bool
+    """The operator confirmed it (``--yes`` or the typed name); False is refused, and audited, by the
+    state machine, as the console's dialog answered no."""
+
+
+class TypedNameRequest(Request, frozen=True):
+    """A step confirmed by typing the capsule's name (``drs capsule reset``)."""
+
+    typed_name: str
+
+
+class ReleasedRequest(Request, frozen=True):
+    typed_name: str
+    evidence: str
+
+
+class ReasonRequest(Request, frozen=True):
+    """Giving up release authority, or asking whether a take-over could be right, for this reason."""
+
+    reason: str = ""
+
+
+class AuthoritySeen(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """The release authority the operator was shown, as the Pi's owner file said it: a take-over hands it
+    back and the Pi goes ahead only if its file still says exactly that."""
+
+    holder: str | None
+    lease_end_s: int
+    pi_time_s: int
+
+
+class TakeOverRequest(Request, frozen=True):
+    seen: AuthoritySeen
+    typed_name: str
+    reason: str
+    second: Second = Second()
+
+
+class EnrolRequest(Request, frozen=True):
+    fingerprint: str
+    """The fingerprint the operator read on the Pi itself."""
+
+
+class ResolveMtRequest(Request, frozen=True):
+    """``drs mt resolve``: what the RockBLOCK portal shows for an MT whose delivery is unknown."""
+
+    command_id: int
+    gateway_id: int | None
+    """Queued with this id, or None: never sent."""
+    note: str = ""
+
+
 # Answers ------------------------------------------------------------------------------------------
 
 
@@ -120,6 +173,115 @@ class ApprovalView(msgspec.Struct, frozen=True):
     decider_account: str | None
     described: str
     """The request as ``drs approve`` prints it (``Approval.describe``)."""
+
+
+class AuthorityView(msgspec.Struct, frozen=True):
+    """Who holds a capsule's release authority on its Pi, and who the caller would hold it as."""
+
+    capsule: str
+    seen: AuthoritySeen
+    described: str
+    """``AuthorityStatus.describe``: holder, lease end and what is left of it, by the Pi's clock."""
+    this_console: str
+    """The caller's holder name (``default_holder`` of its operator)."""
+
+    @property
+    def mine(self) -> bool:
+        return self.seen.holder == self.this_console
+
+
+class ReleaseView(msgspec.Struct, frozen=True):
+    """The release record, as ``drs capsule status --json`` has always printed it."""
+
+    capsule: str
+    state: str
+    powered_at: str | None
+    nmea_seen_at: str | None
+    go_at: str | None
+    released_at: str | None
+    failed_go_at: str | None
+    note: str | None
+
+
+class LinkView(msgspec.Struct, frozen=True, omit_defaults=True):
+    up: bool
+    error: str | None = None
+    note: str | None = None
+
+
+class StorageView(msgspec.Struct, frozen=True):
+    mount: str | None
+    total_bytes: int | None
+    used_bytes: int | None
+    available_bytes: int | None
+    raid_device: str | None
+    raid_state: str
+    raid_members: str | None
+
+
+class MicrocontrollerView(msgspec.Struct, frozen=True):
+    waiting_for_go: bool
+    diagnosis: str
+
+
+class GnssView(msgspec.Struct, frozen=True):
+    nmea_seen: bool
+    fix_quality: int | None
+    fix_quality_name: str
+    has_fix: bool
+    satellites: int | None
+    hdop: float | None
+    latitude: float | None
+    longitude: float | None
+    altitude_m: float | None
+    fix_time_utc: str | None
+    age_s: float | None
+    sentences_parsed: int
+    sentences_malformed: int
+    sentences_bad_checksum: int
+    date_problem: str | None
+
+
+class CapsuleStatus(msgspec.Struct, frozen=True, omit_defaults=True):
+    """``drs capsule status``: what is absent (the Pi unreachable, not powered) is left out."""
+
+    release: ReleaseView
+    link: LinkView
+    storage: StorageView | None = None
+    microcontroller: MicrocontrollerView | None = None
+    gnss: GnssView | None = None
+
+
+class HostKeyView(msgspec.Struct, frozen=True):
+    """The host key a capsule's Pi offers (``drs capsule enrol``), and where it was saved once confirmed."""
+
+    address: str
+    key_type: str
+    fingerprint: str
+    saved_to: str | None = None
+
+
+class MtView(msgspec.Struct, frozen=True):
+    """One MT's lifecycle, in the order ``drs mt status --json`` prints its fields."""
+
+    id: int
+    text: str
+    state: str
+    detail: str
+    operator: str
+    flush: bool
+    requested_utc: str
+    updated_utc: str
+    queued_utc: str | None
+    gateway_id: int | None
+    delivered_report_id: int | None
+    effects: dict[str, str]
+
+
+class MtStatus(msgspec.Struct, frozen=True):
+    capsule: str
+    imei: str | None
+    commands: tuple[MtView, ...]
 
 
 class Failure(msgspec.Struct, frozen=True, tag="failure"):
