@@ -193,21 +193,21 @@ are measured; a model without live settings flies ``DEFAULT_DISCREPANCY``, never
 DEFAULT_DISCREPANCY = RateDiscrepancy(
     heights_km=(1.0, 3.5, 6.0, 8.5, 11.0, 13.5, 16.0, 18.5, 21.0, 23.5, 26.0, 28.5),
     log_bias=(0.0,) * 12,
-    log_sigma=(0.299, 0.089, 0.109, 0.097, 0.102, 0.133, 0.156, 0.168, 0.212, 0.243, 0.275, 0.276),
+    log_sigma=(0.125, 0.1, 0.115, 0.105, 0.1, 0.113, 0.153, 0.176, 0.217, 0.217, 0.217, 0.198),
     remaining_log_mean=(0.0,) * 12,
-    remaining_log_sigma=(0.282, 0.256, 0.235, 0.218, 0.208, 0.209, 0.214, 0.22, 0.227, 0.232, 0.255, 0.26),
-    remaining_flights=(4,) * 12,
+    remaining_log_sigma=(0.282, 0.256, 0.235, 0.218, 0.191, 0.183, 0.176, 0.174, 0.176, 0.177, 0.188, 0.207),
+    remaining_flights=(7,) * 12,
 )
 """How far a record's λ may be from the remaining descent's, and the remaining λ's prior, for a model
 without live settings of its own: conservative, so that neither a dense record (a 1 Hz record's fit σ
 is a fraction of a percent) nor a pooled λ decides alone. Measured on two payloads' real flights (the
-30 SuperBIT flights and the 5 EOSS flights with a landing, tests/data/eoss), on the model and textbook
+30 SuperBIT flights and the 10 EOSS flights with a landing, tests/data/eoss), on the model and textbook
 laws (``measured_discrepancies``): at each height the largest root-mean-square log departure of a
 record from the remaining descent (√(median² + spread²): a law's median departure is its shape error,
 unknown for a law not evaluated live, so it is counted as spread, not taken off), and as the prior the
 law itself (λ = 1) with the largest root-mean-square remaining ln λ as its width
 (``conservative_discrepancy``; command in docs/planning.md). On SuperBIT alone the spread was 7–15 %,
-EOSS's payload on the SuperBIT law widens it to 9–30 % and the prior to 21–28 %."""
+EOSS's payload on the SuperBIT law widens it to 10–22 % and the prior to 17–28 %."""
 
 
 @dataclass(frozen=True)
