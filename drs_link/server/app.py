@@ -61,7 +61,10 @@ from drs_link.server.protocol import (
     ResolveMtRequest,
     Said,
     Step,
+    SyncRequest,
+    SyncStatusRequest,
     TakeOverRequest,
+    TrackRequest,
     TypedNameRequest,
     encode,
 )
@@ -301,6 +304,14 @@ class OperationsServer:
             await self.blocking(lambda: self.iridium.resolve_mt(request["peer"], name, body))
         )
 
+    async def health(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.iridium.health(request["peer"], name)))
+
+    async def track(self, request: web.Request) -> web.Response:
+        body = await self.body(request, TrackRequest)
+        return json_response(await self.blocking(lambda: self.iridium.track(request["peer"], body)))
+
     # The capsule's other steps (``capsules``): each one request, a power-on and a take-over streamed.
 
     async def status(self, request: web.Request) -> web.Response:
@@ -350,6 +361,21 @@ class OperationsServer:
         name = request.match_info["name"]
         view = await self.blocking(
             lambda: self.capsules.release_authority(request["peer"], name, body.reason)
+        )
+        return json_response(view)
+
+    async def sync(self, request: web.Request) -> web.StreamResponse:
+        body = await self.body(request, SyncRequest)
+        name = request.match_info["name"]
+        return await self.stream(
+            request, lambda say, _: self.capsules.sync(request["peer"], name, body.source, say)
+        )
+
+    async def sync_status(self, request: web.Request) -> web.Response:
+        body = await self.body(request, SyncStatusRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(
+            lambda: self.capsules.sync_status(request["peer"], name, body.source, body.with_hash)
         )
         return json_response(view)
 
@@ -428,11 +454,15 @@ class OperationsServer:
         app.router.add_post(f"{ROOT}/capsules/{{name}}/authority/check-take-over", self.check_take_over)
         app.router.add_post(f"{ROOT}/capsules/{{name}}/authority/take-over", self.take_over)
         app.router.add_post(f"{ROOT}/capsules/{{name}}/authority/release", self.release_authority)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/sync", self.sync)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/sync/status", self.sync_status)
         app.router.add_get(f"{ROOT}/capsules/{{name}}/host-key", self.host_key)
         app.router.add_post(f"{ROOT}/capsules/{{name}}/host-key", self.enrol)
         app.router.add_post(f"{ROOT}/iridium/{{name}}/mt", self.send_mt)
         app.router.add_get(f"{ROOT}/iridium/{{name}}/mt", self.mt_status)
         app.router.add_post(f"{ROOT}/iridium/{{name}}/mt/resolve", self.resolve_mt)
+        app.router.add_get(f"{ROOT}/iridium/{{name}}/health", self.health)
+        app.router.add_post(f"{ROOT}/iridium/track", self.track)
         app.router.add_get(f"{ROOT}/approvals", self.waiting)
         app.router.add_post(f"{ROOT}/approvals/{{approval}}", self.decide)
         app.router.add_get(f"{ROOT}/events", self.events)

@@ -4,8 +4,8 @@
 configured, this account's private server, started on demand (``private``). Verbs:
 ``client.capsule("DRS1").arm(…)``, ``.fire(…)``, ``.disarm()``, ``.status()``, ``.power_on()``,
 ``.reset(name)``, ``.released(name, evidence)``, ``.authority()``, ``.take_over(…)``,
-``.release_authority(reason)``, ``.host_key()``/``.enrol(fingerprint)``, ``client.iridium.send_mt(…)``,
-``.mt_status(name)``, ``.resolve_mt(…)``,
+``.release_authority(reason)``, ``.host_key()``/``.enrol(fingerprint)``, ``.sync(source)``/``.sync_status(…)``, ``client.iridium.send_mt(…)``,
+``.mt_status(name)``, ``.resolve_mt(…)``, ``.health(name)``, ``.track(…)``,
 ``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, and ``client.events()``
 for views.
 
@@ -44,6 +44,7 @@ from drs_link.server.protocol import (
     Event,
     Failure,
     FireRequest,
+    HealthView,
     Hello,
     HostKeyView,
     MtSendRequest,
@@ -57,7 +58,13 @@ from drs_link.server.protocol import (
     ResolveMtRequest,
     Said,
     Second,
+    SyncReportView,
+    SyncRequest,
+    SyncStatusRequest,
+    SyncStatusView,
     TakeOverRequest,
+    TrackCsv,
+    TrackRequest,
     TypedNameRequest,
     Waive,
     decode_step,
@@ -219,6 +226,11 @@ class Client:
             yield item
 
 
+def absolute(paths: tuple[str, ...]) -> tuple[str, ...]:
+    """Paths as this process names them: the server does not share its working directory."""
+    return tuple(str(Path(p).absolute()) for p in paths)
+
+
 def _failure(raw: bytes) -> Failure:
     try:
         return msgspec.json.decode(raw, type=Failure)
@@ -235,7 +247,7 @@ class Capsule:
 
     def arm(self, waivers: tuple[tuple[str, str], ...] = (), weather: tuple[str, ...] = (),
             say: Say = print) -> ArmState:  # fmt: skip
-        request = ArmRequest(PROTOCOL, tuple(Waive(i, r) for i, r in waivers), weather)
+        request = ArmRequest(PROTOCOL, tuple(Waive(i, r) for i, r in waivers), absolute(weather))
         done = self.client.steps(f"/capsules/{self.name}/arm", request, say)
         assert done.arm is not None
         return done.arm
@@ -249,7 +261,7 @@ class Capsule:
         say: Say = print,
     ) -> Done:
         waived = tuple(Waive(i, r) for i, r in waivers)
-        request = FireRequest(PROTOCOL, typed_name, waived, weather, second or Second())
+        request = FireRequest(PROTOCOL, typed_name, waived, absolute(weather), second or Second())
         return self.client.steps(f"/capsules/{self.name}/fire", request, say)
 
     def disarm(self, reason: str = "operator disarmed (drs capsule disarm)") -> ArmState:
@@ -306,6 +318,19 @@ class Capsule:
         request = ReasonRequest(PROTOCOL, reason)
         return self.client.call("POST", f"/capsules/{self.name}/authority/release", request, AuthorityView)
 
+    def sync(self, source: Path | None = None, say: Say = print) -> SyncReportView:
+        """Upload ``source`` (None: the capsule's ``sync_source``) with the server's SSH identity, each file
+        verified by sha256 on the Pi; the server reads only what this account could read."""
+        request = SyncRequest(PROTOCOL, None if source is None else str(source.absolute()))
+        done = self.client.steps(f"/capsules/{self.name}/sync", request, say)
+        assert done.sync is not None
+        return done.sync
+
+    def sync_status(self, source: Path | None = None, with_hash: bool = False) -> SyncStatusView:
+        """What an upload would send (read-only; ``with_hash`` compares sha256 on the Pi too)."""
+        request = SyncStatusRequest(PROTOCOL, None if source is None else str(source.absolute()), with_hash)
+        return self.client.call("POST", f"/capsules/{self.name}/sync/status", request, SyncStatusView)
+
     def host_key(self) -> HostKeyView:
         """The host key the Pi offers now, for the operator to compare with the one read on the Pi."""
         return self.client.call("GET", f"/capsules/{self.name}/host-key", None, HostKeyView)
@@ -332,6 +357,15 @@ class Iridium:
         ``gateway_id``, or (None) never sent. The resolved MT first, then every other that changed."""
         request = ResolveMtRequest(PROTOCOL, command_id, gateway_id, note)
         return self.client.call("POST", f"/iridium/{name}/mt/resolve", request, list[MtView])
+
+    def health(self, name: str) -> HealthView:
+        """Battery, resets, gaps and spacing, judged from the reports the server holds."""
+        return self.client.call("GET", f"/iridium/{name}/health", None, HealthView)
+
+    def track(self, capsule: str | None = None, imei: str | None = None) -> TrackCsv:
+        """The stored fixes of a capsule (or a modem by IMEI) as the canonical track CSV's text, for
+        this process to write (``drs_link.exports.write_export``): the file is then the operator's own."""
+        return self.client.call("POST", "/iridium/track", TrackRequest(PROTOCOL, capsule, imei), TrackCsv)
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ numbers named, before anything is read as a command.
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from typing import Literal
 
 import msgspec
@@ -122,6 +123,27 @@ class TakeOverRequest(Request, frozen=True):
 class EnrolRequest(Request, frozen=True):
     fingerprint: str
     """The fingerprint the operator read on the Pi itself."""
+
+
+class SyncRequest(Request, frozen=True):
+    """``drs sync``: upload ``source`` (an absolute path the caller's account can read; None: the capsule's
+    configured ``sync_source``)."""
+
+    source: str | None = None
+
+
+class SyncStatusRequest(Request, frozen=True):
+    """``drs sync --status``: what an upload of ``source`` would send (``with_hash``: sha256 compared too)."""
+
+    source: str | None = None
+    with_hash: bool = False
+
+
+class TrackRequest(Request, frozen=True):
+    """``drs mo export``: the stored fixes of a configured capsule, or of a modem by its IMEI."""
+
+    capsule: str | None = None
+    imei: str | None = None
 
 
 class ResolveMtRequest(Request, frozen=True):
@@ -261,6 +283,26 @@ class HostKeyView(msgspec.Struct, frozen=True):
     saved_to: str | None = None
 
 
+class SyncStatusView(msgspec.Struct, frozen=True):
+    """What an upload would send, in the fields ``drs sync --status --json`` has always printed."""
+
+    missing: tuple[str, ...]
+    changed: tuple[str, ...]
+    up_to_date: int
+    bytes_pending: int
+    last_sync_utc: str | None
+    left_out: tuple[str, ...]
+
+
+class SyncReportView(msgspec.Struct, frozen=True):
+    """An upload's outcome: every file uploaded was verified by sha256 on the Pi."""
+
+    uploaded: tuple[str, ...]
+    skipped: int
+    bytes_sent: int
+    left_out: tuple[str, ...]
+
+
 class MtView(msgspec.Struct, frozen=True):
     """One MT's lifecycle, in the order ``drs mt status --json`` prints its fields."""
 
@@ -282,6 +324,34 @@ class MtStatus(msgspec.Struct, frozen=True):
     capsule: str
     imei: str | None
     commands: tuple[MtView, ...]
+
+
+class FindingView(msgspec.Struct, frozen=True):
+    kind: str
+    report_id: int
+    message: str
+
+
+class HealthView(msgspec.Struct, frozen=True):
+    """``drs mo health``: battery, resets, gaps and spacing, judged by the server from the reports it holds."""
+
+    capsule: str
+    imei: str | None
+    reports: int
+    last_report: datetime | None
+    last_vbat: float | None
+    findings: tuple[FindingView, ...]
+
+
+class TrackCsv(msgspec.Struct, frozen=True):
+    """``drs mo export``: the canonical track CSV, for the client to write where its operator chose (the
+    file is then the operator's own), and what was left out."""
+
+    who: str
+    csv: str
+    fixes: int
+    without_fix: int
+    rejected: int
 
 
 class Failure(msgspec.Struct, frozen=True, tag="failure"):
@@ -309,6 +379,8 @@ class Done(msgspec.Struct, frozen=True, tag="done"):
     ok: bool = True
     arm: ArmState | None = None
     """ARM's answer: the window it opened."""
+    sync: SyncReportView | None = None
+    """An upload's answer (``drs sync``)."""
 
 
 Step = Said | Pending | Done | Failure
@@ -321,6 +393,11 @@ class Event(msgspec.Struct, frozen=True):
     release: dict[str, str]
     armed: dict[str, str]
     approvals: tuple[ApprovalView, ...]
+
+
+def iso_utc(moment: datetime) -> str:
+    """A typed time as the store and every ``--json`` output write it (ISO 8601, milliseconds, ``Z``)."""
+    return moment.astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def encode(value: object) -> bytes:
