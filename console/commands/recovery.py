@@ -1,9 +1,9 @@
 """``drs recovery``: landing estimate, distance from you, GPX/KML and the recovery map, from a terminal.
 
-Not yet a client of the operations server (issue #29): it opens ``Operations`` in this process to read
-the stored reports (and, with ``--map --weather``, re-predicts there), so in shared use it needs the
-store, which only the server holds (docs/console.md). Its own module so that the Iridium commands
-(``console.commands.iridium``) are clients whole.
+A client of the operations server (issue #29): the server reads the stored reports (and, for
+``--map --weather``, re-predicts the landing on weather files the caller's account could read) and
+answers in typed values; this process reads what is the operator's own (their position, their gpsd,
+their predicted track, their terrain files) and writes every file, so the files are theirs.
 """
 
 from __future__ import annotations
@@ -12,17 +12,17 @@ import argparse
 import json
 import math
 import sys
-from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from console.commands.argparser import input_file, position_or_gpsd
-from drs_link.config import CapsuleConfig, Config, load_config
+from drs_link.config import load_config
 from drs_link.errors import LinkError
 from predictor.geofiles import piped
 
-if TYPE_CHECKING:  # the recovery pipeline loads pyproj, ops paramiko: not for --help
-    from drs_link.ops import LandingEstimate, Operations, StoredReport, TrackPoint
+if TYPE_CHECKING:
+    from drs_link.server.protocol import DescentView
+    from drs_link.server.recovery import LiveFor
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -69,17 +69,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     recovery.set_defaults(func=_recovery)
 
 
-def _open(args: argparse.Namespace) -> tuple[Config, Operations]:
-    from drs_link.ops import Operations, cli_holder
-
-    config = load_config(args.config)
-    return config, Operations.open(config, holder=cli_holder())
-
-
-def _capsule_reports(ops: Operations, name: str) -> tuple[CapsuleConfig, list[StoredReport]]:
-    return ops.config.capsule(name), ops.reports_of(name)
-
-
 def _says_demo(node: object) -> bool:
     """Whether any member of a GeoJSON document says ``is_demo`` (drs predict marks every feature)."""
     if isinstance(node, dict):
@@ -118,133 +107,94 @@ def _read_predicted(path: Path) -> tuple[list[tuple[float, float, float]], bool]
 
 
 def _recovery(args: argparse.Namespace) -> int:
-    from drs_link.ops import (
-        detect_landing,
-        parse_position,
-        phone_summary,
-        read_gpsd_position,
-        track_from_reports,
-        write_gpx,
-        write_kml,
-    )
+    """The server reads the reports (and re-predicts, for a map with weather); this process reads the
+    team's position and the predicted track, which are the operator's, and writes every file asked for."""
+    import msgspec
+
+    from drs_link.positions import parse_position, read_gpsd_position
+    from drs_link.server import PROTOCOL, Client
+    from drs_link.server.protocol import RecoveryRequest
+    from predictor.geofiles import write_text
     from predictor.prediction import emit, far_team_warning
 
     # With --json or a '-' output, stdout carries that one document and the lines for people go to stderr.
     said = sys.stderr if piped(gpx=args.gpx, kml=args.kml, json=args.json) or args.json else sys.stdout
-    _, ops = _open(args)
-    capsule, reports = _capsule_reports(ops, args.name)
     team = None
     if args.origin == "gpsd":
         team = read_gpsd_position()
     elif args.origin is not None:
         team = parse_position(args.origin)
     predicted, predicted_is_demo = _read_predicted(args.predicted) if args.predicted else ([], False)
-    track = track_from_reports(reports)
-    landing = detect_landing(track)
-    coarse = None
-    if reports and (position := reports[-1].iridium_position()) is not None:
-        coarse = (*position, reports[-1].session_time)
-    capsule_at = (landing.lat, landing.lon) if landing else (track[-1].lat, track[-1].lon) if track else None
-    if team is not None and capsule_at is not None:
-        emit(far_team_warning(team, capsule_at))
-    summary = phone_summary(capsule.name, landing, track[-1] if track else None, team, coarse)
+    request = RecoveryRequest(
+        PROTOCOL, team, tuple(predicted), predicted_is_demo, bool(args.gpx), bool(args.kml), bool(args.map),
+        absolute(args.weather), None if args.dem is None else str(args.dem.absolute()),
+    )  # fmt: skip
+    with Client.for_config(load_config(args.config), live_for=_live_for()) as client:
+        readout = client.recovery(args.name, request)
+    if team is not None and readout.capsule_at is not None:
+        emit(far_team_warning(team, (readout.capsule_at.lat, readout.capsule_at.lon)))
     if not args.json:
-        print(summary, file=said)
-        if landing is not None:
-            print(
-                f"landed {landing.landed_at:%Y-%m-%d %H:%M:%S}Z at {landing.alt_m:.0f} m; "
-                f"{landing.count} fixes kept, {landing.rejected} rejected; "
-                f"last on site {landing.last_fix_at:%H:%M:%S}Z",
-                file=said,
-            )
-    if args.gpx:
-        write_gpx(args.gpx, capsule.name, track, predicted, landing, predicted_is_demo=predicted_is_demo)
-        print(f"wrote {args.gpx}", file=said)
-    if args.kml:
-        write_kml(args.kml, capsule.name, track, predicted, landing, predicted_is_demo=predicted_is_demo)
-        print(f"wrote {args.kml}", file=said)
+        print(readout.document.summary, file=said)
+        if readout.landed is not None:
+            print(readout.landed, file=said)
+    for option, path, text, what in (
+        ("gpx", args.gpx, readout.gpx, "GPX"),
+        ("kml", args.kml, readout.kml, "KML"),
+    ):
+        if path:
+            assert text is not None, f"the server sent no {option}"
+            write_text(path, text, what)
+            print(f"wrote {path}", file=said)
     if args.map:
+        assert readout.descent is not None, "the server sent no descent"
         chase = (
-            team
-            if args.chase is None
-            else read_gpsd_position()
-            if args.chase == "gpsd"
+            team if args.chase is None
+            else read_gpsd_position() if args.chase == "gpsd"
             else parse_position(args.chase)
-        )
-        _draw_map(args, ops, capsule.name, reports, chase)
+        )  # fmt: skip
+        _draw_map(args, readout.document.capsule, readout.descent, chase)
         print(f"wrote {args.map}", file=said)
     if args.json:
-        print(json.dumps(_recovery_json(capsule.name, summary, landing, track, team, coarse), indent=2))
+        print(json.dumps(msgspec.to_builtins(readout.document), indent=2))
     return 0
 
 
+def absolute(paths: list[Path] | None) -> tuple[str, ...]:
+    """Paths as this process names them: the server does not share its working directory."""
+    return tuple(str(p.absolute()) for p in paths or ())
+
+
+def _live_for() -> LiveFor:
+    """The live re-prediction a private server in this process runs (``DRS_PRIVATE_SERVER=thread``)."""
+    from console.commands.server import live_for
+
+    return live_for
+
+
 def _draw_map(
-    args: argparse.Namespace,
-    ops: Operations,
-    name: str,
-    reports: list[StoredReport],
-    chase: tuple[float, float] | None,
+    args: argparse.Namespace, name: str, descent: DescentView, chase: tuple[float, float] | None
 ) -> None:
-    """The recovery picture: the live re-prediction needs the weather (and flies the capsule's model)."""
-    from console.predictions import PredictionService, capsule_models
-    from console.recovery_map import draw_recovery_map, recovery_picture
-    from drs_link.ops import follow_descent
+    """The recovery picture from the server's descent (its live re-prediction flew the weather), drawn
+    here over this operator's own terrain files."""
+    from console.recovery_map import LiveLanding, draw_recovery_map, picture_from
     from predictor import Terrain
 
-    terrain = Terrain.from_dir(args.dem) if args.dem else None
-    live = None
-    if args.weather:
-        files = list(args.weather)
-        models = capsule_models([(c.name, c.model) for c in ops.config.capsules])
-        ground = terrain or Terrain.sea_level()
-        live = PredictionService(lambda: files, lambda: ground, ops.clock, models).live
-    descent = follow_descent(reports, name, live)
-    picture = recovery_picture(name, descent, chase, weather=bool(args.weather))
-    draw_recovery_map(picture, args.map, terrain)
-
-
-def _recovery_json(
-    name: str,
-    summary: str,
-    landing: LandingEstimate | None,
-    track: list[TrackPoint],
-    team: tuple[float, float] | None,
-    coarse: tuple[float, float, float, datetime] | None,
-) -> dict[str, object]:
-    """What the summary line says, as numbers: the distance and bearing are from the team to the best
-    position there is (the landing, else the last fix, else Iridium's coarse one)."""
-    from drs_link.ops import distance_bearing, iso_utc
-
-    last = track[-1] if track else None
-    document: dict[str, object] = {
-        "capsule": name,
-        "summary": summary,
-        "landing": None if landing is None else {
-            "lat": landing.lat, "lon": landing.lon, "alt_m": landing.alt_m,
-            "std_m": None if math.isnan(landing.std_m) else landing.std_m, "fixes": landing.count,
-            "rejected": landing.rejected, "landed_utc": iso_utc(landing.landed_at),
-            "last_fix_utc": iso_utc(landing.last_fix_at),
-            "moved_utc": iso_utc(landing.moved_at) if landing.moved_at else None,
-        },
-        "last_fix": None if last is None else {
-            "time_utc": iso_utc(last.time), "lat": last.lat, "lon": last.lon, "alt_m": last.alt_m,
-            "speed_ms": last.speed_ms,
-        },
-        "iridium_position": None if coarse is None else {
-            "lat": coarse[0], "lon": coarse[1], "cep_m": coarse[2], "time_utc": iso_utc(coarse[3]),
-        },
-        "from": None if team is None else {"lat": team[0], "lon": team[1]},
-    }  # fmt: skip
-    best = (
-        (landing.lat, landing.lon)
-        if landing
-        else (last.lat, last.lon)
-        if last
-        else coarse[:2]
-        if coarse
-        else None
+    live = descent.live
+    predicted = None
+    if live is not None and math.isfinite(live.sigma_major_km):
+        predicted = LiveLanding(
+            live.lat, live.lon, live.sigma_major_km, live.sigma_minor_km, live.major_axis_bearing_deg
+        )
+    last = (descent.track[-1].time, descent.track[-1].alt_m) if descent.track else None
+    picture = picture_from(
+        name,
+        tuple((p.lat, p.lon) for p in descent.track),
+        last,
+        (descent.landed.lat, descent.landed.lon) if descent.landed is not None else None,
+        predicted,
+        (live.time, live.correction) if live is not None else None,
+        descent.live_error,
+        chase,
+        weather=bool(args.weather),
     )
-    if team is not None and best is not None:
-        distance, bearing = distance_bearing(team[0], team[1], best[0], best[1])
-        document["distance_m"], document["bearing_deg"] = distance, bearing
-    return document
+    draw_recovery_map(picture, args.map, Terrain.from_dir(args.dem) if args.dem else None)

@@ -41,6 +41,7 @@ from drs_link.server.iridium import IridiumService
 from drs_link.server.peers import Mode, Peer, Roster, check_own_file, check_state_directory, peer_uid
 from drs_link.server.protocol import (
     MAX_BODY_BYTES,
+    MAX_RECOVERY_BYTES,
     PROTOCOL,
     ROOT,
     ArmRequest,
@@ -56,6 +57,7 @@ from drs_link.server.protocol import (
     Pending,
     PowerOnRequest,
     ReasonRequest,
+    RecoveryRequest,
     ReleasedRequest,
     Request,
     ResolveMtRequest,
@@ -68,6 +70,7 @@ from drs_link.server.protocol import (
     TypedNameRequest,
     encode,
 )
+from drs_link.server.recovery import LiveFor, RecoveryService
 from drs_link.server.release import ReleaseService
 from drs_link.store import Store
 from predictor.errors import UsageError
@@ -115,6 +118,7 @@ class OperationsServer:
         idle_exit_s: float | None = None,
         predictor_for: PredictorFor | None = None,
         environ: dict[str, str] | None = None,
+        live_for: LiveFor | None = None,
     ) -> None:
         if config.source is not None:
             check_own_file(config.source)
@@ -132,6 +136,7 @@ class OperationsServer:
         self.iridium = IridiumService(self.desks, mode)
         self.capsules = CapsuleService(self.desks, mode)
         self.approvals = ApprovalService(self.store)
+        self.recovery = RecoveryService(self.desks, live_for)
         self.pool = ThreadPoolExecutor(max_workers=32, thread_name_prefix="drs-server")
         self.busy = 0
         self.last_active = time.monotonic()
@@ -312,6 +317,12 @@ class OperationsServer:
         body = await self.body(request, TrackRequest)
         return json_response(await self.blocking(lambda: self.iridium.track(request["peer"], body)))
 
+    async def recovery_readout(self, request: web.Request) -> web.Response:
+        body = await self.body(request, RecoveryRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(lambda: self.recovery.readout(request["peer"], name, body))
+        return json_response(view)
+
     # The capsule's other steps (``capsules``): each one request, a power-on and a take-over streamed.
 
     async def status(self, request: web.Request) -> web.Response:
@@ -463,6 +474,9 @@ class OperationsServer:
         app.router.add_post(f"{ROOT}/iridium/{{name}}/mt/resolve", self.resolve_mt)
         app.router.add_get(f"{ROOT}/iridium/{{name}}/health", self.health)
         app.router.add_post(f"{ROOT}/iridium/track", self.track)
+        recovery = web.Application(client_max_size=MAX_RECOVERY_BYTES)  # the one request with a track in it
+        recovery.router.add_post("/{name}", self.recovery_readout)
+        app.add_subapp(f"{ROOT}/recovery/", recovery)
         app.router.add_get(f"{ROOT}/approvals", self.waiting)
         app.router.add_post(f"{ROOT}/approvals/{{approval}}", self.decide)
         app.router.add_get(f"{ROOT}/events", self.events)

@@ -6,7 +6,7 @@ configured, this account's private server, started on demand (``private``). Verb
 ``.reset(name)``, ``.released(name, evidence)``, ``.authority()``, ``.take_over(…)``,
 ``.release_authority(reason)``, ``.host_key()``/``.enrol(fingerprint)``, ``.sync(source)``/``.sync_status(…)``, ``client.iridium.send_mt(…)``,
 ``.mt_status(name)``, ``.resolve_mt(…)``, ``.health(name)``, ``.track(…)``,
-``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, and ``client.events()``
+``client.recovery(name, …)``, ``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, and ``client.events()``
 for views.
 
 Why the standard library's ``http.client`` for the verbs: a ``drs`` command is one blocking request,
@@ -53,6 +53,8 @@ from drs_link.server.protocol import (
     Pending,
     PowerOnRequest,
     ReasonRequest,
+    RecoveryReadout,
+    RecoveryRequest,
     ReleasedRequest,
     ReleaseView,
     ResolveMtRequest,
@@ -74,6 +76,7 @@ from predictor.errors import UsageError
 
 if TYPE_CHECKING:
     from drs_link.server.desks import PredictorFor
+    from drs_link.server.recovery import LiveFor
 
 T = TypeVar("T")
 Say = Callable[[str], None]
@@ -116,14 +119,16 @@ class Client:
         self.approvals = Approvals(self)
 
     @classmethod
-    def for_config(cls, config: Config, predictor_for: PredictorFor | None = None) -> Client:
+    def for_config(
+        cls, config: Config, predictor_for: PredictorFor | None = None, live_for: LiveFor | None = None
+    ) -> Client:
         """The team's server (``[server] socket``), else this account's private one (started if need be;
-        ``predictor_for`` only reaches one run in this process, ``private.IN_PROCESS_ENV``)."""
+        ``predictor_for`` and ``live_for`` only reach one run in this process, ``private.IN_PROCESS_ENV``)."""
         if config.server.socket:
             return cls(Path(config.server.socket).expanduser())
         from drs_link.server.private import ensure_private_server
 
-        return cls(ensure_private_server(config, predictor_for))
+        return cls(ensure_private_server(config, predictor_for, live_for))
 
     def close(self) -> None:
         self._conn.close()
@@ -136,6 +141,11 @@ class Client:
 
     def capsule(self, name: str) -> Capsule:
         return Capsule(self, name)
+
+    def recovery(self, name: str, request: RecoveryRequest) -> RecoveryReadout:
+        """Where a capsule is (``drs recovery``), read by the server from the reports it holds; the GPX,
+        KML and descent asked for come back for this process to write or draw."""
+        return self.call("POST", f"/recovery/{name}", request, RecoveryReadout)
 
     def hello(self) -> Hello:
         return self.call("GET", "/hello", None, Hello)

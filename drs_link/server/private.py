@@ -27,6 +27,7 @@ from drs_link.errors import ConfigError, LinkError
 
 if TYPE_CHECKING:
     from drs_link.server.desks import PredictorFor
+    from drs_link.server.recovery import LiveFor
 
 IDLE_EXIT_S = 300.0
 """A private server with no request for this long exits (``$DRS_SERVER_IDLE_S`` overrides it)."""
@@ -90,10 +91,12 @@ watch or patch the operations layer from the test's process; a killed ``drs`` th
 _threads: dict[str, Path] = {}
 
 
-def ensure_private_server(config: Config, predictor_for: PredictorFor | None = None) -> Path:
+def ensure_private_server(
+    config: Config, predictor_for: PredictorFor | None = None, live_for: LiveFor | None = None
+) -> Path:
     """The private server's socket, its server started first when none listens."""
     if os.environ.get(IN_PROCESS_ENV) == "thread":
-        return _thread_server(config, predictor_for)
+        return _thread_server(config, predictor_for, live_for)
     path = private_socket(config)
     if listening(path):
         return path
@@ -122,7 +125,7 @@ def ensure_private_server(config: Config, predictor_for: PredictorFor | None = N
     raise LinkError(f"the private operations server did not start: {said} (log: {log_path})")
 
 
-def _thread_server(config: Config, predictor_for: PredictorFor | None) -> Path:
+def _thread_server(config: Config, predictor_for: PredictorFor | None, live_for: LiveFor | None) -> Path:
     """The private server in a daemon thread of this process: the same server, socket and identity check."""
     path = private_socket(config).with_name(f"server-{os.getpid()}-{len(_threads)}.sock")
     key = config_key(config)
@@ -132,7 +135,7 @@ def _thread_server(config: Config, predictor_for: PredictorFor | None) -> Path:
 
     from drs_link.server.app import OperationsServer
 
-    server = OperationsServer(config, "private", path, predictor_for=predictor_for)
+    server = OperationsServer(config, "private", path, predictor_for=predictor_for, live_for=live_for)
     failed: list[BaseException] = []
 
     def run() -> None:

@@ -1,9 +1,10 @@
-"""`drs mo health` and `drs mo export` through a real shared `drs server`, from an account that cannot open
+"""`drs mo health`, `drs mo export` and `drs recovery` through a real shared `drs server`, from an account that cannot open
 the store (it lives in the server's 0700 directory): the server reads the reports and answers in typed
 values, and an export's file is written by the operator's own process, so it is theirs (issue #29 item 6)."""
 
 from __future__ import annotations
 
+import json
 import os
 import pwd
 import stat
@@ -59,3 +60,22 @@ def test_health_and_export_are_read_by_the_server_and_the_export_is_the_operator
     assert len(out_file.read_text().splitlines()) == 4
     code, out = drs(team.alice, alice, "mo", "export", "DRS1", "--out", str(out_file))
     assert code == 1 and "the file exists; choose another name or add --force" in out, out
+
+    gpx = home / "drs1.gpx"
+    code, out = drs(
+        team.alice, alice, "recovery", "DRS1", "--from", "46.49,6.60", "--gpx", str(gpx), "--json"
+    )
+    assert code == 0 and f"wrote {gpx}\n" in out, out
+    document = json.loads(out[out.index("{") :])
+    assert document["capsule"] == "DRS1" and document["from"] == {"lat": 46.49, "lon": 6.6}
+    assert document["last_fix"]["alt_m"] == 0.0 and round(document["distance_m"] / 100) == 11
+    assert gpx.stat().st_uid == account.pw_uid and "DRS1 measured" in gpx.read_text()
+    secret = place / "keys" / "id_ed25519"
+    code, out = drs(
+        team.alice, alice, "recovery", "DRS1", "--map", str(home / "map.png"), "--weather", str(secret)
+    )
+    assert code == 1 and out == (
+        f"drs: error: {secret}: refused: {team.alice} could not read it (the server reads only what the "
+        "asking account may: check its mode and every directory above it)\n"
+    ), out
+    assert not (home / "map.png").exists()
