@@ -187,7 +187,8 @@ class OperationsServer:
                 return failure("identity", str(exc))
             return await handler(request)
         except web.HTTPRequestEntityTooLarge:
-            return failure("protocol", f"the request is larger than {MAX_BODY_BYTES} bytes: refused unread")
+            most = MAX_RECOVERY_BYTES if request.path.startswith(f"{ROOT}/recovery/") else MAX_BODY_BYTES
+            return failure("protocol", f"the request is larger than {most} bytes: refused unread")
         except web.HTTPException as exc:
             return failure("protocol", f"{request.method} {request.path}: {exc.reason}")
         except _ProtocolError as exc:
@@ -318,7 +319,8 @@ class OperationsServer:
         return json_response(await self.blocking(lambda: self.iridium.track(request["peer"], body)))
 
     async def recovery_readout(self, request: web.Request) -> web.Response:
-        body = await self.body(request, RecoveryRequest)
+        """The one request that carries a track (the operator's predicted one): read up to its own limit."""
+        body = await self.body(request.clone(client_max_size=MAX_RECOVERY_BYTES), RecoveryRequest)
         name = request.match_info["name"]
         view = await self.blocking(lambda: self.recovery.readout(request["peer"], name, body))
         return json_response(view)
@@ -474,9 +476,7 @@ class OperationsServer:
         app.router.add_post(f"{ROOT}/iridium/{{name}}/mt/resolve", self.resolve_mt)
         app.router.add_get(f"{ROOT}/iridium/{{name}}/health", self.health)
         app.router.add_post(f"{ROOT}/iridium/track", self.track)
-        recovery = web.Application(client_max_size=MAX_RECOVERY_BYTES)  # the one request with a track in it
-        recovery.router.add_post("/{name}", self.recovery_readout)
-        app.add_subapp(f"{ROOT}/recovery/", recovery)
+        app.router.add_post(f"{ROOT}/recovery/{{name}}", self.recovery_readout)
         app.router.add_get(f"{ROOT}/approvals", self.waiting)
         app.router.add_post(f"{ROOT}/approvals/{{approval}}", self.decide)
         app.router.add_get(f"{ROOT}/events", self.events)
