@@ -39,7 +39,7 @@ COMMAND_MODULES: dict[str, str] = {
     "sync": "console.commands.sync",
     "mt": "console.commands.iridium",
     "mo": "console.commands.iridium",
-    "recovery": "console.commands.iridium",
+    "recovery": "console.commands.recovery",
     "balloon": "console.commands.balloon",
     "approve": "console.commands.approve",
     "setup": "console.commands.setup",

@@ -1,7 +1,8 @@
 """``drs sync``: upload a directory to a capsule's storage mount, verified by sha256 on the Pi.
 
-Not yet a client of the operations server (issue #29): it opens ``Operations`` in this process, so in
-shared use it needs the store and the Pi's key, which only the server holds (docs/console.md).
+A client of the operations server (issue #29): the server uploads with its own SSH identity (the
+operator never holds the Pi's key), audits under the caller's operator name, and reads the named
+directory only if the caller's account could read all of it.
 """
 
 from __future__ import annotations
@@ -9,6 +10,8 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+
+import msgspec
 
 from drs_link.config import load_config
 
@@ -26,45 +29,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def cmd_sync(args: argparse.Namespace) -> int:
-    """``Operations.sync`` (the console's Sync key: the same upload, verification and audit), with bars."""
-    from rich.progress import BarColumn, DownloadColumn, Progress, TaskID, TextColumn, TransferSpeedColumn
+    """The server's ``Operations.sync`` (the console's Sync key: the same upload, verification and
+    audit), its progress printed as the server says it."""
+    from drs_link.server import Client
 
-    from drs_link.ops import Operations, cli_holder
-
-    config = load_config(args.config)
-    config.capsule(args.name)
-    ops = Operations.open(config, holder=cli_holder())
-    try:
+    with Client.for_config(load_config(args.config)) as client:
+        capsule = client.capsule(args.name)
         if args.status:
-            status = ops.sync_status(args.name, args.source, with_hash=args.hash)
+            status = capsule.sync_status(args.source, with_hash=args.hash)
             if args.json:
-                print(json.dumps(status.as_dict(), indent=2, sort_keys=True))
+                print(json.dumps(msgspec.to_builtins(status), indent=2, sort_keys=True))
             else:
                 print(
-                    f"{args.name}: {len(status.up_to_date)} up to date, {len(status.missing)} missing, "
+                    f"{args.name}: {status.up_to_date} up to date, {len(status.missing)} missing, "
                     f"{len(status.changed)} changed, {status.bytes_pending} bytes pending"
                 )
             return 0 if not (status.missing or status.changed) else 1
-        with Progress(
-            TextColumn("{task.description}"),
-            BarColumn(),
-            DownloadColumn(),
-            TransferSpeedColumn(),
-            transient=True,
-        ) as progress:
-            tasks: dict[str, TaskID] = {}
-
-            def on_progress(relative: str, done: int, total: int) -> None:
-                if relative not in tasks:
-                    tasks[relative] = progress.add_task(relative, total=total)
-                progress.update(tasks[relative], completed=done)
-
-            report = ops.sync(args.name, args.source, on_progress)
-    finally:
-        ops.close()
+        report = capsule.sync(args.source, lambda line: print(line, flush=True))
     print(
         f"{args.name}: {len(report.uploaded)} files uploaded and verified by sha256 on the Pi, "
-        f"{len(report.skipped)} already up to date, {report.bytes_sent} bytes sent"
+        f"{report.skipped} already up to date, {report.bytes_sent} bytes sent"
     )
     if report.left_out:
         print(f"{args.name}: {len(report.left_out)} entries left out: {'; '.join(report.left_out)}")

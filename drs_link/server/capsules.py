@@ -1,5 +1,6 @@
 """The capsule service: the steps around a release that are not ARM and FIRE (status, power-on, reset,
-a fall recorded on evidence, the release authority on the Pi, the host key's enrolment), for whichever
+a fall recorded on evidence, the release authority on the Pi, the host key's enrolment, the upload to
+its storage), for whichever
 operator the kernel says is connected.
 
 A thin service over ``drs_link.ops.Operations``, as ``release`` is: every rule and every audit row stays
@@ -10,16 +11,19 @@ capsule's link closed after each verb, as the one ``drs`` process that ran it on
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import msgspec
 
 from drs_link.errors import ConfigError
 from drs_link.link.backends import AuthorityStatus
-from drs_link.ops import Approval, Operations, SecondOperator, record_as_dict, take_over_outcome
+from drs_link.ops import Approval, Operations, SecondOperator, iso_utc, record_as_dict, take_over_outcome
 from drs_link.ops.capsule import ReleaseRecord
 from drs_link.server.desks import Desks
+from drs_link.server.paths import readable_tree
 from drs_link.server.peers import Mode, Peer
 from drs_link.server.protocol import (
     AuthoritySeen,
@@ -28,11 +32,15 @@ from drs_link.server.protocol import (
     Done,
     HostKeyView,
     ReleaseView,
+    SyncReportView,
+    SyncStatusView,
     TakeOverRequest,
 )
 from drs_link.server.release import two_person_refusal
 
 Say = Callable[[str], None]
+PROGRESS_PERIOD_S = 1.0
+"""How often an upload says how far a file has got (one line per file per period, and at its end)."""
 NO_OPERATOR = "operator.name: set [operator] name; every release step is audited with it"
 
 
@@ -152,3 +160,36 @@ class CapsuleService:
             offer = ops.host_key_offer(name)
             saved = ops.enrol(name, offer, read_on_pi)
         return HostKeyView(offer.address, offer.key_type, offer.fingerprint, str(saved))
+
+    def sync_status(self, peer: Peer, name: str, source: str | None, with_hash: bool) -> SyncStatusView:
+        """``Operations.sync_status``, read-only: a directory the caller names is read only if its account
+        could read all of it (``paths.readable_tree``); None is the capsule's configured ``sync_source``."""
+        chosen = None if source is None else readable_tree(peer.uid, source)
+        with self._desk(peer, name) as ops:
+            status = ops.sync_status(name, chosen, with_hash=with_hash)
+        last = iso_utc(status.last_sync_utc) if status.last_sync_utc else None
+        return SyncStatusView(
+            status.missing,
+            status.changed,
+            len(status.up_to_date),
+            status.bytes_pending,
+            last,
+            status.left_out,
+        )
+
+    def sync(self, peer: Peer, name: str, source: str | None, say: Say) -> Done:
+        """``Operations.sync`` with the server's SSH identity (the operator never holds the Pi's key): the
+        upload, its sha256 verification on the Pi and its audit, each file's progress said as it goes."""
+        chosen: Path | None = None if source is None else readable_tree(peer.uid, source)
+        said: dict[str, float] = {}
+
+        def progress(relative: str, done: int, total: int) -> None:
+            now = time.monotonic()
+            if done >= total or now - said.get(relative, -PROGRESS_PERIOD_S) >= PROGRESS_PERIOD_S:
+                said[relative] = now
+                say(f"{name}: {relative}: {done} of {total} bytes sent")
+
+        with self._desk(peer, name, need_operator=True) as ops:
+            report = ops.sync(name, chosen, progress)
+        view = SyncReportView(report.uploaded, len(report.skipped), report.bytes_sent, report.left_out)
+        return Done((), True, sync=view)

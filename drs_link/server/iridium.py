@@ -8,6 +8,7 @@ from collections.abc import Callable
 from datetime import datetime
 
 from drs_link.errors import ConfigError, RefusedError
+from drs_link.iridium.track_export import track_csv
 from drs_link.ops import (
     CATALOGUE,
     FLUSH_WARNING,
@@ -21,17 +22,29 @@ from drs_link.ops import (
     MtMessage,
     Operations,
     SecondOperator,
+    assess,
     hazard_of,
     iso_utc,
     parse_hhmm,
 )
 from drs_link.server.desks import Desks
 from drs_link.server.peers import Mode, Peer
-from drs_link.server.protocol import Done, MtSendRequest, MtStatus, MtView, ResolveMtRequest
+from drs_link.server.protocol import (
+    Done,
+    FindingView,
+    HealthView,
+    MtSendRequest,
+    MtStatus,
+    MtView,
+    ResolveMtRequest,
+    TrackCsv,
+    TrackRequest,
+)
 from drs_link.server.release import two_person_refusal
 from predictor.errors import UsageError
 
 Say = Callable[[str], None]
+IMEI_DIGITS = 15
 
 
 def compose(
@@ -131,3 +144,29 @@ class IridiumService:
         ops.reports_of(name)  # an unknown capsule or one without an IMEI is refused first
         resolved = ops.resolve_mt(name, request.command_id, request.gateway_id, request.note)
         return tuple(mt_view(c) for c in resolved)
+
+    def health(self, peer: Peer, name: str) -> HealthView:
+        """``assess`` of the capsule's stored reports and MTs: battery, resets, gaps and spacing."""
+        ops = self.desks.desk(peer)
+        capsule = ops.config.capsule(name)
+        health = assess(ops.reports_of(name), ops.mt_status(name))
+        findings = tuple(FindingView(f.kind, f.report_id, f.message) for f in health.findings)
+        return HealthView(
+            capsule.name, capsule.imei, health.reports, health.last_report, health.last_vbat, findings
+        )
+
+    def track(self, peer: Peer, request: TrackRequest) -> TrackCsv:
+        """The stored fixes of a capsule, or of a modem by IMEI, as the canonical track CSV's text: the
+        client writes it where its operator chose, so the file is the operator's (issue #29 item 6)."""
+        if (request.capsule is None) == (request.imei is None):
+            raise UsageError("give either a capsule NAME or --imei IMEI, not both or neither")
+        ops = self.desks.desk(peer)
+        if request.capsule is not None:
+            reports, who = ops.reports_of(request.capsule), request.capsule
+        else:
+            imei = request.imei or ""
+            if not (imei.isascii() and imei.isdigit() and len(imei) == IMEI_DIGITS):
+                raise UsageError(f"--imei {imei!r}: an IMEI is 15 digits")
+            reports, who = ops.reports.for_imei(imei), f"IMEI {imei}"
+        text, fixes, without_fix, rejected = track_csv(reports, who)
+        return TrackCsv(who, text, fixes, without_fix, rejected)

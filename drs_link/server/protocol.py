@@ -13,6 +13,7 @@ numbers named, before anything is read as a command.
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from typing import Literal
 
 import msgspec
@@ -22,6 +23,8 @@ PROTOCOL = 1
 ROOT = f"/v{PROTOCOL}"
 MAX_BODY_BYTES = 64 * 1024
 """A request is a few hundred bytes; anything larger is refused before it is read as JSON."""
+MAX_RECOVERY_BYTES = 4 * 1024 * 1024
+"""``drs recovery`` alone carries the operator's predicted track (tens of thousands of points at most)."""
 MAX_TEXT = 400
 """The longest free text (a reason, a waiver, a typed name) a request may carry."""
 
@@ -122,6 +125,43 @@ class TakeOverRequest(Request, frozen=True):
 class EnrolRequest(Request, frozen=True):
     fingerprint: str
     """The fingerprint the operator read on the Pi itself."""
+
+
+class SyncRequest(Request, frozen=True):
+    """``drs sync``: upload ``source`` (an absolute path the caller's account can read; None: the capsule's
+    configured ``sync_source``)."""
+
+    source: str | None = None
+
+
+class SyncStatusRequest(Request, frozen=True):
+    """``drs sync --status``: what an upload of ``source`` would send (``with_hash``: sha256 compared too)."""
+
+    source: str | None = None
+    with_hash: bool = False
+
+
+class TrackRequest(Request, frozen=True):
+    """``drs mo export``: the stored fixes of a configured capsule, or of a modem by its IMEI."""
+
+    capsule: str | None = None
+    imei: str | None = None
+
+
+class RecoveryRequest(Request, frozen=True):
+    """``drs recovery``: the caller's position (read by the caller: its own gpsd), its predicted track
+    (read from its own file), which files it wants the content of, and for ``--map`` the weather (and
+    terrain) the live re-prediction flies, read by the server only if the caller's account could."""
+
+    team: tuple[float, float] | None = None
+    predicted: tuple[tuple[float, float, float], ...] = ()
+    """(lat, lon, alt) from release to landing."""
+    predicted_is_demo: bool = False
+    gpx: bool = False
+    kml: bool = False
+    descent: bool = False
+    weather: tuple[str, ...] = ()
+    dem: str | None = None
 
 
 class ResolveMtRequest(Request, frozen=True):
@@ -261,6 +301,26 @@ class HostKeyView(msgspec.Struct, frozen=True):
     saved_to: str | None = None
 
 
+class SyncStatusView(msgspec.Struct, frozen=True):
+    """What an upload would send, in the fields ``drs sync --status --json`` has always printed."""
+
+    missing: tuple[str, ...]
+    changed: tuple[str, ...]
+    up_to_date: int
+    bytes_pending: int
+    last_sync_utc: str | None
+    left_out: tuple[str, ...]
+
+
+class SyncReportView(msgspec.Struct, frozen=True):
+    """An upload's outcome: every file uploaded was verified by sha256 on the Pi."""
+
+    uploaded: tuple[str, ...]
+    skipped: int
+    bytes_sent: int
+    left_out: tuple[str, ...]
+
+
 class MtView(msgspec.Struct, frozen=True):
     """One MT's lifecycle, in the order ``drs mt status --json`` prints its fields."""
 
@@ -282,6 +342,123 @@ class MtStatus(msgspec.Struct, frozen=True):
     capsule: str
     imei: str | None
     commands: tuple[MtView, ...]
+
+
+class FindingView(msgspec.Struct, frozen=True):
+    kind: str
+    report_id: int
+    message: str
+
+
+class HealthView(msgspec.Struct, frozen=True):
+    """``drs mo health``: battery, resets, gaps and spacing, judged by the server from the reports it holds."""
+
+    capsule: str
+    imei: str | None
+    reports: int
+    last_report: datetime | None
+    last_vbat: float | None
+    findings: tuple[FindingView, ...]
+
+
+class TrackCsv(msgspec.Struct, frozen=True):
+    """``drs mo export``: the canonical track CSV, for the client to write where its operator chose (the
+    file is then the operator's own), and what was left out."""
+
+    who: str
+    csv: str
+    fixes: int
+    without_fix: int
+    rejected: int
+
+
+class Position(msgspec.Struct, frozen=True):
+    lat: float
+    lon: float
+
+
+class LandingFields(msgspec.Struct, frozen=True):
+    lat: float
+    lon: float
+    alt_m: float
+    std_m: float | None
+    """None with one fix kept: too few to estimate the scatter."""
+    fixes: int
+    rejected: int
+    landed_utc: str
+    last_fix_utc: str
+    moved_utc: str | None
+
+
+class LastFixFields(msgspec.Struct, frozen=True):
+    time_utc: str
+    lat: float
+    lon: float
+    alt_m: float
+    speed_ms: float
+
+
+class IridiumPosition(msgspec.Struct, frozen=True):
+    lat: float
+    lon: float
+    cep_m: float
+    time_utc: str
+
+
+class RecoveryDocument(msgspec.Struct, frozen=True, omit_defaults=True):
+    """``drs recovery --json``: what the summary line says, as numbers; the distance and bearing are from
+    the team to the best position there is (the landing, else the last fix, else Iridium's coarse one)."""
+
+    capsule: str
+    summary: str
+    landing: LandingFields | None
+    last_fix: LastFixFields | None
+    iridium_position: IridiumPosition | None
+    team: Position | None = msgspec.field(name="from")
+    distance_m: float | None = None
+    bearing_deg: float | None = None
+
+
+class FixView(msgspec.Struct, frozen=True):
+    time: datetime
+    lat: float
+    lon: float
+    alt_m: float
+
+
+class LiveLandingView(msgspec.Struct, frozen=True):
+    """The live re-prediction's landing, its 1σ ellipse and the correction it used, for the map."""
+
+    lat: float
+    lon: float
+    time: datetime
+    correction: str
+    sigma_major_km: float
+    sigma_minor_km: float
+    major_axis_bearing_deg: float
+
+
+class DescentView(msgspec.Struct, frozen=True):
+    """The track, the landing the fixes show, else the live re-prediction (or why there is none)."""
+
+    track: tuple[FixView, ...]
+    landed: Position | None
+    live: LiveLandingView | None
+    live_error: str | None
+
+
+class RecoveryReadout(msgspec.Struct, frozen=True):
+    """``drs recovery``: the server's reading of the stored reports; the files' content (GPX, KML) for
+    the client to write where its operator chose, so they are the operator's own."""
+
+    document: RecoveryDocument
+    landed: str | None
+    """The landing in one line (time, altitude, fixes kept), when the fixes show one."""
+    capsule_at: Position | None
+    """The landing, else the last fix: where the team's distance warning measures to."""
+    gpx: str | None = None
+    kml: str | None = None
+    descent: DescentView | None = None
 
 
 class Failure(msgspec.Struct, frozen=True, tag="failure"):
@@ -309,6 +486,8 @@ class Done(msgspec.Struct, frozen=True, tag="done"):
     ok: bool = True
     arm: ArmState | None = None
     """ARM's answer: the window it opened."""
+    sync: SyncReportView | None = None
+    """An upload's answer (``drs sync``)."""
 
 
 Step = Said | Pending | Done | Failure
@@ -321,6 +500,11 @@ class Event(msgspec.Struct, frozen=True):
     release: dict[str, str]
     armed: dict[str, str]
     approvals: tuple[ApprovalView, ...]
+
+
+def iso_utc(moment: datetime) -> str:
+    """A typed time as the store and every ``--json`` output write it (ISO 8601, milliseconds, ``Z``)."""
+    return moment.astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def encode(value: object) -> bytes:
