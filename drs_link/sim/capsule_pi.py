@@ -54,6 +54,13 @@ class SimClock:
     def now(self) -> datetime:
         return self._start + timedelta(seconds=(time.monotonic() - self._t0) * self.scale)
 
+    def skip(self, sim_seconds: float) -> None:
+        """Move simulated time ``sim_seconds`` forward at once: a test gets past a deadline (an ARM
+        window of the demo world, whose clock this is) without waiting it out."""
+        if sim_seconds <= 0:
+            raise ValueError("simulated time only skips forward")
+        self._start += timedelta(seconds=sim_seconds)
+
     def sleep(self, sim_seconds: float) -> None:
         time.sleep(max(0.0, sim_seconds) / self.scale)
 
