@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import os
+import shlex
+from collections.abc import Callable
 from datetime import datetime, timedelta
 from pathlib import Path
 
 import pytest
 
-from drs_link.skip_clock import CLOCK_FILE_ENV, skipped_seconds
+from drs_link.skip_clock import CLOCK_FILE_ENV, TEST_MARKER_ENV, skipped_seconds
 
 
 class ManualClock:
@@ -44,6 +46,26 @@ class SkipClock:
         self.seconds += seconds
         self._write()
         assert skipped_seconds() == self.seconds, "drs_link.skip_clock refused the test's clock file"
+
+    def skipper(self, step_s: float, most_s: float) -> Callable[[], None]:
+        """A function that skips ``step_s`` a call, ``most_s`` in all: for a wait that only time ends (a
+        boot, a Go script, a descent), called between two looks at what is waited for."""
+        left = [most_s]
+
+        def skip() -> None:
+            step = min(step_s, left[0])
+            if step > 0:
+                left[0] -= step
+                self.skip(step)
+
+        return skip
+
+    def shell_assignments(self) -> str:
+        """The variables as shell words, for a command another program starts in an environment of its own
+        (tmux starts a session's command in its server's)."""
+        return " ".join(
+            f"{name}={shlex.quote(os.environ[name])}" for name in (CLOCK_FILE_ENV, TEST_MARKER_ENV)
+        )
 
     def _write(self) -> None:
         spare = self.path.with_name(self.path.name + ".new")

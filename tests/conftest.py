@@ -28,3 +28,38 @@ def shared_data() -> Path:
 def skip_clock(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> SkipClock:
     """This test's wall clock, and that of the processes it starts from now on, skipped on demand."""
     return SkipClock(tmp_path / "skip-clock", monkeypatch)
+
+
+LONGEST_FILES = (
+    "tests/predictor/calibration/test_live_hard_worlds.py",
+    "tests/predictor/calibration/test_live_independent.py",
+    "tests/console/test_release_flow.py",
+    "tests/predictor/environment/test_grib_native_faults.py",
+    "tests/console/test_end_to_end_tmux.py",
+    "tests/predictor/prediction/test_live_real.py",
+    "tests/console/test_one_rule.py",
+    "tests/console/test_live_demo.py",
+    "tests/console/commands/test_cli_predict.py",
+    "tests/predictor/calibration/test_ellipse_fit.py",
+    "tests/predictor/tawhiri/test_server_hardening.py",
+    "tests/console/commands/test_cli_capsule.py",
+)
+"""The files that took longest, longest first (``make test`` with ``--durations``, summed per file), which
+start first. xdist's ``loadfile`` hands a worker whole files, by default those with the most tests first:
+files of one long test (an evaluation, a demo in tmux) came last and one worker ran them alone at the
+end. The Makefile turns that order off (``--no-loadscope-reorder``); this one is the collection's. A
+file missing here only starts later, and a stale list costs balance, never a result."""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    rank = {path: index for index, path in enumerate(LONGEST_FILES)}
+
+    def place(item: pytest.Item) -> int:
+        path = Path(item.path)
+        return (
+            rank.get(path.relative_to(REPO_ROOT).as_posix(), len(rank))
+            if path.is_relative_to(REPO_ROOT)
+            else len(rank)
+        )
+
+    items.sort(key=place)  # stable: every other file, and the tests in each file, keep their order

@@ -18,6 +18,7 @@ from drs_link.ops.arming import ArmingController, ArmState
 from drs_link.ops.capsule import ReleaseState
 from drs_link.ops.operations import SecondOperator
 from drs_link.ops.telemetry import LinkSample, TelemetryRecord
+from tests.clock import SkipClock
 from tests.console.conftest import wait_for
 
 pytestmark = pytest.mark.asyncio
@@ -161,10 +162,10 @@ async def test_an_interval_command_is_queued_at_the_simulated_gateway_after_nami
 
 
 async def test_time_runs_behind_the_fire_dialog_and_fire_after_the_arm_window_is_refused_naming_it(
-    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
 ) -> None:
-    """The ARM window runs out while the FIRE dialog is open: the demo's clock skips past its end (not
-    waited out: 120 demo seconds were 15 s of wall clock at ×8), and FIRE then checks it again."""
+    """The ARM window runs out while the FIRE dialog is open: the clock skips past its end (not waited
+    out: 120 demo seconds were 15 s of wall clock at ×8), and FIRE then checks it again."""
     world, app = demo
     async with app.run_test(size=(80, 24)) as pilot:
         screen = await open_release_go(pilot, app)
@@ -180,7 +181,7 @@ async def test_time_runs_behind_the_fire_dialog_and_fire_after_the_arm_window_is
         first = str(behind.render())
         await wait_for(pilot, lambda: str(behind.render()) != first)  # the screen behind keeps time
         assert arming.status().armed
-        world.sims[0].clock.skip(arming.status().remaining_s + 1.0)
+        skip_clock.skip((arming.status().remaining_s + 1.0) / world.speed)
         await wait_for(pilot, lambda: not arming.status().armed)
         await wait_for(pilot, lambda: "ARM window expired at" in str(behind.render()))
         await wait_for(pilot, lambda: str(countdown.render()).startswith("NOT ARMED (ARM window expired at"))
