@@ -20,9 +20,7 @@ from drs_link.errors import RefusedError
 from predictor.errors import UsageError
 
 if TYPE_CHECKING:  # the client and its protocol load msgspec: not for --help
-    from drs_link.server import Client
-    from drs_link.server.client import Capsule
-    from drs_link.server.protocol import CapsuleStatus
+    from drs_link.server import Capsule, CapsuleStatus, Client
 
 EXIT_MICROCONTROLLER_SILENT = 3
 EXIT_LINK_DOWN = 4

@@ -277,8 +277,7 @@ def _mo_bench(args: argparse.Namespace) -> int:
 
 def _mo_health(args: argparse.Namespace) -> int:
     """Judged by the operations server from the reports it holds; printed here from its typed answer."""
-    from drs_link.server import Client
-    from drs_link.server.protocol import iso_utc
+    from drs_link.server import Client, iso_utc
 
     with Client.for_config(load_config(args.config)) as client:
         health = client.iridium.health(args.name)

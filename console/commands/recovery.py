@@ -21,8 +21,7 @@ from drs_link.errors import LinkError
 from predictor.geofiles import piped
 
 if TYPE_CHECKING:
-    from drs_link.server.protocol import DescentView
-    from drs_link.server.recovery import LiveFor
+    from drs_link.server import DescentView, LiveFor
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -112,8 +111,7 @@ def _recovery(args: argparse.Namespace) -> int:
     import msgspec
 
     from drs_link.positions import parse_position, read_gpsd_position
-    from drs_link.server import PROTOCOL, Client
-    from drs_link.server.protocol import RecoveryRequest
+    from drs_link.server import PROTOCOL, Client, RecoveryRequest
     from predictor.geofiles import write_text
     from predictor.prediction import emit, far_team_warning
 

@@ -46,6 +46,8 @@ if TYPE_CHECKING:
         TrackPoint as TrackPoint,
         detect_landing as detect_landing,
         distance_bearing as distance_bearing,
+        gpx_text as gpx_text,
+        kml_text as kml_text,
         parse_position as parse_position,
         phone_summary as phone_summary,
         read_gpsd_position as read_gpsd_position,
@@ -54,7 +56,7 @@ if TYPE_CHECKING:
         write_kml as write_kml,
     )
     from .reports import ReportStore as ReportStore, StoredReport as StoredReport
-    from .track_export import export_track as export_track
+    from .track_export import export_track as export_track, track_csv as track_csv
     from .webhook import MoHttpServer as MoHttpServer, MoReceiver as MoReceiver
 
 __getattr__, __dir__, __all__ = lazy_door(
@@ -95,9 +97,11 @@ __getattr__, __dir__, __all__ = lazy_door(
         "distance_bearing": "recovery",
         "export_track": "track_export",
         "format_mo": "firmware",
+        "gpx_text": "recovery",
         "import_files": "importer",
         "interval_track": "interval",
         "is_command": "commands",
+        "kml_text": "recovery",
         "landed_evidence": "landed",
         "parse_hex": "mo",
         "Fix": "mo",
@@ -107,6 +111,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "plan_parachute": "parachute",
         "read_gpsd_position": "recovery",
         "read_text": "commands",
+        "track_csv": "track_export",
         "track_from_reports": "recovery",
         "write_gpx": "recovery",
         "write_kml": "recovery",

@@ -40,6 +40,7 @@ if TYPE_CHECKING:
         hazard_of as hazard_of,
     )
     from .capsule import (
+        ReleaseRecord as ReleaseRecord,
         ReleaseState as ReleaseState,
         ReleaseStateMachine as ReleaseStateMachine,
         record_as_dict as record_as_dict,
@@ -237,6 +238,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "ReleaseCandidate": "release_window",
         "ReleaseOrigin": "origin",
         "ReleaseSample": "telemetry",
+        "ReleaseRecord": "capsule",
         "ReleaseState": "capsule",
         "ReleaseStateMachine": "capsule",
         "ReleaseWindow": "release_window",

@@ -16,7 +16,7 @@ from predictor.lazy_door import lazy_door
 if TYPE_CHECKING:
     from . import iridium as iridium
     from .app import OperationsServer as OperationsServer
-    from .client import Client as Client, raise_failure as raise_failure
+    from .client import Capsule as Capsule, Client as Client, raise_failure as raise_failure
     from .desks import PredictorFor as PredictorFor
     from .peers import (
         Peer as Peer,
@@ -30,19 +30,27 @@ if TYPE_CHECKING:
         MAX_BODY_BYTES as MAX_BODY_BYTES,
         PROTOCOL as PROTOCOL,
         ApprovalView as ApprovalView,
+        CapsuleStatus as CapsuleStatus,
+        DescentView as DescentView,
         Done as Done,
         Failure as Failure,
         Hello as Hello,
         MtSendRequest as MtSendRequest,
+        RecoveryRequest as RecoveryRequest,
         Second as Second,
+        iso_utc as iso_utc,
     )
+    from .recovery import LiveFor as LiveFor
     from .release import PRIVATE_TWO_PERSON as PRIVATE_TWO_PERSON
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
         "ApprovalView": "protocol",
+        "Capsule": "client",
+        "CapsuleStatus": "protocol",
         "Client": "client",
+        "DescentView": "protocol",
         "Done": "protocol",
         "Failure": "protocol",
         "Hello": "protocol",
@@ -51,12 +59,15 @@ __getattr__, __dir__, __all__ = lazy_door(
         "OperationsServer": "app",
         "PRIVATE_TWO_PERSON": "release",
         "PROTOCOL": "protocol",
+        "RecoveryRequest": "protocol",
+        "LiveFor": "recovery",
         "Peer": "peers",
         "PredictorFor": "desks",
         "Roster": "peers",
         "Second": "protocol",
         "account_of": "peers",
         "iridium": "iridium",
+        "iso_utc": "protocol",
         "check_own_file": "peers",
         "ensure_private_server": "private",
         "peer_uid": "peers",

@@ -20,8 +20,15 @@ import msgspec
 
 from drs_link.errors import ConfigError
 from drs_link.link.backends import AuthorityStatus
-from drs_link.ops import Approval, Operations, SecondOperator, iso_utc, record_as_dict, take_over_outcome
-from drs_link.ops.capsule import ReleaseRecord
+from drs_link.ops import (
+    Approval,
+    Operations,
+    ReleaseRecord,
+    SecondOperator,
+    iso_utc,
+    record_as_dict,
+    take_over_outcome,
+)
 from drs_link.server.desks import Desks
 from drs_link.server.paths import readable_tree
 from drs_link.server.peers import Mode, Peer

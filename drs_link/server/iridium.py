@@ -8,7 +8,7 @@ from collections.abc import Callable
 from datetime import datetime
 
 from drs_link.errors import ConfigError, RefusedError
-from drs_link.iridium.track_export import track_csv
+from drs_link.iridium import track_csv
 from drs_link.ops import (
     CATALOGUE,
     FLUSH_WARNING,

@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
-from drs_link.iridium.recovery import (
+from drs_link.iridium import (
     LandingEstimate,
     TrackPoint,
     detect_landing,
