@@ -24,15 +24,22 @@ if TYPE_CHECKING:
         check_own_file as check_own_file,
         peer_uid as peer_uid,
     )
-    from .private import ensure_private_server as ensure_private_server, private_socket as private_socket
+    from .private import (
+        InProcessServer as InProcessServer,
+        ensure_private_server as ensure_private_server,
+        private_socket as private_socket,
+    )
     from .protocol import (
         MAX_BODY_BYTES as MAX_BODY_BYTES,
         PROTOCOL as PROTOCOL,
         ApprovalView as ApprovalView,
+        ArmState as ArmState,
         Done as Done,
+        Event as Event,
         Failure as Failure,
         Hello as Hello,
         MtSendRequest as MtSendRequest,
+        Pending as Pending,
         Second as Second,
     )
     from .release import PRIVATE_TWO_PERSON as PRIVATE_TWO_PERSON
@@ -41,6 +48,10 @@ __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
         "ApprovalView": "protocol",
+        "ArmState": "protocol",
+        "Event": "protocol",
+        "InProcessServer": "private",
+        "Pending": "protocol",
         "Client": "client",
         "Done": "protocol",
         "Failure": "protocol",
