@@ -1,8 +1,9 @@
 """The operator console: one Textual app over the fleet state, every blocking call in a worker thread.
 
 The app owns no release rules: it folds telemetry into ``FleetState``, shows it, and turns keys
-into intents for ``drs_link`` (``Operations``, ``ArmingController``, ``ChecklistRun``), which
-accept or refuse them. SSH, SQLite, HTTP and predictions run in thread workers (one group per
+into intents: ARM, FIRE, disarm, approvals and MT sends go to the operations server (``drs_link.server``),
+whose ARM windows and waiting approvals it pushes back (``follow_events``); the polls, checklists and views
+still go through ``Operations``/``ChecklistRun``. Those accept or refuse them. SSH, SQLite, HTTP and predictions run in thread workers (one group per
 capsule for polls, re-armed only when the previous poll finished; the release in its own group,
 never exclusive, so a refresh can never cancel a FIRE); their results come back as messages
 (``console.messages``). The screens never see the app: each is handed the ``ConsoleContext``
@@ -26,14 +27,12 @@ from textual.notifications import SeverityLevel
 from textual.screen import ModalScreen, Screen
 from textual.worker import Worker, WorkerState
 
-from console.context import ConsoleContext, ConsoleSetup, context_for
+from console.context import ARMED, FIRING, ConsoleContext, ConsoleSetup, context_for
 from console.messages import OperatorNotice, TelemetryArrived, ViewRead, ViewWanted
 from console.predictions import PredictionService
 from console.screens import ConfirmModal, FleetScreen
 from drs_link.errors import LinkError
 from drs_link.ops import (
-    ArmingController,
-    ArmState,
     BalloonSample,
     Checklist,
     FleetState,
@@ -57,6 +56,8 @@ from predictor.descent import COMPILE_NOTICE, kernels_compiled
 from predictor.errors import PredictorError
 
 REPORT_POLL_S = 3.0
+EVENTS_RETRY_S = 2.0
+"""How soon a dropped event stream from the operations server is followed again."""
 PREDICTION_LEAD_MIN = (0, 10)
 GATEWAY_CHECK_S = 300.0
 BALLOON_READ_S = 0.5
@@ -98,6 +99,8 @@ class DrsConsole(App[int]):
         """The newest audit row this console has shown or written: what another console wrote comes after."""
         self._views_reading: set[tuple[str, str]] = set()
         self._views_stale: set[tuple[str, str]] = set()
+        self._events: asyncio.Task[None] | None = None
+        """The server's push, followed for the app's life (a task, not a worker: it never completes)."""
         self._windows: dict[str, tuple[datetime, ReleaseWindow | None]] = {}
         """Each capsule's release window and the "release now" time it was swept after."""
 
@@ -159,6 +162,8 @@ class DrsConsole(App[int]):
 
     def on_mount(self) -> None:
         self.push_screen(FleetScreen(self.context))
+        if self.commanding:  # what the server holds (ARM windows, approvals) shows as it changes
+            self._events = asyncio.get_running_loop().create_task(self.follow_events())
         if not self.live_timers:
             return
         if self.commanding:
@@ -197,21 +202,17 @@ class DrsConsole(App[int]):
     def session_lost(self, sig: signal.Signals) -> None:
         """SIGHUP (the SSH session dropped) or SIGTERM: disarm on the record, let a Go in flight finish
         and be recorded by its worker, then end (``drs_link.ops.session``)."""
-        arming = {name: self.context.arming(name) for name in self.setup.capsules}
-        firing = [name for name, a in arming.items() if a.status().state is ArmState.FIRING]
-        self.run_worker(self._end_after_go(arming, firing, sig), group="session-lost")
+        self.run_worker(self._end_after_go(sig), group="session-lost")
 
-    async def _end_after_go(
-        self, arming: dict[str, ArmingController], firing: list[str], sig: signal.Signals
-    ) -> None:
-        # The loss is on the record before anything else, in a thread: a shared store held by another
-        # console's write must not freeze the event loop that is ending the session.
-        await asyncio.to_thread(record_loss, self.store, self.operator, sig.name, arming, firing)
+    async def _end_after_go(self, sig: signal.Signals) -> None:
+        # The loss is on the record before anything else, in a thread: a server or store held by another
+        # console's action must not freeze the event loop that is ending the session.
+        firing = self.arm_states(FIRING)
+        disarmed = await asyncio.to_thread(self.disarm_mine, f"session lost ({sig.name})")
+        await asyncio.to_thread(record_loss, self.store, self.operator, sig.name, disarmed, firing)
         code = 128 + sig.value
         deadline = time.monotonic() + GO_FINISH_S
-        while (
-            any(a.status().state is ArmState.FIRING for a in arming.values()) and time.monotonic() < deadline
-        ):
+        while self.firing_here() and time.monotonic() < deadline:
             await asyncio.sleep(0.2)
         if not self.is_headless:
             # With the terminal hung up, Textual's shutdown can block for good flushing output nobody
@@ -219,6 +220,33 @@ class DrsConsole(App[int]):
             # holding the store and its links). Everything owed is on the record by now.
             threading.Timer(SHUTDOWN_GRACE_S, os._exit, args=(code,)).start()
         self.exit(code)
+
+    def arm_states(self, state: str) -> list[str]:
+        """The capsules whose ARM window, as the server last said, is this account's and in ``state``."""
+        found = []
+        for name in self.setup.capsules:
+            status = self.context.arm_state(name)
+            if status is not None and status.mine and status.state == state:
+                found.append(name)
+        return found
+
+    def firing_here(self) -> bool:
+        """A Go of this account is in flight: a FIRE of this console still waits for its answer, or the
+        server says a window of this account is FIRING."""
+        waiting = any(worker.name == "fire_worker" and not worker.is_finished for worker in self.workers)
+        return waiting or bool(self.arm_states(FIRING))
+
+    def disarm_mine(self, reason: str) -> list[str]:
+        """Close this account's open windows through the server (in a worker thread); the ones closed."""
+        closed = []
+        for name in self.arm_states(ARMED):
+            try:
+                self.context.disarm(name, reason)
+            except LinkError as exc:
+                self.call_from_thread(self.notify, str(exc), severity="error")
+                continue
+            closed.append(name)
+        return closed
 
     def watch_store(self) -> None:
         """Another console (or a drs command) wrote the shared store: show what and who within a second,
@@ -248,23 +276,46 @@ class DrsConsole(App[int]):
         self.refresh_screen()
 
     def watch_arming(self, capsules: Iterable[str], links_lost: set[str]) -> None:
-        """Feed the open ARM windows of ``capsules`` their new polls (a NO-GO or a lost link disarms, on
-        the record) in a worker thread, like every store write: the controllers lock their own state,
-        and FIRE checks the window again at submit, so a disarm a moment later never lets a Go through."""
-        polls = {name: self.gonogo(name) for name in capsules if self.context.arming(name).status().armed}
-        if not polls:
+        """Close this account's open ARM windows of ``capsules`` whose poll here turned NO-GO or whose
+        link was lost, through the server (on the record) in a worker thread. FIRE polls again on the
+        server, so a disarm a moment later never lets a Go through."""
+        mine = set(self.arm_states(ARMED))
+        reasons = {}
+        for name in capsules:
+            if name not in mine:
+                continue
+            if name in links_lost:
+                reasons[name] = "link lost"
+                continue
+            poll = self.gonogo(name)
+            if not poll.go:
+                reasons[name] = f"no longer GO: {poll.summary()}"
+        if not reasons:
             return
 
-        def observe() -> None:
-            closed = False
-            for name, poll in polls.items():
-                arming = self.context.arming(name)
-                status = arming.link_lost() if name in links_lost else arming.observe(poll)
-                closed = closed or not status.armed
-            if closed:
-                self.call_from_thread(self.refresh_screen)
+        def close() -> None:
+            for name, reason in reasons.items():
+                try:
+                    self.context.disarm(name, reason)
+                except LinkError as exc:
+                    self.post_message(OperatorNotice(str(exc), "warning"))
+            self.call_from_thread(self.refresh_screen)
 
-        self.run_worker(observe, thread=True, group="arming-watch", exit_on_error=False)
+        self.run_worker(close, thread=True, group="arming-watch", exit_on_error=False)
+
+    async def follow_events(self) -> None:
+        """The server's push: ARM windows and waiting approvals, shown as they change (in this loop,
+        cancelled with the app). A dropped stream is said once and followed again."""
+        while True:
+            try:
+                async for event in self.context.client().event_stream():
+                    self.context.apply_event(event)
+                    self.refresh_screen()
+            except (OSError, LinkError) as exc:
+                self.notify(
+                    f"the operations server's updates stopped: {exc}; reconnecting", severity="warning"
+                )
+            await asyncio.sleep(EVENTS_RETRY_S)
 
     def refresh_screen(self) -> None:
         """Every screen in sight: the top one and, under a dialog, the screens it shows: time must not
@@ -497,14 +548,13 @@ class DrsConsole(App[int]):
         if not self.commanding:
             self.exit(0)
             return
-        arming = {name: self.context.arming(name) for name in self.setup.capsules}
-        firing = [name for name, a in arming.items() if a.status().state is ArmState.FIRING]
+        firing = self.arm_states(FIRING)
         if firing:
             self.notify(
                 f"not quitting: Go is being sent to {', '.join(firing)}; wait for FIRED", severity="error"
             )
             return
-        armed = [name for name, a in arming.items() if a.status().armed]
+        armed = self.arm_states(ARMED)
         powered = [n for n in self.setup.capsules if self.fleet.capsules[n].powered]
         lines = ["The capsules keep their state and the store keeps every record; polls, predictions and the",
                  "balloon feed stop until the console is started again."]  # fmt: skip
@@ -514,10 +564,9 @@ class DrsConsole(App[int]):
             lines.append(f"Powered on and waiting for Go: {', '.join(powered)}.")
 
         def disarm_and_exit() -> None:
-            """In a worker: the disarms are store writes, and the console ends only once they are recorded."""
+            """In a worker: the disarms go through the server, and the console ends once they are recorded."""
             try:
-                for name in armed:
-                    arming[name].disarm("console closed")
+                self.disarm_mine("console closed")
             finally:
                 self.call_from_thread(self.exit, 0)
 
@@ -549,6 +598,8 @@ class DrsConsole(App[int]):
         super().notify(message, title=title, severity=severity, timeout=timeout, markup=markup)
 
     def on_unmount(self) -> None:
+        if self._events is not None:
+            self._events.cancel()
         if self.commanding and self.live_timers:
             loop = asyncio.get_running_loop()
             for sig in LOST_SIGNALS:

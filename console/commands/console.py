@@ -171,6 +171,7 @@ def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None)
         )
     store = Store.open(config.store_path)
     operations = Operations(config, store, recorder=_recorder(config))
+    server = operations_server(config)
     predictions = None
     if weather:
         files = list(weather)
@@ -181,10 +182,21 @@ def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None)
         predictions = PredictionService(lambda: files, terrain_factory, operations.clock, models)
     return ConsoleSetup(
         mode="live", capsules=[c.name for c in config.capsules], store=store, operations=operations,
-        predictions=predictions, balloon_feed=started_balloon_feed(config, operations.clock),
+        server=server, weather=tuple(weather or ()), predictions=predictions, balloon_feed=started_balloon_feed(config, operations.clock),
         team_position=_team(config), export_dir=config.data.dir / "exports",
         prediction_period_s=config.console.prediction_period_s,
     )  # fmt: skip
+
+
+def operations_server(config: Config) -> Path:
+    """The socket every action of this console goes through: the team's server (``[server] socket``),
+    else this account's private one, started on demand (``drs_link.server.private``)."""
+    if config.server.socket:
+        return Path(config.server.socket).expanduser()
+    from console.commands.server import predictor_for
+    from drs_link.server import ensure_private_server
+
+    return ensure_private_server(config, predictor_for)
 
 
 def cmd_console(args: argparse.Namespace) -> int:
@@ -260,15 +272,19 @@ def demo_setup(
     prediction_period_s: float | None = None,
 ) -> ConsoleSetup:
     """The console wired to a started demo world as ``drs demo`` runs it; tests and screenshots change the pace."""
+    from console.commands.server import predictor_for
     from console.context import ConsoleSetup
     from console.predictions import PredictionService
     from drs_link.ops import Operations
+    from drs_link.server import InProcessServer
 
     speed = world.speed
     store = Store.open(config.store_path)
+    server = InProcessServer(config, predictor_for, world.environ)  # the world's password stays in here
     return ConsoleSetup(
         mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
         operations=Operations(config, store, clock=world.clock, recorder=recorder, environ=world.environ),
+        server=server.socket, stop_server=server.stop, weather=tuple(world.weather_files),
         predictions=PredictionService(lambda: world.weather_files, world.terrain, world.clock),
         balloon_feed=started_balloon_feed(config, world.clock), team_position=_team(config),
         export_dir=export_dir, banner_note=f"×{speed:g} time",

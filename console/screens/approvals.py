@@ -5,8 +5,9 @@ another login, not a name typed beside the first (``drs_link.ops.approval``). An
 store shows the request as it arrives; here its operator reads what they are approving (the highlighted
 request's brief, ``Approval.for_approver``, the same text `drs approve` prints: the command, the go/no-go
 verdicts, every waiver with its reason and author, the landed evidence or the override's reason), then
-Enter approves and ``x`` rejects with a reason. The rule is below the screen: the requester's own login is
-refused, whichever console it sits at.
+Enter approves and ``x`` rejects with a reason. The requests come from the operations server's push, and
+the decision goes to it (``CommandingContext.decide``): the rule is below the screen, in the server, which
+knows this console's account from the kernel and refuses the requester's own, whichever console it sits at.
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ from textual.widgets import DataTable, Static
 from console.screens.base import ConsoleScreen
 from console.screens.modals import ConfirmModal, TextPromptModal
 from console.widgets import fill_rows, set_content
-from drs_link.ops import ACTIONS, Approval, ApprovalBook, current_login, shown
+from drs_link.ops import ACTIONS, shown
+from drs_link.server import ApprovalView
 
 COLUMNS = ("#", "Capsule", "Command", "Requested by", "Expires")
 HELP = (
@@ -42,9 +44,8 @@ class ApprovalScreen(ConsoleScreen):
         yield from self.compose_footer()
 
     def on_mount(self) -> None:
-        self.you = current_login()
-        """Proven once for the screen's line (an agent key proves itself by signing, which an agent loaded
-        with ``ssh-add -c`` asks its owner to confirm); each decision proves it again."""
+        self.you = self.context.account()
+        """The account the server knows this console by (the kernel's word, not the console's)."""
         self.ready = True
         table = self.query_one("#approvals", DataTable)
         for title in COLUMNS:
@@ -52,21 +53,18 @@ class ApprovalScreen(ConsoleScreen):
         table.focus()
         self.refresh_view()
 
-    @property
-    def book(self) -> ApprovalBook:
-        return self.context.approval_book()
-
     def update_view(self) -> None:
         now = self.context.now()
-        requests = self.book.open_requests()
+        requests = self.context.open_approvals()
         rows = [
-            (str(r.id), (str(r.id), shown(r.capsule), f"{ACTIONS[r.action]}: {shown(r.summary)}",
-                         f"{shown(r.requested_by)} ({shown(r.requester)})", f"{r.expires_utc:%H:%M:%S}Z"))
+            (str(r.id), (str(r.id), shown(r.capsule), f"{ACTIONS.get(r.action, r.action)}: {shown(r.summary)}",
+                         f"{shown(r.requested_by)} ({shown(r.requester_account)})",
+                         f"{r.expires:%H:%M:%S}Z" if r.expires else r.expires_utc))
             for r in requests
         ]  # fmt: skip
         fill_rows(self.query_one("#approvals", DataTable), rows)
         chosen = self.selected()
-        brief = next((r.for_approver(now) for r in requests if r.id == chosen), [])
+        brief = next((r.described.splitlines() for r in requests if r.id == chosen), [])
         you = f"You are {self.you}: the requester's own login cannot approve."
         text = (
             "Nothing waits for approval."
@@ -97,13 +95,15 @@ class ApprovalScreen(ConsoleScreen):
         approval = self.selected()
         if approval is None:
             return
-        request = self.book.get(approval)
+        request = next((r for r in self.context.open_approvals() if r.id == approval), None)
+        if request is None:
+            return
 
         def confirmed(yes: bool | None) -> None:
             if yes:
                 self._decide(approval, True, "")
 
-        body = "\n".join(request.for_approver(self.context.now()))
+        body = request.described
         self.app.push_screen(ConfirmModal(f"Approve #{approval}?", body, "Approve"), confirmed)
 
     def action_reject(self) -> None:
@@ -118,14 +118,14 @@ class ApprovalScreen(ConsoleScreen):
         self.app.push_screen(TextPromptModal(f"Reject #{approval}", "Why (the requester is told):"), reason)
 
     def _decide(self, approval: int, approve: bool, reason: str) -> None:
-        operator, book = self.context.operator, self.book
+        context = self.context
 
-        def shown(decided: Approval) -> None:
+        def shown(decided: ApprovalView) -> None:
             self.app.notify(f"#{decided.id} {decided.state}")
             self.refresh_view()
 
         self.write_off_ui(
-            lambda: book.decide(approval, operator, current_login(), approve, reason),
+            lambda: context.decide(approval, approve, reason),
             shown,
             lambda exc: self.app.notify(str(exc), severity="error", timeout=12),
         )

@@ -5,12 +5,13 @@ keys (``drs_link.iridium.commands``: INTERVAL, SOUNDER and PARACHUTE); a team in
 meet a second, subtly different set of confirmations. Every send shows the exact
 ASCII and hex and needs the capsule's name (the command lifecycle refuses otherwise); PARACHUTE
 also goes through the window helper, which refuses a time the capsule would reject, and the
-two-person rule. The refusals themselves are ``drs_link``'s; this only asks and reports.
+two-person rule. The refusals themselves are ``drs_link``'s; this only asks and reports, and the send
+itself goes to the operations server as the command's ``drs mt send`` option (``option_of``), which
+composes, gates and queues it there (the PARACHUTE plan and the landed evidence shown before it are still
+read here, through ``Operations``).
 """
 
 from __future__ import annotations
-
-from datetime import datetime
 
 from textual import work
 from textual.binding import Binding
@@ -19,19 +20,23 @@ from console.messages import OperatorNotice
 from console.screens.base import ConsoleScreen
 from console.screens.modals import HazardConfirmation, HazardModal, TextPromptModal
 from drs_link.errors import LinkError
-from drs_link.ops import (
-    LISTED,
-    Hazard,
-    MtCommand,
-    MtComposer,
-    MtMessage,
-    ParachutePlan,
-    SecondOperator,
-    by_name,
-    pending_text,
-)
+from drs_link.ops import LISTED, PARACHUTE, Hazard, MtCommand, MtComposer, MtMessage, ParachutePlan, by_name
+from drs_link.server import Pending, Second
 
 COMMAND_ACTIONS = ("command",)
+
+
+def option_of(command: MtCommand, value: object) -> int | str:
+    """A console key's value as the command's ``drs mt send`` option, which the server reads: a choice
+    whose parsed value it is (the sounder's ``on``/``off``), a PARACHUTE time as HH:MM, else the value."""
+    if command is PARACHUTE and isinstance(value, tuple):
+        return f"{value[0]:02d}:{value[1]:02d}"
+    for choice in command.option.get("choices", ()):
+        if command.from_option(choice) == value:
+            return str(choice)
+    if isinstance(value, int | str):
+        return value
+    raise LinkError(f"{command.name}: no option for {value!r}")
 
 
 def command_bindings(paired: bool, listed: tuple[MtCommand, ...] = LISTED) -> list[Binding]:
@@ -68,10 +73,10 @@ class CommandingScreen(ConsoleScreen):
     def reload_after_send(self) -> None:
         """Re-read what a send changed; each screen shows the commands its own way."""
 
-    def _send_after_name(self, message: MtMessage, why: str) -> None:
+    def _send_after_name(self, message: MtMessage, options: dict[str, int | str], why: str) -> None:
         def typed(answer: str | None) -> None:
             if answer is not None:
-                self.send_worker(message, answer.strip(), None)
+                self.send_worker(message, options, answer.strip(), None)
 
         self.app.push_screen(
             TextPromptModal(
@@ -115,10 +120,11 @@ class CommandingScreen(ConsoleScreen):
             return
         try:
             message = MtComposer().add(command.name, value).build()
+            options = {command.dest: option_of(command, value)}
         except LinkError as exc:
             self.app.notify(str(exc), severity="error")
             return
-        self._send_after_name(message, command.note)
+        self._send_after_name(message, options, command.note)
 
     def _plan(self, requested: tuple[int, int] | None) -> ParachutePlan | None:
         try:
@@ -145,9 +151,11 @@ class CommandingScreen(ConsoleScreen):
             )
         )
 
+        options = {PARACHUTE.dest: option_of(PARACHUTE, (plan.hour, plan.minute))}
+
         def confirmed(answer: HazardConfirmation | None) -> None:
             if answer is not None:
-                self.send_worker(message, answer.typed_name, answer, plan.queue_by)
+                self.send_worker(message, options, answer.typed_name, answer)
 
         def countdown() -> str:
             """The deadline, and the landed evidence as it is now when a report has changed it since the
@@ -172,23 +180,27 @@ class CommandingScreen(ConsoleScreen):
     def send_worker(
         self,
         message: MtMessage,
+        options: dict[str, int | str],
         confirmation: str,
         hazard: HazardConfirmation | None,
-        queue_by: datetime | None = None,
     ) -> None:
-        second = SecondOperator(
-            hazard.second_operator or None, hazard.single_operator_waiver or None, hazard.await_approval,
-            lambda request: self.context.warn(f"{self.capsule}: {pending_text(request)}"),
-        ) if hazard is not None else SecondOperator()  # fmt: skip
+        """The send, through the server (which plans a PARACHUTE time again and holds every gate)."""
+        second = Second(hazard.second_operator or None, hazard.single_operator_waiver or None,
+                        hazard.await_approval) if hazard is not None else Second()  # fmt: skip
+
+        def pending(request: Pending) -> None:
+            self.context.warn(f"{self.capsule}: {request.line}")
+
         try:
-            command = self.context.operations().send_mt(
-                self.capsule, message, confirmation, second,
-                override_landed=hazard.override_reason if hazard else None, queue_by=queue_by,
-            ).command  # fmt: skip
+            done = self.context.send_mt(
+                self.capsule, options, confirmation, second,
+                override_landed=hazard.override_reason or None if hazard else None, on_pending=pending,
+            )  # fmt: skip
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return
-        self.app.post_message(
-            OperatorNotice(f"{self.capsule}: {message.text} {command.state}: {command.detail}")
-        )
+        sent = next((line for line in done.lines if line.startswith("MT ")), "")
+        state = sent.split(": ", 2)[1:] if sent else []
+        said = ": ".join(state) if state else " ".join(done.lines)
+        self.app.post_message(OperatorNotice(f"{self.capsule}: {message.text} {said}"))
         self.app.call_from_thread(self.reload_after_send)

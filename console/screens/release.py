@@ -2,7 +2,8 @@
 
 FIRE is a different key from ARM and is disabled (``check_action``) unless the domain layer says
 the capsule is armed; the footer greys it out. Pressing it only opens the confirmation: the
-arming controller re-checks everything when the worker calls ``fire``.
+operations server re-checks everything (a fresh poll, the window, the two-person rule) when the worker
+asks it to FIRE. The ARM state shown is the server's, pushed to the console (``CommandingContext``).
 """
 
 from __future__ import annotations
@@ -17,23 +18,14 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label, Static
 
-from console.context import ConsoleContext
+from console.context import ARMED, FIRED, FIRING, ConsoleContext
 from console.messages import OperatorNotice, TelemetryArrived
 from console.screens.base import FOOTER_ROOM, ConsoleScreen
 from console.screens.modals import ConfirmModal, HazardConfirmation, HazardModal, TextPromptModal
 from console.widgets import fill_rows, set_content
 from drs_link.errors import LinkError
-from drs_link.ops import (
-    WAIVABLE,
-    Approval,
-    ArmState,
-    GoNoGoReport,
-    SecondOperator,
-    StepKind,
-    StepState,
-    Verdict,
-    pending_text,
-)
+from drs_link.ops import WAIVABLE, GoNoGoReport, StepKind, StepState, Verdict
+from drs_link.server import ApprovalView, Pending, Second
 
 POWER_ON_TEXT = (
     "Power-on runs DRS_on.py: it latches the battery relay and boots the microcontroller and GNSS.\n"
@@ -238,28 +230,36 @@ class ReleaseScreen(ConsoleScreen):
     def arm_text(self, go: bool) -> str:
         if not self.context.commanding:
             return "REPLAY: commanding disabled"
-        status = self.context.arming(self.capsule).status()
+        status = self.context.arm_state(self.capsule)
         poll = "GO" if go else "NO-GO"
-        if status.state is ArmState.ARMED and not status.mine:
+        state = status.state if status is not None else "disarmed"
+        left = self.context.remaining_s(status) if status is not None else 0.0
+        if status is not None and state == ARMED and not status.mine:
             return (
-                f"▶ ARMED by another console ({status.holder_text()}) — {status.remaining_s:.0f} s left; "
+                f"▶ ARMED by another console ({status.holder}) — {left:.0f} s left; "
                 f"FIRE here is refused. Poll: {poll}. d disarms it."
             )
-        if status.state is ArmState.ARMED:
-            return f"▶ ARMED — {status.remaining_s:.0f} s left to FIRE (f). Poll: {poll}. d disarms."
-        if status.state is ArmState.FIRING:
+        if state == ARMED:
+            return f"▶ ARMED — {left:.0f} s left to FIRE (f). Poll: {poll}. d disarms."
+        if state == FIRING:
             return "… FIRING: Go is being sent"
-        if status.state is ArmState.FIRED:
+        if state == FIRED:
             return "■ FIRED: Go sent; watch for the first Iridium report"
-        reason = f" (last: {status.last_disarm_reason})" if status.last_disarm_reason else ""
+        reason = f" (last: {status.reason})" if status is not None and status.reason else ""
         return f"○ DISARMED{reason}. Poll: {poll}. a = ARM"
+
+    def armed_here(self) -> bool:
+        """An open window this account holds, with time left on this console's clock."""
+        status = self.context.arm_state(self.capsule)
+        return (status is not None and status.state == ARMED and status.mine
+                and self.context.remaining_s(status) > 0)  # fmt: skip
 
     def approval_text(self) -> str:
         """A request this login made that waits for another login: a live line with its own countdown."""
         now = self.context.now()
         return " ".join(
             f"⧗ approval #{r.id} ({r.summary}) waits for another login: drs approve {r.id} — "
-            f"{max(0.0, (r.expires_utc - now).total_seconds()):.0f} s left · c cancels"
+            f"{max(0.0, (r.expires - now).total_seconds()) if r.expires else 0.0:.0f} s left · c cancels"
             for r in self.context.waiting_approvals(self.capsule)
         )
 
@@ -272,15 +272,13 @@ class ReleaseScreen(ConsoleScreen):
         if action in BEFORE_RELEASE_ONLY and self.released():
             return False  # the Pi is shut down: these keys leave the footer (None would only dim them)
         if action == "fire":
-            status = self.context.arming(self.capsule).status()
-            return True if status.armed and status.mine else None
+            return True if self.armed_here() else None
         return True
 
     def released(self) -> bool:
-        armed = self.context.arming(self.capsule).status().state if self.context.commanding else None
-        return self.context.fleet.capsules[self.capsule].released or armed in (
-            ArmState.FIRING,
-            ArmState.FIRED,
+        status = self.context.arm_state(self.capsule)
+        return self.context.fleet.capsules[self.capsule].released or (
+            status is not None and status.state in (FIRING, FIRED)
         )
 
     # Actions ----------------------------------------------------------------------------------
@@ -402,32 +400,33 @@ class ReleaseScreen(ConsoleScreen):
         )
 
     def action_arm(self) -> None:
-        status = self.context.arming(self.capsule).status()
-        if status.armed and status.mine:  # `a` again once silently restarted the window: ask first
-            body = f"{self.capsule} is ARMED, {status.remaining_s:.0f} s left. ARM again starts a new window."
+        status = self.context.arm_state(self.capsule)
+        if status is not None and self.armed_here():  # `a` again once silently restarted the window: ask
+            left = self.context.remaining_s(status)
+            body = f"{self.capsule} is ARMED, {left:.0f} s left. ARM again starts a new window."
             restart = ConfirmModal("ARM again?", body, "Restart the window")
             self.app.push_screen(restart, lambda yes: self._arm() if yes else None)
             return
         self._arm()
 
     def _arm(self) -> None:
-        """The poll is taken here, on the UI thread, as the screen shows it; the ARM is a store write."""
-        context, capsule, report = self.context, self.capsule, self.context.gonogo(self.capsule)
-        self._write(lambda: context.arming(capsule).arm(report))
+        """ARM through the server, off the UI thread: the server takes the go/no-go poll it judges."""
+        context, capsule = self.context, self.capsule
+        self._write(lambda: context.arm(capsule))
 
     def action_disarm(self) -> None:
         context, capsule = self.context, self.capsule
-        self._write(lambda: context.arming(capsule).disarm("operator disarmed", any_holder=True))
+        self._write(lambda: context.disarm(capsule, "operator disarmed"))
 
     def action_cancel_approval(self) -> None:
         context, capsule = self.context, self.capsule
 
-        def shown(cancelled: list[Approval]) -> None:
+        def shown(cancelled: list[ApprovalView]) -> None:
             for request in cancelled:
                 self.app.notify(f"{capsule}: approval #{request.id} cancelled: nothing will be sent on it")
             self.refresh_view()
 
-        self.write_off_ui(lambda: context.operations().cancel_approvals(capsule), shown, self._refused)
+        self.write_off_ui(lambda: context.cancel_waiting(capsule), shown, self._refused)
 
     def action_fire(self) -> None:
         second = self.context.require_second_operator
@@ -442,10 +441,11 @@ class ReleaseScreen(ConsoleScreen):
 
     def fire_countdown(self) -> str:
         """The ARM window as the FIRE dialog shows it; FIRE is checked against it again on submit."""
-        status = self.context.arming(self.capsule).status()
-        if status.state is ArmState.ARMED and status.armed_until is not None:
-            return f"ARMED — {status.remaining_s:.0f} s left (window closes {status.armed_until:%H:%M:%S}Z)"
-        reason = status.last_disarm_reason or status.state.value
+        status = self.context.arm_state(self.capsule)
+        if status is not None and status.state == ARMED and status.armed_until is not None:
+            left = self.context.remaining_s(status)
+            return f"ARMED — {left:.0f} s left (window closes {status.armed_until:%H:%M:%S}Z)"
+        reason = (status.reason or status.state) if status is not None else "disarmed"
         return f"NOT ARMED ({reason}): FIRE will be refused"
 
     def action_reset(self) -> None:
@@ -474,18 +474,18 @@ class ReleaseScreen(ConsoleScreen):
 
     @work(thread=True, exit_on_error=False, group="release")
     def fire_worker(self, answer: HazardConfirmation) -> None:
-        second = SecondOperator(
-            answer.second_operator or None, answer.single_operator_waiver or None, answer.await_approval,
-            lambda request: self.context.warn(f"{self.capsule}: {pending_text(request)}"),
-        )  # fmt: skip
+        second = Second(answer.second_operator or None, answer.single_operator_waiver or None,
+                        answer.await_approval)  # fmt: skip
+
+        def pending(request: Pending) -> None:
+            self.context.warn(f"{self.capsule}: {request.line}")
+
         try:
-
-            def poll() -> GoNoGoReport:
-                return self.app.call_from_thread(self.context.gonogo, self.capsule)
-
-            records = self.context.operations().fire(self.capsule, answer.typed_name, poll, second)
+            done = self.context.fire(self.capsule, answer.typed_name, second, pending)
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return
-        self.app.post_message(TelemetryArrived(records))
+        self.app.post_message(TelemetryArrived(self.context.operations().poll(self.capsule)))
         self.app.post_message(OperatorNotice(f"{self.capsule}: RELEASED — Go sent, Pi shut down"))
+        for line in done.lines:
+            self.app.post_message(OperatorNotice(line))

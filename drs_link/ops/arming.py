@@ -202,6 +202,26 @@ class ArmingController:
                 window.reason if state is ArmState.DISARMED else None, window, window.holder == self.holder,
             )  # fmt: skip
 
+    def seen(self) -> ArmStatus:
+        """The state as a view shows it, without waiting for a FIRE that holds the lock while Go is sent
+        (the server's push to every console must not stall for 10 s): ``status`` when the lock is free,
+        else the window as the store has it (FIRING, while that FIRE runs), closing nothing."""
+        if self._lock.acquire(blocking=False):
+            try:
+                return self.status()
+            finally:
+                self._lock.release()
+        window = self.windows.latest(self.capsule)
+        if window is None:
+            return ArmStatus(ArmState.DISARMED, None, 0.0, None)
+        state = _STATES[window.state]
+        armed = state is ArmState.ARMED
+        remaining = max(0.0, (window.until_utc - self.clock()).total_seconds()) if armed else 0.0
+        return ArmStatus(
+            state, window.until_utc if armed else None, remaining,
+            window.reason if state is ArmState.DISARMED else None, window, window.holder == self.holder,
+        )  # fmt: skip
+
     def _fire_died(self, window: ArmWindow, now: datetime) -> bool:
         """A FIRING window long past its end whose Go never left: the state machine is still before Go."""
         if (now - window.until_utc).total_seconds() < FIRING_STALE_S:

@@ -15,7 +15,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime
 
-from drs_link.ops.arming import ArmingController
 from drs_link.store import Store, parse_iso_utc
 
 LOST = "session.lost"
@@ -54,13 +53,10 @@ def unprotected_ssh_warning(environ: Mapping[str, str]) -> str | None:
 
 
 def record_loss(
-    store: Store, operator: str, signal: str, arming: Mapping[str, ArmingController], go_in_flight: list[str]
+    store: Store, operator: str, signal: str, disarmed: list[str], go_in_flight: list[str]
 ) -> SessionLoss:
-    """Disarm every open window (audited by the arming controller) and write the loss itself."""
-    held = {name: controller.status() for name, controller in arming.items()}
-    disarmed = [name for name, status in held.items() if status.armed and status.mine]
-    for name in disarmed:
-        arming[name].disarm(f"session lost ({signal})")
+    """Write the loss itself, after the console had its open windows (``disarmed``) closed by the
+    operations server (each disarm audited there)."""
     record = store.append_audit(operator, None, LOST, "disarmed" if disarmed else "recorded",
                                 {"signal": signal, "disarmed": disarmed, "go_in_flight": go_in_flight})  # fmt: skip
     return SessionLoss(record.time_utc, signal, tuple(disarmed), tuple(go_in_flight), record.session)

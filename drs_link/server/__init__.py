@@ -25,17 +25,24 @@ if TYPE_CHECKING:
         check_own_file as check_own_file,
         peer_uid as peer_uid,
     )
-    from .private import ensure_private_server as ensure_private_server, private_socket as private_socket
+    from .private import (
+        InProcessServer as InProcessServer,
+        ensure_private_server as ensure_private_server,
+        private_socket as private_socket,
+    )
     from .protocol import (
         MAX_BODY_BYTES as MAX_BODY_BYTES,
         PROTOCOL as PROTOCOL,
         ApprovalView as ApprovalView,
+        ArmState as ArmState,
         CapsuleStatus as CapsuleStatus,
         DescentView as DescentView,
         Done as Done,
+        Event as Event,
         Failure as Failure,
         Hello as Hello,
         MtSendRequest as MtSendRequest,
+        Pending as Pending,
         RecoveryRequest as RecoveryRequest,
         Second as Second,
         iso_utc as iso_utc,
@@ -49,6 +56,10 @@ __getattr__, __dir__, __all__ = lazy_door(
         "ApprovalView": "protocol",
         "Capsule": "client",
         "CapsuleStatus": "protocol",
+        "ArmState": "protocol",
+        "Event": "protocol",
+        "InProcessServer": "private",
+        "Pending": "protocol",
         "Client": "client",
         "DescentView": "protocol",
         "Done": "protocol",

@@ -25,6 +25,7 @@ import threading
 import time
 from collections.abc import Awaitable, Callable
 from concurrent.futures import ThreadPoolExecutor
+from datetime import datetime
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -119,6 +120,7 @@ class OperationsServer:
         predictor_for: PredictorFor | None = None,
         environ: dict[str, str] | None = None,
         live_for: LiveFor | None = None,
+        clock: Callable[[], datetime] | None = None,
     ) -> None:
         if config.source is not None:
             check_own_file(config.source)
@@ -131,11 +133,11 @@ class OperationsServer:
         self.idle_exit_s = idle_exit_s
         self.roster = Roster(config, mode)
         self.store = Store.open(config.store_path)
-        self.desks = Desks(config, self.store, environ)
+        self.desks = Desks(config, self.store, environ, clock)
         self.release = ReleaseService(self.desks, mode, predictor_for)
         self.iridium = IridiumService(self.desks, mode)
         self.capsules = CapsuleService(self.desks, mode)
-        self.approvals = ApprovalService(self.store)
+        self.approvals = ApprovalService(self.store, self.desks.clock)
         self.recovery = RecoveryService(self.desks, live_for)
         self.pool = ThreadPoolExecutor(max_workers=32, thread_name_prefix="drs-server")
         self.busy = 0
@@ -425,7 +427,7 @@ class OperationsServer:
         reader = asyncio.ensure_future(ws.receive())
         try:
             while not ws.closed:
-                event = encode(await self.blocking(self.event))
+                event = encode(await self.blocking(lambda: self.event(request["peer"])))
                 if event != last:
                     await ws.send_bytes(event)
                     last = event
@@ -441,7 +443,9 @@ class OperationsServer:
             reader.cancel()
         return ws
 
-    def event(self) -> Event:
+    def event(self, peer: Peer) -> Event:
+        """What a subscriber sees: every capsule's release state and ARM window (whose, from its account)
+        and the approvals that wait."""
         ops = self.desks.any_desk()
         release, armed = {}, {}
         if ops is not None:
@@ -449,7 +453,7 @@ class OperationsServer:
                 release[name] = capsule.machine.record().state.value
                 window = capsule.arming.windows.latest(name)
                 armed[name] = window.state if window is not None else "none"
-        return Event(release, armed, tuple(self.approvals.waiting()))
+        return Event(release, armed, tuple(self.approvals.waiting()), self.release.arm_states(peer))
 
     # Running --------------------------------------------------------------------------------------
 

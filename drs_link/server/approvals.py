@@ -8,6 +8,9 @@ written to the audit beside the book's own rows (``approval.peer``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from datetime import datetime
+
 from drs_link.errors import ConfigError
 from drs_link.ops import Approval, ApprovalBook, Login
 from drs_link.server.peers import Peer
@@ -21,15 +24,16 @@ def login_of(peer: Peer) -> Login:
 
 
 class ApprovalService:
-    def __init__(self, store: Store) -> None:
+    def __init__(self, store: Store, clock: Callable[[], datetime] | None = None) -> None:
         self.store = store
-        self.book = ApprovalBook(store, lambda: store.clock())
+        self.book = ApprovalBook(store, clock or (lambda: store.clock()))
 
     def view(self, request: Approval) -> ApprovalView:
         return ApprovalView(
             request.id, request.capsule, request.action, request.summary, request.command, request.requested_by,
             request.requester.user, request.state, iso_utc(request.expires_utc), request.decided_by,
             request.decider.user if request.decider else None, "\n".join(request.for_approver(self.book.clock())),
+            request.expires_utc,
         )  # fmt: skip
 
     def waiting(self) -> list[ApprovalView]:

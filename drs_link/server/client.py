@@ -17,9 +17,10 @@ refusal comes back as the same exception type the operations layer raised.
 
 from __future__ import annotations
 
+import contextlib
 import http.client
 import socket
-from collections.abc import Callable, Iterator
+from collections.abc import AsyncIterator, Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
@@ -133,6 +134,14 @@ class Client:
     def close(self) -> None:
         self._conn.close()
 
+    def abort(self) -> None:
+        """Cut the connection from another thread (a console's cancel): the verb waiting on it fails, and
+        the server withdraws the approval request that action waited on."""
+        sock = self._conn.sock
+        if sock is not None:
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_RDWR)
+
     def __enter__(self) -> Client:
         return self
 
@@ -181,8 +190,11 @@ class Client:
             raise_failure(_failure(raw))
         return msgspec.json.decode(raw, type=kind)
 
-    def steps(self, path: str, body: object, say: Say) -> Done:
-        """A long action: print its steps as they come (``say``); its ``Done``, or its failure raised."""
+    def steps(
+        self, path: str, body: object, say: Say, on_pending: Callable[[Pending], None] | None = None
+    ) -> Done:
+        """A long action: print its steps as they come (``say``; the approval request it waits on to
+        ``on_pending`` when given, a console's notice); its ``Done``, or its failure raised."""
         response = self._send("POST", path, body)
         if response.status != 200:
             raise_failure(_failure(response.read()))
@@ -192,7 +204,9 @@ class Client:
                 self._conn.close()
                 raise LinkError("the operations server ended the answer before the action did (did it stop?)")
             step = decode_step(line)
-            if isinstance(step, Said | Pending):
+            if isinstance(step, Pending) and on_pending is not None:
+                on_pending(step)
+            elif isinstance(step, Said | Pending):
                 say(step.line)
             elif isinstance(step, Failure):
                 response.read()
@@ -207,17 +221,11 @@ class Client:
         import queue
         import threading
 
-        import aiohttp
-
         found: queue.Queue[Event | BaseException | None] = queue.Queue()
 
         async def listen() -> None:
-            connector = aiohttp.UnixConnector(path=str(self.socket_path))
-            async with aiohttp.ClientSession(connector=connector) as session:
-                async with session.ws_connect(f"http://drs-server{ROOT}/events") as ws:
-                    async for message in ws:
-                        if message.type is aiohttp.WSMsgType.BINARY:
-                            found.put(msgspec.json.decode(message.data, type=Event))
+            async for event in self.event_stream():
+                found.put(event)
             found.put(None)
 
         def run() -> None:
@@ -234,6 +242,20 @@ class Client:
             if isinstance(item, BaseException):
                 raise LinkError(f"the event stream of {self.socket_path} failed: {item}")
             yield item
+
+    async def event_stream(self) -> AsyncIterator[Event]:
+        """``events`` in the caller's event loop (a console's): cancelled with the task that reads it."""
+        import aiohttp
+
+        connector = aiohttp.UnixConnector(path=str(self.socket_path))
+        try:
+            async with aiohttp.ClientSession(connector=connector) as session:
+                async with session.ws_connect(f"http://drs-server{ROOT}/events") as ws:
+                    async for message in ws:
+                        if message.type is aiohttp.WSMsgType.BINARY:
+                            yield msgspec.json.decode(message.data, type=Event)
+        except aiohttp.ClientError as exc:
+            raise LinkError(f"the event stream of {self.socket_path} failed: {exc}") from None
 
 
 def absolute(paths: tuple[str, ...]) -> tuple[str, ...]:
@@ -269,10 +291,11 @@ class Capsule:
         weather: tuple[str, ...] = (),
         second: Second | None = None,
         say: Say = print,
+        on_pending: Callable[[Pending], None] | None = None,
     ) -> Done:
         waived = tuple(Waive(i, r) for i, r in waivers)
         request = FireRequest(PROTOCOL, typed_name, waived, absolute(weather), second or Second())
-        return self.client.steps(f"/capsules/{self.name}/fire", request, say)
+        return self.client.steps(f"/capsules/{self.name}/fire", request, say, on_pending)
 
     def disarm(self, reason: str = "operator disarmed (drs capsule disarm)") -> ArmState:
         return self.client.call(
@@ -355,8 +378,11 @@ class Capsule:
 class Iridium:
     client: Client
 
-    def send_mt(self, name: str, request: MtSendRequest, say: Say = print) -> Done:
-        return self.client.steps(f"/iridium/{name}/mt", request, say)
+    def send_mt(
+        self, name: str, request: MtSendRequest, say: Say = print,
+        on_pending: Callable[[Pending], None] | None = None,
+    ) -> Done:  # fmt: skip
+        return self.client.steps(f"/iridium/{name}/mt", request, say, on_pending)
 
     def mt_status(self, name: str) -> MtStatus:
         """The capsule's MTs, once the reports moved them on (delivered, applied), oldest first."""

@@ -13,6 +13,7 @@ import socket
 import threading
 from collections.abc import Callable
 from dataclasses import replace
+from datetime import datetime
 from pathlib import Path
 
 from drs_link.config import Config
@@ -31,10 +32,16 @@ def holder_of(peer: Peer) -> str:
 
 
 class Desks:
-    def __init__(self, config: Config, store: Store, environ: dict[str, str] | None = None) -> None:
+    def __init__(
+        self, config: Config, store: Store, environ: dict[str, str] | None = None,
+        clock: Callable[[], datetime] | None = None,
+    ) -> None:  # fmt: skip
         self.config = config
         self.store = store
         self.environ = environ
+        self.clock = clock or (lambda: store.clock())
+        """The store's clock (the demo's scaled time is written into the store), or the one given: a
+        console's own in-process server keeps the console's time."""
         self._desks: dict[int, Operations] = {}
         self._lock = threading.Lock()
 
@@ -45,7 +52,7 @@ class Desks:
             if ops is None:
                 config = replace(self.config, operator=replace(self.config.operator, name=peer.operator))
                 ops = Operations(
-                    config, self.store, clock=lambda: self.store.clock(), environ=self.environ,
+                    config, self.store, clock=self.clock, environ=self.environ,
                     holder=holder_of(peer), login=Login(peer.account, None, peer.operator),
                 )  # fmt: skip
                 self._desks[peer.uid] = ops

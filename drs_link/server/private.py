@@ -19,6 +19,8 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
+from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -154,3 +156,48 @@ def _thread_server(config: Config, predictor_for: PredictorFor | None, live_for:
         time.sleep(0.01)
     _threads[key] = path
     return path
+
+
+class InProcessServer:
+    """A private server in a thread of this process, stopped with ``stop``: the demo's, whose world (the
+    store, the simulators, the gateway password) lives in this process too and ends with it."""
+
+    def __init__(
+        self, config: Config, predictor_for: PredictorFor | None = None, environ: dict[str, str] | None = None,
+        clock: Callable[[], datetime] | None = None,
+    ) -> None:  # fmt: skip
+        import asyncio
+
+        from drs_link.server.app import OperationsServer
+
+        self.socket = private_socket(config).with_name(f"server-{os.getpid()}-{id(self):x}.sock")
+        self.server = OperationsServer(config, "private", self.socket, predictor_for=predictor_for,
+                                       environ=environ, clock=clock)  # fmt: skip
+        self._loop: asyncio.AbstractEventLoop | None = None
+        failed: list[BaseException] = []
+
+        async def serve() -> None:
+            self._loop = asyncio.get_running_loop()
+            await self.server.run(lambda line: None)
+
+        def run() -> None:
+            try:
+                asyncio.run(serve())
+            except BaseException as exc:  # noqa: BLE001 - said by the caller below
+                failed.append(exc)
+
+        self._thread = threading.Thread(target=run, daemon=True, name="drs-private-server")
+        self._thread.start()
+        deadline = time.monotonic() + START_WAIT_S
+        while not listening(self.socket):
+            if failed or time.monotonic() > deadline:
+                raise LinkError(
+                    f"the private operations server did not start: {failed[0] if failed else 'timeout'}"
+                )
+            time.sleep(0.01)
+
+    def stop(self) -> None:
+        """End the server (a request in flight is answered first) and wait for its thread."""
+        if self._loop is not None and self._thread.is_alive():
+            self._loop.call_soon_threadsafe(self.server.stopping.set)
+        self._thread.join(timeout=START_WAIT_S)

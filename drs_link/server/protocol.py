@@ -197,6 +197,12 @@ class ArmState(msgspec.Struct, frozen=True):
     reason: str | None
     lines: tuple[str, ...] = ()
     """The go/no-go poll it was judged on, one line per item."""
+    armed_until: datetime | None = None
+    """When the open window closes (a console counts it down on its own clock between pushes)."""
+    mine: bool = True
+    """Whether the asking account holds the window (only its holder can FIRE in it)."""
+    holder: str = ""
+    """Who holds another account's window (``held by account@host …``), empty when it is the asker's."""
 
 
 class ApprovalView(msgspec.Struct, frozen=True):
@@ -213,6 +219,8 @@ class ApprovalView(msgspec.Struct, frozen=True):
     decider_account: str | None
     described: str
     """The request as ``drs approve`` prints it (``Approval.describe``)."""
+    expires: datetime | None = None
+    """``expires_utc`` as a time, for a console's countdown."""
 
 
 class AuthorityView(msgspec.Struct, frozen=True):
@@ -500,6 +508,8 @@ class Event(msgspec.Struct, frozen=True):
     release: dict[str, str]
     armed: dict[str, str]
     approvals: tuple[ApprovalView, ...]
+    arms: dict[str, ArmState] = {}
+    """Each capsule's ARM window as the subscribing account sees it (``mine`` is that account's)."""
 
 
 def iso_utc(moment: datetime) -> str:

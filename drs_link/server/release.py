@@ -13,6 +13,7 @@ from collections.abc import Callable
 from drs_link.errors import ConfigError, RefusedError
 from drs_link.ops import (
     Approval,
+    ArmStatus,
     GoNoGoReport,
     Operations,
     ReleaseSample,
@@ -71,17 +72,17 @@ class ReleaseService:
         report = self._poll(peer, ops, name, request.weather)
         for line in poll_lines(report):
             say(line)
-        status = ops.arm(name, report)
-        window = status.window
-        return ArmState(
-            name, status.state.value, window.id if window else None,
-            f"{window.until_utc:%H:%M:%S}Z" if window else None, status.remaining_s, status.last_disarm_reason,
-        )  # fmt: skip
+        return arm_state(name, ops.arm(name, report))
 
     def disarm(self, peer: Peer, name: str, reason: str) -> ArmState:
         ops = self.desks.desk(peer)
         status = ops.ops(name).arming.disarm(reason, any_holder=True)
         return ArmState(name, status.state.value, None, None, 0.0, status.last_disarm_reason)
+
+    def arm_states(self, peer: Peer) -> dict[str, ArmState]:
+        """Every capsule's ARM window as ``peer`` sees it (whose it is, and how long it has left)."""
+        ops = self.desks.desk(peer)
+        return {name: arm_state(name, capsule.arming.seen()) for name, capsule in ops.capsules.items()}
 
     def fire(self, peer: Peer, name: str, request: FireRequest, say: Say, on_pending: OnPending) -> list[str]:
         """FIRE as the console fires it; an unverified Go is finished instead (``Operations.finish_go``)."""
@@ -106,6 +107,15 @@ class ReleaseService:
 
         chosen = SecondOperator(second.name, second.waiver, second.await_approval, on_pending)
         return released_lines(name, ops.fire(name, request.typed_name, poll, chosen, sending))
+
+
+def arm_state(name: str, status: ArmStatus) -> ArmState:
+    window = status.window
+    return ArmState(
+        name, status.state.value, window.id if window else None,
+        f"{window.until_utc:%H:%M:%S}Z" if window else None, status.remaining_s, status.last_disarm_reason,
+        armed_until=status.armed_until, mine=status.mine, holder=status.holder_text(),
+    )  # fmt: skip
 
 
 def poll_lines(report: GoNoGoReport) -> list[str]:

@@ -25,6 +25,7 @@ from console.predictions import PredictionService, ReleaseOrigin
 from drs_link.config import Config, parse_config
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
+from drs_link.ops.arm_window import ArmWindow, ArmWindows
 from drs_link.ops.operations import Operations
 from drs_link.ops.telemetry import (
     BalloonSample,
@@ -37,6 +38,8 @@ from drs_link.ops.telemetry import (
     SyncSample,
     TelemetryRecord,
 )
+from drs_link.server.desks import holder_of
+from drs_link.server.peers import Peer, account_of
 from drs_link.store import Store
 from predictor import Terrain
 from predictor.environment.demo_weather import demo_weather_files
@@ -151,6 +154,19 @@ def canned_records(prediction: list[TelemetryRecord]) -> list[TelemetryRecord]:
     return records + [TelemetryRecord(T0 - timedelta(seconds=6), r.capsule, r.data) for r in prediction]
 
 
+def window_of_this_account(app: DrsConsole, capsule: str = "DRS1", firing: bool = False) -> ArmWindow:
+    """An ARM window held by this account at the console's server, written to the store as the server's
+    ARM writes it (the canned capsules nobody listens for are never polled GO); FIRING when ``firing``."""
+    holder = holder_of(Peer(os.geteuid(), account_of(os.geteuid()), "EL"))
+    windows = ArmWindows(app.store)
+    now = app.store.clock()
+    window, _ = windows.open(capsule, holder, "test", "EL", now, now + timedelta(minutes=1), "")
+    assert window is not None
+    if firing:
+        assert windows.start_firing(window.id, holder, now)
+    return window
+
+
 def seed_reports(store: Store, imei: str, start: datetime, count: int, interval_min: int = 2) -> None:
     """Reports of a landed capsule, byte-exact as the firmware writes them, stored as the webhook would."""
     reports = ReportStore(store)
@@ -169,7 +185,8 @@ def seed_reports(store: Store, imei: str, start: datetime, count: int, interval_
 def canned_app(
     tmp_path: Path, canned_prediction: list[TelemetryRecord], prediction_service: PredictionService
 ) -> Callable[..., DrsConsole]:
-    """A console at a fixed time, data from records, no timers: what it shows never changes."""
+    """A console at a fixed time, data from records, no timers: what it shows never changes (a live one
+    acts through an operations server of its own, in this process, ended with it)."""
 
     def build(mode: str = "live", now: datetime = T0) -> DrsConsole:
         config = offline_config(tmp_path)

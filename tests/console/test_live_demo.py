@@ -90,7 +90,6 @@ async def test_the_live_console_from_the_file_powers_on_and_arms_a_simulated_cap
 
     from console.app import DrsConsole
     from console.commands.console import live_setup
-    from drs_link.ops.arming import ArmState
     from tests.console.conftest import wait_for
     from tests.console.test_release_flow import booting, open_release_go
 
@@ -103,6 +102,6 @@ async def test_the_live_console_from_the_file_powers_on_and_arms_a_simulated_cap
             await open_release_go(pilot, app, booting(skip_clock, world.speed))
             assert {i.key: i.verdict.value for i in app.gonogo("DRS1").items}["gateway"] == "GO"
             await pilot.press("a")
-            await wait_for(pilot, lambda: app.context.arming("DRS1").status().state is ArmState.ARMED)
+            await wait_for(pilot, lambda: getattr(app.context.arm_state("DRS1"), "state", None) == "armed")
     finally:
         setup.close()

@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from datetime import timedelta
 
 import pytest
 
 from console.app import DrsConsole
 from console.screens.fleet import FleetScreen
 from console.screens.modals import ConfirmModal
-from drs_link.ops.arming import ArmState
-from tests.console.conftest import wait_for
+from tests.console.conftest import wait_for, window_of_this_account
 
 pytestmark = pytest.mark.asyncio
 
@@ -37,27 +35,22 @@ async def test_quitting_while_armed_says_so_and_disarms_on_the_record(
 ) -> None:
     app = canned_app()
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.press("enter", "a")
-        arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
-        await wait_for(pilot, lambda: arming.status().armed)  # the ARM is written off the UI thread
+        await pilot.press("enter")
+        window_of_this_account(app)  # as the server's ARM writes it (nobody polls the canned capsules GO)
+        await wait_for(pilot, lambda: getattr(app.context.arm_state("DRS1"), "state", None) == "armed")
         await pilot.press("q")
         body = str(app.screen.query_one(".dialog-body").render())
         assert "ARMED, will be disarmed: DRS1." in body and "Powered on and waiting for Go: DRS1." in body
         await pilot.press("tab", "enter")
-        await wait_for(pilot, lambda: not app.is_running)  # it ends once the disarm is on the record
-        assert arming.status().state is ArmState.DISARMED
+        await wait_for(pilot, lambda: not app.is_running)  # it ends once the server's disarm is on record
         assert ("disarm", "console closed") in [(a.action, a.result) for a in app.store.audit("DRS1")]
 
 
 async def test_no_quitting_while_go_is_being_sent(canned_app: Callable[..., DrsConsole]) -> None:
     app = canned_app()
     async with app.run_test(size=(120, 40)) as pilot:
-        arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
-        now = arming.clock()  # the worker is inside fire(): the modal's flow cannot hold it here
-        window, _ = arming.windows.open(
-            "DRS1", arming.holder, arming.session, "EL", now, now + timedelta(minutes=1), ""
-        )
-        assert window is not None and arming.windows.start_firing(window.id, arming.holder, now)
+        window_of_this_account(app, firing=True)  # the server is inside fire(), for this account
+        await wait_for(pilot, lambda: getattr(app.context.arm_state("DRS1"), "state", None) == "firing")
         await pilot.press("q")
         await pilot.pause()
         assert app.is_running and not isinstance(app.screen, ConfirmModal)

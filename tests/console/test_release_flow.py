@@ -1,4 +1,8 @@
-"""The release flow driven by keys in the real app against the demo's simulated capsules over SSH."""
+"""The release flow driven by keys in the real app against the demo's simulated capsules over SSH.
+
+The console acts through the demo's private operations server (``drs_link.server``): the ARM state it shows
+is the server's, and the refusals are the server's, in the words of ``drs_link.ops``. Another account's
+approval needs a shared server: ``tests/console/test_console_two_accounts.py``."""
 
 from __future__ import annotations
 
@@ -13,11 +17,10 @@ from console.demo import DemoWorld
 from console.screens.modals import ConfirmModal, HazardModal
 from console.screens.release import ReleaseScreen
 from drs_link.errors import RefusedError
-from drs_link.ops.approval import ApprovalBook, Login, current_login
-from drs_link.ops.arming import ArmingController, ArmState
+from drs_link.ops.arming import ArmingController
 from drs_link.ops.capsule import ReleaseState
-from drs_link.ops.operations import SecondOperator
 from drs_link.ops.telemetry import LinkSample, TelemetryRecord
+from drs_link.server.protocol import ArmState, Second
 from drs_link.sim.firmware import BOOT_S
 from tests.clock import SkipClock
 from tests.console.conftest import wait_for
@@ -60,9 +63,8 @@ async def test_fire_is_disabled_until_armed_and_the_domain_refuses_it_anyway(
         assert screen.check_action("fire", ()) is None
         await pilot.press("f")
         assert app.screen is screen
-        assert app.ops is not None
-        with pytest.raises(RefusedError, match="not armed"):
-            app.ops.fire("DRS1", "DRS1", lambda: app.gonogo("DRS1"), SecondOperator(waiver="test"))
+        with pytest.raises(RefusedError, match="not armed"):  # the server's refusal, as ops words it
+            app.context.fire("DRS1", "DRS1", Second(waiver="test"), lambda pending: None)
         assert world.sims[0].firmware.go_at is None
 
 
@@ -72,14 +74,14 @@ async def test_a_complete_release_by_keys_sends_go_to_the_simulated_capsule(
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await open_release_go(pilot, app, booting(skip_clock, world.speed))
-        arming = polls_never_disarm(app, monkeypatch)
+        polls_never_disarm(app, monkeypatch)
         await arm(pilot, app)
-        assert arming.status().armed and screen.check_action("fire", ()) is True
+        assert shown(app).state == "armed" and screen.check_action("fire", ()) is True
         await pilot.press("f")
         assert isinstance(app.screen, HazardModal)
         await pilot.press(*"DRS1", "enter", "enter", *"test drop", "enter")
         await wait_for(pilot, lambda: world.sims[0].firmware.go_at is not None)
-        await wait_for(pilot, lambda: arming.status().state is ArmState.FIRED)
+        await wait_for(pilot, lambda: shown(app).state == "fired")
         assert app.ops.ops("DRS1").machine.record().state is ReleaseState.RELEASED  # type: ignore[union-attr]
         actions = [(a.action, a.result) for a in app.store.audit("DRS1")]
         assert ("fire", "authorised") in actions and ("go", "released, Pi shut down") in actions
@@ -90,22 +92,25 @@ async def test_a_complete_release_by_keys_sends_go_to_the_simulated_capsule(
 
 
 async def arm(pilot: Pilot[int], app: DrsConsole) -> None:
-    """``a``: the ARM is a store write off the UI thread; FIRE is offered once it is on the record."""
+    """``a``: the ARM goes to the server off the UI thread; FIRE is offered once the server says ARMED."""
     await pilot.press("a")
-    await wait_for(pilot, lambda: app.context.arming("DRS1").status().armed)
+    await wait_for(pilot, lambda: shown(app).state == "armed" and shown(app).mine)
 
 
-def polls_never_disarm(app: DrsConsole, monkeypatch: pytest.MonkeyPatch) -> ArmingController:
-    """DRS1's arming, closed only by time and by FIRE: the go/no-go poll no longer disarms it.
+def shown(app: DrsConsole, capsule: str = "DRS1") -> ArmState:
+    """The capsule's ARM window as the console has it from the server (disarmed before any push)."""
+    return app.context.arm_state(capsule) or ArmState(capsule, "disarmed", None, None, 0.0, None)
+
+
+def polls_never_disarm(app: DrsConsole, monkeypatch: pytest.MonkeyPatch) -> None:
+    """DRS1's window, closed only by time and by FIRE: the console's go/no-go poll no longer disarms it.
 
     On a loaded machine the demo's poll (×8 pace) can see the SSH link 20 demo seconds stale, a
-    2.5 s stall, and disarm (or refuse FIRE, which reads the poll again) with its own reason before
-    what a test is about. That poll's disarming is pinned in ``tests/drs_link/ops/test_arming.py`` and
-    by ``test_link_loss_disarms`` and ``test_stale_data_blocks_arm`` here.
+    2.5 s stall, and disarm with its own reason before what a test is about. That poll's disarming is
+    pinned in ``tests/drs_link/ops/test_arming.py`` and by ``test_link_loss_disarms`` and
+    ``test_stale_data_blocks_arm`` here; FIRE still polls again on the server.
     """
-    arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
-    monkeypatch.setattr(arming, "observe", lambda report: arming.status())
-    return arming
+    monkeypatch.setattr(app, "watch_arming", lambda capsules, links_lost: None)
 
 
 async def test_a_wrong_capsule_name_is_refused_and_nothing_is_sent(
@@ -128,30 +133,22 @@ async def test_link_loss_disarms(demo: tuple[DemoWorld, DrsConsole], skip_clock:
     async with app.run_test(size=(120, 40)) as pilot:
         await open_release_go(pilot, app, booting(skip_clock, world.speed))
         await arm(pilot, app)
-        arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
-        assert arming.status().armed
         app.post_message(TelemetryArrived([TelemetryRecord(app.now(), "DRS1", LinkSample(up=False))]))
-        await wait_for(pilot, lambda: not arming.status().armed)
-        assert arming.status().last_disarm_reason == "link lost"
+        await wait_for(pilot, lambda: shown(app).state != "armed")
+        assert shown(app).reason == "link lost"
         assert app.screen.check_action("fire", ()) is None
 
 
 async def test_stale_data_blocks_arm(canned_app: Callable[..., DrsConsole]) -> None:
-    from datetime import timedelta
-
-    from tests.console.conftest import T0
-
-    app = canned_app(now=T0 + timedelta(seconds=60))
+    """The server polls go/no-go itself for ARM: a capsule it cannot reach is NO-GO, refused on the
+    record, and the screen says the server's refusal."""
+    app = canned_app()
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("enter", "a")
-        assert app.ops is not None
-        await wait_for(
-            pilot, lambda: app.store.audit("DRS1", action="arm") != []
-        )  # written off the UI thread
-        status = app.ops.ops("DRS1").arming.status()
-        assert status.state is ArmState.DISARMED
-        refusal = app.store.audit("DRS1")[-1]
-        assert (refusal.action, refusal.result) == ("arm", "refused") and "STALE" in refusal.detail["reason"]
+        await wait_for(pilot, lambda: any("ARM refused" in n.message for n in app._notifications))
+        assert shown(app).state == "disarmed"
+        refusal = [a for a in app.store.audit("DRS1") if a.action == "arm"][-1]
+        assert refusal.result == "refused" and "NO-GO" in str(refusal.detail["reason"])
 
 
 async def test_an_interval_command_is_queued_at_the_simulated_gateway_after_naming_the_capsule(
@@ -179,9 +176,8 @@ async def test_time_runs_behind_the_fire_dialog_and_fire_after_the_arm_window_is
     world, app = demo
     async with app.run_test(size=(80, 24)) as pilot:
         screen = await open_release_go(pilot, app, booting(skip_clock, world.speed))
-        arming = polls_never_disarm(app, monkeypatch)
+        polls_never_disarm(app, monkeypatch)
         await arm(pilot, app)
-        assert arming.status().armed
         await pilot.press("f")
         modal = app.screen
         assert isinstance(modal, HazardModal)
@@ -190,9 +186,9 @@ async def test_time_runs_behind_the_fire_dialog_and_fire_after_the_arm_window_is
         behind = screen.query_one("#arm-status", Static)
         first = str(behind.render())
         await wait_for(pilot, lambda: str(behind.render()) != first)  # the screen behind keeps time
-        assert arming.status().armed
-        skip_clock.skip((arming.status().remaining_s + 1.0) / world.speed)
-        await wait_for(pilot, lambda: not arming.status().armed)
+        assert shown(app).state == "armed"
+        skip_clock.skip((shown(app).remaining_s + 1.0) / world.speed)
+        await wait_for(pilot, lambda: shown(app).state != "armed")
         await wait_for(pilot, lambda: "ARM window expired at" in str(behind.render()))
         await wait_for(pilot, lambda: str(countdown.render()).startswith("NOT ARMED (ARM window expired at"))
         await pilot.press(*"DRS1", "enter", "enter", *"test drop", "enter")
@@ -201,63 +197,22 @@ async def test_time_runs_behind_the_fire_dialog_and_fire_after_the_arm_window_is
         assert world.sims[0].firmware.go_at is None
 
 
-async def test_fire_waits_for_another_login_to_approve_then_releases(
+async def test_asking_another_login_in_the_demo_is_refused_by_its_private_server_with_the_way_to_a_shared_one(
     demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
 ) -> None:
+    """Only this account reaches the demo's private server, so no second account can approve there."""
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
         await open_release_go(pilot, app, booting(skip_clock, world.speed))
-        arming = polls_never_disarm(app, monkeypatch)
-        await arm(pilot, app)
-        await pilot.press("f", *"DRS1")
-        await pilot.click("#approval")
-        book = ApprovalBook(app.store)
-        await wait_for(pilot, lambda: bool(book.open_requests("DRS1")))
-        [request] = book.open_requests("DRS1")
-        assert request.action == "go" and request.requester == current_login()
-        await pilot.pause(0.5)
-        assert world.sims[0].firmware.go_at is None, "nothing is sent while the request waits"
-        with pytest.raises(RefusedError, match="cannot approve it"):
-            book.decide(request.id, "EL", current_login(), approve=True)
-        book.decide(request.id, "JM", Login("jm-on-the-other-console"), approve=True)
-        await wait_for(pilot, lambda: arming.status().state is ArmState.FIRED)
-        assert world.sims[0].firmware.go_at is not None
-        [fire] = [a for a in app.store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
-        assert fire.detail is not None and fire.detail["approved_by"] == "JM (jm-on-the-other-console)"
-
-
-async def test_a_waiting_approval_is_a_live_line_with_its_countdown_and_c_cancels_it(
-    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
-) -> None:
-    """#23: the waiting request showed only as a toast and stayed pending after its window closed."""
-    world, app = demo
-    async with app.run_test(size=(120, 40)) as pilot:
-        screen = await open_release_go(pilot, app, booting(skip_clock, world.speed))
         polls_never_disarm(app, monkeypatch)
-        assert screen.check_action("cancel_approval", ()) is False, "nothing waits: no cancel key"
         await arm(pilot, app)
         await pilot.press("f", *"DRS1")
         await pilot.click("#approval")
-        book = ApprovalBook(app.store)
-        await wait_for(pilot, lambda: bool(book.open_requests("DRS1")))
-        [request] = book.open_requests("DRS1")
-        assert request.command == f"ARM window #{request.window_id}"
-        line = screen.query_one("#arm-status", Static)
-        await wait_for(pilot, lambda: f"approval #{request.id}" in str(line.render()))
-        first = str(line.render())
-        assert "s left · c cancels" in first and screen.check_action("cancel_approval", ()) is True
-        await wait_for(pilot, lambda: str(line.render()) != first)  # its own countdown runs
-        await pilot.press("c")
-        await wait_for(pilot, lambda: any(f"approval #{request.id} cancelled" in n.message
+        await wait_for(pilot, lambda: any("require_second_operator needs a second account" in n.message
+                                          and "drs setup server --group GROUP" in n.message
                                           for n in app._notifications))  # fmt: skip
-        await wait_for(pilot, lambda: f"approval #{request.id}" not in str(line.render()))
-        with pytest.raises(RefusedError, match="is cancelled"):
-            book.decide(request.id, "JM", Login("jm-on-the-other-console"), approve=True)
-        await pilot.pause(0.5)
         assert world.sims[0].firmware.go_at is None
-        assert [a.result for a in app.store.audit("DRS1") if a.action == "approval.cancelled"] == [
-            "cancelled"
-        ]
+        assert shown(app).state == "armed", "the refusal changed nothing"
 
 
 async def test_a_window_another_console_holds_is_shown_as_theirs_and_fire_stays_off(
@@ -267,7 +222,9 @@ async def test_a_window_another_console_holds_is_shown_as_theirs_and_fire_stays_
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await open_release_go(pilot, app, booting(skip_clock, world.speed))
-        mine = polls_never_disarm(app, monkeypatch)
+        polls_never_disarm(app, monkeypatch)
+        assert app.ops is not None
+        mine = app.ops.ops("DRS1").arming  # a console of before the server, on the same store
         other = ArmingController(app.store, mine.machine, "JM", clock=mine.clock, holder="jm@laptop2 pid 7")
         other.arm(app.gonogo("DRS1"))
         line = screen.query_one("#arm-status", Static)

@@ -101,7 +101,7 @@ async def test_a_replay_has_no_commanding_side_it_refuses_in_one_sentence_and_di
     app = DrsConsole(setup, live_timers=False)
     context = app.context
     assert isinstance(context, ReplayContext) and not context.commanding
-    for call in (context.operations, lambda: context.arming("DRS1")):
+    for call in (context.operations, context.client, lambda: context.arm("DRS1")):
         with pytest.raises(LinkError, match=f"^{REPLAY_REFUSAL}$"):
             call()
     assert context.waiting_approvals("DRS1") == [] and context.parachute_overrides() == []

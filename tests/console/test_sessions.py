@@ -6,7 +6,6 @@ import signal
 import subprocess
 import sys
 from collections.abc import Callable
-from datetime import timedelta
 from pathlib import Path
 
 import pytest
@@ -17,13 +16,13 @@ from console.demo import DemoWorld
 from console.screens.approvals import ApprovalScreen
 from console.screens.modals import ConfirmModal
 from drs_link.ops.approval import ApprovalBook, Login, current_login
-from drs_link.ops.arming import ArmState
+from drs_link.ops.arm_window import ArmWindows
 from drs_link.ops.operations import Operations
 from drs_link.ops.session import LOST, record_loss
 from drs_link.store import Store
 from tests.clock import SkipClock
-from tests.console.conftest import offline_config, wait_for
-from tests.console.test_release_flow import arm, booting, open_release_go, polls_never_disarm
+from tests.console.conftest import offline_config, wait_for, window_of_this_account
+from tests.console.test_release_flow import arm, booting, open_release_go, polls_never_disarm, shown
 
 pytestmark = pytest.mark.asyncio
 
@@ -33,9 +32,9 @@ async def test_sighup_while_armed_disarms_on_the_record_and_ends_the_console(
 ) -> None:
     app = canned_app()
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.press("enter", "a")
-        arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
-        await wait_for(pilot, lambda: arming.status().armed)  # the ARM is written off the UI thread
+        await pilot.press("enter")
+        window_of_this_account(app)
+        await wait_for(pilot, lambda: getattr(app.context.arm_state("DRS1"), "state", None) == "armed")
         app.session_lost(signal.SIGHUP)
         await wait_for(pilot, lambda: not app.is_running)
     assert app.return_value == 128 + signal.SIGHUP
@@ -49,19 +48,12 @@ async def test_sigterm_during_go_lets_the_go_finish_before_the_console_ends(
 ) -> None:
     app = canned_app()
     async with app.run_test(size=(120, 40)) as pilot:
-        arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
-        now = arming.clock()
-        window, _ = arming.windows.open(
-            "DRS1", arming.holder, arming.session, "EL", now, now + timedelta(minutes=1), ""
-        )
-        assert window is not None and arming.windows.start_firing(
-            window.id, arming.holder, now
-        )  # Go is being sent
-        assert arming.status().state is ArmState.FIRING
+        window = window_of_this_account(app, firing=True)  # Go is being sent, by the server
+        await wait_for(pilot, lambda: getattr(app.context.arm_state("DRS1"), "state", None) == "firing")
         app.session_lost(signal.SIGTERM)
         await pilot.pause(0.6)
         assert app.is_running, "the Go's own worker must finish and record it first"
-        arming.windows.fired(window.id, now)
+        ArmWindows(app.store).fired(window.id, app.store.clock())
         await wait_for(pilot, lambda: not app.is_running)
     assert app.return_value == 128 + signal.SIGTERM
     [lost] = [a for a in app.store.audit() if a.action == LOST]
@@ -81,13 +73,16 @@ def live_console(tmp_path: Path) -> DrsConsole:
 
 async def test_the_next_console_shows_how_the_last_session_ended(tmp_path: Path) -> None:
     store = Store.open(offline_config(tmp_path).store_path)
-    record_loss(store, "EL", "SIGHUP", {}, go_in_flight=[])
+    record_loss(store, "EL", "SIGHUP", [], go_in_flight=[])
     app = live_console(tmp_path)
-    async with app.run_test(size=(120, 40)) as pilot:
-        await wait_for(
-            pilot, lambda: any("last console: session lost at" in n.message for n in app._notifications)
-        )
-        await pilot.press("q", "tab", "enter")
+    try:
+        async with app.run_test(size=(120, 40)) as pilot:
+            await wait_for(
+                pilot, lambda: any("last console: session lost at" in n.message for n in app._notifications)
+            )
+            await pilot.press("q", "tab", "enter")
+    finally:
+        app.setup.close()
     assert [a.action for a in store.audit() if a.action.startswith("session.")][-1] == "session.started"
 
 
@@ -101,15 +96,18 @@ async def test_what_another_console_does_to_the_store_shows_here_with_who_did_it
         "from drs_link.store import Store; c = load_config(sys.argv[1]); "
         "Operations(c, Store.open(c.store_path)).ops('DRS2').waivers.grant('gnss', 'JM', 'no sky in the hangar')"
     )
-    async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause(0.5)
-        subprocess.run([sys.executable, "-c", other_console, str(config)], check=True)
-        await wait_for(
-            pilot, lambda: any("DRS2: waiver granted — JM" in n.message for n in app._notifications)
-        )
-        [note] = [n.message for n in app._notifications if "waiver granted" in n.message]
-        assert app.store.session not in note and " pid " in note, "the other process is named"
-        await pilot.press("q", "tab", "enter")
+    try:
+        async with app.run_test(size=(120, 40)) as pilot:
+            await pilot.pause(0.5)
+            subprocess.run([sys.executable, "-c", other_console, str(config)], check=True)
+            await wait_for(
+                pilot, lambda: any("DRS2: waiver granted — JM" in n.message for n in app._notifications)
+            )
+            [note] = [n.message for n in app._notifications if "waiver granted" in n.message]
+            assert app.store.session not in note and " pid " in note, "the other process is named"
+            await pilot.press("q", "tab", "enter")
+    finally:
+        app.setup.close()
 
 
 async def test_sighup_during_a_real_go_lets_it_finish_and_records_it_once(
@@ -118,16 +116,19 @@ async def test_sighup_during_a_real_go_lets_it_finish_and_records_it_once(
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
         await open_release_go(pilot, app, booting(skip_clock, world.speed))
-        arming = polls_never_disarm(app, monkeypatch)
-        world.sims[0].faults.answer_delay_s = 3.0  # the Pi has acted; the console hears it 3 s later
+        polls_never_disarm(app, monkeypatch)
+        sim = world.sims[0]  # the Pi has acted on Go; Go's answer is heard 3 s later (the polls at once:
+        # ARM and FIRE poll over SSH on the server now, and a 15 s window must not run out behind them)
+        held = property(lambda faults: 3.0 if sim.firmware.go_at is not None else 0.0)
+        monkeypatch.setattr(type(sim.faults), "answer_delay_s", held)
         await arm(pilot, app)
         await pilot.press("f", *"DRS1", "enter", "enter", *"alone", "enter")
-        await wait_for(pilot, lambda: arming.status().state is ArmState.FIRING)
+        await wait_for(pilot, lambda: shown(app).state == "firing")
         app.session_lost(signal.SIGHUP)
         await pilot.pause(0.5)
         assert app.is_running, "the console waits for the Go in flight"
         await wait_for(pilot, lambda: not app.is_running)
-    assert arming.status().state is ArmState.FIRED and world.sims[0].firmware.go_at is not None
+    assert world.sims[0].firmware.go_at is not None
     assert app.return_value == 128 + signal.SIGHUP
     released = [a for a in app.store.audit("DRS1") if a.action == "go" and a.result.startswith("released")]
     assert len(released) == 1
@@ -152,7 +153,10 @@ async def test_a_second_console_approves_from_its_own_login_and_the_requester_ca
         assert isinstance(app.screen, ConfirmModal)
         await pilot.press("tab", "enter")
         await wait_for(pilot, lambda: book.get(approve.id).state == "approved")
-        assert book.get(approve.id).decider == current_login()
+        decider = book.get(approve.id).decider
+        assert decider is not None and decider.user == current_login().user, (
+            "the kernel's account, at the server"
+        )
         await wait_for(pilot, lambda: table.row_count == 2)
         await pilot.press("x", *"console2 is back", "enter")
         await wait_for(pilot, lambda: book.get(reject.id).state == "rejected")

@@ -166,28 +166,26 @@ async def test_after_release_the_footer_offers_no_arm_fire_power_sync_or_waive(
 
 @pytest.mark.asyncio
 async def test_arm_while_armed_asks_before_it_restarts_the_window(
-    canned_app: Callable[..., DrsConsole], monkeypatch: pytest.MonkeyPatch
+    canned_app: Callable[..., DrsConsole],
 ) -> None:
     from console.screens.modals import ConfirmModal
-    from drs_link.ops.gonogo import GoNoGoItem, GoNoGoReport, Verdict
+    from tests.console.conftest import window_of_this_account
 
     app = canned_app()
-    assert app.ops is not None
-    arming = app.ops.ops("DRS1").arming
-    go = GoNoGoReport("DRS1", (GoNoGoItem("link", "SSH link up", Verdict.GO, "up"),), "all-go", T0)
-    monkeypatch.setattr(app.context, "gonogo", lambda capsule: go)
 
-    def windows() -> int:
-        return len([r for r in app.store.audit("DRS1") if (r.action, r.result) == ("arm", "armed")])
+    def asked() -> int:
+        """ARMs the server was asked for (offline here, each is refused NO-GO on the record)."""
+        return len([r for r in app.store.audit("DRS1") if r.action == "arm"])
 
     async with app.run_test(size=(80, 24)) as pilot:
-        await pilot.press("enter", "a")
-        await wait_for(pilot, lambda: arming.status().armed)
-        assert windows() == 1
+        await pilot.press("enter")
+        window = window_of_this_account(app)  # as the server's ARM writes it
+        await wait_for(pilot, lambda: getattr(app.context.arm_state("DRS1"), "state", None) == "armed")
         await pilot.press("a")
         assert isinstance(app.screen, ConfirmModal), "a second `a` asks first"
         await pilot.press("enter")  # Cancel has the focus: a reflex Enter restarts nothing
         await wait_for(pilot, lambda: not isinstance(app.screen, ConfirmModal))
-        assert windows() == 1 and arming.status().armed
+        await pilot.pause(0.3)
+        assert asked() == 0 and getattr(app.context.arm_state("DRS1"), "window", None) == window.id
         await pilot.press("a", "tab", "enter")
-        await wait_for(pilot, lambda: windows() == 2)
+        await wait_for(pilot, lambda: asked() == 1)
