@@ -41,11 +41,15 @@ def run_show(args: argparse.Namespace) -> int:
             if model.preflight is None:
                 flown = "pre-flight and live (written before the pre-flight gate: not judged)"
             elif term.name in live_only:
-                flown = f"LIVE-ONLY ({reasons.get(term.name) or 'the pre-flight gate left it out'})"
+                why = str(reasons.get(term.name) or "the pre-flight gate left it out").removeprefix(
+                    "live-only: "
+                )
+                flown = f"LIVE-ONLY ({why})"
             elif term.name == "descent_rate_scale" and term not in model.preflight:
                 flown = "live (λ under every term; pre-flight flies its own, below)"
             else:
-                flown = "pre-flight and live" + (f" ({reasons[term.name]})" if reasons.get(term.name) else "")
+                why = str(reasons.get(term.name) or "").removeprefix("pre-flight: ")
+                flown = "pre-flight and live" + (f" ({why})" if why else "")
             lines.append(f"term      {term.name} ({term.family}): {values}; {flown}")
         for term in model.preflight_law():
             if term not in model.terms:

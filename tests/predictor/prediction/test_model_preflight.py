@@ -30,7 +30,8 @@ LIVE = (DescentRateScale(scale=0.96), DragDensityExponent(exponent=0.06))
 """The live law: λ (the median under every term) and the shape."""
 PREFLIGHT = (DescentRateScale(scale=1.01),)
 """The pre-flight law once the gate made the exponent live-only: λ under the plain law alone."""
-REASON = "live-only: pre-flight it makes the landing 4.49 → 4.59 km (+0.11, 95 % -0.13…+0.35)"
+WHY = "pre-flight it makes the landing 4.49 → 4.59 km (+0.11, 95 % -0.13…+0.35)"
+REASON = f"live-only: {WHY}"
 COMMITTED = REPO_ROOT / "docs/planning/superbit-2018-2019-model.json"
 """Written before the gate (schema 3)."""
 
@@ -91,8 +92,7 @@ def test_drs_model_show_says_which_terms_are_live_only_and_why(
     assert main(["model", "show", str(save_model(gated(), tmp_path / "m.json"))]) == 0
     out = capsys.readouterr().out
     assert (
-        f"drag_density_exponent (vertical): exponent 0.06, reference_density 1.225; LIVE-ONLY ({REASON})"
-        in out
+        f"drag_density_exponent (vertical): exponent 0.06, reference_density 1.225; LIVE-ONLY ({WHY})" in out
     )
     assert "descent_rate_scale (vertical): scale 1.01; pre-flight only" in out
 
