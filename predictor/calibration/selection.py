@@ -38,7 +38,14 @@ it in the model (its parameters refitted per fold, held while the new one is fit
 model (``JOINT_SWEEPS`` sweeps, per fold, on its own records). Last, the altitude-binned correction is
 fitted per fold from the training flights' residuals on top of whatever was selected: its
 descent-rate factors are scored on the vertical record, its added wind on the replayed horizontal
-record; a part that still clears the margin means the library lacks something.
+record; a part that still clears the margin means the library lacks something. When the binned rate
+factors pass with no vertical term selected, they meet the best vertical term of the last round
+(``Contest``): the one-parameter term wins unless the factors beat it beyond their held-out interval,
+so which describes the shape does not turn on one flight.
+
+Then the pre-flight gate (``preflight_gate``; the rule in ``calibration.preflight_gate``): each shipped
+term is judged as a prediction before release flies it (shape × the other flights' median λ), held out,
+on the descent time and the landing; one that does not earn its place there is live-only.
 """
 
 from __future__ import annotations
@@ -1012,15 +1019,6 @@ def _losses(
                 loss[j, folds, :] += sq[:-1]
                 loss[j, n, :] += sq[-1]
     return loss
-
-
-def _binned(
-    batch: FlightBatch, selected_folds: list[list[Fit]], selected_full: list[Fit]
-) -> tuple[BinnedCorrection, HeldOut]:
-    """The binned correction per fold from the training flights' residuals, scored on the held-out one."""
-    folds = _binned_folds(batch, selected_folds, selected_full)
-    corrections = [fold.terms() for fold in folds[:-1]]
-    return folds[-1], batch.heldout(selected_folds, corrections)
 
 
 def _binned_folds(
