@@ -465,11 +465,12 @@ def calibrate(
         for family in FAMILY_ORDER
         if any(c.family == family for c in candidates)
     )
-    rate_only = batch.heldout([[f] for f in rate_priors(batch, [[] for _ in range(n)], [])[1]])
+    _, plain_folds, plain_rate, _ = rate_priors(batch, [[] for _ in range(n)], [])
+    rate_only = batch.heldout([[f] for f in plain_folds])
     prior, rate_full, factors = settled.prior, settled.rate_full, settled.factors
     flown_folds, after = settled.flown_folds, settled.after
     binned, binned_heldout, binned_tests = settled.binned, settled.binned_heldout, settled.binned_tests
-    gate = preflight_gate(batch, selected_folds, selected_full, settled, rate_only, seed)
+    gate = preflight_gate(batch, selected_folds, selected_full, settled, (rate_only, plain_rate), seed)
     after_residuals = tuple(residuals(cases[i], batch.runs(i, [flown_folds[i]])) for i in range(n))
     after_replayed = tuple(
         residuals(cases[i], batch.runs(i, [flown_folds[i]], replay=True)) for i in range(n)
@@ -742,17 +743,17 @@ def preflight_gate(
     selected_folds: list[list[Fit]],
     selected_full: list[Fit],
     settled: Settled,
-    rate_only: HeldOut,
+    plain: tuple[HeldOut, Fit],
     seed: int,
 ) -> Gate:
     """Each shipped term judged as the pre-flight law flies it (``preflight_gate`` module): added in
     selection order to the pre-flight set kept so far, λ the median of the other flights' λ under that
-    set, its held-out descent time and landing compared with the set's without it. Returns the decision
-    per term, the pre-flight λ and the pre-flight law's held-out numbers."""
+    set, its held-out descent time and landing compared with the set's without it, starting from
+    ``plain`` (the plain law × median λ held out, and that λ on all flights). Returns the decision per
+    term, the pre-flight λ and the pre-flight law's held-out numbers."""
     n = len(batch.cases)
     kept: list[int] = []
-    current = rate_only
-    rate_fit = Fit(RATE_SCALE, 0, rate_priors(batch, [[] for _ in range(n)], [])[0].median)
+    current, rate_fit = plain
     decisions: list[TermGate] = []
     for k, fit in enumerate(selected_full):
         trial = [*kept, k]
