@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -22,7 +21,6 @@ from predictor.prediction import FlightSetup
 from predictor.prediction.landings import predict
 from predictor.prediction.model_file import CalibratedModel, ModelFileError, load_model, save_model
 from predictor.prediction.uncertainty import ErrorModel
-from tests.conftest import REPO_ROOT
 
 WHEN = datetime(2026, 11, 22, 12, tzinfo=UTC)
 RELEASE = ("--lat", "46.5", "--lon", "6.6", "--alt", "28000", "--time", "2026-11-22T12:00Z")
@@ -32,8 +30,6 @@ PREFLIGHT = (DescentRateScale(scale=1.01),)
 """The pre-flight law once the gate made the exponent live-only: λ under the plain law alone."""
 WHY = "pre-flight it makes the landing 4.49 → 4.59 km (+0.11, 95 % -0.13…+0.35)"
 REASON = f"live-only: {WHY}"
-COMMITTED = REPO_ROOT / "docs/planning/superbit-2018-2019-model.json"
-"""Written before the gate (schema 3)."""
 
 
 def gated() -> CalibratedModel:
@@ -100,12 +96,20 @@ def test_drs_model_show_says_which_terms_are_live_only_and_why(
 def test_a_model_file_written_before_the_gate_loads_flies_every_term_and_says_so(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    path = Path(shutil.copy(COMMITTED, tmp_path / "old.json"))
-    assert json.loads(path.read_text())["schema"] == 3
+    """A schema-3 file as `drs calibrate --save-model` wrote it before the gate (the committed
+    docs/planning/superbit-2018-2019-model.json is one): no ``flown``, every term flies both ways."""
+    document = gated().to_dict()
+    document["schema"] = 3
+    document["terms"] = [
+        {"effect": t["effect"], "parameters": t["parameters"]}
+        for t in document["terms"]
+        if t["flown"] != "pre-flight-only"
+    ]
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(document))
     old = load_model(path)
-    assert old.preflight is None and old.live_only() == ()
-    assert old.flight_setup(Terrain.sea_level()).effects == old.terms
-    assert [t.name for t in old.terms] == ["descent_rate_scale", "drag_density_exponent"]
+    assert old.terms == LIVE and old.preflight is None and old.live_only() == ()
+    assert old.flight_setup(Terrain.sea_level()).effects == LIVE
     assert main(["model", "show", str(path)]) == 0
     assert "written before the pre-flight gate: not judged" in capsys.readouterr().out
 
