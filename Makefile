@@ -33,6 +33,8 @@ demo: $(STAMP)
 # module fixtures are built once and its tests keep their order. Two workers, one per core: four were
 # measured slower (22.6 min against 18.8 serial) on this machine loaded by others (load 9-10), with the
 # console ARM-window tests (15 s of wall clock at x8) expiring. TEST_WORKERS=N overrides.
+# --no-loadscope-reorder: the longest files start first (tests/conftest.py, LONGEST_FILES), not the
+# files with the most tests, which left the files of one long test to one worker at the end.
 TEST_WORKERS ?= 2
 
 test: $(STAMP)
@@ -40,7 +42,7 @@ test: $(STAMP)
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports
 	$(BIN)/mypy
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

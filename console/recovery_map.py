@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -100,8 +101,7 @@ class _Plane:
 def recovery_picture(
     capsule: str, descent: Descent, chase: LatLon | None, weather: bool = True
 ) -> RecoveryPicture:
-    """What the recovery view knows of a capsule, as the picture draws it, with a caption saying what is
-    and is not on it (no prediction without weather; none once the fixes show a landing)."""
+    """What the recovery view knows of a capsule, as the picture draws it (``picture_from``)."""
     live = descent.live
     predicted = None
     if live is not None and math.isfinite(live.sigma_major_km):
@@ -109,22 +109,47 @@ def recovery_picture(
             live.landing_lat, live.landing_lon, live.sigma_major_km, live.sigma_minor_km,
             live.major_axis_bearing_deg,
         )  # fmt: skip
-    landed = (descent.landing.lat, descent.landing.lon) if descent.landing is not None else None
-    track = tuple((p.lat, p.lon) for p in descent.track)
-    if descent.track:
-        last = descent.track[-1]
-        said = [f"last fix {last.time:%Y-%m-%d %H:%M:%S}Z at {last.alt_m:.0f} m"]
-    else:
-        said = ["no fix yet"]
+    last = (descent.track[-1].time, descent.track[-1].alt_m) if descent.track else None
+    return picture_from(
+        capsule,
+        tuple((p.lat, p.lon) for p in descent.track),
+        last,
+        (descent.landing.lat, descent.landing.lon) if descent.landing is not None else None,
+        predicted,
+        (live.landing_time, live.correction) if live is not None else None,
+        descent.live_error,
+        chase,
+        weather,
+    )
+
+
+def picture_from(
+    capsule: str,
+    track: Sequence[LatLon],
+    last: tuple[datetime, float] | None,
+    landed: LatLon | None,
+    predicted: LiveLanding | None,
+    lands: tuple[datetime, str] | None,
+    live_error: str | None,
+    chase: LatLon | None,
+    weather: bool = True,
+) -> RecoveryPicture:
+    """The picture from plain values (a descent here, or the operations server's ``DescentView``), with a
+    caption saying what is and is not on it (no prediction without weather; none once the fixes show a
+    landing). ``last`` is the last fix's time and altitude; ``lands`` the live prediction's landing time
+    and the correction it used."""
+    said = (
+        [f"last fix {last[0]:%Y-%m-%d %H:%M:%S}Z at {last[1]:.0f} m"] if last is not None else ["no fix yet"]
+    )
     if landed is not None:
         said.append("landed (from the fixes)")
-    elif live is not None:
-        said.append(f"live prediction lands {live.landing_time:%H:%M:%S}Z ({live.correction})")
-    elif descent.live_error:
-        said.append(f"no live prediction: {descent.live_error}")
+    elif lands is not None:
+        said.append(f"live prediction lands {lands[0]:%H:%M:%S}Z ({lands[1]})")
+    elif live_error:
+        said.append(f"no live prediction: {live_error}")
     elif not weather:
         said.append("no live prediction: give --weather")
-    return RecoveryPicture(capsule, track, predicted, landed, chase, "; ".join(said))
+    return RecoveryPicture(capsule, tuple(track), predicted, landed, chase, "; ".join(said))
 
 
 def ellipse_ring(centre: tuple[float, float], landing: LiveLanding, n_sigma: float) -> np.ndarray:

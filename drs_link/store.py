@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from drs_link.errors import StoreError
+from drs_link.skip_clock import skipped_seconds
 
 log = logging.getLogger(__name__)
 
@@ -74,7 +75,10 @@ def _on_read_only_filesystem(path: Path) -> bool:
 
 
 def utc_now() -> datetime:
-    return datetime.now(UTC)
+    """The wall clock in UTC, which a test may have skipped forward (``drs_link.skip_clock``)."""
+    skipped = skipped_seconds()
+    now = datetime.now(UTC)
+    return now + timedelta(seconds=skipped) if skipped else now
 
 
 def iso_utc(moment: datetime) -> str:

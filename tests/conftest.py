@@ -8,6 +8,8 @@ from pathlib import Path
 import pyproj  # noqa: F401  (before any test imports eccodes: see predictor/environment/native_libs.py)
 import pytest
 
+from tests.clock import SkipClock
+
 os.environ.setdefault("DRS_SERVER_IDLE_S", "20")
 """The private operations servers that `drs` commands start in tests exit 20 s after their last request."""
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -20,3 +22,47 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.fail(f"the real test data are missing: expected {SHARED_DATA}")
     return SHARED_DATA
+
+
+@pytest.fixture
+def skip_clock(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> SkipClock:
+    """This test's wall clock, and that of the processes it starts from now on, skipped on demand."""
+    return SkipClock(tmp_path / "skip-clock", monkeypatch)
+
+
+LONGEST_FILES = (
+    "tests/predictor/calibration/test_live_hard_worlds.py",
+    "tests/predictor/calibration/test_live_independent.py",
+    "tests/predictor/environment/test_demo_weather.py",
+    "tests/predictor/environment/test_grib_native_faults.py",
+    "tests/console/test_release_flow.py",
+    "tests/predictor/calibration/test_selection_by_family.py",
+    "tests/predictor/calibration/test_selection_synthetic.py",
+    "tests/console/test_one_rule.py",
+    "tests/console/test_end_to_end_tmux.py",
+    "tests/predictor/calibration/test_report.py",
+    "tests/console/commands/test_cli_capsule.py",
+    "tests/predictor/environment/test_grib_fuzz.py",
+    "tests/predictor/calibration/test_independent_calibration.py",
+    "tests/console/commands/test_cli_predict.py",
+    "tests/predictor/environment/test_weather.py",
+)
+"""The files that took longest, longest first, which start first (``pytest -n 2 --dist loadfile
+--no-loadscope-reorder --durations=0``, setup + call + teardown summed per file: 135 s down to 29 s).
+xdist's ``loadfile`` hands a worker whole files, by default those with the most tests first: files of
+one long test (an evaluation, a demo in tmux) came last and one worker ran them alone at the end. The Makefile turns that order off (``--no-loadscope-reorder``); this one is the collection's. A
+file missing here only starts later, and a stale list costs balance, never a result."""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    rank = {path: index for index, path in enumerate(LONGEST_FILES)}
+
+    def place(item: pytest.Item) -> int:
+        path = Path(item.path)
+        return (
+            rank.get(path.relative_to(REPO_ROOT).as_posix(), len(rank))
+            if path.is_relative_to(REPO_ROOT)
+            else len(rank)
+        )
+
+    items.sort(key=place)  # stable: every other file, and the tests in each file, keep their order

@@ -8,6 +8,7 @@ it holds, and that no module imports itself back through others at run time.
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -91,7 +92,8 @@ def test_every_room_says_what_it_holds(room: str) -> None:
     assert docstring and len(docstring) > 40, f"{door} needs a docstring that says what the room holds"
 
 
-def _defined_at_top(path: Path) -> set[str]:
+@functools.cache  # a room's door lists each name once, and each was parsed for every file: 20 s of ast.parse
+def _defined_at_top(path: Path) -> frozenset[str]:
     names = set()
     for node in ast.parse(path.read_text()).body:
         if isinstance(node, ast.FunctionDef | ast.ClassDef):
@@ -100,7 +102,7 @@ def _defined_at_top(path: Path) -> set[str]:
             names |= {target.id for target in node.targets if isinstance(target, ast.Name)}
         elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
             names.add(node.target.id)
-    return names
+    return frozenset(names)
 
 
 def test_a_door_names_only_what_its_room_defines_once() -> None:

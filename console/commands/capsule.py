@@ -1,7 +1,9 @@
-"""``drs capsule …`` and ``drs sync``: the release steps and the data upload, scriptable for checklists.
+"""``drs capsule …``: the release steps, scriptable for checklists, each one asked of the operations server.
 
-Every refusal and failure is a ``LinkError`` that ``console.commands.main`` prints as one line with a
-non-zero exit; the state machine audits each step before this module reports it.
+This process holds no store, link or state machine (issue #29): every verb goes through
+``drs_link.server.client``, and the server's refusal comes back as the same one-line error the operations
+layer gives (``console.commands.main`` prints it with a non-zero exit); the state machine audits each step
+there before this module reports it.
 """
 
 from __future__ import annotations
@@ -14,12 +16,13 @@ from typing import TYPE_CHECKING
 
 from console.commands.argparser import add_two_person_options
 from drs_link.config import load_config
-from drs_link.errors import ConfigError, RefusedError
+from drs_link.errors import RefusedError
 from predictor.errors import UsageError
 
-if TYPE_CHECKING:  # the operations layer loads the SSH link (paramiko) and shapely (numpy): not for --help
-    from drs_link.ops import Operations
+if TYPE_CHECKING:  # the client and its protocol load msgspec: not for --help
     from drs_link.server import Client
+    from drs_link.server.client import Capsule
+    from drs_link.server.protocol import CapsuleStatus
 
 EXIT_MICROCONTROLLER_SILENT = 3
 EXIT_LINK_DOWN = 4
@@ -115,16 +118,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     bench.add_argument("--rounds", type=int, default=20, help="heartbeat round trips to time")
     bench.set_defaults(func=cmd_bench)
 
-    sync = subparsers.add_parser("sync", help="upload a directory to a capsule's storage mount (verified)")
-    sync.add_argument("name")
-    sync.add_argument(
-        "source", type=Path, metavar="SOURCE_DIR", nargs="?", help="default: the capsule's sync_source"
-    )
-    sync.add_argument("--status", action="store_true", help="only report what is missing or changed")
-    sync.add_argument("--hash", action="store_true", help="with --status: also compare sha256")
-    sync.add_argument("--json", action="store_true", help="with --status: machine-readable output")
-    sync.set_defaults(func=cmd_sync)
-
 
 def _poll_options(parser: argparse.ArgumentParser) -> None:
     """What the go/no-go poll needs from a terminal: waivers, and the weather to predict the landing from."""
@@ -183,96 +176,67 @@ def cmd_disarm(args: argparse.Namespace) -> int:
 
 
 def cmd_status(args: argparse.Namespace) -> int:
-    from drs_link.ops import ReleaseState
+    """Read by the server, which holds the capsule's link; exit 4 when the Pi is unreachable (and not released)."""
+    import msgspec
 
-    ops = _operations(args, need_operator=False)
-    try:
-        report, up = ops.capsule_status(args.name)
-    finally:
-        ops.close()
-    released = ops.release_state(args.name) is ReleaseState.RELEASED
+    with _client(args) as client:
+        status = client.capsule(args.name).status()
     if args.json:
-        print(json.dumps(report, indent=2, sort_keys=True))
+        print(json.dumps(msgspec.to_builtins(status), indent=2, sort_keys=True))
     else:
-        _print_status(args.name, report)
-    return 0 if up or released else EXIT_LINK_DOWN
+        _print_status(args.name, status)
+    return 0 if status.link.up or status.release.state == "released" else EXIT_LINK_DOWN
 
 
-def _print_status(name: str, report: dict[str, object]) -> None:
-    release = report["release"]
-    assert isinstance(release, dict)
-    print(f"{name}: {release['state']}" + (f" ({release['note']})" if release.get("note") else ""))
-    link = report.get("link", {})
-    assert isinstance(link, dict)
-    print(
-        f"  link: {'up' if link.get('up') else 'DOWN'}" + (f" - {link['error']}" if link.get("error") else "")
-    )
-    storage = report.get("storage")
-    if isinstance(storage, dict) and isinstance(storage.get("total_bytes"), int) and storage["total_bytes"]:
-        used = int(storage["used_bytes"]) / int(storage["total_bytes"])
+def _print_status(name: str, status: CapsuleStatus) -> None:
+    release, link, storage = status.release, status.link, status.storage
+    print(f"{name}: {release.state}" + (f" ({release.note})" if release.note else ""))
+    print(f"  link: {'up' if link.up else 'DOWN'}" + (f" - {link.error}" if link.error else ""))
+    if storage is not None and storage.total_bytes and storage.used_bytes is not None:
+        used = storage.used_bytes / storage.total_bytes
         print(
-            f"  storage: {storage['mount']} {used:.1%} used, {storage['available_bytes']} bytes free; "
-            f"RAID {storage['raid_state']} {storage['raid_members'] or ''}"
+            f"  storage: {storage.mount} {used:.1%} used, {storage.available_bytes} bytes free; "
+            f"RAID {storage.raid_state} {storage.raid_members or ''}"
         )
-    mcu = report.get("microcontroller")
-    if isinstance(mcu, dict):
-        print(f"  microcontroller: {mcu['diagnosis']}")
-    gnss = report.get("gnss")
-    if isinstance(gnss, dict) and gnss.get("nmea_seen"):
-        age = f"{gnss['age_s']:.0f} s old" if gnss.get("age_s") is not None else "age unknown"
+    if status.microcontroller is not None:
+        print(f"  microcontroller: {status.microcontroller.diagnosis}")
+    gnss = status.gnss
+    if gnss is not None and gnss.nmea_seen:
+        age = f"{gnss.age_s:.0f} s old" if gnss.age_s is not None else "age unknown"
         position = (
-            f"{gnss['latitude']:.5f}, {gnss['longitude']:.5f}"
-            if gnss.get("latitude") is not None
+            f"{gnss.latitude:.5f}, {gnss.longitude:.5f}"
+            if gnss.latitude is not None and gnss.longitude is not None
             else "no position"
         )
         print(
-            f"  GNSS: {gnss['fix_quality_name']}, {gnss['satellites']} sats, HDOP {gnss['hdop']}, "
-            f"{position}, {age} ({gnss['sentences_malformed']} malformed, "
-            f"{gnss['sentences_bad_checksum']} bad checksum)"
+            f"  GNSS: {gnss.fix_quality_name}, {gnss.satellites} sats, HDOP {gnss.hdop}, "
+            f"{position}, {age} ({gnss.sentences_malformed} malformed, "
+            f"{gnss.sentences_bad_checksum} bad checksum)"
         )
-        if gnss.get("date_problem"):
-            print(f"  GNSS warning: {gnss['date_problem']}")
-
-
-def _operations(args: argparse.Namespace, need_operator: bool) -> Operations:
-    """The console's engine for one command (a broken procedure file refuses here, before anything moves)."""
-    config = load_config(args.config)
-    config.capsule(args.name)
-    if need_operator and not config.operator.name:
-        raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
-    from drs_link.ops import Operations, cli_holder
-
-    return Operations.open(config, holder=cli_holder())
+        if gnss.date_problem:
+            print(f"  GNSS warning: {gnss.date_problem}")
 
 
 def cmd_power_on(args: argparse.Namespace) -> int:
-    """``Operations.power_on``, as the console's Power key: the checklist step, a disarm, void approvals."""
-    ops = _operations(args, need_operator=True)
-    machine = ops.ops(args.name).machine
+    """Through the server (``Operations.power_on`` there, as the console's Power key: the checklist step, a
+    disarm, void approvals), confirmed here first: the relay cannot be switched off by software."""
     print(POWER_ON_WARNING)
     confirmed = args.yes
     if not confirmed:
         if not sys.stdin.isatty():
             raise RefusedError(
-                f"{machine.name}: power-on refused: pass --yes, or run it in a terminal to confirm"
+                f"{args.name}: power-on refused: pass --yes, or run it in a terminal to confirm"
             )
         try:
-            typed = input(f"Type the capsule name ({machine.name}) to power it on: ")
+            typed = input(f"Type the capsule name ({args.name}) to power it on: ")
         except EOFError:
             typed = ""
-        confirmed = typed.strip() == machine.name
-    try:
-        ops.power_on(args.name, confirmed)
-        print(f"{machine.name}: power-on done; waiting for the microcontroller's NMEA (up to ~25 s)")
-        report = machine.wait_for_microcontroller()
-    finally:
-        ops.close()
-    print(f"{machine.name}: {report.diagnosis}")
-    if report.waiting_for_go:
-        gnss = report.gnss
-        print(f"{machine.name}: GNSS {gnss.fix_quality_name}, {gnss.satellites} satellites, HDOP {gnss.hdop}")
-        return 0
-    return EXIT_MICROCONTROLLER_SILENT
+        confirmed = typed.strip() == args.name
+    with _client(args) as client:
+        done = client.capsule(args.name).power_on(confirmed, _step)
+    for line in done.lines:
+        print(line)
+    return 0 if done.ok else EXIT_MICROCONTROLLER_SILENT
 
 
 def _step(line: str) -> None:
@@ -303,141 +267,77 @@ def cmd_authority(args: argparse.Namespace) -> int:
         raise UsageError(f"{args.name}: authority: --confirm only confirms --take-over")
     if args.await_approval and not args.take_over:
         raise UsageError(f"{args.name}: authority: --await-approval is for --take-over")
-    if args.take_over:
-        return _take_over(args)
-    ops = _operations(args, need_operator=args.release)
-    machine = ops.ops(args.name).machine
-    try:
+    with _client(args) as client:
+        capsule = client.capsule(args.name)
+        if args.take_over:
+            return _take_over(args, capsule)
         if args.release:
-            given_up = ops.release_authority(args.name, args.reason)
-            if given_up.holder is None:
-                print(f"{machine.name}: this console held no release authority: it is free")
+            given_up = capsule.release_authority(args.reason)
+            if given_up.seen.holder is None:
+                print(f"{args.name}: this console held no release authority: it is free")
             else:
-                print(f"{machine.name}: release authority given up; it was {given_up.describe()}")
+                print(f"{args.name}: release authority given up; it was {given_up.described}")
             return 0
-        seen = ops.authority(args.name)
-    finally:
-        ops.close()
-    mine = " (this console)" if seen.holder == machine.holder else ""
-    print(f"{machine.name}: release authority {seen.describe()}{mine}")
+        seen = capsule.authority()
+    print(f"{args.name}: release authority {seen.described}{' (this console)' if seen.mine else ''}")
     return 0
 
 
-def _take_over(args: argparse.Namespace) -> int:
-    """The take-over is ``Operations.take_over``'s (the two-person rule, the approval, the Pi's check);
-    this shows who holds it now and asks for the name."""
-    from drs_link.ops import SecondOperator, pending_text, take_over_outcome
+def _take_over(args: argparse.Namespace, capsule: Capsule) -> int:
+    """The take-over is the server's (``Operations.take_over``: the two-person rule, the approval, the
+    Pi's check); this shows who holds it now and asks for the name."""
+    from drs_link.server import Second
 
-    ops = _operations(args, need_operator=True)
-    machine = ops.ops(args.name).machine
-    try:
-        machine.check_take_over(args.reason)
-        if args.confirm is None and not sys.stdin.isatty():
-            raise RefusedError(
-                f"{machine.name}: take-over refused: pass --confirm {machine.name}, "
-                "or run it in a terminal to confirm"
-            )
-        seen = ops.authority(args.name)
-        mine = " (this console)" if seen.holder == machine.holder else ""
-        print(f"{machine.name}: release authority {seen.describe()}{mine}")
-        typed = args.confirm
-        if typed is None:
-            print(TAKE_OVER_WARNING.format(name=machine.name, holder=machine.holder))
-            try:
-                question = f"Type the capsule name ({machine.name}) to take over its release authority: "
-                typed = input(question).strip()
-            except EOFError:
-                typed = ""
-        second = SecondOperator(
-            args.second_operator, args.single_operator_waiver, args.await_approval,
-            lambda request: print(pending_text(request), flush=True),
-        )  # fmt: skip
-        now = ops.take_over(args.name, seen, typed, args.reason, second)
-    finally:
-        ops.close()
-    approved_by = [a.detail for a in ops.store.audit(args.name) if a.action == "authority-take-over"
-                   and a.result == "approved" and a.detail and "approved_by" in a.detail]  # fmt: skip
-    if args.await_approval and approved_by:
-        print(f"approval #{approved_by[-1]['approval']}: approved by {approved_by[-1]['approved_by']}")
-    print(f"{machine.name}: release authority {take_over_outcome(seen, machine.holder)}: {now.describe()}")
+    seen = capsule.check_take_over(args.reason)
+    if args.confirm is None and not sys.stdin.isatty():
+        raise RefusedError(
+            f"{args.name}: take-over refused: pass --confirm {args.name}, or run it in a terminal to confirm"
+        )
+    print(f"{args.name}: release authority {seen.described}{' (this console)' if seen.mine else ''}")
+    typed = args.confirm
+    if typed is None:
+        print(TAKE_OVER_WARNING.format(name=args.name, holder=seen.this_console))
+        try:
+            typed = input(f"Type the capsule name ({args.name}) to take over its release authority: ").strip()
+        except EOFError:
+            typed = ""
+    second = Second(args.second_operator, args.single_operator_waiver, args.await_approval)
+    done = capsule.take_over(seen.seen, typed, args.reason, second, _step)
+    for line in done.lines:
+        print(line)
     return 0
 
 
 def cmd_released(args: argparse.Namespace) -> int:
-    ops = _operations(args, need_operator=False)
-    try:
-        record = ops.record_released(args.name, args.confirm, args.evidence)
-    finally:
-        ops.close()
+    with _client(args) as client:
+        record = client.capsule(args.name).released(args.confirm, args.evidence)
     print(f"{args.name}: {record.note}")
     return 0
 
 
 def cmd_reset(args: argparse.Namespace) -> int:
-    """``Operations.reset``, as the console's reset key: ARM possible again, waivers and approvals void."""
-    ops = _operations(args, need_operator=False)
-    try:
-        ops.reset(args.name, args.confirm)
-    finally:
-        ops.close()
+    """Through the server (``Operations.reset``, as the console's reset key): ARM possible again, waivers
+    and approvals void."""
+    with _client(args) as client:
+        client.capsule(args.name).reset(args.confirm)
     print(f"{args.name}: reset to idle")
     return 0
 
 
 def cmd_enrol(args: argparse.Namespace) -> int:
-    ops = _operations(args, need_operator=False)
-    offer = ops.host_key_offer(args.name)
-    print(f"{offer.address} offers {offer.key_type} {offer.fingerprint}")
-    if args.fingerprint is None:
-        print(
-            "Compare it with `ssh-keygen -lf /etc/ssh/ssh_host_ed25519_key.pub` on the Pi, then re-run with "
-            f"--fingerprint {offer.fingerprint}"
-        )
-        return 1
-    saved = ops.enrol(args.name, offer, args.fingerprint)
-    print(f"{args.name}: host key saved to {saved}")
-    return 0
-
-
-def cmd_sync(args: argparse.Namespace) -> int:
-    """``Operations.sync`` (the console's Sync key: the same upload, verification and audit), with bars."""
-    from rich.progress import BarColumn, DownloadColumn, Progress, TaskID, TextColumn, TransferSpeedColumn
-
-    ops = _operations(args, need_operator=False)
-    try:
-        if args.status:
-            status = ops.sync_status(args.name, args.source, with_hash=args.hash)
-            if args.json:
-                print(json.dumps(status.as_dict(), indent=2, sort_keys=True))
-            else:
-                print(
-                    f"{args.name}: {len(status.up_to_date)} up to date, {len(status.missing)} missing, "
-                    f"{len(status.changed)} changed, {status.bytes_pending} bytes pending"
-                )
-            return 0 if not (status.missing or status.changed) else 1
-        with Progress(
-            TextColumn("{task.description}"),
-            BarColumn(),
-            DownloadColumn(),
-            TransferSpeedColumn(),
-            transient=True,
-        ) as progress:
-            tasks: dict[str, TaskID] = {}
-
-            def on_progress(relative: str, done: int, total: int) -> None:
-                if relative not in tasks:
-                    tasks[relative] = progress.add_task(relative, total=total)
-                progress.update(tasks[relative], completed=done)
-
-            report = ops.sync(args.name, args.source, on_progress)
-    finally:
-        ops.close()
-    print(
-        f"{args.name}: {len(report.uploaded)} files uploaded and verified by sha256 on the Pi, "
-        f"{len(report.skipped)} already up to date, {report.bytes_sent} bytes sent"
-    )
-    if report.left_out:
-        print(f"{args.name}: {len(report.left_out)} entries left out: {'; '.join(report.left_out)}")
+    """The Pi's host key, offered and then trusted by the server, which writes its own known_hosts."""
+    with _client(args) as client:
+        capsule = client.capsule(args.name)
+        offer = capsule.host_key()
+        print(f"{offer.address} offers {offer.key_type} {offer.fingerprint}")
+        if args.fingerprint is None:
+            print(
+                "Compare it with `ssh-keygen -lf /etc/ssh/ssh_host_ed25519_key.pub` on the Pi, then re-run "
+                f"with --fingerprint {offer.fingerprint}"
+            )
+            return 1
+        saved = capsule.enrol(args.fingerprint)
+    print(f"{args.name}: host key saved to {saved.saved_to}")
     return 0
 
 

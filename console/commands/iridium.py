@@ -1,7 +1,10 @@
-"""`drs mt …`, `drs mo …` and `drs recovery …`: the Iridium side from a terminal.
+"""`drs mt …` and `drs mo …`: the Iridium side from a terminal.
 
-Every check lives in the domain modules; this only collects arguments, prints what they say and
-turns refusals into one-line errors (console/commands/main.py prints LinkError as ``drs: error: …``).
+`mt send/status/resolve` and `mo health/export` are clients of the operations server, which holds the
+store and the gateway's password; this only collects arguments, prints their typed answers and turns
+refusals into one-line errors (console/commands/main.py prints LinkError as ``drs: error: …``).
+`mo serve/import/parse` are the MO receiver, which faces the internet and writes reports only: it opens
+the store itself and stays apart from the server (issue #29 item 7).
 """
 
 from __future__ import annotations
@@ -9,25 +12,22 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import math
 import re
 import sys
 from dataclasses import replace
-from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from console.commands.argparser import add_two_person_options, input_file, position_or_gpsd, text_or_stdin
+from console.commands.argparser import add_two_person_options, text_or_stdin
 from console.commands.stopping import stop_signals
-from drs_link.config import CapsuleConfig, Config, load_config
-from drs_link.errors import ConfigError, LinkError
+from drs_link.config import load_config
+from drs_link.errors import LinkError
 from drs_link.iridium import LISTED  # drs_link.ops's copies load pyproj
 from drs_link.store import Store
 from predictor.errors import UsageError
-from predictor.geofiles import piped
 
-if TYPE_CHECKING:  # the webhook loads jwt, the recovery pipeline pyproj, ops paramiko: not for --help
-    from drs_link.ops import Command, LandingEstimate, Operations, StoredReport, TrackPoint
+if TYPE_CHECKING:  # the webhook loads jwt: not for --help
+    from drs_link.iridium import StoredReport
 
 _IMEI_RE = re.compile(r"\d{15}")
 log = logging.getLogger(__name__)
@@ -107,59 +107,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     export.add_argument("--force", action="store_true", help="replace an existing --out file")
     export.set_defaults(func=_mo_export)
 
-    recovery = subparsers.add_parser("recovery", help="landing estimate, distance from you, GPX/KML export")
-    recovery.add_argument("name")
-    recovery.add_argument(
-        "--from", dest="origin", type=position_or_gpsd, metavar="LAT,LON|gpsd", help="your position, or gpsd"
-    )
-    recovery.add_argument(
-        "--gpx", type=Path, metavar="OUT", help="write GPX for a handheld (landings, tracks); - for stdout"
-    )
-    recovery.add_argument(
-        "--kml", type=Path, metavar="OUT", help="write KML of the landings and tracks; - for stdout"
-    )
-    recovery.add_argument(
-        "--predicted",
-        type=lambda text: Path(input_file("--predicted")(text)),
-        metavar="GEOJSON",
-        help="a predicted track (LineString); - reads standard input",
-    )
-    recovery.add_argument(
-        "--json", action="store_true", help="print JSON (the summary line is one of its fields)"
-    )
-    recovery.add_argument(
-        "--map", type=Path, metavar="OUT.png",
-        help="draw the track, the live predicted landing with its 1σ/2σ ellipses, the last fix and the chase",
-    )  # fmt: skip
-    recovery.add_argument(
-        "--chase",
-        type=position_or_gpsd,
-        metavar="LAT,LON|gpsd",
-        help="the chase car on the map (default: --from)",
-    )
-    recovery.add_argument(
-        "--weather",
-        type=Path,
-        nargs="+",
-        metavar="GRIB",
-        help="GFS GRIB2 files: the map's live re-prediction",
-    )
-    recovery.add_argument(
-        "--dem", type=Path, metavar="DIR", help="terrain: the map's shading and the prediction's ground"
-    )
-    recovery.set_defaults(func=_recovery)
-
-
-def _open(args: argparse.Namespace) -> tuple[Config, Operations]:
-    from drs_link.ops import Operations, cli_holder
-
-    config = load_config(args.config)
-    return config, Operations.open(config, holder=cli_holder())
-
-
-def _capsule_reports(ops: Operations, name: str) -> tuple[CapsuleConfig, list[StoredReport]]:
-    return ops.config.capsule(name), ops.reports_of(name)
-
 
 def _mt_send(args: argparse.Namespace) -> int:
     """Through the operations server, which alone holds the gateway's password: it composes, shows, gates
@@ -179,44 +126,30 @@ def _mt_send(args: argparse.Namespace) -> int:
 
 
 def _mt_status(args: argparse.Namespace) -> int:
-    _, ops = _open(args)
-    capsule = ops.config.capsule(args.name)
-    commands = ops.mt_status(args.name)
+    """Asked of the operations server, which moves the MTs on from the reports it holds."""
+    import msgspec
+
+    from drs_link.server import Client
+
+    with Client.for_config(load_config(args.config)) as client:
+        status = client.iridium.mt_status(args.name)
     if args.json:
-        listed = [_command_json(command) for command in commands]
-        print(json.dumps({"capsule": capsule.name, "imei": capsule.imei, "commands": listed}, indent=2))
+        print(json.dumps(msgspec.to_builtins(status), indent=2))
         return 0
-    for command in commands:
-        print(
-            f"MT {command.id} {command.requested_utc:%Y-%m-%d %H:%M:%S}Z {command.text} {command.state}: "
-            f"{command.detail}"
-        )
+    for command in status.commands:
+        requested = command.requested_utc[:19].replace("T", " ")  # the store's ISO time, to the second
+        print(f"MT {command.id} {requested}Z {command.text} {command.state}: {command.detail}")
     return 0
 
 
-def _command_json(command: Command) -> dict[str, object]:
-    from drs_link.ops import iso_utc
-
-    return {
-        "id": command.id, "text": command.text, "state": command.state, "detail": command.detail,
-        "operator": command.operator, "flush": command.flush, "requested_utc": iso_utc(command.requested_utc),
-        "updated_utc": iso_utc(command.updated_utc),
-        "queued_utc": iso_utc(command.queued_utc) if command.queued_utc else None,
-        "gateway_id": command.mt_id, "delivered_report_id": command.delivered_report_id, "effects": command.effects,
-    }  # fmt: skip
-
-
 def _mt_resolve(args: argparse.Namespace) -> int:
-    config, ops = _open(args)
-    if not config.operator.name:
-        raise ConfigError("operator.name: set [operator] name; every resolution is audited with it")
-    ops.reports_of(args.name)  # an unknown capsule or one without an IMEI is refused first
-    try:
-        commands = ops.resolve_mt(
+    """Through the operations server, which audits the resolution under the caller's operator name."""
+    from drs_link.server import Client
+
+    with Client.for_config(load_config(args.config)) as client:
+        commands = client.iridium.resolve_mt(
             args.name, args.command_id, None if args.not_sent else args.queued, args.note
         )
-    finally:
-        ops.close()
     for command in commands:
         print(f"MT {command.id} {command.text}: {command.state}: {command.detail}")
     return 0
@@ -306,23 +239,25 @@ def _mo_import(args: argparse.Namespace) -> int:
 
 
 def _mo_export(args: argparse.Namespace) -> int:
-    from drs_link.ops import export_track
+    """The server reads the fixes it holds; this process writes them where its operator chose, so the file
+    is the operator's own (issue #29 item 6)."""
+    from drs_link.exports import write_export
+    from drs_link.server import Client
 
-    _, ops = _open(args)
     if (args.name is None) == (args.imei is None):
         raise UsageError("give either a capsule NAME or --imei IMEI, not both or neither")
-    if args.name is not None:
-        reports = ops.reports_of(args.name)
-        who = args.name
-    else:
-        if not _IMEI_RE.fullmatch(args.imei):
-            raise UsageError(f"--imei {args.imei!r}: an IMEI is 15 digits")
-        reports = ops.reports.for_imei(args.imei)
-        who = f"IMEI {args.imei}"
-    result = export_track(reports, args.out, who, overwrite=args.force)
+    if args.imei is not None and not _IMEI_RE.fullmatch(args.imei):
+        raise UsageError(f"--imei {args.imei!r}: an IMEI is 15 digits")
+    if str(args.out) != "-" and args.out.exists() and not args.force:  # before the server reads anything
+        raise LinkError(
+            f"--out {args.out}: the file exists; choose another name or add --force to replace it"
+        )
+    with Client.for_config(load_config(args.config)) as client:
+        track = client.iridium.track(args.name, args.imei)
+    write_export(track.csv, args.out, overwrite=args.force)
     print(
-        f"wrote {result.path}: {result.fixes} fixes of {who}; skipped {result.without_fix} report(s) "
-        f"without a fix and {result.rejected} rejected",
+        f"wrote {args.out}: {track.fixes} fixes of {track.who}; skipped {track.without_fix} report(s) "
+        f"without a fix and {track.rejected} rejected",
         file=sys.stderr if str(args.out) == "-" else sys.stdout,
     )
     return 0
@@ -341,14 +276,15 @@ def _mo_bench(args: argparse.Namespace) -> int:
 
 
 def _mo_health(args: argparse.Namespace) -> int:
-    from drs_link.ops import assess, iso_utc
+    """Judged by the operations server from the reports it holds; printed here from its typed answer."""
+    from drs_link.server import Client
+    from drs_link.server.protocol import iso_utc
 
-    _, ops = _open(args)
-    capsule, reports = _capsule_reports(ops, args.name)
-    health = assess(reports, ops.mt_status(args.name))
+    with Client.for_config(load_config(args.config)) as client:
+        health = client.iridium.health(args.name)
     if args.json:
         document = {
-            "capsule": capsule.name, "imei": capsule.imei, "reports": health.reports,
+            "capsule": health.capsule, "imei": health.imei, "reports": health.reports,
             "last_report_utc": iso_utc(health.last_report) if health.last_report else None,
             "last_vbat": health.last_vbat,
             "findings": [{"kind": f.kind, "report_id": f.report_id, "message": f.message} for f in health.findings],
@@ -357,177 +293,7 @@ def _mo_health(args: argparse.Namespace) -> int:
         return 0
     last = f"{health.last_report:%Y-%m-%d %H:%M:%S}Z" if health.last_report else "never"
     vbat = f"{health.last_vbat:.2f} V" if health.last_vbat is not None else "unknown"
-    print(f"{capsule.name}: {health.reports} reports, last {last}, battery {vbat}")
+    print(f"{health.capsule}: {health.reports} reports, last {last}, battery {vbat}")
     for finding in health.findings:
         print(f"{finding.kind}: {finding.message}")
     return 0
-
-
-def _says_demo(node: object) -> bool:
-    """Whether any member of a GeoJSON document says ``is_demo`` (drs predict marks every feature)."""
-    if isinstance(node, dict):
-        return node.get("is_demo") is True or any(_says_demo(v) for v in node.values())
-    return isinstance(node, list) and any(_says_demo(v) for v in node)
-
-
-def _read_predicted(path: Path) -> tuple[list[tuple[float, float, float]], bool]:
-    """The first path of a GeoJSON file as (lat, lon, alt) points: a LineString, or a MultiLineString
-    (a path cut at ±180°, as drs predict --geojson writes one) with its parts joined; and whether the
-    file says it was predicted on demo weather, which the recovery files must then say too."""
-    try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise LinkError(f"--predicted {path}: cannot read GeoJSON ({type(exc).__name__})") from None
-    stack = [document]
-    while stack:
-        node = stack.pop(0)
-        if isinstance(node, dict):
-            kind = node.get("type")
-            if kind in {"LineString", "MultiLineString"} and isinstance(node.get("coordinates"), list):
-                lines = node["coordinates"] if kind == "MultiLineString" else [node["coordinates"]]
-                try:
-                    points = [
-                        (float(c[1]), float(c[0]), float(c[2]) if len(c) > 2 else 0.0)
-                        for line in lines
-                        for c in line
-                    ]
-                except (TypeError, ValueError, IndexError):
-                    raise LinkError(f"--predicted {path}: LineString coordinates are not numbers") from None
-                return points, _says_demo(document)
-            stack.extend(v for v in node.values() if isinstance(v, dict | list))
-        elif isinstance(node, list):
-            stack.extend(v for v in node if isinstance(v, dict | list))
-    raise LinkError(f"--predicted {path}: no LineString in the GeoJSON")
-
-
-def _recovery(args: argparse.Namespace) -> int:
-    from drs_link.ops import (
-        detect_landing,
-        parse_position,
-        phone_summary,
-        read_gpsd_position,
-        track_from_reports,
-        write_gpx,
-        write_kml,
-    )
-    from predictor.prediction import emit, far_team_warning
-
-    # With --json or a '-' output, stdout carries that one document and the lines for people go to stderr.
-    said = sys.stderr if piped(gpx=args.gpx, kml=args.kml, json=args.json) or args.json else sys.stdout
-    _, ops = _open(args)
-    capsule, reports = _capsule_reports(ops, args.name)
-    team = None
-    if args.origin == "gpsd":
-        team = read_gpsd_position()
-    elif args.origin is not None:
-        team = parse_position(args.origin)
-    predicted, predicted_is_demo = _read_predicted(args.predicted) if args.predicted else ([], False)
-    track = track_from_reports(reports)
-    landing = detect_landing(track)
-    coarse = None
-    if reports and (position := reports[-1].iridium_position()) is not None:
-        coarse = (*position, reports[-1].session_time)
-    capsule_at = (landing.lat, landing.lon) if landing else (track[-1].lat, track[-1].lon) if track else None
-    if team is not None and capsule_at is not None:
-        emit(far_team_warning(team, capsule_at))
-    summary = phone_summary(capsule.name, landing, track[-1] if track else None, team, coarse)
-    if not args.json:
-        print(summary, file=said)
-        if landing is not None:
-            print(
-                f"landed {landing.landed_at:%Y-%m-%d %H:%M:%S}Z at {landing.alt_m:.0f} m; "
-                f"{landing.count} fixes kept, {landing.rejected} rejected; "
-                f"last on site {landing.last_fix_at:%H:%M:%S}Z",
-                file=said,
-            )
-    if args.gpx:
-        write_gpx(args.gpx, capsule.name, track, predicted, landing, predicted_is_demo=predicted_is_demo)
-        print(f"wrote {args.gpx}", file=said)
-    if args.kml:
-        write_kml(args.kml, capsule.name, track, predicted, landing, predicted_is_demo=predicted_is_demo)
-        print(f"wrote {args.kml}", file=said)
-    if args.map:
-        chase = (
-            team
-            if args.chase is None
-            else read_gpsd_position()
-            if args.chase == "gpsd"
-            else parse_position(args.chase)
-        )
-        _draw_map(args, ops, capsule.name, reports, chase)
-        print(f"wrote {args.map}", file=said)
-    if args.json:
-        print(json.dumps(_recovery_json(capsule.name, summary, landing, track, team, coarse), indent=2))
-    return 0
-
-
-def _draw_map(
-    args: argparse.Namespace,
-    ops: Operations,
-    name: str,
-    reports: list[StoredReport],
-    chase: tuple[float, float] | None,
-) -> None:
-    """The recovery picture: the live re-prediction needs the weather (and flies the capsule's model)."""
-    from console.predictions import PredictionService, capsule_models
-    from console.recovery_map import draw_recovery_map, recovery_picture
-    from drs_link.ops import follow_descent
-    from predictor import Terrain
-
-    terrain = Terrain.from_dir(args.dem) if args.dem else None
-    live = None
-    if args.weather:
-        files = list(args.weather)
-        models = capsule_models([(c.name, c.model) for c in ops.config.capsules])
-        ground = terrain or Terrain.sea_level()
-        live = PredictionService(lambda: files, lambda: ground, ops.clock, models).live
-    descent = follow_descent(reports, name, live)
-    picture = recovery_picture(name, descent, chase, weather=bool(args.weather))
-    draw_recovery_map(picture, args.map, terrain)
-
-
-def _recovery_json(
-    name: str,
-    summary: str,
-    landing: LandingEstimate | None,
-    track: list[TrackPoint],
-    team: tuple[float, float] | None,
-    coarse: tuple[float, float, float, datetime] | None,
-) -> dict[str, object]:
-    """What the summary line says, as numbers: the distance and bearing are from the team to the best
-    position there is (the landing, else the last fix, else Iridium's coarse one)."""
-    from drs_link.ops import distance_bearing, iso_utc
-
-    last = track[-1] if track else None
-    document: dict[str, object] = {
-        "capsule": name,
-        "summary": summary,
-        "landing": None if landing is None else {
-            "lat": landing.lat, "lon": landing.lon, "alt_m": landing.alt_m,
-            "std_m": None if math.isnan(landing.std_m) else landing.std_m, "fixes": landing.count,
-            "rejected": landing.rejected, "landed_utc": iso_utc(landing.landed_at),
-            "last_fix_utc": iso_utc(landing.last_fix_at),
-            "moved_utc": iso_utc(landing.moved_at) if landing.moved_at else None,
-        },
-        "last_fix": None if last is None else {
-            "time_utc": iso_utc(last.time), "lat": last.lat, "lon": last.lon, "alt_m": last.alt_m,
-            "speed_ms": last.speed_ms,
-        },
-        "iridium_position": None if coarse is None else {
-            "lat": coarse[0], "lon": coarse[1], "cep_m": coarse[2], "time_utc": iso_utc(coarse[3]),
-        },
-        "from": None if team is None else {"lat": team[0], "lon": team[1]},
-    }  # fmt: skip
-    best = (
-        (landing.lat, landing.lon)
-        if landing
-        else (last.lat, last.lon)
-        if last
-        else coarse[:2]
-        if coarse
-        else None
-    )
-    if team is not None and best is not None:
-        distance, bearing = distance_bearing(team[0], team[1], best[0], best[1])
-        document["distance_m"], document["bearing_deg"] = distance, bearing
-    return document

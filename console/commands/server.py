@@ -14,7 +14,7 @@ from drs_link.errors import LinkError
 from predictor.errors import UsageError
 
 if TYPE_CHECKING:
-    from drs_link.ops import Operations, Predict
+    from drs_link.ops import LiveSource, Operations, Predict
 
 SHARED_SOCKET = Path("/run/drs/drs.sock")
 """Where a shared server listens by default: systemd's ``RuntimeDirectory=drs``."""
@@ -53,6 +53,17 @@ def predictor_for(files: list[Path], ops: Operations) -> Predict:
     return lambda name, origin: service.predict(name, origin, release_in=(0,))
 
 
+def live_for(files: list[Path], dem: Path | None, ops: Operations) -> LiveSource:
+    """The live re-prediction ``drs recovery --map --weather`` draws: the console's prediction service on
+    ``files``, over the terrain of ``dem`` (else sea level), flying each capsule's model."""
+    from console.predictions import PredictionService, capsule_models
+    from predictor import Terrain
+
+    models = capsule_models([(c.name, c.model) for c in ops.config.capsules])
+    ground = Terrain.from_dir(dem) if dem is not None else Terrain.sea_level()
+    return PredictionService(lambda: files, lambda: ground, ops.clock, models).live
+
+
 def run_server(args: argparse.Namespace) -> int:
     import asyncio
 
@@ -65,7 +76,7 @@ def run_server(args: argparse.Namespace) -> int:
     socket_path = args.socket or (Path(config.server.socket) if config.server.socket else SHARED_SOCKET)
     server = OperationsServer(
         config, "private" if args.private else "shared", socket_path.expanduser(), group=args.group, idle_exit_s=args.idle_exit,
-        predictor_for=predictor_for,
+        predictor_for=predictor_for, live_for=live_for,
     )  # fmt: skip
     try:
         asyncio.run(server.run(lambda line: print(line, flush=True)))

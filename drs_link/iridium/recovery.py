@@ -8,16 +8,18 @@ after recovery still gives the landing site, not the driveway at home (drs_proto
 
 from __future__ import annotations
 
-import json
 import math
-import socket
 import statistics
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
-from drs_link.errors import LinkError
 from drs_link.iridium.reports import StoredReport
+from drs_link.positions import (
+    GPSD_ADDRESS as GPSD_ADDRESS,
+    parse_position as parse_position,
+    read_gpsd_position as read_gpsd_position,
+)
 from predictor.geofiles import DEMO_LABEL, write_text
 from predictor.prediction import GEOD
 
@@ -31,7 +33,6 @@ CLUSTER_RADIUS_M = 300.0
 OUTLIER_FLOOR_M = 10.0
 RAYLEIGH_MEDIAN = 1.1774
 """Median of the radial error of a 2-D Gaussian, in sigmas: turns a median distance into a sigma."""
-GPSD_ADDRESS = ("127.0.0.1", 2947)
 
 
 @dataclass(frozen=True)
@@ -198,47 +199,6 @@ def distance_bearing(from_lat: float, from_lon: float, to_lat: float, to_lon: fl
     return float(distance), float(azimuth) % 360.0
 
 
-def parse_position(text: str) -> tuple[float, float]:
-    """``LAT,LON`` in decimal degrees, as an operator types it."""
-    parts = text.replace(" ", "").split(",")
-    try:
-        lat, lon = float(parts[0]), float(parts[1])
-    except (ValueError, IndexError):
-        raise LinkError(f"position {text!r} must be LAT,LON in decimal degrees, e.g. 46.52,6.63") from None
-    if len(parts) != 2 or not (-90 <= lat <= 90 and -180 <= lon <= 180) or math.isnan(lat + lon):
-        raise LinkError(f"position {text!r} must be LAT,LON with -90<=LAT<=90 and -180<=LON<=180")
-    return lat, lon
-
-
-def read_gpsd_position(
-    address: tuple[str, int] = GPSD_ADDRESS, timeout_s: float = 5.0
-) -> tuple[float, float]:
-    """The team's own position from a local gpsd (JSON protocol): the first TPV with a 2-D or 3-D fix."""
-    try:
-        sock = socket.create_connection(address, timeout=timeout_s)
-    except OSError as exc:
-        raise LinkError(
-            f"no gpsd at {address[0]}:{address[1]} ({exc.strerror or exc}): "
-            "give the position with --from LAT,LON"
-        ) from None
-    with sock, sock.makefile("rwb") as stream:
-        try:
-            stream.write(b'?WATCH={"enable":true,"json":true};\n')
-            stream.flush()
-            for line in stream:
-                try:
-                    message = json.loads(line)
-                except json.JSONDecodeError:
-                    continue
-                if message.get("class") == "TPV" and message.get("mode", 0) >= 2 and "lat" in message:
-                    return float(message["lat"]), float(message["lon"])
-        except (OSError, ValueError) as exc:
-            raise LinkError(
-                f"gpsd at {address[0]}:{address[1]} gave no fix within {timeout_s:g} s ({type(exc).__name__})"
-            ) from None
-    raise LinkError(f"gpsd at {address[0]}:{address[1]} closed the connection without a fix")
-
-
 def _hemisphere(value: float, positive: str, negative: str) -> str:
     return f"{abs(value):.5f} {positive if value >= 0 else negative}"
 
@@ -307,6 +267,17 @@ def write_gpx(
     *,
     predicted_is_demo: bool = False,
 ) -> Path:
+    """``gpx_text`` written to ``path`` (``-``: standard output)."""
+    return write_text(path, gpx_text(name, measured, predicted, landing, predicted_is_demo), "GPX")
+
+
+def gpx_text(
+    name: str,
+    measured: list[TrackPoint],
+    predicted: list[tuple[float, float, float]],
+    landing: LandingEstimate | None,
+    predicted_is_demo: bool = False,
+) -> str:
     """The landing (or, before one, the last fix) and the predicted landing as waypoints, and both tracks.
 
     ``predicted`` is (lat, lon, alt) from release to landing, so its last point is the predicted landing.
@@ -336,7 +307,7 @@ def write_gpx(
         (f"{name} measured", [gpx.TrackPoint(p.lat, p.lon, p.alt_m, p.time) for p in measured]),
         (_predicted(name, predicted_is_demo), [gpx.TrackPoint(lat, lon, alt) for lat, lon, alt in predicted]),
     ]
-    return write_text(path, gpx.to_gpx(f"{name} recovery", waypoints, tracks), "GPX")
+    return gpx.to_gpx(f"{name} recovery", waypoints, tracks)
 
 
 def write_kml(
@@ -348,6 +319,17 @@ def write_kml(
     *,
     predicted_is_demo: bool = False,
 ) -> Path:
+    """``kml_text`` written to ``path`` (``-``: standard output)."""
+    return write_text(path, kml_text(name, measured, predicted, landing, predicted_is_demo), "KML")
+
+
+def kml_text(
+    name: str,
+    measured: list[TrackPoint],
+    predicted: list[tuple[float, float, float]],
+    landing: LandingEstimate | None,
+    predicted_is_demo: bool = False,
+) -> str:
     """The measured and predicted tracks at their altitudes, the landing and the predicted landing."""
     # Imported here: fastkml, shapely and antimeridian cost ~80 ms, and this module is on the import
     # path of every drs command through the PARACHUTE landed gate, `drs --help` included.
@@ -372,5 +354,4 @@ def write_kml(
         where = position((lon, lat))
         contents.append(kml.point(f"{_predicted(name, predicted_is_demo)} landing", where, "predicted"))
     title = f"{name} recovery" + (f" (prediction on {DEMO_LABEL})" if predicted_is_demo else "")
-    document = kml.document(title, f"{name}: measured and predicted tracks", styles, contents)
-    return write_text(path, document, "KML")
+    return kml.document(title, f"{name}: measured and predicted tracks", styles, contents)

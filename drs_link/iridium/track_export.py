@@ -10,15 +10,13 @@ stated rules, on the full record.
 
 from __future__ import annotations
 
-import os
-import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from drs_link.errors import LinkError
+from drs_link.exports import write_export
 from drs_link.iridium.reports import StoredReport
-from predictor.geofiles import EXPORT_MODE
 from predictor.tracks import Fix, write_canonical_csv
 
 
@@ -59,12 +57,9 @@ def fixes_from_reports(reports: list[StoredReport]) -> list[Fix]:
     return fixes
 
 
-def export_track(reports: list[StoredReport], path: Path, who: str, overwrite: bool = False) -> TrackExport:
-    """Write the fixes to ``path`` atomically (a failed export leaves any earlier file untouched).
-
-    An existing file is replaced only with ``overwrite``: an export must never silently destroy a
-    track someone saved under the same name.
-    """
+def track_csv(reports: list[StoredReport], who: str) -> tuple[str, int, int, int]:
+    """The canonical CSV of the fixes as text (for the operations server to hand to the client that
+    writes it), with the counts of fixes, reports without a fix and rejected ones."""
     fixes = fixes_from_reports(reports)
     rejected = sum(1 for r in reports if r.report is None)
     without_fix = len(reports) - rejected - len(fixes)
@@ -73,32 +68,15 @@ def export_track(reports: list[StoredReport], path: Path, who: str, overwrite: b
             f"no position fix stored for {who} ({len(reports)} report(s): {without_fix} without a fix, "
             f"{rejected} rejected); nothing written"
         )
-    if str(path) == "-":
-        _write_stdout(fixes)
-        return TrackExport(path, len(fixes), without_fix, rejected)
-    if path.exists() and not overwrite:
-        raise LinkError(f"--out {path}: the file exists; choose another name or add --force to replace it")
-    if not path.parent.is_dir():
-        raise LinkError(f"--out {path}: the directory {path.parent} does not exist")
-    temporary = path.with_name(f".{path.name}.part")
-    try:
-        temporary.unlink(missing_ok=True)
-        os.close(
-            os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, EXPORT_MODE)
-        )  # before any fix is in it
-        write_canonical_csv(fixes, temporary)
-        os.replace(temporary, path)
-    except OSError as exc:
-        temporary.unlink(missing_ok=True)
-        raise LinkError(f"--out {path}: cannot write ({exc.strerror})") from None
-    return TrackExport(path, len(fixes), without_fix, rejected)
-
-
-def _write_stdout(fixes: list[Fix]) -> None:
-    """``--out -``: the CSV on stdout, for a pipe (it once wrote a file named ``-``). Written through the
-    format's one writer, into a private temporary file first."""
     with tempfile.TemporaryDirectory(prefix="drs-export-") as folder:
         temporary = Path(folder) / "track.csv"
         write_canonical_csv(fixes, temporary)
-        sys.stdout.write(temporary.read_text(encoding="utf-8"))
-        sys.stdout.flush()
+        return temporary.read_bytes().decode("utf-8"), len(fixes), without_fix, rejected
+
+
+def export_track(reports: list[StoredReport], path: Path, who: str, overwrite: bool = False) -> TrackExport:
+    """Write the fixes to ``path`` (``drs_link.exports.write_export``: atomic, never over a file without
+    ``overwrite``; ``-`` is standard output)."""
+    text, fixes, without_fix, rejected = track_csv(reports, who)
+    write_export(text, path, overwrite)
+    return TrackExport(path, fixes, without_fix, rejected)

@@ -3,9 +3,10 @@ and every face acts through it (issue #29).
 
 ``app`` is ``drs server`` (aiohttp on a Unix socket); ``peers`` who a connection is, from the kernel
 (``SO_PEERCRED``) and the server's own ``[[operator]]`` list; ``desks`` one ``drs_link.ops`` engine per
-operator; ``release``, ``iridium`` and ``approvals`` the thin services over them; ``protocol`` the typed,
-versioned messages; ``client`` the faces' one client with verbs; ``private`` an account's own server,
-started on demand.
+operator; ``release`` (ARM, FIRE, disarm), ``capsules`` (status, power-on, reset, a recorded fall, the
+release authority, enrolment), ``iridium`` and ``approvals`` the thin services over them; ``protocol``
+the typed, versioned messages; ``client`` the faces' one client with verbs; ``private`` an account's own
+server, started on demand.
 """
 
 from typing import TYPE_CHECKING

@@ -35,28 +35,42 @@ from drs_link.config import Config
 from drs_link.errors import ConfigError, LinkError, RefusedError, StoreError
 from drs_link.ops import Approval
 from drs_link.server.approvals import ApprovalService
+from drs_link.server.capsules import CapsuleService
 from drs_link.server.desks import Desks, PredictorFor
 from drs_link.server.iridium import IridiumService
 from drs_link.server.peers import Mode, Peer, Roster, check_own_file, check_state_directory, peer_uid
 from drs_link.server.protocol import (
     MAX_BODY_BYTES,
+    MAX_RECOVERY_BYTES,
     PROTOCOL,
     ROOT,
     ArmRequest,
     DecideRequest,
     DisarmRequest,
     Done,
+    EnrolRequest,
     Event,
     Failure,
     FireRequest,
     Hello,
     MtSendRequest,
     Pending,
+    PowerOnRequest,
+    ReasonRequest,
+    RecoveryRequest,
+    ReleasedRequest,
     Request,
+    ResolveMtRequest,
     Said,
     Step,
+    SyncRequest,
+    SyncStatusRequest,
+    TakeOverRequest,
+    TrackRequest,
+    TypedNameRequest,
     encode,
 )
+from drs_link.server.recovery import LiveFor, RecoveryService
 from drs_link.server.release import ReleaseService
 from drs_link.store import Store
 from predictor.errors import UsageError
@@ -104,6 +118,7 @@ class OperationsServer:
         idle_exit_s: float | None = None,
         predictor_for: PredictorFor | None = None,
         environ: dict[str, str] | None = None,
+        live_for: LiveFor | None = None,
     ) -> None:
         if config.source is not None:
             check_own_file(config.source)
@@ -119,7 +134,9 @@ class OperationsServer:
         self.desks = Desks(config, self.store, environ)
         self.release = ReleaseService(self.desks, mode, predictor_for)
         self.iridium = IridiumService(self.desks, mode)
+        self.capsules = CapsuleService(self.desks, mode)
         self.approvals = ApprovalService(self.store)
+        self.recovery = RecoveryService(self.desks, live_for)
         self.pool = ThreadPoolExecutor(max_workers=32, thread_name_prefix="drs-server")
         self.busy = 0
         self.last_active = time.monotonic()
@@ -170,7 +187,8 @@ class OperationsServer:
                 return failure("identity", str(exc))
             return await handler(request)
         except web.HTTPRequestEntityTooLarge:
-            return failure("protocol", f"the request is larger than {MAX_BODY_BYTES} bytes: refused unread")
+            most = MAX_RECOVERY_BYTES if request.path.startswith(f"{ROOT}/recovery/") else MAX_BODY_BYTES
+            return failure("protocol", f"the request is larger than {most} bytes: refused unread")
         except web.HTTPException as exc:
             return failure("protocol", f"{request.method} {request.path}: {exc.reason}")
         except _ProtocolError as exc:
@@ -281,6 +299,109 @@ class OperationsServer:
             request, lambda say, pending: self.iridium.send_mt(request["peer"], name, body, say, pending)
         )
 
+    async def mt_status(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.iridium.mt_status(request["peer"], name)))
+
+    async def resolve_mt(self, request: web.Request) -> web.Response:
+        body = await self.body(request, ResolveMtRequest)
+        name = request.match_info["name"]
+        return json_response(
+            await self.blocking(lambda: self.iridium.resolve_mt(request["peer"], name, body))
+        )
+
+    async def health(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.iridium.health(request["peer"], name)))
+
+    async def track(self, request: web.Request) -> web.Response:
+        body = await self.body(request, TrackRequest)
+        return json_response(await self.blocking(lambda: self.iridium.track(request["peer"], body)))
+
+    async def recovery_readout(self, request: web.Request) -> web.Response:
+        """The one request that carries a track (the operator's predicted one): read up to its own limit."""
+        body = await self.body(request.clone(client_max_size=MAX_RECOVERY_BYTES), RecoveryRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(lambda: self.recovery.readout(request["peer"], name, body))
+        return json_response(view)
+
+    # The capsule's other steps (``capsules``): each one request, a power-on and a take-over streamed.
+
+    async def status(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.capsules.status(request["peer"], name)))
+
+    async def power_on(self, request: web.Request) -> web.StreamResponse:
+        body = await self.body(request, PowerOnRequest)
+        name = request.match_info["name"]
+        return await self.stream(
+            request, lambda say, _: self.capsules.power_on(request["peer"], name, body.confirmed, say)
+        )
+
+    async def reset(self, request: web.Request) -> web.Response:
+        body = await self.body(request, TypedNameRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(lambda: self.capsules.reset(request["peer"], name, body.typed_name))
+        return json_response(view)
+
+    async def released(self, request: web.Request) -> web.Response:
+        body = await self.body(request, ReleasedRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(
+            lambda: self.capsules.released(request["peer"], name, body.typed_name, body.evidence)
+        )
+        return json_response(view)
+
+    async def authority(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.capsules.authority(request["peer"], name)))
+
+    async def check_take_over(self, request: web.Request) -> web.Response:
+        body = await self.body(request, ReasonRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(lambda: self.capsules.check_take_over(request["peer"], name, body.reason))
+        return json_response(view)
+
+    async def take_over(self, request: web.Request) -> web.StreamResponse:
+        body = await self.body(request, TakeOverRequest)
+        name = request.match_info["name"]
+        return await self.stream(
+            request, lambda say, pending: self.capsules.take_over(request["peer"], name, body, say, pending)
+        )
+
+    async def release_authority(self, request: web.Request) -> web.Response:
+        body = await self.body(request, ReasonRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(
+            lambda: self.capsules.release_authority(request["peer"], name, body.reason)
+        )
+        return json_response(view)
+
+    async def sync(self, request: web.Request) -> web.StreamResponse:
+        body = await self.body(request, SyncRequest)
+        name = request.match_info["name"]
+        return await self.stream(
+            request, lambda say, _: self.capsules.sync(request["peer"], name, body.source, say)
+        )
+
+    async def sync_status(self, request: web.Request) -> web.Response:
+        body = await self.body(request, SyncStatusRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(
+            lambda: self.capsules.sync_status(request["peer"], name, body.source, body.with_hash)
+        )
+        return json_response(view)
+
+    async def host_key(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.capsules.host_key_offer(request["peer"], name)))
+
+    async def enrol(self, request: web.Request) -> web.Response:
+        body = await self.body(request, EnrolRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(lambda: self.capsules.enrol(request["peer"], name, body.fingerprint))
+        return json_response(view)
+
     async def waiting(self, request: web.Request) -> web.Response:
         return json_response(await self.blocking(self.approvals.waiting))
 
@@ -338,7 +459,24 @@ class OperationsServer:
         app.router.add_post(f"{ROOT}/capsules/{{name}}/arm", self.arm)
         app.router.add_post(f"{ROOT}/capsules/{{name}}/disarm", self.disarm)
         app.router.add_post(f"{ROOT}/capsules/{{name}}/fire", self.fire)
+        app.router.add_get(f"{ROOT}/capsules/{{name}}/status", self.status)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/power-on", self.power_on)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/reset", self.reset)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/released", self.released)
+        app.router.add_get(f"{ROOT}/capsules/{{name}}/authority", self.authority)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/authority/check-take-over", self.check_take_over)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/authority/take-over", self.take_over)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/authority/release", self.release_authority)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/sync", self.sync)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/sync/status", self.sync_status)
+        app.router.add_get(f"{ROOT}/capsules/{{name}}/host-key", self.host_key)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/host-key", self.enrol)
         app.router.add_post(f"{ROOT}/iridium/{{name}}/mt", self.send_mt)
+        app.router.add_get(f"{ROOT}/iridium/{{name}}/mt", self.mt_status)
+        app.router.add_post(f"{ROOT}/iridium/{{name}}/mt/resolve", self.resolve_mt)
+        app.router.add_get(f"{ROOT}/iridium/{{name}}/health", self.health)
+        app.router.add_post(f"{ROOT}/iridium/track", self.track)
+        app.router.add_post(f"{ROOT}/recovery/{{name}}", self.recovery_readout)
         app.router.add_get(f"{ROOT}/approvals", self.waiting)
         app.router.add_post(f"{ROOT}/approvals/{{approval}}", self.decide)
         app.router.add_get(f"{ROOT}/events", self.events)

@@ -2,8 +2,11 @@
 
 ``Client.for_config(config)`` reaches the team's shared server (``[server] socket``) or, with none
 configured, this account's private server, started on demand (``private``). Verbs:
-``client.capsule("DRS1").arm(…)``, ``.fire(…)``, ``.disarm()``, ``client.iridium.send_mt(…)``,
-``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, and ``client.events()``
+``client.capsule("DRS1").arm(…)``, ``.fire(…)``, ``.disarm()``, ``.status()``, ``.power_on()``,
+``.reset(name)``, ``.released(name, evidence)``, ``.authority()``, ``.take_over(…)``,
+``.release_authority(reason)``, ``.host_key()``/``.enrol(fingerprint)``, ``.sync(source)``/``.sync_status(…)``, ``client.iridium.send_mt(…)``,
+``.mt_status(name)``, ``.resolve_mt(…)``, ``.health(name)``, ``.track(…)``,
+``client.recovery(name, …)``, ``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, and ``client.events()``
 for views.
 
 Why the standard library's ``http.client`` for the verbs: a ``drs`` command is one blocking request,
@@ -31,17 +34,40 @@ from drs_link.server.protocol import (
     ApprovalView,
     ArmRequest,
     ArmState,
+    AuthoritySeen,
+    AuthorityView,
+    CapsuleStatus,
     DecideRequest,
     DisarmRequest,
     Done,
+    EnrolRequest,
     Event,
     Failure,
     FireRequest,
+    HealthView,
     Hello,
+    HostKeyView,
     MtSendRequest,
+    MtStatus,
+    MtView,
     Pending,
+    PowerOnRequest,
+    ReasonRequest,
+    RecoveryReadout,
+    RecoveryRequest,
+    ReleasedRequest,
+    ReleaseView,
+    ResolveMtRequest,
     Said,
     Second,
+    SyncReportView,
+    SyncRequest,
+    SyncStatusRequest,
+    SyncStatusView,
+    TakeOverRequest,
+    TrackCsv,
+    TrackRequest,
+    TypedNameRequest,
     Waive,
     decode_step,
     encode,
@@ -50,6 +76,7 @@ from predictor.errors import UsageError
 
 if TYPE_CHECKING:
     from drs_link.server.desks import PredictorFor
+    from drs_link.server.recovery import LiveFor
 
 T = TypeVar("T")
 Say = Callable[[str], None]
@@ -92,14 +119,16 @@ class Client:
         self.approvals = Approvals(self)
 
     @classmethod
-    def for_config(cls, config: Config, predictor_for: PredictorFor | None = None) -> Client:
+    def for_config(
+        cls, config: Config, predictor_for: PredictorFor | None = None, live_for: LiveFor | None = None
+    ) -> Client:
         """The team's server (``[server] socket``), else this account's private one (started if need be;
-        ``predictor_for`` only reaches one run in this process, ``private.IN_PROCESS_ENV``)."""
+        ``predictor_for`` and ``live_for`` only reach one run in this process, ``private.IN_PROCESS_ENV``)."""
         if config.server.socket:
             return cls(Path(config.server.socket).expanduser())
         from drs_link.server.private import ensure_private_server
 
-        return cls(ensure_private_server(config, predictor_for))
+        return cls(ensure_private_server(config, predictor_for, live_for))
 
     def close(self) -> None:
         self._conn.close()
@@ -112,6 +141,11 @@ class Client:
 
     def capsule(self, name: str) -> Capsule:
         return Capsule(self, name)
+
+    def recovery(self, name: str, request: RecoveryRequest) -> RecoveryReadout:
+        """Where a capsule is (``drs recovery``), read by the server from the reports it holds; the GPX,
+        KML and descent asked for come back for this process to write or draw."""
+        return self.call("POST", f"/recovery/{name}", request, RecoveryReadout)
 
     def hello(self) -> Hello:
         return self.call("GET", "/hello", None, Hello)
@@ -202,6 +236,11 @@ class Client:
             yield item
 
 
+def absolute(paths: tuple[str, ...]) -> tuple[str, ...]:
+    """Paths as this process names them: the server does not share its working directory."""
+    return tuple(str(Path(p).absolute()) for p in paths)
+
+
 def _failure(raw: bytes) -> Failure:
     try:
         return msgspec.json.decode(raw, type=Failure)
@@ -218,7 +257,7 @@ class Capsule:
 
     def arm(self, waivers: tuple[tuple[str, str], ...] = (), weather: tuple[str, ...] = (),
             say: Say = print) -> ArmState:  # fmt: skip
-        request = ArmRequest(PROTOCOL, tuple(Waive(i, r) for i, r in waivers), weather)
+        request = ArmRequest(PROTOCOL, tuple(Waive(i, r) for i, r in waivers), absolute(weather))
         done = self.client.steps(f"/capsules/{self.name}/arm", request, say)
         assert done.arm is not None
         return done.arm
@@ -232,13 +271,84 @@ class Capsule:
         say: Say = print,
     ) -> Done:
         waived = tuple(Waive(i, r) for i, r in waivers)
-        request = FireRequest(PROTOCOL, typed_name, waived, weather, second or Second())
+        request = FireRequest(PROTOCOL, typed_name, waived, absolute(weather), second or Second())
         return self.client.steps(f"/capsules/{self.name}/fire", request, say)
 
     def disarm(self, reason: str = "operator disarmed (drs capsule disarm)") -> ArmState:
         return self.client.call(
             "POST", f"/capsules/{self.name}/disarm", DisarmRequest(PROTOCOL, reason), ArmState
         )
+
+    def status(self) -> CapsuleStatus:
+        """Release record, link, storage, microcontroller and GNSS, read now (read-only)."""
+        return self.client.call("GET", f"/capsules/{self.name}/status", None, CapsuleStatus)
+
+    def power_on(self, confirmed: bool = True, say: Say = print) -> Done:
+        """Latch the battery relay (software cannot unlatch it: confirm first), then wait for the
+        microcontroller's NMEA; ``ok`` when it waits for Go. Not confirmed: refused and audited."""
+        request = PowerOnRequest(PROTOCOL, confirmed)
+        return self.client.steps(f"/capsules/{self.name}/power-on", request, say)
+
+    def reset(self, typed_name: str) -> ReleaseView:
+        """After recovery: ARM possible again (waivers and approvals void)."""
+        request = TypedNameRequest(PROTOCOL, typed_name)
+        return self.client.call("POST", f"/capsules/{self.name}/reset", request, ReleaseView)
+
+    def released(self, typed_name: str, evidence: str) -> ReleaseView:
+        """Settle an unverified Go as released on the operator's evidence (written to the audit)."""
+        request = ReleasedRequest(PROTOCOL, typed_name, evidence)
+        return self.client.call("POST", f"/capsules/{self.name}/released", request, ReleaseView)
+
+    def authority(self) -> AuthorityView:
+        """Who holds the release authority on the Pi now."""
+        return self.client.call("GET", f"/capsules/{self.name}/authority", None, AuthorityView)
+
+    def check_take_over(self, reason: str) -> AuthorityView:
+        """A take-over that can never be right is refused now, before the name is asked; else who holds
+        the authority, to show the operator (and hand back as ``seen``)."""
+        request = ReasonRequest(PROTOCOL, reason)
+        return self.client.call(
+            "POST", f"/capsules/{self.name}/authority/check-take-over", request, AuthorityView
+        )
+
+    def take_over(
+        self,
+        seen: AuthoritySeen,
+        typed_name: str,
+        reason: str,
+        second: Second | None = None,
+        say: Say = print,
+    ) -> Done:
+        """Take over from what the operator was shown (``seen``); the two-person rule as FIRE meets it."""
+        request = TakeOverRequest(PROTOCOL, seen, typed_name, reason, second or Second())
+        return self.client.steps(f"/capsules/{self.name}/authority/take-over", request, say)
+
+    def release_authority(self, reason: str = "") -> AuthorityView:
+        """Give up this operator's release authority; what was given up (free if it held none)."""
+        request = ReasonRequest(PROTOCOL, reason)
+        return self.client.call("POST", f"/capsules/{self.name}/authority/release", request, AuthorityView)
+
+    def sync(self, source: Path | None = None, say: Say = print) -> SyncReportView:
+        """Upload ``source`` (None: the capsule's ``sync_source``) with the server's SSH identity, each file
+        verified by sha256 on the Pi; the server reads only what this account could read."""
+        request = SyncRequest(PROTOCOL, None if source is None else str(source.absolute()))
+        done = self.client.steps(f"/capsules/{self.name}/sync", request, say)
+        assert done.sync is not None
+        return done.sync
+
+    def sync_status(self, source: Path | None = None, with_hash: bool = False) -> SyncStatusView:
+        """What an upload would send (read-only; ``with_hash`` compares sha256 on the Pi too)."""
+        request = SyncStatusRequest(PROTOCOL, None if source is None else str(source.absolute()), with_hash)
+        return self.client.call("POST", f"/capsules/{self.name}/sync/status", request, SyncStatusView)
+
+    def host_key(self) -> HostKeyView:
+        """The host key the Pi offers now, for the operator to compare with the one read on the Pi."""
+        return self.client.call("GET", f"/capsules/{self.name}/host-key", None, HostKeyView)
+
+    def enrol(self, fingerprint: str) -> HostKeyView:
+        """Trust the Pi's key if it is ``fingerprint`` (read on the Pi itself); the server saves it."""
+        request = EnrolRequest(PROTOCOL, fingerprint)
+        return self.client.call("POST", f"/capsules/{self.name}/host-key", request, HostKeyView)
 
 
 @dataclass(frozen=True)
@@ -247,6 +357,25 @@ class Iridium:
 
     def send_mt(self, name: str, request: MtSendRequest, say: Say = print) -> Done:
         return self.client.steps(f"/iridium/{name}/mt", request, say)
+
+    def mt_status(self, name: str) -> MtStatus:
+        """The capsule's MTs, once the reports moved them on (delivered, applied), oldest first."""
+        return self.client.call("GET", f"/iridium/{name}/mt", None, MtStatus)
+
+    def resolve_mt(self, name: str, command_id: int, gateway_id: int | None, note: str = "") -> list[MtView]:
+        """Record what the RockBLOCK portal shows for an MT whose delivery is unknown: queued as
+        ``gateway_id``, or (None) never sent. The resolved MT first, then every other that changed."""
+        request = ResolveMtRequest(PROTOCOL, command_id, gateway_id, note)
+        return self.client.call("POST", f"/iridium/{name}/mt/resolve", request, list[MtView])
+
+    def health(self, name: str) -> HealthView:
+        """Battery, resets, gaps and spacing, judged from the reports the server holds."""
+        return self.client.call("GET", f"/iridium/{name}/health", None, HealthView)
+
+    def track(self, capsule: str | None = None, imei: str | None = None) -> TrackCsv:
+        """The stored fixes of a capsule (or a modem by IMEI) as the canonical track CSV's text, for
+        this process to write (``drs_link.exports.write_export``): the file is then the operator's own."""
+        return self.client.call("POST", "/iridium/track", TrackRequest(PROTOCOL, capsule, imei), TrackCsv)
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,7 @@ from collections.abc import Callable
 from datetime import datetime
 
 from drs_link.errors import ConfigError, RefusedError
+from drs_link.iridium.track_export import track_csv
 from drs_link.ops import (
     CATALOGUE,
     FLUSH_WARNING,
@@ -16,20 +17,34 @@ from drs_link.ops import (
     QUEUED,
     RETRY_WARNING,
     Approval,
+    Command,
     MtComposer,
     MtMessage,
     Operations,
     SecondOperator,
+    assess,
     hazard_of,
+    iso_utc,
     parse_hhmm,
 )
 from drs_link.server.desks import Desks
 from drs_link.server.peers import Mode, Peer
-from drs_link.server.protocol import Done, MtSendRequest
+from drs_link.server.protocol import (
+    Done,
+    FindingView,
+    HealthView,
+    MtSendRequest,
+    MtStatus,
+    MtView,
+    ResolveMtRequest,
+    TrackCsv,
+    TrackRequest,
+)
 from drs_link.server.release import two_person_refusal
 from predictor.errors import UsageError
 
 Say = Callable[[str], None]
+IMEI_DIGITS = 15
 
 
 def compose(
@@ -58,6 +73,17 @@ def compose(
         composer.add(command.name, (plan.hour, plan.minute))
         queue_by = plan.queue_by
     return composer.build(), queue_by
+
+
+def mt_view(command: Command) -> MtView:
+    def iso(moment: datetime | None) -> str | None:
+        return iso_utc(moment) if moment else None
+
+    return MtView(
+        command.id, command.text, command.state, command.detail, command.operator, command.flush,
+        iso_utc(command.requested_utc), iso_utc(command.updated_utc), iso(command.queued_utc), command.mt_id,
+        command.delivered_report_id, dict(command.effects),
+    )  # fmt: skip
 
 
 class IridiumService:
@@ -103,3 +129,44 @@ class IridiumService:
         lines.append(f"MT {sent.command.id}: {sent.command.state}: {sent.command.detail}")
         lines.extend(f"checklist: done: {step.text}" for step in sent.steps)
         return Done(tuple(lines), sent.command.state == QUEUED)
+
+    def mt_status(self, peer: Peer, name: str) -> MtStatus:
+        """The capsule's MTs after the reports moved them on (delivered, applied), oldest first."""
+        ops = self.desks.desk(peer)
+        capsule = ops.config.capsule(name)
+        return MtStatus(capsule.name, capsule.imei, tuple(mt_view(c) for c in ops.mt_status(name)))
+
+    def resolve_mt(self, peer: Peer, name: str, request: ResolveMtRequest) -> tuple[MtView, ...]:
+        """``Operations.resolve_mt``: the resolved MT first, then every other the reports moved on."""
+        ops = self.desks.desk(peer)
+        if not peer.operator:
+            raise ConfigError("operator.name: set [operator] name; every resolution is audited with it")
+        ops.reports_of(name)  # an unknown capsule or one without an IMEI is refused first
+        resolved = ops.resolve_mt(name, request.command_id, request.gateway_id, request.note)
+        return tuple(mt_view(c) for c in resolved)
+
+    def health(self, peer: Peer, name: str) -> HealthView:
+        """``assess`` of the capsule's stored reports and MTs: battery, resets, gaps and spacing."""
+        ops = self.desks.desk(peer)
+        capsule = ops.config.capsule(name)
+        health = assess(ops.reports_of(name), ops.mt_status(name))
+        findings = tuple(FindingView(f.kind, f.report_id, f.message) for f in health.findings)
+        return HealthView(
+            capsule.name, capsule.imei, health.reports, health.last_report, health.last_vbat, findings
+        )
+
+    def track(self, peer: Peer, request: TrackRequest) -> TrackCsv:
+        """The stored fixes of a capsule, or of a modem by IMEI, as the canonical track CSV's text: the
+        client writes it where its operator chose, so the file is the operator's (issue #29 item 6)."""
+        if (request.capsule is None) == (request.imei is None):
+            raise UsageError("give either a capsule NAME or --imei IMEI, not both or neither")
+        ops = self.desks.desk(peer)
+        if request.capsule is not None:
+            reports, who = ops.reports_of(request.capsule), request.capsule
+        else:
+            imei = request.imei or ""
+            if not (imei.isascii() and imei.isdigit() and len(imei) == IMEI_DIGITS):
+                raise UsageError(f"--imei {imei!r}: an IMEI is 15 digits")
+            reports, who = ops.reports.for_imei(imei), f"IMEI {imei}"
+        text, fixes, without_fix, rejected = track_csv(reports, who)
+        return TrackCsv(who, text, fixes, without_fix, rejected)

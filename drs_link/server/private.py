@@ -4,7 +4,8 @@ Why: single-operator use and ``make demo`` need no set-up, yet every action stil
 server. Its socket sits in a directory only this account can enter (``$XDG_RUNTIME_DIR/drs``, else
 ``/tmp/drs-<uid>``, made 0700 and refused if anyone else owns it), so only this account reaches it;
 that is also why it can never satisfy ``require_second_operator`` (``release.PRIVATE_TWO_PERSON``).
-One server per configuration file (the socket's name is a hash of its path); it exits when idle.
+One server per configuration file as it now reads (the socket's name is a hash of its path and content,
+so an edited file gets a server that read it; the old one exits when idle, as every private one does).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from drs_link.errors import ConfigError, LinkError
 
 if TYPE_CHECKING:
     from drs_link.server.desks import PredictorFor
+    from drs_link.server.recovery import LiveFor
 
 IDLE_EXIT_S = 300.0
 """A private server with no request for this long exits (``$DRS_SERVER_IDLE_S`` overrides it)."""
@@ -56,8 +58,19 @@ def _owned_private(path: Path, uid: int) -> bool:
     return stat.S_ISDIR(info.st_mode) and info.st_uid == uid and stat.S_IMODE(info.st_mode) & 0o077 == 0
 
 
+def config_key(config: Config) -> str:
+    """The configuration file a private server serves: its path and what it said when loaded."""
+    if config.source is None:
+        return "(defaults)"
+    try:
+        content = hashlib.sha256(config.source.read_bytes()).hexdigest()
+    except OSError:
+        content = "(unreadable)"
+    return f"{config.source.resolve()}\0{content}"
+
+
 def private_socket(config: Config) -> Path:
-    where = str(config.source.resolve()) if config.source is not None else "(defaults)"
+    where = config_key(config)
     return runtime_directory() / f"server-{hashlib.sha256(where.encode()).hexdigest()[:12]}.sock"
 
 
@@ -75,13 +88,15 @@ def listening(path: Path) -> bool:
 IN_PROCESS_ENV = "DRS_PRIVATE_SERVER"
 """``thread``: run the private server in a thread of this process instead of its own process (tests that
 watch or patch the operations layer from the test's process; a killed ``drs`` then kills its server)."""
-_threads: dict[Path, Path] = {}
+_threads: dict[str, Path] = {}
 
 
-def ensure_private_server(config: Config, predictor_for: PredictorFor | None = None) -> Path:
+def ensure_private_server(
+    config: Config, predictor_for: PredictorFor | None = None, live_for: LiveFor | None = None
+) -> Path:
     """The private server's socket, its server started first when none listens."""
     if os.environ.get(IN_PROCESS_ENV) == "thread":
-        return _thread_server(config, predictor_for)
+        return _thread_server(config, predictor_for, live_for)
     path = private_socket(config)
     if listening(path):
         return path
@@ -110,17 +125,17 @@ def ensure_private_server(config: Config, predictor_for: PredictorFor | None = N
     raise LinkError(f"the private operations server did not start: {said} (log: {log_path})")
 
 
-def _thread_server(config: Config, predictor_for: PredictorFor | None) -> Path:
+def _thread_server(config: Config, predictor_for: PredictorFor | None, live_for: LiveFor | None) -> Path:
     """The private server in a daemon thread of this process: the same server, socket and identity check."""
     path = private_socket(config).with_name(f"server-{os.getpid()}-{len(_threads)}.sock")
-    key = config.source.resolve() if config.source is not None else Path("(defaults)")
+    key = config_key(config)
     if key in _threads and listening(_threads[key]):
         return _threads[key]
     import asyncio
 
     from drs_link.server.app import OperationsServer
 
-    server = OperationsServer(config, "private", path, predictor_for=predictor_for)
+    server = OperationsServer(config, "private", path, predictor_for=predictor_for, live_for=live_for)
     failed: list[BaseException] = []
 
     def run() -> None:

@@ -9,7 +9,6 @@ two-person rule can never be met there, and that the approving account is anothe
 from __future__ import annotations
 
 from collections.abc import Callable
-from pathlib import Path
 
 from drs_link.errors import ConfigError, RefusedError
 from drs_link.ops import (
@@ -22,6 +21,7 @@ from drs_link.ops import (
     TelemetryRecord,
 )
 from drs_link.server.desks import Desks, PredictorFor
+from drs_link.server.paths import readable_path
 from drs_link.server.peers import Mode, Peer
 from drs_link.server.protocol import ArmRequest, ArmState, FireRequest, Waive
 
@@ -58,16 +58,17 @@ class ReleaseService:
             ops.waive(name, waive.item, waive.reason)
         return ops
 
-    def _poll(self, ops: Operations, name: str, weather: tuple[str, ...]) -> GoNoGoReport:
+    def _poll(self, peer: Peer, ops: Operations, name: str, weather: tuple[str, ...]) -> GoNoGoReport:
+        """The go/no-go poll; the weather files are read only if the peer's account could read them."""
         predict = None
         if weather and self.predictor_for is not None:
-            predict = self.predictor_for([Path(w) for w in weather], ops)
+            predict = self.predictor_for([readable_path(peer.uid, w) for w in weather], ops)
         return ops.poll_gonogo(name, predict)
 
     def arm(self, peer: Peer, name: str, request: ArmRequest, say: Say) -> ArmState:
         ops = self._desk(peer, name, request.waivers)
         say(f"{name}: polling go/no-go (link, microcontroller, GNSS, sync, prediction, gateway)…")
-        report = self._poll(ops, name, request.weather)
+        report = self._poll(peer, ops, name, request.weather)
         for line in poll_lines(report):
             say(line)
         status = ops.arm(name, report)
@@ -93,7 +94,7 @@ class ReleaseService:
 
         def poll() -> GoNoGoReport:
             say(f"{name}: polling go/no-go again: FIRE needs the verdicts ARM saw")
-            report = self._poll(ops, name, request.weather)
+            report = self._poll(peer, ops, name, request.weather)
             for line in poll_lines(report):
                 say(line)
             return report

@@ -37,12 +37,19 @@ from drs_link.sim.firmware import Firmware, GnssSky
 from drs_link.sim.gpio import ENABLE_LOW, SET_INPUT, SUPPLY, FakeGpio
 from drs_link.sim.keys import generate_ed25519
 from drs_link.sim.sftp import SimSftpServer
+from drs_link.skip_clock import skipped_seconds
 
 DEFAULT_CAPACITY = 128 * 1000**3
+SLEEP_SLICE_S = 0.05
+"""How often a simulated sleep looks at the clock again (wall seconds): a skip ends it this late at most."""
 
 
 class SimClock:
-    """Simulated UTC that runs ``scale`` times faster than the wall clock."""
+    """Simulated UTC that runs ``scale`` times faster than the wall clock.
+
+    A skip of the wall clock by a test (``drs_link.skip_clock``) moves it too, ``scale`` times as far,
+    as it moves a store's simulated clock (``Store.run_clock``): the simulators, the demo world and every
+    process on its store stay at one time while a test gets past a boot, a Go script or a descent."""
 
     def __init__(self, scale: float = 1.0, start: datetime | None = None) -> None:
         if scale <= 0:
@@ -50,12 +57,17 @@ class SimClock:
         self.scale = scale
         self._start = start or datetime.now(UTC)
         self._t0 = time.monotonic()
+        self._skipped0 = skipped_seconds()
 
     def now(self) -> datetime:
-        return self._start + timedelta(seconds=(time.monotonic() - self._t0) * self.scale)
+        elapsed = time.monotonic() - self._t0 + skipped_seconds() - self._skipped0
+        return self._start + timedelta(seconds=elapsed * self.scale)
 
     def sleep(self, sim_seconds: float) -> None:
-        time.sleep(max(0.0, sim_seconds) / self.scale)
+        """Until simulated time has moved ``sim_seconds`` on (a skip ends it early, as it would end)."""
+        until = self.now() + timedelta(seconds=max(0.0, sim_seconds))
+        while (left := (until - self.now()).total_seconds()) > 0:
+            time.sleep(min(left / self.scale, SLEEP_SLICE_S))
 
 
 @dataclass

@@ -424,8 +424,8 @@ class _Sample:
 
     flight: str
     height_m: float
-    record_log: float
-    """ln λ the record measured down to this fix (``DescentRecord.rate_fit``)."""
+    record_log: float | None
+    """ln λ the record measured down to this fix (``DescentRecord.rate_fit``; None: too little record)."""
     remaining_log: float
     """ln(law's seconds from here to the ground / measured seconds): the λ the next prediction needed."""
 
@@ -440,9 +440,11 @@ class _Survey:
 
 
 def _rate_survey(flights: Sequence[_Flight], payload: Payload, terms: Sequence[Term]) -> _Survey:
-    """At each flight's fix nearest each of ``SURVEY_HEIGHTS_KM`` (what ``rate_law`` uses), the record's λ
-    as live re-prediction measures it and the λ of the descent that was still to come (the law's
-    remaining seconds against the measured ones, to the touchdown the evaluation scores against).
+    """At each flight's fix nearest each of ``SURVEY_HEIGHTS_KM`` (what ``rate_law`` uses), the λ of the
+    descent that was still to come (the law's remaining seconds against the measured ones, to the
+    touchdown the evaluation scores against), and the record's λ as live re-prediction measures it at
+    that fix or, where the record says nothing yet (just below the top), at the first fix below it that
+    has one, within ``SURVEY_BAND_M``.
 
     Only those fixes are fitted, not every one: a 1 Hz record has thousands, and each fit is a pass over
     its window."""
@@ -451,19 +453,24 @@ def _rate_survey(flights: Sequence[_Flight], payload: Payload, terms: Sequence[T
         record = DescentRecord(LivePredictor(flight.cube, payload, flight.ground, effects=terms).law)
         touchdown_s = _touchdown_s(flight.descent, flight.landing.alt_m)
         heights = np.array([fix.alt_m - flight.landing.alt_m for fix in flight.descent[:-1]])
-        wanted = {int(np.argmin(np.abs(heights - 1000.0 * km))) for km in SURVEY_HEIGHTS_KM}
+        wanted = {int(np.argmin(np.abs(heights - 1000.0 * km))): km for km in SURVEY_HEIGHTS_KM}
+        pending: list[float] = []
         for i, fix in enumerate(flight.descent[:-1]):
             record.add(fix)
-            if i not in wanted:
-                continue
-            fit = record.rate_fit(fix.alt_m)
-            law_s = record.remaining_model_s(fix.alt_m)
+            law_s = record.remaining_model_s(fix.alt_m) or 0.0
             measured_s = touchdown_s - (fix.time - flight.descent[0].time).total_seconds()
-            if fit is None or law_s is None or law_s <= 0.0 or measured_s <= 0.0:
+            if law_s <= 0.0 or measured_s <= 0.0:
                 continue
-            samples.append(
-                _Sample(flight.name, float(heights[i]), math.log(fit.factor), math.log(law_s / measured_s))
-            )
+            remaining = math.log(law_s / measured_s)
+            if i in wanted:
+                samples.append(_Sample(flight.name, float(heights[i]), None, remaining))
+                pending.append(wanted[i])
+            pending = [km for km in pending if heights[i] > 1000.0 * km - SURVEY_BAND_M]
+            fit = record.rate_fit(fix.alt_m) if pending else None
+            if fit is not None:
+                # The record's λ here against the remaining descent's λ at this same fix.
+                samples.append(_Sample(flight.name, float(heights[i]), math.log(fit.factor), remaining))
+                pending = []
         fit = record.rate_fit(flight.descent[-2].alt_m, window_m=math.inf)
         if fit is not None:
             whole[flight.name] = math.log(fit.factor)
@@ -476,45 +483,96 @@ def rate_law(survey: _Survey, leave_out: str | None = None) -> tuple[RatePrior |
     Prior: the median and spread of their whole-descent ln λ (what a pre-flight prediction and a model
     without a table fly). Table, at each of ``SURVEY_HEIGHTS_KM`` with at least three flights there (each
     through its fix nearest the height): the remaining descent's ln λ (mean, standard deviation), and
-    ln(record λ / remaining λ) (median, 1.4826 × MAD: robust to the flight whose canopy misbehaves).
+    ln(record λ / remaining λ) (median, 1.4826 × MAD: robust to the flight whose canopy misbehaves),
+    each flight through its nearest fix with a record λ; where fewer than three flights have one (high
+    up, just below the top), the departure of the nearest height that has them.
     """
     logs = np.array([v for name, v in survey.whole.items() if name != leave_out])
     prior = None
     if logs.size >= 3:
         prior = RatePrior(float(np.exp(logs.mean())), min(float(logs.std(ddof=1)), 1.0), int(logs.size))
-    columns: list[tuple[float, float, float, float, float, int]] = []
+    columns: list[tuple[float, float | None, float | None, float, float, int]] = []
     for km in SURVEY_HEIGHTS_KM:
-        nearest: dict[str, _Sample] = {}
-        for sample in survey.samples:
-            distance = abs(sample.height_m - 1000.0 * km)
-            if sample.flight == leave_out or distance >= SURVEY_BAND_M:
-                continue
-            if sample.flight not in nearest or distance < abs(nearest[sample.flight].height_m - 1000.0 * km):
-                nearest[sample.flight] = sample
-        if len(nearest) < 3:
+        remaining = _nearest(survey, km, leave_out, with_record=False)
+        if len(remaining) < 3:
             continue
-        remaining = np.array([s.remaining_log for s in nearest.values()])
-        departure = np.array([s.record_log for s in nearest.values()]) - remaining
-        bias = float(np.median(departure))
-        columns.append((km, round(bias, 5), round(1.4826 * float(np.median(np.abs(departure - bias))), 5),
-                        round(float(remaining.mean()), 5), round(min(float(remaining.std(ddof=1)), 1.0), 5),
-                        len(nearest)))  # fmt: skip
-    if not columns:
+        measured = _nearest(survey, km, leave_out, with_record=True)
+        bias = spread = None
+        if len(measured) >= 3:
+            departure = np.array(
+                [s.record_log - s.remaining_log for s in measured if s.record_log is not None]
+            )
+            bias = float(np.median(departure))
+            spread = round(1.4826 * float(np.median(np.abs(departure - bias))), 5)
+            bias = round(bias, 5)
+        logs_ = np.array([s.remaining_log for s in remaining])
+        columns.append((km, bias, spread, round(float(logs_.mean()), 5),
+                        round(min(float(logs_.std(ddof=1)), 1.0), 5), len(remaining)))  # fmt: skip
+    known = [c for c in columns if c[1] is not None]
+    if not known:
         return prior, NO_DISCREPANCY
-    heights, bias_, spread, mean, sigma, count = zip(*columns, strict=True)
-    return prior, RateDiscrepancy(heights, bias_, spread, mean, sigma, count)
+    filled = []
+    for km, bias, spread, mean, sigma, count in columns:
+        if bias is None:
+            nearest = min(known, key=lambda c: abs(c[0] - km))
+            bias, spread = nearest[1], nearest[2]
+        filled.append((km, bias, spread, mean, sigma, count))
+    heights, bias_, spread_, mean_, sigma_, count_ = zip(*filled, strict=True)
+    return prior, RateDiscrepancy(heights, bias_, spread_, mean_, sigma_, count_)
+
+
+def _nearest(survey: _Survey, km: float, leave_out: str | None, with_record: bool) -> list[_Sample]:
+    """Each flight's sample nearest ``km`` (within ``SURVEY_BAND_M``), among those with a record λ if
+    ``with_record``, else among those without (one per flight at its fix nearest the height)."""
+    nearest: dict[str, _Sample] = {}
+    for sample in survey.samples:
+        distance = abs(sample.height_m - 1000.0 * km)
+        if (
+            sample.flight == leave_out
+            or distance >= SURVEY_BAND_M
+            or (sample.record_log is not None) != with_record
+        ):
+            continue
+        if sample.flight not in nearest or distance < abs(nearest[sample.flight].height_m - 1000.0 * km):
+            nearest[sample.flight] = sample
+    return list(nearest.values())
 
 
 def conservative_discrepancy(laws: Sequence[RateDiscrepancy]) -> RateDiscrepancy:
     """The record-to-remaining departure to fly with a law nobody evaluated live: at each height every
-    law here measured, no median taken off and the largest root-mean-square log departure
-    (√(median² + spread²)) as the spread (``live.DEFAULT_DISCREPANCY``)."""
+    law here measured (laws of several payloads' flights), no median taken off and the largest
+    root-mean-square log departure (√(median² + spread²)) as the spread, and as the prior of the
+    remaining λ the law itself with the largest root-mean-square remaining ln λ as its width
+    (``live.DEFAULT_DISCREPANCY``)."""
     heights = sorted(set.intersection(*(set(d.heights_km) for d in laws)))
-    spread = []
+    spread, remaining = [], []
     for km in heights:
-        rms = [math.hypot(*d.at(km)) for d in laws]
-        spread.append(round(max(rms), 3))
-    return RateDiscrepancy(tuple(heights), (0.0,) * len(heights), tuple(spread))
+        spread.append(round(max(math.hypot(*d.at(km)) for d in laws), 3))
+        priors = [d.remaining_prior(km) for d in laws]
+        remaining.append(round(max((p.log_sigma for p in priors if p is not None), default=0.0), 3))
+    flights = min((min(d.remaining_flights) for d in laws if d.remaining_flights), default=0)
+    if not flights:
+        return RateDiscrepancy(tuple(heights), (0.0,) * len(heights), tuple(spread))
+    return RateDiscrepancy(tuple(heights), (0.0,) * len(heights), tuple(spread),
+                           (0.0,) * len(heights), tuple(remaining), (flights,) * len(heights))  # fmt: skip
+
+
+def measured_discrepancies(
+    track_sets: Sequence[Sequence[str | Path]],
+    model: CalibratedModel,
+    profile: Payload | None = None,
+    day: date | None = None,
+) -> list[RateDiscrepancy]:
+    """The record-to-remaining departure of every set of flights (a payload, a team) on the model's law
+    and on the profile's, each flight with its own ascent winds and level ground at its landing: what
+    ``conservative_discrepancy`` pools into the default of a model without live settings."""
+    profile = profile or PROFILES["superbit-test"]
+    laws = []
+    for paths in track_sets:
+        flights = _usable(paths, day, [], None, None, None)
+        for payload, terms in ((model.payload, model.terms), (profile, ())):
+            laws.append(rate_law(_rate_survey(flights, payload, terms))[1])
+    return laws
 
 
 def evaluate_live(
@@ -1049,12 +1107,15 @@ def write_live_report(
         "nothing learned (`drs live --no-correction`; on the textbook law this is *the plain restart*); "
         "**λ** = this flight's own factor on the law's descent rate for the descent still to come, a "
         "Bayesian update of a log-normal prior with the descent so far: the record's time-at-altitude "
-        "against the law from its top over its last 6 km of fall (Huber fit with a free time offset, its "
-        "variance widened by (1+ρ)/(1−ρ) for correlated residuals) less the median departure of such a "
-        "record from the remaining descent's λ at that height, with that departure's spread (1.4826 MAD) "
-        "added to its variance. On each law the prior (the remaining-descent λ of the OTHER flights at "
-        "that height) and the departure (measured on the OTHER flights) are that law's own, so *textbook "
-        "+ λ* is the same estimator on the textbook law. **wind L** = the measured wind error, decaying below the capsule with L in "
+        "against the law from its top over its last 6 km of fall (Huber fit with a free time offset, each "
+        "fix weighted by the height it spans and the record counting at most one independent fix per "
+        "250 m of fall, so that a record of any cadence gives the same λ; its variance widened by "
+        "(1+ρ)/(1−ρ) for correlated residuals) less the median departure of such a record from the "
+        "remaining descent's λ at that height, with that departure's spread (1.4826 MAD) added to its "
+        "variance. The prior is the law itself (λ = 1), as wide as the OTHER flights' remaining-descent λ "
+        "was from it at that height (root mean square of ln λ). On each law the prior and the departure "
+        "(measured on the OTHER flights) are that law's own, so *textbook + λ* is the same estimator on "
+        "the textbook law. **wind L** = the measured wind error, decaying below the capsule with L in "
         f"{', '.join('∞' if math.isinf(d) else f'{d / 1000:g} km' for d in DECAYS_M)}. "
         "**model + held-out live**: for each flight λ on or off (by the mean |remaining-time error| of "
         "the OTHER flights) and then the wind (by their mean landing error) that the other flights "

@@ -8,10 +8,12 @@ altitude and time), and the reports so far measure two things the forecast got w
   drag law with the terms a calibrated model carries). Payload, canopy, rigging and mass differ from
   flight to flight, so λ does too, while the shape is shared (``predictor.descent.RatePrior``). What
   the next prediction needs is λ of the descent still to come, so that is what is estimated: a
-  Bayesian update (``update_rate``) of the prior for the rest of the descent at this height (how the
-  evaluation flights' remaining λ spread there) with the record's own measurement. The record is its
-  time-at-altitude against the law from its top over the last ``RECORD_WINDOW_M`` (a Huber fit with a
-  free time offset, its variance widened for the correlated swing of a 1 Hz record), less how such a
+  Bayesian update (``update_rate``) of the prior for the rest of the descent at this height (the law
+  itself, as wide as the evaluation flights' remaining λ was from it there) with the record's own
+  measurement. The record is its time-at-altitude against the law from its top over the last
+  ``RECORD_WINDOW_M`` (a Huber fit with a free time offset, each fix weighing the height it spans and at
+  most one independent fix per ``INDEPENDENT_DROP_M``, so that a record of any cadence says the same;
+  its variance widened for the correlated swing of a 1 Hz record), less how such a
   record's λ departs from the remaining descent's at this height, with that departure's spread
   (``RateDiscrepancy``, median and MAD over the evaluation flights). The posterior λ multiplies the
   law below the capsule (``DescentRateScale``) and its σ is stated beside the prediction;
@@ -64,6 +66,15 @@ Why: a flight's departure from the law is not one number; on the SuperBIT flight
 with height, so the recent fall says more about the rest than the whole record does. Chosen on those
 30 flights, leave-one-flight-out, against the record from the top (held-out remaining-time error from
 20 km 155 s against 170 s) and a 3 km window (149 s, but 10 km worse); docs/planning/live-reprediction.md."""
+INDEPENDENT_DROP_M = 250.0
+"""A record counts at most one independent fix per 250 m of fall, whatever its cadence.
+
+Why: the fixes of a dense record are not independent (the capsule swings for tens of seconds, GNSS
+altitude errors drift), and the record's departure from the rest of the descent, not its sampling
+noise, is the error that matters (``RateDiscrepancy``). With each fix weighted by the height it spans
+and the count capped by the height, a 1 Hz and a 5-minute record of one descent give the same λ and
+nearly the same σ; counted fix by fix, a 1 Hz record claimed a σ of a fraction of a percent and the
+prior no longer counted."""
 CHECK_DROPS_M = (1500.0, 3000.0)
 """How far above a report the flight's own evidence asks each candidate to predict the fall to it."""
 CHECK_GRID_M = 250.0
@@ -103,8 +114,8 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.043, 3.706, 3.347, 3.771, 2.193, 1.598),
-    sigma_perpendicular_km=(3.602, 3.83, 3.877, 3.332, 1.625, 0.789),
+    sigma_parallel_km=(4.043, 3.782, 3.468, 3.801, 2.213, 1.603),
+    sigma_perpendicular_km=(3.602, 3.829, 3.876, 3.332, 1.625, 0.789),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,
 ``DEFAULT_ELLIPSE_NOTE``): measured by ``drs live evaluate`` on the 30 SuperBIT test flights with the
@@ -159,14 +170,20 @@ class RateDiscrepancy:
         )
 
     def remaining_prior(self, height_km: float) -> RatePrior | None:
-        """The prior of the remaining descent's λ at this height (None: not measured)."""
+        """The prior of the remaining descent's λ at this height (None: not measured): centred on the
+        law (λ = 1), as wide as the evaluation flights' remaining λ was from it (root mean square of
+        ln λ: their mean departure counted as spread, not taken off).
+
+        Why centred on the law: the mean is the one thing that did not carry from one season or payload
+        to another, while its size did (docs/planning/rate_estimators.py: 2018 → 2019 from 20 km 0.99×
+        the plain restart's remaining-time error with the 2018 mean as the prior, 0.89× centred on the
+        law); the plain restart (λ = 1) is then what the update starts from, and it leaves it only as
+        far as the record says (docs/planning.md, issue #30)."""
         if not self.remaining_log_mean:
             return None
-        return RatePrior(
-            math.exp(by_height(height_km, self.heights_km, self.remaining_log_mean)),
-            by_height(height_km, self.heights_km, self.remaining_log_sigma),
-            min(self.remaining_flights),
-        )
+        mean = by_height(height_km, self.heights_km, self.remaining_log_mean)
+        sigma = by_height(height_km, self.heights_km, self.remaining_log_sigma)
+        return RatePrior(1.0, math.hypot(mean, sigma), min(self.remaining_flights))
 
 
 NO_DISCREPANCY = RateDiscrepancy((0.0,), (0.0,), (0.0,))
@@ -174,18 +191,23 @@ NO_DISCREPANCY = RateDiscrepancy((0.0,), (0.0,), (0.0,))
 are measured; a model without live settings flies ``DEFAULT_DISCREPANCY``, never this."""
 
 DEFAULT_DISCREPANCY = RateDiscrepancy(
-    heights_km=(1.0, 3.5, 6.0, 8.5, 11.0, 13.5, 16.0, 18.5, 21.0, 23.5, 26.0),
-    log_bias=(0.0,) * 11,
-    log_sigma=(0.092, 0.076, 0.086, 0.081, 0.097, 0.115, 0.139, 0.153, 0.161, 0.104, 0.119),
+    heights_km=(1.0, 3.5, 6.0, 8.5, 11.0, 13.5, 16.0, 18.5, 21.0, 23.5, 26.0, 28.5),
+    log_bias=(0.0,) * 12,
+    log_sigma=(0.125, 0.1, 0.115, 0.105, 0.1, 0.113, 0.153, 0.176, 0.217, 0.217, 0.217, 0.198),
+    remaining_log_mean=(0.0,) * 12,
+    remaining_log_sigma=(0.282, 0.256, 0.235, 0.218, 0.191, 0.183, 0.176, 0.174, 0.176, 0.177, 0.188, 0.207),
+    remaining_flights=(7,) * 12,
 )
-"""How far a record's λ may be from the remaining descent's, for a model without live settings of its
-own: conservative, so that a dense record (1 Hz: its fit σ is a fraction of a percent) never overwhelms
-the prior. At each height the larger, over the model and textbook laws of the 30 SuperBIT flights, of
-the root-mean-square log departure (√(median² + spread²), ``conservative_discrepancy``): a law's own
-median departure is its shape error, unknown for a law not evaluated live, so it is counted as spread
-and not taken off. Measured by ``drs live evaluate`` (docs/planning/live-reprediction.md); the zero
-spread it replaces let a 1 Hz record's last 6 km decide λ alone, 1.45× the plain restart's landing
-error from 10 km on another team's flights (issue #30)."""
+"""How far a record's λ may be from the remaining descent's, and the remaining λ's prior, for a model
+without live settings of its own: conservative, so that neither a dense record (a 1 Hz record's fit σ
+is a fraction of a percent) nor a pooled λ decides alone. Measured on two payloads' real flights (the
+30 SuperBIT flights and the 10 EOSS flights with a landing, tests/data/eoss), on the model and textbook
+laws (``measured_discrepancies``): at each height the largest root-mean-square log departure of a
+record from the remaining descent (√(median² + spread²): a law's median departure is its shape error,
+unknown for a law not evaluated live, so it is counted as spread, not taken off), and as the prior the
+law itself (λ = 1) with the largest root-mean-square remaining ln λ as its width
+(``conservative_discrepancy``; command in docs/planning.md). On SuperBIT alone the spread was 7–15 %,
+EOSS's payload on the SuperBIT law widens it to 10–22 % and the prior to 17–28 %."""
 
 
 @dataclass(frozen=True)
@@ -299,8 +321,13 @@ class RateFit:
     """Standard error of ln λ, widened for residuals correlated from fix to fix (a swing, a slow drift)."""
 
 
-def fit_rate(observed_s: np.ndarray, model_s: np.ndarray) -> RateFit | None:
+def fit_rate(
+    observed_s: np.ndarray, model_s: np.ndarray, weights: np.ndarray | None = None
+) -> RateFit | None:
     """Huber fit of observed = model / λ + offset by iteratively reweighted least squares.
+
+    ``weights``: each fix's share of the record (default: one each), scaled so that they sum to the
+    number of independent fixes the record holds (``DescentRecord.rate_fit`` gives height spans).
 
     Why Huber and not least squares: a 1 Hz record swings under its canopy and a tracker logs the odd
     wild fix; squared errors let a few of those set λ, a bounded weight does not. Every fix is used,
@@ -310,7 +337,8 @@ def fit_rate(observed_s: np.ndarray, model_s: np.ndarray) -> RateFit | None:
     if observed_s.size < 2 or float(np.ptp(model_s)) <= 0.0:
         return None
     design = np.column_stack((model_s, np.ones_like(model_s)))
-    weights = np.ones_like(model_s)
+    prior_weights = np.ones_like(model_s) if weights is None else np.asarray(weights, dtype=float)
+    weights = prior_weights
     coef = np.zeros(2)
     scale = 1.0
     for _ in range(FIT_ITERATIONS):
@@ -320,11 +348,12 @@ def fit_rate(observed_s: np.ndarray, model_s: np.ndarray) -> RateFit | None:
         # every fix an outlier.
         scale = max(1.4826 * float(np.median(np.abs(residual - np.median(residual)))), 1.0)
         u = np.abs(residual) / (HUBER_K * scale)
-        weights = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-12))
+        weights = prior_weights * np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-12))
     if coef[0] <= 0.0:
         return None
+    count = float(prior_weights.sum())
     return RateFit(float(1.0 / coef[0]), float(coef[1]), int(observed_s.size), scale,
-                   _log_sigma(design, weights, residual, scale, float(coef[0])))  # fmt: skip
+                   _log_sigma(design, weights, residual, scale, float(coef[0]), count))  # fmt: skip
 
 
 def _weighted_line(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -339,7 +368,7 @@ def _weighted_line(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def _log_sigma(
-    design: np.ndarray, weights: np.ndarray, residual: np.ndarray, scale: float, slope: float
+    design: np.ndarray, weights: np.ndarray, residual: np.ndarray, scale: float, slope: float, count: float
 ) -> float:
     """σ of ln λ = σ(slope) / slope, with the weighted least-squares variance of the slope times
     (1 + ρ) / (1 − ρ), ρ the correlation of consecutive residuals.
@@ -353,7 +382,7 @@ def _log_sigma(
         # scale² × n / (n − 2): two parameters were fitted on these residuals. A line through two fixes
         # leaves none, and its scale is the 1 s floor: the spread the evaluation measured across
         # flights for records as short (``RateDiscrepancy``) is then what says how far off it can be.
-        covariance = np.linalg.inv(design.T @ weighted) * scale**2 * residual.size / max(residual.size - 2, 1)
+        covariance = np.linalg.inv(design.T @ weighted) * scale**2 * count / max(count - 2.0, 1.0)
     except np.linalg.LinAlgError:
         return math.inf
     rho = 0.0
@@ -440,11 +469,19 @@ class DescentRecord:
         self._z.append(report.alt_m)
 
     def remaining_model_s(self, alt_m: float) -> float | None:
-        """The law's seconds from ``alt_m`` to the ground, as flown from the record's top (None: no law yet)."""
-        if self._model is None:
+        """The law's seconds from ``alt_m`` to the ground, as flown from the record's top (None: no record yet)."""
+        if self.top is None:
             return None
-        z_up, model_up = self._model
+        z_up, model_up = self._law_up()
         return float(model_up[0] - np.interp(alt_m, z_up, model_up))
+
+    def _law_up(self) -> tuple[np.ndarray, np.ndarray]:
+        """(altitudes rising, the law's seconds from the record's top to each), asked once per top."""
+        if self._model is None:
+            assert self.top is not None
+            track = self.law(self.top)
+            self._model = track.alt_m[::-1].copy(), track.t_s[::-1] - track.t_s[0]
+        return self._model
 
     def earlier_fit(self, alt_m: float) -> RateFit | None:
         """``rate_fit(alt_m, earlier=True)``, kept once the record is below ``alt_m`` (it cannot change)."""
@@ -479,14 +516,11 @@ class DescentRecord:
         self, alt_m: float, window_m: float = RECORD_WINDOW_M, earlier: bool = False
     ) -> RateFit | None:
         """λ on the law from the record's fixes down to ``alt_m``, those within ``window_m`` above it
-        (at least the last two; None: too little). ``earlier``: only the fixes up to the first one at
+        (at least the last two; None: too little), each fix weighted by the height it spans. ``earlier``: only the fixes up to the first one at
         or below ``alt_m``, what the record said when the capsule was there (``self_check``)."""
         if self.top is None or self.top.alt_m - alt_m < MIN_PAIR_DROP_M:
             return None
-        if self._model is None:
-            track = self.law(self.top)
-            self._model = track.alt_m[::-1].copy(), track.t_s[::-1] - track.t_s[0]
-        z_up, model_up = self._model
+        z_up, model_up = self._law_up()
         z = np.asarray(self._z)
         flown = z >= z_up[0]
         if earlier:
@@ -497,7 +531,15 @@ class DescentRecord:
             keep[np.flatnonzero(flown)[-2:]] = True
         if keep.sum() < 2 or float(np.ptp(z[keep])) < MIN_PAIR_DROP_M:
             return None
-        return fit_rate(np.asarray(self._t)[keep], np.interp(z[keep], z_up, model_up))
+        zk = z[keep]
+        # Each fix weighs the height it spans (half the fall to each neighbour), so that the fit is
+        # an integral over height whatever the cadence; the weights sum to the independent fixes the
+        # height holds (INDEPENDENT_DROP_M), never more than the fixes themselves.
+        padded = np.concatenate(([zk[0]], zk, [zk[-1]]))
+        spans = np.maximum(0.5 * (padded[:-2] - padded[2:]), 0.0) + 1e-3
+        count = min(float(zk.size), float(np.ptp(zk)) / INDEPENDENT_DROP_M + 2.0)
+        weights = spans * (count / float(spans.sum()))
+        return fit_rate(np.asarray(self._t)[keep], np.interp(zk, z_up, model_up), weights)
 
 
 @dataclass(frozen=True)

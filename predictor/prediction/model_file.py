@@ -147,14 +147,16 @@ class CalibratedModel:
         notes = []
         if self.live is None:
             notes.append(
-                "no live settings of its own: its shape with this flight's own λ update (the conservative default discrepancy, measured on SuperBIT), no wind correction"
+                "no live settings of its own: its shape with this flight's own λ update (the conservative default discrepancy and prior, measured on SuperBIT and EOSS flights), no wind correction"
             )
             notes.append(DEFAULT_ELLIPSE_NOTE)
             settings = LiveSettings(OWN_RATE, LIVE_ERROR_MODEL, DEFAULT_DISCREPANCY)
         else:
             settings = self.live
         prior = self._prior_on_terms() or settings.prior
-        if prior is None:
+        if self.live is None and settings.discrepancy.remaining_log_mean:
+            pass  # the default's own prior by height, said in the first note
+        elif prior is None:
             notes.append("no λ prior in the model: λ from this descent alone")
         elif self.rate_prior is None:
             notes.append("λ prior from the model's live evaluation (its calibration gave none)")

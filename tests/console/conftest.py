@@ -55,13 +55,20 @@ A limit, not an expectation: on an idle machine every wait ends in well under a 
 
 
 async def wait_for(
-    pilot: Pilot[Any], condition: Callable[[], bool], timeout_s: float = STATE_TIMEOUT_S
+    pilot: Pilot[Any],
+    condition: Callable[[], bool],
+    timeout_s: float = STATE_TIMEOUT_S,
+    skip: Callable[[], None] | None = None,
 ) -> None:
-    """Let the app run until ``condition`` holds; fail after ``timeout_s`` (never a fixed sleep)."""
+    """Let the app run until ``condition`` holds; fail after ``timeout_s`` (never a fixed sleep).
+    ``skip``: called between two looks, to move the clock on where only time stands in the way
+    (``tests.clock.SkipClock.skipper``)."""
     deadline = time.monotonic() + timeout_s
     while not condition():
         if time.monotonic() > deadline:
             raise AssertionError(f"the console did not reach the expected state within {timeout_s:.0f} s")
+        if skip is not None:
+            skip()
         await pilot.pause(0.05)
 
 

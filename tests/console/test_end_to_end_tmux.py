@@ -13,12 +13,13 @@ import shutil
 import subprocess
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
 from drs_link.store import Store
+from tests.clock import SkipClock
 
 pytestmark = pytest.mark.slow
 REPO = Path(__file__).resolve().parents[2]
@@ -50,16 +51,23 @@ class Terminal:
             [TMUX, "capture-pane", "-p", "-t", self.session], check=True, capture_output=True, text=True
         ).stdout
 
-    def wait_for(self, text: str, timeout_s: float = 120.0) -> str:
-        return self.wait_for_match(re.escape(text), timeout_s)
+    def wait_for(self, text: str, timeout_s: float = 120.0, skip: Callable[[], None] | None = None) -> str:
+        return self.wait_for_match(re.escape(text), timeout_s, skip)
 
-    def wait_for_match(self, pattern: str, timeout_s: float = 120.0) -> str:
-        """The screen once ``pattern`` (a regular expression) matches it; column spacing is layout's business."""
+    def wait_for_match(
+        self, pattern: str, timeout_s: float = 120.0, skip: Callable[[], None] | None = None
+    ) -> str:
+        """The screen once ``pattern`` (a regular expression) matches it; column spacing is layout's business.
+
+        ``skip``: called between two looks at the screen, to move the demo's clock on (``SkipClock``)
+        where only time stands between the screen and the state (a boot, a Go script, a descent)."""
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             shown = self.screen()
             if re.search(pattern, shown):
                 return shown
+            if skip is not None:
+                skip()
             time.sleep(0.2)
         raise AssertionError(f"{pattern!r} never appeared; the terminal shows:\n{self.screen()}")
 
@@ -95,11 +103,13 @@ def queue_parachute(terminal: Terminal, attempts: int = 6) -> str:
 
 
 @pytest.fixture
-def terminal(tmp_path: Path, tmux_server: None) -> Iterator[Terminal]:
+def terminal(tmp_path: Path, tmux_server: None, skip_clock: SkipClock) -> Iterator[Terminal]:
+    """``drs demo --speed 60`` on this test's skip clock (``SkipClock``)."""
     session = f"drs-e2e-{uuid.uuid4().hex[:8]}"
     log = tmp_path / "after-exit.txt"
     command = (
-        f"cd {REPO} && TMPDIR={tmp_path} .venv/bin/drs demo --speed 60; echo EXITED $? > {log}; sleep 30"
+        f"cd {REPO} && TMPDIR={tmp_path} {skip_clock.shell_assignments()} .venv/bin/drs demo --speed 60; "
+        f"echo EXITED $? > {log}; sleep 30"
     )
     subprocess.run([TMUX, "new-session", "-d", "-s", session, "-x", "120", "-y", "40", command], check=True)
     try:
@@ -108,10 +118,11 @@ def terminal(tmp_path: Path, tmux_server: None) -> Iterator[Terminal]:
         subprocess.run([TMUX, "kill-session", "-t", session], check=False)
 
 
-def arm_drs1(terminal: Terminal, mode: str = "DEMO") -> None:
-    """From the start of the demo (``drs demo --live``: mode LIVE) to DRS1's open ARM window, by keys."""
-    shown = terminal.wait_for("DRS3", timeout_s=180)
-    assert mode in shown
+def arm_drs1(terminal: Terminal, mode: str = "DEMO", booting: Callable[[], None] | None = None) -> None:
+    """From the start of the demo (``drs demo --live``: mode LIVE) to DRS1's open ARM window, by keys;
+    ``booting`` is called while the capsule boots (a skip of the clock, ``SkipClock.skipper``)."""
+    terminal.wait_for("DRS3", timeout_s=180)
+    terminal.wait_for(mode)  # the title line can be painted after the fleet's rows (seen once)
     terminal.wait_for("UP ")
     terminal.keys("Enter")
     terminal.wait_for("Release day (2/4) — DRS1")
@@ -122,14 +133,16 @@ def arm_drs1(terminal: Terminal, mode: str = "DEMO") -> None:
     terminal.wait_for("Software CANNOT switch it off")
     terminal.keys("Tab", "Enter")
     terminal.wait_for("NMEA arriving")
-    terminal.wait_for("Poll: GO")
+    terminal.wait_for("Poll: GO", skip=booting)
     terminal.keys("f")
     assert "Type the capsule's name" not in terminal.screen()
     terminal.keys("a")
     terminal.wait_for("ARMED —")
 
 
-def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp_path: Path) -> None:
+def test_a_capsule_is_released_and_recovered_in_the_demo(
+    terminal: Terminal, tmp_path: Path, skip_clock: SkipClock
+) -> None:
     arm_drs1(terminal)
     terminal.keys("f")
     terminal.wait_for("Type the capsule's name (DRS1)")
@@ -139,7 +152,8 @@ def test_a_capsule_is_released_and_recovered_in_the_demo(terminal: Terminal, tmp
     terminal.wait_for("RELEASED")
     terminal.keys("v")
     terminal.wait_for("DRS1 recovery")
-    shown = terminal.wait_for("Landed ", timeout_s=240)
+    # The descent (~45 min, 45 s at 60×) is skipped through at 1 s (a minute of the demo) a look.
+    shown = terminal.wait_for("Landed ", timeout_s=240, skip=skip_clock.skipper(1.0, 120.0))
     assert "from the team" in shown
     terminal.keys("i")
     terminal.wait_for("Reports (MO)")

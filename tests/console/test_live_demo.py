@@ -14,6 +14,7 @@ import pytest
 from console.demo import DemoWorld
 from console.live_demo import PASSWORD_FILE, start_live_demo
 from drs_link.config import load_config
+from tests.clock import SkipClock
 
 DRS = "import sys, console.commands.main as c; sys.exit(c.main())"
 
@@ -81,7 +82,7 @@ def test_live_refuses_a_time_scale_and_a_pipe_in_one_line() -> None:
 
 @pytest.mark.asyncio
 async def test_the_live_console_from_the_file_powers_on_and_arms_a_simulated_capsule(
-    live_demo: tuple[DemoWorld, Path],
+    live_demo: tuple[DemoWorld, Path], skip_clock: SkipClock
 ) -> None:
     """The rehearsal itself up to ARM: the console in LIVE mode from the written file, the demo weather as
     --weather, sync, power-on over SSH, a GO poll (gateway configured from the file) and the ARM window."""
@@ -91,7 +92,7 @@ async def test_the_live_console_from_the_file_powers_on_and_arms_a_simulated_cap
     from console.commands.console import live_setup
     from drs_link.ops.arming import ArmState
     from tests.console.conftest import wait_for
-    from tests.console.test_release_flow import open_release_go
+    from tests.console.test_release_flow import booting, open_release_go
 
     world, path = live_demo
     setup = live_setup(load_config(str(path)), world.weather_files, world.terrain_file.parent)
@@ -99,7 +100,7 @@ async def test_the_live_console_from_the_file_powers_on_and_arms_a_simulated_cap
     try:
         async with app.run_test(size=(120, 40)) as pilot:
             assert setup.mode == "live"
-            await open_release_go(pilot, app)
+            await open_release_go(pilot, app, booting(skip_clock, world.speed))
             assert {i.key: i.verdict.value for i in app.gonogo("DRS1").items}["gateway"] == "GO"
             await pilot.press("a")
             await wait_for(pilot, lambda: app.context.arming("DRS1").status().state is ArmState.ARMED)

@@ -14,7 +14,6 @@ import re
 import socket
 import subprocess
 import sys
-import time
 from collections.abc import Callable, Iterator
 from datetime import datetime, timedelta
 from pathlib import Path
@@ -44,7 +43,7 @@ from drs_link.sim.keys import write_ed25519
 from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store, utc_now
 from predictor import Terrain
-from tests.clock import ManualClock
+from tests.clock import ManualClock, SkipClock
 from tests.console.conftest import wait_for
 from tests.drs_link.conftest import SIM_SCALE, capsule_table
 from tests.release_helpers import ROCKBLOCK_TOML, SYNC_WAIVER, write_weather
@@ -465,14 +464,17 @@ def test_go_after_the_arm_window_expired_is_refused_the_same_from_both_faces(
     powered: Callable[..., tuple[CapsuleSimulator, Path, Store]],
     weather: list[Path],
     capsys: pytest.CaptureFixture[str],
+    skip_clock: SkipClock,
 ) -> None:
-    sim, config, store = powered("arm_window_s = 5.0")
+    """The window runs out on the clock the rule reads (skipped past it in the test's process and in the
+    private `drs server` the CLI's face starts), and FIRE checks it again then."""
+    sim, config, store = powered("arm_window_s = 120.0")
     waive = ("--waive", f"sync={SYNC_WAIVER}")
     refusals = {}
     for kind in ("cli", "console"):
         face = Face(kind, config, weather, capsys)
         assert face.arm(*waive) is None
-        time.sleep(5.2)
+        skip_clock.skip(120.5)
         refusals[kind] = face.go(*waive)
         face.close()
     assert same_words(refusals) == "DRS1: FIRE refused: not armed: ARM window expired at HH:MM:SSZ"

@@ -18,13 +18,24 @@ from drs_link.ops.arming import ArmingController, ArmState
 from drs_link.ops.capsule import ReleaseState
 from drs_link.ops.operations import SecondOperator
 from drs_link.ops.telemetry import LinkSample, TelemetryRecord
+from drs_link.sim.firmware import BOOT_S
+from tests.clock import SkipClock
 from tests.console.conftest import wait_for
 
 pytestmark = pytest.mark.asyncio
 
 
-async def open_release_go(pilot: Pilot[int], app: DrsConsole) -> ReleaseScreen:
-    """Fleet → release screen of DRS1, sync its data, power it on, wait until the poll is GO."""
+def booting(clock: SkipClock, speed: float) -> Callable[[], None]:
+    """Skips through DRS1's boot (``BOOT_S`` of simulated time) in steps of 2 simulated seconds, one a
+    look at the poll: the poll after the last step is fresh and GO, and nothing is armed meanwhile."""
+    return clock.skipper(2.0 / speed, BOOT_S / speed)
+
+
+async def open_release_go(
+    pilot: Pilot[int], app: DrsConsole, boot: Callable[[], None] | None = None
+) -> ReleaseScreen:
+    """Fleet → release screen of DRS1, sync its data, power it on, wait until the poll is GO (``boot``:
+    called while it boots, ``booting``)."""
     await wait_for(pilot, lambda: app.fleet.capsules["DRS1"].facts(app.now())["link_up"] is True)
     await pilot.press("enter")
     screen = app.screen
@@ -34,7 +45,7 @@ async def open_release_go(pilot: Pilot[int], app: DrsConsole) -> ReleaseScreen:
     await pilot.press("o")
     assert isinstance(app.screen, ConfirmModal)
     await pilot.press("tab", "enter")
-    await wait_for(pilot, lambda: app.gonogo("DRS1").go)
+    await wait_for(pilot, lambda: app.gonogo("DRS1").go, skip=boot)
     return screen
 
 
@@ -56,11 +67,11 @@ async def test_fire_is_disabled_until_armed_and_the_domain_refuses_it_anyway(
 
 
 async def test_a_complete_release_by_keys_sends_go_to_the_simulated_capsule(
-    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
 ) -> None:
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
-        screen = await open_release_go(pilot, app)
+        screen = await open_release_go(pilot, app, booting(skip_clock, world.speed))
         arming = polls_never_disarm(app, monkeypatch)
         await arm(pilot, app)
         assert arming.status().armed and screen.check_action("fire", ()) is True
@@ -98,11 +109,11 @@ def polls_never_disarm(app: DrsConsole, monkeypatch: pytest.MonkeyPatch) -> Armi
 
 
 async def test_a_wrong_capsule_name_is_refused_and_nothing_is_sent(
-    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
 ) -> None:
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
-        await open_release_go(pilot, app)
+        await open_release_go(pilot, app, booting(skip_clock, world.speed))
         polls_never_disarm(app, monkeypatch)
         await arm(pilot, app)
         await pilot.press("f", *"DRS2", "enter", "enter", *"alone", "enter")
@@ -112,10 +123,10 @@ async def test_a_wrong_capsule_name_is_refused_and_nothing_is_sent(
         assert app.store.audit("DRS1", text="wrong capsule name")
 
 
-async def test_link_loss_disarms(demo: tuple[DemoWorld, DrsConsole]) -> None:
+async def test_link_loss_disarms(demo: tuple[DemoWorld, DrsConsole], skip_clock: SkipClock) -> None:
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
-        await open_release_go(pilot, app)
+        await open_release_go(pilot, app, booting(skip_clock, world.speed))
         await arm(pilot, app)
         arming = app.ops.ops("DRS1").arming  # type: ignore[union-attr]
         assert arming.status().armed
@@ -161,12 +172,13 @@ async def test_an_interval_command_is_queued_at_the_simulated_gateway_after_nami
 
 
 async def test_time_runs_behind_the_fire_dialog_and_fire_after_the_arm_window_is_refused_naming_it(
-    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
 ) -> None:
-    """The ARM window (120 demo seconds, 15 s here at ×8) runs out while the FIRE dialog is open."""
+    """The ARM window runs out while the FIRE dialog is open: the clock skips past its end (not waited
+    out: 120 demo seconds were 15 s of wall clock at ×8), and FIRE then checks it again."""
     world, app = demo
     async with app.run_test(size=(80, 24)) as pilot:
-        screen = await open_release_go(pilot, app)
+        screen = await open_release_go(pilot, app, booting(skip_clock, world.speed))
         arming = polls_never_disarm(app, monkeypatch)
         await arm(pilot, app)
         assert arming.status().armed
@@ -178,6 +190,8 @@ async def test_time_runs_behind_the_fire_dialog_and_fire_after_the_arm_window_is
         behind = screen.query_one("#arm-status", Static)
         first = str(behind.render())
         await wait_for(pilot, lambda: str(behind.render()) != first)  # the screen behind keeps time
+        assert arming.status().armed
+        skip_clock.skip((arming.status().remaining_s + 1.0) / world.speed)
         await wait_for(pilot, lambda: not arming.status().armed)
         await wait_for(pilot, lambda: "ARM window expired at" in str(behind.render()))
         await wait_for(pilot, lambda: str(countdown.render()).startswith("NOT ARMED (ARM window expired at"))
@@ -188,11 +202,11 @@ async def test_time_runs_behind_the_fire_dialog_and_fire_after_the_arm_window_is
 
 
 async def test_fire_waits_for_another_login_to_approve_then_releases(
-    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
 ) -> None:
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
-        await open_release_go(pilot, app)
+        await open_release_go(pilot, app, booting(skip_clock, world.speed))
         arming = polls_never_disarm(app, monkeypatch)
         await arm(pilot, app)
         await pilot.press("f", *"DRS1")
@@ -213,12 +227,12 @@ async def test_fire_waits_for_another_login_to_approve_then_releases(
 
 
 async def test_a_waiting_approval_is_a_live_line_with_its_countdown_and_c_cancels_it(
-    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
 ) -> None:
     """#23: the waiting request showed only as a toast and stayed pending after its window closed."""
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
-        screen = await open_release_go(pilot, app)
+        screen = await open_release_go(pilot, app, booting(skip_clock, world.speed))
         polls_never_disarm(app, monkeypatch)
         assert screen.check_action("cancel_approval", ()) is False, "nothing waits: no cancel key"
         await arm(pilot, app)
@@ -247,12 +261,12 @@ async def test_a_waiting_approval_is_a_live_line_with_its_countdown_and_c_cancel
 
 
 async def test_a_window_another_console_holds_is_shown_as_theirs_and_fire_stays_off(
-    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
 ) -> None:
     """#23: two consoles were both ARMED on one capsule, each reading the other's notices as its own."""
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
-        screen = await open_release_go(pilot, app)
+        screen = await open_release_go(pilot, app, booting(skip_clock, world.speed))
         mine = polls_never_disarm(app, monkeypatch)
         other = ArmingController(app.store, mine.machine, "JM", clock=mine.clock, holder="jm@laptop2 pid 7")
         other.arm(app.gonogo("DRS1"))

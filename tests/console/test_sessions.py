@@ -21,8 +21,9 @@ from drs_link.ops.arming import ArmState
 from drs_link.ops.operations import Operations
 from drs_link.ops.session import LOST, record_loss
 from drs_link.store import Store
+from tests.clock import SkipClock
 from tests.console.conftest import offline_config, wait_for
-from tests.console.test_release_flow import arm, open_release_go, polls_never_disarm
+from tests.console.test_release_flow import arm, booting, open_release_go, polls_never_disarm
 
 pytestmark = pytest.mark.asyncio
 
@@ -112,11 +113,11 @@ async def test_what_another_console_does_to_the_store_shows_here_with_who_did_it
 
 
 async def test_sighup_during_a_real_go_lets_it_finish_and_records_it_once(
-    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
 ) -> None:
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
-        await open_release_go(pilot, app)
+        await open_release_go(pilot, app, booting(skip_clock, world.speed))
         arming = polls_never_disarm(app, monkeypatch)
         world.sims[0].faults.answer_delay_s = 3.0  # the Pi has acted; the console hears it 3 s later
         await arm(pilot, app)

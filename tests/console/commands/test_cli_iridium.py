@@ -287,6 +287,24 @@ def test_recovery_exports_a_predicted_geojson_track_and_refuses_a_bad_one(
     assert "no LineString in the GeoJSON" in capsys.readouterr().err
 
 
+def test_recovery_carries_a_long_predicted_track_to_the_server_and_back_into_the_gpx(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The predicted track goes to the operations server in the request: 20 000 points (about 1 MB of
+    JSON) is more than every other request may carry (64 KiB), and the recovery request takes it."""
+    config = write_config(tmp_path)
+    reports = ReportStore(Store.open(tmp_path / "data" / "drs.sqlite"))
+    reports.add(Delivery(IMEI, 0, format_mo(fix_at(T0, alt=9000.0), 8.9, 0).hex(), "t", T0))
+    points = [[6.6 + i * 1e-5, 46.5 + i * 1e-5, 30000.0 - i] for i in range(20_000)]
+    predicted = tmp_path / "prediction.geojson"
+    predicted.write_text(json.dumps({"type": "LineString", "coordinates": points}))
+    gpx = tmp_path / "out.gpx"
+    assert run(config, "recovery", "DRS1", "--predicted", str(predicted), "--gpx", str(gpx)) == 0, (
+        capsys.readouterr().err
+    )
+    assert gpx.read_text().count("<trkpt ") == 20_000 + 1, "every predicted point and the one fix"
+
+
 def test_recovery_before_any_fix_shows_the_iridium_position(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -4,58 +4,19 @@ live approval the capsule is released once, and the audit holds both accounts' u
 
 from __future__ import annotations
 
-import json
 import pwd
 import signal
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from console.commands.main import main
 from drs_link.sim import CapsuleSimulator
-from drs_link.sim.keys import write_ed25519
 from drs_link.store import Store
-from tests.drs_link.conftest import SIM_SCALE, capsule_table
-from tests.drs_link.server.team import (
-    Server,
-    Team,
-    client_config,
-    drs,
-    drs_waiting,
-    needs_root,
-    server_config,
-)
-from tests.release_helpers import ROCKBLOCK_PASSWORD_ENV, ROCKBLOCK_TOML, release_args, write_weather
+from tests.drs_link.server.team import Server, Team, client_config, drs, drs_waiting, needs_root
+from tests.release_helpers import ROCKBLOCK_PASSWORD_ENV, release_args, write_weather
 
 pytestmark = [needs_root, pytest.mark.slow]
-
-
-@pytest.fixture
-def powered(place: Path, team: Team) -> Iterator[tuple[CapsuleSimulator, Server]]:
-    """A powered capsule waiting for Go, and the team's server for it (the rule on, a 120 s window)."""
-    key = place / "keys" / "id_ed25519"
-    sim = CapsuleSimulator(authorized_keys=[write_ed25519(key)], clock_scale=SIM_SCALE)
-    sim.start()
-    try:
-        known_hosts = place / "known_hosts"
-        known_hosts.write_text(sim.known_hosts_line())
-        table = capsule_table(sim, key, known_hosts=str(known_hosts), python="python3")
-        capsule = "\n".join(f"{k} = {json.dumps(v)}" for k, v in table.items())
-        body = f"{ROCKBLOCK_TOML}[console]\nrequire_second_operator = true\narm_window_s = 120.0\n[[capsule]]\n{capsule}\n"
-        config = server_config(place, team, body)
-        setup = place / "root.toml"  # root powers the capsule on first (a step not converted yet)
-        setup.write_text(config.read_text().split("[[operator]]")[0].replace("[data]", '[operator]\nname = "EL"\n[data]')
-                         + body)  # fmt: skip
-        assert main(["--config", str(setup), "capsule", "power-on", "DRS1", "--yes"]) == 0
-        server = Server(config, place, team.group, {ROCKBLOCK_PASSWORD_ENV: "pw"})
-        try:
-            yield sim, server
-        finally:
-            server.stop()
-    finally:
-        sim.stop()
 
 
 def test_fire_needs_a_second_accounts_live_approval_and_releases_once(

@@ -25,6 +25,7 @@ from predictor.calibration.live_evaluation import (
     held_out,
     held_out_laws,
     live_settings,
+    measured_discrepancies,
     rate_helps,
     ratio_interval,
     shipped_correction,
@@ -372,13 +373,23 @@ def test_a_model_without_terms_is_not_said_to_be_uncalibrated_on_these_flights(
 def test_a_model_without_live_settings_flies_the_measured_conservative_discrepancy(
     result: Evaluation, shared_data: Path
 ) -> None:
-    # Never a zero spread: at each height the larger root-mean-square record-to-remaining departure of
-    # the model and textbook laws on these 30 flights, the median counted as spread.
-    measured = conservative_discrepancy([result.rate_laws["model"][1], result.rate_laws["profile"][1]])
+    # Never a zero spread, and measured on two payloads: at each height the largest root-mean-square
+    # record-to-remaining departure of the model and textbook laws on the 30 SuperBIT flights and the 5
+    # EOSS flights with a landing, the median counted as spread; the prior of the remaining λ the law
+    # itself, as wide as the largest root-mean-square remaining ln λ. The SuperBIT laws are the ones the
+    # leave-one-out evaluation measured.
+    eoss = sorted((REPO_ROOT / "tests" / "data" / "eoss").glob("*_descent.csv"))
+    superbit = sorted((shared_data / "tracks" / "pyballoon_superbit").glob("*-*.csv"))
+    laws = measured_discrepancies([superbit, eoss], load_model(MODEL))
+    assert laws[:2] == [result.rate_laws["model"][1], result.rate_laws["profile"][1]]
+    measured = conservative_discrepancy(laws)
     assert measured.heights_km == DEFAULT_DISCREPANCY.heights_km
     assert measured.log_bias == DEFAULT_DISCREPANCY.log_bias
-    assert np.allclose(measured.log_sigma, DEFAULT_DISCREPANCY.log_sigma, atol=0.002)
-    assert min(DEFAULT_DISCREPANCY.log_sigma) > 0.05
+    assert_close(measured.log_sigma, DEFAULT_DISCREPANCY.log_sigma)
+    assert_close(measured.remaining_log_sigma, DEFAULT_DISCREPANCY.remaining_log_sigma)
+    assert min(DEFAULT_DISCREPANCY.log_sigma) > 0.05 and min(DEFAULT_DISCREPANCY.remaining_log_sigma) > 0.1
+    superbit_only = conservative_discrepancy(laws[:2])
+    assert max(DEFAULT_DISCREPANCY.log_sigma) > max(superbit_only.log_sigma), "EOSS must widen it"
     bare = dataclasses.replace(load_model(MODEL), live=None)
     track = shared_data / "tracks" / "pyballoon_superbit" / "19-7-28.csv"
     cube = ascent_weather_cube(clean(read_track(track)))

@@ -21,6 +21,7 @@ import time
 import urllib.error
 import urllib.parse
 import urllib.request
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -54,44 +55,60 @@ def test_a_number_in_the_grammar_is_read(server: ApiServer, text: str) -> None:
     assert status == 200 and json.loads(body)["request"]["ascent_rate"] == 5.0
 
 
-@pytest.mark.parametrize(
-    ("changes", "named"),
-    [
-        ({"descent_rate": "1e-300"}, "descent_rate"),
-        ({"ascent_rate": "1e-300"}, "ascent_rate"),
-        ({"descent_rate": "0.2"}, "descent_rate"),  # raised to nothing: 14 h from 30 km
-        ({"launch_altitude": "1e6", "burst_altitude": "1e6"}, "launch_altitude"),
-        ({"launch_altitude": "-1e6"}, "launch_altitude"),
-        ({"burst_altitude": "1e9"}, "burst_altitude"),
-        ({"launch_datetime": "9999-01-01T00:00:00Z"}, "launch_datetime"),
-        ({"launch_datetime": "1900-01-01T00:00:00Z"}, "launch_datetime"),
-        ({"launch_datetime": "2024-05-01T06:00:00\u0665Z"}, "launch_datetime"),
-        ({"profile": "float_profile", "float_altitude": 30000, "stop_datetime": "2024-06-01T00:00:00Z"},
-         "stop_datetime"),
-        ({"profile": "float_profile", "float_altitude": 30000, "stop_datetime": "2024-05-01T05:00:00Z"},
-         "stop_datetime"),
-        ({"profile": "reverse_profile", "launch_altitude": 30000, "ascent_rate": "0.3"}, "ascent_rate"),
-    ],
-)  # fmt: skip
-def test_a_rate_altitude_or_time_no_flight_has_is_refused_before_any_weather_is_made(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, changes: dict[str, Any], named: str
-) -> None:
-    """With DEMO weather every request once generated its own files first: 1e-300 was a 500 after 7 s."""
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
-    argv = ["serve", "predictor", "--port", "0", "--demo-weather", "--cache-dir", str(tmp_path / "cache")]
-    demo = build_server(build_parser("serve").parse_args(argv))
-    thread = threading.Thread(target=demo.serve_forever, daemon=True)
-    thread.start()
-    made = sorted(p for p in tmp_path.rglob("*") if p.is_file())
-    try:
-        status, _, body = get(demo, chasemapper_query(**changes))
-    finally:
-        demo.shutdown()
-        demo.server_close()
-    error = json.loads(body)["error"]
-    assert (status, error["type"]) == (400, "RequestException"), body
-    assert f"'{named}'" in error["description"]
-    assert sorted(p for p in tmp_path.rglob("*") if p.is_file()) == made, "no weather was made for it"
+REFUSALS: list[tuple[dict[str, Any], str]] = [
+    ({"descent_rate": "1e-300"}, "descent_rate"),
+    ({"ascent_rate": "1e-300"}, "ascent_rate"),
+    ({"descent_rate": "0.2"}, "descent_rate"),  # raised to nothing: 14 h from 30 km
+    ({"launch_altitude": "1e6", "burst_altitude": "1e6"}, "launch_altitude"),
+    ({"launch_altitude": "-1e6"}, "launch_altitude"),
+    ({"burst_altitude": "1e9"}, "burst_altitude"),
+    ({"launch_datetime": "9999-01-01T00:00:00Z"}, "launch_datetime"),
+    ({"launch_datetime": "1900-01-01T00:00:00Z"}, "launch_datetime"),
+    ({"launch_datetime": "2024-05-01T06:00:00\u0665Z"}, "launch_datetime"),
+    (
+        {"profile": "float_profile", "float_altitude": 30000, "stop_datetime": "2024-06-01T00:00:00Z"},
+        "stop_datetime",
+    ),
+    (
+        {"profile": "float_profile", "float_altitude": 30000, "stop_datetime": "2024-05-01T05:00:00Z"},
+        "stop_datetime",
+    ),
+    ({"profile": "reverse_profile", "launch_altitude": 30000, "ascent_rate": "0.3"}, "ascent_rate"),
+]
+"""A rate, altitude or time no flight has, and the parameter the refusal must name."""
+
+
+class TestRefusedBeforeAnyWeatherIsMade:
+    """With DEMO weather every request once generated its own files first: 1e-300 was a 500 after 7 s.
+    One demo server answers them all (a server each cost 2-4 s to start); every request is checked
+    to have added no file to its directories."""
+
+    @pytest.fixture(scope="class")
+    def demo(self, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[ApiServer, Path]]:
+        root = tmp_path_factory.mktemp("demo-serve")
+        with pytest.MonkeyPatch.context() as env:
+            env.setenv("XDG_CACHE_HOME", str(root / "xdg"))
+            argv = ["serve", "predictor", "--port", "0", "--demo-weather", "--cache-dir", str(root / "cache")]
+            server = build_server(build_parser("serve").parse_args(argv))
+            thread = threading.Thread(target=server.serve_forever, daemon=True)
+            thread.start()
+            try:
+                yield server, root
+            finally:
+                server.shutdown()
+                server.server_close()
+
+    @pytest.mark.parametrize(("changes", "named"), REFUSALS)
+    def test_a_rate_altitude_or_time_no_flight_has_is_refused_before_any_weather_is_made(
+        self, demo: tuple[ApiServer, Path], changes: dict[str, Any], named: str
+    ) -> None:
+        server, root = demo
+        made = sorted(p for p in root.rglob("*") if p.is_file())
+        status, _, body = get(server, chasemapper_query(**changes))
+        error = json.loads(body)["error"]
+        assert (status, error["type"]) == (400, "RequestException"), body
+        assert f"'{named}'" in error["description"]
+        assert sorted(p for p in root.rglob("*") if p.is_file()) == made, "no weather was made for it"
 
 
 def test_health_says_the_weather_is_loaded_the_code_warm_and_the_version(server: ApiServer) -> None:
