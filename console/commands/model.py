@@ -32,9 +32,31 @@ def run_show(args: argparse.Namespace) -> int:
         f"payload   {p.name}: {p.mass_kg:g} kg, Cd·A {p.cda_m2:g} m²",
     ]
     if model.terms:
+        live_only = set(model.live_only())
+        reasons = {
+            g.get("term"): g.get("reason") for g in prov.get("preflight_gate") or [] if isinstance(g, dict)
+        }
         for term in model.terms:
             values = ", ".join(f"{k} {v}" for k, v in term.parameters().items())
-            lines.append(f"term      {term.name} ({term.family}): {values}")
+            if model.preflight is None:
+                flown = "pre-flight and live (written before the pre-flight gate: not judged)"
+            elif term.name in live_only:
+                why = str(reasons.get(term.name) or "the pre-flight gate left it out").removeprefix(
+                    "live-only: "
+                )
+                flown = f"LIVE-ONLY ({why})"
+            elif term.name == "descent_rate_scale" and term not in model.preflight:
+                flown = "live (λ under every term; pre-flight flies its own, below)"
+            else:
+                why = str(reasons.get(term.name) or "").removeprefix("pre-flight: ")
+                flown = "pre-flight and live" + (f" ({why})" if why else "")
+            lines.append(f"term      {term.name} ({term.family}): {values}; {flown}")
+        for term in model.preflight_law():
+            if term not in model.terms:
+                values = ", ".join(f"{k} {v}" for k, v in term.parameters().items())
+                lines.append(
+                    f"term      {term.name} ({term.family}): {values}; pre-flight only (λ under the pre-flight terms)"
+                )
     else:
         lines.append("term      none: calibration found no effect that helped held-out flights")
     if model.rate_prior is not None:

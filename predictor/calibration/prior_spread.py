@@ -68,9 +68,12 @@ def descent_spread(
     prior = model.rate_prior
     if prior is None:
         return None
-    shape = model.shape_terms()
-    # The calibration saves the prior's median as the first term; a file without it flies λ = 1.
-    median = prior.median if len(shape) < len(model.terms) else 1.0
+    # What a pre-flight prediction flies: the calibration saves its λ (the median under the pre-flight
+    # terms) as the first term; a file without it flies λ = 1.
+    law = model.preflight_law()
+    first = law[0] if law else None
+    median = float(first.scale) if isinstance(first, DescentRateScale) else 1.0
+    shape = law[1:] if isinstance(first, DescentRateScale) else law
     factors = (median * math.exp(-prior.log_sigma), median * math.exp(prior.log_sigma))
     slow, fast = (fly((DescentRateScale(scale=factor), *shape)) for factor in factors)
 

@@ -130,7 +130,7 @@ def rate_sentence(cal: Calibration) -> str:
         f"Each flight's own rate factor λ on the {'selected shape' if cal.selected else 'plain law'} ranges "
         f"{low:.3f}–{high:.3f}: the rate prior is median λ {p.median:.3f}, spread of ln λ {p.log_sigma:.3f} "
         f"({p.flights} flights), which alone makes a pre-flight descent time uncertain by about "
-        f"±{100 * p.log_sigma:.0f} %. Pre-flight (each held-out flight flown with the median λ of the others): "
+        f"±{100 * p.log_sigma:.0f} %. The whole shape flown pre-flight (each held-out flight with the median λ of the others): "
         f"time-at-altitude RMS {a['time_rms_s']['mean']:.0f} s and |descent-time error| "
         f"{a['descent_time_error_s']['mean']:.0f} s, against {r['time_rms_s']['mean']:.0f} s and "
         f"{r['descent_time_error_s']['mean']:.0f} s for the plain law with the same λ estimator (the simple "
@@ -144,6 +144,33 @@ def rate_sentence(cal: Calibration) -> str:
             " two flights."
         )
     return text
+
+
+def preflight_sentence(cal: Calibration) -> str:
+    """The pre-flight gate and the vertical contest in words (``selection.preflight_gate``, ``Contest``)."""
+    parts = []
+    if cal.contest is not None:
+        c, t = cal.contest, cal.contest.test
+        name = c.library.full.candidate.name
+        parts.append(
+            f"Vertical contest: the binned rate factors passed on top of the law without a vertical term; "
+            f"against `{name}` (shape record {c.library_improvement:.1f} s better than without it) they improve "
+            f"the shape record by {t.mean_improvement:.1f} s (lower bound {t.lower_bound:.1f} s): "
+            + (f"`{name}` ships instead (one parameter, not beaten beyond the interval)." if c.library_wins
+               else "the binned rate factors ship.")
+        )  # fmt: skip
+    if not cal.gate:
+        parts.append("Pre-flight gate: no term to judge; the pre-flight law is the plain law × the median λ.")
+    for g in cal.gate:
+        parts.append(f"Pre-flight gate, `{g.term}`: {g.reason}.")
+    pre = (cal.preflight if cal.preflight is not None else cal.after).summary()
+    plain = cal.rate_only.summary()
+    parts.append(
+        f"Pre-flight law as shipped, held out: |descent-time error| {pre['descent_time_error_s']['mean']:.0f} s and "
+        f"landing {pre['landing_error_km']['mean']:.2f} km, against {plain['descent_time_error_s']['mean']:.0f} s "
+        f"and {plain['landing_error_km']['mean']:.2f} km for the plain law × the median λ."
+    )
+    return " ".join(parts)
 
 
 def stability_sentence(cal: Calibration) -> str:
@@ -262,6 +289,10 @@ def result_json(
             },
         },
         "rate_only": _error_block(cal.rate_only),
+        "preflight": _error_block(cal.preflight if cal.preflight is not None else cal.after),
+        "preflight_gate": [g.to_dict() for g in cal.gate],
+        "live_only": list(cal.live_only),
+        "vertical_contest": cal.contest.to_dict() if cal.contest is not None else None,
         "selection_stability": {name: round(share, 3) for name, share in cal.stability.items()},
         "selection_stability_method": cal.stability_method,
         "unstable": list(cal.unstable),
@@ -394,6 +425,8 @@ def write_calibration_report(
         verdict(cal),
         "",
         stability_sentence(cal),
+        "",
+        preflight_sentence(cal),
         "",
         speed_finding(cal),
         "",

@@ -149,7 +149,8 @@ def calibrated_model(
     step_m: float = 200.0,
 ) -> CalibratedModel:
     """What this calibration learned, as the model predictions fly: the selected terms, then the binned
-    correction's parts (rate factors, added wind) that beat them on held-out flights. The DEM and step
+    correction's parts (rate factors, added wind) that beat them on held-out flights, each marked by the
+    pre-flight gate as flown both ways or live-only (with the pre-flight λ when it differs). The DEM and step
     are recorded so that ``drs live evaluate`` refits the law as it was fitted, whatever its own --dem."""
     terms = cal.terms()
     provenance = {
@@ -173,10 +174,14 @@ def calibrated_model(
         "held_out_before": data["baseline"],
         "held_out_after": data["after"],
         "binned_correction_used": cal.unexplained,
+        "preflight_gate": data["preflight_gate"],
+        "held_out_preflight": data["preflight"],
+        "vertical_contest": data["vertical_contest"],
     }
     return CalibratedModel(
-        inputs.payload, terms, ellipse.model() if ellipse else None, provenance, rate_prior=cal.rate_prior
-    )
+        inputs.payload, terms, ellipse.model() if ellipse else None, provenance, rate_prior=cal.rate_prior,
+        preflight=cal.preflight_terms(),
+    )  # fmt: skip
 
 
 def _version() -> str:
@@ -237,6 +242,15 @@ def _print_summary(cal: Calibration, inputs: Inputs, data: dict[str, Any], out: 
         )
     selected = ", ".join(f"{f['effect']} ({f['family']})" for f in data["selected"])
     print(f"selected: {selected or 'none'}", file=out)
+    for g in cal.gate:
+        print(f"  {g.term}: {g.reason}", file=out)
+    p, r = data["preflight"], data["rate_only"]
+    print(
+        f"pre-flight (held out, what ships): |descent-time error| {p['descent_time_error_s']['mean']:.0f} s, landing "
+        f"{p['landing_error_km']['mean']:.3f} km; plain law × median λ {r['descent_time_error_s']['mean']:.0f} s, "
+        f"{r['landing_error_km']['mean']:.3f} km",
+        file=out,
+    )
     print(verdict(cal), file=out)
 
 

@@ -38,7 +38,14 @@ it in the model (its parameters refitted per fold, held while the new one is fit
 model (``JOINT_SWEEPS`` sweeps, per fold, on its own records). Last, the altitude-binned correction is
 fitted per fold from the training flights' residuals on top of whatever was selected: its
 descent-rate factors are scored on the vertical record, its added wind on the replayed horizontal
-record; a part that still clears the margin means the library lacks something.
+record; a part that still clears the margin means the library lacks something. When the binned rate
+factors pass with no vertical term selected, they meet the best vertical term of the last round
+(``Contest``): the one-parameter term wins unless the factors beat it beyond their held-out interval,
+so which describes the shape does not turn on one flight.
+
+Then the pre-flight gate (``preflight_gate``; the rule in ``calibration.preflight_gate``): each shipped
+term is judged as a prediction before release flies it (shape × the other flights' median λ), held out,
+on the descent time and the landing; one that does not earn its place there is live-only.
 """
 
 from __future__ import annotations
@@ -50,6 +57,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from predictor.calibration.effects import BIN_EDGES_M, LIBRARY, BinnedCorrection, Candidate, fit_binned
+from predictor.calibration.preflight_gate import TermGate, compare, verdict
 from predictor.calibration.residuals import (
     BinBudget,
     FlightCase,
@@ -336,6 +344,26 @@ class Calibration:
     stability_method: str = "decision"
     """"decision": the decisions replayed without each flight (``decision_stability``); "nested": the
     whole selection repeated without each flight (``nested_stability``)."""
+    contest: Contest | None = None
+    """The one-parameter vertical law against the binned rate factors, when both were in play."""
+    gate: tuple[TermGate, ...] = ()
+    """The pre-flight decision on each shipped term (selected, then the binned parts that passed)."""
+    preflight_rate_fit: Fit | None = None
+    """λ = the median of the flights' own λ under the pre-flight terms (None: ``rate_fit``)."""
+    preflight: HeldOut | None = None
+    """Held out, what a pre-flight prediction flies (None: ``after``)."""
+
+    @property
+    def live_only(self) -> tuple[str, ...]:
+        """Terms the pre-flight gate kept out of the pre-flight law (live re-prediction flies them)."""
+        return tuple(g.term for g in self.gate if not g.preflight)
+
+    def preflight_terms(self) -> tuple[Term, ...]:
+        """What a pre-flight prediction flies: λ under the pre-flight terms, then the terms that passed
+        the gate, in ``terms()`` order."""
+        rate = self.preflight_rate_fit or self.rate_fit
+        dropped = set(self.live_only)
+        return (rate.term(), *(t for t in self.terms()[1:] if t.name not in dropped))
 
     @property
     def unstable(self) -> tuple[str, ...]:
@@ -347,7 +375,8 @@ class Calibration:
         )
 
     def terms(self) -> tuple[Term, ...]:
-        """What a pre-flight prediction flies: λ (the prior's median), the shape, the binned parts that passed."""
+        """What live re-prediction flies: λ (the prior's median under every shipped term), the shape, the
+        binned parts that passed. Pre-flight flies ``preflight_terms()``, which leaves the live-only ones out."""
         return (self.rate_fit.term(), *(f.term() for f in self.selected), *self.binned_terms())
 
     @property
@@ -428,25 +457,20 @@ def calibrate(
     baseline = batch.heldout([[]] * n)
     baseline_residuals = tuple(residuals(cases[i], batch.runs(i, [[]])) for i in range(n))
     baseline_replayed = tuple(residuals(cases[i], batch.runs(i, [[]], replay=True)) for i in range(n))
-    rounds, references, selected_folds, selected_full = _forward(
-        batch, baseline, candidates, max_effects, alpha, seed, progress
-    )
-    reference = references[-1]
-    if len(selected_full) > 1:
-        _refit_jointly(batch, selected_folds, selected_full)
-        reference = batch.heldout(selected_folds)
+    chosen = _select(batch, baseline, candidates, max_effects, alpha, seed, progress)
+    rounds, references, contest, settled = chosen.rounds, chosen.references, chosen.contest, chosen.settled
+    selected_folds, selected_full = chosen.folds, chosen.full
     families = tuple(
-        _family(batch, family, baseline, rounds, selected_folds, selected_full, reference)
+        _family(batch, family, baseline, rounds, selected_folds, selected_full, chosen.reference(batch))
         for family in FAMILY_ORDER
         if any(c.family == family for c in candidates)
     )
-    prior, rate_folds, rate_full, factors = rate_priors(batch, selected_folds, selected_full)
-    flown_folds = [[rate_folds[i], *selected_folds[i]] for i in range(n)]
-    flown_full = [rate_full, *selected_full]
-    after = batch.heldout(flown_folds)
-    rate_only = batch.heldout([[f] for f in rate_priors(batch, [[] for _ in range(n)], [])[1]])
-    binned, binned_heldout = _binned(batch, flown_folds, flown_full)
-    binned_tests = _tests((VERTICAL, HORIZONTAL), after, binned_heldout, alpha, seed)
+    _, plain_folds, plain_rate, _ = rate_priors(batch, [[] for _ in range(n)], [])
+    rate_only = batch.heldout([[f] for f in plain_folds])
+    prior, rate_full, factors = settled.prior, settled.rate_full, settled.factors
+    flown_folds, after = settled.flown_folds, settled.after
+    binned, binned_heldout, binned_tests = settled.binned, settled.binned_heldout, settled.binned_tests
+    gate = preflight_gate(batch, selected_folds, selected_full, settled, (rate_only, plain_rate), seed)
     after_residuals = tuple(residuals(cases[i], batch.runs(i, [flown_folds[i]])) for i in range(n))
     after_replayed = tuple(
         residuals(cases[i], batch.runs(i, [flown_folds[i]], replay=True)) for i in range(n)
@@ -478,10 +502,63 @@ def calibrate(
         stability=(
             nested_stability(cases, payload, candidates, step_m, max_effects, alpha, seed, progress)
             if nested
-            else decision_stability(rounds, references, alpha, seed)
+            else decision_stability(rounds, references, alpha, seed, contest)
         ),
         stability_method="nested" if nested else "decision",
+        contest=contest,
+        gate=gate.terms,
+        preflight_rate_fit=gate.rate_fit,
+        preflight=gate.heldout,
     )
+
+
+@dataclass(frozen=True)
+class Selection:
+    """What the selection chose: forward selection, then the contest between the best one-parameter
+    vertical term and the binned rate factors (``Contest``)."""
+
+    rounds: list[tuple[CandidateResult, ...]]
+    references: list[HeldOut]
+    folds: list[list[Fit]]
+    full: list[Fit]
+    settled: Settled
+    contest: Contest | None
+
+    def reference(self, batch: FlightBatch) -> HeldOut:
+        """Held out, the selected terms without λ (as refitted jointly)."""
+        if len(self.full) > 1:
+            return batch.heldout(self.folds)
+        if self.contest is not None and self.contest.library_wins:
+            return self.contest.library.heldout
+        return self.references[-1]
+
+
+def _select(
+    batch: FlightBatch,
+    baseline: HeldOut,
+    candidates: Sequence[Candidate],
+    max_effects: int,
+    alpha: float,
+    seed: int,
+    progress: Progress | None = None,
+) -> Selection:
+    rounds, references, folds, full = _forward(
+        batch, baseline, candidates, max_effects, alpha, seed, progress
+    )
+    if len(full) > 1:
+        _refit_jointly(batch, folds, full)
+    settled = _settle(batch, folds, full, alpha, seed)
+    contest = _contest(rounds, len(full) < max_effects, settled, alpha, seed)
+    if contest is not None and contest.library_wins:
+        # The one-parameter law replaces the binned rate factors as the shape: the same steps as a
+        # selected term (refitted jointly, the binned correction re-tested on top of it).
+        full.append(contest.library.full)
+        for i, row in enumerate(folds):
+            row.append(contest.library.folds[i])
+        if len(full) > 1:
+            _refit_jointly(batch, folds, full)
+        settled = _settle(batch, folds, full, alpha, seed)
+    return Selection(rounds, references, folds, full, settled, contest)
 
 
 def _forward(
@@ -530,7 +607,8 @@ def nested_stability(
     max_effects: int, alpha: float, seed: int, progress: Progress | None = None,
 ) -> dict[str, float]:  # fmt: skip
     """How often each candidate is selected when the WHOLE selection (every fit, every held-out score,
-    every test) is repeated without each flight in turn: nested leave-one-flight-out. Returns, per
+    every test, the contest with the binned rate factors) is repeated without each flight in turn:
+    nested leave-one-flight-out. Returns, per
     candidate selected in any fold, the share of the n folds that selected it."""
     n = len(cases)
     chosen: dict[str, int] = {}
@@ -539,7 +617,7 @@ def nested_stability(
             progress("nested stability (the selection without each flight)", k, n)
         batch = FlightBatch([c for i, c in enumerate(cases) if i != k], payload, step_m)
         baseline = batch.heldout([[]] * (n - 1))
-        _, _, _, selected = _forward(batch, baseline, candidates, max_effects, alpha, seed)
+        selected = _select(batch, baseline, candidates, max_effects, alpha, seed).full
         for fit in selected:
             chosen[fit.candidate.name] = chosen.get(fit.candidate.name, 0) + 1
     return {name: count / n for name, count in sorted(chosen.items(), key=lambda kv: -kv[1])}
@@ -555,6 +633,164 @@ def _whole_bins(case: FlightCase, budget: BinBudget) -> BinBudget:
         measured_s=np.where(top, 0.0, budget.measured_s),
         predicted_s=np.where(top, 0.0, budget.predicted_s),
     )
+
+
+@dataclass(frozen=True)
+class Settled:
+    """A selection flown as it ships: the rate prior under its shape, held out, and the binned correction
+    fitted per fold on top of it and tested against it."""
+
+    prior: RatePrior
+    rate_full: Fit
+    factors: np.ndarray
+    flown_folds: list[list[Fit]]
+    """Fold i's λ (the other flights' median) then fold i's selected fits."""
+    after: HeldOut
+    binned: BinnedCorrection
+    binned_folds: list[BinnedCorrection]
+    """Fitted without flight i, for each i."""
+    binned_heldout: HeldOut
+    binned_tests: tuple[Test, ...]
+
+
+def _settle(
+    batch: FlightBatch, selected_folds: list[list[Fit]], selected_full: list[Fit], alpha: float, seed: int
+) -> Settled:
+    n = len(batch.cases)
+    prior, rate_folds, rate_full, factors = rate_priors(batch, selected_folds, selected_full)
+    flown_folds = [[rate_folds[i], *selected_folds[i]] for i in range(n)]
+    after = batch.heldout(flown_folds)
+    folds = _binned_folds(batch, flown_folds, [rate_full, *selected_full])
+    binned_heldout = batch.heldout(flown_folds, [fold.terms() for fold in folds[:-1]])
+    tests = _tests((VERTICAL, HORIZONTAL), after, binned_heldout, alpha, seed)
+    return Settled(
+        prior, rate_full, factors, flown_folds, after, folds[-1], folds[:-1], binned_heldout, tests
+    )
+
+
+@dataclass(frozen=True)
+class Contest:
+    """The one-parameter vertical law against the binned rate factors for the shape (issue #30 item 3).
+
+    Why: the binned rate correction is tried on top of whatever was selected. Where the best vertical
+    library term clears the selection's margin it ships and the binned factors on top of it fail; where
+    it misses the margin by a little, the binned factors pass on top of the plain law and ship instead.
+    On the EOSS flights which one shipped turned on a single flight (4 folds against 5). Both describe
+    the same departure of the rate from the law (the binned factors with one free value per 3 km bin,
+    the term with one), so they are compared with each other: the one-parameter term wins unless the
+    binned factors beat it on the shape record, held out, by more than their paired interval (the lower
+    α quantile of the mean improvement above zero), and the term must itself improve the shape record
+    by at least the record's floor over the law without it.
+    """
+
+    library: CandidateResult
+    test: Test
+    """The binned correction's shape record against the library term's, paired, held out."""
+    library_improvement: float
+    """The term's mean held-out shape-record improvement over the law without it (s)."""
+    before: HeldOut
+    """Held out, the law the contest was held on (λ, the selection before it)."""
+    binned: HeldOut
+    """Held out, that law with the binned correction on top."""
+
+    @property
+    def library_wins(self) -> bool:
+        return not self.test.passed and self.library_improvement >= VERTICAL.floor
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "library_term": self.library.full.describe(),
+            "library_improvement_s": round(self.library_improvement, 4),
+            "binned_against_library": self.test.to_dict(),
+            "winner": self.library.full.candidate.name if self.library_wins else "binned_descent_rate",
+            "rule": (
+                "the one-parameter term unless the binned rate factors beat it on the shape record by more "
+                "than their held-out interval; the term must improve the shape record by the floor"
+            ),
+        }
+
+
+def _contest(
+    rounds: Sequence[tuple[CandidateResult, ...]], tried_all: bool, settled: Settled, alpha: float, seed: int
+) -> Contest | None:
+    """The contest, when the binned rate factors passed with no vertical term selected and the last
+    round tried the vertical terms against the same law (None otherwise: nothing to decide)."""
+    vertical_passed = any(t.passed for t in settled.binned_tests if t.record == VERTICAL.name)
+    if not rounds or not tried_all or not vertical_passed:
+        return None
+    if any(f.candidate.family == "vertical" for f in settled.flown_folds[0][1:]):
+        return None
+    tried = [r for r in rounds[-1] if r.full.candidate.family == "vertical"]
+    if not tried:
+        return None
+    best = max(tried, key=lambda r: r.improvement)
+    metric = VERTICAL.metric
+    test = paired_test(
+        getattr(best.heldout, metric), getattr(settled.binned_heldout, metric), alpha, seed, 0.0, VERTICAL
+    )
+    return Contest(best, test, best.tests[0].mean_improvement, settled.after, settled.binned_heldout)
+
+
+@dataclass(frozen=True)
+class Gate:
+    terms: tuple[TermGate, ...]
+    rate_fit: Fit
+    heldout: HeldOut
+
+
+def preflight_gate(
+    batch: FlightBatch,
+    selected_folds: list[list[Fit]],
+    selected_full: list[Fit],
+    settled: Settled,
+    plain: tuple[HeldOut, Fit],
+    seed: int,
+) -> Gate:
+    """Each shipped term judged as the pre-flight law flies it (``preflight_gate`` module): added in
+    selection order to the pre-flight set kept so far, λ the median of the other flights' λ under that
+    set, its held-out descent time and landing compared with the set's without it, starting from
+    ``plain`` (the plain law × median λ held out, and that λ on all flights). Returns the decision per
+    term, the pre-flight λ and the pre-flight law's held-out numbers."""
+    n = len(batch.cases)
+    kept: list[int] = []
+    current, rate_fit = plain
+    decisions: list[TermGate] = []
+    for k, fit in enumerate(selected_full):
+        trial = [*kept, k]
+        folds = [[row[m] for m in trial] for row in selected_folds]
+        full = [selected_full[m] for m in trial]
+        if trial == list(range(len(selected_full))):
+            rate_folds, trial_rate, heldout = settled.flown_folds, settled.rate_full, settled.after
+        else:
+            _, fold_rates, trial_rate, _ = rate_priors(batch, folds, full)
+            rate_folds = [[fold_rates[i], *folds[i]] for i in range(n)]
+            heldout = batch.heldout(rate_folds)
+        decision = verdict(fit.candidate.name, compare(_gated(current), _gated(heldout), seed))
+        decisions.append(decision)
+        if decision.preflight:
+            kept.append(k)
+            current, rate_fit = heldout, trial_rate
+    every_term = len(kept) == len(selected_full)
+    passed = {t.record for t in settled.binned_tests if t.passed}
+    extra: list[tuple[Term, ...]] = [() for _ in range(n)]
+    for part, record in ((0, VERTICAL.name), (1, HORIZONTAL.name)):
+        if record not in passed:
+            continue
+        name = settled.binned.terms()[part].name
+        if not every_term:
+            decisions.append(TermGate(name, False, (), "live-only: fitted on top of a live-only term"))
+            continue
+        trial_extra = [(*extra[i], settled.binned_folds[i].terms()[part]) for i in range(n)]
+        heldout = batch.heldout(settled.flown_folds, trial_extra)
+        decision = verdict(name, compare(_gated(current), _gated(heldout), seed))
+        decisions.append(decision)
+        if decision.preflight:
+            extra, current = trial_extra, heldout
+    return Gate(tuple(decisions), rate_fit, current)
+
+
+def _gated(h: HeldOut) -> dict[str, np.ndarray]:
+    return {"descent_time_error_s": h.descent_time_error_s, "landing_error_km": h.landing_error_km}
 
 
 def rate_priors(
@@ -593,7 +829,11 @@ def _prior(factors: np.ndarray) -> RatePrior:
 
 
 def decision_stability(
-    rounds: Sequence[tuple[CandidateResult, ...]], references: Sequence[HeldOut], alpha: float, seed: int
+    rounds: Sequence[tuple[CandidateResult, ...]],
+    references: Sequence[HeldOut],
+    alpha: float,
+    seed: int,
+    contest: Contest | None = None,
 ) -> dict[str, float]:
     """How often each candidate is chosen when one flight at a time is left out of the DECISION.
 
@@ -602,8 +842,10 @@ def decision_stability(
     follows the selection as long as it picks the same term; where it picks another, that term is
     counted and the fold stops (its later rounds were never run). The fits are not repeated per fold
     (flight k still entered the other flights' fits), so this measures how much the decision rests on
-    one flight, the knife edge of the margin, not the whole nested refit. Returns, per candidate chosen
-    in any fold, the share of the n folds that chose it.
+    one flight, the knife edge of the margin, not the whole nested refit. A fold that follows the whole
+    selection to its last round replays the ``contest`` too (the binned rate factors' test, then theirs
+    against the one-parameter term): the winner is counted, ``binned_descent_rate`` when the factors win.
+    Returns, per candidate chosen in any fold, the share of the n folds that chose it.
     """
     if not rounds:
         return {}
@@ -625,6 +867,10 @@ def decision_stability(
                 if all(t.passed for t in tests):
                     passing.append((sum(t.mean_improvement / floors[t.record] for t in tests), result))
             if not passing:
+                if contest is not None and number == len(rounds) - 1:
+                    name = _contest_without(contest, keep, alpha, seed)
+                    if name is not None:
+                        chosen[name] = chosen.get(name, 0) + 1
                 break
             best = max(passing, key=lambda p: p[0])[1]
             name = best.full.candidate.name
@@ -633,6 +879,20 @@ def decision_stability(
             if not followed:
                 break
     return {name: count / n for name, count in sorted(chosen.items(), key=lambda kv: -kv[1])}
+
+
+def _contest_without(contest: Contest, keep: np.ndarray, alpha: float, seed: int) -> str | None:
+    """The contest replayed on the flights ``keep``: None when the binned rate factors no longer pass."""
+    metric = VERTICAL.metric
+    before, binned = getattr(contest.before, metric)[keep], getattr(contest.binned, metric)[keep]
+    if not paired_test(before, binned, alpha, seed, VERTICAL.floor).passed:
+        return None
+    library = getattr(contest.library.heldout, metric)[keep]
+    factors_win = paired_test(library, binned, alpha, seed, 0.0).passed
+    improvement = float(np.mean(before - library))
+    if factors_win or improvement < VERTICAL.floor:
+        return BinnedDescentRate.name
+    return contest.library.full.candidate.name
 
 
 def _family(
@@ -760,15 +1020,6 @@ def _losses(
                 loss[j, folds, :] += sq[:-1]
                 loss[j, n, :] += sq[-1]
     return loss
-
-
-def _binned(
-    batch: FlightBatch, selected_folds: list[list[Fit]], selected_full: list[Fit]
-) -> tuple[BinnedCorrection, HeldOut]:
-    """The binned correction per fold from the training flights' residuals, scored on the held-out one."""
-    folds = _binned_folds(batch, selected_folds, selected_full)
-    corrections = [fold.terms() for fold in folds[:-1]]
-    return folds[-1], batch.heldout(selected_folds, corrections)
 
 
 def _binned_folds(

@@ -81,9 +81,14 @@ take, a fast fall at most 10× the canopy's, heights inside the weather, ±60 m/
 fit's own factor bounds). A model file with a value outside them was not made by a calibration and is
 refused (an exponent of 5 is an 8-minute fall from 28 km, a wind scale of −1 blows backwards)."""
 
-SCHEMA_VERSION = 3
-"""2 added the optional ``live`` section, 3 the optional ``rate_prior``: a drs that reads an older
-schema refuses such a file rather than fly the model without what was measured for it."""
+SCHEMA_VERSION = 4
+"""2 added the optional ``live`` section, 3 the optional ``rate_prior``, 4 each term's ``flown`` (the
+pre-flight gate): a drs that reads an older schema refuses such a file rather than fly the model without
+what was measured for it (a schema-3 reader would fly a live-only term before release)."""
+FLOWN = ("both", "live-only", "pre-flight-only")
+"""A term's ``flown`` in a schema-4 file: by both laws; only once the flight's own λ is known (the
+pre-flight gate found it made the held-out pre-flight prediction worse); only before release (the
+pre-flight λ, the training flights' median under the pre-flight terms, when it differs from the live one)."""
 FILE_KIND = "drs-calibrated-model"
 
 MAX_MODEL_BYTES = 1_000_000
@@ -118,6 +123,20 @@ class CalibratedModel:
     rate_prior: RatePrior | None = None
     """The spread of each calibration flight's own rate factor λ around the shared law (None: the
     calibration did not fit λ per flight)."""
+    preflight: tuple[Term, ...] | None = None
+    """What a prediction before release flies (``terms`` without the live-only ones, with the pre-flight
+    λ); None: a file written before the pre-flight gate (schema ≤ 3), whose terms all fly pre-flight
+    unjudged, which ``drs model show`` says."""
+
+    def preflight_law(self) -> tuple[Term, ...]:
+        """The terms a pre-flight prediction flies (``drs predict``, ``drs plan``, the console before
+        release). Live re-prediction flies ``terms``."""
+        return self.terms if self.preflight is None else self.preflight
+
+    def live_only(self) -> tuple[str, ...]:
+        """Names of the terms live re-prediction flies and a pre-flight prediction leaves out."""
+        before = {_key(t) for t in self.preflight_law()}
+        return tuple(t.name for t in self.terms if _key(t) not in before and t.name != "descent_rate_scale")
 
     def live_predictor(
         self, cube: WeatherCube, terrain: Terrain | None = None, corrected: bool = True
@@ -174,11 +193,12 @@ class CalibratedModel:
         error_model: str | None = None,
         probabilities: Sequence[float] = (),
     ) -> FlightSetup:
-        """This model flown over ``terrain``: its payload and terms, and the ellipse ``chosen_ellipse``
-        picks, so every command and the console fly a model file alike."""
+        """This model flown before release over ``terrain``: its payload and pre-flight terms (live-only
+        ones left out), and the ellipse ``chosen_ellipse`` picks, so every command and the console fly a
+        model file alike. Live re-prediction flies ``terms`` through ``live_predictor``."""
         return FlightSetup(
             payload=self.payload,
-            effects=self.terms,
+            effects=self.preflight_law(),
             terrain=terrain,
             step_m=step_m,
             error_model=self.chosen_ellipse(error_model),
@@ -198,6 +218,15 @@ class CalibratedModel:
             "path": str(path),
             "label": self.label(),
             "terms": [{"effect": t.name, "parameters": t.parameters()} for t in self.terms],
+            **(
+                {
+                    "preflight_terms": [
+                        {"effect": t.name, "parameters": t.parameters()} for t in self.preflight
+                    ]
+                }
+                if self.preflight is not None and self.preflight != self.terms
+                else {}
+            ),
             "provenance": self.provenance,
         }
 
@@ -224,12 +253,35 @@ class CalibratedModel:
             "kind": FILE_KIND,
             "schema": SCHEMA_VERSION,
             "payload": self.payload.to_dict(),
-            "terms": [{"effect": t.name, "parameters": t.parameters()} for t in self.terms],
+            "terms": _terms_to_list(self.terms, self.preflight_law()),
             "ellipse": ellipse,
             **({"live": _live_to_dict(self.live)} if self.live is not None else {}),
             **({"rate_prior": self.rate_prior.to_dict()} if self.rate_prior is not None else {}),
             "provenance": self.provenance,
         }
+
+
+def _key(term: Term) -> tuple[str, str]:
+    return term.name, json.dumps(term.parameters(), sort_keys=True)
+
+
+def _terms_to_list(live: Sequence[Term], preflight: Sequence[Term]) -> list[dict[str, Any]]:
+    """One list, each term with where it is flown: the live law's terms in order (a pre-flight λ that
+    differs from the live one right after the live one)."""
+    before = {_key(t) for t in preflight}
+    after = {_key(t) for t in live}
+    out = []
+    for term in live:
+        out.append({"effect": term.name, "parameters": term.parameters(),
+                    "flown": "both" if _key(term) in before else "live-only"})  # fmt: skip
+        if term is live[0]:
+            out += [{"effect": t.name, "parameters": t.parameters(), "flown": "pre-flight-only"}
+                    for t in preflight if _key(t) not in after]  # fmt: skip
+    if not live:
+        out = [
+            {"effect": t.name, "parameters": t.parameters(), "flown": "pre-flight-only"} for t in preflight
+        ]
+    return out
 
 
 def _bound(value: float) -> float | None:
@@ -314,14 +366,14 @@ def load_model(path: str | Path) -> CalibratedModel:
             "schema", f"version {schema} is newer than this drs reads ({SCHEMA_VERSION}); update drs"
         )
     payload = _payload(raw.get("payload"), refuse)
-    terms = _terms(raw.get("terms"), refuse)
+    terms, preflight = _flown(raw.get("terms"), _terms(raw.get("terms"), refuse), schema, refuse)
     ellipse = _ellipse(raw.get("ellipse"), refuse)
     live = _live(raw["live"], refuse) if "live" in raw else None
     rate_prior = _rate_prior(raw["rate_prior"], refuse) if "rate_prior" in raw else None
     provenance = raw.get("provenance", {})
     if not isinstance(provenance, dict):
         raise refuse("provenance", "must be an object")
-    return CalibratedModel(payload, terms, ellipse, provenance, source, live, rate_prior)
+    return CalibratedModel(payload, terms, ellipse, provenance, source, live, rate_prior, preflight)
 
 
 def _bounded_text(source: Path, refuse: Any) -> str:
@@ -424,6 +476,27 @@ def _terms(raw: Any, refuse: Any) -> tuple[Term, ...]:
         except (PredictorError, TypeError) as exc:
             raise refuse(where, str(exc)) from None
     return tuple(terms)
+
+
+def _flown(
+    raw: Any, terms: tuple[Term, ...], schema: int, refuse: Any
+) -> tuple[tuple[Term, ...], tuple[Term, ...] | None]:
+    """(the live law, the pre-flight law) from each term's ``flown``; a file before schema 4 has no
+    ``flown``: every term flies both ways, unjudged (pre-flight law None)."""
+    if schema < 4:
+        return terms, None
+    flown = []
+    for index, item in enumerate(raw):
+        value = item.get("flown")
+        if value not in FLOWN:
+            raise refuse(f"terms[{index}].flown", f"must be one of {', '.join(FLOWN)}, got {value!r}")
+        flown.append(value)
+    live = tuple(t for t, f in zip(terms, flown, strict=True) if f != "pre-flight-only")
+    before = tuple(t for t, f in zip(terms, flown, strict=True) if f != "live-only")
+    for law, name in ((live, "live"), (before, "pre-flight")):
+        if sum(t.name == "descent_rate_scale" for t in law) > 1:
+            raise refuse("terms", f"the {name} law has more than one descent_rate_scale")
+    return live, before
 
 
 def _within(

@@ -111,8 +111,8 @@ class FlownModel:
     path: Path | None = None
 
     def setup(self, terrain: Terrain) -> FlightSetup:
-        return FlightSetup(self.model.payload, self.model.terms, terrain=terrain,
-                           error_model=self.model.chosen_ellipse(None))  # fmt: skip
+        """A prediction before release: the model's pre-flight law (live-only terms left out)."""
+        return self.model.flight_setup(terrain)
 
     def document(self) -> dict[str, Any]:
         payload = self.model.payload.to_dict()

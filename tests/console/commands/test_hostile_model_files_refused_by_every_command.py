@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -32,7 +33,8 @@ def _mutants(tmp_path: Path) -> dict[str, tuple[Path, str]]:
     os.mkfifo(fifo)
     deep = '{"kind": "drs-calibrated-model", "schema": 3, "provenance": ' + "[" * 50_000 + "]" * 50_000 + "}"
     big = json.dumps({**good, "provenance": {"padding": "x" * 1_100_000}})
-    digits = COMMITTED.read_text().replace('"schema": 3', '"schema": ' + "9" * 5000)
+    digits = re.sub(r'"schema": \d+', '"schema": ' + "9" * 5000, COMMITTED.read_text())
+    assert digits != COMMITTED.read_text(), "the mutant must change the file"
     return {
         "deep-nesting": (_edited(tmp_path, "deep.json", deep), "nests 50001 levels deep"),
         "5000-digits": (_edited(tmp_path, "digits.json", digits), "holds a number of 5,000 characters"),

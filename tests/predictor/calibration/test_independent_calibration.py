@@ -112,7 +112,8 @@ def test_an_effect_outside_the_library_gets_its_family_and_cuts_the_error_on_uns
         unseen, (DescentRateScale(scale=float(np.exp(np.median(np.log(cal.baseline.rate_factor))))),)
     )
     model = _flown(unseen, cal.terms())
-    assert model[0].mean() <= 1.1 * rate_only[0].mean() + 10.0, "pre-flight: never worse than λ alone"
+    preflight = _flown(unseen, cal.preflight_terms())
+    assert preflight[0].mean() <= 1.1 * rate_only[0].mean() + 10.0, "pre-flight: never worse than λ alone"
     if effects is TWO_REGIME:
         _assert_the_canopy_is_found(cal, TWO_REGIME)
     if family == "vertical":
