@@ -64,7 +64,9 @@ async def test_a_hidden_screen_is_not_redrawn_and_catches_up_when_it_comes_back(
         app.refresh_screen()
         assert calls == [], "the fleet under the release screen is out of sight"
         await pilot.press("escape")
-        await wait_for(pilot, lambda: calls == ["fleet"])
+        # Once at least: the app's own tick may redraw it again as soon as it is on top (under load the
+        # tick came between the resume and the look, and an exact ["fleet"] was never seen again).
+        await wait_for(pilot, lambda: calls[:1] == ["fleet"])
 
 
 def test_on_a_thin_link_ages_step_by_ten_seconds_and_the_clock_does_not(
