@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 
 UV_VERSION := 0.13.9
 
-.PHONY: demo test lint house bench bench-console bench-serve bench-bytes bench-consoles venv screenshots lock
+.PHONY: demo test lint house bench bench-console bench-serve bench-bytes bench-consoles bench-fanout venv screenshots lock
 
 # The exact, hash-checked versions of requirements.lock: every machine installs what the suite was
 # last green with. pyproject.toml keeps ranges for people who install the package as a library.
@@ -68,6 +68,9 @@ bench-bytes: $(STAMP)
 
 bench-consoles: $(STAMP)
 	$(BIN)/python tools/second_console_latency.py
+
+bench-fanout: $(STAMP)
+	$(BIN)/python tools/server_fanout.py
 
 screenshots: $(STAMP)
 	$(BIN)/python tools/screenshots.py

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import msgspec
-from aiohttp import WSMsgType, web
+from aiohttp import WSCloseCode, WSMsgType, web
 
 from drs_link.config import Config
 from drs_link.errors import ConfigError, LinkError, RefusedError, StoreError
@@ -144,6 +144,13 @@ class OperationsServer:
         self.last_active = time.monotonic()
         self.stopping = asyncio.Event()
         self.held: dict[int, tuple[Peer, Approval]] = {}
+        self.changes = asyncio.Event()
+        """Set (then replaced) whenever a request may have changed what the event streams show: each
+        stream wakes at once instead of at its next look (``EVENT_PERIOD_S``), which stays for what the
+        server did not do itself (an MO report, an ARM window running out). Loop thread only."""
+        self.streams: set[web.WebSocketResponse] = set()
+        """Open event streams, closed first when the server stops (their handlers then end before the
+        worker pool does, instead of asking a pool that was shut down)."""
         """Requests a connection waits on: withdrawn if it drops, or when the server stops."""
 
     # Plumbing ------------------------------------------------------------------------------------
@@ -201,6 +208,8 @@ class OperationsServer:
         finally:
             self.busy -= 1
             self.last_active = time.monotonic()
+            if request.method != "GET":
+                self.changed()
 
     async def stream(
         self, request: web.Request, work: Callable[[Callable[[str], None], Callable[[Approval], None]], Done]
@@ -214,6 +223,7 @@ class OperationsServer:
 
         def say(line: str) -> None:
             loop.call_soon_threadsafe(steps.put_nowait, Said(line))
+            loop.call_soon_threadsafe(self.changed)  # each step may have moved a window or a request on
 
         def on_pending(approval: Approval) -> None:
             waiting.append(approval)
@@ -222,6 +232,7 @@ class OperationsServer:
             text = (f"approval #{approval.id}: waiting for another account to run `drs approve {approval.id}` "
                     f"(expires {approval.expires_utc:%H:%M:%S}Z)")  # fmt: skip
             loop.call_soon_threadsafe(steps.put_nowait, Pending(approval.id, text))
+            loop.call_soon_threadsafe(self.changed)
 
         def run() -> None:
             try:
@@ -423,16 +434,24 @@ class OperationsServer:
         stream is one-way and closed (nothing it sends is acted on)."""
         ws = web.WebSocketResponse(heartbeat=10.0)
         await ws.prepare(request)
+        self.streams.add(ws)
         last = b""
         reader = asyncio.ensure_future(ws.receive())
         try:
-            while not ws.closed:
+            while not ws.closed and not self.stopping.is_set():
+                changes = self.changes  # taken before the look: a change made during it wakes the next wait
                 event = encode(await self.blocking(lambda: self.event(request["peer"])))
                 if event != last:
                     await ws.send_bytes(event)
                     last = event
-                done, _ = await asyncio.wait({reader}, timeout=EVENT_PERIOD_S)
-                if done:
+                woken = asyncio.ensure_future(changes.wait())
+                try:
+                    done, _ = await asyncio.wait(
+                        {reader, woken}, timeout=EVENT_PERIOD_S, return_when=asyncio.FIRST_COMPLETED
+                    )
+                finally:
+                    woken.cancel()
+                if reader in done:
                     message = reader.result()
                     if message.type in (WSMsgType.TEXT, WSMsgType.BINARY):
                         await ws.send_bytes(encode(Failure("protocol", "the event stream takes no messages")))
@@ -441,7 +460,13 @@ class OperationsServer:
                 self.last_active = time.monotonic()
         finally:
             reader.cancel()
+            self.streams.discard(ws)
         return ws
+
+    def changed(self) -> None:
+        """Wake every event stream now (``changes``)."""
+        self.changes.set()
+        self.changes = asyncio.Event()
 
     def event(self, peer: Peer) -> Event:
         """What a subscriber sees: every capsule's release state and ARM window (whose, from its account)
@@ -515,6 +540,9 @@ class OperationsServer:
                         ready(f"drs server: idle for {self.idle_exit_s:.0f} s: exiting")
                         break
         finally:
+            self.stopping.set()
+            for ws in list(self.streams):
+                await ws.close(code=WSCloseCode.GOING_AWAY, message=b"the operations server is stopping")
             await self.blocking(lambda: self.withdraw([a for _, a in list(self.held.values())]))
             await runner.cleanup()
             with contextlib.suppress(FileNotFoundError):
