@@ -197,11 +197,9 @@ def test_drs_mt_send_says_it_is_waiting_for_a_locked_store(tmp_path: Path) -> No
                 env={**os.environ, "PYTHONPATH": str(REPO), "DRS_TEST_RB": "pw"},
             )  # fmt: skip
             assert sender.stderr is not None
-            started = time.monotonic()
             line = sender.stderr.readline()
             assert "is locked by another process: waiting up to" in line, line
-            assert time.monotonic() - started < 10
-            assert sender.poll() is None
+            assert sender.poll() is None, "said while the store is still locked, not after"
         out, err = sender.communicate(timeout=60)
         assert sender.returncode == 0, err
         assert "queued" in out and len(gateway.requests) == 1
