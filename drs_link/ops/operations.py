@@ -447,6 +447,11 @@ class Operations:
         if predict is not None and origin is not None:
             for record in predict(name, origin):
                 fleet.apply(record)
+            # The capsule again, as it is now: a prediction can outlast a polled reading's freshness (a
+            # first one compiling its kernels took 17 s on a loaded machine, and ARM was refused on link,
+            # microcontroller and GNSS readings 20 s old). The prediction stays fresh for minutes.
+            for record in self.poll(name):
+                fleet.apply(record)
         return self.gonogo(name, fleet.capsules[name])
 
     def waive(self, name: str, item: str, reason: str) -> Waiver:
