@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING
 from drs_link.config import Config, host_port
 from drs_link.errors import LinkError
 from drs_link.feeds.balloon_feed import OWN_COMMENT
+from drs_link.feeds.chase_point import ChasePoint, KeptLanding
 from drs_link.iridium import ReportStore
 from drs_link.store import Store, data_directory, iso_utc, parse_iso_utc
 from predictor.tawhiri import FIXES_PER_CAPSULE, CapsuleFix, surface_distance_m
@@ -79,45 +80,6 @@ CREATE TABLE IF NOT EXISTS chase_marker (
     alt_m REAL NOT NULL
 );
 """
-
-
-@dataclass(frozen=True)
-class ChasePoint:
-    callsign: str
-    time: datetime
-    lat: float
-    lon: float
-    alt_m: float
-    speed_kmh: float | None
-    heading_deg: float | None
-    comment: str
-
-    def packet(self) -> dict[str, object]:
-        """The ``PAYLOAD_SUMMARY`` as horusdemodlib sends it (-1: not known)."""
-        return {
-            "type": "PAYLOAD_SUMMARY",
-            "callsign": self.callsign,
-            "latitude": self.lat,
-            "longitude": self.lon,
-            "altitude": self.alt_m,
-            "speed": -1 if self.speed_kmh is None else round(self.speed_kmh, 1),
-            "heading": -1 if self.heading_deg is None else round(self.heading_deg, 1),
-            "time": f"{self.time:%H:%M:%S}",
-            "comment": self.comment,
-        }
-
-
-@dataclass(frozen=True)
-class KeptLanding:
-    capsule: str
-    predicted_at: datetime
-    landing_time: datetime
-    lat: float
-    lon: float
-    alt_m: float
-    kind: str
-    """"live re-prediction" (descending) or "release now" (still on the balloon)."""
-    is_demo: bool
 
 
 @dataclass(frozen=True)

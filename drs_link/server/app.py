@@ -37,6 +37,7 @@ from drs_link.errors import ConfigError, LinkError, RefusedError, StoreError
 from drs_link.ops import Approval
 from drs_link.server.approvals import ApprovalService
 from drs_link.server.capsules import CapsuleService
+from drs_link.server.chase import ChaseService
 from drs_link.server.desks import Desks, PredictorFor
 from drs_link.server.iridium import IridiumService
 from drs_link.server.peers import Mode, Peer, Roster, check_own_file, check_state_directory, peer_uid
@@ -54,6 +55,7 @@ from drs_link.server.protocol import (
     Failure,
     FireRequest,
     Hello,
+    KeepLandingRequest,
     MtSendRequest,
     Pending,
     PowerOnRequest,
@@ -139,6 +141,7 @@ class OperationsServer:
         self.capsules = CapsuleService(self.desks, mode)
         self.approvals = ApprovalService(self.store, self.desks.clock)
         self.recovery = RecoveryService(self.desks, live_for)
+        self.chase = ChaseService(self.desks)
         self.pool = ThreadPoolExecutor(max_workers=32, thread_name_prefix="drs-server")
         self.busy = 0
         self.last_active = time.monotonic()
@@ -338,6 +341,14 @@ class OperationsServer:
         view = await self.blocking(lambda: self.recovery.readout(request["peer"], name, body))
         return json_response(view)
 
+    async def chase_points(self, request: web.Request) -> web.Response:
+        return json_response(await self.blocking(self.chase.points))
+
+    async def keep_landing(self, request: web.Request) -> web.Response:
+        body = await self.body(request, KeepLandingRequest)
+        await self.blocking(lambda: self.chase.keep(body.landing))
+        return json_response(None)
+
     # The capsule's other steps (``capsules``): each one request, a power-on and a take-over streamed.
 
     async def status(self, request: web.Request) -> web.Response:
@@ -506,6 +517,8 @@ class OperationsServer:
         app.router.add_get(f"{ROOT}/iridium/{{name}}/health", self.health)
         app.router.add_post(f"{ROOT}/iridium/track", self.track)
         app.router.add_post(f"{ROOT}/recovery/{{name}}", self.recovery_readout)
+        app.router.add_get(f"{ROOT}/chase/points", self.chase_points)
+        app.router.add_post(f"{ROOT}/chase/landing", self.keep_landing)
         app.router.add_get(f"{ROOT}/approvals", self.waiting)
         app.router.add_post(f"{ROOT}/approvals/{{approval}}", self.decide)
         app.router.add_get(f"{ROOT}/events", self.events)

@@ -6,7 +6,7 @@ configured, this account's private server, started on demand (``private``). Verb
 ``.reset(name)``, ``.released(name, evidence)``, ``.authority()``, ``.take_over(…)``,
 ``.release_authority(reason)``, ``.host_key()``/``.enrol(fingerprint)``, ``.sync(source)``/``.sync_status(…)``, ``client.iridium.send_mt(…)``,
 ``.mt_status(name)``, ``.resolve_mt(…)``, ``.health(name)``, ``.track(…)``,
-``client.recovery(name, …)``, ``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, and ``client.events()``
+``client.recovery(name, …)``, ``client.chase.points()``/``.keep(landing)``, ``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, and ``client.events()``
 for views.
 
 Why the standard library's ``http.client`` for the verbs: a ``drs`` command is one blocking request,
@@ -29,6 +29,7 @@ import msgspec
 
 from drs_link.config import Config
 from drs_link.errors import ConfigError, LinkError, RefusedError, StoreError
+from drs_link.feeds.chase_point import ChasePoint, KeptLanding
 from drs_link.server.protocol import (
     PROTOCOL,
     ROOT,
@@ -48,6 +49,7 @@ from drs_link.server.protocol import (
     HealthView,
     Hello,
     HostKeyView,
+    KeepLandingRequest,
     MtSendRequest,
     MtStatus,
     MtView,
@@ -118,6 +120,7 @@ class Client:
         self._conn = _UnixConnection(socket_path, timeout_s)
         self.iridium = Iridium(self)
         self.approvals = Approvals(self)
+        self.chase = Chase(self)
 
     @classmethod
     def for_config(
@@ -419,3 +422,16 @@ class Approvals:
     def reject(self, approval_id: int, reason: str) -> ApprovalView:
         request = DecideRequest(PROTOCOL, False, reason)
         return self.client.call("POST", f"/approvals/{approval_id}", request, ApprovalView)
+
+
+@dataclass(frozen=True)
+class Chase:
+    client: Client
+
+    def points(self) -> list[ChasePoint]:
+        """What chasemapper should show now: each capsule's newest fix and its recent landing's marker."""
+        return self.client.call("GET", "/chase/points", None, list[ChasePoint])
+
+    def keep(self, landing: KeptLanding) -> None:
+        """Record this console's newest landing of a capsule, for every ``drs chase`` to send."""
+        self.client.call("POST", "/chase/landing", KeepLandingRequest(PROTOCOL, landing), type(None))

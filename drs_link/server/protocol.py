@@ -18,6 +18,8 @@ from typing import Literal
 
 import msgspec
 
+from drs_link.feeds.chase_point import KeptLanding
+
 PROTOCOL = 1
 """Bumped on any change a client of the previous version would misread."""
 ROOT = f"/v{PROTOCOL}"
@@ -162,6 +164,12 @@ class RecoveryRequest(Request, frozen=True):
     descent: bool = False
     weather: tuple[str, ...] = ()
     dem: str | None = None
+
+
+class KeepLandingRequest(Request, frozen=True):
+    """A console's newest predicted landing of a capsule, for every ``drs chase`` to send."""
+
+    landing: KeptLanding
 
 
 class ResolveMtRequest(Request, frozen=True):
