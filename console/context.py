@@ -236,6 +236,11 @@ class ConsoleContext:
         with self.client() as client, self.held(capsule, client):
             return client.iridium.send_mt(capsule, request, lambda _: None, on_pending)
 
+    def poll(self, capsule: str) -> list[TelemetryRecord]:
+        """Poll the capsule now through the server, which pushes the records to every console too."""
+        with self.client() as client:
+            return client.capsule(capsule).poll()
+
     def cancel_waiting(self, capsule: str) -> list[ApprovalView]:
         """Withdraw this account's requests for ``capsule``: the action waiting on each is aborted, and
         the server cancels the request of a connection that drops (nothing is sent on it)."""
