@@ -276,8 +276,7 @@ def demo_setup(
     from console.context import ConsoleSetup
     from console.predictions import PredictionService
     from drs_link.ops import Operations
-    from drs_link.server import InProcessServer
-    from drs_link.server.telemetry import Periods
+    from drs_link.server import InProcessServer, Periods
 
     speed = world.speed
     store = Store.open(config.store_path)
