@@ -496,7 +496,10 @@ class OperationsServer:
                 finally:
                     batch.cancel()
                 if batch in done:
-                    await ws.send_bytes(encode(batch_of(batch.result())))
+                    try:
+                        await ws.send_bytes(encode(batch_of(batch.result())))
+                    except ConnectionError:
+                        break  # the console went away: its reader ends the same way
                     self.last_active = time.monotonic()
                 if reader in done:
                     message = reader.result()

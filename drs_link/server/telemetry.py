@@ -137,8 +137,8 @@ class TelemetryService:
 
     async def every(self, period_s: float, work: Callable[[], Batch]) -> None:
         """``work`` in a worker, then a pause of ``period_s``, for as long as anybody subscribes. A failed
-        poll is said by the records it returns (a link down is a ``LinkSample``); one that raises is
-        logged by the pool's caller and tried again at the next period."""
+        poll is said by the records it returns (a link down is a ``LinkSample``); one that raises (a
+        locked store) is logged here and tried again a period later."""
         while True:
             await self.wanted.wait()
             try:
