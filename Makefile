@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 
 UV_VERSION := 0.13.9
 
-.PHONY: demo test lint house bench bench-console bench-serve bench-bytes bench-consoles bench-fanout venv screenshots lock
+.PHONY: demo test lint house bench bench-console bench-serve bench-bytes bench-consoles bench-fanout bench-telemetry venv screenshots lock
 
 # The exact, hash-checked versions of requirements.lock: every machine installs what the suite was
 # last green with. pyproject.toml keeps ranges for people who install the package as a library.
@@ -71,6 +71,9 @@ bench-consoles: $(STAMP)
 
 bench-fanout: $(STAMP)
 	$(BIN)/python tools/server_fanout.py
+
+bench-telemetry: $(STAMP)
+	$(BIN)/python tools/telemetry_fanout.py
 
 screenshots: $(STAMP)
 	$(BIN)/python tools/screenshots.py

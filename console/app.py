@@ -2,9 +2,10 @@
 
 The app owns no release rules: it folds telemetry into ``FleetState``, shows it, and turns keys
 into intents: ARM, FIRE, disarm, approvals and MT sends go to the operations server (``drs_link.server``),
-whose ARM windows and waiting approvals it pushes back (``follow_events``); the polls, checklists and views
-still go through ``Operations``/``ChecklistRun``. Those accept or refuse them. SSH, SQLite, HTTP and predictions run in thread workers (one group per
-capsule for polls, re-armed only when the previous poll finished; the release in its own group,
+whose ARM windows and waiting approvals it pushes back (``follow_events``), and which polls the capsules,
+checks the gateway and reads the Iridium reports once for every console and pushes the telemetry
+(``follow_telemetry``); the checklists and views still go through ``Operations``/``ChecklistRun``. Those
+accept or refuse them. SQLite, HTTP and predictions run in thread workers (the release in its own group,
 never exclusive, so a refresh can never cancel a FIRE); their results come back as messages
 (``console.messages``). The screens never see the app: each is handed the ``ConsoleContext``
 (``console.context``) it works on, and the fleet opens them from ``console.screens.registry``.
@@ -45,6 +46,7 @@ from drs_link.ops import (
     PredictionStatus,
     ReleaseOrigin,
     ReleaseWindow,
+    ReportSample,
     TelemetryRecord,
     ViewSource,
     record_loss,
@@ -55,11 +57,9 @@ from drs_link.store import Store
 from predictor.descent import COMPILE_NOTICE, kernels_compiled
 from predictor.errors import PredictorError
 
-REPORT_POLL_S = 3.0
 EVENTS_RETRY_S = 2.0
-"""How soon a dropped event stream from the operations server is followed again."""
+"""How soon a dropped event or telemetry stream from the operations server is followed again."""
 PREDICTION_LEAD_MIN = (0, 10)
-GATEWAY_CHECK_S = 300.0
 BALLOON_READ_S = 0.5
 """How often the feed's latest fix is taken (a lock and a copy): often enough that a first fix starts a
 prediction within a second."""
@@ -101,6 +101,10 @@ class DrsConsole(App[int]):
         self._views_stale: set[tuple[str, str]] = set()
         self._events: asyncio.Task[None] | None = None
         """The server's push, followed for the app's life (a task, not a worker: it never completes)."""
+        self._telemetry: asyncio.Task[None] | None = None
+        """The server's telemetry, followed likewise (``follow_telemetry``)."""
+        self._reports_seen: set[str] = set()
+        """The Iridium reports folded so far: a stream followed again starts with all of them."""
         self._windows: dict[str, tuple[datetime, ReleaseWindow | None]] = {}
         """Each capsule's release window and the "release now" time it was swept after."""
 
@@ -168,11 +172,7 @@ class DrsConsole(App[int]):
             return
         if self.commanding:
             self._start_session()
-            self.gateway_check()
-            self.set_interval(max(1.0, GATEWAY_CHECK_S / self.setup.time_scale), self.gateway_check)
-            for name in self.setup.capsules:
-                self.poll_capsule(name)
-            self.set_interval(max(0.5, min(REPORT_POLL_S, 30.0 / self.setup.time_scale)), self.poll_reports)
+            self.start_telemetry()
         if self.setup.predictions is not None:
             self.set_interval(self.setup.prediction_period_s, self.refresh_predictions)
         elif self.context.mode != "replay":  # a replay shows the predictions it recorded
@@ -262,8 +262,6 @@ class DrsConsole(App[int]):
                 hint = " (A on the fleet: approvals)" if row.action == "approval.requested" else ""
                 self.notify(f"{about}{row.action} {row.result} — {row.operator}, {row.session or 'another console'}{hint}",
                             timeout=8)  # fmt: skip
-        if self.commanding:
-            self.poll_reports()
         self.read_views()
         self.refresh_screen()
 
@@ -317,6 +315,46 @@ class DrsConsole(App[int]):
                 )
             await asyncio.sleep(EVENTS_RETRY_S)
 
+    def start_telemetry(self) -> None:
+        """Follow the server's telemetry from now on (at mount, with the live timers; a test, when it
+        wants the capsules' records)."""
+        if self._telemetry is None:
+            self._telemetry = asyncio.get_running_loop().create_task(self.follow_telemetry())
+
+    async def follow_telemetry(self) -> None:
+        """The capsules' telemetry as the server polls it for every console: its snapshot first, then
+        each batch, recorded and folded as any telemetry (in this loop, cancelled with the app). A
+        dropped stream is said once and followed again."""
+        told = False
+        while True:
+            try:
+                async for records in self.context.client().telemetry_stream():
+                    told = False
+                    fresh = self._unseen(records)
+                    if fresh:
+                        await asyncio.to_thread(self.context.record, fresh)
+                        self.post_message(TelemetryArrived(fresh))
+            except (OSError, LinkError) as exc:
+                if not told:
+                    self.notify(
+                        f"the operations server's telemetry stopped: {exc}; reconnecting", severity="warning"
+                    )
+                    told = True
+            await asyncio.sleep(EVENTS_RETRY_S)
+
+    def _unseen(self, records: list[TelemetryRecord]) -> list[TelemetryRecord]:
+        """``records`` without the Iridium reports already folded: each report adds to a capsule's count
+        and track, and a stream followed again starts with every report the server read."""
+        fresh = []
+        for record in records:
+            if isinstance(record.data, ReportSample):
+                key = record.to_json()
+                if key in self._reports_seen:
+                    continue
+                self._reports_seen.add(key)
+            fresh.append(record)
+        return fresh
+
     def refresh_screen(self) -> None:
         """Every screen in sight: the top one and, under a dialog, the screens it shows: time must not
         stand still behind a dialog (an ARM countdown frozen under the FIRE dialog ran out unseen).
@@ -331,32 +369,6 @@ class DrsConsole(App[int]):
                 break
 
     # Workers ----------------------------------------------------------------------------------
-
-    @work(thread=True, exit_on_error=False, group="gateway")
-    def gateway_check(self) -> None:
-        self.post_message(TelemetryArrived(self.context.operations().gateway_check()))
-
-    @work(thread=True, exit_on_error=False, description="poll")
-    def poll_capsule(self, name: str) -> None:
-        """One poll; the next one is scheduled only after this one ends, so polls never pile up."""
-        try:
-            self.post_message(TelemetryArrived(self.context.operations().poll(name)))
-        except LinkError as exc:
-            self.post_message(OperatorNotice(str(exc), "warning"))
-        finally:
-            try:
-                self.call_from_thread(
-                    self.set_timer, self.setup.poll_period_s, lambda: self.poll_capsule(name)
-                )
-            except RuntimeError:
-                pass  # the app is closing: no next poll
-
-    @work(thread=True, exit_on_error=False, group="reports")
-    def poll_reports(self) -> None:
-        ops = self.context.operations()
-        records = [r for name in self.setup.capsules for r in ops.new_reports(name)]
-        if records:
-            self.post_message(TelemetryArrived(records))
 
     def read_balloon(self) -> None:
         assert self.setup.balloon_feed is not None
@@ -598,8 +610,9 @@ class DrsConsole(App[int]):
         super().notify(message, title=title, severity=severity, timeout=timeout, markup=markup)
 
     def on_unmount(self) -> None:
-        if self._events is not None:
-            self._events.cancel()
+        for task in (self._events, self._telemetry):
+            if task is not None:
+                task.cancel()
         if self.commanding and self.live_timers:
             loop = asyncio.get_running_loop()
             for sig in LOST_SIGNALS:

@@ -47,6 +47,7 @@ from drs_link.ops import (
     release_origin,
 )
 from drs_link.server import (
+    POLL_PERIOD_S,
     PROTOCOL,
     ApprovalView,
     ArmState,
@@ -63,7 +64,6 @@ from drs_link.store import Store, utc_now
 ARMED, FIRING, FIRED = "armed", "firing", "fired"
 """The server's ARM window states (``ArmState.state``, ``drs_link.ops.ArmState`` values) a console tells
 apart."""
-POLL_PERIOD_S = 5.0
 OVERRIDE_READ_S = 1.0
 """How often the store is read for PARACHUTE overrides: every screen in sight asks once a second."""
 LOW_BANDWIDTH_AGE_STEP_S = 10.0
@@ -97,6 +97,7 @@ class ConsoleSetup:
     low_bandwidth: bool = False
     """``--low-bandwidth`` or ``[console] low_bandwidth``: see ``ConsoleContext.view_time``."""
     poll_period_s: float = POLL_PERIOD_S
+    """How often the server polls each capsule (its pace at the wall clock's), which ages are judged by."""
     prediction_period_s: float = 60.0
     time_scale: float = 1.0
     """Simulated seconds per real second (the demo): timers are real, telemetry times are not."""
@@ -235,6 +236,11 @@ class ConsoleContext:
                                 second=second or Second())  # fmt: skip
         with self.client() as client, self.held(capsule, client):
             return client.iridium.send_mt(capsule, request, lambda _: None, on_pending)
+
+    def poll(self, capsule: str) -> list[TelemetryRecord]:
+        """Poll the capsule now through the server, which pushes the records to every console too."""
+        with self.client() as client:
+            return client.capsule(capsule).poll()
 
     def cancel_waiting(self, capsule: str) -> list[ApprovalView]:
         """Withdraw this account's requests for ``capsule``: the action waiting on each is aborted, and

@@ -272,6 +272,9 @@ class Store:
         self.session = session_name()
         self.clock: Callable[[], datetime] = utc_now
         """The store's time: the wall clock, or a simulated one all processes on it share (``run_clock``)."""
+        self.scale = 1.0
+        """Simulated seconds per wall second of ``clock`` (the demo's speed): what a process that polls on
+        a timer scales its periods by (the operations server's telemetry)."""
         self._writer = threading.RLock()
         """Writers of this process take turns here before SQLite's lock. Left to SQLite, a thread that
         finds the database locked sleeps in its busy handler (1, 2, 5 … 100 ms a try), and with 20
@@ -304,6 +307,7 @@ class Store:
         self.write("INSERT OR REPLACE INTO store_clock (id, wall_utc, store_utc, scale) VALUES (1, ?, ?, ?)",
                    (iso_utc(wall), iso_utc(start), scale))  # fmt: skip
         self.clock = _scaled_clock(wall, start, scale)
+        self.scale = scale
 
     def _adopt_clock(self) -> None:
         if not self.query("SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'store_clock'"):
@@ -313,6 +317,7 @@ class Store:
             row = rows[0]
             wall, start = parse_iso_utc(row["wall_utc"]), parse_iso_utc(row["store_utc"])
             self.clock = _scaled_clock(wall, start, row["scale"])
+            self.scale = float(row["scale"])
 
     @classmethod
     def _open_read_only(cls, path: Path) -> Store:

@@ -276,11 +276,13 @@ def demo_setup(
     from console.context import ConsoleSetup
     from console.predictions import PredictionService
     from drs_link.ops import Operations
-    from drs_link.server import InProcessServer
+    from drs_link.server import InProcessServer, Periods
 
     speed = world.speed
     store = Store.open(config.store_path)
-    server = InProcessServer(config, predictor_for, world.environ)  # the world's password stays in here
+    poll_s = Periods.at_scale(speed).poll_s if poll_period_s is None else poll_period_s
+    # the world's password stays in here; the server polls at the pace the console judges ages by
+    server = InProcessServer(config, predictor_for, world.environ, poll_period_s=poll_s)
     return ConsoleSetup(
         mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
         operations=Operations(config, store, clock=world.clock, recorder=recorder, environ=world.environ),
@@ -288,7 +290,7 @@ def demo_setup(
         predictions=PredictionService(lambda: world.weather_files, world.terrain, world.clock),
         balloon_feed=started_balloon_feed(config, world.clock), team_position=_team(config),
         export_dir=export_dir, banner_note=f"×{speed:g} time",
-        poll_period_s=min(3.0, max(1.0, 8.0 / speed)) if poll_period_s is None else poll_period_s,
+        poll_period_s=poll_s,
         prediction_period_s=(
             config.console.prediction_period_s / speed if prediction_period_s is None else prediction_period_s
         ),

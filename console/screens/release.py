@@ -485,7 +485,7 @@ class ReleaseScreen(ConsoleScreen):
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return
-        self.app.post_message(TelemetryArrived(self.context.operations().poll(self.capsule)))
+        self.app.post_message(TelemetryArrived(self.context.poll(self.capsule)))
         self.app.post_message(OperatorNotice(f"{self.capsule}: RELEASED — Go sent, Pi shut down"))
         for line in done.lines:
             self.app.post_message(OperatorNotice(line))

@@ -4,7 +4,8 @@ and every face acts through it (issue #29).
 ``app`` is ``drs server`` (aiohttp on a Unix socket); ``peers`` who a connection is, from the kernel
 (``SO_PEERCRED``) and the server's own ``[[operator]]`` list; ``desks`` one ``drs_link.ops`` engine per
 operator; ``release`` (ARM, FIRE, disarm), ``capsules`` (status, power-on, reset, a recorded fall, the
-release authority, enrolment), ``iridium`` and ``approvals`` the thin services over them; ``protocol``
+release authority, enrolment), ``iridium`` and ``approvals`` the thin services over them; ``telemetry``
+the capsules polled once for every console and pushed to each; ``protocol``
 the typed, versioned messages; ``client`` the faces' one client with verbs; ``private`` an account's own
 server, started on demand.
 """
@@ -49,6 +50,7 @@ if TYPE_CHECKING:
     )
     from .recovery import LiveFor as LiveFor
     from .release import PRIVATE_TWO_PERSON as PRIVATE_TWO_PERSON
+    from .telemetry import POLL_PERIOD_S as POLL_PERIOD_S, Periods as Periods
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
@@ -69,6 +71,8 @@ __getattr__, __dir__, __all__ = lazy_door(
         "MtSendRequest": "protocol",
         "OperationsServer": "app",
         "PRIVATE_TWO_PERSON": "release",
+        "POLL_PERIOD_S": "telemetry",
+        "Periods": "telemetry",
         "PROTOCOL": "protocol",
         "RecoveryRequest": "protocol",
         "LiveFor": "recovery",

@@ -34,7 +34,7 @@ from aiohttp import WSCloseCode, WSMsgType, web
 
 from drs_link.config import Config
 from drs_link.errors import ConfigError, LinkError, RefusedError, StoreError
-from drs_link.ops import Approval
+from drs_link.ops import Approval, TelemetryRecord
 from drs_link.server.approvals import ApprovalService
 from drs_link.server.capsules import CapsuleService
 from drs_link.server.chase import ChaseService
@@ -69,12 +69,14 @@ from drs_link.server.protocol import (
     SyncRequest,
     SyncStatusRequest,
     TakeOverRequest,
+    TelemetryBatch,
     TrackRequest,
     TypedNameRequest,
     encode,
 )
 from drs_link.server.recovery import LiveFor, RecoveryService
 from drs_link.server.release import ReleaseService
+from drs_link.server.telemetry import Periods, TelemetryService
 from drs_link.store import Store
 from predictor.errors import UsageError
 
@@ -123,7 +125,10 @@ class OperationsServer:
         environ: dict[str, str] | None = None,
         live_for: LiveFor | None = None,
         clock: Callable[[], datetime] | None = None,
+        poll_period_s: float | None = None,
     ) -> None:
+        """``poll_period_s``: how often the telemetry polls each capsule, in real seconds (default: by the
+        store's time scale, ``telemetry.Periods``)."""
         if config.source is not None:
             check_own_file(config.source)
         if mode == "shared":
@@ -143,6 +148,11 @@ class OperationsServer:
         self.recovery = RecoveryService(self.desks, live_for)
         self.chase = ChaseService(self.desks)
         self.pool = ThreadPoolExecutor(max_workers=32, thread_name_prefix="drs-server")
+        self.feed = TelemetryService(
+            self.desks.server_desk, [c.name for c in config.capsules],
+            Periods.at_scale(self.store.scale, poll_period_s), self.blocking,
+        )  # fmt: skip
+        """The capsules' telemetry, polled once for every console that follows ``/v1/telemetry``."""
         self.busy = 0
         self.last_active = time.monotonic()
         self.stopping = asyncio.Event()
@@ -474,6 +484,48 @@ class OperationsServer:
             self.streams.discard(ws)
         return ws
 
+    async def poll(self, request: web.Request) -> web.Response:
+        """A poll now (a console's refresh key), answered and pushed to every telemetry subscriber."""
+        name = request.match_info["name"]
+        records: list[TelemetryRecord] = await self.blocking(lambda: self.desks.server_desk().poll(name))
+        self.feed.publish(records)
+        return json_response(batch_of(records))
+
+    async def telemetry(self, request: web.Request) -> web.WebSocketResponse:
+        """Push the snapshot (the latest of each kind per capsule), then each new batch as the server
+        polls it; like ``events``, a client that sends anything is told the stream is one-way and closed."""
+        ws = web.WebSocketResponse(heartbeat=10.0)
+        await ws.prepare(request)
+        self.streams.add(ws)
+        subscription = self.feed.subscribe()
+        reader = asyncio.ensure_future(ws.receive())
+        try:
+            while not ws.closed and not self.stopping.is_set():
+                batch = asyncio.ensure_future(subscription.next())
+                try:
+                    done, _ = await asyncio.wait({reader, batch}, return_when=asyncio.FIRST_COMPLETED)
+                finally:
+                    batch.cancel()
+                if batch in done:
+                    try:
+                        await ws.send_bytes(encode(batch_of(batch.result())))
+                    except ConnectionError:
+                        break  # the console went away: its reader ends the same way
+                    self.last_active = time.monotonic()
+                if reader in done:
+                    message = reader.result()
+                    if message.type in (WSMsgType.TEXT, WSMsgType.BINARY):
+                        await ws.send_bytes(
+                            encode(Failure("protocol", "the telemetry stream takes no messages"))
+                        )
+                    await ws.close()
+                    break
+        finally:
+            reader.cancel()
+            self.feed.unsubscribe(subscription)
+            self.streams.discard(ws)
+        return ws
+
     def changed(self) -> None:
         """Wake every event stream now (``changes``)."""
         self.changes.set()
@@ -522,6 +574,8 @@ class OperationsServer:
         app.router.add_get(f"{ROOT}/approvals", self.waiting)
         app.router.add_post(f"{ROOT}/approvals/{{approval}}", self.decide)
         app.router.add_get(f"{ROOT}/events", self.events)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/poll", self.poll)
+        app.router.add_get(f"{ROOT}/telemetry", self.telemetry)
         return app
 
     async def run(self, ready: Callable[[str], None] = print) -> None:
@@ -556,6 +610,7 @@ class OperationsServer:
             self.stopping.set()
             for ws in list(self.streams):
                 await ws.close(code=WSCloseCode.GOING_AWAY, message=b"the operations server is stopping")
+            await self.feed.stop()
             await self.blocking(lambda: self.withdraw([a for _, a in list(self.held.values())]))
             await runner.cleanup()
             with contextlib.suppress(FileNotFoundError):
@@ -566,6 +621,10 @@ class OperationsServer:
 
 class _ProtocolError(Exception):
     """A request that is not a valid message of this protocol: refused before it is acted on."""
+
+
+def batch_of(records: list[TelemetryRecord]) -> TelemetryBatch:
+    return TelemetryBatch(tuple(record.to_json() for record in records))
 
 
 def json_response(value: object) -> web.Response:

@@ -6,8 +6,8 @@ configured, this account's private server, started on demand (``private``). Verb
 ``.reset(name)``, ``.released(name, evidence)``, ``.authority()``, ``.take_over(…)``,
 ``.release_authority(reason)``, ``.host_key()``/``.enrol(fingerprint)``, ``.sync(source)``/``.sync_status(…)``, ``client.iridium.send_mt(…)``,
 ``.mt_status(name)``, ``.resolve_mt(…)``, ``.health(name)``, ``.track(…)``,
-``client.recovery(name, …)``, ``client.chase.points()``/``.keep(landing)``, ``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, and ``client.events()``
-for views.
+``client.recovery(name, …)``, ``client.chase.points()``/``.keep(landing)``, ``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, ``client.events()``
+for views, and ``client.telemetry_stream()`` for the capsules' telemetry (``.poll()`` for one poll now).
 
 Why the standard library's ``http.client`` for the verbs: a ``drs`` command is one blocking request,
 and a plain socket keeps ``drs …`` from paying for an event loop and aiohttp's import (the CLI's
@@ -68,6 +68,7 @@ from drs_link.server.protocol import (
     SyncStatusRequest,
     SyncStatusView,
     TakeOverRequest,
+    TelemetryBatch,
     TrackCsv,
     TrackRequest,
     TypedNameRequest,
@@ -78,6 +79,7 @@ from drs_link.server.protocol import (
 from predictor.errors import UsageError
 
 if TYPE_CHECKING:
+    from drs_link.ops import TelemetryRecord
     from drs_link.server.desks import PredictorFor
     from drs_link.server.recovery import LiveFor
 
@@ -260,10 +262,33 @@ class Client:
         except aiohttp.ClientError as exc:
             raise LinkError(f"the event stream of {self.socket_path} failed: {exc}") from None
 
+    async def telemetry_stream(self) -> AsyncIterator[list[TelemetryRecord]]:
+        """The capsules' telemetry as the server polls it (``/v1/telemetry``): first the latest of each
+        kind per capsule, then each new batch; in the caller's event loop, cancelled with its task."""
+        import aiohttp
+
+        connector = aiohttp.UnixConnector(path=str(self.socket_path))
+        try:
+            async with aiohttp.ClientSession(connector=connector) as session:
+                async with session.ws_connect(f"http://drs-server{ROOT}/telemetry") as ws:
+                    async for message in ws:
+                        if message.type is aiohttp.WSMsgType.BINARY:
+                            yield records_of(msgspec.json.decode(message.data, type=TelemetryBatch))
+        except aiohttp.ClientError as exc:
+            raise LinkError(f"the telemetry stream of {self.socket_path} failed: {exc}") from None
+
 
 def absolute(paths: tuple[str, ...]) -> tuple[str, ...]:
     """Paths as this process names them: the server does not share its working directory."""
     return tuple(str(Path(p).absolute()) for p in paths)
+
+
+def records_of(batch: TelemetryBatch) -> list[TelemetryRecord]:
+    """The records of a batch, each checked by the recording format's parser (imported here: a ``drs``
+    command that never reads telemetry does not pay for the operations layer's import)."""
+    from drs_link.ops import TelemetryRecord
+
+    return [TelemetryRecord.from_json(line, "the server's telemetry") for line in batch.records]
 
 
 def _failure(raw: bytes) -> Failure:
@@ -304,6 +329,11 @@ class Capsule:
         return self.client.call(
             "POST", f"/capsules/{self.name}/disarm", DisarmRequest(PROTOCOL, reason), ArmState
         )
+
+    def poll(self) -> list[TelemetryRecord]:
+        """Poll the capsule now (link, release state, GNSS, storage, sync); every console following the
+        telemetry is sent the records too."""
+        return records_of(self.client.call("POST", f"/capsules/{self.name}/poll", None, TelemetryBatch))
 
     def status(self) -> CapsuleStatus:
         """Release record, link, storage, microcontroller and GNSS, read now (read-only)."""

@@ -9,6 +9,7 @@ kernel's account and nothing the operator wrote.
 
 from __future__ import annotations
 
+import os
 import socket
 import threading
 from collections.abc import Callable
@@ -19,8 +20,10 @@ from pathlib import Path
 from drs_link.config import Config
 from drs_link.ops import Login, Operations, Predict
 from drs_link.server.peers import Peer
-from drs_link.store import Store
+from drs_link.store import Store, account_of
 
+SERVER_OPERATOR = "drs server"
+"""Who the server's own engine acts as (its telemetry polls), in the audit and the release record."""
 PredictorFor = Callable[[list[Path], Operations], Predict]
 """Builds the "release now" prediction go/no-go judges from GRIB2 files (the console's service, which
 the command line hands in: ``drs_link`` cannot import the console)."""
@@ -43,6 +46,7 @@ class Desks:
         """The store's clock (the demo's scaled time is written into the store), or the one given: a
         console's own in-process server keeps the console's time."""
         self._desks: dict[int, Operations] = {}
+        self._server: Operations | None = None
         self._lock = threading.Lock()
 
     def desk(self, peer: Peer) -> Operations:
@@ -58,12 +62,25 @@ class Desks:
                 self._desks[peer.uid] = ops
             return ops
 
+    def server_desk(self) -> Operations:
+        """The server's own engine, acting as the server and for nobody (``SERVER_OPERATOR``): the
+        telemetry it polls for every console (``telemetry``). Its polls only read, except what a poll
+        itself settles (a Go that was never taken), which the record then shows the server noticed."""
+        with self._lock:
+            if self._server is None:
+                config = replace(self.config, operator=replace(self.config.operator, name=SERVER_OPERATOR))
+                self._server = Operations(
+                    config, self.store, clock=self.clock, environ=self.environ, holder=SERVER_OPERATOR,
+                    login=Login(account_of(os.geteuid()), None, SERVER_OPERATOR),
+                )  # fmt: skip
+            return self._server
+
     def any_desk(self) -> Operations | None:
         with self._lock:
             return next(iter(self._desks.values()), None)
 
     def close(self) -> None:
         with self._lock:
-            for ops in self._desks.values():
+            for ops in [*self._desks.values(), *([self._server] if self._server is not None else [])]:
                 for capsule in ops.capsules.values():
                     capsule.link.close()

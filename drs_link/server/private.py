@@ -164,15 +164,16 @@ class InProcessServer:
 
     def __init__(
         self, config: Config, predictor_for: PredictorFor | None = None, environ: dict[str, str] | None = None,
-        clock: Callable[[], datetime] | None = None,
+        clock: Callable[[], datetime] | None = None, poll_period_s: float | None = None,
     ) -> None:  # fmt: skip
+        """``poll_period_s``: the demo's pace of telemetry polls (``OperationsServer``)."""
         import asyncio
 
         from drs_link.server.app import OperationsServer
 
         self.socket = private_socket(config).with_name(f"server-{os.getpid()}-{id(self):x}.sock")
         self.server = OperationsServer(config, "private", self.socket, predictor_for=predictor_for,
-                                       environ=environ, clock=clock)  # fmt: skip
+                                       environ=environ, clock=clock, poll_period_s=poll_period_s)  # fmt: skip
         self._loop: asyncio.AbstractEventLoop | None = None
         failed: list[BaseException] = []
 

@@ -520,6 +520,18 @@ class Event(msgspec.Struct, frozen=True):
     """Each capsule's ARM window as the subscribing account sees it (``mine`` is that account's)."""
 
 
+class TelemetryBatch(msgspec.Struct, frozen=True):
+    """What ``/v1/telemetry`` pushes (the snapshot first, then each new batch) and a capsule's poll
+    answers: records, each a line of the telemetry recording format (``TelemetryRecord.to_json``).
+
+    Why the recording's lines inside a Struct rather than the records as Structs: the records are
+    dataclasses of a union of sample kinds, and the recording format is their one versioned encoding
+    with a strict parser (``TelemetryRecord.from_json``: format version, kind, every field checked); a
+    second, msgspec-typed mirror of every sample kind would be a second encoding to keep in step."""
+
+    records: tuple[str, ...]
+
+
 def iso_utc(moment: datetime) -> str:
     """A typed time as the store and every ``--json`` output write it (ISO 8601, milliseconds, ``Z``)."""
     return moment.astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")

@@ -53,7 +53,7 @@ async def test_recovery_does_not_call_a_report_stale_before_the_next_is_due_on_t
         setup = ConsoleSetup(mode="live", capsules=["DRS1"], store=store, clock=clock, operations=operations)
         app = DrsConsole(setup, live_timers=False)
         async with app.run_test(size=(120, 40)) as pilot:
-            app.poll_reports()
+            app.start_telemetry()  # the server reads the reports and pushes them
             await wait_for(pilot, lambda: len(app.fleet.capsules["DRS1"].reports) == 7)
             await pilot.press("v")
             screen = app.screen
