@@ -275,7 +275,16 @@ class LiveSettings:
     prior: RatePrior | None = None
     """The λ prior the evaluation measured (the flights' whole-descent λ on this law), flown when the
     model's calibration gave it none of its own."""
+    law: str = "model"
+    """The law live re-prediction restarts from (``LIVE_LAWS``): ``model``, the model's own terms (a
+    file written before schema 5), or ``payload``, the payload's drag law with no calibrated term: the
+    plain restart from the nominal payload, which this flight's own λ then corrects (docs/planning.md,
+    issue #30: the calibrated shape and pooled λ added nothing live and did not carry across seasons
+    and payloads). ``discrepancy`` and ``prior`` were measured on that law."""
 
+
+LIVE_LAWS = ("model", "payload")
+"""What ``LiveSettings.law`` may name."""
 
 DEFAULT_ELLIPSE_NOTE = "live ellipse: the default (measured with the SuperBIT model, not this one; drs live evaluate --save-model)"
 
