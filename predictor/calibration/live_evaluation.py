@@ -1213,10 +1213,10 @@ def write_live_report(
         lambda landing, seconds: f"{np.mean(np.abs(seconds)):.0f} / {np.mean(seconds):+.0f}",
     )
     lines += [
-        "## The model's figure against the baselines, same run",
+        "## What ships against the baselines, same run",
         "",
         "Ratio of the mean error of *what ships* to each baseline's, with its 95 % interval "
-        f"({BOOTSTRAP_RESAMPLES} paired bootstrap draws of the flights). Below 1: the model does better.",
+        f"({BOOTSTRAP_RESAMPLES} paired bootstrap draws of the flights). Below 1: what ships does better.",
         "",
         "| height km | "
         + " | ".join(f"time ÷ {label}" for _, label in BASELINES)

@@ -114,12 +114,13 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.043, 3.782, 3.468, 3.801, 2.213, 1.603),
-    sigma_perpendicular_km=(3.602, 3.829, 3.876, 3.332, 1.625, 0.789),
+    sigma_parallel_km=(4.114, 3.852, 3.519, 3.915, 2.131, 1.363),
+    sigma_perpendicular_km=(3.561, 3.767, 3.83, 2.946, 1.449, 1.145),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,
 ``DEFAULT_ELLIPSE_NOTE``): measured by ``drs live evaluate`` on the 30 SuperBIT test flights with the
-2018–2019 model (docs/planning/live-reprediction.md); the committed model file carries the same."""
+2018–2019 model, of what ships (docs/planning/live-reprediction.md); the committed model file carries
+the same."""
 
 
 class Report(Protocol):
