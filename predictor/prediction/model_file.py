@@ -162,8 +162,13 @@ class CalibratedModel:
             pass  # the default's own prior by height, said in the first note
         elif prior is None:
             notes.append("no λ prior in the model: λ from this descent alone")
-        elif self.rate_prior is None or not on_terms:
-            notes.append("λ prior from the model's live evaluation (its calibration gave none on this law)")
+        elif not on_terms:
+            notes.append(
+                "live law: the payload's drag law with this flight's own λ (its live evaluation's prior); "
+                "the model's terms fly before release"
+            )
+        elif self.rate_prior is None:
+            notes.append("λ prior from the model's live evaluation (its calibration gave none)")
         correction = settings.correction if corrected else NO_CORRECTION
         return LivePredictor(
             cube, self.payload, terrain, correction, settings.error_model,

@@ -369,3 +369,4 @@ def test_live_restarts_from_the_law_the_file_names_and_an_older_file_from_its_te
     live = load_model(newer).live_predictor(cube)
     assert live.effects == () and live.payload == example().payload
     assert live.prior is not None and live.prior.flights == 9
+    assert any(note.startswith("live law: the payload's drag law") for note in live.notes)
