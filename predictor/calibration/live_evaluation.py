@@ -120,6 +120,43 @@ PROFILE_CORRECTIONS = {
 """On the textbook law the baselines (the plain restart, and the same λ estimator as the model's) and
 what ships below ``WIND_BELOW_M``."""
 TEXTBOOK_RATE_WIND = f"profile · {OWN} + wind {_wind_label(SHIPPED_DECAY_M)}"
+MODEL_RATE_WIND = f"model · {OWN} + wind {_wind_label(SHIPPED_DECAY_M)}"
+
+
+def live_law(result: Evaluation, leave_out: str | None = None) -> str:
+    """The law live re-prediction flies below ``PLAIN_ABOVE_M``: ``model`` only where the model's law with
+    this flight's own λ beat the payload's law with the same λ estimator on these flights (without
+    ``leave_out``) beyond its 95 % interval, each flight's mean |remaining-time error| over its reports
+    below that height (the upper end of the ratio's paired-bootstrap interval below 1); else ``payload``.
+
+    Why an interval and not the point estimate: the calibrated law also flies its pooled λ, which did
+    not carry from one season or payload to another, and on 15–30 real flights it was within a few
+    percent of the payload's law (0.98–0.99, the interval's upper end 1.007–1.08, on every training set
+    of docs/planning.md), so it must be clearly better on the flights at hand to be flown; a law whose
+    shape is right (an independent world with the library's own two-regime form) is, by a factor of
+    several."""
+    key = leave_out or ""
+    if key not in result.law_choice:
+        ratio = law_ratio(result, leave_out)
+        result.law_choice[key] = "model" if ratio is not None and ratio[2] < 1.0 else "payload"
+    return result.law_choice[key]
+
+
+def law_ratio(result: Evaluation, leave_out: str | None = None) -> tuple[float, float, float] | None:
+    """The model's law + λ ÷ the payload's law + λ, each flight's mean |remaining-time error| over its
+    reports below ``PLAIN_ABOVE_M`` (without ``leave_out``), with its 95 % paired-bootstrap interval over
+    the flights (None: the model has no terms, or fewer than 3 flights)."""
+    below = [c for c in result.cases if 1000.0 * c.checkpoint_km < PLAIN_ABOVE_M and c.flight != leave_out]
+    flights = sorted({c.flight for c in below})
+    if not result.model_terms or len(flights) < 3:
+        return None
+
+    def mean_error(name: str, flight: str) -> float:
+        return float(np.mean([abs(c.time_error_s[name]) for c in below if c.flight == flight]))
+
+    return ratio_interval(
+        [mean_error(RATE, f) for f in flights], [mean_error(TEXTBOOK_RATE, f) for f in flights]
+    )
 
 
 def configurations() -> dict[str, tuple[str, LiveCorrection]]:
@@ -204,6 +241,8 @@ class Evaluation:
     training: Evaluation | None = None
     """Train → score: the training flights' own (leave-one-out) evaluation, which made every choice
     for the scored flights here and decides what ships (None: leave-one-out on these flights)."""
+    law_choice: dict[str, str] = field(default_factory=dict, repr=False, compare=False)
+    """``live_law`` of these flights, by the flight left out ('' for none), once computed."""
 
     def band_switch_name(self, case: Case) -> str:
         """The configuration the training flights' band switch (what shipped before issue #30) gives
@@ -211,13 +250,16 @@ class Evaluation:
         km = case.checkpoint_km
         return _combined(self.rate_choice[km][case.flight], self.wind_choice[km][case.flight])
 
-    @staticmethod
-    def shipped_name(case: Case) -> str:
-        """What ships for this case (``PLAIN_ABOVE_M``): the plain restart in the top band, the
-        textbook law with this flight's own λ below it, and the wind below ``WIND_BELOW_M``."""
+    def shipped_name(self, case: Case) -> str:
+        """What ships for this case (``PLAIN_ABOVE_M``): the plain restart in the top band, the live law
+        (``live_law``, chosen without this flight) with this flight's own λ below it, and the wind
+        below ``WIND_BELOW_M``."""
         height_m = 1000.0 * case.checkpoint_km
         if height_m >= PLAIN_ABOVE_M:
             return PLAIN_RESTART
+        law = live_law(self.training or self, leave_out=case.flight)
+        if law == "model":
+            return RATE if height_m >= WIND_BELOW_M else MODEL_RATE_WIND
         return TEXTBOOK_RATE if height_m >= WIND_BELOW_M else TEXTBOOK_RATE_WIND
 
 
@@ -991,7 +1033,8 @@ def live_settings(model: CalibratedModel, result: Evaluation, command: str) -> C
     """The model with what its evaluation kept: the rule that ships (``SHIPPED_CORRECTION`` on the
     payload's law), the λ discrepancy and prior these flights measured on that law, and the live
     ellipse."""
-    prior, discrepancy = result.rate_laws["profile"]
+    law = live_law(result)
+    prior, discrepancy = result.rate_laws["model" if law == "model" else "profile"]
     ratios = {}
     for km in FLOOR_KMS:
         if km in result.rate_choice:
@@ -1009,7 +1052,7 @@ def live_settings(model: CalibratedModel, result: Evaluation, command: str) -> C
             **ratios,
         },
     }
-    settings = LiveSettings(SHIPPED_CORRECTION, fit_live_sigma(result), discrepancy, prior, "payload")
+    settings = LiveSettings(SHIPPED_CORRECTION, fit_live_sigma(result), discrepancy, prior, law, "payload")
     return dataclasses.replace(model, live=settings, provenance=provenance)
 
 
@@ -1109,6 +1152,18 @@ def _held_out_text(result: Evaluation) -> str:
     )
 
 
+def _law_text(result: Evaluation) -> str:
+    """The live law and why (``live_law``), for the report."""
+    ratio = law_ratio(result)
+    if ratio is None:
+        return "the payload's drag law (the model has no calibrated terms)"
+    which = "the model's law" if live_law(result) == "model" else "the payload's drag law"
+    return (
+        f"{which} (model + λ ÷ textbook + λ below {PLAIN_ABOVE_M / 1000:g} km on these flights "
+        f"{ratio[0]:.2f}, 95 % {ratio[1]:.2f}–{ratio[2]:.2f}; the model's law only if the whole interval is below 1)"
+    )
+
+
 def _bands_text(shipped: LiveCorrection) -> str:
     return "; ".join(b.describe() for b in shipped.bands) or "nothing (plain re-prediction everywhere)"
 
@@ -1181,8 +1236,9 @@ def write_live_report(
         "the textbook law. **wind L** = the measured wind error, decaying below the capsule with L in "
         f"{', '.join('∞' if math.isinf(d) else f'{d / 1000:g} km' for d in DECAYS_M)}. "
         f"**what ships**: the plain restart above {PLAIN_ABOVE_M / 1000:g} km above the ground, textbook "
-        f"+ λ below it, and the wind with L = {SHIPPED_DECAY_M / 1000:g} km below "
-        f"{WIND_BELOW_M / 1000:g} km: one rule learned from no training set (issue #30). Measured "
+        f"+ λ below it (the model + λ only where it beat textbook + λ beyond its 95 % interval on the "
+        f"other, training, flights), and the wind with L = {SHIPPED_DECAY_M / 1000:g} km below "
+        f"{WIND_BELOW_M / 1000:g} km: one rule, its bands learned from no training set (issue #30). Measured "
         "beside it: **training band switch** (what shipped before): for each flight λ on or off on the "
         "model's law (by the mean |remaining-time error| of the OTHER, training, flights) and then the "
         "wind (by their mean landing error) that those flights preferred at that checkpoint. "
@@ -1344,9 +1400,10 @@ def write_live_report(
             if h in coverage
         ],
         "",
-        "What ships (the model file's `live.law` `payload` and `live.bands`, bands of height above the "
-        f"ground): the payload's drag law, {_bands_text(SHIPPED_CORRECTION)}; elsewhere the plain restart "
-        f"from the report. The band switch would have shipped, on the model's law: "
+        f"What ships (the model file's `live.law` `{live_law(result.training or result)}`, `live.restart` "
+        "`payload` and `live.bands`, bands of height above the ground): "
+        f"{_law_text(result.training or result)}, {_bands_text(SHIPPED_CORRECTION)}; elsewhere the plain "
+        "restart from the nominal payload. The band switch would have shipped, on the model's law: "
         f"{_bands_text(band_switch_correction(result))}.",
         "",
         "The band switch's choices per flight (held-out):",

@@ -277,11 +277,15 @@ class LiveSettings:
     """The λ prior the evaluation measured (the flights' whole-descent λ on this law), flown when the
     model's calibration gave it none of its own."""
     law: str = "model"
-    """The law live re-prediction restarts from (``LIVE_LAWS``): ``model``, the model's own terms (a
-    file written before schema 5), or ``payload``, the payload's drag law with no calibrated term: the
-    plain restart from the nominal payload, which this flight's own λ then corrects (docs/planning.md,
-    issue #30: the calibrated shape and pooled λ added nothing live and did not carry across seasons
-    and payloads). ``discrepancy`` and ``prior`` were measured on that law."""
+    """The law the bands correct (``LIVE_LAWS``): ``model``, the model's own terms, or ``payload``, the
+    payload's drag law with no calibrated term (the plain restart from the nominal payload), which this
+    flight's own λ then corrects. ``discrepancy`` and ``prior`` were measured on that law. ``drs live
+    evaluate`` ships the model's law only where, on its flights, it beat the payload's with the same λ
+    beyond its 95 % interval (docs/planning.md, issue #30: on the real flights it never did)."""
+    restart: str = "model"
+    """The law flown outside every band (``LIVE_LAWS``): ``payload``, the plain restart from the nominal
+    payload (what ``drs live evaluate`` writes since schema 5: never a stale pooled λ), or ``model``,
+    the model's terms (a file written before schema 5, as it flew)."""
 
 
 LIVE_LAWS = ("model", "payload")
@@ -634,6 +638,7 @@ class LivePredictor:
         prior: RatePrior | None = None,
         discrepancy: RateDiscrepancy = NO_DISCREPANCY,
         notes: Sequence[str] = (),
+        restart_effects: Sequence[Term] | None = None,
     ) -> None:
         self.cube = cube
         self.payload = payload or PROFILES["drs"]
@@ -642,6 +647,8 @@ class LivePredictor:
         self.error_model = error_model
         self.step_m = step_m
         self.effects = tuple(effects)
+        self.restart_effects = self.effects if restart_effects is None else tuple(restart_effects)
+        """The terms flown outside every band of the correction (default: ``effects``)."""
         self.prior = prior
         self.discrepancy = discrepancy
         self.notes = tuple(notes)
@@ -760,7 +767,7 @@ class LivePredictor:
         decay = band.decay_m if band is not None else None
         rate = self.rate(report) if band is not None and band.use_rate else None
         (east, north), measured_at = self._wind_error(report.alt_m, correction)
-        terms: list[Term] = list(self.effects)
+        terms: list[Term] = list(self.effects if band is not None else self.restart_effects)
         if rate is not None and rate.factor != 1.0:
             terms.append(DescentRateScale(scale=rate.factor))
         if decay is not None and self.legs and report.alt_m > -500.0 + WIND_BIN_M:

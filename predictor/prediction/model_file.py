@@ -173,6 +173,7 @@ class CalibratedModel:
         return LivePredictor(
             cube, self.payload, terrain, correction, settings.error_model,
             effects=self.terms if on_terms else (),
+            restart_effects=self.terms if settings.restart == "model" else (),
             prior=prior, discrepancy=settings.discrepancy, notes=notes,
         )  # fmt: skip
 
@@ -308,6 +309,7 @@ def _live_to_dict(live: LiveSettings) -> dict[str, Any]:
     d = live.discrepancy
     return {
         "law": live.law,
+        "restart": live.restart,
         "bands": [band(b) for b in live.correction.bands],
         "wind_window_m": live.correction.wind_window_m,
         "discrepancy": {
@@ -592,9 +594,12 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
             raise refuse(where, "wind_decay_m must be a positive length (or null)")
         bands.append(Band(lower, upper, item["use_rate"], decay_m))
     wind_window = _number(raw.get("wind_window_m"), "live.wind_window_m", refuse)
-    law = raw.get("law", "model")
-    if law not in LIVE_LAWS:
-        raise refuse("live.law", f"must be one of {', '.join(LIVE_LAWS)} (absent: model), got {law!r}")
+    law, restart = raw.get("law", "model"), raw.get("restart", "model")
+    for key, value in (("law", law), ("restart", restart)):
+        if value not in LIVE_LAWS:
+            raise refuse(
+                f"live.{key}", f"must be one of {', '.join(LIVE_LAWS)} (absent: model), got {value!r}"
+            )
     return LiveSettings(
         LiveCorrection(tuple(bands), wind_window),
         LiveErrorModel(*_table(raw.get("error_model"), "live.error_model",
@@ -603,6 +608,7 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
         _rate_prior(raw["prior"], lambda field, problem: refuse(field.replace("rate_prior", "live.prior"), problem))
         if "prior" in raw else None,
         law,
+        restart,
     )  # fmt: skip
 
 
