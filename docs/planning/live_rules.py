@@ -29,7 +29,8 @@ flights alone in train → score):
   and one interval below the burst are not evidence), else the plain restart;
 * *restart above 22.5 km*: the plain restart at the 25 km checkpoint, textbook + λ below; *+ wind L
   below 12.5 km*: and the wind with L below 12.5 km (on the model's law + λ, the proxy the evaluation
-  has for every L); *what ships*: the same on the textbook law with L = 4 km.
+  has for every L); *what ships*: the same with L = 4 km on the live law (`live_law`: the textbook
+  law on every split here).
 """
 
 from __future__ import annotations
