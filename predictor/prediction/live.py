@@ -114,12 +114,13 @@ class LiveErrorModel:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.043, 3.782, 3.468, 3.801, 2.213, 1.603),
-    sigma_perpendicular_km=(3.602, 3.829, 3.876, 3.332, 1.625, 0.789),
+    sigma_parallel_km=(4.114, 3.852, 3.519, 3.915, 2.131, 1.363),
+    sigma_perpendicular_km=(3.561, 3.767, 3.83, 2.946, 1.449, 1.145),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,
 ``DEFAULT_ELLIPSE_NOTE``): measured by ``drs live evaluate`` on the 30 SuperBIT test flights with the
-2018–2019 model (docs/planning/live-reprediction.md); the committed model file carries the same."""
+2018–2019 model, of what ships (docs/planning/live-reprediction.md); the committed model file carries
+the same."""
 
 
 class Report(Protocol):
@@ -275,7 +276,20 @@ class LiveSettings:
     prior: RatePrior | None = None
     """The λ prior the evaluation measured (the flights' whole-descent λ on this law), flown when the
     model's calibration gave it none of its own."""
+    law: str = "model"
+    """The law the bands correct (``LIVE_LAWS``): ``model``, the model's own terms, or ``payload``, the
+    payload's drag law with no calibrated term (the plain restart from the nominal payload), which this
+    flight's own λ then corrects. ``discrepancy`` and ``prior`` were measured on that law. ``drs live
+    evaluate`` ships the model's law only where, on its flights, it beat the payload's with the same λ
+    beyond its 95 % interval (docs/planning.md, issue #30: on the real flights it never did)."""
+    restart: str = "model"
+    """The law flown outside every band (``LIVE_LAWS``): ``payload``, the plain restart from the nominal
+    payload (what ``drs live evaluate`` writes since schema 5: never a stale pooled λ), or ``model``,
+    the model's terms (a file written before schema 5, as it flew)."""
 
+
+LIVE_LAWS = ("model", "payload")
+"""What ``LiveSettings.law`` may name."""
 
 DEFAULT_ELLIPSE_NOTE = "live ellipse: the default (measured with the SuperBIT model, not this one; drs live evaluate --save-model)"
 
@@ -624,6 +638,7 @@ class LivePredictor:
         prior: RatePrior | None = None,
         discrepancy: RateDiscrepancy = NO_DISCREPANCY,
         notes: Sequence[str] = (),
+        restart_effects: Sequence[Term] | None = None,
     ) -> None:
         self.cube = cube
         self.payload = payload or PROFILES["drs"]
@@ -632,6 +647,8 @@ class LivePredictor:
         self.error_model = error_model
         self.step_m = step_m
         self.effects = tuple(effects)
+        self.restart_effects = self.effects if restart_effects is None else tuple(restart_effects)
+        """The terms flown outside every band of the correction (default: ``effects``)."""
         self.prior = prior
         self.discrepancy = discrepancy
         self.notes = tuple(notes)
@@ -750,7 +767,7 @@ class LivePredictor:
         decay = band.decay_m if band is not None else None
         rate = self.rate(report) if band is not None and band.use_rate else None
         (east, north), measured_at = self._wind_error(report.alt_m, correction)
-        terms: list[Term] = list(self.effects)
+        terms: list[Term] = list(self.effects if band is not None else self.restart_effects)
         if rate is not None and rate.factor != 1.0:
             terms.append(DescentRateScale(scale=rate.factor))
         if decay is not None and self.legs and report.alt_m > -500.0 + WIND_BIN_M:

@@ -32,6 +32,7 @@ from predictor.prediction.live import (
     DEFAULT_DISCREPANCY,
     DEFAULT_ELLIPSE_NOTE,
     LIVE_ERROR_MODEL,
+    LIVE_LAWS,
     NO_CORRECTION,
     OWN_RATE,
     Band,
@@ -81,10 +82,12 @@ take, a fast fall at most 10× the canopy's, heights inside the weather, ±60 m/
 fit's own factor bounds). A model file with a value outside them was not made by a calibration and is
 refused (an exponent of 5 is an 8-minute fall from 28 km, a wind scale of −1 blows backwards)."""
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 """2 added the optional ``live`` section, 3 the optional ``rate_prior``, 4 each term's ``flown`` (the
-pre-flight gate): a drs that reads an older schema refuses such a file rather than fly the model without
-what was measured for it (a schema-3 reader would fly a live-only term before release)."""
+pre-flight gate), 5 the live section's ``law`` (what live re-prediction restarts from; absent: the
+model's terms, as every older file flew): a drs that reads an older schema refuses such a file rather
+than fly the model without what was measured for it (a schema-3 reader would fly a live-only term
+before release, a schema-4 one the model's terms with a λ table measured on the payload's law)."""
 FLOWN = ("both", "live-only", "pre-flight-only")
 """A term's ``flown`` in a schema-4 file: by both laws; only once the flight's own λ is known (the
 pre-flight gate found it made the held-out pre-flight prediction worse); only before release (the
@@ -153,16 +156,24 @@ class CalibratedModel:
             settings = LiveSettings(OWN_RATE, LIVE_ERROR_MODEL, DEFAULT_DISCREPANCY)
         else:
             settings = self.live
-        prior = self._prior_on_terms() or settings.prior
+        on_terms = settings.law == "model"
+        prior = (self._prior_on_terms() if on_terms else None) or settings.prior
         if self.live is None and settings.discrepancy.remaining_log_mean:
             pass  # the default's own prior by height, said in the first note
         elif prior is None:
             notes.append("no λ prior in the model: λ from this descent alone")
+        elif not on_terms:
+            notes.append(
+                "live law: the payload's drag law with this flight's own λ (its live evaluation's prior); "
+                "the model's terms fly before release"
+            )
         elif self.rate_prior is None:
             notes.append("λ prior from the model's live evaluation (its calibration gave none)")
         correction = settings.correction if corrected else NO_CORRECTION
         return LivePredictor(
-            cube, self.payload, terrain, correction, settings.error_model, effects=self.terms,
+            cube, self.payload, terrain, correction, settings.error_model,
+            effects=self.terms if on_terms else (),
+            restart_effects=self.terms if settings.restart == "model" else (),
             prior=prior, discrepancy=settings.discrepancy, notes=notes,
         )  # fmt: skip
 
@@ -297,6 +308,8 @@ def _live_to_dict(live: LiveSettings) -> dict[str, Any]:
     e = live.error_model
     d = live.discrepancy
     return {
+        "law": live.law,
+        "restart": live.restart,
         "bands": [band(b) for b in live.correction.bands],
         "wind_window_m": live.correction.wind_window_m,
         "discrepancy": {
@@ -581,6 +594,12 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
             raise refuse(where, "wind_decay_m must be a positive length (or null)")
         bands.append(Band(lower, upper, item["use_rate"], decay_m))
     wind_window = _number(raw.get("wind_window_m"), "live.wind_window_m", refuse)
+    law, restart = raw.get("law", "model"), raw.get("restart", "model")
+    for key, value in (("law", law), ("restart", restart)):
+        if value not in LIVE_LAWS:
+            raise refuse(
+                f"live.{key}", f"must be one of {', '.join(LIVE_LAWS)} (absent: model), got {value!r}"
+            )
     return LiveSettings(
         LiveCorrection(tuple(bands), wind_window),
         LiveErrorModel(*_table(raw.get("error_model"), "live.error_model",
@@ -588,6 +607,8 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
         _discrepancy(raw.get("discrepancy"), refuse),
         _rate_prior(raw["prior"], lambda field, problem: refuse(field.replace("rate_prior", "live.prior"), problem))
         if "prior" in raw else None,
+        law,
+        restart,
     )  # fmt: skip
 
 

@@ -13,10 +13,10 @@ import pytest
 from console.commands.main import main
 from predictor.calibration.live_evaluation import (
     Evaluation,
+    band_switch_correction,
     evaluate_live,
     floors,
     rate_helps,
-    shipped_correction,
     wind_helps,
     write_live_report,
 )
@@ -52,7 +52,7 @@ def test_the_scored_flights_fly_what_the_training_flights_alone_chose(scored: Ev
         assert set(scored.wind_choice[km].values()) == {wind}
         assert rate_helps(scored, km) == rate_helps(training, km)
         assert wind_helps(scored, km) == wind_helps(training, km)
-    assert shipped_correction(scored) == shipped_correction(training)
+    assert band_switch_correction(scored) == band_switch_correction(training)
 
 
 def test_the_train_score_report_says_so_and_checks_the_floors(scored: Evaluation, tmp_path: Path) -> None:
@@ -154,17 +154,49 @@ def test_a_refit_disagreement_names_the_weather_when_it_differs(shared_data: Pat
     )
 
 
+PLANNING = Path(__file__).parents[3] / "docs" / "planning"
+
+
+@pytest.fixture(scope="module")
+def across_seasons(shared_data: Path) -> dict[str, Evaluation]:
+    """SuperBIT 2018 → 2019 and 2019 → 2018, each season's model calibrated on it alone (the committed
+    reports' commands, docs/planning.md)."""
+    folder = shared_data / "tracks" / "pyballoon_superbit"
+    seasons = {year: sorted(folder.glob(f"{year}-*.csv")) for year in ("18", "19")}
+    return {
+        f"20{a} → 20{b}": evaluate_live(
+            seasons[b], model=load_model(PLANNING / f"superbit-20{a}-model.json"), train=seasons[a]
+        )
+        for a, b in (("18", "19"), ("19", "18"))
+    }
+
+
+def test_across_seasons_what_ships_is_never_worse_than_the_plain_restart(
+    across_seasons: dict[str, Evaluation],
+) -> None:
+    # Issue #30's floors, held out a whole season: what ships ÷ the plain restart from the nominal payload
+    # ≤ 1.0 in remaining time and landing from 25, 20, 15, 10 and 5 km, and the time ≤ 0.85 from 15 and
+    # 10 km. The training flights' band switch it replaced missed from 25 km in both directions (time /
+    # landing 1.02 / 1.06 and 1.31 / 1.13: the training season's choice of the model's pooled λ) and the
+    # landing from 20 km in 2018 → 2019 (1.11: its wind choice). Measured with the rule: 2018 → 2019 1.00 /
+    # 1.00, 0.80 / 0.91, 0.72 / 0.88, 0.65 / 0.90, 0.72 / 0.98; 2019 → 2018 1.00 / 1.00, 0.91 / 0.94,
+    # 0.66 / 0.89, 0.60 / 0.95, 0.34 / 0.93 (25 → 5 km). The data are the committed tracks and models and
+    # the evaluation draws nothing (the bootstrap interval has a fixed seed and is not asserted), so this
+    # fails only if the rule, the λ estimator or the data change; the closest margin is 0.02 (the
+    # landing from 5 km in 2018 → 2019).
+    for split, result in across_seasons.items():
+        checks = floors(result)
+        assert len(checks) == 10, split
+        missed = [(km, label, round(ratio, 3)) for km, label, ratio, _, _, met in checks if not met]
+        assert not missed, split
+
+
 def test_the_committed_cross_season_report_is_what_the_evaluation_writes(
-    shared_data: Path, tmp_path: Path
+    across_seasons: dict[str, Evaluation], tmp_path: Path
 ) -> None:
     # docs/planning/live-2018-to-2019.md, regenerated with the command it names (docs/planning.md).
-    folder = shared_data / "tracks" / "pyballoon_superbit"
-    planning = Path(__file__).parents[3] / "docs" / "planning"
-    result = evaluate_live(
-        sorted(folder.glob("19-*.csv")),
-        model=load_model(planning / "superbit-2018-model.json"),
-        train=sorted(folder.glob("18-*.csv")),
-    )
+    planning = PLANNING
+    result = across_seasons["2018 → 2019"]
     command = (
         "drs live evaluate --train <15 track files 18-* in pyballoon_superbit> --score <15 track files 19-* "
         "in pyballoon_superbit> --model docs/planning/superbit-2018-model.json --name live-2018-to-2019 "

@@ -1,5 +1,5 @@
-"""Live re-prediction on the 30 real SuperBIT flights: what ships is what held-out flights kept, and the
-model's figure beside the plain restart and the textbook law with the same λ estimator."""
+"""Live re-prediction on the 30 real SuperBIT flights: what ships (one rule, learned from no training set),
+beside the plain restart, the model's law and the training flights' band switch it replaced."""
 
 from __future__ import annotations
 
@@ -13,22 +13,30 @@ import pytest
 
 from console.commands.main import main
 from predictor.calibration.live_evaluation import (
-    HELD_OUT_LIVE,
+    BAND_SWITCH,
+    PLAIN_ABOVE_M,
     PLAIN_RESTART,
     RATE,
+    SHIPPED,
+    SHIPPED_CORRECTION,
     TEXTBOOK_RATE,
+    TEXTBOOK_RATE_WIND,
+    WIND_BELOW_M,
     Evaluation,
     _usable,
+    band_switch_correction,
     conservative_discrepancy,
     evaluate_live,
     fit_live_sigma,
+    floors,
     held_out,
     held_out_laws,
+    law_ratio,
+    live_law,
     live_settings,
     measured_discrepancies,
     rate_helps,
     ratio_interval,
-    shipped_correction,
     wind_helps,
     write_live_report,
 )
@@ -114,8 +122,8 @@ def test_the_live_choices_hardly_depend_on_the_other_flights_laws(
         for km, f in pairs
     )
     assert same >= 0.95 * len(pairs)
-    assert mean_time_s(one_law, 20.0, HELD_OUT_LIVE) == pytest.approx(
-        mean_time_s(result, 20.0, HELD_OUT_LIVE), abs=8.0
+    assert mean_time_s(one_law, 20.0, BAND_SWITCH) == pytest.approx(
+        mean_time_s(result, 20.0, BAND_SWITCH), abs=8.0
     )
 
 
@@ -144,40 +152,56 @@ def test_a_wind_error_at_altitude_does_not_continue_to_the_ground(result: Evalua
         assert mean_error(result, km, "wind const") > mean_error(result, km, "wind 2 km") + 0.3
 
 
-def test_the_correction_is_kept_only_where_held_out_flights_gained(result: Evaluation) -> None:
-    shipped = shipped_correction(result)
-    assert shipped.bands
-    for band in shipped.bands:
+def test_the_band_switch_kept_a_correction_only_where_held_out_flights_gained(result: Evaluation) -> None:
+    # What shipped before issue #30, still reported beside what ships.
+    switch = band_switch_correction(result)
+    assert switch.bands
+    for band in switch.bands:
         (km,) = [km for km in result.rate_choice if band.lower_m < km * 1000.0 < band.upper_m]
         assert band.use_rate == rate_helps(result, km)
         assert (band.decay_m is not None) == wind_helps(result, km)
-        if band.use_rate:
-            assert mean_time_s(result, km, "model · plain") > np.mean(
-                [abs(c.time_error_s[result.shipped_name(c)]) for c in result.cases if c.checkpoint_km == km]
-            )
 
 
-def test_the_model_is_no_worse_than_the_textbook_law_with_the_same_lambda_estimator(
-    result: Evaluation,
-) -> None:
-    # The issue's floor against the textbook law: the same λ update (prior and discrepancy from the
-    # other flights, on its own law). Measured 193.8 s against 194.2 s from 20 km (1.00) and 128 s
-    # against 152 s from 10 km (0.84); deterministic (no draw), so it fails only if the estimator or the
-    # data change. From 20 km the margin is 0.4 s: the model's shape adds nothing there that λ with the
-    # textbook law's own discrepancy does not (the report says so).
+def test_what_ships_is_one_rule_whatever_the_training_flights(result: Evaluation) -> None:
+    # The plain restart in the top band, the textbook law with this flight's own λ below it, the wind
+    # with L = 4 km below 12.5 km: no band was chosen by these flights, so no training set's luck can
+    # switch one. The model's law would replace the textbook law only if it beat it beyond its 95 %
+    # interval here; measured 0.99 (0.98–1.01) of it from 20 km down, so the textbook law flies, for
+    # every flight held out too.
+    assert live_law(result) == "payload"
+    ratio = law_ratio(result)
+    assert ratio is not None and ratio[2] >= 1.0
+    assert (PLAIN_ABOVE_M, WIND_BELOW_M) == (22500.0, 12500.0)
+    assert SHIPPED_CORRECTION.band_at(PLAIN_ABOVE_M) is None
+    high = SHIPPED_CORRECTION.band_at(PLAIN_ABOVE_M - 1.0)
+    low = SHIPPED_CORRECTION.band_at(WIND_BELOW_M - 1.0)
+    assert high is not None and high.use_rate and high.decay_m is None
+    assert low is not None and low.use_rate and low.decay_m == 4000.0
+    assert SHIPPED_CORRECTION.band_at(0.0) == low
+    expected = {25.0: PLAIN_RESTART, 20.0: TEXTBOOK_RATE, 15.0: TEXTBOOK_RATE}
+    for case in result.cases:
+        assert result.shipped_name(case) == expected.get(case.checkpoint_km, TEXTBOOK_RATE_WIND)
+
+
+def test_the_calibrated_shape_adds_nothing_live(result: Evaluation) -> None:
+    # Why the payload's law ships live: with the same λ estimator, the model's law (its shape and pooled
+    # λ) is within 3 % of the textbook law's remaining-time error from 20 and 10 km (measured 0.99 and
+    # 0.98; deterministic data, so it fails only if the estimator, the model or the data change).
     for km in (20.0, 10.0):
-        assert mean_time_s(result, km, HELD_OUT_LIVE) <= mean_time_s(result, km, TEXTBOOK_RATE), km
+        assert mean_time_s(result, km, RATE) == pytest.approx(
+            mean_time_s(result, km, TEXTBOOK_RATE), rel=0.03
+        )
 
 
 def test_the_lambda_update_beats_the_plain_restart_from_20_km_down(result: Evaluation) -> None:
     # Against the plain restart with the nominal payload (drs live --no-correction): measured 0.82 from
     # 20 km and 0.71 from 10 km. The issue asks ≤ 0.8 at both: met from 10 km, missed by 0.02 from 20 km
     # (the report says so); pinned here at what was measured, with the 95 % interval's upper end below 1.
-    assert mean_time_s(result, 20.0, HELD_OUT_LIVE) <= 0.85 * mean_time_s(result, 20.0, PLAIN_RESTART)
-    assert mean_time_s(result, 10.0, HELD_OUT_LIVE) <= 0.80 * mean_time_s(result, 10.0, PLAIN_RESTART)
+    assert mean_time_s(result, 20.0, SHIPPED) <= 0.85 * mean_time_s(result, 20.0, PLAIN_RESTART)
+    assert mean_time_s(result, 10.0, SHIPPED) <= 0.80 * mean_time_s(result, 10.0, PLAIN_RESTART)
     for km in (15.0, 10.0, 5.0):
         rows = held_out(result, km)
-        assert ratio_interval(rows[HELD_OUT_LIVE][1], rows[PLAIN_RESTART][1])[2] < 1.0, km
+        assert ratio_interval(rows[SHIPPED][1], rows[PLAIN_RESTART][1])[2] < 1.0, km
 
 
 def test_the_discrepancy_takes_the_shared_departure_out_of_the_record(result: Evaluation) -> None:
@@ -216,6 +240,7 @@ def test_the_committed_model_carries_the_live_settings_its_evaluation_kept(
     # digit of what was committed on another (tests/approx.py: the last bits differ between CPUs).
     assert_close(live_settings(committed, result, COMMAND).live, committed.live)
     assert committed.live.prior is not None and committed.live.prior.flights == 30
+    assert committed.live.law == "payload" and committed.live.correction == SHIPPED_CORRECTION
     assert committed.provenance["live"]["flights"] == result.flights
 
 
@@ -396,3 +421,21 @@ def test_a_model_without_live_settings_flies_the_measured_conservative_discrepan
     live = bare.live_predictor(cube)
     assert live.discrepancy == DEFAULT_DISCREPANCY
     assert any("conservative default discrepancy" in note for note in live.notes)
+
+
+def test_the_committed_eoss_leave_one_out_report_is_what_the_evaluation_writes(tmp_path: Path) -> None:
+    # docs/planning/live-eoss-leave-one-out.md (its command in docs/planning.md): another team's 10 landed
+    # flights, each flown with what the other 9 measured. What ships meets every floor of issue #30 there
+    # (from 25 km it is the plain restart itself; measured 0.25–0.36× in time and 0.66–0.97× in landing
+    # from 20–5 km; deterministic data and no draw, so a failure is a change of the rule, the estimator or
+    # the tracks).
+    eoss = sorted((REPO_ROOT / "tests" / "data" / "eoss").glob("*_descent.csv"))
+    result = evaluate_live(eoss)
+    assert len(result.flights) == 10
+    assert all(met for *_, met in floors(result))
+    command = (
+        "drs live evaluate <14 track files eoss-* in eoss> --name live-eoss-leave-one-out --out docs/planning"
+    )
+    written = write_live_report(result, tmp_path, command, "live-eoss-leave-one-out")
+    committed = REPO_ROOT / "docs" / "planning" / "live-eoss-leave-one-out.md"
+    assert_text_close(written.read_text(encoding="utf-8"), committed.read_text(encoding="utf-8"))

@@ -202,6 +202,14 @@ def _with(change: dict) -> dict:
             _with({"live.error_model.sigma_parallel_km": [3.9]}),
             r"live\.error_model: heights_km, sigma_parallel_km, sigma_perpendicular_km must be as long",
         ),
+        (
+            _with({"live.law": "shape"}),
+            r"live\.law: must be one of model, payload \(absent: model\), got 'shape'",
+        ),
+        (
+            _with({"live.restart": 1}),
+            r"live\.restart: must be one of model, payload \(absent: model\), got 1",
+        ),
     ],
     ids=[
         "corrupt",
@@ -225,6 +233,8 @@ def _with(change: dict) -> dict:
         "live-remaining-length",
         "live-remaining-mean",
         "live-sigma",
+        "live-law",
+        "live-restart",
     ],  # fmt: skip
 )
 def test_a_bad_model_file_is_refused_naming_the_file_and_the_field(
@@ -340,3 +350,32 @@ def test_the_shape_is_the_terms_without_the_priors_median() -> None:
     assert replace(with_prior, rate_prior=None).shape_terms() == with_prior.terms, (
         "no prior: λ is a term like any"
     )
+
+
+def test_live_restarts_from_the_law_the_file_names_and_an_older_file_from_its_terms(tmp_path: Path) -> None:
+    # Schema 5 names the live law (what the bands correct) and the restart (what flies outside them); a
+    # file written before (neither) flew the model's terms live everywhere, and still does. ``payload``:
+    # the payload's drag law, no calibrated term (the plain restart from the nominal payload, which the
+    # flight's own λ corrects), with the evaluation's λ prior since the calibration's is on the terms.
+    document = example().to_dict()
+    assert document["schema"] == SCHEMA_VERSION == 5
+    assert (document["live"]["law"], document["live"]["restart"]) == ("model", "model")
+    del document["live"]["law"], document["live"]["restart"]
+    document["schema"] = 4
+    older = tmp_path / "old.json"
+    older.write_text(json.dumps(document), encoding="utf-8")
+    cube = load_weather(
+        demo_weather_files(46.5, 6.6, WHEN, cache_dir=tmp_path / "wx"), cache_dir=tmp_path / "c"
+    )
+    assert load_model(older).live == example().live
+    old = load_model(older).live_predictor(cube)
+    assert old.effects == old.restart_effects == example().terms
+    document["live"]["law"] = "payload"
+    document["live"]["restart"] = "payload"
+    document["live"]["prior"] = {"median": 1.0, "log_sigma": 0.1, "flights": 9}
+    newer = tmp_path / "new.json"
+    newer.write_text(json.dumps(document), encoding="utf-8")
+    live = load_model(newer).live_predictor(cube)
+    assert live.effects == live.restart_effects == () and live.payload == example().payload
+    assert live.prior is not None and live.prior.flights == 9
+    assert any(note.startswith("live law: the payload's drag law") for note in live.notes)
