@@ -7,6 +7,10 @@ import json
 
 from console.commands.argparser import input_file
 
+IN_BANDS = {"model": "the model's terms", "payload": "the payload's drag law"}
+OUTSIDE_BANDS = {"model": "the model's terms", "payload": "the plain restart from the nominal payload"}
+"""How ``drs model show`` names the live laws (``LiveSettings.law`` in the bands, ``restart`` outside them)."""
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     model = subparsers.add_parser(
@@ -83,6 +87,10 @@ def run_show(args: argparse.Namespace) -> int:
         lines.append(
             "live      "
             + ("; ".join(b.describe() for b in model.live.correction.bands) or "plain re-prediction")
+        )
+        lines.append(
+            f"live law  in the bands: {IN_BANDS[model.live.law]}, with the flight's own λ where a band updates it; "
+            f"outside them: {OUTSIDE_BANDS[model.live.restart]}"
         )
         lines.append(
             "live 1σ   "

@@ -92,6 +92,8 @@ def test_drs_model_show_names_the_payload_terms_ellipse_and_provenance(
     for text in ("superbit-test: 6 kg, Cd·A 1.36 m²", "term      drag_density_exponent (vertical): exponent 0.06",
                  "ellipse   σ0 1.2 km", "flights   2: 18-5-19, 18-6-30", "weather   ascent winds",
                  "live      0 km–5 km: own λ updated, wind off; 5 km–top: own λ updated, wind L = 2 km",
+                 "live law  in the bands: the model's terms, with the flight's own λ where a band updates it; "
+                 "outside them: the model's terms",
                  "live 1σ   20 km 3.90×3.80 km"):  # fmt: skip
         assert text in out
 
