@@ -36,7 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def cmd_chase(args: argparse.Namespace) -> int:
     from drs_link.feeds import CHASE_PERIOD_S, ChaseSender
-    from drs_link.server.client import Client
+    from drs_link.server import Client
 
     config = load_config(args.config)
     target = args.udp or config.chase.udp

@@ -19,13 +19,13 @@ if TYPE_CHECKING:
     from .chase import (
         CHASE_PERIOD_S as CHASE_PERIOD_S,
         ChaseFeed as ChaseFeed,
-        ChasePoint as ChasePoint,
         ChaseSender as ChaseSender,
         ChaseStore as ChaseStore,
         StoredFixes as StoredFixes,
         chase_kml_path as chase_kml_path,
         chase_points as chase_points,
     )
+    from .chase_point import ChasePoint as ChasePoint, KeptLanding as KeptLanding
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
@@ -34,7 +34,8 @@ __getattr__, __dir__, __all__ = lazy_door(
         "BalloonFix": "balloon_feed",
         "CHASE_PERIOD_S": "chase",
         "ChaseFeed": "chase",
-        "ChasePoint": "chase",
+        "ChasePoint": "chase_point",
+        "KeptLanding": "chase_point",
         "ChaseSender": "chase",
         "ChaseStore": "chase",
         "FeedStatus": "balloon_feed",

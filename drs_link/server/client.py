@@ -29,7 +29,7 @@ import msgspec
 
 from drs_link.config import Config
 from drs_link.errors import ConfigError, LinkError, RefusedError, StoreError
-from drs_link.feeds.chase_point import ChasePoint, KeptLanding
+from drs_link.feeds import ChasePoint, KeptLanding
 from drs_link.server.protocol import (
     PROTOCOL,
     ROOT,

@@ -18,7 +18,7 @@ from typing import Literal
 
 import msgspec
 
-from drs_link.feeds.chase_point import KeptLanding
+from drs_link.feeds import KeptLanding
 
 PROTOCOL = 1
 """Bumped on any change a client of the previous version would misread."""

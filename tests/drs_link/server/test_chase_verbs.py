@@ -11,7 +11,7 @@ import pytest
 
 from drs_link.config import load_config
 from drs_link.errors import ConfigError, LinkError, RefusedError
-from drs_link.feeds.chase_point import KeptLanding
+from drs_link.feeds import KeptLanding
 from drs_link.server.client import Client
 
 
