@@ -2,8 +2,9 @@
 
 The app owns no release rules: it folds telemetry into ``FleetState``, shows it, and turns keys
 into intents: ARM, FIRE, disarm, approvals and MT sends go to the operations server (``drs_link.server``),
-whose ARM windows and waiting approvals it pushes back (``follow_events``); the polls, checklists and views
-still go through ``Operations``/``ChecklistRun``. Those accept or refuse them. SSH, SQLite, HTTP and predictions run in thread workers (one group per
+whose ARM windows and waiting approvals it pushes back (``follow_events``), as are the checklists, waivers,
+audit, session and views (``drs_link.server.desk``, read again when the audit moves on: ``audit_moved``);
+the polls still go through ``Operations``. Those accept or refuse them. SSH, SQLite, HTTP and predictions run in thread workers (one group per
 capsule for polls, re-armed only when the previous poll finished; the release in its own group,
 never exclusive, so a refresh can never cancel a FIRE); their results come back as messages
 (``console.messages``). The screens never see the app: each is handed the ``ConsoleContext``
@@ -13,6 +14,7 @@ never exclusive, so a refresh can never cancel a FIRE); their results come back 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import signal
 import threading
@@ -47,10 +49,9 @@ from drs_link.ops import (
     ReleaseWindow,
     TelemetryRecord,
     ViewSource,
-    record_loss,
-    record_start,
     unprotected_ssh_warning,
 )
+from drs_link.server import HistoryView
 from drs_link.store import Store
 from predictor.descent import COMPILE_NOTICE, kernels_compiled
 from predictor.errors import PredictorError
@@ -65,8 +66,6 @@ BALLOON_READ_S = 0.5
 prediction within a second."""
 NO_WEATHER = "no weather loaded: start with --weather FILES (or drs weather fetch)"
 WAITING_FOR_POSITION = "waiting for a position: the capsule's GNSS fix or the balloon feed"
-STORE_WATCH_S = 0.5
-"""How often the shared store is asked whether another console wrote (one PRAGMA): a change shows within 1 s."""
 GO_FINISH_S = 120.0
 """How long a lost session waits for a Go in flight to finish and be recorded before the process ends."""
 LOST_SIGNALS = (signal.SIGHUP, signal.SIGTERM)
@@ -94,8 +93,7 @@ class DrsConsole(App[int]):
         self.theme = "textual-dark"
         if setup.low_bandwidth:
             self.animation_level = "none"
-        self._store_version = 0
-        self._audit_seen = 0
+        self._audit_seen = self.context.desk.audit_id
         """The newest audit row this console has shown or written: what another console wrote comes after."""
         self._views_reading: set[tuple[str, str]] = set()
         self._views_stale: set[tuple[str, str]] = set()
@@ -137,7 +135,8 @@ class DrsConsole(App[int]):
 
     @property
     def store(self) -> Store:
-        return self.context.store
+        """The store behind the session, if any (the tests' way in; the console asks the server)."""
+        return self.setup.store
 
     @property
     def operator(self) -> str:
@@ -183,13 +182,14 @@ class DrsConsole(App[int]):
         if self.setup.replay_feed is not None:
             self.set_interval(0.2, self.replay_step)
         self.set_interval(1.0, self.tick)
-        self._store_version = self.store.data_version()
-        self._audit_seen = max((r.id for r in self.store.audit(limit=1)), default=0)
-        self.set_interval(STORE_WATCH_S, self.watch_store)
 
     def _start_session(self) -> None:
         """Say what ended the last session if nobody has since, and survive this one being cut off."""
-        loss = record_start(self.store, self.operator)
+        try:
+            loss = self.context.session_started()
+        except LinkError as exc:
+            self.notify(f"the session's start is not on the record: {exc}", severity="error", timeout=30)
+            loss = None
         if loss is not None:
             self.notify(f"last console: {loss.describe()}", severity="warning", timeout=60)
         warning = unprotected_ssh_warning(os.environ)
@@ -209,7 +209,8 @@ class DrsConsole(App[int]):
         # console's action must not freeze the event loop that is ending the session.
         firing = self.arm_states(FIRING)
         disarmed = await asyncio.to_thread(self.disarm_mine, f"session lost ({sig.name})")
-        await asyncio.to_thread(record_loss, self.store, self.operator, sig.name, disarmed, firing)
+        with contextlib.suppress(LinkError):  # no server to write it to: nothing else can be done as it ends
+            await asyncio.to_thread(self.context.session_lost, sig.name, disarmed, firing)
         code = 128 + sig.value
         deadline = time.monotonic() + GO_FINISH_S
         while self.firing_here() and time.monotonic() < deadline:
@@ -248,22 +249,29 @@ class DrsConsole(App[int]):
             closed.append(name)
         return closed
 
-    def watch_store(self) -> None:
-        """Another console (or a drs command) wrote the shared store: show what and who within a second,
-        and show the screens over it, without any screen polling on its own."""
-        version = self.store.data_version()
-        if version == self._store_version:
+    @work(thread=True, exit_on_error=False, group="audit")
+    def audit_moved(self) -> None:
+        """The server's audit moved on (``Event.audit_id``): this console's desk (waivers, ticks, PARACHUTE
+        overrides) is read again, and what another console or a drs command did is shown with who did it,
+        within a second, without any screen polling on its own."""
+        try:
+            self.context.read_desk()
+            after = self.context.audit_after(self._audit_seen)
+        except LinkError as exc:
+            self.post_message(OperatorNotice(f"the audit cannot be read: {exc}", "warning"))
             return
-        self._store_version = version
-        for row in self.store.audit(after_id=self._audit_seen):
+        self.call_from_thread(self.show_audit, after)
+
+    def show_audit(self, after: HistoryView) -> None:
+        for row in after.records:
+            if row.id <= self._audit_seen:  # two reads overlapped: each entry is told once
+                continue
             self._audit_seen = row.id
-            if row.session != self.store.session:
+            where = after.elsewhere(row)
+            if where is not None:
                 about = f"{row.capsule}: " if row.capsule else ""
                 hint = " (A on the fleet: approvals)" if row.action == "approval.requested" else ""
-                self.notify(f"{about}{row.action} {row.result} — {row.operator}, {row.session or 'another console'}{hint}",
-                            timeout=8)  # fmt: skip
-        if self.commanding:
-            self.poll_reports()
+                self.notify(f"{about}{row.action} {row.result} — {row.operator}, {where}{hint}", timeout=8)
         self.read_views()
         self.refresh_screen()
 
@@ -310,6 +318,8 @@ class DrsConsole(App[int]):
             try:
                 async for event in self.context.client().event_stream():
                     self.context.apply_event(event)
+                    if event.audit_id != self._audit_seen:
+                        self.audit_moved()
                     self.refresh_screen()
             except (OSError, LinkError) as exc:
                 self.notify(

@@ -4,9 +4,11 @@ and every face acts through it (issue #29).
 ``app`` is ``drs server`` (aiohttp on a Unix socket); ``peers`` who a connection is, from the kernel
 (``SO_PEERCRED``) and the server's own ``[[operator]]`` list; ``desks`` one ``drs_link.ops`` engine per
 operator; ``release`` (ARM, FIRE, disarm), ``capsules`` (status, power-on, reset, a recorded fall, the
-release authority, enrolment), ``iridium`` and ``approvals`` the thin services over them; ``protocol``
-the typed, versioned messages; ``client`` the faces' one client with verbs; ``private`` an account's own
-server, started on demand.
+release authority, enrolment), ``iridium`` and ``approvals`` the thin services over them, and for a
+console's desk ``waivers``, ``checklists``, ``history`` (the audit, a session's start and loss) and
+``views`` (recovery, Iridium, PARACHUTE overrides); ``protocol`` the typed, versioned messages;
+``client`` the faces' one client with verbs, ``desk`` a console's verbs whose answers are the operations
+layer's values; ``private`` an account's own server, started on demand.
 """
 
 from typing import TYPE_CHECKING
@@ -17,6 +19,12 @@ if TYPE_CHECKING:
     from . import iridium as iridium
     from .app import OperationsServer as OperationsServer
     from .client import Capsule as Capsule, Client as Client, raise_failure as raise_failure
+    from .desk import (
+        Desk as Desk,
+        DeskView as DeskView,
+        HistoryView as HistoryView,
+        ParachuteView as ParachuteView,
+    )
     from .desks import PredictorFor as PredictorFor
     from .peers import (
         Peer as Peer,
@@ -42,8 +50,10 @@ if TYPE_CHECKING:
         Failure as Failure,
         Hello as Hello,
         MtSendRequest as MtSendRequest,
+        MtView as MtView,
         Pending as Pending,
         RecoveryRequest as RecoveryRequest,
+        ReleaseView as ReleaseView,
         Second as Second,
         iso_utc as iso_utc,
     )
@@ -67,6 +77,12 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Hello": "protocol",
         "MAX_BODY_BYTES": "protocol",
         "MtSendRequest": "protocol",
+        "MtView": "protocol",
+        "ReleaseView": "protocol",
+        "Desk": "desk",
+        "DeskView": "desk",
+        "HistoryView": "desk",
+        "ParachuteView": "desk",
         "OperationsServer": "app",
         "PRIVATE_TWO_PERSON": "release",
         "PROTOCOL": "protocol",
