@@ -8,7 +8,8 @@ carry its session: the answer names it, so a console can tell another's entries 
 
 from __future__ import annotations
 
-from drs_link.ops import AuditLog, SessionLoss, record_loss, record_start, shown_record, typed_text
+from drs_link.ops import AuditLog, SessionLoss, record_loss, record_start, shown_record
+from drs_link.ops.typed_text import typed_text
 from drs_link.server.desk import HistoryView, SessionStart
 from drs_link.server.desks import Desks
 from drs_link.server.peers import Peer
