@@ -94,7 +94,7 @@ class IridiumScreen(CommandingScreen):
             table.add_row(
                 "?" if row.momsn is None else str(row.momsn),
                 f"{row.fix_time:%H:%M:%S}Z" if row.fix_time else "NO FIX", where,
-                f"{row.alt_m} m" if row.fix_time and row.alt_m is not None else "—",
+                f"{row.alt_m:.0f} m" if row.fix_time and row.alt_m is not None else "—",
                 f"{row.vbat:.2f}" if row.vbat is not None else "?",
                 str(row.iteration) if row.iteration is not None else "?",
             )  # fmt: skip
