@@ -168,7 +168,6 @@ if TYPE_CHECKING:
         IridiumHealthView as IridiumHealthView,
         RecordedViews as RecordedViews,
         ReportRow as ReportRow,
-        StoreViews as StoreViews,
         ViewSource as ViewSource,
     )
 
@@ -262,7 +261,6 @@ __getattr__, __dir__, __all__ = lazy_door(
         "StepStatus": "checklist",
         "StepState": "checklist",
         "StorageSample": "telemetry",
-        "StoreViews": "views",
         "SyncSample": "telemetry",
         "TelemetryRecord": "telemetry",
         "TelemetryRecorder": "telemetry",
