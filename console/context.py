@@ -348,7 +348,7 @@ class ConsoleContext:
         """Waive a go/no-go item for this account at the server (audited there, once)."""
         with self.client() as client:
             held = Desk(client).waive(capsule, item, reason)
-        self.desk = replace(self.desk, waivers={**self.desk.waivers, capsule: held})
+        self.desk = self.desk.with_waivers(capsule, held)
 
     def tick(self, capsule: str, checklist: str, step: str, reason: str | None = None) -> None:
         """Tick a manual step (or, with a reason, skip it), recorded by the server with this operator."""
@@ -358,7 +358,7 @@ class ConsoleContext:
                 recorded = desk.tick(capsule, checklist, step)
             else:
                 recorded = desk.skip(capsule, checklist, step, reason)
-        self.desk = replace(self.desk, checklists={**self.desk.checklists, capsule: recorded})
+        self.desk = self.desk.with_steps(capsule, recorded)
 
     def read_desk(self) -> None:
         """The desk as the server holds it now (in a worker: when the audit moved on)."""

@@ -46,6 +46,13 @@ class DeskView(msgspec.Struct, frozen=True):
     audit_id: int = 0
     """The newest audit entry when it was read (``Event.audit_id``): a later one may have changed it."""
 
+    def with_waivers(self, capsule: str, held: tuple[Waiver, ...]) -> DeskView:
+        """The desk with a capsule's waivers as a verb's answer said them."""
+        return msgspec.structs.replace(self, waivers={**self.waivers, capsule: held})
+
+    def with_steps(self, capsule: str, recorded: tuple[StepRecord, ...]) -> DeskView:
+        return msgspec.structs.replace(self, checklists={**self.checklists, capsule: recorded})
+
 
 class HistoryView(msgspec.Struct, frozen=True):
     """Audit entries, each text in them as it may reach a terminal (``shown``), and who asked."""
