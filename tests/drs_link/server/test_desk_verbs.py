@@ -100,6 +100,9 @@ def test_a_waiver_is_held_for_the_account_audited_once_and_arm_and_fire_judge_wi
     assert audited(store, "waiver") == [("granted", "EL")], "granted once, not again with each ARM and FIRE"
     assert desk.withdraw("DRS1", "gnss") == () and desk.waivers("DRS1") == ()
     assert audited(store, "waiver") == [("granted", "EL"), ("withdrawn", "EL")]
+    desk.waive("DRS1", "sync", "the rest is on the spare card")
+    client.capsule("DRS1").reset("DRS1")
+    assert desk.waivers("DRS1") == (), "a reset starts the next attempt: the last one's waivers are void"
 
 
 @pytest.mark.parametrize(
