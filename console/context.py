@@ -5,9 +5,11 @@ instead of itself: the app imports the screens, so a screen that took the app co
 ``Any``. The screens read the fleet, the clock and the settings from it and ask it for go/no-go,
 arming, checklists, approvals and the audit log. A live or demo console gets a
 ``CommandingContext``: it acts through the operations server (``drs_link.server.Client``: ARM, FIRE,
-disarm, approvals, MT sends) and shows the ARM windows and approvals the server pushes; its fleet is
-still polled through ``Operations``. A replay gets a ``ReplayContext``, which
-has no commanding side at all: asked for one, it refuses with ``REPLAY_REFUSAL`` (its keys are
+disarm, approvals, MT sends, power-on, reset, sync, MT resolve) and shows what the server pushes (the
+ARM windows, the approvals) and holds for it (``drs_link.server.desk``: its waivers, the checklists'
+ticks, the PARACHUTE overrides, History, the recovery and Iridium views); its fleet is still polled
+through ``Operations``. A replay gets a ``ReplayContext``, which shows this machine's audit and
+checklists and has no commanding side at all: asked for one, it refuses with ``REPLAY_REFUSAL`` (its keys are
 disabled too, so that is a last guard, not a path a screen takes). Nothing here imports Textual: it
 is the plain-Python side of the console.
 """
@@ -491,7 +493,8 @@ class CommandingContext(ConsoleContext):
 
     @property
     def operator(self) -> str:
-        return self.ops.operator
+        """The name the server audits this console's steps with (its account's, from the kernel)."""
+        return self.hello.operator
 
     @property
     def zones(self) -> tuple[ExclusionZone, ...]:
