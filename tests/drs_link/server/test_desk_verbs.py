@@ -176,6 +176,9 @@ def test_history_reads_names_another_consoles_entries_and_hands_every_entry_over
     assert [r.action for r in every.records] == ["waiver", "arm"], "oldest first, for the export"
     assert every.records[1].detail == {"note": "\x1b[31mred"}, "the export keeps the entry as written"
     assert [r.action for r in desk.after(waiver.id).records] == ["arm"]
+    store.append_audit("JM", "DRS1", "disarm", "disarmed", None)  # as the server writes another account's
+    [disarm] = desk.after(arm.id).records
+    assert desk.after(arm.id).elsewhere(disarm) == "JM through the operations server"
     with pytest.raises(UsageError, match="limit"):
         client.call("POST", "/audit", HistoryRequest(PROTOCOL, limit=10**9), object)
 
