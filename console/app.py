@@ -30,7 +30,7 @@ from textual.screen import ModalScreen, Screen
 from textual.worker import Worker, WorkerState
 
 from console.context import ARMED, FIRING, ConsoleContext, ConsoleSetup, context_for
-from console.messages import OperatorNotice, TelemetryArrived, ViewRead, ViewWanted
+from console.messages import AuditRead, OperatorNotice, TelemetryArrived, ViewRead, ViewWanted
 from console.predictions import PredictionService
 from console.screens import ConfirmModal, FleetScreen
 from drs_link.errors import LinkError
@@ -51,7 +51,6 @@ from drs_link.ops import (
     ViewSource,
     unprotected_ssh_warning,
 )
-from drs_link.server import HistoryView
 from drs_link.store import Store
 from predictor.descent import COMPILE_NOTICE, kernels_compiled
 from predictor.errors import PredictorError
@@ -260,9 +259,11 @@ class DrsConsole(App[int]):
         except LinkError as exc:
             self.post_message(OperatorNotice(f"the audit cannot be read: {exc}", "warning"))
             return
-        self.call_from_thread(self.show_audit, after)
+        self.post_message(AuditRead(after))
 
-    def show_audit(self, after: HistoryView) -> None:
+    @on(AuditRead)
+    def show_audit(self, message: AuditRead) -> None:
+        after = message.after
         for row in after.records:
             if row.id <= self._audit_seen:  # two reads overlapped: each entry is told once
                 continue

@@ -58,6 +58,7 @@ from drs_link.ops import (
 )
 from drs_link.server import (
     PROTOCOL,
+    TIMEOUT_S,
     ApprovalView,
     ArmState,
     Client,
@@ -80,6 +81,9 @@ ARMED, FIRING, FIRED = "armed", "firing", "fired"
 """The server's ARM window states (``ArmState.state``, ``drs_link.ops.ArmState`` values) a console tells
 apart."""
 POLL_PERIOD_S = 5.0
+READ_TIMEOUT_S = 10.0
+"""The longest a background read of the desk or the audit waits: it answers in milliseconds, and one
+left waiting on a server that stopped under it (the console quitting) must not hold the quit up."""
 LOW_BANDWIDTH_AGE_STEP_S = 10.0
 AGE_STEP_S = 5.0
 """The view time's step on an ordinary link: fresh readings' ages (0s…4s between heartbeats) ticking
@@ -238,7 +242,7 @@ class ConsoleContext:
         pushes the telemetry); a replay refuses (``REPLAY_REFUSAL``)."""
         raise LinkError(REPLAY_REFUSAL)
 
-    def client(self) -> Client:
+    def client(self, timeout_s: float = TIMEOUT_S) -> Client:
         """A connection to the operations server, one per action (a FIRE waiting for an approval holds
         its own); a replay refuses (``REPLAY_REFUSAL``)."""
         raise LinkError(REPLAY_REFUSAL)
@@ -364,12 +368,12 @@ class ConsoleContext:
 
     def read_desk(self) -> None:
         """The desk as the server holds it now (in a worker: when the audit moved on)."""
-        with self.client() as client:
+        with self.client(READ_TIMEOUT_S) as client:
             self.desk = Desk(client).view()
 
     def audit_after(self, entry: int) -> HistoryView:
         """The audit entries after ``entry``, to show what another console did."""
-        with self.client() as client:
+        with self.client(READ_TIMEOUT_S) as client:
             return Desk(client).after(entry)
 
     def session_started(self) -> SessionLoss | None:
@@ -511,8 +515,8 @@ class CommandingContext(ConsoleContext):
     def operations(self) -> Operations:
         return self.ops
 
-    def client(self) -> Client:
-        return Client(self.server)
+    def client(self, timeout_s: float = TIMEOUT_S) -> Client:
+        return Client(self.server, timeout_s)
 
     def apply_event(self, event: Event) -> None:
         """What the server pushed: the ARM windows (as this account sees them) and the open requests."""

@@ -18,7 +18,12 @@ from predictor.lazy_door import lazy_door
 if TYPE_CHECKING:
     from . import iridium as iridium
     from .app import OperationsServer as OperationsServer
-    from .client import Capsule as Capsule, Client as Client, raise_failure as raise_failure
+    from .client import (
+        TIMEOUT_S as TIMEOUT_S,
+        Capsule as Capsule,
+        Client as Client,
+        raise_failure as raise_failure,
+    )
     from .desk import (
         Desk as Desk,
         DeskView as DeskView,
@@ -65,6 +70,7 @@ __getattr__, __dir__, __all__ = lazy_door(
     {
         "ApprovalView": "protocol",
         "Capsule": "client",
+        "TIMEOUT_S": "client",
         "CapsuleStatus": "protocol",
         "ArmState": "protocol",
         "Event": "protocol",
