@@ -81,7 +81,7 @@ ARMED, FIRING, FIRED = "armed", "firing", "fired"
 """The server's ARM window states (``ArmState.state``, ``drs_link.ops.ArmState`` values) a console tells
 apart."""
 POLL_PERIOD_S = 5.0
-READ_TIMEOUT_S = 10.0
+READ_TIMEOUT_S = 5.0
 """The longest a background read of the desk or the audit waits: it answers in milliseconds, and one
 left waiting on a server that stopped under it (the console quitting) must not hold the quit up."""
 LOW_BANDWIDTH_AGE_STEP_S = 10.0
