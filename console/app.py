@@ -2,10 +2,11 @@
 
 The app owns no release rules: it folds telemetry into ``FleetState``, shows it, and turns keys
 into intents: ARM, FIRE, disarm, approvals and MT sends go to the operations server (``drs_link.server``),
-whose ARM windows and waiting approvals it pushes back (``follow_events``), and which polls the capsules,
-checks the gateway and reads the Iridium reports once for every console and pushes the telemetry
-(``follow_telemetry``); the checklists and views still go through ``Operations``/``ChecklistRun``. Those
-accept or refuse them. SQLite, HTTP and predictions run in thread workers (the release in its own group,
+whose ARM windows and waiting approvals it pushes back (``follow_events``), as are the checklists, waivers,
+audit, session and views (``drs_link.server.desk``, read again when the audit moves on: ``audit_moved``);
+the server also polls the capsules, checks the gateway and reads the Iridium reports once for every
+console and pushes the telemetry (``follow_telemetry``). Those accept or refuse them. HTTP and
+predictions run in thread workers (the release in its own group,
 never exclusive, so a refresh can never cancel a FIRE); their results come back as messages
 (``console.messages``). The screens never see the app: each is handed the ``ConsoleContext``
 (``console.context``) it works on, and the fleet opens them from ``console.screens.registry``.
@@ -14,6 +15,7 @@ never exclusive, so a refresh can never cancel a FIRE); their results come back 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import signal
 import threading
@@ -29,7 +31,7 @@ from textual.screen import ModalScreen, Screen
 from textual.worker import Worker, WorkerState
 
 from console.context import ARMED, FIRING, ConsoleContext, ConsoleSetup, context_for
-from console.messages import OperatorNotice, TelemetryArrived, ViewRead, ViewWanted
+from console.messages import AuditRead, OperatorNotice, TelemetryArrived, ViewRead, ViewWanted
 from console.predictions import PredictionService
 from console.screens import ConfirmModal, FleetScreen
 from drs_link.errors import LinkError
@@ -49,8 +51,6 @@ from drs_link.ops import (
     ReportSample,
     TelemetryRecord,
     ViewSource,
-    record_loss,
-    record_start,
     unprotected_ssh_warning,
 )
 from drs_link.store import Store
@@ -65,8 +65,6 @@ BALLOON_READ_S = 0.5
 prediction within a second."""
 NO_WEATHER = "no weather loaded: start with --weather FILES (or drs weather fetch)"
 WAITING_FOR_POSITION = "waiting for a position: the capsule's GNSS fix or the balloon feed"
-STORE_WATCH_S = 0.5
-"""How often the shared store is asked whether another console wrote (one PRAGMA): a change shows within 1 s."""
 GO_FINISH_S = 120.0
 """How long a lost session waits for a Go in flight to finish and be recorded before the process ends."""
 LOST_SIGNALS = (signal.SIGHUP, signal.SIGTERM)
@@ -94,8 +92,7 @@ class DrsConsole(App[int]):
         self.theme = "textual-dark"
         if setup.low_bandwidth:
             self.animation_level = "none"
-        self._store_version = 0
-        self._audit_seen = 0
+        self._audit_seen = self.context.desk.audit_id
         """The newest audit row this console has shown or written: what another console wrote comes after."""
         self._views_reading: set[tuple[str, str]] = set()
         self._views_stale: set[tuple[str, str]] = set()
@@ -141,7 +138,8 @@ class DrsConsole(App[int]):
 
     @property
     def store(self) -> Store:
-        return self.context.store
+        """The store behind the session, if any (the tests' way in; the console asks the server)."""
+        return self.setup.store
 
     @property
     def operator(self) -> str:
@@ -183,13 +181,14 @@ class DrsConsole(App[int]):
         if self.setup.replay_feed is not None:
             self.set_interval(0.2, self.replay_step)
         self.set_interval(1.0, self.tick)
-        self._store_version = self.store.data_version()
-        self._audit_seen = max((r.id for r in self.store.audit(limit=1)), default=0)
-        self.set_interval(STORE_WATCH_S, self.watch_store)
 
     def _start_session(self) -> None:
         """Say what ended the last session if nobody has since, and survive this one being cut off."""
-        loss = record_start(self.store, self.operator)
+        try:
+            loss = self.context.session_started()
+        except LinkError as exc:
+            self.notify(f"the session's start is not on the record: {exc}", severity="error", timeout=30)
+            loss = None
         if loss is not None:
             self.notify(f"last console: {loss.describe()}", severity="warning", timeout=60)
         warning = unprotected_ssh_warning(os.environ)
@@ -209,7 +208,8 @@ class DrsConsole(App[int]):
         # console's action must not freeze the event loop that is ending the session.
         firing = self.arm_states(FIRING)
         disarmed = await asyncio.to_thread(self.disarm_mine, f"session lost ({sig.name})")
-        await asyncio.to_thread(record_loss, self.store, self.operator, sig.name, disarmed, firing)
+        with contextlib.suppress(LinkError):  # no server to write it to: nothing else can be done as it ends
+            await asyncio.to_thread(self.context.session_lost, sig.name, disarmed, firing)
         code = 128 + sig.value
         deadline = time.monotonic() + GO_FINISH_S
         while self.firing_here() and time.monotonic() < deadline:
@@ -248,20 +248,31 @@ class DrsConsole(App[int]):
             closed.append(name)
         return closed
 
-    def watch_store(self) -> None:
-        """Another console (or a drs command) wrote the shared store: show what and who within a second,
-        and show the screens over it, without any screen polling on its own."""
-        version = self.store.data_version()
-        if version == self._store_version:
+    @work(thread=True, exit_on_error=False, group="audit")
+    def audit_moved(self) -> None:
+        """The server's audit moved on (``Event.audit_id``): this console's desk (waivers, ticks, PARACHUTE
+        overrides) is read again, and what another console or a drs command did is shown with who did it,
+        within a second, without any screen polling on its own."""
+        try:
+            self.context.read_desk()
+            after = self.context.audit_after(self._audit_seen)
+        except LinkError as exc:
+            self.post_message(OperatorNotice(f"the audit cannot be read: {exc}", "warning"))
             return
-        self._store_version = version
-        for row in self.store.audit(after_id=self._audit_seen):
+        self.post_message(AuditRead(after))
+
+    @on(AuditRead)
+    def show_audit(self, message: AuditRead) -> None:
+        after = message.after
+        for row in after.records:
+            if row.id <= self._audit_seen:  # two reads overlapped: each entry is told once
+                continue
             self._audit_seen = row.id
-            if row.session != self.store.session:
+            where = after.elsewhere(row)
+            if where is not None:
                 about = f"{row.capsule}: " if row.capsule else ""
                 hint = " (A on the fleet: approvals)" if row.action == "approval.requested" else ""
-                self.notify(f"{about}{row.action} {row.result} — {row.operator}, {row.session or 'another console'}{hint}",
-                            timeout=8)  # fmt: skip
+                self.notify(f"{about}{row.action} {row.result} — {row.operator}, {where}{hint}", timeout=8)
         self.read_views()
         self.refresh_screen()
 
@@ -308,6 +319,8 @@ class DrsConsole(App[int]):
             try:
                 async for event in self.context.client().event_stream():
                     self.context.apply_event(event)
+                    if event.audit_id != self._audit_seen:
+                        self.audit_moved()
                     self.refresh_screen()
             except (OSError, LinkError) as exc:
                 self.notify(

@@ -5,9 +5,11 @@ instead of itself: the app imports the screens, so a screen that took the app co
 ``Any``. The screens read the fleet, the clock and the settings from it and ask it for go/no-go,
 arming, checklists, approvals and the audit log. A live or demo console gets a
 ``CommandingContext``: it acts through the operations server (``drs_link.server.Client``: ARM, FIRE,
-disarm, approvals, MT sends) and shows the ARM windows and approvals the server pushes; its fleet is
-still polled through ``Operations``. A replay gets a ``ReplayContext``, which
-has no commanding side at all: asked for one, it refuses with ``REPLAY_REFUSAL`` (its keys are
+disarm, approvals, MT sends, power-on, reset, sync, MT resolve) and shows what the server pushes (the
+ARM windows, the approvals) and holds for it (``drs_link.server.desk``: its waivers, the checklists'
+ticks, the PARACHUTE overrides, History, the recovery and Iridium views); its fleet is still polled
+through ``Operations``. A replay gets a ``ReplayContext``, which shows this machine's audit and
+checklists and has no commanding side at all: asked for one, it refuses with ``REPLAY_REFUSAL`` (its keys are
 disabled too, so that is a last guard, not a path a screen takes). Nothing here imports Textual: it
 is the plain-Python side of the console.
 """
@@ -15,48 +17,63 @@ is the plain-Python side of the console.
 from __future__ import annotations
 
 import contextlib
-import time
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
 from pathlib import Path
+from typing import Protocol
 
 from console.predictions import PredictionService
 from drs_link.errors import LinkError
 from drs_link.feeds import BalloonFeed
+from drs_link.iridium.landed import LandedEvidence
 from drs_link.ops import (
     PROCEDURE_DIR,
     AuditLog,
+    AuditRecord,
     Checklist,
-    ChecklistRun,
     ExclusionZone,
     FleetState,
     GoNoGoReport,
+    IridiumHealthView,
     LiveSource,
     Operations,
     ParachuteOverride,
     RecordedViews,
+    RecoveryView,
     ReleaseOrigin,
-    StoreViews,
+    SessionLoss,
+    StepRecord,
+    StepStatus,
     TelemetryRecord,
     ViewSource,
     Waiver,
+    descent_along,
     evaluate,
     load_checklists,
-    parachute_override,
     release_origin,
+    statuses_of,
+    step_records,
+    write_audit_export,
 )
 from drs_link.server import (
     POLL_PERIOD_S,
     PROTOCOL,
+    TIMEOUT_S,
     ApprovalView,
     ArmState,
     Client,
+    Desk,
+    DeskView,
     Done,
     Event,
     Hello,
+    HistoryView,
     MtSendRequest,
+    MtView,
+    ParachuteView,
     Pending,
+    ReleaseView,
     Second,
 )
 from drs_link.store import Store, utc_now
@@ -64,8 +81,9 @@ from drs_link.store import Store, utc_now
 ARMED, FIRING, FIRED = "armed", "firing", "fired"
 """The server's ARM window states (``ArmState.state``, ``drs_link.ops.ArmState`` values) a console tells
 apart."""
-OVERRIDE_READ_S = 1.0
-"""How often the store is read for PARACHUTE overrides: every screen in sight asks once a second."""
+READ_TIMEOUT_S = 5.0
+"""The longest a background read of the desk or the audit waits: it answers in milliseconds, and one
+left waiting on a server that stopped under it (the console quitting) must not hold the quit up."""
 LOW_BANDWIDTH_AGE_STEP_S = 10.0
 AGE_STEP_S = 5.0
 """The view time's step on an ordinary link: fresh readings' ages (0s…4s between heartbeats) ticking
@@ -114,6 +132,62 @@ class ConsoleSetup:
 REPLAY_REFUSAL = "a replay cannot command: there is no link behind a recording"
 
 
+class History(Protocol):
+    """The audit log as History reads and exports it (``AuditLog``'s three calls)."""
+
+    def newest(self, text: str | None = None) -> list[AuditRecord]: ...
+
+    def elsewhere(self, record: AuditRecord) -> str | None: ...
+
+    def export(self, path: Path, text: str | None = None) -> int: ...
+
+
+class ServerHistory:
+    """The audit log as the operations server reads it; the export is written here, the operator's file."""
+
+    def __init__(self, client: Callable[[], Client]) -> None:
+        self.client = client
+        self.read: HistoryView | None = None
+        """The last answer: which entries came from another console is judged against it."""
+
+    def newest(self, text: str | None = None) -> list[AuditRecord]:
+        with self.client() as client:
+            self.read = Desk(client).history(text)
+        return list(self.read.records)
+
+    def elsewhere(self, record: AuditRecord) -> str | None:
+        return self.read.elsewhere(record) if self.read is not None else None
+
+    def export(self, path: Path, text: str | None = None) -> int:
+        with self.client() as client:
+            every = Desk(client).history(text, limit=0)
+        return write_audit_export(path, every.records)
+
+
+class ServerViews:
+    """A live console's recovery and Iridium views, read by the operations server from what it holds; the
+    live re-prediction of a descent is the console's own (its weather), added to the track it was given."""
+
+    def __init__(self, client: Callable[[], Client], live: Callable[[], LiveSource | None]) -> None:
+        self.client = client
+        self.live = live
+
+    def recovery(self, capsule: str) -> RecoveryView:
+        with self.client() as client:
+            view = Desk(client).recovery(capsule)
+        live = self.live()
+        if live is None:
+            return view
+        return replace(view, descent=descent_along(view.descent.track, capsule, live))
+
+    def iridium(self, capsule: str) -> IridiumHealthView:
+        with self.client() as client:
+            return Desk(client).iridium(capsule)
+
+    def observe(self, records: Iterable[TelemetryRecord]) -> None:
+        """The server's store already holds what was folded."""
+
+
 class ConsoleContext:
     """The session's state and the calls every console makes, commanding or not; one per app.
 
@@ -124,15 +198,20 @@ class ConsoleContext:
     commanding = False
     """Whether this console can command (a live or demo console): the screens dim their keys without."""
 
-    def __init__(self, setup: ConsoleSetup, warn: Callable[[str], None], poll_period_s: float = 0.0) -> None:
+    def __init__(
+        self, setup: ConsoleSetup, warn: Callable[[str], None], history: History, poll_period_s: float = 0.0
+    ) -> None:
         self.setup = setup
         self.fleet = FleetState.for_capsules(setup.capsules, poll_period_s)
         self.checklists: list[Checklist] = load_checklists(PROCEDURE_DIR)
         """The procedure the operations layer ticks, so the screen shows the steps it completes."""
         self.warn = warn
         """Tells the operator something from any thread (the app posts it as a notice)."""
-        self.history = AuditLog(setup.store)
-        """The audit log as History reads and exports it (this machine's, in a replay too)."""
+        self.history = history
+        """The audit log as History reads and exports it (the server's; this machine's in a replay)."""
+        self.desk = DeskView({}, {}, ())
+        """What the server holds of this console's desk (its waivers, the ticks, the PARACHUTE overrides),
+        as it last said: read again when the audit moves on (``read_desk``)."""
         self.in_flight: dict[str, list[Client]] = {}
         """Actions in progress per capsule (each its own connection), which ``c`` can withdraw."""
         self.views: ViewSource = RecordedViews()
@@ -141,10 +220,6 @@ class ConsoleContext:
     @property
     def mode(self) -> str:
         return self.setup.mode
-
-    @property
-    def store(self) -> Store:
-        return self.setup.store
 
     @property
     def operator(self) -> str:
@@ -164,10 +239,11 @@ class ConsoleContext:
         return False
 
     def operations(self) -> Operations:
-        """The operations layer behind a commanding console; a replay refuses (``REPLAY_REFUSAL``)."""
+        """The operations layer behind a commanding console (the fleet's polls only, until the server
+        pushes the telemetry); a replay refuses (``REPLAY_REFUSAL``)."""
         raise LinkError(REPLAY_REFUSAL)
 
-    def client(self) -> Client:
+    def client(self, timeout_s: float = TIMEOUT_S) -> Client:
         """A connection to the operations server, one per action (a FIRE waiting for an approval holds
         its own); a replay refuses (``REPLAY_REFUSAL``)."""
         raise LinkError(REPLAY_REFUSAL)
@@ -202,13 +278,10 @@ class ConsoleContext:
 
     # The verbs: each one connection to the server (``client``, which a replay refuses) --------------
 
-    def _waived(self, capsule: str) -> tuple[tuple[str, str], ...]:
-        return tuple((w.item, w.reason) for w in self.waivers(capsule))
-
     def arm(self, capsule: str) -> ArmState:
-        """ARM through the server, which polls go/no-go itself, with this console's waivers."""
+        """ARM through the server, which polls go/no-go itself, with the waivers it holds for this account."""
         with self.client() as client:
-            state = client.capsule(capsule).arm(self._waived(capsule), self._weather(), say=lambda _: None)
+            state = client.capsule(capsule).arm((), self._weather(), say=lambda _: None, held_waivers=True)
         self.remember(state)
         return state
 
@@ -224,7 +297,7 @@ class ConsoleContext:
         """FIRE through the server: it polls again, holds the two-person rule and sends Go."""
         with self.client() as client, self.held(capsule, client):
             return client.capsule(capsule).fire(
-                typed_name, self._waived(capsule), self._weather(), second, lambda _: None, on_pending
+                typed_name, (), self._weather(), second, lambda _: None, on_pending, held_waivers=True
             )
 
     def send_mt(
@@ -256,6 +329,67 @@ class ConsoleContext:
                 return client.approvals.approve(approval)
             return client.approvals.reject(approval, reason)
 
+    def power_on(self, capsule: str) -> Done:
+        """Latch the relay (confirmed by the operator first), then wait for the microcontroller's NMEA."""
+        with self.client() as client:
+            return client.capsule(capsule).power_on(True, say=lambda _: None)
+
+    def reset(self, capsule: str, typed_name: str) -> ReleaseView:
+        with self.client() as client:
+            return client.capsule(capsule).reset(typed_name)
+
+    def sync(self, capsule: str) -> None:
+        """Upload the capsule's configured source, each file verified on the Pi."""
+        with self.client() as client:
+            client.capsule(capsule).sync(say=lambda _: None)
+
+    def resolve_mt(self, capsule: str, command_id: int, gateway_id: int | None, note: str) -> list[MtView]:
+        with self.client() as client:
+            return client.iridium.resolve_mt(capsule, command_id, gateway_id, note)
+
+    def plan_parachute(self, capsule: str, requested: tuple[int, int] | None) -> ParachuteView:
+        """When a PARACHUTE can fire and the landed evidence the operator reads before sending."""
+        with self.client() as client:
+            return Desk(client).plan_parachute(capsule, requested)
+
+    def landed(self, capsule: str) -> LandedEvidence:
+        with self.client() as client:
+            return Desk(client).landed(capsule)
+
+    def waive(self, capsule: str, item: str, reason: str) -> None:
+        """Waive a go/no-go item for this account at the server (audited there, once)."""
+        with self.client() as client:
+            held = Desk(client).waive(capsule, item, reason)
+        self.desk = self.desk.with_waivers(capsule, held)
+
+    def tick(self, capsule: str, checklist: str, step: str, reason: str | None = None) -> None:
+        """Tick a manual step (or, with a reason, skip it), recorded by the server with this operator."""
+        with self.client() as client:
+            desk = Desk(client)
+            if reason is None:
+                recorded = desk.tick(capsule, checklist, step)
+            else:
+                recorded = desk.skip(capsule, checklist, step, reason)
+        self.desk = self.desk.with_steps(capsule, recorded)
+
+    def read_desk(self) -> None:
+        """The desk as the server holds it now (in a worker: when the audit moved on)."""
+        with self.client(READ_TIMEOUT_S) as client:
+            self.desk = Desk(client).view()
+
+    def audit_after(self, entry: int) -> HistoryView:
+        """The audit entries after ``entry``, to show what another console did."""
+        with self.client(READ_TIMEOUT_S) as client:
+            return Desk(client).after(entry)
+
+    def session_started(self) -> SessionLoss | None:
+        with self.client() as client:
+            return Desk(client).session_started()
+
+    def session_lost(self, signal: str, disarmed: list[str], go_in_flight: list[str]) -> SessionLoss:
+        with self.client() as client:
+            return Desk(client).session_lost(signal, disarmed, go_in_flight)
+
     @contextlib.contextmanager
     def held(self, capsule: str, client: Client) -> Iterator[None]:
         """An action that may wait on another account, kept so ``cancel_waiting`` can withdraw it."""
@@ -270,11 +404,15 @@ class ConsoleContext:
         return tuple(str(path) for path in self.setup.weather)
 
     def parachute_overrides(self) -> list[ParachuteOverride]:
-        """Each capsule's PARACHUTE queued without landed evidence (none known in a replay)."""
-        return []
+        """Each capsule's PARACHUTE queued without landed evidence, from any console (none in a replay)."""
+        return list(self.desk.overrides)
 
     def waivers(self, capsule: str) -> list[Waiver]:
-        return []
+        """This account's waivers of ``capsule``, as the server holds them."""
+        return list(self.desk.waivers.get(capsule, ()))
+
+    def step_records(self, capsule: str) -> tuple[StepRecord, ...]:
+        return self.desk.checklists.get(capsule, ())
 
     def record(self, records: list[TelemetryRecord]) -> None:
         """Keep ``records`` in the session's recording; a replay records nothing."""
@@ -299,8 +437,11 @@ class ConsoleContext:
         text = words.get(self.mode, self.mode.upper())
         return f"{text} {self.setup.banner_note}".strip()
 
-    def checklist_run(self, capsule: str, checklist: Checklist) -> ChecklistRun:
-        return ChecklistRun(self.store, checklist, capsule, self.now)
+    def step_statuses(
+        self, capsule: str, checklist: Checklist, facts: Mapping[str, object]
+    ) -> list[StepStatus]:
+        """Each step of ``checklist``: as recorded, else judged on the capsule's telemetry ``facts``."""
+        return statuses_of(checklist, self.step_records(capsule), facts)
 
     def gonogo(self, capsule: str) -> GoNoGoReport:
         telemetry = self.fleet.capsules[capsule]
@@ -315,7 +456,18 @@ class ConsoleContext:
 class ReplayContext(ConsoleContext):
     """A console with no link: a replayed recording (or a session started without ``Operations``).
 
-    It shows what was recorded through the same views; the commanding side does not exist."""
+    It shows what was recorded through the same views, and this machine's audit and checklists
+    (``records``); the commanding side does not exist."""
+
+    def __init__(
+        self, setup: ConsoleSetup, warn: Callable[[str], None], history: History,
+        records: Callable[[str], list[StepRecord]],
+    ) -> None:  # fmt: skip
+        super().__init__(setup, warn, history)
+        self.records = records
+
+    def step_records(self, capsule: str) -> tuple[StepRecord, ...]:
+        return tuple(self.records(capsule))
 
 
 class CommandingContext(ConsoleContext):
@@ -331,12 +483,14 @@ class CommandingContext(ConsoleContext):
         live: Callable[[], LiveSource | None],
         server: Path,
     ) -> None:
-        super().__init__(setup, warn, 2.0 * setup.poll_period_s * setup.time_scale)
+        super().__init__(
+            setup, warn, ServerHistory(self.client), 2.0 * setup.poll_period_s * setup.time_scale
+        )
         self.ops = ops
         self.server = server
-        self.checklists = ops.checklists
-        self.views = StoreViews(ops, live)
-        self._overrides: tuple[float, list[ParachuteOverride]] = (-OVERRIDE_READ_S, [])
+        self.views = ServerViews(self.client, live)
+        self.audit_seen = 0
+        """The newest audit entry this console has shown (``Event.audit_id``)."""
         self.arms: dict[str, ArmState] = {}
         """Each capsule's ARM window as the server last pushed or answered it."""
         self.approvals: tuple[ApprovalView, ...] = ()
@@ -345,10 +499,12 @@ class CommandingContext(ConsoleContext):
         with self.client() as client:
             self.hello: Hello = client.hello()
             """Who the server says this console is (its account, from the kernel)."""
+            self.desk = Desk(client).view()
 
     @property
     def operator(self) -> str:
-        return self.ops.operator
+        """The name the server audits this console's steps with (its account's, from the kernel)."""
+        return self.hello.operator
 
     @property
     def zones(self) -> tuple[ExclusionZone, ...]:
@@ -365,8 +521,8 @@ class CommandingContext(ConsoleContext):
     def operations(self) -> Operations:
         return self.ops
 
-    def client(self) -> Client:
-        return Client(self.server)
+    def client(self, timeout_s: float = TIMEOUT_S) -> Client:
+        return Client(self.server, timeout_s)
 
     def apply_event(self, event: Event) -> None:
         """What the server pushed: the ARM windows (as this account sees them) and the open requests."""
@@ -389,24 +545,6 @@ class CommandingContext(ConsoleContext):
     def open_approvals(self) -> list[ApprovalView]:
         return list(self.approvals)
 
-    def waivers(self, capsule: str) -> list[Waiver]:
-        return self.ops.ops(capsule).waivers.waivers
-
-    def parachute_overrides(self) -> list[ParachuteOverride]:
-        """Each capsule's PARACHUTE queued without landed evidence (``drs_link.ops.override``), from any
-        console on the store; read at most once per ``OVERRIDE_READ_S``."""
-        read_at, found = self._overrides
-        if time.monotonic() - read_at < OVERRIDE_READ_S:
-            return found
-        found = []
-        for capsule in self.setup.capsules:
-            override = parachute_override(capsule, self.store.audit(capsule, action="mt.parachute"),
-                                          self.ops.commands(capsule))  # fmt: skip
-            if override is not None:
-                found.append(override)
-        self._overrides = (time.monotonic(), found)
-        return found
-
     def record(self, records: list[TelemetryRecord]) -> None:
         if self.ops.recorder is not None:
             for record in records:
@@ -425,7 +563,8 @@ def context_for(
     """The context of the session's mode: commanding through the server, else a replay's. A console
     given ``Operations`` and no server gets a private one of its own, in this process, ended with it."""
     if setup.operations is None or setup.mode == "replay":
-        return ReplayContext(setup, warn)
+        store = setup.store
+        return ReplayContext(setup, warn, AuditLog(store), lambda capsule: step_records(store, capsule))
     if setup.server is not None:
         return CommandingContext(setup, warn, setup.operations, live, setup.server)
     from drs_link.server import InProcessServer

@@ -10,6 +10,7 @@ from textual.message import Message
 from textual.notifications import SeverityLevel
 
 from drs_link.ops import IridiumHealthView, RecoveryView, ReleaseWindow, TelemetryRecord
+from drs_link.server import HistoryView
 
 
 class TelemetryArrived(Message):
@@ -53,3 +54,12 @@ class ViewRead(Message, bubble=False):
         self.kind = kind
         self.capsule = capsule
         self.view = view
+
+
+class AuditRead(Message):
+    """The audit entries after the last one shown, read when the server's audit moved on: posted, never
+    waited for (a worker that waited on the app while it quit would hold the quit up)."""
+
+    def __init__(self, after: HistoryView) -> None:
+        super().__init__()
+        self.after = after

@@ -78,7 +78,7 @@ class ChecklistsScreen(ConsoleScreen):
         for capsule in context.setup.capsules:
             facts = context.fleet.capsules[capsule].facts(now)
             for checklist in context.checklists:
-                statuses = context.checklist_run(capsule, checklist).statuses(facts)
+                statuses = context.step_statuses(capsule, checklist, facts)
                 unfinished = [s for s in statuses if not s.finished]
                 not_met = sum(s.state is StepState.NOT_MET for s in statuses)
                 key = f"{capsule}/{checklist.id}"

@@ -20,8 +20,8 @@ from console.messages import OperatorNotice
 from console.screens.base import ConsoleScreen
 from console.screens.modals import HazardConfirmation, HazardModal, TextPromptModal
 from drs_link.errors import LinkError
-from drs_link.ops import LISTED, PARACHUTE, Hazard, MtCommand, MtComposer, MtMessage, ParachutePlan, by_name
-from drs_link.server import Pending, Second
+from drs_link.ops import LISTED, PARACHUTE, Hazard, MtCommand, MtComposer, MtMessage, by_name
+from drs_link.server import ParachuteView, Pending, Second
 
 COMMAND_ACTIONS = ("command",)
 
@@ -126,17 +126,16 @@ class CommandingScreen(ConsoleScreen):
             return
         self._send_after_name(message, options, command.note)
 
-    def _plan(self, requested: tuple[int, int] | None) -> ParachutePlan | None:
+    def _plan(self, requested: tuple[int, int] | None) -> ParachuteView | None:
         try:
-            return self.context.operations().plan_parachute(self.capsule, requested)
+            return self.context.plan_parachute(self.capsule, requested)
         except LinkError as exc:
             self.app.notify(f"PARACHUTE refused: {exc}", severity="error", timeout=12)
             return None
 
-    def _confirm_parachute(self, plan: ParachutePlan) -> None:
+    def _confirm_parachute(self, planned: ParachuteView) -> None:
+        plan, evidence = planned.plan, planned.evidence
         message = MtComposer().add("PARACHUTE", (plan.hour, plan.minute)).build()
-        ops = self.context.operations()  # a plan was made: this console commands
-        evidence = ops.landed(self.capsule)
         verdict = "Landed evidence" if evidence.on_ground else "NO LANDED EVIDENCE"
         text = "\n".join(
             [f"{verdict}: {evidence.summary}", plan.window_text(), *(f"! {w}" for w in plan.warnings)]
@@ -167,7 +166,10 @@ class CommandingScreen(ConsoleScreen):
                 )
             else:
                 deadline = f"queue before {plan.queue_by:%H:%M:%S}Z — {left:.0f} s left"
-            now = ops.landed(self.capsule)
+            try:
+                now = self.context.landed(self.capsule)
+            except LinkError as exc:
+                return f"{deadline}\nevidence NOW unknown: {exc}"
             if now.summary == evidence.summary:
                 return deadline
             return f"{deadline}\nevidence NOW ({'landed' if now.on_ground else 'NOT landed'}): {now.summary}"

@@ -3,8 +3,9 @@
 The search box has the focus on entry, so whatever the operator types searches: a stray letter
 must never fire a key (typing "alone" once wrote an export through its ``e``). ``↓``, ``Enter``
 or ``Tab`` move to the entries, where ``e`` exports; the highlighted entry's detail (a waiver's
-reason, a refusal's reason) is shown in full below them. The entries and their export come from the
-operations layer (``drs_link.ops.AuditLog``), never from the store itself.
+reason, a refusal's reason) is shown in full below them. The entries come from the operations server
+(a replay: this machine's ``drs_link.ops.AuditLog``), never from the store itself; the export is
+written by the console, so the file is the operator's own.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from textual.widgets import DataTable, Input, Static
 
 from console.context import ConsoleContext
 from console.screens.base import ConsoleScreen
+from drs_link.errors import LinkError
 from drs_link.ops import AuditRecord
 
 COLUMNS = ("Time (UTC)", "Operator", "Capsule", "Action", "Result")
@@ -76,7 +78,11 @@ class HistoryScreen(ConsoleScreen):
         entry's detail is also shown whole below the table when it is highlighted.
         """
         table = self.query_one("#audit", DataTable)
-        self.records = {r.id: r for r in self.context.history.newest(text)}
+        try:
+            self.records = {r.id: r for r in self.context.history.newest(text)}
+        except LinkError as exc:
+            self.app.notify(f"the audit log cannot be read: {exc}", severity="error")
+            return
         rows = [
             (f"{r.time_utc:%m-%d %H:%M:%S}", r.operator, r.capsule or "", r.action, r.result)
             for r in self.records.values()
@@ -131,7 +137,7 @@ class HistoryScreen(ConsoleScreen):
         path = self.context.setup.export_dir / f"audit-{self.context.now():%Y%m%dT%H%M%SZ}.jsonl"
         try:
             self.context.history.export(path, text)
-        except OSError as exc:
+        except (OSError, LinkError) as exc:
             self.app.notify(f"audit export failed: {exc}", severity="error")
             return
         self.app.notify(f"audit exported to {path}")

@@ -4,7 +4,8 @@ Every send names the capsule (the command lifecycle refuses otherwise) and shows
 and hex first; PARACHUTE also goes through the two-person rule. The window helper computes the
 HH:MM from the report history; a time the capsule would reject is refused before anything is sent.
 That flow is ``console.screens.commanding``, shared with the recovery screen. What it lists comes as
-one ``IridiumHealthView`` from the app's worker (``drs_link.ops.views``), from the store or a replay.
+one ``IridiumHealthView`` from the app's worker (``drs_link.ops.views``), read by the operations server
+or played from a replay.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from console.screens.commanding import CommandingScreen, command_bindings
 from console.screens.modals import TextPromptModal
 from drs_link.errors import LinkError
 from drs_link.ops import Command, IridiumHealthView
+from drs_link.server import MtView
 
 COMMAND_COLUMNS = ("#", "Text", "State", "Updated", "Detail")
 LIFECYCLE_WORDS = {
@@ -92,7 +94,7 @@ class IridiumScreen(CommandingScreen):
             table.add_row(
                 "?" if row.momsn is None else str(row.momsn),
                 f"{row.fix_time:%H:%M:%S}Z" if row.fix_time else "NO FIX", where,
-                f"{row.alt_m} m" if row.fix_time and row.alt_m is not None else "—",
+                f"{row.alt_m:.0f} m" if row.fix_time and row.alt_m is not None else "—",
                 f"{row.vbat:.2f}" if row.vbat is not None else "?",
                 str(row.iteration) if row.iteration is not None else "?",
             )  # fmt: skip
@@ -142,15 +144,15 @@ class IridiumScreen(CommandingScreen):
                 return
             gateway_id = int(text) if text.isdigit() else None
 
-            def resolve() -> list[Command]:
-                return context.operations().resolve_mt(capsule, command_id, gateway_id, "console")
+            def resolve() -> list[MtView]:
+                return context.resolve_mt(capsule, command_id, gateway_id, "console")
 
             self.write_off_ui(resolve, shown, refused)
 
         def refused(exc: LinkError) -> None:
             self.app.notify(str(exc), severity="error", timeout=10)
 
-        def shown(commands: list[Command]) -> None:
+        def shown(commands: list[MtView]) -> None:
             for command in commands[:1]:
                 self.app.notify(f"MT {command.id} {command.text}: {command.state}: {command.detail}")
             self.action_reload()

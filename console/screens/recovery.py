@@ -2,8 +2,9 @@
 
 While it is still descending (fixes arriving, no landing detected) it also shows the live
 re-prediction from the latest fix, so the team drives towards where it is going now, not where it was
-predicted at release. All of it comes from the store as one ``RecoveryView`` (``drs_link.ops.recovery``),
-read by the app's worker when the store or the capsule's telemetry changes; the screen only shows it.
+predicted at release. All of it comes as one ``RecoveryView`` (``drs_link.ops.recovery``), read by the
+operations server (with this console's live re-prediction added) or played from a replay,
+asked for by the app's worker when the store or the capsule's telemetry changes; the screen only shows it.
 
 The team also needs, on this one screen, what the sounder, the report interval and the parachute
 release were commanded to and how far each command got (``drs_link.iridium.commanded``: the unit

@@ -134,7 +134,7 @@ class ReleaseScreen(ConsoleScreen):
         table = self.query_one("#checklist", DataTable)
         row = table.cursor_row
         facts = context.fleet.capsules[self.capsule].facts(now)
-        statuses = context.checklist_run(self.capsule, checklist).statuses(facts)
+        statuses = context.step_statuses(self.capsule, checklist, facts)
         whos = [f"{s.operator} {s.at:%H:%M:%S}Z" if s.operator and s.at else "" for s in statuses]
         self.fit_checklist_columns(table, max((len(who) for who in whos), default=0))
         self.step_texts.clear()
@@ -310,9 +310,12 @@ class ReleaseScreen(ConsoleScreen):
         step = self._selected_step()
         if step is None:
             return
-        run = self.context.checklist_run(self.capsule, self.context.checklists[self.checklist_index])
-        operator = self.context.operator
-        self._write(lambda: run.tick(step, operator))
+        context, capsule, checklist = (
+            self.context,
+            self.capsule,
+            self.context.checklists[self.checklist_index].id,
+        )
+        self._write(lambda: context.tick(capsule, checklist, step))
 
     def action_skip(self) -> None:
         step = self._selected_step()
@@ -322,9 +325,9 @@ class ReleaseScreen(ConsoleScreen):
         def done(reason: str | None) -> None:
             if reason is None:
                 return
-            run = self.context.checklist_run(self.capsule, self.context.checklists[self.checklist_index])
-            operator = self.context.operator
-            self._write(lambda: run.skip(step, operator, reason))
+            context, capsule = self.context, self.capsule
+            checklist = context.checklists[self.checklist_index].id
+            self._write(lambda: context.tick(capsule, checklist, step, reason))
 
         self.app.push_screen(TextPromptModal("Skip step", f"Why skip {step}? (logged)"), done)
 
@@ -337,21 +340,20 @@ class ReleaseScreen(ConsoleScreen):
 
     @work(thread=True, exit_on_error=False, group="release")
     def power_on_worker(self) -> None:
+        self.app.post_message(OperatorNotice(f"{self.capsule}: powering on; waiting for NMEA (~25 s)"))
         try:
-            records = self.context.operations().power_on(self.capsule)
+            done = self.context.power_on(self.capsule)
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return
-        self.app.post_message(TelemetryArrived(records))
-        self.app.post_message(OperatorNotice(f"{self.capsule}: powered on; waiting for NMEA (~25 s)"))
+        for line in done.lines:
+            self.app.post_message(OperatorNotice(line, "information" if done.ok else "warning"))
 
     @work(thread=True, exit_on_error=False, group="release")
     def action_sync(self) -> None:
         try:
-            ops = self.context.operations()
             self.app.post_message(OperatorNotice(f"{self.capsule}: syncing data…"))
-            ops.sync(self.capsule)
-            self.app.post_message(TelemetryArrived(ops.poll(self.capsule)))
+            self.context.sync(self.capsule)
             self.app.post_message(OperatorNotice(f"{self.capsule}: sync finished and verified"))
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
@@ -390,7 +392,7 @@ class ReleaseScreen(ConsoleScreen):
             if reason is None:
                 return
             context, capsule = self.context, self.capsule
-            self._write(lambda: context.operations().waive(capsule, item, reason))
+            self._write(lambda: context.waive(capsule, item, reason))
 
         self.app.push_screen(
             TextPromptModal(
@@ -465,11 +467,10 @@ class ReleaseScreen(ConsoleScreen):
     @work(thread=True, exit_on_error=False, group="release")
     def reset_worker(self, typed_name: str) -> None:
         try:
-            records = self.context.operations().reset(self.capsule, typed_name)
+            self.context.reset(self.capsule, typed_name)
         except LinkError as exc:
             self.app.post_message(OperatorNotice(str(exc), "error"))
             return
-        self.app.post_message(TelemetryArrived(records))
         self.app.post_message(OperatorNotice(f"{self.capsule}: reset; a new release can be prepared"))
 
     @work(thread=True, exit_on_error=False, group="release")

@@ -33,7 +33,11 @@ if TYPE_CHECKING:
         ArmState as ArmState,
         ArmStatus as ArmStatus,
     )
-    from .audit_log import AuditLog as AuditLog
+    from .audit_log import (
+        AuditLog as AuditLog,
+        shown_record as shown_record,
+        write_audit_export as write_audit_export,
+    )
     from .authorize import (
         authorize_mt as authorize_mt,
         carries_parachute as carries_parachute,
@@ -51,9 +55,13 @@ if TYPE_CHECKING:
         Checklist as Checklist,
         ChecklistRun as ChecklistRun,
         StepKind as StepKind,
+        StepRecord as StepRecord,
         StepState as StepState,
+        StepStatus as StepStatus,
         complete_command as complete_command,
         load_checklists as load_checklists,
+        statuses_of as statuses_of,
+        step_records as step_records,
     )
     from .face_types import (
         CATALOGUE as CATALOGUE,
@@ -127,6 +135,7 @@ if TYPE_CHECKING:
     )
     from .release_window import ReleaseCandidate as ReleaseCandidate, ReleaseWindow as ReleaseWindow
     from .session import (
+        SessionLoss as SessionLoss,
         record_loss as record_loss,
         record_start as record_start,
         unprotected_ssh_warning as unprotected_ssh_warning,
@@ -159,7 +168,6 @@ if TYPE_CHECKING:
         IridiumHealthView as IridiumHealthView,
         RecordedViews as RecordedViews,
         ReportRow as ReportRow,
-        StoreViews as StoreViews,
         ViewSource as ViewSource,
     )
 
@@ -206,6 +214,8 @@ __getattr__, __dir__, __all__ = lazy_door(
         "ArmWindow": "arm_window",
         "ArmingController": "arming",
         "AuditLog": "audit_log",
+        "shown_record": "audit_log",
+        "write_audit_export": "audit_log",
         "BalloonSample": "telemetry",
         "CapsuleTelemetry": "fleet",
         "Checklist": "checklist",
@@ -247,9 +257,10 @@ __getattr__, __dir__, __all__ = lazy_door(
         "STALE_GLYPH": "staleness",
         "Sample": "telemetry",
         "StepKind": "checklist",
+        "StepRecord": "checklist",
+        "StepStatus": "checklist",
         "StepState": "checklist",
         "StorageSample": "telemetry",
-        "StoreViews": "views",
         "SyncSample": "telemetry",
         "TelemetryRecord": "telemetry",
         "TelemetryRecorder": "telemetry",
@@ -274,12 +285,15 @@ __getattr__, __dir__, __all__ = lazy_door(
         "format_age": "staleness",
         "hazard_of": "authorize",
         "load_checklists": "checklist",
+        "statuses_of": "checklist",
+        "step_records": "checklist",
         "parachute_override": "override",
         "pending_text": "approval",
         "read_recording": "telemetry",
         "record_as_dict": "capsule",
         "record_loss": "session",
         "record_start": "session",
+        "SessionLoss": "session",
         "recovery_view": "recovery",
         "release_origin": "origin",
         "report_position": "operations",

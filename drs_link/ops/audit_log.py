@@ -8,6 +8,7 @@ the store, the same in a live console and a replay (which shows this machine's l
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -29,7 +30,7 @@ class AuditLog:
         """The newest ``limit`` entries containing ``text`` (all when empty), newest first, every text in
         them as it may reach a terminal (``shown``): a reason stored before the typed-text rule, or written
         into the store by hand, cannot rewrite History's screen."""
-        return [_shown(r) for r in reversed(self.store.audit(text=text or None, limit=limit))]
+        return [shown_record(r) for r in reversed(self.store.audit(text=text or None, limit=limit))]
 
     def elsewhere(self, record: AuditRecord) -> str | None:
         """The console that wrote ``record`` when it is not this one (account@host pid), else None."""
@@ -37,17 +38,23 @@ class AuditLog:
 
     def export(self, path: Path, text: str | None = None) -> int:
         """Every entry containing ``text``, oldest first, one JSON object a line; how many were written."""
-        records = self.store.audit(text=text or None)
-        data_directory(path.parent)
-        with path.open("w", encoding="utf-8") as out:
-            for r in records:
-                row = {"time_utc": iso_utc(r.time_utc), "operator": r.operator, "capsule": r.capsule,
-                       "action": r.action, "result": r.result, "detail": r.detail}  # fmt: skip
-                out.write(json.dumps(row) + "\n")
-        return len(records)
+        return write_audit_export(path, self.store.audit(text=text or None))
 
 
-def _shown(record: AuditRecord) -> AuditRecord:
+def write_audit_export(path: Path, records: Sequence[AuditRecord]) -> int:
+    """``records``, oldest first, one JSON object a line, written by the process that asked (a console
+    writes the entries the server read to a file of its own operator's); how many were written."""
+    data_directory(path.parent)
+    with path.open("w", encoding="utf-8") as out:
+        for r in records:
+            row = {"time_utc": iso_utc(r.time_utc), "operator": r.operator, "capsule": r.capsule,
+                   "action": r.action, "result": r.result, "detail": r.detail}  # fmt: skip
+            out.write(json.dumps(row) + "\n")
+    return len(records)
+
+
+def shown_record(record: AuditRecord) -> AuditRecord:
+    """Every text of an entry as it may reach a terminal (``shown``)."""
     return replace(
         record, operator=shown(record.operator), capsule=None if record.capsule is None else shown(record.capsule),
         action=shown(record.action), result=shown(record.result),

@@ -228,6 +228,44 @@ class StepStatus:
         return self.state in (StepState.DONE, StepState.SKIPPED, StepState.MET)
 
 
+@dataclass(frozen=True)
+class StepRecord:
+    """A step ticked, skipped or completed by a command, as the store keeps it: what a console that does
+    not hold the store is handed (``drs_link.server``), to show with the telemetry it folds itself."""
+
+    checklist: str
+    step: str
+    state: StepState
+    operator: str
+    at: datetime
+    note: str | None
+
+
+def statuses_of(
+    checklist: Checklist, recorded: Sequence[StepRecord], facts: Mapping[str, object]
+) -> list[StepStatus]:
+    """Each step's state: as recorded, else an automatic step judged on ``facts``, else pending."""
+    by_step = {r.step: r for r in recorded if r.checklist == checklist.id}
+    out = []
+    for step in checklist.steps:
+        row = by_step.get(step.id)
+        if row is not None:
+            out.append(StepStatus(step, row.state, row.operator, row.at, row.note))
+        elif step.kind is StepKind.AUTO and step.predicate is not None:
+            out.append(StepStatus(step, step.predicate.evaluate(facts), None, None, None))
+        else:
+            out.append(StepStatus(step, StepState.PENDING, None, None, None))
+    return out
+
+
+def step_records(store: Store, capsule: str) -> list[StepRecord]:
+    """Every step recorded for ``capsule``, of every checklist."""
+    store.ensure_schema(_DDL)
+    rows = store.query("SELECT * FROM checklist_step WHERE capsule = ?", (capsule,))
+    return [StepRecord(row["checklist"], row["step"], StepState(row["state"]), row["operator"],
+                       parse_iso_utc(row["at"]), row["note"]) for row in rows]  # fmt: skip
+
+
 class ChecklistRun:
     """One checklist for one capsule: ticks, skips and command completions, durable and audited."""
 
@@ -280,25 +318,7 @@ class ChecklistRun:
         self._record(step, StepState.DONE, operator, result)
 
     def statuses(self, facts: Mapping[str, object]) -> list[StepStatus]:
-        rows = self.store.query(
-            "SELECT * FROM checklist_step WHERE capsule = ? AND checklist = ?",
-            (self.capsule, self.checklist.id),
-        )
-        recorded = {row["step"]: row for row in rows}
-        out = []
-        for step in self.checklist.steps:
-            row = recorded.get(step.id)
-            if row is not None:
-                out.append(
-                    StepStatus(
-                        step, StepState(row["state"]), row["operator"], parse_iso_utc(row["at"]), row["note"]
-                    )
-                )
-            elif step.kind is StepKind.AUTO and step.predicate is not None:
-                out.append(StepStatus(step, step.predicate.evaluate(facts), None, None, None))
-            else:
-                out.append(StepStatus(step, StepState.PENDING, None, None, None))
-        return out
+        return statuses_of(self.checklist, step_records(self.store, self.capsule), facts)
 
     def complete(self, facts: Mapping[str, object]) -> bool:
         return all(s.finished for s in self.statuses(facts))

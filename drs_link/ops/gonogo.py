@@ -283,5 +283,15 @@ class WaiverBook:
         self.waivers = [w for w in self.waivers if w.item != item] + [waiver]
         return waiver
 
+    def withdraw(self, item: str, operator: str) -> bool:
+        """Drop the waiver of ``item`` (audited, with who withdrew it); False when none was held."""
+        held = [w for w in self.waivers if w.item == item]
+        if not held:
+            return False
+        self.waivers = [w for w in self.waivers if w.item != item]
+        self.store.append_audit(operator or "unknown", self.capsule, "waiver", "withdrawn", {"item": item},
+                                when=self.clock())  # fmt: skip
+        return True
+
     def clear(self) -> None:
         self.waivers = []

@@ -2,8 +2,8 @@
 
 The recovery and Iridium screens read no store themselves, so a replay (no store behind it) shows them
 too: a ``ViewSource`` answers with frozen values (``RecoveryView``, ``IridiumHealthView``) that the
-console's workers hand to the screens; ``StoreViews`` reads the store through ``Operations``,
-``RecordedViews`` rebuilds the same values from the report records a replay has played so far (no
+console's workers hand to the screens; a live console's are read by the operations server
+(``drs_link.server.views``), ``RecordedViews`` rebuilds the same values from the report records a replay has played so far (no
 commands, no health flags: the recording does not hold the data they are judged on, and the views
 say so).
 """
@@ -11,14 +11,14 @@ say so).
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Protocol
 
 from drs_link.iridium import Command, StoredReport, TrackPoint, assess
-from drs_link.ops.operations import Operations, report_position
-from drs_link.ops.recovery import LiveSource, RecoveryView, descent_along, recovery_view
+from drs_link.ops.operations import report_position
+from drs_link.ops.recovery import RecoveryView, descent_along
 from drs_link.ops.telemetry import ReportSample, TelemetryRecord
 
 REPORT_ROWS = 50
@@ -109,26 +109,6 @@ class ViewSource(Protocol):
 
     def observe(self, records: Iterable[TelemetryRecord]) -> None:
         """Telemetry the console folded (a replay's only source)."""
-
-
-class StoreViews:
-    """A live console: the store, read through the operations layer."""
-
-    def __init__(self, operations: Operations, live: Callable[[], LiveSource | None]) -> None:
-        self.operations = operations
-        self.live = live
-        """The live re-prediction as it is now (none until the weather is loaded)."""
-
-    def recovery(self, capsule: str) -> RecoveryView:
-        return recovery_view(self.operations, capsule, self.live())
-
-    def iridium(self, capsule: str) -> IridiumHealthView:
-        return iridium_health_from(
-            capsule, self.operations.stored_reports(capsule), self.operations.commands(capsule)
-        )
-
-    def observe(self, records: Iterable[TelemetryRecord]) -> None:
-        """The store already holds what was folded."""
 
 
 class RecordedViews:

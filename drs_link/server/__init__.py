@@ -5,9 +5,11 @@ and every face acts through it (issue #29).
 (``SO_PEERCRED``) and the server's own ``[[operator]]`` list; ``desks`` one ``drs_link.ops`` engine per
 operator; ``release`` (ARM, FIRE, disarm), ``capsules`` (status, power-on, reset, a recorded fall, the
 release authority, enrolment), ``iridium`` and ``approvals`` the thin services over them; ``telemetry``
-the capsules polled once for every console and pushed to each; ``protocol``
-the typed, versioned messages; ``client`` the faces' one client with verbs; ``private`` an account's own
-server, started on demand.
+the capsules polled once for every console and pushed to each; ``chase`` what ``drs chase`` sends; and
+for a console's desk ``waivers``, ``checklists``, ``history`` (the audit, a session's start and loss) and
+``views`` (recovery, Iridium, PARACHUTE overrides); ``protocol`` the typed, versioned messages;
+``client`` the faces' one client with verbs, ``desk`` a console's verbs whose answers are the operations
+layer's values; ``private`` an account's own server, started on demand.
 """
 
 from typing import TYPE_CHECKING
@@ -17,7 +19,18 @@ from predictor.lazy_door import lazy_door
 if TYPE_CHECKING:
     from . import iridium as iridium
     from .app import OperationsServer as OperationsServer
-    from .client import Capsule as Capsule, Client as Client, raise_failure as raise_failure
+    from .client import (
+        TIMEOUT_S as TIMEOUT_S,
+        Capsule as Capsule,
+        Client as Client,
+        raise_failure as raise_failure,
+    )
+    from .desk import (
+        Desk as Desk,
+        DeskView as DeskView,
+        HistoryView as HistoryView,
+        ParachuteView as ParachuteView,
+    )
     from .desks import PredictorFor as PredictorFor
     from .peers import (
         Peer as Peer,
@@ -43,8 +56,10 @@ if TYPE_CHECKING:
         Failure as Failure,
         Hello as Hello,
         MtSendRequest as MtSendRequest,
+        MtView as MtView,
         Pending as Pending,
         RecoveryRequest as RecoveryRequest,
+        ReleaseView as ReleaseView,
         Second as Second,
         iso_utc as iso_utc,
     )
@@ -57,6 +72,7 @@ __getattr__, __dir__, __all__ = lazy_door(
     {
         "ApprovalView": "protocol",
         "Capsule": "client",
+        "TIMEOUT_S": "client",
         "CapsuleStatus": "protocol",
         "ArmState": "protocol",
         "Event": "protocol",
@@ -69,6 +85,12 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Hello": "protocol",
         "MAX_BODY_BYTES": "protocol",
         "MtSendRequest": "protocol",
+        "MtView": "protocol",
+        "ReleaseView": "protocol",
+        "Desk": "desk",
+        "DeskView": "desk",
+        "HistoryView": "desk",
+        "ParachuteView": "desk",
         "OperationsServer": "app",
         "PRIVATE_TWO_PERSON": "release",
         "POLL_PERIOD_S": "telemetry",

@@ -38,7 +38,9 @@ from drs_link.ops import Approval, TelemetryRecord
 from drs_link.server.approvals import ApprovalService
 from drs_link.server.capsules import CapsuleService
 from drs_link.server.chase import ChaseService
+from drs_link.server.checklists import ChecklistService
 from drs_link.server.desks import Desks, PredictorFor
+from drs_link.server.history import HistoryService
 from drs_link.server.iridium import IridiumService
 from drs_link.server.peers import Mode, Peer, Roster, check_own_file, check_state_directory, peer_uid
 from drs_link.server.protocol import (
@@ -55,9 +57,12 @@ from drs_link.server.protocol import (
     Failure,
     FireRequest,
     Hello,
+    HistoryRequest,
+    ItemRequest,
     KeepLandingRequest,
     MtSendRequest,
     Pending,
+    PlanRequest,
     PowerOnRequest,
     ReasonRequest,
     RecoveryRequest,
@@ -65,18 +70,23 @@ from drs_link.server.protocol import (
     Request,
     ResolveMtRequest,
     Said,
+    SessionLossRequest,
     Step,
+    StepRequest,
     SyncRequest,
     SyncStatusRequest,
     TakeOverRequest,
     TelemetryBatch,
     TrackRequest,
     TypedNameRequest,
+    WaiveRequest,
     encode,
 )
 from drs_link.server.recovery import LiveFor, RecoveryService
 from drs_link.server.release import ReleaseService
 from drs_link.server.telemetry import Periods, TelemetryService
+from drs_link.server.views import ViewService
+from drs_link.server.waivers import WaiverService
 from drs_link.store import Store
 from predictor.errors import UsageError
 
@@ -141,7 +151,11 @@ class OperationsServer:
         self.roster = Roster(config, mode)
         self.store = Store.open(config.store_path)
         self.desks = Desks(config, self.store, environ, clock)
-        self.release = ReleaseService(self.desks, mode, predictor_for)
+        self.waivers = WaiverService(self.desks)
+        self.checklists = ChecklistService(self.desks)
+        self.history = HistoryService(self.desks)
+        self.views = ViewService(self.desks, self.waivers, self.checklists)
+        self.release = ReleaseService(self.desks, mode, self.waivers, predictor_for)
         self.iridium = IridiumService(self.desks, mode)
         self.capsules = CapsuleService(self.desks, mode)
         self.approvals = ApprovalService(self.store, self.desks.clock)
@@ -376,6 +390,7 @@ class OperationsServer:
         body = await self.body(request, TypedNameRequest)
         name = request.match_info["name"]
         view = await self.blocking(lambda: self.capsules.reset(request["peer"], name, body.typed_name))
+        self.waivers.void(view.capsule)
         return json_response(view)
 
     async def released(self, request: web.Request) -> web.Response:
@@ -435,6 +450,63 @@ class OperationsServer:
         name = request.match_info["name"]
         view = await self.blocking(lambda: self.capsules.enrol(request["peer"], name, body.fingerprint))
         return json_response(view)
+
+    # A console's desk (``desk``): its waivers, the checklists, the audit, its session, the views it draws.
+
+    async def desk(self, request: web.Request) -> web.Response:
+        return json_response(await self.blocking(lambda: self.views.desk(request["peer"])))
+
+    async def waive(self, request: web.Request) -> web.Response:
+        body = await self.body(request, WaiveRequest)
+        name = request.match_info["name"]
+        held = await self.blocking(lambda: self.waivers.waive(request["peer"], name, body.item, body.reason))
+        return json_response(held)
+
+    async def withdraw_waiver(self, request: web.Request) -> web.Response:
+        body = await self.body(request, ItemRequest)
+        name = request.match_info["name"]
+        return json_response(
+            await self.blocking(lambda: self.waivers.withdraw(request["peer"], name, body.item))
+        )
+
+    async def held_waivers(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.waivers.held(request["peer"], name)))
+
+    async def checklist_step(self, request: web.Request) -> web.Response:
+        body = await self.body(request, StepRequest)
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.checklists.step(request["peer"], name, body)))
+
+    async def audit(self, request: web.Request) -> web.Response:
+        body = await self.body(request, HistoryRequest)
+        return json_response(await self.blocking(lambda: self.history.read(request["peer"], body)))
+
+    async def session_start(self, request: web.Request) -> web.Response:
+        await self.body(request, HistoryRequest)
+        return json_response(await self.blocking(lambda: self.history.started(request["peer"])))
+
+    async def session_lost(self, request: web.Request) -> web.Response:
+        body = await self.body(request, SessionLossRequest)
+        return json_response(await self.blocking(lambda: self.history.lost(request["peer"], body)))
+
+    async def recovery_view(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.views.recovery(request["peer"], name)))
+
+    async def iridium_view(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.views.iridium(request["peer"], name)))
+
+    async def plan_parachute(self, request: web.Request) -> web.Response:
+        body = await self.body(request, PlanRequest)
+        name = request.match_info["name"]
+        view = await self.blocking(lambda: self.iridium.plan_parachute(request["peer"], name, body.requested))
+        return json_response(view)
+
+    async def landed(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        return json_response(await self.blocking(lambda: self.iridium.landed(request["peer"], name)))
 
     async def waiting(self, request: web.Request) -> web.Response:
         return json_response(await self.blocking(self.approvals.waiting))
@@ -541,7 +613,13 @@ class OperationsServer:
                 release[name] = capsule.machine.record().state.value
                 window = capsule.arming.windows.latest(name)
                 armed[name] = window.state if window is not None else "none"
-        return Event(release, armed, tuple(self.approvals.waiting()), self.release.arm_states(peer))
+        return Event(
+            release,
+            armed,
+            tuple(self.approvals.waiting()),
+            self.release.arm_states(peer),
+            self.views.newest_id(),
+        )
 
     # Running --------------------------------------------------------------------------------------
 
@@ -571,6 +649,18 @@ class OperationsServer:
         app.router.add_post(f"{ROOT}/recovery/{{name}}", self.recovery_readout)
         app.router.add_get(f"{ROOT}/chase/points", self.chase_points)
         app.router.add_post(f"{ROOT}/chase/landing", self.keep_landing)
+        app.router.add_get(f"{ROOT}/desk", self.desk)
+        app.router.add_get(f"{ROOT}/capsules/{{name}}/waivers", self.held_waivers)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/waivers", self.waive)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/waivers/withdraw", self.withdraw_waiver)
+        app.router.add_post(f"{ROOT}/capsules/{{name}}/checklist", self.checklist_step)
+        app.router.add_post(f"{ROOT}/audit", self.audit)
+        app.router.add_post(f"{ROOT}/session/start", self.session_start)
+        app.router.add_post(f"{ROOT}/session/lost", self.session_lost)
+        app.router.add_get(f"{ROOT}/views/{{name}}/recovery", self.recovery_view)
+        app.router.add_get(f"{ROOT}/views/{{name}}/iridium", self.iridium_view)
+        app.router.add_post(f"{ROOT}/iridium/{{name}}/parachute-plan", self.plan_parachute)
+        app.router.add_get(f"{ROOT}/iridium/{{name}}/landed", self.landed)
         app.router.add_get(f"{ROOT}/approvals", self.waiting)
         app.router.add_post(f"{ROOT}/approvals/{{approval}}", self.decide)
         app.router.add_get(f"{ROOT}/events", self.events)

@@ -67,7 +67,9 @@ class CapsuleService:
 
     @contextmanager
     def _desk(self, peer: Peer, name: str, need_operator: bool = False) -> Iterator[Operations]:
-        """The peer's engine for ``name`` (an unknown capsule refused first), its link closed afterwards."""
+        """The peer's engine for ``name`` (an unknown capsule refused first), its link closed afterwards:
+        under the capsule's lock, so never under another request's poll on the same desk (a console's
+        ARM while its power-on still waited for NMEA found the link closed mid-poll: "link down")."""
         ops = self.desks.desk(peer)
         capsule = ops.ops(name)
         if need_operator and not peer.operator:
@@ -75,7 +77,8 @@ class CapsuleService:
         try:
             yield ops
         finally:
-            capsule.link.close()
+            with capsule.lock:
+                capsule.link.close()
 
     def status(self, peer: Peer, name: str) -> CapsuleStatus:
         """``Operations.capsule_status``: read-only; a refused host key is raised, never reported as down.

@@ -8,6 +8,8 @@ configured, this account's private server, started on demand (``private``). Verb
 ``.mt_status(name)``, ``.resolve_mt(…)``, ``.health(name)``, ``.track(…)``,
 ``client.recovery(name, …)``, ``client.chase.points()``/``.keep(landing)``, ``client.approvals.waiting()``/``.approve(id)``/``.reject(id, reason)``, ``client.events()``
 for views, and ``client.telemetry_stream()`` for the capsules' telemetry (``.poll()`` for one poll now).
+A console's desk (waivers, checklists, history, its session, the views it draws, a PARACHUTE plan) is
+``drs_link.server.desk.Desk(client)``: its answers are the operations layer's values.
 
 Why the standard library's ``http.client`` for the verbs: a ``drs`` command is one blocking request,
 and a plain socket keeps ``drs …`` from paying for an event loop and aiohttp's import (the CLI's
@@ -306,8 +308,11 @@ class Capsule:
     name: str
 
     def arm(self, waivers: tuple[tuple[str, str], ...] = (), weather: tuple[str, ...] = (),
-            say: Say = print) -> ArmState:  # fmt: skip
-        request = ArmRequest(PROTOCOL, tuple(Waive(i, r) for i, r in waivers), absolute(weather))
+            say: Say = print, held_waivers: bool = False) -> ArmState:  # fmt: skip
+        """``held_waivers``: judged with the waivers this account holds at the server (a console's)."""
+        request = ArmRequest(
+            PROTOCOL, tuple(Waive(i, r) for i, r in waivers), absolute(weather), held_waivers
+        )
         done = self.client.steps(f"/capsules/{self.name}/arm", request, say)
         assert done.arm is not None
         return done.arm
@@ -320,9 +325,12 @@ class Capsule:
         second: Second | None = None,
         say: Say = print,
         on_pending: Callable[[Pending], None] | None = None,
+        held_waivers: bool = False,
     ) -> Done:
         waived = tuple(Waive(i, r) for i, r in waivers)
-        request = FireRequest(PROTOCOL, typed_name, waived, absolute(weather), second or Second())
+        request = FireRequest(
+            PROTOCOL, typed_name, waived, absolute(weather), second or Second(), held_waivers
+        )
         return self.client.steps(f"/capsules/{self.name}/fire", request, say, on_pending)
 
     def disarm(self, reason: str = "operator disarmed (drs capsule disarm)") -> ArmState:

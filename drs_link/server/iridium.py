@@ -9,6 +9,7 @@ from datetime import datetime
 
 from drs_link.errors import ConfigError, RefusedError
 from drs_link.iridium import track_csv
+from drs_link.iridium.landed import LandedEvidence
 from drs_link.ops import (
     CATALOGUE,
     FLUSH_WARNING,
@@ -27,6 +28,7 @@ from drs_link.ops import (
     iso_utc,
     parse_hhmm,
 )
+from drs_link.server.desk import ParachuteView
 from drs_link.server.desks import Desks
 from drs_link.server.peers import Mode, Peer
 from drs_link.server.protocol import (
@@ -170,3 +172,13 @@ class IridiumService:
             reports, who = ops.reports.for_imei(imei), f"IMEI {imei}"
         text, fixes, without_fix, rejected = track_csv(reports, who)
         return TrackCsv(who, text, fixes, without_fix, rejected)
+
+    def plan_parachute(self, peer: Peer, name: str, requested: tuple[int, int] | None) -> ParachuteView:
+        """``Operations.plan_parachute`` and the landed evidence the gate will judge, for the operator to
+        read before typing the name; the send plans and judges again (``send_mt``)."""
+        ops = self.desks.desk(peer)
+        return ParachuteView(ops.plan_parachute(name, requested), ops.landed(name))
+
+    def landed(self, peer: Peer, name: str) -> LandedEvidence:
+        """The landed evidence as it is now (a dialog shows it again when a report changed it)."""
+        return self.desks.desk(peer).landed(name)

@@ -55,6 +55,9 @@ class ArmRequest(Request, frozen=True):
     waivers: tuple[Waive, ...] = ()
     weather: tuple[str, ...] = ()
     """GRIB2 files the server reads for the "release now" prediction go/no-go judges."""
+    held_waivers: bool = False
+    """Judge with the waivers this account holds at the server (a console's ``w``, audited when granted)
+    instead of ``waivers`` (a command's ``--waive``, granted for this request)."""
 
 
 class FireRequest(Request, frozen=True):
@@ -62,6 +65,7 @@ class FireRequest(Request, frozen=True):
     waivers: tuple[Waive, ...] = ()
     weather: tuple[str, ...] = ()
     second: Second = Second()
+    held_waivers: bool = False
 
 
 class DisarmRequest(Request, frozen=True):
@@ -179,6 +183,50 @@ class ResolveMtRequest(Request, frozen=True):
     gateway_id: int | None
     """Queued with this id, or None: never sent."""
     note: str = ""
+
+
+class WaiveRequest(Request, frozen=True):
+    """A console's ``w``: waive ``item`` for this account until it is withdrawn or the capsule is reset."""
+
+    item: str
+    reason: str
+
+
+class ItemRequest(Request, frozen=True):
+    """Withdraw this account's waiver of ``item``."""
+
+    item: str
+
+
+class StepRequest(Request, frozen=True):
+    """Tick a checklist step (``reason`` None), or skip it for ``reason``."""
+
+    checklist: str
+    step: str
+    reason: str | None = None
+
+
+class HistoryRequest(Request, frozen=True):
+    """The audit log as History reads it: the newest ``limit`` entries containing ``text``, or (``after``)
+    every entry after that id, oldest first, or (``limit`` 0) every entry containing ``text``."""
+
+    text: str | None = None
+    limit: int = 0
+    after: int | None = None
+
+
+class SessionLossRequest(Request, frozen=True):
+    """A console cut off (SIGHUP, SIGTERM): the signal, the windows it had disarmed, the Go in flight."""
+
+    signal: str
+    disarmed: tuple[str, ...] = ()
+    go_in_flight: tuple[str, ...] = ()
+
+
+class PlanRequest(Request, frozen=True):
+    """A PARACHUTE time to check (HH, MM), or None: the helper picks the next cycle."""
+
+    requested: tuple[int, int] | None = None
 
 
 # Answers ------------------------------------------------------------------------------------------
@@ -518,6 +566,9 @@ class Event(msgspec.Struct, frozen=True):
     approvals: tuple[ApprovalView, ...]
     arms: dict[str, ArmState] = {}
     """Each capsule's ARM window as the subscribing account sees it (``mine`` is that account's)."""
+    audit_id: int = 0
+    """The newest audit entry's id: every waiver, tick, send and session is audited, so a console asks
+    for its desk (``drs_link.server.desk``) and the entries of others when this moves on."""
 
 
 class TelemetryBatch(msgspec.Struct, frozen=True):

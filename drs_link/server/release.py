@@ -24,7 +24,8 @@ from drs_link.ops import (
 from drs_link.server.desks import Desks, PredictorFor
 from drs_link.server.paths import readable_path
 from drs_link.server.peers import Mode, Peer
-from drs_link.server.protocol import ArmRequest, ArmState, FireRequest, Waive
+from drs_link.server.protocol import ArmRequest, ArmState, FireRequest
+from drs_link.server.waivers import WaiverService
 
 PRIVATE_TWO_PERSON = (
     "require_second_operator needs a second account, and only {account} reaches this private server: "
@@ -44,18 +45,25 @@ def two_person_refusal(mode: Mode, peer: Peer, await_approval: bool) -> None:
 
 
 class ReleaseService:
-    def __init__(self, desks: Desks, mode: Mode, predictor_for: PredictorFor | None = None) -> None:
+    def __init__(
+        self, desks: Desks, mode: Mode, waivers: WaiverService, predictor_for: PredictorFor | None = None
+    ) -> None:
         self.desks = desks
         self.mode = mode
+        self.waivers = waivers
         self.predictor_for = predictor_for
 
-    def _desk(self, peer: Peer, name: str, waivers: tuple[Waive, ...]) -> Operations:
+    def _desk(self, peer: Peer, name: str, request: ArmRequest | FireRequest) -> Operations:
         ops = self.desks.desk(peer)
         ops.config.capsule(name)
         if not peer.operator:
             raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
-        ops.ops(name).waivers.clear()  # the waivers are the request's own, as one `drs` process had them
-        for waive in waivers:
+        book = ops.ops(name).waivers
+        if request.held_waivers:  # a console's, audited when it waived: not granted (and audited) again
+            book.waivers = list(self.waivers.held(peer, name))
+            return ops
+        book.clear()  # the waivers are the request's own, as one `drs` process had them
+        for waive in request.waivers:
             ops.waive(name, waive.item, waive.reason)
         return ops
 
@@ -67,7 +75,7 @@ class ReleaseService:
         return ops.poll_gonogo(name, predict)
 
     def arm(self, peer: Peer, name: str, request: ArmRequest, say: Say) -> ArmState:
-        ops = self._desk(peer, name, request.waivers)
+        ops = self._desk(peer, name, request)
         say(f"{name}: polling go/no-go (link, microcontroller, GNSS, sync, prediction, gateway)…")
         report = self._poll(peer, ops, name, request.weather)
         for line in poll_lines(report):
@@ -86,7 +94,7 @@ class ReleaseService:
 
     def fire(self, peer: Peer, name: str, request: FireRequest, say: Say, on_pending: OnPending) -> list[str]:
         """FIRE as the console fires it; an unverified Go is finished instead (``Operations.finish_go``)."""
-        ops = self._desk(peer, name, request.waivers)
+        ops = self._desk(peer, name, request)
         second = request.second
         if ops.release_state(name) is ReleaseState.GO_SENT:
             say(f"{name}: Go was sent and never verified: finishing it (the first Go's time is kept)…")

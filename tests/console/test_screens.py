@@ -401,3 +401,26 @@ async def test_w_takes_the_operator_to_a_waivable_go_no_go_item_and_says_so(
         await pilot.press(*"no fix over the lake", "enter")
         waiver = {"item": "gnss", "reason": "no fix over the lake"}
         await wait_for(pilot, lambda: any(a.detail == waiver for a in app.store.audit("DRS1")))
+
+
+async def test_a_waiver_and_a_tick_are_shown_as_the_server_answered_them(
+    canned_app: Callable[..., DrsConsole],
+) -> None:
+    """The screen shows a key's write at once, from the verb's answer, not only after the next event."""
+    app = canned_app()
+    async with app.run_test(size=(120, 40)):
+        app.context.waive("DRS1", "gnss", "no fix over the lake")
+        assert [(w.item, w.reason, w.operator) for w in app.context.waivers("DRS1")] == [
+            ("gnss", "no fix over the lake", "EL")
+        ]
+        assert app.context.waivers("DRS2") == []
+        [sync] = [item for item in app.gonogo("DRS2").items if item.key == "sync"]
+        assert sync.verdict.value == "NO-GO", "DRS2 is half synced"
+        app.context.waive("DRS2", "sync", "the rest is on the spare card")
+        [sync] = [item for item in app.gonogo("DRS2").items if item.key == "sync"]
+        assert sync.verdict.value == "WAIVED", "go/no-go judged with the server's waiver"
+        app.context.tick("DRS1", "release-day", "apply-24v")
+        app.context.tick("DRS1", "preflight", "pcb-pi", "checked at the hangar")
+        assert sorted((r.step, r.state.value) for r in app.context.step_records("DRS1")) == [
+            ("apply-24v", "done"), ("pcb-pi", "skipped"),
+        ]  # fmt: skip

@@ -1,6 +1,7 @@
-"""The commanding screens are clients of the operations server (issue #29): nothing they import through
-``drs_link.ops``'s door is a store, a controller, the approval book, the operations layer or a login of
-their own. import-linter sees only the door (the contract in pyproject.toml); this reads the names."""
+"""The screens and widgets are clients of the operations server (issue #29): nothing they import through
+``drs_link.ops``'s door is a store, a controller, the approval book, the operations layer, a checklist
+run, the audit log, a session's record or a login of their own. import-linter sees only the door (the
+contract in pyproject.toml); this reads the names."""
 
 from __future__ import annotations
 
@@ -10,13 +11,22 @@ from pathlib import Path
 import pytest
 
 import console.screens
+import console.widgets
 import drs_link.ops
 
-SCREENS = ("release", "approvals", "commanding")
-BEHIND_THE_SERVER = {"arming", "arm_window", "approval", "operations", "session", "authorize"}
+FACES = sorted(
+    path
+    for package in (console.screens, console.widgets)
+    for path in Path(package.__file__).parent.glob("*.py")
+    if path.name != "__init__.py"
+)
+BEHIND_THE_SERVER = {
+    "arming", "arm_window", "approval", "operations", "session", "authorize", "checklist", "audit_log", "views",
+}  # fmt: skip
 """``drs_link.ops`` modules whose names a client must not hold: the server holds them."""
-ALLOWED_FROM_APPROVAL = {"ACTIONS"}
-"""A label table of ``approval``, plain data: how an action is named on screen."""
+PLAIN_DATA = {"ACTIONS", "StepKind", "StepState", "IridiumHealthView"}
+"""Labels and values of those modules, no store behind them: how an action is named on screen, a step's
+kind and state, the Iridium view the server answers with."""
 
 
 def names_through_the_door(path: Path) -> list[str]:
@@ -43,22 +53,27 @@ def door_map() -> dict[str, str]:
     }
 
 
-@pytest.mark.parametrize("screen", SCREENS)
-def test_a_commanding_screen_takes_no_controller_store_or_login_through_the_door(screen: str) -> None:
-    path = Path(console.screens.__file__).parent / f"{screen}.py"
+@pytest.mark.parametrize("face", FACES, ids=lambda path: f"{path.parent.name}/{path.name}")
+def test_a_screen_or_widget_takes_no_controller_store_run_or_login_through_the_door(face: Path) -> None:
     modules = door_map()
     held = [
         f"{name} ({modules[name]})"
-        for name in names_through_the_door(path)
-        if modules[name].removeprefix(".") in BEHIND_THE_SERVER and name not in ALLOWED_FROM_APPROVAL
+        for name in names_through_the_door(face)
+        if modules[name].removeprefix(".") in BEHIND_THE_SERVER and name not in PLAIN_DATA
     ]
-    assert held == [], f"console/screens/{screen}.py holds what the server holds: {held}"
+    assert held == [], f"{face} holds what the server holds: {held}"
 
 
 def test_the_check_sees_a_controller_taken_through_the_door(tmp_path: Path) -> None:
     """The check is not empty: a screen of before the server (ARM through its own controller) fails it."""
     before = tmp_path / "release.py"
-    before.write_text("from drs_link.ops import ArmingController, ApprovalBook, Verdict\n")
+    before.write_text(
+        "from drs_link.ops import ArmingController, ApprovalBook, ChecklistRun, AuditLog, StepState\n"
+    )
     modules = door_map()
-    held = [n for n in names_through_the_door(before) if modules[n].removeprefix(".") in BEHIND_THE_SERVER]
-    assert held == ["ArmingController", "ApprovalBook"]
+    held = [
+        n
+        for n in names_through_the_door(before)
+        if modules[n].removeprefix(".") in BEHIND_THE_SERVER and n not in PLAIN_DATA
+    ]
+    assert held == ["ArmingController", "ApprovalBook", "ChecklistRun", "AuditLog"]

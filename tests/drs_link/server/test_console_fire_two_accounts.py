@@ -70,7 +70,7 @@ def console(
         # The console's own poll of go/no-go (no predictions here) must not close the window under test:
         # FIRE polls again on the server, with the weather.
         monkeypatch.setattr(app, "watch_arming", lambda capsules, links_lost: None)
-        operations.waive("DRS1", "sync", SYNC_WAIVER)  # as `w` does; sent with ARM and FIRE
+        app.context.waive("DRS1", "sync", SYNC_WAIVER)  # as `w` does: held by the server for ARM and FIRE
         yield sim, app
     finally:
         if server is not None:
