@@ -87,7 +87,7 @@ async def test_the_recovery_screen_shows_what_another_console_stored_when_the_st
         await pilot.pause(0.2)
         text = str(recovery.query_one("#recovery-text").render())
         assert recovery.track == () and "No GNSS fix received yet" in text
-        app.read_views()  # what the telemetry's arrival asks for: the server reads its store afresh
+        app.start_telemetry()  # the server's report read pushes them; their arrival reads the view again
         await wait_for(pilot, lambda: recovery.landing is not None)
         assert "Landed " in str(recovery.query_one("#recovery-text").render()) and len(recovery.track) == 8
 
