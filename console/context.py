@@ -26,7 +26,6 @@ from typing import Protocol
 from console.predictions import PredictionService
 from drs_link.errors import LinkError
 from drs_link.feeds import BalloonFeed
-from drs_link.iridium.landed import LandedEvidence
 from drs_link.ops import (
     PROCEDURE_DIR,
     AuditLog,
@@ -36,6 +35,7 @@ from drs_link.ops import (
     FleetState,
     GoNoGoReport,
     IridiumHealthView,
+    LandedEvidence,
     LiveSource,
     Operations,
     ParachuteOverride,

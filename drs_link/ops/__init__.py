@@ -34,6 +34,7 @@ if TYPE_CHECKING:
         ArmStatus as ArmStatus,
     )
     from .audit_log import (
+        HISTORY_ROWS as HISTORY_ROWS,
         AuditLog as AuditLog,
         shown_record as shown_record,
         write_audit_export as write_audit_export,
@@ -105,6 +106,7 @@ if TYPE_CHECKING:
         GoNoGoReport as GoNoGoReport,
         Verdict as Verdict,
         Waiver as Waiver,
+        WaiverBook as WaiverBook,
         evaluate as evaluate,
     )
     from .operations import (
@@ -169,12 +171,16 @@ if TYPE_CHECKING:
         RecordedViews as RecordedViews,
         ReportRow as ReportRow,
         ViewSource as ViewSource,
+        iridium_health_from as iridium_health_from,
     )
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
     {
         "ACTIONS": "approval",
+        "HISTORY_ROWS": "audit_log",
+        "WaiverBook": "gonogo",
+        "iridium_health_from": "views",
         "by_name": "face_types",
         "MtCommand": "face_types",
         "LandedEvidence": "face_types",

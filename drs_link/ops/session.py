@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime
 
+from drs_link.ops.typed_text import typed_text
 from drs_link.store import Store, parse_iso_utc
 
 LOST = "session.lost"
@@ -56,9 +57,10 @@ def record_loss(
     store: Store, operator: str, signal: str, disarmed: list[str], go_in_flight: list[str]
 ) -> SessionLoss:
     """Write the loss itself, after the console had its open windows (``disarmed``) closed by the
-    operations server (each disarm audited there)."""
+    operations server (each disarm audited there). The signal's name is refused if it holds control or
+    format characters: the next console shows it to its operator."""
     record = store.append_audit(operator, None, LOST, "disarmed" if disarmed else "recorded",
-                                {"signal": signal, "disarmed": disarmed, "go_in_flight": go_in_flight})  # fmt: skip
+                                {"signal": typed_text("the signal", signal), "disarmed": disarmed, "go_in_flight": go_in_flight})  # fmt: skip
     return SessionLoss(record.time_utc, signal, tuple(disarmed), tuple(go_in_flight), record.session)
 
 

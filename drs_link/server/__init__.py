@@ -8,8 +8,8 @@ release authority, enrolment), ``iridium`` and ``approvals`` the thin services o
 the capsules polled once for every console and pushed to each; ``chase`` what ``drs chase`` sends; and
 for a console's desk ``waivers``, ``checklists``, ``history`` (the audit, a session's start and loss) and
 ``views`` (recovery, Iridium, PARACHUTE overrides); ``protocol`` the typed, versioned messages;
-``client`` the faces' one client with verbs, ``desk`` a console's verbs whose answers are the operations
-layer's values; ``private`` an account's own server, started on demand.
+``client`` the faces' one client with verbs, ``desk`` a console's verbs whose answers
+(``desk_views``) are the operations layer's values; ``private`` an account's own server, started on demand.
 """
 
 from typing import TYPE_CHECKING
@@ -25,8 +25,8 @@ if TYPE_CHECKING:
         Client as Client,
         raise_failure as raise_failure,
     )
-    from .desk import (
-        Desk as Desk,
+    from .desk import Desk as Desk
+    from .desk_views import (
         DeskView as DeskView,
         HistoryView as HistoryView,
         ParachuteView as ParachuteView,
@@ -88,9 +88,9 @@ __getattr__, __dir__, __all__ = lazy_door(
         "MtView": "protocol",
         "ReleaseView": "protocol",
         "Desk": "desk",
-        "DeskView": "desk",
-        "HistoryView": "desk",
-        "ParachuteView": "desk",
+        "DeskView": "desk_views",
+        "HistoryView": "desk_views",
+        "ParachuteView": "desk_views",
         "OperationsServer": "app",
         "PRIVATE_TWO_PERSON": "release",
         "POLL_PERIOD_S": "telemetry",

@@ -10,20 +10,17 @@ decodes them here, through the same ``Client.call``.
 
 from __future__ import annotations
 
-import msgspec
-
-from drs_link.iridium.landed import LandedEvidence
-from drs_link.iridium.parachute import ParachutePlan
 from drs_link.ops import (
+    HISTORY_ROWS,
     IridiumHealthView,
-    ParachuteOverride,
+    LandedEvidence,
     RecoveryView,
     SessionLoss,
     StepRecord,
     Waiver,
 )
-from drs_link.ops.audit_log import HISTORY_ROWS
 from drs_link.server.client import Client
+from drs_link.server.desk_views import DeskView, HistoryView, ParachuteView, SessionStart
 from drs_link.server.protocol import (
     PROTOCOL,
     HistoryRequest,
@@ -33,57 +30,6 @@ from drs_link.server.protocol import (
     StepRequest,
     WaiveRequest,
 )
-from drs_link.store import AuditRecord
-
-
-class DeskView(msgspec.Struct, frozen=True):
-    """What a console shows of its desk: this account's waivers and every capsule's checklist ticks and
-    PARACHUTE overrides (from any console: the overrides stay loud until replaced)."""
-
-    waivers: dict[str, tuple[Waiver, ...]]
-    checklists: dict[str, tuple[StepRecord, ...]]
-    overrides: tuple[ParachuteOverride, ...]
-    audit_id: int = 0
-    """The newest audit entry when it was read (``Event.audit_id``): a later one may have changed it."""
-
-    def with_waivers(self, capsule: str, held: tuple[Waiver, ...]) -> DeskView:
-        """The desk with a capsule's waivers as a verb's answer said them."""
-        return msgspec.structs.replace(self, waivers={**self.waivers, capsule: held})
-
-    def with_steps(self, capsule: str, recorded: tuple[StepRecord, ...]) -> DeskView:
-        return msgspec.structs.replace(self, checklists={**self.checklists, capsule: recorded})
-
-
-class HistoryView(msgspec.Struct, frozen=True):
-    """Audit entries, each text in them as it may reach a terminal (``shown``), and who asked."""
-
-    records: tuple[AuditRecord, ...]
-    session: str
-    """The server's own session: the entries it wrote for its clients carry it."""
-    operator: str
-    """The asking account's operator name."""
-
-    def elsewhere(self, record: AuditRecord) -> str | None:
-        """The console that wrote ``record`` when it is not the asker's (its session, or the operator who
-        acted through this server), else None."""
-        if record.session and record.session != self.session:
-            return record.session
-        if record.operator != self.operator:
-            return f"{record.operator} through the operations server"
-        return None
-
-
-class SessionStart(msgspec.Struct, frozen=True):
-    """A console's start, noted: the loss that ended the session before, if nobody started one since."""
-
-    last_loss: SessionLoss | None
-
-
-class ParachuteView(msgspec.Struct, frozen=True):
-    """A PARACHUTE time the capsule would accept, and the landed evidence the operator reads first."""
-
-    plan: ParachutePlan
-    evidence: LandedEvidence
 
 
 class Desk:

@@ -9,8 +9,7 @@ carry its session: the answer names it, so a console can tell another's entries 
 from __future__ import annotations
 
 from drs_link.ops import AuditLog, SessionLoss, record_loss, record_start, shown_record
-from drs_link.ops.typed_text import typed_text
-from drs_link.server.desk import HistoryView, SessionStart
+from drs_link.server.desk_views import HistoryView, SessionStart
 from drs_link.server.desks import Desks
 from drs_link.server.peers import Peer
 from drs_link.server.protocol import HistoryRequest, SessionLossRequest
@@ -43,7 +42,6 @@ class HistoryService:
 
     def lost(self, peer: Peer, request: SessionLossRequest) -> SessionLoss:
         """A console cut off, after its open windows were disarmed through the server."""
-        typed_text("the signal", request.signal)
         config = self.desks.desk(peer).config
         disarmed = [config.capsule(name).name for name in request.disarmed]
         in_flight = [config.capsule(name).name for name in request.go_in_flight]

@@ -9,7 +9,6 @@ from datetime import datetime
 
 from drs_link.errors import ConfigError, RefusedError
 from drs_link.iridium import track_csv
-from drs_link.iridium.landed import LandedEvidence
 from drs_link.ops import (
     CATALOGUE,
     FLUSH_WARNING,
@@ -19,6 +18,7 @@ from drs_link.ops import (
     RETRY_WARNING,
     Approval,
     Command,
+    LandedEvidence,
     MtComposer,
     MtMessage,
     Operations,
@@ -28,7 +28,7 @@ from drs_link.ops import (
     iso_utc,
     parse_hhmm,
 )
-from drs_link.server.desk import ParachuteView
+from drs_link.server.desk_views import ParachuteView
 from drs_link.server.desks import Desks
 from drs_link.server.peers import Mode, Peer
 from drs_link.server.protocol import (

@@ -8,10 +8,16 @@ descent is not here: it flies the console's own weather, and the console adds it
 
 from __future__ import annotations
 
-from drs_link.ops import IridiumHealthView, ParachuteOverride, RecoveryView, parachute_override, recovery_view
-from drs_link.ops.views import iridium_health_from
+from drs_link.ops import (
+    IridiumHealthView,
+    ParachuteOverride,
+    RecoveryView,
+    iridium_health_from,
+    parachute_override,
+    recovery_view,
+)
 from drs_link.server.checklists import ChecklistService
-from drs_link.server.desk import DeskView
+from drs_link.server.desk_views import DeskView
 from drs_link.server.desks import Desks
 from drs_link.server.peers import Peer
 from drs_link.server.waivers import WaiverService

@@ -11,8 +11,7 @@ from __future__ import annotations
 import threading
 
 from drs_link.errors import ConfigError
-from drs_link.ops import Waiver
-from drs_link.ops.gonogo import WaiverBook
+from drs_link.ops import Waiver, WaiverBook
 from drs_link.server.desks import Desks
 from drs_link.server.peers import Peer
 
