@@ -43,7 +43,6 @@ from drs_link.ops import (
     GoNoGoReport,
     LinkSample,
     LiveSource,
-    Operations,
     PredictionSample,
     PredictionStatus,
     ReleaseOrigin,
@@ -53,7 +52,6 @@ from drs_link.ops import (
     ViewSource,
     unprotected_ssh_warning,
 )
-from drs_link.store import Store
 from predictor.descent import COMPILE_NOTICE, kernels_compiled
 from predictor.errors import PredictorError
 
@@ -128,18 +126,8 @@ class DrsConsole(App[int]):
         return self.context.commanding
 
     @property
-    def ops(self) -> Operations | None:
-        """The operations layer behind the session, if any (the tests' way in; the app asks the context)."""
-        return self.setup.operations
-
-    @property
     def views(self) -> ViewSource:
         return self.context.views
-
-    @property
-    def store(self) -> Store:
-        """The store behind the session, if any (the tests' way in; the console asks the server)."""
-        return self.setup.store
 
     @property
     def operator(self) -> str:

@@ -7,8 +7,8 @@ arming, checklists, approvals and the audit log. A live or demo console gets a
 ``CommandingContext``: it acts through the operations server (``drs_link.server.Client``: ARM, FIRE,
 disarm, approvals, MT sends, power-on, reset, sync, MT resolve) and shows what the server pushes (the
 ARM windows, the approvals) and holds for it (``drs_link.server.desk``: its waivers, the checklists'
-ticks, the PARACHUTE overrides, History, the recovery and Iridium views); its fleet is still polled
-through ``Operations``. A replay gets a ``ReplayContext``, which shows this machine's audit and
+ticks, the PARACHUTE overrides, History, the recovery and Iridium views), and its fleet is the
+telemetry the server polls and pushes; it opens no store and holds no ``Operations``. A replay gets a ``ReplayContext``, which shows this machine's audit and
 checklists and has no commanding side at all: asked for one, it refuses with ``REPLAY_REFUSAL`` (its keys are
 disabled too, so that is a last guard, not a path a screen takes). Nothing here imports Textual: it
 is the plain-Python side of the console.
@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Protocol
 
 from console.predictions import PredictionService
-from drs_link.errors import LinkError
+from drs_link.errors import ConfigError, LinkError
 from drs_link.feeds import BalloonFeed
 from drs_link.ops import (
     PROCEDURE_DIR,
@@ -37,7 +37,6 @@ from drs_link.ops import (
     IridiumHealthView,
     LandedEvidence,
     LiveSource,
-    Operations,
     ParachuteOverride,
     RecordedViews,
     RecoveryView,
@@ -46,6 +45,7 @@ from drs_link.ops import (
     StepRecord,
     StepStatus,
     TelemetryRecord,
+    TelemetryRecorder,
     ViewSource,
     Waiver,
     descent_along,
@@ -96,13 +96,22 @@ class ConsoleSetup:
 
     mode: str
     capsules: list[str]
-    store: Store
     clock: Callable[[], datetime] = utc_now
-    operations: Operations | None = None
     server: Path | None = None
-    """The operations server's socket: every action of a live or demo console goes through it."""
+    """The operations server's socket: every action, read and poll of a live or demo console goes through it
+    (a console with none is a replay's)."""
     stop_server: Callable[[], None] | None = None
     """Ends the demo's in-process server with the session (a shared or on-demand one lives on)."""
+    store: Store | None = None
+    """A replay's only: History and the recorded checklist ticks read this machine's store, for there is
+    no server behind a recording. A live or demo console never opens the store."""
+    zones: tuple[ExclusionZone, ...] = ()
+    """The exclusion zones the console draws and judges its own go/no-go with (``[console]
+    exclusion_zones_file``, read by ``drs_link.ops.load_exclusion_zones``); the server judges with its own."""
+    zones_file: Path | None = None
+    """Their file, for the release-window sweep (the planner reads it itself)."""
+    recorder: TelemetryRecorder | None = None
+    """The session's recording (this account's own file), of the telemetry the console was shown."""
     weather: tuple[Path, ...] = ()
     """The GRIB2 files the server's go/no-go judges the "release now" prediction on (ARM and FIRE)."""
     predictions: PredictionService | None = None
@@ -121,12 +130,15 @@ class ConsoleSetup:
     """Simulated seconds per real second (the demo): timers are real, telemetry times are not."""
 
     def close(self) -> None:
-        """Stop what runs beside the app (the balloon feed's reader, the demo's server); the store closes
-        with Operations."""
+        """Stop what runs beside the app (the balloon feed's reader, the demo's server, the recording)."""
         if self.balloon_feed is not None:
             self.balloon_feed.stop()
         if self.stop_server is not None:
             self.stop_server()
+        if self.recorder is not None:
+            self.recorder.close()
+        if self.store is not None:
+            self.store.close()
 
 
 REPLAY_REFUSAL = "a replay cannot command: there is no link behind a recording"
@@ -237,11 +249,6 @@ class ConsoleContext:
     @property
     def require_second_operator(self) -> bool:
         return False
-
-    def operations(self) -> Operations:
-        """The operations layer behind a commanding console (the fleet's polls only, until the server
-        pushes the telemetry); a replay refuses (``REPLAY_REFUSAL``)."""
-        raise LinkError(REPLAY_REFUSAL)
 
     def client(self, timeout_s: float = TIMEOUT_S) -> Client:
         """A connection to the operations server, one per action (a FIRE waiting for an approval holds
@@ -454,7 +461,7 @@ class ConsoleContext:
 
 
 class ReplayContext(ConsoleContext):
-    """A console with no link: a replayed recording (or a session started without ``Operations``).
+    """A console with no link: a replayed recording (or a session started without an operations server).
 
     It shows what was recorded through the same views, and this machine's audit and checklists
     (``records``); the commanding side does not exist."""
@@ -479,14 +486,12 @@ class CommandingContext(ConsoleContext):
         self,
         setup: ConsoleSetup,
         warn: Callable[[str], None],
-        ops: Operations,
         live: Callable[[], LiveSource | None],
         server: Path,
     ) -> None:
         super().__init__(
             setup, warn, ServerHistory(self.client), 2.0 * setup.poll_period_s * setup.time_scale
         )
-        self.ops = ops
         self.server = server
         self.views = ServerViews(self.client, live)
         self.audit_seen = 0
@@ -494,8 +499,6 @@ class CommandingContext(ConsoleContext):
         self.arms: dict[str, ArmState] = {}
         """Each capsule's ARM window as the server last pushed or answered it."""
         self.approvals: tuple[ApprovalView, ...] = ()
-        self.stop_server: Callable[[], None] | None = None
-        """Ends the server ``context_for`` started for this console alone."""
         with self.client() as client:
             self.hello: Hello = client.hello()
             """Who the server says this console is (its account, from the kernel)."""
@@ -508,18 +511,15 @@ class CommandingContext(ConsoleContext):
 
     @property
     def zones(self) -> tuple[ExclusionZone, ...]:
-        return self.ops.zones
+        return self.setup.zones
 
     @property
     def zones_file(self) -> Path | None:
-        return self.ops.config.console.exclusion_zones_file
+        return self.setup.zones_file
 
     @property
     def require_second_operator(self) -> bool:
         return self.hello.require_second_operator
-
-    def operations(self) -> Operations:
-        return self.ops
 
     def client(self, timeout_s: float = TIMEOUT_S) -> Client:
         return Client(self.server, timeout_s)
@@ -546,31 +546,20 @@ class CommandingContext(ConsoleContext):
         return list(self.approvals)
 
     def record(self, records: list[TelemetryRecord]) -> None:
-        if self.ops.recorder is not None:
+        if self.setup.recorder is not None:
             for record in records:
-                self.ops.recorder.append(record)
+                self.setup.recorder.append(record)
 
-    def close(self) -> None:
-        """The operations layer closes the store with it; a server this context started ends too."""
-        self.ops.close()
-        if self.stop_server is not None:
-            self.stop_server()
 
 
 def context_for(
     setup: ConsoleSetup, warn: Callable[[str], None], live: Callable[[], LiveSource | None]
 ) -> ConsoleContext:
-    """The context of the session's mode: commanding through the server, else a replay's. A console
-    given ``Operations`` and no server gets a private one of its own, in this process, ended with it."""
-    if setup.operations is None or setup.mode == "replay":
-        store = setup.store
-        return ReplayContext(setup, warn, AuditLog(store), lambda capsule: step_records(store, capsule))
-    if setup.server is not None:
-        return CommandingContext(setup, warn, setup.operations, live, setup.server)
-    from drs_link.server import InProcessServer
-
-    ops = setup.operations
-    server = InProcessServer(ops.config, environ=ops.environ, clock=ops.clock)
-    context = CommandingContext(setup, warn, ops, live, server.socket)
-    context.stop_server = server.stop
-    return context
+    """The context of the session's mode: commanding through the server, else a replay's (which reads
+    this machine's store for History and the recorded ticks)."""
+    if setup.server is not None and setup.mode != "replay":
+        return CommandingContext(setup, warn, live, setup.server)
+    store = setup.store
+    if store is None:
+        raise ConfigError("a console with no operations server is a replay, and a replay needs the store")
+    return ReplayContext(setup, warn, AuditLog(store), lambda capsule: step_records(store, capsule))

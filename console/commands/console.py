@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 from drs_link.config import Config, load_config
 from drs_link.errors import ConfigError, LinkError
 from drs_link.ops import TelemetryRecord, TelemetryRecorder, read_recording
-from drs_link.store import Store
+from drs_link.store import Store, utc_now
 
 if TYPE_CHECKING:
     from console.context import ConsoleSetup
@@ -162,15 +162,13 @@ def replay_setup(path: Path, speed: float, config: Config) -> tuple[ConsoleSetup
 def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None) -> ConsoleSetup:
     from console.context import ConsoleSetup
     from console.predictions import PredictionService, capsule_models
-    from drs_link.ops import Operations
+    from drs_link.ops import load_exclusion_zones
     from predictor import Terrain
 
     if not config.capsules:
         raise ConfigError(
             "no [[capsule]] in the configuration: add one (see docs/console.md) or try `drs demo`"
         )
-    store = Store.open(config.store_path)
-    operations = Operations(config, store, recorder=_recorder(config))
     server = operations_server(config)
     predictions = None
     if weather:
@@ -179,10 +177,12 @@ def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None)
             (lambda: Terrain.from_dir(terrain)) if terrain is not None else Terrain.sea_level
         )
         models = capsule_models([(c.name, c.model) for c in config.capsules])
-        predictions = PredictionService(lambda: files, terrain_factory, operations.clock, models)
+        predictions = PredictionService(lambda: files, terrain_factory, utc_now, models)
     return ConsoleSetup(
-        mode="live", capsules=[c.name for c in config.capsules], store=store, operations=operations,
-        server=server, weather=tuple(weather or ()), predictions=predictions, balloon_feed=started_balloon_feed(config, operations.clock),
+        mode="live", capsules=[c.name for c in config.capsules], server=server, recorder=_recorder(config),
+        zones=load_exclusion_zones(config.console.exclusion_zones_file),
+        zones_file=config.console.exclusion_zones_file, weather=tuple(weather or ()), predictions=predictions,
+        balloon_feed=started_balloon_feed(config, utc_now),
         team_position=_team(config), export_dir=config.data.dir / "exports",
         prediction_period_s=config.console.prediction_period_s,
     )  # fmt: skip
@@ -275,18 +275,17 @@ def demo_setup(
     from console.commands.server import predictor_for
     from console.context import ConsoleSetup
     from console.predictions import PredictionService
-    from drs_link.ops import Operations
+    from drs_link.ops import load_exclusion_zones
     from drs_link.server import InProcessServer, Periods
 
     speed = world.speed
-    store = Store.open(config.store_path)
     poll_s = Periods.at_scale(speed).poll_s if poll_period_s is None else poll_period_s
     # the world's password stays in here; the server polls at the pace the console judges ages by
     server = InProcessServer(config, predictor_for, world.environ, poll_period_s=poll_s)
     return ConsoleSetup(
-        mode="demo", capsules=[c.name for c in config.capsules], store=store, clock=world.clock,
-        operations=Operations(config, store, clock=world.clock, recorder=recorder, environ=world.environ),
-        server=server.socket, stop_server=server.stop, weather=tuple(world.weather_files),
+        mode="demo", capsules=[c.name for c in config.capsules], clock=world.clock, recorder=recorder,
+        zones=load_exclusion_zones(config.console.exclusion_zones_file),
+        zones_file=config.console.exclusion_zones_file, server=server.socket, stop_server=server.stop, weather=tuple(world.weather_files),
         predictions=PredictionService(lambda: world.weather_files, world.terrain, world.clock),
         balloon_feed=started_balloon_feed(config, world.clock), team_position=_team(config),
         export_dir=export_dir, banner_note=f"×{speed:g} time",

@@ -24,6 +24,7 @@ if TYPE_CHECKING:
         StoredFixes as StoredFixes,
         chase_kml_path as chase_kml_path,
         chase_points as chase_points,
+        write_chase_kml as write_chase_kml,
     )
     from .chase_point import ChasePoint as ChasePoint, KeptLanding as KeptLanding
 
@@ -43,6 +44,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "StoredFixes": "chase",
         "chase_kml_path": "chase",
         "chase_points": "chase",
+        "write_chase_kml": "chase",
         "format_ozimux": "balloon_feed",
     },
 )

@@ -103,26 +103,22 @@ def chase_kml_path(data_dir: Path, capsule: str) -> Path:
     return data_dir / "chase" / f"{capsule}.kml"
 
 
+def write_chase_kml(prediction: Prediction, kml: Path) -> None:
+    """The prediction's KML at its fixed path, whole: chasemapper may read the overlay at any moment."""
+    from predictor.prediction import write_kml
+
+    data_directory(kml.parent)
+    partial = kml.with_name(kml.name + ".partial")
+    write_kml(prediction, partial)
+    os.replace(partial, kml)
+
+
 class ChaseStore:
     """The latest landing prediction of each capsule, shared by the console and ``drs chase``."""
 
     def __init__(self, store: Store) -> None:
         self.store = store
         store.ensure_schema(CHASE_DDL)
-
-    def keep(
-        self, capsule: str, prediction: Prediction, kind: str, predicted_at: datetime, kml: Path
-    ) -> None:
-        """Write the prediction's KML at its fixed path, then remember its landing for the feed."""
-        from predictor.prediction import write_kml
-
-        data_directory(kml.parent)
-        partial = kml.with_name(kml.name + ".partial")
-        write_kml(prediction, partial)
-        os.replace(partial, kml)  # chasemapper may read the overlay at any moment: never half a file
-        land = prediction.landing
-        self.record(KeptLanding(capsule, predicted_at, land.time, land.lat, land.lon, land.alt_m, kind,
-                                prediction.is_demo))  # fmt: skip
 
     def record(self, landing: KeptLanding) -> None:
         """Remember the landing, and move its marker to it (a new callsign) if it has gone too far."""

@@ -114,6 +114,7 @@ if TYPE_CHECKING:
         Predict as Predict,
         SecondOperator as SecondOperator,
         cli_holder as cli_holder,
+        load_exclusion_zones as load_exclusion_zones,
         report_position as report_position,
     )
     from .origin import ReleaseOrigin as ReleaseOrigin, release_origin as release_origin
@@ -291,6 +292,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "format_age": "staleness",
         "hazard_of": "authorize",
         "load_checklists": "checklist",
+        "load_exclusion_zones": "operations",
         "statuses_of": "checklist",
         "step_records": "checklist",
         "parachute_override": "override",

@@ -38,6 +38,7 @@ from drs_link.ops.telemetry import (
     SyncSample,
     TelemetryRecord,
 )
+from drs_link.server import InProcessServer
 from drs_link.server.desks import holder_of
 from drs_link.server.peers import Peer, account_of
 from drs_link.store import Store
@@ -63,6 +64,42 @@ A limit, not an expectation: on an idle machine every wait ends in well under a 
 30 s. The test still ends the moment the state is reached, so a generous limit costs nothing."""
 
 
+class ConsoleUnderTest(DrsConsole):
+    """A console as a test drives it, beside the test's own hold on what the server keeps: ``store`` (the
+    server's store, read by the test) and ``ops`` (an engine over it, for what a test sets up or checks,
+    as another process on the store would). The console itself reaches neither: it is the server's client."""
+
+    def __init__(
+        self, setup: ConsoleSetup, store: Store, ops: Operations | None = None, live_timers: bool = True
+    ) -> None:
+        super().__init__(setup, live_timers)
+        self.store = store
+        self.ops = ops
+        self.stops: list[Callable[[], None]] = []
+        """What ends with the console: the private server ``console_on`` started for it."""
+
+    def on_unmount(self) -> None:
+        super().on_unmount()
+        for stop in self.stops:
+            stop()
+
+
+def console_on(ops: Operations, setup: ConsoleSetup, live_timers: bool = True) -> ConsoleUnderTest:
+    """A commanding console on ``ops``'s store, through a private server in this process on ``ops``'s
+    configuration, clock and gateway password (ended with the console); the zones and recording are
+    ``ops``'s too."""
+    server = InProcessServer(ops.config, environ=ops.environ, clock=ops.clock)
+    setup = replace(setup, server=server.socket, zones=ops.zones,
+                    zones_file=ops.config.console.exclusion_zones_file, recorder=ops.recorder)  # fmt: skip
+    try:
+        app = ConsoleUnderTest(setup, ops.store, ops, live_timers)
+    except BaseException:
+        server.stop()
+        raise
+    app.stops.append(server.stop)
+    return app
+
+
 async def wait_for(
     pilot: Pilot[Any],
     condition: Callable[[], bool],
@@ -82,7 +119,7 @@ async def wait_for(
 
 
 @pytest.fixture
-def demo(tmp_path: Path) -> Iterator[tuple[DemoWorld, DrsConsole]]:
+def demo(tmp_path: Path) -> Iterator[tuple[DemoWorld, ConsoleUnderTest]]:
     """The whole demo, as ``drs demo`` wires it, with its world running ``DEMO_SPEED`` times faster."""
     world = DemoWorld(tmp_path / "demo", DEMO_SPEED)
     config = world.start()
@@ -90,7 +127,9 @@ def demo(tmp_path: Path) -> Iterator[tuple[DemoWorld, DrsConsole]]:
     setup = None
     try:
         setup = demo_setup(world, config, tmp_path / "exports", poll_period_s=0.5, prediction_period_s=2.0)
-        yield world, DrsConsole(setup)
+        assert world.store is not None
+        ops = Operations(config, world.store, clock=world.clock, environ=world.environ)
+        yield world, ConsoleUnderTest(setup, world.store, ops)
     finally:
         if setup is not None:
             setup.close()
@@ -191,11 +230,11 @@ def seed_reports(store: Store, imei: str, start: datetime, count: int, interval_
 @pytest.fixture
 def canned_app(
     tmp_path: Path, canned_prediction: list[TelemetryRecord], prediction_service: PredictionService
-) -> Callable[..., DrsConsole]:
+) -> Callable[..., ConsoleUnderTest]:
     """A console at a fixed time, data from records, no timers: what it shows never changes (a live one
     acts through an operations server of its own, in this process, ended with it)."""
 
-    def build(mode: str = "live", now: datetime = T0) -> DrsConsole:
+    def build(mode: str = "live", now: datetime = T0) -> ConsoleUnderTest:
         config = offline_config(tmp_path)
         store = Store.open(config.store_path)
         operations = Operations(config, store, clock=lambda: now) if mode == "live" else None
@@ -205,11 +244,13 @@ def canned_app(
         )
         seed_reports(store, config.capsules[1].imei or "", T0 - timedelta(minutes=30), 8)
         setup = ConsoleSetup(
-            mode=mode, capsules=["DRS1", "DRS2", "DRS3"], store=store, clock=lambda: now, operations=operations,
-            team_position=_team(config), export_dir=tmp_path / "exports",
-            predictions=prediction_service if mode == "live" else None,
+            mode=mode, capsules=["DRS1", "DRS2", "DRS3"], clock=lambda: now, team_position=_team(config),
+            export_dir=tmp_path / "exports", predictions=prediction_service if mode == "live" else None,
         )  # fmt: skip
-        app = DrsConsole(setup, live_timers=False)
+        if operations is not None:
+            app = console_on(operations, setup, live_timers=False)
+        else:
+            app = ConsoleUnderTest(replace(setup, store=store), store, live_timers=False)
         for record in canned_records(canned_prediction):
             app.fleet.apply(record)
         return app

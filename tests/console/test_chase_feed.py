@@ -20,7 +20,7 @@ from drs_link.config import Config, parse_config
 from drs_link.feeds.chase import chase_kml_path
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.ops.operations import Operations
+from drs_link.server import InProcessServer
 from drs_link.store import Store
 from predictor import Terrain
 from predictor.environment.demo_weather import demo_weather_files
@@ -40,8 +40,11 @@ def listener() -> Iterator[socket.socket]:
     sock.close()
 
 
-def console_with_three_capsules(tmp_path: Path, port: int) -> tuple[Config, ConsoleSetup, PredictionService]:
-    """DRS1 descending (three Iridium fixes), DRS2 on the balloon (release-now only), DRS3 landed."""
+def console_with_three_capsules(
+    tmp_path: Path, port: int, request: pytest.FixtureRequest
+) -> tuple[Config, ConsoleSetup, PredictionService]:
+    """DRS1 descending (three Iridium fixes), DRS2 on the balloon (release-now only), DRS3 landed; the
+    console's operations server in this process, ended with the test."""
     config = parse_config({
         "data": {"dir": str(tmp_path / "data")},
         "chase": {"udp": f"127.0.0.1:{port}"},
@@ -60,13 +63,16 @@ def console_with_three_capsules(tmp_path: Path, port: int) -> tuple[Config, Cons
         ReportStore(store).add(
             Delivery(LANDED_IMEI, 100 + step, format_mo(fix, 8.9, step).hex(), "test", moment)
         )
+    store.close()
     files = demo_weather_files(SITE[0], SITE[1], T0, cache_dir=tmp_path / "wx", hours=6)
     service = PredictionService(lambda: files, Terrain.sea_level, lambda: NOW)
     for name in ("DRS2", "DRS3"):
         service.predict(name, ReleaseOrigin(SITE[0], SITE[1], 31_500.0, "balloon feed"))
+    server = InProcessServer(config, clock=lambda: NOW)
+    request.addfinalizer(server.stop)
     setup = ConsoleSetup(
-        mode="live", capsules=["DRS1", "DRS2", "DRS3"], store=store, clock=lambda: NOW,
-        operations=Operations(config, store, clock=lambda: NOW), predictions=service,
+        mode="live", capsules=["DRS1", "DRS2", "DRS3"], clock=lambda: NOW, server=server.socket,
+        predictions=service,
     )  # fmt: skip
     return config, setup, service
 
@@ -84,14 +90,13 @@ def one_round(
             packets.append(json.loads(listener.recv(32768)))
     finally:
         feed.stop()
-        setup.store.close()
     return packets
 
 
 def test_the_console_sends_its_capsules_and_their_live_and_release_now_landings_but_none_once_landed(
-    tmp_path: Path, listener: socket.socket
+    tmp_path: Path, listener: socket.socket, request: pytest.FixtureRequest
 ) -> None:
-    config, setup, service = console_with_three_capsules(tmp_path, listener.getsockname()[1])
+    config, setup, service = console_with_three_capsules(tmp_path, listener.getsockname()[1], request)
     packets = one_round(listener, config, setup, 4)
     by_name = {p["callsign"]: p for p in packets}
     assert set(by_name) == {"DRS1", "DRS1_LAND", "DRS2_LAND", "DRS3"}, "DRS2 has no fix yet, DRS3 has landed"
@@ -121,9 +126,9 @@ def test_no_chase_feed_without_its_configuration(tmp_path: Path) -> None:
 
 
 def test_a_kml_that_cannot_be_written_does_not_stop_the_positions(
-    tmp_path: Path, listener: socket.socket
+    tmp_path: Path, listener: socket.socket, request: pytest.FixtureRequest
 ) -> None:
-    config, setup, _ = console_with_three_capsules(tmp_path, listener.getsockname()[1])
+    config, setup, _ = console_with_three_capsules(tmp_path, listener.getsockname()[1], request)
     chase_kml_path(config.data.dir, "DRS1").parent.write_text("a file where the directory should be")
     packets = one_round(listener, config, setup, 2)
     assert [p["callsign"] for p in packets] == ["DRS1", "DRS3"], "no landing is sent that was not kept"

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from console.app import ConsoleSetup, DrsConsole
+from console.app import ConsoleSetup
 from console.screens.recovery import RecoveryScreen
 from drs_link.config import RockblockConfig, parse_config
 from drs_link.iridium.mt import MtComposer
@@ -23,7 +23,7 @@ from drs_link.ops.operations import Operations
 from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
 from tests.clock import ManualClock
-from tests.console.conftest import T0, wait_for
+from tests.console.conftest import T0, console_on, wait_for
 from tests.drs_link.iridium.helpers import fly
 
 IMEI = "300434060000010"
@@ -50,8 +50,9 @@ async def test_recovery_does_not_call_a_report_stale_before_the_next_is_due_on_t
         fly(capsule, gateway, reports, alarm, 4)  # downloaded, one more 2-min cycle, then 5-min cycles
         last = reports.for_imei(IMEI)[-1]
         clock.now = last.time + timedelta(minutes=4, seconds=48)
-        setup = ConsoleSetup(mode="live", capsules=["DRS1"], store=store, clock=clock, operations=operations)
-        app = DrsConsole(setup, live_timers=False)
+        app = console_on(
+            operations, ConsoleSetup(mode="live", capsules=["DRS1"], clock=clock), live_timers=False
+        )
         async with app.run_test(size=(120, 40)) as pilot:
             app.start_telemetry()  # the server reads the reports and pushes them
             await wait_for(pilot, lambda: len(app.fleet.capsules["DRS1"].reports) == 7)

@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 import console.commands.main as entry
-from console.app import ConsoleSetup, DrsConsole
+from console.app import ConsoleSetup
 from console.commands.console import live_setup
 from console.predictions import PredictionService
 from console.screens.iridium import IridiumScreen
@@ -44,7 +44,7 @@ from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store, utc_now
 from predictor import Terrain
 from tests.clock import ManualClock, SkipClock
-from tests.console.conftest import wait_for
+from tests.console.conftest import ConsoleUnderTest, console_on, wait_for
 from tests.drs_link.conftest import SIM_SCALE, capsule_table
 from tests.release_helpers import ROCKBLOCK_TOML, SYNC_WAIVER, write_weather
 
@@ -74,12 +74,13 @@ def cli(config: Path, *argv: str) -> int:
     return entry.main(["--config", str(config), *argv])
 
 
-def console_for(config_path: Path, clock=utc_now) -> DrsConsole:  # type: ignore[no-untyped-def]
+def console_for(config_path: Path, clock=utc_now) -> ConsoleUnderTest:  # type: ignore[no-untyped-def]
     config = load_config(config_path)
     store = Store.open(config.store_path)
     operations = Operations(config, store, clock=clock, environ={"DRS_ONE_RULE_RB": PASSWORD})
-    setup = ConsoleSetup(mode="live", capsules=["DRS1"], store=store, clock=clock, operations=operations)
-    return DrsConsole(setup, live_timers=False)
+    return console_on(
+        operations, ConsoleSetup(mode="live", capsules=["DRS1"], clock=clock), live_timers=False
+    )
 
 
 def add_report(store: Store, momsn: int, at: datetime, alt_m: float, speed_ms: float) -> None:
@@ -105,7 +106,7 @@ def sounder_off_step(store: Store) -> StepState:
     return next(s.state for s in statuses if s.step.id == "sounder-off")
 
 
-async def console_sends_sounder_off(app: DrsConsole) -> None:
+async def console_sends_sounder_off(app: ConsoleUnderTest) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("i")
         await wait_for(pilot, lambda: isinstance(app.screen, IridiumScreen))

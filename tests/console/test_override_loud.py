@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from textual.pilot import Pilot
 
-from console.app import ConsoleSetup, DrsConsole
+from console.app import ConsoleSetup
 from console.screens.recovery import RecoveryScreen
 from console.screens.release import ReleaseScreen
 from drs_link.config import RockblockConfig
@@ -26,7 +26,7 @@ from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.ops.operations import Operations, SecondOperator
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store
-from tests.console.conftest import T0, offline_config, wait_for
+from tests.console.conftest import T0, ConsoleUnderTest, console_on, offline_config, wait_for
 
 pytestmark = pytest.mark.asyncio
 BANNER = (
@@ -41,7 +41,7 @@ def gateway() -> Iterator[SimulatedRockblock]:
         yield gateway
 
 
-def overridden_app(tmp_path: Path, gateway: SimulatedRockblock, override: bool = True) -> DrsConsole:
+def overridden_app(tmp_path: Path, gateway: SimulatedRockblock, override: bool = True) -> ConsoleUnderTest:
     """DRS1 falling through 16 km at 16 m/s, every 2 min, and PARACHUTE=12:00 queued (with the override)."""
     config = offline_config(tmp_path)
     config = replace(config, rockblock=RockblockConfig(mt_url=gateway.url, username="ops", timeout_s=5.0))
@@ -66,22 +66,17 @@ def overridden_app(tmp_path: Path, gateway: SimulatedRockblock, override: bool =
         alone = SecondOperator(waiver="alone")
         operations.send_mt("DRS1", message, "DRS1", alone, override_landed="chase sees it down")
     setup = ConsoleSetup(
-        mode="live",
-        capsules=["DRS1", "DRS2", "DRS3"],
-        store=store,
-        clock=lambda: T0,
-        operations=operations,
-        export_dir=tmp_path / "exports",
+        mode="live", capsules=["DRS1", "DRS2", "DRS3"], clock=lambda: T0, export_dir=tmp_path / "exports"
     )
-    return DrsConsole(setup, live_timers=False)
+    return console_on(operations, setup, live_timers=False)
 
 
-def banner(app: DrsConsole) -> str:
+def banner(app: ConsoleUnderTest) -> str:
     widget = app.screen.query_one("#override-banner")
     return str(widget.render()) if widget.display else ""
 
 
-async def until_banner(pilot: Pilot[int], app: DrsConsole) -> None:
+async def until_banner(pilot: Pilot[int], app: ConsoleUnderTest) -> None:
     app.refresh_screen()
     await wait_for(pilot, lambda: banner(app) == BANNER)
 

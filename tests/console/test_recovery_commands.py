@@ -15,7 +15,7 @@ import pytest
 from textual.pilot import Pilot
 from textual.widgets import DataTable
 
-from console.app import ConsoleSetup, DrsConsole
+from console.app import ConsoleSetup
 from console.commands.console import _team
 from console.screens.commanding import COMMAND_ACTIONS
 from console.screens.iridium import IridiumScreen
@@ -27,7 +27,7 @@ from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.ops.operations import Operations
 from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
-from tests.console.conftest import T0, offline_config, seed_reports, wait_for
+from tests.console.conftest import T0, ConsoleUnderTest, console_on, offline_config, seed_reports, wait_for
 
 pytestmark = pytest.mark.asyncio
 PASSWORD_ENV = {"DRS_ROCKBLOCK_PASSWORD": "pw"}
@@ -40,7 +40,7 @@ def gateway() -> Iterator[SimulatedRockblock]:
 
 
 @pytest.fixture
-def commanding_app(tmp_path: Path, gateway: SimulatedRockblock) -> DrsConsole:
+def commanding_app(tmp_path: Path, gateway: SimulatedRockblock) -> ConsoleUnderTest:
     """A live console at T0 whose gateway is the simulator; DRS2 landed, reporting every 2 min."""
     config = offline_config(tmp_path)
     config = replace(config, rockblock=RockblockConfig(mt_url=gateway.url, username="ops", timeout_s=5.0))
@@ -48,13 +48,13 @@ def commanding_app(tmp_path: Path, gateway: SimulatedRockblock) -> DrsConsole:
     operations = Operations(config, store, clock=lambda: T0, environ=PASSWORD_ENV)
     seed_reports(store, config.capsules[1].imei or "", T0 - timedelta(minutes=30), 8)
     setup = ConsoleSetup(
-        mode="live", capsules=["DRS1", "DRS2", "DRS3"], store=store, clock=lambda: T0, operations=operations,
-        team_position=_team(config), export_dir=tmp_path / "exports",
+        mode="live", capsules=["DRS1", "DRS2", "DRS3"], clock=lambda: T0, team_position=_team(config),
+        export_dir=tmp_path / "exports",
     )  # fmt: skip
-    return DrsConsole(setup, live_timers=False)
+    return console_on(operations, setup, live_timers=False)
 
 
-async def open_recovery(pilot: Pilot[int], app: DrsConsole) -> RecoveryScreen:
+async def open_recovery(pilot: Pilot[int], app: ConsoleUnderTest) -> RecoveryScreen:
     await pilot.press("down", "v")
     screen = app.screen
     assert isinstance(screen, RecoveryScreen) and screen.capsule == "DRS2"
@@ -67,7 +67,7 @@ def shown(screen: RecoveryScreen) -> str:
 
 
 def deliver_next_report(
-    app: DrsConsole, gateway: SimulatedRockblock, capsule: SimulatedCapsule, at: datetime
+    app: ConsoleUnderTest, gateway: SimulatedRockblock, capsule: SimulatedCapsule, at: datetime
 ) -> None:
     """DRS2's next session: it downloads one MT; the report is stored as the webhook would, then observed."""
     fix = GnssFix(at, 67.705, 21.60, 412.0, 0.0, 90.0, 0.9, 9)
@@ -82,7 +82,7 @@ def deliver_next_report(
 
 
 async def test_the_sounder_goes_from_unknown_to_on_with_its_lifecycle_state(
-    commanding_app: DrsConsole, gateway: SimulatedRockblock
+    commanding_app: ConsoleUnderTest, gateway: SimulatedRockblock
 ) -> None:
     app = commanding_app
     async with app.run_test(size=(80, 24)) as pilot:
@@ -107,7 +107,7 @@ async def test_the_sounder_goes_from_unknown_to_on_with_its_lifecycle_state(
 
 
 async def test_the_interval_line_shows_the_measured_spacing_and_a_command_from_here_reaches_the_iridium_list(
-    commanding_app: DrsConsole, gateway: SimulatedRockblock
+    commanding_app: ConsoleUnderTest, gateway: SimulatedRockblock
 ) -> None:
     app = commanding_app
     async with app.run_test(size=(160, 48)) as pilot:
@@ -130,7 +130,7 @@ async def test_the_interval_line_shows_the_measured_spacing_and_a_command_from_h
 
 @pytest.mark.parametrize("keys", [("down", "i"), ("down", "v")], ids=["iridium", "recovery"])
 async def test_the_parachute_key_refuses_an_out_of_window_time_as_on_the_iridium_screen(
-    canned_app: Callable[..., DrsConsole], keys: tuple[str, str]
+    canned_app: Callable[..., ConsoleUnderTest], keys: tuple[str, str]
 ) -> None:
     app = canned_app(now=T0)
     async with app.run_test(size=(120, 40)) as pilot:
@@ -151,7 +151,7 @@ async def test_the_parachute_key_refuses_an_out_of_window_time_as_on_the_iridium
 
 
 async def test_replay_shows_no_command_keys_on_the_recovery_screen(
-    canned_app: Callable[..., DrsConsole],
+    canned_app: Callable[..., ConsoleUnderTest],
 ) -> None:
     app = canned_app(mode="replay")
     async with app.run_test(size=(80, 24)) as pilot:

@@ -101,7 +101,7 @@ async def test_a_replay_has_no_commanding_side_it_refuses_in_one_sentence_and_di
     app = DrsConsole(setup, live_timers=False)
     context = app.context
     assert isinstance(context, ReplayContext) and not context.commanding
-    for call in (context.operations, context.client, lambda: context.arm("DRS1")):
+    for call in (context.client, lambda: context.arm("DRS1")):
         with pytest.raises(LinkError, match=f"^{REPLAY_REFUSAL}$"):
             call()
     assert context.waiting_approvals("DRS1") == [] and context.parachute_overrides() == []
@@ -113,4 +113,4 @@ async def test_a_replay_has_no_commanding_side_it_refuses_in_one_sentence_and_di
         assert [key for key in keys if release.check_action(key, ())] == []
         await pilot.press("a", "o", "space")  # dimmed keys: nothing happens, nothing is written
         await pilot.pause()
-        assert app.store.audit() == [] and app.is_running
+        assert store.audit() == [] and app.is_running

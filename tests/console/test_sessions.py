@@ -11,7 +11,6 @@ from pathlib import Path
 import pytest
 from textual.widgets import DataTable
 
-from console.app import DrsConsole
 from console.demo import DemoWorld
 from console.screens.approvals import ApprovalScreen
 from console.screens.modals import ConfirmModal
@@ -21,14 +20,20 @@ from drs_link.ops.operations import Operations
 from drs_link.ops.session import LOST, record_loss
 from drs_link.store import Store
 from tests.clock import SkipClock
-from tests.console.conftest import offline_config, wait_for, window_of_this_account
+from tests.console.conftest import (
+    ConsoleUnderTest,
+    console_on,
+    offline_config,
+    wait_for,
+    window_of_this_account,
+)
 from tests.console.test_release_flow import arm, booting, open_release_go, polls_never_disarm, shown
 
 pytestmark = pytest.mark.asyncio
 
 
 async def test_sighup_while_armed_disarms_on_the_record_and_ends_the_console(
-    canned_app: Callable[..., DrsConsole],
+    canned_app: Callable[..., ConsoleUnderTest],
 ) -> None:
     app = canned_app()
     async with app.run_test(size=(120, 40)) as pilot:
@@ -44,7 +49,7 @@ async def test_sighup_while_armed_disarms_on_the_record_and_ends_the_console(
 
 
 async def test_sigterm_during_go_lets_the_go_finish_before_the_console_ends(
-    canned_app: Callable[..., DrsConsole],
+    canned_app: Callable[..., ConsoleUnderTest],
 ) -> None:
     app = canned_app()
     async with app.run_test(size=(120, 40)) as pilot:
@@ -60,15 +65,14 @@ async def test_sigterm_during_go_lets_the_go_finish_before_the_console_ends(
     assert lost.detail is not None and lost.detail["go_in_flight"] == ["DRS1"]
 
 
-def live_console(tmp_path: Path) -> DrsConsole:
+def live_console(tmp_path: Path) -> ConsoleUnderTest:
     """A commanding console with its timers running, on capsules nobody listens for (port 9)."""
     from console.app import ConsoleSetup
 
     config = offline_config(tmp_path)
     store = Store.open(config.store_path)
-    setup = ConsoleSetup(mode="live", capsules=["DRS1", "DRS2", "DRS3"], store=store,
-                         operations=Operations(config, store), export_dir=tmp_path / "exports")  # fmt: skip
-    return DrsConsole(setup)
+    setup = ConsoleSetup(mode="live", capsules=["DRS1", "DRS2", "DRS3"], export_dir=tmp_path / "exports")
+    return console_on(Operations(config, store), setup)
 
 
 async def test_the_next_console_shows_how_the_last_session_ended(tmp_path: Path) -> None:
@@ -111,7 +115,7 @@ async def test_what_another_console_does_to_the_store_shows_here_with_who_did_it
 
 
 async def test_sighup_during_a_real_go_lets_it_finish_and_records_it_once(
-    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
+    demo: tuple[DemoWorld, ConsoleUnderTest], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
 ) -> None:
     world, app = demo
     async with app.run_test(size=(120, 40)) as pilot:
@@ -137,7 +141,7 @@ async def test_sighup_during_a_real_go_lets_it_finish_and_records_it_once(
 
 
 async def test_a_second_console_approves_from_its_own_login_and_the_requester_cannot(
-    canned_app: Callable[..., DrsConsole],
+    canned_app: Callable[..., ConsoleUnderTest],
 ) -> None:
     app = canned_app()
     book = ApprovalBook(app.store)
@@ -168,7 +172,7 @@ async def test_a_second_console_approves_from_its_own_login_and_the_requester_ca
 
 
 async def test_the_approvals_screen_shows_the_highlighted_requests_brief_as_drs_approve_prints_it(
-    canned_app: Callable[..., DrsConsole],
+    canned_app: Callable[..., ConsoleUnderTest],
 ) -> None:
     """Issue #29 Why-6: the approver reads the command, the verdicts and the waivers before Enter, and
     the confirmation says it again; both are ``Approval.for_approver``, the text `drs approve` prints."""

@@ -13,7 +13,6 @@ from pathlib import Path
 
 import pytest
 
-from console.app import DrsConsole
 from console.context import ConsoleSetup
 from drs_link.config import load_config
 from drs_link.errors import RefusedError
@@ -22,7 +21,7 @@ from drs_link.server.protocol import Second
 from drs_link.sim import CapsuleSimulator
 from drs_link.sim.keys import write_ed25519
 from drs_link.store import Store
-from tests.console.conftest import wait_for
+from tests.console.conftest import ConsoleUnderTest, wait_for
 from tests.drs_link.conftest import SIM_SCALE, capsule_table
 from tests.drs_link.server.team import Server, Team, client_config, drs, needs_root, server_config
 from tests.release_helpers import ROCKBLOCK_PASSWORD_ENV, ROCKBLOCK_TOML, SYNC_WAIVER, write_weather
@@ -33,7 +32,7 @@ pytestmark = [needs_root, pytest.mark.slow, pytest.mark.asyncio]
 @pytest.fixture
 def console(
     place: Path, team: Team, monkeypatch: pytest.MonkeyPatch
-) -> Iterator[tuple[CapsuleSimulator, DrsConsole]]:
+) -> Iterator[tuple[CapsuleSimulator, ConsoleUnderTest]]:
     """A powered capsule, the team's server (the rule on, a 120 s window, root listed as RT), and a
     console of root's whose own configuration names the server's socket."""
     key = place / "keys" / "id_ed25519"
@@ -63,10 +62,9 @@ def console(
         operations = Operations(own, store, environ={ROCKBLOCK_PASSWORD_ENV: "pw"})
         weather = place / "gfs"
         weather.mkdir()
-        app = DrsConsole(ConsoleSetup(
-            mode="live", capsules=["DRS1"], store=store, operations=operations, server=server.socket,
-            weather=tuple(write_weather(weather)),
-        ))  # fmt: skip
+        app = ConsoleUnderTest(ConsoleSetup(
+            mode="live", capsules=["DRS1"], server=server.socket, weather=tuple(write_weather(weather)),
+        ), store, operations)  # fmt: skip
         # The console's own poll of go/no-go (no predictions here) must not close the window under test:
         # FIRE polls again on the server, with the weather.
         monkeypatch.setattr(app, "watch_arming", lambda capsules, links_lost: None)
@@ -78,13 +76,13 @@ def console(
         sim.stop()
 
 
-def armed(app: DrsConsole) -> bool:
+def armed(app: ConsoleUnderTest) -> bool:
     state = app.context.arm_state("DRS1")
     return state is not None and state.state == "armed" and state.mine
 
 
 async def test_the_consoles_fire_is_refused_alone_and_released_by_another_accounts_drs_approve(
-    console: tuple[CapsuleSimulator, DrsConsole], place: Path, team: Team
+    console: tuple[CapsuleSimulator, ConsoleUnderTest], place: Path, team: Team
 ) -> None:
     sim, app = console
     bob = client_config(place, team.bob)
@@ -120,7 +118,7 @@ async def test_the_consoles_fire_is_refused_alone_and_released_by_another_accoun
 
 
 async def test_c_withdraws_the_consoles_waiting_request_and_nobody_can_approve_it_after(
-    console: tuple[CapsuleSimulator, DrsConsole], place: Path, team: Team
+    console: tuple[CapsuleSimulator, ConsoleUnderTest], place: Path, team: Team
 ) -> None:
     """#23: the waiting request is a live line with its own countdown, and `c` cancels it (the console
     drops the FIRE's connection; the server withdraws the request it waited on)."""
