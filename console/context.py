@@ -551,7 +551,6 @@ class CommandingContext(ConsoleContext):
                 self.setup.recorder.append(record)
 
 
-
 def context_for(
     setup: ConsoleSetup, warn: Callable[[str], None], live: Callable[[], LiveSource | None]
 ) -> ConsoleContext:
