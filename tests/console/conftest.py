@@ -18,6 +18,7 @@ from typing import Any
 import pytest
 from textual.pilot import Pilot
 
+import console.app as console_app
 from console.app import ConsoleSetup, DrsConsole
 from console.commands.console import _team, demo_setup
 from console.demo import DemoWorld, write_demo_terrain
@@ -68,6 +69,9 @@ class ConsoleUnderTest(DrsConsole):
     """A console as a test drives it, beside the test's own hold on what the server keeps: ``store`` (the
     server's store, read by the test) and ``ops`` (an engine over it, for what a test sets up or checks,
     as another process on the store would). The console itself reaches neither: it is the server's client."""
+
+    CSS_PATH = [str(Path(console_app.__file__).parent / path) for path in DrsConsole.CSS_PATH]
+    """Textual reads a relative stylesheet path beside the module of the app's class: here, the console's."""
 
     def __init__(
         self, setup: ConsoleSetup, store: Store, ops: Operations | None = None, live_timers: bool = True
