@@ -75,7 +75,7 @@ class LandingKeeper:
                 with self.client() as client:
                     client.chase.keep(KeptLanding(capsule, prediction.release.time, land.time, land.lat,
                                                   land.lon, land.alt_m, kind, prediction.is_demo))  # fmt: skip
-            except (PredictorError, OSError, LinkError) as exc:  # the positions go out; the next round retries
+            except (PredictorError, OSError, LinkError) as exc:  # the positions still go out; retried
                 log.warning("chase feed: cannot keep %s's prediction at %s: %s", capsule, kml, exc)
                 continue
             self._kept[capsule] = prediction
