@@ -12,9 +12,7 @@ from __future__ import annotations
 
 import os
 import statistics
-import subprocess
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -26,6 +24,7 @@ from drs_link.config import load_config  # noqa: E402 - after the repository's p
 from drs_link.ops import ApprovalBook, Login  # noqa: E402
 from drs_link.server import Client, Event  # noqa: E402
 from drs_link.store import Store  # noqa: E402
+from tools.private_server import ServerDidNotStart, p99, private_server  # noqa: E402
 
 SUBSCRIBERS = 5
 CHANGES = 40
@@ -57,23 +56,8 @@ class Subscriber(threading.Thread):
 
 
 def main() -> int:
-    with tempfile.TemporaryDirectory() as folder:
-        root = Path(folder)
-        config_path = root / "drs.toml"
-        config_path.write_text(f'[operator]\nname = "EL"\n[data]\ndir = "{root / "data"}"\n'
-                               '[[capsule]]\nname = "DRS1"\nhost = "127.0.0.1"\nport = 9\n')  # fmt: skip
-        socket_path = root / "drs.sock"
-        server = subprocess.Popen(
-            [sys.executable, "-m", "console.commands.main", "--config", str(config_path), "server", "--private",
-             "--socket", str(socket_path)],
-            stdout=subprocess.PIPE, text=True, cwd=REPO,
-        )  # fmt: skip
-        try:
-            assert server.stdout is not None
-            ready = server.stdout.readline()
-            if "listening" not in ready:
-                print(f"the server did not start: {ready!r}", file=sys.stderr)
-                return 1
+    try:
+        with private_server() as (config_path, socket_path):
             subscribers = [Subscriber(socket_path) for _ in range(SUBSCRIBERS)]
             for subscriber in subscribers:
                 subscriber.start()
@@ -100,15 +84,14 @@ def main() -> int:
                         time.sleep(0.002)
                     latencies += [1000.0 * max(0.0, s.gone_at[request.id] - answered) for s in subscribers]
             latencies.sort()
-            p99 = latencies[min(len(latencies) - 1, int(0.99 * len(latencies)))]
             print(
                 f"{SUBSCRIBERS} subscribers, {CHANGES} changes through the server: from the verb's answer to "
-                f"each subscriber's event median {statistics.median(latencies):.1f} ms, p99 {p99:.1f} ms, "
+                f"each subscriber's event median {statistics.median(latencies):.1f} ms, p99 {p99(latencies):.1f} ms, "
                 f"max {latencies[-1]:.1f} ms (load {os.getloadavg()[0]:.1f})"
             )
-        finally:
-            server.terminate()
-            server.wait(timeout=30)
+    except ServerDidNotStart as exc:
+        print(exc, file=sys.stderr)
+        return 1
     return 0
 
 

@@ -14,9 +14,7 @@ from __future__ import annotations
 import asyncio
 import os
 import statistics
-import subprocess
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -26,6 +24,7 @@ sys.path.insert(0, str(REPO))
 
 from drs_link.ops import TelemetryRecord  # noqa: E402 - after the repository's path
 from drs_link.server import Client  # noqa: E402
+from tools.private_server import ServerDidNotStart, p99, private_server  # noqa: E402
 
 SUBSCRIBERS = 5
 POLLS = 100
@@ -61,23 +60,8 @@ class Subscriber(threading.Thread):
 
 
 def main() -> int:
-    with tempfile.TemporaryDirectory() as folder:
-        root = Path(folder)
-        config_path = root / "drs.toml"
-        config_path.write_text(f'[operator]\nname = "EL"\n[data]\ndir = "{root / "data"}"\n'
-                               '[[capsule]]\nname = "DRS1"\nhost = "127.0.0.1"\nport = 9\n')  # fmt: skip
-        socket_path = root / "drs.sock"
-        server = subprocess.Popen(
-            [sys.executable, "-m", "console.commands.main", "--config", str(config_path), "server", "--private",
-             "--socket", str(socket_path)],
-            stdout=subprocess.PIPE, text=True, cwd=REPO,
-        )  # fmt: skip
-        try:
-            assert server.stdout is not None
-            ready = server.stdout.readline()
-            if "listening" not in ready:
-                print(f"the server did not start: {ready!r}", file=sys.stderr)
-                return 1
+    try:
+        with private_server() as (_, socket_path):
             subscribers = [Subscriber(socket_path) for _ in range(SUBSCRIBERS)]
             for subscriber in subscribers:
                 subscriber.start()
@@ -97,16 +81,15 @@ def main() -> int:
                         time.sleep(0.002)
                     latencies += [s.seen(r) or 0.0 for s in subscribers for r in records]
             latencies.sort()
-            p99 = latencies[min(len(latencies) - 1, int(0.99 * len(latencies)))]
             print(
                 f"{SUBSCRIBERS} subscribers, {POLLS} polls ({len(latencies) // SUBSCRIBERS} records) published by "
                 f"the server: from publication to each subscriber's receipt median "
-                f"{statistics.median(latencies):.1f} ms, p99 {p99:.1f} ms, max {latencies[-1]:.1f} ms "
+                f"{statistics.median(latencies):.1f} ms, p99 {p99(latencies):.1f} ms, max {latencies[-1]:.1f} ms "
                 f"(load {os.getloadavg()[0]:.1f})"
             )
-        finally:
-            server.terminate()
-            server.wait(timeout=30)
+    except ServerDidNotStart as exc:
+        print(exc, file=sys.stderr)
+        return 1
     return 0
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from drs_link.config import Config, RockblockConfig, parse_config
+from drs_link.config import Config, RockblockConfig
 from drs_link.errors import ConfigError, RefusedError
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.mt import MtComposer
@@ -29,26 +29,10 @@ from drs_link.server.protocol import HistoryRequest
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store
 from predictor.errors import UsageError
+from tests.console.conftest import offline_config
 
 T0 = datetime(2026, 9, 1, 12, 0, tzinfo=UTC)
 PASSWORD = {"DRS_ROCKBLOCK_PASSWORD": "pw"}
-
-
-def offline(tmp_path: Path) -> Config:
-    """Two capsules nobody listens for (port 9): the desk needs the store, not a link."""
-    capsules = [
-        {
-            "name": name,
-            "host": "127.0.0.1",
-            "port": 9,
-            "imei": f"30043406000{i:04d}",
-            "rockblock_serial": 17000 + i,
-        }
-        for i, name in enumerate(("DRS1", "DRS2"), start=1)
-    ]
-    return parse_config(
-        {"operator": {"name": "EL"}, "data": {"dir": str(tmp_path / "data")}, "capsule": capsules}
-    )
 
 
 def landing(store: Store, imei: str, falling: bool = False) -> None:
@@ -66,7 +50,7 @@ def landing(store: Store, imei: str, falling: bool = False) -> None:
 
 @pytest.fixture
 def served(tmp_path: Path) -> Iterator[tuple[Config, Store, Client]]:
-    config = offline(tmp_path)
+    config = offline_config(tmp_path)
     store = Store.open(config.store_path)
     landing(store, config.capsules[1].imei or "")
     server = InProcessServer(config, clock=lambda: T0)
@@ -91,7 +75,7 @@ def test_a_waiver_is_held_for_the_account_audited_once_and_arm_and_fire_judge_wi
     [held] = desk.waive("DRS1", "gnss", "no sky in the hangar")
     assert (held.item, held.reason, held.operator, held.at) == ("gnss", "no sky in the hangar", "EL", T0)
     assert desk.waivers("DRS1") == (held,) and desk.waivers("DRS2") == ()
-    assert desk.view().waivers == {"DRS1": (held,), "DRS2": ()}
+    assert desk.view().waivers == {"DRS1": (held,), "DRS2": (), "DRS3": ()}
     with pytest.raises(RefusedError, match="NO-GO") as refused:  # nobody listens on port 9: link down
         client.capsule("DRS1").arm(say=lambda _: None, held_waivers=True)
     assert "GNSS" not in str(refused.value), "the held waiver judged the GNSS item"
@@ -228,7 +212,7 @@ def gateway() -> Iterator[SimulatedRockblock]:
 def test_a_parachute_plan_comes_with_the_landed_evidence_and_an_override_stays_on_the_desk(
     tmp_path: Path, gateway: SimulatedRockblock
 ) -> None:
-    config = offline(tmp_path)
+    config = offline_config(tmp_path)
     config = replace(config, rockblock=RockblockConfig(mt_url=gateway.url, username="ops", timeout_s=5.0))
     store = Store.open(config.store_path)
     landing(store, config.capsules[0].imei or "", falling=True)
