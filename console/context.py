@@ -21,14 +21,12 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
 from pathlib import Path
-from typing import Protocol
 
 from console.predictions import PredictionService
 from drs_link.errors import ConfigError, LinkError
 from drs_link.feeds import BalloonFeed
 from drs_link.ops import (
     PROCEDURE_DIR,
-    AuditLog,
     AuditRecord,
     Checklist,
     ExclusionZone,
@@ -53,7 +51,7 @@ from drs_link.ops import (
     load_checklists,
     release_origin,
     statuses_of,
-    step_records,
+    utc_now,
     write_audit_export,
 )
 from drs_link.server import (
@@ -76,7 +74,6 @@ from drs_link.server import (
     ReleaseView,
     Second,
 )
-from drs_link.store import Store, utc_now
 
 ARMED, FIRING, FIRED = "armed", "firing", "fired"
 """The server's ARM window states (``ArmState.state``, ``drs_link.ops.ArmState`` values) a console tells
@@ -102,9 +99,6 @@ class ConsoleSetup:
     (a console with none is a replay's)."""
     stop_server: Callable[[], None] | None = None
     """Ends the demo's in-process server with the session (a shared or on-demand one lives on)."""
-    store: Store | None = None
-    """A replay's only: History and the recorded checklist ticks read this machine's store, for there is
-    no server behind a recording. A live or demo console never opens the store."""
     zones: tuple[ExclusionZone, ...] = ()
     """The exclusion zones the console draws and judges its own go/no-go with (``[console]
     exclusion_zones_file``, read by ``drs_link.ops.load_exclusion_zones``); the server judges with its own."""
@@ -137,21 +131,9 @@ class ConsoleSetup:
             self.stop_server()
         if self.recorder is not None:
             self.recorder.close()
-        if self.store is not None:
-            self.store.close()
 
 
 REPLAY_REFUSAL = "a replay cannot command: there is no link behind a recording"
-
-
-class History(Protocol):
-    """The audit log as History reads and exports it (``AuditLog``'s three calls)."""
-
-    def newest(self, text: str | None = None) -> list[AuditRecord]: ...
-
-    def elsewhere(self, record: AuditRecord) -> str | None: ...
-
-    def export(self, path: Path, text: str | None = None) -> int: ...
 
 
 class ServerHistory:
@@ -211,7 +193,11 @@ class ConsoleContext:
     """Whether this console can command (a live or demo console): the screens dim their keys without."""
 
     def __init__(
-        self, setup: ConsoleSetup, warn: Callable[[str], None], history: History, poll_period_s: float = 0.0
+        self,
+        setup: ConsoleSetup,
+        warn: Callable[[str], None],
+        history: ServerHistory,
+        poll_period_s: float = 0.0,
     ) -> None:
         self.setup = setup
         self.fleet = FleetState.for_capsules(setup.capsules, poll_period_s)
@@ -220,7 +206,7 @@ class ConsoleContext:
         self.warn = warn
         """Tells the operator something from any thread (the app posts it as a notice)."""
         self.history = history
-        """The audit log as History reads and exports it (the server's; this machine's in a replay)."""
+        """The audit log as History reads and exports it, from the server."""
         self.desk = DeskView({}, {}, ())
         """What the server holds of this console's desk (its waivers, the ticks, the PARACHUTE overrides),
         as it last said: read again when the audit moves on (``read_desk``)."""
@@ -461,20 +447,18 @@ class ConsoleContext:
 
 
 class ReplayContext(ConsoleContext):
-    """A console with no link: a replayed recording (or a session started without an operations server).
+    """A console with no link: a replayed recording.
 
-    It shows what was recorded through the same views, and this machine's audit and checklists
-    (``records``); the commanding side does not exist."""
+    It shows what was recorded through the same views, and the operations server's audit and checklist
+    ticks (read, never written: the commanding side does not exist)."""
 
-    def __init__(
-        self, setup: ConsoleSetup, warn: Callable[[str], None], history: History,
-        records: Callable[[str], list[StepRecord]],
-    ) -> None:  # fmt: skip
-        super().__init__(setup, warn, history)
-        self.records = records
-
-    def step_records(self, capsule: str) -> tuple[StepRecord, ...]:
-        return tuple(self.records(capsule))
+    def __init__(self, setup: ConsoleSetup, warn: Callable[[str], None], server: Path) -> None:
+        super().__init__(setup, warn, ServerHistory(lambda: Client(server, READ_TIMEOUT_S)))
+        with Client(server, READ_TIMEOUT_S) as client:
+            ticks = Desk(client).view().checklists
+        self.desk = DeskView({}, ticks, ())
+        """The ticks as the server holds them; no waivers or PARACHUTE overrides: a replay shows what was
+        recorded, not what is held now."""
 
 
 class CommandingContext(ConsoleContext):
@@ -555,10 +539,9 @@ def context_for(
     setup: ConsoleSetup, warn: Callable[[str], None], live: Callable[[], LiveSource | None]
 ) -> ConsoleContext:
     """The context of the session's mode: commanding through the server, else a replay's (which reads
-    this machine's store for History and the recorded ticks)."""
-    if setup.server is not None and setup.mode != "replay":
-        return CommandingContext(setup, warn, live, setup.server)
-    store = setup.store
-    if store is None:
-        raise ConfigError("a console with no operations server is a replay, and a replay needs the store")
-    return ReplayContext(setup, warn, AuditLog(store), lambda capsule: step_records(store, capsule))
+    History and the checklist ticks from it)."""
+    if setup.server is None:
+        raise ConfigError("a console needs its operations server (drs console finds or starts it)")
+    if setup.mode == "replay":
+        return ReplayContext(setup, warn, setup.server)
+    return CommandingContext(setup, warn, live, setup.server)

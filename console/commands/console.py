@@ -22,7 +22,6 @@ from typing import TYPE_CHECKING
 from drs_link.config import Config, load_config
 from drs_link.errors import ConfigError, LinkError
 from drs_link.ops import TelemetryRecord, TelemetryRecorder, read_recording
-from drs_link.store import Store, utc_now
 
 if TYPE_CHECKING:
     from console.context import ConsoleSetup
@@ -145,15 +144,15 @@ class ReplayFeed:
 
 
 def replay_setup(path: Path, speed: float, config: Config) -> tuple[ConsoleSetup, ReplayFeed]:
-    """The recording through the same views; History shows this machine's audit log; nothing commands."""
+    """The recording through the same views; History and the checklist ticks are the operations server's
+    (read, never written); nothing commands."""
     from console.context import ConsoleSetup
 
     records = read_recording(path)
     feed = ReplayFeed(records, speed)
     names = sorted({r.capsule for r in records if r.capsule}) or [c.name for c in config.capsules]
-    store = Store.open(config.store_path)
     setup = ConsoleSetup(
-        mode="replay", capsules=names, store=store, clock=feed.clock, banner_note=f"{path.name} ×{speed:g}",
+        mode="replay", capsules=names, server=operations_server(config), clock=feed.clock, banner_note=f"{path.name} ×{speed:g}",
         replay_feed=feed.due,
     )  # fmt: skip
     return setup, feed
@@ -162,7 +161,7 @@ def replay_setup(path: Path, speed: float, config: Config) -> tuple[ConsoleSetup
 def live_setup(config: Config, weather: list[Path] | None, terrain: Path | None) -> ConsoleSetup:
     from console.context import ConsoleSetup
     from console.predictions import PredictionService, capsule_models
-    from drs_link.ops import load_exclusion_zones
+    from drs_link.ops import load_exclusion_zones, utc_now
     from predictor import Terrain
 
     if not config.capsules:

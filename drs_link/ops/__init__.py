@@ -95,6 +95,7 @@ if TYPE_CHECKING:
         phone_summary as phone_summary,
         read_gpsd_position as read_gpsd_position,
         track_from_reports as track_from_reports,
+        utc_now as utc_now,
         write_gpx as write_gpx,
         write_kml as write_kml,
     )
@@ -198,6 +199,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "ParachutePlan": "face_types",
         "StoredReport": "face_types",
         "iso_utc": "face_types",
+        "utc_now": "face_types",
         "data_directory": "face_types",
         "parse_hhmm": "face_types",
         "AuditRecord": "face_types",

@@ -38,7 +38,7 @@ from drs_link.iridium import (
     write_gpx,
     write_kml,
 )
-from drs_link.store import AuditRecord, data_directory, iso_utc
+from drs_link.store import AuditRecord, data_directory, iso_utc, utc_now
 
 QUEUED = lc.QUEUED
 """An MT the gateway accepted: what ``drs mt send`` exits 0 on."""
@@ -70,6 +70,7 @@ __all__ = [
     "distance_bearing",
     "export_track",
     "iso_utc",
+    "utc_now",
     "data_directory",
     "parse_hhmm",
     "parse_position",

@@ -88,6 +88,16 @@ class ConsoleUnderTest(DrsConsole):
             stop()
 
 
+def offline_server(
+    config: Config, request: pytest.FixtureRequest, clock: Callable[[], datetime] | None = None
+) -> Path:
+    """An operations server in this process on ``config`` (on ``clock``), ended with the test: what a
+    replay reads History from, or a console with nothing behind it commands."""
+    server = InProcessServer(config, clock=clock)
+    request.addfinalizer(server.stop)
+    return server.socket
+
+
 def console_on(ops: Operations, setup: ConsoleSetup, live_timers: bool = True) -> ConsoleUnderTest:
     """A commanding console on ``ops``'s store, through a private server in this process on ``ops``'s
     configuration, clock and gateway password (ended with the console); the zones and recording are
@@ -233,7 +243,10 @@ def seed_reports(store: Store, imei: str, start: datetime, count: int, interval_
 
 @pytest.fixture
 def canned_app(
-    tmp_path: Path, canned_prediction: list[TelemetryRecord], prediction_service: PredictionService
+    tmp_path: Path,
+    canned_prediction: list[TelemetryRecord],
+    prediction_service: PredictionService,
+    request: pytest.FixtureRequest,
 ) -> Callable[..., ConsoleUnderTest]:
     """A console at a fixed time, data from records, no timers: what it shows never changes (a live one
     acts through an operations server of its own, in this process, ended with it)."""
@@ -254,7 +267,8 @@ def canned_app(
         if operations is not None:
             app = console_on(operations, setup, live_timers=False)
         else:
-            app = ConsoleUnderTest(replace(setup, store=store), store, live_timers=False)
+            server = offline_server(config, request, lambda: now)
+            app = ConsoleUnderTest(replace(setup, server=server), store, live_timers=False)
         for record in canned_records(canned_prediction):
             app.fleet.apply(record)
         return app

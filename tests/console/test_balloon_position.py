@@ -12,8 +12,7 @@ from console.app import ConsoleSetup, DrsConsole
 from console.demo import DemoWorld
 from console.widgets.cells import FIELDS
 from drs_link.ops.telemetry import GnssSample, PredictionSample
-from drs_link.store import Store
-from tests.console.conftest import offline_config, wait_for
+from tests.console.conftest import offline_config, offline_server, wait_for
 from tests.console.test_fleet_view import detail_of, painted
 
 pytestmark = pytest.mark.asyncio
@@ -78,9 +77,11 @@ async def test_the_fleet_says_computing_until_the_first_prediction_then_shows_it
         assert "computing" not in painted(detail_of(app))
 
 
-async def test_without_weather_the_fleet_says_how_to_load_it(tmp_path: Path) -> None:
+async def test_without_weather_the_fleet_says_how_to_load_it(
+    tmp_path: Path, request: pytest.FixtureRequest
+) -> None:
     config = offline_config(tmp_path)
-    setup = ConsoleSetup(mode="live", capsules=["DRS1"], store=Store.open(config.store_path))
+    setup = ConsoleSetup(mode="live", capsules=["DRS1"], server=offline_server(config, request))
     app = DrsConsole(setup)
     async with app.run_test(size=(120, 40)) as pilot:
         await wait_for(pilot, lambda: "no weather loaded" in painted(detail_of(app)))

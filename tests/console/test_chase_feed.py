@@ -121,7 +121,7 @@ def test_no_chase_feed_without_its_configuration(tmp_path: Path) -> None:
     config = parse_config(
         {"data": {"dir": str(tmp_path)}, "capsule": [{"name": "DRS1", "host": "127.0.0.1"}]}
     )
-    setup = ConsoleSetup(mode="live", capsules=["DRS1"], store=Store.open(config.store_path))
+    setup = ConsoleSetup(mode="live", capsules=["DRS1"])
     assert started_chase_feed(config, setup) is None
 
 

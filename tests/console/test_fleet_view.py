@@ -32,8 +32,7 @@ from drs_link.ops.telemetry import (
     SyncSample,
     TelemetryRecord,
 )
-from drs_link.store import Store
-from tests.console.conftest import T0, canned_records, wait_for
+from tests.console.conftest import T0, canned_records, offline_config, offline_server, wait_for
 
 pytestmark = pytest.mark.asyncio
 SIZES = [(80, 24), (160, 48)]
@@ -100,12 +99,11 @@ async def test_the_table_fits_its_width_and_shows_every_column_that_fits(
 
 
 async def test_every_part_of_the_screen_shows_at_80x24_with_eight_capsules(
-    tmp_path: Path, canned_prediction: list[TelemetryRecord]
+    tmp_path: Path, canned_prediction: list[TelemetryRecord], request: pytest.FixtureRequest
 ) -> None:
     names = [f"DRS{n}" for n in range(1, 9)]
-    setup = ConsoleSetup(
-        mode="replay", capsules=names, store=Store.open(tmp_path / "drs.sqlite"), clock=lambda: T0
-    )
+    server = offline_server(offline_config(tmp_path), request)
+    setup = ConsoleSetup(mode="replay", capsules=names, server=server, clock=lambda: T0)
     app = DrsConsole(setup, live_timers=False)
     for record in canned_records(canned_prediction):
         app.fleet.apply(record)

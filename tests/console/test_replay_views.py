@@ -23,7 +23,7 @@ from console.screens.release import ReleaseScreen
 from drs_link.errors import LinkError
 from drs_link.ops import ReportSample, TelemetryRecord
 from drs_link.store import Store
-from tests.console.conftest import T0, offline_config, seed_reports, wait_for
+from tests.console.conftest import T0, offline_config, offline_server, seed_reports, wait_for
 
 pytestmark = pytest.mark.asyncio
 ALTITUDES = (19_900.0, 18_000.0, 16_100.0, 500.0, 500.0, 500.0, 500.0)
@@ -41,10 +41,12 @@ def recorded_reports() -> list[TelemetryRecord]:
     ]  # fmt: skip
 
 
-async def test_a_replay_shows_the_landing_and_the_reports_it_played(tmp_path: Path) -> None:
+async def test_a_replay_shows_the_landing_and_the_reports_it_played(
+    tmp_path: Path, request: pytest.FixtureRequest
+) -> None:
     played = [recorded_reports()]
     setup = ConsoleSetup(
-        mode="replay", capsules=["DRS1"], store=Store.open(tmp_path / "drs.sqlite"), clock=lambda: T0,
+        mode="replay", capsules=["DRS1"], server=offline_server(offline_config(tmp_path), request), clock=lambda: T0,
         replay_feed=lambda: played.pop() if played else [],
     )  # fmt: skip
     app = DrsConsole(setup, live_timers=False)
@@ -93,11 +95,14 @@ async def test_the_recovery_screen_shows_what_another_console_stored_when_the_st
 
 
 async def test_a_replay_has_no_commanding_side_it_refuses_in_one_sentence_and_dims_keys(
-    tmp_path: Path,
+    tmp_path: Path, request: pytest.FixtureRequest
 ) -> None:
     """Replay was ``operations=None`` with asserts behind it; now its context has no commanding side."""
-    store = Store.open(tmp_path / "drs.sqlite")
-    setup = ConsoleSetup(mode="replay", capsules=["DRS1"], store=store, clock=lambda: T0)
+    config = offline_config(tmp_path)
+    store = Store.open(config.store_path)
+    setup = ConsoleSetup(
+        mode="replay", capsules=["DRS1"], server=offline_server(config, request), clock=lambda: T0
+    )
     app = DrsConsole(setup, live_timers=False)
     context = app.context
     assert isinstance(context, ReplayContext) and not context.commanding

@@ -18,8 +18,7 @@ import pytest
 from console.app import NO_WEATHER, ConsoleSetup, DrsConsole
 from console.screens.predictions import PredictionScreen
 from drs_link.ops.telemetry import GatewaySample, ReleaseSample, TelemetryRecord
-from drs_link.store import Store
-from tests.console.conftest import T0, offline_config, wait_for
+from tests.console.conftest import T0, offline_config, offline_server, wait_for
 
 
 def painted(app: DrsConsole, selector: str) -> str:
@@ -27,9 +26,11 @@ def painted(app: DrsConsole, selector: str) -> str:
 
 
 @pytest.mark.asyncio
-async def test_without_weather_predictions_and_go_no_go_say_no_weather_loaded(tmp_path: Path) -> None:
+async def test_without_weather_predictions_and_go_no_go_say_no_weather_loaded(
+    tmp_path: Path, request: pytest.FixtureRequest
+) -> None:
     config = offline_config(tmp_path)
-    app = DrsConsole(ConsoleSetup(mode="live", capsules=["DRS1"], store=Store.open(config.store_path)))
+    app = DrsConsole(ConsoleSetup(mode="live", capsules=["DRS1"], server=offline_server(config, request)))
     async with app.run_test(size=(80, 24)) as pilot:
         await pilot.press("p")
         assert isinstance(app.screen, PredictionScreen)
