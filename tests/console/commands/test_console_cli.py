@@ -96,7 +96,9 @@ def test_an_empty_or_missing_recording_is_refused(tmp_path: Path) -> None:
         read_recording(tmp_path / "missing.jsonl")
 
 
-def test_replay_hands_out_records_as_its_clock_passes_them(tmp_path: Path) -> None:
+def test_replay_hands_out_records_as_its_clock_passes_them(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     records = [TelemetryRecord(T0 + timedelta(seconds=s), "DRS1", LinkSample(up=True)) for s in (0, 1, 3600)]
     feed = ReplayFeed(records, speed=100.0)
     assert feed.due() == records[:1]
@@ -106,8 +108,11 @@ def test_replay_hands_out_records_as_its_clock_passes_them(tmp_path: Path) -> No
         ReplayFeed(records, 0.0)
     path = tmp_path / "t.jsonl"
     path.write_text("".join(r.to_json() + "\n" for r in records))
+    monkeypatch.setenv(
+        "DRS_PRIVATE_SERVER", "thread"
+    )  # the replay's History is read from this account's server
     setup, _ = replay_setup(path, 1.0, parse_config({"data": {"dir": str(tmp_path / "data")}}))
-    assert setup.mode == "replay" and setup.capsules == ["DRS1"] and setup.operations is None
+    assert setup.mode == "replay" and setup.capsules == ["DRS1"] and setup.server is not None
 
 
 def test_a_bad_exclusion_zone_file_is_refused_naming_the_key(tmp_path: Path) -> None:
