@@ -16,7 +16,7 @@ from collections.abc import Callable, Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
 
-from drs_link.ops import Contour, PredictionSample, ReleaseOrigin, TelemetryRecord
+from drs_link.ops import Contour, LiveView, PredictionSample, ReleaseOrigin, TelemetryRecord
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError
@@ -107,7 +107,7 @@ class PredictionService:
         self._lock = threading.Lock()
         self.latest: dict[str, Prediction] = {}
         self._live: dict[str, LivePredictor] = {}
-        self._live_latest: dict[str, dict[str, object]] = {}
+        self._live_latest: dict[str, LiveView] = {}
         self.live_latest: dict[str, Prediction] = {}
         """Each descending capsule's latest live re-prediction (the chase feed keeps it for chasemapper)."""
         self._live_lock = threading.Lock()
@@ -192,7 +192,7 @@ class PredictionService:
             ],  # fmt: skip
         }
 
-    def live(self, capsule: str, reports: Sequence[Report]) -> dict[str, object] | None:
+    def live(self, capsule: str, reports: Sequence[Report]) -> LiveView | None:
         """Feed the reports not seen yet to the capsule's live predictor; the prediction from the latest.
 
         One predictor per capsule keeps the legs measured so far, so each new report costs one
@@ -221,12 +221,24 @@ class PredictionService:
                 live.observe(report)
             result = live.update(fresh[-1])
             self.live_latest[capsule] = result.prediction
-            outline, path = map_geometry(result.prediction)
-            data = {**result.to_dict(), "outline_2sigma": outline, "path": path}
-            data["measured_rate_factor"] = result.rate.measured if result.rate is not None else None
-            data["correction"] = live_correction_text(result)
-            self._live_latest[capsule] = data
-            return data
+            view = self._live_latest[capsule] = live_view(result)
+            return view
+
+
+def live_view(result: LivePrediction) -> LiveView:
+    """The live re-prediction as the screens show it, read from the typed result (never from its JSON)."""
+    prediction, ellipse = result.prediction, result.prediction.ellipse
+    outline, path = map_geometry(prediction)
+    return LiveView(
+        report_time=result.report.time, report_alt_m=result.report.alt_m, landing_lat=prediction.landing.lat,
+        landing_lon=prediction.landing.lon, landing_time=prediction.landing.time,
+        remaining_drift_km=prediction.drift_km, sigma_parallel_km=ellipse.sigma_parallel_km,
+        sigma_perpendicular_km=ellipse.sigma_perpendicular_km,
+        measured_rate_factor=result.rate.measured if result.rate is not None else None,
+        legs_used=len(result.legs), correction=live_correction_text(result), outline_2sigma=outline, path=path,
+        sigma_major_km=ellipse.sigma_major_km, sigma_minor_km=ellipse.sigma_minor_km,
+        major_axis_bearing_deg=ellipse.major_axis_bearing_deg,
+    )  # fmt: skip
 
 
 def live_correction_text(result: LivePrediction) -> str:

@@ -10,10 +10,10 @@ passes it in as ``LiveSource``; this room never loads weather.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import datetime
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from drs_link.iridium import (
     Command,
@@ -32,7 +32,7 @@ from predictor.errors import PredictorError
 if TYPE_CHECKING:
     from drs_link.ops.operations import Operations
 
-LiveSource = Callable[[str, Sequence[TrackPoint]], Mapping[str, Any] | None]
+LiveSource = Callable[[str, Sequence[TrackPoint]], "LiveView | None"]
 """The capsule's live re-prediction from its track (``PredictionService.live``); None before a fix."""
 
 Points = tuple[tuple[float, float], ...]
@@ -40,7 +40,8 @@ Points = tuple[tuple[float, float], ...]
 
 @dataclass(frozen=True)
 class LiveView:
-    """The live re-prediction from one fix, in the units the screen shows (no ISO strings to parse back)."""
+    """The live re-prediction from one fix, in the units the screen shows: built by the prediction service
+    from its typed result (``console.predictions.live_view``), never parsed back from JSON."""
 
     report_time: datetime
     report_alt_m: float
@@ -62,35 +63,6 @@ class LiveView:
     sigma_minor_km: float = math.nan
     major_axis_bearing_deg: float = 0.0
     """The ellipse's principal axes (1σ) and the major one's bearing, for the recovery picture's 1σ/2σ."""
-
-    @classmethod
-    def from_live(cls, data: Mapping[str, Any]) -> LiveView:
-        """From ``PredictionService.live``'s answer: read once here, so no widget parses it."""
-        report, landing, ellipse = data["report"], data["landing"], data["ellipse"]
-        one_sigma = next((c for c in ellipse.get("contours", ()) if round(c["n_sigma"]) == 1), None)
-        return cls(
-            report_time=_utc(report["time"]),
-            report_alt_m=float(report["alt_m"]),
-            landing_lat=float(landing["lat"]),
-            landing_lon=float(landing["lon"]),
-            landing_time=_utc(landing["time"]),
-            remaining_drift_km=float(data["remaining_drift_km"]),
-            sigma_parallel_km=float(ellipse["sigma_parallel_km"]),
-            sigma_perpendicular_km=float(ellipse["sigma_perpendicular_km"]),
-            measured_rate_factor=data["measured_rate_factor"],
-            legs_used=int(data["legs_used"]),
-            correction=str(data["correction"]),
-            outline_2sigma=tuple((float(lon), float(lat)) for lon, lat in data["outline_2sigma"]),
-            path=tuple((float(lon), float(lat)) for lon, lat in data["path"]),
-            sigma_major_km=float(one_sigma["semi_major_km"]) if one_sigma else math.nan,
-            sigma_minor_km=float(one_sigma["semi_minor_km"]) if one_sigma else math.nan,
-            major_axis_bearing_deg=float(ellipse.get("major_axis_bearing_deg", 0.0)),
-        )
-
-
-def _utc(text: str) -> datetime:
-    """The prediction's ISO 8601 with a Z, as the aware UTC the clocks keep."""
-    return datetime.fromisoformat(text.replace("Z", "+00:00"))
 
 
 @dataclass(frozen=True)
@@ -140,10 +112,10 @@ def descent_along(track: tuple[TrackPoint, ...], capsule: str, live: LiveSource 
     if landing is not None or not track or live is None:
         return Descent(track, landing)
     try:
-        data = live(capsule, track)
+        view = live(capsule, track)
     except PredictorError as exc:
         return Descent(track, landing, live_error=str(exc))
-    return Descent(track, landing, LiveView.from_live(data) if data is not None else None)
+    return Descent(track, landing, view)
 
 
 def capsule_descent(operations: Operations, capsule: str, live: LiveSource | None) -> Descent:

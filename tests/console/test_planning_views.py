@@ -143,15 +143,13 @@ def test_live_re_prediction_feeds_each_fix_once_and_skips_a_repeated_one(
     fixes = [TrackPoint(start + timedelta(minutes=2 * n), 67.90 + 0.004 * n, 21.20 + 0.03 * n, 12000.0 - 1300.0 * n,
                         11.0) for n in range(4)]  # fmt: skip
     first = prediction_service.live("DRS9", fixes[:2])
-    assert first is not None and first["legs_used"] == 1 and first["measured_rate_factor"] is not None
+    assert first is not None and first.legs_used == 1 and first.measured_rate_factor is not None
     again = prediction_service.live("DRS9", fixes[:2])
     assert again is first
     later = prediction_service.live("DRS9", [*fixes, fixes[-1]])
-    assert later is not None and later["legs_used"] == 3
-    assert (
-        later["report"]["alt_m"] == fixes[-1].alt_m
-        and later["remaining_drift_km"] < first["remaining_drift_km"]
-    )
+    assert later is not None and later.legs_used == 3
+    assert later.report_alt_m == fixes[-1].alt_m and later.remaining_drift_km < first.remaining_drift_km
+    assert later.report_time == fixes[-1].time and later.landing_time.tzinfo is not None
 
 
 def test_the_release_window_flies_the_capsules_model_as_its_release_prediction_does(

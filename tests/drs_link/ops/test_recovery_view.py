@@ -6,7 +6,7 @@ these pin what it decides from real reports through the simulated gateway into a
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -34,29 +34,27 @@ def rig(tmp_path: Path) -> Iterator[Rig]:
 class LiveCalls:
     """Stands in for the console's prediction service (which needs weather): records what it is asked."""
 
-    def __init__(self, answer: Mapping[str, Any] | None = None, error: str | None = None) -> None:
+    def __init__(self, answer: LiveView | None = None, error: str | None = None) -> None:
         self.answer, self.error = answer, error
         self.asked: list[tuple[str, tuple[TrackPoint, ...]]] = []
 
-    def __call__(self, capsule: str, track: Sequence[TrackPoint]) -> Mapping[str, Any] | None:
+    def __call__(self, capsule: str, track: Sequence[TrackPoint]) -> LiveView | None:
         self.asked.append((capsule, tuple(track)))
         if self.error is not None:
             raise PredictorError(self.error)
         return self.answer
 
 
-def answer_from(track: tuple[TrackPoint, ...]) -> dict[str, Any]:
-    """The keys ``PredictionService.live`` answers with, times as its ISO strings with a Z."""
+def answer_from(track: tuple[TrackPoint, ...]) -> LiveView:
+    """A live re-prediction from the track's last fix, as ``PredictionService.live`` answers."""
     last = track[-1]
-    return {
-        "report": {"time": last.time.strftime("%Y-%m-%dT%H:%M:%SZ"), "lat": last.lat, "lon": last.lon,
-                   "alt_m": last.alt_m},
-        "landing": {"time": "2026-07-01T10:31:07Z", "lat": 46.61, "lon": 6.72, "alt_m": 410.0},
-        "remaining_drift_km": 7.25, "remaining_s": 1500.0,
-        "ellipse": {"sigma_parallel_km": 1.5, "sigma_perpendicular_km": 0.75},
-        "legs_used": 2, "measured_rate_factor": 1.08, "correction": "descent rate ×1.08",
-        "outline_2sigma": ((6.7, 46.6), (6.74, 46.62)), "path": [[6.6, 46.5], [6.72, 46.61]],
-    }  # fmt: skip
+    return LiveView(
+        report_time=last.time, report_alt_m=last.alt_m, landing_lat=46.61, landing_lon=6.72,
+        landing_time=datetime(2026, 7, 1, 10, 31, 7, tzinfo=UTC), remaining_drift_km=7.25,
+        sigma_parallel_km=1.5, sigma_perpendicular_km=0.75, measured_rate_factor=1.08, legs_used=2,
+        correction="descent rate ×1.08", outline_2sigma=((6.7, 46.6), (6.74, 46.62)),
+        path=((6.6, 46.5), (6.72, 46.61)),
+    )  # fmt: skip
 
 
 def reports(rig: Rig) -> list[Any]:
@@ -70,13 +68,7 @@ def test_a_falling_capsule_gets_the_live_re_prediction_from_its_whole_track_as_t
     descent = follow_descent(reports(rig), "DRS1", live)
     assert descent.descending and descent.landing is None and descent.live_error is None
     assert live.asked == [("DRS1", track)] and [p.alt_m for p in track] == [19_900.0, 18_000.0, 16_100.0]
-    view = descent.live
-    assert isinstance(view, LiveView)
-    assert view.report_time == track[-1].time and view.report_time.tzinfo is not None
-    assert view.landing_time == datetime(2026, 7, 1, 10, 31, 7, tzinfo=UTC)
-    assert (view.landing_lat, view.landing_lon, view.legs_used) == (46.61, 6.72, 2)
-    assert view.path == ((6.6, 46.5), (6.72, 46.61)), "lists from JSON become the map's (lon, lat) tuples"
-    assert view.measured_rate_factor == 1.08 and view.correction == "descent rate ×1.08"
+    assert descent.live == answer_from(track), "the live source's view, as it answered"
 
 
 def test_a_landed_capsule_is_never_re_predicted(rig: Rig) -> None:
