@@ -475,9 +475,7 @@ class DrsConsole(App[int]):
     ) -> None:
         """The release window from ``origin`` (``drs_link.ops.ReleaseWindow``), for the predictions screen."""
         try:
-            window = ReleaseWindow.from_sweep(
-                service.release_window(origin, self.context.zones_file, capsule=capsule)
-            )
+            window = service.release_window(origin, self.context.zones_file, capsule=capsule)
         except PredictorError as exc:
             self.post_message(OperatorNotice(f"release window failed: {exc}", "warning"))
         else:

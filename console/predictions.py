@@ -16,7 +16,15 @@ from collections.abc import Callable, Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
 
-from drs_link.ops import Contour, LiveView, PredictionSample, ReleaseOrigin, TelemetryRecord
+from drs_link.ops import (
+    Contour,
+    LiveView,
+    PredictionSample,
+    ReleaseCandidate,
+    ReleaseOrigin,
+    ReleaseWindow,
+    TelemetryRecord,
+)
 from predictor import Prediction, Terrain, WeatherCube, load_weather, predict
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError
@@ -162,35 +170,22 @@ class PredictionService:
         hours: float = WINDOW_HOURS,
         every_minutes: float = WINDOW_STEP_MIN,
         capsule: str | None = None,
-    ) -> dict[str, object]:
-        """The sweep from now as plain data: one entry per candidate, the verdict, the recommended one.
+    ) -> ReleaseWindow:
+        """The sweep from now, typed: one candidate per time with its verdict, and the recommended one.
         It flies ``capsule``'s model as its release prediction does (the go/no-go depends on it)."""
         cube, terrain = self._inputs()
-        setup, label = self._flown(capsule, terrain)
+        setup, _ = self._flown(capsule, terrain)
         zones: tuple[Feature, ...] = load_zones(zones_file) if zones_file is not None else ()
         now = self.clock()
         plan = plan_release(
             cube, origin.release(now), Sweep(hours, every_minutes), setup, criteria=Criteria(zones)
         )
+        candidates = tuple(
+            ReleaseCandidate(c.release_time, c.go, c.status is None, tuple(c.reasons))
+            for c in plan.candidates
+        )
         recommended = plan.windows[0].recommended if plan.windows else None
-        return {
-            "computed_at": now.isoformat(),
-            "origin_source": origin.source,
-            "model": label,
-            "every_minutes": every_minutes,
-            "verdict": plan.verdict,
-            "recommended": recommended,
-            "candidates": [
-                {
-                    "time": c.release_time.isoformat(),
-                    "go": c.go,
-                    "landed": c.status is None,
-                    "landing_time": c.landing_time.isoformat() if c.landing_time is not None else None,
-                    "reasons": list(c.reasons),
-                }
-                for c in plan.candidates
-            ],  # fmt: skip
-        }
+        return ReleaseWindow(now, every_minutes, recommended, candidates)
 
     def live(self, capsule: str, reports: Sequence[Report]) -> LiveView | None:
         """Feed the reports not seen yet to the capsule's live predictor; the prediction from the latest.

@@ -1,15 +1,10 @@
-"""The release-window sweep (when to drop, as a go/no-go timeline) as a typed value the screens show.
-
-The prediction service answers with plain data (ISO times, a JSON-able dict, as ``drs plan`` writes
-it); this reads it once, so the timeline widget never parses times back out of strings.
-"""
+"""The release-window sweep (when to drop, as a go/no-go timeline) as a typed value the screens show,
+built by the prediction service from its plan (``PredictionService.release_window``)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Any
 
 
 @dataclass(frozen=True)
@@ -31,17 +26,3 @@ class ReleaseWindow:
     recommended: int | None
     """Index of the recommended candidate; None when no time is go."""
     candidates: tuple[ReleaseCandidate, ...]
-
-    @classmethod
-    def from_sweep(cls, sweep: Mapping[str, Any]) -> ReleaseWindow:
-        """From ``PredictionService.release_window``'s answer."""
-        return cls(
-            computed_at=datetime.fromisoformat(sweep["computed_at"]),
-            every_minutes=float(sweep["every_minutes"]),
-            recommended=sweep["recommended"],
-            candidates=tuple(
-                ReleaseCandidate(datetime.fromisoformat(c["time"]), bool(c["go"]), bool(c["landed"]),
-                                 tuple(c["reasons"]))
-                for c in sweep["candidates"]
-            ),
-        )  # fmt: skip

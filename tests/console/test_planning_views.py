@@ -16,7 +16,7 @@ from console.screens.recovery import RecoveryScreen
 from console.widgets.landing_map import LandingMap
 from console.widgets.release_timeline import GO, NO_GO, NO_LANDING, default_cursor, render_timeline
 from drs_link.iridium.recovery import TrackPoint
-from drs_link.ops import ReleaseWindow
+from drs_link.ops import ReleaseCandidate, ReleaseWindow
 from predictor.descent import PROFILES
 from predictor.errors import PredictorError
 from predictor.prediction import CalibratedModel
@@ -54,14 +54,11 @@ async def test_the_predictions_screen_shows_the_release_window_with_a_recommende
 
 def test_the_timeline_gives_the_reasons_of_the_first_no_go() -> None:
     at = datetime(2026, 9, 1, 12, 0)
-    window = ReleaseWindow.from_sweep({
-        "computed_at": at.isoformat(), "every_minutes": 5.0, "recommended": 2,
-        "candidates": [
-            {"time": (at + timedelta(minutes=5 * i)).isoformat(), "go": i >= 2, "landed": i != 0,
-             "reasons": [] if i >= 2 else ["P(zone) 0.31 > 0.05 (Kiruna town)"]}
-            for i in range(4)
-        ],
-    })  # fmt: skip
+    window = ReleaseWindow(at, 5.0, 2, tuple(
+        ReleaseCandidate(at + timedelta(minutes=5 * i), i >= 2, i != 0,
+                         () if i >= 2 else ("P(zone) 0.31 > 0.05 (Kiruna town)",))
+        for i in range(4)
+    ))  # fmt: skip
     text = render_timeline(window, default_cursor(window), "computed 1 s ago")
     lines = text.splitlines()
     assert lines[1].strip() == f"{NO_LANDING}{NO_GO}{GO}{GO}"
@@ -72,10 +69,7 @@ def test_the_timeline_gives_the_reasons_of_the_first_no_go() -> None:
 
 def test_an_empty_window_says_no_go_and_marks_nothing_recommended() -> None:
     at = datetime(2026, 9, 1, 12, 0)
-    window = ReleaseWindow.from_sweep({
-        "computed_at": at.isoformat(), "every_minutes": 5.0, "recommended": None,
-        "candidates": [{"time": at.isoformat(), "go": False, "landed": True, "reasons": ["sigma too large"]}],
-    })  # fmt: skip
+    window = ReleaseWindow(at, 5.0, None, (ReleaseCandidate(at, False, True, ("sigma too large",)),))
     text = render_timeline(window, default_cursor(window), "computed 1 s ago")
     assert "NO-GO window" in text and "▲" not in text.splitlines()[2] and "sigma too large" in text
 
@@ -117,14 +111,13 @@ def test_a_zone_over_every_landing_makes_the_whole_window_no_go_with_its_reason(
     zones = tmp_path / "zones.geojson"
     zones.write_text(json.dumps({"type": "Feature", "properties": {"name": "Everywhere east"},
                                  "geometry": {"type": "Polygon", "coordinates": [ring]}}))  # fmt: skip
-    window = ReleaseWindow.from_sweep(
-        prediction_service.release_window(ReleaseOrigin(SITE[0], SITE[1], 31500.0, "test"), zones)
-    )
+    window = prediction_service.release_window(ReleaseOrigin(SITE[0], SITE[1], 31500.0, "test"), zones)
     assert window.recommended is None and not any(c.go for c in window.candidates)
     text = render_timeline(window, default_cursor(window), "computed 0 s ago")
     assert "NO-GO window" in text and "(mostly Everywhere east)" in text
     open_sky = prediction_service.release_window(ReleaseOrigin(SITE[0], SITE[1], 31500.0, "test"), None)
-    assert open_sky["recommended"] is not None and all(c["go"] for c in open_sky["candidates"])
+    assert open_sky.recommended is not None and all(c.go for c in open_sky.candidates)
+    assert open_sky.candidates[0].time.tzinfo is not None
 
 
 def test_a_zone_file_that_is_not_geojson_is_refused_with_its_name(
