@@ -17,6 +17,8 @@ class ReleaseCandidate:
     """False when the descent left the weather: no landing to judge."""
     reasons: tuple[str, ...]
     """Why it is no-go, in words."""
+    landing_time: datetime | None = None
+    """When it would land (None when it left the weather)."""
 
 
 @dataclass(frozen=True)
@@ -26,3 +28,5 @@ class ReleaseWindow:
     recommended: int | None
     """Index of the recommended candidate; None when no time is go."""
     candidates: tuple[ReleaseCandidate, ...]
+    model: str = ""
+    """The law the sweep flew (the capsule's model, else the default profile): the verdicts depend on it."""
