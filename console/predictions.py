@@ -174,18 +174,18 @@ class PredictionService:
         """The sweep from now, typed: one candidate per time with its verdict, and the recommended one.
         It flies ``capsule``'s model as its release prediction does (the go/no-go depends on it)."""
         cube, terrain = self._inputs()
-        setup, _ = self._flown(capsule, terrain)
+        setup, label = self._flown(capsule, terrain)
         zones: tuple[Feature, ...] = load_zones(zones_file) if zones_file is not None else ()
         now = self.clock()
         plan = plan_release(
             cube, origin.release(now), Sweep(hours, every_minutes), setup, criteria=Criteria(zones)
         )
         candidates = tuple(
-            ReleaseCandidate(c.release_time, c.go, c.status is None, tuple(c.reasons))
+            ReleaseCandidate(c.release_time, c.go, c.status is None, tuple(c.reasons), c.landing_time)
             for c in plan.candidates
         )
         recommended = plan.windows[0].recommended if plan.windows else None
-        return ReleaseWindow(now, every_minutes, recommended, candidates)
+        return ReleaseWindow(now, every_minutes, recommended, candidates, label)
 
     def live(self, capsule: str, reports: Sequence[Report]) -> LiveView | None:
         """Feed the reports not seen yet to the capsule's live predictor; the prediction from the latest.

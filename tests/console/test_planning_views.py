@@ -159,6 +159,9 @@ def test_the_release_window_flies_the_capsules_model_as_its_release_prediction_d
         flown = service.release_window(origin, None, capsule="HEAVY")
     finally:
         del service.models["HEAVY"]
-    assert default["model"] == "drs profile" and flown["model"] == heavy.label()
-    pairs = list(zip(default["candidates"], flown["candidates"], strict=True))
-    assert pairs and all(b["landing_time"] < a["landing_time"] for a, b in pairs)
+    assert default.model == "drs profile" and flown.model == heavy.label()
+    pairs = list(zip(default.candidates, flown.candidates, strict=True))
+    assert pairs and all(
+        b.landing_time is not None and a.landing_time is not None and b.landing_time < a.landing_time
+        for a, b in pairs
+    )
