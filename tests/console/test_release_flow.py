@@ -44,7 +44,14 @@ async def open_release_go(
     screen = app.screen
     assert isinstance(screen, ReleaseScreen) and screen.capsule == "DRS1"
     await pilot.press("s")
-    await wait_for(pilot, lambda: app.fleet.capsules["DRS1"].facts(app.now())["sync_fraction"] == 1.0)
+    try:
+        await wait_for(pilot, lambda: app.fleet.capsules["DRS1"].facts(app.now())["sync_fraction"] == 1.0)
+    except AssertionError:  # seen once in a fresh clone's quiet run: say what the console was told
+        told = [n.message for n in app._notifications]
+        sync = app.fleet.capsules["DRS1"].facts(app.now())["sync_fraction"]
+        raise AssertionError(
+            f"DRS1 never synced: sync fraction {sync}; the console was told {told}"
+        ) from None
     await pilot.press("o")
     assert isinstance(app.screen, ConfirmModal)
     await pilot.press("tab", "enter")
