@@ -19,7 +19,15 @@ from typing import TYPE_CHECKING
 
 from drs_link.config import Config
 from drs_link.errors import LinkError
-from drs_link.feeds import ChaseFeed, ChaseSender, KeptLanding, chase_kml_path, write_chase_kml
+from drs_link.feeds import (
+    LIVE,
+    RELEASE_NOW,
+    ChaseFeed,
+    ChaseSender,
+    KeptLanding,
+    chase_kml_path,
+    write_chase_kml,
+)
 from drs_link.server import Client
 from predictor.errors import PredictorError
 
@@ -29,9 +37,6 @@ if TYPE_CHECKING:
     from predictor import Prediction
 
 log = logging.getLogger(__name__)
-
-LIVE = "live re-prediction"
-RELEASE_NOW = "release now"
 
 
 class LandingKeeper:

@@ -26,7 +26,13 @@ if TYPE_CHECKING:
         chase_points as chase_points,
         write_chase_kml as write_chase_kml,
     )
-    from .chase_point import ChasePoint as ChasePoint, KeptLanding as KeptLanding
+    from .chase_point import (
+        KINDS as KINDS,
+        LIVE as LIVE,
+        RELEASE_NOW as RELEASE_NOW,
+        ChasePoint as ChasePoint,
+        KeptLanding as KeptLanding,
+    )
 
 __getattr__, __dir__, __all__ = lazy_door(
     __name__,
@@ -36,6 +42,9 @@ __getattr__, __dir__, __all__ = lazy_door(
         "CHASE_PERIOD_S": "chase",
         "ChaseFeed": "chase",
         "ChasePoint": "chase_point",
+        "KINDS": "chase_point",
+        "LIVE": "chase_point",
+        "RELEASE_NOW": "chase_point",
         "KeptLanding": "chase_point",
         "ChaseSender": "chase",
         "ChaseStore": "chase",

@@ -9,6 +9,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from datetime import datetime
 
+LIVE = "live re-prediction"
+"""A descending capsule's landing, re-predicted from its Iridium fixes."""
+RELEASE_NOW = "release now"
+"""A capsule still on the balloon: the landing of a release now."""
+KINDS = (LIVE, RELEASE_NOW)
+"""What a kept landing can be: the comment chasemapper shows names it."""
+
 
 @dataclass(frozen=True)
 class ChasePoint:
@@ -45,5 +52,5 @@ class KeptLanding:
     lon: float
     alt_m: float
     kind: str
-    """"live re-prediction" (descending) or "release now" (still on the balloon)."""
+    """One of ``KINDS``."""
     is_demo: bool

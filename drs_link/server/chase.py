@@ -9,11 +9,8 @@ so that file is its operator's own; the landing it kept is recorded here, in the
 from __future__ import annotations
 
 from drs_link.errors import RefusedError
-from drs_link.feeds import ChasePoint, ChaseStore, KeptLanding, chase_points
+from drs_link.feeds import KINDS, ChasePoint, ChaseStore, KeptLanding, chase_points
 from drs_link.server.desks import Desks
-
-KINDS = ("live re-prediction", "release now")
-"""What a kept landing can be (``console.chase``): the comment chasemapper shows names it."""
 
 
 class ChaseService:
