@@ -616,4 +616,3 @@ class DrsConsole(App[int]):
             loop = asyncio.get_running_loop()
             for sig in LOST_SIGNALS:
                 loop.remove_signal_handler(sig)
-        self.context.close()

@@ -8,9 +8,10 @@ arming, checklists, approvals and the audit log. A live or demo console gets a
 disarm, approvals, MT sends, power-on, reset, sync, MT resolve) and shows what the server pushes (the
 ARM windows, the approvals) and holds for it (``drs_link.server.desk``: its waivers, the checklists'
 ticks, the PARACHUTE overrides, History, the recovery and Iridium views), and its fleet is the
-telemetry the server polls and pushes; it opens no store and holds no ``Operations``. A replay gets a ``ReplayContext``, which shows this machine's audit and
-checklists and has no commanding side at all: asked for one, it refuses with ``REPLAY_REFUSAL`` (its keys are
-disabled too, so that is a last guard, not a path a screen takes). Nothing here imports Textual: it
+telemetry the server polls and pushes; it opens no store and holds no ``Operations``. A replay gets a
+``ReplayContext``, which reads the server's audit and checklist ticks and has no commanding side at all:
+asked for one, it refuses with ``REPLAY_REFUSAL`` (its keys are disabled too, so that is a last guard,
+not a path a screen takes). Nothing here imports Textual: it
 is the plain-Python side of the console.
 """
 
@@ -95,8 +96,8 @@ class ConsoleSetup:
     capsules: list[str]
     clock: Callable[[], datetime] = utc_now
     server: Path | None = None
-    """The operations server's socket: every action, read and poll of a live or demo console goes through it
-    (a console with none is a replay's)."""
+    """The operations server's socket: every action, read and poll of a live or demo console goes through it,
+    and a replay reads History from it (``context_for`` refuses a console without one)."""
     stop_server: Callable[[], None] | None = None
     """Ends the demo's in-process server with the session (a shared or on-demand one lives on)."""
     zones: tuple[ExclusionZone, ...] = ()
@@ -410,9 +411,6 @@ class ConsoleContext:
     def record(self, records: list[TelemetryRecord]) -> None:
         """Keep ``records`` in the session's recording; a replay records nothing."""
 
-    def close(self) -> None:
-        """What the context opened, closed with the app."""
-
     def now(self) -> datetime:
         return self.setup.clock()
 
@@ -478,8 +476,6 @@ class CommandingContext(ConsoleContext):
         )
         self.server = server
         self.views = ServerViews(self.client, live)
-        self.audit_seen = 0
-        """The newest audit entry this console has shown (``Event.audit_id``)."""
         self.arms: dict[str, ArmState] = {}
         """Each capsule's ARM window as the server last pushed or answered it."""
         self.approvals: tuple[ApprovalView, ...] = ()
