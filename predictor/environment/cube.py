@@ -52,6 +52,11 @@ class WeatherCube:
     """Generated demo weather: every output built on it must say so."""
     warnings: tuple[str, ...] = field(default=())
     """Things the loader noticed that the operator should know (passed into each result)."""
+    measured_along: np.ndarray | None = None
+    """Where these winds were measured, for winds measured by one sounding (an ascent): rows of
+    (altitude m, lat, lon), altitude rising; None for a forecast. Live re-prediction widens its ellipse
+    with the distance between this track and the descent still to come (``predictor.prediction.live``):
+    on real flights the wind error grows with it (docs/planning/wind-errors.md)."""
 
     def __post_init__(self) -> None:
         shape = (len(self.times), len(self.levels_hpa), len(self.lats), len(self.lons))

@@ -34,6 +34,7 @@ report: each prediction from a report starts that long after the top of the desc
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -47,7 +48,7 @@ from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError
 from predictor.prediction.landings import Prediction, Track, iso_z, predict
 from predictor.prediction.setup import FlightSetup
-from predictor.prediction.uncertainty import GEOD, LAUNCH, ErrorModel
+from predictor.prediction.uncertainty import GEOD, LAUNCH, ErrorModel, parametric_ellipse
 
 WIND_BIN_M = 250.0
 RATE_FACTOR_LIMITS = (0.5, 2.0)
@@ -89,27 +90,83 @@ def by_height(height_km: float, heights_km: Sequence[float], column: Sequence[fl
     return float(np.interp(height_km, np.asarray(heights_km)[order], np.asarray(column)[order]))
 
 
+DISTANCE_RATIO_LIMITS = (0.2, 5.0)
+"""X / X̄ is held within these: the ellipse grows with the distance at most 5^β-fold, and never
+shrinks to nothing on a descent right beside its ascent."""
+LIVE_PROBABILITIES = (0.6827, 0.9545)
+"""The contours every live ellipse carries beside the standard n-σ ones: the regions that hold 68.3 %
+and 95.4 % of a bivariate normal (n = 1.515 and 2.486). What issue #30's "the live ellipse's 1σ holds
+60–75 %, its 2σ 80–95 %" is read as: the 1-D meaning of 1σ and 2σ (68 %, 95 %), carried to two
+dimensions as the contour of that probability, not the n = 1 ellipse (39.3 %). The files say so in
+each contour's ``probability``; the held-out coverage of these two contours is in every live report."""
+
+
 @dataclass(frozen=True)
 class LiveErrorModel:
-    """σ∥ and σ⊥ (km, along and across the report→landing bearing) against height above the ground.
+    """σ∥ and σ⊥ (km, along and across the report→landing bearing) against height above the ground,
+    widened by how far from the descent still to come its winds were measured; and the σ of the law's
+    remaining time beyond λ's own.
 
-    Measured, not modelled: the RMS along- and cross-track errors of the live re-prediction at each
-    checkpoint of the real-flight evaluation, linear in height between checkpoints and held beyond
-    them. Squared-error fits of σ0 + drift forms were tried and dominated by a few large misses high
-    up, which left 3 km of σ at the ground; a table per height keeps each height honest.
+    Measured, not modelled: at each checkpoint of the real-flight evaluation, σ = a(h)·(X / X̄(h))^β,
+    a(h) per height and one β over all of them, by maximum likelihood on the errors of what ships,
+    then scaled so that the 68.3 % region holds 68.3 % of those flights
+    (``predictor.calibration.live_evaluation.fit_live_sigma``); linear in height between checkpoints
+    and held beyond them. X (km·h) is the distance between the predicted path below the report and
+    where its altitudes' winds were measured (``WeatherCube.measured_along``), integrated over the fall
+    (``ascent_distance_km_h``); X̄(h) the evaluation flights' RMS X at that height, which weather that
+    does not say where it was measured (a forecast) flies. Squared-error fits of σ0 + drift forms were
+    tried and dominated by a few large misses high up, which left 3 km of σ at the ground; a table per
+    height keeps each height honest. A table without β (a file written before schema 6) is σ(h) alone.
     """
 
     heights_km: tuple[float, ...]
     sigma_parallel_km: tuple[float, ...]
     sigma_perpendicular_km: tuple[float, ...]
+    growth_exponent: float = 0.0
+    """β: σ grows as (X / X̄(h))^β (0: not with the distance)."""
+    typical_km_h: tuple[float, ...] = ()
+    """X̄(h), the evaluation flights' RMS X per height (empty: not measured)."""
+    time_log_sigma: tuple[float, ...] = ()
+    """Per height, the σ of ln(remaining time) the law's error adds to λ's own (empty: not measured)."""
+    time_scale: float = 1.0
+    """The factor on the remaining time's σ (λ's and the law's together) that makes its 1σ hold 68.3 %
+    of the evaluation flights, all heights pooled."""
 
-    def at(self, height_km: float) -> ErrorModel:
-        """The ``ErrorModel`` that ``predict`` uses for a report at this height (no drift or lead term)."""
-        parallel = by_height(height_km, self.heights_km, self.sigma_parallel_km)
-        perpendicular = by_height(height_km, self.heights_km, self.sigma_perpendicular_km)
+    def at(self, height_km: float, distance_km_h: float | None = None) -> ErrorModel:
+        """The ``ErrorModel`` that ``predict`` uses for a report at this height (no drift or lead term),
+        with X = ``distance_km_h`` (None: X̄ at this height)."""
+        factor = 1.0
+        if distance_km_h is not None and self.typical_km_h and self.growth_exponent:
+            typical = by_height(height_km, self.heights_km, self.typical_km_h)
+            low, high = DISTANCE_RATIO_LIMITS
+            factor = min(max(distance_km_h / max(typical, 1e-9), low), high) ** self.growth_exponent
+        parallel = factor * by_height(height_km, self.heights_km, self.sigma_parallel_km)
+        perpendicular = factor * by_height(height_km, self.heights_km, self.sigma_perpendicular_km)
         return ErrorModel(
             sigma0_km=parallel, h=0.0, k_km2_per_h2=0.0, q=parallel / perpendicular, name="live"
         )
+
+    def time_sigma_at(self, height_km: float) -> float | None:
+        """The law's own σ of ln(remaining time) at this height (None: not measured)."""
+        if not self.time_log_sigma:
+            return None
+        return by_height(height_km, self.heights_km, self.time_log_sigma)
+
+
+def ascent_distance_km_h(track: Track, measured_along: np.ndarray) -> float:
+    """X: the horizontal distance (km) between the predicted path and where the winds at each of its
+    altitudes were measured, integrated over the fall (km·h). Sampled evenly in time, so X is the mean
+    distance times the hours of the fall; altitudes beyond the measured track take its nearest end (the
+    cube repeats the nearest measured layer there)."""
+    if track.t_s.size < 2 or track.t_s[-1] <= track.t_s[0]:
+        return 0.0
+    t = np.linspace(float(track.t_s[0]), float(track.t_s[-1]), 24)
+    z = np.interp(t, track.t_s, track.alt_m)
+    lat = np.interp(t, track.t_s, track.lat)
+    lon = np.interp(t, track.t_s, np.unwrap(track.lon, period=360.0))
+    alt_m, lat_m, lon_m = measured_along[:, 0], measured_along[:, 1], measured_along[:, 2]
+    _, _, distance_m = GEOD.inv(lon, lat, np.interp(z, alt_m, lon_m), np.interp(z, alt_m, lat_m))
+    return float(np.mean(distance_m) / 1000.0 * (t[-1] - t[0]) / 3600.0)
 
 
 LIVE_ERROR_MODEL = LiveErrorModel(
@@ -568,6 +625,13 @@ class LivePrediction:
     legs: tuple[Leg, ...] = field(repr=False)
     notes: tuple[str, ...] = ()
     """What this prediction flies that is not the model's own measured live settings (said, not silent)."""
+    ascent_distance_km_h: float | None = None
+    """X of the ellipse (``ascent_distance_km_h``; None: the weather does not say where it was measured,
+    the typical X at this height was flown)."""
+    time_log_sigma: float | None = None
+    """The law's own σ of ln(remaining time) at this height (``LiveErrorModel.time_log_sigma``)."""
+    time_scale: float = 1.0
+    """``LiveErrorModel.time_scale``."""
 
     @property
     def rate_factor(self) -> float:
@@ -576,10 +640,15 @@ class LivePrediction:
 
     @property
     def remaining_sigma_s(self) -> float | None:
-        """1σ of the remaining descent time from λ's own uncertainty (time ∝ 1/λ), s."""
-        if self.rate is None or math.isinf(self.rate.log_sigma):
+        """1σ of the remaining descent time, s: λ's own uncertainty (time ∝ 1/λ) and the law's error
+        below the capsule that the evaluation measured at this height (``time_log_sigma``), added in
+        quadrature. None when neither is known."""
+        rate = None if self.rate is None or math.isinf(self.rate.log_sigma) else self.rate.log_sigma
+        if rate is None and self.time_log_sigma is None:
             return None
-        return self.prediction.descent_s * self.rate.log_sigma
+        return (
+            self.prediction.descent_s * self.time_scale * math.hypot(rate or 0.0, self.time_log_sigma or 0.0)
+        )
 
     def to_dict(self) -> dict[str, Any]:
         p = self.prediction
@@ -596,6 +665,8 @@ class LivePrediction:
             "remaining_s": p.descent_s,
             "remaining_sigma_s": self.remaining_sigma_s,
             "ellipse": p.ellipse.to_dict(),
+            "ellipse_meaning": ELLIPSE_MEANING,
+            "ascent_distance_km_h": self.ascent_distance_km_h,
             "rate_factor": self.rate_factor,
             "rate_log_sigma": None if rate is None or math.isinf(rate.log_sigma) else rate.log_sigma,
             "rate_measured": None if rate is None else rate.measured,
@@ -607,6 +678,17 @@ class LivePrediction:
             "notes": list(self.notes),
             "warnings": list(p.warnings),
         }
+
+
+TYPICAL_DISTANCE_NOTE = (
+    "live ellipse: the weather does not say where its winds were measured; widened by the evaluation "
+    "flights' typical distance between the ascent and the descent at this height"
+)
+ELLIPSE_MEANING = (
+    "the live 1σ and 2σ are the contours of probability 0.6827 and 0.9545 (68 % and 95 % of landings); "
+    "the n_sigma 1 contour holds 39 %"
+)
+"""What a live prediction's file says its ellipse means (``LIVE_PROBABILITIES``)."""
 
 
 def _velocity(a: Report, b: Report, seconds: float) -> tuple[float, float]:
@@ -661,7 +743,7 @@ class LivePredictor:
         start = Release(report.time, report.lat, report.lon, report.alt_m,
                         since_release_s=self.record.since_top_s(report))  # fmt: skip
         setup = FlightSetup(self.payload, tuple(terms), terrain=self.terrain, step_m=self.step_m,
-                            error_model=error_model)  # fmt: skip
+                            error_model=error_model, probabilities=LIVE_PROBABILITIES)  # fmt: skip
         return predict(self.cube, start, setup)
 
     def law(self, report: Report) -> Track:
@@ -783,6 +865,14 @@ class LivePredictor:
                 )
             )
         prediction = self._predict(report, terms, error_model=self.error_model.at(height / 1000.0))
+        distance = None
+        if self.cube.measured_along is not None:
+            distance = ascent_distance_km_h(prediction.track, self.cube.measured_along)
+            grown = self.error_model.at(height / 1000.0, distance)
+            p = prediction
+            ellipse = parametric_ellipse(grown, p.drift_km, p.t_future_mean_h, p.bearing_deg,
+                                         p.landing.lat, p.landing.lon, LIVE_PROBABILITIES)  # fmt: skip
+            prediction = dataclasses.replace(prediction, ellipse=ellipse, error_model=grown)
         return LivePrediction(
             prediction=prediction,
             report=report,
@@ -790,7 +880,12 @@ class LivePredictor:
             wind_error_ms=(east, north) if decay is not None else (0.0, 0.0),
             decay_m=decay,
             legs=tuple(self.legs),
-            notes=self.notes,
+            notes=self.notes
+            if distance is not None or not self.error_model.growth_exponent
+            else (*self.notes, TYPICAL_DISTANCE_NOTE),
+            ascent_distance_km_h=distance,
+            time_log_sigma=self.error_model.time_sigma_at(height / 1000.0),
+            time_scale=self.error_model.time_scale,
         )
 
 

@@ -331,6 +331,16 @@ def _live_to_dict(live: LiveSettings) -> dict[str, Any]:
             "heights_km": list(e.heights_km),
             "sigma_parallel_km": list(e.sigma_parallel_km),
             "sigma_perpendicular_km": list(e.sigma_perpendicular_km),
+            **(
+                {"growth_exponent": e.growth_exponent, "typical_km_h": list(e.typical_km_h)}
+                if e.typical_km_h
+                else {}
+            ),
+            **(
+                {"time_log_sigma": list(e.time_log_sigma), "time_scale": e.time_scale}
+                if e.time_log_sigma
+                else {}
+            ),
         },
     }
 
@@ -602,14 +612,35 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
             )
     return LiveSettings(
         LiveCorrection(tuple(bands), wind_window),
-        LiveErrorModel(*_table(raw.get("error_model"), "live.error_model",
-                               ("heights_km", "sigma_parallel_km", "sigma_perpendicular_km"), refuse)),
+        _error_model(raw.get("error_model"), refuse),
         _discrepancy(raw.get("discrepancy"), refuse),
         _rate_prior(raw["prior"], lambda field, problem: refuse(field.replace("rate_prior", "live.prior"), problem))
         if "prior" in raw else None,
         law,
         restart,
     )  # fmt: skip
+
+
+def _error_model(raw: Any, refuse: Any) -> LiveErrorModel:
+    """The live ellipse by height; its growth with the distance from the ascent (``growth_exponent``,
+    ``typical_km_h``) and the remaining time's σ (``time_log_sigma``, ``time_scale``) are absent from a
+    model evaluated before they were measured (it then flies σ(h) alone and λ's own σ)."""
+    where = "live.error_model"
+    heights, parallel, perpendicular = _table(
+        raw, where, ("heights_km", "sigma_parallel_km", "sigma_perpendicular_km"), refuse
+    )
+    columns: dict[str, Any] = {}
+    for key, scalar in (("typical_km_h", "growth_exponent"), ("time_log_sigma", "time_scale")):
+        if key not in raw:
+            continue
+        values = _numbers(raw.get(key), f"{where}.{key}", refuse, positive=False)
+        if len(values) != len(heights) or min(values) < 0.0:
+            raise refuse(f"{where}.{key}", "must be as long as heights_km and never negative")
+        factor = _number(raw.get(scalar), f"{where}.{scalar}", refuse)
+        if not 0.0 <= factor <= 5.0:
+            raise refuse(f"{where}.{scalar}", f"must be within 0–5, got {factor:g}")
+        columns[key], columns[scalar] = values, factor
+    return LiveErrorModel(heights, parallel, perpendicular, **columns)
 
 
 def _discrepancy(raw: Any, refuse: Any) -> RateDiscrepancy:

@@ -29,6 +29,7 @@ altitude and above the peak the nearest measured layer is repeated; vertical win
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import timedelta
 
@@ -186,7 +187,18 @@ def ascent_weather_cube(
         density=spread(density),
         source=source,
         warnings=warnings,
+        measured_along=_measured_along(flight.ascent),
     )
+
+
+def _measured_along(ascent: Sequence[Fix]) -> np.ndarray | None:
+    """(altitude, lat, lon) of the ascent's fixes, altitude rising (each altitude's first pass): where
+    the cube's winds were measured. None for a track without an ascent."""
+    if len(ascent) < 2:
+        return None
+    rows = np.array([(f.alt_m, f.lat, f.lon) for f in ascent])
+    rising = rows[:, 0] > np.maximum.accumulate(np.concatenate(([-np.inf], rows[:-1, 0])))
+    return rows[rising]
 
 
 def _airborne_seconds(dt: np.ndarray, dz: np.ndarray) -> np.ndarray:
