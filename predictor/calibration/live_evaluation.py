@@ -945,7 +945,7 @@ def wind_helps(result: Evaluation, km: float) -> bool:
 
 GROWTH_EXPONENTS = np.linspace(0.0, 1.5, 61)
 """The β (σ ∝ (X / X̄)^β) a maximum-likelihood fit of the live ellipse tries."""
-TIME_SIGMA_GRID = np.linspace(0.0025, 0.6, 240)
+TIME_SIGMA_GRID = np.linspace(0.0, 0.6, 241)
 """The law's σ of ln(remaining time) it tries."""
 REGIONS = (LIVE_PROBABILITIES[0], LIVE_PROBABILITIES[1])
 """The live 1σ and 2σ regions (issue #30's floors: 60–75 % and 80–95 % of held-out flights)."""
@@ -956,14 +956,16 @@ def fit_live_sigma(result: Evaluation, leave_out: str | None = None, grow: bool 
     maximum likelihood of zero-mean normal errors: along and across the track σ = a(h)·(X / X̄(h))^β,
     X̄(h) the RMS X of these flights at that height and one β over every height (``grow``; without it
     β = 0 and a(h) is the RMS error, the ellipse before the distance was measured); and the law's σ of
-    ln(remaining time) beyond λ's own, per height. Then one scale each, all heights pooled, so that the
-    1σ region holds 68.3 % of these flights.
+    ln(remaining time) beyond λ's own, per height. Then the ellipse's one scale, all heights pooled, so
+    that its 68.3 % region holds 68.3 % of these flights; the time's σlaw(h) is the smallest that puts
+    68.3 % of them within 1σ at that height (a quantile: per height, as its coverage varied 56–81 %
+    with one pooled scale).
 
     Why one β: a checkpoint has 10–30 flights, too few to say how the error grows with X at each
     height. Why a power and not a(h)² + (κX)²: that additive form, fitted so, put a(h) at its floor and
     the whole ellipse on κX, and lost held-out coverage across seasons (docs/planning.md). Why the
-    scale: the real errors have heavier tails than a normal (most flights near the centre, a few far
-    out), so a normal's own σ holds 70–80 % in its 68 % region and too few of the rest in its 95 %."""
+    scale and the quantile: the real errors have heavier tails than a normal (most flights near the
+    centre, a few far out), so a normal's own σ holds 70–80 % in its 68 % region."""
     heights, rows = [], []
     for km in CHECKPOINTS_KM:
         cases = [c for c in result.cases if c.checkpoint_km == km and c.flight != leave_out]
@@ -1002,15 +1004,15 @@ def fit_live_sigma(result: Evaluation, leave_out: str | None = None, grow: bool 
     _, parallel, perpendicular = fit(beta)
 
     def law_sigma(log_error: np.ndarray, rate: np.ndarray) -> float:
-        variance = rate[None, :] ** 2 + TIME_SIGMA_GRID[:, None] ** 2
-        nll = np.sum(np.log(variance) + log_error[None, :] ** 2 / variance, axis=1)
-        return float(TIME_SIGMA_GRID[int(np.argmin(nll))])
+        """The smallest σlaw on the grid that puts 68.3 % of these errors within √(σλ² + σlaw²)."""
+        inside = np.abs(log_error)[None, :] <= np.hypot(rate[None, :], TIME_SIGMA_GRID[:, None])
+        enough = np.flatnonzero(inside.mean(axis=1) >= REGIONS[0])
+        return float(TIME_SIGMA_GRID[enough[0] if enough.size else -1])
 
     law = [law_sigma(r[3], r[4]) for r in rows]
     m2 = np.concatenate([((r[0] / a) ** 2 + (r[1] / b) ** 2) / ratio ** (2.0 * beta)
                          for r, ratio, a, b in zip(rows, ratios, parallel, perpendicular, strict=True)])  # fmt: skip
     scale = math.sqrt(float(np.quantile(m2, REGIONS[0]))) / n_sigma_for(REGIONS[0])
-    z = np.concatenate([np.abs(r[3]) / np.hypot(r[4], s) for r, s in zip(rows, law, strict=True)])
     return LiveErrorModel(
         tuple(heights),
         tuple(round(scale * a, 3) for a in parallel),
@@ -1018,7 +1020,6 @@ def fit_live_sigma(result: Evaluation, leave_out: str | None = None, grow: bool 
         round(beta, 3),
         tuple(round(x, 2) for x in typical) if grow else (),
         tuple(round(s, 4) for s in law),
-        round(float(np.quantile(z, REGIONS[0])), 3),
     )
 
 
@@ -1035,6 +1036,10 @@ class Coverage:
     """The stated σ of the remaining time (λ's own and the law's, ``LivePrediction.remaining_sigma_s``)."""
     time_rate_only: tuple[float, float]
     """λ's own σ alone (what was stated before; 0 where λ is not flown)."""
+    log_score: tuple[float, float]
+    """Mean −log-likelihood of the landing errors under the ellipse of σ(h) alone and the widened one
+    (lower is better: the proper score, which rewards a tight ellipse where it holds and a wide one
+    where it is needed)."""
 
 
 def held_out_coverage(result: Evaluation) -> dict[float, Coverage]:
@@ -1056,18 +1061,20 @@ def held_out_coverage(result: Evaluation) -> dict[float, Coverage]:
         if len(cases) < 4:
             continue
         table, grown, time, rate_only = [], [], [], []
+        score: tuple[list[float], list[float]] = ([], [])
         for c in cases:
             leave = None if result.training is not None else c.flight
             name = result.shipped_name(c)
             before, model = fitted(leave)
-            for errors, into in ((before, table), (model, grown)):
+            for errors, into, scores in ((before, table, score[0]), (model, grown, score[1])):
                 s_par, s_perp = errors.at(km, c.distance_km_h.get(name)).sigmas_km(0.0, 0.0)
                 into.append((c.along_km[name] / s_par) ** 2 + (c.across_km[name] / s_perp) ** 2)
+                scores.append(math.log(s_par * s_perp) + 0.5 * into[-1])
             predicted = max(c.remaining_s + c.time_error_s[name], 1.0)
             error = abs(math.log(predicted / max(c.remaining_s, 1.0)))
             rate = c.time_sigma_s.get(name, 0.0) / predicted
             law = model.time_sigma_at(km) or 0.0
-            time.append(error / max(model.time_scale * math.hypot(rate, law), 1e-9))
+            time.append(error / max(math.hypot(rate, law), 1e-9))
             rate_only.append(error / rate if rate > 0.0 else math.inf)
         out[km] = Coverage(
             len(cases),
@@ -1075,8 +1082,27 @@ def held_out_coverage(result: Evaluation) -> dict[float, Coverage]:
             (float(np.mean(np.array(grown) <= radii[0])), float(np.mean(np.array(grown) <= radii[1]))),
             (float(np.mean(np.array(time) <= 1.0)), float(np.mean(np.array(time) <= 2.0))),
             (float(np.mean(np.array(rate_only) <= 1.0)), float(np.mean(np.array(rate_only) <= 2.0))),
+            (float(np.mean(score[0])), float(np.mean(score[1]))),
         )
     return out
+
+
+def distance_helps(result: Evaluation) -> bool:
+    """Whether the live ellipse ships widened with the distance from the ascent (β of ``fit_live_sigma``)
+    or as σ(h) alone: widened only if, on the training flights (these flights, without ``--train``),
+    each held out of the fit, it scored better (lower mean −log-likelihood over every checkpoint).
+
+    Why a test and not always: across seasons the widened ellipse held fewer flights in its 68 % and
+    95 % regions than σ(h) alone (docs/planning.md); the distance is measured, the gain is not sure."""
+    coverage = held_out_coverage(result.training or result).values()
+    return bool(coverage) and sum(c.log_score[1] for c in coverage) < sum(c.log_score[0] for c in coverage)
+
+
+def shipped_error_model(result: Evaluation) -> LiveErrorModel:
+    """The live error model that ships: fitted on the training flights, widened with the distance only
+    where ``distance_helps``."""
+    source = result.training or result
+    return fit_live_sigma(source, grow=distance_helps(source))
 
 
 SHIPPED_CORRECTION = LiveCorrection(
@@ -1159,7 +1185,9 @@ def live_settings(model: CalibratedModel, result: Evaluation, command: str) -> C
             **ratios,
         },
     }
-    settings = LiveSettings(SHIPPED_CORRECTION, fit_live_sigma(result), discrepancy, prior, law, "payload")
+    settings = LiveSettings(
+        SHIPPED_CORRECTION, shipped_error_model(result), discrepancy, prior, law, "payload"
+    )
     return dataclasses.replace(model, live=settings, provenance=provenance)
 
 
@@ -1302,8 +1330,9 @@ def _share(inside: float, flights: int) -> str:
     return f"{100 * inside:.0f} % ({100 * (centre - half):.0f}–{100 * (centre + half):.0f})"
 
 
-def _coverage_lines(sigma: LiveErrorModel, coverage: dict[float, Coverage]) -> list[str]:
-    """The live ellipse and the remaining time's σ against issue #30's floors, every height."""
+def _coverage_lines(sigma: LiveErrorModel, coverage: dict[float, Coverage], widened: bool) -> list[str]:
+    """The live ellipse and the remaining time's σ against issue #30's floors, every height (``widened``:
+    what ships is the ellipse widened with the distance)."""
 
     def cell(pair: tuple[float, float], flights: int) -> str:
         marks = (
@@ -1314,7 +1343,7 @@ def _coverage_lines(sigma: LiveErrorModel, coverage: dict[float, Coverage]) -> l
 
     rows = [
         f"| {h:g} | {c.flights} | {sp:.2f} / {sc:.2f} | {x:.0f} | {cell(c.grown, c.flights)} | "
-        f"{cell(c.table, c.flights)} | {100 * t:.1f} % | {cell(c.time, c.flights)} | {cell(c.time_rate_only, c.flights)} |"
+        f"{cell(c.table, c.flights)} | {c.log_score[1]:.2f} / {c.log_score[0]:.2f} | {100 * t:.1f} % | {cell(c.time, c.flights)} | {cell(c.time_rate_only, c.flights)} |"
         for h, sp, sc, x, t in zip(sigma.heights_km, sigma.sigma_parallel_km, sigma.sigma_perpendicular_km,
                                    sigma.typical_km_h or (math.nan,) * len(sigma.heights_km),
                                    sigma.time_log_sigma, strict=True)
@@ -1332,16 +1361,23 @@ def _coverage_lines(sigma: LiveErrorModel, coverage: dict[float, Coverage]) -> l
         "(km) between the predicted path below the report and where the winds at its altitudes were "
         "measured (the ascent), integrated over the fall (km·h), X̄(h) its RMS on these flights; a(h) "
         "and β by maximum likelihood, then one scale so that the 68.3 % region holds 68.3 % of the "
-        "(training) flights. Remaining time: σ = T · s · √(σλ² + σlaw(h)²), σλ the λ update's own, "
-        f"σlaw(h) the law's error below by maximum likelihood, s = {sigma.time_scale:g} the same "
-        "pooled scale. Each flight is scored against what was fitted without it (train → score: on "
+        "(training) flights. Remaining time: σ = T · √(σλ² + σlaw(h)²), σλ the λ update's own, "
+        "σlaw(h) the law's error below: the smallest that puts 68.3 % of the (training) flights within 1σ "
+        "at that height. Each flight is scored against what was fitted without it (train → score: on "
         "the training flights alone). Shares with their 95 % (Wilson) interval; **miss**: outside the "
         "floor. *σ(h) alone*: the same fit with β = 0 (the ellipse before the distance); *λ's σ alone*: "
-        "what was stated before (none where λ is not flown).",
+        "what was stated before (none where λ is not flown). *Score*: mean −log-likelihood of the held-out "
+        "landing errors, widened / σ(h) alone (lower is better). What ships: "
+        + (
+            "the widened ellipse (it scored better on the training flights, each held out)."
+            if widened
+            else "σ(h) alone (β = 0 in the model file): the widened ellipse did not score better on the "
+            "training flights, each held out (`distance_helps`)."
+        ),
         "",
-        "| height km | flights | a∥ / a⊥ km | X̄ km·h | ellipse in 1σ | in 2σ | σ(h) alone: in 1σ | in 2σ "
-        "| σlaw | time in 1σ | in 2σ | λ's σ alone: in 1σ | in 2σ |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| height km | flights | a∥ / a⊥ km (widened) | X̄ km·h | widened: in 1σ | in 2σ | σ(h) alone: in 1σ "
+        "| in 2σ | score | σlaw | time in 1σ | in 2σ | λ's σ alone: in 1σ | in 2σ |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         *rows,
     ]
 
@@ -1364,6 +1400,7 @@ def write_live_report(
     kms = [km for km in CHECKPOINTS_KM if km in result.rate_choice]
     _plot(result, kms, out / f"{report_name}.png")
     sigma = fit_live_sigma(result.training or result)
+    widened = distance_helps(result.training or result)
     coverage = held_out_coverage(result)
     header = "| height km | flights | " + " | ".join(label for _, label in SERIES) + " |"
     rule = "|---|---|" + "---|" * len(SERIES)
@@ -1545,7 +1582,7 @@ def write_live_report(
         f"The model from the descent start with no live update: median {np.median(starts):.2f} km, "
         f"mean {np.mean(starts):.2f} km over {len(starts)} flights.",
         "",
-        *_coverage_lines(sigma, coverage),
+        *_coverage_lines(sigma, coverage, widened),
         "",
         f"What ships (the model file's `live.law` `{live_law(result.training or result)}`, `live.restart` "
         "`payload` and `live.bands`, bands of height above the ground): "

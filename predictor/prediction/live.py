@@ -127,10 +127,9 @@ class LiveErrorModel:
     typical_km_h: tuple[float, ...] = ()
     """X̄(h), the evaluation flights' RMS X per height (empty: not measured)."""
     time_log_sigma: tuple[float, ...] = ()
-    """Per height, the σ of ln(remaining time) the law's error adds to λ's own (empty: not measured)."""
-    time_scale: float = 1.0
-    """The factor on the remaining time's σ (λ's and the law's together) that makes its 1σ hold 68.3 %
-    of the evaluation flights, all heights pooled."""
+    """Per height, the σ of ln(remaining time) the law's error adds to λ's own (empty: not measured):
+    the smallest that, added in quadrature, puts 68.3 % of the evaluation flights' remaining time within
+    1σ at that height (a quantile, not a normal's σ: the errors have heavy tails)."""
 
     def at(self, height_km: float, distance_km_h: float | None = None) -> ErrorModel:
         """The ``ErrorModel`` that ``predict`` uses for a report at this height (no drift or lead term),
@@ -171,8 +170,11 @@ def ascent_distance_km_h(track: Track, measured_along: np.ndarray) -> float:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.114, 3.852, 3.519, 3.915, 2.131, 1.363),
-    sigma_perpendicular_km=(3.561, 3.767, 3.83, 2.946, 1.449, 1.145),
+    sigma_parallel_km=(4.461, 3.637, 3.215, 3.645, 1.981, 1.476),
+    sigma_perpendicular_km=(3.608, 3.773, 3.695, 2.675, 1.396, 1.355),
+    growth_exponent=0.475,
+    typical_km_h=(50.6, 51.42, 49.02, 41.95, 27.03, 10.74),
+    time_log_sigma=(0.1, 0.01, 0.0575, 0.05, 0.055, 0.0975),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,
 ``DEFAULT_ELLIPSE_NOTE``): measured by ``drs live evaluate`` on the 30 SuperBIT test flights with the
@@ -630,8 +632,6 @@ class LivePrediction:
     the typical X at this height was flown)."""
     time_log_sigma: float | None = None
     """The law's own σ of ln(remaining time) at this height (``LiveErrorModel.time_log_sigma``)."""
-    time_scale: float = 1.0
-    """``LiveErrorModel.time_scale``."""
 
     @property
     def rate_factor(self) -> float:
@@ -646,9 +646,7 @@ class LivePrediction:
         rate = None if self.rate is None or math.isinf(self.rate.log_sigma) else self.rate.log_sigma
         if rate is None and self.time_log_sigma is None:
             return None
-        return (
-            self.prediction.descent_s * self.time_scale * math.hypot(rate or 0.0, self.time_log_sigma or 0.0)
-        )
+        return self.prediction.descent_s * math.hypot(rate or 0.0, self.time_log_sigma or 0.0)
 
     def to_dict(self) -> dict[str, Any]:
         p = self.prediction
@@ -885,7 +883,6 @@ class LivePredictor:
             else (*self.notes, TYPICAL_DISTANCE_NOTE),
             ascent_distance_km_h=distance,
             time_log_sigma=self.error_model.time_sigma_at(height / 1000.0),
-            time_scale=self.error_model.time_scale,
         )
 
 

@@ -336,11 +336,7 @@ def _live_to_dict(live: LiveSettings) -> dict[str, Any]:
                 if e.typical_km_h
                 else {}
             ),
-            **(
-                {"time_log_sigma": list(e.time_log_sigma), "time_scale": e.time_scale}
-                if e.time_log_sigma
-                else {}
-            ),
+            **({"time_log_sigma": list(e.time_log_sigma)} if e.time_log_sigma else {}),
         },
     }
 
@@ -623,23 +619,25 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
 
 def _error_model(raw: Any, refuse: Any) -> LiveErrorModel:
     """The live ellipse by height; its growth with the distance from the ascent (``growth_exponent``,
-    ``typical_km_h``) and the remaining time's σ (``time_log_sigma``, ``time_scale``) are absent from a
+    ``typical_km_h``) and the remaining time's σ (``time_log_sigma``) are absent from a
     model evaluated before they were measured (it then flies σ(h) alone and λ's own σ)."""
     where = "live.error_model"
     heights, parallel, perpendicular = _table(
         raw, where, ("heights_km", "sigma_parallel_km", "sigma_perpendicular_km"), refuse
     )
     columns: dict[str, Any] = {}
-    for key, scalar in (("typical_km_h", "growth_exponent"), ("time_log_sigma", "time_scale")):
+    for key in ("typical_km_h", "time_log_sigma"):
         if key not in raw:
             continue
         values = _numbers(raw.get(key), f"{where}.{key}", refuse, positive=False)
         if len(values) != len(heights) or min(values) < 0.0:
             raise refuse(f"{where}.{key}", "must be as long as heights_km and never negative")
-        factor = _number(raw.get(scalar), f"{where}.{scalar}", refuse)
-        if not 0.0 <= factor <= 5.0:
-            raise refuse(f"{where}.{scalar}", f"must be within 0–5, got {factor:g}")
-        columns[key], columns[scalar] = values, factor
+        columns[key] = values
+    if "typical_km_h" in columns:
+        beta = _number(raw.get("growth_exponent"), f"{where}.growth_exponent", refuse)
+        if not 0.0 <= beta <= 3.0:
+            raise refuse(f"{where}.growth_exponent", f"must be within 0–3, got {beta:g}")
+        columns["growth_exponent"] = beta
     return LiveErrorModel(heights, parallel, perpendicular, **columns)
 
 
