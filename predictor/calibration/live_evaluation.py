@@ -1327,7 +1327,7 @@ def _share(inside: float, flights: int) -> str:
     z, n = 1.96, flights
     centre = (inside + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(inside * (1 - inside) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return f"{100 * inside:.0f} % ({100 * (centre - half):.0f}–{100 * (centre + half):.0f})"
+    return f"{100 * inside:.0f} % ({100 * max(centre - half, 0.0):.0f}–{100 * min(centre + half, 1.0):.0f})"
 
 
 def _coverage_lines(sigma: LiveErrorModel, coverage: dict[float, Coverage], widened: bool) -> list[str]:

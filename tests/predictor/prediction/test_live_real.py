@@ -27,9 +27,9 @@ from predictor.calibration.live_evaluation import (
     band_switch_correction,
     conservative_discrepancy,
     evaluate_live,
-    fit_live_sigma,
     floors,
     held_out,
+    held_out_coverage,
     held_out_laws,
     law_ratio,
     live_law,
@@ -37,6 +37,7 @@ from predictor.calibration.live_evaluation import (
     measured_discrepancies,
     rate_helps,
     ratio_interval,
+    shipped_error_model,
     wind_helps,
     write_live_report,
 )
@@ -226,8 +227,25 @@ def test_the_stated_sigma_of_the_remaining_time_is_honest_high_up(result: Evalua
 
 
 def test_the_shipped_live_ellipse_is_the_measured_one(result: Evaluation) -> None:
-    # Within one unit of the 3rd decimal fit_live_sigma rounds to (tests/approx.py says why).
-    assert_close(fit_live_sigma(result), LIVE_ERROR_MODEL)
+    # Within one unit of the 3rd decimal fit_live_sigma rounds to (tests/approx.py says why). On these
+    # flights the ellipse widened with the distance from the ascent scored better held out, so it ships.
+    assert_close(shipped_error_model(result), LIVE_ERROR_MODEL)
+    assert LIVE_ERROR_MODEL.growth_exponent > 0.0 and LIVE_ERROR_MODEL.typical_km_h
+
+
+def test_the_live_ellipse_and_the_remaining_time_hold_issue_30s_floors_held_out(result: Evaluation) -> None:
+    # Leave one flight out on the 30 SuperBIT flights (deterministic on committed data): at every
+    # height the widened ellipse's 68.3 % region holds 60–75 % of the flights and its 95.4 % region
+    # 80–95 %, and it scores better than σ(h) alone; the remaining time's stated 1σ holds 60–75 % (its
+    # 2σ holds 89–96 %: above 95 % from 15 and 5 km, which the report says). Before, λ's σ alone held
+    # 52–68 % in 1σ and nothing where λ is not flown (25 km).
+    coverage = held_out_coverage(result)
+    assert sorted(coverage) == [2.0, 5.0, 10.0, 15.0, 20.0, 25.0]
+    for km, c in coverage.items():
+        assert 0.60 <= c.grown[0] <= 0.75 and 0.80 <= c.grown[1] <= 0.95, km
+        assert c.log_score[1] < c.log_score[0], km
+        assert 0.60 <= c.time[0] <= 0.75 and c.time[1] >= 0.80, km
+    assert coverage[25.0].time_rate_only == (0.0, 0.0)
 
 
 def test_the_committed_model_carries_the_live_settings_its_evaluation_kept(
