@@ -991,7 +991,9 @@ def fit_live_sigma(result: Evaluation, leave_out: str | None = None, grow: bool 
 
     def fit(beta: float) -> tuple[float, list[float], list[float]]:
         """(−log-likelihood, a∥(h), a⊥(h)) for this β, each a(h) in closed form."""
-        total, parallel, perpendicular = 0.0, [], []
+        total = 0.0
+        parallel: list[float] = []
+        perpendicular: list[float] = []
         for r, ratio in zip(rows, ratios, strict=True):
             shape = ratio ** (2.0 * beta)
             for errors, into in ((r[0], parallel), (r[1], perpendicular)):
@@ -1060,7 +1062,10 @@ def held_out_coverage(result: Evaluation) -> dict[float, Coverage]:
         cases = [c for c in result.cases if c.checkpoint_km == km]
         if len(cases) < 4:
             continue
-        table, grown, time, rate_only = [], [], [], []
+        table: list[float] = []
+        grown: list[float] = []
+        time: list[float] = []
+        rate_only: list[float] = []
         score: tuple[list[float], list[float]] = ([], [])
         for c in cases:
             leave = None if result.training is not None else c.flight
