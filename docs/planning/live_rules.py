@@ -30,7 +30,10 @@ flights alone in train → score):
 * *restart above 22.5 km*: the plain restart at the 25 km checkpoint, textbook + λ below; *+ wind L
   below 12.5 km*: and the wind with L below 12.5 km (on the model's law + λ, the proxy the evaluation
   has for every L); *what ships*: the same with L = 4 km on the live law (`live_law`: the textbook
-  law on every split here).
+  law on every split here); *what ships, wind only far from the ascent*: the same, the wind only where
+  the predicted path is farther from the ascent than the training flights' typical X at that height
+  (issue #30 item 4); *+ wind 4 km above 12.5 km when far*: what ships, and the wind from 22.5 km down
+  where the path is that far.
 """
 
 from __future__ import annotations
@@ -53,8 +56,10 @@ from predictor.calibration.live_evaluation import (
     _log_error,
     _usable,
     evaluate_live,
+    fit_live_sigma,
     ratio_interval,
 )
+from predictor.prediction.live import by_height
 from predictor.prediction.model_file import CalibratedModel, load_model
 
 SUPERBIT = sorted(Path("../shared/data/tracks/pyballoon_superbit").glob("*-*.csv"))
@@ -116,6 +121,19 @@ def window_fixes() -> dict[tuple[str, float], int]:
     return counts
 
 
+def far(result: Evaluation, case: Case) -> bool:
+    """The descent still to come is farther from its ascent than the training flights' typical X at this
+    height (issue #30 item 4: the wind error carried down more on the legs far from the ascent,
+    docs/planning/wind-errors.md)."""
+    typical = fit_live_sigma(result.training or result, case.flight if result.training is None else None)
+    x = case.distance_km_h.get(TEXTBOOK_RATE)
+    return (
+        x is not None
+        and bool(typical.typical_km_h)
+        and x > by_height(case.checkpoint_km, typical.heights_km, typical.typical_km_h)
+    )
+
+
 def below(km: float, upper_km: float, name: str, otherwise: str) -> str:
     return name if km <= upper_km else otherwise
 
@@ -151,6 +169,12 @@ def rules(fixes: dict[tuple[str, float], int]) -> dict[str, Rule]:
         )(decay)
     table["textbook + λ + wind 4 km everywhere"] = lambda r, c: TEXTBOOK_RATE_WIND
     table["what ships"] = lambda r, c: r.shipped_name(c)
+    table["what ships, wind only far from the ascent"] = lambda r, c: (
+        TEXTBOOK_RATE if r.shipped_name(c) == TEXTBOOK_RATE_WIND and not far(r, c) else r.shipped_name(c)
+    )
+    table["what ships, + wind 4 km above 12.5 km when far"] = lambda r, c: (
+        TEXTBOOK_RATE_WIND if r.shipped_name(c) == TEXTBOOK_RATE and far(r, c) else r.shipped_name(c)
+    )
     return table
 
 
