@@ -196,7 +196,8 @@ def section(label: str, paths: list[Path]) -> list[str]:
     return [*lines, ""]
 
 
-def main() -> None:
+def report(superbit: list[Path], eoss: list[Path]) -> str:
+    """docs/planning/wind-errors.md's text (a test checks that the committed report is this)."""
     lines = [
         "# The ascent's wind error at the capsule's height, and below it (issue #30 item 4)",
         "",
@@ -204,11 +205,15 @@ def main() -> None:
         "What is measured and how: the script's docstring. Wind error = the descent's measured mean "
         "velocity over a leg (≥ 200 m of fall) minus the ascent's mean wind over the same altitudes.",
         "",
-        *section("SuperBIT", SUPERBIT),
-        *section("EOSS (the archive flights in tests/data/eoss; only the last minutes of each ascent)", EOSS),
+        *section("SuperBIT", superbit),
+        *section("EOSS (the archive flights in tests/data/eoss; only the last minutes of each ascent)", eoss),
     ]
+    return "\n".join(lines)
+
+
+def main() -> None:
     out = Path("docs/planning/wind-errors.md")
-    out.write_text("\n".join(lines), encoding="utf-8")
+    out.write_text(report(SUPERBIT, EOSS), encoding="utf-8")
     print(out.read_text(encoding="utf-8"))
 
 
