@@ -954,8 +954,9 @@ REGIONS = (LIVE_PROBABILITIES[0], LIVE_PROBABILITIES[1])
 def fit_live_sigma(result: Evaluation, leave_out: str | None = None, grow: bool = True) -> LiveErrorModel:
     """The live error model of what ships at each checkpoint (optionally without one flight), by
     maximum likelihood of zero-mean normal errors: along and across the track σ = a(h)·(X / X̄(h))^β,
-    X̄(h) the RMS X of these flights at that height and one β over every height (``grow``; without it
-    β = 0 and a(h) is the RMS error, the ellipse before the distance was measured); and the law's σ of
+    X̄(h) the RMS X of these flights at that height and one β over every height (``grow``; without it,
+    or when the weather does not say where it was measured, β = 0 and a(h) is the RMS error: the
+    ellipse before the distance was measured); and the law's σ of
     ln(remaining time) beyond λ's own, per height. Then the ellipse's one scale, all heights pooled, so
     that its 68.3 % region holds 68.3 % of these flights; the time's σlaw(h) is the smallest that puts
     68.3 % of them within 1σ at that height (a quantile: per height, as its coverage varied 56–81 %
@@ -1031,9 +1032,10 @@ class Coverage:
 
     flights: int
     table: tuple[float, float]
-    """The ellipse of σ(h) alone (the RMS error per height, what shipped before the distance)."""
+    """The ellipse of σ(h) alone (the RMS error per height, what shipped before the distance, with the
+    same pooled scale to the 68 % region)."""
     grown: tuple[float, float]
-    """The ellipse widened with X (``LiveErrorModel``, what ships)."""
+    """The ellipse widened with X (what ships where ``distance_helps``)."""
     time: tuple[float, float]
     """The stated σ of the remaining time (λ's own and the law's, ``LivePrediction.remaining_sigma_s``)."""
     time_rate_only: tuple[float, float]
