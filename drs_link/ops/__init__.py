@@ -2,7 +2,7 @@
 
 ``capsule`` is the release state machine; ``arming`` ARM then FIRE, in the windows of ``arm_window``;
 ``gonogo`` the poll before ARM; ``checklist`` and ``procedure`` the procedures as data; ``approval`` the
-second operator and ``identity`` which login is another person; ``authorize`` the PARACHUTE gate,
+second operator, one account one person; ``authorize`` the PARACHUTE gate,
 ``override`` what stays on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and
 ``origin`` what is known of each capsule and how old it is; ``recovery`` where a dropped capsule is
 and is going, ``views`` what the per-capsule screens show, from the store or a replay; ``release_window``
@@ -23,7 +23,6 @@ if TYPE_CHECKING:
         ApprovalBook as ApprovalBook,
         Login as Login,
         approved as approved,
-        current_login as current_login,
         pending_text as pending_text,
     )
     from .arm_window import ArmWindow as ArmWindow
@@ -85,7 +84,6 @@ if TYPE_CHECKING:
         TrackPoint as TrackPoint,
         assess as assess,
         by_name as by_name,
-        data_directory as data_directory,
         detect_landing as detect_landing,
         distance_bearing as distance_bearing,
         export_track as export_track,
@@ -200,7 +198,6 @@ __getattr__, __dir__, __all__ = lazy_door(
         "StoredReport": "face_types",
         "iso_utc": "face_types",
         "utc_now": "face_types",
-        "data_directory": "face_types",
         "parse_hhmm": "face_types",
         "AuditRecord": "face_types",
         "CommandedSettings": "face_types",
@@ -285,7 +282,6 @@ __getattr__, __dir__, __all__ = lazy_door(
         "cli_holder": "operations",
         "complete_command": "checklist",
         "complete_mt_steps": "procedure",
-        "current_login": "approval",
         "drop_schedule": "override",
         "after_drop": "override",
         "evaluate": "gonogo",

@@ -8,7 +8,7 @@ goes through the release state machine's own confirmation token (``ReleaseStateM
 and ``go``), so the Pi-side preconditions are checked a second time by the layer that owns them.
 Every transition is audited before it is reported.
 
-The window lives in the shared store (``drs_link.ops.arm_window``): one per capsule across every console
+The window lives in the store (``drs_link.ops.arm_window``): one per capsule across every console
 and ``drs`` process, held by the process that opened it. An approval is bound to one window
 (``drs_link.ops.approval``): when the window closes, for whatever reason, its approvals are void, so a
 late approval can never fire the capsule in a later window.

@@ -38,7 +38,7 @@ from drs_link.iridium import (
     write_gpx,
     write_kml,
 )
-from drs_link.store import AuditRecord, data_directory, iso_utc, utc_now
+from drs_link.store import AuditRecord, iso_utc, utc_now
 
 QUEUED = lc.QUEUED
 """An MT the gateway accepted: what ``drs mt send`` exits 0 on."""
@@ -71,7 +71,6 @@ __all__ = [
     "export_track",
     "iso_utc",
     "utc_now",
-    "data_directory",
     "parse_hhmm",
     "parse_position",
     "phone_summary",

@@ -57,7 +57,7 @@ class Desks:
                 config = replace(self.config, operator=replace(self.config.operator, name=peer.operator))
                 ops = Operations(
                     config, self.store, clock=self.clock, environ=self.environ,
-                    holder=holder_of(peer), login=Login(peer.account, None, peer.operator),
+                    holder=holder_of(peer), login=Login(peer.account, peer.operator),
                 )  # fmt: skip
                 self._desks[peer.uid] = ops
             return ops
@@ -71,7 +71,7 @@ class Desks:
                 config = replace(self.config, operator=replace(self.config.operator, name=SERVER_OPERATOR))
                 self._server = Operations(
                     config, self.store, clock=self.clock, environ=self.environ, holder=SERVER_OPERATOR,
-                    login=Login(account_of(os.geteuid()), None, SERVER_OPERATOR),
+                    login=Login(account_of(os.geteuid()), SERVER_OPERATOR),
                 )  # fmt: skip
             return self._server
 
