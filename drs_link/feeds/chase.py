@@ -193,7 +193,7 @@ def capsule_fixes(config: Config, store: Store) -> list[CapsuleFix]:
 class StoredFixes:
     """The capsules' newest fixes read from the store at each call: ``drs serve predictor``'s fix source.
 
-    It opens the store the configuration names (without Operations: it only reads positions); SQLite
+    It opens the store the configuration names (without OperatorOps: it only reads positions); SQLite
     gives each request thread its own connection."""
 
     def __init__(self, config: Config) -> None:

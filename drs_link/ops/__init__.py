@@ -7,7 +7,8 @@ second operator, one account one person; ``authorize`` the PARACHUTE gate,
 ``origin`` what is known of each capsule and how old it is; ``recovery`` where a dropped capsule is
 and is going, ``views`` what the per-capsule screens show, from the store or a replay; ``release_window``
 the sweep; ``audit_log`` the audit as History reads it; ``session`` a console that ends without quitting;
-``operations`` the console's engine without a screen; ``typed_text`` the one rule for text an operator types
+``operator_ops`` all one operator may do, its concerns over one ``ops_state``: ``links`` (the capsules'
+SSH links), ``release``, ``iridium_ops`` and ``enrolment``; ``typed_text`` the one rule for text an operator types
 and ``shown`` for showing another person's; ``brief`` what an approver reads; and ``face_types`` the values below it that the
 faces show and compose, so that they import this door alone.
 """
@@ -63,6 +64,7 @@ if TYPE_CHECKING:
         statuses_of as statuses_of,
         step_records as step_records,
     )
+    from .enrolment import Enrolment as Enrolment
     from .face_types import (
         CATALOGUE as CATALOGUE,
         FLUSH_WARNING as FLUSH_WARNING,
@@ -108,13 +110,13 @@ if TYPE_CHECKING:
         WaiverBook as WaiverBook,
         evaluate as evaluate,
     )
-    from .operations import (
-        Operations as Operations,
-        Predict as Predict,
+    from .iridium_ops import IridiumOps as IridiumOps, report_position as report_position
+    from .links import CapsuleLinks as CapsuleLinks
+    from .operator_ops import OperatorOps as OperatorOps
+    from .ops_state import (
+        OpsState as OpsState,
         SecondOperator as SecondOperator,
-        cli_holder as cli_holder,
         load_exclusion_zones as load_exclusion_zones,
-        report_position as report_position,
     )
     from .origin import ReleaseOrigin as ReleaseOrigin, release_origin as release_origin
     from .override import (
@@ -135,6 +137,7 @@ if TYPE_CHECKING:
         follow_descent as follow_descent,
         recovery_view as recovery_view,
     )
+    from .release import Predict as Predict, Release as Release
     from .release_window import ReleaseCandidate as ReleaseCandidate, ReleaseWindow as ReleaseWindow
     from .session import (
         SessionLoss as SessionLoss,
@@ -240,15 +243,20 @@ __getattr__, __dir__, __all__ = lazy_door(
         "LiveView": "recovery",
         "Login": "approval",
         "MISSING_TEXT": "staleness",
-        "Operations": "operations",
+        "CapsuleLinks": "links",
+        "OperatorOps": "operator_ops",
+        "OpsState": "ops_state",
+        "Enrolment": "enrolment",
+        "IridiumOps": "iridium_ops",
+        "Release": "release",
         "PROCEDURE_DIR": "checklist",
-        "Predict": "operations",
+        "Predict": "release",
         "PredictionSample": "telemetry",
         "PredictionStatus": "telemetry",
         "ParachuteOverride": "override",
         "Reading": "staleness",
         "SECOND_LOGIN_HOWTO": "arming",
-        "SecondOperator": "operations",
+        "SecondOperator": "ops_state",
         "RecoveryView": "recovery",
         "RecordedViews": "views",
         "ReleaseCandidate": "release_window",
@@ -279,7 +287,6 @@ __getattr__, __dir__, __all__ = lazy_door(
         "authorize_mt": "authorize",
         "capsule_descent": "recovery",
         "carries_parachute": "authorize",
-        "cli_holder": "operations",
         "complete_command": "checklist",
         "complete_mt_steps": "procedure",
         "drop_schedule": "override",
@@ -290,7 +297,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "format_age": "staleness",
         "hazard_of": "authorize",
         "load_checklists": "checklist",
-        "load_exclusion_zones": "operations",
+        "load_exclusion_zones": "ops_state",
         "statuses_of": "checklist",
         "step_records": "checklist",
         "parachute_override": "override",
@@ -302,7 +309,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "SessionLoss": "session",
         "recovery_view": "recovery",
         "release_origin": "origin",
-        "report_position": "operations",
+        "report_position": "iridium_ops",
         "take_over_outcome": "capsule",
         "unprotected_ssh_warning": "session",
         "shown": "typed_text",

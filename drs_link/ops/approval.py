@@ -226,7 +226,7 @@ class ApprovalBook:
         return requests
 
     def spent_for_window(self, capsule: str, window_id: int) -> Approval | None:
-        """The Go approval used to FIRE in ARM window ``window_id`` (``Operations.finish_go`` asks whether it
+        """The Go approval used to FIRE in ARM window ``window_id`` (``Release.finish_go`` asks whether it
         is still valid), else None."""
         rows = self.store.query(
             "SELECT * FROM approval WHERE capsule = ? AND action = 'go' AND window_id = ? AND state = 'used' "

@@ -230,7 +230,7 @@ def test_a_parachute_refused_after_its_approval_leaves_it_unspent_and_a_sent_one
     refused before the approval is spent. With it, the approval is marked used in the transaction that
     records the MT (``CommandLifecycle.request``'s ``also``)."""
     from drs_link.errors import ConfigError
-    from drs_link.ops.operations import SecondOperator
+    from drs_link.ops.ops_state import SecondOperator
     from drs_link.sim.rockblock import SimulatedRockblock
     from tests.drs_link.iridium.test_parachute_gate import signed
     from tests.drs_link.ops.test_brief import parachute_ops
@@ -239,18 +239,18 @@ def test_a_parachute_refused_after_its_approval_leaves_it_unspent_and_a_sent_one
         ops, store = parachute_ops(tmp_path, gateway)
         for report in signed(landed(recent(10.5))):
             ReportStore(store).add(report.delivery)
-        plan = ops.plan_parachute("DRS1", None, accept_midnight=True)
+        plan = ops.iridium.plan_parachute("DRS1", None, accept_midnight=True)
         message = MtComposer().add("PARACHUTE", (plan.hour, plan.minute)).build()
         book = ApprovalBook(store)
         second = SecondOperator(
             await_approval=True, on_pending=lambda r: book.decide(r.id, "JM", Login("jm"), approve=True)
         )
-        ops.environ = {}
+        ops.state.environ = {}
         with pytest.raises(ConfigError):
-            ops.send_mt("DRS1", message, "DRS1", second, queue_by=plan.queue_by)
+            ops.iridium.send_mt("DRS1", message, "DRS1", second, queue_by=plan.queue_by)
         assert book.get(1).state == "approved" and gateway.requests == []
         assert not [a for a in store.audit() if a.action == "approval.used"]
-        ops.environ = {"DRS_TEST_RB": "pw"}
-        ops.send_mt("DRS1", message, "DRS1", second, queue_by=plan.queue_by)
+        ops.state.environ = {"DRS_TEST_RB": "pw"}
+        ops.iridium.send_mt("DRS1", message, "DRS1", second, queue_by=plan.queue_by)
         assert book.get(2).state == "used" and len(gateway.requests) == 1
         assert [a.action for a in store.audit()].count("approval.used") == 1
