@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import msgspec
 import pytest
 from textual.pilot import Pilot
 from textual.widgets import Label, Static
@@ -73,6 +74,29 @@ async def test_fire_is_disabled_until_armed_and_the_domain_refuses_it_anyway(
         with pytest.raises(RefusedError, match="not armed"):  # the server's refusal, as ops words it
             app.context.fire("DRS1", "DRS1", Second(waiver="test"), lambda pending: None)
         assert world.sims[0].firmware.go_at is None
+
+
+async def test_a_sync_that_fails_unexpectedly_is_said_to_the_operator_not_swallowed_by_its_worker(
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A screen's worker that raises what it did not expect (here the server's answer does not parse)
+    is said: Textual does not bubble a worker's failure from the screen to the app, and ``s`` once left
+    "syncing data…" as the last word of a sync that had died."""
+    world, app = demo
+
+    def malformed(capsule: str) -> None:
+        raise msgspec.ValidationError("Expected `object`, got `str`")
+
+    async with app.run_test(size=(120, 40)) as pilot:
+        await wait_for(pilot, lambda: app.fleet.capsules["DRS1"].facts(app.now())["link_up"] is True)
+        await pilot.press("enter")
+        assert isinstance(app.screen, ReleaseScreen)
+        monkeypatch.setattr(app.context, "sync", malformed)
+        await pilot.press("s")
+        await wait_for(pilot, lambda: any(
+            n.message == "sync failed: ValidationError: Expected `object`, got `str`" and n.severity == "error"
+            for n in app._notifications
+        ))  # fmt: skip
 
 
 async def test_a_complete_release_by_keys_sends_go_to_the_simulated_capsule(
