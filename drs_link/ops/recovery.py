@@ -118,11 +118,6 @@ def descent_along(track: tuple[TrackPoint, ...], capsule: str, live: LiveSource 
     return Descent(track, landing, view)
 
 
-def capsule_descent(iridium: IridiumOps, capsule: str, live: LiveSource | None) -> Descent:
-    """``follow_descent`` over the capsule's stored reports."""
-    return follow_descent(iridium.stored_reports(capsule), capsule, live)
-
-
 def recovery_from(
     capsule: str,
     reports: Sequence[StoredReport],
