@@ -28,10 +28,10 @@ from textual.app import App, SystemCommand
 from textual.binding import Binding
 from textual.notifications import SeverityLevel
 from textual.screen import ModalScreen, Screen
-from textual.worker import Worker, WorkerState
+from textual.worker import Worker
 
 from console.context import ARMED, FIRING, ConsoleContext, ConsoleSetup, context_for
-from console.messages import AuditRead, OperatorNotice, TelemetryArrived, ViewRead, ViewWanted
+from console.messages import AuditRead, OperatorNotice, TelemetryArrived, ViewRead, ViewWanted, failure_notice
 from console.predictions import PredictionService
 from console.screens import ConfirmModal, FleetScreen
 from drs_link.errors import LinkError
@@ -540,8 +540,9 @@ class DrsConsole(App[int]):
 
     @on(Worker.StateChanged)
     def worker_failed(self, event: Worker.StateChanged) -> None:
-        if event.state is WorkerState.ERROR and event.worker.error is not None:
-            self.notify(f"{event.worker.name}: {event.worker.error}", severity="error", timeout=10)
+        notice = failure_notice(event)
+        if notice is not None:
+            self.show_notice(notice)
 
     # Actions ----------------------------------------------------------------------------------
 

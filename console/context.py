@@ -8,7 +8,7 @@ arming, checklists, approvals and the audit log. A live or demo console gets a
 disarm, approvals, MT sends, power-on, reset, sync, MT resolve) and shows what the server pushes (the
 ARM windows, the approvals) and holds for it (``drs_link.server.desk``: its waivers, the checklists'
 ticks, the PARACHUTE overrides, History, the recovery and Iridium views), and its fleet is the
-telemetry the server polls and pushes; it opens no store and holds no ``Operations``. A replay gets a
+telemetry the server polls and pushes; it opens no store and holds no ``drs_link.ops.OperatorOps``. A replay gets a
 ``ReplayContext``, which reads the server's audit and checklist ticks and has no commanding side at all:
 asked for one, it refuses with ``REPLAY_REFUSAL`` (its keys are disabled too, so that is a last guard,
 not a path a screen takes). Nothing here imports Textual: it

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from textual.message import Message
 from textual.notifications import SeverityLevel
+from textual.worker import Worker, WorkerState
 
 from drs_link.ops import IridiumHealthView, RecoveryView, ReleaseWindow, TelemetryRecord
 from drs_link.server import HistoryView
@@ -28,6 +29,19 @@ class OperatorNotice(Message):
         super().__init__()
         self.text = text
         self.severity = severity
+
+
+def failure_notice(event: Worker.StateChanged) -> OperatorNotice | None:
+    """What a worker raised that its own handler did not expect (a bug, a malformed answer), for the
+    operator: a Sync that failed so must not leave "syncing data…" as the last word.
+
+    Textual posts a worker's state to the node that runs it and does not bubble it, so the app and
+    every screen each pass theirs here; a worker with ``exit_on_error=False`` is otherwise silent."""
+    error = event.worker.error
+    if event.state is not WorkerState.ERROR or error is None:
+        return None
+    doing = event.worker.name.removeprefix("action_").replace("_", " ") or "a background task"
+    return OperatorNotice(f"{doing} failed: {type(error).__name__}: {error}", "error")
 
 
 View = RecoveryView | IridiumHealthView | ReleaseWindow

@@ -210,16 +210,6 @@ class CapsuleConfig:
 
 
 @dataclass(frozen=True)
-class ApproverConfig:
-    """A person who may approve a hazardous command with their SSH key (``[[approver]]``): ``key`` is the
-    public key line (``ssh-ed25519 AAAA… comment``). The console proves the key by a signature from
-    ssh-agent (``drs_link/ops/identity.py``); the list is only as trustworthy as who can edit this file."""
-
-    name: str
-    key: str
-
-
-@dataclass(frozen=True)
 class Config:
     operator: OperatorConfig = field(default_factory=OperatorConfig)
     data: DataConfig = field(default_factory=DataConfig)
@@ -229,7 +219,6 @@ class Config:
     balloon_feed: BalloonFeedConfig = field(default_factory=BalloonFeedConfig)
     chase: ChaseConfig = field(default_factory=ChaseConfig)
     capsules: tuple[CapsuleConfig, ...] = ()
-    approvers: tuple[ApproverConfig, ...] = ()
     server: ServerConfig = field(default_factory=ServerConfig)
     operators: tuple[OperatorAccount, ...] = ()
     """A server's ``[[operator]]`` list (its own configuration only; a client's says ``[operator] name``)."""
@@ -527,9 +516,14 @@ def parse_config(document: dict[str, Any], source: Path | None = None) -> Config
     }
     document = dict(document)
     operators = _operators(document.pop("operator")) if isinstance(document.get("operator"), list) else ()
-    unknown = sorted(set(document) - set(sections) - {"capsule", "approver"})
+    if "approver" in document:
+        raise ConfigError(
+            "approver: the [[approver]] table was removed (ssh-agent keys no longer say who approves); the "
+            'operations server\'s [[operator]] list does: docs/console.md, "One operations server"'
+        )
+    unknown = sorted(set(document) - set(sections) - {"capsule"})
     if unknown:
-        allowed = ", ".join(sorted([*sections, "capsule", "approver"]))
+        allowed = ", ".join(sorted([*sections, "capsule"]))
         raise ConfigError(f"{unknown[0]}: unknown section (allowed: {allowed})")
     kwargs: dict[str, Any] = {
         name: _build(cls, document[name], name) for name, cls in sections.items() if name in document
@@ -550,8 +544,7 @@ def parse_config(document: dict[str, Any], source: Path | None = None) -> Config
     duplicates = sorted({n for n in names if names.count(n) > 1})
     if duplicates:
         raise ConfigError(f"capsule.name: {duplicates[0]!r} is used by more than one capsule")
-    return Config(**kwargs, capsules=tuple(capsules), approvers=_approvers(document.get("approver", [])),
-                  operators=operators, source=source)  # fmt: skip
+    return Config(**kwargs, capsules=tuple(capsules), operators=operators, source=source)
 
 
 def _operators(tables: list[Any]) -> tuple[OperatorAccount, ...]:
@@ -568,32 +561,6 @@ def _operators(tables: list[Any]) -> tuple[OperatorAccount, ...]:
         if twice:
             raise ConfigError(f"operator.{what}: {twice[0]!r} is listed twice in [[operator]]")
     return tuple(operators)
-
-
-def _approvers(tables: Any) -> tuple[ApproverConfig, ...]:
-    if not isinstance(tables, list):
-        raise ConfigError("approver: write each approver as an [[approver]] table with name and key")
-    approvers = []
-    for index, table in enumerate(tables):
-        approver = _build(ApproverConfig, table, f"approver[{index}]")
-        fields = approver.key.split()
-        if len(fields) < 2 or not fields[0].startswith(("ssh-", "ecdsa-", "sk-")):
-            raise ConfigError(
-                f"approver[{index}].key: must be an OpenSSH public key line (ssh-ed25519 AAAA…)"
-            )
-        if not approver.name.strip():
-            raise ConfigError(f"approver[{index}].name: the person's operator name is required")
-        approvers.append(approver)
-    return tuple(approvers)
-
-
-_approvers_in_use: tuple[ApproverConfig, ...] = ()
-
-
-def approvers_in_use() -> tuple[ApproverConfig, ...]:
-    """The ``[[approver]]`` list of the configuration this process loaded last. The login is proven deep
-    below the command that read the file (``current_login``), and must be proven against that file."""
-    return _approvers_in_use
 
 
 def load_config(path: str | Path | None = None) -> Config:
@@ -619,7 +586,4 @@ def load_config(path: str | Path | None = None) -> Config:
         raise ConfigError(f"{resolved}: not valid TOML: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{resolved}: cannot read: {exc}") from None
-    config = parse_config(document, source=resolved)
-    global _approvers_in_use
-    _approvers_in_use = config.approvers
-    return config
+    return parse_config(document, source=resolved)

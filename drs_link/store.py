@@ -8,7 +8,6 @@ own their tables: they call ``ensure_schema`` with their DDL instead of editing 
 
 from __future__ import annotations
 
-import grp
 import json
 import logging
 import os
@@ -105,12 +104,8 @@ class AuditRecord:
     """The process that wrote it (``session_name``); None for rows older than the column."""
 
 
-SHARED_DIR_MODE = 0o2770
-"""A store directory that several OS accounts share (``drs setup shared-store``): owner and group
-read, write and enter it, nobody else; setgid, so every file made in it (the store, its -wal and -shm)
-belongs to the directory's group whichever operator's console created it."""
-SHARED_FILE_MODE = 0o660
 PRIVATE_FILE_MODE = 0o600
+"""The store is one account's: a team shares it through the operations server, which alone opens it."""
 
 
 def _scaled_clock(wall: datetime, start: datetime, scale: float) -> Callable[[], datetime]:
@@ -123,92 +118,24 @@ def _scaled_clock(wall: datetime, start: datetime, scale: float) -> Callable[[],
     return now
 
 
-def shared_directory(directory: Path) -> bool:
-    """Whether ``directory`` is set up for a group of accounts: setgid and group read-write-enter."""
-    try:
-        mode = directory.stat().st_mode
-    except OSError:
-        return False
-    return mode & SHARED_DIR_MODE == SHARED_DIR_MODE
-
-
-def data_directory(directory: Path) -> Path:
-    """``mkdir -p directory`` the way the shared store wants it: every level made inside a shared directory
-    (setgid 2770, ``drs setup shared-store``) is made 2770 too, whatever this account's umask, so the
-    next operator's console can write its own recording, export or chase file there.
-
-    Why: the first console made ``recordings/`` 0755 under the 2770 data directory and the second
-    account's console could not start ("Permission denied", issue #29). A level this account made
-    earlier with the old mode is put right; another account's is left as it is (only its owner may).
-    """
-    directory = Path(directory)
-    missing = [d for d in (directory, *directory.parents) if not d.exists()]
-    for level in [*reversed(missing), *([] if missing else [directory])]:
-        level.mkdir(exist_ok=True)
-        info = level.stat()
-        if shared_directory(level.parent) and info.st_uid == os.geteuid():
-            if info.st_mode & 0o7777 != SHARED_DIR_MODE:
-                level.chmod(SHARED_DIR_MODE)
-    return directory
-
-
-def share_directory(directory: Path, group: str, store_name: str = "drs.sqlite") -> list[str]:
-    """Make ``directory`` a store several OS accounts use: owned by ``group``, mode 2770, and the store
-    with its -wal and -shm group read-write (0660). Idempotent; what was done, one line each.
-
-    Only the group's members (and root) can then read or write the audit: the operators' accounts,
-    added to the group by root (``usermod -aG GROUP NAME``), not everyone on the machine."""
-    try:
-        gid = grp.getgrnam(group).gr_gid
-    except KeyError:
-        raise StoreError(
-            f"group {group!r} does not exist: as root, `groupadd {group}`, then `usermod -aG {group} NAME` "
-            "for each operator's account"
-        ) from None
-    done = []
-    try:
-        directory.mkdir(mode=0o700, parents=True, exist_ok=True)
-        os.chown(directory, -1, gid)
-        directory.chmod(SHARED_DIR_MODE)
-        done.append(f"{directory}: group {group}, mode 2770 (setgid: new files belong to {group})")
-        for name in (store_name, f"{store_name}-wal", f"{store_name}-shm"):
-            file = directory / name
-            if file.exists():
-                os.chown(file, -1, gid)
-                file.chmod(SHARED_FILE_MODE)
-                done.append(f"{file}: group {group}, mode 0660")
-    except OSError as exc:
-        raise StoreError(
-            f"cannot share {directory} with group {group}: {exc.strerror} (run it as the directory's owner, "
-            "a member of the group, or root)"
-        ) from None
-    return done
-
-
 def _protect(path: Path) -> None:
     """Create the store file with its mode before SQLite does (its -wal and -shm take the main file's
-    mode). The audit log names operators and holds the gateway's echoes: owner only, unless the
-    directory is a shared one, where the group (the operators) reads and writes it too and nobody else.
-    Another account's file is left as it is: only its owner may change its mode, and says so if it
-    cannot be used."""
-    mode = SHARED_FILE_MODE if shared_directory(path.parent) else PRIVATE_FILE_MODE
+    mode). The audit log names operators and holds the gateway's echoes: owner only. Another account's
+    file is left as it is: only its owner may change its mode, and says so if it cannot be used."""
     try:
-        path.touch(mode=mode, exist_ok=True)
+        path.touch(mode=PRIVATE_FILE_MODE, exist_ok=True)
         info = path.stat()
-        if info.st_uid == os.geteuid() and info.st_mode & 0o777 != mode:
-            path.chmod(mode)
+        if info.st_uid == os.geteuid() and info.st_mode & 0o777 != PRIVATE_FILE_MODE:
+            path.chmod(PRIVATE_FILE_MODE)
     except OSError as exc:
-        if (outside := _outside_group(path.parent)) is not None:
-            raise StoreError(f"cannot use the store {path}: {outside}") from None
-        raise StoreError(f"cannot create the store {path}: {exc}{_sharing_hint(path)}") from None
-    if (outside := _outside_group(path.parent)) is not None and not os.access(path, os.R_OK | os.W_OK):
-        raise StoreError(f"cannot use the store {path}: {outside}")
+        raise StoreError(f"cannot create the store {path}: {exc}{_owner_hint(path)}") from None
     if not os.access(path, os.R_OK | os.W_OK):
-        raise StoreError(f"cannot use the store {path}: permission denied{_sharing_hint(path)}")
+        raise StoreError(f"cannot use the store {path}: permission denied{_owner_hint(path)}")
 
 
-def _sharing_hint(path: Path) -> str:
-    """How to share the store, when it (or its directory) belongs to another account."""
+def _owner_hint(path: Path) -> str:
+    """Whose store it is, when it (or its directory) belongs to another account, and the way for two
+    accounts to work on one: the team's operations server, not a store both can write."""
     owner = None
     for place in (path, path.parent):  # the file, else (not there, or not even visible) its directory
         try:
@@ -216,35 +143,11 @@ def _sharing_hint(path: Path) -> str:
             break
         except OSError:
             continue
-    if owner is None:
-        return ""
-    if owner == os.geteuid():
+    if owner is None or owner == os.geteuid():
         return ""
     return (
-        f" (it belongs to {account_of(owner)}; to share one store between accounts, run "
-        f"`drs setup shared-store {path.parent} --group GROUP` as its owner or root: docs/console.md)"
-    )
-
-
-def _outside_group(directory: Path) -> str | None:
-    """What to say when ``directory`` is a shared store and this account is not in its group: sharing it
-    again (``drs setup shared-store``) is not this operator's to do; joining the group is the admin's."""
-    if not shared_directory(directory):
-        return None
-    try:
-        gid = directory.stat().st_gid
-    except OSError:
-        return None
-    if gid == os.getegid() or gid in os.getgroups():
-        return None
-    try:
-        group = grp.getgrgid(gid).gr_name
-    except KeyError:
-        group = f"gid {gid}"
-    me = account_of(os.geteuid())
-    return (
-        f"the account {me} is not in group {group}, which shares {directory}: ask the machine's "
-        f"administrator to add it (`usermod -aG {group} {me}`), then log in again"
+        f" (it belongs to {account_of(owner)}; accounts share one store through the team's operations "
+        "server, `drs setup server --group GROUP`: docs/console.md)"
     )
 
 

@@ -1,4 +1,4 @@
-"""How soon a console shows what another process wrote to the shared store (``make bench-consoles``).
+"""How soon a console shows what another process wrote to the server's store (``make bench-consoles``).
 
 A console runs (headless, Textual's test driver) on a store; another process, as a second console
 would, writes an audit row through ``drs_link.store`` and prints when it committed. The figure is the

@@ -154,7 +154,7 @@ def _client(args: argparse.Namespace) -> Client:
 
 
 def cmd_arm(args: argparse.Namespace) -> int:
-    """ARM through the server (``Operations.arm`` there): the console's go/no-go and one window per capsule."""
+    """ARM through the server (``Release.arm`` there): the console's go/no-go and one window per capsule."""
     waivers = tuple(_waivers(args.waive))
     with _client(args) as client:
         state = client.capsule(args.name).arm(waivers, tuple(map(str, args.weather or ())), _step)
@@ -216,7 +216,7 @@ def _print_status(name: str, status: CapsuleStatus) -> None:
 
 
 def cmd_power_on(args: argparse.Namespace) -> int:
-    """Through the server (``Operations.power_on`` there, as the console's Power key: the checklist step, a
+    """Through the server (``CapsuleLinks.power_on`` there, as the console's Power key: the checklist step, a
     disarm, void approvals), confirmed here first: the relay cannot be switched off by software."""
     print(POWER_ON_WARNING)
     confirmed = args.yes
@@ -243,9 +243,9 @@ def _step(line: str) -> None:
 
 
 def cmd_go(args: argparse.Namespace) -> int:
-    """FIRE through the server (``Operations.fire`` there): inside the ARM window, on a poll that still says
+    """FIRE through the server (``Release.fire`` there): inside the ARM window, on a poll that still says
     GO with the values ARM saw, with the typed name and the two-person rule; else nothing reaches the Pi.
-    An unverified Go is finished instead (``Operations.finish_go``)."""
+    An unverified Go is finished instead (``Release.finish_go``)."""
     from drs_link.server import Second
 
     second = Second(args.second_operator, args.single_operator_waiver, args.await_approval)
@@ -282,7 +282,7 @@ def cmd_authority(args: argparse.Namespace) -> int:
 
 
 def _take_over(args: argparse.Namespace, capsule: Capsule) -> int:
-    """The take-over is the server's (``Operations.take_over``: the two-person rule, the approval, the
+    """The take-over is the server's (``Release.take_over``: the two-person rule, the approval, the
     Pi's check); this shows who holds it now and asks for the name."""
     from drs_link.server import Second
 
@@ -314,7 +314,7 @@ def cmd_released(args: argparse.Namespace) -> int:
 
 
 def cmd_reset(args: argparse.Namespace) -> int:
-    """Through the server (``Operations.reset``, as the console's reset key): ARM possible again, waivers
+    """Through the server (``CapsuleLinks.reset``, as the console's reset key): ARM possible again, waivers
     and approvals void."""
     with _client(args) as client:
         client.capsule(args.name).reset(args.confirm)

@@ -110,7 +110,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _mt_send(args: argparse.Namespace) -> int:
     """Through the operations server, which alone holds the gateway's password: it composes, shows, gates
-    (``Operations.send_mt``: the landed gate, the two-person rule, the approval) and queues."""
+    (``IridiumOps.send_mt``: the landed gate, the two-person rule, the approval) and queues."""
     from drs_link.server import PROTOCOL, Client, MtSendRequest, Second
 
     options = {c.dest: getattr(args, c.dest) for c in LISTED if getattr(args, c.dest) is not None}
@@ -182,9 +182,8 @@ def _mo_parse(args: argparse.Namespace) -> int:
 def _mo_serve(args: argparse.Namespace) -> int:
     from drs_link.iridium import MoHttpServer, MoReceiver, ReportStore, lifecycle as lc
 
-    config = load_config(
-        args.config
-    )  # not Operations: the webhook must start whatever the console's files say
+    # not OperatorOps: the webhook must start whatever the console's files say
+    config = load_config(args.config)
     store = Store.open(config.store_path)
     mo_config = config.mo
     if args.host is not None or args.port is not None:
@@ -229,7 +228,7 @@ def _mo_serve(args: argparse.Namespace) -> int:
 
 
 def _mo_import(args: argparse.Namespace) -> int:
-    from drs_link.iridium import ReportStore, import_files  # not Operations: as `mo serve`
+    from drs_link.iridium import ReportStore, import_files  # not OperatorOps: as `mo serve`
 
     store = Store.open(load_config(args.config).store_path)
     outcomes = import_files(args.files, ReportStore(store))

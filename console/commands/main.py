@@ -67,7 +67,7 @@ COMMAND_HELP: dict[str, str] = {
     "recovery": "landing estimate, distance from you, GPX/KML export",
     "balloon": "the balloon's position from a ground-station feed",
     "approve": "list hazardous commands waiting for a second operator, or approve/reject one",
-    "setup": "prepare this machine for operations (a shared store)",
+    "setup": "prepare this machine for operations (the team's server)",
     "chase": "send the capsules (and their predicted landings) to chasemapper as Horus UDP",
     "serve": "serve predictions over HTTP (a Tawhiri v1 API)",
     "server": "the operations server: holds the store, the capsule links and the gateway credentials",

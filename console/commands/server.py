@@ -14,7 +14,7 @@ from drs_link.errors import LinkError
 from predictor.errors import UsageError
 
 if TYPE_CHECKING:
-    from drs_link.ops import LiveSource, Operations, Predict
+    from drs_link.ops import LiveSource, OpsState, Predict
 
 SHARED_SOCKET = Path("/run/drs/drs.sock")
 """Where a shared server listens by default: systemd's ``RuntimeDirectory=drs``."""
@@ -43,25 +43,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     bench.set_defaults(func=run_bench)
 
 
-def predictor_for(files: list[Path], ops: Operations) -> Predict:
+def predictor_for(files: list[Path], desk: OpsState) -> Predict:
     """The "release now" prediction go/no-go judges: the console's prediction service, on ``files``."""
     from console.predictions import PredictionService, capsule_models
     from predictor import Terrain
 
-    models = capsule_models([(c.name, c.model) for c in ops.config.capsules])
-    service = PredictionService(lambda: files, Terrain.sea_level, ops.clock, models)
+    models = capsule_models([(c.name, c.model) for c in desk.config.capsules])
+    service = PredictionService(lambda: files, Terrain.sea_level, desk.clock, models)
     return lambda name, origin: service.predict(name, origin, release_in=(0,))
 
 
-def live_for(files: list[Path], dem: Path | None, ops: Operations) -> LiveSource:
+def live_for(files: list[Path], dem: Path | None, desk: OpsState) -> LiveSource:
     """The live re-prediction ``drs recovery --map --weather`` draws: the console's prediction service on
     ``files``, over the terrain of ``dem`` (else sea level), flying each capsule's model."""
     from console.predictions import PredictionService, capsule_models
     from predictor import Terrain
 
-    models = capsule_models([(c.name, c.model) for c in ops.config.capsules])
+    models = capsule_models([(c.name, c.model) for c in desk.config.capsules])
     ground = Terrain.from_dir(dem) if dem is not None else Terrain.sea_level()
-    return PredictionService(lambda: files, lambda: ground, ops.clock, models).live
+    return PredictionService(lambda: files, lambda: ground, desk.clock, models).live
 
 
 def run_server(args: argparse.Namespace) -> int:

@@ -29,7 +29,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def cmd_sync(args: argparse.Namespace) -> int:
-    """The server's ``Operations.sync`` (the console's Sync key: the same upload, verification and
+    """The server's ``CapsuleLinks.sync`` (the console's Sync key: the same upload, verification and
     audit), its progress printed as the server says it."""
     from drs_link.server import Client
 

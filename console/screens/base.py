@@ -5,12 +5,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TypeVar
 
+from textual import on
 from textual.app import ComposeResult
 from textual.css.query import NoMatches
 from textual.screen import Screen
 from textual.widgets import Footer
+from textual.worker import Worker
 
 from console.context import ConsoleContext
+from console.messages import failure_notice
 from console.widgets import ModeBanner, OverrideBanner
 from drs_link.errors import LinkError
 
@@ -41,6 +44,12 @@ class ConsoleScreen(Screen[None]):
 
     def compose_footer(self) -> ComposeResult:
         yield Footer(compact=True)
+
+    @on(Worker.StateChanged)
+    def worker_failed(self, event: Worker.StateChanged) -> None:
+        notice = failure_notice(event)
+        if notice is not None:
+            self.app.post_message(notice)
 
     def on_screen_resume(self) -> None:
         """Back on top: the app redraws only the screens in sight, so catch up with what changed."""

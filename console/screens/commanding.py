@@ -7,8 +7,8 @@ ASCII and hex and needs the capsule's name (the command lifecycle refuses otherw
 also goes through the window helper, which refuses a time the capsule would reject, and the
 two-person rule. The refusals themselves are ``drs_link``'s; this only asks and reports, and the send
 itself goes to the operations server as the command's ``drs mt send`` option (``option_of``), which
-composes, gates and queues it there (the PARACHUTE plan and the landed evidence shown before it are still
-read here, through ``Operations``).
+composes, gates and queues it there (the PARACHUTE plan and the landed evidence shown before it are asked of
+the server too, through the context).
 """
 
 from __future__ import annotations

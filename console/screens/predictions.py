@@ -21,7 +21,6 @@ from drs_link.ops import (
     PredictionSample,
     PredictionStatus,
     ReleaseWindow,
-    data_directory,
     format_age,
 )
 from predictor.errors import PredictorError
@@ -181,7 +180,7 @@ class PredictionScreen(ConsoleScreen):
             return
         directory = self.context.setup.export_dir
         try:
-            data_directory(directory)
+            directory.mkdir(parents=True, exist_ok=True)
             paths = service.export(self.capsule, directory)
         except (OSError, PredictorError, LinkError) as exc:
             self.app.notify(f"export failed: {exc}", severity="error")

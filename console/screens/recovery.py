@@ -42,7 +42,6 @@ from drs_link.ops import (
     ReportSample,
     TrackPoint,
     after_drop,
-    data_directory,
     distance_bearing,
     format_age,
     phone_summary,
@@ -235,7 +234,7 @@ class RecoveryScreen(CommandingScreen):
 
     def action_export(self) -> None:
         directory = self.context.setup.export_dir
-        data_directory(directory)
+        directory.mkdir(parents=True, exist_ok=True)
         stamp = f"{self.context.now():%Y%m%dT%H%M%SZ}"
         prediction = self.context.fleet.capsules[self.capsule].reading(PredictionSample).value
         predicted = [(lat, lon, 0.0) for lon, lat in prediction.path] if prediction else []

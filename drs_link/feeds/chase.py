@@ -43,7 +43,7 @@ from drs_link.errors import LinkError
 from drs_link.feeds.balloon_feed import OWN_COMMENT
 from drs_link.feeds.chase_point import ChasePoint, KeptLanding
 from drs_link.iridium import ReportStore
-from drs_link.store import Store, data_directory, iso_utc, parse_iso_utc
+from drs_link.store import Store, iso_utc, parse_iso_utc
 from predictor.tawhiri import FIXES_PER_CAPSULE, CapsuleFix, surface_distance_m
 
 if TYPE_CHECKING:  # the predictor (numba) loads only where a prediction is kept
@@ -107,7 +107,7 @@ def write_chase_kml(prediction: Prediction, kml: Path) -> None:
     """The prediction's KML at its fixed path, whole: chasemapper may read the overlay at any moment."""
     from predictor.prediction import write_kml
 
-    data_directory(kml.parent)
+    kml.parent.mkdir(parents=True, exist_ok=True)
     partial = kml.with_name(kml.name + ".partial")
     write_kml(prediction, partial)
     os.replace(partial, kml)
@@ -193,7 +193,7 @@ def capsule_fixes(config: Config, store: Store) -> list[CapsuleFix]:
 class StoredFixes:
     """The capsules' newest fixes read from the store at each call: ``drs serve predictor``'s fix source.
 
-    It opens the store the configuration names (without Operations: it only reads positions); SQLite
+    It opens the store the configuration names (without OperatorOps: it only reads positions); SQLite
     gives each request thread its own connection."""
 
     def __init__(self, config: Config) -> None:

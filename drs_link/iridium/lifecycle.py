@@ -21,7 +21,6 @@ import json
 import os
 import signal
 import sqlite3
-import stat
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -212,13 +211,11 @@ def _hold(path: Path) -> bool:
     with _HELD_LOCK:
         if path in _HELD:
             return True
-        # A store shared by a group of accounts (a group-writable data directory) shares its locks too.
-        shared = bool(path.parent.parent.stat().st_mode & stat.S_IWGRP)
         try:
             if not path.parent.is_dir():
                 path.parent.mkdir(exist_ok=True)
-                path.parent.chmod(0o2770 if shared else 0o700)
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o660 if shared else 0o600)
+                path.parent.chmod(0o700)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
         except OSError as exc:
             raise StoreError(f"cannot write the MT sender lock {path}: {exc.strerror or exc}") from None
         try:

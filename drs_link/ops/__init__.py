@@ -2,12 +2,13 @@
 
 ``capsule`` is the release state machine; ``arming`` ARM then FIRE, in the windows of ``arm_window``;
 ``gonogo`` the poll before ARM; ``checklist`` and ``procedure`` the procedures as data; ``approval`` the
-second operator and ``identity`` which login is another person; ``authorize`` the PARACHUTE gate,
+second operator, one account one person; ``authorize`` the PARACHUTE gate,
 ``override`` what stays on screen after it was overridden; ``telemetry``, ``fleet``, ``staleness`` and
 ``origin`` what is known of each capsule and how old it is; ``recovery`` where a dropped capsule is
 and is going, ``views`` what the per-capsule screens show, from the store or a replay; ``release_window``
 the sweep; ``audit_log`` the audit as History reads it; ``session`` a console that ends without quitting;
-``operations`` the console's engine without a screen; ``typed_text`` the one rule for text an operator types
+``operator_ops`` all one operator may do, its concerns over one ``ops_state``: ``links`` (the capsules'
+SSH links), ``release``, ``iridium_ops`` and ``enrolment``; ``typed_text`` the one rule for text an operator types
 and ``shown`` for showing another person's; ``brief`` what an approver reads; and ``face_types`` the values below it that the
 faces show and compose, so that they import this door alone.
 """
@@ -23,7 +24,6 @@ if TYPE_CHECKING:
         ApprovalBook as ApprovalBook,
         Login as Login,
         approved as approved,
-        current_login as current_login,
         pending_text as pending_text,
     )
     from .arm_window import ArmWindow as ArmWindow
@@ -64,6 +64,7 @@ if TYPE_CHECKING:
         statuses_of as statuses_of,
         step_records as step_records,
     )
+    from .enrolment import Enrolment as Enrolment
     from .face_types import (
         CATALOGUE as CATALOGUE,
         FLUSH_WARNING as FLUSH_WARNING,
@@ -85,7 +86,6 @@ if TYPE_CHECKING:
         TrackPoint as TrackPoint,
         assess as assess,
         by_name as by_name,
-        data_directory as data_directory,
         detect_landing as detect_landing,
         distance_bearing as distance_bearing,
         export_track as export_track,
@@ -110,13 +110,13 @@ if TYPE_CHECKING:
         WaiverBook as WaiverBook,
         evaluate as evaluate,
     )
-    from .operations import (
-        Operations as Operations,
-        Predict as Predict,
+    from .iridium_ops import IridiumOps as IridiumOps, report_position as report_position
+    from .links import CapsuleLinks as CapsuleLinks
+    from .operator_ops import OperatorOps as OperatorOps
+    from .ops_state import (
+        OpsState as OpsState,
         SecondOperator as SecondOperator,
-        cli_holder as cli_holder,
         load_exclusion_zones as load_exclusion_zones,
-        report_position as report_position,
     )
     from .origin import ReleaseOrigin as ReleaseOrigin, release_origin as release_origin
     from .override import (
@@ -132,11 +132,11 @@ if TYPE_CHECKING:
         LiveSource as LiveSource,
         LiveView as LiveView,
         RecoveryView as RecoveryView,
-        capsule_descent as capsule_descent,
         descent_along as descent_along,
         follow_descent as follow_descent,
         recovery_view as recovery_view,
     )
+    from .release import Predict as Predict, Release as Release
     from .release_window import ReleaseCandidate as ReleaseCandidate, ReleaseWindow as ReleaseWindow
     from .session import (
         SessionLoss as SessionLoss,
@@ -200,7 +200,6 @@ __getattr__, __dir__, __all__ = lazy_door(
         "StoredReport": "face_types",
         "iso_utc": "face_types",
         "utc_now": "face_types",
-        "data_directory": "face_types",
         "parse_hhmm": "face_types",
         "AuditRecord": "face_types",
         "CommandedSettings": "face_types",
@@ -243,15 +242,20 @@ __getattr__, __dir__, __all__ = lazy_door(
         "LiveView": "recovery",
         "Login": "approval",
         "MISSING_TEXT": "staleness",
-        "Operations": "operations",
+        "CapsuleLinks": "links",
+        "OperatorOps": "operator_ops",
+        "OpsState": "ops_state",
+        "Enrolment": "enrolment",
+        "IridiumOps": "iridium_ops",
+        "Release": "release",
         "PROCEDURE_DIR": "checklist",
-        "Predict": "operations",
+        "Predict": "release",
         "PredictionSample": "telemetry",
         "PredictionStatus": "telemetry",
         "ParachuteOverride": "override",
         "Reading": "staleness",
         "SECOND_LOGIN_HOWTO": "arming",
-        "SecondOperator": "operations",
+        "SecondOperator": "ops_state",
         "RecoveryView": "recovery",
         "RecordedViews": "views",
         "ReleaseCandidate": "release_window",
@@ -280,12 +284,9 @@ __getattr__, __dir__, __all__ = lazy_door(
         "WAIVER_REASON_MAX": "gonogo",
         "approved": "approval",
         "authorize_mt": "authorize",
-        "capsule_descent": "recovery",
         "carries_parachute": "authorize",
-        "cli_holder": "operations",
         "complete_command": "checklist",
         "complete_mt_steps": "procedure",
-        "current_login": "approval",
         "drop_schedule": "override",
         "after_drop": "override",
         "evaluate": "gonogo",
@@ -294,7 +295,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "format_age": "staleness",
         "hazard_of": "authorize",
         "load_checklists": "checklist",
-        "load_exclusion_zones": "operations",
+        "load_exclusion_zones": "ops_state",
         "statuses_of": "checklist",
         "step_records": "checklist",
         "parachute_override": "override",
@@ -306,7 +307,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "SessionLoss": "session",
         "recovery_view": "recovery",
         "release_origin": "origin",
-        "report_position": "operations",
+        "report_position": "iridium_ops",
         "take_over_outcome": "capsule",
         "unprotected_ssh_warning": "session",
         "shown": "typed_text",

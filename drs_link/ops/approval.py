@@ -3,10 +3,10 @@
 Why: a second name typed into the same dialog lets one person at one keyboard satisfy the two-person
 rule. COSMOS and Yamcs take a critical command's approval from another operator's own session. Here a
 hazardous command (Go with the rule on, PARACHUTE, a take-over of release authority) can wait as
-*pending approval* in the shared store until a different login approves or rejects it, from a second
-console or with `drs approve`. The login is the OS account of the real uid and an SSH key proven by
-an ssh-agent signature against the ``[[approver]]`` list (``identity``), never a typed name or a
-variable. A request expires (``APPROVAL_TTL_S``), an approval is used once, and both identities are
+*pending approval* in the store until a different login approves or rejects it, from a second
+console or with `drs approve`. The login is an OS account as the kernel names it (the operations
+server reads it from each connection, ``drs_link.server.peers``), never a typed name or a variable. A
+request expires (``APPROVAL_TTL_S``), an approval is used once, and both identities are
 audited. The typed-name waiver
 stays as the logged single-operator path.
 
@@ -24,18 +24,15 @@ from __future__ import annotations
 import os
 import sqlite3
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
-from pathlib import Path
 
-from drs_link.config import approvers_in_use
 from drs_link.errors import RefusedError
 from drs_link.ops.arm_window import ARMED, DDL as ARM_WINDOW_DDL
 from drs_link.ops.brief import ApprovalBrief
-from drs_link.ops.identity import account_name, prove_agent_key
 from drs_link.ops.typed_text import shown, typed_text
-from drs_link.store import Store, iso_utc, parse_iso_utc
+from drs_link.store import Store, account_of, iso_utc, parse_iso_utc
 
 APPROVAL_TTL_S = 300.0
 """How long a request may wait for its approval, and an approval for its use: long enough to reach
@@ -50,13 +47,11 @@ CREATE TABLE IF NOT EXISTS approval (
     summary TEXT NOT NULL,
     requested_by TEXT NOT NULL,
     requester_user TEXT NOT NULL,
-    requester_key TEXT,
     requested_utc TEXT NOT NULL,
     expires_utc TEXT NOT NULL,
     state TEXT NOT NULL,
     decided_by TEXT,
     decider_user TEXT,
-    decider_key TEXT,
     decided_utc TEXT,
     reason TEXT
 );
@@ -64,7 +59,8 @@ CREATE INDEX IF NOT EXISTS approval_state ON approval (state, expires_utc);
 """
 _BINDING_COLUMNS = {"command": "TEXT", "window_id": "INTEGER", "capsule_state": "TEXT", "brief": "TEXT"}
 """What one request is bound to and what its approver is shown (``brief``); added in place to stores made
-before them (NULL for old rows)."""
+before them (NULL for old rows). A store from before the operations server also has ``requester_key`` and
+``decider_key`` (an ssh-agent key's fingerprint): nothing reads them any more, and its rows read as before."""
 USABLE = (
     f"state IN ('pending', 'approved') AND expires_utc > ? AND (window_id IS NULL OR window_id IN "
     f"(SELECT id FROM arm_window WHERE state = '{ARMED}' AND until_utc > ?))"
@@ -79,33 +75,24 @@ def window_command(window_id: int) -> str:
 
 @dataclass(frozen=True)
 class Login:
-    """Who is at a keyboard, as the system knows it: the OS account and the SSH key, if any."""
+    """Who is at a keyboard, as the kernel knows it: an OS account. Two accounts are two people, and one
+    account is one person however many sessions it has."""
 
     user: str
-    key_fingerprint: str | None = None
-    """Only a key proven by a signature (``identity.prove_agent_key``)."""
     person: str | None = field(default=None, compare=False)
-    """The ``[[approver]]`` the proven key belongs to: the operator name this login acts under."""
+    """The operator name the server's ``[[operator]]`` list gives the account: the name it acts under."""
 
     def same_person(self, other: Login) -> bool:
-        """Two sessions of one account are one person unless both came in with different keys (a
-        shared field account with a key per person); different accounts are different people."""
-        if self.user != other.user:
-            return False
-        if self.key_fingerprint and other.key_fingerprint:
-            return self.key_fingerprint == other.key_fingerprint
-        return True
+        return self.user == other.user
 
     def __str__(self) -> str:
-        return f"{self.user} (key {self.key_fingerprint})" if self.key_fingerprint else self.user
+        return self.user
 
 
-def current_login(environ: Mapping[str, str] = os.environ) -> Login:
-    """This process's login as only the kernel or a signature can tell it (``identity``): the real uid's
-    account and, when ssh-agent proves a key of the configuration's ``[[approver]]`` list, that key and
-    its person. Nothing a shell can set (``$USER``, ``$SSH_USER_AUTH``) counts."""
-    proven = prove_agent_key(((a.name, a.key) for a in approvers_in_use()), environ)
-    return Login(account_name(), proven.fingerprint, proven.person) if proven else Login(account_name())
+def current_login() -> Login:
+    """This process's login: the OS account of the real uid, which only login, sshd, su or sudo set
+    (``$USER`` and ``$LOGNAME`` are the shell's). It is the one account a private server serves."""
+    return Login(account_of(os.getuid()))
 
 
 @dataclass(frozen=True)
@@ -166,7 +153,7 @@ class Approval:
 
 
 class ApprovalBook:
-    """The approval requests in the shared store."""
+    """The approval requests in the store."""
 
     def __init__(self, store: Store, clock: Callable[[], datetime] | None = None) -> None:
         self.store = store
@@ -180,11 +167,6 @@ class ApprovalBook:
             with store.transaction() as conn:
                 for name, kind in missing:
                     conn.execute(f"ALTER TABLE approval ADD COLUMN {name} {kind}")
-
-    @classmethod
-    def open(cls, store_path: Path) -> ApprovalBook:
-        """The requests in the store at ``store_path`` (``drs approve``, from the approver's own login)."""
-        return cls(Store.open(store_path))
 
     def request(
         self,
@@ -213,10 +195,10 @@ class ApprovalBook:
         brief = brief or ApprovalBrief(command or summary)
         with self.store.transaction() as conn:
             row_id = conn.execute(
-                "INSERT INTO approval (capsule, action, summary, requested_by, requester_user, requester_key, "
+                "INSERT INTO approval (capsule, action, summary, requested_by, requester_user, "
                 "requested_utc, expires_utc, state, command, window_id, capsule_state, brief) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'pending', ?, ?, ?, ?)",
-                (capsule, action, summary, operator, login.user, login.key_fingerprint, iso_utc(now),
+                "VALUES (?, ?, ?, ?, ?, ?, ?, 'pending', ?, ?, ?, ?)",
+                (capsule, action, summary, operator, login.user, iso_utc(now),
                  iso_utc(expires), command, window_id, capsule_state, brief.to_json()),
             ).lastrowid  # fmt: skip
         self.store.append_audit(operator, capsule, "approval.requested", "pending",
@@ -244,7 +226,7 @@ class ApprovalBook:
         return requests
 
     def spent_for_window(self, capsule: str, window_id: int) -> Approval | None:
-        """The Go approval used to FIRE in ARM window ``window_id`` (``Operations.finish_go`` asks whether it
+        """The Go approval used to FIRE in ARM window ``window_id`` (``Release.finish_go`` asks whether it
         is still valid), else None."""
         rows = self.store.query(
             "SELECT * FROM approval WHERE capsule = ? AND action = 'go' AND window_id = ? AND state = 'used' "
@@ -313,7 +295,7 @@ class ApprovalBook:
         if request.requester.same_person(login):
             raise refuse(
                 f"the same login ({login}) that requested it cannot approve it: run drs approve from another "
-                "person's login (a different OS account, or their own [[approver]] key in ssh-agent)"
+                "person's OS account"
             )
         if operator.casefold() == request.requested_by.casefold():
             raise refuse(
@@ -322,9 +304,9 @@ class ApprovalBook:
             )
         with self.store.transaction() as conn:
             changed = conn.execute(
-                "UPDATE approval SET state = ?, decided_by = ?, decider_user = ?, decider_key = ?, decided_utc = ?, "
+                "UPDATE approval SET state = ?, decided_by = ?, decider_user = ?, decided_utc = ?, "
                 f"reason = ? WHERE id = ? AND state = 'pending' AND {USABLE}",
-                (verdict, operator, login.user, login.key_fingerprint, iso_utc(now), reason.strip() or None,
+                (verdict, operator, login.user, iso_utc(now), reason.strip() or None,
                  approval_id, iso_utc(now), iso_utc(now)),
             ).rowcount  # fmt: skip
         if not changed:
@@ -456,14 +438,14 @@ class ApprovalBook:
 
 
 def _approval(row: sqlite3.Row) -> Approval:
-    decider = Login(str(row["decider_user"]), _text(row["decider_key"])) if row["decider_user"] else None
+    decider = Login(str(row["decider_user"])) if row["decider_user"] else None
     return Approval(
         id=int(str(row["id"])),
         capsule=str(row["capsule"]),
         action=str(row["action"]),
         summary=str(row["summary"]),
         requested_by=str(row["requested_by"]),
-        requester=Login(str(row["requester_user"]), _text(row["requester_key"])),
+        requester=Login(str(row["requester_user"])),
         requested_utc=parse_iso_utc(str(row["requested_utc"])),
         expires_utc=parse_iso_utc(str(row["expires_utc"])),
         state=str(row["state"]),

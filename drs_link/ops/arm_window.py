@@ -1,4 +1,4 @@
-"""The ARM windows of every capsule, in the shared store: one open window per capsule, across processes.
+"""The ARM windows of every capsule, in the store: one open window per capsule, across processes.
 
 Why in the store: two consoles on one store could both be ARMED on one capsule, each showing the other's
 notices against its own state, and `drs capsule arm` then `drs capsule go` are two processes. Each

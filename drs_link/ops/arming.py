@@ -8,7 +8,7 @@ goes through the release state machine's own confirmation token (``ReleaseStateM
 and ``go``), so the Pi-side preconditions are checked a second time by the layer that owns them.
 Every transition is audited before it is reported.
 
-The window lives in the shared store (``drs_link.ops.arm_window``): one per capsule across every console
+The window lives in the store (``drs_link.ops.arm_window``): one per capsule across every console
 and ``drs`` process, held by the process that opened it. An approval is bound to one window
 (``drs_link.ops.approval``): when the window closes, for whatever reason, its approvals are void, so a
 late approval can never fire the capsule in a later window.
@@ -44,6 +44,10 @@ from drs_link.ops.typed_text import typed_optional, typed_text
 from drs_link.store import Store, session_name, utc_now
 
 DEFAULT_ARM_WINDOW_S = 60.0
+FINISH_GO_S = 60.0
+"""How long after a Go that was never verified its ARM window's holder may still finish it without a
+fresh ARM: long enough to see the link drop and send it again, short enough that the go/no-go it was
+judged on still stands (issue #29)."""
 FIRING_STALE_S = 30.0
 """How long after its window's end a FIRING window whose Go never left is taken for a FIRE that died.
 Between FIRING and the state machine's write-ahead ``go-sent-unverified`` there is no network, only
@@ -229,7 +233,7 @@ class ArmingController:
         return self.machine.record().state not in (ReleaseState.GO_SENT, ReleaseState.RELEASED)
 
     def finished(self) -> None:
-        """An unverified Go was finished (``Operations.finish_go``): the window that authorised it fired."""
+        """An unverified Go was finished (``Release.finish_go``): the window that authorised it fired."""
         with self._lock:
             window = self.windows.latest(self.capsule)
             if window is not None and window.state == FIRING:
@@ -366,7 +370,7 @@ class ArmingController:
         never spent on a FIRE that was then refused.
 
         A Go that may have left (the state machine says ``go-sent-unverified``) keeps its window FIRING and
-        its approval as it is: only its holder may finish it, briefly (``Operations.finish_go``).
+        its approval as it is: only its holder may finish it, briefly (``Release.finish_go``).
         ``on_sending``: told once every rule here held, just before the Go goes to the state machine (a
         "sending Go…" line printed earlier stood above each refusal).
         """

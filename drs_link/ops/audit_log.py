@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from drs_link.ops.typed_text import shown
-from drs_link.store import AuditRecord, Store, data_directory, iso_utc
+from drs_link.store import AuditRecord, Store, iso_utc
 
 HISTORY_ROWS = 500
 """The newest entries History lists; the export has them all."""
@@ -44,7 +44,7 @@ class AuditLog:
 def write_audit_export(path: Path, records: Sequence[AuditRecord]) -> int:
     """``records``, oldest first, one JSON object a line, written by the process that asked (a console
     writes the entries the server read to a file of its own operator's); how many were written."""
-    data_directory(path.parent)
+    path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", encoding="utf-8") as out:
         for r in records:
             row = {"time_utc": iso_utc(r.time_utc), "operator": r.operator, "capsule": r.capsule,

@@ -5,7 +5,7 @@ catalogue entry's ``hazard``: PARACHUTE, which drops the parachute) also needs t
 landed evidence (``drs_link.iridium.landed``); without that evidence it can only be forced by an explicit
 override with a reason, given by a second operator or under a logged single-operator waiver (with
 ``require_second_operator``, only another login's approval). Evidence from reports without a verified
-JWT (UNVERIFIED) needs another login's approval, whatever the configuration. ``Operations.send_mt`` runs this gate itself,
+JWT (UNVERIFIED) needs another login's approval, whatever the configuration. ``IridiumOps.send_mt`` runs this gate itself,
 so no caller can queue a PARACHUTE past it. Every refusal and every authorisation is in the
 audit log with the evidence and the last fix, so nobody has to reconstruct later why it went out.
 """
@@ -73,7 +73,7 @@ def authorize_mt(
     ``approval`` is a request another login approved (``drs_link.ops.approval``): it stands for the second
     operator. Every rule is checked before it is spent; with ``spend`` it is spent here, once, by the
     login that requested it, else the caller spends it in the transaction that records the MT
-    (``Operations.send_mt``: ``ApprovalBook.spend_in``), so an approval is never spent on a refused send.
+    (``IridiumOps.send_mt``: ``ApprovalBook.spend_in``), so an approval is never spent on a refused send.
 
     Landed evidence that rests on reports without a verified JWT (``LandedEvidence.verified`` False: with
     ``mo.require_jwt = false`` anyone who reaches the receiver can post them, issue #31) is accepted only

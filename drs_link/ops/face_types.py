@@ -3,7 +3,7 @@
 Why: the console and the ``drs`` commands import ``drs_link.ops`` and nothing below it (the wall in
 docs/architecture.md), yet an operator composes an MT from the catalogue, reads a command's state and a
 report's time. These are
-values, not actions: every action on them (send, plan, resolve, store) is a method of ``Operations``.
+values, not actions: every action on them (send, plan, resolve, store) is a method of one of an operator's concerns (``operator_ops``).
 The recovery helpers (a track from the reports, its landing, the phone line, the GPX/KML files, the
 Iridium health) are pure functions of reports a face already holds, so they are handed on here too.
 """
@@ -38,7 +38,7 @@ from drs_link.iridium import (
     write_gpx,
     write_kml,
 )
-from drs_link.store import AuditRecord, data_directory, iso_utc, utc_now
+from drs_link.store import AuditRecord, iso_utc, utc_now
 
 QUEUED = lc.QUEUED
 """An MT the gateway accepted: what ``drs mt send`` exits 0 on."""
@@ -71,7 +71,6 @@ __all__ = [
     "export_track",
     "iso_utc",
     "utc_now",
-    "data_directory",
     "parse_hhmm",
     "parse_position",
     "phone_summary",

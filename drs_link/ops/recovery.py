@@ -30,7 +30,7 @@ from drs_link.store import AuditRecord
 from predictor.errors import PredictorError
 
 if TYPE_CHECKING:
-    from drs_link.ops.operations import Operations
+    from drs_link.ops.iridium_ops import IridiumOps
 
 LiveSource = Callable[[str, Sequence[TrackPoint]], "LiveView | None"]
 """The capsule's live re-prediction from its track (``PredictionService.live``); None before a fix."""
@@ -118,11 +118,6 @@ def descent_along(track: tuple[TrackPoint, ...], capsule: str, live: LiveSource 
     return Descent(track, landing, view)
 
 
-def capsule_descent(operations: Operations, capsule: str, live: LiveSource | None) -> Descent:
-    """``follow_descent`` over the capsule's stored reports."""
-    return follow_descent(operations.stored_reports(capsule), capsule, live)
-
-
 def recovery_from(
     capsule: str,
     reports: Sequence[StoredReport],
@@ -138,12 +133,12 @@ def recovery_from(
     )
 
 
-def recovery_view(operations: Operations, capsule: str, live: LiveSource | None) -> RecoveryView:
+def recovery_view(iridium: IridiumOps, capsule: str, live: LiveSource | None) -> RecoveryView:
     """The capsule's recovery as the store has it now: read in a worker, shown by the screen as it is."""
     return recovery_from(
         capsule,
-        operations.stored_reports(capsule),
-        operations.commands(capsule),
-        operations.store.audit(capsule, action="mt.parachute"),
+        iridium.stored_reports(capsule),
+        iridium.commands(capsule),
+        iridium.state.store.audit(capsule, action="mt.parachute"),
         live,
     )

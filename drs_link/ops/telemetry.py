@@ -24,7 +24,7 @@ from typing import Any, ClassVar, Union, get_args, get_origin, get_type_hints
 
 from drs_link.errors import LinkError
 from drs_link.ops.capsule import ReleaseState
-from drs_link.store import data_directory, iso_utc, parse_iso_utc
+from drs_link.store import iso_utc, parse_iso_utc
 from predictor.geofiles import EXPORT_MODE
 
 FORMAT_VERSION = 1
@@ -353,7 +353,7 @@ class TelemetryRecorder:
         self.path = Path(path)
         self._lock = threading.Lock()
         try:
-            data_directory(self.path.parent)
+            self.path.parent.mkdir(parents=True, exist_ok=True)
             fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, EXPORT_MODE)
             self._file = os.fdopen(fd, "a", encoding="utf-8")
         except OSError as exc:

@@ -17,7 +17,7 @@ from datetime import datetime
 from typing import Protocol
 
 from drs_link.iridium import Command, StoredReport, TrackPoint, assess
-from drs_link.ops.operations import report_position
+from drs_link.ops.iridium_ops import report_position
 from drs_link.ops.recovery import RecoveryView, descent_along
 from drs_link.ops.telemetry import ReportSample, TelemetryRecord
 

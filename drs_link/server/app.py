@@ -559,7 +559,9 @@ class OperationsServer:
     async def poll(self, request: web.Request) -> web.Response:
         """A poll now (a console's refresh key), answered and pushed to every telemetry subscriber."""
         name = request.match_info["name"]
-        records: list[TelemetryRecord] = await self.blocking(lambda: self.desks.server_desk().poll(name))
+        records: list[TelemetryRecord] = await self.blocking(
+            lambda: self.desks.server_desk().links.poll(name)
+        )
         self.feed.publish(records)
         return json_response(batch_of(records))
 
@@ -606,10 +608,10 @@ class OperationsServer:
     def event(self, peer: Peer) -> Event:
         """What a subscriber sees: every capsule's release state and ARM window (whose, from its account)
         and the approvals that wait."""
-        ops = self.desks.any_desk()
+        desk = self.desks.any_desk()
         release, armed = {}, {}
-        if ops is not None:
-            for name, capsule in ops.capsules.items():
+        if desk is not None:
+            for name, capsule in desk.state.capsules.items():
                 release[name] = capsule.machine.record().state.value
                 window = capsule.arming.windows.latest(name)
                 armed[name] = window.state if window is not None else "none"

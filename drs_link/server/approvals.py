@@ -20,7 +20,7 @@ from predictor.errors import UsageError
 
 
 def login_of(peer: Peer) -> Login:
-    return Login(peer.account, None, peer.operator)
+    return Login(peer.account, peer.operator)
 
 
 class ApprovalService:

@@ -18,20 +18,20 @@ class ChecklistService:
         self.desks = desks
 
     def records(self, peer: Peer, name: str) -> tuple[StepRecord, ...]:
-        capsule = self.desks.desk(peer).config.capsule(name).name
+        capsule = self.desks.desk(peer).state.config.capsule(name).name
         return tuple(step_records(self.desks.store, capsule))
 
     def all_records(self, peer: Peer) -> dict[str, tuple[StepRecord, ...]]:
-        return {name: self.records(peer, name) for name in self.desks.desk(peer).capsules}
+        return {name: self.records(peer, name) for name in self.desks.desk(peer).state.capsules}
 
     def step(self, peer: Peer, name: str, request: StepRequest) -> tuple[StepRecord, ...]:
         """Tick (or with a reason, skip) a step of the desk's procedure: a command or automatic step is
         refused by ``ChecklistRun``, as from any face."""
-        ops = self.desks.desk(peer)
-        capsule = ops.config.capsule(name).name
+        state = self.desks.desk(peer).state
+        capsule = state.config.capsule(name).name
         if not peer.operator:
             raise ConfigError("operator.name: set [operator] name; every tick is audited with it")
-        checklist = next((c for c in ops.checklists if c.id == request.checklist), None)
+        checklist = next((c for c in state.checklists if c.id == request.checklist), None)
         if checklist is None:
             raise RefusedError(f"no checklist {request.checklist!r} in the server's procedure")
         run = ChecklistRun(self.desks.store, checklist, capsule, self.desks.clock)

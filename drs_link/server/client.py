@@ -192,10 +192,28 @@ class Client:
 
     def call(self, method: str, path: str, body: object | None, kind: type[T]) -> T:
         response = self._send(method, path, body)
-        raw = response.read()
+        with self._reading():
+            raw = response.read()
         if response.status != 200:
             raise_failure(_failure(raw))
-        return msgspec.json.decode(raw, type=kind)
+        try:
+            return msgspec.json.decode(raw, type=kind)
+        except msgspec.MsgspecError as exc:
+            raise LinkError(
+                f"the operations server's answer to {method} {path} does not parse: {exc}"
+            ) from None
+
+    @contextlib.contextmanager
+    def _reading(self) -> Iterator[None]:
+        """An answer that breaks off or stalls while it is read is a ``LinkError`` like one never sent: a
+        console's worker says those, where a bare ``TimeoutError`` or ``IncompleteRead`` went unsaid."""
+        try:
+            yield
+        except (OSError, http.client.HTTPException) as exc:
+            self._conn.close()
+            raise LinkError(
+                f"the operations server at {self.socket_path} broke off its answer: {exc!r}"
+            ) from None
 
     def steps(
         self, path: str, body: object, say: Say, on_pending: Callable[[Pending], None] | None = None
@@ -204,13 +222,20 @@ class Client:
         ``on_pending`` when given, a console's notice); its ``Done``, or its failure raised."""
         response = self._send("POST", path, body)
         if response.status != 200:
-            raise_failure(_failure(response.read()))
+            with self._reading():
+                raw = response.read()
+            raise_failure(_failure(raw))
         while True:
-            line = response.readline()
+            with self._reading():
+                line = response.readline()
             if not line:
                 self._conn.close()
                 raise LinkError("the operations server ended the answer before the action did (did it stop?)")
-            step = decode_step(line)
+            try:
+                step = decode_step(line)
+            except msgspec.MsgspecError as exc:
+                self._conn.close()
+                raise LinkError(f"the operations server's step of {path} does not parse: {exc}") from None
             if isinstance(step, Pending) and on_pending is not None:
                 on_pending(step)
             elif isinstance(step, Said | Pending):

@@ -42,7 +42,7 @@ class HistoryService:
 
     def lost(self, peer: Peer, request: SessionLossRequest) -> SessionLoss:
         """A console cut off, after its open windows were disarmed through the server."""
-        config = self.desks.desk(peer).config
+        config = self.desks.desk(peer).state.config
         disarmed = [config.capsule(name).name for name in request.disarmed]
         in_flight = [config.capsule(name).name for name in request.go_in_flight]
         return record_loss(self.desks.store, peer.operator, request.signal, disarmed, in_flight)

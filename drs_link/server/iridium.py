@@ -1,5 +1,5 @@
 """The Iridium service: ``drs mt send`` composed, gated and queued by the server, which alone holds the
-RockBLOCK credentials. A thin service over ``Operations.plan_parachute``/``send_mt``: the landed gate
+RockBLOCK credentials. A thin service over each desk's ``IridiumOps.plan_parachute``/``send_mt``: the landed gate
 and the two-person rule stay in ``drs_link.ops.authorize``."""
 
 from __future__ import annotations
@@ -18,10 +18,10 @@ from drs_link.ops import (
     RETRY_WARNING,
     Approval,
     Command,
+    IridiumOps,
     LandedEvidence,
     MtComposer,
     MtMessage,
-    Operations,
     SecondOperator,
     assess,
     hazard_of,
@@ -50,7 +50,7 @@ IMEI_DIGITS = 15
 
 
 def compose(
-    ops: Operations, name: str, request: MtSendRequest, say: Say
+    iridium: IridiumOps, name: str, request: MtSendRequest, say: Say
 ) -> tuple[MtMessage, datetime | None]:
     """The message from the options as typed, and the PARACHUTE plan's queue-before deadline."""
     known = {command.dest: command for command in LISTED}
@@ -67,8 +67,8 @@ def compose(
             composer.add(command.name, command.from_option(given))
             continue
         requested = None if given == "next" else parse_hhmm(str(given))
-        ops.mt_status(name)  # the reports move the MTs on first, as the console's report poll does
-        plan = ops.plan_parachute(name, requested, request.accept_midnight)
+        iridium.mt_status(name)  # the reports move the MTs on first, as the console's report poll does
+        plan = iridium.plan_parachute(name, requested, request.accept_midnight)
         say(f"window: {plan.window_text()}")
         for warning in plan.warnings:
             say(f"warning: {warning}")
@@ -96,16 +96,16 @@ class IridiumService:
     def send_mt(
         self, peer: Peer, name: str, request: MtSendRequest, say: Say, on_pending: Callable[[Approval], None]
     ) -> Done:
-        ops = self.desks.desk(peer)
-        capsule = ops.config.capsule(name)
-        message, queue_by = compose(ops, name, request, say)
+        iridium = self.desks.desk(peer).iridium
+        capsule = iridium.state.config.capsule(name)
+        message, queue_by = compose(iridium, name, request, say)
         say(f"text: {message.text}")
         say(f"hex:  {message.hex} ({len(message.payload)} bytes)")
         if request.flush:
             say(f"warning: {FLUSH_WARNING}")
         hazardous = hazard_of(message) is not None
         if hazardous:
-            say(f"landed: {ops.landed(name).summary}")
+            say(f"landed: {iridium.landed(name).summary}")
         if request.dry_run:
             return Done(("dry run: nothing sent",))
         if request.confirm is None:
@@ -116,9 +116,9 @@ class IridiumService:
         if second.await_approval and not hazardous:
             raise UsageError("--await-approval is for PARACHUTE, the command the two-person rule covers")
         two_person_refusal(self.mode, peer, second.await_approval)
-        for older in ops.unresolved_like(capsule.name, message):
+        for older in iridium.unresolved_like(capsule.name, message):
             say(f"warning: MT {older.id} {older.text} is delivery_unknown: {RETRY_WARNING}")
-        sent = ops.send_mt(
+        sent = iridium.send_mt(
             capsule.name, message, request.confirm,
             SecondOperator(second.name, second.waiver, second.await_approval, on_pending),
             override_landed=request.override_landed, queue_by=queue_by, flush=request.flush,
@@ -134,24 +134,24 @@ class IridiumService:
 
     def mt_status(self, peer: Peer, name: str) -> MtStatus:
         """The capsule's MTs after the reports moved them on (delivered, applied), oldest first."""
-        ops = self.desks.desk(peer)
-        capsule = ops.config.capsule(name)
-        return MtStatus(capsule.name, capsule.imei, tuple(mt_view(c) for c in ops.mt_status(name)))
+        iridium = self.desks.desk(peer).iridium
+        capsule = iridium.state.config.capsule(name)
+        return MtStatus(capsule.name, capsule.imei, tuple(mt_view(c) for c in iridium.mt_status(name)))
 
     def resolve_mt(self, peer: Peer, name: str, request: ResolveMtRequest) -> tuple[MtView, ...]:
-        """``Operations.resolve_mt``: the resolved MT first, then every other the reports moved on."""
-        ops = self.desks.desk(peer)
+        """``IridiumOps.resolve_mt``: the resolved MT first, then every other the reports moved on."""
+        iridium = self.desks.desk(peer).iridium
         if not peer.operator:
             raise ConfigError("operator.name: set [operator] name; every resolution is audited with it")
-        ops.reports_of(name)  # an unknown capsule or one without an IMEI is refused first
-        resolved = ops.resolve_mt(name, request.command_id, request.gateway_id, request.note)
+        iridium.reports_of(name)  # an unknown capsule or one without an IMEI is refused first
+        resolved = iridium.resolve_mt(name, request.command_id, request.gateway_id, request.note)
         return tuple(mt_view(c) for c in resolved)
 
     def health(self, peer: Peer, name: str) -> HealthView:
         """``assess`` of the capsule's stored reports and MTs: battery, resets, gaps and spacing."""
-        ops = self.desks.desk(peer)
-        capsule = ops.config.capsule(name)
-        health = assess(ops.reports_of(name), ops.mt_status(name))
+        iridium = self.desks.desk(peer).iridium
+        capsule = iridium.state.config.capsule(name)
+        health = assess(iridium.reports_of(name), iridium.mt_status(name))
         findings = tuple(FindingView(f.kind, f.report_id, f.message) for f in health.findings)
         return HealthView(
             capsule.name, capsule.imei, health.reports, health.last_report, health.last_vbat, findings
@@ -162,23 +162,23 @@ class IridiumService:
         client writes it where its operator chose, so the file is the operator's (issue #29 item 6)."""
         if (request.capsule is None) == (request.imei is None):
             raise UsageError("give either a capsule NAME or --imei IMEI, not both or neither")
-        ops = self.desks.desk(peer)
+        iridium = self.desks.desk(peer).iridium
         if request.capsule is not None:
-            reports, who = ops.reports_of(request.capsule), request.capsule
+            reports, who = iridium.reports_of(request.capsule), request.capsule
         else:
             imei = request.imei or ""
             if not (imei.isascii() and imei.isdigit() and len(imei) == IMEI_DIGITS):
                 raise UsageError(f"--imei {imei!r}: an IMEI is 15 digits")
-            reports, who = ops.reports.for_imei(imei), f"IMEI {imei}"
+            reports, who = iridium.reports.for_imei(imei), f"IMEI {imei}"
         text, fixes, without_fix, rejected = track_csv(reports, who)
         return TrackCsv(who, text, fixes, without_fix, rejected)
 
     def plan_parachute(self, peer: Peer, name: str, requested: tuple[int, int] | None) -> ParachuteView:
-        """``Operations.plan_parachute`` and the landed evidence the gate will judge, for the operator to
+        """``IridiumOps.plan_parachute`` and the landed evidence the gate will judge, for the operator to
         read before typing the name; the send plans and judges again (``send_mt``)."""
-        ops = self.desks.desk(peer)
-        return ParachuteView(ops.plan_parachute(name, requested), ops.landed(name))
+        iridium = self.desks.desk(peer).iridium
+        return ParachuteView(iridium.plan_parachute(name, requested), iridium.landed(name))
 
     def landed(self, peer: Peer, name: str) -> LandedEvidence:
         """The landed evidence as it is now (a dialog shows it again when a report changed it)."""
-        return self.desks.desk(peer).landed(name)
+        return self.desks.desk(peer).iridium.landed(name)

@@ -1,7 +1,7 @@
 """Who is on the other end of a connection, as the kernel says it: the server's only source of identity.
 
 Why: every rule that needs "another person" was once judged from something the first person could
-write (a config's ``[[approver]]`` list, a row of a group-writable store). A Unix socket's peer
+write (a list of approvers' keys in a config file, a row of a group-writable store). A Unix socket's peer
 credentials (``SO_PEERCRED``) are filled in by the kernel from the connecting process; no client can
 choose them. The uid is mapped to an operator only through the server's OWN configuration, which only
 the server's account and root may write (``check_own_file``): a client's configuration, and anything

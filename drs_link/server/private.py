@@ -4,8 +4,9 @@ Why: single-operator use and ``make demo`` need no set-up, yet every action stil
 server. Its socket sits in a directory only this account can enter (``$XDG_RUNTIME_DIR/drs``, else
 ``/tmp/drs-<uid>``, made 0700 and refused if anyone else owns it), so only this account reaches it;
 that is also why it can never satisfy ``require_second_operator`` (``release.PRIVATE_TWO_PERSON``).
-One server per configuration file as it now reads (the socket's name is a hash of its path and content,
-so an edited file gets a server that read it; the old one exits when idle, as every private one does).
+One server per configuration as it now reads (the socket's name is a hash of its file's path and content,
+or of every setting when there is no file, so an edited file gets a server that read it; the old one exits
+when idle, as every private one does).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from drs_link.config import Config
+from drs_link.config import Config, default_config_path
 from drs_link.errors import ConfigError, LinkError
 
 if TYPE_CHECKING:
@@ -61,9 +62,12 @@ def _owned_private(path: Path, uid: int) -> bool:
 
 
 def config_key(config: Config) -> str:
-    """The configuration file a private server serves: its path and what it said when loaded."""
+    """The configuration a private server serves: its file's path and what it said when loaded, or,
+    with no file, every setting (the defaults depend on ``$XDG_CONFIG_HOME`` and ``$XDG_DATA_HOME``: one
+    key for all of them once had a client with other directories served another's store and told of
+    another's missing file)."""
     if config.source is None:
-        return "(defaults)"
+        return f"(no file)\0{default_config_path()}\0{config!r}"
     try:
         content = hashlib.sha256(config.source.read_bytes()).hexdigest()
     except OSError:

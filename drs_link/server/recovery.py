@@ -23,7 +23,7 @@ from drs_link.iridium import (
     phone_summary,
     track_from_reports,
 )
-from drs_link.ops import Descent, LiveSource, Operations, follow_descent, iso_utc
+from drs_link.ops import Descent, LiveSource, OpsState, follow_descent, iso_utc
 from drs_link.server.desks import Desks
 from drs_link.server.paths import readable_path, readable_tree
 from drs_link.server.peers import Peer
@@ -40,7 +40,7 @@ from drs_link.server.protocol import (
     RecoveryRequest,
 )
 
-LiveFor = Callable[[list[Path], Path | None, Operations], LiveSource]
+LiveFor = Callable[[list[Path], Path | None, OpsState], LiveSource]
 """The live re-prediction on GRIB2 files (and a DEM directory for the ground): the console's prediction
 service, which the command line hands in (``drs_link`` cannot import the console)."""
 
@@ -55,9 +55,9 @@ class RecoveryService:
         for, and for a map the descent (with the live re-prediction when weather is given)."""
         weather = [readable_path(peer.uid, w) for w in request.weather]
         dem = readable_tree(peer.uid, request.dem) if request.dem is not None else None
-        ops = self.desks.desk(peer)
-        capsule = ops.config.capsule(name).name
-        reports = ops.reports_of(name)
+        iridium = self.desks.desk(peer).iridium
+        capsule = iridium.state.config.capsule(name).name
+        reports = iridium.reports_of(name)
         track = track_from_reports(reports)
         landing = detect_landing(track)
         coarse_at = None
@@ -71,7 +71,9 @@ class RecoveryService:
         demo = request.predicted_is_demo
         descent = None
         if request.descent:
-            live = self.live_for(weather, dem, ops) if weather and self.live_for is not None else None
+            live = (
+                self.live_for(weather, dem, iridium.state) if weather and self.live_for is not None else None
+            )
             descent = descent_view(follow_descent(reports, capsule, live))
         at = (landing.lat, landing.lon) if landing else (last.lat, last.lon) if last else None
         return RecoveryReadout(

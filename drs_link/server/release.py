@@ -1,6 +1,6 @@
 """The release service: ARM, FIRE and disarm, for whichever operator the kernel says is connected.
 
-A thin service over ``drs_link.ops.Operations``: it sets the request's waivers, polls go/no-go, and
+A thin service over each desk's ``drs_link.ops.Release``: it sets the request's waivers, polls go/no-go, and
 calls ``arm``/``fire``/``finish_go`` of the peer's desk; every rule stays in ``drs_link.ops``. What it
 adds is what only a server can know: that a private server is reached by one account alone, so the
 two-person rule can never be met there, and that the approving account is another connection's.
@@ -15,7 +15,7 @@ from drs_link.ops import (
     Approval,
     ArmStatus,
     GoNoGoReport,
-    Operations,
+    Release,
     ReleaseSample,
     ReleaseState,
     SecondOperator,
@@ -53,57 +53,56 @@ class ReleaseService:
         self.waivers = waivers
         self.predictor_for = predictor_for
 
-    def _desk(self, peer: Peer, name: str, request: ArmRequest | FireRequest) -> Operations:
-        ops = self.desks.desk(peer)
-        ops.config.capsule(name)
+    def _desk(self, peer: Peer, name: str, request: ArmRequest | FireRequest) -> Release:
+        release = self.desks.desk(peer).release
+        release.state.config.capsule(name)
         if not peer.operator:
             raise ConfigError("operator.name: set [operator] name; every release step is audited with it")
-        book = ops.ops(name).waivers
+        book = release.state.ops(name).waivers
         if request.held_waivers:  # a console's, audited when it waived: not granted (and audited) again
             book.waivers = list(self.waivers.held(peer, name))
-            return ops
+            return release
         book.clear()  # the waivers are the request's own, as one `drs` process had them
         for waive in request.waivers:
-            ops.waive(name, waive.item, waive.reason)
-        return ops
+            release.waive(name, waive.item, waive.reason)
+        return release
 
-    def _poll(self, peer: Peer, ops: Operations, name: str, weather: tuple[str, ...]) -> GoNoGoReport:
+    def _poll(self, peer: Peer, release: Release, name: str, weather: tuple[str, ...]) -> GoNoGoReport:
         """The go/no-go poll; the weather files are read only if the peer's account could read them."""
         predict = None
         if weather and self.predictor_for is not None:
-            predict = self.predictor_for([readable_path(peer.uid, w) for w in weather], ops)
-        return ops.poll_gonogo(name, predict)
+            predict = self.predictor_for([readable_path(peer.uid, w) for w in weather], release.state)
+        return release.poll_gonogo(name, predict)
 
     def arm(self, peer: Peer, name: str, request: ArmRequest, say: Say) -> ArmState:
-        ops = self._desk(peer, name, request)
+        release = self._desk(peer, name, request)
         say(f"{name}: polling go/no-go (link, microcontroller, GNSS, sync, prediction, gateway)…")
-        report = self._poll(peer, ops, name, request.weather)
+        report = self._poll(peer, release, name, request.weather)
         for line in poll_lines(report):
             say(line)
-        return arm_state(name, ops.arm(name, report))
+        return arm_state(name, release.arm(name, report))
 
     def disarm(self, peer: Peer, name: str, reason: str) -> ArmState:
-        ops = self.desks.desk(peer)
-        status = ops.ops(name).arming.disarm(reason, any_holder=True)
+        status = self.desks.desk(peer).state.ops(name).arming.disarm(reason, any_holder=True)
         return ArmState(name, status.state.value, None, None, 0.0, status.last_disarm_reason)
 
     def arm_states(self, peer: Peer) -> dict[str, ArmState]:
         """Every capsule's ARM window as ``peer`` sees it (whose it is, and how long it has left)."""
-        ops = self.desks.desk(peer)
-        return {name: arm_state(name, capsule.arming.seen()) for name, capsule in ops.capsules.items()}
+        capsules = self.desks.desk(peer).state.capsules
+        return {name: arm_state(name, capsule.arming.seen()) for name, capsule in capsules.items()}
 
     def fire(self, peer: Peer, name: str, request: FireRequest, say: Say, on_pending: OnPending) -> list[str]:
-        """FIRE as the console fires it; an unverified Go is finished instead (``Operations.finish_go``)."""
-        ops = self._desk(peer, name, request)
+        """FIRE as the console fires it; an unverified Go is finished instead (``Release.finish_go``)."""
+        release = self._desk(peer, name, request)
         second = request.second
-        if ops.release_state(name) is ReleaseState.GO_SENT:
+        if release.release_state(name) is ReleaseState.GO_SENT:
             say(f"{name}: Go was sent and never verified: finishing it (the first Go's time is kept)…")
-            return released_lines(name, ops.finish_go(name, request.typed_name))
+            return released_lines(name, release.finish_go(name, request.typed_name))
         two_person_refusal(self.mode, peer, second.await_approval)
 
         def poll() -> GoNoGoReport:
             say(f"{name}: polling go/no-go again: FIRE needs the verdicts ARM saw")
-            report = self._poll(peer, ops, name, request.weather)
+            report = self._poll(peer, release, name, request.weather)
             for line in poll_lines(report):
                 say(line)
             return report
@@ -114,7 +113,7 @@ class ReleaseService:
             )
 
         chosen = SecondOperator(second.name, second.waiver, second.await_approval, on_pending)
-        return released_lines(name, ops.fire(name, request.typed_name, poll, chosen, sending))
+        return released_lines(name, release.fire(name, request.typed_name, poll, chosen, sending))
 
 
 def arm_state(name: str, status: ArmStatus) -> ArmState:

@@ -20,7 +20,7 @@ import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
-from drs_link.ops import Operations, ReportSample, TelemetryRecord
+from drs_link.ops import OperatorOps, ReportSample, TelemetryRecord
 
 log = logging.getLogger(__name__)
 POLL_PERIOD_S = 5.0
@@ -78,9 +78,9 @@ class Subscription:
 class TelemetryService:
     """Polls while anybody subscribes; ``subscribe``/``unsubscribe`` run in the server's event loop."""
 
-    def __init__(self, ops: Callable[[], Operations], capsules: list[str], periods: Periods,
+    def __init__(self, desk: Callable[[], OperatorOps], capsules: list[str], periods: Periods,
                  blocking: Blocking) -> None:  # fmt: skip
-        self.ops = ops
+        self.desk = desk
         """The server's own engine (made on the first poll: a server nobody watches opens no link)."""
         self.capsules = capsules
         self.periods = periods
@@ -105,7 +105,7 @@ class TelemetryService:
         if not self.loops:
             self.loops = [
                 *(asyncio.ensure_future(self.every(self.periods.poll_s, self.poller(n))) for n in self.capsules),
-                asyncio.ensure_future(self.every(self.periods.gateway_s, lambda: self.ops().gateway_check())),
+                asyncio.ensure_future(self.every(self.periods.gateway_s, lambda: self.desk().iridium.gateway_check())),
                 asyncio.ensure_future(self.every(self.periods.reports_s, self.read_reports)),
             ]  # fmt: skip
         return subscription
@@ -129,11 +129,11 @@ class TelemetryService:
             subscription.batches.put_nowait(records)
 
     def poller(self, name: str) -> Callable[[], Batch]:
-        return lambda: self.ops().poll(name)
+        return lambda: self.desk().links.poll(name)
 
     def read_reports(self) -> Batch:
-        ops = self.ops()
-        return [record for name in self.capsules for record in ops.new_reports(name)]
+        iridium = self.desk().iridium
+        return [record for name in self.capsules for record in iridium.new_reports(name)]
 
     async def every(self, period_s: float, work: Callable[[], Batch]) -> None:
         """``work`` in a worker, then a pause of ``period_s``, for as long as anybody subscribes. A failed

@@ -30,20 +30,22 @@ class ViewService:
         self.checklists = checklists
 
     def recovery(self, peer: Peer, name: str) -> RecoveryView:
-        ops = self.desks.desk(peer)
-        return recovery_view(ops, ops.config.capsule(name).name, None)
+        iridium = self.desks.desk(peer).iridium
+        return recovery_view(iridium, iridium.state.config.capsule(name).name, None)
 
     def iridium(self, peer: Peer, name: str) -> IridiumHealthView:
-        ops = self.desks.desk(peer)
-        capsule = ops.config.capsule(name).name
-        return iridium_health_from(capsule, ops.stored_reports(capsule), ops.commands(capsule))
+        iridium = self.desks.desk(peer).iridium
+        capsule = iridium.state.config.capsule(name).name
+        return iridium_health_from(capsule, iridium.stored_reports(capsule), iridium.commands(capsule))
 
     def overrides(self, peer: Peer) -> tuple[ParachuteOverride, ...]:
         """Each capsule's PARACHUTE queued without landed evidence, from any console (``override``)."""
-        ops = self.desks.desk(peer)
+        iridium = self.desks.desk(peer).iridium
         found = (
-            parachute_override(name, ops.store.audit(name, action="mt.parachute"), ops.commands(name))
-            for name in ops.capsules
+            parachute_override(
+                name, iridium.state.store.audit(name, action="mt.parachute"), iridium.commands(name)
+            )
+            for name in iridium.state.capsules
         )
         return tuple(override for override in found if override is not None)
 

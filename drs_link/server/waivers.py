@@ -2,7 +2,7 @@
 
 A ``drs capsule arm --waive`` grants its waivers for that one request, as one ``drs`` process did; a
 console waives once and ARMs and FIREs with what it holds (``held_waivers``). Why held here and not on the
-account's desk (``Operations``): a command of the same account replaces the desk's waivers with its own
+account's desk (``drs_link.ops.OperatorOps``): a command of the same account replaces the desk's waivers with its own
 on each request, and would have dropped the console's. A reset of the capsule voids every account's.
 """
 
@@ -23,7 +23,7 @@ class WaiverService:
         self._lock = threading.Lock()
 
     def _book(self, peer: Peer, name: str) -> WaiverBook:
-        capsule = self.desks.desk(peer).config.capsule(name).name  # an unknown capsule is refused first
+        capsule = self.desks.desk(peer).state.config.capsule(name).name  # an unknown capsule is refused first
         with self._lock:
             key = (peer.uid, capsule)
             if key not in self._books:
@@ -47,7 +47,7 @@ class WaiverService:
         return tuple(self._book(peer, name).waivers)
 
     def all_held(self, peer: Peer) -> dict[str, tuple[Waiver, ...]]:
-        return {name: self.held(peer, name) for name in self.desks.desk(peer).capsules}
+        return {name: self.held(peer, name) for name in self.desks.desk(peer).state.capsules}
 
     def void(self, name: str) -> None:
         """A reset starts the next attempt: nobody's waivers of the last one stand."""

@@ -27,7 +27,7 @@ from drs_link.config import Config, parse_config
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.ops.arm_window import ArmWindow, ArmWindows
-from drs_link.ops.operations import Operations
+from drs_link.ops.operator_ops import OperatorOps
 from drs_link.ops.telemetry import (
     BalloonSample,
     GatewaySample,
@@ -74,7 +74,7 @@ class ConsoleUnderTest(DrsConsole):
     """Textual reads a relative stylesheet path beside the module of the app's class: here, the console's."""
 
     def __init__(
-        self, setup: ConsoleSetup, store: Store, ops: Operations | None = None, live_timers: bool = True
+        self, setup: ConsoleSetup, store: Store, ops: OperatorOps | None = None, live_timers: bool = True
     ) -> None:
         super().__init__(setup, live_timers)
         self.store = store
@@ -98,15 +98,15 @@ def offline_server(
     return server.socket
 
 
-def console_on(ops: Operations, setup: ConsoleSetup, live_timers: bool = True) -> ConsoleUnderTest:
+def console_on(ops: OperatorOps, setup: ConsoleSetup, live_timers: bool = True) -> ConsoleUnderTest:
     """A commanding console on ``ops``'s store, through a private server in this process on ``ops``'s
     configuration, clock and gateway password (ended with the console); the zones and recording are
     ``ops``'s too."""
-    server = InProcessServer(ops.config, environ=ops.environ, clock=ops.clock)
-    setup = replace(setup, server=server.socket, zones=ops.zones,
-                    zones_file=ops.config.console.exclusion_zones_file, recorder=ops.recorder)  # fmt: skip
+    server = InProcessServer(ops.state.config, environ=ops.state.environ, clock=ops.state.clock)
+    setup = replace(setup, server=server.socket, zones=ops.release.zones,
+                    zones_file=ops.state.config.console.exclusion_zones_file, recorder=ops.state.recorder)  # fmt: skip
     try:
-        app = ConsoleUnderTest(setup, ops.store, ops, live_timers)
+        app = ConsoleUnderTest(setup, ops.state.store, ops, live_timers)
     except BaseException:
         server.stop()
         raise
@@ -142,7 +142,7 @@ def demo(tmp_path: Path) -> Iterator[tuple[DemoWorld, ConsoleUnderTest]]:
     try:
         setup = demo_setup(world, config, tmp_path / "exports", poll_period_s=0.5, prediction_period_s=2.0)
         assert world.store is not None
-        ops = Operations(config, world.store, clock=world.clock, environ=world.environ)
+        ops = OperatorOps(config, world.store, clock=world.clock, environ=world.environ)
         yield world, ConsoleUnderTest(setup, world.store, ops)
     finally:
         if setup is not None:
@@ -254,7 +254,7 @@ def canned_app(
     def build(mode: str = "live", now: datetime = T0) -> ConsoleUnderTest:
         config = offline_config(tmp_path)
         store = Store.open(config.store_path)
-        operations = Operations(config, store, clock=lambda: now) if mode == "live" else None
+        operations = OperatorOps(config, store, clock=lambda: now) if mode == "live" else None
         store.append_audit("EL", "DRS1", "power-on", "ok", {"session": "s1"}, when=T0 - timedelta(minutes=2))
         store.append_audit(
             "EL", "DRS1", "waiver", "granted", {"item": "gnss"}, when=T0 - timedelta(minutes=1)

@@ -48,7 +48,7 @@ def painted(widget: Widget) -> str:
 def with_reports(app: DrsConsole) -> DrsConsole:
     """DRS2's landed Iridium reports, read from the store as the console's report poll reads them."""
     assert app.ops is not None
-    reports = app.ops.new_reports("DRS2")
+    reports = app.ops.iridium.new_reports("DRS2")
     assert reports
     for record in reports:
         app.fleet.apply(record)

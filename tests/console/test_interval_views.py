@@ -19,7 +19,7 @@ from console.screens.recovery import RecoveryScreen
 from drs_link.config import RockblockConfig, parse_config
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
-from drs_link.ops.operations import Operations
+from drs_link.ops.operator_ops import OperatorOps
 from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
 from tests.clock import ManualClock
@@ -41,12 +41,12 @@ async def test_recovery_does_not_call_a_report_stale_before_the_next_is_due_on_t
         config = replace(config, rockblock=RockblockConfig(mt_url=gateway.url, username="ops", timeout_s=5.0))
         store = Store.open(config.store_path)
         clock = ManualClock(T0)
-        operations = Operations(config, store, clock=clock, environ={"DRS_ROCKBLOCK_PASSWORD": "pw"})
+        operations = OperatorOps(config, store, clock=clock, environ={"DRS_ROCKBLOCK_PASSWORD": "pw"})
         capsule = SimulatedCapsule(imei=IMEI, rb_source=17001)
         reports = ReportStore(store)
         alarm = fly(capsule, gateway, reports, T0, 3)
         clock.now = alarm - timedelta(seconds=30)
-        operations.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
+        operations.iridium.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
         fly(capsule, gateway, reports, alarm, 4)  # downloaded, one more 2-min cycle, then 5-min cycles
         last = reports.for_imei(IMEI)[-1]
         clock.now = last.time + timedelta(minutes=4, seconds=48)

@@ -36,7 +36,8 @@ from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.ops.checklist import PROCEDURE_DIR, ChecklistRun, StepState, load_checklists
 from drs_link.ops.fleet import FleetState
 from drs_link.ops.gonogo import GoNoGoReport
-from drs_link.ops.operations import Operations, SecondOperator
+from drs_link.ops.operator_ops import OperatorOps
+from drs_link.ops.ops_state import SecondOperator
 from drs_link.ops.origin import release_origin
 from drs_link.sim import CapsuleSimulator
 from drs_link.sim.keys import write_ed25519
@@ -77,7 +78,7 @@ def cli(config: Path, *argv: str) -> int:
 def console_for(config_path: Path, clock=utc_now) -> ConsoleUnderTest:  # type: ignore[no-untyped-def]
     config = load_config(config_path)
     store = Store.open(config.store_path)
-    operations = Operations(config, store, clock=clock, environ={"DRS_ONE_RULE_RB": PASSWORD})
+    operations = OperatorOps(config, store, clock=clock, environ={"DRS_ONE_RULE_RB": PASSWORD})
     return console_on(
         operations, ConsoleSetup(mode="live", capsules=["DRS1"], clock=clock), live_timers=False
     )
@@ -242,7 +243,7 @@ def test_a_zone_file_is_refused_for_the_same_reason_by_drs_plan_and_the_console(
 
 
 # Go: the CLI's `drs capsule arm` / `drs capsule go` and the console's ARM / FIRE are one set of rules
-# (``Operations.arm``/``Operations.fire``), pinned here against the capsule simulator on loopback SSH.
+# (``OperatorOps.arm``/``OperatorOps.fire``), pinned here against the capsule simulator on loopback SSH.
 
 GO_PASSWORD = "pw-go"
 TIME = re.compile(r"\d\d:\d\d:\d\dZ")
@@ -270,33 +271,33 @@ def go_config(tmp_path: Path, sim: CapsuleSimulator, key: Path, console: str = "
 
 class Face:
     """One front end's way to ARM and FIRE: ``drs`` (main(), or a child process) or the console's call
-    path (``Operations`` fed by its own polls into a fleet, as ``console.app`` feeds it)."""
+    path (``OperatorOps`` fed by its own polls into a fleet, as ``console.app`` feeds it)."""
 
     def __init__(
         self, kind: str, config: Path, weather: list[Path], capsys: pytest.CaptureFixture[str]
     ) -> None:
         self.kind, self.config, self.weather, self.capsys = kind, config, weather, capsys
-        self.ops: Operations | None = None
+        self.ops: OperatorOps | None = None
 
-    def console_ops(self) -> Operations:
+    def console_ops(self) -> OperatorOps:
         if self.ops is None:
             config = load_config(self.config)
-            self.ops = Operations(config, Store.open(config.store_path), environ={"DRS_GO_RB": GO_PASSWORD})
+            self.ops = OperatorOps(config, Store.open(config.store_path), environ={"DRS_GO_RB": GO_PASSWORD})
             files = list(self.weather)
-            self.predictions = PredictionService(lambda: files, Terrain.sea_level, self.ops.clock)
+            self.predictions = PredictionService(lambda: files, Terrain.sea_level, self.ops.state.clock)
         return self.ops
 
     def console_poll(self) -> GoNoGoReport:
         """What the console's timers do (poll, gateway check, prediction) and what its release screen asks."""
         ops = self.console_ops()
         fleet = FleetState.for_capsules(["DRS1"])
-        for record in [*ops.poll("DRS1"), *ops.gateway_check()]:
+        for record in [*ops.links.poll("DRS1"), *ops.iridium.gateway_check()]:
             fleet.apply(record)
-        origin = release_origin(fleet, "DRS1", ops.clock())
+        origin = release_origin(fleet, "DRS1", ops.state.clock())
         if origin is not None:
             for record in self.predictions.predict("DRS1", origin):
                 fleet.apply(record)
-        return ops.gonogo("DRS1", fleet.capsules["DRS1"])
+        return ops.release.gonogo("DRS1", fleet.capsules["DRS1"])
 
     def _cli(self, *argv: str) -> str | None:
         self.capsys.readouterr()
@@ -312,8 +313,8 @@ class Face:
         try:
             for argument in waive[1::2]:
                 item, _, reason = argument.partition("=")
-                ops.waive("DRS1", item, reason)
-            ops.arm("DRS1", self.console_poll())
+                ops.release.waive("DRS1", item, reason)
+            ops.release.arm("DRS1", self.console_poll())
         except RefusedError as exc:
             return str(exc)
         return None
@@ -327,7 +328,7 @@ class Face:
                              *waive, *people)  # fmt: skip
         ops = self.console_ops()
         try:
-            ops.fire("DRS1", "DRS1", self.console_poll, second)
+            ops.release.fire("DRS1", "DRS1", self.console_poll, second)
         except RefusedError as exc:
             return str(exc)
         return None
@@ -451,9 +452,9 @@ def test_a_waiver_given_to_arm_but_not_to_go_disarms_and_finish_go_is_no_back_do
     assert "Storage sync complete" in refusal
     assert face.go("--waive", f"sync={SYNC_WAIVER}") == "DRS1: FIRE refused: not armed: no longer GO: " + refusal.split(
         "no longer GO: ", 1)[1]  # fmt: skip
-    ops = Operations(load_config(config), store)
+    ops = OperatorOps(load_config(config), store)
     with pytest.raises(RefusedError, match="DRS1: finish refused: only an unverified Go .* DRS1 is powered"):
-        ops.finish_go("DRS1", "DRS1")
+        ops.release.finish_go("DRS1", "DRS1")
     ops.close()
     assert sim.firmware.go_at is None
     assert not [a for a in store.audit("DRS1") if a.action == "fire" and a.result == "authorised"]
@@ -542,7 +543,7 @@ def test_one_arm_per_capsule_across_processes_and_the_refusal_names_who_holds_it
     assert refused is not None and re.fullmatch(
         f"DRS1: FIRE refused: the ARM window is held by {holder}, not this console", refused
     ), refused
-    status = console.console_ops().ops("DRS1").arming.status()
+    status = console.console_ops().state.ops("DRS1").arming.status()
     assert status.armed and not status.mine and re.fullmatch(f"held by {holder}", status.holder_text())
     console.close()
     assert sim.firmware.go_at is None
@@ -554,7 +555,7 @@ OVERRIDE = "the chase team sees it on the ground; GNSS frozen"
 
 
 def parachute_refusal(config: Path, front_end: str, capsys: pytest.CaptureFixture[str], *people: str) -> str:
-    """PARACHUTE in flight with a landed override, from ``drs mt send`` or through ``Operations.send_mt``
+    """PARACHUTE in flight with a landed override, from ``drs mt send`` or through ``OperatorOps.send_mt``
     (what the console's commanding screen calls, and any other caller)."""
     if front_end == "cli":
         capsys.readouterr()
@@ -563,12 +564,12 @@ def parachute_refusal(config: Path, front_end: str, capsys: pytest.CaptureFixtur
         assert cli(config, *argv) == 1
         return capsys.readouterr().err.strip().removeprefix("drs: error: ")
     config_ = load_config(config)
-    ops = Operations(config_, Store.open(config_.store_path), environ={"DRS_ONE_RULE_RB": PASSWORD})
+    ops = OperatorOps(config_, Store.open(config_.store_path), environ={"DRS_ONE_RULE_RB": PASSWORD})
     now = utc_now()
     message = MtComposer().add("PARACHUTE", (now.hour, now.minute)).build()
     second = SecondOperator(name=people[1] if people else None)
     with pytest.raises(RefusedError) as refused:
-        ops.send_mt("DRS1", message, "DRS1", second, override_landed=OVERRIDE)
+        ops.iridium.send_mt("DRS1", message, "DRS1", second, override_landed=OVERRIDE)
     return str(refused.value)
 
 
@@ -580,7 +581,7 @@ def test_parachute_in_flight_is_refused_through_any_caller_and_nothing_reaches_t
     capsys: pytest.CaptureFixture[str],
     front_end: str,
 ) -> None:
-    """#22: `Operations.send_mt` never gated; only the screen called the landed gate before it."""
+    """#22: `OperatorOps.send_mt` never gated; only the screen called the landed gate before it."""
     monkeypatch.setenv("DRS_ONE_RULE_RB", PASSWORD)
     config = write_config(tmp_path, gateway)
     store = Store.open(load_config(config).store_path)

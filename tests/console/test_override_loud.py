@@ -1,7 +1,7 @@
 """After a PARACHUTE override in flight the console stays loud: a banner on the fleet, release and
 recovery screens, no tick on "Landing confirmed", and Recovery says when release B opens (issue #23).
 
-The override goes through the real gate (``authorize_mt``, inside ``Operations.send_mt``) and the MT
+The override goes through the real gate (``authorize_mt``, inside ``OperatorOps.send_mt``) and the MT
 through the real lifecycle to the simulated RockBLOCK on loopback, as `drs mt send --override-landed`
 from another terminal does.
 """
@@ -23,7 +23,8 @@ from drs_link.config import RockblockConfig
 from drs_link.iridium.firmware import GnssFix, format_mo
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.ops.operations import Operations, SecondOperator
+from drs_link.ops.operator_ops import OperatorOps
+from drs_link.ops.ops_state import SecondOperator
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store
 from tests.console.conftest import T0, ConsoleUnderTest, console_on, offline_config, wait_for
@@ -46,7 +47,7 @@ def overridden_app(tmp_path: Path, gateway: SimulatedRockblock, override: bool =
     config = offline_config(tmp_path)
     config = replace(config, rockblock=RockblockConfig(mt_url=gateway.url, username="ops", timeout_s=5.0))
     store = Store.open(config.store_path)
-    operations = Operations(config, store, clock=lambda: T0, environ={"DRS_ROCKBLOCK_PASSWORD": "pw"})
+    operations = OperatorOps(config, store, clock=lambda: T0, environ={"DRS_ROCKBLOCK_PASSWORD": "pw"})
     imei = config.capsules[0].imei or ""
     for n, alt in enumerate((19_900.0, 18_000.0, 16_100.0)):
         at = T0 - timedelta(minutes=6 - 2 * n)
@@ -64,7 +65,7 @@ def overridden_app(tmp_path: Path, gateway: SimulatedRockblock, override: bool =
     if override:
         message = MtComposer().add("PARACHUTE", (12, 0)).build()
         alone = SecondOperator(waiver="alone")
-        operations.send_mt("DRS1", message, "DRS1", alone, override_landed="chase sees it down")
+        operations.iridium.send_mt("DRS1", message, "DRS1", alone, override_landed="chase sees it down")
     setup = ConsoleSetup(
         mode="live", capsules=["DRS1", "DRS2", "DRS3"], clock=lambda: T0, export_dir=tmp_path / "exports"
     )

@@ -80,7 +80,7 @@ async def test_the_recovery_view_re_predicts_a_descending_capsule_from_its_repor
 ) -> None:
     world, app = demo
     # One report a minute, as an INTERVAL=1 command would set, so two fixes (one leg) arrive sooner.
-    world.iridium[app.ops.ops("DRS1").config.imei].interval_min = 1  # type: ignore[union-attr]
+    world.iridium[app.ops.state.ops("DRS1").config.imei].interval_min = 1  # type: ignore[union-attr]
     # The GO itself is the release flow's business (its own tests): here the simulated firmware
     # is simply put past it, so the demo world drops DRS1 and starts posting its reports.
     world.sims[0].firmware.go_at = world.clock() - timedelta(seconds=SERVO_A_AFTER_GO_S)

@@ -24,7 +24,7 @@ from console.screens.recovery import RecoveryScreen
 from drs_link.config import RockblockConfig
 from drs_link.iridium.firmware import GnssFix
 from drs_link.iridium.reports import Delivery, ReportStore
-from drs_link.ops.operations import Operations
+from drs_link.ops.operator_ops import OperatorOps
 from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
 from tests.console.conftest import T0, ConsoleUnderTest, console_on, offline_config, seed_reports, wait_for
@@ -45,7 +45,7 @@ def commanding_app(tmp_path: Path, gateway: SimulatedRockblock) -> ConsoleUnderT
     config = offline_config(tmp_path)
     config = replace(config, rockblock=RockblockConfig(mt_url=gateway.url, username="ops", timeout_s=5.0))
     store = Store.open(config.store_path)
-    operations = Operations(config, store, clock=lambda: T0, environ=PASSWORD_ENV)
+    operations = OperatorOps(config, store, clock=lambda: T0, environ=PASSWORD_ENV)
     seed_reports(store, config.capsules[1].imei or "", T0 - timedelta(minutes=30), 8)
     setup = ConsoleSetup(
         mode="live", capsules=["DRS1", "DRS2", "DRS3"], clock=lambda: T0, team_position=_team(config),
@@ -78,7 +78,7 @@ def deliver_next_report(
     )
     ReportStore(app.store).add(delivery)
     assert app.ops is not None
-    app.ops.new_reports("DRS2")
+    app.ops.iridium.new_reports("DRS2")
 
 
 async def test_the_sounder_goes_from_unknown_to_on_with_its_lifecycle_state(
@@ -96,7 +96,7 @@ async def test_the_sounder_goes_from_unknown_to_on_with_its_lifecycle_state(
         await pilot.press("O", *"DRS2", "enter")
         await wait_for(pilot, lambda: screen.settings is not None and screen.settings.sounder.value == "ON")
         assert "Sounder: ON — queued 12:00Z, not yet fetched" in shown(screen)
-        imei = app.ops.ops("DRS2").config.imei if app.ops else None
+        imei = app.ops.state.ops("DRS2").config.imei if app.ops else None
         assert list(gateway.queues[imei or ""]) == [b"[SOUNDER_ON]"]
         capsule = SimulatedCapsule(imei=imei or "", rb_source=17002, momsn=8, iteration=8, sounder_on=False)
         deliver_next_report(app, gateway, capsule, T0 + timedelta(minutes=1))
@@ -147,7 +147,7 @@ async def test_the_parachute_key_refuses_an_out_of_window_time_as_on_the_iridium
             "11:49-12:15) and the command lost"
         )
         assert app.screen is screen
-        assert app.ops is not None and app.ops.commands("DRS2") == []
+        assert app.ops is not None and app.ops.iridium.commands("DRS2") == []
 
 
 async def test_replay_shows_no_command_keys_on_the_recovery_screen(

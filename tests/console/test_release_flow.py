@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import msgspec
 import pytest
 from textual.pilot import Pilot
 from textual.widgets import Label, Static
@@ -75,6 +76,29 @@ async def test_fire_is_disabled_until_armed_and_the_domain_refuses_it_anyway(
         assert world.sims[0].firmware.go_at is None
 
 
+async def test_a_sync_that_fails_unexpectedly_is_said_to_the_operator_not_swallowed_by_its_worker(
+    demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A screen's worker that raises what it did not expect (here the server's answer does not parse)
+    is said: Textual does not bubble a worker's failure from the screen to the app, and ``s`` once left
+    "syncing data…" as the last word of a sync that had died."""
+    world, app = demo
+
+    def malformed(capsule: str) -> None:
+        raise msgspec.ValidationError("Expected `object`, got `str`")
+
+    async with app.run_test(size=(120, 40)) as pilot:
+        await wait_for(pilot, lambda: app.fleet.capsules["DRS1"].facts(app.now())["link_up"] is True)
+        await pilot.press("enter")
+        assert isinstance(app.screen, ReleaseScreen)
+        monkeypatch.setattr(app.context, "sync", malformed)
+        await pilot.press("s")
+        await wait_for(pilot, lambda: any(
+            n.message == "sync failed: ValidationError: Expected `object`, got `str`" and n.severity == "error"
+            for n in app._notifications
+        ))  # fmt: skip
+
+
 async def test_a_complete_release_by_keys_sends_go_to_the_simulated_capsule(
     demo: tuple[DemoWorld, DrsConsole], monkeypatch: pytest.MonkeyPatch, skip_clock: SkipClock
 ) -> None:
@@ -89,7 +113,7 @@ async def test_a_complete_release_by_keys_sends_go_to_the_simulated_capsule(
         await pilot.press(*"DRS1", "enter", "enter", *"test drop", "enter")
         await wait_for(pilot, lambda: world.sims[0].firmware.go_at is not None)
         await wait_for(pilot, lambda: shown(app).state == "fired")
-        assert app.ops.ops("DRS1").machine.record().state is ReleaseState.RELEASED  # type: ignore[union-attr]
+        assert app.ops.state.ops("DRS1").machine.record().state is ReleaseState.RELEASED  # type: ignore[union-attr]
         actions = [(a.action, a.result) for a in app.store.audit("DRS1")]
         assert ("fire", "authorised") in actions and ("go", "released, Pi shut down") in actions
         for action in ("power_on", "arm", "fire", "sync", "waive"):
@@ -171,7 +195,9 @@ async def test_an_interval_command_is_queued_at_the_simulated_gateway_after_nami
         await wait_for(pilot, lambda: len(world.gateway.requests) == 1)
         assert bytes.fromhex(world.gateway.requests[0].form["data"]) == b"[INTERVAL=5]"
         assert app.ops is not None
-        await wait_for(pilot, lambda: [c.state for c in app.ops.commands("DRS1")] == ["not_sent", "queued"])
+        await wait_for(
+            pilot, lambda: [c.state for c in app.ops.iridium.commands("DRS1")] == ["not_sent", "queued"]
+        )
         assert app.store.audit("DRS1", text="confirmation does not name the capsule")
 
 
@@ -231,7 +257,7 @@ async def test_a_window_another_console_holds_is_shown_as_theirs_and_fire_stays_
         screen = await open_release_go(pilot, app, booting(skip_clock, world.speed))
         polls_never_disarm(app, monkeypatch)
         assert app.ops is not None
-        mine = app.ops.ops("DRS1").arming  # a console of before the server, on the same store
+        mine = app.ops.state.ops("DRS1").arming  # a console of before the server, on the same store
         other = ArmingController(app.store, mine.machine, "JM", clock=mine.clock, holder="jm@laptop2 pid 7")
         other.arm(app.gonogo("DRS1"))
         line = screen.query_one("#arm-status", Static)

@@ -32,8 +32,8 @@ class _Unanswered:
 
 def _command(app: DrsConsole, gateway: _Refusing | _Unanswered) -> int:
     assert app.ops is not None
-    lifecycle = app.ops.lifecycle
-    command = lifecycle.request(app.ops.config.capsules[1], MtComposer().add("INTERVAL", 5).build())
+    lifecycle = app.ops.iridium.lifecycle
+    command = lifecycle.request(app.ops.state.config.capsules[1], MtComposer().add("INTERVAL", 5).build())
     return lifecycle.send(command.id, "DRS2", gateway).id  # type: ignore[arg-type]  # a stand-in gateway
 
 
@@ -53,10 +53,10 @@ async def test_u_records_what_the_portal_shows_and_the_audit_names_the_operator(
 ) -> None:
     app = canned_app()
     command_id = _command(app, _Unanswered())
-    assert app.ops is not None and app.ops.lifecycle.get(command_id).state == "delivery_unknown"
+    assert app.ops is not None and app.ops.iridium.lifecycle.get(command_id).state == "delivery_unknown"
     async with app.run_test(size=(120, 40)) as pilot:
         await _resolve(app, pilot, "not sent")
-        lifecycle = app.ops.lifecycle
+        lifecycle = app.ops.iridium.lifecycle
         await wait_for(pilot, lambda: lifecycle.get(command_id).state == "not_sent")
         [row] = app.store.audit("DRS2", action="mt.resolved")
         assert row.operator == "EL" and "never reached the gateway" in str(row.detail)
@@ -72,7 +72,7 @@ async def test_u_on_a_command_whose_delivery_is_known_is_refused_and_changes_not
     async with app.run_test(size=(120, 40)) as pilot:
         await _resolve(app, pilot, "not sent")
         await wait_for(pilot, lambda: any(n.severity == "error" for n in app._notifications))
-        assert app.ops is not None and app.ops.lifecycle.get(command_id).state == "failed"
+        assert app.ops is not None and app.ops.iridium.lifecycle.get(command_id).state == "failed"
         assert app.store.audit("DRS2", action="mt.resolved") == []
 
 
@@ -85,4 +85,4 @@ async def test_u_with_an_answer_that_is_neither_an_id_nor_not_sent_says_so(
     async with app.run_test(size=(120, 40)) as pilot:
         await _resolve(app, pilot, "sent")
         await wait_for(pilot, lambda: any("MT id or 'not sent'" in n.message for n in app._notifications))
-        assert app.ops is not None and app.ops.lifecycle.get(command_id).state == "delivery_unknown"
+        assert app.ops is not None and app.ops.iridium.lifecycle.get(command_id).state == "delivery_unknown"

@@ -45,7 +45,7 @@ async def test_the_parachute_helper_refuses_an_out_of_window_time(
         messages = [n.message for n in app._notifications]
         assert any("PARACHUTE refused" in m and "would be rejected" in m for m in messages)
         assert app.screen is screen
-        assert app.ops is not None and app.ops.commands("DRS2") == []
+        assert app.ops is not None and app.ops.iridium.commands("DRS2") == []
 
 
 async def test_the_parachute_helper_offers_a_window_and_needs_a_different_second_operator(
@@ -60,7 +60,7 @@ async def test_the_parachute_helper_offers_a_window_and_needs_a_different_second
         assert type(app.screen).__name__ == "HazardModal"
         await pilot.press(*"DRS2", "enter", *"EL", "enter", "enter")
         await wait_for(pilot, lambda: any("different person" in n.message for n in app._notifications))
-        assert app.ops is not None and app.ops.commands("DRS2") == []
+        assert app.ops is not None and app.ops.iridium.commands("DRS2") == []
 
 
 async def test_parachute_in_flight_shows_no_landed_evidence_and_is_refused_with_nothing_sent(
@@ -68,7 +68,7 @@ async def test_parachute_in_flight_shows_no_landed_evidence_and_is_refused_with_
 ) -> None:
     """The same gate as `drs mt send --parachute` (tests/drs_link/iridium/test_parachute_gate.py), from the console."""
     app = canned_app(now=T0)
-    imei = app.ops.config.capsules[2].imei if app.ops else None
+    imei = app.ops.state.config.capsules[2].imei if app.ops else None
     assert imei is not None
     reports = ReportStore(app.store)
     for n in range(5):
@@ -87,7 +87,7 @@ async def test_parachute_in_flight_shows_no_landed_evidence_and_is_refused_with_
         )
         await pilot.press(*"DRS3", "enter", "enter", *"alone", "enter", "enter")
         await wait_for(pilot, lambda: any("no landed evidence" in n.message for n in app._notifications))
-        assert app.ops is not None and app.ops.commands("DRS3") == []
+        assert app.ops is not None and app.ops.iridium.commands("DRS3") == []
         assert [a.result for a in app.store.audit() if a.action == "mt.parachute"] == ["refused"]
 
 
@@ -97,7 +97,7 @@ async def test_the_parachute_dialog_shows_the_landed_evidence_as_new_reports_cha
     """#23: the evidence was frozen at opening; a report that lands the capsule while the operator types
     shows in the dialog's live line (and the gate at submit reads it again)."""
     app = canned_app(now=T0)
-    imei = app.ops.config.capsules[2].imei if app.ops else None
+    imei = app.ops.state.config.capsules[2].imei if app.ops else None
     assert imei is not None
     reports = ReportStore(app.store)
 

@@ -21,7 +21,8 @@ FACES = sorted(
     if path.name != "__init__.py"
 )
 BEHIND_THE_SERVER = {
-    "arming", "arm_window", "approval", "operations", "session", "authorize", "checklist", "audit_log", "views",
+    "arming", "arm_window", "approval", "operator_ops", "ops_state", "links", "release", "iridium_ops",
+    "enrolment", "session", "authorize", "checklist", "audit_log", "views",
 }  # fmt: skip
 """``drs_link.ops`` modules whose names a client must not hold: the server holds them."""
 PLAIN_DATA = {"ACTIONS", "StepKind", "StepState", "IridiumHealthView"}

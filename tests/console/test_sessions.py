@@ -16,7 +16,7 @@ from console.screens.approvals import ApprovalScreen
 from console.screens.modals import ConfirmModal
 from drs_link.ops.approval import ApprovalBook, Login, current_login
 from drs_link.ops.arm_window import ArmWindows
-from drs_link.ops.operations import Operations
+from drs_link.ops.operator_ops import OperatorOps
 from drs_link.ops.session import LOST, record_loss
 from drs_link.store import Store
 from tests.clock import SkipClock
@@ -72,7 +72,7 @@ def live_console(tmp_path: Path) -> ConsoleUnderTest:
     config = offline_config(tmp_path)
     store = Store.open(config.store_path)
     setup = ConsoleSetup(mode="live", capsules=["DRS1", "DRS2", "DRS3"], export_dir=tmp_path / "exports")
-    return console_on(Operations(config, store), setup)
+    return console_on(OperatorOps(config, store), setup)
 
 
 async def test_the_next_console_shows_how_the_last_session_ended(tmp_path: Path) -> None:
@@ -96,9 +96,9 @@ async def test_what_another_console_does_to_the_store_shows_here_with_who_did_it
     config.write_text(f'[operator]\nname = "JM"\n[data]\ndir = "{tmp_path / "data"}"\n'
                       '[[capsule]]\nname = "DRS2"\nhost = "127.0.0.1"\nport = 9\n')  # fmt: skip
     other_console = (
-        "import sys; from drs_link.config import load_config; from drs_link.ops.operations import Operations; "
+        "import sys; from drs_link.config import load_config; from drs_link.ops.operator_ops import OperatorOps; "
         "from drs_link.store import Store; c = load_config(sys.argv[1]); "
-        "Operations(c, Store.open(c.store_path)).ops('DRS2').waivers.grant('gnss', 'JM', 'no sky in the hangar')"
+        "OperatorOps(c, Store.open(c.store_path)).state.ops('DRS2').waivers.grant('gnss', 'JM', 'no sky in the hangar')"
     )
     try:
         async with app.run_test(size=(120, 40)) as pilot:

@@ -65,8 +65,8 @@ async def test_the_mt_detail_is_shown_whole_at_120x40(canned_app: Callable[..., 
     """It was cut at 60 characters: a refusal's reason lost its second half."""
     app = canned_app(now=T0)
     assert app.ops is not None
-    lifecycle = app.ops.lifecycle
-    command = lifecycle.request(app.ops.config.capsules[1], MtComposer().add("INTERVAL", 5).build())
+    lifecycle = app.ops.iridium.lifecycle
+    command = lifecycle.request(app.ops.state.config.capsules[1], MtComposer().add("INTERVAL", 5).build())
     failed = lifecycle.send(command.id, "DRS2", _Refusing())  # type: ignore[arg-type]
     assert len(failed.detail) > 120
     async with app.run_test(size=(120, 40)) as pilot:

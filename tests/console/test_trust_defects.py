@@ -142,7 +142,7 @@ async def test_a_waiver_reason_is_capped_at_its_stated_length(canned_app: Callab
         assert granted.detail is not None and len(granted.detail["reason"]) == 200
         assert app.ops is not None
         with pytest.raises(RefusedError, match=r"a waiver reason is at most 200 characters \(3000 given\)"):
-            app.ops.ops("DRS1").waivers.grant("gnss", "EL", "y" * 3000)
+            app.ops.state.ops("DRS1").waivers.grant("gnss", "EL", "y" * 3000)
 
 
 @pytest.mark.asyncio

@@ -136,6 +136,18 @@ def test_files_in_the_pre_xdg_places_keep_working(xdg: Path, caplog: pytest.LogC
     assert any(str(xdg / "xdg-data" / "drs" / "drs.sqlite") in message for message in moved)
 
 
+def test_an_approver_table_is_refused_by_name_with_where_approvers_went(tmp_path: Path) -> None:
+    """The ssh-agent key list is gone: a file that still has one must not load as if it counted, nor be
+    refused as a mere unknown section."""
+    path = tmp_path / "drs.toml"
+    path.write_text('[[approver]]\nname = "JM"\nkey = "ssh-ed25519 AAAAC3Nza jm@tablet"\n')
+    with pytest.raises(ConfigError) as refused:
+        load_config(path)
+    said = str(refused.value)
+    assert said.startswith("approver: the [[approver]] table was removed") and "\n" not in said
+    assert "[[operator]]" in said and "docs/console.md" in said and "unknown section" not in said
+
+
 def test_invalid_toml_names_the_file(tmp_path: Path) -> None:
     path = tmp_path / "drs.toml"
     path.write_text("[operator\nname=")

@@ -22,7 +22,7 @@ from drs_link.errors import LinkError, StoreError
 from drs_link.link.ssh import fingerprint
 from drs_link.ops.capsule import ConfirmationToken, ReleaseRecord, ReleaseStateMachine
 from drs_link.ops.checklist import PROCEDURE_DIR, ChecklistRun, StepState, load_checklists
-from drs_link.ops.operations import Operations
+from drs_link.ops.operator_ops import OperatorOps
 from drs_link.sim import CapsuleSimulator
 from drs_link.sim.keys import generate_ed25519
 from drs_link.store import Store
@@ -273,7 +273,7 @@ def test_sync_command_uploads_and_audits(
 def test_the_consoles_sync_is_the_clis_path_with_progress_and_the_same_audit(
     setup: tuple[CapsuleSimulator, Path], tmp_path: Path
 ) -> None:
-    """The console's Sync key (``Operations.sync`` on the configured source) used to upload unaudited."""
+    """The console's Sync key (``OperatorOps.sync`` on the configured source) used to upload unaudited."""
     sim, config_path = setup
     source = tmp_path / "payload"
     source.mkdir()
@@ -281,17 +281,17 @@ def test_the_consoles_sync_is_the_clis_path_with_progress_and_the_same_audit(
     config = load_config(config_path)
     config = replace(config, capsules=(replace(config.capsules[0], sync_source=source),))
     store = Store.open(config.store_path)
-    ops = Operations(config, store)
+    ops = OperatorOps(config, store)
     progress: list[tuple[str, int, int]] = []
     try:
-        assert list(ops.sync_status("DRS1").missing) == ["a.bin"]
-        report = ops.sync("DRS1", on_progress=lambda *seen: progress.append(seen))
+        assert list(ops.links.sync_status("DRS1").missing) == ["a.bin"]
+        report = ops.links.sync("DRS1", on_progress=lambda *seen: progress.append(seen))
         assert list(report.uploaded) == ["a.bin"] and progress[-1] == ("a.bin", 50_000, 50_000)
         assert (sim.storage_dir / "a.bin").read_bytes() == b"a" * 50_000
         sim.stop()
         (source / "b.bin").write_bytes(b"b")
         with pytest.raises(LinkError):
-            ops.sync("DRS1")
+            ops.links.sync("DRS1")
     finally:
         ops.close()
     audit = [(a.action, a.result, a.operator) for a in store.audit("DRS1")]
@@ -381,10 +381,10 @@ def test_power_on_go_and_reset_tick_their_steps_from_the_cli_as_from_the_console
 
     console_config = _write_config(tmp_path / "console", [make_sim()], client_key[0])
     console_store = Store.open(tmp_path / "console" / "data" / "drs.sqlite")
-    operations = Operations(load_config(console_config), console_store)
+    operations = OperatorOps(load_config(console_config), console_store)
     try:
-        operations.power_on("DRS1")
-        operations.reset("DRS1", "DRS1")
+        operations.links.power_on("DRS1")
+        operations.links.reset("DRS1", "DRS1")
     finally:
         operations.close()
     console_steps = _done_steps(console_store)

@@ -116,7 +116,7 @@ def test_replay_hands_out_records_as_its_clock_passes_them(
 
 
 def test_a_bad_exclusion_zone_file_is_refused_naming_the_key(tmp_path: Path) -> None:
-    from drs_link.ops.operations import load_exclusion_zones
+    from drs_link.ops.ops_state import load_exclusion_zones
 
     path = tmp_path / "zones.geojson"
     path.write_text('{"type": "FeatureCollection", "features": [{"geometry": {"type": "Point"}}]}')

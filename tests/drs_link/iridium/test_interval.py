@@ -22,7 +22,7 @@ from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.parachute import plan_parachute
 from drs_link.iridium.reports import ReportStore, StoredReport
 from drs_link.ops.fleet import CapsuleTelemetry
-from drs_link.ops.operations import Operations
+from drs_link.ops.operator_ops import OperatorOps
 from drs_link.ops.telemetry import ReportSample
 from drs_link.sim.rockblock import SimulatedCapsule, SimulatedRockblock
 from drs_link.store import Store
@@ -34,7 +34,7 @@ PASSWORD_ENV = {"DRS_ROCKBLOCK_PASSWORD": "pw"}
 
 
 class Rig:
-    """DRS1 on its 2-minute grid through the simulated gateway; the console's Operations read the store."""
+    """DRS1 on its 2-minute grid through the simulated gateway; the console's OperatorOps read the store."""
 
     def __init__(self, tmp_path: Path, gateway: SimulatedRockblock) -> None:
         config = parse_config({
@@ -44,7 +44,7 @@ class Rig:
         config = replace(config, rockblock=RockblockConfig(mt_url=gateway.url, username="ops", timeout_s=2.0))
         self.store = Store.open(config.store_path)
         self.clock = ManualClock(T0)
-        self.ops = Operations(config, self.store, clock=self.clock, environ=PASSWORD_ENV)
+        self.ops = OperatorOps(config, self.store, clock=self.clock, environ=PASSWORD_ENV)
         self.gateway = gateway
         self.reports = ReportStore(self.store)
         self.capsule = SimulatedCapsule(imei=IMEI, rb_source=11800)
@@ -54,14 +54,14 @@ class Rig:
         """Cycles on the simulator's own alarm grid; the console then reads the new reports."""
         alarm = fly(self.capsule, self.gateway, self.reports, start, cycles)
         self.clock.now = alarm
-        self.records += self.ops.new_reports("DRS1")
+        self.records += self.ops.iridium.new_reports("DRS1")
         return alarm
 
     def stored(self) -> list[StoredReport]:
         return self.reports.for_imei(IMEI)
 
     def commands(self) -> list[lc.Command]:
-        return self.ops.commands("DRS1")
+        return self.ops.iridium.commands("DRS1")
 
 
 @pytest.fixture
@@ -81,19 +81,19 @@ def test_interval_health_follows_the_simulators_switch_over(rig: Rig) -> None:
     """[INTERVAL=5] downloaded with report k: k→k+1 stays 2 min, 5 min from k+1 on; nothing is flagged."""
     alarm = rig.fly(T0, 4)
     rig.clock.now = alarm - timedelta(seconds=30)
-    command = rig.ops.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1").command
+    command = rig.ops.iridium.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1").command
     assert command.state == lc.QUEUED
     alarm = rig.fly(alarm, 2)  # report 4 downloads it; report 5 still comes after 2 min
     assert spacings_min(rig.stored()) == [2, 2, 2, 2, 2], "the simulator switches over as the firmware does"
     track = interval_track(rig.stored(), rig.commands())
     delivering, following = rig.stored()[4], rig.stored()[5]
-    assert rig.ops.lifecycle.get(command.id).delivered_report_id == delivering.id
+    assert rig.ops.iridium.lifecycle.get(command.id).delivered_report_id == delivering.id
     assert track.after(delivering) == {2} and track.after(following) == {2, 5}, "pending: either may come"
     assert assess(rig.stored(), rig.commands()).findings == ()
 
     rig.fly(alarm, 3)
     assert spacings_min(rig.stored())[-3:] == [5, 5, 5]
-    assert rig.ops.lifecycle.get(command.id).state == lc.EFFECT_CONFIRMED
+    assert rig.ops.iridium.lifecycle.get(command.id).state == lc.EFFECT_CONFIRMED
     track = interval_track(rig.stored(), rig.commands())
     assert track.after(following) == {5} and track.next_spacing == {5}
     health = assess(rig.stored(), rig.commands())
@@ -103,7 +103,7 @@ def test_interval_health_follows_the_simulators_switch_over(rig: Rig) -> None:
 def test_a_missed_cycle_on_the_new_interval_is_judged_against_it(rig: Rig) -> None:
     alarm = rig.fly(T0, 3)
     rig.clock.now = alarm - timedelta(seconds=30)
-    rig.ops.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
+    rig.ops.iridium.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
     alarm = rig.fly(alarm, 4)
     rig.fly(alarm + timedelta(minutes=5), 1)  # the session at ``alarm`` failed: 10 min between fixes
     [finding] = assess(rig.stored(), rig.commands()).findings
@@ -114,7 +114,7 @@ def test_a_report_is_not_stale_before_the_next_one_is_due_on_the_new_interval(ri
     """The trial: a report 4 min 48 s old was called STALE on a 5-minute interval."""
     alarm = rig.fly(T0, 3)
     rig.clock.now = alarm - timedelta(seconds=30)
-    rig.ops.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
+    rig.ops.iridium.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
     rig.fly(alarm, 4)
     telemetry = CapsuleTelemetry("DRS1")
     for record in rig.records:
@@ -130,7 +130,7 @@ def test_the_parachute_plan_uses_the_old_spacing_for_the_next_cycle_and_the_new_
     """INTERVAL=5 went down with the last report: the next cycle is 2 min on, the ones after 5 min apart."""
     alarm = rig.fly(T0, 4)
     rig.clock.now = alarm - timedelta(seconds=30)
-    rig.ops.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
+    rig.ops.iridium.send_mt("DRS1", MtComposer().add("INTERVAL", 5).build(), "DRS1")
     alarm = rig.fly(alarm, 1)
     last_fix = rig.stored()[-1].report.fix.time  # type: ignore[union-attr]
     plan = plan_parachute(rig.stored(), last_fix + timedelta(seconds=5), rig.commands())

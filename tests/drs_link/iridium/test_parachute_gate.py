@@ -22,7 +22,7 @@ from drs_link.iridium.mo import parse_payload
 from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import Delivery, ReportStore, StoredReport
 from drs_link.ops.authorize import authorize_mt
-from drs_link.ops.operations import Operations
+from drs_link.ops.operator_ops import OperatorOps
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store, utc_now
 from tests.console.commands.test_cli_iridium import run, write_config
@@ -124,17 +124,17 @@ def test_the_console_reads_each_report_once_and_runs_the_landing_rule_once_per_f
 
     monkeypatch.setattr(recovery.LandingWatch, "add", counted_add)
     monkeypatch.setattr(report_module, "parse_hex", counted_parse)
-    ops = Operations(config, store)
-    assert len(ops.new_reports("DRS1")) == len(flight)
+    ops = OperatorOps(config, store)
+    assert len(ops.iridium.new_reports("DRS1")) == len(flight)
     assert work == {"fixes": sum(r.report is not None and r.report.fix is not None for r in flight),
                     "parsed": len(flight)}  # fmt: skip
     work.update(fixes=0, parsed=0)
-    assert ops.new_reports("DRS1") == [] and work == {"fixes": 0, "parsed": 0}
+    assert ops.iridium.new_reports("DRS1") == [] and work == {"fixes": 0, "parsed": 0}
     for added, read_again in ((stored(10_001, flight[-1].time + timedelta(minutes=2), 412.0, 0.2), False),
                               (stored(10_002, flight[0].time - timedelta(minutes=2), 400.0, 0.0), True)):  # fmt: skip
         ReportStore(store).add(added.delivery)
         work.update(fixes=0, parsed=0)
-        [record] = ops.new_reports("DRS1")
+        [record] = ops.iridium.new_reports("DRS1")
         done = dict(work)
         everything = ReportStore(store).for_imei(IMEI)
         fixes = sum(r.report is not None and r.report.fix is not None for r in everything)

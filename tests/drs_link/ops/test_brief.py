@@ -17,7 +17,8 @@ from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import ReportStore
 from drs_link.ops.approval import Approval, ApprovalBook, Login
 from drs_link.ops.gonogo import evaluate
-from drs_link.ops.operations import Operations, SecondOperator
+from drs_link.ops.operator_ops import OperatorOps
+from drs_link.ops.ops_state import SecondOperator
 from drs_link.ops.staleness import Reading
 from drs_link.sim.rockblock import SimulatedRockblock
 from drs_link.store import Store
@@ -49,19 +50,19 @@ def test_a_go_request_shows_the_command_every_verdict_and_every_waiver_with_reas
     pi = InProcessPi(clock)
     store = Store.open(tmp_path / "drs.sqlite")
     ops = operations(store, clock, pi, rule=True)
-    machine = ops.ops("DRS1").machine
+    machine = ops.state.ops("DRS1").machine
     machine.power_on(confirmed=True)
     assert machine.wait_for_microcontroller().waiting_for_go
-    ops.waive("DRS1", "gnss", WAIVER)
+    ops.release.waive("DRS1", "gnss", WAIVER)
 
     def poll():  # type: ignore[no-untyped-def]
         no_fix = inputs(clock(), gnss_fix=Reading(False, clock(), 10.0))
-        return evaluate("DRS1", no_fix, clock(), ops.ops("DRS1").waivers.waivers)
+        return evaluate("DRS1", no_fix, clock(), ops.state.ops("DRS1").waivers.waivers)
 
-    ops.arm("DRS1", poll())
+    ops.release.arm("DRS1", poll())
     seen: list[Approval] = []
     pi.go_outcome = VERIFIED
-    ops.fire("DRS1", "DRS1", poll, approving(store, seen, clock))
+    ops.release.fire("DRS1", "DRS1", poll, approving(store, seen, clock))
     [request] = seen
     lines = request.for_approver(clock())
     assert lines[1] == "  command: Go: release DRS1 in ARM window #1"
@@ -80,7 +81,7 @@ def gateway() -> Iterator[SimulatedRockblock]:
         yield simulated
 
 
-def parachute_ops(tmp_path: Path, gateway: SimulatedRockblock) -> tuple[Operations, Store]:
+def parachute_ops(tmp_path: Path, gateway: SimulatedRockblock) -> tuple[OperatorOps, Store]:
     config = parse_config({
         "operator": {"name": "EL"},
         "data": {"dir": str(tmp_path / "data")},
@@ -88,7 +89,7 @@ def parachute_ops(tmp_path: Path, gateway: SimulatedRockblock) -> tuple[Operatio
         "capsule": [{"name": "DRS1", "host": "127.0.0.1", "imei": IMEI, "rockblock_serial": 11800}],
     })  # fmt: skip
     store = Store.open(config.store_path)
-    return Operations(config, store, environ={"DRS_TEST_RB": "pw"}, login=Login("el")), store
+    return OperatorOps(config, store, environ={"DRS_TEST_RB": "pw"}, login=Login("el")), store
 
 
 def test_a_parachute_request_shows_the_text_and_the_landed_evidence(
@@ -97,12 +98,12 @@ def test_a_parachute_request_shows_the_text_and_the_landed_evidence(
     ops, store = parachute_ops(tmp_path, gateway)
     for report in signed(landed(recent(10.5))):
         ReportStore(store).add(report.delivery)
-    plan = ops.plan_parachute("DRS1", None, accept_midnight=True)
+    plan = ops.iridium.plan_parachute("DRS1", None, accept_midnight=True)
     message = MtComposer().add("PARACHUTE", (plan.hour, plan.minute)).build()
     seen: list[Approval] = []
-    ops.send_mt("DRS1", message, "DRS1", approving(store, seen), queue_by=plan.queue_by)
+    ops.iridium.send_mt("DRS1", message, "DRS1", approving(store, seen), queue_by=plan.queue_by)
     [request] = seen
-    lines = request.for_approver(ops.clock())
+    lines = request.for_approver(ops.state.clock())
     assert lines[1] == f"  command: {message.text}"
     assert lines[2].startswith("  landed evidence: landed ") and "JWT-verified" in lines[2]
     assert not any("OVERRIDE" in line for line in lines)
@@ -129,7 +130,7 @@ def test_an_overriding_parachute_request_shows_the_override_reason_and_what_it_o
 
     second = SecondOperator(await_approval=True, on_pending=listed)
     with pytest.raises(Exception, match="rejected"):
-        ops.send_mt("DRS1", message, "DRS1", second, override_landed=reason)
+        ops.iridium.send_mt("DRS1", message, "DRS1", second, override_landed=reason)
     request = book.get(1)
     lines = request.for_approver(book.clock())
     assert f"  OVERRIDE of the landed gate, reason: {reason}" in lines

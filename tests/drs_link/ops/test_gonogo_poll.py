@@ -1,4 +1,4 @@
-"""The go/no-go poll of ARM and FIRE on the server (``Operations.poll_gonogo``): judged on the capsule as
+"""The go/no-go poll of ARM and FIRE on the server (``OperatorOps.poll_gonogo``): judged on the capsule as
 it is when the verdicts are given, however long the "release now" prediction took.
 
 A real simulated capsule over SSH and a real store; the prediction's duration is the test's skipped wall
@@ -14,7 +14,7 @@ import paramiko
 
 from drs_link.config import parse_config
 from drs_link.ops.gonogo import Verdict
-from drs_link.ops.operations import Operations
+from drs_link.ops.operator_ops import OperatorOps
 from drs_link.ops.origin import ReleaseOrigin
 from drs_link.ops.staleness import Freshness
 from drs_link.ops.telemetry import TelemetryRecord
@@ -39,10 +39,10 @@ def test_a_slow_prediction_leaves_no_polled_reading_stale(
     config = parse_config(
         {"operator": {"name": "EL"}, "data": {"dir": str(tmp_path / "data")}, "capsule": [capsule]}
     )
-    ops = Operations(config, Store.open(config.store_path))
+    ops = OperatorOps(config, Store.open(config.store_path))
     try:
-        ops.power_on(sim.name)
-        ops.ops(sim.name).machine.wait_for_microcontroller()
+        ops.links.power_on(sim.name)
+        ops.state.ops(sim.name).machine.wait_for_microcontroller()
         origins: list[ReleaseOrigin] = []
 
         def slow_prediction(name: str, origin: ReleaseOrigin) -> list[TelemetryRecord]:
@@ -50,7 +50,7 @@ def test_a_slow_prediction_leaves_no_polled_reading_stale(
             skip_clock.skip(60.0)  # three times as long as a polled reading stays fresh (20 s)
             return []
 
-        report = ops.poll_gonogo(sim.name, slow_prediction)
+        report = ops.release.poll_gonogo(sim.name, slow_prediction)
     finally:
         ops.close()
     assert origins, "the prediction ran from the polled fix"

@@ -23,7 +23,7 @@ from drs_link.ops.audit_log import AuditLog
 from drs_link.ops.authorize import authorize_mt
 from drs_link.ops.checklist import PROCEDURE_DIR, ChecklistRun, load_checklists
 from drs_link.ops.gonogo import WaiverBook
-from drs_link.ops.operations import Operations
+from drs_link.ops.iridium_ops import IridiumOps
 from drs_link.ops.override import parachute_override
 from drs_link.ops.typed_text import shown, typed_text
 from drs_link.store import Store, utc_now
@@ -96,15 +96,15 @@ def fields(store: Store, tmp_path: Path) -> dict[str, Callable[[str], object]]:
         "the reason for skipping a step": lambda t: ChecklistRun(store, checklist, "DRS1").skip(
             checklist.steps[0].id, "alice", t
         ),
-        "the note": lambda t: Operations.resolve_mt(_resolving(store, life), "DRS1", 1, None, t),
+        "the note": lambda t: IridiumOps.resolve_mt(_resolving(life), "DRS1", 1, None, t),
     }
 
 
-def _resolving(store: Store, life: lc.CommandLifecycle) -> Operations:
-    """Just enough of Operations for ``resolve_mt`` to reach its rule (it refuses before reading more)."""
-    ops = Operations.__new__(Operations)
-    ops.store, ops.lifecycle = store, life
-    return ops
+def _resolving(life: lc.CommandLifecycle) -> IridiumOps:
+    """Just enough of IridiumOps for ``resolve_mt`` to reach its rule (it refuses before reading more)."""
+    iridium = IridiumOps.__new__(IridiumOps)
+    iridium.lifecycle = life
+    return iridium
 
 
 def test_every_typed_text_field_refuses_hidden_characters_naming_itself(store: Store, tmp_path: Path) -> None:

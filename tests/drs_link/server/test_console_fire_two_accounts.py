@@ -16,7 +16,7 @@ import pytest
 from console.context import ConsoleSetup
 from drs_link.config import load_config
 from drs_link.errors import RefusedError
-from drs_link.ops import Operations
+from drs_link.ops import OperatorOps
 from drs_link.server.protocol import Second
 from drs_link.sim import CapsuleSimulator
 from drs_link.sim.keys import write_ed25519
@@ -59,7 +59,7 @@ def console(
         )
         own = load_config(mine)
         store = Store.open(own.store_path)
-        operations = Operations(own, store, environ={ROCKBLOCK_PASSWORD_ENV: "pw"})
+        operations = OperatorOps(own, store, environ={ROCKBLOCK_PASSWORD_ENV: "pw"})
         weather = place / "gfs"
         weather.mkdir()
         app = ConsoleUnderTest(ConsoleSetup(

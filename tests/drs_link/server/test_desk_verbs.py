@@ -21,7 +21,8 @@ from drs_link.iridium.mt import MtComposer
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.ops import ChecklistRun, load_checklists, parachute_override, recovery_view, statuses_of
 from drs_link.ops.checklist import PROCEDURE_DIR, StepKind
-from drs_link.ops.operations import Operations, SecondOperator
+from drs_link.ops.operator_ops import OperatorOps
+from drs_link.ops.ops_state import SecondOperator
 from drs_link.ops.views import iridium_health_from
 from drs_link.server import PROTOCOL, Client, Event, InProcessServer
 from drs_link.server.desk import Desk
@@ -192,12 +193,14 @@ def test_the_recovery_and_iridium_views_cross_the_wire_equal_to_the_stores(
 ) -> None:
     config, store, client = served
     desk = Desk(client)
-    ops = Operations(config, store, clock=lambda: T0)
+    ops = OperatorOps(config, store, clock=lambda: T0)
     recovery = desk.recovery("DRS2")
     assert recovery.descent.landing is not None and recovery.descent.track, "the landing, its track"
-    assert recovery == recovery_view(ops, "DRS2", None), "datetimes, tuples and nested values intact"
+    assert recovery == recovery_view(ops.iridium, "DRS2", None), "datetimes, tuples and nested values intact"
     iridium = desk.iridium("DRS2")
-    assert iridium == iridium_health_from("DRS2", ops.stored_reports("DRS2"), ops.commands("DRS2"))
+    assert iridium == iridium_health_from(
+        "DRS2", ops.iridium.stored_reports("DRS2"), ops.iridium.commands("DRS2")
+    )
     assert iridium.rows[0].fix_time is not None and iridium.rows[0].fix_time.tzinfo is not None
     with pytest.raises(ConfigError, match="DRS9"):
         desk.iridium("DRS9")
@@ -217,13 +220,15 @@ def test_a_parachute_plan_comes_with_the_landed_evidence_and_an_override_stays_o
     store = Store.open(config.store_path)
     landing(store, config.capsules[0].imei or "", falling=True)
     landing(store, config.capsules[1].imei or "")
-    ops = Operations(config, store, clock=lambda: T0, environ=PASSWORD)
+    ops = OperatorOps(config, store, clock=lambda: T0, environ=PASSWORD)
     server = InProcessServer(config, environ=PASSWORD, clock=lambda: T0)
     try:
         with Client(server.socket) as client:
             desk = Desk(client)
             landed = desk.plan_parachute("DRS2", None)
-            assert landed.plan == ops.plan_parachute("DRS2", None) and landed.evidence == ops.landed("DRS2")
+            assert landed.plan == ops.iridium.plan_parachute(
+                "DRS2", None
+            ) and landed.evidence == ops.iridium.landed("DRS2")
             assert landed.evidence.on_ground and desk.landed("DRS2") == landed.evidence
             falling = desk.plan_parachute("DRS1", None)
             assert not falling.evidence.on_ground, "the operator reads NO LANDED EVIDENCE before sending"
@@ -231,12 +236,12 @@ def test_a_parachute_plan_comes_with_the_landed_evidence_and_an_override_stays_o
                 desk.plan_parachute("DRS2", ((landed.plan.hour + 6) % 24, landed.plan.minute))
             assert desk.view().overrides == ()
             message = MtComposer().add("PARACHUTE", (falling.plan.hour, falling.plan.minute)).build()
-            ops.send_mt(
+            ops.iridium.send_mt(
                 "DRS1", message, "DRS1", SecondOperator(waiver="alone"), override_landed="chase sees it down"
             )
             [override] = desk.view().overrides
             local = parachute_override(
-                "DRS1", store.audit("DRS1", action="mt.parachute"), ops.commands("DRS1")
+                "DRS1", store.audit("DRS1", action="mt.parachute"), ops.iridium.commands("DRS1")
             )
             assert override == local and "WITHOUT landed evidence" in override.banner()
     finally:

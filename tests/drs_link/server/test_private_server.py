@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import os
 import stat
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -61,3 +63,24 @@ def test_the_event_stream_pushes_each_capsules_release_and_arm_state(
     with Client.for_config(load_config(config)) as client:
         event = next(iter(client.events()))
     assert event.release == {"DRS1": "idle"} and event.armed == {"DRS1": "none"} and event.approvals == ()
+
+
+def test_two_environments_without_a_file_get_two_private_servers_each_serving_its_own_defaults(
+    tmp_path: Path,
+) -> None:
+    """One account, two environments with no configuration file (other ``$XDG_CONFIG_HOME`` and
+    ``$XDG_DATA_HOME``): each `drs` is served by a private server that read its own defaults. One key for
+    every "no file" once had the second told of the first's missing file, and served from its store."""
+    runtime = tmp_path / "run"
+    runtime.mkdir(mode=0o700)
+    told = []
+    for name in ("first", "second"):
+        env = {k: v for k, v in os.environ.items() if k not in ("DRS_CONFIG", "DRS_PRIVATE_SERVER")}
+        env.update(HOME=str(tmp_path / name), XDG_CONFIG_HOME=str(tmp_path / name / "config"),
+                   XDG_DATA_HOME=str(tmp_path / name / "data"), XDG_RUNTIME_DIR=str(runtime),
+                   DRS_SERVER_IDLE_S="60")  # fmt: skip
+        done = subprocess.run([sys.executable, "-m", "console.commands.main", "mo", "health", "DRS1"],
+                              env=env, capture_output=True, text=True, timeout=120)  # fmt: skip
+        told.append(done.stderr)
+    for name, said in zip(("first", "second"), told, strict=True):
+        assert f"no configuration file at {tmp_path / name / 'config' / 'drs' / 'drs.toml'} " in said, said

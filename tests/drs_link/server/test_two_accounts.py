@@ -1,7 +1,7 @@
 """The attacks of issue #29, each by one person with one account, against a real shared `drs server`.
 
 On main before the server each of these worked: an operator approved their own PARACHUTE override from a
-config they wrote (`[[approver]]` with their own key as "JM"), or forged an approval with one UPDATE of
+config they wrote (their own ssh key listed as JM's approver key), or forged an approval with one UPDATE of
 the group-writable store. Here the server knows each caller from the kernel (SO_PEERCRED) and its own
 `[[operator]]` list, and its store sits in its own 0700 directory: each attack is refused, nothing
 reaches the gateway, and only a second account's live approval lets the command go.
@@ -118,12 +118,10 @@ def test_a_parachute_override_goes_only_once_another_account_approves_and_every_
     gateway: SimulatedRockblock,
 ) -> None:
     alice_config = client_config(place, team.alice)
-    # Alice's own config, the attack of #29: she names herself JM and lists an approver key as JM's.
+    # Alice's own config, the attack of #29: she names herself JM (the approver key list it also had is
+    # no longer read at all: such a file is refused, tests/drs_link/test_config.py).
     forged = place / "forged.toml"
-    forged.write_text(
-        f'[operator]\nname = "JM"\n[server]\nsocket = "{server.socket}"\n'
-        '[[approver]]\nname = "JM"\nkey = "ssh-ed25519 AAAAC3NzaC1lZDI1NTE5AAAAIExampleKeyOfHerOwn alice@ground"\n'
-    )
+    forged.write_text(f'[operator]\nname = "JM"\n[server]\nsocket = "{server.socket}"\n')
     forged.chmod(0o644)
     waiting = drs_waiting(team.alice, alice_config, *PARACHUTE, "--await-approval")
     lines = []

@@ -1,0 +1,96 @@
+"""A server whose answer breaks off, stalls or does not parse: the client says so as a ``LinkError``.
+
+A console's worker says a ``LinkError`` to the operator; a bare ``TimeoutError``, ``IncompleteRead`` or
+msgspec error was not one, and a Sync whose answer broke off left "syncing data…" as its last word. The
+server here is a real Unix socket answering real HTTP, badly on purpose."""
+
+from __future__ import annotations
+
+import socket
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from drs_link.errors import LinkError
+from drs_link.server import Client
+
+CHUNKED = b"HTTP/1.1 200 OK\r\nContent-Type: application/x-ndjson\r\nTransfer-Encoding: chunked\r\n\r\n"
+
+
+def chunk(data: bytes) -> bytes:
+    return b"%x\r\n%s\r\n" % (len(data), data)
+
+
+def read_request(conn: socket.socket) -> None:
+    """The whole request, head and body, so the answer never meets a client still sending."""
+    data = b""
+    while b"\r\n\r\n" not in data:
+        data += conn.recv(65536)
+    head, body = data.split(b"\r\n\r\n", 1)
+    length = next((int(line.split(b":")[1]) for line in head.split(b"\r\n")
+                   if line.lower().startswith(b"content-length:")), 0)  # fmt: skip
+    while len(body) < length:
+        body += conn.recv(65536)
+
+
+@pytest.fixture
+def answering(tmp_path: Path) -> Iterator[tuple[Path, list[bytes]]]:
+    """A Unix socket that reads one request and writes the bytes put in its list, then closes (or, with
+    none, holds the connection open and says nothing until the test ends)."""
+    path = tmp_path / "s"
+    listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    listener.bind(str(path))
+    listener.listen(1)
+    answer: list[bytes] = []
+    done = threading.Event()
+
+    def serve() -> None:
+        conn, _ = listener.accept()
+        with conn:
+            read_request(conn)
+            if answer:
+                conn.sendall(answer[0])
+            else:
+                done.wait(30)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    yield path, answer
+    done.set()
+    listener.close()
+
+
+def test_a_step_answer_that_breaks_off_mid_chunk_is_a_link_error(answering: tuple[Path, list[bytes]]) -> None:
+    path, answer = answering
+    answer.append(CHUNKED + b'40\r\n{"kind": "said", ')
+    with pytest.raises(LinkError, match="broke off its answer: IncompleteRead"):
+        Client(path, timeout_s=5.0).capsule("DRS1").sync(say=lambda _: None)
+
+
+def test_a_step_answer_that_stalls_past_the_timeout_is_a_link_error(
+    answering: tuple[Path, list[bytes]],
+) -> None:
+    path, _ = answering
+    with pytest.raises(LinkError, match="broke off its answer|did not answer"):
+        Client(path, timeout_s=0.5).capsule("DRS1").sync(say=lambda _: None)
+
+
+def test_a_step_that_does_not_parse_is_a_link_error_naming_the_verb(
+    answering: tuple[Path, list[bytes]],
+) -> None:
+    path, answer = answering
+    answer.append(CHUNKED + chunk(b"not json\n") + b"0\r\n\r\n")
+    with pytest.raises(LinkError, match="step of /capsules/DRS1/sync does not parse"):
+        Client(path, timeout_s=5.0).capsule("DRS1").sync(say=lambda _: None)
+
+
+def test_an_answer_of_the_wrong_shape_is_a_link_error_naming_the_verb(
+    answering: tuple[Path, list[bytes]],
+) -> None:
+    path, answer = answering
+    body = b'"a string where the hello belongs"'
+    answer.append(b"HTTP/1.1 200 OK\r\nContent-Length: %d\r\n\r\n%s" % (len(body), body))
+    with pytest.raises(LinkError, match="answer to GET /hello does not parse"):
+        Client(path, timeout_s=5.0).hello()
