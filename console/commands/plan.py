@@ -378,7 +378,7 @@ def run_live(args: argparse.Namespace) -> int:
         print(
             f"{iso_z(fix.time)}  {fix.alt_m:7.0f} m  → {p.landing.lat:.5f}, {p.landing.lon:.5f} at "
             f"{iso_z(p.landing.time)[11:19]} (in {minutes}m{seconds:02d}s"
-            + (f", ± {spread:.0f} s from λ" if spread is not None else "")
+            + (f", ± {spread:.0f} s 1σ" if spread is not None else "")
             + f")  1σ {p.ellipse.sigma_parallel_km:.2f}×{p.ellipse.sigma_perpendicular_km:.2f} km  "
             + (result.rate.describe() if result.rate is not None else "λ off")
             + (

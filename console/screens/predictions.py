@@ -51,7 +51,7 @@ def describe(
     ]
     for c in prediction.contours:
         lines.append(
-            f"  {c.n_sigma:.0f}σ: {c.major_km:.2f} × {c.minor_km:.2f} km holds {c.probability * 100:.1f}%"
+            f"  {c.n_sigma:.3g}σ: {c.major_km:.2f} × {c.minor_km:.2f} km holds {c.probability * 100:.1f}%"
         )
     lines += [f"  ! {w}" for w in prediction.warnings]
     return "\n".join(lines)

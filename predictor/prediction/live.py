@@ -116,7 +116,7 @@ class LiveErrorModel:
     (``ascent_distance_km_h``); X̄(h) the evaluation flights' RMS X at that height, which weather that
     does not say where it was measured (a forecast) flies. Squared-error fits of σ0 + drift forms were
     tried and dominated by a few large misses high up, which left 3 km of σ at the ground; a table per
-    height keeps each height honest. A table without β (a file written before schema 6) is σ(h) alone.
+    height keeps each height honest. A table without β (a file written before the widened ellipse) is σ(h) alone.
     """
 
     heights_km: tuple[float, ...]
