@@ -12,7 +12,8 @@ Measured: (1) the table learned on the training flights as recorded and thinned 
 what the record in hand says live); (2) which part of the EOSS table does not carry to SuperBIT: its
 median departure, its spread and its prior, each swapped for SuperBIT's own (leave-one-out among the
 SuperBIT flights), and the median departure left out; (3) the median departure of each payload's
-flights on the textbook law and on the calibrated SuperBIT law. Each table is flown on the scored flights exactly
+flights on the textbook law and on the calibrated SuperBIT law; (4) whether a flight's own record shows
+its departure (the trend of λ within the record against the departure). Each table is flown on the scored flights exactly
 as ``drs live evaluate`` flies textbook + λ (``LivePredictor`` with the table and prior, the first
 report at or below each checkpoint height; what ships flies the same λ below 22.5 km, so its time
 figures from 20 km down are these): the mean |remaining-time error| ÷ the plain restart's, with the
@@ -26,6 +27,7 @@ last three fixes as recorded, so that the touchdown every λ is measured against
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -41,7 +43,7 @@ from predictor.calibration.live_evaluation import (
     ratio_interval,
 )
 from predictor.descent import PROFILES, RatePrior
-from predictor.prediction.live import NO_CORRECTION, LivePredictor, RateDiscrepancy, by_height
+from predictor.prediction.live import NO_CORRECTION, DescentRecord, LivePredictor, RateDiscrepancy, by_height
 from predictor.prediction.model_file import load_model
 
 SUPERBIT = sorted(Path("../shared/data/tracks/pyballoon_superbit").glob("*-*.csv"))
@@ -196,7 +198,44 @@ def report(superbit: Sequence[Path], eoss: Sequence[Path]) -> str:
             d = rate_law(_rate_survey(sets[name], payload, terms))[1]
             row = " | ".join(f"{d.at(km)[0]:+.3f} / {d.at(km)[1]:.3f}" for km in TABLE_KM)
             lines.append(f"| {name} | {label} | {row} |")
+    lines += ["", "## Does the flight's own record show its shape?", "",
+              "At every fix 4–12 and 12–20 km above the ground, the record's trend (ln λ of its last 3 km less",
+              "ln λ of the 3 km above them) against its departure (ln λ of its last 6 km less the remaining",
+              "descent's), textbook law: the least-squares line departure = a + b · trend, and r:", "",
+              "| flights | heights | fixes | mean trend | mean departure | a | b | r |",
+              "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for name in ("SuperBIT", "EOSS"):
+        for low_km, high_km in ((4.0, 12.0), (12.0, 20.0)):
+            trend, departure = trends(sets[name], low_km, high_km)
+            b, a = np.polyfit(trend, departure, 1)
+            r = float(np.corrcoef(trend, departure)[0, 1])
+            lines.append(f"| {name} | {low_km:g}–{high_km:g} km | {trend.size} | {trend.mean():+.3f} | "
+                         f"{departure.mean():+.3f} | {a:+.3f} | {b:+.2f} | {r:+.2f} |")  # fmt: skip
     return "\n".join(lines) + "\n"
+
+
+def trends(flights: Sequence[_Flight], low_km: float, high_km: float) -> tuple[np.ndarray, np.ndarray]:
+    """(trend, departure) at every fix between ``low_km`` and ``high_km`` above the ground whose record
+    has both 3 km windows."""
+    trend, departure = [], []
+    for flight in flights:
+        record = DescentRecord(LivePredictor(flight.cube, PROFILE, flight.ground).law)
+        touchdown_s = _touchdown_s(flight.descent, flight.landing.alt_m)
+        for fix in flight.descent[:-1]:
+            record.add(fix)
+            height_m = fix.alt_m - flight.landing.alt_m
+            law_s = record.remaining_model_s(fix.alt_m) or 0.0
+            measured_s = touchdown_s - (fix.time - flight.descent[0].time).total_seconds()
+            if not 1000.0 * low_km <= height_m < 1000.0 * high_km or law_s <= 0.0 or measured_s <= 0.0:
+                continue
+            near = record.rate_fit(fix.alt_m, window_m=3000.0)
+            far = record.rate_fit(fix.alt_m + 3000.0, window_m=3000.0, earlier=True)
+            whole = record.rate_fit(fix.alt_m)
+            if near is None or far is None or whole is None:
+                continue
+            trend.append(math.log(near.factor / far.factor))
+            departure.append(math.log(whole.factor) - math.log(law_s / measured_s))
+    return np.array(trend), np.array(departure)
 
 
 def main() -> None:
