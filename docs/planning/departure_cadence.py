@@ -48,7 +48,7 @@ from predictor.prediction.model_file import load_model
 
 SUPERBIT = sorted(Path("../shared/data/tracks/pyballoon_superbit").glob("*-*.csv"))
 EOSS = sorted(Path("tests/data/eoss").glob("*_descent.csv"))
-MODEL = Path("docs/planning/superbit-2018-2019-model.json")
+MODEL = Path(__file__).with_name("superbit-2018-2019-model.json")
 CHECKPOINTS_KM = (25.0, 20.0, 15.0, 10.0, 5.0)
 TABLE_KM = (3.5, 6.0, 8.5, 11.0, 13.5, 18.5, 23.5)
 CADENCES_S: tuple[float | str | None, ...] = (None, 60.0, 120.0, 180.0, 300.0, "own")
