@@ -266,14 +266,16 @@ class ApprovalBook:
         """The capsule's release state changed (power-on, release, reset): every request for it is void."""
         return self._end("capsule = ?", (capsule,), "void", reason, operator)
 
-    def cancel(self, approval_id: int, operator: str, login: Login) -> Approval:
-        """The requester withdraws a request (pending or approved, not yet spent); audited."""
+    def cancel(self, approval_id: int, operator: str, login: Login, why: str | None = None) -> Approval:
+        """The requester withdraws a request (pending or approved, not yet spent); audited. ``why``: when
+        the requester did not (the server stopped, their connection dropped), the reason said instead of
+        "cancelled by" them."""
         request = self.get(approval_id)
         if not request.requester.same_person(login):
             raise RefusedError(
                 f"approval #{approval_id} was requested by {request.requester}; only they can cancel it"
             )
-        if not self._end("id = ?", (approval_id,), "cancelled", f"cancelled by {operator}", operator):
+        if not self._end("id = ?", (approval_id,), "cancelled", why or f"cancelled by {operator}", operator):
             now = self.get(approval_id).status(self.clock())
             raise RefusedError(f"approval #{approval_id} is {now}: nothing to cancel")
         return self.get(approval_id)

@@ -94,6 +94,10 @@ log = logging.getLogger(__name__)
 R = TypeVar("R", bound=Request)
 EVENT_PERIOD_S = 0.25
 """How often the event stream looks for a change to push."""
+WITHDRAWN_DROPPED = "withdrawn: the requester's connection closed while it waited"
+WITHDRAWN_STOPPED = "withdrawn: the operations server stopped while it waited; ask again"
+"""Why a request nobody waits for any more was withdrawn: said to the requester and in the audit, where
+"cancelled by" its requester would name an act they never did."""
 _STATUS = {
     "refused": 409,
     "config": 400,
@@ -276,7 +280,7 @@ class OperationsServer:
                 step = await asyncio.wait_for(steps.get(), timeout=0.25)
             except TimeoutError:
                 if request.transport is None or request.transport.is_closing():
-                    await self.blocking(lambda: self.withdraw(waiting))  # nobody waits for them any more
+                    await self.blocking(lambda: self.withdraw(waiting, WITHDRAWN_DROPPED))
                     await job
                     return response
                 continue
@@ -291,14 +295,14 @@ class OperationsServer:
             await response.write_eof()
         return response
 
-    def withdraw(self, requests: list[Approval]) -> None:
-        """Cancel requests whose requester is gone (its connection, or the server): the action waiting
-        on each is then refused and sends nothing."""
+    def withdraw(self, requests: list[Approval], why: str) -> None:
+        """Cancel requests whose requester is gone (its connection, or the server), saying ``why``: the
+        action waiting on each is then refused and sends nothing."""
         for approval in requests:
             peer = self.held.pop(approval.id, (None, None))[0]
             with contextlib.suppress(RefusedError):
                 self.approvals.book.cancel(
-                    approval.id, peer.operator if peer else "drs server", approval.requester
+                    approval.id, peer.operator if peer else "drs server", approval.requester, why
                 )
 
     # Routes ---------------------------------------------------------------------------------------
@@ -703,7 +707,9 @@ class OperationsServer:
             for ws in list(self.streams):
                 await ws.close(code=WSCloseCode.GOING_AWAY, message=b"the operations server is stopping")
             await self.feed.stop()
-            await self.blocking(lambda: self.withdraw([a for _, a in list(self.held.values())]))
+            await self.blocking(
+                lambda: self.withdraw([a for _, a in list(self.held.values())], WITHDRAWN_STOPPED)
+            )
             await runner.cleanup()
             with contextlib.suppress(FileNotFoundError):
                 self.socket_path.unlink()

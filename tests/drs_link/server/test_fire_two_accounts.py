@@ -108,3 +108,50 @@ def test_the_server_killed_mid_fire_sends_one_go_and_says_so_after_restart(
     else:
         assert after["go_at"] == row["go_at"]
     assert sim.firmware.go_at == first_go, "one Go: the microcontroller's countdown was not restarted"
+
+
+def test_a_server_restarted_with_a_window_and_a_request_open_withdraws_the_request_and_keeps_the_window(
+    powered: tuple[CapsuleSimulator, Server], place: Path, team: Team
+) -> None:
+    """SIGTERM while EL's Go waits for approval in her ARM window: EL is told, the request is withdrawn
+    (JM cannot approve it after the restart, so nothing fires on a decision made before it), and the
+    window, held in the server's store, is still EL's: she asks again and JM's approval releases once."""
+    sim, server = powered
+    weather = place / "gfs"
+    weather.mkdir()
+    args = release_args(write_weather(weather))
+    alice, bob = client_config(place, team.alice), client_config(place, team.bob)
+    assert drs(team.alice, alice, "capsule", "arm", "DRS1", *args)[0] == 0
+    waiting = drs_waiting(
+        team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args
+    )
+    while not waiting.readline().startswith("approval #1"):
+        pass
+    server.stop()
+    code, out = waiting.result()
+    assert code == 1 and out.strip() == (
+        "drs: error: approval #1 cancelled (withdrawn: the operations server stopped while it waited; ask again): "
+        "nothing sent"
+    ), out
+    restarted = Server(place / "server.toml", place, team.group, {ROCKBLOCK_PASSWORD_ENV: "pw"})
+    try:
+        code, out = drs(team.bob, bob, "approve", "1")
+        assert (
+            code == 1
+            and "approval #1" in out
+            and "cancelled (withdrawn: the operations server stopped" in out
+        ), out
+        code, out = drs(team.bob, bob, "approve")
+        assert code == 0 and out.strip() == "nothing waits for approval", out
+        assert sim.firmware.go_at is None, "nothing fired on the request the restart withdrew"
+        again = drs_waiting(
+            team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args
+        )
+        while not (line := again.readline()).startswith("approval #"):
+            assert line, "the second go ended before asking: the ARM window did not survive the restart"
+        assert drs(team.bob, bob, "approve", line.split()[1].lstrip("#").rstrip(":"))[0] == 0
+        code, out = again.result()
+        assert code == 0 and "released, Pi shut down" in out, out
+    finally:
+        restarted.stop()
+    assert sim.firmware.go_at is not None
