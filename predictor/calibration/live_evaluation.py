@@ -52,6 +52,7 @@ from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, WeatherError
 from predictor.prediction import (
     CONSTANT_WIND_M,
+    DISTANCE_RATIO_LIMITS,
     GEOD,
     LIVE_PROBABILITIES,
     NO_CORRECTION,
@@ -65,9 +66,8 @@ from predictor.prediction import (
     LivePredictor,
     LiveSettings,
     RateDiscrepancy,
+    n_sigma_for,
 )
-from predictor.prediction.live import DISTANCE_RATIO_LIMITS
-from predictor.prediction.uncertainty import n_sigma_for
 from predictor.tracks import Fix, ascent_weather_cube, clean, read_track
 
 CHECKPOINTS_KM = (25.0, 20.0, 15.0, 10.0, 5.0, 2.0)

@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from .live import (
         CONSTANT_WIND_M as CONSTANT_WIND_M,
         DEFAULT_ELLIPSE_NOTE as DEFAULT_ELLIPSE_NOTE,
+        DISTANCE_RATIO_LIMITS as DISTANCE_RATIO_LIMITS,
         LIVE_ERROR_MODEL as LIVE_ERROR_MODEL,
         LIVE_PROBABILITIES as LIVE_PROBABILITIES,
         NO_CORRECTION as NO_CORRECTION,
@@ -73,6 +74,7 @@ if TYPE_CHECKING:
         Ellipse as Ellipse,
         ErrorModel as ErrorModel,
         coverage as coverage,
+        n_sigma_for as n_sigma_for,
         parametric_ellipse as parametric_ellipse,
     )
     from .zones import (
@@ -116,6 +118,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "LocalPlane": "zones",
         "LIVE_ERROR_MODEL": "live",
         "LIVE_PROBABILITIES": "live",
+        "DISTANCE_RATIO_LIMITS": "live",
         "NO_CORRECTION": "live",
         "NO_DISCREPANCY": "live",
         "OWN_RATE": "live",
@@ -128,6 +131,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "ZoneFileError": "zones",
         "coverage_error": "landings",
         "coverage": "uncertainty",
+        "n_sigma_for": "uncertainty",
         "distance_at_center_km": "zones",
         "ellipse_covariance": "zones",
         "emit": "plausibility",
