@@ -188,7 +188,7 @@ class OperationsServer:
         self.streams: set[web.WebSocketResponse] = set()
         """Open event streams, closed first when the server stops (their handlers then end before the
         worker pool does, instead of asking a pool that was shut down)."""
-        self.connections: weakref.WeakSet[asyncio.BaseTransport] = weakref.WeakSet()
+        self.connections: weakref.WeakSet[asyncio.Transport] = weakref.WeakSet()
         """Every connection made (``accept``): the stop closes each before the loop ends."""
         self.accepting: set[asyncio.Task[None]] = set()
         """Connections accepted and not yet made: the stop waits for them (``accept``)."""
