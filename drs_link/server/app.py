@@ -707,8 +707,10 @@ class OperationsServer:
         if self.group is not None:
             os.chown(self.socket_path, -1, grp.getgrnam(self.group).gr_gid)
         self.socket_path.chmod(0o600 if self.mode == "private" else 0o660)
+        handler = runner.server
+        assert handler is not None  # made by setup
         loop = asyncio.get_running_loop()
-        loop.add_reader(listening, self.accept, listening, runner)
+        loop.add_reader(listening, self.accept, listening, handler)
         if threading.current_thread() is threading.main_thread():  # a private server in a thread has none
             for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
                 loop.add_signal_handler(sig, self.stopping.set)
@@ -727,7 +729,7 @@ class OperationsServer:
         finally:
             await self.stop(listening, runner)
 
-    def accept(self, listening: socket.socket, runner: web.AppRunner) -> None:
+    def accept(self, listening: socket.socket, handler: web.Server) -> None:
         """Take every connection waiting on the listening socket, each made into aiohttp's handler.
 
         Why not ``loop.create_unix_server`` (nor aiohttp's ``UnixSite``, which uses it): on Python 3.11
@@ -747,18 +749,13 @@ class OperationsServer:
                 log.warning("drs server: cannot accept a connection: %s", exc)
                 loop = asyncio.get_running_loop()
                 loop.remove_reader(listening)
-                loop.call_later(1.0, loop.add_reader, listening, self.accept, listening, runner)
+                loop.call_later(1.0, loop.add_reader, listening, self.accept, listening, handler)
                 return
-            task = asyncio.get_running_loop().create_task(self.connect(conn, runner))
+            task = asyncio.get_running_loop().create_task(self.connect(conn, handler))
             self.accepting.add(task)
             task.add_done_callback(self.accepting.discard)
 
-    async def connect(self, conn: socket.socket, runner: web.AppRunner) -> None:
-        handler = runner.server
-        if handler is None:  # the runner was cleaned up: nobody would answer
-            conn.close()
-            return
-        conn.setblocking(False)
+    async def connect(self, conn: socket.socket, handler: web.Server) -> None:
         try:
             transport, _ = await asyncio.get_running_loop().connect_accepted_socket(handler, conn)
         except OSError:  # the client went away before its connection was made
