@@ -80,8 +80,12 @@ ARMED, FIRING, FIRED = "armed", "firing", "fired"
 """The server's ARM window states (``ArmState.state``, ``drs_link.ops.ArmState`` values) a console tells
 apart."""
 READ_TIMEOUT_S = 5.0
-"""The longest a background read of the desk or the audit waits: it answers in milliseconds, and one
-left waiting on a server that stopped under it (the console quitting) must not hold the quit up."""
+"""The longest a background read of the desk or the audit waits. Not for a server stopping under it (the
+console quitting): that one answers or closes each connection within its grace (``STOP_GRACE_S``, 3 s,
+``drs_link.server.app``), and a read once left unanswered there was its bug, now fixed. It is for a server
+alive but stuck (its store locked by another process, a worker pool full): the read answers in
+milliseconds when all is well, nobody waits on it, and a worker held for the verbs' 600 s would hold the
+console's quit, which waits for its workers."""
 LOW_BANDWIDTH_AGE_STEP_S = 10.0
 AGE_STEP_S = 5.0
 """The view time's step on an ordinary link: fresh readings' ages (0s…4s between heartbeats) ticking

@@ -1,8 +1,9 @@
 """``drs server``: the one process that holds the store, the capsule links and the gateway credentials.
 
 Why aiohttp: HTTP request/response for verbs and a WebSocket for pushed views, both on a Unix socket
-(``web.UnixSite``), from one well-kept library with an asyncio server; the kernel's peer credentials of
-each connection are read from its socket (``peers.peer_uid``). Each operator action runs in a worker
+(aiohttp's handler on connections the server accepts itself, ``OperationsServer.accept``), from one
+well-kept library with an asyncio server; the kernel's peer credentials of each connection are read from its socket
+(``peers.peer_uid``). Each operator action runs in a worker
 thread over ``drs_link.ops`` (blocking SSH, SQLite, HTTP), and a long one (FIRE, an MT) answers with
 a stream of typed steps, so the requester's connection stays open while another account approves; when
 it drops, its waiting request is withdrawn.
@@ -23,6 +24,7 @@ import signal
 import socket
 import threading
 import time
+import weakref
 from collections.abc import Awaitable, Callable
 from concurrent.futures import ThreadPoolExecutor
 from datetime import datetime
@@ -98,6 +100,13 @@ WITHDRAWN_DROPPED = "withdrawn: the requester's connection closed while it waite
 WITHDRAWN_STOPPED = "withdrawn: the operations server stopped while it waited; ask again"
 """Why a request nobody waits for any more was withdrawn: said to the requester and in the audit, where
 "cancelled by" its requester would name an act they never did."""
+LISTEN_BACKLOG = 128
+"""Connections the kernel holds for the server before it accepts them (aiohttp's own default)."""
+STOP_GRACE_S = 3.0
+"""How long a stopping server lets a request in flight finish before it cancels it and closes its
+connection (its client's ``LinkError``): a read answers in milliseconds, and an action's approval
+request is withdrawn first, so what is left is work that would hold the stop (a store locked by another
+process, a link that stalls); the worker thread finishes it, nobody waits for it."""
 _STATUS = {
     "refused": 409,
     "config": 400,
@@ -175,6 +184,7 @@ class OperationsServer:
         self.last_active = time.monotonic()
         self.stopping = asyncio.Event()
         self.held: dict[int, tuple[Peer, Approval]] = {}
+        """Requests a connection waits on: withdrawn if it drops, or when the server stops."""
         self.changes = asyncio.Event()
         """Set (then replaced) whenever a request may have changed what the event streams show: each
         stream wakes at once instead of at its next look (``EVENT_PERIOD_S``), which stays for what the
@@ -182,7 +192,10 @@ class OperationsServer:
         self.streams: set[web.WebSocketResponse] = set()
         """Open event streams, closed first when the server stops (their handlers then end before the
         worker pool does, instead of asking a pool that was shut down)."""
-        """Requests a connection waits on: withdrawn if it drops, or when the server stops."""
+        self.connections: weakref.WeakSet[asyncio.Transport] = weakref.WeakSet()
+        """Every connection made (``accept``): the stop closes each before the loop ends."""
+        self.accepting: set[asyncio.Task[None]] = set()
+        """Connections accepted and not yet made: the stop waits for them (``accept``)."""
 
     # Plumbing ------------------------------------------------------------------------------------
 
@@ -539,7 +552,10 @@ class OperationsServer:
                 changes = self.changes  # taken before the look: a change made during it wakes the next wait
                 event = encode(await self.blocking(lambda: self.event(request["peer"])))
                 if event != last:
-                    await ws.send_bytes(event)
+                    try:
+                        await ws.send_bytes(event)
+                    except ConnectionError:
+                        break  # closed while it looked: the console went away, or the server stops
                     last = event
                 woken = asyncio.ensure_future(changes.wait())
                 try:
@@ -551,7 +567,10 @@ class OperationsServer:
                 if reader in done:
                     message = reader.result()
                     if message.type in (WSMsgType.TEXT, WSMsgType.BINARY):
-                        await ws.send_bytes(encode(Failure("protocol", "the event stream takes no messages")))
+                        with contextlib.suppress(ConnectionError):
+                            await ws.send_bytes(
+                                encode(Failure("protocol", "the event stream takes no messages"))
+                            )
                     await ws.close()
                     break
                 self.last_active = time.monotonic()
@@ -593,9 +612,10 @@ class OperationsServer:
                 if reader in done:
                     message = reader.result()
                     if message.type in (WSMsgType.TEXT, WSMsgType.BINARY):
-                        await ws.send_bytes(
-                            encode(Failure("protocol", "the telemetry stream takes no messages"))
-                        )
+                        with contextlib.suppress(ConnectionError):
+                            await ws.send_bytes(
+                                encode(Failure("protocol", "the telemetry stream takes no messages"))
+                            )
                     await ws.close()
                     break
         finally:
@@ -676,17 +696,25 @@ class OperationsServer:
 
     async def run(self, ready: Callable[[str], None] = print) -> None:
         claim_socket(self.socket_path)
-        runner = web.AppRunner(self.application(), access_log=None, handle_signals=False)
+        runner = web.AppRunner(
+            self.application(), access_log=None, handle_signals=False, shutdown_timeout=STOP_GRACE_S
+        )
         await runner.setup()
+        listening = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         old = os.umask(0o177 if self.mode == "private" else 0o117)
         try:
-            await web.UnixSite(runner, str(self.socket_path)).start()
+            listening.bind(str(self.socket_path))
         finally:
             os.umask(old)
+        listening.listen(LISTEN_BACKLOG)
+        listening.setblocking(False)
         if self.group is not None:
             os.chown(self.socket_path, -1, grp.getgrnam(self.group).gr_gid)
         self.socket_path.chmod(0o600 if self.mode == "private" else 0o660)
+        handler = runner.server
+        assert handler is not None  # made by setup
         loop = asyncio.get_running_loop()
+        loop.add_reader(listening, self.accept, listening, handler)
         if threading.current_thread() is threading.main_thread():  # a private server in a thread has none
             for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
                 loop.add_signal_handler(sig, self.stopping.set)
@@ -703,18 +731,67 @@ class OperationsServer:
                         ready(f"drs server: idle for {self.idle_exit_s:.0f} s: exiting")
                         break
         finally:
-            self.stopping.set()
-            for ws in list(self.streams):
-                await ws.close(code=WSCloseCode.GOING_AWAY, message=b"the operations server is stopping")
-            await self.feed.stop()
-            await self.blocking(
-                lambda: self.withdraw([a for _, a in list(self.held.values())], WITHDRAWN_STOPPED)
-            )
-            await runner.cleanup()
-            with contextlib.suppress(FileNotFoundError):
-                self.socket_path.unlink()
-            self.desks.close()
-            self.pool.shutdown(wait=False, cancel_futures=True)
+            await self.stop(listening, runner)
+
+    def accept(self, listening: socket.socket, handler: web.Server) -> None:
+        """Take every connection waiting on the listening socket, each made into aiohttp's handler.
+
+        Why not ``loop.create_unix_server`` (nor aiohttp's ``UnixSite``, which uses it): on Python 3.11
+        a connection accepted in the loop turn before its ``Server.close()`` is made a turn later, fails
+        the closed server's ``assert self._sockets is not None`` (``Server._attach``), and the error is
+        dropped; its socket was left in a reference cycle, open until a garbage collection, neither
+        answered nor closed, and its client waited its whole timeout (600 s). Here every accepted
+        socket becomes a connection the stop waits for (``accepting``) and closes (``connections``)."""
+        while True:
+            try:
+                conn, _ = listening.accept()
+            except (BlockingIOError, InterruptedError):
+                return
+            except ConnectionAbortedError:
+                continue
+            except OSError as exc:  # out of file descriptors: listen again in a second, as asyncio does
+                log.warning("drs server: cannot accept a connection: %s", exc)
+                loop = asyncio.get_running_loop()
+                loop.remove_reader(listening)
+                loop.call_later(1.0, loop.add_reader, listening, self.accept, listening, handler)
+                return
+            task = asyncio.get_running_loop().create_task(self.connect(conn, handler))
+            self.accepting.add(task)
+            task.add_done_callback(self.accepting.discard)
+
+    async def connect(self, conn: socket.socket, handler: web.Server) -> None:
+        try:
+            transport, _ = await asyncio.get_running_loop().connect_accepted_socket(handler, conn)
+        except OSError:  # the client went away before its connection was made
+            conn.close()
+            return
+        self.connections.add(transport)
+
+    async def stop(self, listening: socket.socket, runner: web.AppRunner) -> None:
+        """End every connection before the loop and the worker pool end, in this order: accept nothing more;
+        end the event streams and the telemetry; withdraw the approval requests held (the actions waiting on
+        them are refused and send nothing); let aiohttp answer each request in flight within
+        ``STOP_GRACE_S``, then cancel it; close every connection still open. A handler still running
+        when the pool was shut down asked it for a worker (``RuntimeError: cannot schedule new futures
+        after shutdown``); one left open when the loop ended was never answered (``accept``)."""
+        self.stopping.set()
+        asyncio.get_running_loop().remove_reader(listening)
+        listening.close()
+        for ws in list(self.streams):
+            await ws.close(code=WSCloseCode.GOING_AWAY, message=b"the operations server is stopping")
+        await self.feed.stop()
+        await self.blocking(
+            lambda: self.withdraw([a for _, a in list(self.held.values())], WITHDRAWN_STOPPED)
+        )
+        await asyncio.gather(*self.accepting)  # every accepted connection made: aiohttp's shutdown sees it
+        await runner.cleanup()
+        for transport in list(self.connections):
+            transport.abort()  # one whose answer its client does not read is closed, not flushed
+        await asyncio.sleep(0)  # an aborted connection's socket closes in the next loop turn
+        with contextlib.suppress(FileNotFoundError):
+            self.socket_path.unlink()
+        self.desks.close()
+        self.pool.shutdown(wait=False, cancel_futures=True)
 
 
 class _ProtocolError(Exception):

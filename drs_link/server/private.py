@@ -202,7 +202,8 @@ class InProcessServer:
             time.sleep(0.01)
 
     def stop(self) -> None:
-        """End the server (a request in flight is answered first) and wait for its thread."""
+        """End the server and wait for its thread: a request in flight is answered if it ends within
+        ``app.STOP_GRACE_S``, else its connection is closed (``OperationsServer.stop``)."""
         if self._loop is not None and self._thread.is_alive():
             self._loop.call_soon_threadsafe(self.server.stopping.set)
         self._thread.join(timeout=START_WAIT_S)
