@@ -281,12 +281,14 @@ def demo_setup(
     poll_s = Periods.at_scale(speed).poll_s if poll_period_s is None else poll_period_s
     # the world's password stays in here; the server polls at the pace the console judges ages by
     server = InProcessServer(config, predictor_for, world.environ, poll_period_s=poll_s)
+    feed = started_balloon_feed(config, world.clock)
+    world.send_balloon_position(world.clock())  # the world's first was sent before the feed listened
     return ConsoleSetup(
         mode="demo", capsules=[c.name for c in config.capsules], clock=world.clock, recorder=recorder,
         zones=load_exclusion_zones(config.console.exclusion_zones_file),
         zones_file=config.console.exclusion_zones_file, server=server.socket, stop_server=server.stop, weather=tuple(world.weather_files),
         predictions=PredictionService(lambda: world.weather_files, world.terrain, world.clock),
-        balloon_feed=started_balloon_feed(config, world.clock), team_position=_team(config),
+        balloon_feed=feed, team_position=_team(config),
         export_dir=export_dir, banner_note=f"×{speed:g} time",
         poll_period_s=poll_s,
         prediction_period_s=(
