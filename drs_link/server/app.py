@@ -761,11 +761,17 @@ class OperationsServer:
                 log.warning("drs server: cannot accept a connection: %s", exc)
                 loop = asyncio.get_running_loop()
                 loop.remove_reader(listening)
-                loop.call_later(1.0, loop.add_reader, listening, self.accept, listening, handler)
+                loop.call_later(1.0, self.listen_again, listening, handler)
                 return
             task = asyncio.get_running_loop().create_task(self.connect(conn, handler))
             self.accepting.add(task)
             task.add_done_callback(self.accepting.discard)
+
+    def listen_again(self, listening: socket.socket, handler: web.Server) -> None:
+        """Accept again after a pause (``accept``), unless the server began to stop meanwhile: its listening
+        socket is closed, and adding it back failed in the loop ("Invalid file descriptor: -1")."""
+        if not self.stopping.is_set():
+            asyncio.get_running_loop().add_reader(listening, self.accept, listening, handler)
 
     async def connect(self, conn: socket.socket, handler: web.Server) -> None:
         try:

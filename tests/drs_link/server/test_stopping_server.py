@@ -12,6 +12,7 @@ import asyncio
 import contextlib
 import logging
 import os
+import socket
 import sqlite3
 import threading
 import time
@@ -240,3 +241,39 @@ def test_a_request_asked_for_after_its_requester_dropped_is_withdrawn(shared: Sh
     while shared.request() in (None, ("pending", None)) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert shared.request() == ("cancelled", WITHDRAWN_DROPPED)
+
+
+def test_a_server_out_of_descriptors_that_stops_before_it_listens_again_logs_nothing(
+    config: Config, caplog: pytest.LogCaptureFixture
+) -> None:
+    """An accept that fails for want of file descriptors listens again a second later; a stop in that
+    second (held by a read in flight) closed the listening socket, and listening on it again was an
+    error in the loop (``Invalid file descriptor: -1``, which the fixture finds)."""
+    server = InProcessServer(config)
+    Desk(Client(server.socket)).view()
+    held = server.server.desks._lock  # a read in flight holds the stop for its grace
+    held.acquire()
+    waiting = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    taken: list[int] = []
+    try:
+        reading, _ = in_thread(lambda: Desk(Client(server.socket)).view())
+        time.sleep(0.3)
+        with contextlib.suppress(OSError):  # every descriptor this process may have (EMFILE)
+            while True:
+                taken.append(os.open("/dev/null", os.O_RDONLY))
+        waiting.connect(str(server.socket))  # its descriptor was made before: the server's accept has none
+        time.sleep(0.2)  # the server's accept failed: it listens again in a second
+        for fd in taken:
+            os.close(fd)
+        taken.clear()
+        assert any("cannot accept a connection" in r.getMessage() for r in caplog.records)
+        stopper, _ = in_thread(server.stop)
+        time.sleep(STOP_GRACE_S / 2)  # past the second, the stop still waits for the read
+    finally:
+        held.release()
+        for fd in taken:
+            os.close(fd)
+        waiting.close()
+    stopper.join(HANG_S)
+    reading.join(HANG_S)
+    assert not stopper.is_alive() and not reading.is_alive()
