@@ -71,8 +71,9 @@ class ConsoleScreen(Screen[None]):
     def write_off_ui(
         self, write: Callable[[], T], shown: Callable[[T], None], refused: Callable[[LinkError], None]
     ) -> None:
-        """A key's store write in a worker thread: a shared store held by another console's write must
-        never freeze the screen. Its result, or its refusal, comes back on the UI thread."""
+        """A key's write, a call to the operations server, in a worker thread: a server slow to answer (its
+        store held by another write) must never freeze the screen. Its result, or its refusal, comes back on
+        the UI thread."""
 
         def run() -> None:
             try:

@@ -298,7 +298,7 @@ class ReleaseScreen(ConsoleScreen):
         self.app.notify(str(exc), severity="error", timeout=10)
 
     def _write(self, write: Callable[[], object]) -> None:
-        """A key's store write off the UI thread (``write_off_ui``); the screen shows what it left."""
+        """A key's write to the server off the UI thread (``write_off_ui``); the screen shows what it left."""
 
         def refused(exc: LinkError) -> None:
             self._refused(exc)

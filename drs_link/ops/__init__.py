@@ -24,7 +24,6 @@ if TYPE_CHECKING:
         ApprovalBook as ApprovalBook,
         Login as Login,
         approved as approved,
-        pending_text as pending_text,
     )
     from .arm_window import ArmWindow as ArmWindow
     from .arming import (
@@ -299,7 +298,6 @@ __getattr__, __dir__, __all__ = lazy_door(
         "statuses_of": "checklist",
         "step_records": "checklist",
         "parachute_override": "override",
-        "pending_text": "approval",
         "read_recording": "telemetry",
         "record_as_dict": "capsule",
         "record_loss": "session",

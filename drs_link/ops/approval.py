@@ -502,11 +502,3 @@ def approved(
         why = f" ({decided.reason})" if decided.reason and decided.state == "rejected" else ""
         raise RefusedError(f"approval #{request.id} {book.why_not(decided, book.clock())}{why}: nothing sent")
     return request.id
-
-
-def pending_text(request: Approval) -> str:
-    """What the requester is told while the request waits."""
-    return (
-        f"approval #{request.id}: waiting for another login to run `drs approve {request.id}` "
-        f"(expires {request.expires_utc:%H:%M:%S}Z)"
-    )

@@ -98,8 +98,9 @@ class OpsState:
         holder: str | None = None,
         login: Login | None = None,
     ) -> None:
-        """``holder``: who may FIRE in an ARM window this process opens (default: this process;
-        ``drs`` uses account@host so that ``drs capsule arm`` and ``drs capsule go`` are one holder)."""
+        """``holder``: who may FIRE in an ARM window these operations open (default: this process; the
+        server's desk of an account uses account@host, ``server.desks.holder_of``, so that ``drs capsule
+        arm`` and ``drs capsule go`` are one holder)."""
         self.config = config
         self.store = store
         self.clock = clock

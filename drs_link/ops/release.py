@@ -11,7 +11,7 @@ from datetime import datetime
 
 from drs_link.errors import RefusedError
 from drs_link.link.backends import AuthorityStatus
-from drs_link.ops.approval import Approval, approved, window_command
+from drs_link.ops.approval import approved, window_command
 from drs_link.ops.arm_window import FIRING
 from drs_link.ops.arming import FINISH_GO_S, ArmStatus, check_second_operator
 from drs_link.ops.brief import ApprovalBrief, go_brief
@@ -113,17 +113,6 @@ class Release:
             self.state.release_record(name, record),
             TelemetryRecord(self.state.clock(), name, LinkSample(False, "released: the Pi shut down")),
         ])  # fmt: skip
-
-    def waiting_approvals(self, name: str) -> list[Approval]:
-        """This login's requests for ``name`` that still wait for another login (and can still be used)."""
-        return self.state.approvals.open_requests(name, requested_by=self.state.login)
-
-    def cancel_approvals(self, name: str) -> list[Approval]:
-        """Withdraw this login's waiting requests for ``name``: the action waiting on them is refused."""
-        return [
-            self.state.approvals.cancel(r.id, self.state.operator, self.state.login)
-            for r in self.waiting_approvals(name)
-        ]
 
     def finish_go(self, name: str, typed_name: str) -> list[TelemetryRecord]:
         """Finish a Go that left and was never verified (its link dropped before GoGoGo was confirmed):

@@ -264,6 +264,10 @@ class OperationsServer:
         loop = asyncio.get_running_loop()
         steps: asyncio.Queue[Step | None] = asyncio.Queue()
         waiting: list[Approval] = []
+        dropped = threading.Event()
+        """Set before the requests held for a dropped client are withdrawn (as ``stopping`` is before the
+        stop withdraws them): a request its worker asks for after that withdrawal sees it and is withdrawn at
+        once, instead of waiting pending, its action with it, for an approval nobody watches."""
 
         def say(line: str) -> None:
             loop.call_soon_threadsafe(steps.put_nowait, Said(line))
@@ -273,6 +277,9 @@ class OperationsServer:
             waiting.append(approval)
             self.held[approval.id] = (peer, approval)
             self.approvals.requested(peer, approval)
+            if self.stopping.is_set() or dropped.is_set():  # held after the withdrawal: refused, unstreamed
+                self.withdraw([approval], WITHDRAWN_STOPPED if self.stopping.is_set() else WITHDRAWN_DROPPED)
+                return
             text = (f"approval #{approval.id}: waiting for another account to run `drs approve {approval.id}` "
                     f"(expires {approval.expires_utc:%H:%M:%S}Z)")  # fmt: skip
             loop.call_soon_threadsafe(steps.put_nowait, Pending(approval.id, text))
@@ -293,6 +300,7 @@ class OperationsServer:
                 step = await asyncio.wait_for(steps.get(), timeout=0.25)
             except TimeoutError:
                 if request.transport is None or request.transport.is_closing():
+                    dropped.set()
                     await self.blocking(lambda: self.withdraw(waiting, WITHDRAWN_DROPPED))
                     await job
                     return response
@@ -753,11 +761,17 @@ class OperationsServer:
                 log.warning("drs server: cannot accept a connection: %s", exc)
                 loop = asyncio.get_running_loop()
                 loop.remove_reader(listening)
-                loop.call_later(1.0, loop.add_reader, listening, self.accept, listening, handler)
+                loop.call_later(1.0, self.listen_again, listening, handler)
                 return
             task = asyncio.get_running_loop().create_task(self.connect(conn, handler))
             self.accepting.add(task)
             task.add_done_callback(self.accepting.discard)
+
+    def listen_again(self, listening: socket.socket, handler: web.Server) -> None:
+        """Accept again after a pause (``accept``), unless the server began to stop meanwhile: its listening
+        socket is closed, and adding it back failed in the loop ("Invalid file descriptor: -1")."""
+        if not self.stopping.is_set():
+            asyncio.get_running_loop().add_reader(listening, self.accept, listening, handler)
 
     async def connect(self, conn: socket.socket, handler: web.Server) -> None:
         try:

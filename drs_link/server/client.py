@@ -241,11 +241,20 @@ class Client:
             elif isinstance(step, Said | Pending):
                 say(step.line)
             elif isinstance(step, Failure):
-                response.read()
+                self._drain(response)
                 raise_failure(step)
             else:
-                response.read()
+                self._drain(response)
                 return step
+
+    def _drain(self, response: http.client.HTTPResponse) -> None:
+        """Read an answer's end after its last step, so the connection serves the next verb. The step came
+        whole, so an end that breaks off or stalls (the server stopping) changes nothing it said: the
+        connection is closed and the step stands, where a bare ``IncompleteRead`` read as the action failing."""
+        try:
+            response.read()
+        except (OSError, http.client.HTTPException):
+            self._conn.close()
 
     def events(self) -> Iterator[Event]:
         """Each change of release state, ARM windows and waiting approvals, as the server pushes it."""

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from drs_link.errors import LinkError
+from drs_link.errors import LinkError, RefusedError
 from drs_link.server import Client
 
 CHUNKED = b"HTTP/1.1 200 OK\r\nContent-Type: application/x-ndjson\r\nTransfer-Encoding: chunked\r\n\r\n"
@@ -94,3 +94,24 @@ def test_an_answer_of_the_wrong_shape_is_a_link_error_naming_the_verb(
     answer.append(b"HTTP/1.1 200 OK\r\nContent-Length: %d\r\n\r\n%s" % (len(body), body))
     with pytest.raises(LinkError, match="answer to GET /hello does not parse"):
         Client(path, timeout_s=5.0).hello()
+
+
+def test_an_answer_that_breaks_off_after_its_last_step_keeps_the_step(
+    answering: tuple[Path, list[bytes]],
+) -> None:
+    """The action's ``Done`` arrived whole and the answer's end did not (the server stopped): the action
+    finished, so the client says so, not a bare ``IncompleteRead`` that reads as a failure."""
+    path, answer = answering
+    done = b'{"type":"done","lines":[],"ok":true,"arm":null,"sync":{"uploaded":["a.bin"],"skipped":0,"bytes_sent":10,"left_out":[]}}\n'
+    answer.append(CHUNKED + chunk(done))
+    report = Client(path, timeout_s=5.0).capsule("DRS1").sync(say=lambda _: None)
+    assert report.uploaded == ("a.bin",) and report.bytes_sent == 10
+
+
+def test_a_failure_step_whose_answer_breaks_off_after_it_is_still_that_failure(
+    answering: tuple[Path, list[bytes]],
+) -> None:
+    path, answer = answering
+    answer.append(CHUNKED + chunk(b'{"type":"failure","kind":"refused","error":"DRS1: no sync in flight"}\n'))
+    with pytest.raises(RefusedError, match="no sync in flight"):
+        Client(path, timeout_s=5.0).capsule("DRS1").sync(say=lambda _: None)

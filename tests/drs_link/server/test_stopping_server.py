@@ -8,8 +8,11 @@ whole timeout (600 s for a verb), and each bound is several times ``STOP_GRACE_S
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import logging
+import os
+import socket
 import sqlite3
 import threading
 import time
@@ -18,11 +21,14 @@ from pathlib import Path
 
 import pytest
 
-from drs_link.config import Config
+from drs_link.config import Config, parse_config
 from drs_link.errors import LinkError
-from drs_link.server import Client, InProcessServer
-from drs_link.server.app import STOP_GRACE_S
+from drs_link.ops import ApprovalBook
+from drs_link.server import Client, InProcessServer, Second
+from drs_link.server.app import STOP_GRACE_S, WITHDRAWN_DROPPED, WITHDRAWN_STOPPED, OperationsServer
 from drs_link.server.desk import Desk
+from drs_link.server.protocol import AuthoritySeen
+from drs_link.store import Store, account_of
 from tests.console.conftest import offline_config
 
 HANG_S = 4 * STOP_GRACE_S
@@ -131,3 +137,143 @@ def test_requests_racing_the_stop_each_get_an_answer_or_an_eof(config: Config) -
     its whole timeout) nor reach a worker pool that is shut down. A race, so tried over several stops."""
     for _ in range(8):
         assert not reads_while_stopping(InProcessServer(config))
+
+
+class SharedServer:
+    """A shared server of one operator (this account, EL) in a thread of this process: the one mode whose
+    actions wait for another account's approval."""
+
+    def __init__(self, tmp_path: Path) -> None:
+        self.config = parse_config({
+            "operator": [{"account": account_of(os.getuid()), "name": "EL"}],
+            "data": {"dir": str(tmp_path / "data")},
+            "capsule": [{"name": "DRS1", "host": "127.0.0.1", "port": 9}],
+        })  # fmt: skip
+        self.socket = tmp_path / "shared.sock"
+        self.server = OperationsServer(self.config, "shared", self.socket)
+        self.loop: list[asyncio.AbstractEventLoop] = []
+
+        async def serve() -> None:
+            self.loop.append(asyncio.get_running_loop())
+            await self.server.run(lambda line: None)
+
+        self.thread, _ = in_thread(lambda: asyncio.run(serve()))
+        deadline = time.monotonic() + HANG_S
+        while not self.socket.exists():
+            assert time.monotonic() < deadline, "the shared server did not start"
+            time.sleep(0.01)
+        Desk(Client(self.socket)).view()  # EL's desk is made
+        self.book = ApprovalBook(Store.open(self.config.store_path))
+
+    def take_over(self, client: Client) -> tuple[threading.Thread, list[object]]:
+        """EL's take-over of DRS1's release authority, waiting for another account's approval."""
+        return in_thread(
+            lambda: client.capsule("DRS1").take_over(
+                AuthoritySeen(None, 0, 0),
+                "DRS1",
+                "the Pi's owner file is stale",
+                Second(await_approval=True),
+                lambda line: None,
+            )
+        )
+
+    def request(self) -> tuple[str, str | None] | None:
+        """The one approval request's state and reason (None before it is made)."""
+        rows = self.book.store.query("SELECT state, reason FROM approval")
+        return (str(rows[0]["state"]), rows[0]["reason"]) if rows else None
+
+    def stop(self) -> None:
+        if self.thread.is_alive():
+            self.loop[0].call_soon_threadsafe(self.server.stopping.set)
+        self.thread.join(HANG_S)
+        assert not self.thread.is_alive()
+        for approval in self.book.open_requests():  # a failed run's worker waits on it: let it go
+            self.book.cancel(approval.id, "test", approval.requester)
+
+
+@pytest.fixture
+def shared(tmp_path: Path) -> Iterator[SharedServer]:
+    server = SharedServer(tmp_path)
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+def test_a_request_asked_for_while_the_server_stops_is_withdrawn_too(shared: SharedServer) -> None:
+    """A take-over's approval request made after the stop withdrew the held ones (its worker waited on
+    the desks' lock): nobody waits for it once the stop has closed its connection, so it is withdrawn as
+    the others were, never left pending for another account to approve after a restart (the worker,
+    which the pool does not stop, would then act on that approval)."""
+    held = shared.server.desks._lock  # the take-over's worker waits on it, past the stop's withdrawal
+    held.acquire()
+    try:
+        asking, answered = shared.take_over(Client(shared.socket))
+        time.sleep(0.5)  # the request reached its worker, which waits on the lock
+        shared.loop[0].call_soon_threadsafe(shared.server.stopping.set)
+        time.sleep(0.5)  # the stop withdrew what was held (nothing yet)
+    finally:
+        held.release()
+    shared.thread.join(HANG_S)
+    asking.join(HANG_S)
+    assert not shared.thread.is_alive() and not asking.is_alive()
+    [error] = answered
+    assert isinstance(error, LinkError), error
+    assert shared.request() == ("cancelled", WITHDRAWN_STOPPED)
+
+
+def test_a_request_asked_for_after_its_requester_dropped_is_withdrawn(shared: SharedServer) -> None:
+    """The requester's connection closes while its worker waits on the desks' lock: the request its
+    worker asks for after is withdrawn at once, not left pending (with the action waiting on it) for
+    another account to approve with nobody watching."""
+    held = shared.server.desks._lock
+    held.acquire()
+    try:
+        client = Client(shared.socket)
+        asking, _ = shared.take_over(client)
+        time.sleep(0.5)  # the request reached its worker, which waits on the lock
+        client.abort()
+        time.sleep(0.5)  # the server saw the connection close and withdrew what it waited on (nothing yet)
+    finally:
+        held.release()
+    asking.join(HANG_S)
+    deadline = time.monotonic() + HANG_S
+    while shared.request() in (None, ("pending", None)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert shared.request() == ("cancelled", WITHDRAWN_DROPPED)
+
+
+def test_a_server_out_of_descriptors_that_stops_before_it_listens_again_logs_nothing(
+    config: Config, caplog: pytest.LogCaptureFixture
+) -> None:
+    """An accept that fails for want of file descriptors listens again a second later; a stop in that
+    second (held by a read in flight) closed the listening socket, and listening on it again was an
+    error in the loop (``Invalid file descriptor: -1``, which the fixture finds)."""
+    server = InProcessServer(config)
+    Desk(Client(server.socket)).view()
+    held = server.server.desks._lock  # a read in flight holds the stop for its grace
+    held.acquire()
+    waiting = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    taken: list[int] = []
+    try:
+        reading, _ = in_thread(lambda: Desk(Client(server.socket)).view())
+        time.sleep(0.3)
+        with contextlib.suppress(OSError):  # every descriptor this process may have (EMFILE)
+            while True:
+                taken.append(os.open("/dev/null", os.O_RDONLY))
+        waiting.connect(str(server.socket))  # its descriptor was made before: the server's accept has none
+        time.sleep(0.2)  # the server's accept failed: it listens again in a second
+        for fd in taken:
+            os.close(fd)
+        taken.clear()
+        assert any("cannot accept a connection" in r.getMessage() for r in caplog.records)
+        stopper, _ = in_thread(server.stop)
+        time.sleep(STOP_GRACE_S / 2)  # past the second, the stop still waits for the read
+    finally:
+        held.release()
+        for fd in taken:
+            os.close(fd)
+        waiting.close()
+    stopper.join(HANG_S)
+    reading.join(HANG_S)
+    assert not stopper.is_alive() and not reading.is_alive()
