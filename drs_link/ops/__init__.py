@@ -113,6 +113,7 @@ if TYPE_CHECKING:
     from .links import CapsuleLinks as CapsuleLinks
     from .operator_ops import OperatorOps as OperatorOps
     from .ops_state import (
+        OnPending as OnPending,
         OpsState as OpsState,
         SecondOperator as SecondOperator,
         load_exclusion_zones as load_exclusion_zones,
@@ -243,6 +244,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "MISSING_TEXT": "staleness",
         "CapsuleLinks": "links",
         "OperatorOps": "operator_ops",
+        "OnPending": "ops_state",
         "OpsState": "ops_state",
         "Enrolment": "enrolment",
         "IridiumOps": "iridium_ops",

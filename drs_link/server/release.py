@@ -12,9 +12,9 @@ from collections.abc import Callable
 
 from drs_link.errors import ConfigError, RefusedError
 from drs_link.ops import (
-    Approval,
     ArmStatus,
     GoNoGoReport,
+    OnPending,
     Release,
     ReleaseSample,
     ReleaseState,
@@ -33,7 +33,6 @@ PRIVATE_TWO_PERSON = (
     "[server] socket in each operator's drs.toml"
 )
 Say = Callable[[str], None]
-OnPending = Callable[[Approval], None]
 
 
 def two_person_refusal(mode: Mode, peer: Peer, await_approval: bool) -> None:
