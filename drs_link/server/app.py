@@ -269,9 +269,16 @@ class OperationsServer:
         stop withdraws them): a request its worker asks for after that withdrawal sees it and is withdrawn at
         once, instead of waiting pending, its action with it, for an approval nobody watches."""
 
+        def post(step: Step, changed: bool = True) -> None:
+            """Hand a step to the stream; once a stop past its grace has ended the loop nobody reads it, and
+            the worker goes on to finish its action (``STOP_GRACE_S``) instead of dying on a closed loop."""
+            with contextlib.suppress(RuntimeError):  # "Event loop is closed"
+                loop.call_soon_threadsafe(steps.put_nowait, step)
+                if changed:  # each step may have moved a window or a request on
+                    loop.call_soon_threadsafe(self.changed)
+
         def say(line: str) -> None:
-            loop.call_soon_threadsafe(steps.put_nowait, Said(line))
-            loop.call_soon_threadsafe(self.changed)  # each step may have moved a window or a request on
+            post(Said(line))
 
         def on_pending(approval: Approval) -> None:
             waiting.append(approval)
@@ -282,15 +289,14 @@ class OperationsServer:
                 return
             text = (f"approval #{approval.id}: waiting for another account to run `drs approve {approval.id}` "
                     f"(expires {approval.expires_utc:%H:%M:%S}Z)")  # fmt: skip
-            loop.call_soon_threadsafe(steps.put_nowait, Pending(approval.id, text))
-            loop.call_soon_threadsafe(self.changed)
+            post(Pending(approval.id, text))
 
         def run() -> None:
             try:
                 end: Step = work(say, on_pending)
             except Exception as exc:  # noqa: BLE001 - the stream's last step says what went wrong
                 end = failure_of(exc)
-            loop.call_soon_threadsafe(steps.put_nowait, end)
+            post(end, changed=False)
 
         response = web.StreamResponse(headers={"Content-Type": "application/x-ndjson"})
         await response.prepare(request)

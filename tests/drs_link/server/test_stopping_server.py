@@ -277,3 +277,32 @@ def test_a_server_out_of_descriptors_that_stops_before_it_listens_again_logs_not
     stopper.join(HANG_S)
     reading.join(HANG_S)
     assert not stopper.is_alive() and not reading.is_alive()
+
+
+def test_a_worker_still_running_after_the_server_stopped_finishes_its_action_and_logs_nothing(
+    config: Config, tmp_path: Path
+) -> None:
+    """An ARM's go/no-go prediction outlasts the whole stop (its grace, the loop's end): when the
+    worker goes on, the lines it says have nobody to reach, and it finishes its action (refused here:
+    the capsule is unreachable) instead of dying on the closed loop with an 'unexpected error' (the
+    fixture fails the test on any error logged)."""
+    weather = tmp_path / "forecast.grib2"
+    weather.write_bytes(b"GRIB")  # only handed to the predictor, which never reads it
+    predicting, go_on = threading.Event(), threading.Event()
+    finished: list[object] = []
+
+    def predictor_for(files: list[Path], state: object) -> object:
+        predicting.set()
+        go_on.wait(HANG_S)
+        finished.append(files)
+        return lambda name, origin: []  # no landing: the poll judges the prediction NO-GO and says so
+
+    server = InProcessServer(config, predictor_for)  # type: ignore[arg-type]
+    arming, answered = in_thread(lambda: Client(server.socket).capsule("DRS1").arm(weather=(str(weather),)))
+    assert predicting.wait(HANG_S), "the ARM never reached its prediction"
+    server.stop()  # the grace ends with the worker still predicting, and the loop ends
+    arming.join(HANG_S)
+    assert isinstance(answered[0], LinkError), answered
+    go_on.set()
+    server.server.pool.shutdown(wait=True)  # the worker has finished its action
+    assert finished, "the worker never went on past its prediction"
