@@ -100,6 +100,9 @@ WITHDRAWN_DROPPED = "withdrawn: the requester's connection closed while it waite
 WITHDRAWN_STOPPED = "withdrawn: the operations server stopped while it waited; ask again"
 """Why a request nobody waits for any more was withdrawn: said to the requester and in the audit, where
 "cancelled by" its requester would name an act they never did."""
+PEER = web.RequestKey("peer", Peer)
+"""Who the kernel says sent a request (``SO_PEERCRED``), set before any route runs; a typed key, so
+every route reads a ``Peer``."""
 LISTEN_BACKLOG = 128
 """Connections the kernel holds for the server before it accepts them (aiohttp's own default)."""
 STOP_GRACE_S = 3.0
@@ -235,7 +238,7 @@ class OperationsServer:
                     "protocol", f"{request.path}: this server speaks protocol {PROTOCOL} ({ROOT}/…)"
                 )
             try:
-                request["peer"] = self.peer(request)
+                request[PEER] = self.peer(request)
             except (RefusedError, ConfigError) as exc:
                 return failure("identity", str(exc))
             return await handler(request)
@@ -260,7 +263,7 @@ class OperationsServer:
     ) -> web.StreamResponse:
         """Run ``work(say, on_pending)`` in a worker and stream its steps; a dropped client withdraws the
         approval request it waited on (the action is then refused and nothing is sent)."""
-        peer: Peer = request["peer"]
+        peer = request[PEER]
         loop = asyncio.get_running_loop()
         steps: asyncio.Queue[Step | None] = asyncio.Queue()
         waiting: list[Approval] = []
@@ -335,7 +338,7 @@ class OperationsServer:
     # Routes ---------------------------------------------------------------------------------------
 
     async def hello(self, request: web.Request) -> web.Response:
-        peer: Peer = request["peer"]
+        peer = request[PEER]
         hello = Hello(
             PROTOCOL, self.mode, peer.uid, peer.account, peer.operator,
             self.config.console.require_second_operator, tuple(c.name for c in self.config.capsules),
@@ -346,13 +349,13 @@ class OperationsServer:
         body = await self.body(request, ArmRequest)
         name = request.match_info["name"]
         return await self.stream(
-            request, lambda say, _: Done((), True, self.release.arm(request["peer"], name, body, say))
+            request, lambda say, _: Done((), True, self.release.arm(request[PEER], name, body, say))
         )
 
     async def disarm(self, request: web.Request) -> web.Response:
         body = await self.body(request, DisarmRequest)
         name = request.match_info["name"]
-        state = await self.blocking(lambda: self.release.disarm(request["peer"], name, body.reason))
+        state = await self.blocking(lambda: self.release.disarm(request[PEER], name, body.reason))
         return json_response(state)
 
     async def fire(self, request: web.Request) -> web.StreamResponse:
@@ -360,40 +363,38 @@ class OperationsServer:
         name = request.match_info["name"]
         return await self.stream(
             request,
-            lambda say, pending: Done(tuple(self.release.fire(request["peer"], name, body, say, pending))),
+            lambda say, pending: Done(tuple(self.release.fire(request[PEER], name, body, say, pending))),
         )
 
     async def send_mt(self, request: web.Request) -> web.StreamResponse:
         body = await self.body(request, MtSendRequest)
         name = request.match_info["name"]
         return await self.stream(
-            request, lambda say, pending: self.iridium.send_mt(request["peer"], name, body, say, pending)
+            request, lambda say, pending: self.iridium.send_mt(request[PEER], name, body, say, pending)
         )
 
     async def mt_status(self, request: web.Request) -> web.Response:
         name = request.match_info["name"]
-        return json_response(await self.blocking(lambda: self.iridium.mt_status(request["peer"], name)))
+        return json_response(await self.blocking(lambda: self.iridium.mt_status(request[PEER], name)))
 
     async def resolve_mt(self, request: web.Request) -> web.Response:
         body = await self.body(request, ResolveMtRequest)
         name = request.match_info["name"]
-        return json_response(
-            await self.blocking(lambda: self.iridium.resolve_mt(request["peer"], name, body))
-        )
+        return json_response(await self.blocking(lambda: self.iridium.resolve_mt(request[PEER], name, body)))
 
     async def health(self, request: web.Request) -> web.Response:
         name = request.match_info["name"]
-        return json_response(await self.blocking(lambda: self.iridium.health(request["peer"], name)))
+        return json_response(await self.blocking(lambda: self.iridium.health(request[PEER], name)))
 
     async def track(self, request: web.Request) -> web.Response:
         body = await self.body(request, TrackRequest)
-        return json_response(await self.blocking(lambda: self.iridium.track(request["peer"], body)))
+        return json_response(await self.blocking(lambda: self.iridium.track(request[PEER], body)))
 
     async def recovery_readout(self, request: web.Request) -> web.Response:
         """The one request that carries a track (the operator's predicted one): read up to its own limit."""
         body = await self.body(request.clone(client_max_size=MAX_RECOVERY_BYTES), RecoveryRequest)
         name = request.match_info["name"]
-        view = await self.blocking(lambda: self.recovery.readout(request["peer"], name, body))
+        view = await self.blocking(lambda: self.recovery.readout(request[PEER], name, body))
         return json_response(view)
 
     async def chase_points(self, request: web.Request) -> web.Response:
@@ -408,19 +409,19 @@ class OperationsServer:
 
     async def status(self, request: web.Request) -> web.Response:
         name = request.match_info["name"]
-        return json_response(await self.blocking(lambda: self.capsules.status(request["peer"], name)))
+        return json_response(await self.blocking(lambda: self.capsules.status(request[PEER], name)))
 
     async def power_on(self, request: web.Request) -> web.StreamResponse:
         body = await self.body(request, PowerOnRequest)
         name = request.match_info["name"]
         return await self.stream(
-            request, lambda say, _: self.capsules.power_on(request["peer"], name, body.confirmed, say)
+            request, lambda say, _: self.capsules.power_on(request[PEER], name, body.confirmed, say)
         )
 
     async def reset(self, request: web.Request) -> web.Response:
         body = await self.body(request, TypedNameRequest)
         name = request.match_info["name"]
-        view = await self.blocking(lambda: self.capsules.reset(request["peer"], name, body.typed_name))
+        view = await self.blocking(lambda: self.capsules.reset(request[PEER], name, body.typed_name))
         self.waivers.void(view.capsule)
         return json_response(view)
 
@@ -428,116 +429,114 @@ class OperationsServer:
         body = await self.body(request, ReleasedRequest)
         name = request.match_info["name"]
         view = await self.blocking(
-            lambda: self.capsules.released(request["peer"], name, body.typed_name, body.evidence)
+            lambda: self.capsules.released(request[PEER], name, body.typed_name, body.evidence)
         )
         return json_response(view)
 
     async def authority(self, request: web.Request) -> web.Response:
         name = request.match_info["name"]
-        return json_response(await self.blocking(lambda: self.capsules.authority(request["peer"], name)))
+        return json_response(await self.blocking(lambda: self.capsules.authority(request[PEER], name)))
 
     async def check_take_over(self, request: web.Request) -> web.Response:
         body = await self.body(request, ReasonRequest)
         name = request.match_info["name"]
-        view = await self.blocking(lambda: self.capsules.check_take_over(request["peer"], name, body.reason))
+        view = await self.blocking(lambda: self.capsules.check_take_over(request[PEER], name, body.reason))
         return json_response(view)
 
     async def take_over(self, request: web.Request) -> web.StreamResponse:
         body = await self.body(request, TakeOverRequest)
         name = request.match_info["name"]
         return await self.stream(
-            request, lambda say, pending: self.capsules.take_over(request["peer"], name, body, say, pending)
+            request, lambda say, pending: self.capsules.take_over(request[PEER], name, body, say, pending)
         )
 
     async def release_authority(self, request: web.Request) -> web.Response:
         body = await self.body(request, ReasonRequest)
         name = request.match_info["name"]
-        view = await self.blocking(
-            lambda: self.capsules.release_authority(request["peer"], name, body.reason)
-        )
+        view = await self.blocking(lambda: self.capsules.release_authority(request[PEER], name, body.reason))
         return json_response(view)
 
     async def sync(self, request: web.Request) -> web.StreamResponse:
         body = await self.body(request, SyncRequest)
         name = request.match_info["name"]
         return await self.stream(
-            request, lambda say, _: self.capsules.sync(request["peer"], name, body.source, say)
+            request, lambda say, _: self.capsules.sync(request[PEER], name, body.source, say)
         )
 
     async def sync_status(self, request: web.Request) -> web.Response:
         body = await self.body(request, SyncStatusRequest)
         name = request.match_info["name"]
         view = await self.blocking(
-            lambda: self.capsules.sync_status(request["peer"], name, body.source, body.with_hash)
+            lambda: self.capsules.sync_status(request[PEER], name, body.source, body.with_hash)
         )
         return json_response(view)
 
     async def host_key(self, request: web.Request) -> web.Response:
         name = request.match_info["name"]
-        return json_response(await self.blocking(lambda: self.capsules.host_key_offer(request["peer"], name)))
+        return json_response(await self.blocking(lambda: self.capsules.host_key_offer(request[PEER], name)))
 
     async def enrol(self, request: web.Request) -> web.Response:
         body = await self.body(request, EnrolRequest)
         name = request.match_info["name"]
-        view = await self.blocking(lambda: self.capsules.enrol(request["peer"], name, body.fingerprint))
+        view = await self.blocking(lambda: self.capsules.enrol(request[PEER], name, body.fingerprint))
         return json_response(view)
 
     # A console's desk (``desk``): its waivers, the checklists, the audit, its session, the views it draws.
 
     async def desk(self, request: web.Request) -> web.Response:
-        return json_response(await self.blocking(lambda: self.views.desk(request["peer"])))
+        return json_response(await self.blocking(lambda: self.views.desk(request[PEER])))
 
     async def waive(self, request: web.Request) -> web.Response:
         body = await self.body(request, WaiveRequest)
         name = request.match_info["name"]
-        held = await self.blocking(lambda: self.waivers.waive(request["peer"], name, body.item, body.reason))
+        held = await self.blocking(lambda: self.waivers.waive(request[PEER], name, body.item, body.reason))
         return json_response(held)
 
     async def withdraw_waiver(self, request: web.Request) -> web.Response:
         body = await self.body(request, ItemRequest)
         name = request.match_info["name"]
         return json_response(
-            await self.blocking(lambda: self.waivers.withdraw(request["peer"], name, body.item))
+            await self.blocking(lambda: self.waivers.withdraw(request[PEER], name, body.item))
         )
 
     async def held_waivers(self, request: web.Request) -> web.Response:
         name = request.match_info["name"]
-        return json_response(await self.blocking(lambda: self.waivers.held(request["peer"], name)))
+        return json_response(await self.blocking(lambda: self.waivers.held(request[PEER], name)))
 
     async def checklist_step(self, request: web.Request) -> web.Response:
         body = await self.body(request, StepRequest)
         name = request.match_info["name"]
-        return json_response(await self.blocking(lambda: self.checklists.step(request["peer"], name, body)))
+        return json_response(await self.blocking(lambda: self.checklists.step(request[PEER], name, body)))
 
     async def audit(self, request: web.Request) -> web.Response:
         body = await self.body(request, HistoryRequest)
-        return json_response(await self.blocking(lambda: self.history.read(request["peer"], body)))
+        return json_response(await self.blocking(lambda: self.history.read(request[PEER], body)))
 
     async def session_start(self, request: web.Request) -> web.Response:
         await self.body(request, HistoryRequest)
-        return json_response(await self.blocking(lambda: self.history.started(request["peer"])))
+        return json_response(await self.blocking(lambda: self.history.started(request[PEER])))
 
     async def session_lost(self, request: web.Request) -> web.Response:
         body = await self.body(request, SessionLossRequest)
-        return json_response(await self.blocking(lambda: self.history.lost(request["peer"], body)))
+        return json_response(await self.blocking(lambda: self.history.lost(request[PEER], body)))
 
     async def recovery_view(self, request: web.Request) -> web.Response:
         name = request.match_info["name"]
-        return json_response(await self.blocking(lambda: self.views.recovery(request["peer"], name)))
+        return json_response(await self.blocking(lambda: self.views.recovery(request[PEER], name)))
 
     async def iridium_view(self, request: web.Request) -> web.Response:
         name = request.match_info["name"]
-        return json_response(await self.blocking(lambda: self.views.iridium(request["peer"], name)))
+        return json_response(await self.blocking(lambda: self.views.iridium(request[PEER], name)))
 
     async def plan_parachute(self, request: web.Request) -> web.Response:
         body = await self.body(request, PlanRequest)
         name = request.match_info["name"]
-        view = await self.blocking(lambda: self.iridium.plan_parachute(request["peer"], name, body.requested))
+        view = await self.blocking(lambda: self.iridium.plan_parachute(request[PEER], name, body.requested))
         return json_response(view)
 
     async def landed(self, request: web.Request) -> web.Response:
         name = request.match_info["name"]
-        return json_response(await self.blocking(lambda: self.iridium.landed(request["peer"], name)))
+        return json_response(await self.blocking(lambda: self.iridium.landed(request[PEER], name)))
 
     async def waiting(self, request: web.Request) -> web.Response:
         return json_response(await self.blocking(self.approvals.waiting))
@@ -549,7 +548,7 @@ class OperationsServer:
         except ValueError:
             raise _ProtocolError(f"{request.match_info['approval']!r} is not an approval number") from None
         view = await self.blocking(
-            lambda: self.approvals.decide(request["peer"], approval_id, body.approve, body.reason)
+            lambda: self.approvals.decide(request[PEER], approval_id, body.approve, body.reason)
         )
         return json_response(view)
 
@@ -564,7 +563,7 @@ class OperationsServer:
         try:
             while not ws.closed and not self.stopping.is_set():
                 changes = self.changes  # taken before the look: a change made during it wakes the next wait
-                event = encode(await self.blocking(lambda: self.event(request["peer"])))
+                event = encode(await self.blocking(lambda: self.event(request[PEER])))
                 if event != last:
                     try:
                         await ws.send_bytes(event)
