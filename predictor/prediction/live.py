@@ -163,7 +163,8 @@ def ascent_distance_km_h(track: Track, measured_along: np.ndarray) -> float:
     z = np.interp(t, track.t_s, track.alt_m)
     lat = np.interp(t, track.t_s, track.lat)
     lon = np.interp(t, track.t_s, np.unwrap(track.lon, period=360.0))
-    alt_m, lat_m, lon_m = measured_along[:, 0], measured_along[:, 1], measured_along[:, 2]
+    alt_m, lat_m = measured_along[:, 0], measured_along[:, 1]
+    lon_m = np.unwrap(measured_along[:, 2], period=360.0)  # an ascent across ±180° interpolates across it
     _, _, distance_m = GEOD.inv(lon, lat, np.interp(z, alt_m, lon_m), np.interp(z, alt_m, lat_m))
     return float(np.mean(distance_m) / 1000.0 * (t[-1] - t[0]) / 3600.0)
 

@@ -9,12 +9,19 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from predictor.calibration.live_evaluation import LevelGround
 from predictor.environment import WeatherCube
 from predictor.prediction import LIVE_PROBABILITIES, LivePrediction, load_model
-from predictor.prediction.live import ELLIPSE_MEANING, TYPICAL_DISTANCE_NOTE, LiveErrorModel
+from predictor.prediction.landings import Track
+from predictor.prediction.live import (
+    ELLIPSE_MEANING,
+    TYPICAL_DISTANCE_NOTE,
+    LiveErrorModel,
+    ascent_distance_km_h,
+)
 from predictor.prediction.model_file import ModelFileError
 from predictor.tracks import ascent_weather_cube, clean, read_track
 from tests.conftest import REPO_ROOT
@@ -112,3 +119,26 @@ def test_a_negative_distance_column_is_refused(tmp_path: Path) -> None:
     bad.write_text(json.dumps(raw), encoding="utf-8")
     with pytest.raises(ModelFileError, match="typical_km_h"):
         load_model(bad)
+
+
+def test_the_distance_from_the_ascent_is_the_same_across_the_antimeridian() -> None:
+    """A flight whose ascent crossed ±180° (a long-duration flight circling the southern ocean): the
+    measured layers' longitudes interpolate across the line, not the long way round through 0°."""
+
+    def distance(lon0: float) -> float:
+        def wrapped(lon: np.ndarray) -> np.ndarray:
+            return (lon + 180.0) % 360.0 - 180.0
+
+        track = Track(
+            t_s=np.array([0.0, 1200.0, 2400.0]), lat=np.array([-45.0, -45.1, -45.2]),
+            lon=wrapped(lon0 + np.array([0.3, 0.5, 0.7])), alt_m=np.array([30000.0, 12000.0, 0.0]),
+        )  # fmt: skip
+        layers = np.array(
+            [[0.0, -44.9, lon0 - 0.2], [15000.0, -45.0, lon0 + 0.1], [31000.0, -45.1, lon0 + 0.2]]
+        )
+        layers[:, 2] = wrapped(layers[:, 2])
+        return ascent_distance_km_h(track, layers)
+
+    away_from_the_line = distance(10.0)
+    assert 1.0 < away_from_the_line < 100.0
+    assert distance(179.95) == pytest.approx(away_from_the_line, rel=1e-6)
