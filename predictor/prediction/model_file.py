@@ -638,6 +638,10 @@ def _error_model(raw: Any, refuse: Any) -> LiveErrorModel:
         if not 0.0 <= beta <= 3.0:
             raise refuse(f"{where}.growth_exponent", f"must be within 0–3, got {beta:g}")
         columns["growth_exponent"] = beta
+    elif (
+        "growth_exponent" in raw
+    ):  # a growth with no distance to grow from: an edited file, not flown as if whole
+        raise refuse(f"{where}.growth_exponent", "needs typical_km_h beside it (the distance it grows from)")
     return LiveErrorModel(heights, parallel, perpendicular, **columns)
 
 

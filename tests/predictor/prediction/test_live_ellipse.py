@@ -121,6 +121,17 @@ def test_a_negative_distance_column_is_refused(tmp_path: Path) -> None:
         load_model(bad)
 
 
+def test_a_growth_without_the_distance_it_grows_from_is_refused(tmp_path: Path) -> None:
+    """An edited file that keeps ``growth_exponent`` but lost ``typical_km_h`` is not flown as if the
+    growth were not there."""
+    raw = json.loads(MODEL.read_text(encoding="utf-8"))
+    del raw["live"]["error_model"]["typical_km_h"]
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(raw), encoding="utf-8")
+    with pytest.raises(ModelFileError, match="growth_exponent.*typical_km_h"):
+        load_model(bad)
+
+
 def test_the_distance_from_the_ascent_is_the_same_across_the_antimeridian() -> None:
     """A flight whose ascent crossed ±180° (a long-duration flight circling the southern ocean): the
     measured layers' longitudes interpolate across the line, not the long way round through 0°."""
