@@ -1,6 +1,6 @@
 """Issue #30's pre-flight floor with whole seasons and whole flights held out: docs/calibration/preflight-held-out.md.
 
-Run from the repository root: ``.venv/bin/python docs/calibration/preflight_held_out.py`` (a few minutes).
+Run from the repository root: ``.venv/bin/python docs/calibration/preflight_held_out.py`` (about a minute).
 
 Why a script: ``drs calibrate`` reports its pre-flight law held out one flight at a time **within** the
 calibration (``selection.preflight_gate``: the fits without the flight, but the selection and the gate
@@ -201,8 +201,10 @@ def report(superbit: Sequence[Path], eoss: Sequence[Path]) -> str:
                      floor(split, "landing", g["what ships"], g["plain law"])]  # fmt: skip
     lines += [
         "",
-        "## Within a calibration (`drs calibrate`'s own leave-one-out: the fits without each flight, the",
-        "selection and the gate on all of them)",
+        "## Within a calibration",
+        "",
+        "`drs calibrate`'s own leave-one-out: the fits without each flight, the selection and the gate on all",
+        "of them.",
         "",
         HEADER.format(first="calibrated on"),
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
