@@ -5,24 +5,13 @@ the code unnoticed."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
-from types import ModuleType
 
 from tests.approx import assert_text_close
 from tests.conftest import REPO_ROOT
+from tests.docs_scripts import load_docs_script
 
 SCRIPT = REPO_ROOT / "docs" / "planning" / "departure_cadence.py"
-
-
-def script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("departure_cadence", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_the_eoss_table_learned_at_superbit_cadence_does_not_carry_and_superbit_median_departure_would(
@@ -30,7 +19,7 @@ def test_the_eoss_table_learned_at_superbit_cadence_does_not_carry_and_superbit_
 ) -> None:
     superbit = sorted((shared_data / "tracks" / "pyballoon_superbit").glob("*-*.csv"))
     eoss = sorted((REPO_ROOT / "tests" / "data" / "eoss").glob("*_descent.csv"))
-    text = script().report(superbit, eoss)
+    text = load_docs_script(SCRIPT).report(superbit, eoss)
     assert_text_close(
         text, (REPO_ROOT / "docs" / "planning" / "departure-cadence.md").read_text(encoding="utf-8")
     )

@@ -5,24 +5,13 @@ missed cannot drift from the code unnoticed."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
-from types import ModuleType
 
 from tests.approx import assert_text_close
 from tests.conftest import REPO_ROOT
+from tests.docs_scripts import load_docs_script
 
 SCRIPT = REPO_ROOT / "docs" / "calibration" / "preflight_held_out.py"
-
-
-def script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("preflight_held_out", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_pre_flight_beats_the_plain_law_2018_to_2019_and_misses_it_2019_to_2018_and_in_eoss_time(
@@ -30,7 +19,7 @@ def test_pre_flight_beats_the_plain_law_2018_to_2019_and_misses_it_2019_to_2018_
 ) -> None:
     superbit = sorted((shared_data / "tracks" / "pyballoon_superbit").glob("*-*.csv"))
     eoss = sorted((REPO_ROOT / "tests" / "data" / "eoss").glob("*_descent.csv"))
-    text = script().report(superbit, eoss)
+    text = load_docs_script(SCRIPT).report(superbit, eoss)
     assert_text_close(
         text, (REPO_ROOT / "docs" / "calibration" / "preflight-held-out.md").read_text(encoding="utf-8")
     )

@@ -3,30 +3,19 @@ deterministic (a seeded bootstrap on committed data), so it cannot drift from th
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
-from types import ModuleType
 
 from tests.approx import assert_text_close
 from tests.conftest import REPO_ROOT
+from tests.docs_scripts import load_docs_script
 
 SCRIPT = REPO_ROOT / "docs" / "planning" / "wind_errors.py"
-
-
-def script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("wind_errors", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclass looks its module up there
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_the_committed_wind_error_report_is_what_the_script_writes(shared_data: Path) -> None:
     superbit = sorted((shared_data / "tracks" / "pyballoon_superbit").glob("*-*.csv"))
     eoss = sorted((REPO_ROOT / "tests" / "data" / "eoss").glob("*_descent.csv"))
-    text = script().report(superbit, eoss)
+    text = load_docs_script(SCRIPT).report(superbit, eoss)
     assert_text_close(text, (REPO_ROOT / "docs" / "planning" / "wind-errors.md").read_text(encoding="utf-8"))
     # What the ellipse and the shipped wind rest on: on SuperBIT the error's size grows with the
     # distance from the ascent, and below 12.5 km the error carries to the air 1–3 km below.
