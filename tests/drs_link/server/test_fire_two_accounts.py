@@ -13,7 +13,7 @@ import pytest
 
 from drs_link.sim import CapsuleSimulator
 from drs_link.store import Store
-from tests.drs_link.server.team import Server, Team, client_config, drs, drs_waiting, needs_root
+from tests.drs_link.server.team import Forked, Server, Team, client_config, drs, drs_waiting, needs_root
 from tests.release_helpers import ROCKBLOCK_PASSWORD_ENV, release_args, write_weather
 
 pytestmark = [needs_root, pytest.mark.slow]
@@ -65,12 +65,9 @@ def test_fire_needs_a_second_accounts_live_approval_and_releases_once(
     assert [a.result for a in store.audit("DRS1") if a.action == "go"][-1] == "released, Pi shut down"
 
 
-def test_the_server_killed_mid_fire_sends_one_go_and_says_so_after_restart(
-    powered: tuple[CapsuleSimulator, Server], place: Path, team: Team
-) -> None:
-    """SIGKILL of the server once the Pi wrote GoGoGo: the store says go-sent-unverified (written before
-    Go left), the restarted server tells the requester so, and finishing keeps the first Go's time beside the verified one's (issue #29)."""
-    sim, server = powered
+def armed_and_asking(place: Path, team: Team) -> tuple[list[str], Path, Path, Forked]:
+    """EL arms DRS1 and asks for Go with ``--await-approval``: the release's arguments, EL's and JM's
+    configurations, and EL's go, once it has asked for approval #1."""
     weather = place / "gfs"
     weather.mkdir()
     args = release_args(write_weather(weather))
@@ -79,8 +76,18 @@ def test_the_server_killed_mid_fire_sends_one_go_and_says_so_after_restart(
     waiting = drs_waiting(
         team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args
     )
-    while not waiting.readline().startswith("approval #"):
-        pass
+    while not (line := waiting.readline()).startswith("approval #1"):
+        assert line, "the go ended before asking"
+    return args, alice, bob, waiting
+
+
+def test_the_server_killed_mid_fire_sends_one_go_and_says_so_after_restart(
+    powered: tuple[CapsuleSimulator, Server], place: Path, team: Team
+) -> None:
+    """SIGKILL of the server once the Pi wrote GoGoGo: the store says go-sent-unverified (written before
+    Go left), the restarted server tells the requester so, and finishing keeps the first Go's time beside the verified one's (issue #29)."""
+    sim, server = powered
+    args, alice, bob, waiting = armed_and_asking(place, team)
     assert drs(team.bob, bob, "approve", "1")[0] == 0
     deadline = time.monotonic() + 60.0
     while sim.firmware.go_at is None:
@@ -117,16 +124,7 @@ def test_a_server_restarted_with_a_window_and_a_request_open_withdraws_the_reque
     (JM cannot approve it after the restart, so nothing fires on a decision made before it), and the
     window, held in the server's store, is still EL's: she asks again and JM's approval releases once."""
     sim, server = powered
-    weather = place / "gfs"
-    weather.mkdir()
-    args = release_args(write_weather(weather))
-    alice, bob = client_config(place, team.alice), client_config(place, team.bob)
-    assert drs(team.alice, alice, "capsule", "arm", "DRS1", *args)[0] == 0
-    waiting = drs_waiting(
-        team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", "--await-approval", *args
-    )
-    while not waiting.readline().startswith("approval #1"):
-        pass
+    args, alice, bob, waiting = armed_and_asking(place, team)
     server.stop()
     code, out = waiting.result()
     assert code == 1 and out.strip() == (
