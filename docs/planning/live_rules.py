@@ -1,7 +1,7 @@
 """The rules tried for issue #30 (item 2), what live re-prediction flies at each report, side by side on
 every held-out split: the table in docs/planning.md.
 
-Run from the repository root: ``.venv/bin/python docs/planning/live_rules.py`` (about a minute).
+Run from the repository root: ``.venv/bin/python docs/planning/live_rules.py`` (about two minutes).
 
 Why a script and not ``drs live evaluate``: each evaluation reports what ships and three alternatives
 (the training band switch, per-flight evidence, the shrunk band choice); this one runs the six splits of
@@ -33,34 +33,62 @@ flights alone in train → score):
   law on every split here); *what ships, wind only far from the ascent*: the same, the wind only where
   the predicted path is farther from the ascent than the training flights' typical X at that height
   (issue #30 item 4); *+ wind 4 km above 12.5 km when far*: what ships, and the wind from 22.5 km down
-  where the path is that far.
+  where the path is that far;
+* *what ships, wind only where its look-back helped* (never built in the product): what ships, but at a
+  report where it flies the wind, this flight's own check decides it. From the last report at least D
+  higher, the position at this report's altitude is predicted with λ as ships, with and without the
+  wind error measured there (L = 4 km), and compared with where the capsule was: the wind is flown
+  unless it made that position worse (no report D higher: what ships). D (1–4 km) is the one whose rule
+  gave the least total landing error on the OTHER (training) flights' reports where what ships flies
+  the wind (from 10, 5 and 2 km); *+ training prior*: the wind is flown where ln(with / without) of the
+  check plus ln(the training flights' mean landing with the wind ÷ without it at that height) is ≤ 0.
+
+``--hard-worlds`` (about two minutes; it also prints each world's own ``drs live evaluate`` report)
+measures the last two against what ships in the five hard independent worlds of ``tests/predictor/calibration/test_live_hard_worlds.py``, through the product's
+live predictor (``CalibratedModel.live_predictor``): D and the prior from the eight calibration flights,
+scored on the ten unseen ones, landing ÷ the plain restart's with its 95 % interval.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+import sys
+import tempfile
+from collections.abc import Callable, Hashable, Sequence
+from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 
 from predictor.calibration.live_evaluation import (
+    MODEL_RATE_WIND,
     PLAIN,
     PLAIN_RESTART,
     RATE,
+    SHIPPED_DECAY_M,
     TEXTBOOK_RATE,
     TEXTBOOK_RATE_WIND,
     VERTICAL_CANDIDATES,
+    WIND_BELOW_M,
     Case,
     Evaluation,
+    LevelGround,
     _cases,
     _log_error,
+    _rate_survey,
     _usable,
     evaluate_live,
     fit_live_sigma,
+    rate_law,
     ratio_interval,
 )
-from predictor.prediction.live import by_height
+from predictor.descent import PROFILES, Payload
+from predictor.environment.weather import load_weather
+from predictor.prediction import GEOD
+from predictor.prediction.live import NO_CORRECTION, OWN_RATE, LiveCorrection, LivePredictor, by_height
 from predictor.prediction.model_file import CalibratedModel, load_model
+from predictor.tracks import Fix, clean, read_track
 
 SUPERBIT = sorted(Path("../shared/data/tracks/pyballoon_superbit").glob("*-*.csv"))
 EOSS = sorted(Path("tests/data/eoss").glob("*_descent.csv"))
@@ -134,11 +162,151 @@ def far(result: Evaluation, case: Case) -> bool:
     )
 
 
+LOOKBACKS_M = (1000.0, 2000.0, 3000.0, 4000.0)
+"""The look-back lengths D the wind check may use (chosen per split on the training flights)."""
+WITH_WIND = LiveCorrection.everywhere(True, SHIPPED_DECAY_M)
+NO_WIND = {TEXTBOOK_RATE_WIND: TEXTBOOK_RATE, MODEL_RATE_WIND: RATE}
+Check = dict[float, tuple[float, float]]
+"""Look-back D (m) → the distance (km) from where the capsule was at a report to the position at its
+altitude predicted from D higher, with the measured wind and without it."""
+Checks = dict[tuple[str, float], Check]
+K = TypeVar("K", bound=Hashable)
+Row = tuple[Hashable, Hashable, float, float, Check | None]
+"""A training report where what ships flies the wind: flight, height, landing km with the wind, without
+it, and its wind check."""
+
+
+def position_at(
+    live: LivePredictor, start: Fix, correction: LiveCorrection, alt_m: float
+) -> tuple[float, float]:
+    """(lat, lon) where the prediction from ``start`` crosses ``alt_m``."""
+    track = live.predict_from(start, correction).prediction.track
+    z = track.alt_m[::-1]
+    return float(np.interp(alt_m, z, track.lat[::-1])), float(np.interp(alt_m, z, track.lon[::-1]))
+
+
+def replay_checks(live: LivePredictor, descent: Sequence[Fix], reports: dict[K, Fix]) -> dict[K, Check]:
+    """Feed ``descent`` to ``live`` and, for each report and look-back D, check the wind on the last D of
+    fall: from the last fix at least D above the report, with the record as it then was, λ as ships
+    and the wind error then measured (L = 4 km) or none."""
+    index = {id(fix): i for i, fix in enumerate(descent)}
+    starts: dict[int, list[tuple[K, float]]] = {}
+    for key, at in reports.items():
+        for drop in LOOKBACKS_M:
+            higher = [j for j in range(index[id(at)]) if descent[j].alt_m >= at.alt_m + drop]
+            if higher:
+                starts.setdefault(higher[-1], []).append((key, drop))
+    out: dict[K, Check] = {key: {} for key in reports}
+    for j, fix in enumerate(descent[:-1]):
+        live.observe(fix)
+        for key, drop in starts.get(j, []):
+            at = reports[key]
+            errors = []
+            for correction in (WITH_WIND, OWN_RATE):
+                lat, lon = position_at(live, fix, correction, at.alt_m)
+                errors.append(float(GEOD.inv(lon, lat, at.lon, at.lat)[2]) / 1000.0)
+            out[key][drop] = (errors[0], errors[1])
+    return out
+
+
+def split_checks(scored: Sequence[Path], train: Sequence[Path] | None = None) -> Checks:
+    """The wind checks of every scored flight below ``WIND_BELOW_M``, on the textbook law with the λ
+    prior and discrepancy ``evaluate_live`` gives it (the other flights', or the training flights')."""
+    profile = PROFILES["superbit-test"]
+    flights = _usable(scored, None, [], None, None, None)
+    surveyed = flights if train is None else _usable(train, None, [], None, None, None)
+    survey = _rate_survey(surveyed, profile, ())
+    out: Checks = {}
+    for flight in flights:
+        prior, discrepancy = rate_law(survey, leave_out=flight.name)
+        live = LivePredictor(
+            flight.cube, profile, flight.ground, NO_CORRECTION, prior=prior, discrepancy=discrepancy
+        )
+        reports = {
+            km: at for km, at in flight.checkpoints.items() if at is not None and 1000.0 * km < WIND_BELOW_M
+        }
+        for km, check in replay_checks(live, flight.descent, reports).items():
+            out[(flight.name, km)] = check
+    return out
+
+
+def flies_wind(check: Check | None, drop: float, prior: float) -> bool:
+    """The check's verdict: ln(with / without) of the look-back plus ``prior`` at most 0 (no look-back
+    that long yet: the prior alone)."""
+    own = 0.0
+    if check and drop in check:
+        with_km, without_km = check[drop]
+        own = math.log(max(with_km, 1e-6) / max(without_km, 1e-6))
+    return own + prior <= 0.0
+
+
+def log_gain(pairs: Sequence[tuple[float, float]]) -> float:
+    """ln(mean landing with the wind ÷ mean without) over (with, without) pairs; 0 for none."""
+    if not pairs:
+        return 0.0
+    with_km, without_km = np.mean(pairs, axis=0)
+    return math.log(max(float(with_km), 1e-6) / max(float(without_km), 1e-6))
+
+
+def choose_lookback(rows: Sequence[Row], prior: bool) -> float:
+    """The look-back whose rule gives the least total landing error on the training ``rows``, each row's
+    prior from the other flights' rows."""
+
+    def total(drop: float) -> float:
+        out = 0.0
+        for flight, height, with_km, without_km, check in rows:
+            p = log_gain([(r[2], r[3]) for r in rows if r[1] == height and r[0] != flight]) if prior else 0.0
+            out += with_km if flies_wind(check, drop, p) else without_km
+        return out
+
+    return min(LOOKBACKS_M, key=total)
+
+
+class WindCheck:
+    """The rule *what ships, wind only where its look-back helped*, on the evaluations of ``main``."""
+
+    def __init__(self, checks: dict[int, tuple[Checks, Checks]], prior: bool) -> None:
+        self.checks = checks
+        self.prior = prior
+        self.lookbacks: dict[tuple[int, str], float] = {}
+
+    def rows(self, source: Evaluation, checks: Checks, leave_out: str) -> list[Row]:
+        """The training evaluation's reports where what ships flies the wind, without ``leave_out``."""
+        out: list[Row] = []
+        for c in source.cases:
+            name = source.shipped_name(c)
+            if c.flight != leave_out and name in NO_WIND:
+                out.append(
+                    (
+                        c.flight,
+                        c.checkpoint_km,
+                        c.errors_km[name],
+                        c.errors_km[NO_WIND[name]],
+                        checks.get((c.flight, c.checkpoint_km)),
+                    )
+                )
+        return out
+
+    def __call__(self, result: Evaluation, case: Case) -> str:
+        shipped = result.shipped_name(case)
+        if shipped not in NO_WIND:
+            return shipped
+        scored, training = self.checks[id(result)]
+        source = result.training or result
+        rows = self.rows(source, training, case.flight)
+        key = (id(result), case.flight)
+        if key not in self.lookbacks:
+            self.lookbacks[key] = choose_lookback(rows, self.prior)
+        prior = log_gain([(r[2], r[3]) for r in rows if r[1] == case.checkpoint_km]) if self.prior else 0.0
+        check = scored.get((case.flight, case.checkpoint_km))
+        return shipped if flies_wind(check, self.lookbacks[key], prior) else NO_WIND[shipped]
+
+
 def below(km: float, upper_km: float, name: str, otherwise: str) -> str:
     return name if km <= upper_km else otherwise
 
 
-def rules(fixes: dict[tuple[str, float], int]) -> dict[str, Rule]:
+def rules(fixes: dict[tuple[str, float], int], checks: dict[int, tuple[Checks, Checks]]) -> dict[str, Rule]:
     def restart_above(name: str) -> Rule:
         return lambda r, c: PLAIN_RESTART if c.checkpoint_km >= 22.5 else name
 
@@ -175,6 +343,10 @@ def rules(fixes: dict[tuple[str, float], int]) -> dict[str, Rule]:
     table["what ships, + wind 4 km above 12.5 km when far"] = lambda r, c: (
         TEXTBOOK_RATE_WIND if r.shipped_name(c) == TEXTBOOK_RATE and far(r, c) else r.shipped_name(c)
     )
+    table["what ships, wind only where its look-back helped"] = WindCheck(checks, prior=False)
+    table["what ships, wind only where its look-back helped, + training prior"] = WindCheck(
+        checks, prior=True
+    )
     return table
 
 
@@ -196,29 +368,193 @@ def main() -> None:
         "EOSS → SuperBIT": evaluate_live(SUPERBIT, train=EOSS),
         "EOSS leave-one-out": evaluate_live(EOSS),
     }
-    for name, rule in rules(window_fixes()).items():
+    own = {"SuperBIT": split_checks(SUPERBIT), "EOSS": split_checks(EOSS)}
+    own.update({year: split_checks(paths) for year, paths in superbit.items()})
+    checks = {
+        id(splits["leave-one-out"]): (own["SuperBIT"], own["SuperBIT"]),
+        id(splits["2018 → 2019"]): (split_checks(superbit["19-"], superbit["18-"]), own["18-"]),
+        id(splits["2019 → 2018"]): (split_checks(superbit["18-"], superbit["19-"]), own["19-"]),
+        id(splits["SuperBIT → EOSS"]): (split_checks(EOSS, SUPERBIT), own["SuperBIT"]),
+        id(splits["EOSS → SuperBIT"]): (split_checks(SUPERBIT, EOSS), own["EOSS"]),
+        id(splits["EOSS leave-one-out"]): (own["EOSS"], own["EOSS"]),
+    }
+    for name, rule in rules(window_fixes(), checks).items():
         print(f"### {name}")
         misses = 0
         for split, result in splits.items():
-            cells = []
+            cells, intervals = [], []
             for km in KMS:
                 cases = _cases(result, km)
                 chosen = [rule(result, c) for c in cases]
                 time = ratio_interval(
                     [c.time_error_s[n] for c, n in zip(cases, chosen, strict=True)],
                     [c.time_error_s[PLAIN_RESTART] for c in cases],
-                )[0]
+                )
                 landing = ratio_interval(
                     [c.errors_km[n] for c, n in zip(cases, chosen, strict=True)],
                     [c.errors_km[PLAIN_RESTART] for c in cases],
-                )[0]
+                )
                 limit = 0.85 if km in (15.0, 10.0) else 1.0
-                marks = ("*" if round(time, 2) > limit else " ", "*" if round(landing, 2) > 1.0 else " ")
+                marks = (
+                    "*" if round(time[0], 2) > limit else " ",
+                    "*" if round(landing[0], 2) > 1.0 else " ",
+                )
                 misses += sum(m == "*" for m in marks)
-                cells.append(f"{time:.2f}{marks[0]}/{landing:.2f}{marks[1]}")
+                cells.append(f"{time[0]:.2f}{marks[0]}/{landing[0]:.2f}{marks[1]}")
+                intervals.append(f"{time[1]:.2f}–{time[2]:.2f}/{landing[1]:.2f}–{landing[2]:.2f}")
             print(f"{split:20s} {' '.join(cells)}")
+            if isinstance(rule, WindCheck) or name == "what ships":
+                print(f"{'  95 %':20s} {' '.join(intervals)}")
+            if isinstance(rule, WindCheck):
+                flown = [
+                    f"{sum(rule(result, c) in NO_WIND for c in _cases(result, km))}/{len(_cases(result, km))}"
+                    for km in (10.0, 5.0)
+                ]
+                print(f"{'  wind flown':20s} from 10 km {flown[0]}, from 5 km {flown[1]}")
+        if isinstance(rule, WindCheck):
+            print(f"look-backs chosen (km): {sorted(d / 1000.0 for d in rule.lookbacks.values())}")
         print(f"floors missed: {misses}")
 
 
+class WorldRow(NamedTuple):
+    """One report of one hard-world flight: landing errors (km) and |remaining-time errors| (s)."""
+
+    flight: str
+    shipped_km: float
+    no_wind_km: float
+    """What ships with its wind band switched off."""
+    restart_km: float
+    shipped_s: float
+    restart_s: float
+    wind: bool
+    """What ships flies the wind at this report."""
+    check: Check | None
+
+
+def world_rows(
+    model: CalibratedModel, world: object, cube: object, checkpoints: Sequence[tuple[str, float]]
+) -> dict[str, list[WorldRow]]:
+    """Per checkpoint, every flight of a hard world (``tests.independent_world.World``) replayed as the
+    hard-worlds test does, with the wind checks where what ships flies the wind."""
+    from tests.independent_world import CDA_M2, GROUND_M, MASS_KG
+
+    ground = LevelGround(GROUND_M)
+    nominal = CalibratedModel(Payload(MASS_KG, CDA_M2, name="nominal"), (), None)
+    out: dict[str, list[WorldRow]] = {name: [] for name, _ in checkpoints}
+    for truth in world.flights:  # type: ignore[attr-defined]
+        flight = clean(read_track(truth.path))
+        assert flight.landing is not None
+        descent = list(flight.descent)
+        reports = {}
+        for name, alt_m in checkpoints:
+            reports[name] = next(f for f in descent[:-1] if f.alt_m <= alt_m)
+        live = model.live_predictor(cube, ground)  # type: ignore[arg-type]
+        wind_at = {
+            name: (band := live.correction.band_at(at.alt_m - GROUND_M)) is not None
+            and band.decay_m is not None
+            for name, at in reports.items()
+        }
+        no_wind = replace(
+            live.correction, bands=tuple(replace(b, decay_m=None) for b in live.correction.bands)
+        )
+        checks = replay_checks(live, descent, {n: at for n, at in reports.items() if wind_at[n]})
+        # ``live`` has seen the whole descent: fresh predictors, fed up to each report, predict from it.
+        fresh = model.live_predictor(cube, ground)  # type: ignore[arg-type]
+        plain = nominal.live_predictor(cube, ground, corrected=False)  # type: ignore[arg-type]
+        pending = sorted(reports.items(), key=lambda kv: kv[1].time)
+        for fix in descent[:-1]:
+            fresh.observe(fix)
+            plain.observe(fix)
+            while pending and pending[0][1] is fix:
+                name, at = pending.pop(0)
+                remaining = (flight.landing.time - at.time).total_seconds()
+                row = []
+                for predictor, correction in ((fresh, None), (fresh, no_wind), (plain, None)):
+                    p = predictor.predict_from(at, correction).prediction
+                    km = (
+                        float(GEOD.inv(p.landing.lon, p.landing.lat, truth.landing_lon, truth.landing_lat)[2])
+                        / 1000.0
+                    )
+                    row.append((km, abs(p.descent_s - remaining)))
+                (shipped_km, shipped_s), (no_wind_km, _), (restart_km, restart_s) = row
+                out[name].append(
+                    WorldRow(truth.name, shipped_km, no_wind_km, restart_km, shipped_s, restart_s,
+                             wind_at[name], checks.get(name))
+                )  # fmt: skip
+            if not pending:
+                break
+    return out
+
+
+def hard_worlds() -> None:
+    """The wind check against what ships in the five hard worlds (D and prior from the calibration
+    flights, scored on the unseen ones)."""
+    sys.path.insert(0, str(Path.cwd()))
+    from tests.independent_world import HARD, make_world, write_weather
+    from tests.predictor.calibration.test_live_hard_worlds import (
+        CHECKPOINTS,
+        HARD_WORLDS,
+        UNSEEN_CADENCE_S,
+        UNSEEN_FLIGHTS,
+        UNSEEN_SEED,
+        calibrated,
+    )
+
+    with tempfile.TemporaryDirectory() as tmp:
+        weather = write_weather(Path(tmp) / "gfs")
+        for world, effects in HARD_WORLDS.items():
+            directory = Path(tmp) / world.replace(" ", "-")
+            model = calibrated(directory, effects, weather)
+            cube = load_weather([str(p) for p in weather], cache_dir=directory / "cache")
+            seen = make_world(directory / "calibration", effects, flights=8, seed=11, weather=weather, **HARD)  # type: ignore[arg-type]
+            unseen = make_world(directory / "unseen", effects, flights=UNSEEN_FLIGHTS, seed=UNSEEN_SEED,
+                                cadence_s=UNSEEN_CADENCE_S, weather=weather, **HARD)  # type: ignore[arg-type]  # fmt: skip
+            train, scored = (
+                world_rows(model, seen, cube, CHECKPOINTS),
+                world_rows(model, unseen, cube, CHECKPOINTS),
+            )
+            training = [
+                (r.flight, name, r.shipped_km, r.no_wind_km, r.check)
+                for name, rows in train.items()
+                for r in rows
+                if r.wind
+            ]
+            print(f"### {world}")
+            for prior in (False, True):
+                drop = choose_lookback(training, prior)
+                cells = []
+                for name, _ in CHECKPOINTS:
+                    rows = scored[name]
+                    gain = log_gain([(r[2], r[3]) for r in training if r[1] == name]) if prior else 0.0
+                    flown = [r.wind and flies_wind(r.check, drop, gain) for r in rows]
+                    chosen = [
+                        r.shipped_km if not r.wind or f else r.no_wind_km
+                        for r, f in zip(rows, flown, strict=True)
+                    ]
+                    ratio, low, high = ratio_interval(chosen, [r.restart_km for r in rows])
+                    wind = f", wind {sum(flown)}/{len(rows)}" if any(r.wind for r in rows) else ""
+                    cells.append(f"{name} {ratio:.2f} ({low:.2f}–{high:.2f}{wind})")
+                print(f"wind check{', + prior' if prior else ''} (D {drop / 1000:g} km): {'; '.join(cells)}")
+            for label, no_wind in (("what ships", False), ("no wind", True)):
+                cells = []
+                for name, _ in CHECKPOINTS:
+                    rows = scored[name]
+                    landings = [r.no_wind_km if no_wind else r.shipped_km for r in rows]
+                    ratio, low, high = ratio_interval(landings, [r.restart_km for r in rows])
+                    cells.append(f"{name} {ratio:.2f} ({low:.2f}–{high:.2f})")
+                print(f"{label}: {'; '.join(cells)}")
+            times = [
+                ratio_interval([r.shipped_s for r in scored[n]], [r.restart_s for r in scored[n]])
+                for n, _ in CHECKPOINTS
+            ]
+            print(
+                "time, every rule: "
+                + "; ".join(
+                    f"{n} {t[0]:.2f} ({t[1]:.2f}–{t[2]:.2f})"
+                    for (n, _), t in zip(CHECKPOINTS, times, strict=True)
+                )
+            )
+
+
 if __name__ == "__main__":
-    main()
+    hard_worlds() if "--hard-worlds" in sys.argv else main()
