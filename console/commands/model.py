@@ -55,12 +55,16 @@ def run_show(args: argparse.Namespace) -> int:
                 why = str(reasons.get(term.name) or "").removeprefix("pre-flight: ")
                 flown = "pre-flight and live" + (f" ({why})" if why else "")
             lines.append(f"term      {term.name} ({term.family}): {values}; {flown}")
+        rate_gate = str(reasons.get("descent_rate_scale") or "")
         for term in model.preflight_law():
             if term not in model.terms:
                 values = ", ".join(f"{k} {v}" for k, v in term.parameters().items())
-                lines.append(
-                    f"term      {term.name} ({term.family}): {values}; pre-flight only (λ under the pre-flight terms)"
+                why = (
+                    f"λ = 1, the plain law's rate: {rate_gate.removeprefix('live-only: ')}"
+                    if rate_gate.startswith("live-only")
+                    else "λ under the pre-flight terms"
                 )
+                lines.append(f"term      {term.name} ({term.family}): {values}; pre-flight only ({why})")
     else:
         lines.append("term      none: calibration found no effect that helped held-out flights")
     if model.rate_prior is not None:

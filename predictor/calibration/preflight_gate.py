@@ -18,6 +18,16 @@ pre-flight and live-only with one flight left out (3 of 6 folds in two independe
 number drag and a rate drifting with time, measured with the point estimate alone); in doubt, the
 plain law × λ is the conservative side before release. The binned correction was fitted on top of
 every selected term, so it can fly pre-flight only when they all do.
+
+λ too (issue #30 item 3): the training flights' median λ flew before release unjudged, and held out it
+made the pre-flight law worse (SuperBIT 2019 → 2018 descent time 1.35× and landing 1.16× the plain
+law's, EOSS leave-one-out time 1.09×). So after the shape terms, λ goes through the same rule: the
+pre-flight set kept so far with λ the other flights' median against the same set with λ = 1 (the plain
+law when no shape term passed). Failing, the pre-flight law flies λ = 1 and the model file says so (a
+pre-flight-only λ of 1); live re-prediction keeps the rate prior it learns the flight's λ from. Why λ
+last and the shapes judged with it: judged at λ = 1, a shape stands in for the level (on the 2019
+flights the exponent passed at λ = 1, 300 → 220 s, and flown on 2018 made the time 1.14× the plain
+law's), so its decision would be about λ, not about the shape.
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """What the rate prior's spread does to a pre-flight prediction: the descent time and landing at λ's ±1σ.
 
-Why fly it and not scale it: a pre-flight prediction flies the model's shape with the prior's median λ,
-but the next flight will fall at its own λ, e^(±sd ln λ) either side for one flight in three. Were every
+Why fly it and not scale it: a pre-flight prediction flies the model's pre-flight law with one λ (the
+prior's median, or 1 where the pre-flight gate found the median no better held out), but the next
+flight will fall at its own λ, e^(±sd ln λ) either side for one flight in three. Were every
 term a factor on the rate, the fall time would be the median's × e^(∓σ) and no run would be needed; a
 time-since-release term (a deployment delay) does not scale with λ, and where the landing goes depends
 on how long each wind layer acts on the payload, which only a flight through the same weather tells. So
@@ -69,7 +70,7 @@ def descent_spread(
     if prior is None:
         return None
     # What a pre-flight prediction flies: the calibration saves its λ (the median under the pre-flight
-    # terms) as the first term; a file without it flies λ = 1.
+    # terms, or 1 where the gate kept the median out) as the first term; a file without it flies λ = 1.
     law = model.preflight_law()
     first = law[0] if law else None
     median = float(first.scale) if isinstance(first, DescentRateScale) else 1.0

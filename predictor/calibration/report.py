@@ -159,8 +159,6 @@ def preflight_sentence(cal: Calibration) -> str:
             + (f"`{name}` ships instead (one parameter, not beaten beyond the interval)." if c.library_wins
                else "the binned rate factors ship.")
         )  # fmt: skip
-    if not cal.gate:
-        parts.append("Pre-flight gate: no term to judge; the pre-flight law is the plain law × the median λ.")
     for g in cal.gate:
         parts.append(f"Pre-flight gate, `{g.term}`: {g.reason}.")
     pre = (cal.preflight if cal.preflight is not None else cal.after).summary()

@@ -45,7 +45,8 @@ so which describes the shape does not turn on one flight.
 
 Then the pre-flight gate (``preflight_gate``; the rule in ``calibration.preflight_gate``): each shipped
 term is judged as a prediction before release flies it (shape × the other flights' median λ), held out,
-on the descent time and the landing; one that does not earn its place there is live-only.
+on the descent time and the landing, and then λ itself (that law against the same with λ = 1); one that
+does not earn its place there is live-only.
 """
 
 from __future__ import annotations
@@ -349,7 +350,8 @@ class Calibration:
     gate: tuple[TermGate, ...] = ()
     """The pre-flight decision on each shipped term (selected, then the binned parts that passed)."""
     preflight_rate_fit: Fit | None = None
-    """λ = the median of the flights' own λ under the pre-flight terms (None: ``rate_fit``)."""
+    """λ = the median of the flights' own λ under the pre-flight terms, or 1 where the gate found that
+    median made the held-out pre-flight law worse (None: ``rate_fit``)."""
     preflight: HeldOut | None = None
     """Held out, what a pre-flight prediction flies (None: ``after``)."""
 
@@ -470,7 +472,9 @@ def calibrate(
     prior, rate_full, factors = settled.prior, settled.rate_full, settled.factors
     flown_folds, after = settled.flown_folds, settled.after
     binned, binned_heldout, binned_tests = settled.binned, settled.binned_heldout, settled.binned_tests
-    gate = preflight_gate(batch, selected_folds, selected_full, settled, (rate_only, plain_rate), seed)
+    gate = preflight_gate(
+        batch, selected_folds, selected_full, settled, baseline, (rate_only, plain_rate), seed
+    )
     after_residuals = tuple(residuals(cases[i], batch.runs(i, [flown_folds[i]])) for i in range(n))
     after_replayed = tuple(
         residuals(cases[i], batch.runs(i, [flown_folds[i]], replay=True)) for i in range(n)
@@ -743,34 +747,43 @@ def preflight_gate(
     selected_folds: list[list[Fit]],
     selected_full: list[Fit],
     settled: Settled,
-    plain: tuple[HeldOut, Fit],
+    plain: HeldOut,
+    rate_only: tuple[HeldOut, Fit],
     seed: int,
 ) -> Gate:
-    """Each shipped term judged as the pre-flight law flies it (``preflight_gate`` module): added in
-    selection order to the pre-flight set kept so far, λ the median of the other flights' λ under that
-    set, its held-out descent time and landing compared with the set's without it, starting from
-    ``plain`` (the plain law × median λ held out, and that λ on all flights). Returns the decision per
-    term, the pre-flight λ and the pre-flight law's held-out numbers."""
+    """Each shipped term judged as the pre-flight law flies it (``preflight_gate`` module). The shape
+    terms first, added in selection order to the pre-flight set kept so far, λ the median of the other
+    flights' λ under that set, its held-out descent time and landing compared with the set's without it,
+    starting from ``rate_only`` (the plain law × median λ held out, and that λ on all flights); then λ
+    itself: the kept set with that λ against the kept set with λ = 1 (``plain``, the plain law held out,
+    when no shape term passed); then the binned parts, which were fitted on top of λ and every shape
+    term and so are judged only when all of them passed. Returns the decision per term, the pre-flight
+    λ (1 when λ failed) and the pre-flight law's held-out numbers."""
     n = len(batch.cases)
+    current, rate_fit = rate_only
     kept: list[int] = []
-    current, rate_fit = plain
     decisions: list[TermGate] = []
     for k, fit in enumerate(selected_full):
         trial = [*kept, k]
         folds = [[row[m] for m in trial] for row in selected_folds]
         full = [selected_full[m] for m in trial]
         if trial == list(range(len(selected_full))):
-            rate_folds, trial_rate, heldout = settled.flown_folds, settled.rate_full, settled.after
+            trial_rate, heldout = settled.rate_full, settled.after
         else:
             _, fold_rates, trial_rate, _ = rate_priors(batch, folds, full)
-            rate_folds = [[fold_rates[i], *folds[i]] for i in range(n)]
-            heldout = batch.heldout(rate_folds)
+            heldout = batch.heldout([[fold_rates[i], *folds[i]] for i in range(n)])
         decision = verdict(fit.candidate.name, compare(_gated(current), _gated(heldout), seed))
         decisions.append(decision)
         if decision.preflight:
             kept.append(k)
             current, rate_fit = heldout, trial_rate
-    every_term = len(kept) == len(selected_full)
+    without = batch.heldout([[row[m] for m in kept] for row in selected_folds]) if kept else plain
+    rate = verdict(RATE_SCALE.name, compare(_gated(without), _gated(current), seed))
+    if not rate.preflight:
+        rate = dataclasses.replace(rate, reason=rate.reason + "; the pre-flight law flies λ = 1")
+        current, rate_fit = without, Fit(RATE_SCALE, 0, 1.0)
+    decisions.append(rate)
+    every_term = rate.preflight and len(kept) == len(selected_full)
     passed = {t.record for t in settled.binned_tests if t.passed}
     extra: list[tuple[Term, ...]] = [() for _ in range(n)]
     for part, record in ((0, VERTICAL.name), (1, HORIZONTAL.name)):
