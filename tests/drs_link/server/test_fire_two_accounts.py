@@ -85,7 +85,8 @@ def test_the_server_killed_mid_fire_sends_one_go_and_says_so_after_restart(
     powered: tuple[CapsuleSimulator, Server], place: Path, team: Team
 ) -> None:
     """SIGKILL of the server once the Pi wrote GoGoGo: the store says go-sent-unverified (written before
-    Go left), the restarted server tells the requester so, and finishing keeps the first Go's time beside the verified one's (issue #29)."""
+    Go left), the restarted server tells the requester so, and finishing keeps the first Go's time beside the verified one's, or, if the Pi had halted
+    by then (6 s after GoGoGo), the Go is left unverified (issue #29)."""
     sim, server = powered
     args, alice, bob, waiting = armed_and_asking(place, team)
     assert drs(team.bob, bob, "approve", "1")[0] == 0
@@ -106,14 +107,18 @@ def test_the_server_killed_mid_fire_sends_one_go_and_says_so_after_restart(
         code, out = drs(team.alice, alice, "capsule", "go", "DRS1", "--confirm", "DRS1", *args)
     finally:
         restarted.stop()
-    if row["state"] == "go-sent-unverified":
-        assert code == 0 and "Go was sent and never verified: finishing it" in out, out
     [after] = store.query("SELECT state, go_at, failed_go_at FROM release_state WHERE capsule = 'DRS1'")
-    assert after["state"] == "released"
-    if row["state"] == "go-sent-unverified":  # finished: the verified Go's time, the failed one's beside it
+    if row["state"] == "go-sent-unverified" and "Go may or may not have reached the Pi" in out:
+        # the Go script halts the Pi 6 s after GoGoGo: on a loaded machine the restart and the finishing go
+        # came later, found no Pi, and rightly left the Go unverified for the operator's evidence
+        assert code == 1 and sim.shut_down, out
+        assert after["state"] == "go-sent-unverified" and after["go_at"] == row["go_at"]
+    elif row["state"] == "go-sent-unverified":  # finished: the verified Go's time, the failed one's beside it
+        assert code == 0 and "Go was sent and never verified: finishing it" in out, out
+        assert after["state"] == "released"
         assert after["failed_go_at"] == row["go_at"] and after["go_at"] >= row["go_at"]
     else:
-        assert after["go_at"] == row["go_at"]
+        assert after["state"] == "released" and after["go_at"] == row["go_at"]
     assert sim.firmware.go_at == first_go, "one Go: the microcontroller's countdown was not restarted"
 
 
