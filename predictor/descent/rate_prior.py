@@ -48,3 +48,32 @@ class RatePrior:
 
     def to_dict(self) -> dict[str, Any]:
         return {"median": self.median, "log_sigma": self.log_sigma, "flights": self.flights}
+
+
+@dataclass(frozen=True)
+class PreflightSpread:
+    """How far a flight's own λ falls from the λ a pre-flight prediction flies, measured held out.
+
+    Why not the prior's sd: the prior is the spread about the median under the live law's shape, while
+    before release the pre-flight gate may fly another law (on every training set so far the plain law,
+    λ = 1, where the flights' median is not 1). A flight's λ then misses the flown one by the scatter
+    AND by the median's offset from it, so the spread is the root mean square of ln(λᵢ / λ flown) over
+    the calibration flights, each flown with the pre-flight law fitted without it.
+    """
+
+    log_sigma: float
+    """RMS of ln(λᵢ / λ flown), held out."""
+    flights: int
+
+    def __post_init__(self) -> None:
+        if not (LOG_SIGMA_LIMITS[0] <= self.log_sigma <= LOG_SIGMA_LIMITS[1]) or not math.isfinite(
+            self.log_sigma
+        ):
+            raise PredictorError(
+                f"pre-flight spread log_sigma {self.log_sigma!r} is outside {LOG_SIGMA_LIMITS[0]}–{LOG_SIGMA_LIMITS[1]}"
+            )
+        if self.flights < 1:
+            raise PredictorError(f"pre-flight spread needs at least one flight, got {self.flights}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"log_sigma": self.log_sigma, "flights": self.flights}
