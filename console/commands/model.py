@@ -78,8 +78,8 @@ def run_show(args: argparse.Namespace) -> int:
     if model.preflight_spread is not None:
         spread = model.preflight_spread
         lines.append(
-            f"λ spread  pre-flight: σ of ln λ {spread.log_sigma:.3g} about the pre-flight law's λ, held out "
-            f"over {spread.flights} flights (pre-flight descent time ±{100 * spread.log_sigma:.0f} % 1σ)"
+            f"λ spread  pre-flight: σ of ln λ {spread.log_sigma:.3g} about the pre-flight law's λ (its held-out "
+            f"descent times over {spread.flights} flights; pre-flight descent time ±{100 * spread.log_sigma:.0f} % 1σ)"
         )
     stability = prov.get("selection_stability")
     if isinstance(stability, dict) and stability:

@@ -3,10 +3,10 @@
 Why fly it and not scale it: a pre-flight prediction flies the model's pre-flight law with one λ (the
 prior's median, or 1 where the pre-flight gate found the median no better held out), but the next
 flight will fall at its own λ, e^(±σ) either side for one flight in three. σ is the model's
-``preflight_spread``: the held-out RMS of ln(λᵢ / λ flown) under the pre-flight law, so the offset of
-the flights' median from a flown λ = 1 is in it (a file before schema 6 has none and flies the prior's
-sd of ln λ, measured about the live law's median under its shape, which no longer flies before
-release). Were every
+``preflight_spread``: the |ln(predicted / measured descent time)| that 68.3 % of the pre-flight law's
+held-out predictions stay within, so the offset of the flights' median from a flown λ = 1 is in it (a file before schema 6 has none and
+flies the prior's sd of ln λ, measured about the live law's median under its shape, which no longer
+flies before release). Were every
 term a factor on the rate, the fall time would be the median's × e^(∓σ) and no run would be needed; a
 time-since-release term (a deployment delay) does not scale with λ, and where the landing goes depends
 on how long each wind layer acts on the payload, which only a flight through the same weather tells. So

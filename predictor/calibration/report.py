@@ -129,9 +129,9 @@ def rate_sentence(cal: Calibration) -> str:
     text = (
         f"Each flight's own rate factor λ on the {'selected shape' if cal.selected else 'plain law'} ranges "
         f"{low:.3f}–{high:.3f}: the rate prior is median λ {p.median:.3f}, spread of ln λ {p.log_sigma:.3f} "
-        f"({p.flights} flights). About the λ the pre-flight law flies, each flight held out, ln λ spreads "
-        f"{spread.log_sigma:.3f} (RMS), which alone makes a pre-flight descent time uncertain by about "
-        f"±{100 * spread.log_sigma:.0f} %. The whole shape flown pre-flight (each held-out flight with the median λ of the others): "
+        f"({p.flights} flights). The pre-flight law's descent time, each flight held out, is within "
+        f"{spread.log_sigma:.3f} in ln of the measured one for 68 % of the flights: the pre-flight descent "
+        f"time is uncertain by about ±{100 * spread.log_sigma:.0f} % (1σ). The whole shape flown pre-flight (each held-out flight with the median λ of the others): "
         f"time-at-altitude RMS {a['time_rms_s']['mean']:.0f} s and |descent-time error| "
         f"{a['descent_time_error_s']['mean']:.0f} s, against {r['time_rms_s']['mean']:.0f} s and "
         f"{r['descent_time_error_s']['mean']:.0f} s for the plain law with the same λ estimator (the simple "

@@ -5,7 +5,8 @@ training set so far it did), and then a prediction before release shows the plai
 λ spread fitted on shape × median λ would describe another prediction than the one drawn. Five
 synthetic flights of the plain law, each with its own λ (0.86–1.12) and its own wind error: nothing to
 select, and the median λ does not beat λ = 1 beyond its interval, so the plain law flies pre-flight and
-the model's ellipse and spread must be those of the plain law's own landings and λ.
+the model's ellipse and descent-time spread must be those of the plain law's own held-out landings
+and descent times.
 """
 
 from __future__ import annotations
@@ -52,7 +53,9 @@ def test_with_nothing_passing_the_gate_the_saved_ellipse_and_spread_are_the_plai
                            for k in ("landing_along_km", "landing_cross_km", "predicted_drift_km"))  # fmt: skip
     t = np.array([t_future(c) for c in cases])
     expected = fit_parameters(along, cross, drift, t)[0]
-    own = np.array([float(score(c, run(c, PAYLOAD, (), 1, 200.0)).rate_factor[0]) for c in cases])
+    # The λ each flight needed to land on time, about the flown λ = 1: predicted / measured descent time.
+    needed = np.array([1.0 + float(score(c, run(c, PAYLOAD, (), 1, 200.0)).descent_time_error_s[0]) / c.descent_time_s
+                       for c in cases])  # fmt: skip
 
     data = result_json(cal, ellipse, [], PAYLOAD.to_dict(), inputs.weather)
     path = save_model(calibrated_model(cal, ellipse, inputs, data, "drs calibrate …"), tmp_path / "m.json")
@@ -60,7 +63,8 @@ def test_with_nothing_passing_the_gate_the_saved_ellipse_and_spread_are_the_plai
     assert model.ellipse is not None and model.preflight_spread is not None
     stated = (model.ellipse.sigma0_km, model.ellipse.h, model.ellipse.k_km2_per_h2, model.ellipse.q)
     assert stated == pytest.approx(tuple(expected), rel=1e-9)
-    assert model.preflight_spread.log_sigma == pytest.approx(float(np.sqrt(np.mean(np.log(own) ** 2))))
+    one_sigma = float(np.quantile(np.abs(np.log(needed)), 0.6827))
+    assert model.preflight_spread.log_sigma == pytest.approx(one_sigma, rel=1e-3)
     assert model.preflight_spread.flights == len(cases)
 
     # What the model carried before: fitted on the held-out landings of the plain law × the others' median

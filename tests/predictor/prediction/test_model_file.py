@@ -94,8 +94,8 @@ def test_drs_model_show_names_the_payload_terms_ellipse_and_provenance(
     out = capsys.readouterr().out
     for text in ("superbit-test: 6 kg, Cd·A 1.36 m²", "term      drag_density_exponent (vertical): exponent 0.06",
                  "ellipse   σ0 1.2 km", "flights   2: 18-5-19, 18-6-30", "weather   ascent winds",
-                 "λ spread  pre-flight: σ of ln λ 0.14 about the pre-flight law's λ, held out over 2 flights "
-                 "(pre-flight descent time ±14 % 1σ)",
+                 "λ spread  pre-flight: σ of ln λ 0.14 about the pre-flight law's λ (its held-out descent times "
+                 "over 2 flights; pre-flight descent time ±14 % 1σ)",
                  "live      0 km–5 km: own λ updated, wind off; 5 km–top: own λ updated, wind L = 2 km",
                  "live law  in the bands: the model's terms, with the flight's own λ where a band updates it; "
                  "outside them: the model's terms",
