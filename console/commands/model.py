@@ -69,9 +69,17 @@ def run_show(args: argparse.Namespace) -> int:
         lines.append("term      none: calibration found no effect that helped held-out flights")
     if model.rate_prior is not None:
         r = model.rate_prior
+        # Since schema 6 the pre-flight interval is the spread about the pre-flight law's λ, its own line.
+        before = "" if model.preflight_spread else f" (pre-flight descent time ±{100 * r.log_sigma:.0f} % 1σ)"
         lines.append(
             f"λ prior   median {r.median:.4g}, sd of ln λ {r.log_sigma:.3g} over {r.flights} flights: each flight's "
-            f"own rate factor on the shape (pre-flight descent time ±{100 * r.log_sigma:.0f} % 1σ)"
+            f"own rate factor on the shape{before}"
+        )
+    if model.preflight_spread is not None:
+        spread = model.preflight_spread
+        lines.append(
+            f"λ spread  pre-flight: σ of ln λ {spread.log_sigma:.3g} about the pre-flight law's λ (its held-out "
+            f"descent times over {spread.flights} flights; pre-flight descent time ±{100 * spread.log_sigma:.0f} % 1σ)"
         )
     stability = prov.get("selection_stability")
     if isinstance(stability, dict) and stability:

@@ -27,11 +27,29 @@ of the other 9: selection, gate and λ all without it). Ground: level at each fl
 altitude, as in the live reports (no ``--dem``). Each ratio is mean |error| of what ships ÷ the
 baseline's, with its 95 % paired-bootstrap interval over the scored flights
 (``live_evaluation.ratio_interval``, fixed seed): the report is deterministic.
+
+The stated pre-flight uncertainty is checked on the same splits: the landing ellipse and the σ of ln λ
+of the descent-time interval (``prior_spread``) each training calibration states, **before** (the
+ellipse fitted on the held-out landings of shape × the median λ, ``Calibration.after_residuals``, and
+the rate prior's sd of ln λ: what the model file carried until the pre-flight gate's law was used) and
+**now** (the ellipse fitted on the held-out landings of the pre-flight law,
+``Calibration.preflight_residuals``, as ``run.preflight_ellipse`` does, and
+``Calibration.preflight_spread``, the |ln(predicted / measured descent time)| that 68.3 % of that law's
+held-out predictions stay within), with the alternatives tried for σ beside them (the RMS of each
+flight's own λ about the flown λ, the RMS of the same log ratio).
+Each scored flight is flown with what ships. A flight is inside the nσ ellipse when
+(along/σ∥)² + (across/σ⊥)² ≤ n² at its own predicted drift and lead time (a bivariate normal holds
+39.3 % and 86.5 %), and inside the ±nσ descent-time interval when |ln(predicted / measured descent
+time)| ≤ nσ (68.3 % and 95.4 %; exact for a law whose terms all scale the rate, which the plain law
+every split ships does). Within a calibration (its own leave-one-out), flight i's ellipse and σ are
+fitted on the other flights' held-out residuals; with the plain law shipped nothing the flight shows
+enters what is stated for it but the gate's decision. Shares with their 95 % Wilson interval.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,25 +57,36 @@ from pathlib import Path
 import numpy as np
 
 from predictor.calibration.effects import LIBRARY
+from predictor.calibration.ellipse_fit import fit_parameters
 from predictor.calibration.live_evaluation import ratio_interval
 from predictor.calibration.preflight_gate import TermGate
-from predictor.calibration.residuals import FlightCase, run, score
+from predictor.calibration.residuals import FlightCase, FlightResiduals, residuals, run, score
 from predictor.calibration.run import prepare
 from predictor.calibration.selection import (
+    ONE_SIGMA,
     RATE_SCALE,
     Calibration,
     Fit,
     FlightBatch,
     calibrate,
     rate_priors,
+    t_future,
 )
 from predictor.descent import Payload, Term
+from predictor.prediction import ErrorModel, coverage
 
 SUPERBIT = sorted(Path("../shared/data/tracks/pyballoon_superbit").glob("*-*.csv"))
 EOSS = sorted(Path("tests/data/eoss").glob("*_descent.csv"))
 STEP_M = 200.0
 """``drs calibrate``'s default altitude step."""
 LAWS = ("what ships", "plain law", "λ alone")
+FITS = ("before", "now")
+"""What the stated pre-flight ellipse was fitted on: shape × median λ (before), the pre-flight law (now)."""
+SIGMAS = ("before", "own λ RMS", "time RMS", "now")
+"""The σ of ln λ the descent-time interval flies: the rate prior's sd (before); tried and dropped, the
+RMS of each flight's own λ about the flown one and the RMS of ln(predicted / measured descent time) of
+the pre-flight law, held out; now the |ln(predicted / measured descent time)| 68.3 % of those stay
+within (``Calibration.preflight_spread``)."""
 
 
 @dataclass(frozen=True)
@@ -71,6 +100,72 @@ class Scored:
     gate_passed: list[bool] = field(default_factory=list)
     trained_rate: list[float] = field(default_factory=list)
     own_rate: list[float] = field(default_factory=list)
+    ellipse: dict[str, list[tuple[bool, bool]]] = field(default_factory=lambda: {f: [] for f in FITS})
+    """Per fit and scored flight: inside the stated 1σ and 2σ ellipse."""
+    time: dict[str, list[tuple[bool, bool]]] = field(default_factory=lambda: {f: [] for f in SIGMAS})
+    """Per σ and scored flight: within the stated ±1σ and ±2σ descent-time interval."""
+    sigma_km: dict[str, list[float]] = field(default_factory=lambda: {f: [] for f in FITS})
+    """The stated ellipse's σ∥ at each scored flight's drift."""
+    log_sigma: dict[str, list[float]] = field(default_factory=lambda: {f: [] for f in SIGMAS})
+
+
+@dataclass(frozen=True)
+class Stated:
+    """The pre-flight uncertainty a calibration states: the ellipse per ``FITS``, the σ per ``SIGMAS``."""
+
+    ellipse: dict[str, ErrorModel]
+    log_sigma: dict[str, float]
+    """σ of ln λ of the descent-time interval."""
+
+
+def stated(cal: Calibration, keep: np.ndarray) -> Stated:
+    """What ``cal`` states from its flights ``keep``: the ellipse as ``ellipse_fit.fit_ellipse`` fits it
+    (its maximum-likelihood parameters), before on ``after_residuals``, now on ``preflight_residuals``
+    (``run.preflight_ellipse``); the σ of each of ``SIGMAS``."""
+    t = cal.t_future_h[keep]
+
+    def kept(found: Sequence[FlightResiduals]) -> list[FlightResiduals]:
+        return [r for r, k in zip(found, keep, strict=True) if k]
+
+    def ellipse(found: Sequence[FlightResiduals]) -> ErrorModel:
+        along, cross, d = (np.array([getattr(r, a) for r in kept(found)])
+                           for a in ("landing_along_km", "landing_cross_km", "predicted_drift_km"))  # fmt: skip
+        sigma0, h, k, q = fit_parameters(along, cross, d, t)[0]
+        return ErrorModel(float(sigma0), float(h), float(k), float(q))
+
+    def rms(logs: np.ndarray) -> float:
+        return min(float(np.sqrt(np.mean(logs**2))), 1.0)
+
+    prior = np.log(cal.rate_factors[keep & np.isfinite(cal.rate_factors)])
+    pre = cal.preflight if cal.preflight is not None else cal.after
+    own = np.log(pre.rate_factor[keep & np.isfinite(pre.rate_factor)])
+    times = np.array(
+        [math.log1p(r.descent_time_error_s / r.descent_time_s) for r in kept(cal.preflight_residuals)]
+    )
+    return Stated(
+        {"before": ellipse(cal.after_residuals), "now": ellipse(cal.preflight_residuals)},
+        {
+            "before": min(float(np.std(prior, ddof=1)), 1.0),
+            "own λ RMS": rms(own),
+            "time RMS": rms(times),
+            "now": min(float(np.quantile(np.abs(times), ONE_SIGMA)), 1.0),
+        },
+    )
+
+
+def check(said: Stated, r: FlightResiduals, t_h: float, out: Scored) -> None:
+    """Whether a flight flown with what ships (its residuals ``r``) lands inside the stated ellipses and
+    falls within the stated descent-time intervals, at 1σ and 2σ."""
+    for fit in FITS:
+        parallel, perpendicular = said.ellipse[fit].sigmas_km(r.predicted_drift_km, t_h)
+        radius = math.hypot(r.landing_along_km / parallel, r.landing_cross_km / perpendicular)
+        out.ellipse[fit].append((radius <= 1.0, radius <= 2.0))
+        out.sigma_km[fit].append(parallel)
+    log_ratio = abs(math.log1p(r.descent_time_error_s / r.descent_time_s))
+    for name in SIGMAS:
+        sigma = said.log_sigma[name]
+        out.time[name].append((log_ratio <= sigma, log_ratio <= 2.0 * sigma))
+        out.log_sigma[name].append(sigma)
 
 
 def cases(paths: Sequence[Path]) -> tuple[list[FlightCase], Payload]:
@@ -103,7 +198,10 @@ def fly(
         "λ alone": (Fit(RATE_SCALE, 0, plain_rate.value).term(),),
     }
     passed = rate_gate(cal).preflight
+    said = stated(cal, np.ones(len(train), dtype=bool))
     for case in scored:
+        shown = residuals(case, run(case, payload, laws["what ships"], 1, STEP_M))
+        check(said, shown, t_future(case), out)
         for name, terms in laws.items():
             s = score(case, run(case, payload, terms, 1, STEP_M))
             out.time_s[name].append(abs(float(s.descent_time_error_s[0])))
@@ -118,8 +216,9 @@ def fly(
 
 def splits(
     superbit: Sequence[Path], eoss: Sequence[Path]
-) -> tuple[dict[str, Scored], dict[str, Calibration]]:
-    """The held-out splits, and the calibrations whose own leave-one-out is reported beside them."""
+) -> tuple[dict[str, Scored], dict[str, Calibration], dict[str, Scored]]:
+    """The held-out splits, the calibrations whose own leave-one-out is reported beside them, and the
+    coverage of what each of those states, flight by flight without it (``within_coverage``)."""
     (c18, payload), (c19, _) = (cases([p for p in superbit if p.name.startswith(y)]) for y in ("18-", "19-"))
     flights, eoss_payload = cases(eoss)
     out = {"SuperBIT 2018 → 2019": Scored(), "SuperBIT 2019 → 2018": Scored(), "EOSS leave-one-out": Scored()}
@@ -131,7 +230,17 @@ def splits(
     }
     for i, case in enumerate(flights):
         fly([c for j, c in enumerate(flights) if j != i], [case], eoss_payload, out["EOSS leave-one-out"])
-    return out, within
+    return out, within, {name: within_coverage(cal) for name, cal in within.items()}
+
+
+def within_coverage(cal: Calibration) -> Scored:
+    """A calibration's own leave-one-out of what it states: flight i against the ellipse and σ fitted on
+    the other flights' held-out residuals, with its own held-out pre-flight residual."""
+    out = Scored()
+    for i in range(len(cal.names)):
+        keep = np.arange(len(cal.names)) != i
+        check(stated(cal, keep), cal.preflight_residuals[i], cal.t_future_h[i], out)
+    return out
 
 
 def rate_gate(cal: Calibration) -> TermGate:
@@ -167,8 +276,38 @@ HEADER = (
 )
 
 
+def share(hits: Sequence[bool]) -> str:
+    """A share of flights with its 95 % Wilson interval, in per cent."""
+    z, n, inside = 1.96, len(hits), float(np.mean(hits))
+    centre = (inside + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(inside * (1 - inside) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return f"{100 * inside:.0f} % ({100 * max(centre - half, 0.0):.0f}–{100 * min(centre + half, 1.0):.0f})"
+
+
+def ellipse_rows(rows: dict[str, Scored]) -> list[str]:
+    """One table row per set: the stated σ∥, then the 1σ and 2σ shares, before and now."""
+    return [
+        f"| {name} | {len(r.ellipse['now'])} | {np.mean(r.sigma_km['before']):.2f} / {np.mean(r.sigma_km['now']):.2f} | "
+        + " | ".join(share([x[level] for x in r.ellipse[f]]) for level in (0, 1) for f in FITS)
+        + " |"
+        for name, r in rows.items()
+    ]
+
+
+def time_rows(rows: dict[str, Scored]) -> list[str]:
+    """One table row per set: each σ, then its ±1σ and ±2σ shares."""
+    return [
+        f"| {name} | {len(r.time['now'])} | "
+        + " / ".join(f"{np.mean(r.log_sigma[f]):.3f}" for f in SIGMAS)
+        + " | "
+        + " | ".join(share([x[level] for x in r.time[f]]) for level in (0, 1) for f in SIGMAS)
+        + " |"
+        for name, r in rows.items()
+    ]
+
+
 def report(superbit: Sequence[Path], eoss: Sequence[Path]) -> str:
-    results, within = splits(superbit, eoss)
+    results, within, within_stated = splits(superbit, eoss)
     lines = [
         "# Pre-flight, held out whole (issue #30)",
         "",
@@ -248,6 +387,38 @@ def report(superbit: Sequence[Path], eoss: Sequence[Path]) -> str:
             f"({own.min():.3f}–{own.max():.3f}) | {np.mean(np.abs(np.log(own))):.3f} | "
             f"{np.mean(np.abs(np.log(own / trained))):.3f} |"
         )
+    lines += [
+        "",
+        "## The stated pre-flight uncertainty, held out",
+        "",
+        "The landing ellipse and the descent-time interval (``prior_spread``: the pre-flight law flown at",
+        "λ·e^(±σ)) each training calibration states, each scored flight flown with what ships. Shares with",
+        "their 95 % Wilson interval.",
+        "",
+        "**The ellipse**, fitted **before** on the held-out landings of shape × the median λ (which no longer",
+        "flies before release) and **now** on those of the pre-flight law (what the model file carries).",
+        f"Expected for a bivariate normal: {coverage(1.0):.1%} inside the 1σ ellipse, {coverage(2.0):.1%} "
+        "inside 2σ. σ∥: the stated",
+        "ellipse's along-drift σ at each scored flight's drift, mean.",
+        "",
+        "| set | flights | σ∥ km before / now | 1σ before | 1σ now | 2σ before | 2σ now |",
+        "|---|---|---|---|---|---|---|",
+        *ellipse_rows(results),
+        *ellipse_rows({f"{name}, within (leave-one-out)": r for name, r in within_stated.items()}),
+        "",
+        "**The descent-time interval**, its σ of ln λ **before** the rate prior's sd (about the live law's",
+        "median); tried, held out: the RMS of the training flights' own λ about the flown λ (**own λ RMS**) and",
+        "the RMS of ln(predicted / measured descent time) of the pre-flight law (**time RMS**); **now** the",
+        "|ln(predicted / measured descent time)| that 68.3 % of those stay within (what the model file",
+        f"carries). Expected for a normal error: {ONE_SIGMA:.1%} within ±1σ, {math.erf(2 / math.sqrt(2)):.1%} "
+        "within ±2σ (the interval states ±1σ).",
+        "",
+        "| set | flights | σ before / own λ RMS / time RMS / now | ±1σ before | own λ RMS | time RMS | now "
+        "| ±2σ before | own λ RMS | time RMS | now |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+        *time_rows(results),
+        *time_rows({f"{name}, within (leave-one-out)": r for name, r in within_stated.items()}),
+    ]
     lines += ["", "Floor (≤ 1.0× the plain law, point estimate):", "", *(f"* {v}" for v in verdicts)]
     return "\n".join(lines) + "\n"
 

@@ -123,14 +123,15 @@ def verdict(cal: Calibration) -> str:
 
 def rate_sentence(cal: Calibration) -> str:
     """The hierarchical part in words: each flight's own λ, the prior, and what the shape adds to it."""
-    p = cal.rate_prior
+    p, spread = cal.rate_prior, cal.preflight_spread()
     a, r = cal.after.summary(), cal.rate_only.summary()
     low, high = float(np.nanmin(cal.rate_factors)), float(np.nanmax(cal.rate_factors))
     text = (
         f"Each flight's own rate factor λ on the {'selected shape' if cal.selected else 'plain law'} ranges "
         f"{low:.3f}–{high:.3f}: the rate prior is median λ {p.median:.3f}, spread of ln λ {p.log_sigma:.3f} "
-        f"({p.flights} flights), which alone makes a pre-flight descent time uncertain by about "
-        f"±{100 * p.log_sigma:.0f} %. The whole shape flown pre-flight (each held-out flight with the median λ of the others): "
+        f"({p.flights} flights). The pre-flight law's descent time, each flight held out, is within "
+        f"{spread.log_sigma:.3f} in ln of the measured one for 68 % of the flights: the pre-flight descent "
+        f"time is uncertain by about ±{100 * spread.log_sigma:.0f} % (1σ). The whole shape flown pre-flight (each held-out flight with the median λ of the others): "
         f"time-at-altitude RMS {a['time_rms_s']['mean']:.0f} s and |descent-time error| "
         f"{a['descent_time_error_s']['mean']:.0f} s, against {r['time_rms_s']['mean']:.0f} s and "
         f"{r['descent_time_error_s']['mean']:.0f} s for the plain law with the same λ estimator (the simple "
@@ -287,6 +288,7 @@ def result_json(
             },
         },
         "rate_only": _error_block(cal.rate_only),
+        "preflight_spread": cal.preflight_spread().to_dict(),
         "preflight": _error_block(cal.preflight if cal.preflight is not None else cal.after),
         "preflight_gate": [g.to_dict() for g in cal.gate],
         "live_only": list(cal.live_only),
@@ -521,7 +523,8 @@ def write_calibration_report(
         e = ellipse.to_dict()
         se = e["stderr"]
         lines += [
-            "## Landing-ellipse model (bivariate-normal maximum likelihood, held-out errors after selection)",
+            "## Landing-ellipse model (bivariate-normal maximum likelihood, held-out landing errors of the "
+            "pre-flight law)",
             "",
             "| | σ0 km | h | k km²/h² | q | held-out inside 1σ | inside 2σ |",
             "|---|---|---|---|---|---|---|",

@@ -491,6 +491,8 @@ class FlightResiduals:
     landing_along_km: float
     landing_cross_km: float
     descent_time_error_s: float
+    descent_time_s: float
+    """Measured, from descent start to touchdown: what ``descent_time_error_s`` is relative to."""
     predicted_drift_km: float
 
 
@@ -544,6 +546,7 @@ def residuals(case: FlightCase, runs: Runs, row: int = 0) -> FlightResiduals:
         landing_along_km=-float(lex * ux + ley * uy),
         landing_cross_km=-float(lex * uy - ley * ux),
         descent_time_error_s=float(s.descent_time_error_s[0]),
+        descent_time_s=case.descent_time_s,
         predicted_drift_km=drift,
     )
 

@@ -99,12 +99,18 @@ def analyse(inputs: Inputs, args: argparse.Namespace) -> tuple[Calibration, Elli
         step_m=args.step, max_effects=args.max_effects, seed=args.seed,
         nested=getattr(args, "nested_stability", False), progress=getattr(args, "progress", None),
     )  # fmt: skip
-    ellipse = None
-    if len(inputs.cases) >= MIN_FLIGHTS:
-        along = np.array([r.landing_along_km for r in cal.after_residuals])
-        cross = np.array([r.landing_cross_km for r in cal.after_residuals])
-        ellipse = fit_ellipse(along, cross, cal.predicted_drift_km, cal.t_future_h, seed=args.seed)
-    return cal, ellipse
+    return cal, preflight_ellipse(cal, args.seed)
+
+
+def preflight_ellipse(cal: Calibration, seed: int = 0) -> EllipseFit | None:
+    """The landing ellipse a prediction before release states, fitted on the held-out landings of the law
+    that flies then (``Calibration.preflight_residuals``: the plain law where the gate kept every term and
+    λ out), so it describes the prediction it is drawn around. None with fewer than ``MIN_FLIGHTS``."""
+    if len(cal.names) < MIN_FLIGHTS:
+        return None
+    along = np.array([r.landing_along_km for r in cal.preflight_residuals])
+    cross = np.array([r.landing_cross_km for r in cal.preflight_residuals])
+    return fit_ellipse(along, cross, cal.predicted_drift_km, cal.t_future_h, seed=seed)
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
@@ -150,8 +156,10 @@ def calibrated_model(
 ) -> CalibratedModel:
     """What this calibration learned, as the model predictions fly: the selected terms, then the binned
     correction's parts (rate factors, added wind) that beat them on held-out flights, each marked by the
-    pre-flight gate as flown both ways or live-only (with the pre-flight λ when it differs). The DEM and step
-    are recorded so that ``drs live evaluate`` refits the law as it was fitted, whatever its own --dem."""
+    pre-flight gate as flown both ways or live-only (with the pre-flight λ when it differs), and the
+    pre-flight uncertainty measured on that pre-flight law (``ellipse`` from ``preflight_ellipse``, the λ
+    spread about it). The DEM and step are recorded so that ``drs live evaluate`` refits the law as it was
+    fitted, whatever its own --dem."""
     terms = cal.terms()
     provenance = {
         "created_utc": datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z"),
@@ -180,7 +188,7 @@ def calibrated_model(
     }
     return CalibratedModel(
         inputs.payload, terms, ellipse.model() if ellipse else None, provenance, rate_prior=cal.rate_prior,
-        preflight=cal.preflight_terms(),
+        preflight=cal.preflight_terms(), preflight_spread=cal.preflight_spread(),
     )  # fmt: skip
 
 
@@ -306,10 +314,7 @@ def run_bench(args: argparse.Namespace) -> int:
             step_m=args.step, max_effects=args.max_effects, seed=args.seed,
         )  # fmt: skip
         t2 = time.perf_counter()
-        if len(inputs.cases) >= MIN_FLIGHTS:
-            along = np.array([r.landing_along_km for r in cal.after_residuals])
-            cross = np.array([r.landing_cross_km for r in cal.after_residuals])
-            fit_ellipse(along, cross, cal.predicted_drift_km, cal.t_future_h, seed=args.seed)
+        preflight_ellipse(cal, args.seed)
         t3 = time.perf_counter()
         for key, value in (
             ("prepare", t1 - t0),

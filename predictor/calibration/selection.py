@@ -52,6 +52,7 @@ does not earn its place there is live-only.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -70,7 +71,7 @@ from predictor.calibration.residuals import (
     run,
     score,
 )
-from predictor.descent import BinnedDescentRate, BinnedWind, Payload, RatePrior, Term
+from predictor.descent import BinnedDescentRate, BinnedWind, Payload, PreflightSpread, RatePrior, Term
 from predictor.errors import PredictorError
 
 Progress = Callable[[str, int, int | None], None]
@@ -79,6 +80,8 @@ ALPHA = 0.05
 BOOTSTRAP_SAMPLES = 4000
 DEFAULT_MAX_EFFECTS = 3
 JOINT_SWEEPS = 2
+ONE_SIGMA = math.erf(1.0 / math.sqrt(2.0))
+"""0.6827: the share of a normal error within ±1σ, which the pre-flight descent-time interval states."""
 STABLE_SHARE = 2.0 / 3.0
 """A term chosen in fewer than this share of the leave-one-flight-out folds of the decision is flagged."""
 RATE_SCALE = next(c for c in LIBRARY if c.name == "descent_rate_scale")
@@ -324,13 +327,20 @@ class Calibration:
     baseline_replayed: tuple[FlightResiduals, ...]
     """Of the plain model with the measured profile replayed: the horizontal record's residual."""
     after_residuals: tuple[FlightResiduals, ...]
-    """Residuals of the held-out predictions with the selected effects (each flight's own fold)."""
+    """Residuals of the held-out predictions with the selected effects (each flight's own fold). The
+    pre-flight ellipse was fitted on them until it followed the gate (``preflight_residuals``);
+    docs/calibration/preflight_held_out.py reports that ellipse's coverage beside the one stated now."""
     after_replayed: tuple[FlightResiduals, ...]
     """The same with the measured profile replayed (the horizontal record after selection)."""
+    preflight_residuals: tuple[FlightResiduals, ...]
+    """Residuals of the held-out predictions with what a pre-flight prediction flies (the gate's law, each
+    flight's own fold): the pre-flight ellipse is fitted on their landings, so the uncertainty a
+    prediction states before release describes the law it shows, not shape × median λ when the gate
+    kept those out."""
     baseline_budgets: tuple[BinBudget, ...]
     """Of the plain model: time to cross each altitude bin (``BIN_EDGES_M``), measured and predicted."""
     predicted_drift_km: np.ndarray
-    """Release→landing distance of each held-out prediction after selection (the ellipse's d)."""
+    """Release→landing distance of each held-out pre-flight prediction (the pre-flight ellipse's d)."""
     t_future_h: np.ndarray
     rate_prior: RatePrior
     """The spread of the flights' own λ under the selected shape (fitted on all flights)."""
@@ -354,6 +364,16 @@ class Calibration:
     median made the held-out pre-flight law worse (None: ``rate_fit``)."""
     preflight: HeldOut | None = None
     """Held out, what a pre-flight prediction flies (None: ``after``)."""
+
+    def preflight_spread(self) -> PreflightSpread:
+        """What the stated pre-flight descent-time interval is flown with (``PreflightSpread``): the
+        |ln(predicted / measured descent time)| that 68.3 % of the held-out pre-flight predictions stay
+        within. Not the prior's sd: that is about the live law's median, which does not fly before
+        release when the gate kept it out."""
+        misses = np.array(
+            [abs(math.log1p(r.descent_time_error_s / r.descent_time_s)) for r in self.preflight_residuals]
+        )
+        return PreflightSpread(min(float(np.quantile(misses, ONE_SIGMA)), 1.0), len(misses))
 
     @property
     def live_only(self) -> tuple[str, ...]:
@@ -473,11 +493,14 @@ def calibrate(
     flown_folds, after = settled.flown_folds, settled.after
     binned, binned_heldout, binned_tests = settled.binned, settled.binned_heldout, settled.binned_tests
     gate = preflight_gate(
-        batch, selected_folds, selected_full, settled, baseline, (rate_only, plain_rate), seed
+        batch, selected_folds, selected_full, settled, baseline, (rate_only, plain_folds, plain_rate), seed
     )
     after_residuals = tuple(residuals(cases[i], batch.runs(i, [flown_folds[i]])) for i in range(n))
     after_replayed = tuple(
         residuals(cases[i], batch.runs(i, [flown_folds[i]], replay=True)) for i in range(n)
+    )
+    preflight_residuals = tuple(
+        residuals(cases[i], batch.runs(i, [gate.folds[i]], gate.extra[i])) for i in range(n)
     )
     return Calibration(
         names=tuple(c.name for c in cases),
@@ -493,12 +516,13 @@ def calibrate(
         baseline_replayed=baseline_replayed,
         after_residuals=after_residuals,
         after_replayed=after_replayed,
+        preflight_residuals=preflight_residuals,
         baseline_budgets=tuple(
             _whole_bins(cases[i], bin_budget(cases[i], batch.runs(i, [[]]), 0, np.asarray(BIN_EDGES_M)))
             for i in range(n)
         ),  # fmt: skip
-        predicted_drift_km=np.array([r.predicted_drift_km for r in after_residuals]),
-        t_future_h=np.array([_t_future(c) for c in cases]),
+        predicted_drift_km=np.array([r.predicted_drift_km for r in preflight_residuals]),
+        t_future_h=np.array([t_future(c) for c in cases]),
         rate_prior=prior,
         rate_fit=rate_full,
         rate_factors=factors,
@@ -740,6 +764,10 @@ class Gate:
     terms: tuple[TermGate, ...]
     rate_fit: Fit
     heldout: HeldOut
+    folds: list[list[Fit]]
+    """Fold i's pre-flight law (its λ where λ passed, then the terms that passed), fitted without flight i."""
+    extra: list[tuple[Term, ...]]
+    """Fold i's binned parts that passed (empty when none)."""
 
 
 def preflight_gate(
@@ -748,19 +776,21 @@ def preflight_gate(
     selected_full: list[Fit],
     settled: Settled,
     plain: HeldOut,
-    rate_only: tuple[HeldOut, Fit],
+    rate_only: tuple[HeldOut, list[Fit], Fit],
     seed: int,
 ) -> Gate:
     """Each shipped term judged as the pre-flight law flies it (``preflight_gate`` module). The shape
     terms first, added in selection order to the pre-flight set kept so far, λ the median of the other
     flights' λ under that set, its held-out descent time and landing compared with the set's without it,
-    starting from ``rate_only`` (the plain law × median λ held out, and that λ on all flights); then λ
-    itself: the kept set with that λ against the kept set with λ = 1 (``plain``, the plain law held out,
-    when no shape term passed); then the binned parts, which were fitted on top of λ and every shape
-    term and so are judged only when all of them passed. Returns the decision per term, the pre-flight
-    λ (1 when λ failed) and the pre-flight law's held-out numbers."""
+    starting from ``rate_only`` (the plain law × median λ held out, each fold's λ, and that λ on all
+    flights); then λ itself: the kept set with that λ against the kept set with λ = 1 (``plain``, the
+    plain law held out, when no shape term passed); then the binned parts, which were fitted on top of λ
+    and every shape term and so are judged only when all of them passed. Returns the decision per term,
+    the pre-flight λ (1 when λ failed), the pre-flight law's held-out numbers and its fits per fold
+    (what its held-out residuals, and so the pre-flight ellipse, are flown with)."""
     n = len(batch.cases)
-    current, rate_fit = rate_only
+    current, rate_folds, rate_fit = rate_only
+    current_folds = [[f] for f in rate_folds]
     kept: list[int] = []
     decisions: list[TermGate] = []
     for k, fit in enumerate(selected_full):
@@ -768,20 +798,22 @@ def preflight_gate(
         folds = [[row[m] for m in trial] for row in selected_folds]
         full = [selected_full[m] for m in trial]
         if trial == list(range(len(selected_full))):
-            trial_rate, heldout = settled.rate_full, settled.after
+            trial_rate, trial_folds, heldout = settled.rate_full, settled.flown_folds, settled.after
         else:
             _, fold_rates, trial_rate, _ = rate_priors(batch, folds, full)
-            heldout = batch.heldout([[fold_rates[i], *folds[i]] for i in range(n)])
+            trial_folds = [[fold_rates[i], *folds[i]] for i in range(n)]
+            heldout = batch.heldout(trial_folds)
         decision = verdict(fit.candidate.name, compare(_gated(current), _gated(heldout), seed))
         decisions.append(decision)
         if decision.preflight:
             kept.append(k)
-            current, rate_fit = heldout, trial_rate
-    without = batch.heldout([[row[m] for m in kept] for row in selected_folds]) if kept else plain
+            current, rate_fit, current_folds = heldout, trial_rate, trial_folds
+    without_folds = [[row[m] for m in kept] for row in selected_folds]
+    without = batch.heldout(without_folds) if kept else plain
     rate = verdict(RATE_SCALE.name, compare(_gated(without), _gated(current), seed))
     if not rate.preflight:
         rate = dataclasses.replace(rate, reason=rate.reason + "; the pre-flight law flies λ = 1")
-        current, rate_fit = without, Fit(RATE_SCALE, 0, 1.0)
+        current, rate_fit, current_folds = without, Fit(RATE_SCALE, 0, 1.0), without_folds
     decisions.append(rate)
     every_term = rate.preflight and len(kept) == len(selected_full)
     passed = {t.record for t in settled.binned_tests if t.passed}
@@ -798,8 +830,8 @@ def preflight_gate(
         decision = verdict(name, compare(_gated(current), _gated(heldout), seed))
         decisions.append(decision)
         if decision.preflight:
-            extra, current = trial_extra, heldout
-    return Gate(tuple(decisions), rate_fit, current)
+            extra, current, current_folds = trial_extra, heldout, settled.flown_folds
+    return Gate(tuple(decisions), rate_fit, current, current_folds, extra)
 
 
 def _gated(h: HeldOut) -> dict[str, np.ndarray]:
@@ -1115,7 +1147,7 @@ def refit_without_each(
     return refits[-1], refits[:-1]
 
 
-def _t_future(case: FlightCase) -> float:
+def t_future(case: FlightCase) -> float:
     """Mean forecast lead time of the weather over the descent (0 for ascent-measured winds)."""
     times = case.cube.times.astype("datetime64[s]").astype(np.int64).astype(float)
     t0 = case.start_time.timestamp()

@@ -48,7 +48,7 @@ if TYPE_CHECKING:
         WindOffset as WindOffset,
     )
     from .payload import PROFILES as PROFILES, Payload as Payload, payload_profile as payload_profile
-    from .rate_prior import RatePrior as RatePrior
+    from .rate_prior import PreflightSpread as PreflightSpread, RatePrior as RatePrior
     from .release import Release as Release
 
 __getattr__, __dir__, __all__ = lazy_door(
@@ -66,6 +66,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Model": "model",
         "PROFILES": "payload",
         "Payload": "payload",
+        "PreflightSpread": "rate_prior",
         "RatePrior": "rate_prior",
         "Record": "integrate",
         "Release": "release",

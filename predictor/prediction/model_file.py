@@ -25,7 +25,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from predictor.descent import EFFECTS, DescentRateScale, Model, Payload, RatePrior, Term, payload_profile
+from predictor.descent import (
+    EFFECTS,
+    DescentRateScale,
+    Model,
+    Payload,
+    PreflightSpread,
+    RatePrior,
+    Term,
+    payload_profile,
+)
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, UsageError
 from predictor.prediction.live import (
@@ -82,12 +91,14 @@ take, a fast fall at most 10× the canopy's, heights inside the weather, ±60 m/
 fit's own factor bounds). A model file with a value outside them was not made by a calibration and is
 refused (an exponent of 5 is an 8-minute fall from 28 km, a wind scale of −1 blows backwards)."""
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 """2 added the optional ``live`` section, 3 the optional ``rate_prior``, 4 each term's ``flown`` (the
 pre-flight gate), 5 the live section's ``law`` (what live re-prediction restarts from; absent: the
-model's terms, as every older file flew): a drs that reads an older schema refuses such a file rather
-than fly the model without what was measured for it (a schema-3 reader would fly a live-only term
-before release, a schema-4 one the model's terms with a λ table measured on the payload's law)."""
+model's terms, as every older file flew), 6 the optional ``preflight_spread`` (the λ spread about the
+pre-flight law, with the ellipse now fitted on that law's landings): a drs that reads an older schema
+refuses such a file rather than fly the model without what was measured for it (a schema-3 reader
+would fly a live-only term before release, a schema-4 one the model's terms with a λ table measured on
+the payload's law, a schema-5 one the pre-flight descent-time interval of the live law's prior)."""
 FLOWN = ("both", "live-only", "pre-flight-only")
 """A term's ``flown`` in a schema-4 file: by both laws; only once the flight's own λ is known (the
 pre-flight gate found it made the held-out pre-flight prediction worse); only before release (the
@@ -130,6 +141,9 @@ class CalibratedModel:
     """What a prediction before release flies (``terms`` without the live-only ones, with the pre-flight
     λ); None: a file written before the pre-flight gate (schema ≤ 3), whose terms all fly pre-flight
     unjudged, which ``drs model show`` says."""
+    preflight_spread: PreflightSpread | None = None
+    """The held-out spread of the flights' own λ about the pre-flight law's λ, which the pre-flight
+    descent-time interval flies (None: a file written before schema 6, which flies the prior's sd)."""
 
     def preflight_law(self) -> tuple[Term, ...]:
         """The terms a pre-flight prediction flies (``drs predict``, ``drs plan``, the console before
@@ -268,6 +282,11 @@ class CalibratedModel:
             "ellipse": ellipse,
             **({"live": _live_to_dict(self.live)} if self.live is not None else {}),
             **({"rate_prior": self.rate_prior.to_dict()} if self.rate_prior is not None else {}),
+            **(
+                {"preflight_spread": self.preflight_spread.to_dict()}
+                if self.preflight_spread is not None
+                else {}
+            ),
             "provenance": self.provenance,
         }
 
@@ -389,10 +408,11 @@ def load_model(path: str | Path) -> CalibratedModel:
     ellipse = _ellipse(raw.get("ellipse"), refuse)
     live = _live(raw["live"], refuse) if "live" in raw else None
     rate_prior = _rate_prior(raw["rate_prior"], refuse) if "rate_prior" in raw else None
+    spread = _preflight_spread(raw["preflight_spread"], refuse) if "preflight_spread" in raw else None
     provenance = raw.get("provenance", {})
     if not isinstance(provenance, dict):
         raise refuse("provenance", "must be an object")
-    return CalibratedModel(payload, terms, ellipse, provenance, source, live, rate_prior, preflight)
+    return CalibratedModel(payload, terms, ellipse, provenance, source, live, rate_prior, preflight, spread)
 
 
 def _bounded_text(source: Path, refuse: Any) -> str:
@@ -558,6 +578,18 @@ def _rate_prior(raw: Any, refuse: Any) -> RatePrior:
         )
     except PredictorError as exc:
         raise refuse("rate_prior", str(exc)) from None
+
+
+def _preflight_spread(raw: Any, refuse: Any) -> PreflightSpread:
+    if not isinstance(raw, dict):
+        raise refuse("preflight_spread", "must be an object with log_sigma and flights")
+    flights = raw.get("flights")
+    if isinstance(flights, bool) or not isinstance(flights, int):
+        raise refuse("preflight_spread.flights", f"must be a whole number of flights, got {flights!r}")
+    try:
+        return PreflightSpread(_number(raw.get("log_sigma"), "preflight_spread.log_sigma", refuse), flights)
+    except PredictorError as exc:
+        raise refuse("preflight_spread", str(exc)) from None
 
 
 def _numbers(raw: Any, where: str, refuse: Any, positive: bool = False) -> tuple[float, ...]:

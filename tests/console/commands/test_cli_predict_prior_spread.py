@@ -7,6 +7,7 @@ weather; the runs are the project's kernel, the expectation is that integral's s
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from datetime import UTC, datetime
@@ -17,7 +18,7 @@ import pytest
 from console.commands.main import main
 from predictor.descent.model import DescentRateScale, DragDensityExponent
 from predictor.descent.payload import Payload
-from predictor.descent.rate_prior import RatePrior
+from predictor.descent.rate_prior import PreflightSpread, RatePrior
 from predictor.environment.demo_weather import demo_weather_files
 from predictor.prediction import CalibratedModel, save_model
 
@@ -70,7 +71,24 @@ def test_the_text_names_the_interval_and_a_model_without_a_prior_claims_none(
 ) -> None:
     text = _predict(tmp_path, capsys, _model(0.1))
     line = next(x for x in text.splitlines() if x.startswith("λ ±1σ"))
-    assert "sd ln λ 0.1)" in line and "at λ 1.06–0.869" in line, line
+    assert "σ ln λ 0.1)" in line and "at λ 1.06–0.869" in line, line
     without = _model(None)
     assert "λ ±1σ" not in _predict(tmp_path, capsys, without)
     assert "rate_prior_spread" not in json.loads(_predict(tmp_path, capsys, without, "--json"))
+
+
+def test_the_interval_flies_the_spread_measured_about_the_pre_flight_law_not_the_priors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The gate kept the median λ (0.96) and the shape out: before release the plain law flies at λ = 1,
+    and the flights' own λ miss it by 0.15 in ln λ (their scatter and the median's offset), not by the
+    prior's 0.05 about its median. The interval is flown about λ = 1 with 0.15."""
+    model = dataclasses.replace(
+        _model(0.05), preflight=(DescentRateScale(scale=1.0),), preflight_spread=PreflightSpread(0.15, 30)
+    )
+    flown = json.loads(_predict(tmp_path, capsys, model, "--json"))
+    spread = flown["rate_prior_spread"]
+    assert spread["log_sigma"] == 0.15
+    assert spread["rate_factor_slow"] == pytest.approx(math.exp(-0.15))
+    assert spread["rate_factor_fast"] == pytest.approx(math.exp(0.15))
+    assert spread["descent_s"]["slow"] == pytest.approx(flown["descent_s"] * math.exp(0.15), rel=2e-3)

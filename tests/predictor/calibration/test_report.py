@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from predictor.calibration.effects import BIN_EDGES_M, library
-from predictor.calibration.ellipse_fit import fit_ellipse
+from predictor.calibration.ellipse_fit import EllipseFit
 from predictor.calibration.report import (
     Exclusion,
     landing_change,
@@ -19,6 +19,7 @@ from predictor.calibration.report import (
     write_calibration_report,
 )
 from predictor.calibration.residuals import FlightCase
+from predictor.calibration.run import preflight_ellipse
 from predictor.calibration.selection import Calibration, calibrate
 from predictor.descent.model import DragDensityExponent
 from predictor.descent.payload import PROFILES
@@ -32,10 +33,10 @@ def calibrated(plain_cases: list[FlightCase]) -> Calibration:
     return calibrate(plain_cases, PAYLOAD, library(["drag_density_exponent", "wind_rotation"]))
 
 
-def _ellipse(cal: Calibration):  # noqa: ANN202
-    along = np.array([r.landing_along_km for r in cal.after_residuals])
-    cross = np.array([r.landing_cross_km for r in cal.after_residuals])
-    return fit_ellipse(along, cross, cal.predicted_drift_km, cal.t_future_h)
+def _ellipse(cal: Calibration) -> EllipseFit:
+    fit = preflight_ellipse(cal)
+    assert fit is not None
+    return fit
 
 
 def test_the_json_has_the_keys_the_issue_names(calibrated: Calibration) -> None:

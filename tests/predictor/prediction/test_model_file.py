@@ -12,6 +12,7 @@ from console.commands.main import main
 from predictor.descent import Release
 from predictor.descent.model import BinnedDescentRate, DescentRateScale, DragDensityExponent
 from predictor.descent.payload import Payload
+from predictor.descent.rate_prior import PreflightSpread
 from predictor.environment.demo_weather import demo_weather_files
 from predictor.environment.weather import load_weather
 from predictor.prediction import FlightSetup
@@ -42,6 +43,7 @@ def example() -> CalibratedModel:
             LiveErrorModel((20.0, 2.0), (3.9, 1.6), (3.8, 0.8)),
             RateDiscrepancy((5.0, 20.0), (0.0, 0.04), (0.02, 0.05), (0.01, -0.02), (0.12, 0.15), (28, 27)),
         ),
+        preflight_spread=PreflightSpread(0.14, 2),
     )  # fmt: skip
 
 
@@ -51,6 +53,7 @@ def test_a_saved_model_loads_back_the_same(tmp_path: Path) -> None:
     assert loaded.payload == example().payload and loaded.terms == example().terms
     assert loaded.ellipse == example().ellipse and loaded.provenance == example().provenance
     assert loaded.live == example().live, "bands (open ends included), λ discrepancy and live sigma"
+    assert loaded.preflight_spread == example().preflight_spread
     assert loaded.label() == "m.json (calibrated 2026-11-24 on 2 flights)"
     assert [p.name for p in tmp_path.iterdir()] == ["m.json"], "no temporary file left behind"
 
@@ -91,6 +94,8 @@ def test_drs_model_show_names_the_payload_terms_ellipse_and_provenance(
     out = capsys.readouterr().out
     for text in ("superbit-test: 6 kg, Cd·A 1.36 m²", "term      drag_density_exponent (vertical): exponent 0.06",
                  "ellipse   σ0 1.2 km", "flights   2: 18-5-19, 18-6-30", "weather   ascent winds",
+                 "λ spread  pre-flight: σ of ln λ 0.14 about the pre-flight law's λ (its held-out descent times "
+                 "over 2 flights; pre-flight descent time ±14 % 1σ)",
                  "live      0 km–5 km: own λ updated, wind off; 5 km–top: own λ updated, wind L = 2 km",
                  "live law  in the bands: the model's terms, with the flight's own λ where a band updates it; "
                  "outside them: the model's terms",
@@ -174,6 +179,12 @@ def _with(change: dict) -> dict:
             r"ellipse: error model 'calibrated': sigma0, h and k must be ≥ 0 and q > 0",
         ),
         (_with({"terms": {"a": 1}}), r"terms: must be a list"),
+        (_with({"preflight_spread": [0.1]}), r"preflight_spread: must be an object with log_sigma"),
+        (
+            _with({"preflight_spread.log_sigma": 1.5}),
+            r"preflight_spread: pre-flight spread log_sigma 1\.5 is outside 0\.0–1\.0",
+        ),
+        (_with({"preflight_spread.flights": 2.5}), r"preflight_spread\.flights: must be a whole number"),
         (_with({"live": []}), r"live: must be an object with bands"),
         (
             _with({"live.bands.0.use_rate": "yes"}),
@@ -226,6 +237,9 @@ def _with(change: dict) -> dict:
         "bins",
         "ellipse",
         "terms-type",
+        "spread-type",
+        "spread-range",
+        "spread-flights",
         "live-type",
         "live-use-rate",
         "live-band-order",
@@ -360,7 +374,7 @@ def test_live_restarts_from_the_law_the_file_names_and_an_older_file_from_its_te
     # the payload's drag law, no calibrated term (the plain restart from the nominal payload, which the
     # flight's own λ corrects), with the evaluation's λ prior since the calibration's is on the terms.
     document = example().to_dict()
-    assert document["schema"] == SCHEMA_VERSION == 5
+    assert document["schema"] == SCHEMA_VERSION == 6
     assert (document["live"]["law"], document["live"]["restart"]) == ("model", "model")
     del document["live"]["law"], document["live"]["restart"]
     document["schema"] = 4
