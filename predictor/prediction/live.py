@@ -21,8 +21,10 @@ altitude and time), and the reports so far measure two things the forecast got w
   over the same altitudes. An error at altitude does not simply continue to the ground (the jet and
   the stratosphere are different air), so the recent error is applied below the capsule with a weight
   exp(−Δz / L) that decays with the altitude distance Δz from the capsule (``BinnedWind`` in 250 m
-  bins). L is chosen on real flights, leave-one-flight-out (``predictor.calibration.live_evaluation``),
-  and the correction is switched on only in the altitude bands where it helped held-out flights.
+  bins), in the bands the model's live settings fly it in (``predictor.calibration.live_evaluation``:
+  L = 4 km below 12.5 km above the ground), times a gain per report height (``WindGain``) that the
+  model's own training flights learned: how much of the error measured above was still there below
+  them, which depends on the weather and the forecast, not on the payload.
 
 The ellipse shrinks with what is left: σ∥ and σ⊥ are the errors the model's own evaluation measured at
 the report's height above the ground (``LiveErrorModel``); a model without live settings of its own
@@ -296,6 +298,26 @@ class Band:
 
 
 @dataclass(frozen=True)
+class WindGain:
+    """How much of the measured wind error is carried below the capsule, by its height above the ground.
+
+    The training flights' own answer, not a constant: per report height, the least-squares slope of
+    their landing miss without the wind correction on the displacement the whole correction adds,
+    shrunk toward 0 by its uncertainty over the flights and held within 0–1
+    (``predictor.calibration.wind_gain``). Where the wind error measured above carried on down on those
+    flights it is near 1; where it did not (a forecast error that changes within a few km of height) near
+    0. Linear in height between the table's heights, held beyond them.
+    """
+
+    heights_km: tuple[float, ...]
+    gains: tuple[float, ...]
+
+    def at(self, height_km: float) -> float:
+        """The gain for a report at this height above the ground."""
+        return by_height(height_km, self.heights_km, self.gains)
+
+
+@dataclass(frozen=True)
 class LiveCorrection:
     """How the measured descent corrects the rest of it, by the capsule's height above the ground.
 
@@ -304,6 +326,9 @@ class LiveCorrection:
 
     bands: tuple[Band, ...] = ()
     wind_window_m: float = 2000.0
+    wind_gain: WindGain | None = None
+    """The share of the measured wind error a band's wind correction carries down (None: all of it, as
+    every correction flew before the gain was learned, and as a model file without one still flies)."""
 
     @classmethod
     def everywhere(cls, use_rate: bool, decay_m: float | None) -> LiveCorrection:
@@ -624,6 +649,7 @@ class LivePrediction:
     rate: RateEstimate | None
     """This flight's λ update (None: the rate is not corrected at this height)."""
     wind_error_ms: tuple[float, float]
+    """The wind error carried below the capsule (the measured one times ``wind_gain``)."""
     decay_m: float | None
     legs: tuple[Leg, ...] = field(repr=False)
     notes: tuple[str, ...] = ()
@@ -633,6 +659,8 @@ class LivePrediction:
     the typical X at this height was flown)."""
     time_log_sigma: float | None = None
     """The law's own σ of ln(remaining time) at this height (``LiveErrorModel.time_log_sigma``)."""
+    wind_gain: float | None = None
+    """The share of the measured wind error carried (``WindGain``; None: all of it, or no wind flown)."""
 
     @property
     def rate_factor(self) -> float:
@@ -673,6 +701,7 @@ class LivePrediction:
             "rate_prior": None if rate is None or rate.prior is None else rate.prior.to_dict(),
             "wind_error_ms": {"east": self.wind_error_ms[0], "north": self.wind_error_ms[1]},
             "wind_decay_m": self.decay_m,
+            "wind_gain": self.wind_gain,
             "legs_used": len(self.legs),
             "notes": list(self.notes),
             "warnings": list(p.warnings),
@@ -848,6 +877,10 @@ class LivePredictor:
         decay = band.decay_m if band is not None else None
         rate = self.rate(report) if band is not None and band.use_rate else None
         (east, north), measured_at = self._wind_error(report.alt_m, correction)
+        gain = None
+        if decay is not None and correction.wind_gain is not None:
+            gain = correction.wind_gain.at(height / 1000.0)
+            east, north = gain * east, gain * north
         terms: list[Term] = list(self.effects if band is not None else self.restart_effects)
         if rate is not None and rate.factor != 1.0:
             terms.append(DescentRateScale(scale=rate.factor))
@@ -878,6 +911,7 @@ class LivePredictor:
             rate=rate,
             wind_error_ms=(east, north) if decay is not None else (0.0, 0.0),
             decay_m=decay,
+            wind_gain=gain,
             legs=tuple(self.legs),
             notes=self.notes
             if distance is not None or not self.error_model.growth_exponent
