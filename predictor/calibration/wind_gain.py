@@ -80,7 +80,8 @@ def fit_gain(samples: Sequence[GainSample]) -> GainFit:
     # the residuals are alike from flight to flight; n / (n − 1) for the slope fitted on them.
     score = np.sum(d * (m - raw * d), axis=1)
     sigma = math.sqrt(float(score @ score) * used / (used - 1)) / norm
-    shrunk = raw * max(0.0, 1.0 - sigma**2 / raw**2) if raw != 0.0 else 0.0
+    # A slope against the measured error (raw ≤ 0) is held at none of it, never at a negative zero.
+    shrunk = raw * max(0.0, 1.0 - sigma**2 / raw**2) if raw > 0.0 else GAIN_LIMITS[0]
     return GainFit(min(max(shrunk, GAIN_LIMITS[0]), GAIN_LIMITS[1]), raw, sigma, used)
 
 

@@ -173,10 +173,10 @@ def ascent_distance_km_h(track: Track, measured_along: np.ndarray) -> float:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.461, 3.637, 3.215, 3.645, 1.981, 1.476),
-    sigma_perpendicular_km=(3.608, 3.773, 3.695, 2.675, 1.396, 1.355),
-    growth_exponent=0.475,
-    typical_km_h=(50.6, 51.42, 49.02, 41.95, 27.03, 10.74),
+    sigma_parallel_km=(4.569, 3.697, 3.259, 3.607, 2.01, 1.429),
+    sigma_perpendicular_km=(3.711, 3.878, 3.779, 2.759, 1.429, 1.197),
+    growth_exponent=0.525,
+    typical_km_h=(50.6, 51.42, 49.02, 41.94, 27.03, 10.74),
     time_log_sigma=(0.1, 0.01, 0.0575, 0.05, 0.055, 0.0975),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,
@@ -649,7 +649,7 @@ class LivePrediction:
     rate: RateEstimate | None
     """This flight's λ update (None: the rate is not corrected at this height)."""
     wind_error_ms: tuple[float, float]
-    """The wind error carried below the capsule (the measured one times ``wind_gain``)."""
+    """The wind error measured over the recent legs (below the capsule it is carried times ``wind_gain``)."""
     decay_m: float | None
     legs: tuple[Leg, ...] = field(repr=False)
     notes: tuple[str, ...] = ()
@@ -877,10 +877,12 @@ class LivePredictor:
         decay = band.decay_m if band is not None else None
         rate = self.rate(report) if band is not None and band.use_rate else None
         (east, north), measured_at = self._wind_error(report.alt_m, correction)
-        gain = None
-        if decay is not None and correction.wind_gain is not None:
-            gain = correction.wind_gain.at(height / 1000.0)
-            east, north = gain * east, gain * north
+        gain = (
+            None
+            if decay is None or correction.wind_gain is None
+            else correction.wind_gain.at(height / 1000.0)
+        )
+        share = 1.0 if gain is None else gain
         terms: list[Term] = list(self.effects if band is not None else self.restart_effects)
         if rate is not None and rate.factor != 1.0:
             terms.append(DescentRateScale(scale=rate.factor))
@@ -892,8 +894,8 @@ class LivePredictor:
             terms.append(
                 BinnedWind(
                     edges_m=tuple(float(e) for e in edges),
-                    east_ms=tuple(float(east * w) for w in weight),
-                    north_ms=tuple(float(north * w) for w in weight),
+                    east_ms=tuple(float(share * east * w) for w in weight),
+                    north_ms=tuple(float(share * north * w) for w in weight),
                 )
             )
         prediction = self._predict(report, terms, error_model=self.error_model.at(height / 1000.0))
