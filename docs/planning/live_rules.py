@@ -29,12 +29,19 @@ flights alone in train → score):
   and one interval below the burst are not evidence), else the plain restart;
 * *restart above 22.5 km*: the plain restart at the 25 km checkpoint, textbook + λ below; *+ wind L
   below 12.5 km*: and the wind with L below 12.5 km (on the model's law + λ, the proxy the evaluation
-  has for every L); *what ships*: the same with L = 4 km on the live law (`live_law`: the textbook
-  law on every split here); *what ships, wind only far from the ascent*: the same, the wind only where
-  the predicted path is farther from the ascent than the training flights' typical X at that height
-  (issue #30 item 4); *+ wind 4 km above 12.5 km when far*: what ships, and the wind from 22.5 km down
-  where the path is that far;
-* *what ships, wind only where its look-back helped* (never built in the product): what ships, but at a
+  has for every L); *what shipped before (all of the wind)*: the same with L = 4 km on the live law
+  (`live_law`: the textbook law on every split here); *what ships*: that wind times the gain the other
+  (training) flights' landings learned at the checkpoint (`live_evaluation.wind_gains`, issue #30 item
+  4); *before, wind only far from the ascent*: what shipped before, the wind only where the predicted
+  path is farther from the ascent than the training flights' typical X at that height; *+ wind 4 km
+  above 12.5 km when far*: what shipped before, and the wind from 22.5 km down where the path is that
+  far;
+* the wind gain's alternatives (``Gained``: the landing that share of the way from the landing without
+  the wind to the one with all of it): *the least-squares slope (not shrunk)* held within 0–1, *its lower
+  95 % bound*, *one gain pooled over 10, 5 and 2 km*, *also from 20 and 15 km* (where what ships flies
+  no wind); *learned L*: the L (or none) with the least mean landing error of the other (training)
+  flights at the checkpoint, on the model's law + λ; *learned L × its gain*: each L times its own gain;
+* *before, wind only where its look-back helped* (never built in the product): what shipped before, but at a
   report where it flies the wind, this flight's own check decides it. From the last report at least D
   higher, the position at this report's altitude is predicted with λ as ships, with and without the
   wind error measured there (L = 4 km), and compared with where the capsule was: the wind is flown
@@ -44,9 +51,13 @@ flights alone in train → score):
   check plus ln(the training flights' mean landing with the wind ÷ without it at that height) is ≤ 0.
 
 ``--hard-worlds`` (about two minutes; it also prints each world's own ``drs live evaluate`` report)
-measures the last two against what ships in the five hard independent worlds of ``tests/predictor/calibration/test_live_hard_worlds.py``, through the product's
-live predictor (``CalibratedModel.live_predictor``): D and the prior from the eight calibration flights,
-scored on the ten unseen ones, landing ÷ the plain restart's with its 95 % interval.
+measures, in the five hard independent worlds of ``tests/predictor/calibration/test_live_hard_worlds.py``,
+through the product's live predictor (``CalibratedModel.live_predictor``): what ships (the model file's
+wind gain), what shipped before (the same file with all of the wind) and no wind; the look-back check
+(D and the prior from the eight calibration flights); and the gain's shrunk, least-squares and lower-bound
+forms fitted on the calibration flights replayed here, their landings interpolated (``wind_gain.gained``;
+the product fits its own on ``drs live evaluate``'s cases). Scored on the ten unseen flights, landing ÷
+the plain restart's with its 95 % interval.
 """
 
 from __future__ import annotations
