@@ -244,7 +244,8 @@ def live_correction_text(result: LivePrediction) -> str:
         parts.append(result.rate.describe())
     east, north = result.wind_error_ms
     if result.decay_m is not None and (east, north) != (0.0, 0.0):
-        parts.append(f"wind error E {east:+.1f} N {north:+.1f} m/s fading over {result.decay_m:.0f} m")
+        gain = "" if result.wind_gain is None else f", {result.wind_gain:.0%} of it carried"
+        parts.append(f"wind error E {east:+.1f} N {north:+.1f} m/s{gain} fading over {result.decay_m:.0f} m")
     return "; ".join([", ".join(parts) if parts else "none (forecast only)", *result.notes])
 
 

@@ -104,6 +104,16 @@ def run_show(args: argparse.Namespace) -> int:
             f"live law  in the bands: {IN_BANDS[model.live.law]}, with the flight's own λ where a band updates it; "
             f"outside them: {OUTSIDE_BANDS[model.live.restart]}"
         )
+        gain = model.live.correction.wind_gain
+        lines.append(
+            "live wind "
+            + (
+                "all of the measured error carried (no gain learned)"
+                if gain is None
+                else "share of the measured error carried, by report height: "
+                + ", ".join(f"{h:g} km {g:.2f}" for h, g in zip(gain.heights_km, gain.gains, strict=True))
+            )
+        )
         lines.append(
             "live 1σ   "
             + ", ".join(

@@ -384,6 +384,7 @@ def run_live(args: argparse.Namespace) -> int:
             + (
                 f"  wind Δ {result.wind_error_ms[0]:+.1f},{result.wind_error_ms[1]:+.1f} m/s "
                 f"L {result.decay_m / 1000:g} km"
+                + (f" × gain {result.wind_gain:.2f}" if result.wind_gain is not None else "")
                 if result.decay_m is not None
                 else ""
             )  # fmt: skip

@@ -29,12 +29,19 @@ flights alone in train → score):
   and one interval below the burst are not evidence), else the plain restart;
 * *restart above 22.5 km*: the plain restart at the 25 km checkpoint, textbook + λ below; *+ wind L
   below 12.5 km*: and the wind with L below 12.5 km (on the model's law + λ, the proxy the evaluation
-  has for every L); *what ships*: the same with L = 4 km on the live law (`live_law`: the textbook
-  law on every split here); *what ships, wind only far from the ascent*: the same, the wind only where
-  the predicted path is farther from the ascent than the training flights' typical X at that height
-  (issue #30 item 4); *+ wind 4 km above 12.5 km when far*: what ships, and the wind from 22.5 km down
-  where the path is that far;
-* *what ships, wind only where its look-back helped* (never built in the product): what ships, but at a
+  has for every L); *what shipped before (all of the wind)*: the same with L = 4 km on the live law
+  (`live_law`: the textbook law on every split here); *what ships*: that wind times the gain the other
+  (training) flights' landings learned at the checkpoint (`live_evaluation.wind_gains`, issue #30 item
+  4); *before, wind only far from the ascent*: what shipped before, the wind only where the predicted
+  path is farther from the ascent than the training flights' typical X at that height; *+ wind 4 km
+  above 12.5 km when far*: what shipped before, and the wind from 22.5 km down where the path is that
+  far;
+* the wind gain's alternatives (``Gained``: the landing that share of the way from the landing without
+  the wind to the one with all of it): *the least-squares slope (not shrunk)* held within 0–1, *its lower
+  95 % bound*, *one gain pooled over 10, 5 and 2 km*, *also from 20 and 15 km* (where what ships flies
+  no wind); *learned L*: the L (or none) with the least mean landing error of the other (training)
+  flights at the checkpoint, on the model's law + λ; *learned L × its gain*: each L times its own gain;
+* *before, wind only where its look-back helped* (never built in the product): what shipped before, but at a
   report where it flies the wind, this flight's own check decides it. From the last report at least D
   higher, the position at this report's altitude is predicted with λ as ships, with and without the
   wind error measured there (L = 4 km), and compared with where the capsule was: the wind is flown
@@ -44,9 +51,13 @@ flights alone in train → score):
   check plus ln(the training flights' mean landing with the wind ÷ without it at that height) is ≤ 0.
 
 ``--hard-worlds`` (about two minutes; it also prints each world's own ``drs live evaluate`` report)
-measures the last two against what ships in the five hard independent worlds of ``tests/predictor/calibration/test_live_hard_worlds.py``, through the product's
-live predictor (``CalibratedModel.live_predictor``): D and the prior from the eight calibration flights,
-scored on the ten unseen ones, landing ÷ the plain restart's with its 95 % interval.
+measures, in the five hard independent worlds of ``tests/predictor/calibration/test_live_hard_worlds.py``,
+through the product's live predictor (``CalibratedModel.live_predictor``): what ships (the model file's
+wind gain), what shipped before (the same file with all of the wind) and no wind; the look-back check
+(D and the prior from the eight calibration flights); and the gain's shrunk, least-squares and lower-bound
+forms fitted on the calibration flights replayed here, their landings interpolated (``wind_gain.gained``;
+the product fits its own on ``drs live evaluate``'s cases). Scored on the ten unseen flights, landing ÷
+the plain restart's with its 95 % interval.
 """
 
 from __future__ import annotations
@@ -62,6 +73,7 @@ from typing import NamedTuple, TypeVar
 import numpy as np
 
 from predictor.calibration.live_evaluation import (
+    GAINED,
     MODEL_RATE_WIND,
     PLAIN,
     PLAIN_RESTART,
@@ -75,6 +87,7 @@ from predictor.calibration.live_evaluation import (
     Evaluation,
     LevelGround,
     _cases,
+    _errors,
     _log_error,
     _rate_survey,
     _usable,
@@ -82,7 +95,9 @@ from predictor.calibration.live_evaluation import (
     fit_live_sigma,
     rate_law,
     ratio_interval,
+    wind_gains,
 )
+from predictor.calibration.wind_gain import GainFit, GainSample, fit_gain, gain_sample, gained
 from predictor.descent import PROFILES, Payload
 from predictor.environment.weather import load_weather
 from predictor.prediction import GEOD
@@ -93,7 +108,86 @@ from predictor.tracks import Fix, clean, read_track
 SUPERBIT = sorted(Path("../shared/data/tracks/pyballoon_superbit").glob("*-*.csv"))
 EOSS = sorted(Path("tests/data/eoss").glob("*_descent.csv"))
 KMS = (25.0, 20.0, 15.0, 10.0, 5.0)
-Rule = Callable[[Evaluation, Case], str]
+
+
+class Gained(NamedTuple):
+    """A wind correction flown times a gain: the landing ``gain`` of the way from ``without``'s to
+    ``with_wind``'s (``wind_gain.gained``); the remaining time is ``without``'s (the wind does not move it)."""
+
+    without: str
+    with_wind: str
+    gain: float
+
+
+Choice = str | Gained
+Rule = Callable[[Evaluation, Case], Choice]
+
+
+def scored(case: Case, choice: Choice) -> tuple[float, float]:
+    """(landing error km, remaining-time error s) of ``choice`` at ``case``."""
+    if isinstance(choice, str):
+        return case.errors_km[choice], case.time_error_s[choice]
+    assert case.report is not None and case.truth is not None
+    lat, lon = gained(*case.landings[choice.without], *case.landings[choice.with_wind], choice.gain)
+    return _errors(lat, lon, case.report, case.truth)[0], case.time_error_s[choice.without]
+
+
+def flown_gain(result: Evaluation, case: Case, choice: Choice) -> float | None:
+    """The wind gain ``choice`` flies at ``case`` (None: no gained wind)."""
+    if isinstance(choice, Gained):
+        return choice.gain
+    if choice not in GAINED:
+        return None
+    leave = case.flight if result.training is None else None
+    return wind_gains(result.training or result, choice, leave).at(case.checkpoint_km)
+
+
+def gain_samples(cases: Sequence[Case], without: str, with_wind: str) -> list[GainSample]:
+    out = []
+    for c in cases:
+        assert c.truth is not None
+        out.append(gain_sample(c.landings[without], c.landings[with_wind], (c.truth.lat, c.truth.lon)))
+    return out
+
+
+GAIN_FITS: dict[tuple[int, str, float, str, str], GainFit] = {}
+
+
+def gain_at(result: Evaluation, case: Case, km: float, without: str, with_wind: str) -> GainFit:
+    """The gain fitted on the other (training) flights' cases at checkpoint ``km``."""
+    key = (id(result), case.flight if result.training is None else "", km, without, with_wind)
+    if key not in GAIN_FITS:
+        source = result.training or result
+        pool = [c for c in _cases(source, km) if c.flight != case.flight]
+        GAIN_FITS[key] = fit_gain(gain_samples(pool, without, with_wind))
+    return GAIN_FITS[key]
+
+
+def with_gain(result: Evaluation, case: Case, how: str = "shrunk", above: bool = False) -> Choice:
+    """What ships, with its wind flown times the gain the other (training) flights' landings give at this
+    checkpoint (``how``: ``shrunk`` as ``fit_gain``, ``raw`` the least-squares slope held within 0–1,
+    ``bound`` its lower 95 % bound held within 0–1, ``pooled`` one shrunk gain over 10, 5 and 2 km);
+    ``above``: also from 20 and 15 km, where what ships flies no wind."""
+    shipped = result.whole_wind_name(case)
+    if shipped in NO_WIND:
+        without, with_wind = NO_WIND[shipped], shipped
+    elif above and shipped in (TEXTBOOK_RATE, RATE):
+        without, with_wind = shipped, {TEXTBOOK_RATE: TEXTBOOK_RATE_WIND, RATE: MODEL_RATE_WIND}[shipped]
+    else:
+        return shipped
+    if how == "pooled":
+        source = result.training or result
+        pool = [c for km in (10.0, 5.0, 2.0) for c in _cases(source, km) if c.flight != case.flight]
+        fit = fit_gain(gain_samples(pool, without, with_wind))
+    else:
+        fit = gain_at(result, case, case.checkpoint_km, without, with_wind)
+    gain = {
+        "shrunk": fit.gain,
+        "pooled": fit.gain,
+        "raw": min(max(fit.raw, 0.0), 1.0),
+        "bound": min(max(fit.raw - 1.96 * fit.sigma, 0.0), 1.0) if math.isfinite(fit.sigma) else 0.0,
+    }[how]
+    return Gained(without, with_wind, gain)
 
 
 def others(result: Evaluation, case: Case) -> list[Case]:
@@ -274,7 +368,7 @@ class WindCheck:
         """The training evaluation's reports where what ships flies the wind, without ``leave_out``."""
         out: list[Row] = []
         for c in source.cases:
-            name = source.shipped_name(c)
+            name = source.whole_wind_name(c)
             if c.flight != leave_out and name in NO_WIND:
                 out.append(
                     (
@@ -288,7 +382,7 @@ class WindCheck:
         return out
 
     def __call__(self, result: Evaluation, case: Case) -> str:
-        shipped = result.shipped_name(case)
+        shipped = result.whole_wind_name(case)
         if shipped not in NO_WIND:
             return shipped
         scored, training = self.checks[id(result)]
@@ -300,6 +394,26 @@ class WindCheck:
         prior = log_gain([(r[2], r[3]) for r in rows if r[1] == case.checkpoint_km]) if self.prior else 0.0
         check = scored.get((case.flight, case.checkpoint_km))
         return shipped if flies_wind(check, self.lookbacks[key], prior) else NO_WIND[shipped]
+
+
+DECAY_LABELS = ("1 km", "2 km", "4 km", "8 km", "16 km", "const")
+
+
+def learned_decay(result: Evaluation, case: Case, gain: bool) -> Choice:
+    """Where what shipped before flies the wind: on the model's law + λ (the proxy the evaluation has for
+    every L), the L (or none) whose mean landing error on the other (training) flights at this checkpoint
+    was least; ``gain``: each L times its shrunk gain on those flights, the L with the least mean landing
+    error so flown."""
+    if result.whole_wind_name(case) not in NO_WIND:
+        return result.whole_wind_name(case)
+    pool = others(result, case)
+    options: list[Choice] = [RATE]
+    for label in DECAY_LABELS:
+        name = f"model · λ + wind {label}"
+        options.append(
+            Gained(RATE, name, gain_at(result, case, case.checkpoint_km, RATE, name).gain) if gain else name
+        )
+    return min(options, key=lambda o: float(np.mean([scored(c, o)[0] for c in pool])))
 
 
 def below(km: float, upper_km: float, name: str, otherwise: str) -> str:
@@ -336,17 +450,24 @@ def rules(fixes: dict[tuple[str, float], int], checks: dict[int, tuple[Checks, C
             )
         )(decay)
     table["textbook + λ + wind 4 km everywhere"] = lambda r, c: TEXTBOOK_RATE_WIND
-    table["what ships"] = lambda r, c: r.shipped_name(c)
-    table["what ships, wind only far from the ascent"] = lambda r, c: (
-        TEXTBOOK_RATE if r.shipped_name(c) == TEXTBOOK_RATE_WIND and not far(r, c) else r.shipped_name(c)
+    table["what ships (wind × the gain its training flights learned)"] = lambda r, c: r.shipped_name(c)
+    table["what shipped before (all of the wind)"] = lambda r, c: r.whole_wind_name(c)
+    table["before, wind only far from the ascent"] = lambda r, c: (
+        TEXTBOOK_RATE
+        if r.whole_wind_name(c) == TEXTBOOK_RATE_WIND and not far(r, c)
+        else r.whole_wind_name(c)
     )
-    table["what ships, + wind 4 km above 12.5 km when far"] = lambda r, c: (
-        TEXTBOOK_RATE_WIND if r.shipped_name(c) == TEXTBOOK_RATE and far(r, c) else r.shipped_name(c)
+    table["before, + wind 4 km above 12.5 km when far"] = lambda r, c: (
+        TEXTBOOK_RATE_WIND if r.whole_wind_name(c) == TEXTBOOK_RATE and far(r, c) else r.whole_wind_name(c)
     )
-    table["what ships, wind only where its look-back helped"] = WindCheck(checks, prior=False)
-    table["what ships, wind only where its look-back helped, + training prior"] = WindCheck(
-        checks, prior=True
-    )
+    table["wind × gain, the least-squares slope (not shrunk)"] = lambda r, c: with_gain(r, c, "raw")
+    table["wind × gain, its lower 95 % bound"] = lambda r, c: with_gain(r, c, "bound")
+    table["wind × one gain pooled over 10, 5 and 2 km"] = lambda r, c: with_gain(r, c, "pooled")
+    table["wind × gain, also from 20 and 15 km"] = lambda r, c: with_gain(r, c, above=True)
+    table["learned L (model + λ)"] = lambda r, c: learned_decay(r, c, False)
+    table["learned L × its gain (model + λ)"] = lambda r, c: learned_decay(r, c, True)
+    table["before, wind only where its look-back helped"] = WindCheck(checks, prior=False)
+    table["before, wind only where its look-back helped, + training prior"] = WindCheck(checks, prior=True)
     return table
 
 
@@ -385,15 +506,9 @@ def main() -> None:
             cells, intervals = [], []
             for km in KMS:
                 cases = _cases(result, km)
-                chosen = [rule(result, c) for c in cases]
-                time = ratio_interval(
-                    [c.time_error_s[n] for c, n in zip(cases, chosen, strict=True)],
-                    [c.time_error_s[PLAIN_RESTART] for c in cases],
-                )
-                landing = ratio_interval(
-                    [c.errors_km[n] for c, n in zip(cases, chosen, strict=True)],
-                    [c.errors_km[PLAIN_RESTART] for c in cases],
-                )
+                errors = [scored(c, rule(result, c)) for c in cases]
+                time = ratio_interval([e[1] for e in errors], [c.time_error_s[PLAIN_RESTART] for c in cases])
+                landing = ratio_interval([e[0] for e in errors], [c.errors_km[PLAIN_RESTART] for c in cases])
                 limit = 0.85 if km in (15.0, 10.0) else 1.0
                 marks = (
                     "*" if round(time[0], 2) > limit else " ",
@@ -403,8 +518,18 @@ def main() -> None:
                 cells.append(f"{time[0]:.2f}{marks[0]}/{landing[0]:.2f}{marks[1]}")
                 intervals.append(f"{time[1]:.2f}–{time[2]:.2f}/{landing[1]:.2f}–{landing[2]:.2f}")
             print(f"{split:20s} {' '.join(cells)}")
-            if isinstance(rule, WindCheck) or name == "what ships":
+            if isinstance(rule, WindCheck) or name.startswith("what ship"):
                 print(f"{'  95 %':20s} {' '.join(intervals)}")
+            if "gain" in name:
+                flown_gains = []
+                for km in (20.0, 15.0, 10.0, 5.0, 2.0):
+                    gains = [flown_gain(result, c, rule(result, c)) for c in _cases(result, km)]
+                    gains = [g for g in gains if g is not None]
+                    if gains:
+                        flown_gains.append(
+                            f"{km:g} km {np.mean(gains):.2f} ({min(gains):.2f}–{max(gains):.2f})"
+                        )
+                print(f"{'  gain flown':20s} {', '.join(flown_gains)}")
             if isinstance(rule, WindCheck):
                 flown = [
                     f"{sum(rule(result, c) in NO_WIND for c in _cases(result, km))}/{len(_cases(result, km))}"
@@ -421,6 +546,9 @@ class WorldRow(NamedTuple):
 
     flight: str
     shipped_km: float
+    """What ships: the model file's live settings, its wind times the gain they carry."""
+    whole_km: float
+    """What shipped before: the same with all of the wind (no gain)."""
     no_wind_km: float
     """What ships with its wind band switched off."""
     restart_km: float
@@ -428,7 +556,11 @@ class WorldRow(NamedTuple):
     restart_s: float
     wind: bool
     """What ships flies the wind at this report."""
+    gain: float | None
+    """The gain it flies there."""
     check: Check | None
+    landings: tuple[tuple[float, float], tuple[float, float], tuple[float, float]]
+    """(lat, lon) of the landing without the wind, with all of it and measured."""
 
 
 def world_rows(
@@ -457,6 +589,8 @@ def world_rows(
         no_wind = replace(
             live.correction, bands=tuple(replace(b, decay_m=None) for b in live.correction.bands)
         )
+        whole = replace(live.correction, wind_gain=None)
+        live.correction = whole  # the wind check was built on all of the wind
         checks = replay_checks(live, descent, {n: at for n, at in reports.items() if wind_at[n]})
         # ``live`` has seen the whole descent: fresh predictors, fed up to each report, predict from it.
         fresh = model.live_predictor(cube, ground)  # type: ignore[arg-type]
@@ -469,17 +603,21 @@ def world_rows(
                 name, at = pending.pop(0)
                 remaining = (flight.landing.time - at.time).total_seconds()
                 row = []
-                for predictor, correction in ((fresh, None), (fresh, no_wind), (plain, None)):
+                where = []
+                gain = fresh.predict_from(at).wind_gain
+                for predictor, correction in ((fresh, None), (fresh, whole), (fresh, no_wind), (plain, None)):
                     p = predictor.predict_from(at, correction).prediction
+                    where.append((p.landing.lat, p.landing.lon))
                     km = (
                         float(GEOD.inv(p.landing.lon, p.landing.lat, truth.landing_lon, truth.landing_lat)[2])
                         / 1000.0
                     )
                     row.append((km, abs(p.descent_s - remaining)))
-                (shipped_km, shipped_s), (no_wind_km, _), (restart_km, restart_s) = row
+                (shipped_km, shipped_s), (whole_km, _), (no_wind_km, _), (restart_km, restart_s) = row
                 out[name].append(
-                    WorldRow(truth.name, shipped_km, no_wind_km, restart_km, shipped_s, restart_s,
-                             wind_at[name], checks.get(name))
+                    WorldRow(truth.name, shipped_km, whole_km, no_wind_km, restart_km, shipped_s, restart_s,
+                             wind_at[name], gain, checks.get(name),
+                             (where[2], where[1], (truth.landing_lat, truth.landing_lon)))
                 )  # fmt: skip
             if not pending:
                 break
@@ -514,7 +652,7 @@ def hard_worlds() -> None:
                 world_rows(model, unseen, cube, CHECKPOINTS),
             )
             training = [
-                (r.flight, name, r.shipped_km, r.no_wind_km, r.check)
+                (r.flight, name, r.whole_km, r.no_wind_km, r.check)
                 for name, rows in train.items()
                 for r in rows
                 if r.wind
@@ -528,20 +666,61 @@ def hard_worlds() -> None:
                     gain = log_gain([(r[2], r[3]) for r in training if r[1] == name]) if prior else 0.0
                     flown = [r.wind and flies_wind(r.check, drop, gain) for r in rows]
                     chosen = [
-                        r.shipped_km if not r.wind or f else r.no_wind_km
+                        r.whole_km if not r.wind or f else r.no_wind_km
                         for r, f in zip(rows, flown, strict=True)
                     ]
                     ratio, low, high = ratio_interval(chosen, [r.restart_km for r in rows])
                     wind = f", wind {sum(flown)}/{len(rows)}" if any(r.wind for r in rows) else ""
                     cells.append(f"{name} {ratio:.2f} ({low:.2f}–{high:.2f}{wind})")
                 print(f"wind check{', + prior' if prior else ''} (D {drop / 1000:g} km): {'; '.join(cells)}")
-            for label, no_wind in (("what ships", False), ("no wind", True)):
+            for how in ("shrunk", "raw", "bound"):
                 cells = []
                 for name, _ in CHECKPOINTS:
                     rows = scored[name]
-                    landings = [r.no_wind_km if no_wind else r.shipped_km for r in rows]
+                    fit = fit_gain([gain_sample(*r.landings) for r in train[name] if r.wind])
+                    gain = {
+                        "shrunk": fit.gain,
+                        "raw": min(max(fit.raw, 0.0), 1.0),
+                        "bound": min(max(fit.raw - 1.96 * fit.sigma, 0.0), 1.0)
+                        if math.isfinite(fit.sigma)
+                        else 0.0,
+                    }[how]
+                    landings = []
+                    for r in rows:
+                        if not r.wind:
+                            landings.append(r.whole_km)
+                            continue
+                        lat, lon = gained(*r.landings[0], *r.landings[1], gain)
+                        landings.append(
+                            float(GEOD.inv(lon, lat, r.landings[2][1], r.landings[2][0])[2]) / 1000.0
+                        )
                     ratio, low, high = ratio_interval(landings, [r.restart_km for r in rows])
-                    cells.append(f"{name} {ratio:.2f} ({low:.2f}–{high:.2f})")
+                    said = (
+                        f", g {gain:.2f} (ĝ {fit.raw:.2f} ± {fit.sigma:.2f})"
+                        if any(r.wind for r in rows)
+                        else ""
+                    )
+                    cells.append(f"{name} {ratio:.2f} ({low:.2f}–{high:.2f}{said})")
+                print(
+                    f"wind × gain ({how}; the calibration flights replayed here, landing interpolated): {'; '.join(cells)}"
+                )
+            for label, field in (
+                ("what ships", "shipped_km"),
+                ("before (all of the wind)", "whole_km"),
+                ("no wind", "no_wind_km"),
+            ):
+                cells = []
+                for name, _ in CHECKPOINTS:
+                    rows = scored[name]
+                    landings = [getattr(r, field) for r in rows]
+                    ratio, low, high = ratio_interval(landings, [r.restart_km for r in rows])
+                    gains = {round(r.gain, 3) for r in rows if r.gain is not None}
+                    said = (
+                        f", gain {'/'.join(f'{g:.2f}' for g in sorted(gains))}"
+                        if gains and field == "shipped_km"
+                        else ""
+                    )
+                    cells.append(f"{name} {ratio:.2f} ({low:.2f}–{high:.2f}{said})")
                 print(f"{label}: {'; '.join(cells)}")
             times = [
                 ratio_interval([r.shipped_s for r in scored[n]], [r.restart_s for r in scored[n]])

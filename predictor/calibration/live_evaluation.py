@@ -47,6 +47,7 @@ import numpy as np
 
 from predictor.calibration.residuals import FlightCase, flight_case
 from predictor.calibration.selection import refit_without_each
+from predictor.calibration.wind_gain import GainFit, fit_gain, gain_sample, gained
 from predictor.descent import PROFILES, Payload, RatePrior, Term
 from predictor.environment import Terrain, WeatherCube
 from predictor.errors import PredictorError, WeatherError
@@ -66,6 +67,7 @@ from predictor.prediction import (
     LivePredictor,
     LiveSettings,
     RateDiscrepancy,
+    WindGain,
     n_sigma_for,
 )
 from predictor.tracks import Fix, ascent_weather_cube, clean, read_track
@@ -81,14 +83,17 @@ RATE = "model · λ"
 PLAIN_RESTART = "profile · plain"
 TEXTBOOK_RATE = "profile · λ"
 SHIPPED = "what ships"
+WHOLE_WIND = "what ships, all of the wind"
 BAND_SWITCH = "training band switch"
 PLAIN_ABOVE_M = 22500.0
 WIND_BELOW_M = 12500.0
 SHIPPED_DECAY_M = 4000.0
 """What ships (issue #30), by height above the ground: above ``PLAIN_ABOVE_M`` the plain restart from
 the nominal payload; below it the same law with this flight's own λ update; below ``WIND_BELOW_M`` also
-the measured wind error, decaying below the capsule with L = ``SHIPPED_DECAY_M``. One rule, learned from
-no training set, so a training set's luck cannot switch it.
+the measured wind error, decaying below the capsule with L = ``SHIPPED_DECAY_M``, times the share of it
+the training flights' landings wanted (``wind_gains``: a gain, shrunk toward none by its uncertainty, not
+a switch). The bands are one rule, learned from no training set, so a training set's luck cannot switch
+them.
 
 Why these heights, both found on SuperBIT leave-one-out before any split across seasons or payloads
 existed and then checked on every split (docs/planning.md): at the 25 km checkpoint a SuperBIT record is
@@ -124,6 +129,16 @@ PROFILE_CORRECTIONS = {
 what ships below ``WIND_BELOW_M``."""
 TEXTBOOK_RATE_WIND = f"profile · {OWN} + wind {_wind_label(SHIPPED_DECAY_M)}"
 MODEL_RATE_WIND = f"model · {OWN} + wind {_wind_label(SHIPPED_DECAY_M)}"
+TEXTBOOK_RATE_GAIN = f"{TEXTBOOK_RATE_WIND} × g"
+MODEL_RATE_GAIN = f"{MODEL_RATE_WIND} × g"
+GAINED = {TEXTBOOK_RATE_GAIN: (TEXTBOOK_RATE, TEXTBOOK_RATE_WIND), MODEL_RATE_GAIN: (RATE, MODEL_RATE_WIND)}
+"""What ships below ``WIND_BELOW_M``, on each law → (that law with λ, the same with all of the measured
+wind error): the wind flown times the gain the other (training) flights' landings learned
+(``wind_gains``). Not replayed: its landing is ``gain`` of the way from the first's to the second's
+(``wind_gain.gained``; exact in the horizontally uniform cube of each flight's ascent winds), its
+remaining time the first's (the wind does not move the vertical)."""
+GAIN_KMS = tuple(km for km in CHECKPOINTS_KM if 1000.0 * km < WIND_BELOW_M)
+"""The report heights the wind gain is learned at (where what ships flies the wind)."""
 
 
 def live_law(result: Evaluation, leave_out: str | None = None) -> str:
@@ -217,6 +232,13 @@ class Case:
     distance_km_h: dict[str, float] = field(default_factory=dict)
     """X of the live ellipse (``ascent_distance_km_h``), by configuration; empty when the weather does
     not say where it was measured."""
+    landings: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """The predicted landing (lat, lon), by configuration: where the wind gain's least squares and the
+    landing it flies are measured (``wind_gain``)."""
+    report: Fix | None = None
+    """The report predicted from."""
+    truth: Fix | None = None
+    """The measured landing."""
 
 
 @dataclass
@@ -249,6 +271,10 @@ class Evaluation:
     for the scored flights here and decides what ships (None: leave-one-out on these flights)."""
     law_choice: dict[str, str] = field(default_factory=dict, repr=False, compare=False)
     """``live_law`` of these flights, by the flight left out ('' for none), once computed."""
+    gain_fits: dict[tuple[str, str], tuple[GainFit, ...]] = field(
+        default_factory=dict, repr=False, compare=False
+    )
+    """``wind_gain_fits`` of these flights, by (configuration, the flight left out or ''), once computed."""
 
     def band_switch_name(self, case: Case) -> str:
         """The configuration the training flights' band switch (what shipped before issue #30) gives
@@ -265,8 +291,13 @@ class Evaluation:
             return PLAIN_RESTART
         law = live_law(self.training or self, leave_out=case.flight)
         if law == "model":
-            return RATE if height_m >= WIND_BELOW_M else MODEL_RATE_WIND
-        return TEXTBOOK_RATE if height_m >= WIND_BELOW_M else TEXTBOOK_RATE_WIND
+            return RATE if height_m >= WIND_BELOW_M else MODEL_RATE_GAIN
+        return TEXTBOOK_RATE if height_m >= WIND_BELOW_M else TEXTBOOK_RATE_GAIN
+
+    def whole_wind_name(self, case: Case) -> str:
+        """What shipped before the wind gain: the same, with all of the measured wind error."""
+        name = self.shipped_name(case)
+        return GAINED[name][1] if name in GAINED else name
 
 
 def _describe(model: CalibratedModel) -> str:
@@ -681,6 +712,7 @@ def evaluate_live(
         flights = _usable(paths, day, result.skipped, weather, terrain, _law_terrain(model, terrain))
         _replay(result, flights, flights, model, profile, progress)
         _leave_one_out(result)
+        _add_gained(result)
         return result
     result = _evaluation(model, profile, weather, terrain)
     scored = _usable(paths, day, result.skipped, weather, terrain, terrain)
@@ -707,6 +739,7 @@ def evaluate_live(
         result.rate_choice[km] = {f: choice[0] for f in result.flights}
         result.wind_choice[km] = {f: choice[1] for f in result.flights}
         result.all_flights_choice[km] = choice
+    _add_gained(result)
     return result
 
 
@@ -791,9 +824,8 @@ def _replay(
                 if at is not fix:
                     continue
                 remaining_s = touchdown_s - (fix.time - descent[0].time).total_seconds()
-                case = Case(
-                    flight.name, km, fix.alt_m - landing.alt_m, {}, {}, {}, {}, remaining_s=remaining_s
-                )
+                case = Case(flight.name, km, fix.alt_m - landing.alt_m, {}, {}, {}, {},
+                            remaining_s=remaining_s, report=fix, truth=landing)  # fmt: skip
                 for law_name, predictor in live.items():
                     checked = predictor.self_check(fix)
                     for name, value in (checked or {}).items():
@@ -803,6 +835,7 @@ def _replay(
                     p = live_prediction.prediction
                     d, along, across = _errors(p.landing.lat, p.landing.lon, fix, landing)
                     case.errors_km[name] = d
+                    case.landings[name] = (p.landing.lat, p.landing.lon)
                     case.along_km[name] = along
                     case.across_km[name] = across
                     case.remaining_drift_km[name] = p.drift_km
@@ -837,6 +870,56 @@ def _leave_one_out(result: Evaluation) -> None:
         result.all_flights_choice[km] = _choose(cases)
 
 
+def wind_gain_fits(result: Evaluation, name: str, leave_out: str | None = None) -> tuple[GainFit, ...]:
+    """The wind gain of ``name`` (``GAINED``) at each of ``GAIN_KMS``, fitted on these flights' landings
+    (without ``leave_out``): the least-squares share of the measured wind error that their landings
+    wanted, shrunk toward 0 by its uncertainty (``wind_gain.fit_gain``)."""
+    key = (name, leave_out or "")
+    if key not in result.gain_fits:
+        without, with_wind = GAINED[name]
+        fits = []
+        for km in GAIN_KMS:
+            samples = []
+            for c in _cases(result, km):
+                if c.flight != leave_out and c.truth is not None:
+                    truth = (c.truth.lat, c.truth.lon)
+                    samples.append(gain_sample(c.landings[without], c.landings[with_wind], truth))
+            fits.append(fit_gain(samples))
+        result.gain_fits[key] = tuple(fits)
+    return result.gain_fits[key]
+
+
+def wind_gains(result: Evaluation, name: str, leave_out: str | None = None) -> WindGain:
+    """``wind_gain_fits`` as the table a model file flies."""
+    fits = wind_gain_fits(result, name, leave_out)
+    return WindGain(GAIN_KMS, tuple(round(f.gain, 3) for f in fits))
+
+
+def _add_gained(result: Evaluation) -> None:
+    """Every case below ``WIND_BELOW_M`` gets the configurations of ``GAINED``, each with the gain of the
+    OTHER flights (train → score: of the training flights), as ``GAINED`` says."""
+    source = result.training or result
+    for case in result.cases:
+        if 1000.0 * case.checkpoint_km >= WIND_BELOW_M or case.report is None or case.truth is None:
+            continue
+        leave = case.flight if result.training is None else None
+        for name, (without, with_wind) in GAINED.items():
+            gain = wind_gains(source, name, leave).at(case.checkpoint_km)
+            lat, lon = gained(*case.landings[without], *case.landings[with_wind], gain)
+            d, along, across = _errors(lat, lon, case.report, case.truth)
+            case.errors_km[name], case.along_km[name], case.across_km[name] = d, along, across
+            case.landings[name] = (lat, lon)
+            case.remaining_drift_km[name] = (
+                float(GEOD.inv(case.report.lon, case.report.lat, lon, lat)[2]) / 1000.0
+            )
+            case.time_error_s[name] = case.time_error_s[without]
+            if without in case.time_sigma_s:
+                case.time_sigma_s[name] = case.time_sigma_s[without]
+            if without in case.distance_km_h and with_wind in case.distance_km_h:
+                x0, x1 = case.distance_km_h[without], case.distance_km_h[with_wind]
+                case.distance_km_h[name] = x0 + gain * (x1 - x0)
+
+
 def _cases(result: Evaluation, km: float) -> list[Case]:
     return [c for c in result.cases if c.checkpoint_km == km]
 
@@ -853,6 +936,7 @@ def held_out(result: Evaluation, km: float) -> dict[str, tuple[list[float], list
     }
     rules: dict[str, Callable[[Case], str]] = {
         SHIPPED: result.shipped_name,
+        WHOLE_WIND: result.whole_wind_name,
         BAND_SWITCH: result.band_switch_name,
         EVIDENCE: lambda c: evidence_choice(result, c),
         SHRUNK: lambda c: shrunk_choice(result, c),
@@ -1120,7 +1204,7 @@ SHIPPED_CORRECTION = LiveCorrection(
 )
 """What ships on the payload's law (``LiveSettings.law`` ``payload``): this flight's own λ below
 ``PLAIN_ABOVE_M`` and the decaying wind correction below ``WIND_BELOW_M``; nothing above (the plain
-restart)."""
+restart). ``live_settings`` adds the wind gain its evaluation learned."""
 
 
 def band_switch_correction(result: Evaluation) -> LiveCorrection:
@@ -1151,6 +1235,7 @@ SERIES = (
     (PLAIN, "model, plain"),
     (RATE, "model + λ"),
     (SHIPPED, "what ships"),
+    (WHOLE_WIND, "what ships, all of the wind (before)"),
     (BAND_SWITCH, "training band switch"),
     (EVIDENCE, "per-flight evidence"),
     (SHRUNK, "band choice shrunk"),
@@ -1192,9 +1277,10 @@ def live_settings(model: CalibratedModel, result: Evaluation, command: str) -> C
             **ratios,
         },
     }
-    settings = LiveSettings(
-        SHIPPED_CORRECTION, shipped_error_model(result), discrepancy, prior, law, "payload"
-    )
+    source = result.training or result
+    gains = wind_gains(source, MODEL_RATE_GAIN if law == "model" else TEXTBOOK_RATE_GAIN)
+    correction = dataclasses.replace(SHIPPED_CORRECTION, wind_gain=gains)
+    settings = LiveSettings(correction, shipped_error_model(result), discrepancy, prior, law, "payload")
     return dataclasses.replace(model, live=settings, provenance=provenance)
 
 
@@ -1240,7 +1326,7 @@ def _plot(result: Evaluation, kms: list[float], png: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4.2))
-    styles = ("o:", "s--", "o-", "s-", "^-", "v-", "x--", "d:")
+    styles = ("o:", "s--", "o-", "s-", "^-", "^:", "v-", "x--", "d:")
     for (name, label), style in zip(SERIES, styles, strict=True):
         left.plot(kms, [np.mean(held_out(result, k)[name][0]) for k in kms], style, label=label)
         right.plot(kms, [np.mean(np.abs(held_out(result, k)[name][1])) for k in kms], style, label=label)
@@ -1308,6 +1394,17 @@ def _law_text(result: Evaluation) -> str:
 
 def _bands_text(shipped: LiveCorrection) -> str:
     return "; ".join(b.describe() for b in shipped.bands) or "nothing (plain re-prediction everywhere)"
+
+
+def _gain_text(result: Evaluation) -> str:
+    """The wind gain that ships, with what it was fitted from, for the report."""
+    source = result.training or result
+    name = MODEL_RATE_GAIN if live_law(source) == "model" else TEXTBOOK_RATE_GAIN
+    fits = wind_gain_fits(source, name)
+    return "by report height: " + ", ".join(
+        f"{km:g} km {f.gain:.2f} (least squares {f.raw:.2f} ± {f.sigma:.2f}, {f.flights} flights)"
+        for km, f in zip(GAIN_KMS, fits, strict=True)
+    )
 
 
 def _rate_law_text(name: str, law: tuple[RatePrior | None, RateDiscrepancy]) -> str:
@@ -1441,7 +1538,12 @@ def write_live_report(
         f"**what ships**: the plain restart above {PLAIN_ABOVE_M / 1000:g} km above the ground, textbook "
         f"+ λ below it (the model + λ only where it beat textbook + λ beyond its 95 % interval on the "
         f"other, training, flights), and the wind with L = {SHIPPED_DECAY_M / 1000:g} km below "
-        f"{WIND_BELOW_M / 1000:g} km: one rule, its bands learned from no training set (issue #30). Measured "
+        f"{WIND_BELOW_M / 1000:g} km, times a gain per report height learned from the other (training) "
+        "flights' landings: the least-squares share of the wind correction's displacement their landing "
+        "miss without it wanted, shrunk toward 0 by its uncertainty over the flights, within 0–1 (its "
+        "landing is that share of the way from the landing without the wind to the one with all of it); "
+        "its bands learned from no training set (issue #30). *What ships, all of the wind (before)*: the "
+        "same with all of the measured error (gain 1). Measured "
         "beside it: **training band switch** (what shipped before): for each flight λ on or off on the "
         "model's law (by the mean |remaining-time error| of the OTHER, training, flights) and then the "
         "wind (by their mean landing error) that those flights preferred at that checkpoint. "
@@ -1594,7 +1696,8 @@ def write_live_report(
         f"What ships (the model file's `live.law` `{live_law(result.training or result)}`, `live.restart` "
         "`payload` and `live.bands`, bands of height above the ground): "
         f"{_law_text(result.training or result)}, {_bands_text(SHIPPED_CORRECTION)}; elsewhere the plain "
-        "restart from the nominal payload. The band switch would have shipped, on the model's law: "
+        f"restart from the nominal payload. The wind's gain (`live.wind_gain`), {_gain_text(result)}. "
+        "The band switch would have shipped, on the model's law: "
         f"{_bands_text(band_switch_correction(result))}.",
         "",
         "The band switch's choices per flight (held-out):",

@@ -46,6 +46,7 @@ if TYPE_CHECKING:
         RateDiscrepancy as RateDiscrepancy,
         RateEstimate as RateEstimate,
         Report as Report,
+        WindGain as WindGain,
     )
     from .model_file import (
         PARAMETER_LIMITS as PARAMETER_LIMITS,
@@ -128,6 +129,7 @@ __getattr__, __dir__, __all__ = lazy_door(
         "Report": "live",
         "RateDiscrepancy": "live",
         "RateEstimate": "live",
+        "WindGain": "live",
         "ZoneFileError": "zones",
         "coverage_error": "landings",
         "coverage": "uncertainty",

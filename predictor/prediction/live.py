@@ -21,8 +21,10 @@ altitude and time), and the reports so far measure two things the forecast got w
   over the same altitudes. An error at altitude does not simply continue to the ground (the jet and
   the stratosphere are different air), so the recent error is applied below the capsule with a weight
   exp(−Δz / L) that decays with the altitude distance Δz from the capsule (``BinnedWind`` in 250 m
-  bins). L is chosen on real flights, leave-one-flight-out (``predictor.calibration.live_evaluation``),
-  and the correction is switched on only in the altitude bands where it helped held-out flights.
+  bins), in the bands the model's live settings fly it in (``predictor.calibration.live_evaluation``:
+  L = 4 km below 12.5 km above the ground), times a gain per report height (``WindGain``) that the
+  model's own training flights learned: how much of the error measured above was still there below
+  them, which depends on the weather and the forecast, not on the payload.
 
 The ellipse shrinks with what is left: σ∥ and σ⊥ are the errors the model's own evaluation measured at
 the report's height above the ground (``LiveErrorModel``); a model without live settings of its own
@@ -171,10 +173,10 @@ def ascent_distance_km_h(track: Track, measured_along: np.ndarray) -> float:
 
 LIVE_ERROR_MODEL = LiveErrorModel(
     heights_km=(25.0, 20.0, 15.0, 10.0, 5.0, 2.0),
-    sigma_parallel_km=(4.461, 3.637, 3.215, 3.645, 1.981, 1.476),
-    sigma_perpendicular_km=(3.608, 3.773, 3.695, 2.675, 1.396, 1.355),
-    growth_exponent=0.475,
-    typical_km_h=(50.6, 51.42, 49.02, 41.95, 27.03, 10.74),
+    sigma_parallel_km=(4.569, 3.697, 3.259, 3.607, 2.01, 1.429),
+    sigma_perpendicular_km=(3.711, 3.878, 3.779, 2.759, 1.429, 1.197),
+    growth_exponent=0.525,
+    typical_km_h=(50.6, 51.42, 49.02, 41.94, 27.03, 10.74),
     time_log_sigma=(0.1, 0.01, 0.0575, 0.05, 0.055, 0.0975),
 )
 """The default live ellipse, for a law without live settings of its own (said in every prediction,
@@ -296,6 +298,26 @@ class Band:
 
 
 @dataclass(frozen=True)
+class WindGain:
+    """How much of the measured wind error is carried below the capsule, by its height above the ground.
+
+    The training flights' own answer, not a constant: per report height, the least-squares slope of
+    their landing miss without the wind correction on the displacement the whole correction adds,
+    shrunk toward 0 by its uncertainty over the flights and held within 0–1
+    (``predictor.calibration.wind_gain``). Where the wind error measured above carried on down on those
+    flights it is near 1; where it did not (a forecast error that changes within a few km of height) near
+    0. Linear in height between the table's heights, held beyond them.
+    """
+
+    heights_km: tuple[float, ...]
+    gains: tuple[float, ...]
+
+    def at(self, height_km: float) -> float:
+        """The gain for a report at this height above the ground."""
+        return by_height(height_km, self.heights_km, self.gains)
+
+
+@dataclass(frozen=True)
 class LiveCorrection:
     """How the measured descent corrects the rest of it, by the capsule's height above the ground.
 
@@ -304,6 +326,9 @@ class LiveCorrection:
 
     bands: tuple[Band, ...] = ()
     wind_window_m: float = 2000.0
+    wind_gain: WindGain | None = None
+    """The share of the measured wind error a band's wind correction carries down (None: all of it, as
+    every correction flew before the gain was learned, and as a model file without one still flies)."""
 
     @classmethod
     def everywhere(cls, use_rate: bool, decay_m: float | None) -> LiveCorrection:
@@ -624,6 +649,7 @@ class LivePrediction:
     rate: RateEstimate | None
     """This flight's λ update (None: the rate is not corrected at this height)."""
     wind_error_ms: tuple[float, float]
+    """The wind error measured over the recent legs (below the capsule it is carried times ``wind_gain``)."""
     decay_m: float | None
     legs: tuple[Leg, ...] = field(repr=False)
     notes: tuple[str, ...] = ()
@@ -633,6 +659,8 @@ class LivePrediction:
     the typical X at this height was flown)."""
     time_log_sigma: float | None = None
     """The law's own σ of ln(remaining time) at this height (``LiveErrorModel.time_log_sigma``)."""
+    wind_gain: float | None = None
+    """The share of the measured wind error carried (``WindGain``; None: all of it, or no wind flown)."""
 
     @property
     def rate_factor(self) -> float:
@@ -673,6 +701,7 @@ class LivePrediction:
             "rate_prior": None if rate is None or rate.prior is None else rate.prior.to_dict(),
             "wind_error_ms": {"east": self.wind_error_ms[0], "north": self.wind_error_ms[1]},
             "wind_decay_m": self.decay_m,
+            "wind_gain": self.wind_gain,
             "legs_used": len(self.legs),
             "notes": list(self.notes),
             "warnings": list(p.warnings),
@@ -848,6 +877,12 @@ class LivePredictor:
         decay = band.decay_m if band is not None else None
         rate = self.rate(report) if band is not None and band.use_rate else None
         (east, north), measured_at = self._wind_error(report.alt_m, correction)
+        gain = (
+            None
+            if decay is None or correction.wind_gain is None
+            else correction.wind_gain.at(height / 1000.0)
+        )
+        share = 1.0 if gain is None else gain
         terms: list[Term] = list(self.effects if band is not None else self.restart_effects)
         if rate is not None and rate.factor != 1.0:
             terms.append(DescentRateScale(scale=rate.factor))
@@ -859,8 +894,8 @@ class LivePredictor:
             terms.append(
                 BinnedWind(
                     edges_m=tuple(float(e) for e in edges),
-                    east_ms=tuple(float(east * w) for w in weight),
-                    north_ms=tuple(float(north * w) for w in weight),
+                    east_ms=tuple(float(share * east * w) for w in weight),
+                    north_ms=tuple(float(share * north * w) for w in weight),
                 )
             )
         prediction = self._predict(report, terms, error_model=self.error_model.at(height / 1000.0))
@@ -878,6 +913,7 @@ class LivePredictor:
             rate=rate,
             wind_error_ms=(east, north) if decay is not None else (0.0, 0.0),
             decay_m=decay,
+            wind_gain=gain,
             legs=tuple(self.legs),
             notes=self.notes
             if distance is not None or not self.error_model.growth_exponent

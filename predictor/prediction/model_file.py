@@ -50,6 +50,7 @@ from predictor.prediction.live import (
     LivePredictor,
     LiveSettings,
     RateDiscrepancy,
+    WindGain,
 )
 from predictor.prediction.setup import FlightSetup
 from predictor.prediction.uncertainty import ERROR_MODELS, ErrorModel
@@ -95,10 +96,12 @@ SCHEMA_VERSION = 6
 """2 added the optional ``live`` section, 3 the optional ``rate_prior``, 4 each term's ``flown`` (the
 pre-flight gate), 5 the live section's ``law`` (what live re-prediction restarts from; absent: the
 model's terms, as every older file flew), 6 the optional ``preflight_spread`` (the λ spread about the
-pre-flight law, with the ellipse now fitted on that law's landings): a drs that reads an older schema
-refuses such a file rather than fly the model without what was measured for it (a schema-3 reader
-would fly a live-only term before release, a schema-4 one the model's terms with a λ table measured on
-the payload's law, a schema-5 one the pre-flight descent-time interval of the live law's prior)."""
+pre-flight law, with the ellipse now fitted on that law's landings) and the live section's ``wind_gain``
+(the share of the measured wind error carried down; absent: all of it, as every older file flew): a drs
+that reads an older schema refuses such a file rather than fly the model without what was measured for
+it (a schema-3 reader would fly a live-only term before release, a schema-4 one the model's terms with a
+λ table measured on the payload's law, a schema-5 one the pre-flight descent-time interval of the live
+law's prior and all of a wind error its training flights said did not carry)."""
 FLOWN = ("both", "live-only", "pre-flight-only")
 """A term's ``flown`` in a schema-4 file: by both laws; only once the flight's own λ is known (the
 pre-flight gate found it made the held-out pre-flight prediction worse); only before release (the
@@ -331,6 +334,11 @@ def _live_to_dict(live: LiveSettings) -> dict[str, Any]:
         "restart": live.restart,
         "bands": [band(b) for b in live.correction.bands],
         "wind_window_m": live.correction.wind_window_m,
+        **(
+            {"wind_gain": {"heights_km": list(g.heights_km), "gains": list(g.gains)}}
+            if (g := live.correction.wind_gain) is not None
+            else {}
+        ),
         "discrepancy": {
             "heights_km": list(d.heights_km),
             "log_bias": list(d.log_bias),
@@ -639,7 +647,7 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
                 f"live.{key}", f"must be one of {', '.join(LIVE_LAWS)} (absent: model), got {value!r}"
             )
     return LiveSettings(
-        LiveCorrection(tuple(bands), wind_window),
+        LiveCorrection(tuple(bands), wind_window, _wind_gain(raw["wind_gain"], refuse) if "wind_gain" in raw else None),
         _error_model(raw.get("error_model"), refuse),
         _discrepancy(raw.get("discrepancy"), refuse),
         _rate_prior(raw["prior"], lambda field, problem: refuse(field.replace("rate_prior", "live.prior"), problem))
@@ -647,6 +655,24 @@ def _live(raw: Any, refuse: Any) -> LiveSettings | None:
         law,
         restart,
     )  # fmt: skip
+
+
+def _wind_gain(raw: Any, refuse: Any) -> WindGain:
+    """The share of the measured wind error carried down, by height (absent from a model evaluated
+    before it was learned: it then carries all of it, as it flew)."""
+    where = "live.wind_gain"
+    if not isinstance(raw, dict):
+        raise refuse(where, "must be an object with heights_km and gains")
+    heights, gains = (
+        _numbers(raw.get(k), f"{where}.{k}", refuse, positive=False) for k in ("heights_km", "gains")
+    )
+    if len(heights) != len(gains):
+        raise refuse(where, "heights_km and gains must be as long as each other")
+    if not all(0.0 <= g <= 1.0 for g in gains):
+        raise refuse(
+            f"{where}.gains", "must be within 0–1 (none of the measured error carried, or all of it)"
+        )
+    return WindGain(heights, gains)
 
 
 def _error_model(raw: Any, refuse: Any) -> LiveErrorModel:

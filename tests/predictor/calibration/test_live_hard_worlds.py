@@ -19,34 +19,41 @@ decimals): a model that flies exactly the plain restart there (nothing ships) me
 
 What is asserted. What ships live (the model file's rule, issue #30 item 2: the plain restart above
 22.5 km above the ground, the payload's law × this flight's λ below, the measured wind with L = 4 km
-below 12.5 km; item 4's ellipse does not move a landing) meets every remaining-time floor in every world
-(time ≤ 0.17× the plain restart's from 20 km down). The landing floor (≤ 1.0×) is met in every world from
-25, 20 and 15 km (0.61–1.00×) and in three worlds at every height (below 25 km, where every world
-flies the plain restart: wind ramp 0.89–0.95×, rate drift 0.73–0.95×, Reynolds drag 0.61–0.99×), and missed in five cells (``LANDING_MISSES``, measured with ``-s``,
-95 % bootstrap interval over the ten flights):
+below 12.5 km times the share of it the eight calibration flights' landings wanted, ``live.wind_gain``;
+item 4's ellipse does not move a landing) meets every remaining-time floor in every world (time ≤ 0.17×
+the plain restart's from 20 km down). The landing floor (≤ 1.0×) is met in every world from 25, 20, 15
+and 5 km (0.61–1.00×) and in three worlds at every height (below 25 km, where every world flies the
+plain restart: wind ramp 0.89–0.95×, rate drift 0.73–0.84×, Reynolds drag 0.61–0.88×), and missed in
+four cells (``LANDING_MISSES``, measured with ``-s``, 95 % bootstrap interval over the ten flights):
 
-* noise only: from 10 km above the ground 1.12× (1.03–1.18), from 10 km 1.07× (0.98–1.14), from 5 km
-  1.01× (0.71–1.60);
-* updraft: from 10 km above the ground 1.19× (1.09–1.27), from 10 km 1.14× (1.04–1.22).
+* noise only: from 10 km above the ground 1.05× (0.98–1.11), from 10 km 1.02× (0.94–1.08);
+* updraft: from 10 km above the ground 1.08× (0.99–1.16), from 10 km 1.08× (0.99–1.16).
+
+Before the gain (all of the measured error carried, L = 4 km, the same run through
+``docs/planning/live_rules.py --hard-worlds``) these were 1.12×, 1.07×, 1.19× and 1.14×, and noise only
+from 5 km missed too (1.01×, now 0.95×).
 
 Why, measured here (printed with ``-s`` beside each landing ratio): below 12.5 km what ships adds the
 descent's own measured wind error, and that error is the world's forecast error ABOVE the capsule
 (correlation of the measured error with the field's mean over the 2 km of fall above the report: +1.00
 noise only, +0.63 updraft) but not the one the rest of the fall meets: the field's mean along the fall
 below is uncorrelated with it, or anti-correlated (noise only +0.04, +0.21, +0.27 from 10 km above the
-ground, 10 km and 5 km; updraft −0.51, −0.46 from the first two). So the correction moves the landing
-away from the truth: the same live law without the wind lands 0.97× the restart's in the noise-only
-cells and 1.07× in the updraft ones (there the λ measured above the updraft's band, 1.5–5 km, adds its
-own miss). The field's vertical correlation is a Gaussian of 2.5 km and the fall below 10 km spans
-10 km: on this seeded draw the error above says little of the mean below. The same happens where the
-floor is still met: rate drift 0.95 / 0.91× with the wind against 0.82 / 0.82× without from 10 km above
-the ground / 10 km, Reynolds drag 0.99 / 0.95× against 0.84 / 0.85×. Only where the hidden effect IS a
-wind that carries down (the wind ramp) does the correction help (0.93 / 0.89× against 0.96 / 0.97×).
-Leaving the wind out is not the fix: on the real flights the same correction makes the landing 0.73×
-the plain restart's from 10 km on EOSS leave-one-out (0.96× without it) and 0.87× from 5 km on SuperBIT
-leave-one-out (0.96× without it; docs/planning/live-*.md).
+ground, 10 km and 5 km; updraft −0.51, −0.46 from the first two). The field's vertical correlation is a
+Gaussian of 2.5 km and the fall below 10 km spans 10 km: on this seeded draw the error above says little
+of the mean below. The gain learned on the eight calibration flights (their own draw of the field) takes
+most of the correction out where it did not carry there: flown from 10 km above the ground / 10 km /
+5 km, updraft 0.02 / 0.08 / 1.00, rate drift 0.01 / 0.01 / 0.12, Reynolds drag 0.00 / 0.00 / 0.10, wind
+ramp (a wind that carries down) 0.99 / 0.92 / 0.12. In the noise-only world the calibration flights'
+error did carry at 10 km (least squares 0.9 ± 0.5 there), so 0.55–0.59 of it is flown and the unseen
+flights, whose error does not carry, still miss by a little; without the wind the same live law lands
+0.97× the restart's there, and 1.07× in the updraft cells (there the λ measured above the updraft's
+band, 1.5–5 km, adds its own miss, which no wind gain can take out). Leaving the wind out everywhere is
+not the fix: on the real flights the correction makes the landing 0.73× the plain restart's from 10 km
+on EOSS leave-one-out (0.96× without it) and 0.88× from 5 km on SuperBIT leave-one-out (0.96× without
+it; docs/planning/live-*.md), and the gain learned there keeps it (1.00 on EOSS, 1.00 at 5 km on
+SuperBIT).
 
-The bounds: 1.0 (the issue's floor, at its two-decimal precision) everywhere but the five cells, which
+The bounds: 1.0 (the issue's floor, at its two-decimal precision) everywhere but the four cells, which
 are asserted at what they measure now plus ``MISS_MARGIN`` (0.02): the worlds are seeded and the run
 deterministic, so a cell rising by more than the margin is a change of the estimator, the rule or the
 generator, never a draw. A cell that comes down to the floor fails too, so that this list and the
@@ -112,11 +119,10 @@ CHECKPOINTS = (
 """Altitudes of the first report at or below each (the ground is at ``GROUND_M``)."""
 TIME_FLOOR = {"15 km": 0.85, "10 km": 0.85, "10 km AGL": 0.85}
 LANDING_MISSES = {
-    ("noise only", "10 km AGL"): 1.12,
-    ("noise only", "10 km"): 1.07,
-    ("noise only", "5 km"): 1.01,
-    ("updraft", "10 km AGL"): 1.19,
-    ("updraft", "10 km"): 1.14,
+    ("noise only", "10 km AGL"): 1.05,
+    ("noise only", "10 km"): 1.02,
+    ("updraft", "10 km AGL"): 1.08,
+    ("updraft", "10 km"): 1.08,
 }
 """The landing ratios to the plain restart that miss the floor today, as measured (the module docstring
 says why): asserted not to rise past them by more than ``MISS_MARGIN``, and to be corrected here when

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from datetime import timedelta
 from pathlib import Path
 
@@ -18,6 +19,7 @@ from predictor.prediction.live import (
     OWN_RATE,
     LiveCorrection,
     LivePredictor,
+    WindGain,
 )
 from predictor.prediction.uncertainty import GEOD
 from predictor.tracks.cleaning import clean
@@ -107,6 +109,34 @@ def test_inside_the_band_the_correction_moves_the_landing_toward_the_truth() -> 
     # a good part of the miss, not all of it.
     assert plain > 1.0
     assert corrected < 0.7 * plain
+
+
+def test_the_wind_gain_carries_its_share_of_the_measured_error_and_none_carries_all_of_it() -> None:
+    # A model file without ``wind_gain`` (written before it was learned) flies all of the error, as
+    # it did; a gain g moves the landing g of the way from the restart's to that one's (the isothermal
+    # forecast is horizontally uniform, so the added wind's drift is linear in it).
+    fixes, truth = band_truth()
+    live, report = fed(fixes, 0.5 * (BAND[0] + BAND[1]))
+    whole = LiveCorrection.everywhere(False, 2000.0)
+
+    def landing(correction: LiveCorrection) -> tuple[float, float]:
+        p = live.predict_from(report, correction)
+        return p.prediction.landing.lat, p.prediction.landing.lon
+
+    def gain(g: float) -> LiveCorrection:
+        return replace(whole, wind_gain=WindGain((5.0, 30.0), (g, g)))
+
+    assert whole.wind_gain is None and live.predict_from(report, whole).wind_gain is None
+    assert landing(gain(1.0)) == pytest.approx(landing(whole), abs=1e-9)
+    assert landing(gain(0.0)) == pytest.approx(landing(NO_CORRECTION), abs=1e-9)
+    half = live.predict_from(report, gain(0.5))
+    assert half.wind_gain == 0.5 and half.wind_error_ms == live.predict_from(report, whole).wind_error_ms
+    midpoint = GEOD.inv(*landing(NO_CORRECTION)[::-1], *landing(whole)[::-1])[2] / 2.0
+    assert GEOD.inv(*landing(NO_CORRECTION)[::-1], *landing(gain(0.5))[::-1])[2] == pytest.approx(
+        midpoint, rel=0.01
+    )
+    assert miss_km(live, report, truth, gain(0.5)) < miss_km(live, report, truth, NO_CORRECTION)
+    assert WindGain((2.0, 10.0), (0.0, 0.8)).at(6.0) == pytest.approx(0.4), "linear in height between"
 
 
 def test_a_faster_descent_is_measured_and_scales_the_rest_of_the_fall() -> None:

@@ -20,6 +20,7 @@ from predictor.calibration.live_evaluation import (
     SHIPPED,
     SHIPPED_CORRECTION,
     TEXTBOOK_RATE,
+    TEXTBOOK_RATE_GAIN,
     TEXTBOOK_RATE_WIND,
     WIND_BELOW_M,
     Evaluation,
@@ -165,7 +166,8 @@ def test_the_band_switch_kept_a_correction_only_where_held_out_flights_gained(re
 
 def test_what_ships_is_one_rule_whatever_the_training_flights(result: Evaluation) -> None:
     # The plain restart in the top band, the textbook law with this flight's own λ below it, the wind
-    # with L = 4 km below 12.5 km: no band was chosen by these flights, so no training set's luck can
+    # with L = 4 km below 12.5 km (times the share of it the other flights' landings wanted, a gain, not
+    # a switch): no band was chosen by these flights, so no training set's luck can
     # switch one. The model's law would replace the textbook law only if it beat it beyond its 95 %
     # interval here; measured 0.99 (0.98–1.01) of it from 20 km down, so the textbook law flies, for
     # every flight held out too.
@@ -181,7 +183,8 @@ def test_what_ships_is_one_rule_whatever_the_training_flights(result: Evaluation
     assert SHIPPED_CORRECTION.band_at(0.0) == low
     expected = {25.0: PLAIN_RESTART, 20.0: TEXTBOOK_RATE, 15.0: TEXTBOOK_RATE}
     for case in result.cases:
-        assert result.shipped_name(case) == expected.get(case.checkpoint_km, TEXTBOOK_RATE_WIND)
+        assert result.shipped_name(case) == expected.get(case.checkpoint_km, TEXTBOOK_RATE_GAIN)
+        assert result.whole_wind_name(case) == expected.get(case.checkpoint_km, TEXTBOOK_RATE_WIND)
 
 
 def test_the_calibrated_shape_adds_nothing_live(result: Evaluation) -> None:
@@ -258,7 +261,12 @@ def test_the_committed_model_carries_the_live_settings_its_evaluation_kept(
     # digit of what was committed on another (tests/approx.py: the last bits differ between CPUs).
     assert_close(live_settings(committed, result, COMMAND).live, committed.live)
     assert committed.live.prior is not None and committed.live.prior.flights == 30
-    assert committed.live.law == "payload" and committed.live.correction == SHIPPED_CORRECTION
+    assert committed.live.law == "payload" and committed.live.correction.bands == SHIPPED_CORRECTION.bands
+    # The wind's share learned on these flights: all of it from 5 km (least squares 1.36 ± 0.47), about
+    # half from 10 km (0.78 ± 0.44, shrunk to 0.53), none at 2 km (0.51 ± 0.56, shrunk to 0).
+    gain = committed.live.correction.wind_gain
+    assert gain is not None and gain.heights_km == (10.0, 5.0, 2.0)
+    assert gain.gains == pytest.approx((0.525, 1.0, 0.0), abs=0.01)
     assert committed.provenance["live"]["flights"] == result.flights
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -17,7 +18,14 @@ from predictor.environment.demo_weather import demo_weather_files
 from predictor.environment.weather import load_weather
 from predictor.prediction import FlightSetup
 from predictor.prediction.landings import predict
-from predictor.prediction.live import Band, LiveCorrection, LiveErrorModel, LiveSettings, RateDiscrepancy
+from predictor.prediction.live import (
+    Band,
+    LiveCorrection,
+    LiveErrorModel,
+    LiveSettings,
+    RateDiscrepancy,
+    WindGain,
+)
 from predictor.prediction.model_file import (
     SCHEMA_VERSION,
     CalibratedModel,
@@ -369,7 +377,7 @@ def test_the_shape_is_the_terms_without_the_priors_median() -> None:
 
 
 def test_live_restarts_from_the_law_the_file_names_and_an_older_file_from_its_terms(tmp_path: Path) -> None:
-    # Schema 5 names the live law (what the bands correct) and the restart (what flies outside them); a
+    # Schema 5 named the live law (what the bands correct) and the restart (what flies outside them); a
     # file written before (neither) flew the model's terms live everywhere, and still does. ``payload``:
     # the payload's drag law, no calibrated term (the plain restart from the nominal payload, which the
     # flight's own λ corrects), with the evaluation's λ prior since the calibration's is on the terms.
@@ -395,3 +403,38 @@ def test_live_restarts_from_the_law_the_file_names_and_an_older_file_from_its_te
     assert live.effects == live.restart_effects == () and live.payload == example().payload
     assert live.prior is not None and live.prior.flights == 9
     assert any(note.startswith("live law: the payload's drag law") for note in live.notes)
+
+
+def test_the_wind_gain_is_saved_flown_and_shown_and_an_older_file_carries_all_of_the_wind(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Schema 6 carries the share of the measured wind error the evaluation's flights wanted carried
+    # down (``live.wind_gain``); a file written before has none and flies all of it, as it did.
+    assert example().live is not None and example().live.correction.wind_gain is None
+    assert "wind_gain" not in example().to_dict()["live"]
+    gain = WindGain((2.0, 5.0, 10.0), (0.0, 0.25, 1.0))
+    live = replace(example().live, correction=replace(example().live.correction, wind_gain=gain))
+    path = save_model(replace(example(), live=live), tmp_path / "m.json")
+    loaded = load_model(path)
+    assert loaded.live is not None and loaded.live.correction.wind_gain == gain
+    cube = load_weather(
+        demo_weather_files(46.5, 6.6, WHEN, cache_dir=tmp_path / "wx"), cache_dir=tmp_path / "c"
+    )
+    assert loaded.live_predictor(cube).correction.wind_gain == gain
+    assert main(["model", "show", str(path)]) == 0
+    assert (
+        "live wind share of the measured error carried, by report height: 2 km 0.00, 5 km 0.25, 10 km 1.00"
+        in (capsys.readouterr().out)
+    )
+    document = json.loads(path.read_text(encoding="utf-8"))
+    for bad, message in (
+        ({"heights_km": [2.0, 5.0], "gains": [0.5, 1.2]}, r"live\.wind_gain\.gains: must be within 0–1"),
+        (
+            {"heights_km": [2.0], "gains": [0.5, 0.5]},
+            r"live\.wind_gain: heights_km and gains must be as long",
+        ),
+        ([0.5], r"live\.wind_gain: must be an object with heights_km and gains"),
+    ):
+        document["live"]["wind_gain"] = bad
+        with pytest.raises(ModelFileError, match=message):
+            load_model(_write(tmp_path, document))
