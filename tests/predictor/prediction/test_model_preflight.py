@@ -45,7 +45,9 @@ def gated() -> CalibratedModel:
 def test_the_file_marks_each_term_and_loads_both_laws_back(tmp_path: Path) -> None:
     path = save_model(gated(), tmp_path / "m.json")
     raw = json.loads(path.read_text())
-    assert raw["schema"] == 6, "schema 4 added each term's flown (5 the live law, 6 the pre-flight spread and the wind gain)"
+    assert raw["schema"] == 6, (
+        "schema 4 added each term's flown (5 the live law, 6 the pre-flight spread and the wind gain)"
+    )
     assert [(t["effect"], t["flown"]) for t in raw["terms"]] == [
         ("descent_rate_scale", "live-only"), ("descent_rate_scale", "pre-flight-only"),
         ("drag_density_exponent", "live-only"),
