@@ -30,7 +30,7 @@ demo: $(STAMP)
 	$(BIN)/drs demo
 
 # Test files run in parallel (pytest-xdist), one file to a worker at a time (--dist loadfile): a file's
-# module fixtures are built once and its tests keep their order. Two workers, one per core: four were
+# module fixtures are built once and its tests keep their order. Two workers were chosen first: four were
 # measured slower (22.6 min against 18.8 serial) on this machine loaded by others (load 9-10), with the
 # console ARM-window tests (15 s of wall clock at x8) expiring. TEST_WORKERS=N overrides.
 # --no-loadscope-reorder: the longest files start first (tests/conftest.py, LONGEST_FILES), not the
