@@ -58,7 +58,7 @@ import numpy as np
 
 from predictor.calibration.effects import LIBRARY
 from predictor.calibration.ellipse_fit import fit_parameters
-from predictor.calibration.live_evaluation import ratio_interval
+from predictor.calibration.live_evaluation import ratio_interval, share_with_interval
 from predictor.calibration.preflight_gate import TermGate
 from predictor.calibration.residuals import FlightCase, FlightResiduals, residuals, run, score
 from predictor.calibration.run import prepare
@@ -139,9 +139,7 @@ def stated(cal: Calibration, keep: np.ndarray) -> Stated:
     prior = np.log(cal.rate_factors[keep & np.isfinite(cal.rate_factors)])
     pre = cal.preflight if cal.preflight is not None else cal.after
     own = np.log(pre.rate_factor[keep & np.isfinite(pre.rate_factor)])
-    times = np.array(
-        [math.log1p(r.descent_time_error_s / r.descent_time_s) for r in kept(cal.preflight_residuals)]
-    )
+    times = np.array([r.descent_time_log_ratio for r in kept(cal.preflight_residuals)])
     return Stated(
         {"before": ellipse(cal.after_residuals), "now": ellipse(cal.preflight_residuals)},
         {
@@ -161,7 +159,7 @@ def check(said: Stated, r: FlightResiduals, t_h: float, out: Scored) -> None:
         radius = math.hypot(r.landing_along_km / parallel, r.landing_cross_km / perpendicular)
         out.ellipse[fit].append((radius <= 1.0, radius <= 2.0))
         out.sigma_km[fit].append(parallel)
-    log_ratio = abs(math.log1p(r.descent_time_error_s / r.descent_time_s))
+    log_ratio = abs(r.descent_time_log_ratio)
     for name in SIGMAS:
         sigma = said.log_sigma[name]
         out.time[name].append((log_ratio <= sigma, log_ratio <= 2.0 * sigma))
@@ -278,10 +276,7 @@ HEADER = (
 
 def share(hits: Sequence[bool]) -> str:
     """A share of flights with its 95 % Wilson interval, in per cent."""
-    z, n, inside = 1.96, len(hits), float(np.mean(hits))
-    centre = (inside + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(inside * (1 - inside) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return f"{100 * inside:.0f} % ({100 * max(centre - half, 0.0):.0f}–{100 * min(centre + half, 1.0):.0f})"
+    return share_with_interval(float(np.mean(hits)), len(hits))
 
 
 def ellipse_rows(rows: dict[str, Scored]) -> list[str]:

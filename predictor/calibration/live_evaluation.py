@@ -1426,8 +1426,9 @@ def _rate_law_text(name: str, law: tuple[RatePrior | None, RateDiscrepancy]) -> 
     )
 
 
-def _share(inside: float, flights: int) -> str:
-    """A share of flights with its 95 % (Wilson) interval, and * when it misses issue #30's floor."""
+def share_with_interval(inside: float, flights: int) -> str:
+    """A share of flights with its 95 % (Wilson) interval, in per cent (here and in
+    docs/calibration/preflight_held_out.py)."""
     z, n = 1.96, flights
     centre = (inside + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(inside * (1 - inside) / n + z * z / (4 * n * n)) / (1 + z * z / n)
@@ -1443,7 +1444,7 @@ def _coverage_lines(sigma: LiveErrorModel, coverage: dict[float, Coverage], wide
             "" if 0.60 <= pair[0] <= 0.75 else " **miss**",
             "" if 0.80 <= pair[1] <= 0.95 else " **miss**",
         )
-        return " | ".join(f"{_share(v, flights)}{m}" for v, m in zip(pair, marks, strict=True))
+        return " | ".join(f"{share_with_interval(v, flights)}{m}" for v, m in zip(pair, marks, strict=True))
 
     rows = [
         f"| {h:g} | {c.flights} | {sp:.2f} / {sc:.2f} | {x:.0f} | {cell(c.grown, c.flights)} | "

@@ -495,6 +495,12 @@ class FlightResiduals:
     """Measured, from descent start to touchdown: what ``descent_time_error_s`` is relative to."""
     predicted_drift_km: float
 
+    @property
+    def descent_time_log_ratio(self) -> float:
+        """ln(predicted / measured descent time): for a law whose terms all scale the rate, the ln λ this
+        flight needed to land on time, about the λ flown (what the pre-flight interval is stated in)."""
+        return math.log1p(self.descent_time_error_s / self.descent_time_s)
+
 
 def residuals(case: FlightCase, runs: Runs, row: int = 0) -> FlightResiduals:
     """The residuals of one predicted descent (row ``row`` of ``runs``) at every measured fix."""

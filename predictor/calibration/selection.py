@@ -370,9 +370,7 @@ class Calibration:
         |ln(predicted / measured descent time)| that 68.3 % of the held-out pre-flight predictions stay
         within. Not the prior's sd: that is about the live law's median, which does not fly before
         release when the gate kept it out."""
-        misses = np.array(
-            [abs(math.log1p(r.descent_time_error_s / r.descent_time_s)) for r in self.preflight_residuals]
-        )
+        misses = np.array([abs(r.descent_time_log_ratio) for r in self.preflight_residuals])
         return PreflightSpread(min(float(np.quantile(misses, ONE_SIGMA)), 1.0), len(misses))
 
     @property

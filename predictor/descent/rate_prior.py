@@ -37,14 +37,7 @@ class RatePrior:
             raise PredictorError(
                 f"rate prior median λ {self.median!r} is outside {MEDIAN_LIMITS[0]}–{MEDIAN_LIMITS[1]}"
             )
-        if not (LOG_SIGMA_LIMITS[0] <= self.log_sigma <= LOG_SIGMA_LIMITS[1]) or not math.isfinite(
-            self.log_sigma
-        ):
-            raise PredictorError(
-                f"rate prior log_sigma {self.log_sigma!r} is outside {LOG_SIGMA_LIMITS[0]}–{LOG_SIGMA_LIMITS[1]}"
-            )
-        if self.flights < 1:
-            raise PredictorError(f"rate prior needs at least one flight, got {self.flights}")
+        _check_spread("rate prior", self.log_sigma, self.flights)
 
     def to_dict(self) -> dict[str, Any]:
         return {"median": self.median, "log_sigma": self.log_sigma, "flights": self.flights}
@@ -72,14 +65,18 @@ class PreflightSpread:
     flights: int
 
     def __post_init__(self) -> None:
-        if not (LOG_SIGMA_LIMITS[0] <= self.log_sigma <= LOG_SIGMA_LIMITS[1]) or not math.isfinite(
-            self.log_sigma
-        ):
-            raise PredictorError(
-                f"pre-flight spread log_sigma {self.log_sigma!r} is outside {LOG_SIGMA_LIMITS[0]}–{LOG_SIGMA_LIMITS[1]}"
-            )
-        if self.flights < 1:
-            raise PredictorError(f"pre-flight spread needs at least one flight, got {self.flights}")
+        _check_spread("pre-flight spread", self.log_sigma, self.flights)
 
     def to_dict(self) -> dict[str, Any]:
         return {"log_sigma": self.log_sigma, "flights": self.flights}
+
+
+def _check_spread(what: str, log_sigma: float, flights: int) -> None:
+    """The checks a spread of ln λ shares, whichever law it is about: within ``LOG_SIGMA_LIMITS`` and
+    measured on at least one flight."""
+    if not (LOG_SIGMA_LIMITS[0] <= log_sigma <= LOG_SIGMA_LIMITS[1]) or not math.isfinite(log_sigma):
+        raise PredictorError(
+            f"{what} log_sigma {log_sigma!r} is outside {LOG_SIGMA_LIMITS[0]}–{LOG_SIGMA_LIMITS[1]}"
+        )
+    if flights < 1:
+        raise PredictorError(f"{what} needs at least one flight, got {flights}")

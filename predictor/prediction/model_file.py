@@ -572,12 +572,17 @@ def _ellipse(raw: Any, refuse: Any) -> ErrorModel | None:
         raise refuse("ellipse", str(exc)) from None
 
 
+def _flights(value: Any, where: str, refuse: Any) -> int:
+    """A count of flights: a JSON integer (``true`` is not one, though Python's bool is an int)."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise refuse(where, f"must be a whole number of flights, got {value!r}")
+    return value
+
+
 def _rate_prior(raw: Any, refuse: Any) -> RatePrior:
     if not isinstance(raw, dict):
         raise refuse("rate_prior", "must be an object with median, log_sigma and flights")
-    flights = raw.get("flights")
-    if isinstance(flights, bool) or not isinstance(flights, int):
-        raise refuse("rate_prior.flights", f"must be a whole number of flights, got {flights!r}")
+    flights = _flights(raw.get("flights"), "rate_prior.flights", refuse)
     try:
         return RatePrior(
             _number(raw.get("median"), "rate_prior.median", refuse),
@@ -591,9 +596,7 @@ def _rate_prior(raw: Any, refuse: Any) -> RatePrior:
 def _preflight_spread(raw: Any, refuse: Any) -> PreflightSpread:
     if not isinstance(raw, dict):
         raise refuse("preflight_spread", "must be an object with log_sigma and flights")
-    flights = raw.get("flights")
-    if isinstance(flights, bool) or not isinstance(flights, int):
-        raise refuse("preflight_spread.flights", f"must be a whole number of flights, got {flights!r}")
+    flights = _flights(raw.get("flights"), "preflight_spread.flights", refuse)
     try:
         return PreflightSpread(_number(raw.get("log_sigma"), "preflight_spread.log_sigma", refuse), flights)
     except PredictorError as exc:
