@@ -129,7 +129,8 @@ class HistoryScreen(ConsoleScreen):
 
     def action_entries(self) -> None:
         # Focus moves now, not after the keys already read: Widget.focus() is queued behind them, so a
-        # quick ↓ q typed together put the q in the search box (seen in the tmux test under load).
+        # quick ↓ q typed together put the q in the search box (seen in the tmux test under load). A q
+        # read before ↓ has bubbled up to this binding still goes to the search box, where it only searches.
         self.set_focus(self.query_one("#audit", DataTable))
 
     def action_export(self) -> None:

@@ -166,7 +166,13 @@ def test_a_capsule_is_released_and_recovered_in_the_demo(
     terminal.back_to_fleet()
     terminal.keys("h")
     terminal.wait_for("released, Pi shut")
-    terminal.keys("Down", "q")  # the search box has the focus: ↓ moves to the entries, where q quits
+    # The search box has the focus: ↓ moves to the entries, where q quits. ↓'s binding runs once the key
+    # has bubbled back to the app, so a q typed before that still reaches the search box (CI under load,
+    # 2026-12-03). The footer offers `e Export` only once the entries have the focus: the search box
+    # would take the e.
+    terminal.keys("Down")
+    terminal.wait_for("e Export")
+    terminal.keys("q")
     terminal.wait_for("Quit the DRS console?")
     terminal.keys("Tab", "Enter")
     deadline = time.monotonic() + 20
