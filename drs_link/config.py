@@ -49,7 +49,7 @@ _warned_legacy: set[Path] = set()
 def _current_or_legacy(directory: Path, legacy: Path, name: str) -> Path:
     """``directory/name``, unless only the pre-XDG ``legacy/name`` exists: then that, with a warning."""
     current, old = directory / name, legacy.expanduser() / name
-    if current != old and not current.exists() and old.exists():
+    if current != old and not _exists(current) and _exists(old):
         if old not in _warned_legacy:
             _warned_legacy.add(old)
             log.warning(
@@ -57,6 +57,18 @@ def _current_or_legacy(directory: Path, legacy: Path, name: str) -> Path:
             )
         return old
     return current
+
+
+def _exists(path: Path) -> bool:
+    """Whether ``path`` is there; one behind a directory this account cannot enter counts as not there.
+
+    ``Path.exists`` raises on EACCES: an operator whose ``$XDG_DATA_HOME`` was another account's (a
+    ``sudo -E``, the test suite's own directories) could not run even a command that never opens the
+    store. Whatever does open the file later says why it cannot."""
+    try:
+        return path.exists()
+    except OSError:
+        return False
 
 
 def default_config_path() -> Path:

@@ -79,3 +79,18 @@ def test_health_and_export_are_read_by_the_server_and_the_export_is_the_operator
         "asking account may: check its mode and every directory above it)\n"
     ), out
     assert not (home / "map.png").exists()
+
+
+def test_an_operator_whose_own_directories_she_cannot_enter_still_asks_the_server(
+    capsule_server: tuple[CapsuleSimulator, Server], place: Path, team: Team,
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
+) -> None:  # fmt: skip
+    """Her $HOME and $XDG_* name another account's 0700 directory (a ``sudo -E``): looking for the store's
+    old place raised EACCES before any command ran, though this one never opens a store of hers."""
+    locked = tmp_path / "root-only"  # tmp_path is 0700, root's
+    for name in ("HOME", "XDG_CONFIG_HOME", "XDG_DATA_HOME"):
+        monkeypatch.setenv(name, str(locked / name.lower()))
+    (locked / "xdg_data_home" / "drs").mkdir(parents=True)
+    (locked / "xdg_data_home" / "drs" / "drs.sqlite").touch()
+    code, out = drs(team.alice, client_config(place, team.alice), "mo", "health", "DRS1")
+    assert code == 0 and out.startswith("DRS1: 0 reports"), out
