@@ -28,6 +28,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import threading
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
@@ -112,7 +113,9 @@ def demo_weather_files(
     for step in range(0, last_step + 1, STEP_H):
         path = folder / gfs_file_name(cycle, step)
         if not path.is_file():
-            partial = path.with_name(path.name + ".partial")
+            # One partial file per writer: two processes making the same cold entry at once (two
+            # consoles, a console and `drs predict`, the suite's workers) once wrote one shared name.
+            partial = path.with_name(f"{path.name}.{os.getpid()}-{threading.get_ident():x}.partial")
             u, v, t, gh = demo_atmosphere(lats, lons, cycle + timedelta(hours=step))
             write_gfs_grib2(
                 partial,

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
+import time
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
@@ -134,3 +137,44 @@ def test_a_span_no_flight_needs_is_refused_before_any_file_is_written(tmp_path: 
     with pytest.raises(WeatherError, match="demo weather is written for 0 to 72 hours"):
         demo_weather_files(46.0, 6.0, START, tmp_path, hours=hours)  # type: ignore[arg-type]
     assert not any(tmp_path.iterdir())
+
+
+WRITER = """
+import sys, time
+from datetime import datetime, UTC
+from pathlib import Path
+from predictor.environment.demo_weather import demo_weather_files
+go = Path(sys.argv[2])
+Path(sys.argv[3]).touch()
+while not go.exists():
+    time.sleep(0.005)
+files = demo_weather_files(46.5, 6.6, datetime(2026, 11, 22, 7, 40, tzinfo=UTC), sys.argv[1], hours=3)
+print(" ".join(str(f) for f in files))
+"""
+
+
+def test_processes_making_the_same_cold_files_at_once_each_get_whole_files(tmp_path: Path) -> None:
+    """Four writers of one cold entry, released together: the suite's workers, or a console and a `drs
+    predict`, share one cache. They once wrote one shared ``.partial`` name: a writer's rename then
+    found it gone (or renamed another's half-written file)."""
+    go = tmp_path / "go"
+    ready = [tmp_path / f"ready-{index}" for index in range(4)]
+    writers = [
+        subprocess.Popen(
+            [sys.executable, "-c", WRITER, str(tmp_path / "cache"), str(go), str(mark)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )  # fmt: skip
+        for mark in ready
+    ]
+    deadline = time.monotonic() + 120
+    while not all(mark.exists() for mark in ready) and time.monotonic() < deadline:
+        time.sleep(0.01)  # each has imported the writer and waits for the go
+    go.touch()
+    answers = [writer.communicate(timeout=120) for writer in writers]
+    assert [writer.returncode for writer in writers] == [0] * 4, [err for _, err in answers]
+    [files] = {out.strip() for out, _ in answers}
+    cube = load_weather([Path(f) for f in files.split()], cache_dir=tmp_path / "cubes")
+    assert cube.is_demo and np.isfinite(cube.u).all()
+    assert not list((tmp_path / "cache").rglob("*.partial"))
