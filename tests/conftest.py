@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import pyproj  # noqa: F401  (before any test imports eccodes: see predictor/environment/native_libs.py)
@@ -12,6 +14,19 @@ from tests.clock import SkipClock
 
 os.environ.setdefault("DRS_SERVER_IDLE_S", "20")
 """The private operations servers that `drs` commands start in tests exit 20 s after their last request."""
+
+SUITE_HOME_ENV = "DRS_TEST_SUITE_HOME"
+MADE_HERE = SUITE_HOME_ENV not in os.environ
+if MADE_HERE:
+    os.environ[SUITE_HOME_ENV] = tempfile.mkdtemp(prefix="drs-suite-")
+SUITE_HOME = Path(os.environ[SUITE_HOME_ENV])
+"""This run's own home, configuration, data and cache directories, shared by its workers (they inherit the
+variable from the process that made it). Before, a run read and wrote this account's: the operator's store
+(``~/.local/share/drs``, and the pre-XDG places under ``~``) was opened, a configuration there could change a result, and 1.7 GB of decoded
+weather had piled up in ``~/.cache/drs``, warm for every later run on this machine and cold on a fresh one."""
+for _name in ("HOME", "XDG_CONFIG_HOME", "XDG_DATA_HOME", "XDG_CACHE_HOME", "XDG_STATE_HOME"):
+    os.environ[_name] = str(SUITE_HOME / _name.removeprefix("XDG_").removesuffix("_HOME").lower())
+    Path(os.environ[_name]).mkdir(mode=0o700, exist_ok=True)
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO_ROOT.parent / "shared" / "data"
 
@@ -55,6 +70,11 @@ LONGEST_FILES = (
 xdist's ``loadfile`` hands a worker whole files, by default those with the most tests first: files of
 one long test (an evaluation, a demo in tmux) came last and one worker ran them alone at the end. The Makefile turns that order off (``--no-loadscope-reorder``); this one is the collection's. A
 file missing here only starts later, and a stale list costs balance, never a result."""
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    if MADE_HERE:  # the run's first process made the directory, and removes it; its workers inherited it
+        shutil.rmtree(SUITE_HOME, ignore_errors=True)
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
