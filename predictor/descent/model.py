@@ -718,15 +718,18 @@ class Model:
         return out
 
     def parameter_matrix(self, n: int) -> np.ndarray:
-        """Parameters of every trajectory, shape (n, P): scalar parameters are repeated."""
-        columns: list[np.ndarray] = []
-        for term in self.ordered():
-            for value in term.columns():
-                column = np.broadcast_to(np.asarray(value, dtype=np.float64), (n,))
-                columns.append(column)
-        if not columns:
+        """Parameters of every trajectory, shape (n, P): scalar parameters are repeated.
+
+        Each column is written in place: a broadcast view of each one, then a stack, took as long as the
+        integration itself in the calibration's thousands of small flights (a replayed rate has a column
+        per bin)."""
+        values = [value for term in self.ordered() for value in term.columns()]
+        if not values:
             return np.zeros((n, 1))
-        return np.ascontiguousarray(np.stack(columns, axis=1))
+        matrix = np.empty((n, len(values)), dtype=np.float64)
+        for column, value in enumerate(values):
+            matrix[:, column] = value
+        return matrix
 
     def state_matrix(self, n: int) -> np.ndarray:
         initial = [v for term in self.ordered() for v in term.initial_state()]
