@@ -6,6 +6,7 @@ import json
 import signal
 import subprocess
 import sys
+import threading
 import time
 import tomllib
 from collections.abc import Callable
@@ -439,15 +440,31 @@ def test_go_killed_while_the_pi_runs_it_stays_unverified_and_reset_is_refused(
     assert "Go was sent and not verified" in _one_line_error(capsys)
 
 
-def _go_killed_after_gogogo(sim: CapsuleSimulator, config: Path, store: Store, weather: list[Path]) -> str:
+def _go_killed_after_gogogo(
+    sim: CapsuleSimulator, config: Path, store: Store, weather: list[Path], monkeypatch: pytest.MonkeyPatch
+) -> str:
     """Power on, then kill ``drs capsule go`` once the Pi has written GoGoGo; returns the recorded Go time.
 
     The Pi's script dies on its next write to the dead session (as the stock script does on a broken
-    pipe), so the Pi stays up and the microcontroller has its Go."""
+    pipe), so the Pi stays up and the microcontroller has its Go. That write comes 5 s after GoGoGo: under
+    load (CI with two CPU hogs, 2026-12-03) the kill once came later, the Pi had halted, and the finishing
+    Go found no Pi. So the script's pause after GoGoGo lasts until the kill is done."""
+    killed = threading.Event()
+    pause = sim.clock.sleep
+
+    def held(seconds: float) -> None:
+        if sim.firmware.go_at is not None:
+            killed.wait(timeout=120)
+        pause(seconds)
+
+    monkeypatch.setattr(sim.clock, "sleep", held)
     assert drs(config, "capsule", "power-on", "DRS1", "--yes") == 0
     assert drs(config, "capsule", "arm", "DRS1", *release_args(weather)) == 0
     argv = ["capsule", "go", "DRS1", "--confirm", "DRS1", *release_args(weather)]
-    _kill_when(config, argv, store, "go-sent-unverified", lambda: sim.firmware.go_at is not None)
+    try:
+        _kill_when(config, argv, store, "go-sent-unverified", lambda: sim.firmware.go_at is not None)
+    finally:
+        killed.set()
     [row] = store.query("SELECT state, go_at FROM release_state WHERE capsule = 'DRS1'")
     assert row["state"] == "go-sent-unverified"
     return str(row["go_at"])
@@ -458,10 +475,11 @@ def test_go_killed_after_the_pi_wrote_gogogo_is_finished_by_its_holder_keeping_t
     capsys: pytest.CaptureFixture[str],
     tmp_path: Path,
     weather: list[Path],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     sim, config = setup
     store = Store.open(tmp_path / "data" / "drs.sqlite")
-    go_at = _go_killed_after_gogogo(sim, config, store, weather)
+    go_at = _go_killed_after_gogogo(sim, config, store, weather, monkeypatch)
     assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 0
     assert "released, Pi shut down" in capsys.readouterr().out
     [row] = store.query("SELECT state, go_at, failed_go_at FROM release_state WHERE capsule = 'DRS1'")
@@ -474,12 +492,13 @@ def test_go_killed_with_a_pi_that_then_halted_is_settled_released_by_the_operato
     capsys: pytest.CaptureFixture[str],
     tmp_path: Path,
     weather: list[Path],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """With the Pi halted no Go retry can confirm the release and reset is refused: that left no way out.
     The operator records it released with the evidence (the release time is the Go's); then reset works."""
     sim, config = setup
     store = Store.open(tmp_path / "data" / "drs.sqlite")
-    go_at = _go_killed_after_gogogo(sim, config, store, weather)
+    go_at = _go_killed_after_gogogo(sim, config, store, weather, monkeypatch)
     sim.stop()  # the Pi halted
     capsys.readouterr()
     assert drs(config, "capsule", "go", "DRS1", "--confirm", "DRS1") == 1
