@@ -588,7 +588,14 @@ def load_config(path: str | Path | None = None) -> Config:
         resolved, named_by = _expand(Path(from_env)), f"{CONFIG_ENV}: configuration file"
     else:
         resolved, named_by = default_config_path(), ""
-    if not resolved.exists():
+    try:
+        present = resolved.exists()
+    except OSError as exc:  # EACCES on a directory above it: a file may be there, so the defaults would lie
+        raise ConfigError(
+            f"{resolved}: cannot read: {exc.strerror or exc} (a directory above it cannot be entered by this account;"
+            f" name a readable file with --config or ${CONFIG_ENV})"
+        ) from None
+    if not present:
         if named_by:
             raise ConfigError(f"{named_by} {resolved} does not exist")
         return Config()

@@ -618,9 +618,9 @@ class BalloonFeed:
             self._set_state(f"waiting for {path}")
             return None, None
         stat = os.fstat(handle.fileno())
+        self._set_state(f"following {path}")  # before the first line, so no reader sees a fix from "not started"
         if from_end:
             self._take_last_line(handle, splitter)
-        self._set_state(f"following {path}")
         return handle, (stat.st_dev, stat.st_ino)
 
     def _take_last_line(self, handle: BinaryIO, splitter: _LineSplitter) -> None:

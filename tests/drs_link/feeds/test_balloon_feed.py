@@ -608,6 +608,27 @@ def test_file_feed_follows_appends_truncation_rotation_and_removal(
     assert (feed.status().rejected, feed.status().out_of_order) == (2, 0)
 
 
+def test_a_fix_taken_from_a_log_at_start_is_never_seen_beside_the_state_not_started(
+    tmp_path: Path, feeds: Callable[..., BalloonFeed]
+) -> None:
+    """The console shows count and state together: a fix under "not started" reads as a feed that lies."""
+    path = tmp_path / "groundstation.log"
+    path.write_bytes(ozimux(NOW - timedelta(seconds=5)))
+    seen: list[tuple[int, str]] = []
+    feed: BalloonFeed | None = None
+    started = threading.Event()
+
+    def listener(outcome: BalloonFix | Rejection) -> None:
+        started.wait(5.0)
+        assert feed is not None
+        seen.append((feed.status().accepted, feed.status().state))
+
+    feed = feeds(BalloonFeedConfig(kind="file", path=path), ManualClock(NOW), listener=listener)
+    started.set()
+    wait_for(lambda: bool(seen), "the listener told of the last line")
+    assert seen == [(1, f"following {path}")]
+
+
 def test_file_missing_at_start_is_waited_for_then_read_from_its_start(
     tmp_path: Path, feeds: Callable[..., BalloonFeed]
 ) -> None:

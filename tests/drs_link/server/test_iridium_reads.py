@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from console.commands.main import main
 from drs_link.iridium.firmware import format_mo
 from drs_link.iridium.reports import Delivery, ReportStore
 from drs_link.sim import CapsuleSimulator
@@ -20,7 +21,7 @@ from drs_link.store import Store
 from predictor.geofiles import EXPORT_MODE
 from tests.drs_link.iridium.helpers import T0, fix_at
 from tests.drs_link.server.conftest import IMEI
-from tests.drs_link.server.team import Server, Team, client_config, drs, needs_root
+from tests.drs_link.server.team import Server, Team, as_account, client_config, drs, needs_root
 
 pytestmark = [needs_root, pytest.mark.slow]
 
@@ -94,3 +95,18 @@ def test_an_operator_whose_own_directories_she_cannot_enter_still_asks_the_serve
     (locked / "xdg_data_home" / "drs" / "drs.sqlite").touch()
     code, out = drs(team.alice, client_config(place, team.alice), "mo", "health", "DRS1")
     assert code == 0 and out.startswith("DRS1: 0 reports"), out
+
+
+def test_an_operator_whose_configuration_directory_she_cannot_enter_is_told_so_not_given_the_defaults(
+    team: Team, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A file may be behind it: running on the defaults would show no capsules and another store, like lost data."""
+    locked = tmp_path / "root-only"  # tmp_path is 0700, root's
+    (locked / "drs").mkdir(parents=True)
+    (locked / "drs" / "drs.toml").write_text('[[capsule]]\nname = "DRS1"\nhost = "127.0.0.1"\n')
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(locked))
+    monkeypatch.delenv("DRS_CONFIG", raising=False)
+    code, out = as_account(team.alice, lambda: main(["mo", "health", "DRS1"]))
+    assert code != 0, out
+    assert f"{locked / 'drs' / 'drs.toml'}: cannot read: Permission denied" in out, out
+    assert "--config" in out and "Traceback" not in out and "PermissionError" not in out, out
