@@ -618,7 +618,8 @@ class BalloonFeed:
             self._set_state(f"waiting for {path}")
             return None, None
         stat = os.fstat(handle.fileno())
-        self._set_state(f"following {path}")  # before the first line, so no reader sees a fix from "not started"
+        # Before the first line is taken, so that no reader sees a fix beside "not started".
+        self._set_state(f"following {path}")
         if from_end:
             self._take_last_line(handle, splitter)
         return handle, (stat.st_dev, stat.st_ino)
