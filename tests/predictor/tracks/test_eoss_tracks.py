@@ -190,6 +190,10 @@ def test_the_archives_2025_layout_reads_its_feet_its_iso_times_and_skips_status_
             r":2: packettime '2020-01-02' is not 'YYYY-MM-DD HH:MM:SS' or ISO 8601",
         ),
         (
+            "packettime,callsign,altitude_ft,latitude,longitude\n2020-13-02T10:00:00.000,X,1.0,40.0,-104.0\n",
+            r":2: packettime '2020-13-02T10:00:00.000' is not 'YYYY-MM-DD HH:MM:SS' or ISO 8601",
+        ),
+        (
             "packettime,callsign,altitude,latitude,longitude\n2020-01-02 10:00:00,X,high,40.0,-104.0\n",
             r":2: altitude 'high' is not a number",
         ),
