@@ -23,7 +23,9 @@ interval); where it fails, what ships flies λ = 1. The report lists each traini
 
 Splits: SuperBIT 2018 → 2019 and 2019 → 2018 (calibrated on one season, the other scored), and EOSS
 leave-one-out nested (each of the 10 landed EOSS flights the live reports use scored with a calibration
-of the other 9: selection, gate and λ all without it). Ground: level at each flight's measured landing
+of the other 9: selection, gate and λ all without it), and the 18 EOSS flights copied after every
+design choice (tests/data/eoss/unseen) scored with a calibration of the EOSS design set and with one of
+all 30 SuperBIT flights. Ground: level at each flight's measured landing
 altitude, as in the live reports (no ``--dem``). Each ratio is mean |error| of what ships ÷ the
 baseline's, with its 95 % paired-bootstrap interval over the scored flights
 (``live_evaluation.ratio_interval``, fixed seed): the report is deterministic.
@@ -77,6 +79,8 @@ from predictor.prediction import ErrorModel, coverage
 
 SUPERBIT = sorted(Path("../shared/data/tracks/pyballoon_superbit").glob("*-*.csv"))
 EOSS = sorted(Path("tests/data/eoss").glob("*_descent.csv"))
+UNSEEN = sorted(Path("tests/data/eoss/unseen").glob("*_descent.csv"))
+"""EOSS flights copied after every design choice (tests/data/eoss/SOURCES.md): scored, never trained on."""
 STEP_M = 200.0
 """``drs calibrate``'s default altitude step."""
 LAWS = ("what ships", "plain law", "λ alone")
@@ -213,18 +217,22 @@ def fly(
 
 
 def splits(
-    superbit: Sequence[Path], eoss: Sequence[Path]
+    superbit: Sequence[Path], eoss: Sequence[Path], unseen: Sequence[Path]
 ) -> tuple[dict[str, Scored], dict[str, Calibration], dict[str, Scored]]:
     """The held-out splits, the calibrations whose own leave-one-out is reported beside them, and the
     coverage of what each of those states, flight by flight without it (``within_coverage``)."""
     (c18, payload), (c19, _) = (cases([p for p in superbit if p.name.startswith(y)]) for y in ("18-", "19-"))
     flights, eoss_payload = cases(eoss)
-    out = {"SuperBIT 2018 → 2019": Scored(), "SuperBIT 2019 → 2018": Scored(), "EOSS leave-one-out": Scored()}
+    later, _ = cases(unseen)
+    out = {
+        "SuperBIT 2018 → 2019": Scored(), "SuperBIT 2019 → 2018": Scored(), "EOSS leave-one-out": Scored(),
+        "EOSS → unseen EOSS": Scored(), "SuperBIT 2018–2019 → unseen EOSS": Scored(),
+    }  # fmt: skip
     within = {
         "SuperBIT 2018": fly(c18, c19, payload, out["SuperBIT 2018 → 2019"]),
         "SuperBIT 2019": fly(c19, c18, payload, out["SuperBIT 2019 → 2018"]),
-        "SuperBIT 2018–2019": calibrate([*c18, *c19], payload, LIBRARY, step_m=STEP_M, seed=0),
-        "EOSS": calibrate(flights, eoss_payload, LIBRARY, step_m=STEP_M, seed=0),
+        "SuperBIT 2018–2019": fly([*c18, *c19], later, payload, out["SuperBIT 2018–2019 → unseen EOSS"]),
+        "EOSS": fly(flights, later, eoss_payload, out["EOSS → unseen EOSS"]),
     }
     for i, case in enumerate(flights):
         fly([c for j, c in enumerate(flights) if j != i], [case], eoss_payload, out["EOSS leave-one-out"])
@@ -301,8 +309,8 @@ def time_rows(rows: dict[str, Scored]) -> list[str]:
     ]
 
 
-def report(superbit: Sequence[Path], eoss: Sequence[Path]) -> str:
-    results, within, within_stated = splits(superbit, eoss)
+def report(superbit: Sequence[Path], eoss: Sequence[Path], unseen: Sequence[Path]) -> str:
+    results, within, within_stated = splits(superbit, eoss, unseen)
     lines = [
         "# Pre-flight, held out whole (issue #30)",
         "",
@@ -420,7 +428,7 @@ def report(superbit: Sequence[Path], eoss: Sequence[Path]) -> str:
 
 def main() -> None:
     out = Path(__file__).with_name("preflight-held-out.md")
-    out.write_text(report(SUPERBIT, EOSS), encoding="utf-8")
+    out.write_text(report(SUPERBIT, EOSS, UNSEEN), encoding="utf-8")
     print(out.read_text(encoding="utf-8"))
 
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 import xml.sax
 import xml.sax.handler
 from collections.abc import Iterator, Sequence
@@ -47,6 +48,15 @@ V4_HEADER: tuple[str, ...] = (
 )
 EOSS_COLUMNS: tuple[str, ...] = ("packettime", "altitude", "latitude", "longitude")
 """The columns an EOSS flight table must have, found by name; the archive's others are not positions."""
+EOSS_RENAMED = {"altitude_ft": "altitude"}
+"""The archive's 2025 layout names the unit (``altitude_ft``, beside a new ``altitude_m``); same feet."""
+EOSS_POSITION_FLAG = "position_packet"
+"""The 2025 layout keeps status packets too, ``false`` here: they carry no position and are skipped."""
+EOSS_ISO_TIME = re.compile(
+    r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}:\d{2}(?:\.\d{1,6})?(?:Z|[+-]\d{2}:\d{2})?", re.ASCII
+)
+"""The 2025 layout's ``packettime`` (``2026-05-09T07:59:15.000``: local, as before; an offset or ``Z``
+when a table gives UTC). A date alone is not a time, so ``fromisoformat``'s other forms are refused."""
 EOSS_SPEED_COLUMN = "speed_mph"
 """Optional: the APRS ground speed, which shows the train has stopped at the last row."""
 EOSS_TIME_ZONE = "America/Denver"
@@ -267,11 +277,12 @@ def read_eoss_csv(path: str | Path) -> Track:
     """
     path = Path(path)
     line_no, header, rows = _header_and_rows(path)
-    names = [h.strip().lower() for h in header]
+    names = _eoss_names(header)
     missing = [name for name in EOSS_COLUMNS if name not in names]
     if missing:
         raise TrackError(f"{path}:{line_no}: an EOSS flight table needs the columns {', '.join(missing)}")
-    column = {name: names.index(name) for name in (*EOSS_COLUMNS, EOSS_SPEED_COLUMN) if name in names}
+    wanted = (*EOSS_COLUMNS, EOSS_SPEED_COLUMN, EOSS_POSITION_FLAG)
+    column = {name: names.index(name) for name in wanted if name in names}
     try:
         local = ZoneInfo(EOSS_TIME_ZONE)
     except ZoneInfoNotFoundError:
@@ -283,15 +294,13 @@ def read_eoss_csv(path: str | Path) -> Track:
         where = f"{path}:{line_no}"
         if len(row) != len(names):
             raise TrackError(f"{where}: expected {len(names)} fields, got {len(row)}")
-        stamp = row[column["packettime"]].strip()
-        try:
-            when = datetime.strptime(stamp, "%Y-%m-%d %H:%M:%S")
-        except ValueError:
-            raise TrackError(f"{where}: packettime {stamp!r} is not 'YYYY-MM-DD HH:MM:SS'") from None
+        if EOSS_POSITION_FLAG in column and row[column[EOSS_POSITION_FLAG]].strip().lower() == "false":
+            continue
+        when = _eoss_time(row[column["packettime"]].strip(), local, where)
         speed = row[column[EOSS_SPEED_COLUMN]].strip() if EOSS_SPEED_COLUMN in column else ""
         fixes.append(
             Fix(
-                time=when.replace(tzinfo=local).astimezone(UTC),
+                time=when,
                 lat=_number(row[column["latitude"]], "latitude", where),
                 lon=_number(row[column["longitude"]], "longitude", where),
                 alt_m=_number(row[column["altitude"]], "altitude", where) * FOOT_M,
@@ -398,8 +407,31 @@ def _header_and_rows(path: Path) -> tuple[int, list[str], Iterator[tuple[int, li
 
 
 def _is_eoss_header(line: str) -> bool:
-    names = {name.strip().lower() for name in line.split(",")}
+    names = _eoss_names(line.split(","))
     return all(name in names for name in EOSS_COLUMNS)
+
+
+def _eoss_names(header: Sequence[str]) -> list[str]:
+    names = [h.strip().lower() for h in header]
+    return [EOSS_RENAMED[n] if n in EOSS_RENAMED and EOSS_RENAMED[n] not in names else n for n in names]
+
+
+def _eoss_time(stamp: str, local: ZoneInfo, where: str) -> datetime:
+    try:
+        when = datetime.strptime(stamp, "%Y-%m-%d %H:%M:%S")
+    except ValueError:
+        try:  # the pattern's shape with a month 13 still fails in fromisoformat
+            iso = datetime.fromisoformat(stamp) if EOSS_ISO_TIME.fullmatch(stamp) else None
+        except ValueError:
+            iso = None
+        if iso is None:
+            raise TrackError(
+                f"{where}: packettime {stamp!r} is not 'YYYY-MM-DD HH:MM:SS' or ISO 8601"
+            ) from None
+        if iso.tzinfo is not None:
+            return iso.astimezone(UTC)
+        when = iso
+    return when.replace(tzinfo=local).astimezone(UTC)
 
 
 def _first_line(path: Path) -> str:

@@ -465,3 +465,23 @@ def test_the_committed_eoss_leave_one_out_report_is_what_the_evaluation_writes(t
     written = write_live_report(result, tmp_path, command, "live-eoss-leave-one-out")
     committed = REPO_ROOT / "docs" / "planning" / "live-eoss-leave-one-out.md"
     assert_text_close(written.read_text(encoding="utf-8"), committed.read_text(encoding="utf-8"))
+
+
+def test_eoss_flights_copied_after_every_design_choice_are_flown_as_the_committed_report_says(
+    tmp_path: Path,
+) -> None:
+    # docs/planning/live-eoss-to-unseen-eoss.md: the design set's EOSS flights train, the flights copied
+    # after every design choice (tests/data/eoss/unseen) are scored. Nothing of the rule, the estimator
+    # or the bands was chosen with these flights; deterministic data and no draw, so a change here is a
+    # change of the code or the tracks. Which floors are met is the report's to say (docs/planning.md).
+    design = sorted((REPO_ROOT / "tests" / "data" / "eoss").glob("*_descent.csv"))
+    unseen = sorted((REPO_ROOT / "tests" / "data" / "eoss" / "unseen").glob("*_descent.csv"))
+    result = evaluate_live(unseen, train=design)
+    assert len(result.flights) == len(unseen) >= 5
+    command = (
+        f"drs live evaluate --train <{len(design)} track files eoss-* in eoss> --score <{len(unseen)} track"
+        " files eoss-* in unseen> --name live-eoss-to-unseen-eoss --out docs/planning"
+    )
+    written = write_live_report(result, tmp_path, command, "live-eoss-to-unseen-eoss")
+    committed = REPO_ROOT / "docs" / "planning" / "live-eoss-to-unseen-eoss.md"
+    assert_text_close(written.read_text(encoding="utf-8"), committed.read_text(encoding="utf-8"))
