@@ -64,7 +64,9 @@ class HistoryScreen(ConsoleScreen):
 
     def on_mount(self) -> None:
         self.ready = True
-        self.query_one("#search", Input).focus()
+        # set_focus now, not focus(): that is queued, so a ↓ read meanwhile moved to the entries and the
+        # queued focus then took it back to the search box (the tmux test, a quiet fresh clone).
+        self.set_focus(self.query_one("#search", Input))
         self.call_after_refresh(self.fill, "")  # once laid out: the detail column's width needs the table's
 
     def on_resize(self) -> None:
