@@ -46,6 +46,17 @@ class Terminal:
         self.keys("Escape")
         self.wait_for("v Recovery")
 
+    def press_until(self, key: str, text: str, attempts: int, timeout_s: float) -> str:
+        """Press ``key`` until ``text`` shows, as an operator presses again after nothing happened; the
+        screen once it does. ``attempts`` presses that each waited ``timeout_s`` in vain are a failure."""
+        for _ in range(attempts):
+            self.keys(key)
+            try:
+                return self.wait_for(text, timeout_s=timeout_s)
+            except AssertionError:
+                continue
+        raise AssertionError(f"{key} pressed {attempts} times, {text!r} never appeared:\n{self.screen()}")
+
     def screen(self) -> str:
         return subprocess.run(
             [TMUX, "capture-pane", "-p", "-t", self.session], check=True, capture_output=True, text=True
@@ -139,18 +150,11 @@ def arm_drs1(terminal: Terminal, mode: str = "DEMO", booting: Callable[[], None]
     arm(terminal)
 
 
-def arm(terminal: Terminal, attempts: int = 5) -> None:
+def arm(terminal: Terminal) -> None:
     """Press ARM as an operator does, again after a refusal. At 60× the poll's 20 s freshness limits are
     a third of a real second: on a starved machine (a loaded CI) a poll goes stale between two looks and
     ARM is refused or the window closes, as it must; five refusals in a row would be a failure."""
-    for _ in range(attempts):
-        terminal.keys("a")
-        try:
-            terminal.wait_for("ARMED —", timeout_s=20.0)
-            return
-        except AssertionError:
-            continue
-    raise AssertionError(f"ARM refused {attempts} times in a row:\n{terminal.screen()}")
+    terminal.press_until("a", "ARMED —", attempts=5, timeout_s=20.0)
 
 
 def fire(terminal: Terminal, attempts: int = 4) -> None:
@@ -200,14 +204,7 @@ def test_a_capsule_is_released_and_recovered_in_the_demo(
     # 2026-12-03). The footer offers `e Export` only once the entries have the focus: the search box
     # would take the e. Once (a quiet fresh clone, 2026-12-03 evening) a ↓ left the search box focused
     # for 120 s, cause not found; an operator presses ↓ again, and so does this test.
-    for _ in range(5):
-        terminal.keys("Down")
-        try:
-            terminal.wait_for("e Export", timeout_s=15.0)
-            break
-        except AssertionError:
-            continue
-    terminal.wait_for("e Export", timeout_s=1.0)
+    terminal.press_until("Down", "e Export", attempts=5, timeout_s=15.0)
     terminal.keys("q")
     terminal.wait_for("Quit the DRS console?")
     terminal.keys("Tab", "Enter")
