@@ -417,21 +417,17 @@ def _eoss_names(header: Sequence[str]) -> list[str]:
 
 
 def _eoss_time(stamp: str, local: ZoneInfo, where: str) -> datetime:
+    when: datetime | None
     try:
         when = datetime.strptime(stamp, "%Y-%m-%d %H:%M:%S")
     except ValueError:
         try:  # the pattern's shape with a month 13 still fails in fromisoformat
-            iso = datetime.fromisoformat(stamp) if EOSS_ISO_TIME.fullmatch(stamp) else None
+            when = datetime.fromisoformat(stamp) if EOSS_ISO_TIME.fullmatch(stamp) else None
         except ValueError:
-            iso = None
-        if iso is None:
-            raise TrackError(
-                f"{where}: packettime {stamp!r} is not 'YYYY-MM-DD HH:MM:SS' or ISO 8601"
-            ) from None
-        if iso.tzinfo is not None:
-            return iso.astimezone(UTC)
-        when = iso
-    return when.replace(tzinfo=local).astimezone(UTC)
+            when = None
+    if when is None:
+        raise TrackError(f"{where}: packettime {stamp!r} is not 'YYYY-MM-DD HH:MM:SS' or ISO 8601")
+    return (when if when.tzinfo is not None else when.replace(tzinfo=local)).astimezone(UTC)
 
 
 def _first_line(path: Path) -> str:

@@ -42,11 +42,6 @@ def rows_of(path: Path) -> list[dict[str, str]]:
     return [{("altitude" if k == "altitude_ft" else k): v for k, v in row.items()} for row in rows]
 
 
-def local_time(text: str) -> datetime:
-    """``2019-07-13 08:02:30`` before 2025, ``2026-05-09T07:59:15.000`` after: the same local time."""
-    return datetime.fromisoformat(text)
-
-
 def _meta(row: dict[str, str], name: str) -> float:
     """The archive renamed its columns in 2025 (``maxaltitude`` became ``maxaltitude_ft``)."""
     return float(row[name] if name in row else row[name + "_ft"])
@@ -72,7 +67,7 @@ def test_every_row_is_a_fix_in_utc_metres_and_time_order(path: Path) -> None:
         assert fix.alt_m == float(row["altitude"]) * FOOT_M
         assert (fix.lat, fix.lon) == (float(row["latitude"]), float(row["longitude"]))
         assert fix.speed_ms == float(row["speed_mph"]) * MPH_MS
-        local = local_time(row["packettime"])
+        local = datetime.fromisoformat(row["packettime"])  # `2019-07-13 08:02:30`, `2026-05-09T07:59:15.000`
         offset_h = (local - fix.time.replace(tzinfo=None)).total_seconds() / 3600
         assert offset_h in (-6.0, -7.0), "Denver is UTC-6 in summer, UTC-7 in winter"
     times = [f.time for f in track.fixes]
@@ -212,8 +207,8 @@ def test_malformed_eoss_tables_name_file_and_line(tmp_path: Path, content: str, 
 
 def test_etopo20_is_within_tens_of_metres_of_the_landed_flights_ground(shared_data: Path) -> None:
     """The coarse DEM against each landed flight's own at-rest altitude (SOURCES.md: RMS 46 m, worst
-    74 m on EOSS-297 for the design set's 10; with the unseen batch's 14, RMS 43 m, worst 95 m on
-    EOSS-382): small against a 30 km descent, but three times SRTM's error."""
+    74 m on EOSS-297 for the design set's 10; with the unseen batch's 18, RMS 44 m over 28, worst 95 m
+    on EOSS-382): small against a 30 km descent, but three times SRTM's error."""
     terrain = Terrain.from_netcdf(shared_data / "dem/ferret_etopo/etopo20.cdf")
     errors = []
     for path in descent_files():
