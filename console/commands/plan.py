@@ -432,8 +432,6 @@ def run_evaluate(args: argparse.Namespace) -> int:
             day=args.date, weather=weather, terrain=Terrain.from_dir(args.dem) if args.dem else None,
             train=args.train, progress=tell,
         )  # fmt: skip
-    if not result.flights:
-        raise PredictorError(f"no usable flight among the tracks given: {'; '.join(result.skipped)}")
     flown = f" --model {args.model}" if args.model is not None else ""
     flown += f" --weather <{len(args.weather)} GRIB files>" if args.weather else ""
     flown += f" --dem {args.dem}" if args.dem else ""

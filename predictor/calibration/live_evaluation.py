@@ -414,6 +414,9 @@ def _usable(
     return flights
 
 
+MIN_EVALUATED_FLIGHTS = 3
+"""The live error model (``fit_live_sigma``) needs three flights at a checkpoint height; with fewer an
+evaluation has nothing to say how sure a live prediction is."""
 REFIT_RTOL = 1e-4
 """A refit within this of the model's parameters is the model's law. Why not tighter: the optimiser
 stops a few 1e-6 apart on the same data when the flights come in another order or another machine
@@ -680,6 +683,11 @@ def measured_discrepancies(
     return laws
 
 
+def _refuse_none(flights: Sequence[_Flight], skipped: Sequence[str]) -> None:
+    if not flights:
+        raise PredictorError(f"no usable flight among the tracks given: {'; '.join(skipped)}")
+
+
 def evaluate_live(
     paths: Sequence[str | Path],
     model: CalibratedModel | None = None,
@@ -711,12 +719,19 @@ def evaluate_live(
     if train is None:
         result = _evaluation(model, profile, weather, terrain)
         flights = _usable(paths, day, result.skipped, weather, terrain, _law_terrain(model, terrain))
+        _refuse_none(flights, result.skipped)
+        if len(flights) < MIN_EVALUATED_FLIGHTS:
+            raise PredictorError(
+                f"a live evaluation needs at least {MIN_EVALUATED_FLIGHTS} usable flights, got {len(flights)}"
+                + (f" (skipped: {'; '.join(result.skipped)})" if result.skipped else "")
+            )
         _replay(result, flights, flights, model, profile, progress)
         _leave_one_out(result)
         _add_gained(result)
         return result
     result = _evaluation(model, profile, weather, terrain)
     scored = _usable(paths, day, result.skipped, weather, terrain, terrain)
+    _refuse_none(scored, result.skipped)
     both = sorted({f.name for f in scored} & {read_track(path, day=day).name for path in train})
     if both:
         raise PredictorError(f"flights both trained and scored on: {', '.join(both)}")
@@ -728,9 +743,9 @@ def evaluate_live(
             "flights alone (drs calibrate --tracks TRAIN... --save-model PATH)"
         )
     training = evaluate_live(train, model, profile, day, weather, terrain, progress=progress)
-    if len(training.flights) < 3:
+    if len(training.flights) < MIN_EVALUATED_FLIGHTS:
         raise PredictorError(
-            f"--train needs at least 3 usable flights, got {len(training.flights)}"
+            f"--train needs at least {MIN_EVALUATED_FLIGHTS} usable flights, got {len(training.flights)}"
             + (f" (skipped: {'; '.join(training.skipped)})" if training.skipped else "")
         )
     result.training = training
@@ -1055,7 +1070,7 @@ def fit_live_sigma(result: Evaluation, leave_out: str | None = None, grow: bool 
     heights, rows = [], []
     for km in CHECKPOINTS_KM:
         cases = [c for c in result.cases if c.checkpoint_km == km and c.flight != leave_out]
-        if len(cases) < 3:
+        if len(cases) < MIN_EVALUATED_FLIGHTS:
             continue
         names = [result.shipped_name(c) for c in cases]
         along = np.array([c.along_km[n] for c, n in zip(cases, names, strict=True)])
@@ -1068,6 +1083,11 @@ def fit_live_sigma(result: Evaluation, leave_out: str | None = None, grow: bool 
         rate_sigma = np.array([c.time_sigma_s.get(n, 0.0) for c, n in zip(cases, names, strict=True)])
         heights.append(km)
         rows.append((along, across, distance, log_error, rate_sigma / predicted))
+    if not rows:
+        raise PredictorError(
+            f"the live error model needs {MIN_EVALUATED_FLIGHTS} flights with a report at one checkpoint height "
+            f"({', '.join(f'{km:g}' for km in CHECKPOINTS_KM)} km), and these flights have fewer at every one"
+        )
     grow = grow and all(np.isfinite(r[2]).all() for r in rows)
     typical = [float(np.sqrt(np.mean(r[2] ** 2))) if grow else 1.0 for r in rows]
     ratios = [

@@ -15,6 +15,7 @@ from predictor.calibration.live_evaluation import (
     Evaluation,
     band_switch_correction,
     evaluate_live,
+    fit_live_sigma,
     floors,
     rate_helps,
     wind_helps,
@@ -100,6 +101,25 @@ def test_evaluate_refuses_a_half_given_split(
 ) -> None:
     assert main(["live", "evaluate", *argv]) != 0
     assert message in capsys.readouterr().err
+
+
+def test_leave_one_out_on_two_flights_is_one_line_naming_the_minimum_not_a_traceback(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Before: numpy's "need at least one array to concatenate" from the live error model's fit.
+    two = tracks(shared_data, ("19-7-28.csv", "18-8-3.csv"))
+    assert main(["live", "evaluate", *map(str, two), "--out", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert err.strip() == "drs: error: a live evaluation needs at least 3 usable flights, got 2"
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_live_error_model_with_no_checkpoint_of_three_flights_says_so(scored: Evaluation) -> None:
+    few = dataclasses.replace(
+        scored, training=None, cases=[c for c in scored.cases if c.flight == scored.flights[0]]
+    )
+    with pytest.raises(PredictorError, match="needs 3 flights with a report at one checkpoint height"):
+        fit_live_sigma(few)
 
 
 @pytest.fixture(scope="module")

@@ -363,12 +363,16 @@ def test_live_bench_re_samples_real_flights_to_1_hz_and_feeds_every_fix(
     folder = shared_data / "tracks" / "pyballoon_superbit"
     tracks = [str(folder / name) for name in ("19-7-28.csv", "18-8-3.csv", "19-1-1.csv")]
     assert main(["live", "bench", *tracks]) == 0
-    line = capsys.readouterr().out
+    line, update = capsys.readouterr().out.splitlines()
     # Three flights of about three hours: some 10,000 fixes each, every descent fix fed.
     fixes = int(line.split(" fixes in the files")[0].rsplit(" ", 1)[1])
     fed = int(line.split(" descent fixes fed")[0].rsplit(" ", 1)[1])
     assert fixes > 3 * 8000 and 0.2 * fixes < fed < fixes
     assert "3 flights used" in line and "(every one)" in line
+    # The first flight's descent down to 5 km above its landing, densified to 10,000 fixes, against its
+    # own 12 two-minute reports down to there; the times are the bench's, not asserted.
+    assert update.startswith("one live update 4.8 km above the landing of 19-7-28 (median of 21): ")
+    assert "ms with 10000 fixes in the record" in update and "ms with the 12 it logged" in update
 
 
 def test_on_a_real_1_hz_descent_the_rate_fit_does_not_swing_with_the_payload(shared_data: Path) -> None:
