@@ -47,27 +47,18 @@ def resampled(path: str | Path, cadence_s: float = 1.0) -> list[Fix]:
     flight = clean(read_track(path))
     if len(flight.fixes) < 2:
         raise PredictorError(f"{path}: fewer than two fixes to re-sample")
-    start = flight.fixes[0].time
-    logged = np.array([(f.time - start).total_seconds() for f in flight.fixes])
-    at = np.arange(0.0, logged[-1] + GROUND_S, cadence_s)
-    lat, lon, alt = (
-        np.interp(at, logged, [getattr(f, k) for f in flight.fixes]) for k in ("lat", "lon", "alt_m")
-    )
-    return [
-        Fix(start + timedelta(seconds=float(t)), float(a), float(b), float(c))
-        for t, a, b, c in zip(at, lat, lon, alt, strict=True)
-    ]
+    span_s = (flight.fixes[-1].time - flight.fixes[0].time).total_seconds()
+    return _interpolated(flight.fixes, np.arange(0.0, span_s + GROUND_S, cadence_s))
 
 
-def _densified(descent: Sequence[Fix], count: int) -> list[Fix]:
-    """The descent as ``count`` fixes evenly spaced in time, linear between the logged ones."""
-    start = descent[0].time
-    logged = np.array([(f.time - start).total_seconds() for f in descent])
-    at = np.linspace(0.0, logged[-1], count)
-    lat, lon, alt = (np.interp(at, logged, [getattr(f, k) for f in descent]) for k in ("lat", "lon", "alt_m"))
+def _interpolated(fixes: Sequence[Fix], at_s: np.ndarray) -> list[Fix]:
+    """Fixes at ``at_s`` seconds from the first one, linear in time between ``fixes`` (held beyond them)."""
+    start = fixes[0].time
+    logged = np.array([(f.time - start).total_seconds() for f in fixes])
+    lat, lon, alt = (np.interp(at_s, logged, [getattr(f, k) for f in fixes]) for k in ("lat", "lon", "alt_m"))
     return [
         Fix(start + timedelta(seconds=float(t)), float(a), float(b), float(c))
-        for t, a, b, c in zip(at, lat, lon, alt, strict=True)
+        for t, a, b, c in zip(at_s, lat, lon, alt, strict=True)
     ]
 
 
@@ -98,7 +89,8 @@ def update_cost(path: str | Path, model: CalibratedModel) -> str:
     )
     logged = descent[: reached + 1]
     logged_ms = _update_ms(model, flight, logged)
-    dense_ms = _update_ms(model, flight, _densified(logged, RECORD_FIXES))
+    span_s = (logged[-1].time - logged[0].time).total_seconds()
+    dense_ms = _update_ms(model, flight, _interpolated(logged, np.linspace(0.0, span_s, RECORD_FIXES)))
     return (
         f"one live update {(logged[-1].alt_m - ground_m) / 1000:.1f} km above the landing of "
         f"{Path(path).stem} (median of {TIMED_CALLS}): {dense_ms:.1f} ms with {RECORD_FIXES} fixes in "
