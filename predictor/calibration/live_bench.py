@@ -100,7 +100,8 @@ def update_cost(path: str | Path, model: CalibratedModel) -> str:
 
 
 def bench(paths: Sequence[str | Path], model: CalibratedModel | None) -> str:
-    """Re-sample every track to 1 Hz in a temporary directory, then time ``evaluate_live`` + ``write_live_report``.
+    """Re-sample every track to 1 Hz in a temporary directory, then time ``evaluate_live`` +
+    ``write_live_report``; and ``update_cost`` on the first track, with ``model`` or the default payload.
 
     The report goes to the temporary directory too and is thrown away: its errors are those of
     straight lines drawn between 3-minute fixes (a touchdown moved to the first fix on the ground, a
