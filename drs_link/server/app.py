@@ -138,6 +138,10 @@ def failure_of(exc: BaseException) -> Failure:
     return Failure("link", f"the server failed: {type(exc).__name__}: {exc}")
 
 
+class ServerStopping(RefusedError):
+    """The server is ending and its worker pool takes no more work."""
+
+
 class OperationsServer:
     def __init__(
         self,
@@ -203,7 +207,19 @@ class OperationsServer:
     # Plumbing ------------------------------------------------------------------------------------
 
     async def blocking(self, work: Callable[[], Any]) -> Any:
-        return await asyncio.get_running_loop().run_in_executor(self.pool, work)
+        return await self.worker(work)
+
+    def worker(self, work: Callable[[], Any]) -> asyncio.Future[Any]:
+        """``work`` on the worker pool; refused as ``ServerStopping`` once the pool takes no more.
+
+        Why: a pool shut down by the stop, or by the interpreter's exit (a server in a thread of a process
+        that is ending), raises a bare ``RuntimeError: cannot schedule new futures``. A handler that asks
+        then is one the server is ending under: its client is told so in one line, and nothing is logged
+        as an unexpected error."""
+        try:
+            return asyncio.get_running_loop().run_in_executor(self.pool, work)
+        except RuntimeError:
+            raise ServerStopping("the operations server is stopping: ask again when it is back") from None
 
     def peer(self, request: web.Request) -> Peer:
         sock = request.transport.get_extra_info("socket") if request.transport else None
@@ -303,7 +319,7 @@ class OperationsServer:
 
         response = web.StreamResponse(headers={"Content-Type": "application/x-ndjson"})
         await response.prepare(request)
-        job = loop.run_in_executor(self.pool, run)
+        job = self.worker(run)
         while True:
             try:
                 step = await asyncio.wait_for(steps.get(), timeout=0.25)
@@ -563,7 +579,10 @@ class OperationsServer:
         try:
             while not ws.closed and not self.stopping.is_set():
                 changes = self.changes  # taken before the look: a change made during it wakes the next wait
-                event = encode(await self.blocking(lambda: self.event(request[PEER])))
+                try:
+                    event = encode(await self.blocking(lambda: self.event(request[PEER])))
+                except ServerStopping:
+                    break  # the stream ends for its client like any stop's (the pool takes no more)
                 if event != last:
                     try:
                         await ws.send_bytes(event)

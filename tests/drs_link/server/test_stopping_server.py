@@ -106,6 +106,28 @@ def test_an_event_stream_open_when_the_server_stops_ends_and_nothing_is_logged(c
     assert isinstance(events, list | LinkError), events
 
 
+def test_a_pool_that_takes_no_more_work_ends_the_stream_and_refuses_the_verb_in_one_line(
+    config: Config,
+) -> None:
+    """What CI saw at a worker's exit: a server in a thread of a process whose interpreter was ending (its
+    worker pool then raises ``RuntimeError: cannot schedule new futures after interpreter shutdown``)
+    logged an event stream's next look as an ``unexpected error`` with its traceback on the terminal. A pool
+    shut down under an open stream does the same: the stream ends for its client, a verb is refused in one
+    line naming the stop, and nothing is logged (the fixture fails the test on any error logged)."""
+    server = InProcessServer(config)
+    Desk(Client(server.socket)).view()  # a desk exists, so each event looks at it on the pool
+    listening, ended = in_thread(lambda: list(Client(server.socket).events()))
+    time.sleep(0.5)  # the stream's first event was sent; it waits for a change
+    server.server.pool.shutdown(wait=True)
+    with pytest.raises(LinkError, match="the operations server is stopping: ask again when it is back"):
+        Desk(Client(server.socket)).waive("DRS1", "gnss", "no sky in the hangar")  # and wakes the stream
+    listening.join(HANG_S)
+    assert not listening.is_alive(), "the stream still waits on a pool that takes no work"
+    [events] = ended
+    assert isinstance(events, list | LinkError), events
+    server.stop()
+
+
 def reads_while_stopping(server: InProcessServer, readers: int = 4) -> list[str]:
     """Clients reading the desk without a pause while the server stops: how long each one that waited
     past ``HANG_S`` waited (their own timeout is longer still)."""
