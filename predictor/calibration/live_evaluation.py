@@ -688,6 +688,29 @@ def _refuse_none(flights: Sequence[_Flight], skipped: Sequence[str]) -> None:
         raise PredictorError(f"no usable flight among the tracks given: {'; '.join(skipped)}")
 
 
+def _refuse_too_few(flights: Sequence[_Flight], skipped: Sequence[str], needs: str) -> None:
+    """Flights each held out among the others: the live error model needs ``MIN_EVALUATED_FLIGHTS``."""
+    if len(flights) < MIN_EVALUATED_FLIGHTS:
+        raise PredictorError(
+            f"{needs} needs at least {MIN_EVALUATED_FLIGHTS} usable flights, got {len(flights)}"
+            + (f" (skipped: {'; '.join(skipped)})" if skipped else "")
+        )
+
+
+def _each_held_out(
+    result: Evaluation,
+    flights: list[_Flight],
+    model: CalibratedModel,
+    profile: Payload,
+    progress: Callable[[str, int, int | None], None] | None,
+) -> Evaluation:
+    """Leave-one-flight-out on ``flights``: each flown with what the others measured and chose."""
+    _replay(result, flights, flights, model, profile, progress)
+    _leave_one_out(result)
+    _add_gained(result)
+    return result
+
+
 def evaluate_live(
     paths: Sequence[str | Path],
     model: CalibratedModel | None = None,
@@ -720,15 +743,8 @@ def evaluate_live(
         result = _evaluation(model, profile, weather, terrain)
         flights = _usable(paths, day, result.skipped, weather, terrain, _law_terrain(model, terrain))
         _refuse_none(flights, result.skipped)
-        if len(flights) < MIN_EVALUATED_FLIGHTS:
-            raise PredictorError(
-                f"a live evaluation needs at least {MIN_EVALUATED_FLIGHTS} usable flights, got {len(flights)}"
-                + (f" (skipped: {'; '.join(result.skipped)})" if result.skipped else "")
-            )
-        _replay(result, flights, flights, model, profile, progress)
-        _leave_one_out(result)
-        _add_gained(result)
-        return result
+        _refuse_too_few(flights, result.skipped, "a live evaluation")
+        return _each_held_out(result, flights, model, profile, progress)
     result = _evaluation(model, profile, weather, terrain)
     scored = _usable(paths, day, result.skipped, weather, terrain, terrain)
     _refuse_none(scored, result.skipped)
@@ -742,13 +758,10 @@ def evaluate_live(
             f"({', '.join(sorted(set(seen) & {f.name for f in scored}))}): calibrate it on the training "
             "flights alone (drs calibrate --tracks TRAIN... --save-model PATH)"
         )
-    training = evaluate_live(train, model, profile, day, weather, terrain, progress=progress)
-    if len(training.flights) < MIN_EVALUATED_FLIGHTS:
-        raise PredictorError(
-            f"--train needs at least {MIN_EVALUATED_FLIGHTS} usable flights, got {len(training.flights)}"
-            + (f" (skipped: {'; '.join(training.skipped)})" if training.skipped else "")
-        )
-    result.training = training
+    training = _evaluation(model, profile, weather, terrain)
+    trained = _usable(train, day, training.skipped, weather, terrain, _law_terrain(model, terrain))
+    _refuse_too_few(trained, training.skipped, "--train")
+    result.training = _each_held_out(training, trained, model, profile, progress)
     kept = [f for f in _usable(train, day, [], weather, terrain, terrain) if f.name in training.flights]
     _replay(result, kept, scored, model, profile, progress)
     for km, choice in training.all_flights_choice.items():

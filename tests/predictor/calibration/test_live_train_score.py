@@ -114,6 +114,11 @@ def test_leave_one_out_on_two_flights_is_one_line_naming_the_minimum_not_a_trace
     assert not any(tmp_path.iterdir())
 
 
+def test_a_training_set_of_two_flights_is_refused_naming_train(shared_data: Path) -> None:
+    with pytest.raises(PredictorError, match=r"^--train needs at least 3 usable flights, got 2$"):
+        evaluate_live(tracks(shared_data, SCORE), train=tracks(shared_data, TRAIN[:2]))
+
+
 def test_a_live_error_model_with_no_checkpoint_of_three_flights_says_so(scored: Evaluation) -> None:
     few = dataclasses.replace(
         scored, training=None, cases=[c for c in scored.cases if c.flight == scored.flights[0]]
