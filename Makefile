@@ -38,7 +38,13 @@ demo: $(STAMP)
 # 2026-12-03, fresh clone, quiet: three workers 9 min 15 s against two 11 min 28 s (2274 passed each; a
 # third of the suite's time waits on real processes, sshd, tmux and the simulators, not on a core); three
 # under load 7-8 (two other suites running) passed too, 21 min 43 s.
-TEST_WORKERS ?= 3
+# 2026-12-04, quiet, 2340 tests: three workers 9 min 26 s (970 s of CPU); with one thread each (below)
+# 7 min 35 s (736 s), four 7 min 1 s (756 s); four under two CPU hogs: see the README's speed table.
+TEST_WORKERS ?= 4
+# One thread per worker for numba's parallel kernels and OpenBLAS: the workers already fill both cores,
+# and the threads each of them started spun against the other workers' (the pre-flight held-out report:
+# 51 s of CPU in the suite, 17 s with one thread).
+ONE_THREAD = OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1
 
 # The predictor's kernels compile into the checkout's cache beside the lint (tests/warm_compiled.py),
 # not in every worker at once; a failure there is left to the tests to show.
@@ -46,7 +52,7 @@ test: $(STAMP)
 	{ $(BIN)/python -m tests.warm_compiled & } ; \
 	$(BIN)/ruff check . && $(BIN)/ruff format --check . && $(BIN)/lint-imports && $(BIN)/mypy; \
 	linted=$$?; wait; [ $$linted -eq 0 ] && \
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+	$(ONE_THREAD) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

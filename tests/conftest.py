@@ -48,25 +48,30 @@ def skip_clock(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> SkipClock:
 LONGEST_FILES = (
     "tests/predictor/calibration/test_live_hard_worlds.py",
     "tests/console/test_release_flow.py",
-    "tests/console/test_live_demo_tmux.py",
     "tests/predictor/calibration/test_live_independent.py",
-    "tests/console/commands/test_cli_capsule.py",
-    "tests/console/test_one_rule.py",
-    "tests/console/test_end_to_end_tmux.py",
-    "tests/predictor/calibration/test_preflight_held_out_report.py",
-    "tests/predictor/environment/test_grib_native_faults.py",
-    "tests/predictor/calibration/test_vertical_contest.py",
-    "tests/console/test_live_demo.py",
     "tests/predictor/prediction/test_live_real.py",
-    "tests/console/test_screens.py",
-    "tests/drs_link/server/test_fire_two_accounts.py",
-    "tests/drs_link/server/test_stopping_server.py",
-    "tests/console/commands/test_cli_predict.py",
+    "tests/predictor/environment/test_grib_native_faults.py",
+    "tests/console/commands/test_cli_capsule.py",
+    "tests/console/test_live_demo_tmux.py",
+    "tests/console/test_one_rule.py",
     "tests/predictor/tawhiri/test_server_hardening.py",
+    "tests/console/test_end_to_end_tmux.py",
+    "tests/predictor/environment/test_demo_weather.py",
+    "tests/predictor/calibration/test_ellipse_fit.py",
+    "tests/predictor/calibration/test_selection_by_family.py",
+    "tests/console/test_screens.py",
+    "tests/console/test_live_demo.py",
     "tests/predictor/calibration/test_live_train_score.py",
+    "tests/console/commands/test_cli_predict.py",
+    "tests/predictor/calibration/test_vertical_contest.py",
+    "tests/drs_link/server/test_fire_two_accounts.py",
+    "tests/predictor/calibration/test_selection_synthetic.py",
+    "tests/predictor/calibration/test_report.py",
+    "tests/drs_link/server/test_stopping_server.py",
+    "tests/predictor/calibration/test_preflight_held_out_report.py",
 )
-"""The files that took longest, longest first, which start first (``pytest -n 2 --dist loadfile
---no-loadscope-reorder --durations=0``, setup + call + teardown summed per file, 2026-12-03: 58 s down to 21 s).
+"""The files that took longest, longest first, which start first (``make test``'s pytest with four
+workers, each test's setup + call + teardown summed per file, 2026-12-04: 68 s down to 23 s).
 xdist's ``loadfile`` hands a worker whole files, by default those with the most tests first: files of
 one long test (an evaluation, a demo in tmux) came last and one worker ran them alone at the end. The Makefile turns that order off (``--no-loadscope-reorder``); this one is the collection's. A
 file missing here only starts later, and a stale list costs balance, never a result."""
