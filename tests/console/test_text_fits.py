@@ -89,12 +89,18 @@ async def test_the_mt_detail_is_shown_whole_at_120x40(canned_app: Callable[..., 
 async def test_every_footer_key_is_whole_at_80x24(
     canned_app: Callable[..., DrsConsole], keys: list[str]
 ) -> None:
-    """The palette hint, docked right, covered "q Quit" on release and Iridium, "Help" on recovery."""
+    """The palette hint, docked right, covered "q Quit" on release and Iridium, "Help" on recovery.
+
+    The footer is looked at once it is laid out (its "Quit" has a width): under two CPU hogs one pause
+    after the keys once found no key laid out yet."""
     app = canned_app()
     async with app.run_test(size=(80, 24)) as pilot:
         await pilot.press(*keys)
         await app.workers.wait_for_complete()
-        await pilot.pause()
+        await wait_for(
+            pilot,
+            lambda: any(k.description == "Quit" and k.region.width for k in app.screen.query(FooterKey)),
+        )
         shown = [key for key in app.screen.query(FooterKey) if key.display and key.region.width]
         palette = [key for key in shown if key.has_class("-command-palette")]
         edge = palette[0].region.x if palette else 80
