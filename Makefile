@@ -30,16 +30,14 @@ demo: $(STAMP)
 	$(BIN)/drs demo
 
 # Test files run in parallel (pytest-xdist), one file to a worker at a time (--dist loadfile): a file's
-# module fixtures are built once and its tests keep their order. Two workers were chosen first: four were
-# measured slower (22.6 min against 18.8 serial) on this machine loaded by others (load 9-10), with the
-# console ARM-window tests (15 s of wall clock at x8) expiring. TEST_WORKERS=N overrides.
-# --no-loadscope-reorder: the longest files start first (tests/conftest.py, LONGEST_FILES), not the
-# files with the most tests, which left the files of one long test to one worker at the end.
-# 2026-12-03, fresh clone, quiet: three workers 9 min 15 s against two 11 min 28 s (2274 passed each; a
-# third of the suite's time waits on real processes, sshd, tmux and the simulators, not on a core); three
-# under load 7-8 (two other suites running) passed too, 21 min 43 s.
-# 2026-12-04, quiet, 2340 tests: three workers 9 min 26 s (970 s of CPU); with one thread each (below)
-# 7 min 35 s (736 s), four 7 min 1 s (756 s); four under two CPU hogs: see the README's speed table.
+# module fixtures are built once and its tests keep their order. --no-loadscope-reorder: the longest files
+# start first (tests/conftest.py, LONGEST_FILES), not the files with the most tests, which left the files
+# of one long test to one worker at the end. A third of the suite's time waits on real processes (sshd,
+# tmux, the simulators), not on a core, so there are more workers than cores. TEST_WORKERS=N overrides.
+# 2026-12-04, quiet, 2340 tests, pytest alone: three workers 9 min 26 s (970 s of CPU), four 10 min 14 s
+# (1,141 s); with one thread per worker (ONE_THREAD) three 7 min 35 s (736 s), four 7 min 1 s (756 s);
+# four beside two CPU hogs, fresh clone: 11 min 23 s, 2340 passed. (Four, with each worker's own threads,
+# were measured slower before, under load 9-10: 22.6 min against 18.8 serial.)
 TEST_WORKERS ?= 4
 # One thread per worker for numba's parallel kernels and OpenBLAS: the workers already fill both cores,
 # and the threads each of them started spun against the other workers' (the pre-flight held-out report:
