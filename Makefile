@@ -34,11 +34,9 @@ demo: $(STAMP)
 # start first (tests/conftest.py, LONGEST_FILES), not the files with the most tests, which left the files
 # of one long test to one worker at the end. A third of the suite's time waits on real processes (sshd,
 # tmux, the simulators), not on a core, so there are more workers than cores. TEST_WORKERS=N overrides.
-# 2026-12-04, quiet, 2340 tests, pytest alone: three workers 9 min 26 s (970 s of CPU), four 10 min 14 s
-# (1,141 s); with one thread per worker (ONE_THREAD) three 7 min 35 s (736 s), four 7 min 1 s (756 s);
-# four beside two CPU hogs, fresh clone: 11 min 23 s, 2340 passed. (Four, with each worker's own threads,
-# were measured slower before, under load 9-10: 22.6 min against 18.8 serial.)
-TEST_WORKERS ?= 4
+# 2026-12-04, fresh clones beside two CPU hogs on this 2-core machine, pytest: four workers 12 min 21 s,
+# six 10 min 11 s, eight 11 min 15 s (2340 passed each). Quiet, four: 7 min 41 s.
+TEST_WORKERS ?= 6
 # One thread per worker for numba's parallel kernels and OpenBLAS: the workers already fill both cores,
 # and the threads each of them started spun against the other workers' (the pre-flight held-out report:
 # 51 s of CPU in the suite, 17 s with one thread).

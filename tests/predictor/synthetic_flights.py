@@ -185,25 +185,37 @@ def _weights(axis: np.ndarray, x: float) -> list[tuple[int, float]]:
     return [(i, 1.0 - w), (i + 1, w)]
 
 
-def _column(cube: WeatherCube, field: np.ndarray, t: float, lat: float, lon: float) -> np.ndarray:
+def _corners(cube: WeatherCube, t: float, lat: float, lon: float) -> list[tuple[int, int, int, float]]:
+    """The (time, lat, lon) indices around a point and each one's weight, weighed once for every field
+    read there (a flight's generation asked for them nine times per point, in its inner loops)."""
     times = cube.times.astype("datetime64[s]").astype(np.float64)
+    lat_weights = _weights(cube.lats, lat)
+    lon_weights = _weights(cube.lons, float(cube.lon_in_cube(lon)))
+    return [
+        (ti, yi, xi, wt * wy * wx)
+        for ti, wt in _weights(times, t)
+        for yi, wy in lat_weights
+        for xi, wx in lon_weights
+    ]
+
+
+def _column(field: np.ndarray, corners: list[tuple[int, int, int, float]]) -> np.ndarray:
     out = np.zeros(field.shape[1])
-    for ti, wt in _weights(times, t):
-        for yi, wy in _weights(cube.lats, lat):
-            for xi, wx in _weights(cube.lons, float(cube.lon_in_cube(lon))):
-                out += wt * wy * wx * field[ti, :, yi, xi]
+    for ti, yi, xi, weight in corners:
+        out += weight * field[ti, :, yi, xi]
     return out
 
 
 def _wind_at(cube: WeatherCube, t: float, lat: float, lon: float, z: float) -> tuple[float, float]:
-    z_col = _column(cube, cube.z_m, t, lat, lon)
-    u = np.interp(z, z_col, _column(cube, cube.u, t, lat, lon))
-    v = np.interp(z, z_col, _column(cube, cube.v, t, lat, lon))
+    corners = _corners(cube, t, lat, lon)
+    z_col = _column(cube.z_m, corners)
+    u = np.interp(z, z_col, _column(cube.u, corners))
+    v = np.interp(z, z_col, _column(cube.v, corners))
     return float(u), float(v)
 
 
 def _pressure_at(cube: WeatherCube, t: float, lat: float, lon: float, z: float) -> float:
-    z_col = _column(cube, cube.z_m, t, lat, lon)
+    z_col = _column(cube.z_m, _corners(cube, t, lat, lon))
     return float(np.exp(np.interp(z, z_col, np.log(cube.levels_hpa * 100.0))))
 
 
