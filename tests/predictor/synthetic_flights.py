@@ -187,7 +187,8 @@ def _weights(axis: np.ndarray, x: float) -> list[tuple[int, float]]:
 
 def _corners(cube: WeatherCube, t: float, lat: float, lon: float) -> list[tuple[int, int, int, float]]:
     """The (time, lat, lon) indices around a point and each one's weight, weighed once for every field
-    read there (a flight's generation asked for them nine times per point, in its inner loops)."""
+    read there: weighed again for each field, and the longitude's inside the time and latitude loops,
+    they were a quarter of a flight's generation."""
     times = cube.times.astype("datetime64[s]").astype(np.float64)
     lat_weights = _weights(cube.lats, lat)
     lon_weights = _weights(cube.lons, float(cube.lon_in_cube(lon)))
