@@ -186,9 +186,9 @@ def _weights(axis: np.ndarray, x: float) -> list[tuple[int, float]]:
 
 
 def _corners(cube: WeatherCube, t: float, lat: float, lon: float) -> list[tuple[int, int, int, float]]:
-    """The (time, lat, lon) indices around a point and each one's weight, weighed once for every field
-    read there: weighed again for each field, and the longitude's inside the time and latitude loops,
-    they were a quarter of a flight's generation."""
+    """The (time, lat, lon) indices around a point and each one's weight, shared by every field read
+    there. Weighing them again for each field (the longitude's inside the time and latitude loops) was
+    a quarter of a flight's generation."""
     times = cube.times.astype("datetime64[s]").astype(np.float64)
     lat_weights = _weights(cube.lats, lat)
     lon_weights = _weights(cube.lons, float(cube.lon_in_cube(lon)))
